@@ -1,0 +1,148 @@
+# mcfd - one top-level Makefile.
+#
+#   make            build/libmcf.a, build/libmcfapi.a, build/mcf (and build/mcfd once server/ exists)
+#   make deps       install missing Debian packages (dpkg -s, then apt-get install -y; sudo when not root)
+#   make test       deps, build, then every unit test binary (build/tests/test_*)
+#   make bench      benchmarks (bench/), ratios against a peer measured in the same run
+#   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
+#   make WERROR=1 ...                  warnings are errors (CI)
+#   make check-deps the one-way dependency server -> api -> core
+#
+# Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
+# tests/test_*.c needs no edit here.
+
+SHARED ?= $(abspath ../shared)
+MESHES ?= $(SHARED)/meshes
+
+ifdef SAN
+B ?= build-san
+else
+B ?= build
+endif
+
+CC  ?= cc
+CXX ?= c++
+
+WARN := -std=c11 -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
+        -Wmissing-prototypes -Wformat=2 -Wcast-qual -Wundef
+CXXWARN := -std=c++17 -Wall -Wextra -Wshadow -Wformat=2 -Wundef
+ifeq ($(WERROR),1)
+WARN    += -Werror
+CXXWARN += -Werror
+endif
+
+OPT      ?= -O2 -g
+CFLAGS   ?= $(OPT)
+CXXFLAGS ?= $(OPT)
+CPPFLAGS += -I/usr/include/suitesparse -Icore -Iapi
+LDFLAGS  ?=
+ifdef SAN
+CFLAGS   := -O1 -g -fsanitize=$(SAN) -fno-sanitize-recover=all -fno-omit-frame-pointer
+CXXFLAGS := $(CFLAGS)
+LDFLAGS  += -fsanitize=$(SAN)
+endif
+
+LIBS_CORE := -lcholmod -lsuitesparseconfig -lm
+LIBS_API  := -ldraco -lcjson
+LIBS_SRV  := -lmicrohttpd -lpthread
+LIBS_TEST := -lcmocka -lcurl
+
+# Debian packages: build and test dependencies.
+DEB_PKGS := build-essential clang libsuitesparse-dev libopenblas-dev libcjson-dev \
+            libmicrohttpd-dev libdraco-dev draco libcurl4-openssl-dev libcmocka-dev \
+            gnuplot-nox
+DEB_BENCH := libeigen3-dev libcgal-dev
+
+CORE_SRC := $(wildcard core/*.c)
+API_SRC  := $(wildcard api/*.c)
+API_CXX  := $(wildcard api/*.cc)
+CLI_SRC  := $(wildcard cli/*.c)
+SRV_SRC  := $(wildcard server/*.c)
+TEST_SRC := $(wildcard tests/test_*.c)
+TESTLIB  := $(wildcard tests/testlib.c)
+
+CORE_OBJ := $(CORE_SRC:%.c=$(B)/%.o)
+API_OBJ  := $(API_SRC:%.c=$(B)/%.o) $(API_CXX:%.cc=$(B)/%.o)
+CLI_OBJ  := $(CLI_SRC:%.c=$(B)/%.o)
+SRV_OBJ  := $(SRV_SRC:%.c=$(B)/%.o)
+TESTLIB_OBJ := $(TESTLIB:%.c=$(B)/%.o)
+TEST_BIN := $(TEST_SRC:tests/%.c=$(B)/tests/%)
+
+PROGS := $(B)/mcf
+ifneq ($(SRV_SRC),)
+PROGS += $(B)/mcfd
+endif
+
+.PHONY: all deps test unit bench run check-deps clean asan fuzz
+.DEFAULT_GOAL := all
+
+all: $(B)/libmcf.a $(B)/libmcfapi.a $(PROGS)
+
+$(B)/libmcf.a: $(CORE_OBJ)
+	@mkdir -p $(@D)
+	rm -f $@ && ar rcs $@ $^
+
+$(B)/libmcfapi.a: $(API_OBJ)
+	@mkdir -p $(@D)
+	rm -f $@ && ar rcs $@ $^
+
+$(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
+
+$(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_API) $(LIBS_CORE)
+
+# core/ is strict C11 with no POSIX; api/, cli/, server/ and tests/ get POSIX.
+$(B)/core/%.o: core/%.c
+	@mkdir -p $(@D)
+	$(CC) $(WARN) $(CPPFLAGS) $(CFLAGS) -MMD -MP -c $< -o $@
+
+$(B)/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(CFLAGS) -MMD -MP -c $< -o $@
+
+$(B)/%.o: %.cc
+	@mkdir -p $(@D)
+	$(CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
+
+$(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
+
+-include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d)
+
+# ---- set-up: install what is missing, nothing else
+deps:
+	@missing=""; for p in $(DEB_PKGS) $(EXTRA_PKGS); do \
+	  dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -n "$$missing" ]; then \
+	  echo "make deps: installing$$missing"; \
+	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
+	  $$SUDO apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
+	fi
+
+# ---- tests: every binary, MESHES passed through the environment
+test: deps
+	$(MAKE) all $(TEST_BIN)
+	$(MAKE) check-deps
+	@fail=0; for t in $(TEST_BIN); do \
+	  echo "== $$t"; MCF_MESHES=$(MESHES) MCF_BUILD=$(B) $$t || fail=1; done; \
+	exit $$fail
+
+asan:
+	$(MAKE) SAN=address,undefined test
+
+bench: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
+	$(MAKE) all
+	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
+
+check-deps:
+	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
+	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }
+	@! grep -nE '#include *[<"]microhttpd\.h' api/*.c api/*.cc api/*.h || \
+	  { echo "check-deps: api/ must not include microhttpd.h"; exit 1; }
+	@echo "check-deps: server -> api -> core holds"
+
+clean:
+	rm -rf build build-san build-fuzz

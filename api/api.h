@@ -1,0 +1,186 @@
+/*
+ * api.h - the public interface of mcfd's api layer: bytes <-> meshes and
+ * JSON parameters/metrics.
+ *
+ * Codecs work on memory buffers only, never on paths: (const void *buf,
+ * size_t len) in, an mcf_mesh out; an mcf_mesh in, an api_buf out. Every
+ * decoder checks the api_limits before data reaches core/ and names the
+ * offending line, element or key in the mcf_error message. The Draco codec
+ * is the only C++ (api_draco.cc); it exports plain C through this header.
+ *
+ * Dependencies run one way: server -> api -> core. This header may include
+ * mcf.h and cJSON, never microhttpd.h.
+ */
+#ifndef API_H
+#define API_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cjson/cJSON.h>
+
+#include "../core/mcf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------ byte buffer */
+
+/* A growable byte buffer with a hard maximum (curl's dynbuf). Appending
+ * past max fails with ELIMIT and leaves the buffer unchanged. The data is
+ * always NUL-terminated (not counted in len). init cannot fail. */
+typedef struct {
+    char *data;
+    size_t len, cap, max;
+} api_buf;
+
+void api_buf_init(api_buf *b, size_t max);
+void api_buf_free(api_buf *b);                   /* accepts zeroed */
+mcf_status api_buf_append(api_buf *b, const void *p, size_t n);
+mcf_status api_buf_printf(api_buf *b, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* Hands the data to the caller (free() it) and resets the buffer. */
+char *api_buf_detach(api_buf *b, size_t *len);
+
+/* ----------------------------------------------------------------- limits */
+
+/* Every limit on untrusted input, in one place. 0 means "no limit" for
+ * the size_t/double fields only where documented. */
+typedef struct {
+    size_t max_input_bytes;    /* one mesh upload (default 256 MiB) */
+    int max_vertices;          /* default 5,000,000 */
+    int max_faces;             /* default 10,000,000 */
+    int max_iterations;        /* steps of one job (default 100,000) */
+    double max_work;           /* iterations x vertices (default 2e10) */
+    size_t max_json_bytes;     /* parameters document (default 64 KiB) */
+    int max_json_depth;        /* nesting (default 16) */
+    int max_fixed;             /* fixed-vertex list length (default = max_vertices) */
+} api_limits;
+
+void api_limits_default(api_limits *lim);
+
+/* ---------------------------------------------------------------- formats */
+
+typedef enum {
+    API_FMT_UNKNOWN = 0,
+    API_FMT_OBJ,
+    API_FMT_DRACO,
+    API_FMT_PLY,
+    API_FMT_STL,
+    API_FMT_OFF
+} api_format;
+
+/* From the bytes: "DRACO" magic, "ply\n", "OFF", binary STL size rule or
+ * "solid ... facet", else OBJ-looking text ("v ", "f ", "#"). */
+api_format api_format_detect(const void *buf, size_t len);
+/* From a name, extension or file name: "obj", ".drc", "out.ply", "draco". */
+api_format api_format_from_name(const char *name);
+const char *api_format_name(api_format f);       /* "obj", "draco", ... */
+const char *api_format_ext(api_format f);        /* ".obj", ".drc", ... */
+const char *api_format_mime(api_format f);       /* "model/obj", ... */
+
+/* Encoder options; api_encode_opts_init sets the defaults. */
+typedef struct {
+    api_format format;        /* UNKNOWN: same as the input */
+    int quantization_bits;    /* Draco: 0 = lossless (default 0), else 1..30 */
+    int compression_level;    /* Draco: 0..10 (default 7) */
+    int preserve_order;       /* Draco: sequential method, order kept */
+    int ply_binary;           /* PLY: binary little-endian (default 1) */
+    const double *ply_mean_curvature;     /* PLY: optional per-vertex */
+    const double *ply_gaussian_curvature; /* properties (borrowed) */
+    int stl_binary;           /* STL: default 1 */
+} api_encode_opts;
+
+void api_encode_opts_init(api_encode_opts *o);
+
+/* Decodes any supported format (detected from the bytes). *out is a new
+ * mesh owned by the caller; *fmt (may be NULL) the detected format.
+ * Errors: EFORMAT (unknown format), EDECODE (malformed, with the line or
+ * element), ELIMIT (a limit, naming it), EMESH (core refused), ENOMEM. */
+mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
+                           mcf_mesh **out, api_format *fmt, mcf_error *err);
+/* Encodes in o->format (which must not be UNKNOWN) into out (appended). */
+mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
+                           api_buf *out, mcf_error *err);
+
+/* Per-format codecs, same contracts. */
+mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
+                          mcf_mesh **out, mcf_error *err);
+mcf_status api_obj_encode(const mcf_mesh *m, api_buf *out, mcf_error *err);
+mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
+                          mcf_mesh **out, mcf_error *err);
+mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
+                          api_buf *out, mcf_error *err);
+mcf_status api_stl_decode(const void *buf, size_t len, const api_limits *lim,
+                          mcf_mesh **out, mcf_error *err);
+mcf_status api_stl_encode(const mcf_mesh *m, const api_encode_opts *o,
+                          api_buf *out, mcf_error *err);
+mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
+                          mcf_mesh **out, mcf_error *err);
+mcf_status api_off_encode(const mcf_mesh *m, api_buf *out, mcf_error *err);
+mcf_status api_draco_decode(const void *buf, size_t len, const api_limits *lim,
+                            mcf_mesh **out, mcf_error *err);
+/* *max_quant_err (may be NULL): largest |decoded - input| coordinate error
+ * of the encoded result (0 when lossless). */
+mcf_status api_draco_encode(const mcf_mesh *m, const api_encode_opts *o,
+                            api_buf *out, double *max_quant_err,
+                            mcf_error *err);
+
+/* ------------------------------------------------------------- parameters */
+
+/* Job parameters: the core flow parameters plus what the api layer needs.
+ * Owns the fixed-vertex array (params.flow.fixed points into it). */
+typedef struct {
+    mcf_flow_params flow;
+    api_encode_opts encode;       /* output format and encoder options */
+    double noise_rho;             /* > 0: inject noise before the flow */
+    uint64_t seed;
+    int32_t *fixed_owned;         /* backing store of flow.fixed */
+    int time_set, iterations_set; /* which of the two was given */
+} api_params;
+
+void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
+void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */
+
+/* One validation path for every source (JSON, query string, CLI flags):
+ * sets key to the textual value, EINVAL naming the key and the accepted
+ * range when it is unknown, of the wrong type or out of range. */
+mcf_status api_params_set(api_params *p, const char *key, const char *value,
+                          const api_limits *lim, mcf_error *err);
+/* A JSON object of keys (cJSON_ParseWithLengthOpts, depth/size limited);
+ * numbers, strings, booleans and (for fixed_vertices) arrays of integers. */
+mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
+                                 const api_limits *lim, mcf_error *err);
+/* A URL query string "scheme=desbrun2&dt=1e-3" (percent-decoded). Keys the
+ * daemon handles itself (listed in `ignore`, NULL-terminated) are skipped. */
+mcf_status api_params_parse_query(api_params *p, const char *qs,
+                                  const char *const *ignore,
+                                  const api_limits *lim, mcf_error *err);
+/* Final checks once the mesh is known: mcf_flow_params_check, fixed
+ * indices in range, iterations x vertices within max_work. */
+mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
+                             mcf_error *err);
+/* The parameters as a JSON object (for job records and metrics). */
+cJSON *api_params_to_json(const api_params *p);
+
+/* ------------------------------------------------------------------- JSON */
+
+/* Each returns a new cJSON object (caller cJSON_Delete's) or NULL on
+ * allocation failure. */
+cJSON *api_json_mesh_info(const mcf_mesh_info *info,
+                          const mcf_curvature_summary *curv);
+cJSON *api_json_curvature(const mcf_curvature_summary *curv);
+cJSON *api_json_flow_stats(const mcf_flow_stats *st);
+cJSON *api_json_compare(const mcf_compare_result *cmp);
+cJSON *api_json_schemes(void);
+/* Serializes (pretty when pretty != 0) into a malloc'ed string. */
+char *api_json_print(const cJSON *j, int pretty);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* API_H */

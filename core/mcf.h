@@ -1,0 +1,319 @@
+/*
+ * mcf.h - the public interface of libmcf, the numeric core of mcfd.
+ *
+ * libmcf smooths triangle meshes by mean curvature flow (MCF). It is a pure
+ * C11 library: it depends on libc, libm and CHOLMOD only, does no I/O, keeps
+ * no mutable globals and is reentrant. Arrays come in, arrays go out.
+ *
+ * Conventions (../shared/MATH.md): positions X are n x 3 doubles stored
+ * row-major (x0 y0 z0 x1 ...); faces are m x 3 int32 vertex indices. The
+ * cotan stiffness L is positive semi-definite, the lumped mass M diagonal,
+ * the MCF velocity is F(X) = -M^-1 L X, the mean curvature H = (k1+k2)/2 is
+ * positive on a sphere with outward normals, and Delta X = -2 H n.
+ *
+ * Errors: every fallible call returns an mcf_status and, when the caller
+ * passes a non-NULL mcf_error, writes a one-line explanation into it. No
+ * global error state exists. Out-parameters are left unchanged on failure.
+ */
+#ifndef MCF_H
+#define MCF_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------- errors */
+
+/* One table yields the enum, mcf_strerror() and the server's HTTP map.
+ * Codes are only ever appended, never renumbered. */
+#define MCF_ERRORS(X)                                                  \
+    X(OK, 0, "success")                                                \
+    X(ENOMEM, 1, "out of memory")                                      \
+    X(EINVAL, 2, "invalid argument")                                   \
+    X(EMESH, 3, "malformed mesh")                                      \
+    X(ENOTPOSDEF, 4, "system matrix not positive definite")            \
+    X(ELIMIT, 5, "input exceeds a configured limit")                   \
+    X(EDECODE, 6, "cannot decode input")                               \
+    X(ENUMERIC, 7, "numerical failure (NaN, divergence or inverted faces)") \
+    X(ECANCELED, 8, "canceled")                                        \
+    X(ENOCONV, 9, "iteration did not converge")                        \
+    X(EFORMAT, 10, "unsupported format")                               \
+    X(EIO, 11, "input/output error")
+
+typedef enum {
+#define MCF_X_(name, code, text) MCF_##name = code,
+    MCF_ERRORS(MCF_X_)
+#undef MCF_X_
+} mcf_status;
+
+#define MCF_ERRMSG_SIZE 256
+
+/* Caller-owned error detail. status repeats the returned code. */
+typedef struct {
+    mcf_status status;
+    char msg[MCF_ERRMSG_SIZE];
+} mcf_error;
+
+/* Static text for a code ("unknown error" for an unknown one). */
+const char *mcf_strerror(mcf_status s);
+/* The symbolic name of a code, e.g. "EMESH". */
+const char *mcf_status_name(mcf_status s);
+
+/* ------------------------------------------------------------------ mesh */
+
+typedef struct mcf_mesh mcf_mesh;
+
+/* Copies nv positions (3*nv doubles) and nf faces (3*nf ints). Refuses
+ * (EMESH) an index out of [0, nv), a non-finite coordinate, nv == 0 or
+ * nf == 0, with the first offending element named in err. Everything else
+ * (degenerate, duplicate, non-manifold faces, unreferenced vertices) is
+ * accepted and reported by mcf_mesh_inspect(). */
+mcf_mesh *mcf_mesh_new(int nv, const double *X, int nf, const int32_t *F,
+                       mcf_error *err);
+mcf_mesh *mcf_mesh_dup(const mcf_mesh *m, mcf_error *err);
+void mcf_mesh_free(mcf_mesh *m); /* accepts NULL */
+
+int mcf_mesh_nvertices(const mcf_mesh *m);
+int mcf_mesh_nfaces(const mcf_mesh *m);
+/* Lends the arrays; valid until the mesh is freed. Positions may be
+ * written through mcf_mesh_positions_mut (same length, 3*nv). */
+const double *mcf_mesh_positions(const mcf_mesh *m);
+double *mcf_mesh_positions_mut(mcf_mesh *m);
+const int32_t *mcf_mesh_faces(const mcf_mesh *m);
+
+/* A closed icosphere of the given radius: level 0 is the icosahedron
+ * (12 vertices), each level quadruples the faces: nv = 10*4^level + 2
+ * (level 7: 163,842 vertices). level in [0, 10]. */
+mcf_mesh *mcf_mesh_new_icosphere(int level, double radius, mcf_error *err);
+
+/* What validation found. Counts are exact; genus is -1 where it is not
+ * meaningful (non-manifold or several components: see genus_sum). */
+typedef struct {
+    int nv, nf, ne;                 /* vertices, faces, unique edges */
+    int unreferenced;               /* vertices used by no face */
+    int degenerate_faces;           /* zero area or repeated index */
+    int duplicate_faces;            /* same vertex set as an earlier face */
+    int boundary_edges;             /* edges with exactly one face */
+    int boundary_loops;             /* connected boundary curves */
+    int nonmanifold_edges;          /* edges with more than two faces */
+    int nonmanifold_vertices;       /* face fan splits into several pieces */
+    int components;                 /* connected through faces */
+    int euler;                      /* chi = V - E + F (referenced V) */
+    int genus;                      /* (2 - chi - b)/2 if manifold & 1 comp */
+    int manifold;                   /* no non-manifold edge or vertex */
+    int closed;                     /* no boundary edge */
+    int inconsistent_orientation;   /* interior edges traversed same way */
+    double area, volume;            /* volume: signed, divergence theorem */
+    double mean_edge, min_edge, max_edge;
+    double bbox_min[3], bbox_max[3];
+} mcf_mesh_info;
+
+/* Fills info. Cost O(nf log nf). Fails only on allocation (ENOMEM). */
+mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
+                            mcf_error *err);
+
+/* Total area and signed enclosed volume (exact for closed meshes). */
+double mcf_mesh_area(const mcf_mesh *m);
+double mcf_mesh_volume(const mcf_mesh *m);
+
+/* Adds Gaussian noise along the area-weighted vertex normals with
+ * sigma = rho * mean edge length, from a 64-bit seed (deterministic on
+ * every platform: the generator is part of libmcf). */
+mcf_status mcf_mesh_add_noise(mcf_mesh *m, double rho, uint64_t seed,
+                              mcf_error *err);
+
+/* ------------------------------------------------------------- operators */
+
+typedef enum { MCF_LAPLACIAN_COTAN = 0, MCF_LAPLACIAN_UNIFORM = 1 } mcf_laplacian;
+typedef enum { MCF_MASS_BARYCENTRIC = 0, MCF_MASS_VORONOI = 1 } mcf_mass;
+
+/* The stiffness matrix L (full symmetric CSR, sorted columns, diagonal
+ * included) and the lumped mass m (length n) of a mesh. Caller owns the
+ * arrays: release with mcf_operator_free. Cotan weights of degenerate
+ * triangles are guarded by intrinsic mollification (see mcf_laplacian.c):
+ * entries are always finite and L stays PSD. */
+typedef struct {
+    int n;
+    int *rowptr;   /* n + 1 */
+    int *col;      /* rowptr[n] */
+    double *val;   /* rowptr[n] */
+    double *mass;  /* n */
+} mcf_operator;
+
+mcf_status mcf_operator_build(const mcf_mesh *m, mcf_laplacian lap,
+                              mcf_mass mass, mcf_operator *out,
+                              mcf_error *err);
+void mcf_operator_free(mcf_operator *op); /* accepts zeroed struct */
+
+/* Largest eigenvalue of M^-1 L by power iteration (at most 200 iterations,
+ * relative change below 1e-6), the quantity explicit step limits use. */
+mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mass,
+                          double *lambda, mcf_error *err);
+
+/* ------------------------------------------------------------- curvature */
+
+/* Per-vertex quantities; each output array is caller-allocated, may be
+ * NULL when not wanted. N: 3*nv unit area-weighted normals. H: nv signed
+ * mean curvature (H = <-M^-1 L X, n>/2). K: nv Gaussian curvature by angle
+ * deficit over the barycentric mass (0 on boundary vertices). A2: nv
+ * |A|^2 = 4H^2 - 2K. Unreferenced vertices get 0. */
+mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
+                         double *A2, mcf_error *err);
+
+typedef struct {
+    double min, max, mean, rms, p05, p50, p95;
+} mcf_stats;
+
+typedef struct {
+    mcf_stats H, K, A2;
+    double total_K;          /* sum K_i m_i over interior vertices */
+    double gauss_bonnet;     /* total_K + boundary geodesic term - 2 pi chi */
+    int euler;
+} mcf_curvature_summary;
+
+mcf_status mcf_curvature_summarize(const mcf_mesh *m,
+                                   mcf_curvature_summary *out, mcf_error *err);
+
+/* --------------------------------------------------------------- schemes */
+
+typedef enum {
+    MCF_EULER = 0,
+    MCF_TAYLOR2,
+    MCF_DESBRUN,
+    MCF_NEUMANN2,
+    MCF_DESBRUN2,
+    MCF_ROS2,
+    MCF_RICHARDSON,
+    MCF_IMPLICIT,
+    MCF_HUISKEN2,
+    MCF_ARC,
+    MCF_CMCF,
+    MCF_LINEAR,
+    MCF_TAUBIN,
+    MCF_NSCHEMES
+} mcf_scheme;
+
+typedef struct {
+    const char *name;          /* "desbrun2" */
+    const char *title;         /* one line */
+    int order;                 /* temporal order on MCF (0: not a flow) */
+    int is_explicit;           /* needs no linear solve */
+    double stability;          /* explicit: dt <= stability / lambda_max;
+                                  0: unconditional */
+    int solves_per_step;       /* right-hand-side blocks (3 columns each) */
+    int factorizations_per_step;
+    int has_estimate;          /* supports adaptive stepping */
+    const char *estimate;      /* how the local error is estimated */
+    const char *best_use;
+} mcf_scheme_info;
+
+/* Static description; NULL for an out-of-range scheme. */
+const mcf_scheme_info *mcf_scheme_get(mcf_scheme s);
+/* MCF_OK and *out set when name is a scheme's name, else EINVAL. */
+mcf_status mcf_scheme_from_name(const char *name, mcf_scheme *out);
+
+/* ------------------------------------------------------------------ flow */
+
+typedef enum { MCF_BOUNDARY_FIXED = 0, MCF_BOUNDARY_FREE = 1 } mcf_boundary;
+typedef enum { MCF_RESCALE_NONE = 0, MCF_RESCALE_VOLUME, MCF_RESCALE_AREA } mcf_rescale;
+
+/* Called after every accepted step. Return non-zero to cancel the run
+ * (mcf_flow_run then returns MCF_ECANCELED and leaves the mesh at the last
+ * accepted step). energy is the Dirichlet energy 1/2 tr(X^T L X), which
+ * equals the area for the cotan Laplacian. */
+typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
+                               double energy);
+
+typedef struct {
+    mcf_scheme scheme;        /* default MCF_DESBRUN2 */
+    double dt;                /* step (dimensionless if normalize) */
+    int dt_auto;              /* explicit schemes: 0.5*stability/lambda_max */
+    int iterations;           /* steps, used when time <= 0 */
+    double time;              /* total time; > 0 overrides iterations */
+    mcf_boundary boundary;    /* default fixed */
+    const int32_t *fixed;     /* extra fixed vertex indices (borrowed) */
+    int nfixed;
+    mcf_rescale rescale;      /* about the area centroid, after each step */
+    int normalize;            /* default 1: centre, unit area, undo after */
+    mcf_laplacian laplacian;
+    mcf_mass mass;
+    int adaptive;             /* needs a scheme with has_estimate */
+    double tol;               /* adaptive: local error per step, relative */
+    int max_steps;            /* hard cap on steps incl. rejected (adaptive) */
+    double implicit_tol;      /* `implicit`: Picard stop, relative */
+    int implicit_maxit;
+    int log_steps;            /* keep the per-step log in the stats */
+    mcf_progress_fn progress;
+    void *progress_ctx;
+    const volatile int *cancel; /* checked before every step; may be NULL */
+} mcf_flow_params;
+
+/* Fills p with the defaults: desbrun2, dt 1e-4, 10 iterations, fixed
+ * boundary, no rescale, normalize on, cotan, barycentric, tol 1e-4,
+ * max_steps 100000, implicit_tol 1e-10, implicit_maxit 50. */
+void mcf_flow_params_init(mcf_flow_params *p);
+
+/* Checks ranges and combinations (e.g. adaptive with a scheme that has no
+ * estimate, a fixed index out of range); EINVAL naming the field. */
+mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv,
+                                 mcf_error *err);
+
+typedef struct {
+    double t, dt;
+    double area, volume;
+    double max_disp;          /* largest vertex displacement this step */
+    double solve_s;           /* seconds in factorize + solve this step */
+    int rejected;             /* adaptive attempts rejected before it */
+} mcf_step_log;
+
+typedef struct {
+    int steps;                /* accepted steps */
+    int rejected;             /* adaptive rejections */
+    int solves;               /* 3-column right-hand-side solves */
+    int factorizations;       /* numeric factorizations */
+    int picard_iterations;    /* `implicit` only: total inner iterations */
+    double t_final;
+    double dt_first, dt_min, dt_max;
+    double lambda_max;        /* when estimated (dt_auto), else 0 */
+    double area0, area1, volume0, volume1;   /* in input units */
+    double time_assemble, time_analyze, time_factorize, time_solve,
+           time_total;        /* seconds, monotonic clock */
+    size_t peak_bytes;        /* peak heap held by the solver for this job */
+    mcf_step_log *log;        /* steps entries when log_steps, else NULL */
+    int nlog;
+} mcf_flow_stats;
+
+/* Runs the flow on m in place. On success m holds the result. On failure
+ * (EINVAL, ENOMEM, ENOTPOSDEF, ENUMERIC, ENOCONV, ECANCELED) m holds the
+ * last accepted state (never NaN) and err says why. stats may be NULL;
+ * release its log with mcf_flow_stats_free. Not thread-safe per mesh;
+ * distinct meshes may be smoothed concurrently. */
+mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
+                        mcf_flow_stats *stats, mcf_error *err);
+void mcf_flow_stats_free(mcf_flow_stats *s); /* frees log, zeroes */
+
+/* --------------------------------------------------------------- metrics */
+
+typedef struct {
+    double rms_m;            /* sqrt(sum m_i |x_i - y_i|^2 / sum m_i), target mass */
+    double rms_rel;          /* rms_m / sqrt(target area) */
+    double frobenius;        /* ||X - Y||_F (the article's metric) */
+    double max_err;          /* max_i |x_i - y_i| */
+    double normal_angle_deg; /* mean angle between face normals */
+    int inverted_faces;      /* faces whose normal turned > 90 degrees */
+} mcf_compare_result;
+
+/* Compares two meshes with the same connectivity (EINVAL otherwise). */
+mcf_status mcf_compare(const mcf_mesh *x, const mcf_mesh *target,
+                       mcf_compare_result *out, mcf_error *err);
+
+/* Monotonic wall clock in seconds (clock_gettime is libc). */
+double mcf_now(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* MCF_H */

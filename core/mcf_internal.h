@@ -1,0 +1,111 @@
+/*
+ * mcf_internal.h - declarations shared by the files of libmcf, not public.
+ *
+ * Internal non-static functions carry the mcf__ prefix (libuv's uv__).
+ * Nothing here is visible to api/ or server/.
+ */
+#ifndef MCF_INTERNAL_H
+#define MCF_INTERNAL_H
+
+#include "mcf.h"
+
+struct mcf_mesh {
+    int nv, nf;
+    double *X;   /* 3*nv */
+    int32_t *F;  /* 3*nf */
+};
+
+/* Fills err (if non-NULL) with a formatted message and returns code, so a
+ * failure is one line: return mcf__fail(err, MCF_EINVAL, "dt %g", dt); */
+mcf_status mcf__fail(mcf_error *err, mcf_status code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* Overflow-checked allocation helpers: NULL on overflow or failure. */
+void *mcf__calloc(size_t n, size_t size);
+void *mcf__malloc(size_t n, size_t size);
+
+/* ---- geometry per triangle (mcf_laplacian.c) */
+
+/* The mollification margin delta of a mesh: MCF_MOLLIFY * mean edge. */
+#define MCF_MOLLIFY 1e-4
+double mcf__mean_edge(const double *X, const int32_t *F, int nf);
+
+/* Per face f: w[3f+k] = 1/2 cot(angle at corner k), the weight of the edge
+ * opposite corner k (vertices F[3f+(k+1)%3], F[3f+(k+2)%3]); area[f] the
+ * mollified area. Edge lengths are increased by the per-triangle amount
+ * that makes every triangle inequality hold with margin delta (intrinsic
+ * mollification, Sharp & Crane 2020), so weights are finite and each
+ * triangle's 3x3 stiffness block is PSD. Uniform: every weight 1/2... see
+ * mcf_laplacian.c. area may be NULL. */
+void mcf__cot_weights(const double *X, const int32_t *F, int nf,
+                      mcf_laplacian lap, double delta, double *w,
+                      double *area);
+
+/* Lumped mass from per-face areas (barycentric: area/3 per corner) or
+ * mixed Voronoi (Meyer 2003), accumulated into mass[nv] (zeroed first). */
+void mcf__mass(const double *X, const int32_t *F, int nf, int nv,
+               mcf_mass kind, const double *area, const double *w,
+               double *mass);
+
+/* Y = L X for n x 3 row-major X, from per-face weights, without forming L.
+ * Y is zeroed first. */
+void mcf__apply_L(const int32_t *F, int nf, int nv, const double *w,
+                  const double *X, double *Y);
+
+/* Convenience: weights + mass + L X of a configuration in one call.
+ * LX and mass are caller-allocated (3*nv, nv); w/area scratch (3*nf, nf)
+ * may be NULL to allocate internally. Returns ENOMEM only. */
+mcf_status mcf__laplacian_apply(const double *X, const int32_t *F, int nf,
+                                int nv, mcf_laplacian lap, mcf_mass mk,
+                                double *LX, double *mass, mcf_error *err);
+
+/* ---- sparse pattern (mcf_laplacian.c)
+ * The symmetric matrices of a job (L, M + dt L, ...) share one pattern:
+ * upper triangle stored by columns (CSC, rows sorted, diagonal last in
+ * each column), which is exactly what CHOLMOD wants with stype = +1.
+ * Built once per job; values are refilled by scatter each step. */
+typedef struct {
+    int n, nnz;
+    int *colptr;    /* n + 1 */
+    int *rowind;    /* nnz */
+    int *diag;      /* n: index of (j,j) */
+    int *tri;       /* 3*nf: entry of the edge opposite corner k, -1 when
+                       the two vertices coincide (repeated index) */
+} mcf__pattern;
+
+mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
+                              mcf__pattern *p, mcf_error *err);
+void mcf__pattern_free(mcf__pattern *p);
+/* val[nnz] = L's upper values from per-face weights (zeroed first). */
+void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
+                         const double *w, double *val);
+/* Y = A X (n x 3) for a symmetric matrix stored in the pattern. */
+void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
+                         const double *X, double *Y);
+
+/* ---- small helpers */
+static inline double mcf__dot3(const double *a, const double *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static inline void mcf__sub3(const double *a, const double *b, double *r)
+{
+    r[0] = a[0] - b[0];
+    r[1] = a[1] - b[1];
+    r[2] = a[2] - b[2];
+}
+static inline void mcf__cross3(const double *a, const double *b, double *r)
+{
+    r[0] = a[1] * b[2] - a[2] * b[1];
+    r[1] = a[2] * b[0] - a[0] * b[2];
+    r[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* Area-weighted vertex normals (unit; zero where undefined). (mcf_curvature.c) */
+void mcf__vertex_normals(const double *X, const int32_t *F, int nf, int nv,
+                         double *N);
+
+#endif /* MCF_INTERNAL_H */
