@@ -1,0 +1,480 @@
+/*
+ * mcf_laplacian.c - cotan stiffness and lumped mass: per-triangle weights,
+ * matrix-free products, the job's fixed sparse pattern, lambda_max.
+ *
+ * Workload: one call per flow step on meshes of up to a few million faces,
+ * so the per-step path is a single pass over the faces with no allocation
+ * and no sort. The sparsity pattern of L (upper triangle by columns, the
+ * layout CHOLMOD takes with stype = +1) is built once per job together with
+ * a face-corner -> entry map; each step only scatters new values into it.
+ *
+ * Degenerate triangles: a zero-area triangle has infinite cotangents. We
+ * use intrinsic mollification (Sharp & Crane, "A Laplacian for Nonmanifold
+ * Triangle Meshes", 2020), per triangle: the three edge lengths are
+ * increased by the smallest eps >= 0 such that every triangle inequality
+ * holds with margin delta = MCF_MOLLIFY * (mean edge length). The result is
+ * a genuine Euclidean triangle, so its cotangents are finite and its 3x3
+ * stiffness block is PSD; triangles whose inequalities already hold with
+ * margin delta are untouched. The mollified area is also what the
+ * barycentric mass uses, so no referenced vertex has zero mass.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mcf_internal.h"
+
+double mcf__mean_edge(const double *X, const int32_t *F, int nf)
+{
+    double sum = 0.0;
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        for (int k = 0; k < 3; k++) {
+            double e[3];
+            mcf__sub3(X + 3 * (size_t)t[k], X + 3 * (size_t)t[(k + 1) % 3], e);
+            sum += sqrt(mcf__dot3(e, e));
+        }
+    }
+    return nf > 0 ? sum / (3.0 * nf) : 0.0;
+}
+
+/* Area from three side lengths, Kahan's cancellation-free Heron. */
+static double heron(double a, double b, double c)
+{
+    double t;
+    if (a < b) { t = a; a = b; b = t; }
+    if (b < c) { t = b; b = c; c = t; }
+    if (a < b) { t = a; a = b; b = t; }
+    double p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+    return p > 0.0 ? 0.25 * sqrt(p) : 0.0;
+}
+
+void mcf__cot_weights(const double *X, const int32_t *F, int nf,
+                      mcf_laplacian lap, double delta, double *w,
+                      double *area)
+{
+    if (!(delta > 0.0))
+        delta = 1e-300; /* all points coincide: any positive margin */
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        const double *p0 = X + 3 * (size_t)t[0], *p1 = X + 3 * (size_t)t[1],
+                     *p2 = X + 3 * (size_t)t[2];
+        double e[3], l[3];
+        mcf__sub3(p1, p2, e); l[0] = sqrt(mcf__dot3(e, e)); /* opposite 0 */
+        mcf__sub3(p2, p0, e); l[1] = sqrt(mcf__dot3(e, e)); /* opposite 1 */
+        mcf__sub3(p0, p1, e); l[2] = sqrt(mcf__dot3(e, e)); /* opposite 2 */
+        double slack = fmin(fmin(l[0] + l[1] - l[2], l[1] + l[2] - l[0]),
+                            l[2] + l[0] - l[1]);
+        if (slack < delta) {
+            double eps = delta - slack;
+            l[0] += eps; l[1] += eps; l[2] += eps;
+        }
+        double A = heron(l[0], l[1], l[2]);
+        if (area)
+            area[f] = A;
+        double *wf = w + 3 * (size_t)f;
+        if (lap == MCF_LAPLACIAN_UNIFORM) {
+            wf[0] = wf[1] = wf[2] = 0.5;
+            continue;
+        }
+        double q0 = l[0] * l[0], q1 = l[1] * l[1], q2 = l[2] * l[2];
+        /* cot(angle at k) = (l_{k+1}^2 + l_{k+2}^2 - l_k^2) / (4A); w = cot/2 */
+        double s = 1.0 / (8.0 * A);
+        wf[0] = (q1 + q2 - q0) * s;
+        wf[1] = (q2 + q0 - q1) * s;
+        wf[2] = (q0 + q1 - q2) * s;
+    }
+}
+
+/* Mixed Voronoi area of the three corners of one triangle (Meyer et al.
+ * 2003, fig. 4): the Voronoi region for a non-obtuse triangle, else area/2
+ * at the obtuse corner and area/4 at the others. Cotangents come from the
+ * actual vertex positions; a triangle of zero area gives nothing. */
+static void voronoi_corners(const double *p[3], double A, double out[3])
+{
+    double e[3][3], q[3];
+    out[0] = out[1] = out[2] = 0.0;
+    if (!(A > 0.0))
+        return;
+    for (int k = 0; k < 3; k++) { /* e[k] = edge opposite corner k */
+        mcf__sub3(p[(k + 2) % 3], p[(k + 1) % 3], e[k]);
+        q[k] = mcf__dot3(e[k], e[k]);
+    }
+    for (int k = 0; k < 3; k++) {
+        /* angle at k is obtuse iff q[k] > q[k+1] + q[k+2] */
+        if (q[k] > q[(k + 1) % 3] + q[(k + 2) % 3]) {
+            out[k] = A / 2.0;
+            out[(k + 1) % 3] = out[(k + 2) % 3] = A / 4.0;
+            return;
+        }
+    }
+    double cot[3];
+    for (int k = 0; k < 3; k++)
+        cot[k] = (q[(k + 1) % 3] + q[(k + 2) % 3] - q[k]) / (4.0 * A);
+    for (int k = 0; k < 3; k++) /* edges at k: opposite k+1 and k+2 */
+        out[k] = (q[(k + 1) % 3] * cot[(k + 1) % 3] +
+                  q[(k + 2) % 3] * cot[(k + 2) % 3]) / 8.0;
+}
+
+void mcf__mass(const double *X, const int32_t *F, int nf, int nv,
+               mcf_mass kind, const double *area, const double *w,
+               double *mass)
+{
+    (void)w;
+    memset(mass, 0, sizeof(double) * (size_t)nv);
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        if (kind == MCF_MASS_VORONOI) {
+            const double *p[3] = {X + 3 * (size_t)t[0], X + 3 * (size_t)t[1],
+                                  X + 3 * (size_t)t[2]};
+            double c[3];
+            voronoi_corners(p, area[f], c);
+            /* a degenerate triangle still lends its mollified area evenly,
+             * so a vertex touching only such triangles keeps a mass */
+            if (c[0] + c[1] + c[2] <= 0.0)
+                c[0] = c[1] = c[2] = area[f] / 3.0;
+            for (int k = 0; k < 3; k++)
+                mass[t[k]] += c[k];
+        } else {
+            double a3 = area[f] / 3.0;
+            mass[t[0]] += a3;
+            mass[t[1]] += a3;
+            mass[t[2]] += a3;
+        }
+    }
+}
+
+void mcf__apply_L(const int32_t *F, int nf, int nv, const double *w,
+                  const double *X, double *Y)
+{
+    memset(Y, 0, sizeof(double) * 3 * (size_t)nv);
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        for (int k = 0; k < 3; k++) {
+            size_t i = (size_t)t[(k + 1) % 3], j = (size_t)t[(k + 2) % 3];
+            double wk = w[3 * (size_t)f + k];
+            const double *xi = X + 3 * i, *xj = X + 3 * j;
+            double d0 = wk * (xi[0] - xj[0]), d1 = wk * (xi[1] - xj[1]),
+                   d2 = wk * (xi[2] - xj[2]);
+            Y[3 * i] += d0; Y[3 * i + 1] += d1; Y[3 * i + 2] += d2;
+            Y[3 * j] -= d0; Y[3 * j + 1] -= d1; Y[3 * j + 2] -= d2;
+        }
+    }
+}
+
+mcf_status mcf__laplacian_apply(const double *X, const int32_t *F, int nf,
+                                int nv, mcf_laplacian lap, mcf_mass mk,
+                                double *LX, double *mass, mcf_error *err)
+{
+    double *w = mcf__malloc(3 * (size_t)nf, sizeof *w);
+    double *area = mcf__malloc((size_t)nf, sizeof *area);
+    if (!w || !area) {
+        free(w);
+        free(area);
+        return mcf__fail(err, MCF_ENOMEM, "laplacian: out of memory (%d faces)", nf);
+    }
+    mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * mcf__mean_edge(X, F, nf), w, area);
+    if (mass)
+        mcf__mass(X, F, nf, nv, mk, area, w, mass);
+    if (LX)
+        mcf__apply_L(F, nf, nv, w, X, LX);
+    free(w);
+    free(area);
+    return MCF_OK;
+}
+
+/* ------------------------------------------------------------- pattern */
+
+static int cmp_int(const void *a, const void *b)
+{
+    int x = *(const int *)a, y = *(const int *)b;
+    return (x > y) - (x < y);
+}
+
+/* Index of row r in column c (rows sorted), -1 if absent. */
+static int find_entry(const mcf__pattern *p, int r, int c)
+{
+    int lo = p->colptr[c], hi = p->colptr[c + 1] - 1;
+    while (lo <= hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (p->rowind[mid] == r)
+            return mid;
+        if (p->rowind[mid] < r)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return -1;
+}
+
+mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
+                              mcf__pattern *p, mcf_error *err)
+{
+    mcf__pattern q = {0};
+    size_t cap = 3 * (size_t)nf + (size_t)nv;
+    int *cnt = mcf__calloc((size_t)nv + 1, sizeof *cnt);
+    int *rows = mcf__malloc(cap, sizeof *rows);
+    q.colptr = mcf__malloc((size_t)nv + 1, sizeof *q.colptr);
+    q.diag = mcf__malloc((size_t)nv, sizeof *q.diag);
+    q.tri = mcf__malloc(3 * (size_t)nf, sizeof *q.tri);
+    if (!cnt || !rows || !q.colptr || !q.diag || !q.tri)
+        goto nomem;
+
+    /* bucket the rows of every upper entry (min, max) by column max */
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int a = F[3 * (size_t)f + (k + 1) % 3], b = F[3 * (size_t)f + (k + 2) % 3];
+            if (a != b)
+                cnt[(a > b ? a : b) + 1]++;
+        }
+    for (int j = 0; j < nv; j++)
+        cnt[j + 1]++; /* the diagonal */
+    for (int j = 0; j < nv; j++)
+        cnt[j + 1] += cnt[j];
+    memcpy(q.colptr, cnt, sizeof(int) * ((size_t)nv + 1));
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int a = F[3 * (size_t)f + (k + 1) % 3], b = F[3 * (size_t)f + (k + 2) % 3];
+            if (a != b)
+                rows[cnt[a > b ? a : b]++] = a < b ? a : b;
+        }
+    for (int j = 0; j < nv; j++)
+        rows[cnt[j]++] = j;
+
+    /* sort each column and drop repeats, compacting in place */
+    int nnz = 0;
+    for (int j = 0; j < nv; j++) {
+        int s = q.colptr[j], e = q.colptr[j + 1];
+        qsort(rows + s, (size_t)(e - s), sizeof(int), cmp_int);
+        q.colptr[j] = nnz;
+        for (int t = s; t < e; t++)
+            if (t == s || rows[t] != rows[t - 1])
+                rows[nnz++] = rows[t];
+        q.diag[j] = nnz - 1; /* the largest row of column j is j itself */
+    }
+    q.colptr[nv] = nnz;
+    q.n = nv;
+    q.nnz = nnz;
+    q.rowind = realloc(rows, sizeof(int) * (size_t)(nnz ? nnz : 1));
+    if (!q.rowind) {
+        q.rowind = rows;
+        goto nomem;
+    }
+    rows = NULL;
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int a = F[3 * (size_t)f + (k + 1) % 3], b = F[3 * (size_t)f + (k + 2) % 3];
+            q.tri[3 * (size_t)f + k] =
+                a == b ? -1 : find_entry(&q, a < b ? a : b, a > b ? a : b);
+        }
+    free(cnt);
+    *p = q;
+    return MCF_OK;
+nomem:
+    free(cnt);
+    free(rows);
+    mcf__pattern_free(&q);
+    return mcf__fail(err, MCF_ENOMEM, "sparse pattern: out of memory (%d vertices, %d faces)", nv, nf);
+}
+
+void mcf__pattern_free(mcf__pattern *p)
+{
+    if (!p)
+        return;
+    free(p->colptr);
+    free(p->rowind);
+    free(p->diag);
+    free(p->tri);
+    memset(p, 0, sizeof *p);
+}
+
+void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
+                         const double *w, double *val)
+{
+    memset(val, 0, sizeof(double) * (size_t)p->nnz);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int idx = p->tri[3 * (size_t)f + k];
+            if (idx < 0)
+                continue;
+            double wk = w[3 * (size_t)f + k];
+            int a = F[3 * (size_t)f + (k + 1) % 3], b = F[3 * (size_t)f + (k + 2) % 3];
+            val[idx] -= wk;
+            val[p->diag[a]] += wk;
+            val[p->diag[b]] += wk;
+        }
+}
+
+void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
+                         const double *X, double *Y)
+{
+    memset(Y, 0, sizeof(double) * 3 * (size_t)p->n);
+    for (int j = 0; j < p->n; j++) {
+        const double *xj = X + 3 * (size_t)j;
+        double y0 = 0.0, y1 = 0.0, y2 = 0.0;
+        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++) {
+            int i = p->rowind[t];
+            double a = val[t];
+            const double *xi = X + 3 * (size_t)i;
+            y0 += a * xi[0]; y1 += a * xi[1]; y2 += a * xi[2];
+            if (i != j) {
+                double *yi = Y + 3 * (size_t)i;
+                yi[0] += a * xj[0]; yi[1] += a * xj[1]; yi[2] += a * xj[2];
+            }
+        }
+        Y[3 * (size_t)j] += y0; Y[3 * (size_t)j + 1] += y1; Y[3 * (size_t)j + 2] += y2;
+    }
+}
+
+/* ---------------------------------------------------- public operators */
+
+mcf_status mcf_operator_build(const mcf_mesh *m, mcf_laplacian lap,
+                              mcf_mass mk, mcf_operator *out, mcf_error *err)
+{
+    mcf__pattern p = {0};
+    mcf_operator o = {0};
+    double *w = NULL, *area = NULL, *val = NULL;
+    mcf_status rc;
+    int *fill = NULL;
+    if (!m || !out)
+        return mcf__fail(err, MCF_EINVAL, "mcf_operator_build: NULL argument");
+    if ((rc = mcf__pattern_build(m->F, m->nf, m->nv, &p, err)) != MCF_OK)
+        return rc;
+    int n = m->nv, full = 2 * p.nnz - n;
+    w = mcf__malloc(3 * (size_t)m->nf, sizeof *w);
+    area = mcf__malloc((size_t)m->nf, sizeof *area);
+    val = mcf__malloc((size_t)p.nnz, sizeof *val);
+    fill = mcf__calloc((size_t)n + 1, sizeof *fill);
+    o.n = n;
+    o.rowptr = mcf__calloc((size_t)n + 1, sizeof *o.rowptr);
+    o.col = mcf__malloc((size_t)full, sizeof *o.col);
+    o.val = mcf__malloc((size_t)full, sizeof *o.val);
+    o.mass = mcf__malloc((size_t)n, sizeof *o.mass);
+    if (!w || !area || !val || !fill || !o.rowptr || !o.col || !o.val || !o.mass) {
+        rc = mcf__fail(err, MCF_ENOMEM, "operator: out of memory");
+        goto done;
+    }
+    mcf__cot_weights(m->X, m->F, m->nf, lap, MCF_MOLLIFY * mcf__mean_edge(m->X, m->F, m->nf), w, area);
+    mcf__mass(m->X, m->F, m->nf, n, mk, area, w, o.mass);
+    mcf__pattern_fill_L(&p, m->F, m->nf, w, val);
+    /* upper CSC -> full CSR; visiting columns in order keeps rows sorted */
+    for (int j = 0; j < n; j++)
+        for (int t = p.colptr[j]; t < p.colptr[j + 1]; t++) {
+            int i = p.rowind[t];
+            o.rowptr[i + 1]++;
+            if (i != j)
+                o.rowptr[j + 1]++;
+        }
+    for (int i = 0; i < n; i++)
+        o.rowptr[i + 1] += o.rowptr[i];
+    for (int j = 0; j < n; j++)
+        for (int t = p.colptr[j]; t < p.colptr[j + 1]; t++) {
+            int i = p.rowind[t];
+            int a = o.rowptr[j] + fill[j]++;
+            o.col[a] = i;
+            o.val[a] = val[t];
+            if (i != j) {
+                int b = o.rowptr[i] + fill[i]++;
+                o.col[b] = j;
+                o.val[b] = val[t];
+            }
+        }
+    *out = o;
+    memset(&o, 0, sizeof o);
+    rc = MCF_OK;
+done:
+    mcf_operator_free(&o);
+    mcf__pattern_free(&p);
+    free(w);
+    free(area);
+    free(val);
+    free(fill);
+    return rc;
+}
+
+void mcf_operator_free(mcf_operator *op)
+{
+    if (!op)
+        return;
+    free(op->rowptr);
+    free(op->col);
+    free(op->val);
+    free(op->mass);
+    memset(op, 0, sizeof *op);
+}
+
+/* y = L x for one scalar column, from per-face weights. */
+static void apply_L1(const int32_t *F, int nf, int nv, const double *w,
+                     const double *x, double *y)
+{
+    memset(y, 0, sizeof(double) * (size_t)nv);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int i = F[3 * (size_t)f + (k + 1) % 3], j = F[3 * (size_t)f + (k + 2) % 3];
+            double d = w[3 * (size_t)f + k] * (x[i] - x[j]);
+            y[i] += d;
+            y[j] -= d;
+        }
+}
+
+mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mk,
+                          double *lambda, mcf_error *err)
+{
+    if (!m || !lambda)
+        return mcf__fail(err, MCF_EINVAL, "mcf_lambda_max: NULL argument");
+    int n = m->nv, nf = m->nf;
+    double *w = mcf__malloc(3 * (size_t)nf, sizeof *w);
+    double *area = mcf__malloc((size_t)nf, sizeof *area);
+    double *mass = mcf__malloc((size_t)n, sizeof *mass);
+    double *x = mcf__malloc((size_t)n, sizeof *x);
+    double *y = mcf__malloc((size_t)n, sizeof *y);
+    double *u = mcf__malloc((size_t)n, sizeof *u);
+    mcf_status rc = MCF_OK;
+    if (!w || !area || !mass || !x || !y || !u) {
+        rc = mcf__fail(err, MCF_ENOMEM, "lambda_max: out of memory");
+        goto done;
+    }
+    mcf__cot_weights(m->X, m->F, nf, lap, MCF_MOLLIFY * mcf__mean_edge(m->X, m->F, nf), w, area);
+    mcf__mass(m->X, m->F, nf, n, mk, area, w, mass);
+    /* Power iteration on S = M^-1/2 L M^-1/2 (symmetric, same spectrum as
+     * M^-1 L). Start from a deterministic pseudo-random vector: the top
+     * eigenvector oscillates at the grid scale, which a smooth start would
+     * barely contain. Massless (unreferenced) vertices are left out. */
+    uint64_t h = 0x9E3779B97F4A7C15ull;
+    for (int i = 0; i < n; i++) {
+        h ^= h >> 33; h *= 0xff51afd7ed558ccdull; h ^= h >> 29; h += 0x9E3779B97F4A7C15ull;
+        x[i] = mass[i] > 0.0 ? (double)(h >> 11) * 0x1.0p-53 - 0.5 : 0.0;
+    }
+    double lam = 0.0;
+    for (int it = 0; it < 200; it++) {
+        double nx = 0.0;
+        for (int i = 0; i < n; i++)
+            nx += x[i] * x[i];
+        nx = sqrt(nx);
+        if (!(nx > 0.0))
+            break;
+        for (int i = 0; i < n; i++) {
+            x[i] /= nx;
+            u[i] = mass[i] > 0.0 ? x[i] / sqrt(mass[i]) : 0.0;
+        }
+        apply_L1(m->F, nf, n, w, u, y);
+        double rq = 0.0;
+        for (int i = 0; i < n; i++) {
+            y[i] = mass[i] > 0.0 ? y[i] / sqrt(mass[i]) : 0.0;
+            rq += x[i] * y[i];
+        }
+        double old = lam;
+        lam = rq;
+        memcpy(x, y, sizeof(double) * (size_t)n);
+        if (it > 5 && fabs(lam - old) <= 1e-6 * fabs(lam))
+            break;
+    }
+    if (!isfinite(lam) || lam < 0.0) {
+        rc = mcf__fail(err, MCF_ENUMERIC, "lambda_max: power iteration gave %g", lam);
+        goto done;
+    }
+    *lambda = lam;
+done:
+    free(w); free(area); free(mass); free(x); free(y); free(u);
+    return rc;
+}
