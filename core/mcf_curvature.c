@@ -1,0 +1,299 @@
+/*
+ * mcf_curvature.c - discrete curvatures per vertex and their summary:
+ * area-weighted vertex normals, mean curvature from the cotan Laplacian,
+ * Gaussian curvature by angle deficit, |A|^2 = 4H^2 - 2K, and the discrete
+ * Gauss-Bonnet check.
+ *
+ * Signs and conventions (../shared/MATH.md): L is the PSD cotan stiffness,
+ * M the barycentric lumped mass, Delta X = -M^-1 L X = -2 H n, so
+ * H_i = <(M^-1 L X)_i, n_i> / 2 is positive on a sphere with outward
+ * normals (1/R on a sphere of radius R). K_i = (2 pi - sum of the corner
+ * angles at i) / m_i on interior vertices, 0 on boundary vertices (those
+ * on an edge with exactly one face). Everything is O(nf log nf) (one edge
+ * sort to find the boundary) and allocates O(nv + nf) scratch.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mcf_internal.h"
+
+static const double mcf_pi = 3.14159265358979323846;
+
+void mcf__vertex_normals(const double *X, const int32_t *F, int nf, int nv,
+                         double *N)
+{
+    size_t f, i;
+    memset(N, 0, 3 * (size_t)nv * sizeof *N);
+    /* The unnormalized face normal (b-a) x (c-a) has length twice the
+     * area, so summing it weights each face by its area. */
+    for (f = 0; f < (size_t)nf; f++) {
+        const int32_t *t = F + 3 * f;
+        double e1[3], e2[3], cr[3];
+        int k;
+        mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
+        mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
+        mcf__cross3(e1, e2, cr);
+        for (k = 0; k < 3; k++) {
+            double *n = N + 3 * (size_t)t[k];
+            n[0] += cr[0];
+            n[1] += cr[1];
+            n[2] += cr[2];
+        }
+    }
+    for (i = 0; i < (size_t)nv; i++) {
+        double *n = N + 3 * i, len = sqrt(mcf__dot3(n, n));
+        if (len > 0 && isfinite(len)) {
+            n[0] /= len;
+            n[1] /= len;
+            n[2] /= len;
+        } else {
+            n[0] = n[1] = n[2] = 0;
+        }
+    }
+}
+
+static int key_cmp(const void *pa, const void *pb)
+{
+    uint64_t a = *(const uint64_t *)pa, b = *(const uint64_t *)pb;
+    return (a > b) - (a < b);
+}
+
+/* Topology the curvatures need: on_boundary[v] = 1 for an endpoint of an
+ * edge with exactly one face; *ne the number of unique edges (sides that
+ * join a vertex to itself are no edges, as in mcf_mesh_inspect). */
+static mcf_status edge_topology(const int32_t *F, int nf, int nv,
+                                unsigned char *on_boundary, int *ne,
+                                mcf_error *err)
+{
+    uint64_t *key = mcf__malloc(3 * (size_t)nf, sizeof *key);
+    size_t n = 0, i, j, f;
+    int k, count = 0;
+
+    if (!key)
+        return mcf__fail(err, MCF_ENOMEM, "edge list of %d faces", nf);
+    for (f = 0; f < (size_t)nf; f++)
+        for (k = 0; k < 3; k++) {
+            uint32_t u = (uint32_t)F[3 * f + k];
+            uint32_t v = (uint32_t)F[3 * f + (k + 1) % 3];
+            if (u == v)
+                continue;
+            key[n++] = u < v ? ((uint64_t)u << 32 | v) : ((uint64_t)v << 32 | u);
+        }
+    qsort(key, n, sizeof *key, key_cmp);
+    memset(on_boundary, 0, (size_t)nv);
+    for (i = 0; i < n; i = j) {
+        for (j = i + 1; j < n && key[j] == key[i]; j++)
+            ;
+        count++;
+        if (j - i == 1) {
+            on_boundary[key[i] >> 32] = 1;
+            on_boundary[key[i] & 0xffffffffu] = 1;
+        }
+    }
+    free(key);
+    *ne = count;
+    return MCF_OK;
+}
+
+/* angle[v] += corner angles, mass[v] += area/3 (barycentric, from the true
+ * area), used[v] = 1 for referenced vertices. Angles come from atan2 of
+ * |cross| and dot, accurate for angles near 0 and pi alike; a corner with
+ * a zero-length side gets angle 0. */
+static void corner_sums(const double *X, const int32_t *F, int nf,
+                        double *angle, double *mass, unsigned char *used)
+{
+    size_t f;
+    for (f = 0; f < (size_t)nf; f++) {
+        const int32_t *t = F + 3 * f;
+        double e1[3], e2[3], cr[3], area;
+        int k;
+        mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
+        mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
+        mcf__cross3(e1, e2, cr);
+        area = 0.5 * sqrt(mcf__dot3(cr, cr));
+        for (k = 0; k < 3; k++) {
+            const double *p = X + 3 * (size_t)t[k];
+            double a[3], b[3], c[3];
+            mcf__sub3(X + 3 * (size_t)t[(k + 1) % 3], p, a);
+            mcf__sub3(X + 3 * (size_t)t[(k + 2) % 3], p, b);
+            mcf__cross3(a, b, c);
+            angle[t[k]] += atan2(sqrt(mcf__dot3(c, c)), mcf__dot3(a, b));
+            mass[t[k]] += area / 3.0;
+            used[t[k]] = 1;
+        }
+    }
+}
+
+mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
+                         double *A2, mcf_error *err)
+{
+    mcf_status rc = MCF_OK;
+    double *n = NULL, *LX = NULL, *lm = NULL, *angle = NULL, *bm = NULL;
+    unsigned char *bnd = NULL, *used = NULL;
+    size_t nv, i;
+    int ne;
+
+    if (!m)
+        return mcf__fail(err, MCF_EINVAL, "mcf_curvature: NULL mesh");
+    nv = (size_t)m->nv;
+    n = mcf__malloc(3 * nv, sizeof *n);
+    LX = mcf__malloc(3 * nv, sizeof *LX);
+    lm = mcf__malloc(nv, sizeof *lm);
+    angle = mcf__calloc(nv, sizeof *angle);
+    bm = mcf__calloc(nv, sizeof *bm);
+    bnd = mcf__malloc(nv, 1);
+    used = mcf__calloc(nv, 1);
+    if (!n || !LX || !lm || !angle || !bm || !bnd || !used) {
+        rc = mcf__fail(err, MCF_ENOMEM, "curvature of %zu vertices", nv);
+        goto done;
+    }
+    mcf__vertex_normals(m->X, m->F, m->nf, m->nv, n);
+    rc = mcf__laplacian_apply(m->X, m->F, m->nf, m->nv, MCF_LAPLACIAN_COTAN,
+                              MCF_MASS_BARYCENTRIC, LX, lm, err);
+    if (rc != MCF_OK)
+        goto done;
+    if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, &ne, err)) != MCF_OK)
+        goto done;
+    corner_sums(m->X, m->F, m->nf, angle, bm, used);
+
+    for (i = 0; i < nv; i++) {
+        double h = 0, kg = 0;
+        /* A vertex whose faces all have zero area has no mass: its
+         * curvature is undefined, reported as 0 like an unreferenced one. */
+        if (used[i] && lm[i] > 0)
+            h = 0.5 * mcf__dot3(LX + 3 * i, n + 3 * i) / lm[i];
+        if (used[i] && !bnd[i] && bm[i] > 0)
+            kg = (2 * mcf_pi - angle[i]) / bm[i];
+        if (N) {
+            N[3 * i] = n[3 * i];
+            N[3 * i + 1] = n[3 * i + 1];
+            N[3 * i + 2] = n[3 * i + 2];
+        }
+        if (H)
+            H[i] = h;
+        if (K)
+            K[i] = kg;
+        if (A2)
+            A2[i] = 4 * h * h - 2 * kg;
+    }
+done:
+    free(n);
+    free(LX);
+    free(lm);
+    free(angle);
+    free(bm);
+    free(bnd);
+    free(used);
+    return rc;
+}
+
+static int dbl_cmp(const void *pa, const void *pb)
+{
+    double a = *(const double *)pa, b = *(const double *)pb;
+    return (a > b) - (a < b);
+}
+
+/* Percentile q of sorted v[0..n-1], linear between order statistics at
+ * position q (n - 1) (the "type 7" rule of R and NumPy's default). */
+static double percentile(const double *v, size_t n, double q)
+{
+    double pos = q * (double)(n - 1), fl = floor(pos);
+    size_t lo = (size_t)fl;
+    if (lo + 1 >= n)
+        return v[n - 1];
+    return v[lo] + (pos - fl) * (v[lo + 1] - v[lo]);
+}
+
+/* Statistics of x over the vertices with used[i]; tmp holds n doubles. */
+static void stats_of(const double *x, const unsigned char *used, size_t nv,
+                     double *tmp, mcf_stats *s)
+{
+    size_t i, n = 0;
+    double sum = 0, sq = 0;
+    for (i = 0; i < nv; i++)
+        if (used[i]) {
+            tmp[n++] = x[i];
+            sum += x[i];
+            sq += x[i] * x[i];
+        }
+    memset(s, 0, sizeof *s);
+    if (n == 0)
+        return;
+    qsort(tmp, n, sizeof *tmp, dbl_cmp);
+    s->min = tmp[0];
+    s->max = tmp[n - 1];
+    s->mean = sum / (double)n;
+    s->rms = sqrt(sq / (double)n);
+    s->p05 = percentile(tmp, n, 0.05);
+    s->p50 = percentile(tmp, n, 0.50);
+    s->p95 = percentile(tmp, n, 0.95);
+}
+
+mcf_status mcf_curvature_summarize(const mcf_mesh *m,
+                                   mcf_curvature_summary *out, mcf_error *err)
+{
+    mcf_status rc = MCF_OK;
+    mcf_curvature_summary s;
+    double *H = NULL, *K = NULL, *A2 = NULL, *angle = NULL, *bm = NULL,
+           *tmp = NULL;
+    unsigned char *bnd = NULL, *used = NULL;
+    double interior = 0, boundary = 0;
+    size_t nv, i;
+    int ne, nref = 0;
+
+    if (!m || !out)
+        return mcf__fail(err, MCF_EINVAL, "mcf_curvature_summarize: NULL");
+    nv = (size_t)m->nv;
+    H = mcf__malloc(nv, sizeof *H);
+    K = mcf__malloc(nv, sizeof *K);
+    A2 = mcf__malloc(nv, sizeof *A2);
+    tmp = mcf__malloc(nv, sizeof *tmp);
+    angle = mcf__calloc(nv, sizeof *angle);
+    bm = mcf__calloc(nv, sizeof *bm);
+    bnd = mcf__malloc(nv, 1);
+    used = mcf__calloc(nv, 1);
+    if (!H || !K || !A2 || !tmp || !angle || !bm || !bnd || !used) {
+        rc = mcf__fail(err, MCF_ENOMEM, "curvature of %zu vertices", nv);
+        goto done;
+    }
+    if ((rc = mcf_curvature(m, NULL, H, K, A2, err)) != MCF_OK)
+        goto done;
+    if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, &ne, err)) != MCF_OK)
+        goto done;
+    corner_sums(m->X, m->F, m->nf, angle, bm, used);
+
+    memset(&s, 0, sizeof s);
+    stats_of(H, used, nv, tmp, &s.H);
+    stats_of(K, used, nv, tmp, &s.K);
+    stats_of(A2, used, nv, tmp, &s.A2);
+    /* Discrete Gauss-Bonnet: with every face's angles summing to pi,
+     * sum_interior (2 pi - theta_i) + sum_boundary (pi - theta_i)
+     * = 2 pi (V - E + F) on any mesh whose boundary vertices each lie on
+     * one boundary curve (V_boundary = E_boundary). The deficits are summed
+     * directly rather than as K_i m_i so that a massless vertex still
+     * counts. */
+    for (i = 0; i < nv; i++) {
+        if (!used[i])
+            continue;
+        nref++;
+        if (bnd[i])
+            boundary += mcf_pi - angle[i];
+        else
+            interior += 2 * mcf_pi - angle[i];
+    }
+    s.euler = nref - ne + m->nf;
+    s.total_K = interior;
+    s.gauss_bonnet = interior + boundary - 2 * mcf_pi * s.euler;
+    *out = s;
+done:
+    free(H);
+    free(K);
+    free(A2);
+    free(tmp);
+    free(angle);
+    free(bm);
+    free(bnd);
+    free(used);
+    return rc;
+}

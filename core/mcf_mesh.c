@@ -1,0 +1,684 @@
+/*
+ * mcf_mesh.c - the mesh object of libmcf: construction with validation of
+ * what would make arithmetic unsafe (indices, non-finite coordinates),
+ * icospheres, an exact topological/geometric inspection, area, volume and
+ * deterministic normal noise.
+ *
+ * A mesh owns two flat arrays: 3*nv doubles and 3*nf int32 indices. Only
+ * what would corrupt memory or poison every later computation is refused;
+ * everything else a real scan contains (degenerate, duplicate and
+ * non-manifold faces, unreferenced vertices, holes) is accepted and counted
+ * by mcf_mesh_inspect(), which sorts the 3*nf half-edges once: O(nf log nf)
+ * time, about 80 bytes per face of scratch.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mcf_internal.h"
+
+/* ------------------------------------------------------------ lifecycle */
+
+mcf_mesh *mcf_mesh_new(int nv, const double *X, int nf, const int32_t *F,
+                       mcf_error *err)
+{
+    mcf_mesh *m;
+    size_t i, n;
+
+    if (nv <= 0) {
+        mcf__fail(err, MCF_EMESH, "mesh has %d vertices (need at least 1)", nv);
+        return NULL;
+    }
+    if (nf <= 0) {
+        mcf__fail(err, MCF_EMESH, "mesh has %d faces (need at least 1)", nf);
+        return NULL;
+    }
+    if (!X || !F) {
+        mcf__fail(err, MCF_EINVAL, "mesh arrays are NULL");
+        return NULL;
+    }
+    n = 3 * (size_t)nv;
+    for (i = 0; i < n; i++) {
+        if (!isfinite(X[i])) {
+            mcf__fail(err, MCF_EMESH, "vertex %zu: coordinate %c is %g",
+                      i / 3, "xyz"[i % 3], X[i]);
+            return NULL;
+        }
+    }
+    n = 3 * (size_t)nf;
+    for (i = 0; i < n; i++) {
+        if (F[i] < 0 || F[i] >= nv) {
+            mcf__fail(err, MCF_EMESH,
+                      "face %zu: vertex index %ld out of range [0, %d)",
+                      i / 3, (long)F[i], nv);
+            return NULL;
+        }
+    }
+    m = malloc(sizeof *m);
+    if (!m) {
+        mcf__fail(err, MCF_ENOMEM, "mesh of %d vertices", nv);
+        return NULL;
+    }
+    m->nv = nv;
+    m->nf = nf;
+    m->X = mcf__malloc(3 * (size_t)nv, sizeof *m->X);
+    m->F = mcf__malloc(3 * (size_t)nf, sizeof *m->F);
+    if (!m->X || !m->F) {
+        mcf_mesh_free(m);
+        mcf__fail(err, MCF_ENOMEM, "mesh of %d vertices, %d faces", nv, nf);
+        return NULL;
+    }
+    memcpy(m->X, X, 3 * (size_t)nv * sizeof *X);
+    memcpy(m->F, F, 3 * (size_t)nf * sizeof *F);
+    return m;
+}
+
+mcf_mesh *mcf_mesh_dup(const mcf_mesh *m, mcf_error *err)
+{
+    if (!m) {
+        mcf__fail(err, MCF_EINVAL, "mcf_mesh_dup: NULL mesh");
+        return NULL;
+    }
+    return mcf_mesh_new(m->nv, m->X, m->nf, m->F, err);
+}
+
+void mcf_mesh_free(mcf_mesh *m)
+{
+    if (!m)
+        return;
+    free(m->X);
+    free(m->F);
+    free(m);
+}
+
+int mcf_mesh_nvertices(const mcf_mesh *m) { return m->nv; }
+int mcf_mesh_nfaces(const mcf_mesh *m) { return m->nf; }
+const double *mcf_mesh_positions(const mcf_mesh *m) { return m->X; }
+double *mcf_mesh_positions_mut(mcf_mesh *m) { return m->X; }
+const int32_t *mcf_mesh_faces(const mcf_mesh *m) { return m->F; }
+
+/* ------------------------------------------------------------ icosphere */
+
+/* Open-addressing map from an undirected edge (a < b) to its midpoint's
+ * vertex index; capacity a power of two at least twice the edge count. */
+typedef struct {
+    uint64_t *key; /* 0 = empty; stored as key + 1 */
+    int32_t *val;
+    size_t mask;
+} edge_map;
+
+static uint64_t mix64(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * UINT64_C(0xbf58476d1ce4e5b9);
+    z = (z ^ (z >> 27)) * UINT64_C(0x94d049bb133111eb);
+    return z ^ (z >> 31);
+}
+
+/* Returns the midpoint vertex of edge (a, b), creating it (projected to
+ * the sphere) when first seen. */
+static int32_t midpoint(edge_map *h, double *X, int32_t *nv, int32_t a,
+                        int32_t b, double radius)
+{
+    int32_t lo = a < b ? a : b, hi = a < b ? b : a;
+    uint64_t k = (((uint64_t)(uint32_t)lo << 32) | (uint32_t)hi) + 1;
+    size_t i = (size_t)mix64(k) & h->mask;
+    double *p, r;
+    int32_t v;
+
+    while (h->key[i] != 0) {
+        if (h->key[i] == k)
+            return h->val[i];
+        i = (i + 1) & h->mask;
+    }
+    v = (*nv)++;
+    p = X + 3 * (size_t)v;
+    p[0] = 0.5 * (X[3 * (size_t)lo] + X[3 * (size_t)hi]);
+    p[1] = 0.5 * (X[3 * (size_t)lo + 1] + X[3 * (size_t)hi + 1]);
+    p[2] = 0.5 * (X[3 * (size_t)lo + 2] + X[3 * (size_t)hi + 2]);
+    r = sqrt(mcf__dot3(p, p));
+    p[0] *= radius / r;
+    p[1] *= radius / r;
+    p[2] *= radius / r;
+    h->key[i] = k;
+    h->val[i] = v;
+    return v;
+}
+
+mcf_mesh *mcf_mesh_new_icosphere(int level, double radius, mcf_error *err)
+{
+    /* The icosahedron on the cyclic permutations of (+-1, +-phi, 0), with
+     * counter-clockwise faces seen from outside (normals point outward). */
+#define PHI 1.6180339887498948482
+    static const double V0[12][3] = {
+        {-1, PHI, 0}, {1, PHI, 0}, {-1, -PHI, 0}, {1, -PHI, 0},
+        {0, -1, PHI}, {0, 1, PHI}, {0, -1, -PHI}, {0, 1, -PHI},
+        {PHI, 0, -1}, {PHI, 0, 1}, {-PHI, 0, -1}, {-PHI, 0, 1}};
+#undef PHI
+    static const int32_t F0[20][3] = {
+        {0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11},
+        {1, 5, 9}, {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+        {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8}, {3, 8, 9},
+        {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    mcf_mesh *m = NULL;
+    double *X = NULL;
+    int32_t *F = NULL, *G = NULL;
+    edge_map h = {NULL, NULL, 0};
+    int32_t nv, nf, nvmax, nfmax;
+    int l, i, k;
+
+    if (level < 0 || level > 10) {
+        mcf__fail(err, MCF_EINVAL, "icosphere level %d not in [0, 10]", level);
+        return NULL;
+    }
+    if (!(radius > 0) || !isfinite(radius)) {
+        mcf__fail(err, MCF_EINVAL, "icosphere radius %g not positive", radius);
+        return NULL;
+    }
+    nvmax = 10 * (1 << (2 * level)) + 2;
+    nfmax = 20 * (1 << (2 * level));
+    X = mcf__malloc(3 * (size_t)nvmax, sizeof *X);
+    F = mcf__malloc(3 * (size_t)nfmax, sizeof *F);
+    G = mcf__malloc(3 * (size_t)nfmax, sizeof *G);
+    if (!X || !F || !G) {
+        mcf__fail(err, MCF_ENOMEM, "icosphere level %d", level);
+        goto done;
+    }
+    for (i = 0; i < 12; i++) {
+        double s = radius / sqrt(mcf__dot3(V0[i], V0[i]));
+        for (k = 0; k < 3; k++)
+            X[3 * i + k] = V0[i][k] * s;
+    }
+    for (i = 0; i < 20; i++)
+        for (k = 0; k < 3; k++)
+            F[3 * i + k] = F0[i][k];
+    nv = 12;
+    nf = 20;
+    if (level > 0) {
+        size_t cap = 1;
+        /* Edges of the finest level before the last split: 3/2 nf. */
+        while (cap < 3 * (size_t)nfmax / 4)
+            cap <<= 1;
+        h.key = mcf__calloc(cap, sizeof *h.key);
+        h.val = mcf__malloc(cap, sizeof *h.val);
+        h.mask = cap - 1;
+        if (!h.key || !h.val) {
+            mcf__fail(err, MCF_ENOMEM, "icosphere level %d", level);
+            goto done;
+        }
+    }
+    for (l = 0; l < level; l++) {
+        int32_t *t;
+        memset(h.key, 0, (h.mask + 1) * sizeof *h.key);
+        for (i = 0; i < nf; i++) {
+            int32_t a = F[3 * i], b = F[3 * i + 1], c = F[3 * i + 2];
+            int32_t ab = midpoint(&h, X, &nv, a, b, radius);
+            int32_t bc = midpoint(&h, X, &nv, b, c, radius);
+            int32_t ca = midpoint(&h, X, &nv, c, a, radius);
+            int32_t *g = G + 12 * (size_t)i;
+            g[0] = a;  g[1] = ab;  g[2] = ca;
+            g[3] = ab; g[4] = b;   g[5] = bc;
+            g[6] = ca; g[7] = bc;  g[8] = c;
+            g[9] = ab; g[10] = bc; g[11] = ca;
+        }
+        nf *= 4;
+        t = F;
+        F = G;
+        G = t;
+    }
+    m = mcf_mesh_new(nv, X, nf, F, err);
+done:
+    free(h.key);
+    free(h.val);
+    free(X);
+    free(F);
+    free(G);
+    return m;
+}
+
+/* ----------------------------------------------------------- inspection */
+
+/* One half-edge: the side of face `face` from corner k to corner k+1. */
+typedef struct {
+    uint64_t key; /* min << 32 | max */
+    int32_t face;
+    int32_t k;
+} half_edge;
+
+static int half_edge_cmp(const void *pa, const void *pb)
+{
+    const half_edge *a = pa, *b = pb;
+    if (a->key != b->key)
+        return a->key < b->key ? -1 : 1;
+    if (a->face != b->face)
+        return a->face < b->face ? -1 : 1;
+    return (a->k > b->k) - (a->k < b->k);
+}
+
+typedef struct {
+    int32_t v[3];
+    int32_t face;
+} face_key;
+
+static int face_key_cmp(const void *pa, const void *pb)
+{
+    const face_key *a = pa, *b = pb;
+    int i;
+    for (i = 0; i < 3; i++)
+        if (a->v[i] != b->v[i])
+            return a->v[i] < b->v[i] ? -1 : 1;
+    return (a->face > b->face) - (a->face < b->face);
+}
+
+static int32_t uf_find(int32_t *p, int32_t x)
+{
+    int32_t r = x;
+    while (p[r] != r)
+        r = p[r];
+    while (p[x] != r) {
+        int32_t n = p[x];
+        p[x] = r;
+        x = n;
+    }
+    return r;
+}
+
+static void uf_union(int32_t *p, int32_t a, int32_t b)
+{
+    a = uf_find(p, a);
+    b = uf_find(p, b);
+    if (a != b) {
+        /* Union by index keeps it deterministic; path compression keeps
+         * it fast enough for meshes. */
+        if (a < b)
+            p[b] = a;
+        else
+            p[a] = b;
+    }
+}
+
+/* Corner index (3f + j) of vertex v in the face of half-edge e. */
+static int32_t corner_of(const int32_t *F, const half_edge *e, int32_t v)
+{
+    int32_t c0 = 3 * e->face + e->k;
+    int32_t c1 = 3 * e->face + (e->k + 1) % 3;
+    return F[c0] == v ? c0 : c1;
+}
+
+/* The sum of the three face-edge lengths of all faces over 3 nf: on a
+ * closed manifold mesh, where every edge has two faces, it equals the mean
+ * over unique edges exactly. */
+static double face_edge_mean(const double *X, const int32_t *F, int nf)
+{
+    double s = 0;
+    size_t f;
+    for (f = 0; f < (size_t)nf; f++) {
+        int k;
+        for (k = 0; k < 3; k++) {
+            double d[3];
+            mcf__sub3(X + 3 * (size_t)F[3 * f + k],
+                      X + 3 * (size_t)F[3 * f + (k + 1) % 3], d);
+            s += sqrt(mcf__dot3(d, d));
+        }
+    }
+    return nf > 0 ? s / (3.0 * nf) : 0;
+}
+
+/* Degenerate-face threshold. A face is degenerate when it repeats an
+ * index or when its area is at most MCF_DEGENERATE_REL * lmax^2, lmax its
+ * longest edge: the area of a truly collinear (or collapsed) triangle,
+ * computed from a cross product, is rounding noise of order 1e-16 lmax^2,
+ * so 1e-14 flags exactly those with margin, independently of the mesh's
+ * scale, while a thin but genuine sliver (aspect 1e-12 would be needed to
+ * hit it) is kept. */
+#define MCF_DEGENERATE_REL 1e-14
+
+mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
+                            mcf_error *err)
+{
+    mcf_status rc = MCF_OK;
+    mcf_mesh_info r;
+    half_edge *he = NULL;
+    face_key *fk = NULL;
+    int32_t *cuf = NULL, *vuf = NULL;
+    unsigned char *used = NULL;
+    const double *X;
+    const int32_t *F;
+    size_t nv, nf, nh = 0, i, j, q, f;
+    double esum = 0;
+    int k;
+
+    if (!m || !info)
+        return mcf__fail(err, MCF_EINVAL, "mcf_mesh_inspect: NULL argument");
+    X = m->X;
+    F = m->F;
+    nv = (size_t)m->nv;
+    nf = (size_t)m->nf;
+    memset(&r, 0, sizeof r);
+    r.nv = m->nv;
+    r.nf = m->nf;
+
+    he = mcf__malloc(3 * nf, sizeof *he);
+    fk = mcf__malloc(nf, sizeof *fk);
+    cuf = mcf__malloc(3 * nf, sizeof *cuf);
+    vuf = mcf__malloc(nv, sizeof *vuf);
+    used = mcf__calloc(nv, 1);
+    if (!he || !fk || !cuf || !vuf || !used) {
+        rc = mcf__fail(err, MCF_ENOMEM, "inspecting %zu faces", nf);
+        goto done;
+    }
+
+    /* Bounding box over all vertices (unreferenced included: they are part
+     * of the data and would be written back out). */
+    for (k = 0; k < 3; k++) {
+        r.bbox_min[k] = X[k];
+        r.bbox_max[k] = X[k];
+    }
+    for (i = 0; i < nv; i++)
+        for (k = 0; k < 3; k++) {
+            double x = X[3 * i + k];
+            if (x < r.bbox_min[k]) r.bbox_min[k] = x;
+            if (x > r.bbox_max[k]) r.bbox_max[k] = x;
+        }
+
+    /* Per face: area, volume, degeneracy, the sorted key, half-edges. */
+    for (f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * f;
+        const double *a = X + 3 * (size_t)t[0], *b = X + 3 * (size_t)t[1],
+                     *c = X + 3 * (size_t)t[2];
+        double e1[3], e2[3], e3[3], cr[3], area, lmax;
+        int32_t s0 = t[0], s1 = t[1], s2 = t[2], tmp;
+
+        mcf__sub3(b, a, e1);
+        mcf__sub3(c, a, e2);
+        mcf__sub3(c, b, e3);
+        mcf__cross3(e1, e2, cr);
+        area = 0.5 * sqrt(mcf__dot3(cr, cr));
+        lmax = fmax(mcf__dot3(e1, e1), fmax(mcf__dot3(e2, e2),
+                                            mcf__dot3(e3, e3)));
+        r.area += area;
+        mcf__cross3(b, c, cr);
+        r.volume += mcf__dot3(a, cr) / 6.0;
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2] ||
+            area <= MCF_DEGENERATE_REL * lmax)
+            r.degenerate_faces++;
+        for (k = 0; k < 3; k++)
+            used[t[k]] = 1;
+
+        if (s0 > s1) { tmp = s0; s0 = s1; s1 = tmp; }
+        if (s1 > s2) { tmp = s1; s1 = s2; s2 = tmp; }
+        if (s0 > s1) { tmp = s0; s0 = s1; s1 = tmp; }
+        fk[f].v[0] = s0;
+        fk[f].v[1] = s1;
+        fk[f].v[2] = s2;
+        fk[f].face = (int32_t)f;
+
+        /* A side joining a vertex to itself (repeated index) is no edge. */
+        for (k = 0; k < 3; k++) {
+            int32_t u = t[k], v = t[(k + 1) % 3];
+            if (u == v)
+                continue;
+            if (u > v) { tmp = u; u = v; v = tmp; }
+            he[nh].key = ((uint64_t)(uint32_t)u << 32) | (uint32_t)v;
+            he[nh].face = (int32_t)f;
+            he[nh].k = k;
+            nh++;
+        }
+    }
+    for (i = 0; i < nv; i++)
+        if (!used[i])
+            r.unreferenced++;
+
+    /* Duplicate faces: same sorted vertex triple as an earlier face. */
+    qsort(fk, nf, sizeof *fk, face_key_cmp);
+    for (f = 1; f < nf; f++)
+        if (memcmp(fk[f].v, fk[f - 1].v, sizeof fk[f].v) == 0)
+            r.duplicate_faces++;
+
+    /* Edges. The corners of one vertex are joined through every edge two
+     * of their faces share (and within a face that repeats the vertex); a
+     * vertex whose corners fall into several classes has a face fan in
+     * several pieces: a non-manifold ("bowtie") vertex. Faces are joined
+     * through non-manifold edges too, so that a vertex is counted only
+     * when its fan really falls apart; the edges themselves are counted
+     * in nonmanifold_edges. (Joining through manifold edges only would
+     * also flag every vertex of a non-manifold edge or of a duplicated
+     * face; this is the definition ../shared/meshes/SOURCES.md counts
+     * with: 16 vertices on dragon_vrip_res2, 2 on test_nm.) */
+    for (i = 0; i < 3 * nf; i++)
+        cuf[i] = (int32_t)i;
+    for (f = 0; f < nf; f++)
+        for (k = 0; k < 3; k++)
+            for (j = (size_t)k + 1; j < 3; j++)
+                if (F[3 * f + k] == F[3 * f + j])
+                    uf_union(cuf, (int32_t)(3 * f + k), (int32_t)(3 * f + j));
+    for (i = 0; i < nv; i++)
+        vuf[i] = (int32_t)i;
+    qsort(he, nh, sizeof *he, half_edge_cmp);
+    r.min_edge = HUGE_VAL;
+    r.max_edge = 0;
+    for (i = 0; i < nh; i = j) {
+        int32_t u = (int32_t)(he[i].key >> 32), v = (int32_t)(he[i].key & 0xffffffffu);
+        double d[3], len;
+        size_t cnt;
+        for (j = i + 1; j < nh && he[j].key == he[i].key; j++)
+            ;
+        cnt = j - i;
+        r.ne++;
+        mcf__sub3(X + 3 * (size_t)u, X + 3 * (size_t)v, d);
+        len = sqrt(mcf__dot3(d, d));
+        esum += len;
+        if (len < r.min_edge) r.min_edge = len;
+        if (len > r.max_edge) r.max_edge = len;
+        if (cnt == 1) {
+            r.boundary_edges++;
+            uf_union(vuf, u, v);
+        } else if (cnt > 2) {
+            r.nonmanifold_edges++;
+        } else {
+            int fwd_a = F[3 * he[i].face + he[i].k] == u;
+            int fwd_b = F[3 * he[i + 1].face + he[i + 1].k] == u;
+            if (fwd_a == fwd_b)
+                r.inconsistent_orientation++;
+        }
+        for (q = i + 1; q < j; q++) {
+            uf_union(cuf, corner_of(F, he + i, u), corner_of(F, he + q, u));
+            uf_union(cuf, corner_of(F, he + i, v), corner_of(F, he + q, v));
+        }
+    }
+    if (r.ne > 0)
+        r.mean_edge = esum / r.ne;
+    else
+        r.min_edge = 0;
+
+    /* Boundary loops: components of the boundary-edge graph. A vertex is
+     * on it when it is an endpoint of a boundary edge; count the roots. */
+    memset(used, 0, nv);
+    for (i = 0; i < nh; i = j) {
+        for (j = i + 1; j < nh && he[j].key == he[i].key; j++)
+            ;
+        if (j - i == 1) {
+            used[he[i].key >> 32] = 1;
+            used[he[i].key & 0xffffffffu] = 1;
+        }
+    }
+    for (i = 0; i < nv; i++)
+        if (used[i] && uf_find(vuf, (int32_t)i) == (int32_t)i)
+            r.boundary_loops++;
+
+    /* Non-manifold vertices: more than one root corner at a vertex. The
+     * counter per vertex reuses vuf (loops are counted already). */
+    memset(vuf, 0, nv * sizeof *vuf);
+    for (i = 0; i < 3 * nf; i++)
+        if (uf_find(cuf, (int32_t)i) == (int32_t)i)
+            vuf[F[i]]++;
+    for (i = 0; i < nv; i++)
+        if (vuf[i] > 1)
+            r.nonmanifold_vertices++;
+
+    /* Components: vertices joined through faces, referenced ones counted. */
+    memset(used, 0, nv);
+    for (i = 0; i < nv; i++)
+        vuf[i] = (int32_t)i;
+    for (f = 0; f < nf; f++) {
+        uf_union(vuf, F[3 * f], F[3 * f + 1]);
+        uf_union(vuf, F[3 * f], F[3 * f + 2]);
+        used[F[3 * f]] = 1;
+        used[F[3 * f + 1]] = 1;
+        used[F[3 * f + 2]] = 1;
+    }
+    for (i = 0; i < nv; i++)
+        if (used[i] && uf_find(vuf, (int32_t)i) == (int32_t)i)
+            r.components++;
+
+    r.euler = (r.nv - r.unreferenced) - r.ne + r.nf;
+    r.manifold = r.nonmanifold_edges == 0 && r.nonmanifold_vertices == 0;
+    r.closed = r.boundary_edges == 0;
+    r.genus = -1;
+    if (r.manifold && r.components == 1) {
+        int twice = 2 - r.euler - r.boundary_loops;
+        /* An odd or negative value means a non-orientable surface. */
+        if (twice >= 0 && twice % 2 == 0)
+            r.genus = twice / 2;
+    }
+    *info = r;
+done:
+    free(he);
+    free(fk);
+    free(cuf);
+    free(vuf);
+    free(used);
+    return rc;
+}
+
+double mcf_mesh_area(const mcf_mesh *m)
+{
+    double s = 0;
+    size_t f;
+    for (f = 0; f < (size_t)m->nf; f++) {
+        const int32_t *t = m->F + 3 * f;
+        double e1[3], e2[3], cr[3];
+        mcf__sub3(m->X + 3 * (size_t)t[1], m->X + 3 * (size_t)t[0], e1);
+        mcf__sub3(m->X + 3 * (size_t)t[2], m->X + 3 * (size_t)t[0], e2);
+        mcf__cross3(e1, e2, cr);
+        s += 0.5 * sqrt(mcf__dot3(cr, cr));
+    }
+    return s;
+}
+
+/* Signed volume by the divergence theorem: sum over faces of the signed
+ * volume of the tetrahedron (origin, a, b, c), det[a b c] / 6. Exact for a
+ * closed mesh whatever the origin; positive when faces point outward. */
+double mcf_mesh_volume(const mcf_mesh *m)
+{
+    double s = 0;
+    size_t f;
+    for (f = 0; f < (size_t)m->nf; f++) {
+        const int32_t *t = m->F + 3 * f;
+        double cr[3];
+        mcf__cross3(m->X + 3 * (size_t)t[1], m->X + 3 * (size_t)t[2], cr);
+        s += mcf__dot3(m->X + 3 * (size_t)t[0], cr) / 6.0;
+    }
+    return s;
+}
+
+/* ---------------------------------------------------------------- noise */
+
+/* splitmix64 (Steele, Lea, Flood 2014): a 64-bit state, full period,
+ * integer-only, hence the same stream on every platform. */
+typedef struct {
+    uint64_t s;
+    double spare;
+    int has_spare;
+} rng;
+
+static uint64_t rng_next(rng *g)
+{
+    g->s += UINT64_C(0x9e3779b97f4a7c15);
+    return mix64(g->s);
+}
+
+/* Uniform in (-1, 1) with 53 random bits: (2k + 1 - 2^53) / 2^53. */
+static double rng_sym(rng *g)
+{
+    int64_t k = (int64_t)(rng_next(g) >> 11);
+    return (double)(2 * k + 1 - (INT64_C(1) << 53)) / 9007199254740992.0;
+}
+
+/* Natural log for s in (0, 1] from +, -, *, / and frexp only, so that it
+ * rounds identically wherever IEEE-754 doubles are used (libm's log is
+ * not correctly rounded on every platform). x = 2^e w, w in
+ * [sqrt(1/2), sqrt(2)); log w = 2 atanh(u), u = (w-1)/(w+1), |u| < 0.172,
+ * whose series to u^27 is accurate to below 1e-20 relative. */
+static double portable_log(double x)
+{
+    static const double ln2 = 0.69314718055994530942;
+    int e;
+    double w = frexp(x, &e), u, u2, term, sum;
+    int n;
+
+    if (w < 0.70710678118654752440) {
+        w *= 2;
+        e--;
+    }
+    u = (w - 1) / (w + 1);
+    u2 = u * u;
+    term = u;
+    sum = 0;
+    for (n = 1; n <= 27; n += 2) {
+        sum += term / n;
+        term *= u2;
+    }
+    return 2 * sum + e * ln2;
+}
+
+/* Standard normal by Marsaglia's polar method (Box-Muller without the
+ * trigonometric functions, whose last bits vary between libms). */
+static double rng_gauss(rng *g)
+{
+    double u, v, s;
+    if (g->has_spare) {
+        g->has_spare = 0;
+        return g->spare;
+    }
+    do {
+        u = rng_sym(g);
+        v = rng_sym(g);
+        s = u * u + v * v;
+    } while (s >= 1 || s == 0);
+    s = sqrt(-2 * portable_log(s) / s); /* sqrt is correctly rounded */
+    g->spare = v * s;
+    g->has_spare = 1;
+    return u * s;
+}
+
+mcf_status mcf_mesh_add_noise(mcf_mesh *m, double rho, uint64_t seed,
+                              mcf_error *err)
+{
+    double *N, sigma;
+    rng g;
+    size_t i;
+
+    if (!m)
+        return mcf__fail(err, MCF_EINVAL, "mcf_mesh_add_noise: NULL mesh");
+    if (!(rho >= 0) || !isfinite(rho))
+        return mcf__fail(err, MCF_EINVAL, "noise rho %g not >= 0", rho);
+    N = mcf__malloc(3 * (size_t)m->nv, sizeof *N);
+    if (!N)
+        return mcf__fail(err, MCF_ENOMEM, "noise normals of %d vertices",
+                         m->nv);
+    mcf__vertex_normals(m->X, m->F, m->nf, m->nv, N);
+    sigma = rho * face_edge_mean(m->X, m->F, m->nf);
+    g.s = seed;
+    g.spare = 0;
+    g.has_spare = 0;
+    /* One draw per vertex, in index order, also where the normal is zero
+     * (unreferenced), so vertex i always gets the i-th draw. */
+    for (i = 0; i < (size_t)m->nv; i++) {
+        double z = sigma * rng_gauss(&g);
+        m->X[3 * i] += z * N[3 * i];
+        m->X[3 * i + 1] += z * N[3 * i + 1];
+        m->X[3 * i + 2] += z * N[3 * i + 2];
+    }
+    free(N);
+    return MCF_OK;
+}
