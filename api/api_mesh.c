@@ -1,0 +1,231 @@
+/*
+ * api_mesh.c - format detection and naming, encoder options, and the
+ * decode/encode dispatchers over the per-format codecs.
+ *
+ * Detection looks at the bytes only, in an order where no rule can steal
+ * another format's file: Draco's "DRACO" magic, "ply" + newline, an OFF
+ * keyword, the binary STL size rule (84 + 50 n bytes: a binary STL may
+ * begin with "solid" in its free-form header, so this comes before the
+ * ASCII rule), "solid" followed by "facet"/"endsolid", then text whose
+ * first statement is an OBJ keyword.
+ */
+#include <ctype.h>
+#include <string.h>
+#include <strings.h>
+
+#include "api_internal.h"
+
+/* Index = api_format. */
+static const struct {
+    const char *name, *ext, *mime;
+} formats[] = {
+    {"unknown", "", "application/octet-stream"},
+    {"obj", ".obj", "model/obj"},
+    {"draco", ".drc", "model/x-draco"},
+    {"ply", ".ply", "model/x-ply"},
+    {"stl", ".stl", "model/stl"},
+    {"off", ".off", "model/x-off"},
+};
+#define NFORMATS (sizeof formats / sizeof formats[0])
+
+static int sp(int c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f'
+           || c == '\v';
+}
+
+/* Does the n bytes at p start with the word w, followed by white space
+ * or the end of the buffer? */
+static int starts_word(const char *p, size_t n, const char *w)
+{
+    size_t k = strlen(w);
+    return n >= k && memcmp(p, w, k) == 0 && (n == k || sp((unsigned char)p[k]));
+}
+
+static int contains(const char *p, size_t n, const char *w)
+{
+    size_t k = strlen(w), i;
+    if (n < k)
+        return 0;
+    for (i = 0; i + k <= n; i++)
+        if (p[i] == w[0] && memcmp(p + i, w, k) == 0)
+            return 1;
+    return 0;
+}
+
+static int looks_off(const char *p, size_t n)
+{
+    /* OFF and its variants: [ST][C][N][4][n]OFF, e.g. COFF, NOFF, CNOFF. */
+    static const char *const kw[] = {"OFF", "COFF", "NOFF", "CNOFF", "STOFF",
+                                     "4OFF", "nOFF", NULL};
+    int i;
+    for (i = 0; kw[i]; i++)
+        if (starts_word(p, n, kw[i]))
+            return 1;
+    return 0;
+}
+
+static int looks_obj(const char *p, size_t n)
+{
+    static const char *const kw[] = {"v", "vt", "vn", "vp", "f", "g", "o",
+                                     "s", "l", "p", "usemtl", "mtllib", NULL};
+    size_t i = 0;
+    /* Skip blank and comment lines, then look at the first statement. */
+    while (i < n) {
+        while (i < n && sp((unsigned char)p[i]))
+            i++;
+        if (i < n && p[i] == '#') {
+            const char *nl = memchr(p + i, '\n', n - i);
+            if (!nl)
+                return 1; /* only comments: let the OBJ reader say so */
+            i = (size_t)(nl - p) + 1;
+            continue;
+        }
+        break;
+    }
+    if (i >= n)
+        return 0;
+    for (int k = 0; kw[k]; k++)
+        if (starts_word(p + i, n - i, kw[k]))
+            return 1;
+    return 0;
+}
+
+api_format api_format_detect(const void *buf, size_t len)
+{
+    const char *p = buf;
+    size_t i = 0;
+
+    if (!p || len == 0)
+        return API_FMT_UNKNOWN;
+    if (len >= 5 && memcmp(p, "DRACO", 5) == 0)
+        return API_FMT_DRACO;
+    if ((len >= 4 && memcmp(p, "ply\n", 4) == 0)
+        || (len >= 5 && memcmp(p, "ply\r\n", 5) == 0))
+        return API_FMT_PLY;
+    if (len >= 84) {
+        const unsigned char *u = (const unsigned char *)p + 80;
+        uint64_t nt = (uint64_t)u[0] | (uint64_t)u[1] << 8
+                      | (uint64_t)u[2] << 16 | (uint64_t)u[3] << 24;
+        if (84 + 50 * nt == (uint64_t)len)
+            return API_FMT_STL;
+    }
+    while (i < len && sp((unsigned char)p[i]))
+        i++;
+    if (looks_off(p + i, len - i))
+        return API_FMT_OFF;
+    if (starts_word(p + i, len - i, "solid")) {
+        size_t win = len - i < 65536 ? len - i : 65536;
+        if (contains(p + i, win, "facet") || contains(p + i, win, "endsolid"))
+            return API_FMT_STL;
+    }
+    if (looks_obj(p, len))
+        return API_FMT_OBJ;
+    return API_FMT_UNKNOWN;
+}
+
+api_format api_format_from_name(const char *name)
+{
+    const char *base, *dot, *ext;
+    size_t i;
+
+    if (!name || !*name)
+        return API_FMT_UNKNOWN;
+    base = strrchr(name, '/');
+    base = base ? base + 1 : name;
+    dot = strrchr(base, '.');
+    ext = dot ? dot + 1 : base;
+    if (strcasecmp(ext, "drc") == 0)
+        return API_FMT_DRACO;
+    for (i = 1; i < NFORMATS; i++)
+        if (strcasecmp(ext, formats[i].name) == 0)
+            return (api_format)i;
+    return API_FMT_UNKNOWN;
+}
+
+const char *api_format_name(api_format f)
+{
+    return (unsigned)f < NFORMATS ? formats[f].name : formats[0].name;
+}
+
+const char *api_format_ext(api_format f)
+{
+    return (unsigned)f < NFORMATS ? formats[f].ext : formats[0].ext;
+}
+
+const char *api_format_mime(api_format f)
+{
+    return (unsigned)f < NFORMATS ? formats[f].mime : formats[0].mime;
+}
+
+void api_encode_opts_init(api_encode_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->format = API_FMT_UNKNOWN;
+    o->quantization_bits = 0;
+    o->compression_level = 7;
+    o->preserve_order = 0;
+    o->ply_binary = 1;
+    o->ply_mean_curvature = NULL;
+    o->ply_gaussian_curvature = NULL;
+    o->stl_binary = 1;
+}
+
+mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
+                           mcf_mesh **out, api_format *fmt, mcf_error *err)
+{
+    api_limits def;
+    api_format f;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (len > lim->max_input_bytes)
+        return api__fail(err, MCF_ELIMIT,
+                         "input of %zu bytes exceeds max_input_bytes (%zu)",
+                         len, lim->max_input_bytes);
+    if (!buf || len == 0)
+        return api__fail(err, MCF_EDECODE, "empty input (0 bytes)");
+    f = api_format_detect(buf, len);
+    if (fmt)
+        *fmt = f;
+    switch (f) {
+    case API_FMT_OBJ:
+        return api_obj_decode(buf, len, lim, out, err);
+    case API_FMT_DRACO:
+        return api__fail(err, MCF_EFORMAT, "format draco not supported yet");
+    case API_FMT_PLY:
+        return api__fail(err, MCF_EFORMAT, "format ply not supported yet");
+    case API_FMT_STL:
+        return api__fail(err, MCF_EFORMAT, "format stl not supported yet");
+    case API_FMT_OFF:
+        return api__fail(err, MCF_EFORMAT, "format off not supported yet");
+    case API_FMT_UNKNOWN:
+        break;
+    }
+    return api__fail(err, MCF_EFORMAT,
+                     "unknown mesh format (accepted: obj, draco, ply, stl, off)");
+}
+
+mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
+                           api_buf *out, mcf_error *err)
+{
+    if (!m || !o || !out)
+        return api__fail(err, MCF_EINVAL, "encode: NULL argument");
+    switch (o->format) {
+    case API_FMT_OBJ:
+        return api_obj_encode(m, out, err);
+    case API_FMT_DRACO:
+        return api__fail(err, MCF_EFORMAT, "format draco not supported yet");
+    case API_FMT_PLY:
+        return api__fail(err, MCF_EFORMAT, "format ply not supported yet");
+    case API_FMT_STL:
+        return api__fail(err, MCF_EFORMAT, "format stl not supported yet");
+    case API_FMT_OFF:
+        return api__fail(err, MCF_EFORMAT, "format off not supported yet");
+    case API_FMT_UNKNOWN:
+        break;
+    }
+    return api__fail(err, MCF_EINVAL, "encode: no output format given");
+}

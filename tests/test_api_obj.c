@@ -1,0 +1,432 @@
+/*
+ * test_api_obj.c - the OBJ reader and writer (api_obj.c).
+ *
+ * Real files: every OBJ of ../shared/meshes decodes with the counts of
+ * SOURCES.md, and write -> read returns bit-identical positions and the
+ * same faces. Syntax: every face-reference form, negative indices,
+ * polygons, comments, CRLF, skipped statements. Hostile input: every
+ * malformed case fails with EDECODE or ELIMIT and names the line. Each
+ * inline input is copied into an exact-size heap block with no NUL, so a
+ * read past the end shows under AddressSanitizer.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testlib.h"
+#include "../api/api.h"
+
+/* Decodes text from an exact-size, non-NUL-terminated copy. */
+static mcf_status dec_lim(const char *text, const api_limits *lim,
+                          mcf_mesh **m, mcf_error *err)
+{
+    size_t n = strlen(text);
+    char *copy = malloc(n ? n : 1);
+    mcf_status rc;
+    assert_non_null(copy);
+    memcpy(copy, text, n);
+    *m = NULL;
+    err->status = MCF_OK;
+    err->msg[0] = '\0';
+    rc = api_obj_decode(copy, n, lim, m, err);
+    free(copy);
+    return rc;
+}
+
+static mcf_status dec(const char *text, mcf_mesh **m, mcf_error *err)
+{
+    api_limits lim;
+    api_limits_default(&lim);
+    return dec_lim(text, &lim, m, err);
+}
+
+/* Decoding must fail with code and a message containing want. */
+static void expect_fail_lim(const char *text, const api_limits *lim,
+                            mcf_status code, const char *want)
+{
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    mcf_status rc = dec_lim(text, lim, &m, &err);
+    if (rc != code || !strstr(err.msg, want))
+        fail_msg("input %.40s...: got %s \"%s\", want %s containing \"%s\"",
+                 text, mcf_status_name(rc), err.msg, mcf_status_name(code),
+                 want);
+    assert_null(m);
+    assert_int_equal(err.status, code);
+}
+
+static void expect_fail(const char *text, mcf_status code, const char *want)
+{
+    api_limits lim;
+    api_limits_default(&lim);
+    expect_fail_lim(text, &lim, code, want);
+}
+
+static void expect_faces(const mcf_mesh *m, const int32_t *want, int nf)
+{
+    int i;
+    assert_int_equal(mcf_mesh_nfaces(m), nf);
+    for (i = 0; i < 3 * nf; i++)
+        if (mcf_mesh_faces(m)[i] != want[i])
+            fail_msg("face entry %d: %d, want %d", i, mcf_mesh_faces(m)[i],
+                     want[i]);
+}
+
+static const struct {
+    const char *file;
+    int nv, nf;
+} real[] = {
+    {"sphere_cgal.obj", 812, 1620},
+    {"bunny_npm_closed.obj", 1839, 3674},
+    {"spot.obj", 2930, 5856},           /* f v/vt */
+    {"knot1.obj", 3200, 6400},
+    {"fertility.obj", 4494, 9000},
+    {"stanford-bunny.obj", 35947, 69451},
+    {"armadillo.obj", 43243, 86482},
+    {"snowden.obj", 54559, 109259},
+    {"dragon_vrip_res2.obj", 100250, 202520},
+    {"test_nm.obj", 114, 170},          /* has vn */
+};
+
+static void test_real_counts(void **state)
+{
+    size_t i;
+    (void)state;
+    for (i = 0; i < sizeof real / sizeof real[0]; i++) {
+        mcf_mesh *m = tl_load(real[i].file);
+        if (mcf_mesh_nvertices(m) != real[i].nv
+            || mcf_mesh_nfaces(m) != real[i].nf)
+            fail_msg("%s: %d vertices, %d faces; SOURCES.md says %d, %d",
+                     real[i].file, mcf_mesh_nvertices(m), mcf_mesh_nfaces(m),
+                     real[i].nv, real[i].nf);
+        mcf_mesh_free(m);
+    }
+}
+
+/* The first vertex and face of sphere_cgal.obj, as written in the file:
+ * strtod is correctly rounded, so == on the parsed literal is exact. */
+static void test_real_values(void **state)
+{
+    mcf_mesh *m = tl_load("sphere_cgal.obj");
+    const double *X = mcf_mesh_positions(m);
+    (void)state;
+    assert_true(X[0] == -0.52573111211913348);
+    assert_true(X[1] == 0.85065080835203999);
+    assert_true(X[2] == -2.5720446970240305e-18);
+    assert_true(X[3] == 0.52573111211913359);
+    mcf_mesh_free(m);
+}
+
+static void roundtrip(const char *file)
+{
+    mcf_mesh *a = tl_load(file), *b = NULL;
+    api_buf out;
+    mcf_error err;
+    api_limits lim;
+    int nv = mcf_mesh_nvertices(a), nf = mcf_mesh_nfaces(a);
+
+    api_buf_init(&out, 0);
+    api_limits_default(&lim);
+    if (api_obj_encode(a, &out, &err) != MCF_OK)
+        fail_msg("%s: encode: %s", file, err.msg);
+    if (api_obj_decode(out.data, out.len, &lim, &b, &err) != MCF_OK)
+        fail_msg("%s: decode of own output: %s", file, err.msg);
+    assert_int_equal(mcf_mesh_nvertices(b), nv);
+    assert_int_equal(mcf_mesh_nfaces(b), nf);
+    /* %.17g round-trips doubles exactly: bit-identical, no tolerance. */
+    assert_memory_equal(mcf_mesh_positions(a), mcf_mesh_positions(b),
+                        3 * sizeof(double) * (size_t)nv);
+    assert_memory_equal(mcf_mesh_faces(a), mcf_mesh_faces(b),
+                        3 * sizeof(int32_t) * (size_t)nf);
+    api_buf_free(&out);
+    mcf_mesh_free(a);
+    mcf_mesh_free(b);
+}
+
+static void test_roundtrip(void **state)
+{
+    (void)state;
+    roundtrip("sphere_cgal.obj");
+    roundtrip("fertility.obj");
+    roundtrip("spot.obj");
+}
+
+/* Values no short decimal represents: subnormal, huge, negative zero. */
+static void test_roundtrip_extremes(void **state)
+{
+    const double X[] = {4.9406564584124654e-324, -1.7976931348623157e308, -0.0,
+                        0.1, 1.0 / 3.0, -2.2250738585072014e-308,
+                        1e-300, 123456789.123456789, 6.02214076e23};
+    const int32_t F[] = {0, 1, 2};
+    mcf_error err;
+    mcf_mesh *a = mcf_mesh_new(3, X, 1, F, &err), *b = NULL;
+    api_buf out;
+    (void)state;
+    assert_non_null(a);
+    api_buf_init(&out, 0);
+    assert_int_equal(api_obj_encode(a, &out, &err), MCF_OK);
+    assert_int_equal(api_obj_decode(out.data, out.len, NULL, &b, &err), MCF_OK);
+    assert_memory_equal(mcf_mesh_positions(a), mcf_mesh_positions(b), sizeof X);
+    api_buf_free(&out);
+    mcf_mesh_free(a);
+    mcf_mesh_free(b);
+}
+
+static void test_encode_limit(void **state)
+{
+    mcf_mesh *m = tl_load("sphere_cgal.obj");
+    api_buf out;
+    mcf_error err;
+    (void)state;
+    api_buf_init(&out, 1000);
+    assert_int_equal(api_buf_append(&out, "abc", 3), MCF_OK);
+    assert_int_equal(api_obj_encode(m, &out, &err), MCF_ELIMIT);
+    /* A failed encode leaves what the buffer held before. */
+    assert_int_equal(out.len, 3);
+    assert_string_equal(out.data, "abc");
+    api_buf_free(&out);
+    mcf_mesh_free(m);
+}
+
+static void test_polygons(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    const int32_t want[] = {0, 1, 2, 0, 2, 3, 0, 1, 2, 0, 2, 3, 0, 3, 4};
+    (void)state;
+    assert_int_equal(dec("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 0 0\n"
+                         "f 1 2 3 4\nf 1 2 3 4 5\n", &m, &err), MCF_OK);
+    expect_faces(m, want, 5);
+    mcf_mesh_free(m);
+}
+
+static void test_reference_forms(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    const int32_t want[] = {0, 1, 2, 1, 2, 3, 0, 2, 3, 3, 1, 0};
+    (void)state;
+    assert_int_equal(dec("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                         "vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n"
+                         "f 1/1 2/2 3/3\n"
+                         "f 2//1 3//1 4//1\n"
+                         "f 1/1/1 3/3/1 4/2/1\n"
+                         "f 4/-1 2//-1 1/-2/-1\n", &m, &err), MCF_OK);
+    expect_faces(m, want, 4);
+    mcf_mesh_free(m);
+}
+
+static void test_negative_indices(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    /* -1 is the latest vertex read so far, not the last of the file. */
+    const int32_t want[] = {0, 1, 2, 1, 2, 3, 0, 3, 4};
+    (void)state;
+    assert_int_equal(dec("v 0 0 0\nv 1 0 0\nv 1 1 0\nf -3 -2 -1\n"
+                         "v 0 1 0\nf -3 -2 -1\nv 2 2 2\nf 1 -2 -1\n", &m, &err),
+                     MCF_OK);
+    expect_faces(m, want, 3);
+    mcf_mesh_free(m);
+}
+
+/* A positive index may name a vertex defined further down. */
+static void test_forward_reference(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    const int32_t want[] = {0, 1, 2};
+    (void)state;
+    assert_int_equal(dec("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 1 1 0\n", &m, &err),
+                     MCF_OK);
+    expect_faces(m, want, 1);
+    mcf_mesh_free(m);
+}
+
+static void test_syntax_tolerated(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    const int32_t want[] = {0, 1, 2};
+    (void)state;
+    assert_int_equal(dec("# header\r\n\r\n   \r\nmtllib a.mtl\r\no thing\r\n"
+                         "g group one\r\ns off\r\nusemtl red\r\n"
+                         "v 1 2 3 1.0\r\n"                  /* w */
+                         "v\t4e0  5.5 -6 0.1 0.2 0.3\r\n"   /* colour */
+                         "v +7 .5 -0.0 # trailing comment\r\n"
+                         "vt 0.5 0.5\r\nvn 0 0 1\r\nvp 0.1\r\n"
+                         "l 1 2\r\n"
+                         "f 1 2 3 # comment\r\n"
+                         "# no newline at the end", &m, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nvertices(m), 3);
+    expect_faces(m, want, 1);
+    assert_true(mcf_mesh_positions(m)[3] == 4.0);
+    assert_true(mcf_mesh_positions(m)[4] == 5.5);
+    assert_true(mcf_mesh_positions(m)[6] == 7.0);
+    assert_true(mcf_mesh_positions(m)[7] == 0.5);
+    assert_true(signbit(mcf_mesh_positions(m)[8]));
+    mcf_mesh_free(m);
+}
+
+/* The last number touches the end of the buffer (no newline, no NUL). */
+static void test_number_at_end(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    (void)state;
+    assert_int_equal(dec("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 1 1 0.125", &m, &err),
+                     MCF_OK);
+    assert_true(mcf_mesh_positions(m)[8] == 0.125);
+    mcf_mesh_free(m);
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 4", MCF_EDECODE,
+                "line 4: face index 4 out of range (1..3)");
+}
+
+static void test_malformed(void **state)
+{
+    char big[300];
+    (void)state;
+    expect_fail("", MCF_EDECODE, "empty");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1\nf 1 2 3\n", MCF_EDECODE,
+                "line 3: vertex has 2 coordinates");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1", MCF_EDECODE, "line 3:");
+    expect_fail("v 0 0 0\nv 1 zero 0\nv 1 1 0\nf 1 2 3\n", MCF_EDECODE,
+                "line 2: bad number 'zero'");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0x\nf 1 2 3\n", MCF_EDECODE,
+                "line 3: bad number '0x'");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 1,5\nf 1 2 3\n", MCF_EDECODE,
+                "line 3: bad number");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 0 1 2\n", MCF_EDECODE,
+                "line 4: face index 0");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 -4\n", MCF_EDECODE,
+                "line 4: face index -4 out of range (-3..-1)");
+    expect_fail("v 0 0 0\nv 1 0 0\nf 1 2 -3\nv 1 1 0\n", MCF_EDECODE,
+                "line 3: face index -3 out of range (-2..-1)");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 99999999999999999999\n",
+                MCF_EDECODE, "line 4: face index 99999999999999999999 out of range");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 x\n", MCF_EDECODE,
+                "line 4: bad face vertex index 'x'");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3/1/1/1\n", MCF_EDECODE,
+                "line 4: bad face vertex '3/1/1/1'");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 /3\n", MCF_EDECODE,
+                "line 4: bad face vertex index");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2\n", MCF_EDECODE,
+                "line 4: face has 2 vertices");
+    expect_fail("v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n", MCF_EDECODE,
+                "line 2: coordinate 'nan' is not finite");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 -inf 0\nf 1 2 3\n", MCF_EDECODE,
+                "line 3: coordinate '-inf' is not finite");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1e999 0\nf 1 2 3\n", MCF_EDECODE,
+                "line 3: coordinate '1e999' is not finite");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\nfoo 1 2 3\n", MCF_EDECODE,
+                "line 4: unknown statement 'foo'");
+    expect_fail("v 0 0 0\nv 1 0 0\nv 1 1 0\n", MCF_EDECODE, "no faces");
+    expect_fail("# nothing\n", MCF_EDECODE, "no vertices");
+    /* A number too long for the local buffer is refused, not truncated. */
+    memset(big, '1', sizeof big);
+    memcpy(big, "v 1 1 ", 6);
+    big[sizeof big - 1] = '\0';
+    expect_fail(big, MCF_EDECODE, "line 1: bad number");
+}
+
+static void test_binary_garbage(void **state)
+{
+    unsigned char junk[512];
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    unsigned x = 12345;
+    size_t i;
+    (void)state;
+    for (i = 0; i < sizeof junk; i++) {
+        x = x * 1103515245u + 12345u;
+        junk[i] = (unsigned char)(x >> 16);
+    }
+    junk[0] = 'v'; /* looks like OBJ for one byte */
+    junk[1] = ' ';
+    junk[2] = 0x01;
+    assert_int_equal(api_obj_decode(junk, sizeof junk, NULL, &m, &err),
+                     MCF_EDECODE);
+    assert_non_null(strstr(err.msg, "line 1: binary data"));
+    assert_null(m);
+    /* An embedded NUL on a later line. */
+    {
+        const char t[] = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\0\n";
+        assert_int_equal(api_obj_decode(t, sizeof t - 1, NULL, &m, &err),
+                         MCF_EDECODE);
+        assert_non_null(strstr(err.msg, "line 4: binary data (byte 0x00)"));
+    }
+}
+
+static void test_limits(void **state)
+{
+    api_limits lim;
+    (void)state;
+    api_limits_default(&lim);
+    lim.max_vertices = 3;
+    expect_fail_lim("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 2 2 2\nf 1 2 3\n", &lim,
+                    MCF_ELIMIT, "line 4: more than max_vertices (3)");
+    api_limits_default(&lim);
+    lim.max_faces = 2;
+    /* A pentagon is 3 triangles: over the limit on its own line. */
+    expect_fail_lim("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 5 5 5\n"
+                    "# c\nf 1 2 3 4 5\n", &lim, MCF_ELIMIT,
+                    "line 7: more than max_faces (2)");
+    api_limits_default(&lim);
+    lim.max_input_bytes = 10;
+    expect_fail_lim("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n", &lim, MCF_ELIMIT,
+                    "max_input_bytes (10)");
+    /* Limits win over syntax further down: nothing is allocated first. */
+    api_limits_default(&lim);
+    lim.max_vertices = 2;
+    expect_fail_lim("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 junk\n", &lim,
+                    MCF_ELIMIT, "line 3:");
+}
+
+/* A face line announcing millions of triangles in a short input. */
+static void test_huge_counts(void **state)
+{
+    size_t n = 3 * 20 + 2 + 2 * 200000, i;
+    char *t = malloc(n + 1), *p = t;
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    api_limits lim;
+    (void)state;
+    assert_non_null(t);
+    memcpy(p, "v 0 0 0\nv 1 0 0\nv 1 1 0\n", 24);
+    p += 24;
+    *p++ = 'f';
+    for (i = 0; i < 200000; i++) {
+        *p++ = ' ';
+        *p++ = '1';
+    }
+    api_limits_default(&lim);
+    lim.max_faces = 1000;
+    assert_int_equal(api_obj_decode(t, (size_t)(p - t), &lim, &m, &err),
+                     MCF_ELIMIT);
+    assert_non_null(strstr(err.msg, "line 4: more than max_faces (1000)"));
+    assert_null(m);
+    free(t);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_real_counts),
+        cmocka_unit_test(test_real_values),
+        cmocka_unit_test(test_roundtrip),
+        cmocka_unit_test(test_roundtrip_extremes),
+        cmocka_unit_test(test_encode_limit),
+        cmocka_unit_test(test_polygons),
+        cmocka_unit_test(test_reference_forms),
+        cmocka_unit_test(test_negative_indices),
+        cmocka_unit_test(test_forward_reference),
+        cmocka_unit_test(test_syntax_tolerated),
+        cmocka_unit_test(test_number_at_end),
+        cmocka_unit_test(test_malformed),
+        cmocka_unit_test(test_binary_garbage),
+        cmocka_unit_test(test_limits),
+        cmocka_unit_test(test_huge_counts),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
