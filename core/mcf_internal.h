@@ -87,6 +87,7 @@ void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
                          const double *X, double *Y);
 
 /* ---- small helpers */
+#define MCF_PI 3.14159265358979323846
 static inline double mcf__dot3(const double *a, const double *b)
 {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
