@@ -194,7 +194,7 @@ mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
     case API_FMT_OBJ:
         return api_obj_decode(buf, len, lim, out, err);
     case API_FMT_DRACO:
-        return api__fail(err, MCF_EFORMAT, "format draco not supported yet");
+        return api_draco_decode(buf, len, lim, out, err);
     case API_FMT_PLY:
         return api__fail(err, MCF_EFORMAT, "format ply not supported yet");
     case API_FMT_STL:
@@ -217,7 +217,7 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
     case API_FMT_OBJ:
         return api_obj_encode(m, out, err);
     case API_FMT_DRACO:
-        return api__fail(err, MCF_EFORMAT, "format draco not supported yet");
+        return api_draco_encode(m, o, out, NULL, err);
     case API_FMT_PLY:
         return api__fail(err, MCF_EFORMAT, "format ply not supported yet");
     case API_FMT_STL:

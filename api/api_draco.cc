@@ -1,0 +1,462 @@
+/*
+ * api_draco.cc - Google Draco (.drc) decoder and encoder, the only C++ of
+ * mcfd: a thin extern "C" bridge over Debian's libdraco 1.5.5.
+ *
+ * Decoder: any Draco mesh bitstream the library reads (old v1.x such as
+ * bunny.drc, current v2.2; edgebreaker and sequential). A point cloud is
+ * refused. Vertices are the POSITION attribute's *values*, not its points:
+ * a face corner's point p becomes vertex att->mapped_index(p), so a mesh
+ * whose points are split at normal/UV seams stays connected where the
+ * encoder shared the position value (edgebreaker streams do). A sequential
+ * stream that stored one position per point (car.drc: 1,856 values for 920
+ * distinct positions) decodes with those duplicate positions as separate
+ * vertices: exactly what the file holds. No welding happens here.
+ *
+ * Encoder: a draco::Mesh with one POSITION attribute (identity point map),
+ * then draco::Encoder. quantization_bits 0 is lossless: no quantization
+ * is set and the values are stored raw, as float32 when every coordinate
+ * is exactly a float (meshes that came from Draco, STL or float sources),
+ * else as float64, so decoding gives back the very same doubles. Draco
+ * quantizes float32 attributes only, so q in 1..30 stores float32 (a
+ * coordinate beyond the float range is refused). Compression level L maps
+ * to Draco speed 10 - L. preserve_order selects the sequential method,
+ * which keeps vertex and face order (and unreferenced vertices); otherwise
+ * edgebreaker, which renumbers vertices, reorders and rotates faces, drops
+ * unreferenced vertices and splits non-manifold ones.
+ *
+ * *max_quant_err is measured, not predicted: the encoded bytes are decoded
+ * again and every input face is compared with its decoded counterpart
+ * corner by corner (faces are looked up by centroid in a grid, cyclic
+ * rotations tried), since edgebreaker changes vertex and face order.
+ *
+ * Every entry point catches all C++ exceptions: std::bad_alloc becomes
+ * ENOMEM, anything else EDECODE (decoder) or EMESH (encoder). No C++ type
+ * or exception crosses api.h.
+ */
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <new>
+#include <vector>
+
+#include "draco/compression/decode.h"
+#include "draco/compression/encode.h"
+#include "draco/mesh/mesh.h"
+
+#include "api.h"
+extern "C" {
+#include "api_internal.h"
+}
+
+namespace {
+
+/* ------------------------------------------------------------- decoder */
+
+mcf_status decode(const void *buf, size_t len, const api_limits *lim,
+                  mcf_mesh **out, mcf_error *err)
+{
+    api_limits def;
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (!buf && len)
+        return api__fail(err, MCF_EINVAL, "draco: NULL buffer");
+    if (len > lim->max_input_bytes)
+        return api__fail(err, MCF_ELIMIT,
+                         "draco: input of %zu bytes exceeds max_input_bytes (%zu)",
+                         len, lim->max_input_bytes);
+    if (len == 0)
+        return api__fail(err, MCF_EDECODE, "draco: empty input");
+    if (len < 5 || std::memcmp(buf, "DRACO", 5) != 0)
+        return api__fail(err, MCF_EDECODE,
+                         "draco: no \"DRACO\" magic at the start of the input");
+
+    draco::DecoderBuffer db;
+    db.Init(static_cast<const char *>(buf), len);
+    auto type = draco::Decoder::GetEncodedGeometryType(&db);
+    if (!type.ok())
+        return api__fail(err, MCF_EDECODE, "draco: bad header: %s",
+                         type.status().error_msg());
+    if (type.value() == draco::POINT_CLOUD)
+        return api__fail(err, MCF_EDECODE,
+                         "Draco point cloud, not a triangle mesh");
+    if (type.value() != draco::TRIANGULAR_MESH)
+        return api__fail(err, MCF_EDECODE, "draco: unknown geometry type %d",
+                         static_cast<int>(type.value()));
+
+    draco::Decoder dec;
+    auto res = dec.DecodeMeshFromBuffer(&db);
+    if (!res.ok())
+        return api__fail(err, MCF_EDECODE, "draco: %s",
+                         res.status().error_msg());
+    std::unique_ptr<draco::Mesh> dm = std::move(res).value();
+    if (!dm)
+        return api__fail(err, MCF_EDECODE, "draco: decoder returned no mesh");
+
+    const draco::PointAttribute *pos =
+        dm->GetNamedAttribute(draco::GeometryAttribute::POSITION);
+    if (!pos)
+        return api__fail(err, MCF_EDECODE, "draco: mesh has no POSITION attribute");
+    if (pos->num_components() != 3)
+        return api__fail(err, MCF_EDECODE,
+                         "draco: POSITION has %d components, 3 needed",
+                         static_cast<int>(pos->num_components()));
+
+    const size_t nvals = pos->size();
+    const size_t npts = dm->num_points();
+    const size_t nfaces = dm->num_faces();
+    if (nvals > static_cast<size_t>(lim->max_vertices))
+        return api__fail(err, MCF_ELIMIT,
+                         "draco: %zu vertices exceed max_vertices (%d)", nvals,
+                         lim->max_vertices);
+    if (nfaces > static_cast<size_t>(lim->max_faces))
+        return api__fail(err, MCF_ELIMIT,
+                         "draco: %zu faces exceed max_faces (%d)", nfaces,
+                         lim->max_faces);
+    if (nvals == 0)
+        return api__fail(err, MCF_EDECODE, "draco: mesh has no vertices");
+    if (nfaces == 0)
+        return api__fail(err, MCF_EDECODE,
+                         "draco: mesh has no faces (%zu vertices only)", nvals);
+
+    std::vector<double> X(3 * nvals);
+    std::vector<int32_t> F(3 * nfaces);
+    for (size_t v = 0; v < nvals; v++) {
+        double *x = &X[3 * v];
+        if (!pos->ConvertValue<double>(
+                draco::AttributeValueIndex(static_cast<uint32_t>(v)), 3, x))
+            return api__fail(err, MCF_EDECODE,
+                             "draco: POSITION data type %d cannot be read",
+                             static_cast<int>(pos->data_type()));
+        if (!std::isfinite(x[0]) || !std::isfinite(x[1]) || !std::isfinite(x[2]))
+            return api__fail(err, MCF_EDECODE,
+                             "draco: vertex %zu has a non-finite coordinate", v);
+    }
+    for (size_t f = 0; f < nfaces; f++) {
+        const draco::Mesh::Face &face =
+            dm->face(draco::FaceIndex(static_cast<uint32_t>(f)));
+        for (int k = 0; k < 3; k++) {
+            const uint32_t p = face[k].value();
+            if (p >= npts)
+                return api__fail(err, MCF_EDECODE,
+                                 "draco: face %zu refers to point %u of %zu", f,
+                                 p, npts);
+            const uint32_t a = pos->mapped_index(face[k]).value();
+            if (a >= nvals)
+                return api__fail(err, MCF_EDECODE,
+                                 "draco: face %zu maps to position value %u of %zu",
+                                 f, a, nvals);
+            F[3 * f + k] = static_cast<int32_t>(a);
+        }
+    }
+    mcf_mesh *m = mcf_mesh_new(static_cast<int>(nvals), X.data(),
+                               static_cast<int>(nfaces), F.data(), err);
+    if (!m)
+        return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
+    *out = m;
+    return MCF_OK;
+}
+
+/* ------------------------------------------------------ error measurement */
+
+struct cell {
+    int64_t i, j, k;
+    uint32_t face;
+    bool operator<(const cell &o) const
+    {
+        if (i != o.i) return i < o.i;
+        if (j != o.j) return j < o.j;
+        if (k != o.k) return k < o.k;
+        return face < o.face;
+    }
+};
+
+/* Largest coordinate error between the input (X, F) and the decoded mesh
+ * dm, through face corners. Every input face whose three indices differ
+ * must have a decoded face, up to a cyclic rotation, whose corners lie
+ * within tol of its own (tol >= the quantization bound, so a missing one
+ * is a real mismatch); *worst_face names it otherwise and false is
+ * returned. Decoded faces are binned by centroid in cells of side h >= tol,
+ * so the 27 cells around an input centroid hold its counterpart. */
+bool measure(int nv, const double *X, int nf, const int32_t *F,
+             const draco::Mesh &dm, double tol, double *maxerr,
+             int *worst_face)
+{
+    const draco::PointAttribute *pos =
+        dm.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+    if (!pos || pos->num_components() != 3)
+        return false;
+    const size_t ny = pos->size();
+    const size_t ng = dm.num_faces();
+    std::vector<double> Y(3 * ny);
+    for (size_t v = 0; v < ny; v++)
+        if (!pos->ConvertValue<double>(
+                draco::AttributeValueIndex(static_cast<uint32_t>(v)), 3,
+                &Y[3 * v]))
+            return false;
+    std::vector<uint32_t> G(3 * ng);
+    for (size_t f = 0; f < ng; f++) {
+        const draco::Mesh::Face &face =
+            dm.face(draco::FaceIndex(static_cast<uint32_t>(f)));
+        for (int k = 0; k < 3; k++) {
+            if (face[k].value() >= dm.num_points())
+                return false;
+            uint32_t a = pos->mapped_index(face[k]).value();
+            if (a >= ny)
+                return false;
+            G[3 * f + k] = a;
+        }
+    }
+
+    /* Sequential streams keep everything in place: compare all vertices
+     * (unreferenced ones included) index by index. */
+    if (ny == static_cast<size_t>(nv) && ng == static_cast<size_t>(nf) &&
+        std::equal(G.begin(), G.end(), F,
+                   [](uint32_t a, int32_t b) { return a == static_cast<uint32_t>(b); })) {
+        double e = 0.0;
+        for (size_t i = 0; i < 3 * ny; i++)
+            e = std::max(e, std::fabs(Y[i] - X[i]));
+        *maxerr = e;
+        return true;
+    }
+
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, ext = 0.0;
+    for (size_t i = 0; i < 3 * ny; i++)
+        lo[i % 3] = std::min(lo[i % 3], Y[i]);
+    for (int i = 0; i < 3 * nv; i++)
+        lo[i % 3] = std::min(lo[i % 3], X[i]);
+    for (size_t i = 0; i < 3 * ny; i++)
+        ext = std::max(ext, Y[i] - lo[i % 3]);
+    for (int i = 0; i < 3 * nv; i++)
+        ext = std::max(ext, X[i] - lo[i % 3]);
+    /* Cells of at least tol, and at most ~2^40 per axis so indices fit. */
+    double h = std::max(tol, ext * 0x1p-40);
+    if (!(h > 0.0))
+        h = 1.0;
+    auto bin = [&](const double c[3], int64_t b[3]) {
+        for (int a = 0; a < 3; a++)
+            b[a] = static_cast<int64_t>(std::floor((c[a] - lo[a]) / h));
+    };
+    auto centroid = [](const double *P, const double *Q, const double *R,
+                       double c[3]) {
+        for (int a = 0; a < 3; a++)
+            c[a] = (P[a] + Q[a] + R[a]) / 3.0;
+    };
+
+    std::vector<cell> cells(ng);
+    for (size_t f = 0; f < ng; f++) {
+        double c[3];
+        int64_t b[3];
+        centroid(&Y[3 * G[3 * f]], &Y[3 * G[3 * f + 1]], &Y[3 * G[3 * f + 2]], c);
+        bin(c, b);
+        cells[f] = cell{b[0], b[1], b[2], static_cast<uint32_t>(f)};
+    }
+    std::sort(cells.begin(), cells.end());
+
+    double e = 0.0;
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+            continue;
+        double c[3];
+        int64_t b[3];
+        centroid(&X[3 * t[0]], &X[3 * t[1]], &X[3 * t[2]], c);
+        bin(c, b);
+        double best = HUGE_VAL;
+        for (int di = -1; di <= 1; di++)
+            for (int dj = -1; dj <= 1; dj++)
+                for (int dk = -1; dk <= 1; dk++) {
+                    cell key{b[0] + di, b[1] + dj, b[2] + dk, 0};
+                    auto it = std::lower_bound(cells.begin(), cells.end(), key);
+                    for (; it != cells.end() && it->i == key.i &&
+                           it->j == key.j && it->k == key.k;
+                         ++it) {
+                        const uint32_t *g = &G[3 * (size_t)it->face];
+                        for (int r = 0; r < 3; r++) {
+                            double d = 0.0;
+                            for (int q = 0; q < 3; q++) {
+                                const double *x = &X[3 * t[q]];
+                                const double *y = &Y[3 * g[(q + r) % 3]];
+                                for (int a = 0; a < 3; a++)
+                                    d = std::max(d, std::fabs(y[a] - x[a]));
+                            }
+                            best = std::min(best, d);
+                        }
+                    }
+                }
+        if (!(best <= tol)) {
+            *worst_face = f;
+            return false;
+        }
+        e = std::max(e, best);
+    }
+    *maxerr = e;
+    return true;
+}
+
+/* ------------------------------------------------------------- encoder */
+
+mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
+                  double *max_quant_err, mcf_error *err)
+{
+    api_encode_opts defo;
+    if (!o) {
+        api_encode_opts_init(&defo);
+        o = &defo;
+    }
+    const int q = o->quantization_bits;
+    const int level = o->compression_level;
+    if (q < 0 || q > 30)
+        return api__fail(err, MCF_EINVAL,
+                         "draco: quantization_bits %d out of range (0 = lossless, 1..30)",
+                         q);
+    if (level < 0 || level > 10)
+        return api__fail(err, MCF_EINVAL,
+                         "draco: compression_level %d out of range (0..10)", level);
+
+    const int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+
+    /* float32 unless lossless needs more; quantization needs float32. */
+    bool as_float = true;
+    for (int i = 0; i < 3 * nv; i++) {
+        const double x = X[i];
+        if (std::fabs(x) > FLT_MAX) {
+            if (q > 0)
+                return api__fail(err, MCF_EINVAL,
+                                 "draco: vertex %d coordinate %g exceeds the float "
+                                 "range (quantized Draco stores float32)",
+                                 i / 3, x);
+            as_float = false;
+        } else if (static_cast<double>(static_cast<float>(x)) != x) {
+            as_float = false;
+        }
+    }
+    if (q > 0)
+        as_float = true;
+
+    draco::Mesh dm;
+    dm.set_num_points(static_cast<uint32_t>(nv));
+    draco::GeometryAttribute ga;
+    ga.Init(draco::GeometryAttribute::POSITION, nullptr, 3,
+            as_float ? draco::DT_FLOAT32 : draco::DT_FLOAT64, false,
+            as_float ? 3 * sizeof(float) : 3 * sizeof(double), 0);
+    const int att = dm.AddAttribute(ga, true, static_cast<uint32_t>(nv));
+    draco::PointAttribute *pa = dm.attribute(att);
+    if (!pa)
+        return api__fail(err, MCF_ENOMEM, "draco: cannot add the POSITION attribute");
+    for (int i = 0; i < nv; i++) {
+        const draco::AttributeValueIndex vi(static_cast<uint32_t>(i));
+        if (as_float) {
+            const float v[3] = {static_cast<float>(X[3 * i]),
+                                static_cast<float>(X[3 * i + 1]),
+                                static_cast<float>(X[3 * i + 2])};
+            pa->SetAttributeValue(vi, v);
+        } else {
+            pa->SetAttributeValue(vi, &X[3 * i]);
+        }
+    }
+    dm.SetNumFaces(static_cast<size_t>(nf));
+    for (int f = 0; f < nf; f++) {
+        draco::Mesh::Face face;
+        for (int k = 0; k < 3; k++)
+            face[k] = draco::PointIndex(static_cast<uint32_t>(F[3 * f + k]));
+        dm.SetFace(draco::FaceIndex(static_cast<uint32_t>(f)), face);
+    }
+
+    draco::Encoder enc;
+    if (q > 0)
+        enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, q);
+    enc.SetSpeedOptions(10 - level, 10 - level);
+    enc.SetEncodingMethod(o->preserve_order ? draco::MESH_SEQUENTIAL_ENCODING
+                                            : draco::MESH_EDGEBREAKER_ENCODING);
+    draco::EncoderBuffer eb;
+    const draco::Status st = enc.EncodeMeshToBuffer(dm, &eb);
+    if (!st.ok())
+        return api__fail(err, MCF_EMESH, "draco: the encoder refused the mesh: %s",
+                         st.error_msg());
+
+    double qerr = 0.0;
+    if (max_quant_err) {
+        draco::DecoderBuffer db;
+        db.Init(eb.data(), eb.size());
+        draco::Decoder dec;
+        auto res = dec.DecodeMeshFromBuffer(&db);
+        if (!res.ok() || !res.value())
+            return api__fail(err, MCF_EMESH,
+                             "draco: the encoded mesh does not decode: %s",
+                             res.ok() ? "no mesh" : res.status().error_msg());
+        /* Draco's quantization step is range/(2^q - 1) over the largest
+         * extent; rounding errs by half a step, float32 dequantization by a
+         * few ulps more: a full step bounds both. Lossless: float32 and
+         * float64 values come back exactly, so tol 0 holds. */
+        double tol = 0.0;
+        if (q > 0) {
+            double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL},
+                   hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+            for (int i = 0; i < 3 * nv; i++) {
+                lo[i % 3] = std::min(lo[i % 3], X[i]);
+                hi[i % 3] = std::max(hi[i % 3], X[i]);
+            }
+            double range = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+            tol = range / (std::ldexp(1.0, q) - 1.0);
+            /* plus float32 rounding of the stored inputs themselves */
+            double amax = std::max({std::fabs(lo[0]), std::fabs(lo[1]),
+                                    std::fabs(lo[2]), std::fabs(hi[0]),
+                                    std::fabs(hi[1]), std::fabs(hi[2])});
+            tol += 4.0 * amax * FLT_EPSILON;
+        }
+        int bad = -1;
+        if (!measure(nv, X, nf, F, *res.value(), tol, &qerr, &bad))
+            return api__fail(err, MCF_EMESH,
+                             "draco: round-trip check failed: input face %d has no "
+                             "decoded counterpart within %g",
+                             bad, tol);
+    }
+    const mcf_status rc = api_buf_append(out, eb.data(), eb.size());
+    if (rc != MCF_OK) {
+        if (rc == MCF_ENOMEM)
+            return api__fail(err, rc, "draco: out of memory for %zu bytes",
+                             eb.size());
+        return api__fail(err, rc,
+                         "draco: output of %zu bytes exceeds its maximum of %zu bytes",
+                         eb.size(), out->max);
+    }
+    if (max_quant_err)
+        *max_quant_err = qerr;
+    return MCF_OK;
+}
+
+} /* namespace */
+
+extern "C" mcf_status api_draco_decode(const void *buf, size_t len,
+                                       const api_limits *lim, mcf_mesh **out,
+                                       mcf_error *err)
+{
+    try {
+        return decode(buf, len, lim, out, err);
+    } catch (const std::bad_alloc &) {
+        return api__fail(err, MCF_ENOMEM, "draco: out of memory while decoding");
+    } catch (...) {
+        return api__fail(err, MCF_EDECODE, "draco: the decoder failed (exception)");
+    }
+}
+
+extern "C" mcf_status api_draco_encode(const mcf_mesh *m,
+                                       const api_encode_opts *o, api_buf *out,
+                                       double *max_quant_err, mcf_error *err)
+{
+    try {
+        return encode(m, o, out, max_quant_err, err);
+    } catch (const std::bad_alloc &) {
+        return api__fail(err, MCF_ENOMEM, "draco: out of memory while encoding");
+    } catch (...) {
+        return api__fail(err, MCF_EMESH, "draco: the encoder failed (exception)");
+    }
+}
