@@ -1,0 +1,833 @@
+/*
+ * api_params.c - job parameters from JSON, URL query strings and CLI
+ * flags, through one table and one validation path.
+ *
+ * Every source ends in api_params_set(key, text): JSON numbers and
+ * booleans are turned into text first, so "dt": "abc" in a JSON body and
+ * dt=abc in a query string fail with the very same message. The table
+ * below holds, per key, its type, its range and the setter that stores
+ * the value; the "accepted" list of the unknown-key error and the range
+ * text of every other error are generated from it, so they cannot drift.
+ * A failing set leaves the parameters unchanged.
+ */
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "api_internal.h"
+
+typedef enum {
+    K_NUM,      /* finite double, lo < x <= hi (or lo <= x with LO_INCL) */
+    K_INT,      /* integer lo..hi (hi from the limits with HI_ITER) */
+    K_U64,      /* unsigned 64-bit integer */
+    K_BOOL,     /* true/false/1/0/yes/no */
+    K_ENUM,     /* one of names[] (value = index) */
+    K_SCHEME,   /* a scheme name (mcf_scheme_from_name) */
+    K_FORMAT,   /* obj|draco|ply|stl|off */
+    K_LIST      /* vertex indices: JSON array or comma/space separated */
+} kind;
+
+enum { LO_INCL = 1, AUTO = 2, HI_ITER = 4 };
+
+typedef union {
+    double d;
+    long long i;
+    uint64_t u;
+    int e;              /* bool, enum index, scheme, format */
+} value;
+
+typedef struct {
+    const char *name;
+    kind kind;
+    double lo, hi;
+    int flags;
+    const char *const *names;
+    void (*apply)(api_params *p, value v);
+} keydef;
+
+static const char *const boundary_names[] = {"fixed", "free", NULL};
+static const char *const rescale_names[] = {"none", "volume", "area", NULL};
+static const char *const laplacian_names[] = {"cotan", "uniform", NULL};
+static const char *const mass_names[] = {"barycentric", "voronoi", NULL};
+
+static void set_scheme(api_params *p, value v) { p->flow.scheme = (mcf_scheme)v.e; }
+static void set_dt(api_params *p, value v)
+{
+    /* NaN stands for "auto" (see parse_value). */
+    if (isnan(v.d)) {
+        p->flow.dt_auto = 1;
+    } else {
+        p->flow.dt_auto = 0;
+        p->flow.dt = v.d;
+    }
+}
+static void set_iterations(api_params *p, value v)
+{
+    p->flow.iterations = (int)v.i;
+    p->iterations_set = 1;
+}
+static void set_time(api_params *p, value v)
+{
+    p->flow.time = v.d;
+    p->time_set = 1;
+}
+static void set_boundary(api_params *p, value v) { p->flow.boundary = (mcf_boundary)v.e; }
+static void set_rescale(api_params *p, value v) { p->flow.rescale = (mcf_rescale)v.e; }
+static void set_normalize(api_params *p, value v) { p->flow.normalize = v.e; }
+static void set_laplacian(api_params *p, value v) { p->flow.laplacian = (mcf_laplacian)v.e; }
+static void set_mass(api_params *p, value v) { p->flow.mass = (mcf_mass)v.e; }
+static void set_adaptive(api_params *p, value v) { p->flow.adaptive = v.e; }
+static void set_tol(api_params *p, value v) { p->flow.tol = v.d; }
+static void set_max_steps(api_params *p, value v) { p->flow.max_steps = (int)v.i; }
+static void set_noise(api_params *p, value v) { p->noise_rho = v.d; }
+static void set_seed(api_params *p, value v) { p->seed = v.u; }
+static void set_format(api_params *p, value v) { p->encode.format = (api_format)v.e; }
+static void set_qbits(api_params *p, value v) { p->encode.quantization_bits = (int)v.i; }
+static void set_clevel(api_params *p, value v) { p->encode.compression_level = (int)v.i; }
+static void set_order(api_params *p, value v) { p->encode.preserve_order = v.e; }
+static void set_ply_binary(api_params *p, value v) { p->encode.ply_binary = v.e; }
+
+/* The one table. fixed_vertices has no apply: lists are stored by
+ * set_list, which owns the array. */
+static const keydef keys[] = {
+    {"scheme", K_SCHEME, 0, 0, 0, NULL, set_scheme},
+    {"dt", K_NUM, 0, 1e3, AUTO, NULL, set_dt},
+    {"iterations", K_INT, 1, 0, HI_ITER, NULL, set_iterations},
+    {"time", K_NUM, 0, HUGE_VAL, 0, NULL, set_time},
+    {"boundary", K_ENUM, 0, 0, 0, boundary_names, set_boundary},
+    {"fixed_vertices", K_LIST, 0, 0, 0, NULL, NULL},
+    {"rescale", K_ENUM, 0, 0, 0, rescale_names, set_rescale},
+    {"normalize", K_BOOL, 0, 0, 0, NULL, set_normalize},
+    {"laplacian", K_ENUM, 0, 0, 0, laplacian_names, set_laplacian},
+    {"mass", K_ENUM, 0, 0, 0, mass_names, set_mass},
+    {"adaptive", K_BOOL, 0, 0, 0, NULL, set_adaptive},
+    {"tol", K_NUM, 1e-12, 1, LO_INCL, NULL, set_tol},
+    {"max_steps", K_INT, 1, 0, HI_ITER, NULL, set_max_steps},
+    {"noise", K_NUM, 0, 10, LO_INCL, NULL, set_noise},
+    {"seed", K_U64, 0, 0, 0, NULL, set_seed},
+    {"format", K_FORMAT, 0, 0, 0, NULL, set_format},
+    {"quantization_bits", K_INT, 0, 30, 0, NULL, set_qbits},
+    {"compression_level", K_INT, 0, 10, 0, NULL, set_clevel},
+    {"preserve_order", K_BOOL, 0, 0, 0, NULL, set_order},
+    {"ply_binary", K_BOOL, 0, 0, 0, NULL, set_ply_binary},
+};
+#define NKEYS (sizeof keys / sizeof keys[0])
+
+static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", NULL};
+
+/* --------------------------------------------------------------- helpers */
+
+static const keydef *find_key(const char *name)
+{
+    size_t i;
+    for (i = 0; i < NKEYS; i++)
+        if (strcmp(keys[i].name, name) == 0)
+            return &keys[i];
+    return NULL;
+}
+
+/* s shortened to fit an error message, control bytes as '?'. */
+static const char *shorten(const char *s, size_t max, char *out)
+{
+    size_t i, n = strlen(s), k = n > max ? max : n;
+    for (i = 0; i < k; i++) {
+        unsigned char c = (unsigned char)s[i];
+        out[i] = (c < 0x20 || c == 0x7f) ? '?' : (char)c;
+    }
+    if (n > k) {
+        memcpy(out + k, "...", 3);
+        k += 3;
+    }
+    out[k] = '\0';
+    return out;
+}
+
+static void join_names(char *out, size_t size, const char *const *names)
+{
+    size_t used = 0;
+    int i;
+    out[0] = '\0';
+    for (i = 0; names[i]; i++) {
+        int n = snprintf(out + used, size - used, "%s%s", i ? ", " : "",
+                         names[i]);
+        if (n < 0 || (size_t)n >= size - used)
+            break;
+        used += (size_t)n;
+    }
+}
+
+/* What a key accepts, in words ("a number > 0 and <= 1000 or \"auto\""). */
+static void describe(const keydef *k, const api_limits *lim, char *out,
+                     size_t size)
+{
+    char list[160];
+    switch (k->kind) {
+    case K_NUM:
+        if (k->flags & AUTO)
+            snprintf(out, size, "a number > %g and <= %g or \"auto\"", k->lo, k->hi);
+        else if (isinf(k->hi))
+            snprintf(out, size, "a finite number %s %g",
+                     (k->flags & LO_INCL) ? ">=" : ">", k->lo);
+        else if (k->flags & LO_INCL)
+            snprintf(out, size, "a number from %g to %g", k->lo, k->hi);
+        else
+            snprintf(out, size, "a number > %g and <= %g", k->lo, k->hi);
+        break;
+    case K_INT:
+        snprintf(out, size, "an integer from %.0f to %d", k->lo,
+                 (k->flags & HI_ITER) ? lim->max_iterations : (int)k->hi);
+        break;
+    case K_U64:
+        snprintf(out, size, "an integer from 0 to %llu", (unsigned long long)UINT64_MAX);
+        break;
+    case K_BOOL:
+        snprintf(out, size, "true or false (or 1/0, yes/no)");
+        break;
+    case K_ENUM:
+    case K_FORMAT:
+        join_names(list, sizeof list, k->kind == K_ENUM ? k->names : format_names);
+        snprintf(out, size, "one of %s", list);
+        break;
+    case K_SCHEME: {
+        size_t used = 0;
+        int s;
+        list[0] = '\0';
+        for (s = 0; s < MCF_NSCHEMES; s++) {
+            const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
+            int n;
+            if (!si)
+                continue;
+            n = snprintf(list + used, sizeof list - used, "%s%s", used ? ", " : "",
+                         si->name);
+            if (n < 0 || (size_t)n >= sizeof list - used)
+                break;
+            used += (size_t)n;
+        }
+        snprintf(out, size, "one of %s", list);
+        break;
+    }
+    case K_LIST:
+        snprintf(out, size, "a list of at most %d vertex indices (integers >= 0)",
+                 lim->max_fixed);
+        break;
+    }
+}
+
+/* The EINVAL of a bad value. shown: how to print the value (NULL: the
+ * text in quotes). */
+static mcf_status bad_value(const keydef *k, const char *text,
+                            const char *shown, const api_limits *lim,
+                            mcf_error *err)
+{
+    char what[200], s[48];
+    describe(k, lim, what, sizeof what);
+    if (shown)
+        return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got %s",
+                         k->name, what, shown);
+    return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got \"%s\"",
+                     k->name, what, shorten(text, 40, s));
+}
+
+static int parse_ll(const char *t, long long *out)
+{
+    char *end;
+    long long v;
+    if (!*t || !(t[0] == '-' || (t[0] >= '0' && t[0] <= '9')))
+        return -1;
+    errno = 0;
+    v = strtoll(t, &end, 10);
+    if (*end || errno == ERANGE)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int parse_bool(const char *t, int *out)
+{
+    if (!strcasecmp(t, "true") || !strcmp(t, "1") || !strcasecmp(t, "yes"))
+        *out = 1;
+    else if (!strcasecmp(t, "false") || !strcmp(t, "0") || !strcasecmp(t, "no"))
+        *out = 0;
+    else
+        return -1;
+    return 0;
+}
+
+/* Parses text for a scalar key: 0 and *v, or -1 (wrong type or range). */
+static int parse_value(const keydef *k, const char *t, const api_limits *lim,
+                       value *v)
+{
+    int i;
+    switch (k->kind) {
+    case K_NUM:
+        if ((k->flags & AUTO) && strcmp(t, "auto") == 0) {
+            v->d = NAN;
+            return 0;
+        }
+        if (api__parse_double(t, strlen(t), &v->d) != 0 || !isfinite(v->d))
+            return -1;
+        if (v->d > k->hi || ((k->flags & LO_INCL) ? v->d < k->lo : v->d <= k->lo))
+            return -1;
+        return 0;
+    case K_INT: {
+        long long hi = (k->flags & HI_ITER) ? lim->max_iterations : (long long)k->hi;
+        if (parse_ll(t, &v->i) != 0 || v->i < (long long)k->lo || v->i > hi)
+            return -1;
+        return 0;
+    }
+    case K_U64: {
+        char *end;
+        if (!(t[0] >= '0' && t[0] <= '9'))
+            return -1;
+        errno = 0;
+        v->u = (uint64_t)strtoull(t, &end, 10);
+        return (*end || errno == ERANGE) ? -1 : 0;
+    }
+    case K_BOOL:
+        return parse_bool(t, &v->e);
+    case K_ENUM:
+        for (i = 0; k->names[i]; i++)
+            if (strcmp(t, k->names[i]) == 0) {
+                v->e = i;
+                return 0;
+            }
+        return -1;
+    case K_SCHEME: {
+        mcf_scheme s;
+        if (mcf_scheme_from_name(t, &s) != MCF_OK)
+            return -1;
+        v->e = (int)s;
+        return 0;
+    }
+    case K_FORMAT:
+        for (i = 0; format_names[i]; i++)
+            if (strcmp(t, format_names[i]) == 0) {
+                v->e = (int)api_format_from_name(t);
+                return 0;
+            }
+        return -1;
+    case K_LIST:
+        break;
+    }
+    return -1;
+}
+
+static int is_sep(char c)
+{
+    return c == ',' || c == ' ' || c == '\t' || c == '\n' || c == '\r';
+}
+
+/* A list of vertex indices separated by commas and/or white space. */
+static mcf_status set_list(api_params *p, const keydef *k, const char *t,
+                           const api_limits *lim, mcf_error *err)
+{
+    const char *s;
+    size_t n = 0, i = 0, item = 0;
+    int32_t *a;
+
+    for (s = t; *s;) {
+        while (*s && is_sep(*s))
+            s++;
+        if (!*s)
+            break;
+        if (n >= (size_t)lim->max_fixed)
+            return api__fail(err, MCF_ELIMIT,
+                             "parameter '%s' has more than max_fixed (%d) indices",
+                             k->name, lim->max_fixed);
+        n++;
+        while (*s && !is_sep(*s))
+            s++;
+    }
+    a = malloc((n ? n : 1) * sizeof *a);
+    if (!a)
+        return api__fail(err, MCF_ENOMEM, "parameter '%s': no memory for %zu indices",
+                         k->name, n);
+    for (s = t; *s;) {
+        char tok[32], sh[48];
+        size_t len = 0;
+        long long v;
+        while (*s && is_sep(*s))
+            s++;
+        if (!*s)
+            break;
+        item++;
+        while (s[len] && !is_sep(s[len]))
+            len++;
+        if (len < sizeof tok) {
+            memcpy(tok, s, len);
+            tok[len] = '\0';
+        }
+        if (len >= sizeof tok || parse_ll(tok, &v) != 0 || v < 0 || v > INT32_MAX) {
+            char what[200], raw[40];
+            size_t rl = len < 33 ? len : 33;  /* shorten() marks the cut */
+            memcpy(raw, s, rl);
+            raw[rl] = '\0';
+            free(a);
+            describe(k, lim, what, sizeof what);
+            return api__fail(err, MCF_EINVAL,
+                             "parameter '%s' must be %s, got \"%s\" (item %zu)",
+                             k->name, what, shorten(raw, 32, sh), item);
+        }
+        a[i++] = (int32_t)v;
+        s += len;
+    }
+    free(p->fixed_owned);
+    p->fixed_owned = a;
+    p->flow.fixed = a;
+    p->flow.nfixed = (int)n;
+    return MCF_OK;
+}
+
+/* set with an optional display form of the value (JSON non-strings). */
+static mcf_status set_shown(api_params *p, const char *key, const char *text,
+                            const char *shown, const api_limits *lim,
+                            mcf_error *err)
+{
+    const keydef *k;
+    value v;
+
+    if (!key || !text)
+        return api__fail(err, MCF_EINVAL, "parameter: NULL key or value");
+    k = find_key(key);
+    if (!k) {
+        char list[256], s[48];
+        size_t used = 0, i;
+        list[0] = '\0';
+        for (i = 0; i < NKEYS; i++) {
+            int n = snprintf(list + used, sizeof list - used, "%s%s",
+                             i ? "," : "", keys[i].name);
+            if (n < 0 || (size_t)n >= sizeof list - used)
+                break;
+            used += (size_t)n;
+        }
+        return api__fail(err, MCF_EINVAL, "unknown parameter '%s' (accepted: %s)",
+                         shorten(key, 32, s), list);
+    }
+    if (!shown && text[0] == '\0')
+        return api__fail(err, MCF_EINVAL, "parameter '%s' has an empty value",
+                         k->name);
+    if (k->kind == K_LIST) {
+        /* From JSON only an array ("[]" shown) or a string is a list. */
+        if (shown && strcmp(shown, "[]") != 0)
+            return bad_value(k, text, shown, lim, err);
+        return set_list(p, k, text, lim, err);
+    }
+    if (parse_value(k, text, lim, &v) != 0)
+        return bad_value(k, text, shown, lim, err);
+    k->apply(p, v);
+    return MCF_OK;
+}
+
+/* ------------------------------------------------------------------ API */
+
+void api_params_init(api_params *p)
+{
+    memset(p, 0, sizeof *p);
+    mcf_flow_params_init(&p->flow);
+    api_encode_opts_init(&p->encode);
+    p->noise_rho = 0.0;
+    p->seed = 0;
+    p->fixed_owned = NULL;
+    p->time_set = 0;
+    p->iterations_set = 0;
+}
+
+void api_params_free(api_params *p)
+{
+    if (!p)
+        return;
+    free(p->fixed_owned);
+    p->fixed_owned = NULL;
+    p->flow.fixed = NULL;
+    p->flow.nfixed = 0;
+}
+
+mcf_status api_params_set(api_params *p, const char *key, const char *value_text,
+                          const api_limits *lim, mcf_error *err)
+{
+    api_limits def;
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    return set_shown(p, key, value_text, NULL, lim, err);
+}
+
+/* Depth of a parsed tree: a scalar is 0, {} or [] is 1. */
+static int json_depth(const cJSON *j)
+{
+    int best = 0;
+    const cJSON *c;
+    if (!cJSON_IsObject(j) && !cJSON_IsArray(j))
+        return 0;
+    for (c = j->child; c; c = c->next) {
+        int d = json_depth(c);
+        if (d > best)
+            best = d;
+    }
+    return best + 1;
+}
+
+/* Bracket depth of raw text (strings skipped), for a document cJSON
+ * refused: nested past cJSON's own limit it is still an ELIMIT. */
+static int text_depth(const char *s, size_t n)
+{
+    int d = 0, best = 0, in_str = 0;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        char c = s[i];
+        if (in_str) {
+            if (c == '\\')
+                i++;
+            else if (c == '"')
+                in_str = 0;
+        } else if (c == '"') {
+            in_str = 1;
+        } else if (c == '{' || c == '[') {
+            if (++d > best)
+                best = d;
+        } else if (c == '}' || c == ']') {
+            d--;
+        }
+    }
+    return best;
+}
+
+/* JSON number as the text the query string would carry. */
+static void number_text(double d, char *out, size_t size)
+{
+    if (d == floor(d) && fabs(d) < 1e15)
+        snprintf(out, size, "%.0f", d);
+    else
+        snprintf(out, size, "%.17g", d);
+}
+
+static mcf_status set_json_list(api_params *p, const char *key, const cJSON *arr,
+                                 const api_limits *lim, mcf_error *err)
+{
+    api_buf b;
+    const cJSON *c;
+    size_t item = 0;
+    mcf_status rc = MCF_OK;
+
+    api_buf_init(&b, 0);
+    for (c = arr->child; c; c = c->next) {
+        char num[40];
+        item++;
+        if (!cJSON_IsNumber(c)) {
+            const keydef *k = find_key(key);
+            char what[200];
+            describe(k, lim, what, sizeof what);
+            rc = api__fail(err, MCF_EINVAL,
+                           "parameter '%s' must be %s, got %s (item %zu)", key, what,
+                           cJSON_IsString(c) ? "a string" : cJSON_IsBool(c) ? "a boolean"
+                           : cJSON_IsNull(c) ? "null" : "a nested value", item);
+            goto done;
+        }
+        number_text(c->valuedouble, num, sizeof num);
+        if (api_buf_printf(&b, "%s%s", item > 1 ? "," : "", num) != MCF_OK) {
+            rc = api__fail(err, MCF_ENOMEM, "parameter '%s': no memory", key);
+            goto done;
+        }
+    }
+    /* An empty array is an empty list: nothing extra is fixed. */
+    rc = set_shown(p, key, b.data ? b.data : "", "[]", lim, err);
+done:
+    api_buf_free(&b);
+    return rc;
+}
+
+mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
+                                 const api_limits *lim, mcf_error *err)
+{
+    api_limits def;
+    char *copy = NULL;
+    const char *end = NULL;
+    cJSON *root = NULL;
+    const cJSON *c;
+    mcf_status rc = MCF_OK;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (len > lim->max_json_bytes)
+        return api__fail(err, MCF_ELIMIT,
+                         "parameters: %zu bytes of JSON exceed max_json_bytes (%zu)",
+                         len, lim->max_json_bytes);
+    /* cJSON wants the terminating NUL inside the length it is given. */
+    copy = malloc(len + 1);
+    if (!copy)
+        return api__fail(err, MCF_ENOMEM, "parameters: no memory");
+    if (len)
+        memcpy(copy, buf, len);
+    copy[len] = '\0';
+    root = cJSON_ParseWithLengthOpts(copy, len + 1, &end, 1);
+    if (!root) {
+        if (text_depth(copy, len) > lim->max_json_depth)
+            rc = api__fail(err, MCF_ELIMIT,
+                           "parameters: JSON nested deeper than max_json_depth (%d)",
+                           lim->max_json_depth);
+        else
+            rc = api__fail(err, MCF_EINVAL, "parameters: invalid JSON near byte %zu",
+                           end ? (size_t)(end - copy) : (size_t)0);
+        goto done;
+    }
+    if (end != copy + len) {
+        rc = api__fail(err, MCF_EINVAL, "parameters: NUL byte inside JSON at byte %zu",
+                       (size_t)(end - copy));
+        goto done;
+    }
+    if (json_depth(root) > lim->max_json_depth) {
+        rc = api__fail(err, MCF_ELIMIT,
+                       "parameters: JSON nested deeper than max_json_depth (%d)",
+                       lim->max_json_depth);
+        goto done;
+    }
+    if (!cJSON_IsObject(root)) {
+        rc = api__fail(err, MCF_EINVAL, "parameters: the top level must be a JSON object");
+        goto done;
+    }
+    for (c = root->child; c && rc == MCF_OK; c = c->next) {
+        char num[40];
+        const char *key = c->string ? c->string : "";
+        if (cJSON_IsString(c))
+            rc = set_shown(p, key, c->valuestring, NULL, lim, err);
+        else if (cJSON_IsNumber(c)) {
+            number_text(c->valuedouble, num, sizeof num);
+            rc = set_shown(p, key, num, NULL, lim, err);
+        } else if (cJSON_IsBool(c))
+            rc = set_shown(p, key, cJSON_IsTrue(c) ? "true" : "false",
+                           cJSON_IsTrue(c) ? "true" : "false", lim, err);
+        else if (cJSON_IsArray(c) && strcmp(key, "fixed_vertices") == 0)
+            rc = set_json_list(p, key, c, lim, err);
+        else
+            rc = set_shown(p, key, "", cJSON_IsNull(c) ? "null"
+                           : cJSON_IsArray(c) ? "an array" : "an object", lim, err);
+    }
+done:
+    cJSON_Delete(root);
+    free(copy);
+    return rc;
+}
+
+static int hexval(char c)
+{
+    if (c >= '0' && c <= '9')
+        return c - '0';
+    if (c >= 'a' && c <= 'f')
+        return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F')
+        return c - 'A' + 10;
+    return -1;
+}
+
+/* Percent-decodes n bytes of s into out (n + 1 bytes); '+' is a space. */
+static int url_decode(const char *s, size_t n, char *out)
+{
+    size_t i, k = 0;
+    for (i = 0; i < n; i++) {
+        if (s[i] == '%') {
+            int hi, lo;
+            if (i + 2 >= n)
+                return -1;
+            hi = hexval(s[i + 1]);
+            lo = hexval(s[i + 2]);
+            if (hi < 0 || lo < 0 || (hi == 0 && lo == 0))
+                return -1;
+            out[k++] = (char)(hi * 16 + lo);
+            i += 2;
+        } else if (s[i] == '+') {
+            out[k++] = ' ';
+        } else {
+            out[k++] = s[i];
+        }
+    }
+    out[k] = '\0';
+    return 0;
+}
+
+mcf_status api_params_parse_query(api_params *p, const char *qs,
+                                  const char *const *ignore,
+                                  const api_limits *lim, mcf_error *err)
+{
+    api_limits def;
+    const char *s = qs;
+    char *key = NULL, *val = NULL;
+    mcf_status rc = MCF_OK;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (!qs)
+        return MCF_OK;
+    while (*s && rc == MCF_OK) {
+        const char *amp = strchr(s, '&');
+        size_t seg = amp ? (size_t)(amp - s) : strlen(s);
+        const char *eq = memchr(s, '=', seg);
+        size_t klen = eq ? (size_t)(eq - s) : seg;
+        size_t vlen = eq ? seg - klen - 1 : 0;
+        int skip = 0, i;
+        char sh[48];
+
+        if (seg == 0) {     /* "a=1&&b=2", trailing '&' */
+            s += amp ? 1 : 0;
+            continue;
+        }
+        key = malloc(klen + 1);
+        val = malloc(vlen + 1);
+        if (!key || !val) {
+            rc = api__fail(err, MCF_ENOMEM, "query: no memory");
+            break;
+        }
+        if (url_decode(s, klen, key) != 0 || (eq && url_decode(eq + 1, vlen, val) != 0)) {
+            char raw[48];
+            size_t rl = seg < 40 ? seg : 40;
+            memcpy(raw, s, rl);
+            raw[rl] = '\0';
+            rc = api__fail(err, MCF_EINVAL, "query: bad percent-encoding in '%s'",
+                           shorten(raw, 40, sh));
+            break;
+        }
+        if (!eq)
+            val[0] = '\0';
+        if (key[0] == '\0') {
+            rc = api__fail(err, MCF_EINVAL, "query: a parameter without a name");
+            break;
+        }
+        for (i = 0; ignore && ignore[i]; i++)
+            if (strcmp(key, ignore[i]) == 0)
+                skip = 1;
+        if (!skip)
+            rc = set_shown(p, key, val, NULL, lim, err);
+        free(key);
+        free(val);
+        key = val = NULL;
+        s += seg + (amp ? 1 : 0);
+    }
+    free(key);
+    free(val);
+    return rc;
+}
+
+mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
+                             mcf_error *err)
+{
+    api_limits def;
+    double steps;
+    mcf_status rc;
+    int i;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (p->time_set && p->iterations_set)
+        return api__fail(err, MCF_EINVAL,
+                         "give either 'time' or 'iterations', not both");
+    for (i = 0; i < p->flow.nfixed; i++)
+        if (p->flow.fixed[i] < 0 || p->flow.fixed[i] >= nv)
+            return api__fail(err, MCF_EINVAL,
+                             "parameter 'fixed_vertices': index %ld out of range (0..%d)",
+                             (long)p->flow.fixed[i], nv - 1);
+    if ((rc = mcf_flow_params_check(&p->flow, nv, err)) != MCF_OK)
+        return rc;
+    if (nv < 1)
+        return api__fail(err, MCF_EINVAL, "mesh has no vertices");
+
+    /* Work bound: steps x vertices. A fixed-step run over a time has a
+     * known step count; an adaptive or dt=auto one does not, so its hard
+     * cap max_steps is lowered to what the limits allow instead. */
+    if (p->flow.time > 0.0 && !p->flow.adaptive && !p->flow.dt_auto) {
+        steps = ceil(p->flow.time / p->flow.dt - 1e-9);
+        if (steps > lim->max_iterations)
+            return api__fail(err, MCF_ELIMIT,
+                             "time/dt = %.3g steps exceeds max_iterations (%d)",
+                             steps, lim->max_iterations);
+    } else if (p->flow.time > 0.0) {
+        double cap = floor(lim->max_work / nv);
+        if (cap < p->flow.max_steps)
+            p->flow.max_steps = cap < 1 ? 1 : (int)cap;
+        if (p->flow.max_steps > lim->max_iterations)
+            p->flow.max_steps = lim->max_iterations;
+        steps = p->flow.max_steps;
+    } else {
+        steps = p->flow.iterations;
+    }
+    if (steps * (double)nv > lim->max_work)
+        return api__fail(err, MCF_ELIMIT,
+                         "work of %.0f steps x %d vertices = %.3g exceeds max_work (%.3g)",
+                         steps, nv, steps * (double)nv, lim->max_work);
+    return MCF_OK;
+}
+
+static const char *enum_name(const char *const *names, int i)
+{
+    int k;
+    for (k = 0; names[k]; k++)
+        if (k == i)
+            return names[k];
+    return "unknown";
+}
+
+cJSON *api_params_to_json(const api_params *p)
+{
+    cJSON *j = cJSON_CreateObject(), *fx;
+    const mcf_scheme_info *si = mcf_scheme_get(p->flow.scheme);
+    int ok = j != NULL, i;
+
+    if (!ok)
+        return NULL;
+    ok &= cJSON_AddStringToObject(j, "scheme", si ? si->name : "unknown") != NULL;
+    if (p->flow.dt_auto)
+        ok &= cJSON_AddStringToObject(j, "dt", "auto") != NULL;
+    else
+        ok &= cJSON_AddNumberToObject(j, "dt", p->flow.dt) != NULL;
+    /* One of the two, so the object parses back to the same job. */
+    if (p->time_set)
+        ok &= cJSON_AddNumberToObject(j, "time", p->flow.time) != NULL;
+    else
+        ok &= cJSON_AddNumberToObject(j, "iterations", p->flow.iterations) != NULL;
+    ok &= cJSON_AddStringToObject(j, "boundary",
+                                  enum_name(boundary_names, (int)p->flow.boundary)) != NULL;
+    fx = cJSON_AddArrayToObject(j, "fixed_vertices");
+    ok &= fx != NULL;
+    for (i = 0; ok && i < p->flow.nfixed; i++) {
+        cJSON *n = cJSON_CreateNumber(p->flow.fixed[i]);
+        ok &= n != NULL && cJSON_AddItemToArray(fx, n);
+    }
+    ok &= cJSON_AddStringToObject(j, "rescale",
+                                  enum_name(rescale_names, (int)p->flow.rescale)) != NULL;
+    ok &= cJSON_AddBoolToObject(j, "normalize", p->flow.normalize) != NULL;
+    ok &= cJSON_AddStringToObject(j, "laplacian",
+                                  enum_name(laplacian_names, (int)p->flow.laplacian)) != NULL;
+    ok &= cJSON_AddStringToObject(j, "mass", enum_name(mass_names, (int)p->flow.mass)) != NULL;
+    ok &= cJSON_AddBoolToObject(j, "adaptive", p->flow.adaptive) != NULL;
+    ok &= cJSON_AddNumberToObject(j, "tol", p->flow.tol) != NULL;
+    ok &= cJSON_AddNumberToObject(j, "max_steps", p->flow.max_steps) != NULL;
+    ok &= cJSON_AddNumberToObject(j, "noise", p->noise_rho) != NULL;
+    /* Above 2^53 a JSON number would lose bits: the seed goes as text. */
+    if (p->seed < ((uint64_t)1 << 53)) {
+        ok &= cJSON_AddNumberToObject(j, "seed", (double)p->seed) != NULL;
+    } else {
+        char s[24];
+        snprintf(s, sizeof s, "%llu", (unsigned long long)p->seed);
+        ok &= cJSON_AddStringToObject(j, "seed", s) != NULL;
+    }
+    if (p->encode.format != API_FMT_UNKNOWN)
+        ok &= cJSON_AddStringToObject(j, "format", api_format_name(p->encode.format)) != NULL;
+    ok &= cJSON_AddNumberToObject(j, "quantization_bits", p->encode.quantization_bits) != NULL;
+    ok &= cJSON_AddNumberToObject(j, "compression_level", p->encode.compression_level) != NULL;
+    ok &= cJSON_AddBoolToObject(j, "preserve_order", p->encode.preserve_order) != NULL;
+    ok &= cJSON_AddBoolToObject(j, "ply_binary", p->encode.ply_binary) != NULL;
+    if (!ok) {
+        cJSON_Delete(j);
+        return NULL;
+    }
+    return j;
+}
