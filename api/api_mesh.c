@@ -196,11 +196,11 @@ mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
     case API_FMT_DRACO:
         return api_draco_decode(buf, len, lim, out, err);
     case API_FMT_PLY:
-        return api__fail(err, MCF_EFORMAT, "format ply not supported yet");
+        return api_ply_decode(buf, len, lim, out, err);
     case API_FMT_STL:
-        return api__fail(err, MCF_EFORMAT, "format stl not supported yet");
+        return api_stl_decode(buf, len, lim, out, err);
     case API_FMT_OFF:
-        return api__fail(err, MCF_EFORMAT, "format off not supported yet");
+        return api_off_decode(buf, len, lim, out, err);
     case API_FMT_UNKNOWN:
         break;
     }
@@ -219,11 +219,11 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
     case API_FMT_DRACO:
         return api_draco_encode(m, o, out, NULL, err);
     case API_FMT_PLY:
-        return api__fail(err, MCF_EFORMAT, "format ply not supported yet");
+        return api_ply_encode(m, o, out, err);
     case API_FMT_STL:
-        return api__fail(err, MCF_EFORMAT, "format stl not supported yet");
+        return api_stl_encode(m, o, out, err);
     case API_FMT_OFF:
-        return api__fail(err, MCF_EFORMAT, "format off not supported yet");
+        return api_off_encode(m, out, err);
     case API_FMT_UNKNOWN:
         break;
     }

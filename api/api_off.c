@@ -1,0 +1,360 @@
+/*
+ * api_off.c - Object File Format (OFF, Geomview) reader and writer on
+ * memory buffers.
+ *
+ * Reader: the keyword OFF or a variant carrying per-vertex extras (COFF,
+ * NOFF, CNOFF, STOFF, ...: colours, normals, texture coordinates, which
+ * are ignored), then "nv nf [ne]" (on the keyword's line or the next),
+ * nv vertex lines "x y z [extras]" and nf face lines "n i1 .. in
+ * [colour]" with 0-based indices; polygons are fan-triangulated (i1, ik,
+ * ik+1). '#' starts a comment anywhere; blank lines are skipped. Every
+ * vertex and face is one line, so extras are told apart from data and an
+ * error names its line. 4OFF/nOFF (other dimensions) and binary OFF are
+ * refused. The declared counts are checked against the body size (a
+ * vertex line takes at least 6 bytes, a face line 8) and then the limits
+ * before anything is allocated.
+ *
+ * Writer: "OFF", counts, %.17g positions (exact round trip), triangles.
+ */
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "api_internal.h"
+
+typedef struct {
+    const char *p, *end;
+    long line;
+    const char *s, *e;      /* current line, comment stripped */
+} reader;
+
+static int is_space(char c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
+}
+
+static const char *show(const char *t, size_t n, char out[40])
+{
+    size_t i, k = n > 32 ? 32 : n;
+    for (i = 0; i < k; i++) {
+        unsigned char ch = (unsigned char)t[i];
+        out[i] = (ch < 0x20 || ch >= 0x7f) ? '?' : (char)ch;
+    }
+    if (n > k) {
+        memcpy(out + k, "...", 3);
+        k += 3;
+    }
+    out[k] = '\0';
+    return out;
+}
+
+/* Next token of the current line; 0 at its end. */
+static size_t token(reader *r, const char **t)
+{
+    const char *p = r->s;
+    while (p < r->e && is_space(*p))
+        p++;
+    *t = p;
+    while (p < r->e && !is_space(*p))
+        p++;
+    r->s = p;
+    return (size_t)(p - *t);
+}
+
+/* Next line with a token (comments stripped); 0 at the end of input. */
+static int next_line(reader *r)
+{
+    while (r->p < r->end) {
+        const char *nl = memchr(r->p, '\n', (size_t)(r->end - r->p));
+        const char *le = nl ? nl : r->end, *hash, *t;
+        r->s = r->p;
+        r->p = nl ? nl + 1 : r->end;
+        r->line++;
+        hash = memchr(r->s, '#', (size_t)(le - r->s));
+        r->e = hash ? hash : le;
+        {
+            const char *save = r->s;
+            if (token(r, &t) != 0) {
+                r->s = save;
+                return 1;
+            }
+        }
+    }
+    return 0;
+}
+
+static int parse_int(const char *t, size_t n, long long *out)
+{
+    char tmp[32], *end;
+    long long v;
+    if (n == 0 || n >= sizeof tmp || t[0] == '+')
+        return -1;
+    memcpy(tmp, t, n);
+    tmp[n] = '\0';
+    errno = 0;
+    v = strtoll(tmp, &end, 10);
+    if (end != tmp + n || errno == ERANGE)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+/* Is the token an OFF keyword: [ST][C][N][4][n]OFF? Sets *dims when it
+ * is a 4OFF/nOFF (unsupported) one. */
+static int off_keyword(const char *t, size_t n, int *other_dims)
+{
+    size_t i = 0;
+    *other_dims = 0;
+    if (n < 3 || memcmp(t + n - 3, "OFF", 3) != 0)
+        return 0;
+    if (i + 2 <= n - 3 && t[i] == 'S' && t[i + 1] == 'T')
+        i += 2;
+    if (i < n - 3 && t[i] == 'C')
+        i++;
+    if (i < n - 3 && t[i] == 'N')
+        i++;
+    if (i < n - 3 && t[i] == '4') {
+        i++;
+        *other_dims = 1;
+    }
+    if (i < n - 3 && t[i] == 'n') {
+        i++;
+        *other_dims = 1;
+    }
+    return i == n - 3;
+}
+
+mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
+                          mcf_mesh **out, mcf_error *err)
+{
+    api_limits def;
+    reader r;
+    const char *t;
+    size_t n;
+    long long cnt[3] = {0, 0, 0};
+    int ncnt = 0, other, i;
+    char shown[40];
+    double *X = NULL;
+    int32_t *F = NULL;
+    long long nt = 0, cap = 0;
+    unsigned long long need;
+    mcf_mesh *m;
+    mcf_status rc = MCF_EDECODE;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (!buf && len)
+        return api__fail(err, MCF_EINVAL, "off: NULL buffer");
+    if (len > lim->max_input_bytes)
+        return api__fail(err, MCF_ELIMIT,
+                         "off: input of %zu bytes exceeds max_input_bytes (%zu)",
+                         len, lim->max_input_bytes);
+    if (len == 0)
+        return api__fail(err, MCF_EDECODE, "off: empty input");
+    r.p = buf;
+    r.end = r.p + len;
+    r.line = 0;
+
+    if (!next_line(&r))
+        return api__fail(err, MCF_EDECODE, "off: no OFF keyword (only comments)");
+    n = token(&r, &t);
+    if (!off_keyword(t, n, &other))
+        return api__fail(err, MCF_EDECODE, "off: line %ld: 'OFF' expected, found '%s'",
+                         r.line, show(t, n, shown));
+    if (other)
+        return api__fail(err, MCF_EDECODE,
+                         "off: line %ld: '%s' (not 3-D) is not supported", r.line,
+                         show(t, n, shown));
+    n = token(&r, &t);
+    if (n == 6 && memcmp(t, "BINARY", 6) == 0)
+        return api__fail(err, MCF_EDECODE, "off: line %ld: binary OFF is not supported",
+                         r.line);
+    if (n == 0) {
+        if (!next_line(&r))
+            return api__fail(err, MCF_EDECODE,
+                             "off: line %ld: input ends before the counts line", r.line);
+        n = token(&r, &t);
+    }
+    /* "nv nf [ne]" */
+    while (n > 0) {
+        if (ncnt == 3 || parse_int(t, n, &cnt[ncnt]) != 0 || cnt[ncnt] < 0)
+            return api__fail(err, MCF_EDECODE,
+                             "off: line %ld: 'nv nf [ne]' counts expected, found '%s'",
+                             r.line, show(t, n, shown));
+        ncnt++;
+        n = token(&r, &t);
+    }
+    if (ncnt < 2)
+        return api__fail(err, MCF_EDECODE,
+                         "off: line %ld: 'nv nf [ne]' counts expected", r.line);
+
+    /* Counts against the body, then the limits. */
+    need = (unsigned long long)cnt[0] * 6 + (unsigned long long)cnt[1] * 8;
+    if (cnt[0] > (long long)len || cnt[1] > (long long)len
+        || need > (unsigned long long)(r.end - r.p) + 1)
+        return api__fail(err, MCF_EDECODE,
+                         "off: line %ld: %lld vertices and %lld faces cannot fit in "
+                         "the remaining %zu bytes",
+                         r.line, cnt[0], cnt[1], (size_t)(r.end - r.p));
+    if (cnt[0] > lim->max_vertices)
+        return api__fail(err, MCF_ELIMIT, "off: %lld vertices exceed max_vertices (%d)",
+                         cnt[0], lim->max_vertices);
+    if (cnt[1] > lim->max_faces)
+        return api__fail(err, MCF_ELIMIT, "off: %lld faces exceed max_faces (%d)",
+                         cnt[1], lim->max_faces);
+    if (cnt[0] == 0)
+        return api__fail(err, MCF_EDECODE, "off: no vertices");
+    if (cnt[1] == 0)
+        return api__fail(err, MCF_EDECODE, "off: no faces: %lld vertices only",
+                         cnt[0]);
+
+    X = malloc(3 * sizeof *X * (size_t)cnt[0]);
+    if (!X) {
+        rc = api__fail(err, MCF_ENOMEM, "off: no memory for %lld vertices", cnt[0]);
+        goto done;
+    }
+    for (i = 0; i < (int)cnt[0]; i++) {
+        int k;
+        if (!next_line(&r)) {
+            api__fail(err, rc, "off: line %ld: input ends at vertex %d of %lld",
+                      r.line, i, cnt[0]);
+            goto done;
+        }
+        for (k = 0; k < 3; k++) {
+            n = token(&r, &t);
+            if (n == 0) {
+                api__fail(err, rc, "off: line %ld: vertex %d has %d coordinates, 3 "
+                                   "needed",
+                          r.line, i, k);
+                goto done;
+            }
+            if (api__parse_double(t, n, &X[3 * i + k]) != 0) {
+                api__fail(err, rc, "off: line %ld: bad number '%s'", r.line,
+                          show(t, n, shown));
+                goto done;
+            }
+            if (!isfinite(X[3 * i + k])) {
+                api__fail(err, rc, "off: line %ld: coordinate '%s' is not finite",
+                          r.line, show(t, n, shown));
+                goto done;
+            }
+        }
+    }
+    for (i = 0; i < (int)cnt[1]; i++) {
+        long long k, deg;
+        int32_t first = 0, prev = 0;
+        if (!next_line(&r)) {
+            api__fail(err, rc, "off: line %ld: input ends at face %d of %lld", r.line,
+                      i, cnt[1]);
+            goto done;
+        }
+        n = token(&r, &t);
+        if (parse_int(t, n, &deg) != 0) {
+            api__fail(err, rc, "off: line %ld: bad vertex count '%s'", r.line,
+                      show(t, n, shown));
+            goto done;
+        }
+        if (deg < 3) {
+            api__fail(err, rc, "off: line %ld: face %d has %lld vertices, at least 3 "
+                               "needed",
+                      r.line, i, deg);
+            goto done;
+        }
+        for (k = 0; k < deg; k++) {
+            long long v;
+            n = token(&r, &t);
+            if (n == 0) {
+                api__fail(err, rc, "off: line %ld: face %d lists %lld of %lld vertices",
+                          r.line, i, k, deg);
+                goto done;
+            }
+            if (parse_int(t, n, &v) != 0) {
+                api__fail(err, rc, "off: line %ld: bad index '%s'", r.line,
+                          show(t, n, shown));
+                goto done;
+            }
+            if (v < 0 || v >= cnt[0]) {
+                api__fail(err, rc, "off: line %ld: face %d: index %lld out of range "
+                                   "(0..%lld)",
+                          r.line, i, v, cnt[0] - 1);
+                goto done;
+            }
+            if (k == 0) {
+                first = (int32_t)v;
+            } else if (k >= 2) {
+                if (nt >= lim->max_faces) {
+                    rc = api__fail(err, MCF_ELIMIT,
+                                   "off: line %ld: more than max_faces (%d) triangles",
+                                   r.line, lim->max_faces);
+                    goto done;
+                }
+                if (nt == cap) {
+                    long long ncap = cap ? 2 * cap : cnt[1];
+                    int32_t *p;
+                    if (ncap > lim->max_faces)
+                        ncap = lim->max_faces;
+                    p = realloc(F, 3 * sizeof *p * (size_t)ncap);
+                    if (!p) {
+                        rc = api__fail(err, MCF_ENOMEM,
+                                       "off: no memory for %lld triangles", ncap);
+                        goto done;
+                    }
+                    F = p;
+                    cap = ncap;
+                }
+                F[3 * nt] = first;
+                F[3 * nt + 1] = prev;
+                F[3 * nt + 2] = (int32_t)v;
+                nt++;
+            }
+            prev = (int32_t)v;
+        }
+        /* Anything left on the line is the face's colour: ignored. */
+    }
+    if (next_line(&r)) {
+        api__fail(err, rc, "off: line %ld: data after the last face", r.line);
+        goto done;
+    }
+    m = mcf_mesh_new((int)cnt[0], X, (int)nt, F, err);
+    if (!m) {
+        rc = (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
+        goto done;
+    }
+    *out = m;
+    rc = MCF_OK;
+done:
+    free(X);
+    free(F);
+    return rc;
+}
+
+mcf_status api_off_encode(const mcf_mesh *m, api_buf *out, mcf_error *err)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i;
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    size_t len0 = out->len;
+    mcf_status rc;
+
+    rc = api_buf_printf(out, "OFF\n%d %d 0\n", nv, nf);
+    for (i = 0; i < nv && rc == MCF_OK; i++)
+        rc = api_buf_printf(out, "%.17g %.17g %.17g\n", X[3 * i], X[3 * i + 1],
+                            X[3 * i + 2]);
+    for (i = 0; i < nf && rc == MCF_OK; i++)
+        rc = api_buf_printf(out, "3 %ld %ld %ld\n", (long)F[3 * i],
+                            (long)F[3 * i + 1], (long)F[3 * i + 2]);
+    if (rc != MCF_OK) {
+        out->len = len0;
+        if (out->data)
+            out->data[len0] = '\0';
+        if (rc == MCF_ENOMEM)
+            return api__fail(err, rc, "off: out of memory writing %d vertices", nv);
+        return api__fail(err, rc, "off: output exceeds its maximum of %zu bytes",
+                         out->max);
+    }
+    return MCF_OK;
+}
