@@ -18,6 +18,13 @@
 
 #include "mcf_internal.h"
 
+/* Bit-identical results across platforms for the vertex normals that mcf_mesh_add_noise uses: no fused
+ * multiply-add contraction. GCC already does none in ISO C mode
+ * (-std=c11); clang contracts within expressions unless told not to. */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
 static const double mcf_pi = 3.14159265358979323846;
 
 void mcf__vertex_normals(const double *X, const int32_t *F, int nf, int nv,
