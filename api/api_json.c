@@ -1,0 +1,259 @@
+/*
+ * api_json.c - JSON views of the core's results: mesh information and
+ * curvature summaries, flow statistics (with the per-step log when one
+ * was kept, and phase timings), comparison metrics and the scheme table.
+ *
+ * Each builder returns a fresh cJSON tree or NULL when an allocation
+ * failed (never a half-built tree). Non-finite numbers become null, and
+ * counts that are "not meaningful" (genus -1) too, so every document is
+ * valid JSON that says what is unknown rather than inventing a value.
+ */
+#include <math.h>
+#include <stdlib.h>
+
+#include "api_internal.h"
+
+/* Adds item under key, deleting it when it cannot be attached. */
+static int put(cJSON *o, const char *key, cJSON *item)
+{
+    if (!item)
+        return 0;
+    if (!cJSON_AddItemToObject(o, key, item)) {
+        cJSON_Delete(item);
+        return 0;
+    }
+    return 1;
+}
+
+static int num(cJSON *o, const char *key, double v)
+{
+    return put(o, key, isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull());
+}
+
+static int boolean(cJSON *o, const char *key, int v)
+{
+    return put(o, key, cJSON_CreateBool(v != 0));
+}
+
+static int str(cJSON *o, const char *key, const char *s)
+{
+    return put(o, key, s ? cJSON_CreateString(s) : cJSON_CreateNull());
+}
+
+static cJSON *vec3(const double *v)
+{
+    cJSON *a = cJSON_CreateArray();
+    int i;
+    for (i = 0; a && i < 3; i++) {
+        cJSON *n = isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull();
+        if (!n || !cJSON_AddItemToArray(a, n)) {
+            cJSON_Delete(n);
+            cJSON_Delete(a);
+            return NULL;
+        }
+    }
+    return a;
+}
+
+/* ok is the and of every add; on failure the tree is dropped. */
+static cJSON *finish(cJSON *o, int ok)
+{
+    if (!ok) {
+        cJSON_Delete(o);
+        return NULL;
+    }
+    return o;
+}
+
+static cJSON *stats(const mcf_stats *s)
+{
+    cJSON *o = cJSON_CreateObject();
+    int ok = o != NULL;
+    if (!ok)
+        return NULL;
+    ok = ok && num(o, "min", s->min);
+    ok = ok && num(o, "max", s->max);
+    ok = ok && num(o, "mean", s->mean);
+    ok = ok && num(o, "rms", s->rms);
+    ok = ok && num(o, "p05", s->p05);
+    ok = ok && num(o, "p50", s->p50);
+    ok = ok && num(o, "p95", s->p95);
+    return finish(o, ok);
+}
+
+cJSON *api_json_curvature(const mcf_curvature_summary *c)
+{
+    cJSON *o = cJSON_CreateObject();
+    int ok = o != NULL;
+    if (!ok)
+        return NULL;
+    ok = ok && put(o, "H", stats(&c->H));
+    ok = ok && put(o, "K", stats(&c->K));
+    ok = ok && put(o, "A2", stats(&c->A2));
+    ok = ok && num(o, "total_K", c->total_K);
+    ok = ok && num(o, "gauss_bonnet", c->gauss_bonnet);
+    ok = ok && num(o, "euler", c->euler);
+    return finish(o, ok);
+}
+
+cJSON *api_json_mesh_info(const mcf_mesh_info *i, const mcf_curvature_summary *curv)
+{
+    cJSON *o = cJSON_CreateObject(), *e, *bb;
+    int ok = o != NULL;
+    if (!ok)
+        return NULL;
+    ok = ok && num(o, "vertices", i->nv);
+    ok = ok && num(o, "faces", i->nf);
+    ok = ok && num(o, "edges", i->ne);
+    ok = ok && num(o, "unreferenced_vertices", i->unreferenced);
+    ok = ok && num(o, "degenerate_faces", i->degenerate_faces);
+    ok = ok && num(o, "duplicate_faces", i->duplicate_faces);
+    ok = ok && num(o, "boundary_edges", i->boundary_edges);
+    ok = ok && num(o, "boundary_loops", i->boundary_loops);
+    ok = ok && num(o, "nonmanifold_edges", i->nonmanifold_edges);
+    ok = ok && num(o, "nonmanifold_vertices", i->nonmanifold_vertices);
+    ok = ok && num(o, "components", i->components);
+    ok = ok && num(o, "euler", i->euler);
+    ok = ok && (i->genus >= 0 ? num(o, "genus", i->genus)
+                              : put(o, "genus", cJSON_CreateNull()));
+    ok = ok && boolean(o, "manifold", i->manifold);
+    ok = ok && boolean(o, "closed", i->closed);
+    ok = ok && num(o, "inconsistent_orientation", i->inconsistent_orientation);
+    ok = ok && num(o, "area", i->area);
+    ok = ok && num(o, "volume", i->volume);
+    if (ok) {
+        e = cJSON_CreateObject();
+        ok = put(o, "edge_length", e);
+        ok = ok && num(e, "mean", i->mean_edge);
+        ok = ok && num(e, "min", i->min_edge);
+        ok = ok && num(e, "max", i->max_edge);
+    }
+    if (ok) {
+        bb = cJSON_CreateObject();
+        ok = put(o, "bbox", bb);
+        ok = ok && put(bb, "min", vec3(i->bbox_min));
+        ok = ok && put(bb, "max", vec3(i->bbox_max));
+    }
+    if (ok && curv)
+        ok = put(o, "curvature", api_json_curvature(curv));
+    return finish(o, ok);
+}
+
+static cJSON *step_log(const mcf_step_log *s, int n)
+{
+    cJSON *a = cJSON_CreateArray();
+    int k, ok = a != NULL;
+    for (k = 0; ok && k < n; k++) {
+        cJSON *e = cJSON_CreateObject();
+        if (!e || !cJSON_AddItemToArray(a, e)) {
+            cJSON_Delete(e);
+            ok = 0;
+            break;
+        }
+        ok = ok && num(e, "t", s[k].t);
+        ok = ok && num(e, "dt", s[k].dt);
+        ok = ok && num(e, "area", s[k].area);
+        ok = ok && num(e, "volume", s[k].volume);
+        ok = ok && num(e, "max_disp", s[k].max_disp);
+        ok = ok && num(e, "solve_s", s[k].solve_s);
+        ok = ok && num(e, "rejected", s[k].rejected);
+    }
+    return finish(a, ok);
+}
+
+cJSON *api_json_flow_stats(const mcf_flow_stats *st)
+{
+    cJSON *o = cJSON_CreateObject(), *t;
+    int ok = o != NULL;
+    if (!ok)
+        return NULL;
+    ok = ok && num(o, "steps", st->steps);
+    ok = ok && num(o, "rejected", st->rejected);
+    ok = ok && num(o, "solves", st->solves);
+    ok = ok && num(o, "factorizations", st->factorizations);
+    ok = ok && num(o, "picard_iterations", st->picard_iterations);
+    ok = ok && num(o, "t_final", st->t_final);
+    ok = ok && num(o, "dt_first", st->dt_first);
+    ok = ok && num(o, "dt_min", st->dt_min);
+    ok = ok && num(o, "dt_max", st->dt_max);
+    ok = ok && num(o, "lambda_max", st->lambda_max);
+    ok = ok && num(o, "area0", st->area0);
+    ok = ok && num(o, "area1", st->area1);
+    ok = ok && num(o, "volume0", st->volume0);
+    ok = ok && num(o, "volume1", st->volume1);
+    ok = ok && num(o, "peak_bytes", (double)st->peak_bytes);
+    if (ok) {
+        t = cJSON_CreateObject();
+        ok = put(o, "timings", t);
+        ok = ok && num(t, "assemble_s", st->time_assemble);
+        ok = ok && num(t, "analyze_s", st->time_analyze);
+        ok = ok && num(t, "factorize_s", st->time_factorize);
+        ok = ok && num(t, "solve_s", st->time_solve);
+        ok = ok && num(t, "total_s", st->time_total);
+    }
+    if (ok && st->log && st->nlog > 0)
+        ok = put(o, "log", step_log(st->log, st->nlog));
+    return finish(o, ok);
+}
+
+cJSON *api_json_compare(const mcf_compare_result *c)
+{
+    cJSON *o = cJSON_CreateObject();
+    int ok = o != NULL;
+    if (!ok)
+        return NULL;
+    ok = ok && num(o, "rms_m", c->rms_m);
+    ok = ok && num(o, "rms_rel", c->rms_rel);
+    ok = ok && num(o, "frobenius", c->frobenius);
+    ok = ok && num(o, "max_err", c->max_err);
+    ok = ok && num(o, "normal_angle_deg", c->normal_angle_deg);
+    ok = ok && num(o, "inverted_faces", c->inverted_faces);
+    return finish(o, ok);
+}
+
+cJSON *api_json_schemes(void)
+{
+    cJSON *o = cJSON_CreateObject(), *a;
+    int s, ok = o != NULL;
+    if (!ok)
+        return NULL;
+    a = cJSON_CreateArray();
+    ok = put(o, "schemes", a);
+    for (s = 0; ok && s < MCF_NSCHEMES; s++) {
+        const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
+        cJSON *e, *cost;
+        if (!si)
+            continue;
+        e = cJSON_CreateObject();
+        if (!e || !cJSON_AddItemToArray(a, e)) {
+            cJSON_Delete(e);
+            ok = 0;
+            break;
+        }
+        ok = ok && str(e, "name", si->name);
+        ok = ok && str(e, "title", si->title);
+        ok = ok && num(e, "order", si->order);
+        ok = ok && boolean(e, "explicit", si->is_explicit);
+        /* stability 0 means no step limit; say so rather than "0". */
+        ok = ok && (si->stability > 0
+                    ? num(e, "stability", si->stability)
+                    : put(e, "stability", cJSON_CreateString("unconditional")));
+        if (ok) {
+            cost = cJSON_CreateObject();
+            ok = put(e, "cost_per_step", cost);
+            ok = ok && num(cost, "solves", si->solves_per_step);
+            ok = ok && num(cost, "factorizations", si->factorizations_per_step);
+        }
+        ok = ok && boolean(e, "adaptive", si->has_estimate);
+        ok = ok && str(e, "estimate", si->estimate && *si->estimate ? si->estimate : NULL);
+        ok = ok && str(e, "best_use", si->best_use);
+    }
+    return finish(o, ok);
+}
+
+char *api_json_print(const cJSON *j, int pretty)
+{
+    if (!j)
+        return NULL;
+    return pretty ? cJSON_Print(j) : cJSON_PrintUnformatted(j);
+}
