@@ -54,6 +54,44 @@ extern "C" {
 
 namespace {
 
+/* Reads the 3 components of value v of attribute a as doubles. Done by
+ * hand rather than with GeometryAttribute::ConvertValue, whose template
+ * (compiled here) would load a corrupt stream's DT_BOOL bytes as bool
+ * (undefined behaviour) and does not bound-check the last component
+ * against the buffer. Integer types read as their values (divided by the
+ * type's maximum when the attribute is marked normalized, as Draco does). */
+bool read_position(const draco::PointAttribute *a, uint32_t v, double out[3])
+{
+    const draco::DataType dt = a->data_type();
+    const int64_t sz = draco::DataTypeLength(dt);
+    const draco::DataBuffer *db = a->buffer();
+    if (dt < draco::DT_INT8 || dt > draco::DT_FLOAT64 || sz <= 0 || !db)
+        return false;
+    const int64_t pos = a->byte_offset() + a->byte_stride() * static_cast<int64_t>(v);
+    if (a->byte_offset() < 0 || a->byte_stride() < 3 * sz || pos < 0 ||
+        static_cast<uint64_t>(pos) + 3 * static_cast<uint64_t>(sz) > db->data_size())
+        return false;
+    const uint8_t *p = db->data() + pos;
+    for (int k = 0; k < 3; k++, p += sz) {
+        double x = 0.0, scale = 0.0;
+        switch (dt) {
+        case draco::DT_INT8: { int8_t t; std::memcpy(&t, p, 1); x = t; scale = INT8_MAX; break; }
+        case draco::DT_UINT8: { uint8_t t; std::memcpy(&t, p, 1); x = t; scale = UINT8_MAX; break; }
+        case draco::DT_INT16: { int16_t t; std::memcpy(&t, p, 2); x = t; scale = INT16_MAX; break; }
+        case draco::DT_UINT16: { uint16_t t; std::memcpy(&t, p, 2); x = t; scale = UINT16_MAX; break; }
+        case draco::DT_INT32: { int32_t t; std::memcpy(&t, p, 4); x = t; scale = INT32_MAX; break; }
+        case draco::DT_UINT32: { uint32_t t; std::memcpy(&t, p, 4); x = t; scale = UINT32_MAX; break; }
+        case draco::DT_INT64: { int64_t t; std::memcpy(&t, p, 8); x = static_cast<double>(t); scale = static_cast<double>(INT64_MAX); break; }
+        case draco::DT_UINT64: { uint64_t t; std::memcpy(&t, p, 8); x = static_cast<double>(t); scale = static_cast<double>(UINT64_MAX); break; }
+        case draco::DT_FLOAT32: { float t; std::memcpy(&t, p, 4); x = t; break; }
+        case draco::DT_FLOAT64: { double t; std::memcpy(&t, p, 8); x = t; break; }
+        default: return false;
+        }
+        out[k] = (a->normalized() && scale > 0.0) ? x / scale : x;
+    }
+    return true;
+}
+
 /* ------------------------------------------------------------- decoder */
 
 mcf_status decode(const void *buf, size_t len, const api_limits *lim,
@@ -128,8 +166,7 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
     std::vector<int32_t> F(3 * nfaces);
     for (size_t v = 0; v < nvals; v++) {
         double *x = &X[3 * v];
-        if (!pos->ConvertValue<double>(
-                draco::AttributeValueIndex(static_cast<uint32_t>(v)), 3, x))
+        if (!read_position(pos, static_cast<uint32_t>(v), x))
             return api__fail(err, MCF_EDECODE,
                              "draco: POSITION data type %d cannot be read",
                              static_cast<int>(pos->data_type()));
@@ -195,9 +232,7 @@ bool measure(int nv, const double *X, int nf, const int32_t *F,
     const size_t ng = dm.num_faces();
     std::vector<double> Y(3 * ny);
     for (size_t v = 0; v < ny; v++)
-        if (!pos->ConvertValue<double>(
-                draco::AttributeValueIndex(static_cast<uint32_t>(v)), 3,
-                &Y[3 * v]))
+        if (!read_position(pos, static_cast<uint32_t>(v), &Y[3 * v]))
             return false;
     std::vector<uint32_t> G(3 * ng);
     for (size_t f = 0; f < ng; f++) {

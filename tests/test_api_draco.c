@@ -1,0 +1,765 @@
+/*
+ * test_api_draco.c - the Draco bridge (api_draco.cc).
+ *
+ * Real files: every .drc of ../shared/meshes decodes with the counts of
+ * SOURCES.md (the old v1.1 bunny.drc included), and their topology where
+ * SOURCES.md states it. Round trips: lossless encoding gives back
+ * bit-identical positions, compared through face corners since edgebreaker
+ * renumbers vertices and reorders faces; quantized encoding stays within
+ * the quantization step and reports exactly the error measured here.
+ * Interop: files written by Debian's draco_encoder CLI decode to the same
+ * positions. Hostile input: truncations at every offset, corrupted bytes,
+ * point clouds, limits, empty input; each fails with a precise message.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "testlib.h"
+#include "../api/api.h"
+
+static mcf_status dec(const void *buf, size_t len, mcf_mesh **m, mcf_error *err)
+{
+    api_limits lim;
+    api_limits_default(&lim);
+    *m = NULL;
+    err->status = MCF_OK;
+    err->msg[0] = '\0';
+    return api_draco_decode(buf, len, &lim, m, err);
+}
+
+/* A regression input of tests/data ($MCF_TESTDATA overrides the folder;
+ * `make test` runs from the top of the tree). */
+static char *read_data_file(const char *name, size_t *len)
+{
+    const char *d = getenv("MCF_TESTDATA");
+    char path[4096], *buf = NULL;
+    snprintf(path, sizeof path, "%s/%s", d && *d ? d : "tests/data", name);
+    if (tl_read_file(path, &buf, len) != 0)
+        fail_msg("cannot read %s", path);
+    return buf;
+}
+
+static char *read_mesh_file(const char *name, size_t *len)
+{
+    char path[4096], *buf = NULL;
+    snprintf(path, sizeof path, "%s/%s", tl_meshes_dir(), name);
+    if (tl_read_file(path, &buf, len) != 0)
+        fail_msg("cannot read %s", path);
+    return buf;
+}
+
+/* Encodes m; returns the bytes (free them) and the measured error. */
+static char *enc(const mcf_mesh *m, int q, int level, int preserve, size_t *len,
+                 double *qerr)
+{
+    api_encode_opts o;
+    api_buf b;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status rc;
+    api_encode_opts_init(&o);
+    o.format = API_FMT_DRACO;
+    o.quantization_bits = q;
+    o.compression_level = level;
+    o.preserve_order = preserve;
+    api_buf_init(&b, 0);
+    rc = api_draco_encode(m, &o, &b, qerr, &err);
+    if (rc != MCF_OK)
+        fail_msg("encode q=%d cl=%d: %s: %s", q, level, mcf_status_name(rc), err.msg);
+    return api_buf_detach(&b, len);
+}
+
+/* ------------------------------------------------ face-corner comparison */
+
+typedef struct {
+    double p[9];
+} tri9;
+
+static int cmp_pt(const double *a, const double *b)
+{
+    int k;
+    for (k = 0; k < 3; k++)
+        if (a[k] != b[k])
+            return a[k] < b[k] ? -1 : 1;
+    return 0;
+}
+
+static int cmp_tri(const void *a, const void *b)
+{
+    const tri9 *s = a, *t = b;
+    int k, c;
+    for (k = 0; k < 3; k++)
+        if ((c = cmp_pt(s->p + 3 * k, t->p + 3 * k)) != 0)
+            return c;
+    return 0;
+}
+
+/* Each face as its three corner positions, rotated to start at the
+ * smallest corner (orientation kept), then sorted: two meshes with the
+ * same faces in any vertex or face order give equal arrays. Faces with a
+ * repeated index are left out when skip_repeated (edgebreaker drops
+ * them). X overrides the mesh's positions when non-NULL. */
+static tri9 *canon(const mcf_mesh *m, const double *X, int skip_repeated, int *n)
+{
+    int nf = mcf_mesh_nfaces(m), f, k, r, cnt = 0;
+    const int32_t *F = mcf_mesh_faces(m);
+    tri9 *t = malloc(sizeof *t * (size_t)(nf ? nf : 1));
+    assert_non_null(t);
+    if (!X)
+        X = mcf_mesh_positions(m);
+    for (f = 0; f < nf; f++) {
+        const int32_t *v = F + 3 * f;
+        if (skip_repeated && (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]))
+            continue;
+        r = 0;
+        for (k = 1; k < 3; k++)
+            if (cmp_pt(&X[3 * v[k]], &X[3 * v[r]]) < 0)
+                r = k;
+        for (k = 0; k < 3; k++)
+            memcpy(t[cnt].p + 3 * k, &X[3 * v[(k + r) % 3]], 3 * sizeof(double));
+        cnt++;
+    }
+    qsort(t, (size_t)cnt, sizeof *t, cmp_tri);
+    *n = cnt;
+    return t;
+}
+
+/* Fails unless a and b have bit-identical faces (through face corners). */
+static void assert_same_faces(const mcf_mesh *a, const double *Xa,
+                              const mcf_mesh *b, const char *what)
+{
+    int na, nb, i;
+    tri9 *ta = canon(a, Xa, 1, &na), *tb = canon(b, NULL, 1, &nb);
+    if (na != nb)
+        fail_msg("%s: %d vs %d faces", what, na, nb);
+    for (i = 0; i < na; i++)
+        if (memcmp(&ta[i], &tb[i], sizeof ta[i]) != 0)
+            fail_msg("%s: sorted face %d differs (%.17g %.17g %.17g vs %.17g %.17g "
+                     "%.17g)",
+                     what, i, ta[i].p[0], ta[i].p[1], ta[i].p[2], tb[i].p[0],
+                     tb[i].p[1], tb[i].p[2]);
+    free(ta);
+    free(tb);
+}
+
+/* Largest extent of the bounding box. */
+static double extent(const mcf_mesh *m)
+{
+    const double *X = mcf_mesh_positions(m);
+    double lo[3], hi[3], e = 0;
+    int i, k;
+    for (k = 0; k < 3; k++)
+        lo[k] = hi[k] = X[k];
+    for (i = 0; i < mcf_mesh_nvertices(m); i++)
+        for (k = 0; k < 3; k++) {
+            if (X[3 * i + k] < lo[k]) lo[k] = X[3 * i + k];
+            if (X[3 * i + k] > hi[k]) hi[k] = X[3 * i + k];
+        }
+    for (k = 0; k < 3; k++)
+        if (hi[k] - lo[k] > e)
+            e = hi[k] - lo[k];
+    return e;
+}
+
+/* ------------------------------------------------------------ real files */
+
+static const struct {
+    const char *file;
+    int nv, nf;
+} real[] = {
+    {"bunny.drc", 34834, 69451},
+    {"car.drc", 1856, 1744},
+    {"dragon_vrip.drc", 435545, 871306},
+    {"test_nm.obj.edgebreaker.cl10.2.2.drc", 99, 170},
+    {"test_nm.obj.sequential.cl3.2.2.drc", 97, 170},
+};
+
+static void test_real_counts(void **state)
+{
+    size_t i;
+    (void)state;
+    for (i = 0; i < sizeof real / sizeof real[0]; i++) {
+        mcf_mesh *m = tl_load(real[i].file);
+        if (mcf_mesh_nvertices(m) != real[i].nv || mcf_mesh_nfaces(m) != real[i].nf)
+            fail_msg("%s: %d/%d, want %d/%d", real[i].file, mcf_mesh_nvertices(m),
+                     mcf_mesh_nfaces(m), real[i].nv, real[i].nf);
+        mcf_mesh_free(m);
+    }
+}
+
+static void test_real_topology(void **state)
+{
+    mcf_mesh_info info;
+    mcf_error err;
+    mcf_mesh *m;
+    (void)state;
+
+    /* bunny.drc (bitstream v1.1): the Stanford bunny, 5 holes, genus 0. */
+    m = tl_load("bunny.drc");
+    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
+    assert_int_equal(info.boundary_loops, 5);
+    assert_int_equal(info.boundary_edges, 223);
+    assert_int_equal(info.components, 1);
+    assert_int_equal(info.unreferenced, 0);
+    mcf_mesh_free(m);
+
+    /* dragon_vrip.drc: closed, manifold, one piece, genus 55. */
+    m = tl_load("dragon_vrip.drc");
+    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
+    assert_true(info.closed);
+    assert_true(info.manifold);
+    assert_int_equal(info.components, 1);
+    assert_int_equal(info.euler, -108);
+    assert_int_equal(info.genus, 55);
+    mcf_mesh_free(m);
+
+    /* The sequential test_nm keeps its 2 non-manifold vertices; the
+     * edgebreaker one has them split. */
+    m = tl_load("test_nm.obj.sequential.cl3.2.2.drc");
+    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
+    assert_int_equal(info.nonmanifold_vertices, 2);
+    assert_int_equal(info.boundary_loops, 3);
+    mcf_mesh_free(m);
+    m = tl_load("test_nm.obj.edgebreaker.cl10.2.2.drc");
+    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
+    assert_int_equal(info.nonmanifold_vertices, 0);
+    assert_int_equal(info.boundary_loops, 3);
+    mcf_mesh_free(m);
+}
+
+static int cmp_pos(const void *a, const void *b)
+{
+    return cmp_pt(a, b);
+}
+
+/* car.drc is sequential with normals and texcoords: its stream holds one
+ * position value per point, so indexing by value (mapped_index) gives the
+ * same 1,856 vertices draco_decoder writes, of which only 920 positions
+ * are distinct (SOURCES.md's count after welding). The decoder keeps the
+ * file's vertices and does not weld; STL output would weld them. */
+static void test_car_seams(void **state)
+{
+    mcf_mesh *m = tl_load("car.drc");
+    int nv = mcf_mesh_nvertices(m), i, distinct = 1;
+    double *P = malloc(sizeof *P * 3 * (size_t)nv);
+    (void)state;
+    assert_non_null(P);
+    memcpy(P, mcf_mesh_positions(m), sizeof *P * 3 * (size_t)nv);
+    qsort(P, (size_t)nv, 3 * sizeof *P, cmp_pos);
+    for (i = 1; i < nv; i++)
+        distinct += cmp_pt(P + 3 * i, P + 3 * (i - 1)) != 0;
+    assert_int_equal(nv, 1856);
+    assert_int_equal(distinct, 920);
+    free(P);
+    mcf_mesh_free(m);
+}
+
+/* ------------------------------------------------------------ round trips */
+
+static void lossless(const char *file)
+{
+    mcf_mesh *m = tl_load(file), *d = NULL;
+    mcf_error err;
+    int preserve;
+    for (preserve = 0; preserve <= 1; preserve++) {
+        size_t len;
+        double qerr = -1;
+        char *bytes = enc(m, 0, 7, preserve, &len, &qerr);
+        if (dec(bytes, len, &d, &err) != MCF_OK)
+            fail_msg("%s: %s", file, err.msg);
+        assert_true(qerr == 0.0);
+        assert_same_faces(m, NULL, d, file);
+        if (preserve) {
+            /* sequential: the very same arrays */
+            assert_int_equal(mcf_mesh_nvertices(d), mcf_mesh_nvertices(m));
+            assert_int_equal(mcf_mesh_nfaces(d), mcf_mesh_nfaces(m));
+            assert_memory_equal(mcf_mesh_positions(d), mcf_mesh_positions(m),
+                                sizeof(double) * 3 * (size_t)mcf_mesh_nvertices(m));
+            assert_memory_equal(mcf_mesh_faces(d), mcf_mesh_faces(m),
+                                sizeof(int32_t) * 3 * (size_t)mcf_mesh_nfaces(m));
+        }
+        mcf_mesh_free(d);
+        free(bytes);
+    }
+    mcf_mesh_free(m);
+}
+
+/* OBJ coordinates are not floats (stored as float64), bunny.drc's are
+ * (stored as float32); snowden has non-manifold edges and stanford-bunny
+ * unreferenced vertices (dropped by edgebreaker, kept by sequential). */
+static void test_lossless(void **state)
+{
+    (void)state;
+    lossless("sphere_cgal.obj");
+    lossless("fertility.obj");
+    lossless("stanford-bunny.obj");
+    lossless("snowden.obj");
+    lossless("test_nm.obj");
+    lossless("bunny.drc");
+}
+
+/* Float coordinates are stored as float32: half the bytes of float64. */
+static void test_lossless_float_storage(void **state)
+{
+    mcf_mesh *m = tl_load("sphere_cgal.obj"), *f;
+    int nv = mcf_mesh_nvertices(m), i;
+    double *X = malloc(sizeof *X * 3 * (size_t)nv);
+    size_t l64, l32;
+    double qerr;
+    char *b64, *b32;
+    mcf_error err;
+    (void)state;
+    assert_non_null(X);
+    for (i = 0; i < 3 * nv; i++)
+        X[i] = (float)mcf_mesh_positions(m)[i];
+    f = mcf_mesh_new(nv, X, mcf_mesh_nfaces(m), mcf_mesh_faces(m), &err);
+    assert_non_null(f);
+    b64 = enc(m, 0, 7, 1, &l64, &qerr);
+    b32 = enc(f, 0, 7, 1, &l32, &qerr);
+    /* sequential: 24 vs 12 raw bytes per vertex, same connectivity */
+    assert_int_equal(l64 - l32, 12 * (size_t)nv);
+    free(b64);
+    free(b32);
+    free(X);
+    mcf_mesh_free(f);
+    mcf_mesh_free(m);
+}
+
+static void quantized(const char *file, int q)
+{
+    mcf_mesh *m = tl_load(file), *ds = NULL, *de = NULL;
+    mcf_error err;
+    int nv = mcf_mesh_nvertices(m), i;
+    size_t ls, le;
+    double es = -1, ee = -1, direct = 0;
+    char *bs = enc(m, q, 7, 1, &ls, &es), *be = enc(m, q, 10, 0, &le, &ee);
+    /* Draco's step is extent/(2^q - 1); rounding errs by half a step and
+     * float32 storage by ~1e-7 relative, so one full step bounds it. */
+    double bound = extent(m) / (ldexp(1.0, q) - 1.0);
+
+    if (dec(bs, ls, &ds, &err) != MCF_OK || dec(be, le, &de, &err) != MCF_OK)
+        fail_msg("%s q=%d: %s", file, q, err.msg);
+    /* Sequential keeps vertex order: measure directly, index by index. */
+    assert_int_equal(mcf_mesh_nvertices(ds), nv);
+    for (i = 0; i < 3 * nv; i++) {
+        double d = fabs(mcf_mesh_positions(ds)[i] - mcf_mesh_positions(m)[i]);
+        if (d > direct)
+            direct = d;
+    }
+    if (!(direct <= bound))
+        fail_msg("%s q=%d: error %g above the bound %g", file, q, direct, bound);
+    assert_true(direct > 0);
+    /* The reported errors are the measured one, exactly (same arithmetic:
+     * max of |decoded - input|), for both methods: quantization is per
+     * value, with the same parameters. */
+    if (es != direct || ee != direct)
+        fail_msg("%s q=%d: reported %.17g (sequential) / %.17g (edgebreaker), "
+                 "measured %.17g",
+                 file, q, es, ee, direct);
+    /* Through face corners: the edgebreaker faces are the input faces
+     * carrying the sequentially decoded positions, bit for bit. */
+    assert_same_faces(m, mcf_mesh_positions(ds), de, file);
+    mcf_mesh_free(ds);
+    mcf_mesh_free(de);
+    free(bs);
+    free(be);
+    mcf_mesh_free(m);
+}
+
+static void test_quantized(void **state)
+{
+    (void)state;
+    quantized("sphere_cgal.obj", 8);
+    quantized("sphere_cgal.obj", 11);
+    quantized("fertility.obj", 14);
+    quantized("knot1.obj", 20);
+    quantized("snowden.obj", 16);
+}
+
+/* Every compression level encodes and decodes to the same faces. */
+static void test_levels(void **state)
+{
+    mcf_mesh *m = tl_load("bunny_npm_closed.obj"), *d;
+    mcf_error err;
+    int level;
+    (void)state;
+    for (level = 0; level <= 10; level++) {
+        size_t len;
+        double qerr;
+        char *b = enc(m, 0, level, 0, &len, &qerr);
+        if (dec(b, len, &d, &err) != MCF_OK)
+            fail_msg("level %d: %s", level, err.msg);
+        assert_same_faces(m, NULL, d, "levels");
+        mcf_mesh_free(d);
+        free(b);
+    }
+    mcf_mesh_free(m);
+}
+
+/* A repeated-index face is kept by sequential and dropped by edgebreaker;
+ * the error measurement skips it. Coordinates beyond float: lossless
+ * float64 keeps them, quantization (float32) refuses them. */
+static void test_encode_edge_cases(void **state)
+{
+    static const double X[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+    static const int32_t F[] = {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2, 0, 0, 1};
+    static const double Xbig[] = {0, 0, 0, 1e300, 0, 0, 0, 1e-300, 0};
+    static const int32_t Fbig[] = {0, 1, 2};
+    mcf_error err;
+    mcf_mesh *m = mcf_mesh_new(4, X, 5, F, &err), *d;
+    api_encode_opts o;
+    api_buf b;
+    size_t len;
+    double qerr;
+    char *bytes;
+    (void)state;
+    assert_non_null(m);
+    bytes = enc(m, 0, 7, 1, &len, &qerr);
+    assert_int_equal(dec(bytes, len, &d, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(d), 5);
+    assert_true(qerr == 0.0);
+    mcf_mesh_free(d);
+    free(bytes);
+    bytes = enc(m, 12, 7, 0, &len, &qerr);
+    assert_int_equal(dec(bytes, len, &d, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(d), 4);
+    /* a unit tetrahedron with 12 bits: below one step of 1/4095 */
+    assert_true(qerr <= 1.0 / 4095);
+    mcf_mesh_free(d);
+    free(bytes);
+    mcf_mesh_free(m);
+
+    m = mcf_mesh_new(3, Xbig, 1, Fbig, &err);
+    assert_non_null(m);
+    bytes = enc(m, 0, 7, 1, &len, &qerr);
+    assert_int_equal(dec(bytes, len, &d, &err), MCF_OK);
+    assert_memory_equal(mcf_mesh_positions(d), Xbig, sizeof Xbig);
+    mcf_mesh_free(d);
+    free(bytes);
+    api_encode_opts_init(&o);
+    o.quantization_bits = 10;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_draco_encode(m, &o, &b, NULL, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "exceeds the float range"));
+    assert_int_equal(b.len, 0);
+    o.quantization_bits = 31;
+    assert_int_equal(api_draco_encode(m, &o, &b, NULL, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "quantization_bits 31 out of range"));
+    o.quantization_bits = 0;
+    o.compression_level = 11;
+    assert_int_equal(api_draco_encode(m, &o, &b, NULL, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "compression_level 11 out of range"));
+    /* an output maximum too small: ELIMIT, buffer untouched */
+    api_buf_free(&b);
+    api_buf_init(&b, 16);
+    o.compression_level = 7;
+    assert_int_equal(api_draco_encode(m, &o, &b, NULL, &err), MCF_ELIMIT);
+    assert_int_equal(b.len, 0);
+    api_buf_free(&b);
+    mcf_mesh_free(m);
+}
+
+/* Through api_mesh_encode/api_mesh_decode (the dispatch). */
+static void test_dispatch(void **state)
+{
+    mcf_mesh *m = tl_load("knot1.obj"), *d = NULL;
+    api_encode_opts o;
+    api_buf b;
+    api_format f;
+    mcf_error err;
+    (void)state;
+    api_encode_opts_init(&o);
+    o.format = API_FMT_DRACO;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+    assert_int_equal(api_mesh_decode(b.data, b.len, NULL, &d, &f, &err), MCF_OK);
+    assert_int_equal(f, API_FMT_DRACO);
+    assert_same_faces(m, NULL, d, "dispatch");
+    api_buf_free(&b);
+    mcf_mesh_free(d);
+    mcf_mesh_free(m);
+}
+
+/* ------------------------------------------------- Debian's draco_encoder */
+
+static int have_cli(void)
+{
+    return system("command -v draco_encoder >/dev/null 2>&1") == 0;
+}
+
+/* Writes m as OBJ into dir/x.obj, runs draco_encoder with args, returns
+ * the .drc bytes. */
+static char *cli_encode(const mcf_mesh *m, const char *dir, const char *args,
+                        size_t *len)
+{
+    char obj[512], drc[512], cmd[2048], *buf = NULL;
+    api_buf b;
+    mcf_error err;
+    FILE *fp;
+    snprintf(obj, sizeof obj, "%s/x.obj", dir);
+    snprintf(drc, sizeof drc, "%s/x.drc", dir);
+    api_buf_init(&b, 0);
+    assert_int_equal(api_obj_encode(m, &b, &err), MCF_OK);
+    fp = fopen(obj, "wb");
+    assert_non_null(fp);
+    assert_int_equal(fwrite(b.data, 1, b.len, fp), b.len);
+    assert_int_equal(fclose(fp), 0);
+    api_buf_free(&b);
+    snprintf(cmd, sizeof cmd, "draco_encoder -i %s -o %s %s >/dev/null 2>&1", obj,
+             drc, args);
+    if (system(cmd) != 0)
+        fail_msg("failed: %s", cmd);
+    if (tl_read_file(drc, &buf, len) != 0)
+        fail_msg("cannot read %s", drc);
+    remove(obj);
+    remove(drc);
+    return buf;
+}
+
+static void test_draco_encoder_cli(void **state)
+{
+    char tmpl[] = "/tmp/mcf_draco_XXXXXX", *dir, *bytes;
+    mcf_mesh *m = tl_load("sphere_cgal.obj"), *f, *d;
+    int nv = mcf_mesh_nvertices(m), i, k;
+    double *X = malloc(sizeof *X * 3 * (size_t)nv), maxerr = 0, bound;
+    size_t len;
+    mcf_error err;
+    (void)state;
+    if (!have_cli()) {
+        free(X);
+        mcf_mesh_free(m);
+        skip();
+    }
+    dir = mkdtemp(tmpl);
+    assert_non_null(dir);
+    assert_non_null(X);
+    /* draco_encoder reads OBJ into float32: compare with the float values */
+    for (i = 0; i < 3 * nv; i++)
+        X[i] = (float)mcf_mesh_positions(m)[i];
+    f = mcf_mesh_new(nv, X, mcf_mesh_nfaces(m), mcf_mesh_faces(m), &err);
+    assert_non_null(f);
+
+    bytes = cli_encode(f, dir, "-cl 7 -qp 0", &len);
+    assert_int_equal(dec(bytes, len, &d, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nvertices(d), nv);
+    assert_same_faces(f, NULL, d, "draco_encoder -cl 7 -qp 0");
+    mcf_mesh_free(d);
+    free(bytes);
+
+    bytes = cli_encode(f, dir, "-cl 10 -qp 0", &len);
+    assert_int_equal(dec(bytes, len, &d, &err), MCF_OK);
+    assert_same_faces(f, NULL, d, "draco_encoder -cl 10 -qp 0");
+    mcf_mesh_free(d);
+    free(bytes);
+
+    /* -qp 14: draco_encoder may renumber; its quantized positions must be
+     * exactly those of our own 14-bit sequential encoding of the same
+     * floats (same quantizer), compared through face corners, and within
+     * one step (see quantized()) of the input. */
+    for (i = 0; i < 2; i++) {
+        double qerr;
+        char *ours = enc(f, 14, 7, 1, &len, &qerr);
+        mcf_mesh *s = NULL;
+        assert_int_equal(dec(ours, len, &s, &err), MCF_OK);
+        free(ours);
+        bytes = cli_encode(f, dir, i ? "-cl 10 -qp 14" : "-cl 0 -qp 14", &len);
+        assert_int_equal(dec(bytes, len, &d, &err), MCF_OK);
+        assert_same_faces(f, mcf_mesh_positions(s), d, "draco_encoder -qp 14");
+        bound = extent(f) / (ldexp(1.0, 14) - 1);
+        maxerr = 0;
+        for (k = 0; k < 3 * nv; k++)
+            if (fabs(mcf_mesh_positions(s)[k] - X[k]) > maxerr)
+                maxerr = fabs(mcf_mesh_positions(s)[k] - X[k]);
+        if (!(maxerr <= bound && maxerr > 0 && maxerr == qerr))
+            fail_msg("draco_encoder -qp 14: error %g (reported %g), bound %g",
+                     maxerr, qerr, bound);
+        mcf_mesh_free(s);
+        mcf_mesh_free(d);
+        free(bytes);
+    }
+
+    /* A point cloud is refused by name. */
+    bytes = cli_encode(f, dir, "-point_cloud", &len);
+    assert_int_equal(dec(bytes, len, &d, &err), MCF_EDECODE);
+    assert_string_equal(err.msg, "Draco point cloud, not a triangle mesh");
+    assert_null(d);
+    free(bytes);
+
+    rmdir(dir);
+    free(X);
+    mcf_mesh_free(f);
+    mcf_mesh_free(m);
+}
+
+/* ------------------------------------------------------- hostile input */
+
+static void expect_fail(const void *buf, size_t len, mcf_status code,
+                        const char *want)
+{
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    /* exact-size heap copy: a read past the end shows under ASan */
+    void *copy = malloc(len ? len : 1);
+    mcf_status rc;
+    assert_non_null(copy);
+    if (len)
+        memcpy(copy, buf, len);
+    rc = dec(copy, len, &m, &err);
+    free(copy);
+    if (rc != code || !strstr(err.msg, want))
+        fail_msg("%zu bytes: got %s \"%s\", want %s containing \"%s\"", len,
+                 mcf_status_name(rc), err.msg, mcf_status_name(code), want);
+    assert_null(m);
+    assert_int_equal(err.status, code);
+}
+
+static void test_malformed(void **state)
+{
+    static const char hdr[] = "DRACO\x02\x02\x01\x01\x00\x00";
+    static const char future[] = "DRACO\x09\x00\x01\x01\x00\x00";
+    static const char cloud_type[] = "DRACO\x02\x02\x00\x00\x00\x00";
+    static const char junk[] = "\x00\x01\x02\x03\xff\xfe\xfd\xfc";
+    mcf_error err;
+    mcf_mesh *m = NULL;
+    (void)state;
+    expect_fail("", 0, MCF_EDECODE, "draco: empty input");
+    expect_fail("DRAC", 4, MCF_EDECODE, "no \"DRACO\" magic");
+    expect_fail("draco", 5, MCF_EDECODE, "no \"DRACO\" magic");
+    expect_fail(junk, sizeof junk - 1, MCF_EDECODE, "no \"DRACO\" magic");
+    expect_fail("DRACO", 5, MCF_EDECODE, "draco: bad header");
+    expect_fail(hdr, sizeof hdr - 1, MCF_EDECODE, "draco: ");
+    expect_fail(future, sizeof future - 1, MCF_EDECODE,
+                "draco: Unknown major version");
+    expect_fail(cloud_type, sizeof cloud_type - 1, MCF_EDECODE,
+                "Draco point cloud, not a triangle mesh");
+    assert_int_equal(api_draco_decode(NULL, 3, NULL, &m, &err), MCF_EINVAL);
+}
+
+/* Every prefix of a valid stream fails cleanly (or, where the tail held
+ * nothing the decoder needs, yields the full mesh); bytes corrupted one at
+ * a time either fail with a message or decode to some valid mesh. */
+static void torture(const char *what, const mcf_mesh *m, int q, int preserve)
+{
+    size_t len, cut, i;
+    double qerr;
+    char *bytes = enc(m, q, 7, preserve, &len, &qerr);
+    char *copy = malloc(len);
+    int failed = 0;
+    assert_non_null(copy);
+    for (cut = 0; cut < len; cut++) {
+        mcf_mesh *d = NULL;
+        mcf_error err;
+        char *pre = malloc(cut ? cut : 1);
+        mcf_status rc;
+        assert_non_null(pre);
+        memcpy(pre, bytes, cut);
+        rc = dec(pre, cut, &d, &err);
+        free(pre);
+        if (rc == MCF_OK) {
+            assert_int_equal(mcf_mesh_nfaces(d), mcf_mesh_nfaces(m));
+            mcf_mesh_free(d);
+            continue;
+        }
+        failed++;
+        assert_null(d);
+        if (rc != MCF_EDECODE || (strncmp(err.msg, "draco: ", 7) != 0))
+            fail_msg("%s cut at %zu: %s \"%s\"", what, cut, mcf_status_name(rc),
+                     err.msg);
+    }
+    /* the header and the connectivity are needed: most cuts must fail */
+    assert_true(failed > (int)len / 2);
+    for (i = 0; i < len; i++) {
+        static const unsigned char flips[] = {0xff, 0x80, 0x01};
+        size_t k;
+        for (k = 0; k < sizeof flips; k++) {
+            mcf_mesh *d = NULL;
+            mcf_error err;
+            mcf_status rc;
+            memcpy(copy, bytes, len);
+            copy[i] = (char)(copy[i] ^ flips[k]);
+            rc = dec(copy, len, &d, &err);
+            if (rc == MCF_OK) {
+                assert_true(mcf_mesh_nvertices(d) > 0 && mcf_mesh_nfaces(d) > 0);
+                mcf_mesh_free(d);
+            } else if ((rc != MCF_EDECODE && rc != MCF_EMESH) || err.msg[0] == '\0') {
+                fail_msg("%s byte %zu ^ %02x: %s \"%s\"", what, i, flips[k],
+                         mcf_status_name(rc), err.msg);
+            }
+        }
+    }
+    free(copy);
+    free(bytes);
+}
+
+static void test_truncated_and_corrupted(void **state)
+{
+    mcf_mesh *m = tl_load("test_nm.obj");
+    (void)state;
+    torture("edgebreaker q11", m, 11, 0);
+    torture("sequential q11", m, 11, 1);
+    torture("edgebreaker lossless", m, 0, 0);
+    mcf_mesh_free(m);
+}
+
+/* Regression (found by UBSan in test_truncated_and_corrupted): a stream
+ * whose POSITION attribute claims DT_BOOL (one flipped byte of a lossless
+ * tetrahedron) made Draco's ConvertValue load 0xf0 as a bool. Positions
+ * are now read by hand; a non-numeric type is refused by number. */
+static void test_regression_bool_position(void **state)
+{
+    size_t len;
+    char *buf = read_data_file("draco_bool_position.drc", &len);
+    (void)state;
+    expect_fail(buf, len, MCF_EDECODE, "draco: POSITION data type 11 cannot be read");
+    free(buf);
+}
+
+static void test_limits(void **state)
+{
+    size_t len;
+    char *buf = read_mesh_file("bunny.drc", &len);
+    api_limits lim;
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    (void)state;
+    api_limits_default(&lim);
+    lim.max_vertices = 34833;
+    assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_ELIMIT);
+    assert_string_equal(err.msg, "draco: 34834 vertices exceed max_vertices (34833)");
+    api_limits_default(&lim);
+    lim.max_faces = 69450;
+    assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_ELIMIT);
+    assert_string_equal(err.msg, "draco: 69451 faces exceed max_faces (69450)");
+    api_limits_default(&lim);
+    lim.max_input_bytes = len - 1;
+    assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_ELIMIT);
+    assert_non_null(strstr(err.msg, "exceeds max_input_bytes"));
+    assert_null(m);
+    lim.max_input_bytes = len;
+    assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_OK);
+    mcf_mesh_free(m);
+    free(buf);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_real_counts),
+        cmocka_unit_test(test_real_topology),
+        cmocka_unit_test(test_car_seams),
+        cmocka_unit_test(test_lossless),
+        cmocka_unit_test(test_lossless_float_storage),
+        cmocka_unit_test(test_quantized),
+        cmocka_unit_test(test_levels),
+        cmocka_unit_test(test_encode_edge_cases),
+        cmocka_unit_test(test_dispatch),
+        cmocka_unit_test(test_draco_encoder_cli),
+        cmocka_unit_test(test_malformed),
+        cmocka_unit_test(test_truncated_and_corrupted),
+        cmocka_unit_test(test_regression_bool_position),
+        cmocka_unit_test(test_limits),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
