@@ -1,0 +1,764 @@
+/*
+ * mcf.c - the `mcf` command-line tool: smooth, inspect and convert meshes.
+ *
+ *   mcf smooth IN OUT [flags]   mean curvature flow, optional metrics file
+ *   mcf info IN                 JSON: counts, topology, curvature summary
+ *   mcf schemes                 JSON: every scheme and what it costs
+ *   mcf convert IN OUT          any input format to OUT's (or --format)
+ *
+ * Like curl's tool, this is only a client of the libraries: every flag
+ * that is a job parameter goes through api_params_set (dashes become
+ * underscores), so the CLI and the daemon accept and refuse exactly the
+ * same values with the same messages. The input format is detected from
+ * the bytes, the output format comes from OUT's extension unless --format
+ * says otherwise. "-" reads stdin / writes stdout.
+ *
+ * Errors: exactly one line "mcf: <message>" on stderr; exit status 2 for
+ * usage errors (unknown flag, missing argument, invalid parameter value),
+ * 1 for everything else. Output files are written to a temporary name and
+ * renamed, so a failed run never leaves a half-written OUT behind.
+ */
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "api.h"
+
+#define EXIT_USAGE 2
+
+static const char usage_text[] =
+    "usage:\n"
+    "  mcf smooth IN OUT [--scheme S] [--dt D|auto] [--iterations N | --time T]\n"
+    "                    [--boundary fixed|free] [--fix-vertices FILE] [--rescale none|volume|area]\n"
+    "                    [--normalize | --no-normalize] [--laplacian cotan|uniform]\n"
+    "                    [--mass barycentric|voronoi] [--adaptive --tol E]\n"
+    "                    [--target FILE] [--noise RHO --seed K] [--metrics FILE.json] [--quiet]\n"
+    "                    [--format F] [--quantization-bits B] [--compression-level C] [--preserve-order]\n"
+    "  mcf info IN          JSON on stdout: counts, topology, curvature summary\n"
+    "  mcf schemes          JSON on stdout: every scheme with order, stability, cost per step\n"
+    "  mcf convert IN OUT   [--format F] [--quantization-bits B] [--compression-level C]\n"
+    "                       [--preserve-order]: format by content in, by OUT's extension out\n"
+    "\n"
+    "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
+    "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
+    "0-based vertex indices separated by white space or commas.\n";
+
+/* Set by SIGINT/SIGTERM; the flow checks it before every step. */
+static volatile int cancel_flag;
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    cancel_flag = 1;
+}
+
+/* The one error line, then the exit status. */
+static int fail(int code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+static int fail(int code, const char *fmt, ...)
+{
+    char msg[1024];
+    va_list ap;
+    size_t i;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    for (i = 0; msg[i]; i++) /* one line, whatever a message holds */
+        if (msg[i] == '\n' || msg[i] == '\r')
+            msg[i] = ' ';
+    fprintf(stderr, "mcf: %s\n", msg);
+    return code;
+}
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ------------------------------------------------------------------ files */
+
+/* Reads path ("-": stdin) into a malloc'ed buffer of at most max bytes.
+ * Returns 0, or an exit status after printing the error line. */
+static int read_all(const char *path, size_t max, char **buf, size_t *len)
+{
+    FILE *f = strcmp(path, "-") == 0 ? stdin : fopen(path, "rb");
+    char *data = NULL;
+    size_t n = 0, cap = 0;
+    int rc = 1;
+
+    if (!f)
+        return fail(1, "cannot read '%s': %s", path, strerror(errno));
+    for (;;) {
+        size_t got;
+        if (cap - n < 65536) {
+            size_t ncap = cap ? cap * 2 : 1 << 20;
+            char *p = realloc(data, ncap + 1);
+            if (!p) {
+                fail(1, "'%s': out of memory", path);
+                goto done;
+            }
+            data = p;
+            cap = ncap;
+        }
+        got = fread(data + n, 1, cap - n, f);
+        n += got;
+        if (n > max) {
+            fail(1, "'%s': larger than max_input_bytes (%zu)", path, max);
+            goto done;
+        }
+        if (got == 0) {
+            if (ferror(f)) {
+                fail(1, "cannot read '%s': %s", path, strerror(errno));
+                goto done;
+            }
+            break;
+        }
+    }
+    data[n] = '\0';
+    *buf = data;
+    *len = n;
+    data = NULL;
+    rc = 0;
+done:
+    free(data);
+    if (f != stdin)
+        fclose(f);
+    return rc;
+}
+
+/* Writes len bytes to path ("-": stdout) through a temporary file renamed
+ * over path, so readers never see a partial file. */
+static int write_all(const char *path, const void *buf, size_t len)
+{
+    char *tmp;
+    FILE *f;
+    int ok;
+
+    if (strcmp(path, "-") == 0) {
+        if (fwrite(buf, 1, len, stdout) != len || fflush(stdout) != 0)
+            return fail(1, "cannot write to stdout: %s", strerror(errno));
+        return 0;
+    }
+    tmp = malloc(strlen(path) + 32);
+    if (!tmp)
+        return fail(1, "out of memory");
+    sprintf(tmp, "%s.tmp%ld", path, (long)getpid());
+    f = fopen(tmp, "wb");
+    if (!f) {
+        int e = errno;
+        free(tmp);
+        return fail(1, "cannot write '%s': %s", path, strerror(e));
+    }
+    ok = fwrite(buf, 1, len, f) == len;
+    ok = (fclose(f) == 0) && ok;
+    if (!ok || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        free(tmp);
+        return fail(1, "cannot write '%s': %s", path, strerror(e));
+    }
+    free(tmp);
+    return 0;
+}
+
+/* Reads and decodes a mesh file; *fmt and the timings are optional. */
+static int load_mesh(const char *path, const api_limits *lim, mcf_mesh **m,
+                     api_format *fmt, size_t *bytes, double *read_s,
+                     double *decode_s)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status st;
+    double t0 = now(), t1;
+    int rc;
+
+    if ((rc = read_all(path, lim->max_input_bytes, &buf, &len)) != 0)
+        return rc;
+    t1 = now();
+    st = api_mesh_decode(buf, len, lim, m, fmt, &err);
+    free(buf);
+    if (st != MCF_OK)
+        return fail(1, "%s: %s", path, err.msg);
+    if (bytes)
+        *bytes = len;
+    if (read_s)
+        *read_s = t1 - t0;
+    if (decode_s)
+        *decode_s = now() - t1;
+    return 0;
+}
+
+/* -------------------------------------------------------------- arguments */
+
+typedef struct {
+    const char *pos[3];
+    int npos;
+    const char *target, *metrics, *fix_file;
+    int quiet;
+    int format_given;
+} cli_opts;
+
+/* Flags that map to a parameter with a value, by command. */
+static const char *const smooth_valued[] = {
+    "scheme", "dt", "iterations", "time", "boundary", "rescale", "laplacian",
+    "mass", "tol", "noise", "seed", "format", "quantization-bits",
+    "compression-level", NULL};
+static const char *const convert_valued[] = {
+    "format", "quantization-bits", "compression-level", NULL};
+
+static int in_list(const char *const *list, const char *s)
+{
+    int i;
+    for (i = 0; list[i]; i++)
+        if (strcmp(list[i], s) == 0)
+            return 1;
+    return 0;
+}
+
+/* Applies one parameter; a refusal is a usage error (exit 2), a limit 1. */
+static int set_param(api_params *p, const char *flag, const char *value,
+                     const api_limits *lim)
+{
+    char key[64];
+    mcf_error err = {MCF_OK, ""};
+    mcf_status st;
+    size_t i;
+
+    for (i = 0; flag[i] && i + 1 < sizeof key; i++)
+        key[i] = flag[i] == '-' ? '_' : flag[i];
+    key[i] = '\0';
+    st = api_params_set(p, key, value, lim, &err);
+    if (st != MCF_OK)
+        return fail(st == MCF_EINVAL ? EXIT_USAGE : 1, "%s", err.msg);
+    return 0;
+}
+
+/* Parses argv[first..] of command cmd ("smooth" or "convert"). */
+static int parse_args(const char *cmd, int argc, char **argv, int first,
+                      api_params *p, const api_limits *lim, cli_opts *o)
+{
+    int smooth = strcmp(cmd, "smooth") == 0, i, rc;
+    const char *const *valued = smooth ? smooth_valued : convert_valued;
+    int maxpos = 2;
+
+    for (i = first; i < argc; i++) {
+        const char *a = argv[i], *val = NULL, *eq;
+        char name[64];
+        size_t nl;
+
+        if (a[0] != '-' || strcmp(a, "-") == 0) {
+            if (o->npos >= maxpos)
+                return fail(EXIT_USAGE, "%s: unexpected argument '%s' (try mcf --help)",
+                            cmd, a);
+            o->pos[o->npos++] = a;
+            continue;
+        }
+        if (a[1] != '-')
+            return fail(EXIT_USAGE, "unknown option '%s' (try mcf --help)", a);
+        a += 2;
+        eq = strchr(a, '=');
+        nl = eq ? (size_t)(eq - a) : strlen(a);
+        if (nl >= sizeof name)
+            return fail(EXIT_USAGE, "unknown option '--%.40s' (try mcf --help)", a);
+        memcpy(name, a, nl);
+        name[nl] = '\0';
+
+        /* Switches. */
+        if ((smooth && (!strcmp(name, "normalize") || !strcmp(name, "no-normalize")
+                        || !strcmp(name, "adaptive") || !strcmp(name, "quiet")))
+            || !strcmp(name, "preserve-order")) {
+            if (eq)
+                return fail(EXIT_USAGE, "option '--%s' takes no value", name);
+            rc = 0;
+            if (!strcmp(name, "quiet"))
+                o->quiet = 1;
+            else if (!strcmp(name, "no-normalize"))
+                rc = set_param(p, "normalize", "false", lim);
+            else
+                rc = set_param(p, name, "true", lim);
+            if (rc)
+                return rc;
+            continue;
+        }
+        /* Options with a value: --name VALUE or --name=VALUE. */
+        if (in_list(valued, name)
+            || (smooth && (!strcmp(name, "fix-vertices") || !strcmp(name, "target")
+                           || !strcmp(name, "metrics")))) {
+            if (eq)
+                val = eq + 1;
+            else if (i + 1 < argc)
+                val = argv[++i];
+            else
+                return fail(EXIT_USAGE, "option '--%s' needs a value", name);
+            if (!strcmp(name, "fix-vertices"))
+                o->fix_file = val;
+            else if (!strcmp(name, "target"))
+                o->target = val;
+            else if (!strcmp(name, "metrics"))
+                o->metrics = val;
+            else {
+                if (!strcmp(name, "format"))
+                    o->format_given = 1;
+                if ((rc = set_param(p, name, val, lim)) != 0)
+                    return rc;
+            }
+            continue;
+        }
+        return fail(EXIT_USAGE, "%s: unknown option '--%s' (try mcf --help)", cmd, name);
+    }
+    if (o->npos < 2)
+        return fail(EXIT_USAGE, "%s: needs IN and OUT (try mcf --help)", cmd);
+    return 0;
+}
+
+/* The output format: --format, else OUT's extension. */
+static int output_format(api_params *p, const char *out)
+{
+    if (p->encode.format != API_FMT_UNKNOWN)
+        return 0;
+    p->encode.format = api_format_from_name(out);
+    if (p->encode.format == API_FMT_UNKNOWN)
+        return fail(EXIT_USAGE,
+                    "cannot tell the output format from '%s' (use --format obj|draco|ply|stl|off)",
+                    out);
+    return 0;
+}
+
+/* Encodes (measuring Draco's quantization error) and writes OUT. */
+static int save_mesh(const mcf_mesh *m, const api_encode_opts *o, const char *path,
+                     size_t *bytes, double *encode_s, double *write_s,
+                     double *qerr)
+{
+    api_buf b;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status st;
+    double t0 = now(), t1;
+    int rc;
+
+    api_buf_init(&b, 0);
+    if (o->format == API_FMT_DRACO)
+        st = api_draco_encode(m, o, &b, qerr, &err);
+    else
+        st = api_mesh_encode(m, o, &b, &err);
+    if (st != MCF_OK) {
+        api_buf_free(&b);
+        return fail(1, "%s: %s", path, err.msg);
+    }
+    t1 = now();
+    rc = write_all(path, b.data ? b.data : "", b.len);
+    if (bytes)
+        *bytes = b.len;
+    if (encode_s)
+        *encode_s = t1 - t0;
+    if (write_s)
+        *write_s = now() - t1;
+    api_buf_free(&b);
+    return rc;
+}
+
+/* --------------------------------------------------------------- progress */
+
+typedef struct {
+    double total_time;    /* > 0: progress by t, else by steps */
+    int total_steps;
+    double last;          /* when the bar was last drawn */
+    int drawn;
+} progress_state;
+
+static int on_progress(void *ctx, int step, double t, double dt, double energy)
+{
+    progress_state *ps = ctx;
+    double frac, tn = now();
+    int i, fill;
+    char bar[41];
+
+    (void)dt;
+    if (cancel_flag)
+        return 1;
+    if (tn - ps->last < 0.1)
+        return 0;
+    ps->last = tn;
+    frac = ps->total_time > 0 ? t / ps->total_time
+                              : (double)step / (ps->total_steps > 0 ? ps->total_steps : 1);
+    if (!(frac >= 0))
+        frac = 0;
+    if (frac > 1)
+        frac = 1;
+    fill = (int)(frac * 40 + 0.5);
+    for (i = 0; i < 40; i++)
+        bar[i] = i < fill ? '#' : '.';
+    bar[40] = '\0';
+    fprintf(stderr, "\r[%s] %3d%%  step %d  t %.4g  energy %.6g ", bar,
+            (int)(frac * 100 + 0.5), step, t, energy);
+    fflush(stderr);
+    ps->drawn = 1;
+    return 0;
+}
+
+static void progress_clear(progress_state *ps)
+{
+    if (ps->drawn)
+        fprintf(stderr, "\r\033[K");
+    ps->drawn = 0;
+}
+
+/* ---------------------------------------------------------------- helpers */
+
+static double peak_rss_bytes(void)
+{
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0)
+        return 0;
+    return (double)ru.ru_maxrss * 1024.0; /* Linux: KiB */
+}
+
+/* Adds item to o under key; on allocation failure the document is simply
+ * missing that member (the metrics file is best-effort detail). */
+static void add(cJSON *o, const char *key, cJSON *item)
+{
+    if (item && !cJSON_AddItemToObject(o, key, item))
+        cJSON_Delete(item);
+}
+
+static cJSON *info_json(const mcf_mesh *m, const mcf_curvature_summary *cs,
+                        mcf_error *err)
+{
+    mcf_mesh_info info;
+    if (mcf_mesh_inspect(m, &info, err) != MCF_OK)
+        return NULL;
+    return api_json_mesh_info(&info, cs);
+}
+
+static int same_connectivity(const mcf_mesh *a, const mcf_mesh *b)
+{
+    return mcf_mesh_nvertices(a) == mcf_mesh_nvertices(b)
+           && mcf_mesh_nfaces(a) == mcf_mesh_nfaces(b)
+           && memcmp(mcf_mesh_faces(a), mcf_mesh_faces(b),
+                     3 * sizeof(int32_t) * (size_t)mcf_mesh_nfaces(a)) == 0;
+}
+
+/* ----------------------------------------------------------------- smooth */
+
+static int cmd_smooth(int argc, char **argv)
+{
+    api_limits lim;
+    api_params p;
+    cli_opts o;
+    mcf_mesh *m = NULL, *target = NULL;
+    mcf_error err = {MCF_OK, ""};
+    mcf_flow_stats st;
+    mcf_curvature_summary cs0, cs1;
+    mcf_compare_result cmp0, cmp1;
+    progress_state ps;
+    api_format in_fmt = API_FMT_UNKNOWN;
+    size_t in_bytes = 0, out_bytes = 0;
+    double t_start = now(), read_s = 0, decode_s = 0, noise_s = 0, flow_s = 0,
+           encode_s = 0, write_s = 0, qerr = 0, t0;
+    int rc, show = 0;
+    mcf_status fs;
+    cJSON *before = NULL;
+    struct sigaction sa;
+
+    memset(&o, 0, sizeof o);
+    memset(&st, 0, sizeof st);
+    memset(&ps, 0, sizeof ps);
+    api_limits_default(&lim);
+    api_params_init(&p);
+    if ((rc = parse_args("smooth", argc, argv, 2, &p, &lim, &o)) != 0)
+        goto done;
+    if ((rc = output_format(&p, o.pos[1])) != 0)
+        goto done;
+    if (o.fix_file) {
+        char *txt = NULL;
+        size_t n = 0, k;
+        if ((rc = read_all(o.fix_file, lim.max_input_bytes, &txt, &n)) != 0)
+            goto done;
+        for (k = 0; k < n && strchr(" \t\r\n,", txt[k]); k++)
+            ;
+        if (k == n || memchr(txt, '\0', n)) {
+            free(txt);
+            rc = fail(EXIT_USAGE, "--fix-vertices '%s': %s", o.fix_file,
+                      k == n ? "the file holds no vertex index" : "binary data");
+            goto done;
+        }
+        rc = api_params_set(&p, "fixed_vertices", txt, &lim, &err);
+        free(txt);
+        if (rc != MCF_OK) {
+            rc = fail(rc == MCF_EINVAL ? EXIT_USAGE : 1, "--fix-vertices '%s': %s",
+                      o.fix_file, err.msg);
+            goto done;
+        }
+    }
+
+    if ((rc = load_mesh(o.pos[0], &lim, &m, &in_fmt, &in_bytes, &read_s, &decode_s)) != 0)
+        goto done;
+    if ((fs = api_params_finish(&p, mcf_mesh_nvertices(m), &lim, &err)) != MCF_OK) {
+        rc = fail(fs == MCF_EINVAL ? EXIT_USAGE : 1, "%s", err.msg);
+        goto done;
+    }
+    if (o.target) {
+        if ((rc = load_mesh(o.target, &lim, &target, NULL, NULL, NULL, NULL)) != 0)
+            goto done;
+        if (!same_connectivity(m, target)) {
+            rc = fail(1, "--target '%s': not the same connectivity as '%s' "
+                      "(%d/%d vertices, %d/%d faces)", o.target, o.pos[0],
+                      mcf_mesh_nvertices(target), mcf_mesh_nvertices(m),
+                      mcf_mesh_nfaces(target), mcf_mesh_nfaces(m));
+            goto done;
+        }
+    }
+    if (p.noise_rho > 0) {
+        t0 = now();
+        if (mcf_mesh_add_noise(m, p.noise_rho, p.seed, &err) != MCF_OK) {
+            rc = fail(1, "noise: %s", err.msg);
+            goto done;
+        }
+        noise_s = now() - t0;
+    }
+    if (o.metrics) {
+        if (mcf_curvature_summarize(m, &cs0, &err) != MCF_OK
+            || !(before = info_json(m, NULL, &err))
+            || (target && mcf_compare(m, target, &cmp0, &err) != MCF_OK)) {
+            rc = fail(1, "metrics before the flow: %s", err.msg[0] ? err.msg : "out of memory");
+            goto done;
+        }
+    }
+
+    /* The flow: progress on a terminal, cancel on SIGINT/SIGTERM. */
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    p.flow.cancel = &cancel_flag;
+    p.flow.log_steps = o.metrics != NULL;
+    show = !o.quiet && isatty(STDERR_FILENO);
+    if (show) {
+        ps.total_time = p.time_set ? p.flow.time : 0;
+        ps.total_steps = p.flow.iterations;
+        p.flow.progress = on_progress;
+        p.flow.progress_ctx = &ps;
+    }
+    t0 = now();
+    fs = mcf_flow_run(m, &p.flow, &st, &err);
+    flow_s = now() - t0;
+    if (show)
+        progress_clear(&ps);
+    if (fs != MCF_OK) {
+        rc = fail(1, "smooth: %s", err.msg);
+        goto done;
+    }
+    if ((rc = save_mesh(m, &p.encode, o.pos[1], &out_bytes, &encode_s, &write_s, &qerr)) != 0)
+        goto done;
+
+    if (o.metrics) {
+        cJSON *doc = cJSON_CreateObject(), *in, *out, *curv, *t;
+        char *s;
+        if (!doc) {
+            rc = fail(1, "metrics: out of memory");
+            goto done;
+        }
+        if (mcf_curvature_summarize(m, &cs1, &err) != MCF_OK
+            || (target && mcf_compare(m, target, &cmp1, &err) != MCF_OK)) {
+            cJSON_Delete(doc);
+            rc = fail(1, "metrics after the flow: %s", err.msg);
+            goto done;
+        }
+        add(doc, "command", cJSON_CreateString("smooth"));
+        add(doc, "params", api_params_to_json(&p));
+        in = cJSON_CreateObject();
+        add(doc, "input", in);
+        if (in) {
+            add(in, "path", cJSON_CreateString(o.pos[0]));
+            add(in, "format", cJSON_CreateString(api_format_name(in_fmt)));
+            add(in, "bytes", cJSON_CreateNumber((double)in_bytes));
+            add(in, "noise", cJSON_CreateNumber(p.noise_rho));
+            add(in, "info", before);
+            before = NULL;
+        }
+        out = cJSON_CreateObject();
+        add(doc, "output", out);
+        if (out) {
+            add(out, "path", cJSON_CreateString(o.pos[1]));
+            add(out, "format", cJSON_CreateString(api_format_name(p.encode.format)));
+            add(out, "bytes", cJSON_CreateNumber((double)out_bytes));
+            add(out, "info", info_json(m, NULL, &err));
+            if (p.encode.format == API_FMT_DRACO)
+                add(out, "quantization_max_error", cJSON_CreateNumber(qerr));
+        }
+        curv = cJSON_CreateObject();
+        add(doc, "curvature", curv);
+        if (curv) {
+            add(curv, "before", api_json_curvature(&cs0));
+            add(curv, "after", api_json_curvature(&cs1));
+        }
+        add(doc, "flow", api_json_flow_stats(&st));
+        if (target) {
+            cJSON *c = cJSON_CreateObject();
+            add(doc, "compare", c);
+            if (c) {
+                add(c, "target", cJSON_CreateString(o.target));
+                add(c, "before", api_json_compare(&cmp0));
+                add(c, "after", api_json_compare(&cmp1));
+            }
+        }
+        t = cJSON_CreateObject();
+        add(doc, "timings", t);
+        if (t) {
+            add(t, "read_s", cJSON_CreateNumber(read_s));
+            add(t, "decode_s", cJSON_CreateNumber(decode_s));
+            add(t, "noise_s", cJSON_CreateNumber(noise_s));
+            add(t, "flow_s", cJSON_CreateNumber(flow_s));
+            add(t, "encode_s", cJSON_CreateNumber(encode_s));
+            add(t, "write_s", cJSON_CreateNumber(write_s));
+            add(t, "total_s", cJSON_CreateNumber(now() - t_start));
+        }
+        add(doc, "peak_rss_bytes", cJSON_CreateNumber(peak_rss_bytes()));
+        s = api_json_print(doc, 1);
+        cJSON_Delete(doc);
+        if (!s) {
+            rc = fail(1, "metrics: out of memory");
+            goto done;
+        }
+        rc = write_all(o.metrics, s, strlen(s));
+        free(s);
+        if (rc)
+            goto done;
+    }
+    if (show)
+        fprintf(stderr, "mcf: %d vertices, %d steps (t = %.4g) in %.2f s -> %s\n",
+                mcf_mesh_nvertices(m), st.steps, st.t_final, flow_s, o.pos[1]);
+    rc = 0;
+done:
+    cJSON_Delete(before);
+    mcf_flow_stats_free(&st);
+    mcf_mesh_free(m);
+    mcf_mesh_free(target);
+    api_params_free(&p);
+    return rc;
+}
+
+/* ------------------------------------------------------------------- info */
+
+static int cmd_info(int argc, char **argv)
+{
+    api_limits lim;
+    mcf_mesh *m = NULL;
+    mcf_error err = {MCF_OK, ""};
+    mcf_curvature_summary cs;
+    api_format fmt = API_FMT_UNKNOWN;
+    size_t bytes = 0;
+    cJSON *j = NULL;
+    char *s = NULL;
+    int rc;
+
+    if (argc != 3 || (argv[2][0] == '-' && argv[2][1] != '\0'))
+        return fail(EXIT_USAGE, "info: needs exactly one input file (try mcf --help)");
+    api_limits_default(&lim);
+    if ((rc = load_mesh(argv[2], &lim, &m, &fmt, &bytes, NULL, NULL)) != 0)
+        return rc;
+    rc = 1;
+    if (mcf_curvature_summarize(m, &cs, &err) != MCF_OK || !(j = info_json(m, &cs, &err))) {
+        fail(1, "info: %s", err.msg[0] ? err.msg : "out of memory");
+        goto done;
+    }
+    add(j, "format", cJSON_CreateString(api_format_name(fmt)));
+    add(j, "bytes", cJSON_CreateNumber((double)bytes));
+    if (!(s = api_json_print(j, 1))) {
+        fail(1, "info: out of memory");
+        goto done;
+    }
+    if (printf("%s\n", s) < 0 || fflush(stdout) != 0) {
+        fail(1, "cannot write to stdout: %s", strerror(errno));
+        goto done;
+    }
+    rc = 0;
+done:
+    free(s);
+    cJSON_Delete(j);
+    mcf_mesh_free(m);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- schemes */
+
+static int cmd_schemes(int argc)
+{
+    cJSON *j;
+    char *s;
+    int rc = 0;
+
+    if (argc != 2)
+        return fail(EXIT_USAGE, "schemes: takes no arguments");
+    j = api_json_schemes();
+    s = api_json_print(j, 1);
+    cJSON_Delete(j);
+    if (!s)
+        return fail(1, "schemes: out of memory");
+    if (printf("%s\n", s) < 0 || fflush(stdout) != 0)
+        rc = fail(1, "cannot write to stdout: %s", strerror(errno));
+    free(s);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- convert */
+
+static int cmd_convert(int argc, char **argv)
+{
+    api_limits lim;
+    api_params p;
+    cli_opts o;
+    mcf_mesh *m = NULL;
+    int rc;
+
+    memset(&o, 0, sizeof o);
+    api_limits_default(&lim);
+    api_params_init(&p);
+    if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o)) == 0
+        && (rc = output_format(&p, o.pos[1])) == 0
+        && (rc = load_mesh(o.pos[0], &lim, &m, NULL, NULL, NULL, NULL)) == 0)
+        rc = save_mesh(m, &p.encode, o.pos[1], NULL, NULL, NULL, NULL);
+    mcf_mesh_free(m);
+    api_params_free(&p);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    const char *cmd = argc > 1 ? argv[1] : NULL;
+
+    if (!cmd)
+        return fail(EXIT_USAGE, "missing command: smooth, info, schemes or convert (try mcf --help)");
+    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {
+        fputs(usage_text, stdout);
+        return 0;
+    }
+    for (int i = 2; i < argc; i++)
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            fputs(usage_text, stdout);
+            return 0;
+        }
+    if (!strcmp(cmd, "smooth"))
+        return cmd_smooth(argc, argv);
+    if (!strcmp(cmd, "info"))
+        return cmd_info(argc, argv);
+    if (!strcmp(cmd, "schemes"))
+        return cmd_schemes(argc);
+    if (!strcmp(cmd, "convert"))
+        return cmd_convert(argc, argv);
+    return fail(EXIT_USAGE, "unknown command '%s' (try mcf --help)", cmd);
+}
