@@ -338,22 +338,39 @@ static int output_format(api_params *p, const char *out)
     return 0;
 }
 
-/* Encodes (measuring Draco's quantization error) and writes OUT. */
-static int save_mesh(const mcf_mesh *m, const api_encode_opts *o, const char *path,
-                     size_t *bytes, double *encode_s, double *write_s,
-                     double *qerr)
+/* Encodes (measuring Draco's quantization error) and writes OUT. PLY
+ * output carries the per-vertex mean and Gaussian curvature of the result
+ * as extra properties, for viewers that colour by a property. */
+static int save_mesh(const mcf_mesh *m, const api_encode_opts *opts,
+                     const char *path, size_t *bytes, double *encode_s,
+                     double *write_s, double *qerr)
 {
     api_buf b;
+    api_encode_opts o = *opts;
     mcf_error err = {MCF_OK, ""};
     mcf_status st;
-    double t0 = now(), t1;
+    double t0 = now(), t1, *H = NULL, *K = NULL;
     int rc;
 
     api_buf_init(&b, 0);
-    if (o->format == API_FMT_DRACO)
-        st = api_draco_encode(m, o, &b, qerr, &err);
+    if (o.format == API_FMT_PLY) {
+        size_t nv = (size_t)mcf_mesh_nvertices(m);
+        H = malloc(nv * sizeof *H);
+        K = malloc(nv * sizeof *K);
+        if (!H || !K || mcf_curvature(m, NULL, H, K, NULL, &err) != MCF_OK) {
+            free(H);
+            free(K);
+            return fail(1, "%s: curvature: %s", path, err.msg[0] ? err.msg : "out of memory");
+        }
+        o.ply_mean_curvature = H;
+        o.ply_gaussian_curvature = K;
+    }
+    if (o.format == API_FMT_DRACO)
+        st = api_draco_encode(m, &o, &b, qerr, &err);
     else
-        st = api_mesh_encode(m, o, &b, &err);
+        st = api_mesh_encode(m, &o, &b, &err);
+    free(H);
+    free(K);
     if (st != MCF_OK) {
         api_buf_free(&b);
         return fail(1, "%s: %s", path, err.msg);

@@ -310,6 +310,22 @@ static void test_convert(void **state)
     assert_non_null(strstr(r.out, "\"format\":\t\"draco\""));
     assert_non_null(strstr(r.out, "\"vertices\":\t812"));
     result_free(&r);
+    /* To PLY, with the curvature properties in the header. */
+    r = run("convert", "copy.drc", "copy.ply", NULL);
+    if (r.status != 0)
+        fail_msg("convert to ply: %s", r.err);
+    result_free(&r);
+    {
+        char *buf;
+        size_t len;
+        assert_int_equal(tl_read_file(in_dir("copy.ply"), &buf, &len), 0);
+        assert_non_null(strstr(buf, "property float mean_curvature"));
+        assert_non_null(strstr(buf, "property float gaussian_curvature"));
+        free(buf);
+        b = load_path(in_dir("copy.ply"));
+        assert_int_equal(mcf_mesh_nvertices(b), 812);
+        mcf_mesh_free(b);
+    }
     mcf_mesh_free(a);
 }
 
