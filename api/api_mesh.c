@@ -70,6 +70,8 @@ static int looks_obj(const char *p, size_t n)
     static const char *const kw[] = {"v", "vt", "vn", "vp", "f", "g", "o",
                                      "s", "l", "p", "usemtl", "mtllib", NULL};
     size_t i = 0;
+    if (n >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) /* UTF-8 BOM */
+        i = 3;
     /* Skip blank and comment lines, then look at the first statement. */
     while (i < n) {
         while (i < n && sp((unsigned char)p[i]))

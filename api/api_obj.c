@@ -307,6 +307,11 @@ mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                          len, lim->max_input_bytes);
     if (len == 0)
         return api__fail(err, MCF_EDECODE, "obj: empty input");
+    /* A UTF-8 byte-order mark, as some Windows exporters write. */
+    if (len >= 3 && memcmp(buf, "\xEF\xBB\xBF", 3) == 0) {
+        buf = (const char *)buf + 3;
+        len -= 3;
+    }
     if ((rc = count(buf, len, lim, &nv, &nf, err)) != MCF_OK)
         return rc;
     X = malloc(3 * sizeof *X * (size_t)(nv ? nv : 1));

@@ -269,6 +269,21 @@ static void test_syntax_tolerated(void **state)
     mcf_mesh_free(m);
 }
 
+/* A UTF-8 byte-order mark before the first statement is skipped. */
+static void test_bom(void **state)
+{
+    mcf_mesh *m;
+    mcf_error err;
+    const char t[] = "\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    (void)state;
+    assert_int_equal(api_format_detect(t, sizeof t - 1), API_FMT_OBJ);
+    assert_int_equal(dec(t, &m, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 1);
+    mcf_mesh_free(m);
+    /* Only at the very start: elsewhere it is an unknown statement. */
+    expect_fail("v 0 0 0\n\xEF\xBB\xBFv 1 0 0\n", MCF_EDECODE, "line 2: unknown statement");
+}
+
 /* The last number touches the end of the buffer (no newline, no NUL). */
 static void test_number_at_end(void **state)
 {
@@ -422,6 +437,7 @@ int main(void)
         cmocka_unit_test(test_negative_indices),
         cmocka_unit_test(test_forward_reference),
         cmocka_unit_test(test_syntax_tolerated),
+        cmocka_unit_test(test_bom),
         cmocka_unit_test(test_number_at_end),
         cmocka_unit_test(test_malformed),
         cmocka_unit_test(test_binary_garbage),
