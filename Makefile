@@ -137,6 +137,36 @@ bench: deps
 	$(MAKE) all
 	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
 
+# ---- the daemon: `make run`, and the OpenAPI document embedded in mcfd
+# api/openapi.yaml becomes a byte array (od + sed: coreutils only, so the
+# Docker build stage needs nothing extra) linked into build/mcfd, which
+# serves it at /openapi.yaml; no file has to ship next to the binary.
+ifneq ($(SRV_SRC),)
+OPENAPI_OBJ := $(B)/server/openapi_yaml.o
+SRV_OBJ += $(OPENAPI_OBJ)
+$(B)/mcfd: $(OPENAPI_OBJ)
+endif
+
+$(B)/server/openapi_yaml.c: api/openapi.yaml
+	@mkdir -p $(@D)
+	{ echo '/* generated from api/openapi.yaml by make: do not edit */'; \
+	  echo '#include <stddef.h>'; \
+	  echo 'extern const unsigned char srv_openapi_yaml[];'; \
+	  echo 'extern const size_t srv_openapi_yaml_len;'; \
+	  echo 'const unsigned char srv_openapi_yaml[] = {'; \
+	  od -An -v -tx1 $< | sed 's/\([0-9a-f][0-9a-f]\)/0x\1,/g'; \
+	  echo '0x00};'; \
+	  echo "const size_t srv_openapi_yaml_len = $$(wc -c < $<);"; } > $@.tmp && mv $@.tmp $@
+
+$(B)/server/openapi_yaml.o: $(B)/server/openapi_yaml.c
+	$(CC) $(WARN) $(CFLAGS) -c $< -o $@
+
+# Builds (after deps) and runs the daemon in the foreground with its
+# embedded defaults: 127.0.0.1:8080, one worker per core, spool ./var/mcfd.
+run: deps
+	$(MAKE) all
+	exec $(B)/mcfd
+
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
 	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }

@@ -1,0 +1,343 @@
+/*
+ * config.c - mcfd's configuration: embedded defaults, then MCFD_*
+ * environment variables, then command-line flags (the last word wins).
+ *
+ * One table lists every setting with its flag, its variable, its type and
+ * its help line, so --help, the environment and the flags cannot drift
+ * apart. Sizes take K/M/G suffixes (powers of 1024), durations s/m/h/d.
+ * Every value is range-checked here; a bad one stops the start with a
+ * message naming the flag or variable.
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+
+#include "srv.h"
+
+#define MCFD_VERSION "1.0.0"
+
+typedef enum { T_STR, T_INT, T_SIZE, T_DUR, T_NUM, T_LEVEL, T_FLAG } type;
+
+typedef struct {
+    const char *flag;      /* "--port" */
+    const char *env;       /* "MCFD_PORT" or NULL */
+    type t;
+    long lo, hi;           /* T_INT range */
+    const char *help;
+} option;
+
+enum {
+    O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN, O_SPOOL,
+    O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
+    O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_TOKEN, O_LOG, O_PROBE,
+    O_HELP, O_VERSION, O_COUNT
+};
+
+static const option opts[O_COUNT] = {
+    [O_BIND] = {"--bind", "MCFD_BIND", T_STR, 0, 0,
+                "address to listen on (default 127.0.0.1)"},
+    [O_PORT] = {"--port", "MCFD_PORT", T_INT, 0, 65535,
+                "TCP port, 0 picks a free one (default 8080)"},
+    [O_WORKERS] = {"--workers", "MCFD_WORKERS", T_INT, 1, 1024,
+                   "mesh worker threads (default: online CPUs)"},
+    [O_QUEUE] = {"--queue", "MCFD_QUEUE", T_INT, 0, 1000000,
+                 "jobs waiting for a worker before 503 (default 64)"},
+    [O_HTTP_THREADS] = {"--http-threads", "MCFD_HTTP_THREADS", T_INT, 1, 64,
+                        "HTTP (libmicrohttpd) threads (default 2)"},
+    [O_MAX_CONN] = {"--max-connections", "MCFD_MAX_CONNECTIONS", T_INT, 4,
+                    100000, "open connections (default 512)"},
+    [O_SPOOL] = {"--spool", "MCFD_SPOOL", T_STR, 0, 0,
+                 "job spool directory (default ./var/mcfd)"},
+    [O_MAX_UPLOAD] = {"--max-upload", "MCFD_MAX_UPLOAD", T_SIZE, 0, 0,
+                      "largest mesh upload, e.g. 256M (default 256M)"},
+    [O_MAX_VERTICES] = {"--max-vertices", "MCFD_MAX_VERTICES", T_INT, 3,
+                        2000000000, "vertices per mesh (default 5000000)"},
+    [O_MAX_FACES] = {"--max-faces", "MCFD_MAX_FACES", T_INT, 1, 2000000000,
+                     "faces per mesh (default 10000000)"},
+    [O_MAX_ITER] = {"--max-iterations", "MCFD_MAX_ITERATIONS", T_INT, 1,
+                    2000000000, "steps per job (default 100000)"},
+    [O_MAX_WORK] = {"--max-work", "MCFD_MAX_WORK", T_NUM, 0, 0,
+                    "iterations x vertices per job (default 2e10)"},
+    [O_MAX_JSON] = {"--max-json", "MCFD_MAX_JSON", T_SIZE, 0, 0,
+                    "parameter document size (default 64K)"},
+    [O_TTL] = {"--result-ttl", "MCFD_RESULT_TTL", T_DUR, 0, 0,
+               "how long finished jobs are kept, e.g. 1h (default 1h)"},
+    [O_JOB_TIMEOUT] = {"--job-timeout", "MCFD_JOB_TIMEOUT", T_DUR, 0, 0,
+                       "longest flow of one job, 0: none (default 10m)"},
+    [O_DRAIN] = {"--drain-timeout", "MCFD_DRAIN_TIMEOUT", T_DUR, 0, 0,
+                 "SIGTERM: wait for running jobs, then checkpoint "
+                 "(default 25s)"},
+    [O_TOKEN] = {"--token-file", "MCFD_TOKEN_FILE", T_STR, 0, 0,
+                 "file holding the bearer token (default: no auth)"},
+    [O_LOG] = {"--log-level", "MCFD_LOG_LEVEL", T_LEVEL, 0, 0,
+               "error|warn|info|debug (default info)"},
+    [O_PROBE] = {"--probe", NULL, T_FLAG, 0, 0,
+                 "check GET /healthz of the configured daemon, exit 0/1"},
+    [O_HELP] = {"--help", NULL, T_FLAG, 0, 0, "this text"},
+    [O_VERSION] = {"--version", NULL, T_FLAG, 0, 0, "print the version"},
+};
+
+static int parse_int(const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    long v;
+
+    errno = 0;
+    v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int parse_size(const char *s, size_t *out)
+{
+    char *end;
+    double v, mul = 1;
+
+    errno = 0;
+    v = strtod(s, &end);
+    if (errno || end == s || !(v >= 0))
+        return -1;
+    switch (toupper((unsigned char)*end)) {
+    case 'K': mul = 1024.0; end++; break;
+    case 'M': mul = 1048576.0; end++; break;
+    case 'G': mul = 1073741824.0; end++; break;
+    default: break;
+    }
+    if (toupper((unsigned char)*end) == 'B')
+        end++;
+    if (*end || v * mul > 1e15)
+        return -1;
+    *out = (size_t)(v * mul);
+    return 0;
+}
+
+static int parse_duration(const char *s, double *out)
+{
+    char *end;
+    double v;
+
+    errno = 0;
+    v = strtod(s, &end);
+    if (errno || end == s || !(v >= 0) || !isfinite(v))
+        return -1;
+    if (*end == 's')
+        end++;
+    else if (*end == 'm')
+        v *= 60, end++;
+    else if (*end == 'h')
+        v *= 3600, end++;
+    else if (*end == 'd')
+        v *= 86400, end++;
+    if (*end)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int set(srv_config *cfg, int o, const char *v, const char *src,
+               char *msg, size_t msgsize)
+{
+    long i = 0;
+    size_t z = 0;
+    double d = 0;
+    const option *op = &opts[o];
+
+    if (op->t == T_INT && parse_int(v, op->lo, op->hi, &i) != 0) {
+        snprintf(msg, msgsize, "%s: expected an integer in [%ld, %ld], got "
+                 "\"%s\"", src, op->lo, op->hi, v);
+        return -1;
+    }
+    if (op->t == T_SIZE && (parse_size(v, &z) != 0 || z == 0)) {
+        snprintf(msg, msgsize, "%s: expected a size > 0 such as 64K, 256M, "
+                 "1G, got \"%s\"", src, v);
+        return -1;
+    }
+    if (op->t == T_DUR && parse_duration(v, &d) != 0) {
+        snprintf(msg, msgsize, "%s: expected a duration such as 30s, 10m, "
+                 "1h, got \"%s\"", src, v);
+        return -1;
+    }
+    if (op->t == T_NUM) {
+        char *end;
+        d = strtod(v, &end);
+        if (end == v || *end || !(d > 0) || !isfinite(d)) {
+            snprintf(msg, msgsize, "%s: expected a number > 0, got \"%s\"",
+                     src, v);
+            return -1;
+        }
+    }
+    switch (o) {
+    case O_BIND:
+        if (!*v || strlen(v) >= sizeof cfg->bind) {
+            snprintf(msg, msgsize, "%s: bad address \"%s\"", src, v);
+            return -1;
+        }
+        snprintf(cfg->bind, sizeof cfg->bind, "%s", v);
+        break;
+    case O_PORT: cfg->port = (int)i; break;
+    case O_WORKERS: cfg->workers = (int)i; break;
+    case O_QUEUE: cfg->queue = (int)i; break;
+    case O_HTTP_THREADS: cfg->http_threads = (int)i; break;
+    case O_MAX_CONN: cfg->max_connections = (int)i; break;
+    case O_SPOOL:
+        if (!*v || strlen(v) >= sizeof cfg->spool - 64) {
+            snprintf(msg, msgsize, "%s: bad directory \"%s\"", src, v);
+            return -1;
+        }
+        snprintf(cfg->spool, sizeof cfg->spool, "%s", v);
+        break;
+    case O_MAX_UPLOAD: cfg->lim.max_input_bytes = z; break;
+    case O_MAX_VERTICES: cfg->lim.max_vertices = (int)i; break;
+    case O_MAX_FACES: cfg->lim.max_faces = (int)i; break;
+    case O_MAX_ITER: cfg->lim.max_iterations = (int)i; break;
+    case O_MAX_WORK: cfg->lim.max_work = d; break;
+    case O_MAX_JSON: cfg->lim.max_json_bytes = z; break;
+    case O_TTL: cfg->result_ttl = d; break;
+    case O_JOB_TIMEOUT: cfg->job_timeout = d; break;
+    case O_DRAIN: cfg->drain_timeout = d; break;
+    case O_TOKEN:
+        snprintf(cfg->token_file, sizeof cfg->token_file, "%s", v);
+        break;
+    case O_LOG: {
+        static const char *const names[] = {"error", "warn", "info", "debug"};
+        int k;
+        for (k = 0; k < 4; k++)
+            if (strcasecmp(v, names[k]) == 0)
+                break;
+        if (k == 4) {
+            snprintf(msg, msgsize, "%s: expected error, warn, info or debug, "
+                     "got \"%s\"", src, v);
+            return -1;
+        }
+        cfg->log_level = (srv_log_level)k;
+        break;
+    }
+    default:
+        break;
+    }
+    return 0;
+}
+
+static void usage(FILE *f)
+{
+    int o;
+    fprintf(f, "usage: mcfd [options]\n"
+               "The mcfd mesh-smoothing daemon (mean curvature flow over HTTP).\n"
+               "Every option can also be set through its environment variable;"
+               "\nflags win.\n\n");
+    for (o = 0; o < O_COUNT; o++) {
+        char left[64];
+        snprintf(left, sizeof left, "%s%s", opts[o].flag,
+                 opts[o].t == T_FLAG ? "" : " VALUE");
+        fprintf(f, "  %-20s %s\n", left, opts[o].help);
+        if (opts[o].env)
+            fprintf(f, "  %-20s   env: %s\n", "", opts[o].env);
+    }
+}
+
+static int read_token(srv_config *cfg, char *msg, size_t msgsize)
+{
+    FILE *f = fopen(cfg->token_file, "r");
+    size_t n;
+
+    if (!f) {
+        snprintf(msg, msgsize, "--token-file %s: %s", cfg->token_file,
+                 strerror(errno));
+        return -1;
+    }
+    n = fread(cfg->token, 1, sizeof cfg->token - 1, f);
+    fclose(f);
+    cfg->token[n] = '\0';
+    while (n > 0 && isspace((unsigned char)cfg->token[n - 1]))
+        cfg->token[--n] = '\0';
+    if (n == 0 || n >= sizeof cfg->token - 2) {
+        snprintf(msg, msgsize, "--token-file %s: the token must be 1 to %zu "
+                 "bytes on one line", cfg->token_file, sizeof cfg->token - 3);
+        return -1;
+    }
+    cfg->token_len = n;
+    return 0;
+}
+
+int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
+                    size_t msgsize)
+{
+    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    int o, a;
+
+    memset(cfg, 0, sizeof *cfg);
+    snprintf(cfg->bind, sizeof cfg->bind, "127.0.0.1");
+    cfg->port = 8080;
+    cfg->workers = ncpu > 0 ? (int)(ncpu < 1024 ? ncpu : 1024) : 1;
+    cfg->queue = 64;
+    cfg->http_threads = 2;
+    cfg->max_connections = 512;
+    snprintf(cfg->spool, sizeof cfg->spool, "./var/mcfd");
+    api_limits_default(&cfg->lim);
+    cfg->result_ttl = 3600;
+    cfg->job_timeout = 600;
+    cfg->drain_timeout = 25;
+    cfg->log_level = SRV_LOG_INFO;
+
+    for (o = 0; o < O_COUNT; o++) {
+        const char *v = opts[o].env ? getenv(opts[o].env) : NULL;
+        if (v && *v && set(cfg, o, v, opts[o].env, msg, msgsize) != 0)
+            return -1;
+    }
+    for (a = 1; a < argc; a++) {
+        const char *arg = argv[a], *eq = strchr(arg, '='), *v = NULL;
+        size_t n = eq ? (size_t)(eq - arg) : strlen(arg);
+        for (o = 0; o < O_COUNT; o++)
+            if (strlen(opts[o].flag) == n && strncmp(arg, opts[o].flag, n) == 0)
+                break;
+        if (o == O_COUNT) {
+            snprintf(msg, msgsize, "unknown option \"%s\" (see --help)", arg);
+            return -1;
+        }
+        if (opts[o].t == T_FLAG) {
+            if (eq) {
+                snprintf(msg, msgsize, "%s takes no value", opts[o].flag);
+                return -1;
+            }
+            if (o == O_HELP) {
+                usage(stdout);
+                return 1;
+            }
+            if (o == O_VERSION) {
+                printf("mcfd %s (libmicrohttpd %s)\n", MCFD_VERSION,
+                       MHD_get_version());
+                return 1;
+            }
+            cfg->probe = 1;
+            continue;
+        }
+        if (eq)
+            v = eq + 1;
+        else if (a + 1 < argc)
+            v = argv[++a];
+        else {
+            snprintf(msg, msgsize, "%s needs a value", opts[o].flag);
+            return -1;
+        }
+        if (set(cfg, o, v, opts[o].flag, msg, msgsize) != 0)
+            return -1;
+    }
+    /* A multipart body carries the mesh, an optional target and params. */
+    if (cfg->lim.max_input_bytes > (SIZE_MAX - cfg->lim.max_json_bytes) / 2 -
+                                       (1u << 20)) {
+        snprintf(msg, msgsize, "--max-upload is too large");
+        return -1;
+    }
+    cfg->max_body = 2 * cfg->lim.max_input_bytes + cfg->lim.max_json_bytes +
+                    (1u << 20);
+    if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
+        return -1;
+    return 0;
+}

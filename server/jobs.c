@@ -1,0 +1,1458 @@
+/*
+ * jobs.c - the job system of mcfd: table, bounded queue, worker pool, the
+ * job runner, and crash recovery from the spool.
+ *
+ * A job is accepted only after its input, request and state are on disk
+ * (spool.c), so a 202 or a started synchronous smoothing survives kill -9:
+ * at the next start, queued and interrupted jobs go back to the queue in
+ * their original order with their IDs, finished ones are served again
+ * until their TTL runs out.
+ *
+ * Workers are plain pthreads. Only they decode, smooth and encode; MHD's
+ * threads just move bytes. One mutex (S.mu) guards the table, the queue
+ * and every mutable job field; it is never held across mesh work or disk
+ * I/O. Connections waiting on a job (srv_waiter) are resumed by whoever
+ * changes the job, under the lock, so a waiter is never resumed before
+ * it was suspended. Lock order: S.mu, then MHD's internal mutexes.
+ *
+ * Capacity: a submission is accepted while the jobs waiting for a worker
+ * stay within --queue plus the idle workers; beyond that the client gets
+ * 503 with Retry-After, before its body is read when possible.
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "srv.h"
+
+#define NBUCKETS 4096
+#define EVENTS_MAX ((size_t)16 << 20)   /* ndjson progress kept per job */
+#define RESULT_MAX ((size_t)4 << 30)    /* an encoded result */
+
+static struct {
+    pthread_mutex_t mu;
+    pthread_cond_t work;      /* workers: a job was queued, or stop */
+    pthread_cond_t idle;      /* drain: a worker finished its job */
+    const srv_config *cfg;
+    srv_job *buckets[NBUCKETS];
+    int njobs;
+    srv_job *qhead, *qtail;
+    int qlen, reserved, busy;
+    int draining, stopping;
+    int closing;              /* waiters must answer now, never suspend */
+    pthread_t *threads;
+    int nthreads;
+    int urandom;
+    uint64_t counter;
+} S = {.mu = PTHREAD_MUTEX_INITIALIZER,
+       .work = PTHREAD_COND_INITIALIZER,
+       .idle = PTHREAD_COND_INITIALIZER,
+       .urandom = -1};
+
+static const char *const status_names[] = {"queued", "running", "succeeded",
+                                           "failed", "canceled"};
+
+const char *srv_job_status_name(srv_job_status s)
+{
+    return (unsigned)s < 5 ? status_names[s] : "unknown";
+}
+
+static int status_from_name(const char *s, srv_job_status *out)
+{
+    int i;
+    for (i = 0; i < 5; i++)
+        if (strcmp(s, status_names[i]) == 0) {
+            *out = (srv_job_status)i;
+            return 0;
+        }
+    return -1;
+}
+
+static int is_terminal(srv_job_status s)
+{
+    return s == SRV_JOB_SUCCEEDED || s == SRV_JOB_FAILED ||
+           s == SRV_JOB_CANCELED;
+}
+
+void srv_lock(void)
+{
+    pthread_mutex_lock(&S.mu);
+}
+
+void srv_unlock(void)
+{
+    pthread_mutex_unlock(&S.mu);
+}
+
+const srv_config *srv_jobs_config(void)
+{
+    return S.cfg;
+}
+
+/* ------------------------------------------------------------------ records */
+
+void srv_record_free(srv_record *r)
+{
+    free(r->query);
+    free(r->params_json);
+    cJSON_Delete(r->fields);
+    memset(r, 0, sizeof *r);
+}
+
+mcf_status srv_record_params(const srv_record *r, const api_limits *lim,
+                             api_params *p, mcf_error *err)
+{
+    static const char *const ignore[] = {"stream", NULL};
+    mcf_status rc = MCF_OK;
+    const cJSON *f;
+
+    api_params_init(p);
+    if (r->params_json &&
+        (rc = api_params_parse_json(p, r->params_json, strlen(r->params_json),
+                                    lim, err)) != MCF_OK)
+        goto fail;
+    cJSON_ArrayForEach(f, r->fields) {
+        const char *k = cJSON_GetStringValue(cJSON_GetArrayItem(f, 0));
+        const char *v = cJSON_GetStringValue(cJSON_GetArrayItem(f, 1));
+        if (k && v && (rc = api_params_set(p, k, v, lim, err)) != MCF_OK)
+            goto fail;
+    }
+    if (r->query && r->query[0] &&
+        (rc = api_params_parse_query(p, r->query, ignore, lim, err)) != MCF_OK)
+        goto fail;
+    return MCF_OK;
+fail:
+    api_params_free(p);
+    return rc;
+}
+
+static cJSON *record_json(const srv_job *j)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON *fields;
+
+    if (!o)
+        return NULL;
+    cJSON_AddStringToObject(o, "id", j->id);
+    if (j->rec.query)
+        cJSON_AddStringToObject(o, "query", j->rec.query);
+    if (j->rec.params_json)
+        cJSON_AddStringToObject(o, "params", j->rec.params_json);
+    fields = j->rec.fields ? cJSON_Duplicate(j->rec.fields, 1)
+                           : cJSON_CreateArray();
+    if (fields)
+        cJSON_AddItemToObject(o, "fields", fields);
+    cJSON_AddStringToObject(o, "filename", j->rec.filename);
+    cJSON_AddBoolToObject(o, "target", j->rec.has_target);
+    cJSON_AddNumberToObject(o, "created", j->created);
+    return o;
+}
+
+static int record_from_json(srv_record *r, const cJSON *o)
+{
+    const cJSON *q = cJSON_GetObjectItemCaseSensitive(o, "query");
+    const cJSON *p = cJSON_GetObjectItemCaseSensitive(o, "params");
+    const cJSON *f = cJSON_GetObjectItemCaseSensitive(o, "fields");
+    const char *fn = cJSON_GetStringValue(
+        cJSON_GetObjectItemCaseSensitive(o, "filename"));
+
+    memset(r, 0, sizeof *r);
+    if ((cJSON_IsString(q) && !(r->query = strdup(q->valuestring))) ||
+        (cJSON_IsString(p) && !(r->params_json = strdup(p->valuestring))) ||
+        (cJSON_IsArray(f) && !(r->fields = cJSON_Duplicate(f, 1)))) {
+        srv_record_free(r);
+        return -1;
+    }
+    snprintf(r->filename, sizeof r->filename, "%s", fn ? fn : "mesh");
+    r->has_target = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "target"));
+    return 0;
+}
+
+/* ------------------------------------------------------------------ jobs */
+
+static srv_job *job_new(void)
+{
+    srv_job *j = calloc(1, sizeof *j);
+    if (!j)
+        return NULL;
+    j->refs = 1;
+    api_buf_init(&j->events, EVENTS_MAX);
+    snprintf(j->scheme, sizeof j->scheme, "unknown");
+    return j;
+}
+
+static void job_free(srv_job *j)
+{
+    srv_record_free(&j->rec);
+    free(j->input);
+    free(j->target);
+    free(j->params_json);
+    free(j->metrics_json);
+    free(j->result);
+    api_buf_free(&j->events);
+    free(j);
+}
+
+/* Lock held. Frees the job when the last reference goes. */
+static void unref_locked(srv_job *j)
+{
+    if (--j->refs == 0)
+        job_free(j);
+}
+
+void srv_job_unref(srv_job *j)
+{
+    if (!j)
+        return;
+    srv_lock();
+    unref_locked(j);
+    srv_unlock();
+}
+
+static unsigned bucket_of(const char *id)
+{
+    uint32_t h = 2166136261u;
+    for (; *id; id++)
+        h = (h ^ (unsigned char)*id) * 16777619u;
+    return h % NBUCKETS;
+}
+
+static srv_job *find_locked(const char *id)
+{
+    srv_job *j;
+    for (j = S.buckets[bucket_of(id)]; j; j = j->hnext)
+        if (strcmp(j->id, id) == 0)
+            return j;
+    return NULL;
+}
+
+static void table_insert(srv_job *j)
+{
+    unsigned b = bucket_of(j->id);
+    j->hnext = S.buckets[b];
+    S.buckets[b] = j;
+    j->in_table = 1;
+    S.njobs++;
+}
+
+/* Removes j from the table and drops the table's reference. */
+static void table_remove(srv_job *j)
+{
+    srv_job **pp = &S.buckets[bucket_of(j->id)];
+    while (*pp && *pp != j)
+        pp = &(*pp)->hnext;
+    if (*pp) {
+        *pp = j->hnext;
+        j->in_table = 0;
+        S.njobs--;
+        unref_locked(j);
+    }
+}
+
+static void queue_push(srv_job *j)
+{
+    j->qnext = NULL;
+    if (S.qtail)
+        S.qtail->qnext = j;
+    else
+        S.qhead = j;
+    S.qtail = j;
+    S.qlen++;
+}
+
+static srv_job *queue_pop(void)
+{
+    srv_job *j = S.qhead;
+    if (j) {
+        S.qhead = j->qnext;
+        if (!S.qhead)
+            S.qtail = NULL;
+        j->qnext = NULL;
+        S.qlen--;
+    }
+    return j;
+}
+
+static int queue_remove(srv_job *j)
+{
+    srv_job *prev = NULL, *q;
+    for (q = S.qhead; q; prev = q, q = q->qnext)
+        if (q == j) {
+            if (prev)
+                prev->qnext = j->qnext;
+            else
+                S.qhead = j->qnext;
+            if (S.qtail == j)
+                S.qtail = prev;
+            j->qnext = NULL;
+            S.qlen--;
+            return 1;
+        }
+    return 0;
+}
+
+srv_job *srv_jobs_get(const char *id)
+{
+    srv_job *j;
+    srv_lock();
+    j = find_locked(id);
+    if (j)
+        j->refs++;
+    srv_unlock();
+    return j;
+}
+
+/* 128 bits from /dev/urandom; if that ever fails, a splitmix64 of the
+ * clock, pid and a counter (unique, merely not unguessable). */
+static void new_id(char *out)
+{
+    unsigned char b[16];
+    size_t got = 0;
+    int i;
+
+    while (S.urandom >= 0 && got < sizeof b) {
+        ssize_t r = read(S.urandom, b + got, sizeof b - got);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+    }
+    if (got < sizeof b) {
+        uint64_t x = (uint64_t)(srv_wall() * 1e9) ^ ((uint64_t)getpid() << 32);
+        for (i = 0; i < 16; i += 8) {
+            uint64_t z = x + (++S.counter) * 0x9e3779b97f4a7c15ull;
+            z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+            z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+            z ^= z >> 31;
+            memcpy(b + i, &z, 8);
+        }
+    }
+    for (i = 0; i < 16; i++)
+        snprintf(out + 2 * i, 3, "%02x", b[i]);
+}
+
+/* ------------------------------------------------------------------ waiters */
+
+void srv_waiter_link(srv_job *j, srv_waiter *w)
+{
+    if (w->linked)
+        return;
+    w->prev = NULL;
+    w->next = j->waiters;
+    if (j->waiters)
+        j->waiters->prev = w;
+    j->waiters = w;
+    w->linked = 1;
+}
+
+void srv_waiter_unlink(srv_job *j, srv_waiter *w)
+{
+    if (!w->linked)
+        return;
+    if (w->prev)
+        w->prev->next = w->next;
+    else
+        j->waiters = w->next;
+    if (w->next)
+        w->next->prev = w->prev;
+    w->prev = w->next = NULL;
+    w->linked = 0;
+}
+
+void srv_waiter_suspend(srv_waiter *w)
+{
+    w->suspended = 1;
+    MHD_suspend_connection(w->conn);
+}
+
+void srv_job_wake(srv_job *j, int progress_only)
+{
+    srv_waiter *w;
+    for (w = j->waiters; w; w = w->next)
+        if (w->suspended && (!progress_only || w->want_events)) {
+            w->suspended = 0;
+            MHD_resume_connection(w->conn);
+        }
+}
+
+void srv_jobs_resume_all(void)
+{
+    int b;
+    srv_job *j;
+
+    srv_lock();
+    S.closing = 1;
+    for (b = 0; b < NBUCKETS; b++)
+        for (j = S.buckets[b]; j; j = j->hnext)
+            srv_job_wake(j, 0);
+    srv_unlock();
+}
+
+/* ------------------------------------------------------------------ JSON */
+
+static void add_time(cJSON *o, const char *key, double t)
+{
+    char buf[40];
+    if (t > 0) {
+        srv_time_rfc3339(t, buf, sizeof buf);
+        cJSON_AddStringToObject(o, key, buf);
+    } else {
+        cJSON_AddNullToObject(o, key);
+    }
+}
+
+static void add_num(cJSON *o, const char *key, double v)
+{
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, key, v);
+    else
+        cJSON_AddNullToObject(o, key);
+}
+
+cJSON *srv_job_json(const srv_job *j)
+{
+    char link[96];
+    cJSON *o = cJSON_CreateObject(), *p, *l;
+
+    if (!o)
+        return NULL;
+    cJSON_AddStringToObject(o, "id", j->id);
+    cJSON_AddStringToObject(o, "status", srv_job_status_name(j->status));
+    add_time(o, "created", j->created);
+    add_time(o, "started", j->started);
+    add_time(o, "finished", j->finished);
+    p = cJSON_AddObjectToObject(o, "progress");
+    if (p) {
+        double frac = 0;
+        cJSON_AddNumberToObject(p, "step", j->step);
+        if (j->steps_planned > 0) {
+            cJSON_AddNumberToObject(p, "steps", j->steps_planned);
+            frac = (double)j->step / j->steps_planned;
+        } else {
+            cJSON_AddNullToObject(p, "steps");
+            if (j->time_planned > 0)
+                frac = j->t / j->time_planned;
+        }
+        if (j->status == SRV_JOB_SUCCEEDED)
+            frac = 1;
+        /* Before the first step there is nothing to report. */
+        add_num(p, "t", j->step > 0 ? j->t : NAN);
+        add_num(p, "dt", j->step > 0 ? j->dt : NAN);
+        add_num(p, "energy", j->step > 0 ? j->energy : NAN);
+        add_num(p, "volume", j->step > 0 ? j->volume : NAN);
+        cJSON_AddNumberToObject(p, "fraction", frac < 0 ? 0 : frac > 1 ? 1 : frac);
+    }
+    if (j->cancel && j->cancel_reason == SRV_CANCEL_USER &&
+        j->status == SRV_JOB_RUNNING)
+        cJSON_AddBoolToObject(o, "cancel_requested", 1);
+    if (j->params_json) {
+        cJSON *pj = cJSON_Parse(j->params_json);
+        if (pj)
+            cJSON_AddItemToObject(o, "params", pj);
+    }
+    if (j->in_format[0])
+        cJSON_AddStringToObject(o, "input_format", j->in_format);
+    if (j->status == SRV_JOB_SUCCEEDED && j->metrics_json) {
+        cJSON *m = cJSON_Parse(j->metrics_json);
+        if (m)
+            cJSON_AddItemToObject(o, "metrics", m);
+    }
+    if (j->status == SRV_JOB_FAILED || j->status == SRV_JOB_CANCELED) {
+        snprintf(link, sizeof link, "/v1/jobs/%s", j->id);
+        cJSON *e = srv_problem_json(&j->err, link, j->id);
+        if (e)
+            cJSON_AddItemToObject(o, "error", e);
+    }
+    l = cJSON_AddObjectToObject(o, "links");
+    if (l) {
+        snprintf(link, sizeof link, "/v1/jobs/%s", j->id);
+        cJSON_AddStringToObject(l, "self", link);
+        snprintf(link, sizeof link, "/v1/jobs/%s/result", j->id);
+        cJSON_AddStringToObject(l, "result", link);
+        snprintf(link, sizeof link, "/v1/jobs/%s/metrics", j->id);
+        cJSON_AddStringToObject(l, "metrics", link);
+        snprintf(link, sizeof link, "/v1/jobs/%s/events", j->id);
+        cJSON_AddStringToObject(l, "events", link);
+    }
+    return o;
+}
+
+/* state.json: everything needed to serve the job after a restart. */
+static char *state_json(const srv_job *j)
+{
+    char *s;
+    cJSON *o = cJSON_CreateObject();
+
+    if (!o)
+        return NULL;
+    cJSON_AddStringToObject(o, "id", j->id);
+    cJSON_AddStringToObject(o, "status", srv_job_status_name(j->status));
+    cJSON_AddNumberToObject(o, "created", j->created);
+    cJSON_AddNumberToObject(o, "started", j->started);
+    cJSON_AddNumberToObject(o, "finished", j->finished);
+    cJSON_AddStringToObject(o, "scheme", j->scheme);
+    cJSON_AddNumberToObject(o, "steps_planned", j->steps_planned);
+    cJSON_AddNumberToObject(o, "time_planned", j->time_planned);
+    cJSON_AddNumberToObject(o, "step", j->step);
+    add_num(o, "t", j->t);
+    cJSON_AddStringToObject(o, "in_format", j->in_format);
+    cJSON_AddStringToObject(o, "out_format", j->out_format);
+    cJSON_AddStringToObject(o, "result", j->result_name);
+    cJSON_AddNumberToObject(o, "result_bytes", (double)j->result_len);
+    if (j->params_json)
+        cJSON_AddStringToObject(o, "params", j->params_json);
+    if (j->status == SRV_JOB_FAILED || j->status == SRV_JOB_CANCELED) {
+        cJSON *e = cJSON_AddObjectToObject(o, "error");
+        if (e) {
+            cJSON_AddNumberToObject(e, "http", j->err.http);
+            cJSON_AddStringToObject(e, "code", j->err.code);
+            cJSON_AddStringToObject(e, "detail", j->err.detail);
+        }
+    }
+    s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+/* Snapshot under the lock, write outside it. */
+static int write_state(srv_job *j, int durable)
+{
+    char *s;
+    int rc;
+
+    srv_lock();
+    s = state_json(j);
+    srv_unlock();
+    if (!s)
+        return -1;
+    rc = srv_spool_write(S.cfg->spool, j->id, "state.json", s, strlen(s),
+                         durable);
+    free(s);
+    return rc;
+}
+
+/* ----------------------------------------------------------------- submit */
+
+int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
+                    char *target, size_t target_len, int keep_result,
+                    srv_job **out, srv_problem *prob)
+{
+    const srv_config *cfg = S.cfg;
+    srv_job *j = NULL;
+    api_params prm;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status rc;
+    cJSON *pj, *rj;
+    char *rs = NULL;
+    int reserved = 0;
+    const mcf_scheme_info *si;
+
+    /* Parameters first: a misspelled key is a 400 even when busy. */
+    if ((rc = srv_record_params(rec, &cfg->lim, &prm, &err)) != MCF_OK) {
+        srv_problem_from(prob, rc, SRV_STAGE_PARAMS, NULL, &err);
+        goto fail;
+    }
+    j = job_new();
+    if (!j) {
+        api_params_free(&prm);
+        srv_problem_set(prob, 503, "ENOMEM", "out of memory accepting a job");
+        goto fail;
+    }
+    si = mcf_scheme_get(prm.flow.scheme);
+    snprintf(j->scheme, sizeof j->scheme, "%s", si ? si->name : "unknown");
+    j->time_planned = prm.flow.time > 0 ? prm.flow.time : 0;
+    j->steps_planned = (prm.flow.time > 0 || prm.flow.adaptive)
+                           ? 0 : prm.flow.iterations;
+    pj = api_params_to_json(&prm);
+    j->params_json = pj ? cJSON_PrintUnformatted(pj) : NULL;
+    cJSON_Delete(pj);
+    api_params_free(&prm);
+
+    srv_lock();
+    if (S.draining) {
+        srv_unlock();
+        srv_problem_set(prob, 503, "EDRAINING",
+                        "the daemon is shutting down and accepts no new jobs");
+        goto fail;
+    }
+    if (S.qlen + S.reserved >= cfg->queue + (S.nthreads - S.busy)) {
+        int q = S.qlen;
+        srv_unlock();
+        srv_problem_set(prob, 503, "EBUSY",
+                        "the job queue is full (%d queued, %d workers busy, "
+                        "--queue %d)", q, S.nthreads, cfg->queue);
+        goto fail;
+    }
+    S.reserved++;
+    reserved = 1;
+    new_id(j->id);
+    srv_unlock();
+
+    j->rec = *rec;
+    memset(rec, 0, sizeof *rec);
+    j->rec.has_target = target != NULL;
+    j->input = input;
+    j->input_len = input_len;
+    j->target = target;
+    j->target_len = target_len;
+    input = target = NULL;
+    j->keep_result = keep_result;
+    j->created = srv_wall();
+    j->status = SRV_JOB_QUEUED;
+
+    /* Durable before anyone hears of the ID: input, request, state. */
+    rj = record_json(j);
+    rs = rj ? cJSON_PrintUnformatted(rj) : NULL;
+    cJSON_Delete(rj);
+    if (!rs || srv_spool_mkjob(cfg->spool, j->id) != 0 ||
+        srv_spool_write(cfg->spool, j->id, "input", j->input, j->input_len,
+                        1) != 0 ||
+        (j->target && srv_spool_write(cfg->spool, j->id, "target", j->target,
+                                      j->target_len, 1) != 0) ||
+        srv_spool_write(cfg->spool, j->id, "request.json", rs, strlen(rs),
+                        1) != 0 ||
+        write_state(j, 1) != 0) {
+        srv_problem_set(prob, 500, "EIO", "cannot write job %s to the spool "
+                        "%s: %s", j->id, cfg->spool, strerror(errno));
+        srv_spool_remove(cfg->spool, j->id);
+        goto fail;
+    }
+    free(rs);
+    rs = NULL;
+
+    srv_lock();
+    S.reserved--;
+    reserved = 0;
+    table_insert(j);
+    queue_push(j);
+    j->refs++; /* the caller's */
+    pthread_cond_signal(&S.work);
+    srv_unlock();
+    *out = j;
+    return 0;
+
+fail:
+    if (reserved) {
+        srv_lock();
+        S.reserved--;
+        srv_unlock();
+    }
+    free(rs);
+    free(input);
+    free(target);
+    srv_record_free(rec);
+    if (j)
+        job_free(j);
+    return -1;
+}
+
+/* ------------------------------------------------------------------ runner */
+
+typedef struct {
+    srv_job *job;
+    mcf_mesh *mesh;
+    double scale, cen[3];     /* the core's normalization (see on_progress) */
+    double deadline;          /* mcf_now() seconds, 0: none */
+} run_ctx;
+
+static void fmt_num(char *buf, size_t size, double v)
+{
+    if (isfinite(v))
+        snprintf(buf, size, "%.17g", v);
+    else
+        snprintf(buf, size, "null");
+}
+
+/* The volume enclosed in input units. mcf_flow_run works on the mesh's
+ * positions in place, centred on the area centroid and scaled to unit area
+ * when normalize is on (core/mcf_flow.c); scale and cen undo that. The
+ * integration test checks the last step's volume against stats.volume1. */
+static double input_units_volume(const run_ctx *c)
+{
+    const double *X = mcf_mesh_positions(c->mesh);
+    const int32_t *F = mcf_mesh_faces(c->mesh);
+    int f, nf = mcf_mesh_nfaces(c->mesh);
+    double v = 0;
+
+    for (f = 0; f < nf; f++) {
+        double p[3][3];
+        int k, d;
+        for (k = 0; k < 3; k++)
+            for (d = 0; d < 3; d++)
+                p[k][d] = X[3 * (size_t)F[3 * f + k] + d] / c->scale + c->cen[d];
+        v += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
+             p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
+             p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
+    }
+    return v / 6.0;
+}
+
+static int on_progress(void *ctx, int step, double t, double dt, double energy)
+{
+    run_ctx *c = ctx;
+    srv_job *j = c->job;
+    double vol = input_units_volume(c);
+    char line[320], a[32], b[32], e[32], v[32];
+    int stop, n;
+
+    fmt_num(a, sizeof a, t);
+    fmt_num(b, sizeof b, dt);
+    fmt_num(e, sizeof e, energy);
+    fmt_num(v, sizeof v, vol);
+    n = snprintf(line, sizeof line,
+                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
+                 step, a, b, e, v);
+    srv_lock();
+    j->step = step;
+    j->t = t;
+    j->dt = dt;
+    j->energy = energy;
+    j->volume = vol;
+    if (n > 0 && api_buf_append(&j->events, line, (size_t)n) == MCF_OK)
+        j->nevents++;
+    srv_job_wake(j, 1);
+    if (!j->cancel && c->deadline > 0 && mcf_now() > c->deadline) {
+        j->cancel = 1;
+        j->cancel_reason = SRV_CANCEL_TIMEOUT;
+    }
+    stop = j->cancel;
+    srv_unlock();
+    return stop;
+}
+
+/* The metrics document of a finished job. */
+static char *metrics_doc(const srv_job *j, const char *params_json,
+                         const mcf_mesh_info *in, const mcf_mesh *m,
+                         const mcf_flow_stats *st, const mcf_compare_result *cmp,
+                         size_t in_bytes, size_t out_bytes, double t_queue,
+                         double t_decode, double t_flow, double t_encode)
+{
+    cJSON *o = cJSON_CreateObject(), *x, *tm;
+    char *s;
+
+    if (!o)
+        return NULL;
+    cJSON_AddStringToObject(o, "job", j->id);
+    cJSON_AddStringToObject(o, "scheme", j->scheme);
+    if (params_json && (x = cJSON_Parse(params_json)))
+        cJSON_AddItemToObject(o, "params", x);
+    x = cJSON_AddObjectToObject(o, "input");
+    if (x) {
+        cJSON_AddStringToObject(x, "format", j->in_format);
+        cJSON_AddNumberToObject(x, "bytes", (double)in_bytes);
+        cJSON *mi = api_json_mesh_info(in, NULL);
+        if (mi)
+            cJSON_AddItemToObject(x, "mesh", mi);
+    }
+    x = cJSON_AddObjectToObject(o, "output");
+    if (x) {
+        cJSON_AddStringToObject(x, "format", j->out_format);
+        cJSON_AddNumberToObject(x, "bytes", (double)out_bytes);
+        cJSON_AddNumberToObject(x, "vertices", mcf_mesh_nvertices(m));
+        cJSON_AddNumberToObject(x, "faces", mcf_mesh_nfaces(m));
+        add_num(x, "area", mcf_mesh_area(m));
+        add_num(x, "volume", mcf_mesh_volume(m));
+    }
+    x = api_json_flow_stats(st);
+    if (x)
+        cJSON_AddItemToObject(o, "flow", x);
+    if (cmp && (x = api_json_compare(cmp)))
+        cJSON_AddItemToObject(o, "compare", x);
+    tm = cJSON_AddObjectToObject(o, "timing");
+    if (tm) {
+        add_num(tm, "queue_s", t_queue);
+        add_num(tm, "decode_s", t_decode);
+        add_num(tm, "flow_s", t_flow);
+        add_num(tm, "encode_s", t_encode);
+        add_num(tm, "total_s", t_decode + t_flow + t_encode);
+    }
+    s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+static void log_job(const srv_job *j, int nv, int nf, double run_s)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o)
+        return;
+    cJSON_AddStringToObject(o, "type", "job");
+    cJSON_AddStringToObject(o, "job", j->id);
+    cJSON_AddStringToObject(o, "scheme", j->scheme);
+    cJSON_AddStringToObject(o, "status", srv_job_status_name(j->status));
+    cJSON_AddNumberToObject(o, "vertices", nv);
+    cJSON_AddNumberToObject(o, "faces", nf);
+    cJSON_AddNumberToObject(o, "steps", j->step);
+    cJSON_AddNumberToObject(o, "queue_ms",
+                            j->started > 0 ? (j->started - j->created) * 1e3 : 0);
+    cJSON_AddNumberToObject(o, "run_ms", run_s * 1e3);
+    if (j->recovered)
+        cJSON_AddBoolToObject(o, "recovered", 1);
+    if (j->status == SRV_JOB_FAILED || j->status == SRV_JOB_CANCELED) {
+        cJSON_AddNumberToObject(o, "http", j->err.http);
+        cJSON_AddStringToObject(o, "code", j->err.code);
+        cJSON_AddStringToObject(o, "detail", j->err.detail);
+    }
+    srv_log_json(j->status == SRV_JOB_FAILED && j->err.http >= 500
+                     ? SRV_LOG_ERROR : SRV_LOG_INFO, o);
+}
+
+static void area_centroid(const mcf_mesh *m, double *area, double cen[3])
+{
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    int f, d, nf = mcf_mesh_nfaces(m);
+    double A = 0, c[3] = {0, 0, 0};
+
+    for (f = 0; f < nf; f++) {
+        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
+                     *e = X + 3 * (size_t)F[3 * f + 2];
+        double u[3], v[3], n[3], af;
+        for (d = 0; d < 3; d++) {
+            u[d] = b[d] - a[d];
+            v[d] = e[d] - a[d];
+        }
+        n[0] = u[1] * v[2] - u[2] * v[1];
+        n[1] = u[2] * v[0] - u[0] * v[2];
+        n[2] = u[0] * v[1] - u[1] * v[0];
+        af = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        A += af;
+        for (d = 0; d < 3; d++)
+            c[d] += af * (a[d] + b[d] + e[d]) / 3.0;
+    }
+    for (d = 0; d < 3; d++)
+        cen[d] = A > 0 ? c[d] / A : 0;
+    *area = A;
+}
+
+static void run_job(srv_job *j)
+{
+    const srv_config *cfg = S.cfg;
+    api_params prm;
+    int have_prm = 0;
+    mcf_mesh *m = NULL, *tgt = NULL;
+    api_format fmt = API_FMT_UNKNOWN, tfmt;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status rc;
+    mcf_flow_stats st;
+    mcf_compare_result cmp;
+    mcf_mesh_info info;
+    api_buf out;
+    api_encode_opts eo;
+    srv_problem prob;
+    int failed = 1, requeue = 0, nv = 0, nf = 0;
+    char *input = NULL, *target = NULL, *metrics = NULL, *params_json = NULL;
+    size_t input_len = 0, target_len = 0;
+    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue;
+    run_ctx ctx;
+
+    memset(&st, 0, sizeof st);
+    memset(&prob, 0, sizeof prob);
+    api_buf_init(&out, RESULT_MAX);
+    srv_lock();
+    input = j->input;
+    input_len = j->input_len;
+    target = j->target;
+    target_len = j->target_len;
+    j->input = j->target = NULL;
+    t_queue = j->started - j->created;
+    params_json = j->params_json ? strdup(j->params_json) : NULL;
+    srv_unlock();
+    write_state(j, 0);
+
+    if (!input &&
+        srv_spool_read(cfg->spool, j->id, "input", &input, &input_len) != 0) {
+        srv_problem_set(&prob, 500, "EIO", "cannot read the input of job %s "
+                        "from the spool: %s", j->id, strerror(errno));
+        goto done;
+    }
+    if (j->rec.has_target && !target &&
+        srv_spool_read(cfg->spool, j->id, "target", &target, &target_len) != 0) {
+        srv_problem_set(&prob, 500, "EIO", "cannot read the target of job %s "
+                        "from the spool: %s", j->id, strerror(errno));
+        goto done;
+    }
+    if ((rc = srv_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_PARAMS, NULL, &err);
+        goto done;
+    }
+    have_prm = 1;
+    if ((rc = api_mesh_decode(input, input_len, &cfg->lim, &m, &fmt, &err)) !=
+        MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_DECODE, "mesh", &err);
+        goto done;
+    }
+    free(input);
+    input = NULL;
+    nv = mcf_mesh_nvertices(m);
+    nf = mcf_mesh_nfaces(m);
+    if ((rc = api_params_finish(&prm, nv, &cfg->lim, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_PARAMS, NULL, &err);
+        goto done;
+    }
+    if (target) {
+        if ((rc = api_mesh_decode(target, target_len, &cfg->lim, &tgt, &tfmt,
+                                  &err)) != MCF_OK) {
+            srv_problem_from(&prob, rc, SRV_STAGE_DECODE, "target", &err);
+            goto done;
+        }
+        if (mcf_mesh_nvertices(tgt) != nv || mcf_mesh_nfaces(tgt) != nf) {
+            srv_problem_set(&prob, 422, "EINVAL", "target: %d vertices and %d "
+                            "faces, the mesh has %d and %d; the target must "
+                            "share the mesh's connectivity",
+                            mcf_mesh_nvertices(tgt), mcf_mesh_nfaces(tgt), nv, nf);
+            goto done;
+        }
+    }
+    if (prm.noise_rho > 0 &&
+        (rc = mcf_mesh_add_noise(m, prm.noise_rho, prm.seed, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "noise", &err);
+        goto done;
+    }
+    if ((rc = mcf_mesh_inspect(m, &info, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "inspect", &err);
+        goto done;
+    }
+    t_decode = mcf_now() - t0;
+
+    memset(&ctx, 0, sizeof ctx);
+    ctx.job = j;
+    ctx.mesh = m;
+    ctx.scale = 1;
+    if (prm.flow.normalize) {
+        double area;
+        area_centroid(m, &area, ctx.cen);
+        ctx.scale = area > 0 ? 1 / sqrt(area) : 1;
+    }
+    ctx.deadline = cfg->job_timeout > 0 ? mcf_now() + cfg->job_timeout : 0;
+    prm.flow.progress = on_progress;
+    prm.flow.progress_ctx = &ctx;
+    prm.flow.cancel = &j->cancel;
+
+    srv_lock();
+    j->ready = 1;
+    snprintf(j->in_format, sizeof j->in_format, "%s", api_format_name(fmt));
+    srv_job_wake(j, 0);
+    srv_unlock();
+
+    t_flow = mcf_now();
+    rc = mcf_flow_run(m, &prm.flow, &st, &err);
+    t_flow = mcf_now() - t_flow;
+    if (rc == MCF_ECANCELED) {
+        int reason;
+        srv_lock();
+        reason = j->cancel_reason;
+        srv_unlock();
+        if (reason == SRV_CANCEL_SHUTDOWN) {
+            requeue = 1;
+            srv_problem_set(&prob, 503, "EDRAINING", "the daemon shut down "
+                            "while job %s ran; it runs again after the restart",
+                            j->id);
+        } else if (reason == SRV_CANCEL_TIMEOUT) {
+            srv_problem_set(&prob, 413, "ELIMIT", "the job ran longer than "
+                            "--job-timeout %g s and was stopped at step %d",
+                            cfg->job_timeout, st.steps);
+        } else {
+            srv_problem_set(&prob, 409, "ECANCELED", "canceled by DELETE "
+                            "/v1/jobs/%s after step %d", j->id, st.steps);
+        }
+        goto done;
+    }
+    if (rc != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "flow", &err);
+        goto done;
+    }
+
+    t_encode = mcf_now();
+    eo = prm.encode;
+    if (eo.format == API_FMT_UNKNOWN)
+        eo.format = fmt;
+    if ((rc = api_mesh_encode(m, &eo, &out, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "encode", &err);
+        goto done;
+    }
+    t_encode = mcf_now() - t_encode;
+    if (tgt && (rc = mcf_compare(m, tgt, &cmp, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "compare", &err);
+        goto done;
+    }
+    srv_lock();
+    snprintf(j->out_format, sizeof j->out_format, "%s",
+             api_format_name(eo.format));
+    snprintf(j->result_name, sizeof j->result_name, "result%s",
+             api_format_ext(eo.format));
+    srv_unlock();
+    metrics = metrics_doc(j, params_json, &info, m, &st, tgt ? &cmp : NULL,
+                          input_len, out.len, t_queue, t_decode, t_flow,
+                          t_encode);
+    if (!metrics) {
+        srv_problem_set(&prob, 503, "ENOMEM", "out of memory writing metrics");
+        goto done;
+    }
+    if (srv_spool_write(cfg->spool, j->id, j->result_name, out.data, out.len,
+                        1) != 0 ||
+        srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
+                        strlen(metrics), 1) != 0) {
+        srv_problem_set(&prob, 500, "EIO", "cannot write the result of job %s "
+                        "to the spool: %s", j->id, strerror(errno));
+        goto done;
+    }
+    failed = 0;
+
+done:
+    srv_lock();
+    if (requeue) {
+        /* Back to queued on disk; the process is exiting. */
+        j->status = SRV_JOB_QUEUED;
+        j->ready = 0;
+        j->err = prob;
+    } else if (failed) {
+        j->status = j->cancel_reason == SRV_CANCEL_USER && j->cancel
+                        ? SRV_JOB_CANCELED : SRV_JOB_FAILED;
+        j->err = prob;
+        j->finished = srv_wall();
+    } else {
+        j->status = SRV_JOB_SUCCEEDED;
+        j->finished = srv_wall();
+        j->metrics_json = metrics;
+        metrics = NULL;
+        j->result_len = out.len;
+        if (j->keep_result) {
+            size_t len;
+            j->result = api_buf_detach(&out, &len);
+        }
+    }
+    srv_unlock();
+    /* The state on disk before the waiters hear: a client that saw the
+     * result can always find it again. */
+    write_state(j, 1);
+    srv_lock();
+    srv_job_wake(j, 0);
+    srv_unlock();
+    if (!requeue) {
+        srv_metrics_job(j->scheme, srv_job_status_name(j->status),
+                        mcf_now() - t0);
+        log_job(j, nv, nf, mcf_now() - t0);
+    }
+    if (have_prm)
+        api_params_free(&prm);
+    mcf_flow_stats_free(&st);
+    mcf_mesh_free(m);
+    mcf_mesh_free(tgt);
+    api_buf_free(&out);
+    free(input);
+    free(target);
+    free(metrics);
+    free(params_json);
+}
+
+static void *worker_main(void *arg)
+{
+    (void)arg;
+    srv_lock();
+    for (;;) {
+        srv_job *j;
+        while (!S.stopping && (S.draining || !S.qhead))
+            pthread_cond_wait(&S.work, &S.mu);
+        if (S.stopping)
+            break;
+        j = queue_pop();
+        j->refs++;
+        j->status = SRV_JOB_RUNNING;
+        j->started = srv_wall();
+        S.busy++;
+        srv_job_wake(j, 0);
+        srv_unlock();
+        run_job(j);
+        srv_lock();
+        S.busy--;
+        unref_locked(j);
+        pthread_cond_broadcast(&S.idle);
+    }
+    srv_unlock();
+    return NULL;
+}
+
+/* ------------------------------------------------------------------ delete */
+
+int srv_jobs_delete(const char *id, srv_job_status *before)
+{
+    srv_job *j;
+
+    srv_lock();
+    j = find_locked(id);
+    if (!j) {
+        srv_unlock();
+        return -1;
+    }
+    *before = j->status;
+    if (j->status == SRV_JOB_QUEUED) {
+        /* Not in the queue only when a shutdown just put it back. */
+        (void)queue_remove(j);
+        j->status = SRV_JOB_CANCELED;
+        j->cancel = 1;
+        j->cancel_reason = SRV_CANCEL_USER;
+        j->finished = srv_wall();
+        srv_problem_set(&j->err, 409, "ECANCELED", "canceled by DELETE "
+                        "/v1/jobs/%s while queued", j->id);
+        j->refs++;
+        srv_job_wake(j, 0);
+        srv_unlock();
+        write_state(j, 1);
+        srv_metrics_job(j->scheme, "canceled", 0);
+        log_job(j, 0, 0, 0);
+        srv_job_unref(j);
+        return 0;
+    }
+    if (j->status == SRV_JOB_RUNNING) {
+        j->cancel = 1;
+        j->cancel_reason = SRV_CANCEL_USER;
+        srv_unlock();
+        return 1;
+    }
+    /* Finished: forget it. */
+    table_remove(j);
+    srv_unlock();
+    srv_spool_remove(S.cfg->spool, id);
+    return 2;
+}
+
+/* ------------------------------------------------------------------ sweep */
+
+void srv_jobs_sweep(void)
+{
+    char (*ids)[SRV_ID_LEN + 1] = NULL;
+    int n = 0, cap = 0, b, i;
+    double now = srv_wall();
+    srv_job *j, *next;
+
+    srv_lock();
+    for (b = 0; b < NBUCKETS; b++)
+        for (j = S.buckets[b]; j; j = next) {
+            next = j->hnext;
+            if (!is_terminal(j->status))
+                continue;
+            /* Progress lines are only replayed to late SSE subscribers:
+             * drop them once nobody follows a finished job. */
+            if (j->refs == 1 && j->events.data && now - j->finished > 10) {
+                api_buf_free(&j->events);
+                api_buf_init(&j->events, EVENTS_MAX);
+                j->nevents = 0;
+            }
+            if (now - j->finished < S.cfg->result_ttl)
+                continue;
+            if (n == cap) {
+                int ncap = cap ? 2 * cap : 64;
+                void *p = realloc(ids, (size_t)ncap * sizeof *ids);
+                if (!p)
+                    break;
+                ids = p;
+                cap = ncap;
+            }
+            memcpy(ids[n++], j->id, SRV_ID_LEN + 1);
+            table_remove(j);
+        }
+    srv_unlock();
+    for (i = 0; i < n; i++) {
+        srv_spool_remove(S.cfg->spool, ids[i]);
+        srv_logf(SRV_LOG_DEBUG, "job %s expired after --result-ttl %g s",
+                 ids[i], S.cfg->result_ttl);
+    }
+    free(ids);
+}
+
+/* ------------------------------------------------------------------ recovery */
+
+typedef struct {
+    srv_job **queued;
+    int n, cap;
+    int restored, requeued, dropped;
+} recover_ctx;
+
+static int by_created(const void *a, const void *b)
+{
+    const srv_job *x = *(srv_job *const *)a, *y = *(srv_job *const *)b;
+    if (x->created != y->created)
+        return x->created < y->created ? -1 : 1;
+    return strcmp(x->id, y->id);
+}
+
+static int valid_id(const char *id)
+{
+    size_t i;
+    for (i = 0; id[i]; i++)
+        if (!((id[i] >= '0' && id[i] <= '9') || (id[i] >= 'a' && id[i] <= 'f')))
+            return 0;
+    return i == SRV_ID_LEN;
+}
+
+static double num_of(const cJSON *o, const char *k)
+{
+    const cJSON *x = cJSON_GetObjectItemCaseSensitive(o, k);
+    return cJSON_IsNumber(x) ? x->valuedouble : 0;
+}
+
+static const char *str_of(const cJSON *o, const char *k)
+{
+    const char *s = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(o, k));
+    return s ? s : "";
+}
+
+static void recover_one(const char *id, void *arg)
+{
+    recover_ctx *rc = arg;
+    const srv_config *cfg = S.cfg;
+    char *state = NULL, *req = NULL;
+    size_t len;
+    cJSON *so = NULL, *ro = NULL;
+    srv_job *j = NULL;
+    const cJSON *e;
+
+    if (!valid_id(id))
+        return; /* not ours: leave it alone */
+    if (srv_spool_read(cfg->spool, id, "state.json", &state, &len) != 0 ||
+        srv_spool_read(cfg->spool, id, "request.json", &req, &len) != 0 ||
+        !(so = cJSON_Parse(state)) || !(ro = cJSON_Parse(req)) ||
+        !(j = job_new()) || record_from_json(&j->rec, ro) != 0 ||
+        status_from_name(str_of(so, "status"), &j->status) != 0) {
+        /* Never acknowledged (crash between mkdir and state.json). */
+        srv_logf(SRV_LOG_WARN, "spool: removing incomplete job %s", id);
+        srv_spool_remove(cfg->spool, id);
+        rc->dropped++;
+        goto out;
+    }
+    snprintf(j->id, sizeof j->id, "%s", id);
+    j->recovered = 1;
+    j->created = num_of(so, "created");
+    j->started = num_of(so, "started");
+    j->finished = num_of(so, "finished");
+    snprintf(j->scheme, sizeof j->scheme, "%s", str_of(so, "scheme"));
+    j->steps_planned = (int)num_of(so, "steps_planned");
+    j->time_planned = num_of(so, "time_planned");
+    snprintf(j->in_format, sizeof j->in_format, "%s", str_of(so, "in_format"));
+    snprintf(j->out_format, sizeof j->out_format, "%s", str_of(so, "out_format"));
+    snprintf(j->result_name, sizeof j->result_name, "%s", str_of(so, "result"));
+    j->result_len = (size_t)num_of(so, "result_bytes");
+    if (*str_of(so, "params"))
+        j->params_json = strdup(str_of(so, "params"));
+    if ((e = cJSON_GetObjectItemCaseSensitive(so, "error")) != NULL) {
+        j->err.http = (unsigned)num_of(e, "http");
+        snprintf(j->err.code, sizeof j->err.code, "%s", str_of(e, "code"));
+        snprintf(j->err.detail, sizeof j->err.detail, "%s", str_of(e, "detail"));
+    }
+    if (is_terminal(j->status)) {
+        if (srv_wall() - j->finished >= cfg->result_ttl) {
+            srv_spool_remove(cfg->spool, id);
+            goto out;
+        }
+        j->step = (int)num_of(so, "step");
+        j->t = num_of(so, "t");
+        if (j->status == SRV_JOB_SUCCEEDED &&
+            srv_spool_read(cfg->spool, id, "metrics.json", &j->metrics_json,
+                           &len) != 0) {
+            srv_logf(SRV_LOG_WARN, "spool: job %s has no metrics.json", id);
+        }
+        table_insert(j);
+        j = NULL;
+        rc->restored++;
+        goto out;
+    }
+    /* queued, or running when the process died: run it again */
+    j->status = SRV_JOB_QUEUED;
+    j->started = 0;
+    if (rc->n == rc->cap) {
+        int ncap = rc->cap ? 2 * rc->cap : 64;
+        void *p = realloc(rc->queued, (size_t)ncap * sizeof *rc->queued);
+        if (!p)
+            goto out;
+        rc->queued = p;
+        rc->cap = ncap;
+    }
+    rc->queued[rc->n++] = j;
+    j = NULL;
+out:
+    if (j)
+        job_free(j);
+    cJSON_Delete(so);
+    cJSON_Delete(ro);
+    free(state);
+    free(req);
+}
+
+int srv_jobs_start(const srv_config *cfg, char *msg, size_t msgsize)
+{
+    recover_ctx rc;
+    int i;
+
+    memset(&rc, 0, sizeof rc);
+    S.cfg = cfg;
+    S.urandom = open("/dev/urandom", O_RDONLY);
+    srv_lock();
+    if (srv_spool_list(cfg->spool, recover_one, &rc) != 0) {
+        srv_unlock();
+        snprintf(msg, msgsize, "cannot list the spool %s: %s", cfg->spool,
+                 strerror(errno));
+        return -1;
+    }
+    qsort(rc.queued, (size_t)rc.n, sizeof *rc.queued, by_created);
+    for (i = 0; i < rc.n; i++) {
+        table_insert(rc.queued[i]);
+        queue_push(rc.queued[i]);
+    }
+    srv_unlock();
+    free(rc.queued);
+    if (rc.n || rc.restored || rc.dropped)
+        srv_logf(SRV_LOG_INFO, "spool %s: %d jobs queued again, %d finished "
+                 "jobs restored, %d incomplete removed", cfg->spool, rc.n,
+                 rc.restored, rc.dropped);
+
+    S.threads = calloc((size_t)cfg->workers, sizeof *S.threads);
+    if (!S.threads) {
+        snprintf(msg, msgsize, "out of memory");
+        return -1;
+    }
+    for (i = 0; i < cfg->workers; i++) {
+        if (pthread_create(&S.threads[i], NULL, worker_main, NULL) != 0) {
+            snprintf(msg, msgsize, "cannot start worker %d: %s", i,
+                     strerror(errno));
+            srv_lock();
+            S.stopping = 1;
+            pthread_cond_broadcast(&S.work);
+            srv_unlock();
+            while (i-- > 0)
+                pthread_join(S.threads[i], NULL);
+            return -1;
+        }
+        srv_lock();
+        S.nthreads = i + 1;
+        srv_unlock();
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ drain */
+
+void srv_jobs_drain(void)
+{
+    srv_job *j;
+
+    srv_lock();
+    S.draining = 1;
+    /* Clients waiting on queued jobs hear now: those run after restart. */
+    for (j = S.qhead; j; j = j->qnext)
+        srv_job_wake(j, 0);
+    pthread_cond_broadcast(&S.work);
+    srv_unlock();
+}
+
+int srv_jobs_draining_locked(void)
+{
+    return S.draining;
+}
+
+int srv_jobs_closing_locked(void)
+{
+    return S.closing;
+}
+
+int srv_jobs_can_accept(void)
+{
+    int ok;
+    srv_lock();
+    ok = !S.draining &&
+         S.qlen + S.reserved < S.cfg->queue + (S.nthreads - S.busy);
+    srv_unlock();
+    return ok;
+}
+
+int srv_jobs_draining(void)
+{
+    int d;
+    srv_lock();
+    d = S.draining;
+    srv_unlock();
+    return d;
+}
+
+int srv_jobs_wait_idle(double timeout)
+{
+    struct timespec ts;
+    double end = srv_wall() + timeout;
+    int idle;
+
+    srv_lock();
+    while (S.busy > 0) {
+        double now = srv_wall();
+        if (now >= end)
+            break;
+        ts.tv_sec = (time_t)end;
+        ts.tv_nsec = (long)((end - (double)ts.tv_sec) * 1e9);
+        pthread_cond_timedwait(&S.idle, &S.mu, &ts);
+    }
+    idle = S.busy == 0;
+    srv_unlock();
+    return idle;
+}
+
+void srv_jobs_checkpoint_running(void)
+{
+    int b;
+    srv_job *j;
+
+    srv_lock();
+    for (b = 0; b < NBUCKETS; b++)
+        for (j = S.buckets[b]; j; j = j->hnext)
+            if (j->status == SRV_JOB_RUNNING) {
+                j->cancel = 1;
+                j->cancel_reason = SRV_CANCEL_SHUTDOWN;
+            }
+    srv_unlock();
+}
+
+void srv_jobs_stop(void)
+{
+    int i, b;
+    srv_job *j, *next;
+
+    srv_lock();
+    S.stopping = 1;
+    pthread_cond_broadcast(&S.work);
+    srv_unlock();
+    for (i = 0; i < S.nthreads; i++)
+        pthread_join(S.threads[i], NULL);
+    free(S.threads);
+    S.threads = NULL;
+    S.nthreads = 0;
+    srv_lock();
+    while (queue_pop())
+        ;
+    for (b = 0; b < NBUCKETS; b++)
+        for (j = S.buckets[b]; j; j = next) {
+            next = j->hnext;
+            table_remove(j);
+        }
+    srv_unlock();
+    if (S.urandom >= 0)
+        close(S.urandom);
+    S.urandom = -1;
+}
+
+srv_gauges srv_jobs_gauges(void)
+{
+    srv_gauges g;
+    srv_lock();
+    g.queue_depth = S.qlen;
+    g.queue_capacity = S.cfg ? S.cfg->queue : 0;
+    g.workers = S.nthreads;
+    g.workers_busy = S.busy;
+    g.jobs_in_memory = S.njobs;
+    g.draining = S.draining;
+    srv_unlock();
+    return g;
+}

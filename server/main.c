@@ -1,0 +1,289 @@
+/*
+ * main.c - mcfd's process: configuration, threads, the HTTP daemon, the
+ * signal loop, graceful drain and exit; and `mcfd --probe`.
+ *
+ * Start-up order matters:
+ *  1. BLAS/OpenMP threads are bounded to one per worker before any library
+ *     starts its pool. OpenBLAS reads OPENBLAS_NUM_THREADS in a constructor
+ *     that runs before main(), so when the variables are not set yet, main
+ *     sets them and re-executes itself once (same PID, same argv).
+ *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
+ *     and taken synchronously by this thread with sigtimedwait, which also
+ *     gives the once-a-second tick for the TTL sweep. SIGPIPE is ignored.
+ *  3. The spool is recovered and the workers start before the socket
+ *     opens, so the first request already sees recovered jobs.
+ *  4. One line "mcfd listening on http://ADDRESS:PORT" goes to stdout
+ *     (flushed) once the socket listens; --port 0 prints the real port.
+ *
+ * On SIGTERM/SIGINT: /readyz turns 503 and new jobs get 503 + Retry-After
+ * while the socket stays open for probes and result downloads; running
+ * jobs finish (or, after --drain-timeout, are checkpointed back to
+ * `queued` on disk); every suspended connection is resumed and answered;
+ * then MHD stops and the process exits 0.
+ */
+#include <errno.h>
+#include <netdb.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "srv.h"
+
+/* Sets the thread-count variables of BLAS and OpenMP to 1 unless the
+ * operator chose otherwise, and re-executes once so that libraries which
+ * read them at load time (OpenBLAS) see them. */
+static void bound_library_threads(char **argv)
+{
+    static const char *const vars[] = {"OPENBLAS_NUM_THREADS",
+                                       "OMP_NUM_THREADS", "GOTO_NUM_THREADS",
+                                       "MKL_NUM_THREADS"};
+    size_t i;
+    int changed = 0;
+
+    for (i = 0; i < sizeof vars / sizeof vars[0]; i++)
+        if (!getenv(vars[i])) {
+            setenv(vars[i], "1", 1);
+            changed = 1;
+        }
+    if (changed && !getenv("MCFD_REEXECED")) {
+        setenv("MCFD_REEXECED", "1", 1);
+        execv("/proc/self/exe", argv);
+        /* No /proc: carry on; the OpenMP part still took effect. */
+    }
+}
+
+static void mhd_log(void *cls, const char *fmt, va_list ap)
+{
+    char msg[512];
+    size_t n;
+
+    (void)cls;
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    n = strlen(msg);
+    while (n > 0 && (msg[n - 1] == '\n' || msg[n - 1] == '\r'))
+        msg[--n] = '\0';
+    srv_logf(SRV_LOG_WARN, "libmicrohttpd: %s", msg);
+}
+
+/* The address to connect to for a daemon bound to `bind`. */
+static const char *probe_host(const char *bind)
+{
+    if (strcmp(bind, "0.0.0.0") == 0 || strcmp(bind, "") == 0)
+        return "127.0.0.1";
+    if (strcmp(bind, "::") == 0)
+        return "::1";
+    return bind;
+}
+
+/* mcfd --probe: GET /healthz on the configured address, 2 s budget.
+ * Exit 0 on "HTTP/1.x 200", else 1. No curl needed in the image. */
+static int probe(const srv_config *cfg)
+{
+    struct addrinfo hints, *res = NULL, *ai;
+    char port[16], buf[64];
+    const char *host = probe_host(cfg->bind);
+    struct timeval tv = {2, 0};
+    int fd = -1, ok = 0;
+    size_t got = 0;
+
+    memset(&hints, 0, sizeof hints);
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    snprintf(port, sizeof port, "%d", cfg->port);
+    if (getaddrinfo(host, port, &hints, &res) != 0) {
+        fprintf(stderr, "mcfd --probe: cannot resolve %s\n", host);
+        return 1;
+    }
+    for (ai = res; ai && fd < 0; ai = ai->ai_next) {
+        fd = socket(ai->ai_family, ai->ai_socktype, ai->ai_protocol);
+        if (fd < 0)
+            continue;
+        setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+        setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+        if (connect(fd, ai->ai_addr, ai->ai_addrlen) != 0) {
+            close(fd);
+            fd = -1;
+        }
+    }
+    freeaddrinfo(res);
+    if (fd < 0) {
+        fprintf(stderr, "mcfd --probe: cannot connect to %s:%d\n", host,
+                cfg->port);
+        return 1;
+    }
+    {
+        static const char req[] = "GET /healthz HTTP/1.0\r\nHost: localhost\r\n"
+                                  "\r\n";
+        if (write(fd, req, sizeof req - 1) == (ssize_t)(sizeof req - 1)) {
+            while (got < sizeof buf - 1) {
+                ssize_t r = read(fd, buf + got, sizeof buf - 1 - got);
+                if (r <= 0)
+                    break;
+                got += (size_t)r;
+            }
+        }
+    }
+    close(fd);
+    buf[got] = '\0';
+    ok = got >= 12 && memcmp(buf, "HTTP/1.", 7) == 0 &&
+         memcmp(buf + 8, " 200", 4) == 0;
+    if (!ok)
+        fprintf(stderr, "mcfd --probe: unhealthy: %.40s\n",
+                got ? buf : "(no answer)");
+    return ok ? 0 : 1;
+}
+
+/* Resolves the bind address (numeric or a host name) for MHD. */
+static int resolve_bind(const srv_config *cfg, struct sockaddr_storage *ss,
+                        int *ipv6, char *msg, size_t msgsize)
+{
+    struct addrinfo hints, *res = NULL;
+    char port[16];
+    int rc;
+
+    memset(&hints, 0, sizeof hints);
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = AI_PASSIVE;
+    snprintf(port, sizeof port, "%d", cfg->port);
+    rc = getaddrinfo(cfg->bind, port, &hints, &res);
+    if (rc != 0 || !res) {
+        snprintf(msg, msgsize, "--bind %s: %s", cfg->bind, gai_strerror(rc));
+        return -1;
+    }
+    memset(ss, 0, sizeof *ss);
+    memcpy(ss, res->ai_addr, res->ai_addrlen);
+    *ipv6 = res->ai_family == AF_INET6;
+    freeaddrinfo(res);
+    return 0;
+}
+
+static void log_start(const srv_config *cfg, const char *url)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o)
+        return;
+    cJSON_AddStringToObject(o, "msg", "mcfd started");
+    cJSON_AddStringToObject(o, "url", url);
+    cJSON_AddNumberToObject(o, "workers", cfg->workers);
+    cJSON_AddNumberToObject(o, "queue", cfg->queue);
+    cJSON_AddNumberToObject(o, "http_threads", cfg->http_threads);
+    cJSON_AddStringToObject(o, "spool", cfg->spool);
+    cJSON_AddNumberToObject(o, "max_upload", (double)cfg->lim.max_input_bytes);
+    cJSON_AddNumberToObject(o, "result_ttl_s", cfg->result_ttl);
+    cJSON_AddBoolToObject(o, "auth", cfg->token_len > 0);
+    cJSON_AddNumberToObject(o, "pid", getpid());
+    srv_log_json(SRV_LOG_INFO, o);
+}
+
+/* Waits (polling, bounded) until no request is in flight. */
+static void wait_requests(double seconds)
+{
+    double end = mcf_now() + seconds;
+    struct timespec ts = {0, 20 * 1000 * 1000};
+
+    while (srv_http_active() > 0 && mcf_now() < end)
+        nanosleep(&ts, NULL);
+}
+
+int main(int argc, char **argv)
+{
+    srv_config cfg;
+    char msg[512], url[300];
+    struct sockaddr_storage ss;
+    struct MHD_Daemon *d = NULL;
+    const union MHD_DaemonInfo *info;
+    sigset_t sigs;
+    int rc, ipv6 = 0, sig;
+    unsigned port;
+    double t_sigterm;
+
+    bound_library_threads(argv);
+    rc = srv_config_load(&cfg, argc, argv, msg, sizeof msg);
+    if (rc > 0)
+        return 0;
+    if (rc < 0) {
+        fprintf(stderr, "mcfd: %s\n", msg);
+        return 2;
+    }
+    if (cfg.probe)
+        return probe(&cfg);
+    srv_log_set_level(cfg.log_level);
+
+    signal(SIGPIPE, SIG_IGN);
+    sigemptyset(&sigs);
+    sigaddset(&sigs, SIGTERM);
+    sigaddset(&sigs, SIGINT);
+    pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+
+    if (srv_spool_init(cfg.spool, msg, sizeof msg) != 0 ||
+        resolve_bind(&cfg, &ss, &ipv6, msg, sizeof msg) != 0) {
+        fprintf(stderr, "mcfd: %s\n", msg);
+        return 1;
+    }
+    srv_metrics_init();
+    if (srv_jobs_start(&cfg, msg, sizeof msg) != 0) {
+        fprintf(stderr, "mcfd: %s\n", msg);
+        return 1;
+    }
+    d = MHD_start_daemon(
+        MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME |
+            MHD_USE_ERROR_LOG | (ipv6 ? MHD_USE_IPv6 : 0),
+        (uint16_t)cfg.port, NULL, NULL, srv_http_handle, NULL,
+        MHD_OPTION_EXTERNAL_LOGGER, mhd_log, NULL,
+        MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
+        MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg.http_threads,
+        MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg.max_connections,
+        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)60,
+        MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
+        MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,
+        MHD_OPTION_END);
+    if (!d) {
+        fprintf(stderr, "mcfd: cannot listen on %s:%d (%s)\n", cfg.bind,
+                cfg.port, strerror(errno));
+        srv_jobs_stop();
+        return 1;
+    }
+    info = MHD_get_daemon_info(d, MHD_DAEMON_INFO_BIND_PORT);
+    port = info ? info->port : (unsigned)cfg.port;
+    snprintf(url, sizeof url, ipv6 ? "http://[%s]:%u" : "http://%s:%u",
+             cfg.bind, port);
+    printf("mcfd listening on %s\n", url);
+    fflush(stdout);
+    log_start(&cfg, url);
+
+    for (;;) {
+        struct timespec tick = {1, 0};
+        sig = sigtimedwait(&sigs, NULL, &tick);
+        if (sig == SIGTERM || sig == SIGINT)
+            break;
+        srv_jobs_sweep();
+    }
+
+    t_sigterm = mcf_now();
+    srv_logf(SRV_LOG_INFO, "%s: draining (readyz 503, no new jobs, running "
+             "jobs finish within %g s)", sig == SIGTERM ? "SIGTERM" : "SIGINT",
+             cfg.drain_timeout);
+    srv_jobs_drain();
+    if (!srv_jobs_wait_idle(cfg.drain_timeout)) {
+        srv_logf(SRV_LOG_WARN, "drain timeout: checkpointing running jobs; "
+                 "they run again after the restart");
+        srv_jobs_checkpoint_running();
+        srv_jobs_wait_idle(60);
+    }
+    /* Let finished waiters and streams deliver, then wake whoever is left. */
+    wait_requests(5);
+    srv_jobs_resume_all();
+    wait_requests(2);
+    MHD_stop_daemon(d);
+    srv_jobs_stop();
+    srv_logf(SRV_LOG_INFO, "stopped after %.3f s of drain", mcf_now() - t_sigterm);
+    return 0;
+}
