@@ -479,19 +479,32 @@ static void put_float(unsigned char *p, float f)
     put_le32(p, v);
 }
 
-/* Unit normal of triangle t (zero when degenerate). */
+/* Unit normal of triangle t (zero when degenerate). The edge vectors and
+ * then their cross product are scaled by their largest component, so that
+ * neither the product nor the length overflows or underflows for extreme
+ * coordinates. */
 static void normal(const double *X, const int32_t *t, double n[3])
 {
     const double *a = &X[3 * t[0]], *b = &X[3 * t[1]], *c = &X[3 * t[2]];
-    double u[3], v[3], l;
+    double u[3], v[3], l, s = 0.0;
     int k;
     for (k = 0; k < 3; k++) {
         u[k] = b[k] - a[k];
         v[k] = c[k] - a[k];
+        s = fmax(s, fmax(fabs(u[k]), fabs(v[k])));
     }
+    if (s > 0 && isfinite(s))
+        for (k = 0; k < 3; k++) {
+            u[k] /= s;
+            v[k] /= s;
+        }
     n[0] = u[1] * v[2] - u[2] * v[1];
     n[1] = u[2] * v[0] - u[0] * v[2];
     n[2] = u[0] * v[1] - u[1] * v[0];
+    s = fmax(fabs(n[0]), fmax(fabs(n[1]), fabs(n[2])));
+    if (s > 0 && isfinite(s))
+        for (k = 0; k < 3; k++)
+            n[k] /= s;
     l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     for (k = 0; k < 3; k++)
         n[k] = (l > 0 && isfinite(l)) ? n[k] / l : 0.0;
