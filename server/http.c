@@ -823,7 +823,9 @@ static enum MHD_Result route_job(srv_request *r, struct MHD_Connection *c,
 }
 
 /* Media types taken as a raw mesh body (the format is then detected from
- * the bytes); everything else that is not multipart is a 415. */
+ * the bytes); everything else that is not multipart is a 415. The form
+ * type is on the list because `curl --data-binary @mesh.obj` sends it by
+ * default; a mesh is never a form, so nothing is lost. */
 static int raw_mesh_type(const char *ct)
 {
     static const char *const ok[] = {"application/octet-stream", "model/",
@@ -833,8 +835,16 @@ static int raw_mesh_type(const char *ct)
     int i;
     for (i = 0; ok[i]; i++)
         if (strncasecmp(ct, ok[i], strlen(ok[i])) == 0)
-            return strncasecmp(ct, "application/x-www-form-urlencoded", 33) != 0;
+            return 1;
     return 0;
+}
+
+/* Content-Length above 1 MiB: worth refusing before it is read. */
+static int big_body(struct MHD_Connection *c)
+{
+    const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
+                                                MHD_HTTP_HEADER_CONTENT_LENGTH);
+    return h && strtoull(h, NULL, 10) > (1u << 20);
 }
 
 static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
@@ -885,10 +895,10 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         srv_gauges g = srv_jobs_gauges();
         cJSON *o;
         if (g.draining)
-            return problem(r, c, 503, "EDRAINING", "%s", "the daemon is "
-                           "shutting down");
+            return problem(r, c, 503, "EDRAINING", "the daemon is shutting "
+                           "down");
         if (!srv_jobs_can_accept())
-            return problem(r, c, 503, "EBUSY", "%s", "the job queue is full");
+            return problem(r, c, 503, "EBUSY", "the job queue is full");
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ready");
         cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);
@@ -976,12 +986,20 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
             return send_problem(r, c, &p, NULL);
         }
     }
-    if (srv_jobs_draining())
-        return problem(r, c, 503, "EDRAINING", "%s", "the daemon is shutting "
-                       "down and accepts no new jobs");
-    if (!srv_jobs_can_accept())
-        return problem(r, c, 503, "EBUSY", "%s", "the job queue is full; retry "
-                       "after the Retry-After delay");
+    /* Busy or draining: say so before the body only when the client waits
+     * for it (Expect: 100-continue) or the body is big. A client that is
+     * already sending would otherwise see its connection reset by the
+     * close that follows an early answer, and lose the 503; small bodies
+     * are read and refused by srv_jobs_submit instead. */
+    h = MHD_lookup_connection_value(c, MHD_HEADER_KIND, MHD_HTTP_HEADER_EXPECT);
+    if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c)) {
+        if (srv_jobs_draining())
+            return problem(r, c, 503, "EDRAINING", "the daemon is shutting "
+                           "down and accepts no new jobs");
+        if (!srv_jobs_can_accept())
+            return problem(r, c, 503, "EBUSY", "the job queue is full; retry "
+                           "after the Retry-After delay");
+    }
     return MHD_YES;
 }
 

@@ -1,0 +1,1542 @@
+/*
+ * test_server.c - integration tests of mcfd: the real daemon, started as
+ * a child process on a loopback port, driven with libcurl.
+ *
+ * Every daemon runs `$MCF_BUILD/mcfd --bind 127.0.0.1 --port 0` (MCF_BUILD
+ * defaults to "build") on a spool under a fresh temporary directory; the
+ * test reads the one "mcfd listening on http://127.0.0.1:PORT" line from
+ * its stdout and sends its stderr (JSON log lines) to a file that is
+ * printed when something fails. Meshes come from $MCF_MESHES.
+ *
+ * Nothing here can hang: every transfer has a curl timeout, every poll
+ * loop a deadline, every wait for a process exit a bound after which the
+ * process is killed and the test fails. The work per job is small
+ * (sphere_cgal.obj, 812 vertices, about 0.5-1 ms per step here), so the
+ * whole binary takes well under a minute on two shared cores.
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/time.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <dirent.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <curl/curl.h>
+
+#include "testlib.h"
+#include "../api/api.h"
+
+#define SRV_ID_BUF 33   /* a job ID: 32 hex digits and the NUL */
+
+/* ------------------------------------------------------------ processes */
+
+typedef struct {
+    pid_t pid;
+    int port;
+    char log[512];
+    char spool[512];
+} daemon_t;
+
+static char g_tmp[256];
+static char g_bin[512];
+static daemon_t g_main;   /* shared by the tests that need no special flags */
+
+static void sleep_ms(int ms)
+{
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+static void print_log_tail(const daemon_t *d)
+{
+    char *buf = NULL;
+    size_t len = 0;
+
+    if (tl_read_file(d->log, &buf, &len) == 0) {
+        const char *p = len > 4000 ? buf + len - 4000 : buf;
+        fprintf(stderr, "---- tail of %s\n%s\n----\n", d->log, p);
+        free(buf);
+    }
+}
+
+/* Starts mcfd with the given extra flags on spool <tmp>/<name>. Returns 0
+ * and fills d, or -1 (after printing why). */
+static int start_daemon(daemon_t *d, const char *name, const char *spool,
+                        const char *const *extra)
+{
+    const char *argv[40];
+    int pfd[2], n = 0, i;
+    char line[256];
+    size_t got = 0;
+    double end;
+
+    memset(d, 0, sizeof *d);
+    snprintf(d->log, sizeof d->log, "%s/%s.log", g_tmp, name);
+    snprintf(d->spool, sizeof d->spool, "%s", spool);
+    argv[n++] = g_bin;
+    argv[n++] = "--bind";
+    argv[n++] = "127.0.0.1";
+    argv[n++] = "--port";
+    argv[n++] = "0";
+    argv[n++] = "--spool";
+    argv[n++] = spool;
+    for (i = 0; extra && extra[i] && n < 38; i++)
+        argv[n++] = extra[i];
+    argv[n] = NULL;
+    if (pipe(pfd) != 0)
+        return -1;
+    d->pid = fork();
+    if (d->pid < 0)
+        return -1;
+    if (d->pid == 0) {
+        int lf = open(d->log, O_WRONLY | O_CREAT | O_APPEND, 0644);
+        dup2(pfd[1], 1);
+        if (lf >= 0)
+            dup2(lf, 2);
+        close(pfd[0]);
+        close(pfd[1]);
+        execv(g_bin, (char *const *)(uintptr_t)argv);
+        _exit(127);
+    }
+    close(pfd[1]);
+    end = mcf_now() + 20;
+    while (got < sizeof line - 1 && !memchr(line, '\n', got)) {
+        struct pollfd p = {pfd[0], POLLIN, 0};
+        ssize_t r;
+        int left = (int)((end - mcf_now()) * 1000);
+        if (left <= 0 || poll(&p, 1, left) <= 0)
+            break;
+        r = read(pfd[0], line + got, sizeof line - 1 - got);
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+        line[got] = '\0';
+    }
+    close(pfd[0]);
+    line[got] = '\0';
+    if (sscanf(line, "mcfd listening on http://127.0.0.1:%d", &d->port) != 1) {
+        fprintf(stderr, "mcfd did not start (stdout: \"%s\")\n", line);
+        print_log_tail(d);
+        kill(d->pid, SIGKILL);
+        waitpid(d->pid, NULL, 0);
+        d->pid = 0;
+        return -1;
+    }
+    return 0;
+}
+
+/* Waits for the process to exit; 1 and *status when it did in time. */
+static int wait_exit(pid_t pid, double seconds, int *status)
+{
+    double end = mcf_now() + seconds;
+    do {
+        pid_t r = waitpid(pid, status, WNOHANG);
+        if (r == pid)
+            return 1;
+        if (r < 0)
+            return 0;
+        sleep_ms(20);
+    } while (mcf_now() < end);
+    return 0;
+}
+
+/* SIGKILL and reap (teardown, or a test that already failed). */
+static void reap(daemon_t *d)
+{
+    if (d->pid > 0) {
+        kill(d->pid, SIGKILL);
+        waitpid(d->pid, NULL, 0);
+        d->pid = 0;
+    }
+}
+
+/* SIGTERM; the daemon must exit 0 within the bound. */
+static void stop_daemon(daemon_t *d)
+{
+    int st = 0;
+    kill(d->pid, SIGTERM);
+    if (!wait_exit(d->pid, 40, &st)) {
+        print_log_tail(d);
+        reap(d);
+        fail_msg("mcfd did not exit within 40 s of SIGTERM");
+    }
+    d->pid = 0;
+    if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+        print_log_tail(d);
+        fail_msg("mcfd exited with status 0x%x after SIGTERM", st);
+    }
+}
+
+static void rm_rf(const char *path)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0)
+        return;
+    if (S_ISDIR(st.st_mode)) {
+        DIR *dir = opendir(path);
+        struct dirent *e;
+        char sub[1024];
+        while (dir && (e = readdir(dir)) != NULL) {
+            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+                continue;
+            snprintf(sub, sizeof sub, "%s/%s", path, e->d_name);
+            rm_rf(sub);
+        }
+        if (dir)
+            closedir(dir);
+        rmdir(path);
+    } else {
+        unlink(path);
+    }
+}
+
+/* ------------------------------------------------------------ HTTP */
+
+typedef struct {
+    long code;
+    api_buf body, hdr;
+    double t_first, t_last;   /* arrival of the first and last body bytes */
+    int chunks;
+    char err[CURL_ERROR_SIZE];
+} resp_t;
+
+typedef struct {
+    const char *mesh;          /* file under $MCF_MESHES, multipart field */
+    const char *params;        /* multipart field params (JSON) */
+    const char *target;        /* file under $MCF_MESHES */
+    const char *field, *value; /* one plain form field */
+    const void *raw;           /* raw body instead of multipart */
+    size_t raw_len;
+} upload_t;
+
+static void resp_init(resp_t *r)
+{
+    memset(r, 0, sizeof *r);
+    api_buf_init(&r->body, 0);
+    api_buf_init(&r->hdr, 0);
+}
+
+static void resp_free(resp_t *r)
+{
+    api_buf_free(&r->body);
+    api_buf_free(&r->hdr);
+}
+
+static size_t on_body(char *p, size_t s, size_t n, void *ud)
+{
+    resp_t *r = ud;
+    double now = mcf_now();
+    if (r->chunks++ == 0)
+        r->t_first = now;
+    r->t_last = now;
+    return api_buf_append(&r->body, p, s * n) == MCF_OK ? s * n : 0;
+}
+
+static size_t on_hdr(char *p, size_t s, size_t n, void *ud)
+{
+    resp_t *r = ud;
+    return api_buf_append(&r->hdr, p, s * n) == MCF_OK ? s * n : 0;
+}
+
+static void mesh_path(char *buf, size_t size, const char *name)
+{
+    snprintf(buf, size, "%s/%s", tl_meshes_dir(), name);
+}
+
+/* One request; returns the HTTP status, 0 on a transport error. */
+static long http(const daemon_t *d, const char *method, const char *path,
+                 const char *const *headers, const upload_t *up, resp_t *r)
+{
+    CURL *c = curl_easy_init();
+    curl_mime *mime = NULL;
+    struct curl_slist *hl = NULL;
+    char url[1024], file[1024];
+    int i;
+
+    resp_init(r);
+    if (!c)
+        return 0;
+    snprintf(url, sizeof url, "http://127.0.0.1:%d%s", d->port, path);
+    curl_easy_setopt(c, CURLOPT_URL, url);
+    curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
+    curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT, 5L);
+    curl_easy_setopt(c, CURLOPT_TIMEOUT, 60L);
+    curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
+    curl_easy_setopt(c, CURLOPT_WRITEDATA, r);
+    curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_hdr);
+    curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
+    curl_easy_setopt(c, CURLOPT_ERRORBUFFER, r->err);
+    for (i = 0; headers && headers[i]; i++)
+        hl = curl_slist_append(hl, headers[i]);
+    if (up && up->raw) {
+        curl_easy_setopt(c, CURLOPT_POSTFIELDS, up->raw);
+        curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE_LARGE, (curl_off_t)up->raw_len);
+    } else if (up) {
+        curl_mimepart *part;
+        mime = curl_mime_init(c);
+        if (up->mesh) {
+            part = curl_mime_addpart(mime);
+            curl_mime_name(part, "mesh");
+            mesh_path(file, sizeof file, up->mesh);
+            curl_mime_filedata(part, file);
+        }
+        if (up->target) {
+            part = curl_mime_addpart(mime);
+            curl_mime_name(part, "target");
+            mesh_path(file, sizeof file, up->target);
+            curl_mime_filedata(part, file);
+        }
+        if (up->params) {
+            part = curl_mime_addpart(mime);
+            curl_mime_name(part, "params");
+            curl_mime_data(part, up->params, CURL_ZERO_TERMINATED);
+            curl_mime_type(part, "application/json");
+        }
+        if (up->field) {
+            part = curl_mime_addpart(mime);
+            curl_mime_name(part, up->field);
+            curl_mime_data(part, up->value, CURL_ZERO_TERMINATED);
+        }
+        curl_easy_setopt(c, CURLOPT_MIMEPOST, mime);
+    }
+    curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, method);
+    if (strcmp(method, "HEAD") == 0)
+        curl_easy_setopt(c, CURLOPT_NOBODY, 1L);
+    curl_easy_setopt(c, CURLOPT_HTTPHEADER, hl);
+    if (curl_easy_perform(c) == CURLE_OK)
+        curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &r->code);
+    else
+        r->code = 0;
+    curl_easy_cleanup(c);
+    curl_mime_free(mime);
+    curl_slist_free_all(hl);
+    return r->code;
+}
+
+/* The last value of a response header (the final response's), or NULL. */
+static const char *header(const resp_t *r, const char *name, char *out,
+                          size_t size)
+{
+    const char *p = r->hdr.data, *found = NULL;
+    size_t n = strlen(name);
+
+    while (p && *p) {
+        const char *eol = strchr(p, '\n');
+        if (strncasecmp(p, name, n) == 0 && p[n] == ':')
+            found = p + n + 1;
+        p = eol ? eol + 1 : NULL;
+    }
+    if (!found)
+        return NULL;
+    while (*found == ' ')
+        found++;
+    n = strcspn(found, "\r\n");
+    if (n >= size)
+        n = size - 1;
+    memcpy(out, found, n);
+    out[n] = '\0';
+    return out;
+}
+
+static void expect_status(const daemon_t *d, const resp_t *r, long want,
+                          const char *what)
+{
+    if (r->code != want) {
+        fprintf(stderr, "%s: HTTP %ld (curl: %s), body:\n%.2000s\n", what,
+                r->code, r->err, r->body.data ? r->body.data : "");
+        print_log_tail(d);
+        fail_msg("%s: expected HTTP %ld, got %ld", what, want, r->code);
+    }
+}
+
+static cJSON *body_json(const resp_t *r, const char *what)
+{
+    cJSON *j = cJSON_ParseWithLength(r->body.data ? r->body.data : "",
+                                     r->body.len);
+    if (!j)
+        fail_msg("%s: the body is not JSON: %.500s", what,
+                 r->body.data ? r->body.data : "");
+    return j;
+}
+
+static double jnum(const cJSON *o, const char *path)
+{
+    char key[128];
+    const char *dot;
+    const cJSON *x = o;
+
+    while ((dot = strchr(path, '.')) != NULL) {
+        snprintf(key, sizeof key, "%.*s", (int)(dot - path), path);
+        x = cJSON_GetObjectItemCaseSensitive(x, key);
+        path = dot + 1;
+    }
+    x = cJSON_GetObjectItemCaseSensitive(x, path);
+    if (!cJSON_IsNumber(x))
+        fail_msg("JSON number '%s' missing", path);
+    return x->valuedouble;
+}
+
+static const char *jstr(const cJSON *o, const char *key)
+{
+    const char *s = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(o, key));
+    if (!s)
+        fail_msg("JSON string '%s' missing", key);
+    return s;
+}
+
+/* An RFC 9457 problem with the given status, code and a detail holding
+ * `needle` (when given). */
+static void expect_problem(const daemon_t *d, const resp_t *r, long status,
+                           const char *code, const char *needle,
+                           const char *what)
+{
+    char ct[128];
+    cJSON *j;
+
+    expect_status(d, r, status, what);
+    if (!header(r, "Content-Type", ct, sizeof ct) ||
+        strcmp(ct, "application/problem+json") != 0)
+        fail_msg("%s: Content-Type '%s', want application/problem+json", what,
+                 header(r, "Content-Type", ct, sizeof ct) ? ct : "(none)");
+    j = body_json(r, what);
+    assert_int_equal((long)jnum(j, "status"), status);
+    assert_string_equal(jstr(j, "code"), code);
+    assert_true(strncmp(jstr(j, "type"), "urn:mcfd:problem:", 17) == 0);
+    assert_true(strlen(jstr(j, "title")) > 0);
+    if (needle && !strstr(jstr(j, "detail"), needle))
+        fail_msg("%s: detail \"%s\" does not mention \"%s\"", what,
+                 jstr(j, "detail"), needle);
+    if (status == 503) {
+        char ra[32];
+        if (!header(r, "Retry-After", ra, sizeof ra) || atoi(ra) < 1)
+            fail_msg("%s: 503 without a Retry-After", what);
+    }
+    cJSON_Delete(j);
+}
+
+static mcf_mesh *decode_body(const resp_t *r, api_format *fmt)
+{
+    api_limits lim;
+    mcf_mesh *m = NULL;
+    mcf_error err = {MCF_OK, ""};
+
+    api_limits_default(&lim);
+    if (api_mesh_decode(r->body.data, r->body.len, &lim, &m, fmt, &err) !=
+        MCF_OK)
+        fail_msg("the response body is no mesh: %s", err.msg);
+    return m;
+}
+
+/* Polls GET /v1/jobs/ID until the status is `want` (or, with want NULL,
+ * any final status); returns the job JSON. */
+static cJSON *poll_job(const daemon_t *d, const char *id, const char *want,
+                       double seconds)
+{
+    char path[128];
+    double end = mcf_now() + seconds;
+    resp_t r;
+
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    for (;;) {
+        cJSON *j;
+        const char *st;
+        http(d, "GET", path, NULL, NULL, &r);
+        expect_status(d, &r, 200, "GET job");
+        j = body_json(&r, "GET job");
+        resp_free(&r);
+        st = jstr(j, "status");
+        if (want ? strcmp(st, want) == 0
+                 : (!strcmp(st, "succeeded") || !strcmp(st, "failed") ||
+                    !strcmp(st, "canceled")))
+            return j;
+        if (want && (!strcmp(st, "succeeded") || !strcmp(st, "failed") ||
+                     !strcmp(st, "canceled")))
+            fail_msg("job %s ended %s while waiting for %s", id, st, want);
+        cJSON_Delete(j);
+        if (mcf_now() > end) {
+            print_log_tail(d);
+            fail_msg("job %s: not %s within %g s", id, want ? want : "done",
+                     seconds);
+        }
+        sleep_ms(30);
+    }
+}
+
+/* Waits until the job runs and has done at least one step. */
+static void wait_running(const daemon_t *d, const char *id)
+{
+    double end = mcf_now() + 20;
+    for (;;) {
+        cJSON *j = poll_job(d, id, "running", 20);
+        int step = (int)jnum(j, "progress.step");
+        cJSON_Delete(j);
+        if (step >= 1)
+            return;
+        if (mcf_now() > end)
+            fail_msg("job %s made no step within 20 s", id);
+        sleep_ms(20);
+    }
+}
+
+/* POST /v1/jobs; returns the new ID (static buffer per call site). */
+static void submit(const daemon_t *d, const char *query, char *id)
+{
+    char path[256], loc[128];
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    resp_t r;
+    cJSON *j;
+
+    snprintf(path, sizeof path, "/v1/jobs%s", query);
+    http(d, "POST", path, NULL, &up, &r);
+    expect_status(d, &r, 202, "POST /v1/jobs");
+    j = body_json(&r, "POST /v1/jobs");
+    snprintf(id, SRV_ID_BUF, "%s", jstr(j, "id"));
+    assert_int_equal(strlen(id), 32);
+    assert_non_null(header(&r, "Location", loc, sizeof loc));
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    assert_string_equal(loc, path);
+    /* a free worker may have taken it before the answer was written */
+    assert_true(!strcmp(jstr(j, "status"), "queued") ||
+                !strcmp(jstr(j, "status"), "running") ||
+                !strcmp(jstr(j, "status"), "succeeded"));
+    cJSON_Delete(j);
+    resp_free(&r);
+}
+
+/* The value of a Prometheus sample line "name{labels} value". */
+static double metric(const char *text, const char *series)
+{
+    const char *p = text;
+    size_t n = strlen(series);
+    while (p && *p) {
+        if (strncmp(p, series, n) == 0 && p[n] == ' ')
+            return strtod(p + n + 1, NULL);
+        p = strchr(p, '\n');
+        if (p)
+            p++;
+    }
+    return 0; /* an absent counter has not counted anything yet */
+}
+
+/* ------------------------------------------------------------ fixtures */
+
+static int group_setup(void **state)
+{
+    static const char *const flags[] = {"--workers", "2", "--queue", "8",
+                                        "--max-upload", "3M", NULL};
+    const char *b = getenv("MCF_BUILD");
+    char spool[512];
+
+    (void)state;
+    signal(SIGPIPE, SIG_IGN);
+    curl_global_init(CURL_GLOBAL_DEFAULT);
+    snprintf(g_bin, sizeof g_bin, "%s/mcfd", b && *b ? b : "build");
+    if (access(g_bin, X_OK) != 0) {
+        fprintf(stderr, "no executable %s (set MCF_BUILD)\n", g_bin);
+        return -1;
+    }
+    snprintf(g_tmp, sizeof g_tmp, "/tmp/mcfd-test-XXXXXX");
+    if (!mkdtemp(g_tmp))
+        return -1;
+    snprintf(spool, sizeof spool, "%s/main", g_tmp);
+    return start_daemon(&g_main, "main", spool, flags);
+}
+
+static int group_teardown(void **state)
+{
+    int st;
+    (void)state;
+    if (g_main.pid > 0) {
+        kill(g_main.pid, SIGTERM);
+        if (!wait_exit(g_main.pid, 40, &st))
+            reap(&g_main);
+    }
+    rm_rf(g_tmp);
+    curl_global_cleanup();
+    return 0;
+}
+
+/* ------------------------------------------------------------ tests */
+
+/* Probes, schemes, the OpenAPI document, metrics, unknown routes. */
+static void test_service_endpoints(void **state)
+{
+    resp_t r;
+    cJSON *j, *s;
+    char ct[128];
+    int found = 0;
+
+    (void)state;
+    http(&g_main, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "healthz");
+    resp_free(&r);
+    http(&g_main, "GET", "/readyz", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "readyz");
+    resp_free(&r);
+
+    http(&g_main, "GET", "/v1/schemes", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "schemes");
+    j = body_json(&r, "schemes");
+    cJSON_ArrayForEach(s, cJSON_GetObjectItemCaseSensitive(j, "schemes"))
+        found += strcmp(jstr(s, "name"), "desbrun2") == 0;
+    assert_int_equal(found, 1);
+    cJSON_Delete(j);
+    resp_free(&r);
+
+    http(&g_main, "GET", "/openapi.yaml", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "openapi");
+    assert_true(strncmp(r.body.data, "openapi: 3.", 11) == 0);
+    assert_non_null(strstr(r.body.data, "/v1/jobs/{id}/events"));
+    assert_non_null(header(&r, "Content-Type", ct, sizeof ct));
+    assert_string_equal(ct, "application/yaml");
+    resp_free(&r);
+
+    http(&g_main, "GET", "/metrics", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "metrics");
+    assert_true(strncmp(header(&r, "Content-Type", ct, sizeof ct), "text/plain",
+                        10) == 0);
+    /* the flags of group_setup, visible as gauges */
+    assert_true(metric(r.body.data, "mcfd_workers") == 2);
+    assert_true(metric(r.body.data, "mcfd_queue_capacity") == 8);
+    assert_non_null(strstr(r.body.data, "# TYPE mcfd_job_duration_seconds histogram"));
+    assert_non_null(strstr(r.body.data, "# TYPE mcfd_upload_bytes histogram"));
+    resp_free(&r);
+
+    http(&g_main, "GET", "/nope", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 404, "ENOTFOUND", "/nope", "unknown route");
+    resp_free(&r);
+    http(&g_main, "GET", "/smooth", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "GET", "GET /smooth");
+    assert_string_equal(header(&r, "Allow", ct, sizeof ct), "POST");
+    resp_free(&r);
+}
+
+/* Follows the Link header of a /smooth answer to the job's metrics. */
+static cJSON *follow_metrics_link(const daemon_t *d, const resp_t *r,
+                                  const char *id)
+{
+    char link[256], want[160], path[160];
+    resp_t m;
+    cJSON *j;
+
+    assert_non_null(header(r, "Link", link, sizeof link));
+    snprintf(want, sizeof want, "</v1/jobs/%s/metrics>; rel=\"metrics\"", id);
+    assert_string_equal(link, want);
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", id);
+    http(d, "GET", path, NULL, NULL, &m);
+    expect_status(d, &m, 200, "metrics link");
+    j = body_json(&m, "metrics link");
+    assert_string_equal(jstr(j, "job"), id);
+    resp_free(&m);
+    return j;
+}
+
+/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2' */
+static void test_smooth_obj_multipart(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    resp_t r;
+    char id[64], buf[256];
+    api_format fmt;
+    mcf_mesh *in = tl_load("sphere_cgal.obj"), *out;
+    cJSON *m;
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?scheme=desbrun2", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "POST /smooth obj");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/obj");
+    assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
+                        "attachment; filename=\"sphere_cgal-smoothed.obj\"");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_OBJ);
+    assert_int_equal(mcf_mesh_nvertices(out), 812);
+    assert_int_equal(mcf_mesh_nfaces(out), 1620);
+    /* Mean curvature flow shrinks a sphere: its volume must drop. */
+    assert_true(mcf_mesh_volume(out) < mcf_mesh_volume(in));
+    m = follow_metrics_link(&g_main, &r, id);
+    assert_string_equal(jstr(m, "scheme"), "desbrun2");
+    assert_int_equal((int)jnum(m, "flow.steps"), 10); /* the default */
+    assert_int_equal((int)jnum(m, "output.vertices"), 812);
+    /* Same number, two routes: the metrics' volume is the body's, to the
+     * 17 significant digits OBJ carries (relative 1e-12). */
+    tl_assert_near(jnum(m, "output.volume"), mcf_mesh_volume(out),
+                   1e-12 * fabs(mcf_mesh_volume(out)), "output volume");
+    cJSON_Delete(m);
+    mcf_mesh_free(out);
+    mcf_mesh_free(in);
+    resp_free(&r);
+}
+
+/* curl -F mesh=@bunny.drc '/v1/smooth?scheme=desbrun2' */
+static void test_smooth_draco_multipart(void **state)
+{
+    upload_t up = {.mesh = "bunny.drc"};
+    resp_t r;
+    char id[64], buf[256];
+    api_format fmt;
+    mcf_mesh *in = tl_load("bunny.drc"), *out;
+    cJSON *m;
+
+    (void)state;
+    http(&g_main, "POST", "/v1/smooth?scheme=desbrun2&iterations=3", NULL, &up,
+         &r);
+    expect_status(&g_main, &r, 200, "POST /v1/smooth drc");
+    assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
+                        "attachment; filename=\"bunny-smoothed.drc\"");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_DRACO);
+    assert_int_equal(mcf_mesh_nvertices(out), mcf_mesh_nvertices(in));
+    assert_int_equal(mcf_mesh_nvertices(out), 34834); /* SOURCES.md */
+    assert_int_equal(mcf_mesh_nfaces(out), 69451);
+    m = follow_metrics_link(&g_main, &r, id);
+    assert_int_equal((int)jnum(m, "flow.steps"), 3);
+    assert_string_equal(jstr(cJSON_GetObjectItemCaseSensitive(m, "input"),
+                             "format"), "draco");
+    cJSON_Delete(m);
+    mcf_mesh_free(out);
+    mcf_mesh_free(in);
+    resp_free(&r);
+}
+
+/* The raw body, params from a JSON field and a plain field, format=. */
+static void test_smooth_raw_and_params(void **state)
+{
+    char *obj = NULL, path[1024], buf[128], id[64];
+    size_t len = 0;
+    upload_t raw;
+    static const char *const h[] = {"Content-Type: model/obj", NULL};
+    resp_t r;
+    api_format fmt;
+    mcf_mesh *out;
+    cJSON *m;
+
+    (void)state;
+    mesh_path(path, sizeof path, "sphere_cgal.obj");
+    assert_int_equal(tl_read_file(path, &obj, &len), 0);
+    raw = (upload_t){.raw = obj, .raw_len = len};
+    http(&g_main, "POST", "/smooth?format=ply&iterations=2", h, &raw, &r);
+    expect_status(&g_main, &r, 200, "raw body, format=ply");
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_PLY);
+    assert_int_equal(mcf_mesh_nvertices(out), 812);
+    assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
+                        "attachment; filename=\"mesh-smoothed.ply\"");
+    mcf_mesh_free(out);
+    resp_free(&r);
+
+    /* params JSON, a plain form field and the query: the query wins */
+    {
+        upload_t up = {.mesh = "sphere_cgal.obj",
+                       .params = "{\"scheme\": \"desbrun\", \"iterations\": 7}",
+                       .field = "dt", .value = "2e-4"};
+        http(&g_main, "POST", "/smooth?iterations=4", NULL, &up, &r);
+        expect_status(&g_main, &r, 200, "params field");
+        assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+        m = follow_metrics_link(&g_main, &r, id);
+        assert_string_equal(jstr(m, "scheme"), "desbrun");
+        assert_int_equal((int)jnum(m, "flow.steps"), 4);
+        /* 4 steps of dt 2e-4: t_final = 8e-4 up to rounding (1e-15) */
+        tl_assert_near(jnum(m, "flow.t_final"), 8e-4, 1e-15, "t_final");
+        cJSON_Delete(m);
+        resp_free(&r);
+    }
+    free(obj);
+}
+
+/* Accept: multipart/mixed: a JSON metrics part, then the mesh part. */
+static void test_smooth_multipart_mixed(void **state)
+{
+    static const char *const h[] = {"Accept: multipart/mixed", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    resp_t r;
+    char ct[256], delim[200];
+    const char *b, *p1, *p2, *end, *body1, *body2;
+    cJSON *m;
+    api_limits lim;
+    mcf_mesh *out = NULL;
+    mcf_error err = {MCF_OK, ""};
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?scheme=desbrun2&iterations=5", h, &up, &r);
+    expect_status(&g_main, &r, 200, "multipart/mixed");
+    assert_non_null(header(&r, "Content-Type", ct, sizeof ct));
+    b = strstr(ct, "boundary=");
+    assert_true(strncmp(ct, "multipart/mixed;", 16) == 0 && b);
+    snprintf(delim, sizeof delim, "--%s", b + 9);
+    /* part 1 */
+    p1 = strstr(r.body.data, delim);
+    assert_true(p1 == r.body.data);
+    body1 = strstr(p1, "\r\n\r\n");
+    assert_non_null(body1);
+    assert_non_null(strstr(p1, "Content-Type: application/json"));
+    body1 += 4;
+    p2 = strstr(body1, delim);
+    assert_non_null(p2);
+    m = cJSON_ParseWithLength(body1, (size_t)(p2 - 2 - body1));
+    assert_non_null(m);
+    assert_int_equal((int)jnum(m, "flow.steps"), 5);
+    assert_int_equal((int)jnum(m, "output.vertices"), 812);
+    /* part 2: the mesh, up to the closing delimiter (binary-safe search) */
+    assert_non_null(strstr(p2, "Content-Type: model/obj"));
+    body2 = strstr(p2, "\r\n\r\n") + 4;
+    {
+        char close[210];
+        size_t cl = (size_t)snprintf(close, sizeof close, "\r\n%s--", delim);
+        const char *q;
+        end = NULL;
+        for (q = body2; q + cl <= r.body.data + r.body.len; q++)
+            if (memcmp(q, close, cl) == 0) {
+                end = q;
+                break;
+            }
+        assert_non_null(end);
+    }
+    api_limits_default(&lim);
+    assert_int_equal(api_mesh_decode(body2, (size_t)(end - body2), &lim, &out,
+                                     NULL, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nvertices(out), 812);
+    /* the metrics describe this very mesh (relative 1e-12, see above) */
+    tl_assert_near(jnum(m, "output.volume"), mcf_mesh_volume(out),
+                   1e-12 * fabs(mcf_mesh_volume(out)), "mixed volume");
+    mcf_mesh_free(out);
+    cJSON_Delete(m);
+    resp_free(&r);
+}
+
+/* ?stream=ndjson: one line per step while it runs, then the summary. */
+static void test_smooth_ndjson(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    resp_t r, res;
+    char *line, *save = NULL, path[160];
+    int steps = 0, done = 0;
+    double last_t = 0, last_energy = INFINITY, last_volume = 0;
+    enum { N = 500 };
+    mcf_mesh *out;
+    api_format fmt;
+
+    (void)state;
+    /* t = 500 * 2e-5 = 0.01, half the sphere's extinction time 1/(16 pi)
+     * at unit area: the flow stays smooth all the way. */
+    http(&g_main, "POST",
+         "/smooth?scheme=desbrun2&iterations=500&dt=2e-5&stream=ndjson", NULL,
+         &up, &r);
+    expect_status(&g_main, &r, 200, "ndjson");
+    assert_string_equal(header(&r, "Content-Type", path, sizeof path),
+                        "application/x-ndjson");
+    /* Streamed, not buffered: 500 steps take ~0.3 s or more, and the first
+     * bytes must come well before the last. */
+    assert_true(r.t_last - r.t_first > 0.05);
+    for (line = strtok_r(r.body.data, "\n", &save); line;
+         line = strtok_r(NULL, "\n", &save)) {
+        cJSON *j = cJSON_Parse(line);
+        assert_non_null(j);
+        assert_false(done); /* nothing after the final line */
+        if (cJSON_GetObjectItemCaseSensitive(j, "done")) {
+            const cJSON *m = cJSON_GetObjectItemCaseSensitive(j, "metrics");
+            done = 1;
+            assert_true(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "done")));
+            assert_string_equal(jstr(j, "status"), "succeeded");
+            assert_int_equal((int)jnum(m, "flow.steps"), N);
+            /* The last step's volume is the flow's final volume: the
+             * stream undoes the core's normalization exactly (relative
+             * 1e-9 covers the rounding of 1/sqrt(area) and the sums). */
+            tl_assert_near(last_volume, jnum(m, "flow.volume1"),
+                           1e-9 * fabs(last_volume), "streamed volume");
+            snprintf(path, sizeof path, "%s", jstr(j, "result"));
+        } else {
+            steps++;
+            assert_int_equal((int)jnum(j, "step"), steps);
+            assert_true(jnum(j, "t") > last_t);
+            assert_true(jnum(j, "dt") > 0);
+            /* MCF is the gradient flow of area: it never grows here */
+            assert_true(jnum(j, "energy") <= last_energy);
+            last_t = jnum(j, "t");
+            last_energy = jnum(j, "energy");
+            last_volume = jnum(j, "volume");
+        }
+        cJSON_Delete(j);
+    }
+    assert_int_equal(steps, N);
+    assert_true(done);
+    http(&g_main, "GET", path, NULL, NULL, &res);
+    expect_status(&g_main, &res, 200, "ndjson result URL");
+    out = decode_body(&res, &fmt);
+    assert_int_equal(mcf_mesh_nvertices(out), 812);
+    mcf_mesh_free(out);
+    resp_free(&res);
+    resp_free(&r);
+}
+
+/* POST /v1/jobs, poll, result, metrics, SSE replay, DELETE when done. */
+static void test_async_job(void **state)
+{
+    char id[SRV_ID_BUF], path[160];
+    resp_t r;
+    cJSON *j;
+    mcf_mesh *out;
+    api_format fmt;
+    int progress = 0;
+
+    (void)state;
+    submit(&g_main, "?scheme=desbrun2&iterations=25", id);
+    j = poll_job(&g_main, id, "succeeded", 30);
+    assert_true(jnum(j, "progress.fraction") == 1);
+    assert_int_equal((int)jnum(j, "progress.step"), 25);
+    assert_int_equal((int)jnum(j, "metrics.flow.steps"), 25);
+    assert_non_null(cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(j, "finished")));
+    cJSON_Delete(j);
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "result");
+    out = decode_body(&r, &fmt);
+    assert_int_equal(mcf_mesh_nvertices(out), 812);
+    mcf_mesh_free(out);
+    resp_free(&r);
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "metrics");
+    j = body_json(&r, "metrics");
+    assert_int_equal((int)jnum(j, "flow.steps"), 25);
+    cJSON_Delete(j);
+    resp_free(&r);
+
+    /* SSE of a finished job: status, every step again, then done. */
+    snprintf(path, sizeof path, "/v1/jobs/%s/events", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "events");
+    assert_string_equal(header(&r, "Content-Type", path, sizeof path),
+                        "text/event-stream");
+    assert_true(strncmp(strstr(r.body.data, "event: "), "event: status", 13) == 0);
+    {
+        const char *p = r.body.data;
+        while ((p = strstr(p, "event: progress")) != NULL) {
+            progress++;
+            p++;
+        }
+    }
+    assert_int_equal(progress, 25);
+    assert_non_null(strstr(r.body.data, "id: 25\nevent: progress"));
+    assert_non_null(strstr(r.body.data, "event: done\ndata: {"));
+    assert_non_null(strstr(strstr(r.body.data, "event: done"), "\"succeeded\""));
+    resp_free(&r);
+
+    /* Last-Event-ID resumes after that step */
+    {
+        static const char *const h[] = {"Last-Event-ID: 20", NULL};
+        snprintf(path, sizeof path, "/v1/jobs/%s/events", id);
+        http(&g_main, "GET", path, h, NULL, &r);
+        expect_status(&g_main, &r, 200, "events after 20");
+        assert_null(strstr(r.body.data, "id: 20\n"));
+        assert_non_null(strstr(r.body.data, "id: 21\n"));
+        resp_free(&r);
+    }
+
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 204, "DELETE finished job");
+    resp_free(&r);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 404, "ENOTFOUND", id, "GET deleted job");
+    resp_free(&r);
+}
+
+/* SSE of a running job arrives live; DELETE stops it at the next step; a
+ * queued job is canceled at once; 409 before a result exists. */
+static void test_cancel(void **state)
+{
+    char a[SRV_ID_BUF], b[SRV_ID_BUF], c[SRV_ID_BUF], path[160];
+    resp_t r;
+    cJSON *j;
+    int steps_a;
+
+    (void)state;
+    /* two long jobs for the two workers, a third waits in the queue */
+    /* dt 1e-7: 100000 steps stay far from the sphere's extinction */
+    submit(&g_main, "?iterations=100000&dt=1e-7", a);
+    submit(&g_main, "?iterations=100000&dt=1e-7", b);
+    submit(&g_main, "?iterations=100000&dt=1e-7", c);
+    wait_running(&g_main, a);
+    wait_running(&g_main, b);
+    j = poll_job(&g_main, c, "queued", 5);
+    cJSON_Delete(j);
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", a);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENOTREADY", "running", "result too early");
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", c);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENOTREADY", "queued", "metrics too early");
+    resp_free(&r);
+
+    /* queued: canceled immediately, 200 with the job */
+    snprintf(path, sizeof path, "/v1/jobs/%s", c);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "DELETE queued");
+    j = body_json(&r, "DELETE queued");
+    assert_string_equal(jstr(j, "status"), "canceled");
+    cJSON_Delete(j);
+    resp_free(&r);
+
+    /* running: 202, then canceled at the next step */
+    snprintf(path, sizeof path, "/v1/jobs/%s", a);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 202, "DELETE running");
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s", b);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 202, "DELETE running b");
+    resp_free(&r);
+    j = poll_job(&g_main, a, "canceled", 10);
+    steps_a = (int)jnum(j, "progress.step");
+    assert_true(steps_a >= 1 && steps_a < 100000);
+    assert_string_equal(jstr(cJSON_GetObjectItemCaseSensitive(j, "error"), "code"),
+                        "ECANCELED");
+    cJSON_Delete(j);
+    j = poll_job(&g_main, b, "canceled", 10);
+    cJSON_Delete(j);
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", a);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENORESULT", "canceled", "result of canceled");
+    resp_free(&r);
+    /* the canceled job stays visible until deleted */
+    snprintf(path, sizeof path, "/v1/jobs/%s", c);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 204, "DELETE canceled");
+    resp_free(&r);
+}
+
+/* Every error status with its problem+json body. */
+static void test_errors(void **state)
+{
+    resp_t r;
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+
+    (void)state;
+    /* 400: a bad value and an unknown key, each named */
+    http(&g_main, "POST", "/smooth?dt=abc", NULL, &up, &r);
+    expect_problem(&g_main, &r, 400, "EINVAL", "'dt'", "dt=abc");
+    resp_free(&r);
+    http(&g_main, "POST", "/smooth?bogus=1", NULL, &up, &r);
+    expect_problem(&g_main, &r, 400, "EINVAL", "'bogus'", "bogus=1");
+    resp_free(&r);
+    {
+        upload_t p = {.mesh = "sphere_cgal.obj", .params = "{\"scheme\": 3"};
+        http(&g_main, "POST", "/smooth", NULL, &p, &r);
+        expect_problem(&g_main, &r, 400, "EINVAL", "JSON", "broken params");
+        resp_free(&r);
+    }
+    {
+        upload_t p = {.params = "{}"};
+        http(&g_main, "POST", "/smooth", NULL, &p, &r);
+        expect_problem(&g_main, &r, 400, "EINVAL", "'mesh'", "no mesh field");
+        resp_free(&r);
+    }
+    http(&g_main, "POST", "/smooth?fixed_vertices=5000", NULL, &up, &r);
+    expect_problem(&g_main, &r, 400, "EINVAL", "fixed_vertices", "fixed out of range");
+    resp_free(&r);
+    {
+        static const char bad[] = "v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n";
+        upload_t raw = {.raw = bad, .raw_len = sizeof bad - 1};
+        http(&g_main, "POST", "/smooth", NULL, &raw, &r);
+        expect_problem(&g_main, &r, 400, "EDECODE", "line 2", "bad OBJ number");
+        resp_free(&r);
+    }
+    /* 404 */
+    http(&g_main, "GET", "/v1/jobs/0123456789abcdef0123456789abcdef", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 404, "ENOTFOUND", "0123456789abcdef", "unknown job");
+    resp_free(&r);
+    http(&g_main, "DELETE", "/v1/jobs/0123456789abcdef0123456789abcdef", NULL,
+         NULL, &r);
+    expect_problem(&g_main, &r, 404, "ENOTFOUND", NULL, "DELETE unknown job");
+    resp_free(&r);
+    /* 415: a declared non-mesh type, and bytes of no known format */
+    {
+        static const char *const h[] = {"Content-Type: application/json", NULL};
+        upload_t raw = {.raw = "{}", .raw_len = 2};
+        http(&g_main, "POST", "/smooth", h, &raw, &r);
+        expect_problem(&g_main, &r, 415, "EFORMAT", "application/json", "json body");
+        resp_free(&r);
+    }
+    {
+        static const char junk[] = "\x01\x02\x03 not a mesh \xff\xfe";
+        static const char *const h[] = {"Content-Type: application/octet-stream",
+                                        NULL};
+        upload_t raw = {.raw = junk, .raw_len = sizeof junk - 1};
+        http(&g_main, "POST", "/smooth", h, &raw, &r);
+        expect_problem(&g_main, &r, 415, "EFORMAT", "format", "junk bytes");
+        resp_free(&r);
+    }
+    /* 422: decodes, cannot be smoothed (zero area) */
+    {
+        static const char flat[] = "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n";
+        upload_t raw = {.raw = flat, .raw_len = sizeof flat - 1};
+        http(&g_main, "POST", "/smooth", NULL, &raw, &r);
+        expect_problem(&g_main, &r, 422, "EMESH", "area", "zero-area mesh");
+        resp_free(&r);
+    }
+    /* 422 also through the async route: the job fails with the reason */
+    {
+        static const char flat[] = "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n";
+        upload_t raw = {.raw = flat, .raw_len = sizeof flat - 1};
+        cJSON *j, *e;
+        char id[SRV_ID_BUF];
+        http(&g_main, "POST", "/v1/jobs", NULL, &raw, &r);
+        expect_status(&g_main, &r, 202, "async zero-area");
+        j = body_json(&r, "async");
+        snprintf(id, sizeof id, "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+        resp_free(&r);
+        j = poll_job(&g_main, id, "failed", 10);
+        e = cJSON_GetObjectItemCaseSensitive(j, "error");
+        assert_int_equal((int)jnum(e, "status"), 422);
+        assert_string_equal(jstr(e, "code"), "EMESH");
+        cJSON_Delete(j);
+    }
+    /* 413 (a): announced by Content-Length, answered before the body. */
+    {
+        struct sockaddr_in sa;
+        struct timeval tv = {10, 0};
+        char req[512], buf[2048];
+        size_t got = 0;
+        int fd = socket(AF_INET, SOCK_STREAM, 0);
+        assert_true(fd >= 0);
+        memset(&sa, 0, sizeof sa);
+        sa.sin_family = AF_INET;
+        sa.sin_port = htons((uint16_t)g_main.port);
+        sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+        assert_int_equal(connect(fd, (struct sockaddr *)&sa, sizeof sa), 0);
+        snprintf(req, sizeof req, "POST /smooth HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                 "Content-Type: application/octet-stream\r\n"
+                 "Content-Length: 10000000000\r\nExpect: 100-continue\r\n\r\n");
+        assert_true(write(fd, req, strlen(req)) == (ssize_t)strlen(req));
+        while (got < sizeof buf - 1) {
+            ssize_t n = read(fd, buf + got, sizeof buf - 1 - got);
+            if (n <= 0)
+                break;
+            got += (size_t)n;
+            buf[got] = '\0';
+            if (strstr(buf, "\r\n\r\n") && strstr(buf, "}"))
+                break;
+        }
+        close(fd);
+        buf[got] = '\0';
+        if (strncmp(buf, "HTTP/1.1 413", 12) != 0)
+            fail_msg("expected 413 before the body, got: %.200s", buf);
+        assert_non_null(strstr(buf, "application/problem+json"));
+        assert_non_null(strstr(buf, "\"ELIMIT\""));
+        assert_non_null(strstr(buf, "Content-Length 10000000000"));
+    }
+    /* 413 (b): a multipart mesh part over --max-upload (3M), after the body */
+    {
+        upload_t big = {.mesh = "armadillo.obj"}; /* 4,036,311 bytes */
+        http(&g_main, "POST", "/smooth", NULL, &big, &r);
+        expect_problem(&g_main, &r, 413, "ELIMIT", "'mesh'", "mesh part too big");
+        resp_free(&r);
+    }
+    /* 413 (c): a chunked raw body (no Content-Length) over the limit */
+    {
+        static const char *const h[] = {"Transfer-Encoding: chunked",
+                                        "Content-Type: model/obj", NULL};
+        size_t n = (size_t)3500000;
+        char *blob = malloc(n);
+        upload_t raw;
+        assert_non_null(blob);
+        memset(blob, '#', n);
+        raw = (upload_t){.raw = blob, .raw_len = n};
+        http(&g_main, "POST", "/smooth", h, &raw, &r);
+        expect_problem(&g_main, &r, 413, "ELIMIT", "exceeds", "chunked too big");
+        resp_free(&r);
+        free(blob);
+    }
+}
+
+/* --token-file: 401 without or with a wrong token; probes stay open. */
+static void test_auth(void **state)
+{
+    daemon_t d;
+    char tok[600], spool[600], auth[128];
+    const char *flags[] = {"--token-file", tok, "--workers", "1", NULL};
+    FILE *f;
+    resp_t r;
+
+    (void)state;
+    snprintf(tok, sizeof tok, "%s/token", g_tmp);
+    snprintf(spool, sizeof spool, "%s/auth", g_tmp);
+    f = fopen(tok, "w");
+    assert_non_null(f);
+    fputs("s3cret-T0ken\n", f);
+    fclose(f);
+    assert_int_equal(start_daemon(&d, "auth", spool, flags), 0);
+
+    http(&d, "GET", "/v1/schemes", NULL, NULL, &r);
+    expect_problem(&d, &r, 401, "EAUTH", "Bearer", "no token");
+    assert_non_null(header(&r, "WWW-Authenticate", auth, sizeof auth));
+    resp_free(&r);
+    {
+        static const char *const wrong[] = {"Authorization: Bearer s3cret-T0kem", NULL};
+        static const char *const shorter[] = {"Authorization: Bearer s3cret", NULL};
+        static const char *const basic[] = {"Authorization: Basic czNjcmV0", NULL};
+        http(&d, "GET", "/v1/schemes", wrong, NULL, &r);
+        expect_problem(&d, &r, 401, "EAUTH", NULL, "wrong token");
+        resp_free(&r);
+        http(&d, "GET", "/v1/schemes", shorter, NULL, &r);
+        expect_problem(&d, &r, 401, "EAUTH", NULL, "prefix of the token");
+        resp_free(&r);
+        http(&d, "GET", "/v1/schemes", basic, NULL, &r);
+        expect_problem(&d, &r, 401, "EAUTH", NULL, "basic auth");
+        resp_free(&r);
+    }
+    {
+        static const char *const right[] = {"Authorization: Bearer s3cret-T0ken", NULL};
+        upload_t up = {.mesh = "sphere_cgal.obj"};
+        http(&d, "GET", "/v1/schemes", right, NULL, &r);
+        expect_status(&d, &r, 200, "right token");
+        resp_free(&r);
+        http(&d, "POST", "/smooth?iterations=2", right, &up, &r);
+        expect_status(&d, &r, 200, "smooth with token");
+        resp_free(&r);
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_problem(&d, &r, 401, "EAUTH", NULL, "smooth without token");
+        resp_free(&r);
+    }
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthz open");
+    resp_free(&r);
+    http(&d, "GET", "/readyz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "readyz open");
+    resp_free(&r);
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "metrics open");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
+/* 32 concurrent clients, one worker, a queue of 2. */
+typedef struct {
+    const daemon_t *d;
+    pthread_barrier_t *go;
+    resp_t r;
+    int nv;
+} client_t;
+
+static void *client_main(void *arg)
+{
+    client_t *cl = arg;
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+
+    pthread_barrier_wait(cl->go);
+    http(cl->d, "POST", "/smooth?scheme=desbrun2&iterations=150&dt=1e-4", NULL,
+         &up, &cl->r);
+    if (cl->r.code == 200) {
+        api_limits lim;
+        mcf_mesh *m = NULL;
+        api_limits_default(&lim);
+        if (api_mesh_decode(cl->r.body.data, cl->r.body.len, &lim, &m, NULL,
+                            NULL) == MCF_OK)
+            cl->nv = mcf_mesh_nvertices(m);
+        mcf_mesh_free(m);
+    }
+    return NULL;
+}
+
+static void test_concurrent_clients(void **state)
+{
+    enum { NC = 32 };
+    static const char *const flags[] = {"--workers", "1", "--queue", "2", NULL};
+    daemon_t d;
+    char spool[600], series[128];
+    client_t cl[NC];
+    pthread_t th[NC];
+    pthread_barrier_t go;
+    int i, n200 = 0, n503 = 0;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/busy", g_tmp);
+    assert_int_equal(start_daemon(&d, "busy", spool, flags), 0);
+    pthread_barrier_init(&go, NULL, NC);
+    for (i = 0; i < NC; i++) {
+        cl[i] = (client_t){.d = &d, .go = &go};
+        assert_int_equal(pthread_create(&th[i], NULL, client_main, &cl[i]), 0);
+    }
+    for (i = 0; i < NC; i++)
+        pthread_join(th[i], NULL);
+    pthread_barrier_destroy(&go);
+    for (i = 0; i < NC; i++) {
+        if (cl[i].r.code == 200) {
+            n200++;
+            assert_int_equal(cl[i].nv, 812);
+        } else if (cl[i].r.code == 503) {
+            n503++;
+            expect_problem(&d, &cl[i].r, 503, "EBUSY", "queue", "busy");
+        } else {
+            expect_status(&d, &cl[i].r, 200, "a concurrent client");
+        }
+        resp_free(&cl[i].r);
+    }
+    /* One worker and two queue places for 32 simultaneous 0.1 s jobs: some
+     * must be served, some refused. */
+    assert_int_equal(n200 + n503, NC);
+    assert_true(n200 >= 3);
+    assert_true(n503 >= 1);
+
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthy after the burst");
+    resp_free(&r);
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "metrics after the burst");
+    assert_true(metric(r.body.data,
+                       "mcfd_http_requests_total{route=\"smooth\",code=\"200\"}") == n200);
+    assert_true(metric(r.body.data,
+                       "mcfd_http_requests_total{route=\"smooth\",code=\"503\"}") == n503);
+    snprintf(series, sizeof series,
+             "mcfd_jobs_total{scheme=\"desbrun2\",status=\"succeeded\"}");
+    assert_true(metric(r.body.data, series) == n200);
+    assert_true(metric(r.body.data, "mcfd_upload_bytes_count") == NC);
+    assert_true(metric(r.body.data, "mcfd_job_duration_seconds_count") == n200);
+    assert_true(metric(r.body.data, "mcfd_queue_depth") == 0);
+    assert_true(metric(r.body.data, "mcfd_workers_busy") == 0);
+    resp_free(&r);
+    {
+        upload_t up = {.mesh = "sphere_cgal.obj"};
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_status(&d, &r, 200, "served again after the burst");
+        resp_free(&r);
+    }
+    stop_daemon(&d);
+}
+
+/* kill -9 with one job running and two queued; the restart on the same
+ * spool runs all three under their IDs. */
+static void test_kill9_recovery(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], ids[3][SRV_ID_BUF], path[160];
+    int i, st;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/crash", g_tmp);
+    assert_int_equal(start_daemon(&d, "crash1", spool, flags), 0);
+    for (i = 0; i < 3; i++)
+        submit(&d, "?scheme=desbrun2&iterations=1200&dt=1e-5", ids[i]);
+    wait_running(&d, ids[0]);
+    {
+        cJSON *j = poll_job(&d, ids[2], "queued", 2);
+        cJSON_Delete(j);
+    }
+    kill(d.pid, SIGKILL);
+    assert_true(wait_exit(d.pid, 10, &st));
+    assert_true(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL);
+
+    assert_int_equal(start_daemon(&d, "crash2", spool, flags), 0);
+    for (i = 0; i < 3; i++) {
+        cJSON *j = poll_job(&d, ids[i], "succeeded", 60);
+        assert_int_equal((int)jnum(j, "metrics.flow.steps"), 1200);
+        cJSON_Delete(j);
+        snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[i]);
+        http(&d, "GET", path, NULL, NULL, &r);
+        expect_status(&d, &r, 200, "result after the crash");
+        {
+            api_format fmt;
+            mcf_mesh *m = decode_body(&r, &fmt);
+            assert_int_equal(mcf_mesh_nvertices(m), 812);
+            mcf_mesh_free(m);
+        }
+        resp_free(&r);
+    }
+    stop_daemon(&d);
+    /* and once more: finished jobs survive a clean restart too */
+    assert_int_equal(start_daemon(&d, "crash3", spool, flags), 0);
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", ids[2]);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "metrics after restart");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
+/* SIGTERM while a job runs: readyz 503, new work 503, the job finishes and
+ * its client gets the mesh, the process exits 0; the log is JSON lines. */
+typedef struct {
+    const daemon_t *d;
+    resp_t r;
+} sync_client_t;
+
+static void *sync_client(void *arg)
+{
+    sync_client_t *s = arg;
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    http(s->d, "POST", "/smooth?scheme=desbrun2&iterations=2500&dt=4e-6", NULL,
+         &up, &s->r);
+    return NULL;
+}
+
+static void test_sigterm_drain(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--log-level",
+                                        "debug", NULL};
+    daemon_t d;
+    char spool[600];
+    sync_client_t sc;
+    pthread_t th;
+    resp_t r;
+    double end;
+    int st, requests = 0, jobs = 0;
+    char *log = NULL, *line, *save = NULL;
+    size_t len;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/term", g_tmp);
+    assert_int_equal(start_daemon(&d, "term", spool, flags), 0);
+    memset(&sc, 0, sizeof sc);
+    sc.d = &d;
+    assert_int_equal(pthread_create(&th, NULL, sync_client, &sc), 0);
+    /* wait until the worker is busy with it */
+    end = mcf_now() + 20;
+    for (;;) {
+        double busy;
+        http(&d, "GET", "/metrics", NULL, NULL, &r);
+        busy = metric(r.body.data ? r.body.data : "", "mcfd_workers_busy");
+        resp_free(&r);
+        if (busy == 1)
+            break;
+        assert_true(mcf_now() < end);
+        sleep_ms(10);
+    }
+    kill(d.pid, SIGTERM);
+    sleep_ms(50);
+    http(&d, "GET", "/readyz", NULL, NULL, &r);
+    expect_problem(&d, &r, 503, "EDRAINING", NULL, "readyz while draining");
+    resp_free(&r);
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthz while draining");
+    resp_free(&r);
+    {
+        upload_t up = {.mesh = "sphere_cgal.obj"};
+        http(&d, "POST", "/smooth", NULL, &up, &r);
+        expect_problem(&d, &r, 503, "EDRAINING", NULL, "POST while draining");
+        resp_free(&r);
+    }
+    pthread_join(th, NULL);
+    expect_status(&d, &sc.r, 200, "the job running at SIGTERM");
+    {
+        api_format fmt;
+        mcf_mesh *m = decode_body(&sc.r, &fmt);
+        assert_int_equal(mcf_mesh_nvertices(m), 812);
+        mcf_mesh_free(m);
+    }
+    resp_free(&sc.r);
+    assert_true(wait_exit(d.pid, 30, &st));
+    d.pid = 0;
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+
+    /* one JSON object per line, one per request and one per job */
+    assert_int_equal(tl_read_file(d.log, &log, &len), 0);
+    for (line = strtok_r(log, "\n", &save); line;
+         line = strtok_r(NULL, "\n", &save)) {
+        cJSON *j = cJSON_Parse(line);
+        const char *type;
+        if (!j)
+            fail_msg("log line is not JSON: %s", line);
+        type = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(j, "type"));
+        requests += type && !strcmp(type, "request");
+        jobs += type && !strcmp(type, "job");
+        assert_non_null(cJSON_GetObjectItemCaseSensitive(j, "ts"));
+        assert_non_null(cJSON_GetObjectItemCaseSensitive(j, "level"));
+        cJSON_Delete(j);
+    }
+    /* at least the metrics poll, readyz, healthz and the two POSTs */
+    assert_true(requests >= 5);
+    assert_int_equal(jobs, 1);
+    free(log);
+}
+
+/* mcfd --probe: 0 against a live daemon, 1 against a closed port. */
+static int run_probe(int port)
+{
+    char p[16];
+    pid_t pid;
+    int st = 0;
+
+    snprintf(p, sizeof p, "%d", port);
+    pid = fork();
+    if (pid == 0) {
+        int nul = open("/dev/null", O_WRONLY);
+        dup2(nul, 1);
+        dup2(nul, 2);
+        execl(g_bin, g_bin, "--probe", "--bind", "127.0.0.1", "--port", p,
+              (char *)NULL);
+        _exit(127);
+    }
+    if (!wait_exit(pid, 15, &st)) {
+        kill(pid, SIGKILL);
+        waitpid(pid, NULL, 0);
+        return -1;
+    }
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static void test_probe(void **state)
+{
+    struct sockaddr_in sa;
+    socklen_t sl = sizeof sa;
+    int fd, closed_port;
+
+    (void)state;
+    assert_int_equal(run_probe(g_main.port), 0);
+    /* a port nobody listens on: bind one, note it, close it */
+    fd = socket(AF_INET, SOCK_STREAM, 0);
+    memset(&sa, 0, sizeof sa);
+    sa.sin_family = AF_INET;
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(bind(fd, (struct sockaddr *)&sa, sizeof sa), 0);
+    assert_int_equal(getsockname(fd, (struct sockaddr *)&sa, &sl), 0);
+    closed_port = ntohs(sa.sin_port);
+    close(fd);
+    assert_int_equal(run_probe(closed_port), 1);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_service_endpoints),
+        cmocka_unit_test(test_smooth_obj_multipart),
+        cmocka_unit_test(test_smooth_draco_multipart),
+        cmocka_unit_test(test_smooth_raw_and_params),
+        cmocka_unit_test(test_smooth_multipart_mixed),
+        cmocka_unit_test(test_smooth_ndjson),
+        cmocka_unit_test(test_async_job),
+        cmocka_unit_test(test_cancel),
+        cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_auth),
+        cmocka_unit_test(test_concurrent_clients),
+        cmocka_unit_test(test_kill9_recovery),
+        cmocka_unit_test(test_sigterm_drain),
+        cmocka_unit_test(test_probe),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
