@@ -176,3 +176,68 @@ check-deps:
 
 clean:
 	rm -rf build build-san build-fuzz
+
+# ---- fuzzing: libFuzzer with Debian clang, ASan + UBSan, in build-fuzz/
+#   make fuzz FUZZ_TIME=30    builds every tests/fuzz/fuzz_*.c and runs each
+#                             for FUZZ_TIME seconds; fails if one crashes.
+# Seeds come from tests/fuzz/corpus_<name>/ (read only); new inputs go to
+# build-fuzz/corpus/<name>/, crashes to build-fuzz/artifacts/. A target
+# uses tests/fuzz/<name>.dict when present (params and query: json.dict).
+FUZZ_TIME ?= 30
+FZ := build-fuzz
+FUZZ_CC  ?= clang
+FUZZ_CXX ?= clang++
+FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
+FUZZ_CFLAGS := -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer-no-link $(FUZZ_SAN)
+FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
+FUZZ_NAMES := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=%)
+FUZZ_BIN := $(FUZZ_NAMES:%=$(FZ)/fuzz_%)
+FUZZ_LIBOBJ := $(CORE_SRC:%.c=$(FZ)/%.o) $(API_SRC:%.c=$(FZ)/%.o) \
+               $(API_CXX:%.cc=$(FZ)/%.o)
+
+$(FZ)/core/%.o: core/%.c
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(WARN) $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
+
+$(FZ)/api/%.o: api/%.c
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
+
+$(FZ)/api/%.o: api/%.cc
+	@mkdir -p $(@D)
+	$(FUZZ_CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
+
+$(FZ)/tests/fuzz/%.o: tests/fuzz/%.c
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
+
+$(FZ)/fuzz_%: $(FZ)/tests/fuzz/fuzz_%.o $(FUZZ_LIBOBJ)
+	$(FUZZ_CXX) -fsanitize=fuzzer $(FUZZ_SAN) -o $@ $< $(FUZZ_LIBOBJ) $(LIBS_API) $(LIBS_CORE)
+
+-include $(FUZZ_LIBOBJ:.o=.d) $(FUZZ_NAMES:%=$(FZ)/tests/fuzz/fuzz_%.d)
+
+# Objects of chained pattern rules would otherwise be deleted as
+# intermediate files after each link.
+.SECONDARY: $(FUZZ_LIBOBJ) $(FUZZ_NAMES:%=$(FZ)/tests/fuzz/fuzz_%.o)
+
+fuzz-build: $(FUZZ_BIN)
+
+fuzz: $(FUZZ_BIN)
+	@mkdir -p $(FZ)/artifacts
+	@fail=""; for n in $(FUZZ_NAMES); do \
+	  mkdir -p $(FZ)/corpus/$$n; \
+	  dict=tests/fuzz/$$n.dict; \
+	  case $$n in params|query) dict=tests/fuzz/json.dict;; esac; \
+	  [ -f $$dict ] && dopt=-dict=$$dict || dopt=; \
+	  seeds=tests/fuzz/corpus_$$n; [ -d $$seeds ] || seeds=; \
+	  echo "== fuzz_$$n for $(FUZZ_TIME) s"; \
+	  $(FZ)/fuzz_$$n -max_total_time=$(FUZZ_TIME) -timeout=10 -rss_limit_mb=2048 \
+	    -print_final_stats=1 -artifact_prefix=$(FZ)/artifacts/$$n- $$dopt \
+	    $(FZ)/corpus/$$n $$seeds > $(FZ)/fuzz_$$n.log 2>&1 \
+	    || { fail="$$fail $$n"; tail -40 $(FZ)/fuzz_$$n.log; }; \
+	  grep -E '^stat::number_of_executed_units|^stat::new_units_added' $(FZ)/fuzz_$$n.log; \
+	done; \
+	if [ -n "$$fail" ]; then echo "fuzz: FAILED:$$fail (inputs in $(FZ)/artifacts/)"; exit 1; fi; \
+	echo "fuzz: no crash in$(FUZZ_NAMES:%= fuzz_%)"
+
+.PHONY: fuzz-build
