@@ -1300,7 +1300,8 @@ int srv_jobs_start(const srv_config *cfg, char *msg, size_t msgsize)
                  strerror(errno));
         return -1;
     }
-    qsort(rc.queued, (size_t)rc.n, sizeof *rc.queued, by_created);
+    if (rc.n > 1)
+        qsort(rc.queued, (size_t)rc.n, sizeof *rc.queued, by_created);
     for (i = 0; i < rc.n; i++) {
         table_insert(rc.queued[i]);
         queue_push(rc.queued[i]);
