@@ -1032,14 +1032,16 @@ done:
     /* The state on disk before the waiters hear: a client that saw the
      * result can always find it again. */
     write_state(j, 1);
-    srv_lock();
-    srv_job_wake(j, 0);
-    srv_unlock();
+    /* Counted before anyone hears, so /metrics agrees with what clients
+     * have seen. */
     if (!requeue) {
         srv_metrics_job(j->scheme, srv_job_status_name(j->status),
                         mcf_now() - t0);
         log_job(j, nv, nf, mcf_now() - t0);
     }
+    srv_lock();
+    srv_job_wake(j, 0);
+    srv_unlock();
     if (have_prm)
         api_params_free(&prm);
     mcf_flow_stats_free(&st);

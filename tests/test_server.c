@@ -713,6 +713,21 @@ static void test_smooth_draco_multipart(void **state)
     assert_int_equal(mcf_mesh_nvertices(out), mcf_mesh_nvertices(in));
     assert_int_equal(mcf_mesh_nvertices(out), 34834); /* SOURCES.md */
     assert_int_equal(mcf_mesh_nfaces(out), 69451);
+    /* Threads stay bounded: main + 2 workers + 2 HTTP threads. Without
+     * OMP_THREAD_LIMIT, CHOLMOD's num_threads(4) regions would have added
+     * 3 OpenMP threads per worker by now (bunny is big enough to use the
+     * supernodal factorization). */
+    {
+        char st[64], *status = NULL;
+        size_t n;
+        snprintf(st, sizeof st, "/proc/%d/status", (int)g_main.pid);
+        if (tl_read_file(st, &status, &n) == 0) {
+            const char *t = strstr(status, "\nThreads:");
+            assert_non_null(t);
+            assert_int_equal(atoi(t + 9), 5);
+            free(status);
+        }
+    }
     m = follow_metrics_link(&g_main, &r, id);
     assert_int_equal((int)jnum(m, "flow.steps"), 3);
     assert_string_equal(jstr(cJSON_GetObjectItemCaseSensitive(m, "input"),
@@ -766,6 +781,43 @@ static void test_smooth_raw_and_params(void **state)
         resp_free(&r);
     }
     free(obj);
+}
+
+/* A target mesh adds the comparison to the metrics; noise first makes the
+ * error measurable; a target of another connectivity is a 422. */
+static void test_smooth_target(void **state)
+{
+    resp_t r;
+    char id[64];
+    cJSON *m, *cmp;
+
+    (void)state;
+    {
+        upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+        http(&g_main, "POST", "/smooth?noise=0.2&seed=7&iterations=3&dt=1e-5",
+             NULL, &up, &r);
+        expect_status(&g_main, &r, 200, "with target");
+        assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+        m = follow_metrics_link(&g_main, &r, id);
+        cmp = cJSON_GetObjectItemCaseSensitive(m, "compare");
+        assert_non_null(cmp);
+        /* noise of 0.2 mean edges, barely smoothed: the error is of that
+         * order, positive and finite (a loose, non-degenerate bracket) */
+        assert_true(jnum(cmp, "rms_m") > 0);
+        assert_true(jnum(cmp, "max_err") > jnum(cmp, "rms_m"));
+        assert_true(jnum(cmp, "max_err") <
+                    jnum(m, "input.mesh.edge_length.mean") * 2);
+        cJSON_Delete(m);
+        resp_free(&r);
+    }
+    {
+        upload_t up = {.mesh = "sphere_cgal.obj",
+                       .target = "bunny_npm_closed.obj"};
+        http(&g_main, "POST", "/smooth", NULL, &up, &r);
+        expect_problem(&g_main, &r, 422, "EINVAL", "connectivity",
+                       "target of another mesh");
+        resp_free(&r);
+    }
 }
 
 /* Accept: multipart/mixed: a JSON metrics part, then the mesh part. */
@@ -968,6 +1020,19 @@ static void test_async_job(void **state)
     resp_free(&r);
 }
 
+typedef struct {
+    const daemon_t *d;
+    char path[160];
+    resp_t r;
+} sse_client_t;
+
+static void *sse_client(void *arg)
+{
+    sse_client_t *sc = arg;
+    http(sc->d, "GET", sc->path, NULL, NULL, &sc->r);
+    return NULL;
+}
+
 /* SSE of a running job arrives live; DELETE stops it at the next step; a
  * queued job is canceled at once; 409 before a result exists. */
 static void test_cancel(void **state)
@@ -1006,11 +1071,28 @@ static void test_cancel(void **state)
     cJSON_Delete(j);
     resp_free(&r);
 
-    /* running: 202, then canceled at the next step */
-    snprintf(path, sizeof path, "/v1/jobs/%s", a);
-    http(&g_main, "DELETE", path, NULL, NULL, &r);
-    expect_status(&g_main, &r, 202, "DELETE running");
-    resp_free(&r);
+    /* running: 202, then canceled at the next step; a live SSE follower
+     * sees steps arrive and the stream end with the cancellation */
+    {
+        sse_client_t sc = {.d = &g_main};
+        pthread_t th;
+        snprintf(sc.path, sizeof sc.path, "/v1/jobs/%s/events", a);
+        assert_int_equal(pthread_create(&th, NULL, sse_client, &sc), 0);
+        sleep_ms(300);
+        snprintf(path, sizeof path, "/v1/jobs/%s", a);
+        http(&g_main, "DELETE", path, NULL, NULL, &r);
+        expect_status(&g_main, &r, 202, "DELETE running");
+        resp_free(&r);
+        pthread_join(th, NULL);
+        expect_status(&g_main, &sc.r, 200, "live events");
+        assert_non_null(strstr(sc.r.body.data, "event: progress"));
+        assert_non_null(strstr(sc.r.body.data, "event: done"));
+        assert_non_null(strstr(strstr(sc.r.body.data, "event: done"),
+                               "\"canceled\""));
+        /* live: the first step came well before the end */
+        assert_true(sc.r.t_last - sc.r.t_first > 0.1);
+        resp_free(&sc.r);
+    }
     snprintf(path, sizeof path, "/v1/jobs/%s", b);
     http(&g_main, "DELETE", path, NULL, NULL, &r);
     expect_status(&g_main, &r, 202, "DELETE running b");
@@ -1186,7 +1268,9 @@ static void test_auth(void **state)
 {
     daemon_t d;
     char tok[600], spool[600], auth[128];
-    const char *flags[] = {"--token-file", tok, "--workers", "1", NULL};
+    const char *flags[] = {"--token-file", tok, "--workers", "1",
+                           "--result-ttl", "1s", "--job-timeout", "0.5",
+                           NULL};
     FILE *f;
     resp_t r;
 
@@ -1223,8 +1307,34 @@ static void test_auth(void **state)
         http(&d, "GET", "/v1/schemes", right, NULL, &r);
         expect_status(&d, &r, 200, "right token");
         resp_free(&r);
+        char id[64], path[160], dir[800];
+        struct stat sb;
+        double end;
         http(&d, "POST", "/smooth?iterations=2", right, &up, &r);
         expect_status(&d, &r, 200, "smooth with token");
+        assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+        resp_free(&r);
+        /* --result-ttl 1s: the job and its spool directory go away (the
+         * sweep runs once a second: bound 5 s) */
+        snprintf(path, sizeof path, "/v1/jobs/%s", id);
+        snprintf(dir, sizeof dir, "%s/jobs/%s", spool, id);
+        assert_int_equal(stat(dir, &sb), 0);
+        end = mcf_now() + 5;
+        for (;;) {
+            http(&d, "GET", path, right, NULL, &r);
+            if (r.code == 404)
+                break;
+            expect_status(&d, &r, 200, "job before expiry");
+            resp_free(&r);
+            assert_true(mcf_now() < end);
+            sleep_ms(100);
+        }
+        expect_problem(&d, &r, 404, "ENOTFOUND", id, "expired job");
+        resp_free(&r);
+        assert_int_equal(stat(dir, &sb), -1);
+        /* --job-timeout 0.5: a long job is stopped with 413 */
+        http(&d, "POST", "/smooth?iterations=100000&dt=1e-7", right, &up, &r);
+        expect_problem(&d, &r, 413, "ELIMIT", "--job-timeout", "job timeout");
         resp_free(&r);
         http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
         expect_problem(&d, &r, 401, "EAUTH", NULL, "smooth without token");
@@ -1246,6 +1356,7 @@ static void test_auth(void **state)
 typedef struct {
     const daemon_t *d;
     pthread_barrier_t *go;
+    int expect;
     resp_t r;
     int nv;
 } client_t;
@@ -1254,10 +1365,13 @@ static void *client_main(void *arg)
 {
     client_t *cl = arg;
     upload_t up = {.mesh = "sphere_cgal.obj"};
+    /* Half the clients wait for 100 Continue: refused ones are told before
+     * they send the body; the others are read, then refused. */
+    static const char *const expect[] = {"Expect: 100-continue", NULL};
 
     pthread_barrier_wait(cl->go);
-    http(cl->d, "POST", "/smooth?scheme=desbrun2&iterations=150&dt=1e-4", NULL,
-         &up, &cl->r);
+    http(cl->d, "POST", "/smooth?scheme=desbrun2&iterations=150&dt=1e-4",
+         cl->expect ? expect : NULL, &up, &cl->r);
     if (cl->r.code == 200) {
         api_limits lim;
         mcf_mesh *m = NULL;
@@ -1287,7 +1401,7 @@ static void test_concurrent_clients(void **state)
     assert_int_equal(start_daemon(&d, "busy", spool, flags), 0);
     pthread_barrier_init(&go, NULL, NC);
     for (i = 0; i < NC; i++) {
-        cl[i] = (client_t){.d = &d, .go = &go};
+        cl[i] = (client_t){.d = &d, .go = &go, .expect = i % 2};
         assert_int_equal(pthread_create(&th[i], NULL, client_main, &cl[i]), 0);
     }
     for (i = 0; i < NC; i++)
@@ -1323,7 +1437,10 @@ static void test_concurrent_clients(void **state)
     snprintf(series, sizeof series,
              "mcfd_jobs_total{scheme=\"desbrun2\",status=\"succeeded\"}");
     assert_true(metric(r.body.data, series) == n200);
-    assert_true(metric(r.body.data, "mcfd_upload_bytes_count") == NC);
+    /* every body that was read was measured; Expect clients refused
+     * before sending theirs were not */
+    assert_true(metric(r.body.data, "mcfd_upload_bytes_count") >= n200);
+    assert_true(metric(r.body.data, "mcfd_upload_bytes_count") <= NC);
     assert_true(metric(r.body.data, "mcfd_job_duration_seconds_count") == n200);
     assert_true(metric(r.body.data, "mcfd_queue_depth") == 0);
     assert_true(metric(r.body.data, "mcfd_workers_busy") == 0);
@@ -1403,17 +1520,44 @@ static void *sync_client(void *arg)
     return NULL;
 }
 
+static void *short_client(void *arg)
+{
+    sync_client_t *s = arg;
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    http(s->d, "POST", "/smooth?scheme=desbrun2&iterations=5", NULL, &up,
+         &s->r);
+    return NULL;
+}
+
+/* Polls /metrics until the gauge has the value (bounded). */
+static void wait_gauge(const daemon_t *d, const char *name, double want)
+{
+    double end = mcf_now() + 20;
+    resp_t r;
+    for (;;) {
+        double v;
+        http(d, "GET", "/metrics", NULL, NULL, &r);
+        v = metric(r.body.data ? r.body.data : "", name);
+        resp_free(&r);
+        if (v == want)
+            return;
+        if (mcf_now() > end)
+            fail_msg("%s stayed %g, not %g", name, v, want);
+        sleep_ms(10);
+    }
+}
+
 static void test_sigterm_drain(void **state)
 {
     static const char *const flags[] = {"--workers", "1", "--log-level",
                                         "debug", NULL};
     daemon_t d;
     char spool[600];
-    sync_client_t sc;
-    pthread_t th;
+    sync_client_t sc, qc;
+    pthread_t th, qth;
     resp_t r;
-    double end;
     int st, requests = 0, jobs = 0;
+    char queued_id[SRV_ID_BUF];
     char *log = NULL, *line, *save = NULL;
     size_t len;
 
@@ -1421,21 +1565,24 @@ static void test_sigterm_drain(void **state)
     snprintf(spool, sizeof spool, "%s/term", g_tmp);
     assert_int_equal(start_daemon(&d, "term", spool, flags), 0);
     memset(&sc, 0, sizeof sc);
-    sc.d = &d;
+    memset(&qc, 0, sizeof qc);
+    sc.d = qc.d = &d;
     assert_int_equal(pthread_create(&th, NULL, sync_client, &sc), 0);
-    /* wait until the worker is busy with it */
-    end = mcf_now() + 20;
-    for (;;) {
-        double busy;
-        http(&d, "GET", "/metrics", NULL, NULL, &r);
-        busy = metric(r.body.data ? r.body.data : "", "mcfd_workers_busy");
-        resp_free(&r);
-        if (busy == 1)
-            break;
-        assert_true(mcf_now() < end);
-        sleep_ms(10);
-    }
+    wait_gauge(&d, "mcfd_workers_busy", 1);
+    /* a second synchronous job waits in the queue behind it */
+    assert_int_equal(pthread_create(&qth, NULL, short_client, &qc), 0);
+    wait_gauge(&d, "mcfd_queue_depth", 1);
     kill(d.pid, SIGTERM);
+    /* the queued job's client hears at once: 503, the job stays on disk */
+    pthread_join(qth, NULL);
+    expect_problem(&d, &qc.r, 503, "EDRAINING", "after the restart",
+                   "queued sync job at SIGTERM");
+    {
+        cJSON *j = body_json(&qc.r, "queued sync job");
+        snprintf(queued_id, sizeof queued_id, "%s", jstr(j, "job"));
+        cJSON_Delete(j);
+    }
+    resp_free(&qc.r);
     sleep_ms(50);
     http(&d, "GET", "/readyz", NULL, NULL, &r);
     expect_problem(&d, &r, 503, "EDRAINING", NULL, "readyz while draining");
@@ -1478,10 +1625,85 @@ static void test_sigterm_drain(void **state)
         assert_non_null(cJSON_GetObjectItemCaseSensitive(j, "level"));
         cJSON_Delete(j);
     }
-    /* at least the metrics poll, readyz, healthz and the two POSTs */
-    assert_true(requests >= 5);
+    /* at least the metrics poll, readyz, healthz and the three POSTs */
+    assert_true(requests >= 6);
     assert_int_equal(jobs, 1);
     free(log);
+
+    /* the restart runs the job that was queued at SIGTERM */
+    assert_int_equal(start_daemon(&d, "term2", spool, flags), 0);
+    {
+        cJSON *j = poll_job(&d, queued_id, "succeeded", 30);
+        assert_int_equal((int)jnum(j, "metrics.flow.steps"), 5);
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+}
+
+/* --drain-timeout: a job still running then is checkpointed back to
+ * `queued`, its ndjson follower gets a final line saying so, the process
+ * exits 0, and the restart runs the job again under the same ID. */
+typedef struct {
+    const daemon_t *d;
+    resp_t r;
+} stream_client_t;
+
+static void *long_stream_client(void *arg)
+{
+    stream_client_t *s = arg;
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    http(s->d, "POST", "/smooth?iterations=100000&dt=1e-7&stream=ndjson", NULL,
+         &up, &s->r);
+    return NULL;
+}
+
+static void test_drain_checkpoint(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--drain-timeout",
+                                        "0.3", NULL};
+    daemon_t d;
+    char spool[600], id[64], path[160];
+    stream_client_t sc;
+    pthread_t th;
+    const char *last;
+    cJSON *j;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/checkpoint", g_tmp);
+    assert_int_equal(start_daemon(&d, "ckpt", spool, flags), 0);
+    memset(&sc, 0, sizeof sc);
+    sc.d = &d;
+    assert_int_equal(pthread_create(&th, NULL, long_stream_client, &sc), 0);
+    wait_gauge(&d, "mcfd_workers_busy", 1);
+    sleep_ms(100);
+    stop_daemon(&d); /* SIGTERM, exit 0 well before the job could finish */
+    pthread_join(th, NULL);
+    expect_status(&d, &sc.r, 200, "stream at checkpoint");
+    assert_non_null(header(&sc.r, "X-Job-Id", id, sizeof id));
+    assert_true(sc.r.body.len > 0 &&
+                sc.r.body.data[sc.r.body.len - 1] == '\n');
+    sc.r.body.data[sc.r.body.len - 1] = '\0';
+    last = strrchr(sc.r.body.data, '\n');
+    last = last ? last + 1 : sc.r.body.data;
+    j = cJSON_Parse(last);
+    assert_non_null(j);
+    assert_false(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "done")));
+    assert_string_equal(jstr(j, "status"), "queued");
+    assert_string_equal(jstr(cJSON_GetObjectItemCaseSensitive(j, "error"), "code"),
+                        "EDRAINING");
+    cJSON_Delete(j);
+    resp_free(&sc.r);
+
+    assert_int_equal(start_daemon(&d, "ckpt2", spool, flags), 0);
+    wait_running(&d, id);
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_status(&d, &r, 202, "cancel the re-run job");
+    resp_free(&r);
+    j = poll_job(&d, id, "canceled", 10);
+    cJSON_Delete(j);
+    stop_daemon(&d);
 }
 
 /* mcfd --probe: 0 against a live daemon, 1 against a closed port. */
@@ -1536,6 +1758,7 @@ int main(void)
         cmocka_unit_test(test_smooth_obj_multipart),
         cmocka_unit_test(test_smooth_draco_multipart),
         cmocka_unit_test(test_smooth_raw_and_params),
+        cmocka_unit_test(test_smooth_target),
         cmocka_unit_test(test_smooth_multipart_mixed),
         cmocka_unit_test(test_smooth_ndjson),
         cmocka_unit_test(test_async_job),
@@ -1545,6 +1768,7 @@ int main(void)
         cmocka_unit_test(test_concurrent_clients),
         cmocka_unit_test(test_kill9_recovery),
         cmocka_unit_test(test_sigterm_drain),
+        cmocka_unit_test(test_drain_checkpoint),
         cmocka_unit_test(test_probe),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
