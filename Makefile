@@ -126,7 +126,7 @@ test: deps
 	$(MAKE) all $(TEST_BIN)
 	$(MAKE) check-deps
 	@fail=0; for t in $(TEST_BIN); do \
-	  echo "== $$t"; MCF_MESHES=$(MESHES) MCF_BUILD=$(B) $$t || fail=1; done; \
+	  echo "== $$t"; OPENBLAS_NUM_THREADS=1 MCF_MESHES=$(MESHES) MCF_BUILD=$(B) $$t || fail=1; done; \
 	exit $$fail
 
 asan:

@@ -157,7 +157,7 @@ mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mass,
 
 /* Per-vertex quantities; each output array is caller-allocated, may be
  * NULL when not wanted. N: 3*nv unit area-weighted normals. H: nv signed
- * mean curvature (H = <-M^-1 L X, n>/2). K: nv Gaussian curvature by angle
+ * mean curvature (H = <M^-1 L X, n>/2, since -M^-1 L X = -2 H n). K: nv Gaussian curvature by angle
  * deficit over the barycentric mass (0 on boundary vertices). A2: nv
  * |A|^2 = 4H^2 - 2K. Unreferenced vertices get 0. */
 mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
@@ -241,7 +241,11 @@ typedef struct {
     mcf_laplacian laplacian;
     mcf_mass mass;
     int adaptive;             /* needs a scheme with has_estimate */
-    double tol;               /* adaptive: local error per step, relative */
+    double tol;               /* adaptive, relative to the unit-area size:
+                                 desbrun2: error per unit step (about the
+                                 error at T); ros2, richardson, desbrun:
+                                 local error per step of the first-order
+                                 companion solution (global <= steps*tol) */
     int max_steps;            /* hard cap on steps incl. rejected (adaptive) */
     double implicit_tol;      /* `implicit`: Picard stop, relative */
     int implicit_maxit;
@@ -253,7 +257,7 @@ typedef struct {
 
 /* Fills p with the defaults: desbrun2, dt 1e-4, 10 iterations, fixed
  * boundary, no rescale, normalize on, cotan, barycentric, tol 1e-4,
- * max_steps 100000, implicit_tol 1e-10, implicit_maxit 50. */
+ * max_steps 100000, implicit_tol 1e-10, implicit_maxit 200. */
 void mcf_flow_params_init(mcf_flow_params *p);
 
 /* Checks ranges and combinations (e.g. adaptive with a scheme that has no

@@ -21,6 +21,7 @@
  * factorization. No I/O, no globals; one flow_ctx per call.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -44,7 +45,7 @@ static const mcf_scheme_info SCHEMES[MCF_NSCHEMES] = {
                       "Milne device (new step vs quadratic extrapolation)",
                       "default: second order, A/L-stable, one factorization per step"},
     [MCF_ROS2] = {"ros2", "Rosenbrock-W, gamma = 1 + 1/sqrt(2)", 2, 0, 0.0, 2, 1, 1,
-                  "embedded first-order solution",
+                  "embedded first-order solution, filtered by W^-1 M",
                   "second order with a free error estimate; small steps"},
     [MCF_RICHARDSON] = {"richardson", "Richardson extrapolation of desbrun steps", 2, 0, 0.0, 3, 3, 1,
                         "difference of the two desbrun solutions",
@@ -94,7 +95,7 @@ void mcf_flow_params_init(mcf_flow_params *p)
     p->tol = 1e-4;
     p->max_steps = 100000;
     p->implicit_tol = 1e-10;
-    p->implicit_maxit = 50;
+    p->implicit_maxit = 200;
 }
 
 mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv, mcf_error *err)
@@ -728,8 +729,15 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
         for (size_t i = 0; i < n3; i++)
             X[i] = c->Xold[i] + h * (1.5 * K1[i] + 0.5 * K2[i]);
         if (est) {
-            for (size_t i = 0; i < n3; i++)
-                c->V2[i] = 0.5 * h * (K1[i] + K2[i]);             /* X+ - Y */
+            /* X+ - Y = h/2 (K1 + K2), filtered through W^-1 M (Shampine):
+             * unfiltered, a stiff mode of Y keeps (1 - 1/gamma) of its
+             * amplitude, so the raw difference is O(1) on noisy meshes
+             * and the controller would crawl. One more back-solve. */
+            for (int i = 0; i < c->nv; i++)
+                for (int d = 0; d < 3; d++)
+                    c->B[3 * i + d] = c->fixed[i] ? 0.0 : 0.5 * h * c->mass[i] * (K1[3 * i + d] + K2[3 * i + d]);
+            if ((rc = solve(c, c->B, c->V2, err)) != MCF_OK)
+                break;
             *est = mnorm(c, c->V2, c->mass);
         }
         break;
@@ -876,6 +884,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     flow_ctx c;
     mcf_flow_stats st_local;
     mcf_status rc;
+    int in_step = 0;
     double t_start = mcf_now();
     memset(&c, 0, sizeof c);
     memset(&st_local, 0, sizeof st_local);
@@ -923,11 +932,12 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     c.V = ctx_alloc(&c, n3); c.V2 = ctx_alloc(&c, n3); c.B = ctx_alloc(&c, n3);
     c.T1 = ctx_alloc(&c, n3); c.T2 = ctx_alloc(&c, n3); c.Xold = ctx_alloc(&c, n3);
     c.Xprev = ctx_alloc(&c, n3); c.Xprev2 = ctx_alloc(&c, n3);
-    if (p->adaptive)
+    int check_inv = p->adaptive || (c.si->is_explicit && p->scheme != MCF_TAUBIN);
+    if (check_inv)
         c.fn = ctx_alloc(&c, 3 * nf);
     if (!c.fixed || !c.w || !c.area || !c.mass || !c.w2 || !c.area2 || !c.mass2 || !c.V ||
         !c.V2 || !c.B || !c.T1 || !c.T2 || !c.Xold || !c.Xprev || !c.Xprev2 ||
-        (p->adaptive && !c.fn)) {
+        (check_inv && !c.fn)) {
         rc = mcf__fail(err, MCF_ENOMEM, "flow: out of memory (%d vertices, %d faces)", c.nv, c.nf);
         goto done;
     }
@@ -991,7 +1001,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     double area0 = surface_area(c.X, c.F, c.nf, NULL), vol0 = signed_volume(c.X, c.F, c.nf);
     double t = 0.0;
     history hist = {0, 0.0, 0.0};
-    int k = 0, attempts = 0, rejected_here = 0, in_step = 0;
+    int k = 0, attempts = 0, rejected_here = 0;
     for (;;) {
         if (p->adaptive ? !(t < T * (1.0 - 1e-12)) : k >= nsteps)
             break;
@@ -1006,8 +1016,9 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
             }
             if (t + h > T || T - (t + h) < 1e-9 * h)
                 h = T - t;
-            face_normals(c.X, c.F, c.nf, c.fn);
         }
+        if (check_inv)
+            face_normals(c.X, c.F, c.nf, c.fn);
         c.step_solve_s = 0.0;
         double est = 0.0;
         if (p->scheme == MCF_LINEAR && !c.factor_valid) {
@@ -1025,17 +1036,32 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         int finite = rc == MCF_OK && all_finite(c.X, n3);
         if (p->adaptive) {
             int inv = finite ? inverted_faces(c.X, c.F, c.nf, c.fn) : 0;
-            int q = p->scheme == MCF_DESBRUN2 && hist.nhist >= 2 ? 2 : 1;
+            /* desbrun2's Milne estimate has the method's own order, so it
+             * is controlled per unit step: a step may carry tol * h / T, and
+             * the local errors add up to about tol at T. The others
+             * estimate the error of a first-order companion (embedded Y,
+             * the plain desbrun steps), which overstates the second-order
+             * result's error by 1/(h lambda) on stiff modes: controlled per
+             * step (est <= tol), that is already conservative, while per
+             * unit step it would crawl through the noise transient. */
+            int milne = p->scheme == MCF_DESBRUN2 && hist.nhist >= 2;
+            int q = milne ? 2 : 1;
             int need_est = !(p->scheme == MCF_DESBRUN2 && hist.nhist == 1);
-            double ratio = need_est && est > 0.0 ? p->tol / est : 2.0;
+            double allowed = milne || p->scheme == MCF_DESBRUN2 ? p->tol * h / T : p->tol;
+            if (!milne)
+                q = 1;
+            double ratio = need_est && est > 0.0 ? allowed / est : 1e3;
             if (rc == MCF_ENOMEM || rc == MCF_ECANCELED)
                 goto done;
-            if (!finite || inv > 0 || (need_est && est > p->tol)) {
+            if (!finite || inv > 0 || (need_est && est > allowed)) {
                 memcpy(c.X, c.Xold, n3 * sizeof(double));
                 in_step = 0;
                 st->rejected++;
                 rejected_here++;
-                double fac = (!finite || inv > 0) ? 0.25 : fmax(0.2, 0.9 * pow(ratio, 1.0 / (q + 1)));
+                /* est ~ h^(q+1): per step the exponent is 1/(q+1); per unit
+                 * step (est/h ~ h^q) it is 1/q */
+                double ex = allowed == p->tol ? 1.0 / (q + 1) : 1.0 / q;
+                double fac = (!finite || inv > 0) ? 0.25 : fmax(0.2, 0.9 * pow(ratio, ex));
                 h *= fac;
                 if (h < 1e-14 * T) {
                     rc = mcf__fail(err, MCF_ENUMERIC, "adaptive: step size underflow at t = %g (%s)", t,
@@ -1054,7 +1080,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
             t += h;
             if (h < st->dt_min) st->dt_min = h;
             if (h > st->dt_max) st->dt_max = h;
-            double grow = fmin(2.0, fmax(0.2, 0.9 * pow(ratio, 1.0 / (q + 1))));
+            double grow = fmin(2.0, fmax(0.2, 0.9 * pow(ratio, allowed == p->tol ? 1.0 / (q + 1) : 1.0 / q)));
             if (p->scheme == MCF_DESBRUN2 && hist.nhist == 1)
                 grow = 1.0; /* the second step reuses h: BDF2 at ratio 1 */
             double hn = h * grow;
@@ -1062,10 +1088,18 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         } else {
             if (rc != MCF_OK)
                 goto done;
-            if (!finite) {
-                rc = mcf__fail(err, MCF_ENUMERIC,
-                               "step %d of '%s' at dt %g produced non-finite positions%s", k + 1, c.si->name, h,
-                               c.si->is_explicit && c.si->stability > 0 ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
+            /* An explicit scheme past its limit need not overflow: lambda
+             * falls like 1/size^2 as the mesh blows up, so the crumpled
+             * result stays finite. Inverted faces give it away. */
+            int inv = finite && check_inv ? inverted_faces(c.X, c.F, c.nf, c.fn) : 0;
+            if (!finite || inv > 0) {
+                char why[64];
+                if (!finite)
+                    snprintf(why, sizeof why, "non-finite positions");
+                else
+                    snprintf(why, sizeof why, "%d inverted faces", inv);
+                rc = mcf__fail(err, MCF_ENUMERIC, "step %d of '%s' at dt %g produced %s%s", k + 1, c.si->name, h, why,
+                               c.si->is_explicit ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
                 goto done;
             }
             memcpy(c.Xprev2, c.Xprev, n3 * sizeof(double));
@@ -1111,6 +1145,10 @@ done:
         for (size_t i = 0; i < nv; i++)
             for (int d = 0; d < 3; d++)
                 c.X[3 * i + d] = c.X[3 * i + d] / scale + cen[d];
+        /* fixed vertices come back to the bit, not through (x-c)*s/s+c */
+        for (size_t i = 0; c.fixed && i < nv; i++)
+            if (c.fixed[i])
+                memcpy(c.X + 3 * i, X_in + 3 * i, 3 * sizeof(double));
     }
     st->area1 = surface_area(m->X, m->F, m->nf, NULL);
     st->volume1 = signed_volume(m->X, m->F, m->nf);
