@@ -894,11 +894,13 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     if (r->rt == RT_READYZ) {
         srv_gauges g = srv_jobs_gauges();
         cJSON *o;
+        /* Only draining makes the daemon unready. A full queue does not:
+         * it is answered per request (503 + Retry-After), and an
+         * orchestrator flapping every replica out of its Service under
+         * load would turn those into connection errors. */
         if (g.draining)
             return problem(r, c, 503, "EDRAINING", "the daemon is shutting "
                            "down");
-        if (!srv_jobs_can_accept())
-            return problem(r, c, 503, "EBUSY", "the job queue is full");
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ready");
         cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);
