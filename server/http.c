@@ -102,7 +102,7 @@ static int terminal(srv_job_status s)
 /* ------------------------------------------------------------ responses */
 
 static enum MHD_Result respond(srv_request *r, struct MHD_Connection *c,
-                            unsigned status, struct MHD_Response *resp)
+                               unsigned status, struct MHD_Response *resp)
 {
     enum MHD_Result ret;
 
