@@ -163,6 +163,12 @@ mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mass,
 mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
                          double *A2, mcf_error *err);
 
+/* Tangential gradient of a per-vertex scalar field f (nv): the area-
+ * weighted average of the face gradients of its linear interpolant, into
+ * caller-allocated G (3*nv). E.g. grad H with H from mcf_curvature. */
+mcf_status mcf_gradient(const mcf_mesh *m, const double *f, double *G,
+                        mcf_error *err);
+
 typedef struct {
     double min, max, mean, rms, p05, p50, p95;
 } mcf_stats;

@@ -60,6 +60,52 @@ void mcf__vertex_normals(const double *X, const int32_t *F, int nf, int nv,
     }
 }
 
+void mcf__vertex_gradient(const double *X, const int32_t *F, int nf, int nv,
+                          const double *f, double *G)
+{
+    double *wsum = mcf__calloc((size_t)nv, sizeof *wsum);
+    memset(G, 0, 3 * (size_t)nv * sizeof *G);
+    for (size_t q = 0; q < (size_t)nf; q++) {
+        const int32_t *t = F + 3 * q;
+        const double *p[3] = {X + 3 * (size_t)t[0], X + 3 * (size_t)t[1], X + 3 * (size_t)t[2]};
+        double a1[3], a2[3], n[3], g[3] = {0, 0, 0};
+        mcf__sub3(p[1], p[0], a1);
+        mcf__sub3(p[2], p[0], a2);
+        mcf__cross3(a1, a2, n); /* |n| = 2A */
+        double n2 = mcf__dot3(n, n);
+        if (!(n2 > 0.0))
+            continue; /* a zero-area face has no gradient */
+        for (int k = 0; k < 3; k++) {
+            /* grad phi_k = n x e_k / |n|^2, e_k the edge opposite k, ccw */
+            double e[3], ne[3];
+            mcf__sub3(p[(k + 2) % 3], p[(k + 1) % 3], e);
+            mcf__cross3(n, e, ne);
+            double s = f[t[k]] / n2;
+            g[0] += s * ne[0]; g[1] += s * ne[1]; g[2] += s * ne[2];
+        }
+        double A = 0.5 * sqrt(n2);
+        for (int k = 0; k < 3; k++) {
+            double *Gi = G + 3 * (size_t)t[k];
+            Gi[0] += A * g[0]; Gi[1] += A * g[1]; Gi[2] += A * g[2];
+            if (wsum)
+                wsum[t[k]] += A;
+        }
+    }
+    for (size_t i = 0; wsum && i < (size_t)nv; i++)
+        if (wsum[i] > 0.0) {
+            G[3 * i] /= wsum[i]; G[3 * i + 1] /= wsum[i]; G[3 * i + 2] /= wsum[i];
+        }
+    free(wsum);
+}
+
+mcf_status mcf_gradient(const mcf_mesh *m, const double *f, double *G, mcf_error *err)
+{
+    if (!m || !f || !G)
+        return mcf__fail(err, MCF_EINVAL, "mcf_gradient: NULL argument");
+    mcf__vertex_gradient(m->X, m->F, m->nf, m->nv, f, G);
+    return MCF_OK;
+}
+
 static int key_cmp(const void *pa, const void *pb)
 {
     uint64_t a = *(const uint64_t *)pa, b = *(const uint64_t *)pb;
@@ -103,12 +149,8 @@ static mcf_status edge_topology(const int32_t *F, int nf, int nv,
     return MCF_OK;
 }
 
-/* angle[v] += corner angles, mass[v] += area/3 (barycentric, from the true
- * area), used[v] = 1 for referenced vertices. Angles come from atan2 of
- * |cross| and dot, accurate for angles near 0 and pi alike; a corner with
- * a zero-length side gets angle 0. */
-static void corner_sums(const double *X, const int32_t *F, int nf,
-                        double *angle, double *mass, unsigned char *used)
+void mcf__corner_sums(const double *X, const int32_t *F, int nf,
+                      double *angle, double *mass, unsigned char *used)
 {
     size_t f;
     for (f = 0; f < (size_t)nf; f++) {
@@ -126,8 +168,10 @@ static void corner_sums(const double *X, const int32_t *F, int nf,
             mcf__sub3(X + 3 * (size_t)t[(k + 2) % 3], p, b);
             mcf__cross3(a, b, c);
             angle[t[k]] += atan2(sqrt(mcf__dot3(c, c)), mcf__dot3(a, b));
-            mass[t[k]] += area / 3.0;
-            used[t[k]] = 1;
+            if (mass)
+                mass[t[k]] += area / 3.0;
+            if (used)
+                used[t[k]] = 1;
         }
     }
 }
@@ -162,7 +206,7 @@ mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
         goto done;
     if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, &ne, err)) != MCF_OK)
         goto done;
-    corner_sums(m->X, m->F, m->nf, angle, bm, used);
+    mcf__corner_sums(m->X, m->F, m->nf, angle, bm, used);
 
     for (i = 0; i < nv; i++) {
         double h = 0, kg = 0;
@@ -268,7 +312,7 @@ mcf_status mcf_curvature_summarize(const mcf_mesh *m,
         goto done;
     if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, &ne, err)) != MCF_OK)
         goto done;
-    corner_sums(m->X, m->F, m->nf, angle, bm, used);
+    mcf__corner_sums(m->X, m->F, m->nf, angle, bm, used);
 
     memset(&s, 0, sizeof s);
     stats_of(H, used, nv, tmp, &s.H);

@@ -435,59 +435,6 @@ static double mnorm(const flow_ctx *c, const double *D, const double *mass)
 
 /* ----------------------------------------------------- the schemes */
 
-/* Corner angles, angle-deficit K and area-weighted grad h, for huisken2. */
-static void huisken_terms(flow_ctx *c, const double *X, const double *h,
-                          const double *mass, double *K, double *G)
-{
-    int nv = c->nv;
-    double *asum = c->T2; /* nv doubles of scratch (T2 has 3*nv) */
-    double *gw = c->T2 + nv;
-    memset(asum, 0, sizeof(double) * (size_t)nv);
-    memset(gw, 0, sizeof(double) * (size_t)nv);
-    memset(G, 0, sizeof(double) * 3 * (size_t)nv);
-    for (int f = 0; f < c->nf; f++) {
-        const int32_t *t = c->F + 3 * (size_t)f;
-        const double *p[3] = {X + 3 * (size_t)t[0], X + 3 * (size_t)t[1], X + 3 * (size_t)t[2]};
-        double e[3][3], n[3], a1[3], a2[3];
-        for (int k = 0; k < 3; k++) /* e[k]: edge opposite corner k, ccw */
-            mcf__sub3(p[(k + 2) % 3], p[(k + 1) % 3], e[k]);
-        mcf__sub3(p[1], p[0], a1);
-        mcf__sub3(p[2], p[0], a2);
-        mcf__cross3(a1, a2, n); /* |n| = 2A */
-        double twoA = sqrt(mcf__dot3(n, n));
-        for (int k = 0; k < 3; k++) {
-            double u[3], v[3];
-            mcf__sub3(p[(k + 1) % 3], p[k], u);
-            mcf__sub3(p[(k + 2) % 3], p[k], v);
-            double cr[3];
-            mcf__cross3(u, v, cr);
-            asum[t[k]] += atan2(sqrt(mcf__dot3(cr, cr)), mcf__dot3(u, v));
-        }
-        if (!(twoA > 0.0))
-            continue;
-        /* grad phi_k = (n/|n|) x e_k / (2A) = n x e_k / (2A)^2 */
-        double g[3] = {0, 0, 0};
-        for (int k = 0; k < 3; k++) {
-            double ne[3];
-            mcf__cross3(n, e[k], ne); /* |n| = 2A, so divide by (2A)^2 */
-            double s = h[t[k]] / (twoA * twoA);
-            g[0] += s * ne[0]; g[1] += s * ne[1]; g[2] += s * ne[2];
-        }
-        double A = 0.5 * twoA;
-        for (int k = 0; k < 3; k++) {
-            double *Gi = G + 3 * (size_t)t[k];
-            Gi[0] += A * g[0]; Gi[1] += A * g[1]; Gi[2] += A * g[2];
-            gw[t[k]] += A;
-        }
-    }
-    for (int i = 0; i < nv; i++) {
-        K[i] = c->fixed[i] || !(mass[i] > 0) ? 0.0 : (2.0 * MCF_PI - asum[i]) / mass[i];
-        if (gw[i] > 0) {
-            G[3 * i] /= gw[i]; G[3 * i + 1] /= gw[i]; G[3 * i + 2] /= gw[i];
-        }
-    }
-}
-
 /* X+ = X + dt V + dt^2/2 ((Dh + |A|^2 h) n - h grad h): MATH.md huisken2. */
 static void step_huisken2(flow_ctx *c, double h)
 {
@@ -507,7 +454,14 @@ static void step_huisken2(flow_ctx *c, double h)
     mcf__apply_L(c->F, c->nf, nv, c->w, c->T2, c->B);
     for (int i = 0; i < nv; i++)
         Dh[i] = c->fixed[i] ? 0.0 : -c->B[3 * i] / c->mass[i];
-    huisken_terms(c, X, hv, c->mass, K, G); /* T2 is scratch, G = B */
+    /* K by angle deficit over the true barycentric mass (MATH.md); the
+     * two nv-long sums live in T2 */
+    double *asum = c->T2, *bmass = c->T2 + nv;
+    memset(asum, 0, 2 * sizeof(double) * (size_t)nv);
+    mcf__corner_sums(X, c->F, c->nf, asum, bmass, NULL);
+    for (int i = 0; i < nv; i++)
+        K[i] = c->fixed[i] || !(bmass[i] > 0.0) ? 0.0 : (2.0 * MCF_PI - asum[i]) / bmass[i];
+    mcf__vertex_gradient(X, c->F, c->nf, nv, hv, G);
     for (int i = 0; i < nv; i++) {
         if (c->fixed[i])
             continue;

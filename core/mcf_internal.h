@@ -105,6 +105,18 @@ static inline void mcf__cross3(const double *a, const double *b, double *r)
     r[2] = a[0] * b[1] - a[1] * b[0];
 }
 
+/* angle[v] += corner angles at v; mass[v] += true area/3 and used[v] = 1
+ * for referenced vertices when those are non-NULL. Angles by atan2 of
+ * |cross| and dot (accurate near 0 and pi). (mcf_curvature.c) */
+void mcf__corner_sums(const double *X, const int32_t *F, int nf,
+                      double *angle, double *mass, unsigned char *used);
+
+/* G (3*nv) = area-weighted average over the faces at each vertex of the
+ * face gradient of the linear interpolant of f (nv); zero-area faces are
+ * skipped, vertices without a face get 0. (mcf_curvature.c) */
+void mcf__vertex_gradient(const double *X, const int32_t *F, int nf, int nv,
+                          const double *f, double *G);
+
 /* Area-weighted vertex normals (unit; zero where undefined). (mcf_curvature.c) */
 void mcf__vertex_normals(const double *X, const int32_t *F, int nf, int nv,
                          double *N);
