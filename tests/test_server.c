@@ -1758,6 +1758,112 @@ static void test_probe(void **state)
     assert_int_equal(run_probe(closed_port), 1);
 }
 
+/* Runs mcfd with argv (and the current environment); returns the exit
+ * status and the first bytes of stderr in err. */
+static int run_mcfd(const char *const *args, char *err, size_t errsize)
+{
+    const char *argv[16];
+    int pfd[2], n = 0, st = 0;
+    size_t got = 0;
+    pid_t pid;
+
+    argv[n++] = g_bin;
+    while (*args && n < 15)
+        argv[n++] = *args++;
+    argv[n] = NULL;
+    if (pipe(pfd) != 0)
+        return -1;
+    pid = fork();
+    if (pid == 0) {
+        int nul = open("/dev/null", O_WRONLY);
+        dup2(nul, 1);
+        dup2(pfd[1], 2);
+        close(pfd[0]);
+        close(pfd[1]);
+        execv(g_bin, (char *const *)(uintptr_t)argv);
+        _exit(127);
+    }
+    close(pfd[1]);
+    for (;;) {
+        struct pollfd p = {pfd[0], POLLIN, 0};
+        ssize_t r;
+        if (poll(&p, 1, 10000) <= 0)
+            break;
+        r = read(pfd[0], err + got, errsize - 1 - got);
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+        if (got == errsize - 1)
+            break;
+    }
+    err[got] = '\0';
+    close(pfd[0]);
+    if (!wait_exit(pid, 15, &st)) {
+        kill(pid, SIGKILL);
+        waitpid(pid, NULL, 0);
+        return -1;
+    }
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+/* Flags win over MCFD_* variables; bad values stop the start with exit
+ * status 2 and a message naming the flag or variable. */
+static void test_config(void **state)
+{
+    static const char *const flags[] = {"--queue", "7", NULL};
+    daemon_t d;
+    char spool[600], err[1024];
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/config", g_tmp);
+    setenv("MCFD_WORKERS", "3", 1);
+    setenv("MCFD_QUEUE", "5", 1);
+    setenv("MCFD_MAX_UPLOAD", "1K", 1);
+    assert_int_equal(start_daemon(&d, "config", spool, flags), 0);
+    unsetenv("MCFD_WORKERS");
+    unsetenv("MCFD_QUEUE");
+    unsetenv("MCFD_MAX_UPLOAD");
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "metrics");
+    assert_true(metric(r.body.data, "mcfd_workers") == 3);        /* env */
+    assert_true(metric(r.body.data, "mcfd_queue_capacity") == 7); /* flag */
+    resp_free(&r);
+    {
+        upload_t up = {.mesh = "sphere_cgal.obj"}; /* 72 KB > 1K */
+        http(&d, "POST", "/smooth", NULL, &up, &r);
+        expect_problem(&d, &r, 413, "ELIMIT", "1024", "MCFD_MAX_UPLOAD");
+        resp_free(&r);
+    }
+    stop_daemon(&d);
+
+    {
+        static const char *const a[] = {"--port", "70000", NULL};
+        assert_int_equal(run_mcfd(a, err, sizeof err), 2);
+        assert_non_null(strstr(err, "--port"));
+    }
+    {
+        static const char *const a[] = {"--no-such-flag", NULL};
+        assert_int_equal(run_mcfd(a, err, sizeof err), 2);
+        assert_non_null(strstr(err, "--no-such-flag"));
+    }
+    {
+        static const char *const a[] = {"--help", NULL};
+        setenv("MCFD_LOG_LEVEL", "loud", 1);
+        assert_int_equal(run_mcfd(a, err, sizeof err), 2);
+        assert_non_null(strstr(err, "MCFD_LOG_LEVEL"));
+        unsetenv("MCFD_LOG_LEVEL");
+        assert_int_equal(run_mcfd(a, err, sizeof err), 0);
+    }
+    {
+        char tok[600];
+        const char *a[] = {"--token-file", tok, NULL};
+        snprintf(tok, sizeof tok, "%s/no-such-token", g_tmp);
+        assert_int_equal(run_mcfd(a, err, sizeof err), 2);
+        assert_non_null(strstr(err, "no-such-token"));
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1777,6 +1883,7 @@ int main(void)
         cmocka_unit_test(test_sigterm_drain),
         cmocka_unit_test(test_drain_checkpoint),
         cmocka_unit_test(test_probe),
+        cmocka_unit_test(test_config),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }
