@@ -1,0 +1,704 @@
+/*
+ * bench_core.c - `make bench`: libmcf against the Eigen peer, measured in
+ * the same run, as ratios.
+ *
+ * What is timed (every figure is the median of --reps repetitions; the
+ * repetitions of mcfd and of the peer are interleaved so a load change on
+ * the shared machine hits both alike):
+ *   1. One `desbrun` step, (M + dt L) X+ = M X. mcfd (mcf_flow_run,
+ *      normalize on) three ways: "stats" = (time_assemble + time_factorize
+ *      + time_solve) / steps of a 10-step run (the steady per-step cost;
+ *      the symbolic analysis is once per job and not in it); "call/10" =
+ *      the wall time of the whole 10-step call / 10 (analysis, pattern,
+ *      normalization amortized over 10 steps: the figure the goal is
+ *      judged on); "1st" = the whole call of a 1-step job. Peer: one
+ *      eigen_peer step (triplets + SimplicialLDLT compute + solve), whole
+ *      call. Icosphere level 7 and dragon_vrip.drc.
+ *   2. One `euler` step, same columns (for an explicit scheme "stats"
+ *      holds only the weights and mass: the L X product sits in no timer
+ *      of mcf_flow_stats, so "marg" = (call(10) - call(1)) / 9, the
+ *      marginal cost of a step, is shown as well).
+ *   3. Equal accuracy: steps and wall time `desbrun` and `desbrun2` need
+ *      to reach a relative error of 1e-4 (mcf_compare rms_rel) at a fixed
+ *      final time against a `richardson` reference at a tiny step.
+ *   4. Peak memory of one job: mcf_flow_stats.peak_bytes and the growth of
+ *      getrusage ru_maxrss in a child process (peak reset first through
+ *      /proc/self/clear_refs, so earlier jobs do not mask it).
+ * Sanity lines first: one step of mcfd and of the peer on sphere_cgal.obj
+ * with normalize off must agree to 1e-10 relative (same linear system).
+ *
+ * Run with OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 (bench/Makefile does)
+ * for a single-thread comparison; --threads-default prints only the mcfd
+ * desbrun figures, for a run with the libraries' default thread counts.
+ */
+#include <errno.h>
+#include <math.h>
+#include <sched.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/utsname.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cholmod.h>
+
+#include "api.h"
+#include "eigen_peer.h"
+#include "mcf.h"
+
+#define MAXREPS 32
+
+static int g_reps = 5;
+
+/* ------------------------------------------------------------ helpers */
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median of n values (n >= 1); v is reordered. */
+static double median(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static void die(const char *what, const mcf_error *e)
+{
+    fprintf(stderr, "bench_core: %s: %s\n", what, e ? e->msg : "failed");
+    exit(1);
+}
+
+/* Reads dir/name and decodes it (default limits). Exits on failure. */
+static mcf_mesh *load_mesh(const char *dir, const char *name)
+{
+    char path[4096];
+    mcf_error e = {0};
+    mcf_mesh *m = NULL;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "bench_core: cannot open %s: %s\n", path, strerror(errno));
+        exit(1);
+    }
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = malloc(len > 0 ? (size_t)len : 1);
+    if (!buf || len <= 0 || fread(buf, 1, (size_t)len, f) != (size_t)len) {
+        fprintf(stderr, "bench_core: cannot read %s\n", path);
+        exit(1);
+    }
+    fclose(f);
+    if (api_mesh_decode(buf, (size_t)len, NULL, &m, NULL, &e) != MCF_OK)
+        die(path, &e);
+    free(buf);
+    return m;
+}
+
+static mcf_mesh *dup_mesh(const mcf_mesh *m)
+{
+    mcf_error e = {0};
+    mcf_mesh *d = mcf_mesh_dup(m, &e);
+    if (!d)
+        die("mcf_mesh_dup", &e);
+    return d;
+}
+
+/* ||A - B||_F / ||B - C||_F over 3*nv doubles (C may be NULL: / ||B||). */
+static double rel_diff(const double *A, const double *B, const double *C, int nv)
+{
+    double num = 0.0, den = 0.0;
+    for (size_t i = 0; i < 3 * (size_t)nv; i++) {
+        double d = A[i] - B[i], r = C ? B[i] - C[i] : B[i];
+        num += d * d;
+        den += r * r;
+    }
+    return sqrt(num / den);
+}
+
+/* One mcf_flow_run on a copy of m. Returns the wall time of the call;
+ * stats filled; *out (if non-NULL) receives the result (caller frees). */
+static double run_mcf(const mcf_mesh *m, mcf_scheme s, double dt, int iters,
+                      int normalize, mcf_flow_stats *st, mcf_mesh **out)
+{
+    mcf_flow_params p;
+    mcf_error e = {0};
+    mcf_flow_stats local;
+    mcf_mesh *d = dup_mesh(m);
+    mcf_flow_params_init(&p);
+    p.scheme = s;
+    p.dt = dt;
+    p.iterations = iters;
+    p.normalize = normalize;
+    p.max_steps = iters > p.max_steps ? iters : p.max_steps;
+    if (!st)
+        st = &local;
+    double t0 = mcf_now();
+    mcf_status rc = mcf_flow_run(d, &p, st, &e);
+    double wall = mcf_now() - t0;
+    if (rc != MCF_OK)
+        die(mcf_scheme_get(s)->name, &e);
+    if (st == &local)
+        mcf_flow_stats_free(&local);
+    if (out)
+        *out = d;
+    else
+        mcf_mesh_free(d);
+    return wall;
+}
+
+typedef int (*peer_fn)(int, const double *, int, const int32_t *, double,
+                       double *, peer_times *);
+
+/* One peer step on m; wall time returned, result into out (3*nv). */
+static double run_peer(peer_fn fn, const mcf_mesh *m, double dt, double *out,
+                       peer_times *pt)
+{
+    double t0 = mcf_now();
+    int rc = fn(mcf_mesh_nvertices(m), mcf_mesh_positions(m),
+                mcf_mesh_nfaces(m), mcf_mesh_faces(m), dt, out, pt);
+    double wall = mcf_now() - t0;
+    if (rc != 0) {
+        fprintf(stderr, "bench_core: the Eigen peer failed\n");
+        exit(1);
+    }
+    return wall;
+}
+
+static double *xalloc(size_t n)
+{
+    double *p = malloc(n * sizeof *p);
+    if (!p) {
+        fprintf(stderr, "bench_core: out of memory\n");
+        exit(1);
+    }
+    return p;
+}
+
+/* ------------------------------------------------------- machine info */
+
+static void print_machine(void)
+{
+    char model[256] = "unknown", line[512];
+    long memkb = 0;
+    FILE *f = fopen("/proc/cpuinfo", "r");
+    while (f && fgets(line, sizeof line, f))
+        if (strncmp(line, "model name", 10) == 0) {
+            char *c = strchr(line, ':');
+            if (c) {
+                snprintf(model, sizeof model, "%s", c + 2);
+                model[strcspn(model, "\n")] = 0;
+            }
+            break;
+        }
+    if (f)
+        fclose(f);
+    f = fopen("/proc/meminfo", "r");
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "MemTotal: %ld kB", &memkb) == 1)
+            break;
+    if (f)
+        fclose(f);
+    char load[128] = "?";
+    f = fopen("/proc/loadavg", "r");
+    if (f && fgets(load, sizeof load, f))
+        load[strcspn(load, "\n")] = 0;
+    if (f)
+        fclose(f);
+    cpu_set_t set;
+    int nproc = sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : -1;
+    time_t now = time(NULL);
+    char date[64];
+    strftime(date, sizeof date, "%Y-%m-%d %H:%M:%S UTC", gmtime(&now));
+    struct utsname u;
+    if (uname(&u) != 0)
+        strcpy(u.release, "?");
+    const char *ob = getenv("OPENBLAS_NUM_THREADS"), *om = getenv("OMP_NUM_THREADS");
+    printf("machine: %s, nproc %d, %.1f GiB RAM, Linux %s\n", model, nproc,
+           (double)memkb / (1024.0 * 1024.0), u.release);
+    printf("date:    %s, load average %s\n", date, load);
+    printf("libs:    CHOLMOD %d.%d.%d, Eigen %s (peer), compiler %s\n",
+           CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION, CHOLMOD_SUBSUB_VERSION,
+           peer_eigen_version(), __VERSION__);
+    printf("threads: OPENBLAS_NUM_THREADS=%s OMP_NUM_THREADS=%s, repetitions %d (medians)\n",
+           ob ? ob : "(unset)", om ? om : "(unset)", g_reps);
+}
+
+/* ------------------------------------------------------------ sanity */
+
+static int sanity(const char *dir)
+{
+    mcf_mesh *m = load_mesh(dir, "sphere_cgal.obj");
+    int nv = mcf_mesh_nvertices(m), ok = 1;
+    const double *X0 = mcf_mesh_positions(m);
+    double *Xp = xalloc(3 * (size_t)nv);
+    mcf_mesh *out = NULL;
+    mcf_error e = {0};
+
+    /* desbrun: dt in input units (normalize off), sphere of radius ~1 */
+    double dt = 1e-2;
+    run_mcf(m, MCF_DESBRUN, dt, 1, 0, NULL, &out);
+    run_peer(peer_desbrun_step, m, dt, Xp, NULL);
+    double r = rel_diff(mcf_mesh_positions(out), Xp, NULL, nv);
+    double rd = rel_diff(mcf_mesh_positions(out), Xp, X0, nv);
+    /* 1e-10: both solve the same SPD system (condition ~1 + dt lambda_max
+     * ~ 1e2) in double precision; a different matrix (weights, mass, sign)
+     * shows up at 1e-3 and above */
+    ok &= r <= 1e-10;
+    printf("sanity: desbrun step, sphere_cgal.obj, normalize off, dt %g: "
+           "|X_mcfd - X_peer|/|X_peer| = %.2e (displacement-relative %.2e) %s\n",
+           dt, r, rd, r <= 1e-10 ? "ok" : "FAIL");
+    mcf_mesh_free(out);
+
+    double lambda = 0.0;
+    if (mcf_lambda_max(m, MCF_LAPLACIAN_COTAN, MCF_MASS_BARYCENTRIC, &lambda, &e) != MCF_OK)
+        die("mcf_lambda_max", &e);
+    dt = 1.0 / lambda;
+    run_mcf(m, MCF_EULER, dt, 1, 0, NULL, &out);
+    run_peer(peer_euler_step, m, dt, Xp, NULL);
+    r = rel_diff(mcf_mesh_positions(out), Xp, NULL, nv);
+    rd = rel_diff(mcf_mesh_positions(out), Xp, X0, nv);
+    ok &= r <= 1e-10;
+    printf("sanity: euler step,   sphere_cgal.obj, normalize off, dt %.3g: "
+           "|X_mcfd - X_peer|/|X_peer| = %.2e (displacement-relative %.2e) %s\n",
+           dt, r, rd, r <= 1e-10 ? "ok" : "FAIL");
+    mcf_mesh_free(out);
+    free(Xp);
+    mcf_mesh_free(m);
+    return ok;
+}
+
+/* ------------------------------------------------------------ timing */
+
+typedef struct {
+    const char *mesh;
+    int nv;
+    double peer, peer_asm, peer_fac, peer_sol; /* medians, seconds */
+    double stats, call10, first, marg, analyze;
+    double agree;  /* |X_mcfd - X_peer| / |X_peer - X0| after one step */
+} timing_row;
+
+/* Times one step of `scheme` (desbrun or euler) of mcfd against the peer.
+ * dt is normalized (unit area); the peer gets dt * area. */
+static void time_step(const char *label, const mcf_mesh *m, mcf_scheme scheme,
+                      double dt, timing_row *row)
+{
+    int nv = mcf_mesh_nvertices(m), R = g_reps;
+    double area = mcf_mesh_area(m);
+    double pk[MAXREPS], pa[MAXREPS], pf[MAXREPS], ps[MAXREPS];
+    double st[MAXREPS], c10[MAXREPS], c1[MAXREPS], mg[MAXREPS], an[MAXREPS];
+    double *Xp = xalloc(3 * (size_t)nv);
+    peer_fn fn = scheme == MCF_EULER ? peer_euler_step : peer_desbrun_step;
+    mcf_mesh *first_out = NULL;
+
+    for (int r = 0; r < R; r++) {
+        mcf_flow_stats s;
+        double w10 = run_mcf(m, scheme, dt, 10, 1, &s, NULL);
+        st[r] = (s.time_assemble + s.time_factorize + s.time_solve) / s.steps;
+        an[r] = s.time_analyze;
+        c10[r] = w10 / 10.0;
+        mcf_flow_stats_free(&s);
+        mcf_mesh_free(first_out);
+        c1[r] = run_mcf(m, scheme, dt, 1, 1, NULL, &first_out);
+        mg[r] = (w10 - c1[r]) / 9.0;
+        peer_times pt;
+        pk[r] = run_peer(fn, m, dt * area, Xp, &pt);
+        pa[r] = pt.assemble;
+        pf[r] = pt.factorize;
+        ps[r] = pt.solve;
+    }
+    row->mesh = label;
+    row->nv = nv;
+    row->peer = median(pk, R);
+    row->peer_asm = median(pa, R);
+    row->peer_fac = median(pf, R);
+    row->peer_sol = median(ps, R);
+    row->stats = median(st, R);
+    row->call10 = median(c10, R);
+    row->first = median(c1, R);
+    row->marg = median(mg, R);
+    row->analyze = median(an, R);
+    row->agree = rel_diff(mcf_mesh_positions(first_out), Xp, mcf_mesh_positions(m), nv);
+    mcf_mesh_free(first_out);
+    free(Xp);
+}
+
+static void print_timing(const char *title, const timing_row *rows, int n, int expl)
+{
+    printf("\n%s\n", title);
+    printf("  %-13s %7s | %-28s | %-52s\n", "mesh", "nv", "Eigen peer, ms",
+           "mcfd, ms (ratio = peer / mcfd)");
+    printf("  %-13s %7s | %8s %6s %6s %6s | %8s %6s %8s %6s %8s %6s %8s\n", "", "",
+           "step", expl ? "build" : "asm", expl ? "-" : "ldlt", expl ? "LX" : "solve",
+           expl ? "marg" : "stats", "ratio", "call/10", "ratio", "1st", "ratio",
+           expl ? "stats" : "analyze");
+    for (int i = 0; i < n; i++) {
+        const timing_row *r = &rows[i];
+        double steady = expl ? r->marg : r->stats;
+        printf("  %-13s %7d | %8.1f %6.1f %6.1f %6.1f | %8.1f %5.1fx %8.1f %5.1fx %8.1f %5.1fx %8.1f\n",
+               r->mesh, r->nv, 1e3 * r->peer, 1e3 * r->peer_asm, 1e3 * r->peer_fac,
+               1e3 * r->peer_sol, 1e3 * steady, r->peer / steady, 1e3 * r->call10,
+               r->peer / r->call10, 1e3 * r->first, r->peer / r->first,
+               1e3 * (expl ? r->stats : r->analyze));
+    }
+    for (int i = 0; i < n; i++)
+        printf("  %s: one-step results of mcfd and the peer differ by %.2e of the "
+               "displacement%s\n", rows[i].mesh, rows[i].agree,
+               strstr(rows[i].mesh, "dragon") ? " (mollification vs the peer's area clamp on "
+               "degenerate triangles)" : "");
+}
+
+/* ---------------------------------------------------------- accuracy */
+
+typedef struct {
+    const char *mesh;
+    int nv;
+    double T, ref_err;
+    int nref;
+    int n[2];          /* steps to 1e-4: desbrun, desbrun2 (0: not reached) */
+    double err[2], wall[2];
+} acc_row;
+
+static double err_vs(const mcf_mesh *x, const mcf_mesh *ref)
+{
+    mcf_compare_result c;
+    mcf_error e = {0};
+    if (mcf_compare(x, ref, &c, &e) != MCF_OK)
+        die("mcf_compare", &e);
+    return c.rms_rel;
+}
+
+/* Steps (doubling from 1) and wall time each scheme needs to reach rms_rel
+ * <= tol at time T from m (normalize on), against richardson at nref
+ * steps. */
+static void accuracy(const char *label, const mcf_mesh *m, double T, int nref,
+                     double tol, int nmax, acc_row *row)
+{
+    static const mcf_scheme sch[2] = {MCF_DESBRUN, MCF_DESBRUN2};
+    mcf_mesh *ref = NULL, *half = NULL;
+    row->mesh = label;
+    row->nv = mcf_mesh_nvertices(m);
+    row->T = T;
+    row->nref = nref;
+    run_mcf(m, MCF_RICHARDSON, T / nref, nref, 1, NULL, &ref);
+    run_mcf(m, MCF_RICHARDSON, 2.0 * T / nref, nref / 2, 1, NULL, &half);
+    /* second order: e(n/2) ~ 4 e(n), so |X(n/2) - X(n)| ~ 3 e(n) */
+    row->ref_err = err_vs(half, ref) / 3.0;
+    mcf_mesh_free(half);
+    printf("  %s: T %g, reference richardson %d steps (estimated error %.1e)\n",
+           label, T, nref, row->ref_err);
+    for (int k = 0; k < 2; k++) {
+        const char *name = mcf_scheme_get(sch[k])->name;
+        printf("    %-9s rms_rel:", name);
+        row->n[k] = 0;
+        for (int n = 1; n <= nmax; n *= 2) {
+            mcf_mesh *x = NULL;
+            run_mcf(m, sch[k], T / n, n, 1, NULL, &x);
+            double e = err_vs(x, ref);
+            mcf_mesh_free(x);
+            printf(" %d:%.1e", n, e);
+            fflush(stdout);
+            if (e <= tol) {
+                row->n[k] = n;
+                row->err[k] = e;
+                break;
+            }
+        }
+        printf("%s\n", row->n[k] ? "" : " (not reached)");
+        if (!row->n[k])
+            continue;
+        double w[MAXREPS];
+        for (int r = 0; r < g_reps; r++)
+            w[r] = run_mcf(m, sch[k], T / row->n[k], row->n[k], 1, NULL, NULL);
+        row->wall[k] = median(w, g_reps);
+    }
+    mcf_mesh_free(ref);
+}
+
+/* ------------------------------------------------------------ memory */
+
+typedef struct {
+    double base_kb, max_kb, peak_bytes;
+    int reset; /* the peak was reset through clear_refs */
+} mem_result;
+
+/* The child side of mem_job (bench_core --mem-job peer|mcfd MESH): loads
+ * the mesh, resets the peak RSS, runs one job and prints one line. */
+static int mem_child(const char *dir, const char *kind, const char *mesh, double dt)
+{
+    mem_result r = {0};
+    mcf_error e = {0};
+    struct rusage ru;
+    mcf_mesh *m = NULL;
+    if (!strncmp(mesh, "ico:", 4)) {
+        if (!(m = mcf_mesh_new_icosphere(atoi(mesh + 4), 1.0, &e)))
+            die("icosphere", &e);
+    } else {
+        m = load_mesh(dir, mesh);
+    }
+    FILE *f = fopen("/proc/self/clear_refs", "w");
+    if (f) {
+        r.reset = fputs("5", f) >= 0;
+        r.reset &= fclose(f) == 0;
+    }
+    getrusage(RUSAGE_SELF, &ru);
+    r.base_kb = (double)ru.ru_maxrss;
+    if (!strcmp(kind, "peer")) {
+        double *Xp = xalloc(3 * (size_t)mcf_mesh_nvertices(m));
+        run_peer(peer_desbrun_step, m, dt * mcf_mesh_area(m), Xp, NULL);
+        free(Xp);
+    } else {
+        mcf_flow_stats s;
+        run_mcf(m, MCF_DESBRUN, dt, 10, 1, &s, NULL);
+        r.peak_bytes = (double)s.peak_bytes;
+        mcf_flow_stats_free(&s);
+    }
+    getrusage(RUSAGE_SELF, &ru);
+    r.max_kb = (double)ru.ru_maxrss;
+    printf("MEM %.0f %.0f %.0f %d\n", r.base_kb, r.max_kb, r.peak_bytes, r.reset);
+    mcf_mesh_free(m);
+    return 0;
+}
+
+/* Runs one job in a fresh process (fork + exec of this program: CHOLMOD's
+ * OpenMP runtime cannot be used in a plain forked child) and reports the
+ * growth of its ru_maxrss. */
+static mem_result mem_job(const char *dir, const char *kind, const char *mesh)
+{
+    mem_result res = {0};
+    int fd[2];
+    if (pipe(fd) != 0) {
+        perror("pipe");
+        exit(1);
+    }
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid < 0) {
+        perror("fork");
+        exit(1);
+    }
+    if (pid == 0) {
+        close(fd[0]);
+        if (dup2(fd[1], STDOUT_FILENO) < 0)
+            _exit(127);
+        char *const args[] = {"bench_core", "--meshes", (char *)(uintptr_t)dir, "--mem-job",
+                              (char *)(uintptr_t)kind, (char *)(uintptr_t)mesh, NULL};
+        execv("/proc/self/exe", args);
+        _exit(127);
+    }
+    close(fd[1]);
+    char line[256] = "";
+    FILE *f = fdopen(fd[0], "r");
+    int n = 0;
+    while (f && fgets(line, sizeof line, f))
+        if (!strncmp(line, "MEM ", 4))
+            n = sscanf(line + 4, "%lf %lf %lf %d", &res.base_kb, &res.max_kb,
+                       &res.peak_bytes, &res.reset);
+    if (f)
+        fclose(f);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (n != 4 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        fprintf(stderr, "bench_core: memory job %s %s failed\n", kind, mesh);
+        exit(1);
+    }
+    return res;
+}
+
+/* --------------------------------------------------------------- main */
+
+static void usage(void)
+{
+    fprintf(stderr,
+            "usage: bench_core [--meshes DIR] [--reps N] [--ico-level L] [--no-dragon]\n"
+            "                  [--no-accuracy] [--threads-default]\n");
+    exit(2);
+}
+
+int main(int argc, char **argv)
+{
+    const char *dir = getenv("MCF_MESHES");
+    int level = 7, dragon = 1, threads_only = 0, do_acc = 1;
+    if (!dir || !*dir)
+        dir = "../shared/meshes";
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--meshes") && i + 1 < argc)
+            dir = argv[++i];
+        else if (!strcmp(argv[i], "--reps") && i + 1 < argc)
+            g_reps = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--ico-level") && i + 1 < argc)
+            level = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--no-dragon"))
+            dragon = 0;
+        else if (!strcmp(argv[i], "--no-accuracy"))
+            do_acc = 0;
+        else if (!strcmp(argv[i], "--threads-default"))
+            threads_only = 1;
+        else if (!strcmp(argv[i], "--mem-job") && i + 2 < argc)
+            return mem_child(dir, argv[i + 1], argv[i + 2], 1e-3);
+        else
+            usage();
+    }
+    if (g_reps < 1 || g_reps > MAXREPS || level < 0 || level > 9)
+        usage();
+    setvbuf(stdout, NULL, _IOLBF, 0);
+
+    mcf_error e = {0};
+    mcf_mesh *meshes[2] = {NULL, NULL};
+    char ico_label[32];
+    const char *labels[2];
+    snprintf(ico_label, sizeof ico_label, "icosphere-%d", level);
+    labels[0] = ico_label;
+    labels[1] = "dragon_vrip";
+    if (!(meshes[0] = mcf_mesh_new_icosphere(level, 1.0, &e)))
+        die("icosphere", &e);
+    if (dragon)
+        meshes[1] = load_mesh(dir, "dragon_vrip.drc");
+    int nm = dragon ? 2 : 1;
+    const double dt_implicit = 1e-3; /* normalized (unit area); = mem_child's */
+
+    if (threads_only) {
+        printf("\nmcfd desbrun with the libraries' default threads (OPENBLAS_NUM_THREADS=%s, "
+               "OMP_NUM_THREADS=%s), median of %d:\n",
+               getenv("OPENBLAS_NUM_THREADS") ? getenv("OPENBLAS_NUM_THREADS") : "unset",
+               getenv("OMP_NUM_THREADS") ? getenv("OMP_NUM_THREADS") : "unset", g_reps);
+        for (int i = 0; i < nm; i++) {
+            double st[MAXREPS], c10[MAXREPS];
+            for (int r = 0; r < g_reps; r++) {
+                mcf_flow_stats s;
+                c10[r] = run_mcf(meshes[i], MCF_DESBRUN, dt_implicit, 10, 1, &s, NULL) / 10.0;
+                st[r] = (s.time_assemble + s.time_factorize + s.time_solve) / s.steps;
+                mcf_flow_stats_free(&s);
+            }
+            printf("  %-13s stats %8.1f ms/step, call/10 %8.1f ms/step\n", labels[i],
+                   1e3 * median(st, g_reps), 1e3 * median(c10, g_reps));
+        }
+        for (int i = 0; i < nm; i++)
+            mcf_mesh_free(meshes[i]);
+        return 0;
+    }
+
+    print_machine();
+    for (int i = 0; i < nm; i++)
+        printf("mesh:    %-13s %d vertices, %d faces\n", labels[i],
+               mcf_mesh_nvertices(meshes[i]), mcf_mesh_nfaces(meshes[i]));
+    printf("\n");
+    int sane = sanity(dir);
+
+    printf("\npeak memory of one job (child process; RSS = growth of ru_maxrss):\n");
+    mem_result mem[2][2];
+    char ico_job[16];
+    snprintf(ico_job, sizeof ico_job, "ico:%d", level);
+    const char *mesh_job[2] = {ico_job, "dragon_vrip.drc"};
+    for (int i = 0; i < nm; i++) {
+        mem[i][0] = mem_job(dir, "mcfd", mesh_job[i]);
+        mem[i][1] = mem_job(dir, "peer", mesh_job[i]);
+        printf("  %-13s mcfd desbrun 10 steps: peak_bytes %7.1f MiB, RSS +%7.1f MiB | "
+               "Eigen peer 1 step: RSS +%7.1f MiB%s\n",
+               labels[i], mem[i][0].peak_bytes / 1048576.0,
+               (mem[i][0].max_kb - mem[i][0].base_kb) / 1024.0,
+               (mem[i][1].max_kb - mem[i][1].base_kb) / 1024.0,
+               mem[i][0].reset && mem[i][1].reset ? "" : " (peak RSS not reset: upper part only)");
+    }
+
+    timing_row imp[2], expl[2];
+    for (int i = 0; i < nm; i++)
+        time_step(labels[i], meshes[i], MCF_DESBRUN, dt_implicit, &imp[i]);
+    print_timing("desbrun step: mcfd (CHOLMOD, analysis once per job) vs Eigen SimplicialLDLT "
+                 "(compute every step)", imp, nm, 0);
+
+    for (int i = 0; i < nm; i++) {
+        double lambda = 0.0, area = mcf_mesh_area(meshes[i]);
+        if (mcf_lambda_max(meshes[i], MCF_LAPLACIAN_COTAN, MCF_MASS_BARYCENTRIC, &lambda, &e) != MCF_OK)
+            die("mcf_lambda_max", &e);
+        /* half the stability limit 2/lambda; lambda scales like 1/area */
+        time_step(labels[i], meshes[i], MCF_EULER, 1.0 / (lambda * area), &expl[i]);
+    }
+    print_timing("euler step: mcfd (weights + matrix-free L X) vs Eigen (triplets, L X, M^-1)",
+                 expl, nm, 1);
+
+    acc_row acc[2];
+    int nacc = do_acc ? 2 : 0;
+    if (do_acc) {
+        printf("\nequal accuracy: steps to rms_rel <= 1e-4 at fixed T (normalize on; "
+               "n:error per doubling)\n");
+        mcf_mesh *spot = load_mesh(dir, "spot.obj");
+        {
+            /* pre-smooth spot a little so the start is smooth (MATH.md:
+             * noise causes order reduction) */
+            mcf_mesh *s2 = NULL;
+            run_mcf(spot, MCF_DESBRUN2, 1e-4, 10, 1, NULL, &s2);
+            mcf_mesh_free(spot);
+            spot = s2;
+        }
+        mcf_mesh *ico4 = mcf_mesh_new_icosphere(4, 1.0, &e);
+        if (!ico4)
+            die("icosphere", &e);
+        accuracy("icosphere-4", ico4, 0.01, 4096, 1e-4, 1 << 15, &acc[0]);
+        accuracy("spot smoothed", spot, 0.005, 4096, 1e-4, 1 << 15, &acc[1]);
+        mcf_mesh_free(ico4);
+        mcf_mesh_free(spot);
+    }
+
+    /* ---- summary */
+    printf("\nsummary (medians of %d; ratios > 1 mean mcfd is faster / needs fewer steps)\n", g_reps);
+    printf("  %-34s %-13s %10s %10s %8s\n", "figure", "mesh", "mcfd", "peer", "ratio");
+    for (int i = 0; i < nm; i++)
+        printf("  %-34s %-13s %8.1fms %8.1fms %7.1fx\n", "desbrun step (10-step call/10)",
+               imp[i].mesh, 1e3 * imp[i].call10, 1e3 * imp[i].peer, imp[i].peer / imp[i].call10);
+    for (int i = 0; i < nm; i++)
+        printf("  %-34s %-13s %8.1fms %8.1fms %7.1fx\n", "desbrun step (first, 1-step job)",
+               imp[i].mesh, 1e3 * imp[i].first, 1e3 * imp[i].peer, imp[i].peer / imp[i].first);
+    for (int i = 0; i < nm; i++)
+        printf("  %-34s %-13s %8.1fms %8.1fms %7.1fx\n", "euler step (10-step call/10)",
+               expl[i].mesh, 1e3 * expl[i].call10, 1e3 * expl[i].peer, expl[i].peer / expl[i].call10);
+    for (int i = 0; i < nacc; i++)
+        if (acc[i].n[0] && acc[i].n[1])
+            printf("  %-34s %-13s %8d st %8d st %7.1fx  (wall %.2f s vs %.2f s: %.1fx)\n",
+                   "steps to 1e-4: desbrun2 | desbrun", acc[i].mesh, acc[i].n[1], acc[i].n[0],
+                   (double)acc[i].n[0] / acc[i].n[1], acc[i].wall[1], acc[i].wall[0],
+                   acc[i].wall[0] / acc[i].wall[1]);
+    for (int i = 0; i < nm; i++)
+        printf("  %-34s %-13s %8.1fMiB %7.1fMiB %7.1fx  (mcfd peak_bytes %.1f MiB)\n",
+               "peak RSS growth of one job", labels[i],
+               (mem[i][0].max_kb - mem[i][0].base_kb) / 1024.0,
+               (mem[i][1].max_kb - mem[i][1].base_kb) / 1024.0,
+               (mem[i][1].max_kb - mem[i][1].base_kb) / fmax(1.0, mem[i][0].max_kb - mem[i][0].base_kb),
+               mem[i][0].peak_bytes / 1048576.0);
+
+    /* ---- goals */
+    int g1 = 1, g2 = 1, g3 = 1;
+    char s1[256] = "", s2[256] = "", s3[256] = "";
+    for (int i = 0; i < nm; i++) {
+        double r1 = imp[i].peer / imp[i].call10, r2 = expl[i].peer / expl[i].call10;
+        g1 &= r1 >= 5.0;
+        g2 &= r2 >= 10.0;
+        snprintf(s1 + strlen(s1), sizeof s1 - strlen(s1), "%s%s %.1fx", i ? ", " : "", imp[i].mesh, r1);
+        snprintf(s2 + strlen(s2), sizeof s2 - strlen(s2), "%s%s %.1fx", i ? ", " : "", expl[i].mesh, r2);
+    }
+    for (int i = 0; i < nacc; i++) {
+        double r = acc[i].n[0] && acc[i].n[1] ? (double)acc[i].n[0] / acc[i].n[1] : 0.0;
+        g3 &= r >= 5.0 && acc[i].ref_err <= 0.1 * 1e-4;
+        snprintf(s3 + strlen(s3), sizeof s3 - strlen(s3), "%s%s %.1fx", i ? ", " : "", acc[i].mesh, r);
+    }
+    printf("\n%s sanity: mcfd and the Eigen peer solve the same system (1e-10)\n",
+           sane ? "PASS" : "FAIL");
+    printf("%s goal desbrun step >= 5x faster than Eigen SimplicialLDLT (whole 10-step call / 10): %s\n",
+           g1 ? "PASS" : "FAIL", s1);
+    printf("%s goal euler step >= 10x faster than the Eigen explicit step (whole 10-step call / 10): %s\n",
+           g2 ? "PASS" : "FAIL", s2);
+    if (do_acc)
+        printf("%s goal desbrun2 >= 5x fewer steps than desbrun to 1e-4 relative error: %s\n",
+               g3 ? "PASS" : "FAIL", s3);
+    if (!dragon)
+        printf("note: --no-dragon: the goals were judged without dragon_vrip.drc\n");
+    for (int i = 0; i < nm; i++)
+        mcf_mesh_free(meshes[i]);
+    return 0;
+}
