@@ -555,6 +555,27 @@ static mcf_status step_implicit(flow_ctx *c, double h, mcf_error *err)
                      c->p->implicit_tol, c->p->implicit_maxit, h);
 }
 
+/* A desbrun step from c->Xold into c->X. With est: step doubling, one
+ * step h (T1) against two steps h/2 (kept as the result); *est is the
+ * M-norm of their difference. */
+static mcf_status desbrun_step(flow_ctx *c, double h, double *est, mcf_error *err)
+{
+    mcf_status rc;
+    ops_at(c, c->Xold, c->w, c->area, c->mass);
+    if (!est)
+        return be_step(c, c->Xold, h, c->w, c->mass, c->X, err);
+    if ((rc = be_step(c, c->Xold, h, c->w, c->mass, c->T1, err)) != MCF_OK ||
+        (rc = be_step(c, c->Xold, 0.5 * h, c->w, c->mass, c->T2, err)) != MCF_OK)
+        return rc;
+    ops_at(c, c->T2, c->w2, c->area2, c->mass2);
+    if ((rc = be_step(c, c->T2, 0.5 * h, c->w2, c->mass2, c->X, err)) != MCF_OK)
+        return rc;
+    for (size_t i = 0; i < 3 * (size_t)c->nv; i++)
+        c->V[i] = c->X[i] - c->T1[i];
+    *est = mnorm(c, c->V, c->mass);
+    return MCF_OK;
+}
+
 /* Everything one attempted step needs to know about history. */
 typedef struct {
     int nhist;            /* accepted steps so far (for desbrun2) */
@@ -591,39 +612,11 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
         break;
     }
     case MCF_DESBRUN:
-        ops_at(c, c->Xold, c->w, c->area, c->mass);
-        if (!est) {
-            rc = be_step(c, c->Xold, h, c->w, c->mass, X, err);
-            break;
-        }
-        /* step doubling: one step h (T1) and two steps h/2 (result) */
-        if ((rc = be_step(c, c->Xold, h, c->w, c->mass, c->T1, err)) != MCF_OK ||
-            (rc = be_step(c, c->Xold, 0.5 * h, c->w, c->mass, c->T2, err)) != MCF_OK)
-            break;
-        ops_at(c, c->T2, c->w2, c->area2, c->mass2);
-        if ((rc = be_step(c, c->T2, 0.5 * h, c->w2, c->mass2, X, err)) != MCF_OK)
-            break;
-        for (size_t i = 0; i < n3; i++)
-            c->V[i] = X[i] - c->T1[i];
-        *est = mnorm(c, c->V, c->mass);
+        rc = desbrun_step(c, h, est, err);
         break;
     case MCF_DESBRUN2:
         if (hist->nhist == 0) {
-            /* start: one desbrun step (with a doubling estimate if asked) */
-            ops_at(c, c->Xold, c->w, c->area, c->mass);
-            if (!est) {
-                rc = be_step(c, c->Xold, h, c->w, c->mass, X, err);
-                break;
-            }
-            if ((rc = be_step(c, c->Xold, h, c->w, c->mass, c->T1, err)) != MCF_OK ||
-                (rc = be_step(c, c->Xold, 0.5 * h, c->w, c->mass, c->T2, err)) != MCF_OK)
-                break;
-            ops_at(c, c->T2, c->w2, c->area2, c->mass2);
-            if ((rc = be_step(c, c->T2, 0.5 * h, c->w2, c->mass2, X, err)) != MCF_OK)
-                break;
-            for (size_t i = 0; i < n3; i++)
-                c->V[i] = X[i] - c->T1[i];
-            *est = mnorm(c, c->V, c->mass);
+            rc = desbrun_step(c, h, est, err); /* the start, as MATH.md says */
         } else {
             /* variable-step BDF2, operator at the linear extrapolation:
              * (c0 Me + h Le) X+ = Me ((1+w) X^k - w^2/(1+w) X^(k-1)),
