@@ -981,8 +981,14 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         in_step = 1;
         rc = do_step(&c, h, &hist, p->adaptive ? &est : NULL, err);
         int finite = rc == MCF_OK && all_finite(c.X, n3);
+        /* An explicit scheme past its limit need not overflow: lambda falls
+         * like 1/size^2 as the mesh blows up, so the crumpled result stays
+         * finite. Inverted faces give it away (and reject adaptive steps). */
+        int inv = finite && check_inv ? inverted_faces(c.X, c.F, c.nf, c.fn) : 0;
+        double h_next = h;
         if (p->adaptive) {
-            int inv = finite ? inverted_faces(c.X, c.F, c.nf, c.fn) : 0;
+            if (rc == MCF_ENOMEM || rc == MCF_ECANCELED)
+                goto done;
             /* desbrun2's Milne estimate has the method's own order, so it
              * is controlled per unit step: a step may carry tol * h / T, and
              * the local errors add up to about tol at T. The others
@@ -990,26 +996,21 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
              * the plain desbrun steps), which overstates the second-order
              * result's error by 1/(h lambda) on stiff modes: controlled per
              * step (est <= tol), that is already conservative, while per
-             * unit step it would crawl through the noise transient. */
-            int milne = p->scheme == MCF_DESBRUN2 && hist.nhist >= 2;
-            int q = milne ? 2 : 1;
-            int need_est = !(p->scheme == MCF_DESBRUN2 && hist.nhist == 1);
-            double allowed = milne || p->scheme == MCF_DESBRUN2 ? p->tol * h / T : p->tol;
-            if (!milne)
-                q = 1;
+             * unit step it would crawl through the noise transient.
+             * est ~ h^(q+1): the exponent is 1/(q+1) per step, 1/q per
+             * unit step (est/h ~ h^q). */
+            int per_unit = p->scheme == MCF_DESBRUN2;
+            int q = per_unit && hist.nhist >= 2 ? 2 : 1;
+            int need_est = !(per_unit && hist.nhist == 1);
+            double allowed = per_unit ? p->tol * h / T : p->tol;
             double ratio = need_est && est > 0.0 ? allowed / est : 1e3;
-            if (rc == MCF_ENOMEM || rc == MCF_ECANCELED)
-                goto done;
+            double fac = 0.9 * pow(ratio, per_unit ? 1.0 / q : 1.0 / (q + 1));
             if (!finite || inv > 0 || (need_est && est > allowed)) {
                 memcpy(c.X, c.Xold, n3 * sizeof(double));
                 in_step = 0;
                 st->rejected++;
                 rejected_here++;
-                /* est ~ h^(q+1): per step the exponent is 1/(q+1); per unit
-                 * step (est/h ~ h^q) it is 1/q */
-                double ex = allowed == p->tol ? 1.0 / (q + 1) : 1.0 / q;
-                double fac = (!finite || inv > 0) ? 0.25 : fmax(0.2, 0.9 * pow(ratio, ex));
-                h *= fac;
+                h *= (!finite || inv > 0) ? 0.25 : fmax(0.2, fac);
                 if (h < 1e-14 * T) {
                     rc = mcf__fail(err, MCF_ENUMERIC, "adaptive: step size underflow at t = %g (%s)", t,
                                    !finite ? "non-finite positions" : inv > 0 ? "inverted faces" : "error estimate");
@@ -1018,27 +1019,11 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                 continue;
             }
             rc = MCF_OK;
-            /* accepted: shift the history */
-            memcpy(c.Xprev2, c.Xprev, n3 * sizeof(double));
-            memcpy(c.Xprev, c.Xold, n3 * sizeof(double));
-            hist.h2 = hist.h1;
-            hist.h1 = h;
-            hist.nhist++;
-            t += h;
-            if (h < st->dt_min) st->dt_min = h;
-            if (h > st->dt_max) st->dt_max = h;
-            double grow = fmin(2.0, fmax(0.2, 0.9 * pow(ratio, allowed == p->tol ? 1.0 / (q + 1) : 1.0 / q)));
-            if (p->scheme == MCF_DESBRUN2 && hist.nhist == 1)
-                grow = 1.0; /* the second step reuses h: BDF2 at ratio 1 */
-            double hn = h * grow;
-            h = hn;
+            /* desbrun2's second step reuses h: BDF2 starts at ratio 1 */
+            h_next = per_unit && hist.nhist == 0 ? h : h * fmin(2.0, fmax(0.2, fac));
         } else {
             if (rc != MCF_OK)
                 goto done;
-            /* An explicit scheme past its limit need not overflow: lambda
-             * falls like 1/size^2 as the mesh blows up, so the crumpled
-             * result stays finite. Inverted faces give it away. */
-            int inv = finite && check_inv ? inverted_faces(c.X, c.F, c.nf, c.fn) : 0;
             if (!finite || inv > 0) {
                 char why[64];
                 if (!finite)
@@ -1049,15 +1034,17 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                                c.si->is_explicit ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
                 goto done;
             }
-            memcpy(c.Xprev2, c.Xprev, n3 * sizeof(double));
-            memcpy(c.Xprev, c.Xold, n3 * sizeof(double));
-            hist.h2 = hist.h1;
-            hist.h1 = h;
-            hist.nhist++;
-            t += h;
-            if (h < st->dt_min) st->dt_min = h;
-            if (h > st->dt_max) st->dt_max = h;
         }
+        /* accepted: shift the history */
+        memcpy(c.Xprev2, c.Xprev, n3 * sizeof(double));
+        memcpy(c.Xprev, c.Xold, n3 * sizeof(double));
+        hist.h2 = hist.h1;
+        hist.h1 = h;
+        hist.nhist++;
+        t += h;
+        st->dt_min = fmin(st->dt_min, h);
+        st->dt_max = fmax(st->dt_max, h);
+        h = h_next;
         if (p->rescale != MCF_RESCALE_NONE)
             rescale(&c, area0, vol0);
         double maxd = 0.0;
