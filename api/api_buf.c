@@ -14,18 +14,6 @@
 
 #include "api_internal.h"
 
-mcf_status api__fail(mcf_error *err, mcf_status code, const char *fmt, ...)
-{
-    if (err) {
-        va_list ap;
-        err->status = code;
-        va_start(ap, fmt);
-        vsnprintf(err->msg, sizeof err->msg, fmt, ap);
-        va_end(ap);
-    }
-    return code;
-}
-
 int api__parse_double(const char *s, size_t n, double *out)
 {
     char tmp[64];
@@ -88,8 +76,9 @@ static mcf_status reserve(api_buf *b, size_t n)
         }
         ncap *= 2;
     }
-    /* Never reserve far beyond max: the NUL needs one byte past it. */
-    if (b->max && ncap > b->max + 1)
+    /* Never reserve far beyond max: the NUL needs one byte past it (and
+     * max + 1 must not wrap: max = SIZE_MAX is a legal "no limit"). */
+    if (b->max && b->max < (size_t)-1 && ncap > b->max + 1)
         ncap = b->max + 1;
     p = realloc(b->data, ncap);
     if (!p)

@@ -3,7 +3,7 @@
  * public (the server and the CLI use api.h only).
  *
  * Internal non-static functions carry the api__ prefix, as core's carry
- * mcf__; core's own mcf__fail is private to libmcf, hence a twin here.
+ * mcf__.
  */
 #ifndef API_INTERNAL_H
 #define API_INTERNAL_H
@@ -11,12 +11,9 @@
 #include "api.h"
 
 /* Fills err (if non-NULL) with a formatted one-line message and returns
- * code: return api__fail(err, MCF_EDECODE, "line %d: ...", line); */
-mcf_status api__fail(mcf_error *err, mcf_status code, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 3, 4)))
-#endif
-    ;
+ * code: return api__fail(err, MCF_EDECODE, "line %d: ...", line);
+ * the core's public mcf_error_set, so both layers format errors alike. */
+#define api__fail mcf_error_set
 
 /* Parses a decimal or scientific number from the n bytes at s (which need
  * not be NUL-terminated and are never read past s + n): the whole span

@@ -57,6 +57,15 @@ typedef struct {
     char msg[MCF_ERRMSG_SIZE];
 } mcf_error;
 
+/* Fills err (if non-NULL) with code and a printf-formatted one-line
+ * message (truncated to MCF_ERRMSG_SIZE) and returns code, so a failure is
+ * one line in any layer: return mcf_error_set(err, MCF_EINVAL, "dt %g", dt); */
+mcf_status mcf_error_set(mcf_error *err, mcf_status code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
 /* Static text for a code ("unknown error" for an unknown one). */
 const char *mcf_strerror(mcf_status s);
 /* The symbolic name of a code, e.g. "EMESH". */
@@ -229,7 +238,10 @@ typedef enum { MCF_RESCALE_NONE = 0, MCF_RESCALE_VOLUME, MCF_RESCALE_AREA } mcf_
 /* Called after every accepted step. Return non-zero to cancel the run
  * (mcf_flow_run then returns MCF_ECANCELED and leaves the mesh at the last
  * accepted step). energy is the Dirichlet energy 1/2 tr(X^T L X), which
- * equals the area for the cotan Laplacian. */
+ * equals the area for the cotan Laplacian (reported in input units).
+ * During the run the mesh's positions are the working copy: with
+ * normalize on they are (x - c) / sqrt(A0) for the input's area centroid
+ * c and area A0 (input units only after mcf_flow_run returns). */
 typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
                                double energy);
 

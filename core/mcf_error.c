@@ -32,7 +32,7 @@ const char *mcf_status_name(mcf_status s)
     return "EUNKNOWN";
 }
 
-mcf_status mcf__fail(mcf_error *err, mcf_status code, const char *fmt, ...)
+mcf_status mcf_error_set(mcf_error *err, mcf_status code, const char *fmt, ...)
 {
     if (err) {
         va_list ap;

@@ -15,13 +15,8 @@ struct mcf_mesh {
     int32_t *F;  /* 3*nf */
 };
 
-/* Fills err (if non-NULL) with a formatted message and returns code, so a
- * failure is one line: return mcf__fail(err, MCF_EINVAL, "dt %g", dt); */
-mcf_status mcf__fail(mcf_error *err, mcf_status code, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 3, 4)))
-#endif
-    ;
+/* return mcf__fail(err, MCF_EINVAL, "dt %g", dt): mcf_error_set. */
+#define mcf__fail mcf_error_set
 
 /* Overflow-checked allocation helpers: NULL on overflow or failure. */
 void *mcf__calloc(size_t n, size_t size);

@@ -66,6 +66,14 @@ static void test_buf_max(void **state)
     assert_int_equal(api_buf_append(&b, "", 0), MCF_OK);
     assert_int_equal(api_buf_append(&b, "x", 1), MCF_ELIMIT);
     api_buf_free(&b);
+    /* max = SIZE_MAX is "no limit" too: max + 1 must not wrap to 0 (it
+     * used to shrink the buffer to nothing and free it under the data) */
+    api_buf_init(&b, (size_t)-1);
+    for (int i = 0; i < 100; i++)
+        assert_int_equal(api_buf_append(&b, "0123456789", 10), MCF_OK);
+    assert_int_equal(b.len, 1000);
+    assert_int_equal(b.data[999], '9');
+    api_buf_free(&b);
     /* printf through the measuring path (text larger than the spare room). */
     memset(big, 'z', sizeof big - 1);
     big[sizeof big - 1] = '\0';
