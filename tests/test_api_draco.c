@@ -716,6 +716,72 @@ static void test_regression_bool_position(void **state)
     free(buf);
 }
 
+/* Regression (fuzz_roundtrip, out-of-memory): a 317-byte v1.249
+ * edgebreaker stream declaring 1,044,266,558 faces made libdraco reserve
+ * 4 GB before reading them. The counts are now read and limited before
+ * libdraco sees the stream. */
+static void test_regression_huge_faces(void **state)
+{
+    size_t len;
+    char *buf = read_data_file("draco_fuzz_huge_faces.drc", &len);
+    (void)state;
+    expect_fail(buf, len, MCF_ELIMIT,
+                "draco: header declares 1044266558 faces, more than max_faces "
+                "(10000000)");
+    free(buf);
+}
+
+/* Hand-made headers for the other counts libdraco trusts: metadata entry
+ * sizes and nesting, hole events of v2.0 streams, split symbols, and the
+ * sequential point count. */
+static void test_hostile_headers(void **state)
+{
+    static const char meta_big[] =
+        "DRACO\x02\x02\x01\x01\x00\x80" /* metadata flag */
+        "\x00"                               /* no attribute metadata */
+        "\x01\x01" "a" "\xff\xff\xff\xff\x0f"; /* entry "a", 4 GB */
+    static const char meta_entries[] = "DRACO\x02\x02\x01\x01\x00\x80\x00"
+                                       "\xff\xff\xff\xff\x0f";
+    static const char meta_atts[] = "DRACO\x02\x02\x01\x01\x00\x80"
+                                    "\xff\xff\xff\x7f";
+    static const char holes[] =
+        "DRACO\x02\x00\x01\x01\x00\x00" /* v2.0 edgebreaker */
+        "\x00\x00\x03\x01\x00\x01\x00" /* type, new, verts, faces, att, syms, splits */
+        "\x01\x00"                          /* connectivity size 1, its byte */
+        "\x00\xff\xff\xff\xff\x0f";       /* no splits, 4e9 hole events */
+    static const char splits[] = "DRACO\x02\x02\x01\x01\x00\x00"
+                                 "\x00\x03\x01\x00\x01\x05";
+    static const char seq_points[] = "DRACO\x02\x02\x01\x00\x00\x00"
+                                     "\x01\xff\xff\xff\xff\x0f\x01";
+    char deep[11 + 1 + 3 * 40 + 2];
+    size_t k, n = 0;
+    (void)state;
+    expect_fail(meta_big, sizeof meta_big - 1, MCF_EDECODE,
+                "draco: metadata entry of 4294967295 bytes in 0");
+    expect_fail(meta_entries, sizeof meta_entries - 1, MCF_EDECODE,
+                "draco: metadata declares 4294967295 entries in 0 bytes");
+    expect_fail(meta_atts, sizeof meta_atts - 1, MCF_EDECODE,
+                "draco: metadata declares 268435455 attribute blocks in 0 bytes");
+    expect_fail(holes, sizeof holes - 1, MCF_EDECODE,
+                "draco: 4294967295 hole events in 0 bytes");
+    expect_fail(splits, sizeof splits - 1, MCF_EDECODE,
+                "draco: 5 split symbols for 1 faces");
+    expect_fail(seq_points, sizeof seq_points - 1, MCF_ELIMIT,
+                "draco: header declares 4294967295 vertices, more than max_vertices");
+    /* 40 nested sub-metadata blocks: refused at depth 33 */
+    memcpy(deep, "DRACO\x02\x02\x01\x01\x00\x80", 11);
+    n = 11;
+    deep[n++] = 0; /* no attribute metadata */
+    for (k = 0; k < 40; k++) {
+        deep[n++] = 0; /* no entries */
+        deep[n++] = 1; /* one sub-metadata */
+        deep[n++] = 0; /* with an empty name */
+    }
+    deep[n++] = 0;
+    deep[n++] = 0;
+    expect_fail(deep, n, MCF_EDECODE, "draco: metadata nested deeper than 32 levels");
+}
+
 static void test_limits(void **state)
 {
     size_t len;
@@ -727,11 +793,13 @@ static void test_limits(void **state)
     api_limits_default(&lim);
     lim.max_vertices = 34833;
     assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_ELIMIT);
-    assert_string_equal(err.msg, "draco: 34834 vertices exceed max_vertices (34833)");
+    assert_string_equal(err.msg, "draco: header declares 34834 vertices, more than "
+                                 "max_vertices (34833)");
     api_limits_default(&lim);
     lim.max_faces = 69450;
     assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_ELIMIT);
-    assert_string_equal(err.msg, "draco: 69451 faces exceed max_faces (69450)");
+    assert_string_equal(err.msg, "draco: header declares 69451 faces, more than "
+                                 "max_faces (69450)");
     api_limits_default(&lim);
     lim.max_input_bytes = len - 1;
     assert_int_equal(api_draco_decode(buf, len, &lim, &m, &err), MCF_ELIMIT);
@@ -759,6 +827,8 @@ int main(void)
         cmocka_unit_test(test_malformed),
         cmocka_unit_test(test_truncated_and_corrupted),
         cmocka_unit_test(test_regression_bool_position),
+        cmocka_unit_test(test_regression_huge_faces),
+        cmocka_unit_test(test_hostile_headers),
         cmocka_unit_test(test_limits),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
