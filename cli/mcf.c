@@ -5,6 +5,8 @@
  *   mcf info IN                 JSON: counts, topology, curvature summary
  *   mcf schemes                 JSON: every scheme and what it costs
  *   mcf convert IN OUT          any input format to OUT's (or --format)
+ *   mcf experiment STUDY ...    dt sweeps, stability, order, sphere (CSV +
+ *                               plots; cli/mcf_experiment.c)
  *
  * Like curl's tool, this is only a client of the libraries: every flag
  * that is a job parameter goes through api_params_set (dashes become
@@ -30,6 +32,7 @@
 #include <unistd.h>
 
 #include "api.h"
+#include "mcf_experiment.h"
 
 #define EXIT_USAGE 2
 
@@ -45,6 +48,8 @@ static const char usage_text[] =
     "  mcf schemes          JSON on stdout: every scheme with order, stability, cost per step\n"
     "  mcf convert IN OUT   [--format F] [--quantization-bits B] [--compression-level C]\n"
     "                       [--preserve-order]: format by content in, by OUT's extension out\n"
+    "  mcf experiment STUDY --out DIR [flags]: dt-sweep, stability, order or sphere\n"
+    "                       studies as CSV files and plots (flags at the end)\n"
     "\n"
     "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
     "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
@@ -759,14 +764,18 @@ int main(int argc, char **argv)
     const char *cmd = argc > 1 ? argv[1] : NULL;
 
     if (!cmd)
-        return fail(EXIT_USAGE, "missing command: smooth, info, schemes or convert (try mcf --help)");
+        return fail(EXIT_USAGE, "missing command: smooth, info, schemes, convert or experiment (try mcf --help)");
     if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {
         fputs(usage_text, stdout);
+        fputs("\nmcf experiment:\n", stdout);
+        fputs(mcf_experiment_usage, stdout);
         return 0;
     }
     for (int i = 2; i < argc; i++)
         if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
             fputs(usage_text, stdout);
+            fputs("\nmcf experiment:\n", stdout);
+            fputs(mcf_experiment_usage, stdout);
             return 0;
         }
     if (!strcmp(cmd, "smooth"))
@@ -777,5 +786,7 @@ int main(int argc, char **argv)
         return cmd_schemes(argc);
     if (!strcmp(cmd, "convert"))
         return cmd_convert(argc, argv);
+    if (!strcmp(cmd, "experiment"))
+        return mcf_experiment_main(argc, argv);
     return fail(EXIT_USAGE, "unknown command '%s' (try mcf --help)", cmd);
 }
