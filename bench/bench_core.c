@@ -548,6 +548,7 @@ int main(int argc, char **argv)
     if (g_reps < 1 || g_reps > MAXREPS || level < 0 || level > 9)
         usage();
     setvbuf(stdout, NULL, _IOLBF, 0);
+    double t_begin = mcf_now();
 
     mcf_error e = {0};
     mcf_mesh *meshes[2] = {NULL, NULL};
@@ -630,18 +631,19 @@ int main(int argc, char **argv)
                "n:error per doubling)\n");
         mcf_mesh *spot = load_mesh(dir, "spot.obj");
         {
-            /* pre-smooth spot a little so the start is smooth (MATH.md:
-             * noise causes order reduction) */
+            /* pre-smooth spot (20 desbrun2 steps to t = 0.005) so the start
+             * is smooth: MATH.md, noise and sharp detail cause order
+             * reduction */
             mcf_mesh *s2 = NULL;
-            run_mcf(spot, MCF_DESBRUN2, 1e-4, 10, 1, NULL, &s2);
+            run_mcf(spot, MCF_DESBRUN2, 0.005 / 20, 20, 1, NULL, &s2);
             mcf_mesh_free(spot);
             spot = s2;
         }
         mcf_mesh *ico4 = mcf_mesh_new_icosphere(4, 1.0, &e);
         if (!ico4)
             die("icosphere", &e);
-        accuracy("icosphere-4", ico4, 0.01, 4096, 1e-4, 1 << 15, &acc[0]);
-        accuracy("spot smoothed", spot, 0.005, 4096, 1e-4, 1 << 15, &acc[1]);
+        accuracy("icosphere-4", ico4, 0.01, 1024, 1e-4, 1 << 14, &acc[0]);
+        accuracy("spot smoothed", spot, 0.005, 4096, 1e-4, 1 << 14, &acc[1]);
         mcf_mesh_free(ico4);
         mcf_mesh_free(spot);
     }
@@ -652,6 +654,9 @@ int main(int argc, char **argv)
     for (int i = 0; i < nm; i++)
         printf("  %-34s %-13s %8.1fms %8.1fms %7.1fx\n", "desbrun step (10-step call/10)",
                imp[i].mesh, 1e3 * imp[i].call10, 1e3 * imp[i].peer, imp[i].peer / imp[i].call10);
+    for (int i = 0; i < nm; i++)
+        printf("  %-34s %-13s %8.1fms %8.1fms %7.1fx\n", "desbrun step (stats of 10, steady)",
+               imp[i].mesh, 1e3 * imp[i].stats, 1e3 * imp[i].peer, imp[i].peer / imp[i].stats);
     for (int i = 0; i < nm; i++)
         printf("  %-34s %-13s %8.1fms %8.1fms %7.1fx\n", "desbrun step (first, 1-step job)",
                imp[i].mesh, 1e3 * imp[i].first, 1e3 * imp[i].peer, imp[i].peer / imp[i].first);
@@ -684,8 +689,11 @@ int main(int argc, char **argv)
     }
     for (int i = 0; i < nacc; i++) {
         double r = acc[i].n[0] && acc[i].n[1] ? (double)acc[i].n[0] / acc[i].n[1] : 0.0;
-        g3 &= r >= 5.0 && acc[i].ref_err <= 0.1 * 1e-4;
-        snprintf(s3 + strlen(s3), sizeof s3 - strlen(s3), "%s%s %.1fx", i ? ", " : "", acc[i].mesh, r);
+        /* the reference must be 10x more accurate than the target */
+        int ref_ok = acc[i].ref_err <= 0.1 * 1e-4;
+        g3 &= r >= 5.0 && ref_ok;
+        snprintf(s3 + strlen(s3), sizeof s3 - strlen(s3), "%s%s %.1fx%s", i ? ", " : "",
+                 acc[i].mesh, r, ref_ok ? "" : " (reference not accurate enough)");
     }
     printf("\n%s sanity: mcfd and the Eigen peer solve the same system (1e-10)\n",
            sane ? "PASS" : "FAIL");
@@ -698,7 +706,8 @@ int main(int argc, char **argv)
                g3 ? "PASS" : "FAIL", s3);
     if (!dragon)
         printf("note: --no-dragon: the goals were judged without dragon_vrip.drc\n");
+    printf("bench_core: %.0f s\n", mcf_now() - t_begin);
     for (int i = 0; i < nm; i++)
         mcf_mesh_free(meshes[i]);
-    return 0;
+    return sane ? 0 : 1;
 }
