@@ -583,7 +583,10 @@ typedef struct {
     int steps;
     double t_final;
     mcf_compare_result cmp;   /* against the target (zero without one) */
-    int inverted;             /* faces turned > 90 degrees by the flow */
+    int flipped;              /* faces turned > 90 degrees from the start;
+                                 smoothing also unfolds faces the noise
+                                 folded, so this is not a defect count */
+    int folded, folded_steps; /* see step_watch */
     int nonfinite;            /* non-finite coordinates in the result */
     double area_drift, volume_drift; /* relative to the run's start */
     double wall;
@@ -601,6 +604,62 @@ static void flow_params(const xopts *o, mcf_scheme s, double dt, int iters, doub
     p->normalize = 0;
     p->implicit_maxit = o->picard_maxit;
     p->max_steps = o->max_steps;
+}
+
+/* Watches a run step by step (through the progress callback, which may
+ * read the working positions): faces whose normal turns by more than 90
+ * degrees within one step and end it turned against the target (or the
+ * start): a stable step never folds a face, an unstable one flips faces
+ * back and forth. A face the noise folded and the step unfolds is not
+ * counted. The flow checks for any flip itself, for the explicit schemes
+ * only (and fails); here folds are counted for every scheme. */
+typedef struct {
+    const mcf_mesh *m;
+    double *fn;               /* 3 * nf face normals after the last step */
+    double *ref;              /* 3 * nf normals of the target (or start) */
+    int folded;               /* sum over steps of faces folded in a step */
+    int folded_steps;         /* steps that folded at least one face */
+} step_watch;
+
+static void face_normals(const mcf_mesh *m, double *fn)
+{
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    for (int f = 0; f < mcf_mesh_nfaces(m); f++) {
+        const double *a = X + 3 * F[3 * f], *b = X + 3 * F[3 * f + 1], *c = X + 3 * F[3 * f + 2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        fn[3 * f] = u[1] * w[2] - u[2] * w[1];
+        fn[3 * f + 1] = u[2] * w[0] - u[0] * w[2];
+        fn[3 * f + 2] = u[0] * w[1] - u[1] * w[0];
+    }
+}
+
+static int watch_step(void *ctx, int step, double t, double dt, double energy)
+{
+    step_watch *w = ctx;
+    const double *X = mcf_mesh_positions(w->m);
+    const int32_t *F = mcf_mesh_faces(w->m);
+    int folded = 0;
+    (void)step, (void)t, (void)dt, (void)energy;
+    for (int f = 0; f < mcf_mesh_nfaces(w->m); f++) {
+        const double *a = X + 3 * F[3 * f], *b = X + 3 * F[3 * f + 1], *c = X + 3 * F[3 * f + 2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        double *o = w->fn + 3 * f;
+        const double *g = w->ref + 3 * f;
+        /* a fold, not the repair of a face the noise folded: the face
+         * ends the step against the target too */
+        if (n[0] * o[0] + n[1] * o[1] + n[2] * o[2] < 0 && n[0] * g[0] + n[1] * g[1] + n[2] * g[2] < 0)
+            folded++;
+        o[0] = n[0];
+        o[1] = n[1];
+        o[2] = n[2];
+    }
+    w->folded += folded;
+    w->folded_steps += folded > 0;
+    return 0;
 }
 
 /* Runs scheme s from a copy of start, with iters steps of dt or (T > 0)
@@ -622,9 +681,25 @@ static int run_flow(const xopts *o, const mcf_mesh *start, const mcf_mesh *targe
     r->iterations = T > 0 ? 0 : iters;
     if (!m)
         return xfail(1, "%s", err.msg);
+    size_t n3 = 3 * (size_t)mcf_mesh_nfaces(m);
+    step_watch w = {m, malloc(n3 * sizeof(double)), malloc(n3 * sizeof(double)), 0, 0};
+    if (!w.fn || !w.ref) {
+        free(w.fn);
+        free(w.ref);
+        mcf_mesh_free(m);
+        return xfail(1, "out of memory");
+    }
+    face_normals(m, w.fn);
+    face_normals(target ? target : start, w.ref);
     flow_params(o, s, dt, iters, T, &p);
     p.log_steps = log_steps;
+    p.progress = watch_step;
+    p.progress_ctx = &w;
     r->status = mcf_flow_run(m, &p, &st, &err);
+    free(w.fn);
+    free(w.ref);
+    r->folded = w.folded;
+    r->folded_steps = w.folded_steps;
     if (r->status == MCF_ENOMEM) {
         mcf_flow_stats_free(&st);
         mcf_mesh_free(m);
@@ -650,7 +725,7 @@ static int run_flow(const xopts *o, const mcf_mesh *start, const mcf_mesh *targe
     if (!r->nonfinite) {
         mcf_compare_result c;
         if (mcf_compare(m, start, &c, &err) == MCF_OK)
-            r->inverted = c.inverted_faces;
+            r->flipped = c.inverted_faces;
         if (target && mcf_compare(m, target, &r->cmp, &err) != MCF_OK) {
             mcf_flow_stats_free(&st);
             mcf_mesh_free(m);
@@ -684,7 +759,7 @@ static void run_note(const xopts *o, const xrun *r)
 
 static const char run_csv_header[] =
     "mesh,scheme,explicit,dt,dt_lambda,iterations,steps,t_final,status,rms_rel,frobenius,normal_angle_deg,"
-    "max_err,inverted_faces,nonfinite,area_drift,volume_drift,wall_s,solves,factorizations,picard_iterations,"
+    "max_err,inverted_faces,flipped_from_start,folded_in_a_step,steps_that_folded,nonfinite,area_drift,volume_drift,wall_s,solves,factorizations,picard_iterations,"
     "message";
 
 /* One row of run_csv_header, without the line end. */
@@ -693,10 +768,10 @@ static void run_csv_fields(FILE *f, const xopts *o, const xrun *r, double lam)
     char msg[MCF_ERRMSG_SIZE];
     const mcf_scheme_info *si = mcf_scheme_get(r->scheme);
     csv_clean(r->msg, msg, sizeof msg);
-    fprintf(f, "%s,%s,%d,%.9g,%.6g,%d,%d,%.9g,%s,%.9g,%.9g,%.9g,%.9g,%d,%d,%.9g,%.9g,%.6f,%d,%d,%d,%s", o->name,
+    fprintf(f, "%s,%s,%d,%.9g,%.6g,%d,%d,%.9g,%s,%.9g,%.9g,%.9g,%.9g,%d,%d,%d,%d,%d,%.9g,%.9g,%.6f,%d,%d,%d,%s", o->name,
             si->name, si->is_explicit, r->dt, r->dt * lam, r->iterations, r->steps, r->t_final,
             mcf_status_name(r->status), r->cmp.rms_rel, r->cmp.frobenius, r->cmp.normal_angle_deg, r->cmp.max_err,
-            r->inverted, r->nonfinite, r->area_drift, r->volume_drift, r->wall, r->solves, r->factorizations,
+            r->cmp.inverted_faces, r->flipped, r->folded, r->folded_steps, r->nonfinite, r->area_drift, r->volume_drift, r->wall, r->solves, r->factorizations,
             r->picard, msg);
 }
 
@@ -1005,6 +1080,7 @@ static int study_dt_sweep(xopts *o)
     if (!(f = csv_open(o, "dt-sweep-summary.csv", path, sizeof path)))
         goto done;
     fprintf(f, "mesh,scheme,lambda_max,noise_rho,seed,noisy_rms_rel,noisy_frobenius,noisy_normal_angle_deg,"
+               "noisy_inverted_faces,"
                "iterations,time,best_dt,best_dt_lambda,best_time,best_rms_rel,best_frobenius,"
                "best_normal_angle_deg,rising_slope,slope_points,largest_ok_dt,ok_runs,failed_runs\n");
     sweep_summary *sum = calloc((size_t)o->nschemes, sizeof *sum);
@@ -1020,9 +1096,9 @@ static int study_dt_sweep(xopts *o)
         if (count[k] == 0)
             continue;
         const xrun *bst = sum[k].best >= 0 ? &rs[sum[k].best] : NULL;
-        fprintf(f, "%s,%s,%.9g,%g,%llu,%.9g,%.9g,%.9g,%d,%.9g,%.9g,%.6g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%.9g,%d,%d\n",
+        fprintf(f, "%s,%s,%.9g,%g,%llu,%.9g,%.9g,%.9g,%d,%d,%.9g,%.9g,%.6g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%.9g,%d,%d\n",
                 o->name, mcf_scheme_get(o->schemes[k])->name, lam, o->rho, (unsigned long long)o->seed, c0.rms_rel,
-                c0.frobenius, c0.normal_angle_deg, o->time > 0 ? 0 : o->iterations, o->time,
+                c0.frobenius, c0.normal_angle_deg, c0.inverted_faces, o->time > 0 ? 0 : o->iterations, o->time,
                 bst ? bst->dt : NAN, bst ? bst->dt * lam : NAN, bst ? bst->t_final : NAN,
                 bst ? bst->cmp.rms_rel : NAN, bst ? bst->cmp.frobenius : NAN, bst ? bst->cmp.normal_angle_deg : NAN,
                 sum[k].slope, sum[k].slope_points, sum[k].largest_ok_dt, sum[k].ok, sum[k].failed);
@@ -1034,8 +1110,14 @@ static int study_dt_sweep(xopts *o)
     }
     f = NULL;
 
-    /* error against dt, and wall time against dt */
-    for (int fig = 0; fig < 2; fig++) {
+    /* error against dt, and wall time against dt (not when no run of a
+     * flow succeeded: nothing to draw) */
+    int drawable = 0;
+    for (int k = 0; k < o->nschemes; k++)
+        drawable += o->schemes[k] != MCF_TAUBIN && sum[k].ok > 0;
+    if (!drawable)
+        note(o, "%s: no successful run of a flow: no dt-sweep plots\n", o->name);
+    for (int fig = 0; fig < 2 && drawable; fig++) {
         char title[512], blk[32], leg[160];
         int plot_first = 1;
         b.len = 0;
@@ -1125,15 +1207,21 @@ done:
 
 /* --------------------------------------------------------------- stability */
 
-/* Why a stability run is not acceptable ("" when it is). */
+/* Why a stability run is not acceptable ("" when it is): the flow failed
+ * or left NaN, a step folded a face (turned its normal by more than 90
+ * degrees: what an unstable step does, and what the flow itself refuses
+ * for the explicit schemes), or the error is over the threshold. Faces
+ * inverted against the clean target are not a criterion: noise folds a
+ * few slivers, and a long smoothing legitimately turns faces at sharp
+ * features; they are in the CSV. */
 static const char *stab_reason(const xrun *r, double threshold)
 {
     if (r->nonfinite)
         return "NaN";
     if (r->status != MCF_OK)
         return mcf_status_name(r->status);
-    if (r->inverted > 0)
-        return "inverted faces";
+    if (r->folded > 0)
+        return "face folded in a step";
     if (!(r->cmp.rms_rel <= threshold))
         return "error over threshold";
     return "";
@@ -1251,7 +1339,8 @@ static int study_stability(xopts *o)
     if (!(f = csv_open(o, "stability.csv", path, sizeof path)))
         goto done;
     fprintf(f, "mesh,scheme,explicit,lambda_max,theory,theory_dt_lambda,theory_dt,measured_dt,measured_dt_lambda,"
-               "censored,first_failing_dt,first_failing_dt_lambda,failure,threshold,noisy_rms_rel,iterations,runs\n");
+               "censored,first_failing_dt,first_failing_dt_lambda,failure,threshold,noisy_rms_rel,noisy_inverted_faces,"
+               "iterations,runs\n");
     for (int k = 0; k < o->nschemes; k++) {
         const stab_result *sr = &res[k];
         const mcf_scheme_info *si = mcf_scheme_get(sr->scheme);
@@ -1260,11 +1349,12 @@ static int study_stability(xopts *o)
             snprintf(theory, sizeof theory, "%g/lambda_max", si->stability);
         else
             snprintf(theory, sizeof theory, "unconditional");
-        fprintf(f, "%s,%s,%d,%.9g,%s,%.9g,%.9g,%.9g,%.6g,%d,%.9g,%.6g,%s,%g,%.9g,%d,%d\n", o->name, si->name,
+        fprintf(f, "%s,%s,%d,%.9g,%s,%.9g,%.9g,%.9g,%.6g,%d,%.9g,%.6g,%s,%g,%.9g,%d,%d,%d\n", o->name, si->name,
                 si->is_explicit, lam, theory, si->stability > 0 ? si->stability : NAN,
                 si->stability > 0 ? si->stability / lam : NAN, sr->measured, sr->measured * lam, sr->censored,
                 sr->first_fail > 0 ? sr->first_fail : NAN, sr->first_fail > 0 ? sr->first_fail * lam : NAN,
-                sr->censored ? "none" : sr->reason, o->threshold, c0.rms_rel, o->iterations, sr->runs);
+                sr->censored ? "none" : sr->reason, o->threshold, c0.rms_rel, c0.inverted_faces, o->iterations,
+                sr->runs);
     }
     if (csv_close(f, path) != 0) {
         f = NULL;
@@ -1277,7 +1367,7 @@ static int study_stability(xopts *o)
         char title[512];
         double ylo = lo * lam / 2, yhi = hi * lam * 4;
         snprintf(title, sizeof title,
-                 "%s: largest acceptable dt in %d steps (no failure, NaN or inverted face; RMS error ≤ %g), what failed above it", o->name,
+                 "%s: largest acceptable dt in %d steps (no failure, NaN or face folded in a step; RMS error ≤ %g)", o->name,
                  o->iterations, o->threshold);
         gp_axes(&b, title, "", "dt × λ_{max}  (dimensionless)", 0, 1);
         api_buf_printf(&b, "set xrange [-0.7:%d.7]\nset yrange [%.9g:%.9g]\nset xtics rotate by -30 (", o->nschemes - 1,
@@ -1293,7 +1383,7 @@ static int study_stability(xopts *o)
             double th = si->stability > 0 ? si->stability : yhi;
             const char *why = res[k].censored ? "no failure" : res[k].reason;
             if (!strcmp(why, "ENUMERIC"))
-                why = "inverted/NaN (in-flow check)";
+                why = "folded/NaN (flow's check)";
             else if (!strcmp(why, "ENOCONV"))
                 why = "no convergence";
             else if (!strcmp(why, "error over threshold"))
