@@ -241,3 +241,59 @@ fuzz: $(FUZZ_BIN)
 	echo "fuzz: no crash in$(FUZZ_NAMES:%= fuzz_%)"
 
 .PHONY: fuzz-build
+
+# ---- experiments (issue 5): the README's Results, regenerated into docs/experiments/
+#   make experiments            every study below, two at a time (EXP_JOBS), ~5 min on 2 cores
+#   make experiments EXP_DIR=/tmp/x   elsewhere
+# Each study is `mcf experiment ...` (cli/mcf_experiment.c): CSV files and gnuplot PNG/SVG plots.
+# The big scans (armadillo, stanford-bunny) leave out `implicit` (Picard: up to 30
+# factorizations a step) and sample 2 dt values per decade; their stability study is
+# for the explicit schemes (the implicit ones are measured on spot and the sphere).
+# The fixed-time sweep on spot runs at the best total time of desbrun2 in the 10-step sweep.
+EXP_DIR  ?= docs/experiments
+EXP_JOBS ?= 2
+EXP_MCF   = OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(B)/mcf experiment
+EXP_BIG_SCHEMES := euler,taylor2,desbrun,neumann2,desbrun2,ros2,richardson,huisken2,arc,cmcf,linear,taubin
+EXP_STUDIES := exp-sweep-armadillo exp-sweep-bunny exp-sweep-spot exp-sphere exp-order-sphere \
+               exp-order-spot exp-stability-sphere exp-stability-spot exp-stability-big
+
+experiments: deps
+	$(MAKE) all
+	@mkdir -p $(EXP_DIR)
+	@start=$$(date +%s); $(MAKE) -j$(EXP_JOBS) $(EXP_STUDIES) || exit 1; \
+	echo "experiments: $(EXP_DIR) in $$(( $$(date +%s) - start )) s"
+
+exp-sweep-armadillo:
+	$(EXP_MCF) dt-sweep --mesh $(MESHES)/armadillo.obj --schemes $(EXP_BIG_SCHEMES) --per-decade 2 --out $(EXP_DIR) --quiet
+
+exp-sweep-bunny:
+	$(EXP_MCF) dt-sweep --mesh $(MESHES)/stanford-bunny.obj --schemes $(EXP_BIG_SCHEMES) --per-decade 2 --out $(EXP_DIR) --quiet
+
+exp-sweep-spot:
+	$(EXP_MCF) dt-sweep --mesh $(MESHES)/spot.obj --picard-maxit 50 --out $(EXP_DIR) --quiet
+	T=$$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$$i] = i; next } \
+	      $$c["scheme"] == "desbrun2" { print $$c["best_time"] }' $(EXP_DIR)/spot-dt-sweep-summary.csv); \
+	$(EXP_MCF) dt-sweep --mesh $(MESHES)/spot.obj --name spot-fixed-time --time $$T --dt-min 0.25/lambda \
+	  --dt-max $$T --per-decade 3 --picard-maxit 50 --out $(EXP_DIR) --quiet
+
+exp-sphere:
+	$(EXP_MCF) sphere --sphere 4 --time 0.2 --steps 25 --picard-maxit 50 --out $(EXP_DIR) --quiet
+
+exp-order-sphere:
+	$(EXP_MCF) order --sphere 3 --time 0.01 --steps 32,64,128,256 --ref-scheme richardson --out $(EXP_DIR) --quiet
+
+exp-order-spot:
+	$(EXP_MCF) order --mesh $(MESHES)/spot.obj --presmooth 1e-6 --time 1e-5 --steps 16,32,64,128 \
+	  --ref-scheme desbrun2 --out $(EXP_DIR) --quiet
+
+exp-stability-sphere:
+	$(EXP_MCF) stability --sphere 3 --noise 0.05 --out $(EXP_DIR) --quiet
+
+exp-stability-spot:
+	$(EXP_MCF) stability --mesh $(MESHES)/spot.obj --noise 0.05 --picard-maxit 50 --out $(EXP_DIR) --quiet
+
+exp-stability-big:
+	$(EXP_MCF) stability --mesh $(MESHES)/armadillo.obj --schemes explicit --noise 0.05 --out $(EXP_DIR) --quiet
+	$(EXP_MCF) stability --mesh $(MESHES)/stanford-bunny.obj --schemes explicit --noise 0.05 --out $(EXP_DIR) --quiet
+
+.PHONY: experiments $(EXP_STUDIES)

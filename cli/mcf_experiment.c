@@ -826,11 +826,16 @@ static void gp_style(api_buf *b, mcf_scheme s, int points)
         api_buf_printf(b, " pt %d ps 1.1", 1 + (int)s % 13);
 }
 
-/* Text for a double-quoted gnuplot string: backslash and quote escaped. */
+/* Text for a double-quoted gnuplot string: backslash and quote escaped,
+ * a newline written as \n (a line break in titles). */
 static void gp_str(api_buf *b, const char *s)
 {
     api_buf_append(b, "\"", 1);
     for (; *s; s++) {
+        if (*s == '\n') {
+            api_buf_append(b, "\\n", 2);
+            continue;
+        }
         if (*s == '"' || *s == '\\')
             api_buf_append(b, "\\", 1);
         api_buf_append(b, s, 1);
@@ -1121,20 +1126,22 @@ static int study_dt_sweep(xopts *o)
         char title[512], blk[32], leg[160];
         int plot_first = 1;
         b.len = 0;
+        char what[96];
         if (o->time > 0)
-            snprintf(title, sizeof title,
-                     "%s: %s after a fixed time T = %g (noise %g × mean edge, seed %llu)", o->name,
-                     fig == 0 ? "error" : "wall time", o->time, o->rho, (unsigned long long)o->seed);
+            snprintf(what, sizeof what, "after a fixed time T = %g", o->time);
         else
-            snprintf(title, sizeof title, "%s: %s after %d steps of dt (noise %g × mean edge, seed %llu)", o->name,
-                     fig == 0 ? "error" : "wall time", o->iterations, o->rho, (unsigned long long)o->seed);
+            snprintf(what, sizeof what, "after %d steps of dt", o->iterations);
+        snprintf(title, sizeof title,
+                 "%s: %s %s\n{/*0.85 %d vertices; noise %g × mean edge (seed %llu): error %.3g; λ_{max} = %.4g}",
+                 o->name, fig == 0 ? "error" : "wall time", what, mcf_mesh_nvertices(target), o->rho,
+                 (unsigned long long)o->seed, c0.rms_rel, lam);
         char xl[160];
         snprintf(xl, sizeof xl, o->time > 0 ? "time step dt (%s)" : "time step dt (%s; total time = iterations × dt)",
                  o->units);
         gp_axes(&b, title, xl,
                 fig == 0 ? "error vs clean target: M-weighted RMS / sqrt(area)" : "wall time per run (s)", 1, 1);
         api_buf_printf(&b, "set xrange [%.9g:%.9g]\nset x2range [%.9g:%.9g]\nset logscale x2\n"
-                           "set x2tics\nset x2label \"dt × λ_{max}\" offset 0,-0.4\nset tmargin 5.5\n"
+                           "set x2tics\nset x2label \"dt × λ_{max}\" offset 0,-0.4\nset tmargin 6.5\n"
                            "set format x2 \"10^{%%L}\"\n",
                        dts[0] / 1.5, dts[ndt - 1] * 1.5, dts[0] / 1.5 * lam, dts[ndt - 1] * 1.5 * lam);
         api_buf_printf(&b, "set arrow from %.9g, graph 0 to %.9g, graph 1 nohead lc rgb \"#555555\" dt 3 lw 1.5\n"
@@ -1367,8 +1374,10 @@ static int study_stability(xopts *o)
         char title[512];
         double ylo = lo * lam / 2, yhi = hi * lam * 4;
         snprintf(title, sizeof title,
-                 "%s: largest acceptable dt in %d steps (no failure, NaN or face folded in a step; RMS error ≤ %g)", o->name,
-                 o->iterations, o->threshold);
+                 "%s: largest acceptable dt in %d steps, and what failed above it\n{/*0.85 %d vertices, noise %g × mean "
+                 "edge; acceptable: no failure, NaN or face folded in a step, RMS error ≤ %g; small print: "
+                 "what failed next}",
+                 o->name, o->iterations, mcf_mesh_nvertices(target), o->rho, o->threshold);
         gp_axes(&b, title, "", "dt × λ_{max}  (dimensionless)", 0, 1);
         api_buf_printf(&b, "set xrange [-0.7:%d.7]\nset yrange [%.9g:%.9g]\nset xtics rotate by -30 (", o->nschemes - 1,
                        ylo, yhi);
@@ -1381,15 +1390,18 @@ static int study_stability(xopts *o)
             const mcf_scheme_info *si = mcf_scheme_get(res[k].scheme);
             double m = res[k].measured * lam;
             double th = si->stability > 0 ? si->stability : yhi;
-            const char *why = res[k].censored ? "no failure" : res[k].reason;
+            /* short: a label must fit over its bar */
+            const char *why = res[k].censored ? "none" : res[k].reason;
             if (!strcmp(why, "ENUMERIC"))
-                why = "folded/NaN (flow's check)";
+                why = "fold (flow)";
             else if (!strcmp(why, "ENOCONV"))
-                why = "no convergence";
+                why = "no conv.";
+            else if (!strcmp(why, "face folded in a step"))
+                why = "fold";
             else if (!strcmp(why, "error over threshold"))
-                why = "error > threshold";
+                why = "error";
             api_buf_printf(&b, "%d %.9g %.9g \"%s%.3g\" %d \"%s\"\n", k, m > 0 ? m : ylo, th,
-                           res[k].censored ? "≥" : "", m, si->stability > 0, m > 0 ? why : "none acceptable");
+                           res[k].censored ? "≥" : "", m, si->stability > 0, m > 0 ? why : "none ok");
         }
         gp_block_end(&b);
         api_buf_printf(&b,
@@ -1578,8 +1590,14 @@ static int study_order(xopts *o)
     {
         char title[512], blk[32], leg[160];
         int pf = 1;
-        snprintf(title, sizeof title, "%s: error at T = %g against %s with %d steps%s", o->name, o->time,
-                 mcf_scheme_get(o->ref_scheme)->name, nref, o->presmooth > 0 ? " (pre-smoothed)" : "");
+        char pre[64] = "";
+        if (o->presmooth > 0)
+            snprintf(pre, sizeof pre, ", pre-smoothed to t = %g", o->presmooth);
+        snprintf(title, sizeof title,
+                 "%s: error at a fixed time T = %g against a fine reference\n{/*0.85 %d vertices%s; reference: %s with "
+                 "%d steps (cmcf, linear: their own); T × λ_{max} = %.3g}",
+                 o->name, o->time, mcf_mesh_nvertices(start), pre, mcf_scheme_get(o->ref_scheme)->name, nref,
+                 o->time * lam);
         gp_axes(&b, title, "time step dt = T / steps", "error: M-weighted RMS / sqrt(area)", 1, 1);
         double d0 = o->time / nmax, d1 = o->time / o->steps[0];
         api_buf_printf(&b, "set xrange [%.9g:%.9g]\nset xtics (", d0 / 1.5, d1 * 1.5);
@@ -1766,8 +1784,8 @@ static int study_sphere(xopts *o)
         static const char *const what[3] = {"volume-equivalent radius R = (3V/4π)^{1/3} against sqrt(R_0^2 - 4t)",
                                             "enclosed volume V against 4/3 π (R_0^2 - 4t)^{3/2}",
                                             "relative radius error |R - sqrt(R_0^2 - 4t)| / sqrt(R_0^2 - 4t)"};
-        snprintf(title, sizeof title, "%s (%d vertices, radius %g, R_0 = %.5f): %s", o->name,
-                 mcf_mesh_nvertices(start), o->radius, R0, what[fig]);
+        snprintf(title, sizeof title, "%s: %s\n{/*0.85 %d vertices, radius %g; R_0 = %.5f, its volume-equivalent radius}",
+                 o->name, what[fig], mcf_mesh_nvertices(start), o->radius, R0);
         gp_axes(&b, title, "time t (same units as the radius squared)",
                 fig == 0 ? "volume-equivalent radius R" : fig == 1 ? "enclosed volume V" : "relative radius error",
                 0, fig == 2);
