@@ -1,6 +1,6 @@
 /*
  * api_buf.c - the api layer's growable byte buffer with a hard maximum
- * (curl's dynbuf), plus the small helpers of api_internal.h.
+ * (curl's dynbuf).
  *
  * Encoders append millions of short lines, so api_buf_printf formats
  * straight into the spare capacity and only measures first when the text
@@ -13,28 +13,6 @@
 #include <string.h>
 
 #include "api_internal.h"
-
-int api__parse_double(const char *s, size_t n, double *out)
-{
-    char tmp[64];
-    char *end;
-    double v;
-
-    if (n == 0 || n >= sizeof tmp)
-        return -1;
-    memcpy(tmp, s, n);
-    tmp[n] = '\0';
-    /* strtod skips leading white space; the caller's token has none, and
-     * a token with some must not pass for a number. */
-    if (tmp[0] == ' ' || tmp[0] == '\t' || tmp[0] == '\n' || tmp[0] == '\r'
-        || tmp[0] == '\f' || tmp[0] == '\v')
-        return -1;
-    v = strtod(tmp, &end);
-    if (end != tmp + n)
-        return -1;
-    *out = v;
-    return 0;
-}
 
 /* max == 0 means no maximum beyond what size_t and malloc allow. */
 void api_buf_init(api_buf *b, size_t max)

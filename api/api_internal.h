@@ -3,10 +3,19 @@
  * public (the server and the CLI use api.h only).
  *
  * Internal non-static functions carry the api__ prefix, as core's carry
- * mcf__.
+ * mcf__. Most of them serve the mesh codecs (api_obj.c, api_off.c,
+ * api_ply.c, api_stl.c): the text helpers (tokens, lines, numbers, tokens
+ * quoted in error messages) live in api_text.c, the decode prologue and
+ * encode epilogue in api_mesh.c, and the byte-level ones below are inline
+ * because the binary readers call them for every value. This header is
+ * also included (as C) by api_draco.cc, so what is inline here is valid
+ * C++ too.
  */
 #ifndef API_INTERNAL_H
 #define API_INTERNAL_H
+
+#include <stdint.h>
+#include <string.h>
 
 #include "api.h"
 
@@ -15,11 +24,119 @@
  * the core's public mcf_error_set, so both layers format errors alike. */
 #define api__fail mcf_error_set
 
+/* ------------------------------------------------------- text (api_text.c) */
+
+/* White space within a line: ' ', '\t', '\r', '\f', '\v'. Not '\n', which
+ * ends a line for every line-based reader ('\r' of a "\r\n" ending is
+ * thus trailing white space). c is a char or an unsigned char value. */
+static inline int api__is_space(int c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
+}
+
 /* Parses a decimal or scientific number from the n bytes at s (which need
  * not be NUL-terminated and are never read past s + n): the whole span
  * must be the number. Returns 0 and *out on success, -1 when the text is
  * not a number or too long (> 63 bytes). Non-finite values ("nan", "inf",
  * overflow to infinity) are returned as such: the caller decides. */
 int api__parse_double(const char *s, size_t n, double *out);
+
+/* Parses a signed decimal integer from the n bytes at s (not read past
+ * s + n): optional '-', then digits only, the whole span. Returns 0 and
+ * *out, or -1 (*out unchanged) when the text is empty, has a '+' sign or
+ * leading white space, is longer than 31 bytes, is not an integer or
+ * does not fit in a long long. */
+int api__parse_int(const char *s, size_t n, long long *out);
+
+/* Is the n-byte token t exactly the NUL-terminated word? */
+int api__tok_is(const char *t, size_t n, const char *word);
+
+/* The next token of the text [*s, e): skips api__is_space bytes, sets
+ * *tok to the first byte after them and returns the length of the run of
+ * non-space bytes there, moving *s past it. Returns 0 (with *s == e) when
+ * only white space is left. No byte at or past e is read. */
+size_t api__token(const char **s, const char *e, const char **tok);
+
+/* A cursor over the lines of a buffer; set p and end to the buffer and
+ * line to the number of the line before the first one (0 at the start). */
+typedef struct {
+    const char *p, *end;   /* the rest of the buffer */
+    long line;             /* the number of the line last returned */
+} api__lines;
+
+/* The next line [*s, *e) without its '\n' (a "\r\n" leaves its '\r',
+ * which api__token skips as white space); counts it in c->line. A last
+ * line without '\n' is returned as well. Returns 0 at the end of the
+ * buffer (an empty buffer has no line, "\n" has one, empty). */
+int api__line_next(api__lines *c, const char **s, const char **e);
+
+/* The size of the buffer api__show and api__show_utf8 fill: 32 bytes of
+ * token, "..." and the NUL. */
+#define API__SHOWN 40
+
+/* The n-byte token t made fit for a one-line error message, in out (also
+ * returned): at most its first 32 bytes, followed by "..." when longer;
+ * control bytes and bytes >= 0x7f as '?', so the message stays ASCII. */
+const char *api__show(const char *t, size_t n, char out[API__SHOWN]);
+/* The same, but bytes >= 0x80 are kept (only control bytes and 0x7f
+ * become '?'), as the OBJ reader has always quoted its input (UTF-8 names
+ * pass, though a cut after 32 bytes may split a character). */
+const char *api__show_utf8(const char *t, size_t n, char out[API__SHOWN]);
+
+/* --------------------------------------------------- little-endian bytes */
+
+/* Stores v at p as 4 bytes, least significant first, whatever the host's
+ * byte order. */
+static inline void api__put_le32(unsigned char *p, uint32_t v)
+{
+    p[0] = (unsigned char)v;
+    p[1] = (unsigned char)(v >> 8);
+    p[2] = (unsigned char)(v >> 16);
+    p[3] = (unsigned char)(v >> 24);
+}
+
+/* The 4 bytes at p as a little-endian unsigned integer. */
+static inline uint32_t api__get_le32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16
+           | (uint32_t)p[3] << 24;
+}
+
+/* Stores the IEEE 754 bit pattern of f at p, little-endian. */
+static inline void api__put_f32(unsigned char *p, float f)
+{
+    uint32_t v;
+    memcpy(&v, &f, 4);
+    api__put_le32(p, v);
+}
+
+/* ----------------------------------------------------- codecs (api_mesh.c) */
+
+/* The checks every text or binary decoder makes first, with messages
+ * prefixed by codec ("obj", ...): a NULL *lim is replaced by def filled
+ * with api_limits_default; then EINVAL for a NULL buf with len > 0,
+ * ELIMIT when len exceeds max_input_bytes, EDECODE for empty input.
+ * Returns MCF_OK when decoding may start. */
+mcf_status api__decode_begin(const char *codec, const void *buf, size_t len,
+                             const api_limits **lim, api_limits *def,
+                             mcf_error *err);
+
+/* A decoder's last step: the core mesh from nv vertices X and nf
+ * triangles F (copied; the caller still frees them). On success *out is
+ * the new mesh (the caller's to free) and MCF_OK is returned; on failure
+ * *out is unchanged and the status is core's (err filled by core), or
+ * EMESH when core left none. */
+mcf_status api__mesh_new(int nv, const double *X, int nf, const int32_t *F,
+                         mcf_mesh **out, mcf_error *err);
+
+/* An encoder's last step. rc is the status of its appends to out since
+ * out->len was len0: MCF_OK is returned as is; otherwise out is cut back
+ * to len0 (what the encoder appended is dropped, earlier content kept)
+ * and err says "<codec>: out of memory writing <n> <what>" for ENOMEM or
+ * "<codec>: output exceeds its maximum of <max> bytes", and rc is
+ * returned. */
+mcf_status api__encode_end(api_buf *out, size_t len0, mcf_status rc,
+                           const char *codec, int n, const char *what,
+                           mcf_error *err);
 
 #endif /* API_INTERNAL_H */

@@ -8,6 +8,10 @@
  * begin with "solid" in its free-form header, so this comes before the
  * ASCII rule), "solid" followed by "facet"/"endsolid", then text whose
  * first statement is an OBJ keyword.
+ *
+ * Also the steps every codec shares (api_internal.h): the decoders'
+ * argument and size checks, the core mesh at the end of a decode, and
+ * the encoders' roll-back on failure.
  */
 #include <ctype.h>
 #include <string.h>
@@ -28,10 +32,10 @@ static const struct {
 };
 #define NFORMATS (sizeof formats / sizeof formats[0])
 
+/* White space across lines. */
 static int sp(int c)
 {
-    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f'
-           || c == '\v';
+    return api__is_space(c) || c == '\n';
 }
 
 /* Does the n bytes at p start with the word w, followed by white space
@@ -105,13 +109,10 @@ api_format api_format_detect(const void *buf, size_t len)
     if ((len >= 4 && memcmp(p, "ply\n", 4) == 0)
         || (len >= 5 && memcmp(p, "ply\r\n", 5) == 0))
         return API_FMT_PLY;
-    if (len >= 84) {
-        const unsigned char *u = (const unsigned char *)p + 80;
-        uint64_t nt = (uint64_t)u[0] | (uint64_t)u[1] << 8
-                      | (uint64_t)u[2] << 16 | (uint64_t)u[3] << 24;
-        if (84 + 50 * nt == (uint64_t)len)
-            return API_FMT_STL;
-    }
+    if (len >= 84
+        && 84 + 50 * (uint64_t)api__get_le32((const unsigned char *)p + 80)
+               == (uint64_t)len)
+        return API_FMT_STL;
     while (i < len && sp((unsigned char)p[i]))
         i++;
     if (looks_off(p + i, len - i))
@@ -171,6 +172,51 @@ void api_encode_opts_init(api_encode_opts *o)
     o->ply_mean_curvature = NULL;
     o->ply_gaussian_curvature = NULL;
     o->stl_binary = 1;
+}
+
+mcf_status api__decode_begin(const char *codec, const void *buf, size_t len,
+                             const api_limits **lim, api_limits *def,
+                             mcf_error *err)
+{
+    if (!*lim) {
+        api_limits_default(def);
+        *lim = def;
+    }
+    if (!buf && len)
+        return api__fail(err, MCF_EINVAL, "%s: NULL buffer", codec);
+    if (len > (*lim)->max_input_bytes)
+        return api__fail(err, MCF_ELIMIT,
+                         "%s: input of %zu bytes exceeds max_input_bytes (%zu)",
+                         codec, len, (*lim)->max_input_bytes);
+    if (len == 0)
+        return api__fail(err, MCF_EDECODE, "%s: empty input", codec);
+    return MCF_OK;
+}
+
+mcf_status api__mesh_new(int nv, const double *X, int nf, const int32_t *F,
+                         mcf_mesh **out, mcf_error *err)
+{
+    mcf_mesh *m = mcf_mesh_new(nv, X, nf, F, err);
+    if (!m)
+        return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
+    *out = m;
+    return MCF_OK;
+}
+
+mcf_status api__encode_end(api_buf *out, size_t len0, mcf_status rc,
+                           const char *codec, int n, const char *what,
+                           mcf_error *err)
+{
+    if (rc == MCF_OK)
+        return MCF_OK;
+    out->len = len0;
+    if (out->data)
+        out->data[len0] = '\0';
+    if (rc == MCF_ENOMEM)
+        return api__fail(err, rc, "%s: out of memory writing %d %s", codec, n,
+                         what);
+    return api__fail(err, rc, "%s: output exceeds its maximum of %zu bytes",
+                     codec, out->max);
 }
 
 mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,

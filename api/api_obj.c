@@ -17,7 +17,6 @@
  * `f` triangles.
  */
 #include <errno.h>
-#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,71 +32,19 @@ static const char *const skipped[] = {
     "usemap", "call", "csh", NULL};
 
 typedef struct {
-    const char *p, *end;   /* rest of the buffer */
-    long line;             /* number of the line last returned */
-} cursor;
-
-typedef struct {
     const char *s, *e;     /* rest of the current line */
 } linecur;
-
-static int is_space(char c)
-{
-    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
-}
-
-/* Next line without its "\n" (and "\r\n"); 0 at the end of the buffer. */
-static int next_line(cursor *c, linecur *l)
-{
-    const char *nl;
-    if (c->p >= c->end)
-        return 0;
-    nl = memchr(c->p, '\n', (size_t)(c->end - c->p));
-    l->s = c->p;
-    l->e = nl ? nl : c->end;
-    c->p = nl ? nl + 1 : c->end;
-    c->line++;
-    return 1;
-}
 
 /* Next white-space separated token; a token starting with '#' ends the
  * line (trailing comment). Returns its length, 0 at the end of the line. */
 static size_t next_token(linecur *l, const char **tok)
 {
-    const char *s = l->s;
-    while (s < l->e && is_space(*s))
-        s++;
-    if (s >= l->e || *s == '#') {
+    size_t n = api__token(&l->s, l->e, tok);
+    if (n > 0 && **tok == '#') {
         l->s = l->e;
         return 0;
     }
-    *tok = s;
-    while (s < l->e && !is_space(*s))
-        s++;
-    l->s = s;
-    return (size_t)(s - *tok);
-}
-
-static int tok_is(const char *t, size_t n, const char *word)
-{
-    return strlen(word) == n && memcmp(t, word, n) == 0;
-}
-
-/* A token fit for an error message: at most 32 bytes, control bytes
- * shown as '?'. */
-static const char *show(const char *t, size_t n, char out[40])
-{
-    size_t i, k = n > 32 ? 32 : n;
-    for (i = 0; i < k; i++) {
-        unsigned char ch = (unsigned char)t[i];
-        out[i] = (ch < 0x20 || ch == 0x7f) ? '?' : (char)ch;
-    }
-    if (n > k) {
-        memcpy(out + k, "...", 3);
-        k += 3;
-    }
-    out[k] = '\0';
-    return out;
+    return n;
 }
 
 /* The first control byte of a line (other than white space), or -1. */
@@ -106,7 +53,7 @@ static int binary_byte(const linecur *l)
     const char *s;
     for (s = l->s; s < l->e; s++) {
         unsigned char ch = (unsigned char)*s;
-        if ((ch < 0x20 && !is_space((char)ch)) || ch == 0x7f)
+        if ((ch < 0x20 && !api__is_space(ch)) || ch == 0x7f)
             return ch;
     }
     return -1;
@@ -116,11 +63,11 @@ static int binary_byte(const linecur *l)
 static mcf_status count(const char *buf, size_t len, const api_limits *lim,
                         int *nv, int *nf, mcf_error *err)
 {
-    cursor c = {buf, buf + len, 0};
+    api__lines c = {buf, buf + len, 0};
     linecur l;
     long v = 0, f = 0;
 
-    while (next_line(&c, &l)) {
+    while (api__line_next(&c, &l.s, &l.e)) {
         const char *t;
         size_t n = next_token(&l, &t);
         if (n == 1 && t[0] == 'v') {
@@ -152,7 +99,7 @@ static mcf_status count(const char *buf, size_t len, const api_limits *lim,
 static mcf_status face_ref(const char *t, size_t n, long line, int seen,
                            int total, int32_t *out, mcf_error *err)
 {
-    char tmp[40], num[24], shown[40];
+    char tmp[API__SHOWN], num[24], shown[API__SHOWN];
     const char *slash = memchr(t, '/', n);
     size_t vlen = slash ? (size_t)(slash - t) : n;
     char *end;
@@ -173,19 +120,19 @@ static mcf_status face_ref(const char *t, size_t n, long line, int seen,
     }
     if (i < n || (slashes == 1 && vlen + 1 == n))
         return api__fail(err, MCF_EDECODE, "line %ld: bad face vertex '%s'",
-                         line, show(t, n, shown));
+                         line, api__show_utf8(t, n, shown));
     if (vlen == 0 || vlen >= sizeof num)
         return api__fail(err, MCF_EDECODE,
                          "line %ld: bad face vertex index '%s'", line,
-                         show(t, n, shown));
+                         api__show_utf8(t, n, shown));
     memcpy(num, t, vlen);
     num[vlen] = '\0';
     errno = 0;
     k = strtoll(num, &end, 10);
-    if (end != num + vlen || num[0] == '+' || is_space(num[0]))
+    if (end != num + vlen || num[0] == '+' || api__is_space(num[0]))
         return api__fail(err, MCF_EDECODE,
                          "line %ld: bad face vertex index '%s'", line,
-                         show(t, n, shown));
+                         api__show_utf8(t, n, shown));
     if (k == 0)
         return api__fail(err, MCF_EDECODE,
                          "line %ld: face index 0 (OBJ indices start at 1)", line);
@@ -193,13 +140,13 @@ static mcf_status face_ref(const char *t, size_t n, long line, int seen,
         if (errno == ERANGE || k > total)
             return api__fail(err, MCF_EDECODE,
                              "line %ld: face index %s out of range (1..%d)",
-                             line, show(num, vlen, tmp), total);
+                             line, api__show_utf8(num, vlen, tmp), total);
         *out = (int32_t)(k - 1);
     } else {
         if (errno == ERANGE || -k > seen)
             return api__fail(err, MCF_EDECODE,
                              "line %ld: face index %s out of range (-%d..-1)",
-                             line, show(num, vlen, tmp), seen);
+                             line, api__show_utf8(num, vlen, tmp), seen);
         *out = (int32_t)(seen + k);
     }
     return MCF_OK;
@@ -209,13 +156,13 @@ static mcf_status face_ref(const char *t, size_t n, long line, int seen,
 static mcf_status parse(const char *buf, size_t len, int nv, double *X,
                         int32_t *F, mcf_error *err)
 {
-    cursor c = {buf, buf + len, 0};
+    api__lines c = {buf, buf + len, 0};
     linecur l;
     int seen = 0;
     long tri = 0;
-    char shown[40];
+    char shown[API__SHOWN];
 
-    while (next_line(&c, &l)) {
+    while (api__line_next(&c, &l.s, &l.e)) {
         const char *t;
         size_t n;
         int bad = binary_byte(&l);
@@ -240,11 +187,11 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
                 if (api__parse_double(nt, nn, &x[k]) != 0)
                     return api__fail(err, MCF_EDECODE,
                                      "line %ld: bad number '%s'", c.line,
-                                     show(nt, nn, shown));
+                                     api__show_utf8(nt, nn, shown));
                 if (!isfinite(x[k]))
                     return api__fail(err, MCF_EDECODE,
                                      "line %ld: coordinate '%s' is not finite",
-                                     c.line, show(nt, nn, shown));
+                                     c.line, api__show_utf8(nt, nn, shown));
             }
             seen++;
         } else if (n == 1 && t[0] == 'f') {
@@ -274,12 +221,12 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
         } else {
             int i;
             for (i = 0; skipped[i]; i++)
-                if (tok_is(t, n, skipped[i]))
+                if (api__tok_is(t, n, skipped[i]))
                     break;
             if (!skipped[i])
                 return api__fail(err, MCF_EDECODE,
                                  "line %ld: unknown statement '%s'", c.line,
-                                 show(t, n, shown));
+                                 api__show_utf8(t, n, shown));
         }
     }
     return MCF_OK;
@@ -292,21 +239,10 @@ mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
     int nv = 0, nf = 0;
     double *X = NULL;
     int32_t *F = NULL;
-    mcf_mesh *m;
     mcf_status rc;
 
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (!buf && len)
-        return api__fail(err, MCF_EINVAL, "obj: NULL buffer");
-    if (len > lim->max_input_bytes)
-        return api__fail(err, MCF_ELIMIT,
-                         "obj: input of %zu bytes exceeds max_input_bytes (%zu)",
-                         len, lim->max_input_bytes);
-    if (len == 0)
-        return api__fail(err, MCF_EDECODE, "obj: empty input");
+    if ((rc = api__decode_begin("obj", buf, len, &lim, &def, err)) != MCF_OK)
+        return rc;
     /* A UTF-8 byte-order mark, as some Windows exporters write. */
     if (len >= 3 && memcmp(buf, "\xEF\xBB\xBF", 3) == 0) {
         buf = (const char *)buf + 3;
@@ -332,13 +268,7 @@ mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                        "obj: no faces ('f' lines): %d vertices only", nv);
         goto done;
     }
-    m = mcf_mesh_new(nv, X, nf, F, err);
-    if (!m) {
-        rc = (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
-        goto done;
-    }
-    *out = m;
-    rc = MCF_OK;
+    rc = api__mesh_new(nv, X, nf, F, out, err);
 done:
     free(X);
     free(F);
@@ -360,15 +290,5 @@ mcf_status api_obj_encode(const mcf_mesh *m, api_buf *out, mcf_error *err)
     for (i = 0; i < nf && rc == MCF_OK; i++)
         rc = api_buf_printf(out, "f %ld %ld %ld\n", (long)F[3 * i] + 1,
                             (long)F[3 * i + 1] + 1, (long)F[3 * i + 2] + 1);
-    if (rc != MCF_OK) {
-        out->len = len0;
-        if (out->data)
-            out->data[len0] = '\0';
-        if (rc == MCF_ENOMEM)
-            return api__fail(err, rc, "obj: out of memory writing %d vertices",
-                             nv);
-        return api__fail(err, rc, "obj: output exceeds its maximum of %zu bytes",
-                         out->max);
-    }
-    return MCF_OK;
+    return api__encode_end(out, len0, rc, "obj", nv, "vertices", err);
 }

@@ -16,8 +16,6 @@
  *
  * Writer: "OFF", counts, %.17g positions (exact round trip), triangles.
  */
-#include <errno.h>
-#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -25,79 +23,27 @@
 #include "api_internal.h"
 
 typedef struct {
-    const char *p, *end;
-    long line;
-    const char *s, *e;      /* current line, comment stripped */
+    api__lines in;
+    const char *s, *e;      /* rest of the current line, comment stripped */
 } reader;
-
-static int is_space(char c)
-{
-    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
-}
-
-static const char *show(const char *t, size_t n, char out[40])
-{
-    size_t i, k = n > 32 ? 32 : n;
-    for (i = 0; i < k; i++) {
-        unsigned char ch = (unsigned char)t[i];
-        out[i] = (ch < 0x20 || ch >= 0x7f) ? '?' : (char)ch;
-    }
-    if (n > k) {
-        memcpy(out + k, "...", 3);
-        k += 3;
-    }
-    out[k] = '\0';
-    return out;
-}
 
 /* Next token of the current line; 0 at its end. */
 static size_t token(reader *r, const char **t)
 {
-    const char *p = r->s;
-    while (p < r->e && is_space(*p))
-        p++;
-    *t = p;
-    while (p < r->e && !is_space(*p))
-        p++;
-    r->s = p;
-    return (size_t)(p - *t);
+    return api__token(&r->s, r->e, t);
 }
 
 /* Next line with a token (comments stripped); 0 at the end of input. */
 static int next_line(reader *r)
 {
-    while (r->p < r->end) {
-        const char *nl = memchr(r->p, '\n', (size_t)(r->end - r->p));
-        const char *le = nl ? nl : r->end, *hash, *t;
-        r->s = r->p;
-        r->p = nl ? nl + 1 : r->end;
-        r->line++;
+    const char *le, *hash, *p, *t;
+    while (api__line_next(&r->in, &r->s, &le)) {
         hash = memchr(r->s, '#', (size_t)(le - r->s));
         r->e = hash ? hash : le;
-        {
-            const char *save = r->s;
-            if (token(r, &t) != 0) {
-                r->s = save;
-                return 1;
-            }
-        }
+        p = r->s;
+        if (api__token(&p, r->e, &t) != 0)
+            return 1;
     }
-    return 0;
-}
-
-static int parse_int(const char *t, size_t n, long long *out)
-{
-    char tmp[32], *end;
-    long long v;
-    if (n == 0 || n >= sizeof tmp || t[0] == '+')
-        return -1;
-    memcpy(tmp, t, n);
-    tmp[n] = '\0';
-    errno = 0;
-    v = strtoll(tmp, &end, 10);
-    if (end != tmp + n || errno == ERANGE)
-        return -1;
-    *out = v;
     return 0;
 }
 
@@ -135,71 +81,61 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
     size_t n;
     long long cnt[3] = {0, 0, 0};
     int ncnt = 0, other, i;
-    char shown[40];
+    char shown[API__SHOWN];
     double *X = NULL;
     int32_t *F = NULL;
     long long nt = 0, cap = 0;
     unsigned long long need;
-    mcf_mesh *m;
-    mcf_status rc = MCF_EDECODE;
+    mcf_status rc;
 
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (!buf && len)
-        return api__fail(err, MCF_EINVAL, "off: NULL buffer");
-    if (len > lim->max_input_bytes)
-        return api__fail(err, MCF_ELIMIT,
-                         "off: input of %zu bytes exceeds max_input_bytes (%zu)",
-                         len, lim->max_input_bytes);
-    if (len == 0)
-        return api__fail(err, MCF_EDECODE, "off: empty input");
-    r.p = buf;
-    r.end = r.p + len;
-    r.line = 0;
+    if ((rc = api__decode_begin("off", buf, len, &lim, &def, err)) != MCF_OK)
+        return rc;
+    rc = MCF_EDECODE;
+    r.in.p = buf;
+    r.in.end = r.in.p + len;
+    r.in.line = 0;
 
     if (!next_line(&r))
         return api__fail(err, MCF_EDECODE, "off: no OFF keyword (only comments)");
     n = token(&r, &t);
     if (!off_keyword(t, n, &other))
         return api__fail(err, MCF_EDECODE, "off: line %ld: 'OFF' expected, found '%s'",
-                         r.line, show(t, n, shown));
+                         r.in.line, api__show(t, n, shown));
     if (other)
         return api__fail(err, MCF_EDECODE,
-                         "off: line %ld: '%s' (not 3-D) is not supported", r.line,
-                         show(t, n, shown));
+                         "off: line %ld: '%s' (not 3-D) is not supported", r.in.line,
+                         api__show(t, n, shown));
     n = token(&r, &t);
-    if (n == 6 && memcmp(t, "BINARY", 6) == 0)
+    if (api__tok_is(t, n, "BINARY"))
         return api__fail(err, MCF_EDECODE, "off: line %ld: binary OFF is not supported",
-                         r.line);
+                         r.in.line);
     if (n == 0) {
         if (!next_line(&r))
             return api__fail(err, MCF_EDECODE,
-                             "off: line %ld: input ends before the counts line", r.line);
+                             "off: line %ld: input ends before the counts line", r.in.line);
         n = token(&r, &t);
     }
     /* "nv nf [ne]" */
     while (n > 0) {
-        if (ncnt == 3 || parse_int(t, n, &cnt[ncnt]) != 0 || cnt[ncnt] < 0)
+        if (ncnt == 3 || api__parse_int(t, n, &cnt[ncnt]) != 0 || cnt[ncnt] < 0)
             return api__fail(err, MCF_EDECODE,
                              "off: line %ld: 'nv nf [ne]' counts expected, found '%s'",
-                             r.line, show(t, n, shown));
+                             r.in.line, api__show(t, n, shown));
         ncnt++;
         n = token(&r, &t);
     }
     if (ncnt < 2)
         return api__fail(err, MCF_EDECODE,
-                         "off: line %ld: 'nv nf [ne]' counts expected", r.line);
+                         "off: line %ld: 'nv nf [ne]' counts expected", r.in.line);
 
     /* Counts against the body, then the limits. */
     need = (unsigned long long)cnt[0] * 6 + (unsigned long long)cnt[1] * 8;
     if (cnt[0] > (long long)len || cnt[1] > (long long)len
-        || need > (unsigned long long)(r.end - r.p) + 1)
+        || need > (unsigned long long)(r.in.end - r.in.p) + 1)
         return api__fail(err, MCF_EDECODE,
                          "off: line %ld: %lld vertices and %lld faces cannot fit in "
                          "the remaining %zu bytes",
-                         r.line, cnt[0], cnt[1], (size_t)(r.end - r.p));
+                         r.in.line, cnt[0], cnt[1], (size_t)(r.in.end - r.in.p));
     if (cnt[0] > lim->max_vertices)
         return api__fail(err, MCF_ELIMIT, "off: %lld vertices exceed max_vertices (%d)",
                          cnt[0], lim->max_vertices);
@@ -221,7 +157,7 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
         int k;
         if (!next_line(&r)) {
             api__fail(err, rc, "off: line %ld: input ends at vertex %d of %lld",
-                      r.line, i, cnt[0]);
+                      r.in.line, i, cnt[0]);
             goto done;
         }
         for (k = 0; k < 3; k++) {
@@ -229,17 +165,17 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
             if (n == 0) {
                 api__fail(err, rc, "off: line %ld: vertex %d has %d coordinates, 3 "
                                    "needed",
-                          r.line, i, k);
+                          r.in.line, i, k);
                 goto done;
             }
             if (api__parse_double(t, n, &X[3 * i + k]) != 0) {
-                api__fail(err, rc, "off: line %ld: bad number '%s'", r.line,
-                          show(t, n, shown));
+                api__fail(err, rc, "off: line %ld: bad number '%s'", r.in.line,
+                          api__show(t, n, shown));
                 goto done;
             }
             if (!isfinite(X[3 * i + k])) {
                 api__fail(err, rc, "off: line %ld: coordinate '%s' is not finite",
-                          r.line, show(t, n, shown));
+                          r.in.line, api__show(t, n, shown));
                 goto done;
             }
         }
@@ -248,20 +184,20 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
         long long k, deg;
         int32_t first = 0, prev = 0;
         if (!next_line(&r)) {
-            api__fail(err, rc, "off: line %ld: input ends at face %d of %lld", r.line,
+            api__fail(err, rc, "off: line %ld: input ends at face %d of %lld", r.in.line,
                       i, cnt[1]);
             goto done;
         }
         n = token(&r, &t);
-        if (parse_int(t, n, &deg) != 0) {
-            api__fail(err, rc, "off: line %ld: bad vertex count '%s'", r.line,
-                      show(t, n, shown));
+        if (api__parse_int(t, n, &deg) != 0) {
+            api__fail(err, rc, "off: line %ld: bad vertex count '%s'", r.in.line,
+                      api__show(t, n, shown));
             goto done;
         }
         if (deg < 3) {
             api__fail(err, rc, "off: line %ld: face %d has %lld vertices, at least 3 "
                                "needed",
-                      r.line, i, deg);
+                      r.in.line, i, deg);
             goto done;
         }
         for (k = 0; k < deg; k++) {
@@ -269,18 +205,18 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
             n = token(&r, &t);
             if (n == 0) {
                 api__fail(err, rc, "off: line %ld: face %d lists %lld of %lld vertices",
-                          r.line, i, k, deg);
+                          r.in.line, i, k, deg);
                 goto done;
             }
-            if (parse_int(t, n, &v) != 0) {
-                api__fail(err, rc, "off: line %ld: bad index '%s'", r.line,
-                          show(t, n, shown));
+            if (api__parse_int(t, n, &v) != 0) {
+                api__fail(err, rc, "off: line %ld: bad index '%s'", r.in.line,
+                          api__show(t, n, shown));
                 goto done;
             }
             if (v < 0 || v >= cnt[0]) {
                 api__fail(err, rc, "off: line %ld: face %d: index %lld out of range "
                                    "(0..%lld)",
-                          r.line, i, v, cnt[0] - 1);
+                          r.in.line, i, v, cnt[0] - 1);
                 goto done;
             }
             if (k == 0) {
@@ -289,7 +225,7 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
                 if (nt >= lim->max_faces) {
                     rc = api__fail(err, MCF_ELIMIT,
                                    "off: line %ld: more than max_faces (%d) triangles",
-                                   r.line, lim->max_faces);
+                                   r.in.line, lim->max_faces);
                     goto done;
                 }
                 if (nt == cap) {
@@ -316,16 +252,10 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
         /* Anything left on the line is the face's colour: ignored. */
     }
     if (next_line(&r)) {
-        api__fail(err, rc, "off: line %ld: data after the last face", r.line);
+        api__fail(err, rc, "off: line %ld: data after the last face", r.in.line);
         goto done;
     }
-    m = mcf_mesh_new((int)cnt[0], X, (int)nt, F, err);
-    if (!m) {
-        rc = (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
-        goto done;
-    }
-    *out = m;
-    rc = MCF_OK;
+    rc = api__mesh_new((int)cnt[0], X, (int)nt, F, out, err);
 done:
     free(X);
     free(F);
@@ -347,14 +277,5 @@ mcf_status api_off_encode(const mcf_mesh *m, api_buf *out, mcf_error *err)
     for (i = 0; i < nf && rc == MCF_OK; i++)
         rc = api_buf_printf(out, "3 %ld %ld %ld\n", (long)F[3 * i],
                             (long)F[3 * i + 1], (long)F[3 * i + 2]);
-    if (rc != MCF_OK) {
-        out->len = len0;
-        if (out->data)
-            out->data[len0] = '\0';
-        if (rc == MCF_ENOMEM)
-            return api__fail(err, rc, "off: out of memory writing %d vertices", nv);
-        return api__fail(err, rc, "off: output exceeds its maximum of %zu bytes",
-                         out->max);
-    }
-    return MCF_OK;
+    return api__encode_end(out, len0, rc, "off", nv, "vertices", err);
 }

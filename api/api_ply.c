@@ -19,7 +19,6 @@
  * `gaussian_curvature` vertex properties, `property list uchar int
  * vertex_indices` triangles. ASCII doubles use %.17g (exact round trip).
  */
-#include <errno.h>
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
@@ -80,51 +79,11 @@ static void header_free(header *h)
     h->nel = h->cap = 0;
 }
 
-static int is_space(char c)
-{
-    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
-}
-
-/* A token fit for an error message: at most 32 bytes, control bytes
- * shown as '?'. */
-static const char *show(const char *t, size_t n, char out[40])
-{
-    size_t i, k = n > 32 ? 32 : n;
-    for (i = 0; i < k; i++) {
-        unsigned char ch = (unsigned char)t[i];
-        out[i] = (ch < 0x20 || ch >= 0x7f) ? '?' : (char)ch;
-    }
-    if (n > k) {
-        memcpy(out + k, "...", 3);
-        k += 3;
-    }
-    out[k] = '\0';
-    return out;
-}
-
-static int tok_is(const char *t, size_t n, const char *word)
-{
-    return strlen(word) == n && memcmp(t, word, n) == 0;
-}
-
-/* Next white-space separated token of [*s, e); 0 at the end. */
-static size_t next_token(const char **s, const char *e, const char **tok)
-{
-    const char *p = *s;
-    while (p < e && is_space(*p))
-        p++;
-    *tok = p;
-    while (p < e && !is_space(*p))
-        p++;
-    *s = p;
-    return (size_t)(p - *tok);
-}
-
 static ptype parse_type(const char *t, size_t n)
 {
     size_t i;
     for (i = 0; i < sizeof type_names / sizeof type_names[0]; i++)
-        if (tok_is(t, n, type_names[i].name))
+        if (api__tok_is(t, n, type_names[i].name))
             return type_names[i].t;
     return T_NONE;
 }
@@ -154,23 +113,6 @@ static int parse_count(const char *t, size_t n, unsigned long long *out)
     return 0;
 }
 
-/* A signed decimal integer token (ASCII list counts and indices). */
-static int parse_int(const char *t, size_t n, long long *out)
-{
-    char tmp[32], *end;
-    long long v;
-    if (n == 0 || n >= sizeof tmp || is_space(t[0]) || t[0] == '+')
-        return -1;
-    memcpy(tmp, t, n);
-    tmp[n] = '\0';
-    errno = 0;
-    v = strtoll(tmp, &end, 10);
-    if (end != tmp + n || errno == ERANGE)
-        return -1;
-    *out = v;
-    return 0;
-}
-
 static mcf_status add_element(header *h, const char *name, size_t nlen,
                               unsigned long long count, mcf_error *err)
 {
@@ -188,8 +130,8 @@ static mcf_status add_element(header *h, const char *name, size_t nlen,
     e->name = name;
     e->nlen = nlen;
     e->count = count;
-    e->is_vertex = tok_is(name, nlen, "vertex");
-    e->is_face = tok_is(name, nlen, "face");
+    e->is_vertex = api__tok_is(name, nlen, "vertex");
+    e->is_face = api__tok_is(name, nlen, "face");
     return MCF_OK;
 }
 
@@ -211,22 +153,20 @@ static mcf_status add_prop(element *e, const prop *p, mcf_error *err)
 static mcf_status parse_header(const char *buf, size_t len, header *h,
                                mcf_error *err)
 {
-    const char *p = buf, *end = buf + len;
-    long line = 0;
+    api__lines c = {buf, buf + len, 0};
+    const char *s, *le;
     int have_format = 0;
-    char shown[40];
+    char shown[API__SHOWN];
     mcf_status rc;
 
-    while (p < end) {
-        const char *nl = memchr(p, '\n', (size_t)(end - p));
-        const char *le = nl ? nl : end, *s = p, *t;
-        size_t n;
-
-        line++;
-        p = nl ? nl + 1 : end;
-        n = next_token(&s, le, &t);
+    while (api__line_next(&c, &s, &le)) {
+        const char *t;
+        long line = c.line;
+        size_t n = api__token(&s, le, &t);
         if (line == 1) {
-            if (!tok_is(t, n, "ply") || next_token(&s, le, &t) != 0 || !nl)
+            /* le == c.end: the line has no '\n' (le is one otherwise). */
+            if (!api__tok_is(t, n, "ply") || api__token(&s, le, &t) != 0
+                || le == c.end)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line 1 must be 'ply' alone");
             continue;
@@ -234,71 +174,71 @@ static mcf_status parse_header(const char *buf, size_t len, header *h,
         if (n == 0)
             return api__fail(err, MCF_EDECODE, "ply: line %ld: empty header line",
                              line);
-        if (tok_is(t, n, "comment") || tok_is(t, n, "obj_info"))
+        if (api__tok_is(t, n, "comment") || api__tok_is(t, n, "obj_info"))
             continue;
-        if (tok_is(t, n, "end_header")) {
+        if (api__tok_is(t, n, "end_header")) {
             if (!have_format)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: end_header before any format line",
                                  line);
-            if (next_token(&s, le, &t) != 0)
+            if (api__token(&s, le, &t) != 0)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: text after end_header", line);
-            h->body = (size_t)(p - buf);
+            h->body = (size_t)(c.p - buf);
             h->body_line = line + 1;
             return MCF_OK;
         }
-        if (tok_is(t, n, "format")) {
+        if (api__tok_is(t, n, "format")) {
             if (have_format)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: second format line", line);
             if (h->nel)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: format line after an element", line);
-            n = next_token(&s, le, &t);
-            if (tok_is(t, n, "ascii"))
+            n = api__token(&s, le, &t);
+            if (api__tok_is(t, n, "ascii"))
                 h->format = FMT_ASCII;
-            else if (tok_is(t, n, "binary_little_endian"))
+            else if (api__tok_is(t, n, "binary_little_endian"))
                 h->format = FMT_LE;
-            else if (tok_is(t, n, "binary_big_endian"))
+            else if (api__tok_is(t, n, "binary_big_endian"))
                 h->format = FMT_BE;
             else
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: unknown format '%s' (ascii, "
                                  "binary_little_endian, binary_big_endian)",
-                                 line, show(t, n, shown));
-            n = next_token(&s, le, &t);
-            if (!tok_is(t, n, "1.0") || next_token(&s, le, &t) != 0)
+                                 line, api__show(t, n, shown));
+            n = api__token(&s, le, &t);
+            if (!api__tok_is(t, n, "1.0") || api__token(&s, le, &t) != 0)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: format version must be 1.0", line);
             have_format = 1;
             continue;
         }
-        if (tok_is(t, n, "element")) {
+        if (api__tok_is(t, n, "element")) {
             const char *name, *ct;
             size_t nn, cn;
             unsigned long long count;
             int i;
-            nn = next_token(&s, le, &name);
-            cn = next_token(&s, le, &ct);
-            if (nn == 0 || cn == 0 || next_token(&s, le, &t) != 0)
+            nn = api__token(&s, le, &name);
+            cn = api__token(&s, le, &ct);
+            if (nn == 0 || cn == 0 || api__token(&s, le, &t) != 0)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: 'element <name> <count>' expected",
                                  line);
             if (parse_count(ct, cn, &count) != 0)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: bad element count '%s'", line,
-                                 show(ct, cn, shown));
+                                 api__show(ct, cn, shown));
             for (i = 0; i < h->nel; i++)
                 if (h->el[i].nlen == nn && memcmp(h->el[i].name, name, nn) == 0)
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: element '%s' declared twice",
-                                     line, show(name, nn, shown));
+                                     line, api__show(name, nn, shown));
             if ((rc = add_element(h, name, nn, count, err)) != MCF_OK)
                 return rc;
             continue;
         }
-        if (tok_is(t, n, "property")) {
+        if (api__tok_is(t, n, "property")) {
             prop pr;
             element *e;
             const char *name;
@@ -309,29 +249,29 @@ static mcf_status parse_header(const char *buf, size_t len, header *h,
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: property before any element", line);
             e = &h->el[h->nel - 1];
-            n = next_token(&s, le, &t);
-            if (tok_is(t, n, "list")) {
+            n = api__token(&s, le, &t);
+            if (api__tok_is(t, n, "list")) {
                 pr.is_list = 1;
-                n = next_token(&s, le, &t);
+                n = api__token(&s, le, &t);
                 pr.count_type = parse_type(t, n);
                 if (pr.count_type == T_NONE)
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: unknown list count type '%s'",
-                                     line, show(t, n, shown));
+                                     line, api__show(t, n, shown));
                 if (!is_int_type(pr.count_type))
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: list count type '%s' is not an "
                                      "integer type",
-                                     line, show(t, n, shown));
-                n = next_token(&s, le, &t);
+                                     line, api__show(t, n, shown));
+                n = api__token(&s, le, &t);
             }
             pr.type = parse_type(t, n);
             if (pr.type == T_NONE)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: unknown property type '%s'", line,
-                                 show(t, n, shown));
-            nn = next_token(&s, le, &name);
-            if (nn == 0 || next_token(&s, le, &t) != 0)
+                                 api__show(t, n, shown));
+            nn = api__token(&s, le, &name);
+            if (nn == 0 || api__token(&s, le, &t) != 0)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: 'property [list <count> <item>] "
                                  "<type> <name>' expected",
@@ -340,20 +280,20 @@ static mcf_status parse_header(const char *buf, size_t len, header *h,
                 if (e->props[i].nlen == nn && memcmp(e->props[i].name, name, nn) == 0)
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: property '%s' declared twice",
-                                     line, show(name, nn, shown));
+                                     line, api__show(name, nn, shown));
             pr.name = name;
             pr.nlen = nn;
             if (e->is_vertex && !pr.is_list) {
-                if (tok_is(name, nn, "x"))
+                if (api__tok_is(name, nn, "x"))
                     pr.role = ROLE_X;
-                else if (tok_is(name, nn, "y"))
+                else if (api__tok_is(name, nn, "y"))
                     pr.role = ROLE_Y;
-                else if (tok_is(name, nn, "z"))
+                else if (api__tok_is(name, nn, "z"))
                     pr.role = ROLE_Z;
             }
             if (e->is_face
-                && (tok_is(name, nn, "vertex_indices")
-                    || tok_is(name, nn, "vertex_index"))) {
+                && (api__tok_is(name, nn, "vertex_indices")
+                    || api__tok_is(name, nn, "vertex_index"))) {
                 for (i = 0; i < e->nprops; i++)
                     if (e->props[i].role == ROLE_INDICES)
                         return api__fail(err, MCF_EDECODE,
@@ -363,7 +303,7 @@ static mcf_status parse_header(const char *buf, size_t len, header *h,
                 if (!pr.is_list)
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: face property '%s' must be a list",
-                                     line, show(name, nn, shown));
+                                     line, api__show(name, nn, shown));
                 if (!is_int_type(pr.type))
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: face indices must have an "
@@ -376,7 +316,7 @@ static mcf_status parse_header(const char *buf, size_t len, header *h,
             continue;
         }
         return api__fail(err, MCF_EDECODE, "ply: line %ld: unknown header keyword '%s'",
-                         line, show(t, n, shown));
+                         line, api__show(t, n, shown));
     }
     return api__fail(err, MCF_EDECODE, "ply: no end_header line");
 }
@@ -407,7 +347,7 @@ typedef struct {
     const char *buf;
     size_t len, pos;        /* binary cursor */
     int format;
-    long line;              /* ASCII: current line */
+    api__lines txt;         /* ASCII cursor; txt.line: the current line */
     int nv;
     double *X;
     int32_t *F;
@@ -486,7 +426,7 @@ static mcf_status fan_add(body *b, fan *f, long long k, double v,
         if (b->format == FMT_ASCII)
             return api__fail(err, MCF_EDECODE,
                              "ply: line %ld: face %llu: index %.0f out of range (0..%d)",
-                             b->line, idx, v, b->nv - 1);
+                             b->txt.line, idx, v, b->nv - 1);
         return api__fail(err, MCF_EDECODE,
                          "ply: face %llu: index %.0f out of range (0..%d)", idx, v,
                          b->nv - 1);
@@ -509,7 +449,7 @@ static mcf_status bad_count(const body *b, long long count, unsigned long long i
     if (b->format == FMT_ASCII)
         return api__fail(err, MCF_EDECODE,
                          "ply: line %ld: face %llu has %lld vertices, at least 3 needed",
-                         b->line, idx, count);
+                         b->txt.line, idx, count);
     return api__fail(err, MCF_EDECODE,
                      "ply: face %llu has %lld vertices, at least 3 needed", idx,
                      count);
@@ -519,7 +459,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
 {
     const unsigned char *u = (const unsigned char *)b->buf;
     int swap = (h->format == FMT_BE) != host_big();
-    char shown[40];
+    char shown[API__SHOWN];
     int ei, pi;
     mcf_status rc;
 
@@ -542,7 +482,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                             return api__fail(err, MCF_EDECODE,
                                              "ply: vertex %llu: coordinate %s is "
                                              "not finite",
-                                             r, show(p->name, p->nlen, shown));
+                                             r, api__show(p->name, p->nlen, shown));
                         b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
                     }
                     b->pos += sz;
@@ -558,7 +498,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                     if (cv < 0)
                         return api__fail(err, MCF_EDECODE,
                                          "ply: %s %llu: negative list length %.0f",
-                                         show(e->name, e->nlen, shown), r, cv);
+                                         api__show(e->name, e->nlen, shown), r, cv);
                     count = (long long)cv;
                     if ((unsigned long long)count > left / is)
                         goto truncated;
@@ -581,7 +521,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
     truncated:
         return api__fail(err, MCF_EDECODE,
                          "ply: body ends inside %s %llu of %llu (byte %zu)",
-                         show(e->name, e->nlen, shown), r, e->count, b->pos);
+                         api__show(e->name, e->nlen, shown), r, e->count, b->pos);
     }
     if (b->pos != b->len)
         return api__fail(err, MCF_EDECODE,
@@ -593,28 +533,20 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
 /* ASCII: one element per line; blank lines are skipped. */
 static int next_line(body *b, const char **s, const char **e)
 {
-    while (b->pos < b->len) {
-        const char *p = b->buf + b->pos, *end = b->buf + b->len;
-        const char *nl = memchr(p, '\n', (size_t)(end - p));
-        const char *le = nl ? nl : end, *t, *q = p;
-        b->pos = nl ? (size_t)(nl + 1 - b->buf) : b->len;
-        b->line++;
-        if (next_token(&q, le, &t) == 0)
-            continue;
-        *s = p;
-        *e = le;
-        return 1;
+    while (api__line_next(&b->txt, s, e)) {
+        const char *q = *s, *t;
+        if (api__token(&q, *e, &t) != 0)
+            return 1;
     }
     return 0;
 }
 
 static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
 {
-    char shown[40], shown2[40];
+    char shown[API__SHOWN], shown2[API__SHOWN];
     int ei, pi;
     mcf_status rc;
 
-    b->line--; /* next_line increments before returning the first line */
     for (ei = 0; ei < h->nel; ei++) {
         const element *e = &h->el[ei];
         unsigned long long r;
@@ -626,59 +558,59 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
             if (!next_line(b, &s, &le))
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: input ends before %s %llu of %llu",
-                                 b->line, show(e->name, e->nlen, shown), r,
+                                 b->txt.line, api__show(e->name, e->nlen, shown), r,
                                  e->count);
             for (pi = 0; pi < e->nprops; pi++) {
                 const prop *p = &e->props[pi];
-                n = next_token(&s, le, &t);
+                n = api__token(&s, le, &t);
                 if (n == 0)
                     return api__fail(err, MCF_EDECODE,
                                      "ply: line %ld: %s %llu: value for '%s' missing",
-                                     b->line, show(e->name, e->nlen, shown), r,
-                                     show(p->name, p->nlen, shown2));
+                                     b->txt.line, api__show(e->name, e->nlen, shown), r,
+                                     api__show(p->name, p->nlen, shown2));
                 if (!p->is_list) {
                     double v;
                     if (api__parse_double(t, n, &v) != 0)
                         return api__fail(err, MCF_EDECODE,
-                                         "ply: line %ld: bad number '%s'", b->line,
-                                         show(t, n, shown));
+                                         "ply: line %ld: bad number '%s'", b->txt.line,
+                                         api__show(t, n, shown));
                     if (p->role >= ROLE_X && p->role <= ROLE_Z) {
                         if (!isfinite(v))
                             return api__fail(err, MCF_EDECODE,
                                              "ply: line %ld: coordinate '%s' is not "
                                              "finite",
-                                             b->line, show(t, n, shown));
+                                             b->txt.line, api__show(t, n, shown));
                         b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
                     }
                 } else {
                     long long count, k;
                     fan f = {0, 0};
-                    if (parse_int(t, n, &count) != 0 || count < 0)
+                    if (api__parse_int(t, n, &count) != 0 || count < 0)
                         return api__fail(err, MCF_EDECODE,
                                          "ply: line %ld: bad list length '%s'",
-                                         b->line, show(t, n, shown));
+                                         b->txt.line, api__show(t, n, shown));
                     if (p->role == ROLE_INDICES && count < 3)
                         return bad_count(b, count, r, err);
                     for (k = 0; k < count; k++) {
-                        n = next_token(&s, le, &t);
+                        n = api__token(&s, le, &t);
                         if (n == 0)
                             return api__fail(err, MCF_EDECODE,
                                              "ply: line %ld: %s %llu: list '%s' has "
                                              "%lld of %lld values",
-                                             b->line, show(e->name, e->nlen, shown),
-                                             r, show(p->name, p->nlen, shown2), k,
+                                             b->txt.line, api__show(e->name, e->nlen, shown),
+                                             r, api__show(p->name, p->nlen, shown2), k,
                                              count);
                         if (p->role == ROLE_INDICES) {
                             long long v;
-                            if (parse_int(t, n, &v) != 0)
+                            if (api__parse_int(t, n, &v) != 0)
                                 return api__fail(err, MCF_EDECODE,
                                                  "ply: line %ld: bad index '%s'",
-                                                 b->line, show(t, n, shown));
+                                                 b->txt.line, api__show(t, n, shown));
                             if (v < 0 || v >= b->nv)
                                 return api__fail(err, MCF_EDECODE,
                                                  "ply: line %ld: face %llu: index "
                                                  "%lld out of range (0..%d)",
-                                                 b->line, r, v, b->nv - 1);
+                                                 b->txt.line, r, v, b->nv - 1);
                             if ((rc = fan_add(b, &f, k, (double)v, r, err)) != MCF_OK)
                                 return rc;
                         } else {
@@ -686,16 +618,16 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
                             if (api__parse_double(t, n, &v) != 0)
                                 return api__fail(err, MCF_EDECODE,
                                                  "ply: line %ld: bad number '%s'",
-                                                 b->line, show(t, n, shown));
+                                                 b->txt.line, api__show(t, n, shown));
                         }
                     }
                 }
             }
-            if (next_token(&s, le, &t) != 0)
+            if (api__token(&s, le, &t) != 0)
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: %s %llu has more values than its "
                                  "%d properties",
-                                 b->line, show(e->name, e->nlen, shown), r,
+                                 b->txt.line, api__show(e->name, e->nlen, shown), r,
                                  e->nprops);
         }
     }
@@ -703,7 +635,7 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
         const char *s, *le;
         if (next_line(b, &s, &le))
             return api__fail(err, MCF_EDECODE,
-                             "ply: line %ld: data after the last element", b->line);
+                             "ply: line %ld: data after the last element", b->txt.line);
     }
     return MCF_OK;
 }
@@ -718,24 +650,13 @@ mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
     unsigned long long need = 0;
     size_t blen;
     int i, roles[5] = {0, 0, 0, 0, 0};
-    char shown[40];
-    mcf_mesh *m;
+    char shown[API__SHOWN];
     mcf_status rc;
 
     memset(&h, 0, sizeof h);
     memset(&b, 0, sizeof b);
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (!buf && len)
-        return api__fail(err, MCF_EINVAL, "ply: NULL buffer");
-    if (len > lim->max_input_bytes)
-        return api__fail(err, MCF_ELIMIT,
-                         "ply: input of %zu bytes exceeds max_input_bytes (%zu)",
-                         len, lim->max_input_bytes);
-    if (len == 0)
-        return api__fail(err, MCF_EDECODE, "ply: empty input");
+    if ((rc = api__decode_begin("ply", buf, len, &lim, &def, err)) != MCF_OK)
+        return rc;
     if ((rc = parse_header(buf, len, &h, err)) != MCF_OK)
         goto done;
 
@@ -782,7 +703,7 @@ mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
             api__fail(err, MCF_EDECODE,
                       "ply: header declares %llu '%s' elements, more than the "
                       "%zu-byte body can hold",
-                      c, show(h.el[i].name, h.el[i].nlen, shown), blen);
+                      c, api__show(h.el[i].name, h.el[i].nlen, shown), blen);
             goto done;
         }
     }
@@ -809,7 +730,9 @@ mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
     b.buf = (const char *)buf + h.body;
     b.len = blen;
     b.format = h.format;
-    b.line = h.body_line;
+    b.txt.p = b.buf;
+    b.txt.end = b.buf + b.len;
+    b.txt.line = h.body_line - 1; /* the line before the first body line */
     b.nv = (int)ve->count;
     b.lim = lim;
     b.X = malloc(3 * sizeof *b.X * (size_t)b.nv);
@@ -820,13 +743,7 @@ mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
     rc = h.format == FMT_ASCII ? read_ascii(&b, &h, err) : read_binary(&b, &h, err);
     if (rc != MCF_OK)
         goto done;
-    m = mcf_mesh_new(b.nv, b.X, (int)b.nt, b.F, err);
-    if (!m) {
-        rc = (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
-        goto done;
-    }
-    *out = m;
-    rc = MCF_OK;
+    rc = api__mesh_new(b.nv, b.X, (int)b.nt, b.F, out, err);
 done:
     free(b.X);
     free(b.F);
@@ -836,18 +753,10 @@ done:
 
 /* -------------------------------------------------------------- writer */
 
-static void put_le32(unsigned char *p, uint32_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-    p[2] = (unsigned char)(v >> 16);
-    p[3] = (unsigned char)(v >> 24);
-}
-
 static void put_le64(unsigned char *p, uint64_t v)
 {
-    put_le32(p, (uint32_t)v);
-    put_le32(p + 4, (uint32_t)(v >> 32));
+    api__put_le32(p, (uint32_t)v);
+    api__put_le32(p + 4, (uint32_t)(v >> 32));
 }
 
 static void put_double(unsigned char *p, double d)
@@ -855,13 +764,6 @@ static void put_double(unsigned char *p, double d)
     uint64_t v;
     memcpy(&v, &d, 8);
     put_le64(p, v);
-}
-
-static void put_float(unsigned char *p, float f)
-{
-    uint32_t v;
-    memcpy(&v, &f, 4);
-    put_le32(p, v);
 }
 
 mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
@@ -896,11 +798,11 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
             put_double(v + 8, X[3 * i + 1]);
             put_double(v + 16, X[3 * i + 2]);
             if (H) {
-                put_float(v + n, (float)H[i]);
+                api__put_f32(v + n, (float)H[i]);
                 n += 4;
             }
             if (K) {
-                put_float(v + n, (float)K[i]);
+                api__put_f32(v + n, (float)K[i]);
                 n += 4;
             }
             rc = api_buf_append(out, v, n);
@@ -919,23 +821,14 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
         if (binary) {
             unsigned char f[13];
             f[0] = 3;
-            put_le32(f + 1, (uint32_t)F[3 * i]);
-            put_le32(f + 5, (uint32_t)F[3 * i + 1]);
-            put_le32(f + 9, (uint32_t)F[3 * i + 2]);
+            api__put_le32(f + 1, (uint32_t)F[3 * i]);
+            api__put_le32(f + 5, (uint32_t)F[3 * i + 1]);
+            api__put_le32(f + 9, (uint32_t)F[3 * i + 2]);
             rc = api_buf_append(out, f, sizeof f);
         } else {
             rc = api_buf_printf(out, "3 %ld %ld %ld\n", (long)F[3 * i],
                                 (long)F[3 * i + 1], (long)F[3 * i + 2]);
         }
     }
-    if (rc != MCF_OK) {
-        out->len = len0;
-        if (out->data)
-            out->data[len0] = '\0';
-        if (rc == MCF_ENOMEM)
-            return api__fail(err, rc, "ply: out of memory writing %d vertices", nv);
-        return api__fail(err, rc, "ply: output exceeds its maximum of %zu bytes",
-                         out->max);
-    }
-    return MCF_OK;
+    return api__encode_end(out, len0, rc, "ply", nv, "vertices", err);
 }

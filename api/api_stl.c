@@ -148,15 +148,9 @@ static mcf_status weld_triangle(weld *w, const int32_t t[3], mcf_error *err)
 
 /* -------------------------------------------------------------- binary */
 
-static uint32_t get_le32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16
-           | (uint32_t)p[3] << 24;
-}
-
 static float get_float(const unsigned char *p)
 {
-    uint32_t u = get_le32(p);
+    uint32_t u = api__get_le32(p);
     float f;
     memcpy(&f, &u, 4);
     return f;
@@ -197,26 +191,19 @@ typedef struct {
     long line;
 } lexer;
 
-static int is_space(char c)
-{
-    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
-}
-
 /* Next token; line counts the newlines passed. 0 at the end of input. */
 static size_t lex(lexer *x, const char **tok)
 {
-    while (x->p < x->end && (is_space(*x->p) || *x->p == '\n')) {
+    while (x->p < x->end && (api__is_space(*x->p) || *x->p == '\n')) {
         if (*x->p == '\n')
             x->line++;
         x->p++;
     }
     *tok = x->p;
-    while (x->p < x->end && !is_space(*x->p) && *x->p != '\n')
+    while (x->p < x->end && !api__is_space(*x->p) && *x->p != '\n')
         x->p++;
     return (size_t)(x->p - *tok);
 }
-
-static int tok_is(const char *t, size_t n, const char *word);
 
 /* Skips a solid's name: the rest of the line, up to a keyword that some
  * writers put on the same line (everything on one line is valid STL). */
@@ -225,53 +212,33 @@ static void skip_name(lexer *x)
     for (;;) {
         const char *t;
         size_t n;
-        while (x->p < x->end && is_space(*x->p))
+        while (x->p < x->end && api__is_space(*x->p))
             x->p++;
         if (x->p >= x->end || *x->p == '\n')
             return;
         t = x->p;
-        while (x->p < x->end && !is_space(*x->p) && *x->p != '\n')
+        while (x->p < x->end && !api__is_space(*x->p) && *x->p != '\n')
             x->p++;
         n = (size_t)(x->p - t);
-        if (tok_is(t, n, "facet") || tok_is(t, n, "endsolid")
-            || tok_is(t, n, "solid")) {
+        if (api__tok_is(t, n, "facet") || api__tok_is(t, n, "endsolid")
+            || api__tok_is(t, n, "solid")) {
             x->p = t;
             return;
         }
     }
 }
 
-static const char *show(const char *t, size_t n, char out[40])
-{
-    size_t i, k = n > 32 ? 32 : n;
-    for (i = 0; i < k; i++) {
-        unsigned char ch = (unsigned char)t[i];
-        out[i] = (ch < 0x20 || ch >= 0x7f) ? '?' : (char)ch;
-    }
-    if (n > k) {
-        memcpy(out + k, "...", 3);
-        k += 3;
-    }
-    out[k] = '\0';
-    return out;
-}
-
-static int tok_is(const char *t, size_t n, const char *word)
-{
-    return strlen(word) == n && memcmp(t, word, n) == 0;
-}
-
 static mcf_status expect(lexer *x, const char *word, mcf_error *err)
 {
     const char *t;
     size_t n = lex(x, &t);
-    char shown[40];
+    char shown[API__SHOWN];
     if (n == 0)
         return api__fail(err, MCF_EDECODE, "stl: line %ld: input ends, '%s' expected",
                          x->line, word);
-    if (!tok_is(t, n, word))
+    if (!api__tok_is(t, n, word))
         return api__fail(err, MCF_EDECODE, "stl: line %ld: '%s' expected, found '%s'",
-                         x->line, word, show(t, n, shown));
+                         x->line, word, api__show(t, n, shown));
     return MCF_OK;
 }
 
@@ -279,13 +246,13 @@ static mcf_status number(lexer *x, double *v, mcf_error *err)
 {
     const char *t;
     size_t n = lex(x, &t);
-    char shown[40];
+    char shown[API__SHOWN];
     if (n == 0)
         return api__fail(err, MCF_EDECODE, "stl: line %ld: input ends, number expected",
                          x->line);
     if (api__parse_double(t, n, v) != 0)
         return api__fail(err, MCF_EDECODE, "stl: line %ld: bad number '%s'", x->line,
-                         show(t, n, shown));
+                         api__show(t, n, shown));
     return MCF_OK;
 }
 
@@ -294,14 +261,14 @@ static mcf_status read_ascii(const char *buf, size_t len, weld *w, mcf_error *er
     lexer x = {buf, buf + len, 1};
     const char *t;
     size_t n;
-    char shown[40];
+    char shown[API__SHOWN];
     int solids = 0;
     mcf_status rc;
 
     while ((n = lex(&x, &t)) != 0) {
-        if (!tok_is(t, n, "solid"))
+        if (!api__tok_is(t, n, "solid"))
             return api__fail(err, MCF_EDECODE, "stl: line %ld: 'solid' expected, found '%s'",
-                             x.line, show(t, n, shown));
+                             x.line, api__show(t, n, shown));
         skip_name(&x);
         solids++;
         for (;;) {
@@ -314,15 +281,15 @@ static mcf_status read_ascii(const char *buf, size_t len, weld *w, mcf_error *er
                                  "stl: line %ld: input ends inside solid %d "
                                  "('endsolid' missing)",
                                  x.line, solids);
-            if (tok_is(t, n, "endsolid")) {
+            if (api__tok_is(t, n, "endsolid")) {
                 skip_name(&x);
                 break;
             }
-            if (!tok_is(t, n, "facet"))
+            if (!api__tok_is(t, n, "facet"))
                 return api__fail(err, MCF_EDECODE,
                                  "stl: line %ld: 'facet' or 'endsolid' expected, "
                                  "found '%s'",
-                                 x.line, show(t, n, shown));
+                                 x.line, api__show(t, n, shown));
             if ((rc = expect(&x, "normal", err)) != MCF_OK)
                 return rc;
             for (c = 0; c < 3; c++)
@@ -335,9 +302,9 @@ static mcf_status read_ascii(const char *buf, size_t len, weld *w, mcf_error *er
                 double p[3];
                 int32_t v;
                 n = lex(&x, &t);
-                if (tok_is(t, n, "endloop"))
+                if (api__tok_is(t, n, "endloop"))
                     break;
-                if (!tok_is(t, n, "vertex")) {
+                if (!api__tok_is(t, n, "vertex")) {
                     if (n == 0)
                         return api__fail(err, MCF_EDECODE,
                                          "stl: line %ld: input ends inside a facet",
@@ -345,7 +312,7 @@ static mcf_status read_ascii(const char *buf, size_t len, weld *w, mcf_error *er
                     return api__fail(err, MCF_EDECODE,
                                      "stl: line %ld: 'vertex' or 'endloop' expected, "
                                      "found '%s'",
-                                     x.line, show(t, n, shown));
+                                     x.line, api__show(t, n, shown));
                 }
                 for (c = 0; c < 3; c++) {
                     if ((rc = number(&x, &p[c], err)) != MCF_OK)
@@ -387,13 +354,13 @@ static mcf_status read_ascii(const char *buf, size_t len, weld *w, mcf_error *er
 static int looks_ascii(const char *buf, size_t len)
 {
     size_t i = 0, lim = len < 512 ? len : 512;
-    while (i < len && (is_space(buf[i]) || buf[i] == '\n'))
+    while (i < len && (api__is_space(buf[i]) || buf[i] == '\n'))
         i++;
     if (len - i < 5 || memcmp(buf + i, "solid", 5) != 0)
         return 0;
     for (i = 0; i < lim; i++) {
         unsigned char c = (unsigned char)buf[i];
-        if ((c < 0x20 && !is_space((char)c) && c != '\n') || c == 0x7f)
+        if ((c < 0x20 && !api__is_space(c) && c != '\n') || c == 0x7f)
             return 0;
     }
     return 1;
@@ -405,26 +372,15 @@ mcf_status api_stl_decode(const void *buf, size_t len, const api_limits *lim,
     api_limits def;
     weld w;
     const unsigned char *u = buf;
-    mcf_mesh *m;
     mcf_status rc;
 
     memset(&w, 0, sizeof w);
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
+    if ((rc = api__decode_begin("stl", buf, len, &lim, &def, err)) != MCF_OK)
+        return rc;
     w.lim = lim;
-    if (!buf && len)
-        return api__fail(err, MCF_EINVAL, "stl: NULL buffer");
-    if (len > lim->max_input_bytes)
-        return api__fail(err, MCF_ELIMIT,
-                         "stl: input of %zu bytes exceeds max_input_bytes (%zu)",
-                         len, lim->max_input_bytes);
-    if (len == 0)
-        return api__fail(err, MCF_EDECODE, "stl: empty input");
 
-    if (len >= 84 && 84 + 50 * (uint64_t)get_le32(u + 80) == (uint64_t)len) {
-        uint32_t n = get_le32(u + 80);
+    if (len >= 84 && 84 + 50 * (uint64_t)api__get_le32(u + 80) == (uint64_t)len) {
+        uint32_t n = api__get_le32(u + 80);
         if (n == 0)
             return api__fail(err, MCF_EDECODE, "stl: binary STL with 0 triangles");
         if (n > (uint32_t)lim->max_faces)
@@ -442,7 +398,7 @@ mcf_status api_stl_decode(const void *buf, size_t len, const api_limits *lim,
                          "(84 bytes at least)",
                          len);
     } else {
-        uint32_t n = get_le32(u + 80);
+        uint32_t n = api__get_le32(u + 80);
         return api__fail(err, MCF_EDECODE,
                          "stl: binary header announces %u triangles (%llu bytes) "
                          "but the input has %zu bytes",
@@ -450,34 +406,13 @@ mcf_status api_stl_decode(const void *buf, size_t len, const api_limits *lim,
     }
     if (rc != MCF_OK)
         goto done;
-    m = mcf_mesh_new(w.nv, w.X, (int)w.nt, w.F, err);
-    if (!m) {
-        rc = (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
-        goto done;
-    }
-    *out = m;
-    rc = MCF_OK;
+    rc = api__mesh_new(w.nv, w.X, (int)w.nt, w.F, out, err);
 done:
     weld_free(&w);
     return rc;
 }
 
 /* -------------------------------------------------------------- writer */
-
-static void put_le32(unsigned char *p, uint32_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-    p[2] = (unsigned char)(v >> 16);
-    p[3] = (unsigned char)(v >> 24);
-}
-
-static void put_float(unsigned char *p, float f)
-{
-    uint32_t v;
-    memcpy(&v, &f, 4);
-    put_le32(p, v);
-}
 
 /* Unit normal of triangle t (zero when degenerate). The edge vectors and
  * then their cross product are scaled by their largest component, so that
@@ -530,16 +465,16 @@ mcf_status api_stl_encode(const mcf_mesh *m, const api_encode_opts *o,
                                  i / 3, X[i]);
         memset(head, ' ', 80);
         memcpy(head, "mcfd binary STL", 15);
-        put_le32(head + 80, (uint32_t)nf);
+        api__put_le32(head + 80, (uint32_t)nf);
         rc = api_buf_append(out, head, sizeof head);
         for (i = 0; i < nf && rc == MCF_OK; i++) {
             unsigned char rec[50];
             double n[3];
             normal(X, &F[3 * i], n);
             for (k = 0; k < 3; k++)
-                put_float(rec + 4 * k, (float)n[k]);
+                api__put_f32(rec + 4 * k, (float)n[k]);
             for (k = 0; k < 9; k++)
-                put_float(rec + 12 + 4 * k, (float)X[3 * F[3 * i + k / 3] + k % 3]);
+                api__put_f32(rec + 12 + 4 * k, (float)X[3 * F[3 * i + k / 3] + k % 3]);
             rec[48] = rec[49] = 0;
             rc = api_buf_append(out, rec, sizeof rec);
         }
@@ -561,14 +496,5 @@ mcf_status api_stl_encode(const mcf_mesh *m, const api_encode_opts *o,
         if (rc == MCF_OK)
             rc = api_buf_printf(out, "endsolid mcfd\n");
     }
-    if (rc != MCF_OK) {
-        out->len = len0;
-        if (out->data)
-            out->data[len0] = '\0';
-        if (rc == MCF_ENOMEM)
-            return api__fail(err, rc, "stl: out of memory writing %d triangles", nf);
-        return api__fail(err, rc, "stl: output exceeds its maximum of %zu bytes",
-                         out->max);
-    }
-    return MCF_OK;
+    return api__encode_end(out, len0, rc, "stl", nf, "triangles", err);
 }
