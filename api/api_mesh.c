@@ -3,11 +3,14 @@
  * decode/encode dispatchers over the per-format codecs.
  *
  * Detection looks at the bytes only, in an order where no rule can steal
- * another format's file: Draco's "DRACO" magic, "ply" + newline, an OFF
- * keyword, the binary STL size rule (84 + 50 n bytes: a binary STL may
- * begin with "solid" in its free-form header, so this comes before the
- * ASCII rule), "solid" followed by "facet"/"endsolid", then text whose
- * first statement is an OBJ keyword.
+ * another format's file: Draco's "DRACO" magic, "ply" + newline, the
+ * binary STL size rule (84 + 50 n bytes: a binary STL may begin with
+ * "solid" in its free-form header, so this comes before the ASCII rule),
+ * an OFF keyword (after blank and '#' comment lines, as the OFF reader
+ * allows), "solid" followed by "facet"/"endsolid", then text whose first
+ * statement (after blank and comment lines too) is an OBJ keyword. The
+ * OFF and OBJ keyword sets are disjoint, so the comment skipping of the
+ * one rule cannot take the other's files.
  *
  * Also the steps every codec shares (api_internal.h): the decoders'
  * argument and size checks, the core mesh at the end of a decode, and
@@ -31,6 +34,11 @@ static const struct {
     {"off", ".off", "model/x-off"},
 };
 #define NFORMATS (sizeof formats / sizeof formats[0])
+
+/* How far the "solid" rule looks for "facet"/"endsolid", and the OFF rule
+ * for its keyword past leading comment lines: real headers are short,
+ * and a large input that is none of these is not scanned to its end. */
+#define DETECT_WINDOW 65536
 
 /* White space across lines. */
 static int sp(int c)
@@ -57,6 +65,29 @@ static int contains(const char *p, size_t n, const char *w)
     return 0;
 }
 
+/* The offset of the first byte of p[i, n) that is neither white space
+ * (newlines included) nor in a line whose first other byte is '#'; n when
+ * there is none. *open is set when the input ends inside such a comment
+ * line (no newline after it before n). */
+static size_t skip_comment_lines(const char *p, size_t n, size_t i, int *open)
+{
+    *open = 0;
+    while (i < n) {
+        const char *nl;
+        while (i < n && sp((unsigned char)p[i]))
+            i++;
+        if (i >= n || p[i] != '#')
+            break;
+        nl = memchr(p + i, '\n', n - i);
+        if (!nl) {
+            *open = 1;
+            return n;
+        }
+        i = (size_t)(nl - p) + 1;
+    }
+    return i;
+}
+
 static int looks_off(const char *p, size_t n)
 {
     /* OFF and its variants: [ST][C][N][4][n]OFF, e.g. COFF, NOFF, CNOFF. */
@@ -74,21 +105,13 @@ static int looks_obj(const char *p, size_t n)
     static const char *const kw[] = {"v", "vt", "vn", "vp", "f", "g", "o",
                                      "s", "l", "p", "usemtl", "mtllib", NULL};
     size_t i = 0;
+    int open;
     if (n >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) /* UTF-8 BOM */
         i = 3;
     /* Skip blank and comment lines, then look at the first statement. */
-    while (i < n) {
-        while (i < n && sp((unsigned char)p[i]))
-            i++;
-        if (i < n && p[i] == '#') {
-            const char *nl = memchr(p + i, '\n', n - i);
-            if (!nl)
-                return 1; /* only comments: let the OBJ reader say so */
-            i = (size_t)(nl - p) + 1;
-            continue;
-        }
-        break;
-    }
+    i = skip_comment_lines(p, n, i, &open);
+    if (open)
+        return 1; /* only comments: let the OBJ reader say so */
     if (i >= n)
         return 0;
     for (int k = 0; kw[k]; k++)
@@ -100,7 +123,8 @@ static int looks_obj(const char *p, size_t n)
 api_format api_format_detect(const void *buf, size_t len)
 {
     const char *p = buf;
-    size_t i = 0;
+    size_t i = 0, j;
+    int open;
 
     if (!p || len == 0)
         return API_FMT_UNKNOWN;
@@ -115,10 +139,13 @@ api_format api_format_detect(const void *buf, size_t len)
         return API_FMT_STL;
     while (i < len && sp((unsigned char)p[i]))
         i++;
-    if (looks_off(p + i, len - i))
+    /* The OFF keyword may follow comment lines, within the window. */
+    j = skip_comment_lines(p, len - i > DETECT_WINDOW ? i + DETECT_WINDOW : len, i,
+                           &open);
+    if (!open && looks_off(p + j, len - j))
         return API_FMT_OFF;
     if (starts_word(p + i, len - i, "solid")) {
-        size_t win = len - i < 65536 ? len - i : 65536;
+        size_t win = len - i < DETECT_WINDOW ? len - i : DETECT_WINDOW;
         if (contains(p + i, win, "facet") || contains(p + i, win, "endsolid"))
             return API_FMT_STL;
     }

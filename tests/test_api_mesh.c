@@ -155,6 +155,62 @@ static void test_detect(void **state)
     assert_int_equal(api_format_detect("", 0), API_FMT_UNKNOWN);
 }
 
+/* An OFF file may open with '#' comment and blank lines (api_off_decode
+ * skips them); detection used to stop at the first '#' and answer
+ * UNKNOWN, so api_mesh_decode refused the file with EFORMAT. */
+static void test_detect_commented_off(void **state)
+{
+    static const char off[] = "# written by a modeller\n"
+                              "\n"
+                              "   # indented comment\r\n"
+                              "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    char *big;
+    size_t n;
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    api_format f = API_FMT_UNKNOWN;
+    (void)state;
+    assert_int_equal(detect_str(off), API_FMT_OFF);
+    assert_int_equal(detect_str("#\n#\nCOFF 3 1 0\n"), API_FMT_OFF);
+    assert_int_equal(detect_str("  \n# c\n\n  NOFF\n"), API_FMT_OFF);
+    assert_int_equal(api_mesh_decode(off, sizeof off - 1, NULL, &m, &f, &err),
+                     MCF_OK);
+    assert_int_equal(f, API_FMT_OFF);
+    assert_int_equal(mcf_mesh_nvertices(m), 3);
+    assert_int_equal(mcf_mesh_nfaces(m), 1);
+    mcf_mesh_free(m);
+    /* Only whole keywords count, as without comments. */
+    assert_int_equal(detect_str("# c\nOFFICE\n"), API_FMT_UNKNOWN);
+    assert_int_equal(detect_str("# c\nOFF"), API_FMT_OFF);
+    /* An OBJ with a comment header stays OBJ, even when a comment names
+     * OFF; so does a file of comments only. */
+    assert_int_equal(detect_str("# exported\n# OFF\nv 1 2 3\nf 1 1 1\n"),
+                     API_FMT_OBJ);
+    assert_int_equal(detect_str("# OFF"), API_FMT_OBJ);
+    assert_int_equal(detect_str("# a\n# b"), API_FMT_OBJ);
+    assert_int_equal(detect_file("sphere_cgal.obj"), API_FMT_OBJ); /* '#' first */
+    /* Comments do not make other formats: PLY and Draco need their magic
+     * at byte 0, ASCII STL its "solid" first. */
+    assert_int_equal(detect_str("# c\nply\nformat ascii 1.0\n"), API_FMT_UNKNOWN);
+    assert_int_equal(detect_str("# c\nsolid x\nfacet normal 0 0 1\n"),
+                     API_FMT_UNKNOWN);
+    assert_int_equal(detect_str("# c\nDRACO"), API_FMT_UNKNOWN);
+    /* Bounded: the keyword is looked for within the first 64 KiB after
+     * the leading white space (DETECT_WINDOW in api_mesh.c); a comment
+     * header just inside that passes, one running past it does not. */
+    n = 65536 + 100;
+    big = malloc(n);
+    assert_non_null(big);
+    memset(big, 'c', n);
+    big[0] = '#';
+    memcpy(big + 65536 - 5, "\nOFF\n", 5); /* keyword at byte 65532 */
+    assert_int_equal(api_format_detect(big, n), API_FMT_OFF);
+    big[65536 - 5] = 'c'; /* now the comment line runs past the window */
+    memcpy(big + n - 5, "\nOFF\n", 5);
+    assert_int_equal(api_format_detect(big, n), API_FMT_UNKNOWN);
+    free(big);
+}
+
 static void test_names(void **state)
 {
     (void)state;
@@ -240,6 +296,7 @@ int main(void)
         cmocka_unit_test(test_buf_max),
         cmocka_unit_test(test_limits_default),
         cmocka_unit_test(test_detect),
+        cmocka_unit_test(test_detect_commented_off),
         cmocka_unit_test(test_names),
         cmocka_unit_test(test_encode_opts),
         cmocka_unit_test(test_dispatch),
