@@ -4,13 +4,9 @@
  * parameters are finished against a small mesh size and printed back as
  * JSON, so the whole parameter path runs. Dictionary: json.dict.
  */
-#include <stdint.h>
-#include <stddef.h>
 #include <stdlib.h>
 
-#include "api.h"
-
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+#include "fuzz_common.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

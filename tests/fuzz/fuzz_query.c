@@ -3,14 +3,10 @@
  * NUL-terminated string (the bytes up to the first NUL), with the keys a
  * daemon would skip listed in `ignore`. Dictionary: json.dict (key names).
  */
-#include <stdint.h>
-#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "api.h"
-
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+#include "fuzz_common.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

@@ -8,15 +8,11 @@
  * of the input picks), STL ASCII (%.17g; binary STL would round to float
  * and may weld more), OBJ and OFF (%.17g).
  */
-#include <stdint.h>
-#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "api.h"
-
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+#include "fuzz_common.h"
 
 static void die(const char *what, const char *msg)
 {
