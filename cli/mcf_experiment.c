@@ -1029,12 +1029,15 @@ static int study_dt_sweep(xopts *o)
         rc = EXIT_USAGE;
         goto done;
     }
-    for (ndt = 0; ndt < MAX_DT; ndt++) {
+    for (ndt = 0; ndt < MAX_DT - 1; ndt++) {
         double dt = lo * pow(10.0, (double)ndt / o->per_decade);
         if (dt > hi * (1 + 1e-9))
             break;
         dts[ndt] = dt;
     }
+    /* the end of the range is always a point (at a fixed time: one step) */
+    if (dts[ndt - 1] < hi * (1 - 1e-9))
+        dts[ndt++] = hi;
     note(o, "%s: %d vertices, noise rho %g seed %llu: rms_rel %.4g; lambda_max %.6g (2/lambda %.4g); %d dt values "
             "%.3g..%.3g, %s %g\n",
          o->name, mcf_mesh_nvertices(target), o->rho, (unsigned long long)o->seed, c0.rms_rel, lam, 2 / lam, ndt,
