@@ -129,6 +129,23 @@ mcf_status api__decode_begin(const char *codec, const void *buf, size_t len,
 mcf_status api__mesh_new(int nv, const double *X, int nf, const int32_t *F,
                          mcf_mesh **out, mcf_error *err);
 
+/* A growable array of triangles (3 vertex indices each) for the readers
+ * that cannot size it up front; start from {NULL, 0, 0}, free(F) at the
+ * end. */
+typedef struct {
+    int32_t *F;
+    long long n, cap;      /* triangles held, room for */
+} api__tris;
+
+/* Appends the triangle (a, b, c). A full array grows to `first`
+ * triangles the first time, then doubles, never beyond max. Returns
+ * MCF_OK; MCF_ELIMIT when it holds max triangles already; MCF_ENOMEM when
+ * growing fails, with *want (may be NULL) the capacity it asked for. The
+ * array is unchanged on failure and no message is written: the caller
+ * names its line or element. */
+mcf_status api__tris_add(api__tris *t, int32_t a, int32_t b, int32_t c,
+                         long long max, long long first, long long *want);
+
 /* An encoder's last step. rc is the status of its appends to out since
  * out->len was len0: MCF_OK is returned as is; otherwise out is cut back
  * to len0 (what the encoder appended is dropped, earlier content kept)

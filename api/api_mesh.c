@@ -17,6 +17,7 @@
  * the encoders' roll-back on failure.
  */
 #include <ctype.h>
+#include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
@@ -227,6 +228,31 @@ mcf_status api__mesh_new(int nv, const double *X, int nf, const int32_t *F,
     if (!m)
         return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
     *out = m;
+    return MCF_OK;
+}
+
+mcf_status api__tris_add(api__tris *t, int32_t a, int32_t b, int32_t c,
+                         long long max, long long first, long long *want)
+{
+    if (t->n >= max)
+        return MCF_ELIMIT;
+    if (t->n == t->cap) {
+        long long ncap = t->cap ? 2 * t->cap : first;
+        int32_t *p;
+        if (ncap > max)
+            ncap = max;
+        if (want)
+            *want = ncap;
+        p = realloc(t->F, 3 * sizeof *p * (size_t)ncap);
+        if (!p)
+            return MCF_ENOMEM;
+        t->F = p;
+        t->cap = ncap;
+    }
+    t->F[3 * t->n] = a;
+    t->F[3 * t->n + 1] = b;
+    t->F[3 * t->n + 2] = c;
+    t->n++;
     return MCF_OK;
 }
 

@@ -83,8 +83,7 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
     int ncnt = 0, other, i;
     char shown[API__SHOWN];
     double *X = NULL;
-    int32_t *F = NULL;
-    long long nt = 0, cap = 0;
+    api__tris T = {NULL, 0, 0};
     unsigned long long need;
     mcf_status rc;
 
@@ -222,30 +221,20 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
             if (k == 0) {
                 first = (int32_t)v;
             } else if (k >= 2) {
-                if (nt >= lim->max_faces) {
-                    rc = api__fail(err, MCF_ELIMIT,
+                /* First sized from the declared face count. */
+                long long want = 0;
+                mcf_status trc = api__tris_add(&T, first, prev, (int32_t)v,
+                                               lim->max_faces, cnt[1], &want);
+                if (trc == MCF_ELIMIT) {
+                    rc = api__fail(err, trc,
                                    "off: line %ld: more than max_faces (%d) triangles",
                                    r.in.line, lim->max_faces);
                     goto done;
                 }
-                if (nt == cap) {
-                    long long ncap = cap ? 2 * cap : cnt[1];
-                    int32_t *p;
-                    if (ncap > lim->max_faces)
-                        ncap = lim->max_faces;
-                    p = realloc(F, 3 * sizeof *p * (size_t)ncap);
-                    if (!p) {
-                        rc = api__fail(err, MCF_ENOMEM,
-                                       "off: no memory for %lld triangles", ncap);
-                        goto done;
-                    }
-                    F = p;
-                    cap = ncap;
+                if (trc != MCF_OK) {
+                    rc = api__fail(err, trc, "off: no memory for %lld triangles", want);
+                    goto done;
                 }
-                F[3 * nt] = first;
-                F[3 * nt + 1] = prev;
-                F[3 * nt + 2] = (int32_t)v;
-                nt++;
             }
             prev = (int32_t)v;
         }
@@ -255,10 +244,10 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
         api__fail(err, rc, "off: line %ld: data after the last face", r.in.line);
         goto done;
     }
-    rc = api__mesh_new((int)cnt[0], X, (int)nt, F, out, err);
+    rc = api__mesh_new((int)cnt[0], X, (int)T.n, T.F, out, err);
 done:
     free(X);
-    free(F);
+    free(T.F);
     return rc;
 }
 

@@ -350,8 +350,7 @@ typedef struct {
     api__lines txt;         /* ASCII cursor; txt.line: the current line */
     int nv;
     double *X;
-    int32_t *F;
-    long long nt, cap;      /* triangles so far, capacity of F */
+    api__tris T;            /* the triangles so far */
     const api_limits *lim;
 } body;
 
@@ -389,26 +388,13 @@ static mcf_status add_triangle(body *b, int32_t a, int32_t c, int32_t d,
                                const char *where, unsigned long long idx,
                                mcf_error *err)
 {
-    if (b->nt >= b->lim->max_faces)
-        return api__fail(err, MCF_ELIMIT,
-                         "ply: %s %llu: more than max_faces (%d) triangles", where,
-                         idx, b->lim->max_faces);
-    if (b->nt == b->cap) {
-        long long ncap = b->cap ? 2 * b->cap : 1024;
-        int32_t *p;
-        if (ncap > b->lim->max_faces)
-            ncap = b->lim->max_faces;
-        p = realloc(b->F, (size_t)ncap * 3 * sizeof *p);
-        if (!p)
-            return api__fail(err, MCF_ENOMEM, "ply: out of memory for %lld triangles",
-                             ncap);
-        b->F = p;
-        b->cap = ncap;
-    }
-    b->F[3 * b->nt] = a;
-    b->F[3 * b->nt + 1] = c;
-    b->F[3 * b->nt + 2] = d;
-    b->nt++;
+    long long want = 0;
+    mcf_status rc = api__tris_add(&b->T, a, c, d, b->lim->max_faces, 1024, &want);
+    if (rc == MCF_ELIMIT)
+        return api__fail(err, rc, "ply: %s %llu: more than max_faces (%d) triangles",
+                         where, idx, b->lim->max_faces);
+    if (rc != MCF_OK)
+        return api__fail(err, rc, "ply: out of memory for %lld triangles", want);
     return MCF_OK;
 }
 
@@ -743,10 +729,10 @@ mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
     rc = h.format == FMT_ASCII ? read_ascii(&b, &h, err) : read_binary(&b, &h, err);
     if (rc != MCF_OK)
         goto done;
-    rc = api__mesh_new(b.nv, b.X, (int)b.nt, b.F, out, err);
+    rc = api__mesh_new(b.nv, b.X, (int)b.T.n, b.T.F, out, err);
 done:
     free(b.X);
-    free(b.F);
+    free(b.T.F);
     header_free(&h);
     return rc;
 }

@@ -33,8 +33,7 @@ typedef struct {
     int nv, cap;
     int32_t *slot;       /* open-addressing table of vertex indices, -1 empty */
     size_t nslot;        /* power of two */
-    int32_t *F;          /* 3 per triangle */
-    long long nt, fcap;
+    api__tris T;         /* the triangles */
     const api_limits *lim;
 } weld;
 
@@ -42,7 +41,7 @@ static void weld_free(weld *w)
 {
     free(w->X);
     free(w->slot);
-    free(w->F);
+    free(w->T.F);
 }
 
 static uint64_t bits(double d)
@@ -126,23 +125,14 @@ static mcf_status weld_vertex(weld *w, const double *p, int32_t *out,
 
 static mcf_status weld_triangle(weld *w, const int32_t t[3], mcf_error *err)
 {
-    if (w->nt >= w->lim->max_faces)
-        return api__fail(err, MCF_ELIMIT, "stl: more than max_faces (%d) triangles",
+    long long want = 0;
+    mcf_status rc = api__tris_add(&w->T, t[0], t[1], t[2], w->lim->max_faces, 1024,
+                                  &want);
+    if (rc == MCF_ELIMIT)
+        return api__fail(err, rc, "stl: more than max_faces (%d) triangles",
                          w->lim->max_faces);
-    if (w->nt == w->fcap) {
-        long long ncap = w->fcap ? 2 * w->fcap : 1024;
-        int32_t *f;
-        if (ncap > w->lim->max_faces)
-            ncap = w->lim->max_faces;
-        f = realloc(w->F, 3 * sizeof *f * (size_t)ncap);
-        if (!f)
-            return api__fail(err, MCF_ENOMEM, "stl: out of memory for %lld triangles",
-                             ncap);
-        w->F = f;
-        w->fcap = ncap;
-    }
-    memcpy(&w->F[3 * w->nt], t, 3 * sizeof *t);
-    w->nt++;
+    if (rc != MCF_OK)
+        return api__fail(err, rc, "stl: out of memory for %lld triangles", want);
     return MCF_OK;
 }
 
@@ -390,7 +380,7 @@ mcf_status api_stl_decode(const void *buf, size_t len, const api_limits *lim,
         rc = read_binary(u, n, &w, err);
     } else if (looks_ascii(buf, len)) {
         rc = read_ascii(buf, len, &w, err);
-        if (rc == MCF_OK && w.nt == 0)
+        if (rc == MCF_OK && w.T.n == 0)
             rc = api__fail(err, MCF_EDECODE, "stl: no facets");
     } else if (len < 84) {
         return api__fail(err, MCF_EDECODE,
@@ -406,7 +396,7 @@ mcf_status api_stl_decode(const void *buf, size_t len, const api_limits *lim,
     }
     if (rc != MCF_OK)
         goto done;
-    rc = api__mesh_new(w.nv, w.X, (int)w.nt, w.F, out, err);
+    rc = api__mesh_new(w.nv, w.X, (int)w.T.n, w.T.F, out, err);
 done:
     weld_free(&w);
     return rc;

@@ -1,7 +1,8 @@
 /*
  * test_api_text.c - the helpers the mesh codecs share (api_internal.h):
  * the text helpers of api_text.c, the inline byte helpers, and the
- * decode prologue, core-mesh step and encode roll-back of api_mesh.c.
+ * decode prologue, triangle array, core-mesh step and encode roll-back
+ * of api_mesh.c.
  *
  * The codecs' own tests exercise these through every reader and writer;
  * here each contract is pinned down on its own, boundaries first: inputs
@@ -270,6 +271,35 @@ static void test_mesh_new(void **state)
     mcf_mesh_free(m);
 }
 
+static void test_tris_add(void **state)
+{
+    api__tris t = {NULL, 0, 0};
+    long long want = -1;
+    int32_t i;
+    (void)state;
+    /* first = 2, max = 5: room for 2, then 4, then 5 (capped), then no
+     * more; the capacity asked for is reported on the way. */
+    for (i = 0; i < 5; i++) {
+        assert_int_equal(api__tris_add(&t, i, i + 1, i + 2, 5, 2, &want), MCF_OK);
+        assert_int_equal(t.n, i + 1);
+        assert_int_equal(t.cap, i < 2 ? 2 : i < 4 ? 4 : 5);
+        assert_int_equal(want, t.cap);
+    }
+    assert_int_equal(api__tris_add(&t, 9, 9, 9, 5, 2, NULL), MCF_ELIMIT);
+    assert_int_equal(t.n, 5); /* unchanged */
+    for (i = 0; i < 5; i++) {
+        assert_int_equal(t.F[3 * i], i);
+        assert_int_equal(t.F[3 * i + 1], i + 1);
+        assert_int_equal(t.F[3 * i + 2], i + 2);
+    }
+    free(t.F);
+    /* max = 0 refuses the first triangle without allocating. */
+    t.F = NULL;
+    t.n = t.cap = 0;
+    assert_int_equal(api__tris_add(&t, 0, 1, 2, 0, 1024, NULL), MCF_ELIMIT);
+    assert_null(t.F);
+}
+
 static void test_encode_end(void **state)
 {
     api_buf b;
@@ -312,6 +342,7 @@ int main(void)
         cmocka_unit_test(test_le_bytes),
         cmocka_unit_test(test_decode_begin),
         cmocka_unit_test(test_mesh_new),
+        cmocka_unit_test(test_tris_add),
         cmocka_unit_test(test_encode_end),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
