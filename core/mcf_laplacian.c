@@ -59,10 +59,36 @@ void mcf__cot_weights(const double *X, const int32_t *F, int nf,
         const int32_t *t = F + 3 * (size_t)f;
         const double *p0 = X + 3 * (size_t)t[0], *p1 = X + 3 * (size_t)t[1],
                      *p2 = X + 3 * (size_t)t[2];
-        double e[3], l[3];
-        mcf__sub3(p1, p2, e); l[0] = sqrt(mcf__dot3(e, e)); /* opposite 0 */
-        mcf__sub3(p2, p0, e); l[1] = sqrt(mcf__dot3(e, e)); /* opposite 1 */
-        mcf__sub3(p0, p1, e); l[2] = sqrt(mcf__dot3(e, e)); /* opposite 2 */
+        double *wf = w + 3 * (size_t)f;
+        double e0[3], e1[3], e2[3], n[3];
+        mcf__sub3(p2, p1, e0); /* opposite corner 0 */
+        mcf__sub3(p0, p2, e1); /* opposite corner 1 */
+        mcf__sub3(p1, p0, e2); /* opposite corner 2 */
+        double q0 = mcf__dot3(e0, e0), q1 = mcf__dot3(e1, e1), q2 = mcf__dot3(e2, e2);
+        mcf__cross3(e2, e1, n);
+        double n2 = mcf__dot3(n, n); /* (2A)^2 */
+        double qm = q0 > q1 ? (q0 > q2 ? q0 : q2) : (q1 > q2 ? q1 : q2);
+        /* Fast path, no mollification needed: with c the longest side and
+         * h the height on it, every triangle inequality has slack >= h^2/c
+         * (a - x >= h^2/(2a) for a leg a over a base part x), and h = 2A/c,
+         * so (2A)^2 >= delta c^3, i.e. n2^2 >= delta^2 qm^3, guarantees
+         * slack >= delta. Then cot at corner k = <adjacent edges> / 2A. */
+        if (n2 * n2 >= delta * delta * qm * qm * qm && n2 > 0.0) {
+            double A2 = sqrt(n2);
+            if (area)
+                area[f] = 0.5 * A2;
+            if (lap == MCF_LAPLACIAN_UNIFORM) {
+                wf[0] = wf[1] = wf[2] = 0.5;
+                continue;
+            }
+            double s = -0.5 / A2; /* w = cot/2; the adjacent edges point
+                                     away from each other, hence the sign */
+            wf[0] = s * mcf__dot3(e1, e2);
+            wf[1] = s * mcf__dot3(e2, e0);
+            wf[2] = s * mcf__dot3(e0, e1);
+            continue;
+        }
+        double l[3] = {sqrt(q0), sqrt(q1), sqrt(q2)};
         double slack = fmin(fmin(l[0] + l[1] - l[2], l[1] + l[2] - l[0]),
                             l[2] + l[0] - l[1]);
         if (slack < delta) {
@@ -72,12 +98,11 @@ void mcf__cot_weights(const double *X, const int32_t *F, int nf,
         double A = heron(l[0], l[1], l[2]);
         if (area)
             area[f] = A;
-        double *wf = w + 3 * (size_t)f;
         if (lap == MCF_LAPLACIAN_UNIFORM) {
             wf[0] = wf[1] = wf[2] = 0.5;
             continue;
         }
-        double q0 = l[0] * l[0], q1 = l[1] * l[1], q2 = l[2] * l[2];
+        q0 = l[0] * l[0]; q1 = l[1] * l[1]; q2 = l[2] * l[2];
         /* cot(angle at k) = (l_{k+1}^2 + l_{k+2}^2 - l_k^2) / (4A); w = cot/2 */
         double s = 1.0 / (8.0 * A);
         wf[0] = (q1 + q2 - q0) * s;
@@ -185,10 +210,18 @@ mcf_status mcf__laplacian_apply(const double *X, const int32_t *F, int nf,
 
 /* ------------------------------------------------------------- pattern */
 
-static int cmp_int(const void *a, const void *b)
+/* Columns hold a vertex's lower-numbered neighbours: a handful of rows,
+ * for which insertion sort beats qsort's indirect calls several times. */
+static void sort_rows(int *r, int n)
 {
-    int x = *(const int *)a, y = *(const int *)b;
-    return (x > y) - (x < y);
+    for (int i = 1; i < n; i++) {
+        int v = r[i], j = i - 1;
+        while (j >= 0 && r[j] > v) {
+            r[j + 1] = r[j];
+            j--;
+        }
+        r[j + 1] = v;
+    }
 }
 
 /* Index of row r in column c (rows sorted), -1 if absent. */
@@ -245,7 +278,7 @@ mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
     int nnz = 0;
     for (int j = 0; j < nv; j++) {
         int s = q.colptr[j], e = q.colptr[j + 1];
-        qsort(rows + s, (size_t)(e - s), sizeof(int), cmp_int);
+        sort_rows(rows + s, e - s);
         q.colptr[j] = nnz;
         for (int t = s; t < e; t++)
             if (t == s || rows[t] != rows[t - 1])
