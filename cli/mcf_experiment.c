@@ -1396,7 +1396,8 @@ static int study_stability(xopts *o)
         for (int k = 0; k < o->nschemes; k++)
             api_buf_printf(&b, "%s\"%s\" %d", k ? ", " : "", mcf_scheme_get(o->schemes[k])->name, k);
         api_buf_printf(&b, ")\nset grid noxtics nomxtics\nset key outside below center horizontal\n"
-                           "set style fill solid 0.85 border rgb \"#333333\"\n");
+                           "set style fill solid 0.85 border rgb \"#333333\"\n"
+                           "set style textbox opaque noborder margins 1,1\n");
         gp_block_begin(&b, "bars");
         for (int k = 0; k < o->nschemes; k++) {
             const mcf_scheme_info *si = mcf_scheme_get(res[k].scheme);
@@ -1420,15 +1421,17 @@ static int study_stability(xopts *o)
                        "plot $bars using 1:2:($1-0.38):($1):(%.9g):2 with boxxyerror lc rgb \"#3b75af\" "
                        "title \"measured\", \\\n"
                        "    $bars using ($1+0.19):($5 > 0 ? $3 : NaN):($1):($1+0.38):(%.9g):3 with boxxyerror "
-                       "fs solid 0.5 lc rgb \"#999999\" title \"theory (explicit bound)\", \\\n"
-                       "    $bars using ($1-0.19):2:4 with labels offset 0,0.8 font \",11\" notitle, \\\n"
-                       "    $bars using ($1-0.19):2:6 with labels offset 0,1.9 font \",9\" tc rgb \"#444444\" notitle",
+                       "fs solid 0.5 lc rgb \"#999999\" title \"theory (explicit bound)\"",
                        ylo, ylo);
         if (uncond)
             api_buf_printf(&b, ", \\\n    $bars using ($1+0.19):($5 > 0 ? NaN : $3):($1):($1+0.38):(%.9g):3 with "
                                "boxxyerror fs pattern 4 lc rgb \"#999999\" title \"theory: unconditional\"",
                            ylo);
-        api_buf_printf(&b, "\n");
+        /* the labels last, over the bars; on a white box so the hatching
+         * does not cross them */
+        api_buf_printf(&b, ", \\\n    $bars using ($1-0.19):2:4 with labels offset 0,0.8 font \",11\" boxed notitle"
+                           ", \\\n    $bars using ($1-0.19):2:6 with labels offset 0,2.1 font \",9\" tc rgb \"#444444\" "
+                           "boxed notitle\n");
         if (gp_render(o, "stability", &b) != 0)
             goto done;
     }
