@@ -189,14 +189,36 @@ static void ops_at(flow_ctx *c, const double *X, double *w, double *area, double
     c->st->time_assemble += mcf_now() - t0;
 }
 
-/* V = -M^-1 L X (zero on fixed vertices), from weights w and mass. */
-static void velocity(flow_ctx *c, const double *w, const double *mass, const double *X, double *V)
+/* V *= -M^-1, zero on fixed vertices. */
+static void scale_velocity(flow_ctx *c, const double *mass, double *V)
 {
-    mcf__apply_L(c->F, c->nf, c->nv, w, X, V);
     for (int i = 0; i < c->nv; i++) {
         double s = c->fixed[i] ? 0.0 : -1.0 / mass[i];
         V[3 * i] *= s; V[3 * i + 1] *= s; V[3 * i + 2] *= s;
     }
+}
+
+/* V = -M^-1 L X (zero on fixed vertices), from weights w and mass. */
+static void velocity(flow_ctx *c, const double *w, const double *mass, const double *X, double *V)
+{
+    mcf__apply_L(c->F, c->nf, c->nv, w, X, V);
+    scale_velocity(c, mass, V);
+}
+
+/* Operators at X (into c->w, area, mass) and V = -M^-1 L X: with the
+ * barycentric mass in one pass over the faces, which is most of an
+ * explicit step's cost. */
+static void ops_velocity(flow_ctx *c, const double *X, double *V)
+{
+    if (c->p->mass != MCF_MASS_BARYCENTRIC) {
+        ops_at(c, X, c->w, c->area, c->mass);
+        velocity(c, c->w, c->mass, X, V);
+        return;
+    }
+    double t0 = mcf_now();
+    mcf__weights_mass_LX(X, c->F, c->nf, c->nv, c->p->laplacian, c->delta, c->w, c->area, c->mass, V);
+    c->st->time_assemble += mcf_now() - t0;
+    scale_velocity(c, c->mass, V);
 }
 
 /* Y = M X row-wise. */
@@ -361,41 +383,35 @@ static mcf_status be_step(flow_ctx *c, const double *X, double h, const double *
 
 /* -------------------------------------------------------- geometry */
 
-static double surface_area(const double *X, const int32_t *F, int nf, double *centroid)
+/* Total area, area centroid (may be NULL) and signed enclosed volume
+ * (divergence theorem, may be NULL) in one pass. Returns the area. */
+static double area_volume(const double *X, const int32_t *F, int nf, double *centroid,
+                          double *volume)
 {
-    double A = 0.0, cx = 0.0, cy = 0.0, cz = 0.0;
+    double A = 0.0, cx = 0.0, cy = 0.0, cz = 0.0, v = 0.0;
     for (int f = 0; f < nf; f++) {
         const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
                      *d = X + 3 * (size_t)F[3 * f + 2];
-        double e1[3], e2[3], n[3];
+        double e1[3], e2[3], n[3], bd[3];
         mcf__sub3(b, a, e1);
         mcf__sub3(d, a, e2);
         mcf__cross3(e1, e2, n);
         double af = 0.5 * sqrt(mcf__dot3(n, n));
         A += af;
-        cx += af * (a[0] + b[0] + d[0]) / 3.0;
-        cy += af * (a[1] + b[1] + d[1]) / 3.0;
-        cz += af * (a[2] + b[2] + d[2]) / 3.0;
+        cx += af * (a[0] + b[0] + d[0]);
+        cy += af * (a[1] + b[1] + d[1]);
+        cz += af * (a[2] + b[2] + d[2]);
+        mcf__cross3(b, d, bd);
+        v += mcf__dot3(a, bd);
     }
     if (centroid) {
-        centroid[0] = A > 0 ? cx / A : 0.0;
-        centroid[1] = A > 0 ? cy / A : 0.0;
-        centroid[2] = A > 0 ? cz / A : 0.0;
+        centroid[0] = A > 0 ? cx / (3.0 * A) : 0.0;
+        centroid[1] = A > 0 ? cy / (3.0 * A) : 0.0;
+        centroid[2] = A > 0 ? cz / (3.0 * A) : 0.0;
     }
+    if (volume)
+        *volume = v / 6.0;
     return A;
-}
-
-static double signed_volume(const double *X, const int32_t *F, int nf)
-{
-    double v = 0.0;
-    for (int f = 0; f < nf; f++) {
-        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
-                     *d = X + 3 * (size_t)F[3 * f + 2];
-        double n[3];
-        mcf__cross3(b, d, n);
-        v += mcf__dot3(a, n);
-    }
-    return v / 6.0;
 }
 
 static void face_normals(const double *X, const int32_t *F, int nf, double *fn)
@@ -454,8 +470,7 @@ static void step_huisken2(flow_ctx *c, double h)
     int nv = c->nv;
     double *X = c->X, *V = c->V, *N = c->V2, *hv = c->T1, *Dh = c->T1 + nv,
            *K = c->T1 + 2 * (size_t)nv, *G = c->B;
-    ops_at(c, X, c->w, c->area, c->mass);
-    velocity(c, c->w, c->mass, X, V);
+    ops_velocity(c, X, V);
     mcf__vertex_normals(X, c->F, c->nf, nv, N);
     for (int i = 0; i < nv; i++)
         hv[i] = mcf__dot3(V + 3 * i, N + 3 * i);
@@ -490,8 +505,7 @@ static void step_huisken2(flow_ctx *c, double h)
 static void step_arc(flow_ctx *c, double h)
 {
     double *X = c->X, *V = c->V;
-    ops_at(c, X, c->w, c->area, c->mass);
-    velocity(c, c->w, c->mass, X, V);
+    ops_velocity(c, X, V);
     for (int i = 0; i < c->nv; i++) {
         double *v = V + 3 * i, s = sqrt(mcf__dot3(v, v));
         double move;
@@ -609,16 +623,14 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
         *est = 0.0;
     switch (c->p->scheme) {
     case MCF_EULER:
-        ops_at(c, X, c->w, c->area, c->mass);
-        velocity(c, c->w, c->mass, X, c->V);
+        ops_velocity(c, X, c->V);
         for (size_t i = 0; i < n3; i++)
             X[i] += h * c->V[i];
         break;
     case MCF_TAYLOR2:
     case MCF_NEUMANN2: {
         double c2 = c->p->scheme == MCF_TAYLOR2 ? 0.5 : 1.0;
-        ops_at(c, X, c->w, c->area, c->mass);
-        velocity(c, c->w, c->mass, X, c->V);        /* A X */
+        ops_velocity(c, X, c->V);                   /* A X */
         velocity(c, c->w, c->mass, c->V, c->V2);    /* A^2 X */
         for (size_t i = 0; i < n3; i++)
             X[i] += h * c->V[i] + c2 * h * h * c->V2[i];
@@ -767,14 +779,11 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
 static void rescale(flow_ctx *c, double area0, double vol0)
 {
     double cen[3];
-    double A = surface_area(c->X, c->F, c->nf, cen), s = 1.0;
+    double V, A = area_volume(c->X, c->F, c->nf, cen, &V), s = 1.0;
     if (c->p->rescale == MCF_RESCALE_AREA && A > 0.0)
         s = sqrt(area0 / A);
-    else if (c->p->rescale == MCF_RESCALE_VOLUME) {
-        double V = signed_volume(c->X, c->F, c->nf);
-        if (V != 0.0 && vol0 / V > 0.0)
-            s = cbrt(vol0 / V);
-    }
+    else if (c->p->rescale == MCF_RESCALE_VOLUME && V != 0.0 && vol0 / V > 0.0)
+        s = cbrt(vol0 / V);
     if (s == 1.0)
         return;
     for (int i = 0; i < c->nv; i++)
@@ -804,21 +813,13 @@ static void ctx_free(flow_ctx *c)
 }
 
 /* Boundary vertices: endpoints of edges used by exactly one face. */
-static mcf_status mark_boundary(flow_ctx *c, mcf_error *err)
+static void mark_boundary(flow_ctx *c)
 {
     const mcf__pattern *p = &c->pat;
-    int *cnt = mcf__calloc((size_t)p->nnz, sizeof *cnt);
-    if (!cnt)
-        return mcf__fail(err, MCF_ENOMEM, "boundary: out of memory");
-    for (size_t k = 0; k < 3 * (size_t)c->nf; k++)
-        if (p->tri[k] >= 0)
-            cnt[p->tri[k]]++;
     for (int j = 0; j < c->nv; j++)
         for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++)
-            if (cnt[t] == 1 && p->rowind[t] != j)
+            if (p->mult[t] == 1)
                 c->fixed[j] = c->fixed[p->rowind[t]] = 1;
-    free(cnt);
-    return MCF_OK;
 }
 
 static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
@@ -830,8 +831,8 @@ static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
     mcf_step_log *L = &st->log[k];
     L->t = t;
     L->dt = h;
-    L->area = surface_area(c->X, c->F, c->nf, NULL) / (scale * scale);
-    L->volume = signed_volume(c->X, c->F, c->nf) / (scale * scale * scale);
+    L->area = area_volume(c->X, c->F, c->nf, NULL, &L->volume) / (scale * scale);
+    L->volume /= scale * scale * scale;
     L->max_disp = maxdisp / scale;
     L->solve_s = c->step_solve_s;
     L->rejected = rejected;
@@ -865,9 +866,8 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
 
     /* normalize: centre on the area centroid, scale to unit area */
     double cen[3] = {0, 0, 0}, scale = 1.0;
-    double area_in = surface_area(m->X, m->F, m->nf, cen);
+    double area_in = area_volume(m->X, m->F, m->nf, cen, &st->volume0);
     st->area0 = area_in;
-    st->volume0 = signed_volume(m->X, m->F, m->nf);
     if (p->normalize) {
         if (!(area_in > 0.0))
             return mcf__fail(err, MCF_EMESH, "normalize: the mesh has zero total area");
@@ -915,11 +915,11 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     /* Dirichlet vertices: user list, fixed boundary, unreferenced */
     for (int i = 0; i < p->nfixed; i++)
         c.fixed[p->fixed[i]] = 1;
-    if ((rc = mcf__pattern_build(c.F, c.nf, c.nv, &c.pat, err)) != MCF_OK)
+    if ((rc = mcf__pattern_build(c.F, c.nf, c.nv, !c.si->is_explicit, &c.pat, err)) != MCF_OK)
         goto done;
-    c.bytes += sizeof(int) * ((size_t)c.pat.nnz + 2 * nv + 3 * nf);
-    if (p->boundary == MCF_BOUNDARY_FIXED && (rc = mark_boundary(&c, err)) != MCF_OK)
-        goto done;
+    c.bytes += sizeof(int) * (2 * (size_t)c.pat.nnz + 2 * nv + (c.pat.tri ? 3 * nf : 0));
+    if (p->boundary == MCF_BOUNDARY_FIXED)
+        mark_boundary(&c);
     c.delta = MCF_MOLLIFY * mcf__mean_edge(c.X, c.F, c.nf);
     ops_at(&c, c.X, c.w, c.area, c.mass);
     for (size_t i = 0; i < nv; i++)
@@ -960,7 +960,9 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     st->dt_min = INFINITY;
     st->dt_max = 0.0;
 
-    double area0 = surface_area(c.X, c.F, c.nf, NULL), vol0 = signed_volume(c.X, c.F, c.nf);
+    /* the rescale targets, in working units (exact: a scaling maps area
+     * by scale^2 and volume by scale^3, a translation keeps both) */
+    double area0 = area_in * scale * scale, vol0 = st->volume0 * scale * scale * scale;
     if (check_inv)
         face_normals(c.X, c.F, c.nf, c.fn);
     double t = 0.0;
@@ -1085,7 +1087,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         st->steps = k;
         st->t_final = t;
         if (p->progress &&
-            p->progress(p->progress_ctx, k, t, hist.h1, surface_area(c.X, c.F, c.nf, NULL) / (scale * scale))) {
+            p->progress(p->progress_ctx, k, t, hist.h1, area_volume(c.X, c.F, c.nf, NULL, NULL) / (scale * scale))) {
             rc = mcf__fail(err, MCF_ECANCELED, "canceled by the progress callback at step %d", k);
             goto done;
         }
@@ -1107,8 +1109,7 @@ done:
             if (c.fixed[i])
                 memcpy(c.X + 3 * i, X_in + 3 * i, 3 * sizeof(double));
     }
-    st->area1 = surface_area(m->X, m->F, m->nf, NULL);
-    st->volume1 = signed_volume(m->X, m->F, m->nf);
+    st->area1 = area_volume(m->X, m->F, m->nf, NULL, &st->volume1);
     if (st->dt_min == INFINITY || st->steps == 0)
         st->dt_min = 0.0;
     st->peak_bytes = c.bytes + (c.have_solver ? c.cm.memory_usage : 0);

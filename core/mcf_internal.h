@@ -45,6 +45,13 @@ void mcf__mass(const double *X, const int32_t *F, int nf, int nv,
                mcf_mass kind, const double *area, const double *w,
                double *mass);
 
+/* The explicit step's one pass over the faces: weights and areas (as
+ * mcf__cot_weights), barycentric mass (zeroed first) and Y = L X (zeroed
+ * first). delta as in mcf__cot_weights. */
+void mcf__weights_mass_LX(const double *X, const int32_t *F, int nf, int nv,
+                          mcf_laplacian lap, double delta, double *w,
+                          double *area, double *mass, double *Y);
+
 /* Y = L X for n x 3 row-major X, from per-face weights, without forming L.
  * Y is zeroed first. */
 void mcf__apply_L(const int32_t *F, int nf, int nv, const double *w,
@@ -68,10 +75,15 @@ typedef struct {
     int *rowind;    /* nnz */
     int *diag;      /* n: index of (j,j) */
     int *tri;       /* 3*nf: entry of the edge opposite corner k, -1 when
-                       the two vertices coincide (repeated index) */
+                       the two vertices coincide (repeated index); NULL
+                       unless asked for */
+    int *mult;      /* nnz: face sides on each off-diagonal entry (1 on a
+                       boundary edge, > 2 on a non-manifold one), 0 on the
+                       diagonal */
 } mcf__pattern;
 
-mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
+/* want_tri: also build the face-corner -> entry map (needed to fill values). */
+mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv, int want_tri,
                               mcf__pattern *p, mcf_error *err);
 void mcf__pattern_free(mcf__pattern *p);
 /* val[nnz] = L's upper values from per-face weights (zeroed first). */

@@ -49,6 +49,58 @@ static double heron(double a, double b, double c)
     return p > 0.0 ? 0.25 * sqrt(p) : 0.0;
 }
 
+/* The weights w[0..2] (1/2 cot at each corner) and the mollified area of
+ * one triangle; see mcf__cot_weights. */
+static inline void tri_weights(const double *p0, const double *p1, const double *p2,
+                               mcf_laplacian lap, double delta, double *wf, double *area)
+{
+    double e0[3], e1[3], e2[3], n[3];
+    mcf__sub3(p2, p1, e0); /* opposite corner 0 */
+    mcf__sub3(p0, p2, e1); /* opposite corner 1 */
+    mcf__sub3(p1, p0, e2); /* opposite corner 2 */
+    double q0 = mcf__dot3(e0, e0), q1 = mcf__dot3(e1, e1), q2 = mcf__dot3(e2, e2);
+    mcf__cross3(e2, e1, n);
+    double n2 = mcf__dot3(n, n); /* (2A)^2 */
+    double qm = q0 > q1 ? (q0 > q2 ? q0 : q2) : (q1 > q2 ? q1 : q2);
+    /* Fast path, no mollification needed: with c the longest side and h
+     * the height on it, every triangle inequality has slack >= h^2/c (a - x
+     * >= h^2/(2a) for a leg a over a base part x), and h = 2A/c, so (2A)^2
+     * >= delta c^3, i.e. n2^2 >= delta^2 qm^3, guarantees slack >= delta.
+     * Then cot at corner k = <adjacent edges> / 2A. */
+    if (n2 * n2 >= delta * delta * qm * qm * qm && n2 > 0.0) {
+        double A2 = sqrt(n2);
+        *area = 0.5 * A2;
+        if (lap == MCF_LAPLACIAN_UNIFORM) {
+            wf[0] = wf[1] = wf[2] = 0.5;
+            return;
+        }
+        double s = -0.5 / A2; /* w = cot/2; the adjacent edges point away
+                                 from each other, hence the sign */
+        wf[0] = s * mcf__dot3(e1, e2);
+        wf[1] = s * mcf__dot3(e2, e0);
+        wf[2] = s * mcf__dot3(e0, e1);
+        return;
+    }
+    double l[3] = {sqrt(q0), sqrt(q1), sqrt(q2)};
+    double slack = fmin(fmin(l[0] + l[1] - l[2], l[1] + l[2] - l[0]), l[2] + l[0] - l[1]);
+    if (slack < delta) {
+        double eps = delta - slack;
+        l[0] += eps; l[1] += eps; l[2] += eps;
+    }
+    double A = heron(l[0], l[1], l[2]);
+    *area = A;
+    if (lap == MCF_LAPLACIAN_UNIFORM) {
+        wf[0] = wf[1] = wf[2] = 0.5;
+        return;
+    }
+    q0 = l[0] * l[0]; q1 = l[1] * l[1]; q2 = l[2] * l[2];
+    /* cot(angle at k) = (l_{k+1}^2 + l_{k+2}^2 - l_k^2) / (4A); w = cot/2 */
+    double s = 1.0 / (8.0 * A);
+    wf[0] = (q1 + q2 - q0) * s;
+    wf[1] = (q2 + q0 - q1) * s;
+    wf[2] = (q0 + q1 - q2) * s;
+}
+
 void mcf__cot_weights(const double *X, const int32_t *F, int nf,
                       mcf_laplacian lap, double delta, double *w,
                       double *area)
@@ -57,57 +109,37 @@ void mcf__cot_weights(const double *X, const int32_t *F, int nf,
         delta = 1e-300; /* all points coincide: any positive margin */
     for (int f = 0; f < nf; f++) {
         const int32_t *t = F + 3 * (size_t)f;
-        const double *p0 = X + 3 * (size_t)t[0], *p1 = X + 3 * (size_t)t[1],
-                     *p2 = X + 3 * (size_t)t[2];
-        double *wf = w + 3 * (size_t)f;
-        double e0[3], e1[3], e2[3], n[3];
-        mcf__sub3(p2, p1, e0); /* opposite corner 0 */
-        mcf__sub3(p0, p2, e1); /* opposite corner 1 */
-        mcf__sub3(p1, p0, e2); /* opposite corner 2 */
-        double q0 = mcf__dot3(e0, e0), q1 = mcf__dot3(e1, e1), q2 = mcf__dot3(e2, e2);
-        mcf__cross3(e2, e1, n);
-        double n2 = mcf__dot3(n, n); /* (2A)^2 */
-        double qm = q0 > q1 ? (q0 > q2 ? q0 : q2) : (q1 > q2 ? q1 : q2);
-        /* Fast path, no mollification needed: with c the longest side and
-         * h the height on it, every triangle inequality has slack >= h^2/c
-         * (a - x >= h^2/(2a) for a leg a over a base part x), and h = 2A/c,
-         * so (2A)^2 >= delta c^3, i.e. n2^2 >= delta^2 qm^3, guarantees
-         * slack >= delta. Then cot at corner k = <adjacent edges> / 2A. */
-        if (n2 * n2 >= delta * delta * qm * qm * qm && n2 > 0.0) {
-            double A2 = sqrt(n2);
-            if (area)
-                area[f] = 0.5 * A2;
-            if (lap == MCF_LAPLACIAN_UNIFORM) {
-                wf[0] = wf[1] = wf[2] = 0.5;
-                continue;
-            }
-            double s = -0.5 / A2; /* w = cot/2; the adjacent edges point
-                                     away from each other, hence the sign */
-            wf[0] = s * mcf__dot3(e1, e2);
-            wf[1] = s * mcf__dot3(e2, e0);
-            wf[2] = s * mcf__dot3(e0, e1);
-            continue;
-        }
-        double l[3] = {sqrt(q0), sqrt(q1), sqrt(q2)};
-        double slack = fmin(fmin(l[0] + l[1] - l[2], l[1] + l[2] - l[0]),
-                            l[2] + l[0] - l[1]);
-        if (slack < delta) {
-            double eps = delta - slack;
-            l[0] += eps; l[1] += eps; l[2] += eps;
-        }
-        double A = heron(l[0], l[1], l[2]);
+        double A;
+        tri_weights(X + 3 * (size_t)t[0], X + 3 * (size_t)t[1], X + 3 * (size_t)t[2],
+                    lap, delta, w + 3 * (size_t)f, &A);
         if (area)
             area[f] = A;
-        if (lap == MCF_LAPLACIAN_UNIFORM) {
-            wf[0] = wf[1] = wf[2] = 0.5;
-            continue;
+    }
+}
+
+void mcf__weights_mass_LX(const double *X, const int32_t *F, int nf, int nv,
+                          mcf_laplacian lap, double delta, double *w,
+                          double *area, double *mass, double *Y)
+{
+    if (!(delta > 0.0))
+        delta = 1e-300;
+    memset(mass, 0, sizeof(double) * (size_t)nv);
+    memset(Y, 0, sizeof(double) * 3 * (size_t)nv);
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        double *wf = w + 3 * (size_t)f;
+        tri_weights(X + 3 * (size_t)t[0], X + 3 * (size_t)t[1], X + 3 * (size_t)t[2],
+                    lap, delta, wf, &area[f]);
+        double a3 = area[f] / 3.0;
+        for (int k = 0; k < 3; k++) {
+            size_t i = (size_t)t[(k + 1) % 3], j = (size_t)t[(k + 2) % 3];
+            const double *xi = X + 3 * i, *xj = X + 3 * j;
+            double d0 = wf[k] * (xi[0] - xj[0]), d1 = wf[k] * (xi[1] - xj[1]),
+                   d2 = wf[k] * (xi[2] - xj[2]);
+            Y[3 * i] += d0; Y[3 * i + 1] += d1; Y[3 * i + 2] += d2;
+            Y[3 * j] -= d0; Y[3 * j + 1] -= d1; Y[3 * j + 2] -= d2;
+            mass[t[k]] += a3;
         }
-        q0 = l[0] * l[0]; q1 = l[1] * l[1]; q2 = l[2] * l[2];
-        /* cot(angle at k) = (l_{k+1}^2 + l_{k+2}^2 - l_k^2) / (4A); w = cot/2 */
-        double s = 1.0 / (8.0 * A);
-        wf[0] = (q1 + q2 - q0) * s;
-        wf[1] = (q2 + q0 - q1) * s;
-        wf[2] = (q0 + q1 - q2) * s;
     }
 }
 
@@ -240,7 +272,7 @@ static int find_entry(const mcf__pattern *p, int r, int c)
     return -1;
 }
 
-mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
+mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv, int want_tri,
                               mcf__pattern *p, mcf_error *err)
 {
     mcf__pattern q = {0};
@@ -249,8 +281,9 @@ mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
     int *rows = mcf__malloc(cap, sizeof *rows);
     q.colptr = mcf__malloc((size_t)nv + 1, sizeof *q.colptr);
     q.diag = mcf__malloc((size_t)nv, sizeof *q.diag);
-    q.tri = mcf__malloc(3 * (size_t)nf, sizeof *q.tri);
-    if (!cnt || !rows || !q.colptr || !q.diag || !q.tri)
+    q.tri = want_tri ? mcf__malloc(3 * (size_t)nf, sizeof *q.tri) : NULL;
+    q.mult = mcf__malloc(cap, sizeof *q.mult);
+    if (!cnt || !rows || !q.colptr || !q.diag || (want_tri && !q.tri) || !q.mult)
         goto nomem;
 
     /* bucket the rows of every upper entry (min, max) by column max */
@@ -280,9 +313,14 @@ mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
         int s = q.colptr[j], e = q.colptr[j + 1];
         sort_rows(rows + s, e - s);
         q.colptr[j] = nnz;
-        for (int t = s; t < e; t++)
-            if (t == s || rows[t] != rows[t - 1])
+        for (int t = s; t < e; t++) {
+            if (t == s || rows[t] != rows[t - 1]) {
+                q.mult[nnz] = 0;
                 rows[nnz++] = rows[t];
+            }
+            q.mult[nnz - 1]++;
+        }
+        q.mult[nnz - 1]--; /* the diagonal's own entry is no face side */
         q.diag[j] = nnz - 1; /* the largest row of column j is j itself */
     }
     q.colptr[nv] = nnz;
@@ -294,7 +332,7 @@ mcf_status mcf__pattern_build(const int32_t *F, int nf, int nv,
         goto nomem;
     }
     rows = NULL;
-    for (int f = 0; f < nf; f++)
+    for (int f = 0; want_tri && f < nf; f++)
         for (int k = 0; k < 3; k++) {
             int a = F[3 * (size_t)f + (k + 1) % 3], b = F[3 * (size_t)f + (k + 2) % 3];
             q.tri[3 * (size_t)f + k] =
@@ -318,6 +356,7 @@ void mcf__pattern_free(mcf__pattern *p)
     free(p->rowind);
     free(p->diag);
     free(p->tri);
+    free(p->mult);
     memset(p, 0, sizeof *p);
 }
 
@@ -371,7 +410,7 @@ mcf_status mcf_operator_build(const mcf_mesh *m, mcf_laplacian lap,
     int *fill = NULL;
     if (!m || !out)
         return mcf__fail(err, MCF_EINVAL, "mcf_operator_build: NULL argument");
-    if ((rc = mcf__pattern_build(m->F, m->nf, m->nv, &p, err)) != MCF_OK)
+    if ((rc = mcf__pattern_build(m->F, m->nf, m->nv, 1, &p, err)) != MCF_OK)
         return rc;
     int n = m->nv, full = 2 * p.nnz - n;
     w = mcf__malloc(3 * (size_t)m->nf, sizeof *w);
