@@ -243,7 +243,7 @@ fuzz: $(FUZZ_BIN)
 .PHONY: fuzz-build
 
 # ---- experiments (issue 5): the README's Results, regenerated into docs/experiments/
-#   make experiments            every study below, two at a time (EXP_JOBS), ~6 min on 2 cores
+#   make experiments            every study below, two at a time (EXP_JOBS), ~5 min on 2 cores
 #   make experiments EXP_DIR=/tmp/x   elsewhere
 # Each study is `mcf experiment ...` (cli/mcf_experiment.c): CSV files and gnuplot PNG/SVG plots.
 # The big scans (armadillo, stanford-bunny) leave out `implicit` (Picard: tens of
