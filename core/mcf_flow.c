@@ -424,19 +424,32 @@ static void face_normals(const double *X, const int32_t *F, int nf, double *fn)
     }
 }
 
-/* Faces whose (unnormalized) normal turned by more than 90 degrees since
- * fn_before; the new normals go to fn_after (the next step's "before").
- * Faces that were degenerate before (zero normal) cannot invert. */
-static int inverted_faces(const double *X, const int32_t *F, int nf,
-                          const double *fn_before, double *fn_after)
+/* Faces a step folded: the (unnormalized) normal turned by more than 90
+ * degrees since fn_before AND the face now points against the summed
+ * normals of its three vertices, i.e. it lies backwards in its
+ * neighbourhood. A face the noise had folded and the step unfolds turns
+ * too, but ends aligned with its neighbours: not counted. The new face
+ * normals go to fn_after (the next step's "before"); N (3*nv) is scratch.
+ * Faces that were degenerate before (zero normal) cannot fold. */
+static int folded_faces(const double *X, const int32_t *F, int nf, int nv,
+                        const double *fn_before, double *fn_after, double *N)
 {
     int bad = 0;
+    face_normals(X, F, nf, fn_after);
+    memset(N, 0, 3 * sizeof(double) * (size_t)nv);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                N[3 * (size_t)F[3 * f + k] + d] += fn_after[3 * (size_t)f + d];
     for (int f = 0; f < nf; f++) {
-        double e1[3], e2[3], *n = fn_after + 3 * (size_t)f;
-        mcf__sub3(X + 3 * (size_t)F[3 * f + 1], X + 3 * (size_t)F[3 * f], e1);
-        mcf__sub3(X + 3 * (size_t)F[3 * f + 2], X + 3 * (size_t)F[3 * f], e2);
-        mcf__cross3(e1, e2, n);
-        if (mcf__dot3(n, fn_before + 3 * (size_t)f) < 0.0)
+        const double *n = fn_after + 3 * (size_t)f;
+        if (mcf__dot3(n, fn_before + 3 * (size_t)f) >= 0.0)
+            continue;
+        double s[3] = {0, 0, 0};
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                s[d] += N[3 * (size_t)F[3 * f + k] + d];
+        if (mcf__dot3(n, s) < 0.0)
             bad++;
     }
     return bad;
@@ -892,7 +905,8 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     c.V = ctx_alloc(&c, n3); c.V2 = ctx_alloc(&c, n3); c.B = ctx_alloc(&c, n3);
     c.T1 = ctx_alloc(&c, n3); c.T2 = ctx_alloc(&c, n3); c.Xold = ctx_alloc(&c, n3);
     c.Xprev = ctx_alloc(&c, n3); c.Xprev2 = ctx_alloc(&c, n3);
-    int check_inv = p->adaptive || (c.si->is_explicit && p->scheme != MCF_TAUBIN);
+    /* adaptive runs reject steps that fold faces (see folded_faces) */
+    int check_inv = p->adaptive;
     if (check_inv) {
         c.fn = ctx_alloc(&c, 3 * nf);
         c.fn2 = ctx_alloc(&c, 3 * nf);
@@ -998,10 +1012,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         in_step = 1;
         rc = do_step(&c, h, &hist, p->adaptive ? &est : NULL, err);
         int finite = rc == MCF_OK && all_finite(c.X, n3);
-        /* An explicit scheme past its limit need not overflow: lambda falls
-         * like 1/size^2 as the mesh blows up, so the crumpled result stays
-         * finite. Inverted faces give it away (and reject adaptive steps). */
-        int inv = finite && check_inv ? inverted_faces(c.X, c.F, c.nf, c.fn, c.fn2) : 0;
+        int inv = finite && check_inv ? folded_faces(c.X, c.F, c.nf, c.nv, c.fn, c.fn2, c.T1) : 0;
         double h_next = h;
         if (p->adaptive) {
             if (rc == MCF_ENOMEM || rc == MCF_ECANCELED)
@@ -1030,7 +1041,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                 h *= (!finite || inv > 0) ? 0.25 : fmax(0.2, fac);
                 if (h < 1e-14 * T) {
                     rc = mcf__fail(err, MCF_ENUMERIC, "adaptive: step size underflow at t = %g (%s)", t,
-                                   !finite ? "non-finite positions" : inv > 0 ? "inverted faces" : "error estimate");
+                                   !finite ? "non-finite positions" : inv > 0 ? "folded faces" : "error estimate");
                     goto done;
                 }
                 continue;
@@ -1041,12 +1052,20 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         } else {
             if (rc != MCF_OK)
                 goto done;
-            if (!finite || inv > 0) {
+            /* An explicit scheme past its limit need not overflow: lambda
+             * falls like 1/size^2 as the mesh crumples, so the result can
+             * stay finite. MCF never increases the area, the instability
+             * does, fast: more than 1.5x the starting area is taken as it
+             * (a stable step may flip slivers, so folds prove nothing). */
+            double grown = 0.0;
+            if (finite && c.si->is_explicit && p->scheme != MCF_TAUBIN)
+                grown = area_volume(c.X, c.F, c.nf, NULL, NULL) / area0;
+            if (!finite || grown > 1.5) {
                 char why[64];
                 if (!finite)
                     snprintf(why, sizeof why, "non-finite positions");
                 else
-                    snprintf(why, sizeof why, "%d inverted faces", inv);
+                    snprintf(why, sizeof why, "an area %.3g times the initial one", grown);
                 rc = mcf__fail(err, MCF_ENUMERIC, "step %d of '%s' at dt %g produced %s%s", k + 1, c.si->name, h, why,
                                c.si->is_explicit ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
                 goto done;

@@ -442,6 +442,56 @@ static void test_explicit_limits(void **state)
     mcf_mesh_free(m);
 }
 
+/* Regressions: a stable explicit step may flip sliver triangles (for dt >
+ * 1/lambda the top mode changes sign each step), and a step that unfolds
+ * a face the noise had folded turns it by ~180 degrees. Neither is an
+ * instability: euler at dt=auto on the clean Stanford scan, euler at
+ * 0.25/lambda on a noisy spot, and adaptive desbrun2 on that noisy spot
+ * all complete. */
+static void test_no_false_instability(void **state)
+{
+    (void)state;
+    mcf_flow_params p;
+    mcf_flow_stats st;
+    mcf_error err = {0};
+    mcf_mesh *bunny = tl_load("stanford-bunny.obj");
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_EULER;
+    p.dt_auto = 1;
+    p.iterations = 10;
+    if (mcf_flow_run(bunny, &p, &st, &err) != MCF_OK)
+        fail_msg("euler dt=auto on stanford-bunny: %s", err.msg);
+    mcf_flow_stats_free(&st);
+    mcf_mesh_free(bunny);
+
+    mcf_mesh *spot = tl_load("spot.obj");
+    assert_int_equal(mcf_mesh_add_noise(spot, 0.2, 11, NULL), MCF_OK);
+    mcf_mesh *spot2 = mcf_mesh_dup(spot, NULL);
+    double lam;
+    assert_int_equal(mcf_lambda_max(spot, MCF_LAPLACIAN_COTAN, MCF_MASS_BARYCENTRIC, &lam, NULL), MCF_OK);
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_EULER;
+    p.normalize = 0;
+    p.dt = 0.25 / lam;
+    p.iterations = 60;
+    if (mcf_flow_run(spot, &p, &st, &err) != MCF_OK)
+        fail_msg("euler at 0.25/lambda on a noisy spot: %s", err.msg);
+    mcf_flow_stats_free(&st);
+
+    mcf_flow_params_init(&p);
+    p.adaptive = 1;
+    p.tol = 1e-4;
+    p.time = 1e-4;
+    p.dt = 1e-7;
+    if (mcf_flow_run(spot2, &p, &st, &err) != MCF_OK)
+        fail_msg("adaptive desbrun2 on a noisy spot: %s", err.msg);
+    print_message("adaptive desbrun2 on noisy spot: %d steps, %d rejected\n", st.steps, st.rejected);
+    mcf_flow_stats_free(&st);
+    mcf_mesh_free(spot);
+    mcf_mesh_free(spot2);
+}
+
+
 /* Parameter checks name the field. */
 static void test_params_check(void **state)
 {
@@ -524,6 +574,7 @@ int main(void)
         cmocka_unit_test(test_adaptive),
         cmocka_unit_test(test_cancel_and_progress),
         cmocka_unit_test(test_explicit_limits),
+        cmocka_unit_test(test_no_false_instability),
         cmocka_unit_test(test_params_check),
         cmocka_unit_test(test_rescale_and_normalize),
     };
