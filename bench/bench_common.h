@@ -1,0 +1,34 @@
+/*
+ * bench_common.h - helpers shared by the bench/ programs: the machine and
+ * date header every benchmark prints first (so runs of different programs
+ * can be told apart and compared), medians and percentiles, and reading a
+ * whole file. Compiled with -D_GNU_SOURCE (sched_getaffinity).
+ *
+ * bench_core.c predates this file and keeps its own copies of median()
+ * and print_machine() (same output format as bench_print_machine).
+ */
+#ifndef BENCH_COMMON_H
+#define BENCH_COMMON_H
+
+#include <stddef.h>
+
+/* Prints two lines to stdout:
+ *   machine: <CPU model>, nproc <usable CPUs>, <RAM> GiB RAM, Linux <release>
+ *   date:    <UTC date and time>, load average <the /proc/loadavg fields>
+ * Fields that cannot be read print as "unknown" or "?". */
+void bench_print_machine(void);
+
+/* Median of n >= 1 values; v is sorted in place. */
+double bench_median(double *v, int n);
+
+/* The p-th percentile (0 <= p <= 100) of n >= 1 values by nearest rank
+ * (the smallest value with at least p% of the values <= it); v is sorted
+ * in place. p = 50 is the lower median for even n. */
+double bench_percentile(double *v, int n, double p);
+
+/* Reads the whole file into a malloc'ed buffer (one extra NUL byte after
+ * the data, not counted in *len). Returns 0, or -1 with errno set (*buf
+ * untouched). The caller frees *buf. */
+int bench_read_file(const char *path, char **buf, size_t *len);
+
+#endif
