@@ -852,6 +852,19 @@ static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
     st->nlog = k + 1;
 }
 
+/* The failure of a fixed-step run whose step `step` (1-based) left
+ * non-finite positions (grown == 0) or an area grown by `grown`. */
+static mcf_status unstable(const flow_ctx *c, mcf_error *err, int step, double h, double grown)
+{
+    char why[64];
+    if (grown > 0.0)
+        snprintf(why, sizeof why, "an area %.3g times the initial one", grown);
+    else
+        snprintf(why, sizeof why, "non-finite positions");
+    return mcf__fail(err, MCF_ENUMERIC, "step %d of '%s' at dt %g produced %s%s", step, c->si->name, h, why,
+                     c->si->is_explicit ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
+}
+
 mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                         mcf_flow_stats *stats, mcf_error *err)
 {
@@ -1058,16 +1071,16 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
              * does, fast: more than 1.5x the starting area is taken as it
              * (a stable step may flip slivers, so folds prove nothing). */
             double grown = 0.0;
-            if (finite && c.si->is_explicit && p->scheme != MCF_TAUBIN)
-                grown = area_volume(c.X, c.F, c.nf, NULL, NULL) / area0;
+            if (finite && c.si->is_explicit && p->scheme != MCF_TAUBIN) {
+                /* the step's own pass left the face areas of the state
+                 * before it in c.area: summing them costs no geometry
+                 * pass; the last state is checked after the loop */
+                for (size_t f = 0; f < nf; f++)
+                    grown += c.area[f];
+                grown /= area0;
+            }
             if (!finite || grown > 1.5) {
-                char why[64];
-                if (!finite)
-                    snprintf(why, sizeof why, "non-finite positions");
-                else
-                    snprintf(why, sizeof why, "an area %.3g times the initial one", grown);
-                rc = mcf__fail(err, MCF_ENUMERIC, "step %d of '%s' at dt %g produced %s%s", k + 1, c.si->name, h, why,
-                               c.si->is_explicit ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
+                rc = unstable(&c, err, !finite ? k + 1 : k, h, !finite ? 0.0 : grown);
                 goto done;
             }
         }
@@ -1112,6 +1125,11 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         }
     }
     rc = MCF_OK;
+    if (!p->adaptive && c.si->is_explicit && p->scheme != MCF_TAUBIN && k > 0) {
+        double grown = area_volume(c.X, c.F, c.nf, NULL, NULL) / area0;
+        if (grown > 1.5)
+            rc = unstable(&c, err, k, h, grown);
+    }
 done:
     /* m gets the last accepted state in input units: the state before a
      * failed step, or the untouched input when no step was accepted */
