@@ -266,9 +266,12 @@ static void test_order(void **state)
 }
 
 /* euler's largest acceptable dt in 10 steps on the 642-vertex icosphere
- * lies between 1/lambda_max and 2.2/lambda_max (theory 2: measured 2.14,
- * a little over because 10 steps amplify the top mode only
- * (1.14)^10 ~ 4 times); neumann2's theory is half of it. */
+ * lies between 1/lambda_max and 2.6/lambda_max. Theory says 2, but ten
+ * steps show the instability only once |1 - z|^10 has grown the top
+ * mode's share of the noise into a folded face: measured 2.47 (1.47^10
+ * ~ 47); at 2.6, 1.6^10 ~ 110 would fold it for certain. (The flow no
+ * longer refuses a stable step that flips slivers, which used to end
+ * these runs at 2.14.) neumann2's theory is half of euler's. */
 static void test_stability(void **state)
 {
     (void)state;
@@ -284,7 +287,7 @@ static void test_stability(void **state)
     assert_true(lam > 0);
     double z = csv_num(&c, e, "measured_dt_lambda");
     print_message("euler: largest acceptable dt = %.3f / lambda_max (theory 2)\n", z);
-    assert_true(z >= 1.0 && z <= 2.2);
+    assert_true(z >= 1.0 && z <= 2.6);
     tl_assert_near(csv_num(&c, e, "measured_dt") * lam, z, 1e-5 * z, "dt * lambda");
     assert_string_equal(csv_get(&c, e, "theory"), "2/lambda_max");
     assert_string_equal(csv_get(&c, n, "theory"), "1/lambda_max");
