@@ -48,9 +48,9 @@ LIBS_SRV  := -lmicrohttpd -lpthread
 LIBS_TEST := -lcmocka -lcurl
 
 # Debian packages: build and test dependencies.
-DEB_PKGS := build-essential clang libsuitesparse-dev libopenblas-dev libcjson-dev \
-            libmicrohttpd-dev libdraco-dev draco libcurl4-openssl-dev libcmocka-dev \
-            gnuplot-nox
+DEB_PKGS := build-essential clang libclang-rt-14-dev libsuitesparse-dev libopenblas-dev \
+            libcjson-dev libmicrohttpd-dev libdraco-dev draco libcurl4-openssl-dev \
+            libcmocka-dev gnuplot-nox
 DEB_BENCH := libeigen3-dev libcgal-dev
 
 CORE_SRC := $(wildcard core/*.c)
