@@ -248,7 +248,8 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
 typedef struct {
     mcf_scheme scheme;        /* default MCF_DESBRUN2 */
     double dt;                /* step (dimensionless if normalize) */
-    int dt_auto;              /* explicit schemes: 0.5*stability/lambda_max */
+    int dt_auto;              /* explicit schemes: 0.45*stability/lambda_max
+                                 (euler: 0.9/lambda_max, no sign change) */
     int iterations;           /* steps, used when time <= 0 */
     double time;              /* total time; > 0 overrides iterations */
     mcf_boundary boundary;    /* default fixed */

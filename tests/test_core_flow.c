@@ -437,7 +437,7 @@ static void test_explicit_limits(void **state)
     p.dt_auto = 1;
     p.iterations = 50;
     assert_int_equal(mcf_flow_run(m, &p, &st, &err), MCF_OK);
-    assert_true(st.lambda_max > 0 && fabs(st.dt_first - 1.0 / st.lambda_max) < 1e-12 / st.lambda_max);
+    assert_true(st.lambda_max > 0 && fabs(st.dt_first - 0.9 / st.lambda_max) < 1e-12 / st.lambda_max);
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
 }
