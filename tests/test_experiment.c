@@ -10,88 +10,23 @@
  * Every study here runs on 162 to 812 vertices: the binary takes a few
  * seconds.
  */
-#define _XOPEN_SOURCE 700 /* realpath, mkdtemp */
-#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "testlib.h"
 #include "../api/api.h"
 
-static char dir[64];          /* scratch directory of this run */
-static char mcf_path[4096];
-static char sphere_obj[4096];
 static int have_gnuplot;
 
-typedef struct {
-    int status;
-    char *err;                /* stderr, NUL-terminated */
-    size_t errlen;
-} run_result;
-
-/* Runs mcf with the NULL-terminated arguments inside dir; path_env, when
- * not NULL, replaces PATH in the child. stdout is discarded. */
-static run_result run_env(const char *path_env, const char *a0, ...)
-{
-    const char *argv[64];
-    char epath[128];
-    run_result r = {0, NULL, 0};
-    va_list ap;
-    int n = 0, st;
-    pid_t pid;
-
-    argv[n++] = mcf_path;
-    va_start(ap, a0);
-    for (const char *a = a0; a && n < 63; a = va_arg(ap, const char *))
-        argv[n++] = a;
-    va_end(ap);
-    argv[n] = NULL;
-    snprintf(epath, sizeof epath, "%s/stderr", dir);
-    pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        int fo = open("/dev/null", O_WRONLY);
-        int fe = open(epath, O_WRONLY | O_CREAT | O_TRUNC, 0600);
-        if (fo < 0 || fe < 0 || chdir(dir) != 0)
-            _exit(127);
-        dup2(fo, 1);
-        dup2(fe, 2);
-        if (path_env)
-            setenv("PATH", path_env, 1);
-        execv(mcf_path, (char *const *)(void *)argv);
-        _exit(127);
-    }
-    assert_int_equal(waitpid(pid, &st, 0), pid);
-    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-    if (r.status == 127)
-        fail_msg("cannot run %s (set MCF_BUILD)", mcf_path);
-    assert_int_equal(tl_read_file(epath, &r.err, &r.errlen), 0);
-    return r;
-}
-
-#define run(...) run_env(NULL, __VA_ARGS__)
-
 /* A successful run, or the failure with its stderr. */
-static void expect_ok(run_result *r)
+static void expect_ok(tl_run_result *r)
 {
     if (r->status != 0)
         fail_msg("mcf experiment: status %d: %s", r->status, r->err);
-    free(r->err);
-}
-
-/* An error run: status code, exactly one stderr line "mcf: ...want...". */
-static void expect_error(run_result *r, int code, const char *want)
-{
-    const char *nl = strchr(r->err, '\n');
-    if (r->status != code || strncmp(r->err, "mcf: ", 5) != 0 || !nl || nl[1] != '\0' || !strstr(r->err, want))
-        fail_msg("status %d, stderr \"%s\"; want status %d and one line with \"%s\"", r->status, r->err, code,
-                 want);
-    free(r->err);
+    tl_run_free(r);
 }
 
 /* ------------------------------------------------------------------ CSV */
@@ -106,13 +41,12 @@ typedef struct {
     char *cell[MAX_ROWS][MAX_COLS];
 } csv;
 
-/* Reads dir/name; every row must have as many fields as the header. */
+/* Reads scratch/name; every row must have as many fields as the header. */
 static void csv_load(csv *c, const char *name)
 {
-    char path[256];
+    const char *path = tl_in_scratch(name);
     size_t len;
     memset(c, 0, sizeof *c);
-    snprintf(path, sizeof path, "%s/%s", dir, name);
     if (tl_read_file(path, &c->buf, &len) != 0)
         fail_msg("cannot read %s", path);
     char *line = c->buf, *next;
@@ -189,16 +123,15 @@ static void csv_free(csv *c)
 
 static int exists(const char *name)
 {
-    char path[600];
     struct stat sb;
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    return stat(path, &sb) == 0 && sb.st_size > 0;
+    return stat(tl_in_scratch(name), &sb) == 0 && sb.st_size > 0;
 }
 
 /* PNG and SVG both there (and real) when gnuplot is, both absent when not. */
 static void expect_plot(const char *base)
 {
-    char png[256], svg[256], path[600], *buf;
+    char png[256], svg[256], *buf;
+    const char *path;
     size_t len;
     snprintf(png, sizeof png, "%s.png", base);
     snprintf(svg, sizeof svg, "%s.svg", base);
@@ -207,12 +140,12 @@ static void expect_plot(const char *base)
         assert_false(exists(svg));
         return;
     }
-    snprintf(path, sizeof path, "%s/%s", dir, png);
+    path = tl_in_scratch(png);
     if (tl_read_file(path, &buf, &len) != 0)
         fail_msg("no plot %s", path);
     assert_true(len > 1000 && !memcmp(buf, "\x89PNG", 4));
     free(buf);
-    snprintf(path, sizeof path, "%s/%s", dir, svg);
+    path = tl_in_scratch(svg);
     if (tl_read_file(path, &buf, &len) != 0)
         fail_msg("no plot %s", path);
     assert_non_null(strstr(buf, "<svg"));
@@ -223,7 +156,7 @@ static void expect_plot(const char *base)
 static void expect_no_scripts(void)
 {
     char cmd[128];
-    snprintf(cmd, sizeof cmd, "ls -a %s | grep -q '^\\.mcf-plot-'", dir);
+    snprintf(cmd, sizeof cmd, "ls -a %s | grep -q '^\\.mcf-plot-'", tl_scratch());
     assert_int_not_equal(system(cmd), 0);
 }
 
@@ -234,7 +167,7 @@ static void expect_no_scripts(void)
 static void test_order(void **state)
 {
     (void)state;
-    run_result r = run("experiment", "order", "--sphere", "2", "--steps", "32,64,128", "--ref-scheme", "desbrun2",
+    tl_run_result r = tl_run("experiment", "order", "--sphere", "2", "--steps", "32,64,128", "--ref-scheme", "desbrun2",
                        "--schemes", "euler,desbrun2,cmcf", "--name", "ord", "--out", ".", "--quiet", NULL);
     expect_ok(&r);
     csv c;
@@ -275,7 +208,7 @@ static void test_order(void **state)
 static void test_stability(void **state)
 {
     (void)state;
-    run_result r = run("experiment", "stability", "--sphere", "3", "--schemes", "euler,neumann2,desbrun",
+    tl_run_result r = tl_run("experiment", "stability", "--sphere", "3", "--schemes", "euler,neumann2,desbrun",
                        "--dt-max", "100/lambda", "--name", "stab", "--out", ".", "--quiet", NULL);
     expect_ok(&r);
     csv c;
@@ -317,7 +250,7 @@ static void test_stability(void **state)
 static void test_dt_sweep(void **state)
 {
     (void)state;
-    run_result r = run("experiment", "dt-sweep", "--sphere", "2", "--schemes", "euler,desbrun2,taubin", "--dt-min",
+    tl_run_result r = tl_run("experiment", "dt-sweep", "--sphere", "2", "--schemes", "euler,desbrun2,taubin", "--dt-min",
                        "0.1/lambda", "--dt-max", "100/lambda", "--per-decade", "2", "--name", "sw", "--out", ".",
                        "--quiet", NULL);
     expect_ok(&r);
@@ -372,7 +305,7 @@ static void test_dt_sweep(void **state)
 static void test_fixed_time_file(void **state)
 {
     (void)state;
-    run_result r = run("experiment", "dt-sweep", "--mesh", sphere_obj, "--schemes", "desbrun,desbrun2", "--time",
+    tl_run_result r = tl_run("experiment", "dt-sweep", "--mesh", tl_sphere(), "--schemes", "desbrun,desbrun2", "--time",
                        "1e-4", "--dt-min", "1e-6", "--dt-max", "5e-5", "--per-decade", "1", "--out", ".",
                        "--no-plots", "--quiet", NULL);
     expect_ok(&r);
@@ -400,15 +333,13 @@ static void test_fixed_time_file(void **state)
     api_buf b;
     api_buf_init(&b, 1u << 26);
     assert_int_equal(api_obj_encode(m, &b, NULL), MCF_OK);
-    char path[256];
-    snprintf(path, sizeof path, "%s/big.obj", dir);
-    FILE *f = fopen(path, "w");
+    FILE *f = fopen(tl_in_scratch("big.obj"), "w");
     assert_non_null(f);
     assert_int_equal(fwrite(b.data, 1, b.len, f), b.len);
     assert_int_equal(fclose(f), 0);
     api_buf_free(&b);
     mcf_mesh_free(m);
-    r = run("experiment", "dt-sweep", "--mesh", "big.obj", "--schemes", "desbrun,desbrun2", "--time", "1e-4",
+    r = tl_run("experiment", "dt-sweep", "--mesh", "big.obj", "--schemes", "desbrun,desbrun2", "--time", "1e-4",
             "--dt-min", "1e-6", "--dt-max", "5e-5", "--per-decade", "1", "--out", ".", "--no-plots", "--quiet", NULL);
     expect_ok(&r);
     csv big;
@@ -428,7 +359,7 @@ static void test_fixed_time_file(void **state)
 static void test_sphere(void **state)
 {
     (void)state;
-    run_result r = run("experiment", "sphere", "--sphere", "2", "--time", "0.1", "--steps", "50", "--schemes",
+    tl_run_result r = tl_run("experiment", "sphere", "--sphere", "2", "--time", "0.1", "--steps", "50", "--schemes",
                        "desbrun2,euler,linear", "--name", "sph", "--out", ".", "--quiet", NULL);
     expect_ok(&r);
     csv c;
@@ -466,11 +397,11 @@ static void test_sphere(void **state)
 static void test_no_gnuplot(void **state)
 {
     (void)state;
-    run_result r = run_env("/nonexistent", "experiment", "order", "--sphere", "1", "--steps", "8,16", "--schemes",
+    tl_run_result r = tl_run_env("/nonexistent", "experiment", "order", "--sphere", "1", "--steps", "8,16", "--schemes",
                            "desbrun", "--ref-factor", "4", "--name", "nogp", "--out", ".", "--quiet", NULL);
     assert_int_equal(r.status, 0);
     assert_non_null(strstr(r.err, "gnuplot not found"));
-    free(r.err);
+    tl_run_free(&r);
     assert_true(exists("nogp-order.csv"));
     assert_false(exists("nogp-order.png"));
     assert_false(exists("nogp-order.svg"));
@@ -480,45 +411,32 @@ static void test_no_gnuplot(void **state)
 static void test_usage(void **state)
 {
     (void)state;
-    run_result r = run("experiment", NULL);
-    expect_error(&r, 2, "missing study");
-    r = run("experiment", "sweep", "--out", ".", NULL);
-    expect_error(&r, 2, "unknown study");
-    r = run("experiment", "order", "--sphere", "1", NULL);
-    expect_error(&r, 2, "--out");
-    r = run("experiment", "order", "--sphere", "1", "--schemes", "taubin", "--out", ".", NULL);
-    expect_error(&r, 2, "taubin");
-    r = run("experiment", "order", "--sphere", "1", "--mesh", sphere_obj, "--out", ".", NULL);
-    expect_error(&r, 2, "exclude");
-    r = run("experiment", "dt-sweep", "--schemes", "euler,nosuch", "--out", ".", NULL);
-    expect_error(&r, 2, "nosuch");
-    r = run("experiment", "dt-sweep", "--dt-min", "1e-3/lambdas", "--out", ".", NULL);
-    expect_error(&r, 2, "--dt-min");
-    r = run("experiment", "order", "--steps", "64,32", "--out", ".", NULL);
-    expect_error(&r, 2, "--steps");
-    r = run("experiment", "sphere", "--time", "0.3", "--out", ".", NULL);
-    expect_error(&r, 2, "extinction");
-    r = run("experiment", "dt-sweep", "--mesh", "no-such-file.obj", "--out", ".", NULL);
-    expect_error(&r, 1, "no-such-file.obj");
+    tl_run_result r = tl_run("experiment", NULL);
+    tl_expect_error(&r, 2, "missing study");
+    r = tl_run("experiment", "sweep", "--out", ".", NULL);
+    tl_expect_error(&r, 2, "unknown study");
+    r = tl_run("experiment", "order", "--sphere", "1", NULL);
+    tl_expect_error(&r, 2, "--out");
+    r = tl_run("experiment", "order", "--sphere", "1", "--schemes", "taubin", "--out", ".", NULL);
+    tl_expect_error(&r, 2, "taubin");
+    r = tl_run("experiment", "order", "--sphere", "1", "--mesh", tl_sphere(), "--out", ".", NULL);
+    tl_expect_error(&r, 2, "exclude");
+    r = tl_run("experiment", "dt-sweep", "--schemes", "euler,nosuch", "--out", ".", NULL);
+    tl_expect_error(&r, 2, "nosuch");
+    r = tl_run("experiment", "dt-sweep", "--dt-min", "1e-3/lambdas", "--out", ".", NULL);
+    tl_expect_error(&r, 2, "--dt-min");
+    r = tl_run("experiment", "order", "--steps", "64,32", "--out", ".", NULL);
+    tl_expect_error(&r, 2, "--steps");
+    r = tl_run("experiment", "sphere", "--time", "0.3", "--out", ".", NULL);
+    tl_expect_error(&r, 2, "extinction");
+    r = tl_run("experiment", "dt-sweep", "--mesh", "no-such-file.obj", "--out", ".", NULL);
+    tl_expect_error(&r, 1, "no-such-file.obj");
 }
 
 static int setup(void **state)
 {
-    const char *b = getenv("MCF_BUILD");
-    char rel[4096];
     (void)state;
-    snprintf(rel, sizeof rel, "%s/mcf", b && *b ? b : "build");
-    if (!realpath(rel, mcf_path)) {
-        fprintf(stderr, "test_experiment: no %s (build it, or set MCF_BUILD)\n", rel);
-        return -1;
-    }
-    snprintf(rel, sizeof rel, "%s/sphere_cgal.obj", tl_meshes_dir());
-    if (!realpath(rel, sphere_obj)) {
-        fprintf(stderr, "test_experiment: no %s (set MCF_MESHES)\n", rel);
-        return -1;
-    }
-    snprintf(dir, sizeof dir, "/tmp/mcf-experiment-XXXXXX");
-    if (!mkdtemp(dir))
+    if (tl_mcf_setup("test_experiment", "/tmp/mcf-experiment-XXXXXX") != 0)
         return -1;
     /* the same lookup the tool does (execlp on the PATH) */
     have_gnuplot = system("command -v gnuplot >/dev/null 2>&1") == 0;
@@ -527,10 +445,8 @@ static int setup(void **state)
 
 static int teardown(void **state)
 {
-    char cmd[128];
     (void)state;
-    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
-    return system(cmd) == 0 ? 0 : -1;
+    return tl_mcf_teardown();
 }
 
 int main(void)

@@ -1,15 +1,20 @@
 /*
  * testlib.c - the helpers of testlib.h: locating the shared meshes,
- * reading files, decoding a mesh or failing the test, and tolerance checks.
+ * reading files, decoding a mesh or failing the test, tolerance checks, and
+ * running the mcf tool as a child process in a scratch directory.
  *
  * Plain stdio on purpose: tests may run from any directory, and a missing
  * mesh folder must fail loudly with the path it tried, not crash.
  */
+#define _XOPEN_SOURCE 700 /* realpath, mkdtemp */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "testlib.h"
 #include "../api/api.h"
@@ -88,4 +93,114 @@ void tl_assert_near(double a, double b, double tol, const char *what)
     if (!isfinite(a) || !isfinite(b) || !(fabs(a - b) <= tol))
         fail_msg("%s: %.17g vs %.17g differ by %.3g (tolerance %.3g)",
                  what ? what : "value", a, b, fabs(a - b), tol);
+}
+
+/* ------------------------------------------------------------ mcf runs */
+
+static char scratch[64];      /* scratch directory of this test binary */
+static char mcf_path[4096];
+static char sphere[4096];
+
+int tl_mcf_setup(const char *who, const char *tmpl)
+{
+    const char *b = getenv("MCF_BUILD");
+    char rel[4096];
+    /* Absolute paths: the children run inside the scratch directory. */
+    snprintf(rel, sizeof rel, "%s/mcf", b && *b ? b : "build");
+    if (!realpath(rel, mcf_path)) {
+        fprintf(stderr, "%s: no %s (build it, or set MCF_BUILD)\n", who, rel);
+        return -1;
+    }
+    snprintf(rel, sizeof rel, "%s/sphere_cgal.obj", tl_meshes_dir());
+    if (!realpath(rel, sphere)) {
+        fprintf(stderr, "%s: no %s (set MCF_MESHES)\n", who, rel);
+        return -1;
+    }
+    if (strlen(tmpl) >= sizeof scratch)
+        return -1;
+    strcpy(scratch, tmpl);
+    return mkdtemp(scratch) ? 0 : -1;
+}
+
+int tl_mcf_teardown(void)
+{
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", scratch);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+const char *tl_scratch(void)
+{
+    return scratch;
+}
+
+const char *tl_sphere(void)
+{
+    return sphere;
+}
+
+const char *tl_in_scratch(const char *name)
+{
+    static char p[4][4096];
+    static int k;
+    k = (k + 1) % 4;
+    snprintf(p[k], sizeof p[k], "%s/%s", scratch, name);
+    return p[k];
+}
+
+tl_run_result tl_run_env(const char *path_env, const char *a0, ...)
+{
+    const char *argv[64];
+    char opath[128], epath[128];
+    tl_run_result r = {0, NULL, NULL, 0, 0};
+    va_list ap;
+    int n = 0, st;
+    pid_t pid;
+
+    argv[n++] = mcf_path;
+    va_start(ap, a0);
+    for (const char *a = a0; a && n < 63; a = va_arg(ap, const char *))
+        argv[n++] = a;
+    va_end(ap);
+    argv[n] = NULL;
+    snprintf(opath, sizeof opath, "%s/stdout", scratch);
+    snprintf(epath, sizeof epath, "%s/stderr", scratch);
+    pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int fo = open(opath, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+        int fe = open(epath, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+        if (fo < 0 || fe < 0 || chdir(scratch) != 0)
+            _exit(127);
+        dup2(fo, 1);
+        dup2(fe, 2);
+        if (path_env)
+            setenv("PATH", path_env, 1);
+        execv(mcf_path, (char *const *)(void *)argv);
+        _exit(127);
+    }
+    assert_int_equal(waitpid(pid, &st, 0), pid);
+    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    if (r.status == 127)
+        fail_msg("cannot run %s (set MCF_BUILD)", mcf_path);
+    assert_int_equal(tl_read_file(opath, &r.out, &r.outlen), 0);
+    assert_int_equal(tl_read_file(epath, &r.err, &r.errlen), 0);
+    return r;
+}
+
+void tl_run_free(tl_run_result *r)
+{
+    free(r->out);
+    free(r->err);
+    r->out = r->err = NULL;
+}
+
+void tl_expect_error(tl_run_result *r, int code, const char *want)
+{
+    const char *nl = strchr(r->err, '\n');
+    if (r->status != code || strncmp(r->err, "mcf: ", 5) != 0 || !nl
+        || nl[1] != '\0' || !strstr(r->err, want))
+        fail_msg("status %d, stderr \"%s\"; want status %d and one line with \"%s\"",
+                 r->status, r->err, code, want);
+    tl_run_free(r);
 }

@@ -39,4 +39,49 @@ mcf_mesh *tl_load(const char *name);
  * equal infinities). `what` names the quantity in the failure message. */
 void tl_assert_near(double a, double b, double tol, const char *what);
 
+/* ---- Running the mcf tool as a child process (test_cli, test_experiment).
+ * One scratch directory per test binary; the harness state is static in
+ * testlib.c, set by tl_mcf_setup and removed by tl_mcf_teardown. */
+
+/* What one run of mcf left: exit status, stdout and stderr. */
+typedef struct {
+    int status;               /* exit status, or -1 when killed */
+    char *out, *err;          /* captured, NUL-terminated */
+    size_t outlen, errlen;
+} tl_run_result;
+
+/* For a cmocka group setup: resolves $MCF_BUILD/mcf (default build/mcf)
+ * and $MCF_MESHES/sphere_cgal.obj to absolute paths (the children run
+ * inside the scratch directory) and creates that directory with mkdtemp
+ * from tmpl (at most 63 characters, ending in XXXXXX). On failure prints
+ * "who: no PATH (...)" to stderr and returns -1; else 0. */
+int tl_mcf_setup(const char *who, const char *tmpl);
+
+/* For a cmocka group teardown: removes the scratch directory and all in
+ * it. Returns 0, or -1 when that failed. */
+int tl_mcf_teardown(void);
+
+/* The scratch directory (absolute) and the absolute path of
+ * sphere_cgal.obj; valid after tl_mcf_setup. */
+const char *tl_scratch(void);
+const char *tl_sphere(void);
+
+/* scratch/name in one of four rotating static buffers: up to four results
+ * may be in use at once. */
+const char *tl_in_scratch(const char *name);
+
+/* Runs mcf with the NULL-terminated arguments (at most 62) inside the
+ * scratch directory, stdout and stderr captured into scratch/stdout and
+ * scratch/stderr; path_env, when not NULL, replaces PATH in the child.
+ * Fails the current test when mcf cannot be run. tl_run_free the result. */
+tl_run_result tl_run_env(const char *path_env, const char *a0, ...);
+#define tl_run(...) tl_run_env(NULL, __VA_ARGS__)
+
+/* Frees what a run captured. */
+void tl_run_free(tl_run_result *r);
+
+/* An error run: fails the current test unless the status is code and
+ * stderr is exactly one line "mcf: ..." containing want. Frees r. */
+void tl_expect_error(tl_run_result *r, int code, const char *want);
+
 #endif /* TESTLIB_H */
