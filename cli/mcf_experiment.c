@@ -1001,10 +1001,35 @@ static void summarize_sweep(const xrun *rs, int n, sweep_summary *s)
         s->slope = fit_loglog(x, y, k, &s->slope_points);
 }
 
+/* The mesh of a dt study: the study mesh (*target), a copy of it with the
+ * noise of o->rho and o->seed (*noisy), their comparison (*c0) and the
+ * noisy mesh's lambda_max (*lam). Returns 0, or 1 after xfail; on failure
+ * *target and *noisy may still hold meshes: the caller frees both. */
+static int noisy_study_mesh(const xopts *o, mcf_mesh **target, mcf_mesh **noisy, mcf_compare_result *c0, double *lam)
+{
+    mcf_error err = {MCF_OK, ""};
+    if (study_mesh(o, target) != 0)
+        return 1;
+    if (!(*noisy = mcf_mesh_dup(*target, &err)) || mcf_mesh_add_noise(*noisy, o->rho, o->seed, &err) != MCF_OK ||
+        mcf_compare(*noisy, *target, c0, &err) != MCF_OK ||
+        mcf_lambda_max(*noisy, MCF_LAPLACIAN_COTAN, MCF_MASS_BARYCENTRIC, lam, &err) != MCF_OK) {
+        xfail(1, "%s", err.msg);
+        return 1;
+    }
+    return 0;
+}
+
+/* The dt range [*lo, *hi] of o in time units: --dt-min and --dt-max given
+ * as multiples of 1/lambda_max are divided by lam. Not checked here. */
+static void dt_range(const xopts *o, double lam, double *lo, double *hi)
+{
+    *lo = o->dt_min_lam ? o->dt_min / lam : o->dt_min;
+    *hi = o->dt_max_lam ? o->dt_max / lam : o->dt_max;
+}
+
 static int study_dt_sweep(xopts *o)
 {
     mcf_mesh *target = NULL, *noisy = NULL;
-    mcf_error err = {MCF_OK, ""};
     xrun *runs = NULL;
     int *first = NULL, *count = NULL;
     double dts[MAX_DT], lam = 0;
@@ -1015,15 +1040,10 @@ static int study_dt_sweep(xopts *o)
     char path[4096];
 
     api_buf_init(&b, 64u << 20);
-    if (study_mesh(o, &target) != 0)
+    if (noisy_study_mesh(o, &target, &noisy, &c0, &lam) != 0)
         goto done;
-    if (!(noisy = mcf_mesh_dup(target, &err)) || mcf_mesh_add_noise(noisy, o->rho, o->seed, &err) != MCF_OK ||
-        mcf_compare(noisy, target, &c0, &err) != MCF_OK ||
-        mcf_lambda_max(noisy, MCF_LAPLACIAN_COTAN, MCF_MASS_BARYCENTRIC, &lam, &err) != MCF_OK) {
-        xfail(1, "%s", err.msg);
-        goto done;
-    }
-    double lo = o->dt_min_lam ? o->dt_min / lam : o->dt_min, hi = o->dt_max_lam ? o->dt_max / lam : o->dt_max;
+    double lo, hi;
+    dt_range(o, lam, &lo, &hi);
     if (!(hi >= lo)) {
         xfail(EXIT_USAGE, "dt range [%g, %g] is empty (lambda_max %g)", lo, hi, lam);
         rc = EXIT_USAGE;
@@ -1264,7 +1284,6 @@ static int stab_run(const xopts *o, const mcf_mesh *noisy, const mcf_mesh *targe
 static int study_stability(xopts *o)
 {
     mcf_mesh *target = NULL, *noisy = NULL;
-    mcf_error err = {MCF_OK, ""};
     stab_result *res = NULL;
     double lam = 0;
     int rc = 1;
@@ -1274,15 +1293,10 @@ static int study_stability(xopts *o)
     char path[4096];
 
     api_buf_init(&b, 16u << 20);
-    if (study_mesh(o, &target) != 0)
+    if (noisy_study_mesh(o, &target, &noisy, &c0, &lam) != 0)
         goto done;
-    if (!(noisy = mcf_mesh_dup(target, &err)) || mcf_mesh_add_noise(noisy, o->rho, o->seed, &err) != MCF_OK ||
-        mcf_compare(noisy, target, &c0, &err) != MCF_OK ||
-        mcf_lambda_max(noisy, MCF_LAPLACIAN_COTAN, MCF_MASS_BARYCENTRIC, &lam, &err) != MCF_OK) {
-        xfail(1, "%s", err.msg);
-        goto done;
-    }
-    double lo = o->dt_min_lam ? o->dt_min / lam : o->dt_min, hi = o->dt_max_lam ? o->dt_max / lam : o->dt_max;
+    double lo, hi;
+    dt_range(o, lam, &lo, &hi);
     if (!(hi > lo)) {
         xfail(EXIT_USAGE, "dt range [%g, %g] is empty (lambda_max %g)", lo, hi, lam);
         rc = EXIT_USAGE;
