@@ -1020,11 +1020,18 @@ static int noisy_study_mesh(const xopts *o, mcf_mesh **target, mcf_mesh **noisy,
 }
 
 /* The dt range [*lo, *hi] of o in time units: --dt-min and --dt-max given
- * as multiples of 1/lambda_max are divided by lam. Not checked here. */
-static void dt_range(const xopts *o, double lam, double *lo, double *hi)
+ * as multiples of 1/lambda_max are divided by lam. Returns 0, or 1 after
+ * xfail(EXIT_USAGE) when the range is empty: hi < lo, or hi == lo unless
+ * one_point (a single dt is then a valid range). */
+static int dt_range(const xopts *o, double lam, int one_point, double *lo, double *hi)
 {
     *lo = o->dt_min_lam ? o->dt_min / lam : o->dt_min;
     *hi = o->dt_max_lam ? o->dt_max / lam : o->dt_max;
+    if (one_point ? !(*hi >= *lo) : !(*hi > *lo)) {
+        xfail(EXIT_USAGE, "dt range [%g, %g] is empty (lambda_max %g)", *lo, *hi, lam);
+        return 1;
+    }
+    return 0;
 }
 
 static int study_dt_sweep(xopts *o)
@@ -1043,9 +1050,7 @@ static int study_dt_sweep(xopts *o)
     if (noisy_study_mesh(o, &target, &noisy, &c0, &lam) != 0)
         goto done;
     double lo, hi;
-    dt_range(o, lam, &lo, &hi);
-    if (!(hi >= lo)) {
-        xfail(EXIT_USAGE, "dt range [%g, %g] is empty (lambda_max %g)", lo, hi, lam);
+    if (dt_range(o, lam, 1, &lo, &hi) != 0) {
         rc = EXIT_USAGE;
         goto done;
     }
@@ -1296,9 +1301,7 @@ static int study_stability(xopts *o)
     if (noisy_study_mesh(o, &target, &noisy, &c0, &lam) != 0)
         goto done;
     double lo, hi;
-    dt_range(o, lam, &lo, &hi);
-    if (!(hi > lo)) {
-        xfail(EXIT_USAGE, "dt range [%g, %g] is empty (lambda_max %g)", lo, hi, lam);
+    if (dt_range(o, lam, 0, &lo, &hi) != 0) {
         rc = EXIT_USAGE;
         goto done;
     }
