@@ -185,7 +185,7 @@ static void ops_at(flow_ctx *c, const double *X, double *w, double *area, double
 {
     double t0 = mcf_now();
     mcf__cot_weights(X, c->F, c->nf, c->p->laplacian, c->delta, w, area);
-    mcf__mass(X, c->F, c->nf, c->nv, c->p->mass, area, w, mass);
+    mcf__mass(X, c->F, c->nf, c->nv, c->p->mass, area, mass);
     c->st->time_assemble += mcf_now() - t0;
 }
 

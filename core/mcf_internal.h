@@ -42,8 +42,7 @@ void mcf__cot_weights(const double *X, const int32_t *F, int nf,
 /* Lumped mass from per-face areas (barycentric: area/3 per corner) or
  * mixed Voronoi (Meyer 2003), accumulated into mass[nv] (zeroed first). */
 void mcf__mass(const double *X, const int32_t *F, int nf, int nv,
-               mcf_mass kind, const double *area, const double *w,
-               double *mass);
+               mcf_mass kind, const double *area, double *mass);
 
 /* The explicit step's one pass over the faces: weights and areas (as
  * mcf__cot_weights), barycentric mass (zeroed first) and Y = L X (zeroed

@@ -174,10 +174,8 @@ static void voronoi_corners(const double *p[3], double A, double out[3])
 }
 
 void mcf__mass(const double *X, const int32_t *F, int nf, int nv,
-               mcf_mass kind, const double *area, const double *w,
-               double *mass)
+               mcf_mass kind, const double *area, double *mass)
 {
-    (void)w;
     memset(mass, 0, sizeof(double) * (size_t)nv);
     for (int f = 0; f < nf; f++) {
         const int32_t *t = F + 3 * (size_t)f;
@@ -232,7 +230,7 @@ mcf_status mcf__laplacian_apply(const double *X, const int32_t *F, int nf,
     }
     mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * mcf__mean_edge(X, F, nf), w, area);
     if (mass)
-        mcf__mass(X, F, nf, nv, mk, area, w, mass);
+        mcf__mass(X, F, nf, nv, mk, area, mass);
     if (LX)
         mcf__apply_L(F, nf, nv, w, X, LX);
     free(w);
@@ -427,7 +425,7 @@ mcf_status mcf_operator_build(const mcf_mesh *m, mcf_laplacian lap,
         goto done;
     }
     mcf__cot_weights(m->X, m->F, m->nf, lap, MCF_MOLLIFY * mcf__mean_edge(m->X, m->F, m->nf), w, area);
-    mcf__mass(m->X, m->F, m->nf, n, mk, area, w, o.mass);
+    mcf__mass(m->X, m->F, m->nf, n, mk, area, o.mass);
     mcf__pattern_fill_L(&p, m->F, m->nf, w, val);
     /* upper CSC -> full CSR; visiting columns in order keeps rows sorted */
     for (int j = 0; j < n; j++)
@@ -507,7 +505,7 @@ mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mk,
         goto done;
     }
     mcf__cot_weights(m->X, m->F, nf, lap, MCF_MOLLIFY * mcf__mean_edge(m->X, m->F, nf), w, area);
-    mcf__mass(m->X, m->F, nf, n, mk, area, w, mass);
+    mcf__mass(m->X, m->F, nf, n, mk, area, mass);
     /* Power iteration on S = M^-1/2 L M^-1/2 (symmetric, same spectrum as
      * M^-1 L). Start from a deterministic pseudo-random vector: the top
      * eigenvector oscillates at the grid scale, which a smooth start would
