@@ -273,12 +273,7 @@ static void lossless(const char *file)
         assert_same_faces(m, NULL, d, file);
         if (preserve) {
             /* sequential: the very same arrays */
-            assert_int_equal(mcf_mesh_nvertices(d), mcf_mesh_nvertices(m));
-            assert_int_equal(mcf_mesh_nfaces(d), mcf_mesh_nfaces(m));
-            assert_memory_equal(mcf_mesh_positions(d), mcf_mesh_positions(m),
-                                sizeof(double) * 3 * (size_t)mcf_mesh_nvertices(m));
-            assert_memory_equal(mcf_mesh_faces(d), mcf_mesh_faces(m),
-                                sizeof(int32_t) * 3 * (size_t)mcf_mesh_nfaces(m));
+            tl_assert_same_mesh(m, d);
         }
         mcf_mesh_free(d);
         free(bytes);

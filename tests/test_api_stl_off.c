@@ -406,12 +406,7 @@ static void off_roundtrip(const char *file)
     if (api_mesh_decode(b.data, b.len, NULL, &d, &f, &err) != MCF_OK)
         fail_msg("%s: %s", file, err.msg);
     assert_int_equal(f, API_FMT_OFF);
-    assert_int_equal(mcf_mesh_nvertices(d), mcf_mesh_nvertices(m));
-    assert_int_equal(mcf_mesh_nfaces(d), mcf_mesh_nfaces(m));
-    assert_memory_equal(mcf_mesh_positions(d), mcf_mesh_positions(m),
-                        sizeof(double) * 3 * (size_t)mcf_mesh_nvertices(m));
-    assert_memory_equal(mcf_mesh_faces(d), mcf_mesh_faces(m),
-                        sizeof(int32_t) * 3 * (size_t)mcf_mesh_nfaces(m));
+    tl_assert_same_mesh(m, d);
     mcf_mesh_free(d);
     mcf_mesh_free(m);
     api_buf_free(&b);

@@ -204,3 +204,13 @@ void tl_expect_error(tl_run_result *r, int code, const char *want)
                  r->status, r->err, code, want);
     tl_run_free(r);
 }
+
+void tl_assert_same_mesh(const mcf_mesh *a, const mcf_mesh *b)
+{
+    assert_int_equal(mcf_mesh_nvertices(b), mcf_mesh_nvertices(a));
+    assert_int_equal(mcf_mesh_nfaces(b), mcf_mesh_nfaces(a));
+    assert_memory_equal(mcf_mesh_positions(b), mcf_mesh_positions(a),
+                        sizeof(double) * 3 * (size_t)mcf_mesh_nvertices(a));
+    assert_memory_equal(mcf_mesh_faces(b), mcf_mesh_faces(a),
+                        sizeof(int32_t) * 3 * (size_t)mcf_mesh_nfaces(a));
+}

@@ -84,4 +84,8 @@ void tl_run_free(tl_run_result *r);
  * stderr is exactly one line "mcf: ..." containing want. Frees r. */
 void tl_expect_error(tl_run_result *r, int code, const char *want);
 
+/* Fails the current test unless b has a's vertex and face counts and
+ * bit-identical positions and faces (a lossless round trip). */
+void tl_assert_same_mesh(const mcf_mesh *a, const mcf_mesh *b);
+
 #endif /* TESTLIB_H */
