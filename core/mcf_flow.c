@@ -151,6 +151,7 @@ typedef struct {
 
     /* operators at the configuration last passed to ops_at() */
     double *w, *area, *mass;
+    double area_sum;        /* total area at the last ops_LX() */
     /* a second set (ros2's Y, desbrun2's frozen copy, cmcf/linear L_0, M_0) */
     double *w2, *area2, *mass2;
 
@@ -205,19 +206,29 @@ static void velocity(flow_ctx *c, const double *w, const double *mass, const dou
     scale_velocity(c, mass, V);
 }
 
-/* Operators at X (into c->w, area, mass) and V = -M^-1 L X: with the
- * barycentric mass in one pass over the faces, which is most of an
- * explicit step's cost. */
-static void ops_velocity(flow_ctx *c, const double *X, double *V)
+/* Operators at X (c->mass, c->area_sum; c->w and c->area when keep_w or
+ * when the mass is not barycentric) and Y = L X: with the barycentric
+ * mass in one pass over the faces, which is most of an explicit step. */
+static void ops_LX(flow_ctx *c, const double *X, int keep_w, double *Y)
 {
     if (c->p->mass != MCF_MASS_BARYCENTRIC) {
         ops_at(c, X, c->w, c->area, c->mass);
-        velocity(c, c->w, c->mass, X, V);
+        mcf__apply_L(c->F, c->nf, c->nv, c->w, X, Y);
+        c->area_sum = 0.0;
+        for (int f = 0; f < c->nf; f++)
+            c->area_sum += c->area[f];
         return;
     }
     double t0 = mcf_now();
-    mcf__weights_mass_LX(X, c->F, c->nf, c->nv, c->p->laplacian, c->delta, c->w, c->area, c->mass, V);
+    c->area_sum = mcf__weights_mass_LX(X, c->F, c->nf, c->nv, c->p->laplacian, c->delta,
+                                       keep_w ? c->w : NULL, keep_w ? c->area : NULL, c->mass, Y);
     c->st->time_assemble += mcf_now() - t0;
+}
+
+/* ops_LX keeping the weights, and V = -M^-1 L X. */
+static void ops_velocity(flow_ctx *c, const double *X, double *V)
+{
+    ops_LX(c, X, 1, V);
     scale_velocity(c, c->mass, V);
 }
 
@@ -248,17 +259,14 @@ static mcf_status solver_init(flow_ctx *c, mcf_error *err)
         }
     cholmod_start(&c->cm);
     c->have_solver = 1;
-    /* Analysis is paid once per job and factorization every step, so
-     * order for the fewest flops: nested dissection (METIS) on meshes of
-     * any size. CHOLMOD's default keeps AMD when its fill is close, but
-     * on the 435k dragon AMD costs 2.2 GFlop per factorization against
-     * METIS's 1.6; on icosphere-7 AMD's fill is 6.2 against 2.3. Small
-     * meshes keep the default (AMD): METIS's start-up is not worth it. */
-    if (c->nv >= 10000) {
-        c->cm.nmethods = 1;
-        c->cm.method[0].ordering = CHOLMOD_METIS;
-        c->cm.postorder = 1;
-    }
+    /* Ordering: CHOLMOD's default, AMD, with METIS tried as well when
+     * AMD's fill is high (flops/lnz >= 500 and lnz/nnz(A) >= 5). Forcing
+     * METIS saves flops but not time on scanned meshes: on the 435k
+     * dragon METIS costs 2.6 s of analysis for 1.6 GFlop per
+     * factorization against AMD's 0.5 s and 2.2 GFlop, and both
+     * factorizations take 0.47-0.49 s (supernodes are small: overhead,
+     * not flops, dominates). On icosphere-7, whose AMD fill is poor, the
+     * default tries METIS (factorization 0.31 s against AMD's 0.55). */
     c->cm.error_handler = NULL;
     c->cm.print = 0;
     c->A = cholmod_allocate_sparse((size_t)c->nv, (size_t)c->nv, (size_t)c->pat.nnz,
@@ -631,15 +639,25 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
     mcf_status rc = MCF_OK;
     size_t n3 = 3 * (size_t)c->nv;
     double *X = c->X;
-    memcpy(c->Xold, X, n3 * sizeof(double));
+    if (c->p->scheme != MCF_EULER) /* euler copies in its vertex pass */
+        memcpy(c->Xold, X, n3 * sizeof(double));
     if (est)
         *est = 0.0;
     switch (c->p->scheme) {
-    case MCF_EULER:
-        ops_velocity(c, X, c->V);
-        for (size_t i = 0; i < n3; i++)
-            X[i] += h * c->V[i];
+    case MCF_EULER: {
+        /* one pass over the faces (L X, mass, area), one over the
+         * vertices (X -= h M^-1 L X, the copy to Xold): nothing else */
+        const double *Y = c->V;
+        ops_LX(c, X, 0, c->V);
+        for (int i = 0; i < c->nv; i++) {
+            double s = c->fixed[i] ? 0.0 : -h / c->mass[i];
+            for (int d = 0; d < 3; d++) {
+                c->Xold[3 * i + d] = X[3 * i + d];
+                X[3 * i + d] += s * Y[3 * i + d];
+            }
+        }
         break;
+    }
     case MCF_TAYLOR2:
     case MCF_NEUMANN2: {
         double c2 = c->p->scheme == MCF_TAYLOR2 ? 0.5 : 1.0;
@@ -1078,12 +1096,10 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
              * (a stable step may flip slivers, so folds prove nothing). */
             double grown = 0.0;
             if (finite && c.si->is_explicit && p->scheme != MCF_TAUBIN) {
-                /* the step's own pass left the face areas of the state
-                 * before it in c.area: summing them costs no geometry
-                 * pass; the last state is checked after the loop */
-                for (size_t f = 0; f < nf; f++)
-                    grown += c.area[f];
-                grown /= area0;
+                /* the step's own pass over the faces (ops_LX) left the
+                 * area of the state before it: no extra geometry pass;
+                 * the last state is checked after the loop */
+                grown = c.area_sum / area0;
             }
             if (!finite || grown > 1.5) {
                 rc = unstable(&c, err, !finite ? k + 1 : k, h, !finite ? 0.0 : grown);

@@ -45,11 +45,12 @@ void mcf__mass(const double *X, const int32_t *F, int nf, int nv,
                mcf_mass kind, const double *area, double *mass);
 
 /* The explicit step's one pass over the faces: weights and areas (as
- * mcf__cot_weights), barycentric mass (zeroed first) and Y = L X (zeroed
- * first). delta as in mcf__cot_weights. */
-void mcf__weights_mass_LX(const double *X, const int32_t *F, int nf, int nv,
-                          mcf_laplacian lap, double delta, double *w,
-                          double *area, double *mass, double *Y);
+ * mcf__cot_weights; either may be NULL when not wanted), barycentric mass
+ * (zeroed first) and Y = L X (zeroed first). delta as in mcf__cot_weights.
+ * Returns the total (mollified) area. */
+double mcf__weights_mass_LX(const double *X, const int32_t *F, int nf, int nv,
+                            mcf_laplacian lap, double delta, double *w,
+                            double *area, double *mass, double *Y);
 
 /* Y = L X for n x 3 row-major X, from per-face weights, without forming L.
  * Y is zeroed first. */
