@@ -126,7 +126,7 @@ test: deps
 	$(MAKE) all $(TEST_BIN)
 	$(MAKE) check-deps
 	@fail=0; for t in $(TEST_BIN); do \
-	  echo "== $$t"; OPENBLAS_NUM_THREADS=1 MCF_MESHES=$(MESHES) MCF_BUILD=$(B) $$t || fail=1; done; \
+	  echo "== $$t"; OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) MCF_BUILD=$(B) $$t || fail=1; done; \
 	exit $$fail
 
 asan:
@@ -253,7 +253,7 @@ fuzz: $(FUZZ_BIN)
 # The fixed-time sweep on spot runs at the best total time of desbrun2 in the 10-step sweep.
 EXP_DIR  ?= docs/experiments
 EXP_JOBS ?= 2
-EXP_MCF   = OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(B)/mcf experiment
+EXP_MCF   = OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 OMP_THREAD_LIMIT=1 $(B)/mcf experiment
 EXP_BIG_SCHEMES := euler,taylor2,desbrun,neumann2,desbrun2,ros2,richardson,huisken2,arc,cmcf,linear,taubin
 EXP_STUDIES := exp-sweep-armadillo exp-sweep-bunny exp-sweep-spot exp-sphere exp-order-sphere \
                exp-order-spot exp-stability-sphere exp-stability-spot exp-stability-big

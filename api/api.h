@@ -167,6 +167,16 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
 /* The parameters as a JSON object (for job records and metrics). */
 cJSON *api_params_to_json(const api_params *p);
 
+/* ---------------------------------------------------------------- process */
+
+/* For programs, first thing in main: caps the OpenMP threads CHOLMOD opens
+ * (OMP_THREAD_LIMIT=1) and, with blas_too, the BLAS and OpenMP thread
+ * counts (=1, for a daemon whose workers already use every core), each
+ * unless the environment sets it; then executes argv again once
+ * (/proc/self/exe) so that libraries reading them at load time see them.
+ * Returns (without effect) when that is impossible. */
+void api_bound_library_threads(char **argv, int blas_too);
+
 /* ------------------------------------------------------------------- JSON */
 
 /* Each returns a new cJSON object (caller cJSON_Delete's) or NULL on

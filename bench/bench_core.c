@@ -226,8 +226,9 @@ static void print_machine(void)
     printf("libs:    CHOLMOD %d.%d.%d, Eigen %s (peer), compiler %s\n",
            CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION, CHOLMOD_SUBSUB_VERSION,
            peer_eigen_version(), __VERSION__);
-    printf("threads: OPENBLAS_NUM_THREADS=%s OMP_NUM_THREADS=%s, repetitions %d (medians)\n",
-           ob ? ob : "(unset)", om ? om : "(unset)", g_reps);
+    const char *ol = getenv("OMP_THREAD_LIMIT");
+    printf("threads: OPENBLAS_NUM_THREADS=%s OMP_NUM_THREADS=%s OMP_THREAD_LIMIT=%s, repetitions %d "
+           "(medians)\n", ob ? ob : "(unset)", om ? om : "(unset)", ol ? ol : "(unset)", g_reps);
 }
 
 /* ------------------------------------------------------------ sanity */
@@ -565,10 +566,11 @@ int main(int argc, char **argv)
     const double dt_implicit = 1e-3; /* normalized (unit area); = mem_child's */
 
     if (threads_only) {
-        printf("\nmcfd desbrun with the libraries' default threads (OPENBLAS_NUM_THREADS=%s, "
-               "OMP_NUM_THREADS=%s), median of %d:\n",
+        printf("\nmcfd desbrun with the mcf tool's default threads (OPENBLAS_NUM_THREADS=%s, "
+               "OMP_NUM_THREADS=%s, OMP_THREAD_LIMIT=%s), median of %d:\n",
                getenv("OPENBLAS_NUM_THREADS") ? getenv("OPENBLAS_NUM_THREADS") : "unset",
-               getenv("OMP_NUM_THREADS") ? getenv("OMP_NUM_THREADS") : "unset", g_reps);
+               getenv("OMP_NUM_THREADS") ? getenv("OMP_NUM_THREADS") : "unset",
+               getenv("OMP_THREAD_LIMIT") ? getenv("OMP_THREAD_LIMIT") : "unset", g_reps);
         for (int i = 0; i < nm; i++) {
             double st[MAXREPS], c10[MAXREPS];
             for (int r = 0; r < g_reps; r++) {

@@ -844,6 +844,33 @@ static void ctx_free(flow_ctx *c)
 }
 
 /* Boundary vertices: endpoints of edges used by exactly one face. */
+/* 1 when some edge may lie on an odd number of faces (a boundary edge
+ * lies on one), 0 when none does, -1 when out of memory: every vertex
+ * XORs a bijective 64-bit mix of each neighbour once per face side they
+ * share, so even multiplicities cancel. A manifold boundary vertex keeps
+ * two distinct mixed values, whose XOR is never zero; only three or more
+ * odd edges at every odd vertex could cancel, by a 2^-64 chance. Lets
+ * explicit schemes skip the pattern on closed meshes. */
+static int odd_edges(const flow_ctx *c)
+{
+    uint64_t *acc = mcf__calloc((size_t)c->nv, sizeof *acc);
+    if (!acc)
+        return -1;
+    for (size_t k = 0; k < 3 * (size_t)c->nf; k += 3)
+        for (int e = 0; e < 3; e++) {
+            uint64_t a = (uint64_t)c->F[k + e], b = (uint64_t)c->F[k + (e + 1) % 3];
+            if (a != b) {
+                acc[a] ^= mcf__mix64(b);
+                acc[b] ^= mcf__mix64(a);
+            }
+        }
+    int odd = 0;
+    for (int i = 0; i < c->nv && !odd; i++)
+        odd = acc[i] != 0;
+    free(acc);
+    return odd;
+}
+
 static void mark_boundary(flow_ctx *c)
 {
     const mcf__pattern *p = &c->pat;
@@ -963,16 +990,40 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     /* Dirichlet vertices: user list, fixed boundary, unreferenced */
     for (int i = 0; i < p->nfixed; i++)
         c.fixed[p->fixed[i]] = 1;
-    if ((rc = mcf__pattern_build(c.F, c.nf, c.nv, !c.si->is_explicit, &c.pat, err)) != MCF_OK)
+    /* the pattern: the implicit schemes' matrix, and the edge
+     * multiplicities that find the boundary (an explicit scheme on a mesh
+     * without boundary needs neither) */
+    int fix_boundary = p->boundary == MCF_BOUNDARY_FIXED;
+    int odd = c.si->is_explicit && fix_boundary ? odd_edges(&c) : 0;
+    if (odd < 0) {
+        rc = mcf__fail(err, MCF_ENOMEM, "flow: out of memory (%d vertices)", c.nv);
         goto done;
-    c.bytes += sizeof(int) * (2 * (size_t)c.pat.nnz + 2 * nv + (c.pat.tri ? 3 * nf : 0));
-    if (p->boundary == MCF_BOUNDARY_FIXED)
-        mark_boundary(&c);
+    }
+    if (!c.si->is_explicit || odd) {
+        if ((rc = mcf__pattern_build(c.F, c.nf, c.nv, !c.si->is_explicit, &c.pat, err)) != MCF_OK)
+            goto done;
+        c.bytes += sizeof(int) * (2 * (size_t)c.pat.nnz + 2 * nv + (c.pat.tri ? 3 * nf : 0));
+        if (fix_boundary)
+            mark_boundary(&c);
+    }
     c.delta = MCF_MOLLIFY * mcf__mean_edge(c.X, c.F, c.nf);
-    ops_at(&c, c.X, c.w, c.area, c.mass);
-    for (size_t i = 0; i < nv; i++)
-        if (!(c.mass[i] > 0.0))
-            c.fixed[i] = 1;
+    /* vertices without mass stay put: the unreferenced ones (every
+     * referenced vertex has barycentric mass, the mollified areas being
+     * positive) and, with the Voronoi mass, any other */
+    if (p->mass == MCF_MASS_BARYCENTRIC) {
+        for (size_t i = 0; i < nv; i++)
+            c.V[i] = 0.0;
+        for (size_t k = 0; k < 3 * nf; k++)
+            c.V[c.F[k]] = 1.0;
+        for (size_t i = 0; i < nv; i++)
+            if (c.V[i] == 0.0)
+                c.fixed[i] = 1;
+    } else {
+        ops_at(&c, c.X, c.w, c.area, c.mass);
+        for (size_t i = 0; i < nv; i++)
+            if (!(c.mass[i] > 0.0))
+                c.fixed[i] = 1;
+    }
 
     if (!c.si->is_explicit && (rc = solver_init(&c, err)) != MCF_OK)
         goto done;
@@ -1147,11 +1198,6 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         }
     }
     rc = MCF_OK;
-    if (!p->adaptive && c.si->is_explicit && p->scheme != MCF_TAUBIN && k > 0) {
-        double grown = area_volume(c.X, c.F, c.nf, NULL, NULL) / area0;
-        if (grown > 1.5)
-            rc = unstable(&c, err, k, h, grown);
-    }
 done:
     /* m gets the last accepted state in input units: the state before a
      * failed step, or the untouched input when no step was accepted */
@@ -1169,6 +1215,11 @@ done:
                 memcpy(c.X + 3 * i, X_in + 3 * i, 3 * sizeof(double));
     }
     st->area1 = area_volume(m->X, m->F, m->nf, NULL, &st->volume1);
+    /* the growth check of a fixed explicit run's last state (the loop
+     * checked every state before it) */
+    if (rc == MCF_OK && !p->adaptive && c.si->is_explicit && p->scheme != MCF_TAUBIN &&
+        st->steps > 0 && st->area1 > 1.5 * area_in)
+        rc = unstable(&c, err, st->steps, st->dt_max, st->area1 / area_in);
     if (st->dt_min == INFINITY || st->steps == 0)
         st->dt_min = 0.0;
     st->peak_bytes = c.bytes + (c.have_solver ? c.cm.memory_usage : 0);

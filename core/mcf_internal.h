@@ -95,6 +95,14 @@ void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
 
 /* ---- small helpers */
 #define MCF_PI 3.14159265358979323846
+/* splitmix64's finalizer: a bijection of 64-bit words that mixes well. */
+static inline uint64_t mcf__mix64(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * UINT64_C(0xbf58476d1ce4e5b9);
+    z = (z ^ (z >> 27)) * UINT64_C(0x94d049bb133111eb);
+    return z ^ (z >> 31);
+}
+
 static inline double mcf__dot3(const double *a, const double *b)
 {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];

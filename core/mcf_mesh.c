@@ -114,13 +114,6 @@ typedef struct {
     size_t mask;
 } edge_map;
 
-static uint64_t mix64(uint64_t z)
-{
-    z = (z ^ (z >> 30)) * UINT64_C(0xbf58476d1ce4e5b9);
-    z = (z ^ (z >> 27)) * UINT64_C(0x94d049bb133111eb);
-    return z ^ (z >> 31);
-}
-
 /* Returns the midpoint vertex of edge (a, b), creating it (projected to
  * the sphere) when first seen. */
 static int32_t midpoint(edge_map *h, double *X, int32_t *nv, int32_t a,
@@ -128,7 +121,7 @@ static int32_t midpoint(edge_map *h, double *X, int32_t *nv, int32_t a,
 {
     int32_t lo = a < b ? a : b, hi = a < b ? b : a;
     uint64_t k = (((uint64_t)(uint32_t)lo << 32) | (uint32_t)hi) + 1;
-    size_t i = (size_t)mix64(k) & h->mask;
+    size_t i = (size_t)mcf__mix64(k) & h->mask;
     double *p, r;
     int32_t v;
 
@@ -601,7 +594,7 @@ typedef struct {
 static uint64_t rng_next(rng *g)
 {
     g->s += UINT64_C(0x9e3779b97f4a7c15);
-    return mix64(g->s);
+    return mcf__mix64(g->s);
 }
 
 /* Uniform in (-1, 1) with 53 random bits: (2k + 1 - 2^53) / 2^53. */

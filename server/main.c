@@ -37,32 +37,6 @@
 
 #include "srv.h"
 
-/* Sets the thread-count variables of BLAS and OpenMP to 1 unless the
- * operator chose otherwise, and re-executes once so that libraries which
- * read them at load time (OpenBLAS, libgomp) see them. OMP_THREAD_LIMIT
- * matters most: CHOLMOD's supernodal code asks for num_threads(4)
- * explicitly, which OMP_NUM_THREADS does not cap; without the limit every
- * worker grew 3 more threads (measured: 5 -> 11 threads with 2 workers). */
-static void bound_library_threads(char **argv)
-{
-    static const char *const vars[] = {"OPENBLAS_NUM_THREADS",
-                                       "OMP_NUM_THREADS", "OMP_THREAD_LIMIT",
-                                       "GOTO_NUM_THREADS", "MKL_NUM_THREADS"};
-    size_t i;
-    int changed = 0;
-
-    for (i = 0; i < sizeof vars / sizeof vars[0]; i++)
-        if (!getenv(vars[i])) {
-            setenv(vars[i], "1", 1);
-            changed = 1;
-        }
-    if (changed && !getenv("MCFD_REEXECED")) {
-        setenv("MCFD_REEXECED", "1", 1);
-        execv("/proc/self/exe", argv);
-        /* No /proc: carry on; the OpenMP part still took effect. */
-    }
-}
-
 static void mhd_log(void *cls, const char *fmt, va_list ap)
 #if defined(__GNUC__)
     __attribute__((format(printf, 2, 0)))
@@ -214,7 +188,7 @@ int main(int argc, char **argv)
     unsigned port;
     double t_sigterm;
 
-    bound_library_threads(argv);
+    api_bound_library_threads(argv, 1);
     rc = srv_config_load(&cfg, argc, argv, msg, sizeof msg);
     if (rc > 0)
         return 0;
