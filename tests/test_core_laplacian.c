@@ -2,14 +2,19 @@
  * test_core_laplacian.c - the operators against trivially correct
  * references: symmetry, zero row sums and PSD of L on noisy and degenerate
  * meshes, and one desbrun step of the CHOLMOD solver against a dense
- * Cholesky solve of the same system (SQLite's reference-model test).
+ * Cholesky solve of the same system (SQLite's reference-model test). The
+ * explicit step's fused face pass (mcf__weights_mass_LX, SIMD in blocks of
+ * four faces) against the separate passes mcf__cot_weights, mcf__mass and
+ * mcf__apply_L, and against itself one face at a time (the scalar path).
  */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "testlib.h"
+#include "mcf_internal.h"
 
 /* Dense n x n from the public CSR operator. */
 static double *dense_L(const mcf_operator *op)
@@ -285,6 +290,225 @@ static void test_lambda_max(void **state)
     mcf_mesh_free(m);
 }
 
+/* ------------------------------------------- the fused explicit pass */
+
+#define EPS DBL_EPSILON /* 2^-52, twice the unit roundoff */
+
+/* The fused pass of faces F[0 .. nf-1] against the separate passes, with
+ * and without stored weights, and (when one_by_one) against itself called
+ * on one face at a time, which takes the scalar path. */
+static void check_fused(const double *X, const int32_t *F, int nf, int nv,
+                        mcf_laplacian lap, int one_by_one)
+{
+    double delta = MCF_MOLLIFY * mcf__mean_edge(X, F, nf);
+    double *wr = malloc(3 * sizeof(double) * nf), *ar = malloc(sizeof(double) * nf);
+    double *mr = malloc(sizeof(double) * nv), *Yr = malloc(3 * sizeof(double) * nv);
+    double *w = malloc(3 * sizeof(double) * nf), *area = malloc(sizeof(double) * nf);
+    double *mass = malloc(sizeof(double) * nv), *Y = malloc(3 * sizeof(double) * nv);
+    double *m2 = malloc(sizeof(double) * nv), *Y2 = malloc(3 * sizeof(double) * nv);
+    double *tolm = calloc((size_t)nv, sizeof(double)), *tolY = calloc((size_t)nv, sizeof(double));
+    double *magY = calloc((size_t)nv, sizeof(double));
+    int *corners = calloc((size_t)nv, sizeof(int));
+    assert_true(wr && ar && mr && Yr && w && area && mass && Y && m2 && Y2 && tolm && tolY && magY && corners);
+
+    mcf__cot_weights(X, F, nf, lap, delta, wr, ar);
+    mcf__mass(X, F, nf, nv, MCF_MASS_BARYCENTRIC, ar, mr);
+    mcf__apply_L(F, nf, nv, wr, X, Yr);
+    double total = mcf__weights_mass_LX(X, F, nf, nv, lap, delta, w, area, mass, Y);
+    double total2 = mcf__weights_mass_LX(X, F, nf, nv, lap, delta, NULL, NULL, m2, Y2);
+    /* the same function doing the same operations, only not storing w and
+     * area: equal bit for bit */
+    assert_true(total == total2);
+    assert_memory_equal(mass, m2, sizeof(double) * nv);
+    assert_memory_equal(Y, Y2, 3 * sizeof(double) * nv);
+
+    double asum = 0.0, tola = 0.0;
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * f;
+        double e[3][3], len = 0.0, Q = 0.0, ne = 0.0, wsum = 0.0;
+        for (int k = 0; k < 3; k++) {
+            mcf__sub3(X + 3 * t[(k + 2) % 3], X + 3 * t[(k + 1) % 3], e[k]);
+            len = sqrt(mcf__dot3(e[k], e[k])) + delta; /* mollified length bound */
+            Q += len * len;
+            for (int d = 0; d < 3; d++)
+                ne = fmax(ne, fabs(e[k][d]));
+            wsum += fabs(wr[3 * f + k]);
+        }
+        /* Area: the same formula both ways; 4 eps Q covers another
+         * evaluation order of the cross product, whose terms are <= Q. */
+        double ta = 4 * EPS * Q;
+        tl_assert_near(area[f], ar[f], ta, "fused area");
+        /* Weights: <e_i, e_j> / (4A) (or Heron's lengths over 8A): errors of
+         * a few eps in the dot product (terms <= Q) and in A (relative to
+         * Q / 2A, the cross product's cancellation) give 16 eps (1 + |w|)
+         * Q / 2A. */
+        double tw = 0.0;
+        for (int k = 0; k < 3; k++) {
+            double tk = 16 * EPS * (1 + fabs(wr[3 * f + k])) * Q / (2 * ar[f]);
+            tl_assert_near(w[3 * f + k], wr[3 * f + k], tk, "fused weight");
+            tw = fmax(tw, tk);
+        }
+        asum += ar[f];
+        tola += ta;
+        for (int k = 0; k < 3; k++) {
+            int v = t[k];
+            corners[v]++;
+            tolm[v] += ta / 3 + EPS * ar[f];
+            /* Y_v sums +-w_k e_k over the faces at v: terms <= |w| |e| */
+            magY[v] += wsum * ne;
+            tolY[v] += 3 * tw * ne; /* from weights differing within tw */
+        }
+    }
+    /* the total area: a sum of nf areas in another grouping */
+    tl_assert_near(total, asum, tola + nf * EPS * asum, "fused total area");
+    for (int v = 0; v < nv; v++) {
+        /* mass: the same area/3 terms, summed in the same face order, and
+         * the summation error of corners[v] terms */
+        tl_assert_near(mass[v], mr[v], tolm[v] + corners[v] * EPS * mr[v], "fused mass");
+        /* L X: the combined per-vertex form (w2 (p0-p1) + w1 (p0-p2) ...)
+         * and apply_L's per-edge form add the same products in another
+         * order: at most 2 per corner, so (2 corners + 1) eps of the summed
+         * magnitudes */
+        for (int d = 0; d < 3; d++)
+            tl_assert_near(Y[3 * v + d], Yr[3 * v + d],
+                           (2 * corners[v] + 1) * EPS * magY[v] + tolY[v], "fused L X");
+    }
+
+#if !defined(__FP_FAST_FMA)
+    /* One face at a time runs the scalar path; summed per vertex in face
+     * order, it gives the blocked (SIMD) path's results exactly: both do
+     * the same IEEE operations in the same order, and without FMA in the
+     * target nothing can be contracted. Faces with a repeated vertex add
+     * twice to it within one call, which sums in another grouping. */
+    if (one_by_one) {
+        double *Ys = calloc(3 * (size_t)nv, sizeof(double)), *ms = calloc((size_t)nv, sizeof(double));
+        double *Yf = malloc(3 * sizeof(double) * nv), *mf = malloc(sizeof(double) * nv);
+        double ts = 0.0, wf[3], af;
+        assert_true(Ys && ms && Yf && mf);
+        for (int f = 0; f < nf; f++) {
+            const int32_t *t = F + 3 * f;
+            assert_true(t[0] != t[1] && t[1] != t[2] && t[2] != t[0]);
+            ts += mcf__weights_mass_LX(X, t, 1, nv, lap, delta, wf, &af, mf, Yf);
+            assert_memory_equal(wf, w + 3 * f, sizeof wf);
+            assert_true(af == area[f]);
+            for (int k = 0; k < 3; k++) {
+                for (int d = 0; d < 3; d++)
+                    Ys[3 * t[k] + d] += Yf[3 * t[k] + d];
+                ms[t[k]] += mf[t[k]];
+            }
+        }
+        assert_true(ts == total);
+        assert_memory_equal(ms, mass, sizeof(double) * nv);
+        assert_memory_equal(Ys, Y, 3 * sizeof(double) * nv);
+        free(Ys); free(ms); free(Yf); free(mf);
+    }
+#else
+    (void)one_by_one;
+#endif
+    free(wr); free(ar); free(mr); free(Yr); free(w); free(area); free(mass); free(Y);
+    free(m2); free(Y2); free(tolm); free(tolY); free(magY); free(corners);
+}
+
+/* All face counts mod 4 (the SIMD block) and mod 8: nf, nf-1, ..., nf-7. */
+static void check_fused_prefixes(const double *X, const int32_t *F, int nf, int nv,
+                                 int one_by_one)
+{
+    for (int cut = 0; cut < 8; cut++)
+        for (int lap = 0; lap < 2; lap++)
+            check_fused(X, F, nf - cut, nv, lap ? MCF_LAPLACIAN_UNIFORM : MCF_LAPLACIAN_COTAN,
+                        one_by_one);
+}
+
+static void test_fused_icosphere(void **state)
+{
+    (void)state;
+    mcf_mesh *m = test_mesh(3, 0); /* noisy, 1280 faces */
+    check_fused_prefixes(mcf_mesh_positions(m), mcf_mesh_faces(m), mcf_mesh_nfaces(m),
+                         mcf_mesh_nvertices(m), 1);
+    mcf_mesh_free(m);
+}
+
+/* A bumpy 8 x 8 grid whose face list mixes, inside blocks of four, ordinary
+ * triangles with mollified ones: zero-length edges (a copy of a vertex),
+ * collinear corners, needles (a corner 1e-9 off the opposite side) and,
+ * when repeated is set, a face with a repeated vertex. */
+static void test_fused_degenerate(void **state)
+{
+    (void)state;
+    enum { N = 8, NG = N * N };
+    double X[3 * (NG + 2)];
+    int32_t F[3 * (2 * (N - 1) * (N - 1) + 8)];
+    for (int i = 0; i < N; i++)
+        for (int j = 0; j < N; j++) {
+            double *p = X + 3 * (i * N + j);
+            p[0] = i; p[1] = j; p[2] = 0.3 * sin(1.3 * i) * cos(0.7 * j);
+        }
+    memcpy(X + 3 * NG, X + 3 * (2 * N + 3), 3 * sizeof(double)); /* copy of a vertex */
+    double *needle = X + 3 * (NG + 1); /* just off the side 0 - N */
+    for (int d = 0; d < 3; d++)
+        needle[d] = 0.5 * (X[d] + X[3 * N + d]);
+    needle[1] += 1e-9;
+    for (int repeated = 0; repeated < 2; repeated++) {
+        const int32_t special[][3] = {
+            {2 * N + 3, NG, 3 * N + 4},          /* zero-length edge */
+            {0, 1, 2},                           /* collinear */
+            {0, N, NG + 1},                      /* needle */
+            {NG, 2 * N + 3, 2 * N + 4},          /* zero-length edge */
+            {repeated ? 5 : 6, 5, 7},            /* repeated vertex, or 3 collinear */
+        };
+        int nf = 0, ns = 0, at[5];
+        for (int i = 0; i + 1 < N; i++)
+            for (int j = 0; j + 1 < N; j++) {
+                int a = i * N + j, b = a + N, c = a + N + 1, d = a + 1;
+                int32_t tri[2][3] = {{a, b, c}, {a, c, d}};
+                for (int h = 0; h < 2; h++) {
+                    memcpy(F + 3 * nf++, tri[h], sizeof tri[h]);
+                    /* special faces at 1, 6, 11, 16, 21: lanes 1, 2,
+                     * 3, 0, 1 of the blocks of four 0, 1, 2, 4, 5 */
+                    if (nf % 5 == 1 && ns < 5) {
+                        at[ns] = nf;
+                        memcpy(F + 3 * nf++, special[ns++], sizeof special[0]);
+                    }
+                }
+            }
+        assert_int_equal(ns, 5);
+        /* make sure the mixing is there: the special faces are mollified
+         * (area > twice the true one, which is 0 or ~1e-9) and the
+         * ordinary faces of their blocks are not (true area, up to
+         * rounding: 1e-12 relative) */
+        double delta = MCF_MOLLIFY * mcf__mean_edge(X, F, nf);
+        double *w = malloc(3 * sizeof(double) * nf), *area = malloc(sizeof(double) * nf);
+        assert_true(w && area);
+        mcf__cot_weights(X, F, nf, MCF_LAPLACIAN_COTAN, delta, w, area);
+        int mollified = 0, plain = 0;
+        for (int f = 0; f < nf; f++) {
+            const int32_t *t = F + 3 * f;
+            double e1[3], e2[3], n[3];
+            mcf__sub3(X + 3 * t[0], X + 3 * t[2], e1);
+            mcf__sub3(X + 3 * t[1], X + 3 * t[0], e2);
+            mcf__cross3(e2, e1, n);
+            double true_area = 0.5 * sqrt(mcf__dot3(n, n));
+            int special_here = 0, special_block = 0;
+            for (int k = 0; k < 5; k++) {
+                special_here |= f == at[k];
+                special_block |= f / 4 == at[k] / 4;
+            }
+            if (special_here) {
+                assert_true(area[f] > 2 * true_area);
+                mollified++;
+            } else if (special_block) {
+                tl_assert_near(area[f], true_area, 1e-12 * true_area, "ordinary face area");
+                plain++;
+            }
+        }
+        assert_int_equal(mollified, 5);
+        assert_int_equal(plain, 15); /* three per block */
+        free(w);
+        free(area);
+        check_fused_prefixes(X, F, nf, NG + 2, !repeated);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -295,6 +519,8 @@ int main(void)
         cmocka_unit_test(test_desbrun_dense_closed),
         cmocka_unit_test(test_desbrun_dense_open),
         cmocka_unit_test(test_lambda_max),
+        cmocka_unit_test(test_fused_icosphere),
+        cmocka_unit_test(test_fused_degenerate),
     };
     return cmocka_run_group_tests_name("core_laplacian", tests, NULL, NULL);
 }
