@@ -168,8 +168,8 @@ static inline double face_LX(const double *X, const int32_t *t, mcf_laplacian la
  * the pass is bound by instruction throughput, and in lanes the weights'
  * arithmetic takes a quarter of the instructions (the scatter, which
  * stays sequential because faces share vertices, adds x and y in one
- * 128-bit operation). Measured 17.9 -> 10.8 ns per face on icosphere-7,
- * 24 -> 12 on the dragon. Compiled for AVX2 whatever the build flags
+ * 128-bit operation). Measured 17.9 -> 10.7 ns per face on icosphere-7,
+ * 24.4 -> 12.5 on the dragon. Compiled for AVX2 whatever the build flags
  * (target attribute; GCC and clang) and called only on a CPU that has it,
  * so the binary runs on any x86-64. Each lane does tri_weights' fast-path
  * operations and face_LX's in the same order, without FMA (p0 - p1 = -e2
@@ -314,6 +314,8 @@ double mcf__weights_mass_LX(const double *X, const int32_t *F, int nf, int nv,
     memset(mass, 0, sizeof(double) * (size_t)nv);
     memset(Y, 0, sizeof(double) * 3 * (size_t)nv);
 #if defined(LX_AVX2)
+    /* blocks of four faces when the CPU has AVX2 (checked at run time);
+     * the remainder, or every face elsewhere, one at a time */
     if (__builtin_cpu_supports("avx2")) {
         f = nf / 4 * 4;
         total = face_blocks_avx2(X, F, nf / 4, lap, delta, w, area, mass, Y);
