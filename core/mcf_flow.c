@@ -843,7 +843,6 @@ static void ctx_free(flow_ctx *c)
     }
 }
 
-/* Boundary vertices: endpoints of edges used by exactly one face. */
 /* 1 when some edge may lie on an odd number of faces (a boundary edge
  * lies on one), 0 when none does, -1 when out of memory: every vertex
  * XORs a bijective 64-bit mix of each neighbour once per face side they
@@ -871,6 +870,7 @@ static int odd_edges(const flow_ctx *c)
     return odd;
 }
 
+/* Boundary vertices: endpoints of edges used by exactly one face. */
 static void mark_boundary(flow_ctx *c)
 {
     const mcf__pattern *p = &c->pat;
@@ -1011,13 +1011,10 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
      * referenced vertex has barycentric mass, the mollified areas being
      * positive) and, with the Voronoi mass, any other */
     if (p->mass == MCF_MASS_BARYCENTRIC) {
-        for (size_t i = 0; i < nv; i++)
-            c.V[i] = 0.0;
         for (size_t k = 0; k < 3 * nf; k++)
-            c.V[c.F[k]] = 1.0;
+            c.fixed[c.F[k]] |= 2; /* referenced */
         for (size_t i = 0; i < nv; i++)
-            if (c.V[i] == 0.0)
-                c.fixed[i] = 1;
+            c.fixed[i] = c.fixed[i] != 2; /* fixed already, or unreferenced */
     } else {
         ops_at(&c, c.X, c.w, c.area, c.mass);
         for (size_t i = 0; i < nv; i++)
