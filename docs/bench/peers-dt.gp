@@ -9,7 +9,7 @@ set format x '10^{%T}'
 set title "Per-step time at equal work (same mesh, dt, 10 iterations)\nCGAL smooth\\_shape (BiCGSTAB + ILUT) vs mcfd desbrun2 (CHOLMOD) vs Eigen SimplicialLDLT"
 set xrange [5e-07:0.002]
 sel(m, c) = (strcol(1) eq m ? column(c) : 1/0)
-set label "CGAL failed at call 5\n(armadillo)" at 0.001,1176.09 right offset -1,0 font ',11' noenhanced
+set label "CGAL failed at call 5\n(armadillo)" at 0.001,1150.71 right offset -1,0 font ',11' noenhanced
 do for [t in 'pngcairo svg'] {
   if (t eq 'svg') { set terminal svg size 1200,700 dynamic enhanced font 'DejaVu Sans,13' background rgb 'white'; set output 'peers-dt.svg' }
   else { set terminal pngcairo size 1200,700 enhanced font 'DejaVu Sans,13' background rgb 'white'; set output 'peers-dt.png' }
