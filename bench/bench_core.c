@@ -15,9 +15,10 @@
  *      eigen_peer step (triplets + SimplicialLDLT compute + solve), whole
  *      call. Icosphere level 7 and dragon_vrip.drc.
  *   2. One `euler` step, same columns (for an explicit scheme "stats"
- *      holds only the weights and mass: the L X product sits in no timer
- *      of mcf_flow_stats, so "marg" = (call(10) - call(1)) / 9, the
- *      marginal cost of a step, is shown as well).
+ *      holds only the fused face pass, weights + mass + L X, timed as
+ *      time_assemble; the vertex pass sits in no timer of mcf_flow_stats,
+ *      so "marg" = (call(10) - call(1)) / 9, the marginal cost of a step,
+ *      is shown as well).
  *   3. Equal accuracy: steps and wall time `desbrun` and `desbrun2` need
  *      to reach a relative error of 1e-4 (mcf_compare rms_rel) at a fixed
  *      final time against a `richardson` reference at a tiny step.
@@ -27,9 +28,10 @@
  * Sanity lines first: one step of mcfd and of the peer on sphere_cgal.obj
  * with normalize off must agree to 1e-10 relative (same linear system).
  *
- * Run with OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 (bench/Makefile does)
- * for a single-thread comparison; --threads-default prints only the mcfd
- * desbrun figures, for a run with the libraries' default thread counts.
+ * Run with OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 OMP_THREAD_LIMIT=1
+ * (bench/Makefile does) for a single-thread comparison; --threads-default
+ * prints only the mcfd desbrun figures, for a run with the mcf tool's
+ * thread defaults (OpenBLAS's own count, OMP_THREAD_LIMIT=1).
  */
 #include <errno.h>
 #include <math.h>
