@@ -1,6 +1,7 @@
 /*
- * bench_common.c - the machine header, medians, percentiles and file
- * reading shared by the bench/ programs (contracts in bench_common.h).
+ * bench_common.c - the machine header, medians, percentiles, file reading
+ * and mesh loading shared by the bench/ programs (contracts in
+ * bench_common.h).
  * Linux only: /proc/cpuinfo, /proc/meminfo, /proc/loadavg and
  * sched_getaffinity (hence -D_GNU_SOURCE in bench/Makefile).
  */
@@ -14,6 +15,8 @@
 #include <string.h>
 #include <sys/utsname.h>
 #include <time.h>
+
+#include "api.h"
 
 void bench_print_machine(void)
 {
@@ -113,4 +116,34 @@ fail:
     fclose(f);
     errno = saved;
     return -1;
+}
+
+mcf_mesh *bench_load_mesh(const char *prog, const char *dir, const char *name)
+{
+    char path[4096], *buf = NULL;
+    size_t len = 0;
+    mcf_error e = {0};
+    mcf_mesh *m = NULL;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    if (bench_read_file(path, &buf, &len) != 0) {
+        fprintf(stderr, "%s: cannot read %s: %s\n", prog, path, strerror(errno));
+        exit(1);
+    }
+    if (api_mesh_decode(buf, len, NULL, &m, NULL, &e) != MCF_OK) {
+        fprintf(stderr, "%s: %s: %s\n", prog, path, e.msg);
+        exit(1);
+    }
+    free(buf);
+    return m;
+}
+
+mcf_mesh *bench_dup_mesh(const char *prog, const mcf_mesh *m)
+{
+    mcf_error e = {0};
+    mcf_mesh *d = mcf_mesh_dup(m, &e);
+    if (!d) {
+        fprintf(stderr, "%s: mcf_mesh_dup: %s\n", prog, e.msg);
+        exit(1);
+    }
+    return d;
 }

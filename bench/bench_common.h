@@ -1,16 +1,15 @@
 /*
  * bench_common.h - helpers shared by the bench/ programs: the machine and
  * date header every benchmark prints first (so runs of different programs
- * can be told apart and compared), medians and percentiles, and reading a
- * whole file. Compiled with -D_GNU_SOURCE (sched_getaffinity).
- *
- * bench_core.c predates this file and keeps its own copies of median()
- * and print_machine() (same output format as bench_print_machine).
+ * can be told apart and compared), medians and percentiles, reading a
+ * whole file, loading a mesh. Compiled with -D_GNU_SOURCE (sched_getaffinity).
  */
 #ifndef BENCH_COMMON_H
 #define BENCH_COMMON_H
 
 #include <stddef.h>
+
+#include "mcf.h"
 
 /* Prints two lines to stdout:
  *   machine: <CPU model>, nproc <usable CPUs>, <RAM> GiB RAM, Linux <release>
@@ -30,5 +29,10 @@ double bench_percentile(double *v, int n, double p);
  * the data, not counted in *len). Returns 0, or -1 with errno set (*buf
  * untouched). The caller frees *buf. */
 int bench_read_file(const char *path, char **buf, size_t *len);
+
+/* Reads dir/name and decodes it (default limits); mcf_mesh_dup. Both exit
+ * with status 1 and a line "<prog>: ..." on stderr on failure. */
+mcf_mesh *bench_load_mesh(const char *prog, const char *dir, const char *name);
+mcf_mesh *bench_dup_mesh(const char *prog, const mcf_mesh *m);
 
 #endif

@@ -35,19 +35,17 @@
  */
 #include <errno.h>
 #include <math.h>
-#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
-#include <sys/utsname.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <cholmod.h>
 
 #include "api.h"
+#include "bench_common.h"
 #include "eigen_peer.h"
 #include "mcf.h"
 
@@ -57,59 +55,20 @@ static int g_reps = 5;
 
 /* ------------------------------------------------------------ helpers */
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-/* Median of n values (n >= 1); v is reordered. */
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 static void die(const char *what, const mcf_error *e)
 {
     fprintf(stderr, "bench_core: %s: %s\n", what, e ? e->msg : "failed");
     exit(1);
 }
 
-/* Reads dir/name and decodes it (default limits). Exits on failure. */
 static mcf_mesh *load_mesh(const char *dir, const char *name)
 {
-    char path[4096];
-    mcf_error e = {0};
-    mcf_mesh *m = NULL;
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        fprintf(stderr, "bench_core: cannot open %s: %s\n", path, strerror(errno));
-        exit(1);
-    }
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *buf = malloc(len > 0 ? (size_t)len : 1);
-    if (!buf || len <= 0 || fread(buf, 1, (size_t)len, f) != (size_t)len) {
-        fprintf(stderr, "bench_core: cannot read %s\n", path);
-        exit(1);
-    }
-    fclose(f);
-    if (api_mesh_decode(buf, (size_t)len, NULL, &m, NULL, &e) != MCF_OK)
-        die(path, &e);
-    free(buf);
-    return m;
+    return bench_load_mesh("bench_core", dir, name);
 }
 
 static mcf_mesh *dup_mesh(const mcf_mesh *m)
 {
-    mcf_error e = {0};
-    mcf_mesh *d = mcf_mesh_dup(m, &e);
-    if (!d)
-        die("mcf_mesh_dup", &e);
-    return d;
+    return bench_dup_mesh("bench_core", m);
 }
 
 /* ||A - B||_F / ||B - C||_F over 3*nv doubles (C may be NULL: / ||B||). */
@@ -187,44 +146,8 @@ static double *xalloc(size_t n)
 
 static void print_machine(void)
 {
-    char model[256] = "unknown", line[512];
-    long memkb = 0;
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    while (f && fgets(line, sizeof line, f))
-        if (strncmp(line, "model name", 10) == 0) {
-            char *c = strchr(line, ':');
-            if (c) {
-                snprintf(model, sizeof model, "%s", c + 2);
-                model[strcspn(model, "\n")] = 0;
-            }
-            break;
-        }
-    if (f)
-        fclose(f);
-    f = fopen("/proc/meminfo", "r");
-    while (f && fgets(line, sizeof line, f))
-        if (sscanf(line, "MemTotal: %ld kB", &memkb) == 1)
-            break;
-    if (f)
-        fclose(f);
-    char load[128] = "?";
-    f = fopen("/proc/loadavg", "r");
-    if (f && fgets(load, sizeof load, f))
-        load[strcspn(load, "\n")] = 0;
-    if (f)
-        fclose(f);
-    cpu_set_t set;
-    int nproc = sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : -1;
-    time_t now = time(NULL);
-    char date[64];
-    strftime(date, sizeof date, "%Y-%m-%d %H:%M:%S UTC", gmtime(&now));
-    struct utsname u;
-    if (uname(&u) != 0)
-        strcpy(u.release, "?");
     const char *ob = getenv("OPENBLAS_NUM_THREADS"), *om = getenv("OMP_NUM_THREADS");
-    printf("machine: %s, nproc %d, %.1f GiB RAM, Linux %s\n", model, nproc,
-           (double)memkb / (1024.0 * 1024.0), u.release);
-    printf("date:    %s, load average %s\n", date, load);
+    bench_print_machine();
     printf("libs:    CHOLMOD %d.%d.%d, Eigen %s (peer), compiler %s\n",
            CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION, CHOLMOD_SUBSUB_VERSION,
            peer_eigen_version(), __VERSION__);
@@ -318,15 +241,15 @@ static void time_step(const char *label, const mcf_mesh *m, mcf_scheme scheme,
     }
     row->mesh = label;
     row->nv = nv;
-    row->peer = median(pk, R);
-    row->peer_asm = median(pa, R);
-    row->peer_fac = median(pf, R);
-    row->peer_sol = median(ps, R);
-    row->stats = median(st, R);
-    row->call10 = median(c10, R);
-    row->first = median(c1, R);
-    row->marg = median(mg, R);
-    row->analyze = median(an, R);
+    row->peer = bench_median(pk, R);
+    row->peer_asm = bench_median(pa, R);
+    row->peer_fac = bench_median(pf, R);
+    row->peer_sol = bench_median(ps, R);
+    row->stats = bench_median(st, R);
+    row->call10 = bench_median(c10, R);
+    row->first = bench_median(c1, R);
+    row->marg = bench_median(mg, R);
+    row->analyze = bench_median(an, R);
     row->agree = rel_diff(mcf_mesh_positions(first_out), Xp, mcf_mesh_positions(m), nv);
     mcf_mesh_free(first_out);
     free(Xp);
@@ -419,7 +342,7 @@ static void accuracy(const char *label, const mcf_mesh *m, double T, int nref,
         double w[MAXREPS];
         for (int r = 0; r < g_reps; r++)
             w[r] = run_mcf(m, sch[k], T / row->n[k], row->n[k], 1, NULL, NULL);
-        row->wall[k] = median(w, g_reps);
+        row->wall[k] = bench_median(w, g_reps);
     }
     mcf_mesh_free(ref);
 }
@@ -582,7 +505,7 @@ int main(int argc, char **argv)
                 mcf_flow_stats_free(&s);
             }
             printf("  %-13s stats %8.1f ms/step, call/10 %8.1f ms/step\n", labels[i],
-                   1e3 * median(st, g_reps), 1e3 * median(c10, g_reps));
+                   1e3 * bench_median(st, g_reps), 1e3 * bench_median(c10, g_reps));
         }
         for (int i = 0; i < nm; i++)
             mcf_mesh_free(meshes[i]);

@@ -100,28 +100,12 @@ static double *xdoubles(int nv)
 
 static mcf_mesh *load_mesh(const char *dir, const char *name)
 {
-    char path[4096], *buf = NULL;
-    size_t len = 0;
-    mcf_error e = {0};
-    mcf_mesh *m = NULL;
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    if (bench_read_file(path, &buf, &len) != 0) {
-        fprintf(stderr, "bench_peers: cannot read %s: %s\n", path, strerror(errno));
-        exit(1);
-    }
-    if (api_mesh_decode(buf, len, NULL, &m, NULL, &e) != MCF_OK)
-        die(path, &e);
-    free(buf);
-    return m;
+    return bench_load_mesh("bench_peers", dir, name);
 }
 
 static mcf_mesh *dup_mesh(const mcf_mesh *m)
 {
-    mcf_error e = {0};
-    mcf_mesh *d = mcf_mesh_dup(m, &e);
-    if (!d)
-        die("mcf_mesh_dup", &e);
-    return d;
+    return bench_dup_mesh("bench_peers", m);
 }
 
 static mcf_mesh *new_mesh(int nv, const double *X, int nf, const int32_t *F)
@@ -220,11 +204,13 @@ typedef struct {
 } mcf_job;
 
 /* One mcf_flow_run on a copy of m (free boundary: the peers' boundary).
- * Returns the wall time of the call; *out (if non-NULL) gets the result. */
-static double run_mcf(const mcf_mesh *m, const mcf_job *j, mcf_mesh **out)
+ * Returns the wall time of the call; *out (if non-NULL) gets the result,
+ * *st (if non-NULL) the run's statistics (no step log is asked for, so
+ * there is nothing to release). */
+static double run_mcf(const mcf_mesh *m, const mcf_job *j, mcf_mesh **out, mcf_flow_stats *st)
 {
     mcf_flow_params p;
-    mcf_flow_stats st;
+    mcf_flow_stats local;
     mcf_error e = {0};
     mcf_mesh *d = dup_mesh(m);
     mcf_flow_params_init(&p);
@@ -237,38 +223,16 @@ static double run_mcf(const mcf_mesh *m, const mcf_job *j, mcf_mesh **out)
     if (j->steps > p.max_steps)
         p.max_steps = j->steps;
     double t0 = mcf_now();
-    mcf_status rc = mcf_flow_run(d, &p, &st, &e);
+    mcf_status rc = mcf_flow_run(d, &p, st ? st : &local, &e);
     double wall = mcf_now() - t0;
     if (rc != MCF_OK)
         die(mcf_scheme_get(j->scheme)->name, &e);
-    mcf_flow_stats_free(&st);
+    if (!st)
+        mcf_flow_stats_free(&local);
     if (out)
         *out = d;
     else
         mcf_mesh_free(d);
-    return wall;
-}
-
-/* run_mcf without a result, with the run's statistics in *st (no step log
- * is asked for, so there is nothing to release). */
-static double run_mcf_stats(const mcf_mesh *m, const mcf_job *j, mcf_flow_stats *st)
-{
-    mcf_flow_params p;
-    mcf_error e = {0};
-    mcf_mesh *d = dup_mesh(m);
-    mcf_flow_params_init(&p);
-    p.scheme = j->scheme;
-    p.dt = j->dt;
-    p.iterations = j->steps;
-    p.normalize = j->normalize;
-    p.rescale = j->rescale;
-    p.boundary = MCF_BOUNDARY_FREE;
-    double t0 = mcf_now();
-    mcf_status rc = mcf_flow_run(d, &p, st, &e);
-    double wall = mcf_now() - t0;
-    if (rc != MCF_OK)
-        die(mcf_scheme_get(j->scheme)->name, &e);
-    mcf_mesh_free(d);
     return wall;
 }
 
@@ -443,7 +407,7 @@ static int verify_closed(const char *name, const mcf_mesh *m, cgal_peer_times *c
     cgal_peer_get(p, Xc);
     /* mcfd desbrun (no rescale) + CGAL's rescale, K times */
     for (int k = 0; k < K; k++) {
-        run_mcf(cur, &one, &y);
+        run_mcf(cur, &one, &y, NULL);
         cgal_peer_rescale_like_smooth_shape(q, mcf_mesh_positions(cur), mcf_mesh_positions(y),
                                             mcf_mesh_positions_mut(y));
         mcf_mesh_free(cur);
@@ -456,7 +420,7 @@ static int verify_closed(const char *name, const mcf_mesh *m, cgal_peer_times *c
     /* the same against mcfd desbrun with its own volume rescale, centered */
     mcf_job jr = {MCF_DESBRUN, dt, K, 0, MCF_RESCALE_VOLUME};
     mcf_mesh *r = NULL;
-    run_mcf(m, &jr, &r);
+    run_mcf(m, &jr, &r, NULL);
     memcpy(Xw, mcf_mesh_positions(r), 3 * (size_t)nv * sizeof *Xw);
     center(Xw, nv);
     {
@@ -473,7 +437,7 @@ static int verify_closed(const char *name, const mcf_mesh *m, cgal_peer_times *c
     cgal_peer_get(p, Xc);
     center(Xc, nv);
     mcf_job jc = {MCF_CMCF, dt, K, 0, MCF_RESCALE_VOLUME};
-    run_mcf(m, &jc, &r);
+    run_mcf(m, &jc, &r, NULL);
     memcpy(Xw, mcf_mesh_positions(r), 3 * (size_t)nv * sizeof *Xw);
     center(Xw, nv);
     snprintf(what, sizeof what, "1 call x %d iterations vs mcfd cmcf %d steps rescale=volume, means removed", K, K);
@@ -537,14 +501,14 @@ static int verify_open(const char *name, const mcf_mesh *m, cgal_peer_times *ct)
     run_cgal_ok(p, X0, cgal_time_from_dt(dt), K, 1, ct);
     cgal_peer_get(p, Xc);
     mcf_job jd = {MCF_DESBRUN, dt, K, 0, MCF_RESCALE_NONE};
-    run_mcf(m, &jd, &r);
+    run_mcf(m, &jd, &r, NULL);
     snprintf(what, sizeof what, "%d calls x 1 iteration vs mcfd desbrun %d steps, boundary free", K, K);
     ok &= check(what, rel(Xc, mcf_mesh_positions(r), mcf_mesh_positions(r), X0, nv), MAP_TOL);
     mcf_mesh_free(r);
     run_cgal_ok(p, X0, cgal_time_from_dt(dt), 1, K, ct);
     cgal_peer_get(p, Xc);
     mcf_job jc = {MCF_CMCF, dt, K, 0, MCF_RESCALE_NONE};
-    run_mcf(m, &jc, &r);
+    run_mcf(m, &jc, &r, NULL);
     snprintf(what, sizeof what, "1 call x %d iterations vs mcfd cmcf %d steps, boundary free", K, K);
     ok &= check(what, rel(Xc, mcf_mesh_positions(r), mcf_mesh_positions(r), X0, nv), MAP_TOL);
     mcf_mesh_free(r);
@@ -558,7 +522,7 @@ static int verify_open(const char *name, const mcf_mesh *m, cgal_peer_times *ct)
     run_cgal_ok(p, X0, cgal_time_from_dt(dt), K, 1, ct);
     cgal_peer_get(p, Xc);
     jd.dt = dt;
-    run_mcf(m, &jd, &r);
+    run_mcf(m, &jd, &r, NULL);
     printf("  (note) at dt 1e-3 area: %d triangles are within mcfd's mollification margin after 2 "
            "steps;\n         after %d the results differ by %.1e of the displacement (CGAL: plain "
            "cotangents)\n", thin, K, rel(Xc, mcf_mesh_positions(r), mcf_mesh_positions(r), X0, nv));
@@ -680,7 +644,7 @@ static void equal_work(const bench_mesh *b, int di, work_row *row)
     cgal_peer_times_reset(&last);
     for (int r = 0; r < R; r++) {
         mcf_mesh_free(r2);
-        d2[r] = run_mcf(b->m, &j2, &r2) / N;
+        d2[r] = run_mcf(b->m, &j2, &r2, NULL) / N;
         cgal_peer_times ct;
         cgal_peer_times_reset(&ct);
         int failed = run_cgal(p, mcf_mesh_positions(b->m), cgal_time_from_dt(dt * b->area), csteps, 1, &ct);
@@ -693,7 +657,7 @@ static void equal_work(const bench_mesh *b, int di, work_row *row)
         last = ct;
         if (run_d1) {
             mcf_mesh_free(r1);
-            d1[r] = run_mcf(b->m, &j1, &r1) / N;
+            d1[r] = run_mcf(b->m, &j1, &r1, NULL) / N;
         }
         eg[r] = run_eigen(b->m, dt * b->area, esteps, Xe) / esteps;
     }
@@ -819,7 +783,7 @@ static double acc_mcf(const bench_mesh *b, const mcf_mesh *m, mcf_scheme s, doub
     mcf_mesh *x = NULL;
     for (int r = 0; r < reps; r++) {
         mcf_mesh_free(x);
-        w[r] = run_mcf(m, &j, &x);
+        w[r] = run_mcf(m, &j, &x, NULL);
     }
     *wall = bench_median(w, reps);
     double e = err_centered(x, ref);
@@ -847,12 +811,12 @@ static void accuracy(const bench_mesh *b, double pre, double T, double tol, int 
     row->nref = nref;
     /* a pre-smoothed start (MATH.md: noise causes order reduction) */
     mcf_job jp = job_for(b, MCF_DESBRUN2, pre / 20, 20);
-    run_mcf(b->m, &jp, &m);
+    run_mcf(b->m, &jp, &m, NULL);
     mcf_job jr = job_for(b, MCF_DESBRUN2, T / nref, nref);
-    run_mcf(m, &jr, &ref);
+    run_mcf(m, &jr, &ref, NULL);
     jr.dt *= 2;
     jr.steps /= 2;
-    run_mcf(m, &jr, &half);
+    run_mcf(m, &jr, &half, NULL);
     /* second order: X(n/2) - X(n) ~ (4 - 1) e(n) */
     row->ref_err = err_centered(half, ref) / 3.0;
     mcf_mesh_free(half);
@@ -980,11 +944,11 @@ static void scaling_level(int level, scale_row *row)
     mcf_job jd = {MCF_DESBRUN2, 1e-4, n, 1, MCF_RESCALE_NONE};
     double em[MAXREPS], ec[MAXREPS], ds[MAXREPS], dc[MAXREPS];
     for (int r = 0; r < R; r++) {
-        double c10 = run_mcf(m, &je, NULL), c1 = run_mcf(m, &je1, NULL);
+        double c10 = run_mcf(m, &je, NULL, NULL), c1 = run_mcf(m, &je1, NULL, NULL);
         em[r] = (c10 - c1) / 9.0;
         ec[r] = c10 / 10.0;
         mcf_flow_stats st;
-        dc[r] = run_mcf_stats(m, &jd, &st) / n;
+        dc[r] = run_mcf(m, &jd, NULL, &st) / n;
         ds[r] = (st.time_assemble + st.time_factorize + st.time_solve) / st.steps;
     }
     row->level = level;
