@@ -21,17 +21,7 @@
 static mcf_status dec_lim(const char *text, const api_limits *lim,
                           mcf_mesh **m, mcf_error *err)
 {
-    size_t n = strlen(text);
-    char *copy = malloc(n ? n : 1);
-    mcf_status rc;
-    assert_non_null(copy);
-    memcpy(copy, text, n);
-    *m = NULL;
-    err->status = MCF_OK;
-    err->msg[0] = '\0';
-    rc = api_obj_decode(copy, n, lim, m, err);
-    free(copy);
-    return rc;
+    return tl_decode_copy(api_obj_decode, text, strlen(text), lim, m, err);
 }
 
 static mcf_status dec(const char *text, mcf_mesh **m, mcf_error *err)

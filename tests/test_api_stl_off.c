@@ -19,42 +19,21 @@
 #include "testlib.h"
 #include "../api/api.h"
 
-typedef mcf_status (*decoder)(const void *, size_t, const api_limits *,
-                              mcf_mesh **, mcf_error *);
-
-/* Decodes from an exact-size heap copy (a read past the end shows under
- * AddressSanitizer). */
-static mcf_status dec_lim(decoder fn, const void *buf, size_t len,
-                          const api_limits *lim, mcf_mesh **m, mcf_error *err)
-{
-    void *copy = malloc(len ? len : 1);
-    mcf_status rc;
-    assert_non_null(copy);
-    if (len)
-        memcpy(copy, buf, len);
-    *m = NULL;
-    err->status = MCF_OK;
-    err->msg[0] = '\0';
-    rc = fn(copy, len, lim, m, err);
-    free(copy);
-    return rc;
-}
-
-static mcf_status dec(decoder fn, const void *buf, size_t len, mcf_mesh **m,
+static mcf_status dec(tl_decoder fn, const void *buf, size_t len, mcf_mesh **m,
                       mcf_error *err)
 {
     api_limits lim;
     api_limits_default(&lim);
-    return dec_lim(fn, buf, len, &lim, m, err);
+    return tl_decode_copy(fn, buf, len, &lim, m, err);
 }
 
-static void expect_fail_lim(decoder fn, const void *buf, size_t len,
+static void expect_fail_lim(tl_decoder fn, const void *buf, size_t len,
                             const api_limits *lim, mcf_status code,
                             const char *want)
 {
     mcf_mesh *m = NULL;
     mcf_error err;
-    mcf_status rc = dec_lim(fn, buf, len, lim, &m, &err);
+    mcf_status rc = tl_decode_copy(fn, buf, len, lim, &m, &err);
     if (rc != code || !strstr(err.msg, want))
         fail_msg("input \"%.40s\"... (%zu bytes): got %s \"%s\", want %s "
                  "containing \"%s\"",
@@ -64,7 +43,7 @@ static void expect_fail_lim(decoder fn, const void *buf, size_t len,
     assert_int_equal(err.status, code);
 }
 
-static void expect_fail(decoder fn, const char *text, mcf_status code,
+static void expect_fail(tl_decoder fn, const char *text, mcf_status code,
                         const char *want)
 {
     api_limits lim;
@@ -72,7 +51,7 @@ static void expect_fail(decoder fn, const char *text, mcf_status code,
     expect_fail_lim(fn, text, strlen(text), &lim, code, want);
 }
 
-static void expect_ok(decoder fn, const char *text, int nv, int nf,
+static void expect_ok(tl_decoder fn, const char *text, int nv, int nf,
                       const int32_t *faces)
 {
     mcf_mesh *m;

@@ -214,3 +214,19 @@ void tl_assert_same_mesh(const mcf_mesh *a, const mcf_mesh *b)
     assert_memory_equal(mcf_mesh_faces(b), mcf_mesh_faces(a),
                         sizeof(int32_t) * 3 * (size_t)mcf_mesh_nfaces(a));
 }
+
+mcf_status tl_decode_copy(tl_decoder fn, const void *buf, size_t len,
+                          const api_limits *lim, mcf_mesh **m, mcf_error *err)
+{
+    void *copy = malloc(len ? len : 1);
+    mcf_status rc;
+    assert_non_null(copy);
+    if (len)
+        memcpy(copy, buf, len);
+    *m = NULL;
+    err->status = MCF_OK;
+    err->msg[0] = '\0';
+    rc = fn(copy, len, lim, m, err);
+    free(copy);
+    return rc;
+}

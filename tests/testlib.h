@@ -20,6 +20,7 @@
 #include <cmocka.h>
 
 #include "../core/mcf.h"
+#include "../api/api.h"
 
 /* The folder holding the test meshes: $MCF_MESHES, else "../shared/meshes".
  * The string is owned by the environment (or static); do not free it. */
@@ -87,5 +88,15 @@ void tl_expect_error(tl_run_result *r, int code, const char *want);
 /* Fails the current test unless b has a's vertex and face counts and
  * bit-identical positions and faces (a lossless round trip). */
 void tl_assert_same_mesh(const mcf_mesh *a, const mcf_mesh *b);
+
+/* A codec's decode function (api_obj_decode, api_ply_decode, ...). */
+typedef mcf_status (*tl_decoder)(const void *buf, size_t len, const api_limits *lim,
+                                 mcf_mesh **out, mcf_error *err);
+
+/* Decodes len bytes of buf with fn from an exact-size heap copy (a read
+ * past the end shows under AddressSanitizer; no NUL follows the data),
+ * *m and err reset first. */
+mcf_status tl_decode_copy(tl_decoder fn, const void *buf, size_t len,
+                          const api_limits *lim, mcf_mesh **m, mcf_error *err);
 
 #endif /* TESTLIB_H */
