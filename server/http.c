@@ -244,6 +244,22 @@ static void sanitize_name(char *out, size_t size, const char *in)
         snprintf(out, size, "mesh");
 }
 
+/* The job's id and the link to its metrics, on every result. */
+static void add_job_headers(struct MHD_Response *resp, const srv_job *j)
+{
+    char buf[160];
+
+    MHD_add_response_header(resp, "X-Job-Id", j->id);
+    snprintf(buf, sizeof buf, "</v1/jobs/%s/metrics>; rel=\"metrics\"", j->id);
+    MHD_add_response_header(resp, MHD_HTTP_HEADER_LINK, buf);
+}
+
+/* The upload's name without extension ("mesh" when it had none). */
+static const char *result_stem(const srv_job *j)
+{
+    return j->rec.filename[0] ? j->rec.filename : "mesh";
+}
+
 static void add_result_headers(struct MHD_Response *resp, const srv_job *j,
                                const char *format)
 {
@@ -253,11 +269,9 @@ static void add_result_headers(struct MHD_Response *resp, const srv_job *j,
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
                             api_format_mime(f));
     snprintf(buf, sizeof buf, "attachment; filename=\"%s-smoothed%s\"",
-             j->rec.filename[0] ? j->rec.filename : "mesh", api_format_ext(f));
+             result_stem(j), api_format_ext(f));
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_DISPOSITION, buf);
-    MHD_add_response_header(resp, "X-Job-Id", j->id);
-    snprintf(buf, sizeof buf, "</v1/jobs/%s/metrics>; rel=\"metrics\"", j->id);
-    MHD_add_response_header(resp, MHD_HTTP_HEADER_LINK, buf);
+    add_job_headers(resp, j);
 }
 
 /* The encoded result: the copy the worker kept for us, else the spool. */
@@ -313,7 +327,7 @@ static enum MHD_Result send_mixed(srv_request *r, struct MHD_Connection *c,
                        "Content-Disposition: attachment; name=\"mesh\"; "
                        "filename=\"%s-smoothed%s\"\r\nContent-Length: %zu\r\n\r\n",
                    boundary, metrics ? metrics : "{}", boundary,
-                   api_format_mime(f), j->rec.filename, api_format_ext(f), len);
+                   api_format_mime(f), result_stem(j), api_format_ext(f), len);
     api_buf_append(&b, mesh, len);
     api_buf_printf(&b, "\r\n--%s--\r\n", boundary);
     free(metrics);
@@ -330,9 +344,7 @@ static enum MHD_Result send_mixed(srv_request *r, struct MHD_Connection *c,
     }
     snprintf(hdr, sizeof hdr, "multipart/mixed; boundary=%s", boundary);
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, hdr);
-    MHD_add_response_header(resp, "X-Job-Id", j->id);
-    snprintf(hdr, sizeof hdr, "</v1/jobs/%s/metrics>; rel=\"metrics\"", j->id);
-    MHD_add_response_header(resp, MHD_HTTP_HEADER_LINK, hdr);
+    add_job_headers(resp, j);
     return respond(r, c, 200, resp);
 }
 
