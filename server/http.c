@@ -142,48 +142,55 @@ static enum MHD_Result send_text(srv_request *r, struct MHD_Connection *c,
     return respond(r, c, status, resp);
 }
 
-/* Takes j. */
-static enum MHD_Result send_json(srv_request *r, struct MHD_Connection *c,
-                                 unsigned status, cJSON *j)
+/* A response holding o printed (takes o), with a trailing newline when
+ * asked (friendlier in a terminal) and the given Content-Type; NULL when
+ * out of memory. */
+static struct MHD_Response *json_response(cJSON *o, const char *ctype, int newline)
 {
-    char *s = j ? cJSON_Print(j) : NULL;
+    char *s = o ? cJSON_Print(o) : NULL;
+    struct MHD_Response *resp;
     size_t n;
 
-    cJSON_Delete(j);
+    cJSON_Delete(o);
     if (!s)
-        return MHD_NO;
+        return NULL;
     n = strlen(s);
-    /* a trailing newline: friendlier in a terminal */
-    {
+    if (newline) {
         char *t = realloc(s, n + 2);
         if (!t) {
             free(s);
-            return MHD_NO;
+            return NULL;
         }
         s = t;
         s[n++] = '\n';
         s[n] = '\0';
     }
-    return send_text(r, c, status, "application/json", s, n);
+    resp = MHD_create_response_from_buffer(n, s, MHD_RESPMEM_MUST_FREE);
+    if (!resp) {
+        free(s);
+        return NULL;
+    }
+    MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, ctype);
+    return resp;
+}
+
+/* Takes j. */
+static enum MHD_Result send_json(srv_request *r, struct MHD_Connection *c,
+                                 unsigned status, cJSON *j)
+{
+    struct MHD_Response *resp = json_response(j, "application/json", 1);
+
+    return resp ? respond(r, c, status, resp) : MHD_NO;
 }
 
 static enum MHD_Result send_problem(srv_request *r, struct MHD_Connection *c,
                                     const srv_problem *p, const char *job)
 {
-    cJSON *o = srv_problem_json(p, r->path, job);
-    char *s = o ? cJSON_Print(o) : NULL;
-    struct MHD_Response *resp;
+    struct MHD_Response *resp =
+        json_response(srv_problem_json(p, r->path, job), "application/problem+json", 0);
 
-    cJSON_Delete(o);
-    if (!s)
+    if (!resp)
         return MHD_NO;
-    resp = MHD_create_response_from_buffer(strlen(s), s, MHD_RESPMEM_MUST_FREE);
-    if (!resp) {
-        free(s);
-        return MHD_NO;
-    }
-    MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
-                            "application/problem+json");
     if (p->http == 503)
         MHD_add_response_header(resp, MHD_HTTP_HEADER_RETRY_AFTER,
                                 strcmp(p->code, "EDRAINING") == 0 ? "5" : "1");
@@ -597,22 +604,12 @@ static enum MHD_Result submit(srv_request *r, struct MHD_Connection *c)
     if (r->md == MODE_ASYNC) {
         struct MHD_Response *resp;
         cJSON *o;
-        char *s;
         srv_lock();
         o = srv_job_json(j);
         srv_unlock();
-        s = o ? cJSON_Print(o) : NULL;
-        cJSON_Delete(o);
-        if (!s)
+        if (!(resp = json_response(o, "application/json", 0)))
             return MHD_NO;
-        resp = MHD_create_response_from_buffer(strlen(s), s, MHD_RESPMEM_MUST_FREE);
-        if (!resp) {
-            free(s);
-            return MHD_NO;
-        }
         snprintf(loc, sizeof loc, "/v1/jobs/%s", j->id);
-        MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
-                                "application/json");
         MHD_add_response_header(resp, MHD_HTTP_HEADER_LOCATION, loc);
         MHD_add_response_header(resp, "X-Job-Id", j->id);
         return respond(r, c, 202, resp);
