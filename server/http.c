@@ -448,6 +448,17 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
     (void)transfer_encoding;
     if (r->has_perr)
         return MHD_NO;
+    if (!key || !*key) {
+        /* MHD passes a part without Content-Disposition name as NULL:
+         * no headers at all, only a filename or a Content-Type, or a mesh
+         * whose bytes contain the boundary line. */
+        srv_problem_set(&r->perr, 400, "EINVAL", "a multipart part has no "
+                        "name: every part needs 'Content-Disposition: "
+                        "form-data; name=\"...\"' (mesh, target, params, or a "
+                        "parameter); does the mesh contain the boundary line?");
+        r->has_perr = 1;
+        return MHD_NO;
+    }
     if (strcmp(key, "mesh") == 0) {
         dst = &r->mesh;
         r->has_mesh = 1;
