@@ -518,6 +518,17 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
         }
         return MHD_YES;
     }
+    /* A part's first call has off 0; so may a second call when the first
+     * carried no bytes. Bytes already held at off 0 are a second part:
+     * refused rather than concatenated (two meshes would become one
+     * non-manifold mesh). An empty first part is indistinguishable from
+     * the start of the next one and harmless. */
+    if (off == 0 && dst->len > 0) {
+        srv_problem_set(&r->perr, 400, "EINVAL", "multipart field '%s' is "
+                        "given twice: send exactly one '%s' part", key, key);
+        r->has_perr = 1;
+        return MHD_NO;
+    }
     if (dst->len + size > limit) {
         srv_problem_set(&r->perr, 413, "ELIMIT", "multipart field '%s' is "
                         "larger than %zu bytes (%s)", key, limit, limit_name);

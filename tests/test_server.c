@@ -1334,6 +1334,50 @@ static void test_multipart_unnamed(void **state)
     }
 }
 
+/* Issue 9 item 5: two mesh parts were concatenated into one mesh and
+ * smoothed with 200; now each duplicated field is a 400 naming it. */
+static void test_multipart_duplicates(void **state)
+{
+    static const char tri[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    static const char *const fields[] = {"mesh", "target", "params", NULL};
+    resp_t r;
+    api_buf b;
+    int i;
+
+    (void)state;
+    for (i = 0; fields[i]; i++) {
+        int k;
+        char what[64], needle[32];
+        api_buf_init(&b, 0);
+        if (strcmp(fields[i], "mesh") != 0)
+            api_buf_printf(&b, "--mcfdXB\r\nContent-Disposition: form-data; "
+                           "name=\"mesh\"; filename=\"m.obj\"\r\n\r\n%s\r\n", tri);
+        for (k = 0; k < 2; k++)
+            api_buf_printf(&b, "--mcfdXB\r\nContent-Disposition: form-data; "
+                           "name=\"%s\"%s\r\n\r\n%s\r\n", fields[i],
+                           strcmp(fields[i], "params") ? "; filename=\"m.obj\"" : "",
+                           strcmp(fields[i], "params") ? tri : "{}");
+        api_buf_printf(&b, "--mcfdXB--\r\n");
+        assert_non_null(b.data);
+        snprintf(what, sizeof what, "two '%s' parts", fields[i]);
+        snprintf(needle, sizeof needle, "'%s' is given twice", fields[i]);
+        post_form(&g_main, b.data, b.len, &r);
+        expect_problem(&g_main, &r, 400, "EINVAL", needle, what);
+        resp_free(&r);
+        api_buf_free(&b);
+    }
+    /* one of each still works */
+    api_buf_init(&b, 0);
+    api_buf_printf(&b, "--mcfdXB\r\nContent-Disposition: form-data; name=\"mesh\"; "
+                   "filename=\"m.obj\"\r\n\r\n%s\r\n--mcfdXB\r\nContent-Disposition: "
+                   "form-data; name=\"params\"\r\n\r\n{\"iterations\": 1}\r\n"
+                   "--mcfdXB--\r\n", tri);
+    post_form(&g_main, b.data, b.len, &r);
+    expect_status(&g_main, &r, 200, "one mesh and one params part");
+    resp_free(&r);
+    api_buf_free(&b);
+}
+
 /* --token-file: 401 without or with a wrong token; probes stay open. */
 static void test_auth(void **state)
 {
@@ -1935,6 +1979,7 @@ int main(void)
         cmocka_unit_test(test_cancel),
         cmocka_unit_test(test_errors),
         cmocka_unit_test(test_multipart_unnamed),
+        cmocka_unit_test(test_multipart_duplicates),
         cmocka_unit_test(test_auth),
         cmocka_unit_test(test_concurrent_clients),
         cmocka_unit_test(test_kill9_recovery),
