@@ -168,7 +168,9 @@ mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mass,
  * NULL when not wanted. N: 3*nv unit area-weighted normals. H: nv signed
  * mean curvature (H = <M^-1 L X, n>/2, since -M^-1 L X = -2 H n). K: nv Gaussian curvature by angle
  * deficit over the barycentric mass (0 on boundary vertices). A2: nv
- * |A|^2 = 4H^2 - 2K. Unreferenced vertices get 0. */
+ * |A|^2 = k1^2 + k2^2 = 4H^2 - 2K, never negative: where the discrete
+ * estimates give H^2 < K (cone-like vertices) the discriminant H^2 - K is
+ * clamped at 0, so A2 = 2H^2 there. Unreferenced vertices get 0. */
 mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
                          double *A2, mcf_error *err);
 

@@ -1,8 +1,9 @@
 /*
  * mcf_curvature.c - discrete curvatures per vertex and their summary:
  * area-weighted vertex normals, mean curvature from the cotan Laplacian,
- * Gaussian curvature by angle deficit, |A|^2 = 4H^2 - 2K, and the discrete
- * Gauss-Bonnet check.
+ * Gaussian curvature by angle deficit, |A|^2 = 4H^2 - 2K (its discriminant
+ * H^2 - K clamped at 0, so never negative), and the discrete Gauss-Bonnet
+ * check.
  *
  * Signs and conventions (../shared/MATH.md): L is the PSD cotan stiffness,
  * M the barycentric lumped mass, Delta X = -M^-1 L X = -2 H n, so
@@ -225,8 +226,22 @@ mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
             H[i] = h;
         if (K)
             K[i] = kg;
-        if (A2)
-            A2[i] = 4 * h * h - 2 * kg;
+        if (A2) {
+            /* |A|^2 = k1^2 + k2^2 with k1,2 = H +- sqrt(H^2 - K), i.e.
+             * 4H^2 - 2K. The smooth surface has H^2 - K = (k1 - k2)^2 / 4
+             * >= 0, but H and K here are two independent estimates (the
+             * cotan vector projected on the area-weighted normal over the
+             * lumped mass; the angle deficit over the barycentric mass)
+             * and nothing makes them agree: at cone-like vertices (every
+             * vertex of a regular tetrahedron, two corners of a
+             * triangulated cube, spikes and slivers of scans) K exceeds
+             * 2H^2 and 4H^2 - 2K is negative. As Meyer et al. (2003) do
+             * for the principal curvatures, the discriminant H^2 - K is
+             * clamped at 0 (then k1 = k2 = H): 4H^2 - 2K where H^2 >= K,
+             * 2H^2 elsewhere; continuous in H and K, never negative. */
+            double d = h * h - kg;
+            A2[i] = d >= 0 ? 4 * h * h - 2 * kg : 2 * h * h;
+        }
     }
 done:
     free(n);
