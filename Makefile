@@ -137,6 +137,14 @@ bench: deps
 	$(MAKE) all
 	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
 
+# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
+#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
+quality: deps
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
+
+.PHONY: quality
+
 # ---- the daemon: `make run`, and the OpenAPI document embedded in mcfd
 # api/openapi.yaml becomes a byte array (od + sed: coreutils only, so the
 # Docker build stage needs nothing extra) linked into build/mcfd, which
