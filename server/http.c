@@ -639,6 +639,9 @@ static enum MHD_Result submit(srv_request *r, struct MHD_Connection *c)
     r->sync_owner = r->md != MODE_NDJSON;
     r->w.conn = c;
     r->w.want_events = 0;
+    /* Nobody else knows this job's ID yet: when this client goes, so does
+     * the reason to run it. */
+    r->w.cancel_on_hangup = 1;
     r->waiting = 1;
     srv_lock();
     srv_waiter_link(j, &r->w);

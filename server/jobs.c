@@ -21,6 +21,7 @@
  */
 #include <errno.h>
 #include <fcntl.h>
+#include <sys/socket.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -539,6 +540,27 @@ static int write_state(srv_job *j, int durable)
 
 /* ----------------------------------------------------------------- submit */
 
+/* A fixed-step run over a time has a step count the parameters alone
+ * decide (the rule of api_params_finish): over max_iterations it is the
+ * request's fault, a 400 at once rather than a failed job. */
+static int steps_over_budget(const api_params *p, const api_limits *lim,
+                             srv_problem *prob)
+{
+    double steps;
+
+    if (!(p->flow.time > 0) || p->flow.adaptive || p->flow.dt_auto ||
+        !(p->flow.dt > 0))
+        return 0;
+    steps = ceil(p->flow.time / p->flow.dt - 1e-9);
+    if (steps <= lim->max_iterations)
+        return 0;
+    srv_problem_set(prob, 400, "ELIMIT", "parameters 'time' and 'dt': %g / %g "
+                    "= %.3g steps exceed max_iterations (%d); raise 'dt', "
+                    "lower 'time', or use 'adaptive'", p->flow.time, p->flow.dt,
+                    steps, lim->max_iterations);
+    return 1;
+}
+
 int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
                     char *target, size_t target_len, int keep_result,
                     srv_job **out, srv_problem *prob)
@@ -556,6 +578,10 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
     /* Parameters first: a misspelled key is a 400 even when busy. */
     if ((rc = srv_record_params(rec, &cfg->lim, &prm, &err)) != MCF_OK) {
         srv_problem_from(prob, rc, SRV_STAGE_PARAMS, NULL, &err);
+        goto fail;
+    }
+    if (steps_over_budget(&prm, &cfg->lim, prob)) {
+        api_params_free(&prm);
         goto fail;
     }
     j = job_new();
@@ -656,8 +682,7 @@ fail:
 
 typedef struct {
     srv_job *job;
-    mcf_mesh *mesh;
-    double scale, cen[3];     /* the core's normalization (see on_progress) */
+    const mcf_flow_stats *st; /* the run's statistics: its step log */
     double deadline;          /* mcf_now() seconds, 0: none */
 } run_ctx;
 
@@ -669,35 +694,15 @@ static void fmt_num(char *buf, size_t size, double v)
         snprintf(buf, size, "null");
 }
 
-/* The volume enclosed in input units. mcf_flow_run works on the mesh's
- * positions in place, centred on the area centroid and scaled to unit area
- * when normalize is on (core/mcf_flow.c); scale and cen undo that. The
- * integration test checks the last step's volume against stats.volume1. */
-static double input_units_volume(const run_ctx *c)
-{
-    const double *X = mcf_mesh_positions(c->mesh);
-    const int32_t *F = mcf_mesh_faces(c->mesh);
-    int f, nf = mcf_mesh_nfaces(c->mesh);
-    double v = 0;
-
-    for (f = 0; f < nf; f++) {
-        double p[3][3];
-        int k, d;
-        for (k = 0; k < 3; k++)
-            for (d = 0; d < 3; d++)
-                p[k][d] = X[3 * (size_t)F[3 * f + k] + d] / c->scale + c->cen[d];
-        v += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
-             p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
-             p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
-    }
-    return v / 6.0;
-}
-
 static int on_progress(void *ctx, int step, double t, double dt, double energy)
 {
     run_ctx *c = ctx;
     srv_job *j = c->job;
-    double vol = input_units_volume(c);
+    /* The step's volume is the step log's (the core fills entry step - 1
+     * before this call): the quantity of flow.volume0/volume1 and
+     * mcf_mesh_volume, in input units (api_metrics.c). */
+    double vol = c->st->log && step >= 1 && step <= c->st->nlog
+                     ? c->st->log[step - 1].volume : NAN;
     char line[320], a[32], b[32], e[32], v[32];
     int stop, n;
 
@@ -726,53 +731,35 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     return stop;
 }
 
-/* The metrics document of a finished job. */
-static char *metrics_doc(const srv_job *j, const char *params_json,
-                         const mcf_mesh_info *in, const mcf_mesh *m,
-                         const mcf_flow_stats *st, const mcf_compare_result *cmp,
+/* The metrics document of a finished job: api's, the CLI's too
+ * (api_metrics_json), with the daemon's own facts. */
+static char *metrics_doc(const srv_job *j, const api_metrics *mt,
+                         const api_params *prm, const mcf_flow_stats *st,
+                         api_format in_fmt, api_format out_fmt, double qerr,
                          size_t in_bytes, size_t out_bytes, double t_queue,
                          double t_decode, double t_flow, double t_encode)
 {
-    cJSON *o = cJSON_CreateObject(), *x, *tm;
+    api_metrics_run run;
+    cJSON *o;
     char *s;
 
-    if (!o)
-        return NULL;
-    cJSON_AddStringToObject(o, "job", j->id);
-    cJSON_AddStringToObject(o, "scheme", j->scheme);
-    if (params_json && (x = cJSON_Parse(params_json)))
-        cJSON_AddItemToObject(o, "params", x);
-    x = cJSON_AddObjectToObject(o, "input");
-    if (x) {
-        cJSON_AddStringToObject(x, "format", j->in_format);
-        cJSON_AddNumberToObject(x, "bytes", (double)in_bytes);
-        cJSON *mi = api_json_mesh_info(in, NULL);
-        if (mi)
-            cJSON_AddItemToObject(x, "mesh", mi);
-    }
-    x = cJSON_AddObjectToObject(o, "output");
-    if (x) {
-        cJSON_AddStringToObject(x, "format", j->out_format);
-        cJSON_AddNumberToObject(x, "bytes", (double)out_bytes);
-        cJSON_AddNumberToObject(x, "vertices", mcf_mesh_nvertices(m));
-        cJSON_AddNumberToObject(x, "faces", mcf_mesh_nfaces(m));
-        add_num(x, "area", mcf_mesh_area(m));
-        add_num(x, "volume", mcf_mesh_volume(m));
-    }
-    x = api_json_flow_stats(st);
-    if (x)
-        cJSON_AddItemToObject(o, "flow", x);
-    if (cmp && (x = api_json_compare(cmp)))
-        cJSON_AddItemToObject(o, "compare", x);
-    tm = cJSON_AddObjectToObject(o, "timing");
-    if (tm) {
-        add_num(tm, "queue_s", t_queue);
-        add_num(tm, "decode_s", t_decode);
-        add_num(tm, "flow_s", t_flow);
-        add_num(tm, "encode_s", t_encode);
-        add_num(tm, "total_s", t_decode + t_flow + t_encode);
-    }
-    s = cJSON_PrintUnformatted(o);
+    api_metrics_run_init(&run);
+    run.job = j->id;
+    run.input_name = j->rec.filename[0] ? j->rec.filename : NULL;
+    run.output_name = j->result_name;
+    run.target_name = j->rec.has_target ? "target" : NULL;
+    run.input_format = in_fmt;
+    run.output_format = out_fmt;
+    run.input_bytes = in_bytes;
+    run.output_bytes = out_bytes;
+    run.quantization_max_error = qerr;
+    run.queue_s = t_queue;
+    run.decode_s = t_decode;
+    run.flow_s = t_flow;
+    run.encode_s = t_encode;
+    run.total_s = t_decode + t_flow + t_encode;
+    o = api_metrics_json(mt, prm, st, &run);
+    s = o ? cJSON_PrintUnformatted(o) : NULL;
     cJSON_Delete(o);
     return s;
 }
@@ -803,34 +790,6 @@ static void log_job(const srv_job *j, int nv, int nf, double run_s)
                      ? SRV_LOG_ERROR : SRV_LOG_INFO, o);
 }
 
-static void area_centroid(const mcf_mesh *m, double *area, double cen[3])
-{
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    int f, d, nf = mcf_mesh_nfaces(m);
-    double A = 0, c[3] = {0, 0, 0};
-
-    for (f = 0; f < nf; f++) {
-        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
-                     *e = X + 3 * (size_t)F[3 * f + 2];
-        double u[3], v[3], n[3], af;
-        for (d = 0; d < 3; d++) {
-            u[d] = b[d] - a[d];
-            v[d] = e[d] - a[d];
-        }
-        n[0] = u[1] * v[2] - u[2] * v[1];
-        n[1] = u[2] * v[0] - u[0] * v[2];
-        n[2] = u[0] * v[1] - u[1] * v[0];
-        af = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        A += af;
-        for (d = 0; d < 3; d++)
-            c[d] += af * (a[d] + b[d] + e[d]) / 3.0;
-    }
-    for (d = 0; d < 3; d++)
-        cen[d] = A > 0 ? c[d] / A : 0;
-    *area = A;
-}
-
 static void run_job(srv_job *j)
 {
     const srv_config *cfg = S.cfg;
@@ -841,18 +800,19 @@ static void run_job(srv_job *j)
     mcf_error err = {MCF_OK, ""};
     mcf_status rc;
     mcf_flow_stats st;
-    mcf_compare_result cmp;
-    mcf_mesh_info info;
+    api_metrics mt;
     api_buf out;
     api_encode_opts eo;
     srv_problem prob;
     int failed = 1, requeue = 0, nv = 0, nf = 0;
-    char *input = NULL, *target = NULL, *metrics = NULL, *params_json = NULL;
+    char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
-    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue;
+    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
+           qerr = NAN;
     run_ctx ctx;
 
     memset(&st, 0, sizeof st);
+    api_metrics_init(&mt);
     memset(&prob, 0, sizeof prob);
     api_buf_init(&out, RESULT_MAX);
     srv_lock();
@@ -862,7 +822,6 @@ static void run_job(srv_job *j)
     target_len = j->target_len;
     j->input = j->target = NULL;
     t_queue = j->started - j->created;
-    params_json = j->params_json ? strdup(j->params_json) : NULL;
     srv_unlock();
     write_state(j, 0);
 
@@ -893,7 +852,11 @@ static void run_job(srv_job *j)
     nv = mcf_mesh_nvertices(m);
     nf = mcf_mesh_nfaces(m);
     if ((rc = api_params_finish(&prm, nv, &cfg->lim, &err)) != MCF_OK) {
-        srv_problem_from(&prob, rc, SRV_STAGE_PARAMS, NULL, &err);
+        /* A budget exceeded here (steps x vertices) depends on the mesh:
+         * 422. What the parameters alone exceed was refused at submit. */
+        srv_problem_from(&prob, rc, rc == MCF_ELIMIT ? SRV_STAGE_RUN
+                                                     : SRV_STAGE_PARAMS,
+                         NULL, &err);
         goto done;
     }
     if (target) {
@@ -915,25 +878,22 @@ static void run_job(srv_job *j)
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "noise", &err);
         goto done;
     }
-    if ((rc = mcf_mesh_inspect(m, &info, &err)) != MCF_OK) {
-        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "inspect", &err);
+    if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "metrics", &err);
         goto done;
     }
     t_decode = mcf_now() - t0;
 
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
-    ctx.mesh = m;
-    ctx.scale = 1;
-    if (prm.flow.normalize) {
-        double area;
-        area_centroid(m, &area, ctx.cen);
-        ctx.scale = area > 0 ? 1 / sqrt(area) : 1;
-    }
+    ctx.st = &st;
     ctx.deadline = cfg->job_timeout > 0 ? mcf_now() + cfg->job_timeout : 0;
     prm.flow.progress = on_progress;
     prm.flow.progress_ctx = &ctx;
     prm.flow.cancel = &j->cancel;
+    /* The step log: the metrics' flow.log (as the CLI's) and the volume of
+     * each streamed step. */
+    prm.flow.log_steps = 1;
 
     srv_lock();
     j->ready = 1;
@@ -955,9 +915,13 @@ static void run_job(srv_job *j)
                             "while job %s ran; it runs again after the restart",
                             j->id);
         } else if (reason == SRV_CANCEL_TIMEOUT) {
-            srv_problem_set(&prob, 413, "ELIMIT", "the job ran longer than "
+            srv_problem_set(&prob, 422, "ELIMIT", "the job ran longer than "
                             "--job-timeout %g s and was stopped at step %d",
                             cfg->job_timeout, st.steps);
+        } else if (reason == SRV_CANCEL_CLIENT) {
+            srv_problem_set(&prob, 409, "ECANCELED", "canceled after step %d: "
+                            "the client closed its connection before the "
+                            "answer", st.steps);
         } else {
             srv_problem_set(&prob, 409, "ECANCELED", "canceled by DELETE "
                             "/v1/jobs/%s after step %d", j->id, st.steps);
@@ -970,16 +934,18 @@ static void run_job(srv_job *j)
     }
 
     t_encode = mcf_now();
+    if (prm.encode.format == API_FMT_UNKNOWN)
+        prm.encode.format = fmt; /* the metrics' params say what was written */
     eo = prm.encode;
-    if (eo.format == API_FMT_UNKNOWN)
-        eo.format = fmt;
-    if ((rc = api_mesh_encode(m, &eo, &out, &err)) != MCF_OK) {
+    rc = eo.format == API_FMT_DRACO ? api_draco_encode(m, &eo, &out, &qerr, &err)
+                                    : api_mesh_encode(m, &eo, &out, &err);
+    if (rc != MCF_OK) {
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "encode", &err);
         goto done;
     }
     t_encode = mcf_now() - t_encode;
-    if (tgt && (rc = mcf_compare(m, tgt, &cmp, &err)) != MCF_OK) {
-        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "compare", &err);
+    if ((rc = api_metrics_after(&mt, m, tgt, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "metrics", &err);
         goto done;
     }
     srv_lock();
@@ -988,9 +954,8 @@ static void run_job(srv_job *j)
     snprintf(j->result_name, sizeof j->result_name, "result%s",
              api_format_ext(eo.format));
     srv_unlock();
-    metrics = metrics_doc(j, params_json, &info, m, &st, tgt ? &cmp : NULL,
-                          input_len, out.len, t_queue, t_decode, t_flow,
-                          t_encode);
+    metrics = metrics_doc(j, &mt, &prm, &st, fmt, eo.format, qerr, input_len,
+                          out.len, t_queue, t_decode, t_flow, t_encode);
     if (!metrics) {
         srv_problem_set(&prob, 503, "ENOMEM", "out of memory writing metrics");
         goto done;
@@ -1013,7 +978,8 @@ done:
         j->ready = 0;
         j->err = prob;
     } else if (failed) {
-        j->status = j->cancel_reason == SRV_CANCEL_USER && j->cancel
+        j->status = j->cancel && (j->cancel_reason == SRV_CANCEL_USER ||
+                                  j->cancel_reason == SRV_CANCEL_CLIENT)
                         ? SRV_JOB_CANCELED : SRV_JOB_FAILED;
         j->err = prob;
         j->finished = srv_wall();
@@ -1051,7 +1017,6 @@ done:
     free(input);
     free(target);
     free(metrics);
-    free(params_json);
 }
 
 static void *worker_main(void *arg)
@@ -1081,6 +1046,102 @@ static void *worker_main(void *arg)
     return NULL;
 }
 
+/* ------------------------------------------------------------------ cancel */
+
+/* Lock held: a queued job becomes canceled and its waiters hear. The
+ * caller then unlocks and calls finish_canceled_queued (which drops the
+ * reference taken here). */
+static void cancel_queued_locked(srv_job *j, int reason)
+{
+    /* Not in the queue only when a shutdown just put it back. */
+    (void)queue_remove(j);
+    j->status = SRV_JOB_CANCELED;
+    j->cancel = 1;
+    j->cancel_reason = reason;
+    j->finished = srv_wall();
+    if (reason == SRV_CANCEL_CLIENT)
+        srv_problem_set(&j->err, 409, "ECANCELED", "canceled while queued: "
+                        "the client closed its connection before the answer");
+    else
+        srv_problem_set(&j->err, 409, "ECANCELED", "canceled by DELETE "
+                        "/v1/jobs/%s while queued", j->id);
+    j->refs++;
+    srv_job_wake(j, 0);
+}
+
+static void finish_canceled_queued(srv_job *j)
+{
+    write_state(j, 1);
+    srv_metrics_job(j->scheme, "canceled", 0);
+    log_job(j, 0, 0, 0);
+    srv_job_unref(j);
+}
+
+/* Whether the peer of a suspended connection has closed it: a peek finds
+ * the end of the stream or an error. A pipelined request (bytes waiting)
+ * is a client still there. A client that half-closes its side after the
+ * request counts as gone, as in most servers. */
+static int client_gone(struct MHD_Connection *c)
+{
+    const union MHD_ConnectionInfo *ci =
+        MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+    char b;
+    ssize_t n;
+
+    if (!ci || ci->connect_fd == MHD_INVALID_SOCKET)
+        return 0;
+    n = recv(ci->connect_fd, &b, 1, MSG_PEEK | MSG_DONTWAIT);
+    return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK &&
+                      errno != EINTR);
+}
+
+int srv_jobs_check_clients(void)
+{
+    srv_job **gone = NULL;
+    int n = 0, cap = 0, b, i, canceled = 0;
+    srv_job *j;
+
+    srv_lock();
+    for (b = 0; b < NBUCKETS; b++)
+        for (j = S.buckets[b]; j; j = j->hnext) {
+            srv_waiter *w;
+            int hung = 0;
+            if (j->cancel || (j->status != SRV_JOB_QUEUED &&
+                              j->status != SRV_JOB_RUNNING))
+                continue;
+            /* A suspended waiter's connection is left alone by MHD until
+             * it is resumed, which needs this lock: its socket is valid. */
+            for (w = j->waiters; w && !hung; w = w->next)
+                hung = w->cancel_on_hangup && w->suspended &&
+                       client_gone(w->conn);
+            if (!hung)
+                continue;
+            canceled++;
+            if (j->status == SRV_JOB_RUNNING) {
+                j->cancel = 1;
+                j->cancel_reason = SRV_CANCEL_CLIENT;
+                continue;
+            }
+            if (n == cap) {
+                int ncap = cap ? 2 * cap : 16;
+                void *p = realloc(gone, (size_t)ncap * sizeof *gone);
+                if (!p) {
+                    canceled--;
+                    continue; /* the next check tries again */
+                }
+                gone = p;
+                cap = ncap;
+            }
+            cancel_queued_locked(j, SRV_CANCEL_CLIENT);
+            gone[n++] = j;
+        }
+    srv_unlock();
+    for (i = 0; i < n; i++)
+        finish_canceled_queued(gone[i]);
+    free(gone);
+    return canceled;
+}
+
 /* ------------------------------------------------------------------ delete */
 
 int srv_jobs_delete(const char *id, srv_job_status *before)
@@ -1095,27 +1156,20 @@ int srv_jobs_delete(const char *id, srv_job_status *before)
     }
     *before = j->status;
     if (j->status == SRV_JOB_QUEUED) {
-        /* Not in the queue only when a shutdown just put it back. */
-        (void)queue_remove(j);
-        j->status = SRV_JOB_CANCELED;
-        j->cancel = 1;
-        j->cancel_reason = SRV_CANCEL_USER;
-        j->finished = srv_wall();
-        srv_problem_set(&j->err, 409, "ECANCELED", "canceled by DELETE "
-                        "/v1/jobs/%s while queued", j->id);
-        j->refs++;
-        srv_job_wake(j, 0);
+        cancel_queued_locked(j, SRV_CANCEL_USER);
         srv_unlock();
-        write_state(j, 1);
-        srv_metrics_job(j->scheme, "canceled", 0);
-        log_job(j, 0, 0, 0);
-        srv_job_unref(j);
+        finish_canceled_queued(j);
         return 0;
     }
     if (j->status == SRV_JOB_RUNNING) {
         j->cancel = 1;
         j->cancel_reason = SRV_CANCEL_USER;
+        j->refs++;
         srv_unlock();
+        /* On disk too: should the process end before the current step
+         * does, the restart finds the job canceled, not queued. */
+        write_state(j, 1);
+        srv_job_unref(j);
         return 1;
     }
     /* Finished: forget it. */

@@ -10,7 +10,8 @@
  *     argv). An operator who sets them keeps their values.
  *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
  *     and taken synchronously by this thread with sigtimedwait, which also
- *     gives the once-a-second tick for the TTL sweep. SIGPIPE is ignored.
+ *     gives the tick for the TTL sweep and the check for clients that
+ *     hung up (srv_jobs_check_clients). SIGPIPE is ignored.
  *  3. The spool is recovered and the workers start before the socket
  *     opens, so the first request already sees recovered jobs.
  *  4. One line "mcfd listening on http://ADDRESS:PORT" goes to stdout
@@ -242,12 +243,17 @@ int main(int argc, char **argv)
     fflush(stdout);
     log_start(&cfg, url);
 
-    for (;;) {
-        struct timespec tick = {1, 0};
+    for (unsigned ticks = 0;; ticks++) {
+        /* Four ticks a second: clients that hung up free their worker
+         * within about 0.25 s plus the current step; the TTL sweep runs
+         * once a second. */
+        struct timespec tick = {0, 250 * 1000 * 1000};
         sig = sigtimedwait(&sigs, NULL, &tick);
         if (sig == SIGTERM || sig == SIGINT)
             break;
-        srv_jobs_sweep();
+        srv_jobs_check_clients();
+        if (ticks % 4 == 0)
+            srv_jobs_sweep();
     }
 
     t_sigterm = mcf_now();

@@ -35,7 +35,12 @@ unsigned srv_http_status(mcf_status s, srv_stage stage)
     case MCF_EFORMAT:
         return 415;
     case MCF_ELIMIT:
-        return 413;
+        /* Only input over a size limit is "Content Too Large". A step or
+         * work budget is the parameters' fault when they alone exceed it
+         * (400), else a property of this mesh with these parameters (422);
+         * the detail names the parameter or limit. */
+        return stage == SRV_STAGE_DECODE ? 413
+               : stage == SRV_STAGE_PARAMS ? 400 : 422;
     case MCF_EMESH:
     case MCF_ENOTPOSDEF:
     case MCF_ENUMERIC:

@@ -175,7 +175,7 @@ const char *srv_job_status_name(srv_job_status s);
 
 /* Why a running job was asked to stop. */
 enum { SRV_CANCEL_NONE = 0, SRV_CANCEL_USER, SRV_CANCEL_SHUTDOWN,
-       SRV_CANCEL_TIMEOUT };
+       SRV_CANCEL_TIMEOUT, SRV_CANCEL_CLIENT };
 
 /* A suspended connection waiting on a job. Lives inside the request or
  * stream object that owns it; linked into job->waiters under the lock. */
@@ -183,6 +183,8 @@ typedef struct srv_waiter {
     struct MHD_Connection *conn;
     int suspended;             /* MHD_suspend_connection called, not resumed */
     int want_events;           /* woken on every progress step */
+    int cancel_on_hangup;      /* the job's only client: its hang-up
+                                  cancels the job (srv_jobs_check_clients) */
     int linked;
     struct srv_waiter *prev, *next;
 } srv_waiter;
@@ -265,6 +267,10 @@ void srv_jobs_resume_all(void);
 void srv_jobs_stop(void);
 /* Forgets jobs finished more than the TTL ago (memory and spool). */
 void srv_jobs_sweep(void);
+/* Cancels the queued or running jobs whose waiting client (a suspended
+ * connection with cancel_on_hangup) has closed its connection. Called a
+ * few times a second from the main thread. Returns how many. */
+int srv_jobs_check_clients(void);
 
 void srv_lock(void);
 void srv_unlock(void);
