@@ -190,6 +190,69 @@ cJSON *api_json_schemes(void);
 /* Serializes (pretty when pretty != 0) into a malloc'ed string. */
 char *api_json_print(const cJSON *j, int pretty);
 
+/* ---------------------------------------------------------------- metrics */
+
+/* The one metrics document of a smoothing run (api_metrics.c), which every
+ * door returns: `mcf smooth --metrics FILE` and the daemon's job metrics.
+ * The same request gives the same keys; a value a door does not have is
+ * null, never a missing key. Members: command ("smooth"), job (the
+ * daemon's id, else null), scheme, params, warnings (strings, [] when
+ * none), input {path, format, bytes, noise, info, mesh (= info)}, output
+ * {path, format, bytes, vertices, faces, area, volume,
+ * quantization_max_error, info}, curvature {before, after}, flow (the
+ * flow statistics, with the step log when one was kept), compare (only
+ * with a target: the after members, target, before, after), timings and
+ * timing (the same: queue_s, read_s, decode_s, noise_s, flow_s, encode_s,
+ * write_s, total_s), peak_rss_bytes. api/openapi.yaml (Metrics) describes
+ * each member. Every volume in it is mcf_mesh_volume's: signed, about the
+ * input's coordinate origin, in input units. */
+
+/* What a run measured, in two calls around the flow (which changes the
+ * mesh in place). Plain data; api_metrics_init zeroes it. */
+typedef struct {
+    int measured;                  /* bit 0: before the flow, bit 1: after */
+    int target;                    /* same bits: compared with a target */
+    mcf_mesh_info info[2];         /* [0] before the flow, [1] after */
+    mcf_curvature_summary curv[2];
+    mcf_compare_result cmp[2];
+} api_metrics;
+
+void api_metrics_init(api_metrics *mt);
+/* Measures m as the flow receives it (after any injected noise), resp. as
+ * the flow returned it: validation, curvature summary and, when target is
+ * not NULL, the comparison with it (same connectivity, else EINVAL).
+ * ENOMEM; mt is unchanged on failure. O(nf log nf), no flow step's cost. */
+mcf_status api_metrics_before(api_metrics *mt, const mcf_mesh *m,
+                              const mcf_mesh *target, mcf_error *err);
+mcf_status api_metrics_after(api_metrics *mt, const mcf_mesh *m,
+                             const mcf_mesh *target, mcf_error *err);
+
+/* What only the door knows. Names and the job id are borrowed (NULL:
+ * null); a time or size the door does not have is NaN (null). */
+typedef struct {
+    const char *job;               /* the daemon's job id; NULL in the CLI */
+    const char *input_name;        /* CLI: IN; daemon: the upload's file name */
+    const char *output_name;       /* CLI: OUT; daemon: the result's name */
+    const char *target_name;       /* with a target */
+    api_format input_format, output_format;
+    size_t input_bytes, output_bytes;
+    double quantization_max_error; /* Draco output (api_draco_encode) */
+    double queue_s, read_s, decode_s, noise_s, flow_s, encode_s, write_s,
+           total_s;                /* seconds per phase */
+    double peak_rss_bytes;         /* the process's peak resident size */
+} api_metrics_run;
+
+/* Unknown formats, zero bytes, NULL names, NaN numbers. */
+void api_metrics_run_init(api_metrics_run *r);
+
+/* The document (a new cJSON object, cJSON_Delete it) from the measures
+ * (both api_metrics_before and api_metrics_after done), the parameters as
+ * run (after api_params_finish), the flow statistics and the door's
+ * facts. NULL when an argument is missing, a measure was not taken, or
+ * an allocation failed (never a half-built document). */
+cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
+                        const mcf_flow_stats *st, const api_metrics_run *r);
+
 #ifdef __cplusplus
 }
 #endif

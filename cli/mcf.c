@@ -483,8 +483,7 @@ static int cmd_smooth(int argc, char **argv)
     mcf_mesh *m = NULL, *target = NULL;
     mcf_error err = {MCF_OK, ""};
     mcf_flow_stats st;
-    mcf_curvature_summary cs0, cs1;
-    mcf_compare_result cmp0, cmp1;
+    api_metrics mt;
     progress_state ps;
     api_format in_fmt = API_FMT_UNKNOWN;
     size_t in_bytes = 0, out_bytes = 0;
@@ -492,11 +491,11 @@ static int cmd_smooth(int argc, char **argv)
            encode_s = 0, write_s = 0, qerr = 0, t0;
     int rc, show = 0;
     mcf_status fs;
-    cJSON *before = NULL;
     struct sigaction sa;
 
     memset(&o, 0, sizeof o);
     memset(&st, 0, sizeof st);
+    api_metrics_init(&mt);
     memset(&ps, 0, sizeof ps);
     api_limits_default(&lim);
     api_params_init(&p);
@@ -551,13 +550,11 @@ static int cmd_smooth(int argc, char **argv)
         }
         noise_s = now() - t0;
     }
-    if (o.metrics) {
-        if (mcf_curvature_summarize(m, &cs0, &err) != MCF_OK
-            || !(before = info_json(m, NULL, &err))
-            || (target && mcf_compare(m, target, &cmp0, &err) != MCF_OK)) {
-            rc = fail(1, "metrics before the flow: %s", err.msg[0] ? err.msg : "out of memory");
-            goto done;
-        }
+    /* The metrics document is api's (api_metrics_json), the daemon's too:
+     * the same request gives the same keys through either door. */
+    if (o.metrics && api_metrics_before(&mt, m, target, &err) != MCF_OK) {
+        rc = fail(1, "metrics before the flow: %s", err.msg);
+        goto done;
     }
 
     /* The flow: progress on a terminal, cancel on SIGINT/SIGTERM. */
@@ -588,69 +585,33 @@ static int cmd_smooth(int argc, char **argv)
         goto done;
 
     if (o.metrics) {
-        cJSON *doc = cJSON_CreateObject(), *in, *out, *curv, *t;
+        api_metrics_run run;
+        cJSON *doc;
         char *s;
-        if (!doc) {
-            rc = fail(1, "metrics: out of memory");
-            goto done;
-        }
-        if (mcf_curvature_summarize(m, &cs1, &err) != MCF_OK
-            || (target && mcf_compare(m, target, &cmp1, &err) != MCF_OK)) {
-            cJSON_Delete(doc);
+        if (api_metrics_after(&mt, m, target, &err) != MCF_OK) {
             rc = fail(1, "metrics after the flow: %s", err.msg);
             goto done;
         }
-        add(doc, "command", cJSON_CreateString("smooth"));
-        add(doc, "params", api_params_to_json(&p));
-        in = cJSON_CreateObject();
-        add(doc, "input", in);
-        if (in) {
-            add(in, "path", cJSON_CreateString(o.pos[0]));
-            add(in, "format", cJSON_CreateString(api_format_name(in_fmt)));
-            add(in, "bytes", cJSON_CreateNumber((double)in_bytes));
-            add(in, "noise", cJSON_CreateNumber(p.noise_rho));
-            add(in, "info", before);
-            before = NULL;
-        }
-        out = cJSON_CreateObject();
-        add(doc, "output", out);
-        if (out) {
-            add(out, "path", cJSON_CreateString(o.pos[1]));
-            add(out, "format", cJSON_CreateString(api_format_name(p.encode.format)));
-            add(out, "bytes", cJSON_CreateNumber((double)out_bytes));
-            add(out, "info", info_json(m, NULL, &err));
-            if (p.encode.format == API_FMT_DRACO)
-                add(out, "quantization_max_error", cJSON_CreateNumber(qerr));
-        }
-        curv = cJSON_CreateObject();
-        add(doc, "curvature", curv);
-        if (curv) {
-            add(curv, "before", api_json_curvature(&cs0));
-            add(curv, "after", api_json_curvature(&cs1));
-        }
-        add(doc, "flow", api_json_flow_stats(&st));
-        if (target) {
-            cJSON *c = cJSON_CreateObject();
-            add(doc, "compare", c);
-            if (c) {
-                add(c, "target", cJSON_CreateString(o.target));
-                add(c, "before", api_json_compare(&cmp0));
-                add(c, "after", api_json_compare(&cmp1));
-            }
-        }
-        t = cJSON_CreateObject();
-        add(doc, "timings", t);
-        if (t) {
-            add(t, "read_s", cJSON_CreateNumber(read_s));
-            add(t, "decode_s", cJSON_CreateNumber(decode_s));
-            add(t, "noise_s", cJSON_CreateNumber(noise_s));
-            add(t, "flow_s", cJSON_CreateNumber(flow_s));
-            add(t, "encode_s", cJSON_CreateNumber(encode_s));
-            add(t, "write_s", cJSON_CreateNumber(write_s));
-            add(t, "total_s", cJSON_CreateNumber(now() - t_start));
-        }
-        add(doc, "peak_rss_bytes", cJSON_CreateNumber(peak_rss_bytes()));
-        s = api_json_print(doc, 1);
+        api_metrics_run_init(&run);
+        run.input_name = o.pos[0];
+        run.output_name = o.pos[1];
+        run.target_name = o.target;
+        run.input_format = in_fmt;
+        run.output_format = p.encode.format;
+        run.input_bytes = in_bytes;
+        run.output_bytes = out_bytes;
+        if (p.encode.format == API_FMT_DRACO)
+            run.quantization_max_error = qerr;
+        run.read_s = read_s;
+        run.decode_s = decode_s;
+        run.noise_s = noise_s;
+        run.flow_s = flow_s;
+        run.encode_s = encode_s;
+        run.write_s = write_s;
+        run.total_s = now() - t_start;
+        run.peak_rss_bytes = peak_rss_bytes();
+        doc = api_metrics_json(&mt, &p, &st, &run);
+        s = doc ? api_json_print(doc, 1) : NULL;
         cJSON_Delete(doc);
         if (!s) {
             rc = fail(1, "metrics: out of memory");
@@ -666,7 +627,6 @@ static int cmd_smooth(int argc, char **argv)
                 mcf_mesh_nvertices(m), st.steps, st.t_final, flow_s, o.pos[1]);
     rc = 0;
 done:
-    cJSON_Delete(before);
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(target);

@@ -1,0 +1,218 @@
+/*
+ * api_metrics.c - the one metrics document of a smoothing run, for every
+ * door: `mcf smooth --metrics FILE` and the daemon's job metrics
+ * (GET /v1/jobs/{id}/metrics, the multipart/mixed part, the last ndjson
+ * line) are this builder's output, so the same request yields the same
+ * keys, and the same numbers up to the door's own facts (paths, job id,
+ * timings).
+ *
+ * The measurements happen in two calls around the flow, because the flow
+ * changes the mesh in place: api_metrics_before on the mesh as the flow
+ * receives it (after any injected noise), api_metrics_after on the result.
+ * Each is one mcf_mesh_inspect, one mcf_curvature_summarize and, with a
+ * target, one mcf_compare: O(nf log nf), a small fraction of a flow step.
+ * What only a door knows (names, byte counts, phase timings) comes in an
+ * api_metrics_run; a number a door does not have is NaN and prints as null,
+ * so a key never disappears because of the door that answered.
+ *
+ * Volumes: every volume in the document (input/output info and volume,
+ * flow.volume0/volume1, each flow.log entry) and in the daemon's step
+ * stream is one quantity, mcf_mesh_volume: the signed volume enclosed by
+ * the surface and the input's coordinate origin (divergence theorem), in
+ * input units. It is the enclosed volume of a closed mesh wherever the
+ * origin lies; on an open mesh it depends on the origin.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "api_internal.h"
+
+/* Adds item under key, deleting it when it cannot be attached. */
+static int put(cJSON *o, const char *key, cJSON *item)
+{
+    if (!item)
+        return 0;
+    if (!cJSON_AddItemToObject(o, key, item)) {
+        cJSON_Delete(item);
+        return 0;
+    }
+    return 1;
+}
+
+/* A number, or null when it is not finite (NaN: "not known here"). */
+static int num(cJSON *o, const char *key, double v)
+{
+    return put(o, key, isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull());
+}
+
+static int str(cJSON *o, const char *key, const char *s)
+{
+    return put(o, key, s ? cJSON_CreateString(s) : cJSON_CreateNull());
+}
+
+/* A new object attached under key, or NULL (then the tree is incomplete
+ * and the caller drops it). */
+static cJSON *obj(cJSON *o, const char *key)
+{
+    cJSON *c = cJSON_CreateObject();
+    return put(o, key, c) ? c : NULL;
+}
+
+void api_metrics_init(api_metrics *mt)
+{
+    memset(mt, 0, sizeof *mt);
+}
+
+static mcf_status measure(api_metrics *mt, int k, const mcf_mesh *m,
+                          const mcf_mesh *target, mcf_error *err)
+{
+    mcf_mesh_info info;
+    mcf_curvature_summary cs;
+    mcf_compare_result cmp;
+    mcf_status rc;
+
+    if (!mt || !m)
+        return api__fail(err, MCF_EINVAL, "metrics: NULL argument");
+    if ((rc = mcf_mesh_inspect(m, &info, err)) != MCF_OK ||
+        (rc = mcf_curvature_summarize(m, &cs, err)) != MCF_OK ||
+        (target && (rc = mcf_compare(m, target, &cmp, err)) != MCF_OK))
+        return rc;
+    mt->info[k] = info;
+    mt->curv[k] = cs;
+    if (target)
+        mt->cmp[k] = cmp;
+    mt->measured |= 1 << k;
+    mt->target |= (target != NULL) << k;
+    return MCF_OK;
+}
+
+mcf_status api_metrics_before(api_metrics *mt, const mcf_mesh *m,
+                              const mcf_mesh *target, mcf_error *err)
+{
+    return measure(mt, 0, m, target, err);
+}
+
+mcf_status api_metrics_after(api_metrics *mt, const mcf_mesh *m,
+                             const mcf_mesh *target, mcf_error *err)
+{
+    return measure(mt, 1, m, target, err);
+}
+
+void api_metrics_run_init(api_metrics_run *r)
+{
+    memset(r, 0, sizeof *r);
+    r->input_format = r->output_format = API_FMT_UNKNOWN;
+    r->quantization_max_error = NAN;
+    r->queue_s = r->read_s = r->decode_s = r->noise_s = NAN;
+    r->flow_s = r->encode_s = r->write_s = r->total_s = NAN;
+    r->peak_rss_bytes = NAN;
+}
+
+static const char *format_name(api_format f)
+{
+    return f == API_FMT_UNKNOWN ? NULL : api_format_name(f);
+}
+
+/* WARNINGS: the core's verdict on the result (folded faces, collapsed
+ * edges, lost area, a negligible amount of smoothing), one string per
+ * warning, [] when there is none. The core's mcf_flow_stats has no
+ * warnings field yet (it is being added to core/mcf.h); until it has one,
+ * the array is always empty, which keeps the key stable for clients. */
+static cJSON *warnings_json(const mcf_flow_stats *st)
+{
+    (void)st;
+    return cJSON_CreateArray();
+}
+
+/* The timings object: the door's phases, null where the door has none. */
+static int timings(cJSON *t, const api_metrics_run *r)
+{
+    int ok = 1;
+    ok = ok && num(t, "queue_s", r->queue_s);
+    ok = ok && num(t, "read_s", r->read_s);
+    ok = ok && num(t, "decode_s", r->decode_s);
+    ok = ok && num(t, "noise_s", r->noise_s);
+    ok = ok && num(t, "flow_s", r->flow_s);
+    ok = ok && num(t, "encode_s", r->encode_s);
+    ok = ok && num(t, "write_s", r->write_s);
+    ok = ok && num(t, "total_s", r->total_s);
+    return ok;
+}
+
+/* The comparison with the target: before and after the flow, and the
+ * after's members once more at the top (the daemon's first layout). */
+static cJSON *compare_json(const api_metrics *mt, const api_metrics_run *r)
+{
+    cJSON *c = api_json_compare(&mt->cmp[1]);
+    int ok = c != NULL;
+    if (!ok)
+        return NULL;
+    ok = ok && str(c, "target", r->target_name);
+    ok = ok && ((mt->target & 1) ? put(c, "before", api_json_compare(&mt->cmp[0]))
+                                 : put(c, "before", cJSON_CreateNull()));
+    ok = ok && put(c, "after", api_json_compare(&mt->cmp[1]));
+    if (!ok) {
+        cJSON_Delete(c);
+        return NULL;
+    }
+    return c;
+}
+
+cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
+                        const mcf_flow_stats *st, const api_metrics_run *r)
+{
+    const mcf_scheme_info *si;
+    cJSON *o, *x = NULL, *c = NULL;
+    int ok;
+
+    if (!mt || !p || !st || !r || (mt->measured & 3) != 3)
+        return NULL;
+    si = mcf_scheme_get(p->flow.scheme);
+    o = cJSON_CreateObject();
+    ok = o != NULL;
+    ok = ok && str(o, "command", "smooth");
+    ok = ok && str(o, "job", r->job);
+    ok = ok && str(o, "scheme", si ? si->name : NULL);
+    ok = ok && put(o, "params", api_params_to_json(p));
+    ok = ok && put(o, "warnings", warnings_json(st));
+
+    ok = ok && (x = obj(o, "input")) != NULL;
+    ok = ok && str(x, "path", r->input_name);
+    ok = ok && str(x, "format", format_name(r->input_format));
+    ok = ok && num(x, "bytes", (double)r->input_bytes);
+    ok = ok && num(x, "noise", p->noise_rho);
+    ok = ok && put(x, "info", api_json_mesh_info(&mt->info[0], NULL));
+    /* "mesh": the daemon's first name for "info", kept for its clients */
+    ok = ok && put(x, "mesh", api_json_mesh_info(&mt->info[0], NULL));
+
+    ok = ok && (x = obj(o, "output")) != NULL;
+    ok = ok && str(x, "path", r->output_name);
+    ok = ok && str(x, "format", format_name(r->output_format));
+    ok = ok && num(x, "bytes", (double)r->output_bytes);
+    ok = ok && num(x, "vertices", mt->info[1].nv);
+    ok = ok && num(x, "faces", mt->info[1].nf);
+    ok = ok && num(x, "area", mt->info[1].area);
+    ok = ok && num(x, "volume", mt->info[1].volume);
+    ok = ok && num(x, "quantization_max_error", r->quantization_max_error);
+    ok = ok && put(x, "info", api_json_mesh_info(&mt->info[1], NULL));
+
+    ok = ok && (c = obj(o, "curvature")) != NULL;
+    ok = ok && put(c, "before", api_json_curvature(&mt->curv[0]));
+    ok = ok && put(c, "after", api_json_curvature(&mt->curv[1]));
+
+    ok = ok && put(o, "flow", api_json_flow_stats(st));
+    if (ok && (mt->target & 2))
+        ok = put(o, "compare", compare_json(mt, r));
+
+    ok = ok && (x = obj(o, "timings")) != NULL && timings(x, r);
+    /* "timing": the daemon's first name for "timings", kept for its
+     * clients */
+    ok = ok && (x = obj(o, "timing")) != NULL && timings(x, r);
+    ok = ok && num(o, "peak_rss_bytes", r->peak_rss_bytes);
+    if (!ok) {
+        cJSON_Delete(o);
+        return NULL;
+    }
+    return o;
+}
