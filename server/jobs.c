@@ -682,8 +682,7 @@ fail:
 
 typedef struct {
     srv_job *job;
-    mcf_mesh *mesh;
-    double scale, cen[3];     /* the core's normalization (see on_progress) */
+    const mcf_flow_stats *st; /* the run's statistics: its step log */
     double deadline;          /* mcf_now() seconds, 0: none */
 } run_ctx;
 
@@ -695,35 +694,15 @@ static void fmt_num(char *buf, size_t size, double v)
         snprintf(buf, size, "null");
 }
 
-/* The volume enclosed in input units. mcf_flow_run works on the mesh's
- * positions in place, centred on the area centroid and scaled to unit area
- * when normalize is on (core/mcf_flow.c); scale and cen undo that. The
- * integration test checks the last step's volume against stats.volume1. */
-static double input_units_volume(const run_ctx *c)
-{
-    const double *X = mcf_mesh_positions(c->mesh);
-    const int32_t *F = mcf_mesh_faces(c->mesh);
-    int f, nf = mcf_mesh_nfaces(c->mesh);
-    double v = 0;
-
-    for (f = 0; f < nf; f++) {
-        double p[3][3];
-        int k, d;
-        for (k = 0; k < 3; k++)
-            for (d = 0; d < 3; d++)
-                p[k][d] = X[3 * (size_t)F[3 * f + k] + d] / c->scale + c->cen[d];
-        v += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
-             p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
-             p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
-    }
-    return v / 6.0;
-}
-
 static int on_progress(void *ctx, int step, double t, double dt, double energy)
 {
     run_ctx *c = ctx;
     srv_job *j = c->job;
-    double vol = input_units_volume(c);
+    /* The step's volume is the step log's (the core fills entry step - 1
+     * before this call): the quantity of flow.volume0/volume1 and
+     * mcf_mesh_volume, in input units (api_metrics.c). */
+    double vol = c->st->log && step >= 1 && step <= c->st->nlog
+                     ? c->st->log[step - 1].volume : NAN;
     char line[320], a[32], b[32], e[32], v[32];
     int stop, n;
 
@@ -752,53 +731,35 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     return stop;
 }
 
-/* The metrics document of a finished job. */
-static char *metrics_doc(const srv_job *j, const char *params_json,
-                         const mcf_mesh_info *in, const mcf_mesh *m,
-                         const mcf_flow_stats *st, const mcf_compare_result *cmp,
+/* The metrics document of a finished job: api's, the CLI's too
+ * (api_metrics_json), with the daemon's own facts. */
+static char *metrics_doc(const srv_job *j, const api_metrics *mt,
+                         const api_params *prm, const mcf_flow_stats *st,
+                         api_format in_fmt, api_format out_fmt, double qerr,
                          size_t in_bytes, size_t out_bytes, double t_queue,
                          double t_decode, double t_flow, double t_encode)
 {
-    cJSON *o = cJSON_CreateObject(), *x, *tm;
+    api_metrics_run run;
+    cJSON *o;
     char *s;
 
-    if (!o)
-        return NULL;
-    cJSON_AddStringToObject(o, "job", j->id);
-    cJSON_AddStringToObject(o, "scheme", j->scheme);
-    if (params_json && (x = cJSON_Parse(params_json)))
-        cJSON_AddItemToObject(o, "params", x);
-    x = cJSON_AddObjectToObject(o, "input");
-    if (x) {
-        cJSON_AddStringToObject(x, "format", j->in_format);
-        cJSON_AddNumberToObject(x, "bytes", (double)in_bytes);
-        cJSON *mi = api_json_mesh_info(in, NULL);
-        if (mi)
-            cJSON_AddItemToObject(x, "mesh", mi);
-    }
-    x = cJSON_AddObjectToObject(o, "output");
-    if (x) {
-        cJSON_AddStringToObject(x, "format", j->out_format);
-        cJSON_AddNumberToObject(x, "bytes", (double)out_bytes);
-        cJSON_AddNumberToObject(x, "vertices", mcf_mesh_nvertices(m));
-        cJSON_AddNumberToObject(x, "faces", mcf_mesh_nfaces(m));
-        add_num(x, "area", mcf_mesh_area(m));
-        add_num(x, "volume", mcf_mesh_volume(m));
-    }
-    x = api_json_flow_stats(st);
-    if (x)
-        cJSON_AddItemToObject(o, "flow", x);
-    if (cmp && (x = api_json_compare(cmp)))
-        cJSON_AddItemToObject(o, "compare", x);
-    tm = cJSON_AddObjectToObject(o, "timing");
-    if (tm) {
-        add_num(tm, "queue_s", t_queue);
-        add_num(tm, "decode_s", t_decode);
-        add_num(tm, "flow_s", t_flow);
-        add_num(tm, "encode_s", t_encode);
-        add_num(tm, "total_s", t_decode + t_flow + t_encode);
-    }
-    s = cJSON_PrintUnformatted(o);
+    api_metrics_run_init(&run);
+    run.job = j->id;
+    run.input_name = j->rec.filename[0] ? j->rec.filename : NULL;
+    run.output_name = j->result_name;
+    run.target_name = j->rec.has_target ? "target" : NULL;
+    run.input_format = in_fmt;
+    run.output_format = out_fmt;
+    run.input_bytes = in_bytes;
+    run.output_bytes = out_bytes;
+    run.quantization_max_error = qerr;
+    run.queue_s = t_queue;
+    run.decode_s = t_decode;
+    run.flow_s = t_flow;
+    run.encode_s = t_encode;
+    run.total_s = t_decode + t_flow + t_encode;
+    o = api_metrics_json(mt, prm, st, &run);
+    s = o ? cJSON_PrintUnformatted(o) : NULL;
     cJSON_Delete(o);
     return s;
 }
@@ -829,34 +790,6 @@ static void log_job(const srv_job *j, int nv, int nf, double run_s)
                      ? SRV_LOG_ERROR : SRV_LOG_INFO, o);
 }
 
-static void area_centroid(const mcf_mesh *m, double *area, double cen[3])
-{
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    int f, d, nf = mcf_mesh_nfaces(m);
-    double A = 0, c[3] = {0, 0, 0};
-
-    for (f = 0; f < nf; f++) {
-        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
-                     *e = X + 3 * (size_t)F[3 * f + 2];
-        double u[3], v[3], n[3], af;
-        for (d = 0; d < 3; d++) {
-            u[d] = b[d] - a[d];
-            v[d] = e[d] - a[d];
-        }
-        n[0] = u[1] * v[2] - u[2] * v[1];
-        n[1] = u[2] * v[0] - u[0] * v[2];
-        n[2] = u[0] * v[1] - u[1] * v[0];
-        af = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        A += af;
-        for (d = 0; d < 3; d++)
-            c[d] += af * (a[d] + b[d] + e[d]) / 3.0;
-    }
-    for (d = 0; d < 3; d++)
-        cen[d] = A > 0 ? c[d] / A : 0;
-    *area = A;
-}
-
 static void run_job(srv_job *j)
 {
     const srv_config *cfg = S.cfg;
@@ -867,18 +800,19 @@ static void run_job(srv_job *j)
     mcf_error err = {MCF_OK, ""};
     mcf_status rc;
     mcf_flow_stats st;
-    mcf_compare_result cmp;
-    mcf_mesh_info info;
+    api_metrics mt;
     api_buf out;
     api_encode_opts eo;
     srv_problem prob;
     int failed = 1, requeue = 0, nv = 0, nf = 0;
-    char *input = NULL, *target = NULL, *metrics = NULL, *params_json = NULL;
+    char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
-    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue;
+    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
+           qerr = NAN;
     run_ctx ctx;
 
     memset(&st, 0, sizeof st);
+    api_metrics_init(&mt);
     memset(&prob, 0, sizeof prob);
     api_buf_init(&out, RESULT_MAX);
     srv_lock();
@@ -888,7 +822,6 @@ static void run_job(srv_job *j)
     target_len = j->target_len;
     j->input = j->target = NULL;
     t_queue = j->started - j->created;
-    params_json = j->params_json ? strdup(j->params_json) : NULL;
     srv_unlock();
     write_state(j, 0);
 
@@ -945,25 +878,22 @@ static void run_job(srv_job *j)
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "noise", &err);
         goto done;
     }
-    if ((rc = mcf_mesh_inspect(m, &info, &err)) != MCF_OK) {
-        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "inspect", &err);
+    if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "metrics", &err);
         goto done;
     }
     t_decode = mcf_now() - t0;
 
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
-    ctx.mesh = m;
-    ctx.scale = 1;
-    if (prm.flow.normalize) {
-        double area;
-        area_centroid(m, &area, ctx.cen);
-        ctx.scale = area > 0 ? 1 / sqrt(area) : 1;
-    }
+    ctx.st = &st;
     ctx.deadline = cfg->job_timeout > 0 ? mcf_now() + cfg->job_timeout : 0;
     prm.flow.progress = on_progress;
     prm.flow.progress_ctx = &ctx;
     prm.flow.cancel = &j->cancel;
+    /* The step log: the metrics' flow.log (as the CLI's) and the volume of
+     * each streamed step. */
+    prm.flow.log_steps = 1;
 
     srv_lock();
     j->ready = 1;
@@ -1004,16 +934,18 @@ static void run_job(srv_job *j)
     }
 
     t_encode = mcf_now();
+    if (prm.encode.format == API_FMT_UNKNOWN)
+        prm.encode.format = fmt; /* the metrics' params say what was written */
     eo = prm.encode;
-    if (eo.format == API_FMT_UNKNOWN)
-        eo.format = fmt;
-    if ((rc = api_mesh_encode(m, &eo, &out, &err)) != MCF_OK) {
+    rc = eo.format == API_FMT_DRACO ? api_draco_encode(m, &eo, &out, &qerr, &err)
+                                    : api_mesh_encode(m, &eo, &out, &err);
+    if (rc != MCF_OK) {
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "encode", &err);
         goto done;
     }
     t_encode = mcf_now() - t_encode;
-    if (tgt && (rc = mcf_compare(m, tgt, &cmp, &err)) != MCF_OK) {
-        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "compare", &err);
+    if ((rc = api_metrics_after(&mt, m, tgt, &err)) != MCF_OK) {
+        srv_problem_from(&prob, rc, SRV_STAGE_RUN, "metrics", &err);
         goto done;
     }
     srv_lock();
@@ -1022,9 +954,8 @@ static void run_job(srv_job *j)
     snprintf(j->result_name, sizeof j->result_name, "result%s",
              api_format_ext(eo.format));
     srv_unlock();
-    metrics = metrics_doc(j, params_json, &info, m, &st, tgt ? &cmp : NULL,
-                          input_len, out.len, t_queue, t_decode, t_flow,
-                          t_encode);
+    metrics = metrics_doc(j, &mt, &prm, &st, fmt, eo.format, qerr, input_len,
+                          out.len, t_queue, t_decode, t_flow, t_encode);
     if (!metrics) {
         srv_problem_set(&prob, 503, "ENOMEM", "out of memory writing metrics");
         goto done;
@@ -1086,7 +1017,6 @@ done:
     free(input);
     free(target);
     free(metrics);
-    free(params_json);
 }
 
 static void *worker_main(void *arg)
