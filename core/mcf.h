@@ -288,7 +288,8 @@ mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv,
 
 typedef struct {
     double t, dt;
-    double area, volume;
+    double area, volume;      /* input units; the volume is volume0/1's
+                                 (mcf_mesh_volume's), about the origin */
     double max_disp;          /* largest vertex displacement this step */
     double solve_s;           /* seconds in factorize + solve this step */
     int rejected;             /* adaptive attempts rejected before it */
@@ -307,7 +308,9 @@ typedef struct {
     double time_assemble, time_analyze, time_factorize, time_solve,
            time_total;        /* seconds, monotonic clock */
     size_t peak_bytes;        /* peak heap held by the solver for this job */
-    mcf_step_log *log;        /* steps entries when log_steps, else NULL */
+    mcf_step_log *log;        /* steps entries when log_steps, else NULL;
+                                 entry k is written before progress
+                                 reports step k + 1 */
     int nlog;
 } mcf_flow_stats;
 

@@ -880,8 +880,13 @@ static void mark_boundary(flow_ctx *c)
                 c->fixed[j] = c->fixed[p->rowind[t]] = 1;
 }
 
+/* The log's area and volume are in input units, and the volume is
+ * volume0/volume1's (mcf_mesh_volume's): about the input's origin, from
+ * the positions mapped back as the run's end maps them. (The working
+ * positions are centred on the input's area centroid, and on an open
+ * mesh the signed volume depends on that choice.) */
 static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
-                     double scale, double maxdisp)
+                     double scale, const double cen[3], double maxdisp)
 {
     mcf_flow_stats *st = c->st;
     if (!c->p->log_steps || !st->log)
@@ -889,8 +894,21 @@ static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
     mcf_step_log *L = &st->log[k];
     L->t = t;
     L->dt = h;
-    L->area = area_volume(c->X, c->F, c->nf, NULL, &L->volume) / (scale * scale);
-    L->volume /= scale * scale * scale;
+    double A = 0.0, V = 0.0;
+    for (int f = 0; f < c->nf; f++) {
+        double p[3][3], e1[3], e2[3], n[3], bd[3];
+        for (int q = 0; q < 3; q++)
+            for (int d = 0; d < 3; d++)
+                p[q][d] = c->X[3 * (size_t)c->F[3 * f + q] + d] / scale + cen[d];
+        mcf__sub3(p[1], p[0], e1);
+        mcf__sub3(p[2], p[0], e2);
+        mcf__cross3(e1, e2, n);
+        A += 0.5 * sqrt(mcf__dot3(n, n));
+        mcf__cross3(p[1], p[2], bd);
+        V += mcf__dot3(p[0], bd);
+    }
+    L->area = A;
+    L->volume = V / 6.0;
     L->max_disp = maxdisp / scale;
     L->solve_s = c->step_solve_s;
     L->rejected = rejected;
@@ -1181,7 +1199,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                 mcf__sub3(c.X + 3 * i, c.Xprev + 3 * i, d);
                 maxd = fmax(maxd, mcf__dot3(d, d));
             }
-            log_step(&c, k, t, hist.h1, rejected_here, scale, sqrt(maxd));
+            log_step(&c, k, t, hist.h1, rejected_here, scale, cen, sqrt(maxd));
         }
         rejected_here = 0;
         in_step = 0;

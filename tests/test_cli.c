@@ -288,6 +288,169 @@ static void test_errors(void **state)
     assert_int_equal(stat(tl_in_scratch("o.obj"), &sb), -1);
 }
 
+/* ------------------------------------------------ the metrics document */
+
+/* An open 8 x 8 grid with a bump (z = 0.2 sin(pi x) sin(pi y)), shifted
+ * off the origin by (3, -2, 5): on an open mesh the signed volume depends
+ * on the point the cones start from (by c . (vector area) / 3, here about
+ * 5/3 between the origin and the area centroid), so every volume the
+ * metrics report must be measured about the same point. */
+static void write_open_grid(const char *path)
+{
+    FILE *f = fopen(path, "w");
+    const double pi = 3.14159265358979323846;
+    int i, k, n = 8;
+    assert_non_null(f);
+    for (k = 0; k < n; k++)
+        for (i = 0; i < n; i++) {
+            double x = (double)i / (n - 1), y = (double)k / (n - 1);
+            fprintf(f, "v %.17g %.17g %.17g\n", x + 3, y - 2,
+                    0.2 * sin(pi * x) * sin(pi * y) + 5);
+        }
+    for (k = 0; k + 1 < n; k++)
+        for (i = 0; i + 1 < n; i++) {
+            int a = k * n + i + 1, b = a + 1, c = a + n, d = c + 1;
+            fprintf(f, "f %d %d %d\nf %d %d %d\n", a, b, d, a, d, c);
+        }
+    fclose(f);
+}
+
+static const cJSON *member(const cJSON *o, const char *key)
+{
+    const cJSON *x = cJSON_GetObjectItemCaseSensitive(o, key);
+    if (!x)
+        fail_msg("metrics: no member '%s'", key);
+    return x;
+}
+
+static double number(const cJSON *o, const char *key)
+{
+    const cJSON *x = member(o, key);
+    if (!cJSON_IsNumber(x))
+        fail_msg("metrics: '%s' is not a number", key);
+    return x->valuedouble;
+}
+
+/* Fails unless object o has exactly the members of the NULL-terminated
+ * list, in any order. */
+static void exact_members(const cJSON *o, const char *const *keys, const char *what)
+{
+    const cJSON *x;
+    int n = 0, i;
+    for (i = 0; keys[i]; i++)
+        if (!cJSON_GetObjectItemCaseSensitive(o, keys[i]))
+            fail_msg("%s: no member '%s'", what, keys[i]);
+    cJSON_ArrayForEach(x, o)
+        n++;
+    if (n != i) {
+        cJSON_ArrayForEach(x, o) {
+            for (i = 0; keys[i] && strcmp(keys[i], x->string); i++)
+                ;
+            if (!keys[i])
+                fail_msg("%s: unexpected member '%s'", what, x->string);
+        }
+    }
+}
+
+/* The document's layout (api.h, openapi.yaml Metrics): the daemon answers
+ * the same keys for the same request (test_server's test_metrics_same_as_cli
+ * compares the two documents key by key). */
+static void test_metrics_document_layout(void **state)
+{
+    static const char *const top[] = {"command", "job", "scheme", "params", "warnings",
+                                      "input", "output", "curvature", "flow", "compare",
+                                      "timings", "timing", "peak_rss_bytes", NULL};
+    static const char *const input[] = {"path", "format", "bytes", "noise", "info",
+                                        "mesh", NULL};
+    static const char *const output[] = {"path", "format", "bytes", "vertices", "faces",
+                                         "area", "volume", "quantization_max_error",
+                                         "info", NULL};
+    static const char *const timings[] = {"queue_s", "read_s", "decode_s", "noise_s",
+                                          "flow_s", "encode_s", "write_s", "total_s", NULL};
+    static const char *const compare[] = {"rms_m", "rms_rel", "frobenius", "max_err",
+                                          "normal_angle_deg", "inverted_faces", "target",
+                                          "before", "after", NULL};
+    tl_run_result r = tl_run("smooth", tl_sphere(), "lay.drc", "--iterations", "2",
+                             "--noise", "0.1", "--seed", "5", "--target", tl_sphere(),
+                             "--metrics", "lay.json", NULL);
+    cJSON *j;
+    (void)state;
+    if (r.status != 0)
+        fail_msg("smooth: status %d: %s", r.status, r.err);
+    tl_run_free(&r);
+    j = load_json(tl_in_scratch("lay.json"));
+    exact_members(j, top, "metrics");
+    exact_members(member(j, "input"), input, "input");
+    exact_members(member(j, "output"), output, "output");
+    exact_members(member(j, "timings"), timings, "timings");
+    exact_members(member(j, "timing"), timings, "timing");
+    exact_members(member(j, "compare"), compare, "compare");
+    assert_true(cJSON_IsArray(member(j, "warnings")));
+    assert_true(cJSON_IsNull(member(j, "job")));                  /* the daemon's */
+    assert_true(cJSON_IsNull(member(member(j, "timings"), "queue_s")));
+    assert_string_equal(cJSON_GetStringValue(member(j, "command")), "smooth");
+    assert_string_equal(cJSON_GetStringValue(member(member(j, "output"), "format")), "draco");
+    /* Draco output: the quantization error is measured (a number >= 0). */
+    assert_true(number(member(j, "output"), "quantization_max_error") >= 0);
+    /* "mesh" repeats "info" (the daemon's first name for it). */
+    assert_true(cJSON_Compare(member(member(j, "input"), "info"),
+                              member(member(j, "input"), "mesh"), 1));
+    /* The flat compare members are the after's. */
+    assert_true(number(member(j, "compare"), "rms_m")
+                == number(member(member(j, "compare"), "after"), "rms_m"));
+    cJSON_Delete(j);
+}
+
+/* One volume in the step log, the summary and the mesh information: the
+ * signed volume about the input's origin (mcf_mesh_volume), on an open
+ * mesh off the origin with a free boundary, where the log measured about
+ * the area centroid before (off by about 5/3 here). */
+static void test_metrics_one_volume(void **state)
+{
+    tl_run_result r;
+    mcf_mesh *in, *out;
+    cJSON *j, *log, *last;
+    const cJSON *flow, *inp, *outp;
+    double v0, v1;
+    int n;
+    (void)state;
+    write_open_grid(tl_in_scratch("grid.obj"));
+    r = tl_run("smooth", "grid.obj", "grid-out.obj", "--iterations", "5", "--dt", "1e-3",
+               "--boundary", "free", "--metrics", "grid.json", "--quiet", NULL);
+    if (r.status != 0)
+        fail_msg("smooth: status %d: %s", r.status, r.err);
+    tl_run_free(&r);
+    in = load_path(tl_in_scratch("grid.obj"));
+    out = load_path(tl_in_scratch("grid-out.obj"));
+    j = load_json(tl_in_scratch("grid.json"));
+    flow = member(j, "flow");
+    inp = member(member(j, "input"), "info");
+    outp = member(j, "output");
+    v0 = mcf_mesh_volume(in);
+    v1 = mcf_mesh_volume(out);
+    /* the flow moved the surface: the volume changed measurably */
+    assert_true(fabs(v1 - v0) > 1e-4 * fabs(v0));
+    /* Each is one sum over 98 faces of terms ~ 5 in size: relative 1e-12
+     * covers the rounding of different summation orders and of 17-digit
+     * OBJ and JSON numbers. */
+    tl_assert_near(number(flow, "volume0"), v0, 1e-12 * fabs(v0), "flow.volume0");
+    tl_assert_near(number(inp, "volume"), v0, 1e-12 * fabs(v0), "input.info.volume");
+    tl_assert_near(number(flow, "volume1"), v1, 1e-12 * fabs(v1), "flow.volume1");
+    tl_assert_near(number(outp, "volume"), v1, 1e-12 * fabs(v1), "output.volume");
+    tl_assert_near(number(member(outp, "info"), "volume"), v1, 1e-12 * fabs(v1),
+                   "output.info.volume");
+    log = cJSON_GetObjectItemCaseSensitive(flow, "log");
+    n = cJSON_GetArraySize(log);
+    assert_int_equal(n, 5);
+    last = cJSON_GetArrayItem(log, n - 1);
+    tl_assert_near(number(last, "volume"), v1, 1e-12 * fabs(v1), "last log volume");
+    tl_assert_near(number(last, "area"), mcf_mesh_area(out), 1e-12 * mcf_mesh_area(out),
+                   "last log area");
+    cJSON_Delete(j);
+    mcf_mesh_free(in);
+    mcf_mesh_free(out);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -298,6 +461,8 @@ int main(void)
         cmocka_unit_test(test_smooth_noise_target_fixed),
         cmocka_unit_test(test_convert),
         cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_metrics_document_layout),
+        cmocka_unit_test(test_metrics_one_volume),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
