@@ -45,7 +45,7 @@ static char *read_data_file(const char *name, size_t *len)
 static char *read_mesh_file(const char *name, size_t *len)
 {
     char path[4096], *buf = NULL;
-    snprintf(path, sizeof path, "%s/%s", tl_meshes_dir(), name);
+    snprintf(path, sizeof path, "%s", tl_need_mesh(name));
     if (tl_read_file(path, &buf, len) != 0)
         fail_msg("cannot read %s", path);
     return buf;
@@ -171,7 +171,6 @@ static const struct {
 } real[] = {
     {"bunny.drc", 34834, 69451},
     {"car.drc", 1856, 1744},
-    {"dragon_vrip.drc", 435545, 871306},
     {"test_nm.obj.edgebreaker.cl10.2.2.drc", 99, 170},
     {"test_nm.obj.sequential.cl3.2.2.drc", 97, 170},
 };
@@ -205,16 +204,6 @@ static void test_real_topology(void **state)
     assert_int_equal(info.unreferenced, 0);
     mcf_mesh_free(m);
 
-    /* dragon_vrip.drc: closed, manifold, one piece, genus 55. */
-    m = tl_load("dragon_vrip.drc");
-    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
-    assert_true(info.closed);
-    assert_true(info.manifold);
-    assert_int_equal(info.components, 1);
-    assert_int_equal(info.euler, -108);
-    assert_int_equal(info.genus, 55);
-    mcf_mesh_free(m);
-
     /* The sequential test_nm keeps its 2 non-manifold vertices; the
      * edgebreaker one has them split. */
     m = tl_load("test_nm.obj.sequential.cl3.2.2.drc");
@@ -226,6 +215,25 @@ static void test_real_topology(void **state)
     assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
     assert_int_equal(info.nonmanifold_vertices, 0);
     assert_int_equal(info.boundary_loops, 3);
+    mcf_mesh_free(m);
+}
+
+/* dragon_vrip.drc (large, $MCF_MESHES): 435,545 vertices, closed,
+ * manifold, one piece, genus 55. */
+static void test_real_dragon(void **state)
+{
+    mcf_mesh_info info;
+    mcf_error err;
+    mcf_mesh *m = tl_load("dragon_vrip.drc");
+    (void)state;
+    assert_int_equal(mcf_mesh_nvertices(m), 435545);
+    assert_int_equal(mcf_mesh_nfaces(m), 871306);
+    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
+    assert_true(info.closed);
+    assert_true(info.manifold);
+    assert_int_equal(info.components, 1);
+    assert_int_equal(info.euler, -108);
+    assert_int_equal(info.genus, 55);
     mcf_mesh_free(m);
 }
 
@@ -288,11 +296,17 @@ static void test_lossless(void **state)
 {
     (void)state;
     lossless("sphere_cgal.obj");
+    lossless("test_nm.obj");
+    lossless("bunny.drc");
+}
+
+/* The same on the large scans of $MCF_MESHES. */
+static void test_lossless_scans(void **state)
+{
+    (void)state;
     lossless("fertility.obj");
     lossless("stanford-bunny.obj");
     lossless("snowden.obj");
-    lossless("test_nm.obj");
-    lossless("bunny.drc");
 }
 
 /* Float coordinates are stored as float32: half the bytes of float64. */
@@ -368,8 +382,13 @@ static void test_quantized(void **state)
     (void)state;
     quantized("sphere_cgal.obj", 8);
     quantized("sphere_cgal.obj", 11);
-    quantized("fertility.obj", 14);
     quantized("knot1.obj", 20);
+}
+
+static void test_quantized_scans(void **state)
+{
+    (void)state;
+    quantized("fertility.obj", 14);
     quantized("snowden.obj", 16);
 }
 
@@ -806,10 +825,13 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_real_counts),
         cmocka_unit_test(test_real_topology),
+        cmocka_unit_test(test_real_dragon),
         cmocka_unit_test(test_car_seams),
         cmocka_unit_test(test_lossless),
+        cmocka_unit_test(test_lossless_scans),
         cmocka_unit_test(test_lossless_float_storage),
         cmocka_unit_test(test_quantized),
+        cmocka_unit_test(test_quantized_scans),
         cmocka_unit_test(test_levels),
         cmocka_unit_test(test_encode_edge_cases),
         cmocka_unit_test(test_dispatch),

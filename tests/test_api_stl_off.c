@@ -121,6 +121,14 @@ static void test_stl_roundtrip(void **state)
     stl_roundtrip("sphere_cgal.obj", 1);
     stl_roundtrip("sphere_cgal.obj", 0);
     stl_roundtrip("knot1.obj", 1);       /* genus 1 */
+    stl_roundtrip("knot1.obj", 0);
+    stl_roundtrip("bunny_npm_closed.obj", 1);
+}
+
+/* The same on the large scans of $MCF_MESHES. */
+static void test_stl_roundtrip_scans(void **state)
+{
+    (void)state;
     stl_roundtrip("fertility.obj", 1);   /* genus 4 */
     stl_roundtrip("fertility.obj", 0);
     stl_roundtrip("armadillo.obj", 1);
@@ -395,9 +403,15 @@ static void test_off_roundtrip(void **state)
 {
     (void)state;
     off_roundtrip("knot1.obj");
+    off_roundtrip("test_nm.obj");        /* unreferenced vertices */
+    off_roundtrip("bunny.drc");
+}
+
+static void test_off_roundtrip_scans(void **state)
+{
+    (void)state;
     off_roundtrip("stanford-bunny.obj"); /* unreferenced vertices */
     off_roundtrip("snowden.obj");
-    off_roundtrip("bunny.drc");
 }
 
 static void test_off_variants(void **state)
@@ -554,12 +568,14 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_stl_roundtrip),
+        cmocka_unit_test(test_stl_roundtrip_scans),
         cmocka_unit_test(test_stl_weld_car),
         cmocka_unit_test(test_stl_binary_cases),
         cmocka_unit_test(test_stl_ascii_variants),
         cmocka_unit_test(test_stl_ascii_errors),
         cmocka_unit_test(test_stl_writer),
         cmocka_unit_test(test_off_roundtrip),
+        cmocka_unit_test(test_off_roundtrip_scans),
         cmocka_unit_test(test_off_variants),
         cmocka_unit_test(test_off_errors),
         cmocka_unit_test(test_garbage),

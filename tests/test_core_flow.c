@@ -229,10 +229,13 @@ static void test_implicit_fixed_point(void **state)
 /* Stanford bunny with 5 holes: fixed boundary vertices do not move (to
  * the bit), user-fixed vertices neither, and everything else does; for an
  * implicit scheme (boundary from the matrix pattern) and an explicit one
- * (boundary found without a pattern: odd_edges, then the edge counts). */
-static void fixed_vertices_run(mcf_scheme scheme, double dt)
+ * (boundary found without a pattern: odd_edges, then the edge counts).
+ * bunny.drc is in the repository; stanford-bunny.obj, the same scan with
+ * 1,113 unreferenced vertices more, is a large mesh of $MCF_MESHES. */
+static void fixed_vertices_run(const char *file, int unreferenced,
+                               mcf_scheme scheme, double dt)
 {
-    mcf_mesh *m = tl_load("stanford-bunny.obj");
+    mcf_mesh *m = tl_load(file);
     int n = mcf_mesh_nvertices(m);
     double *X0 = malloc(3 * sizeof(double) * n);
     memcpy(X0, mcf_mesh_positions(m), 3 * sizeof(double) * n);
@@ -274,8 +277,8 @@ static void fixed_vertices_run(mcf_scheme scheme, double dt)
     assert_memory_equal(X + 3 * 100, X0 + 3 * 100, 3 * sizeof(double));
     assert_memory_equal(X + 3 * 2000, X0 + 3 * 2000, 3 * sizeof(double));
     /* all referenced interior vertices move: 35,947 - 1,113 unreferenced
-     * - 223 boundary - 2 user-fixed */
-    assert_int_equal(moved, n - 1113 - 223 - 2);
+     * - 223 boundary - 2 user-fixed (stanford-bunny.obj) */
+    assert_int_equal(moved, n - unreferenced - 223 - 2);
     free(isb);
     free(X0);
     mcf_operator_free(&op);
@@ -285,10 +288,17 @@ static void fixed_vertices_run(mcf_scheme scheme, double dt)
 static void test_fixed_vertices(void **state)
 {
     (void)state;
-    fixed_vertices_run(MCF_DESBRUN2, 1e-3);
+    fixed_vertices_run("bunny.drc", 0, MCF_DESBRUN2, 1e-3);
     /* euler needs dt below 2/lambda_max; 1e-7 (normalized) is well below
      * for this scan (lambda_max ~ 1e6 at unit area) */
-    fixed_vertices_run(MCF_EULER, 1e-7);
+    fixed_vertices_run("bunny.drc", 0, MCF_EULER, 1e-7);
+}
+
+static void test_fixed_vertices_scan(void **state)
+{
+    (void)state;
+    fixed_vertices_run("stanford-bunny.obj", 1113, MCF_DESBRUN2, 1e-3);
+    fixed_vertices_run("stanford-bunny.obj", 1113, MCF_EULER, 1e-7);
 }
 
 /* Zero-area triangles (a vertex collapsed onto its neighbour, and a
@@ -581,6 +591,7 @@ int main(void)
         cmocka_unit_test(test_neumann2_unstable),
         cmocka_unit_test(test_implicit_fixed_point),
         cmocka_unit_test(test_fixed_vertices),
+        cmocka_unit_test(test_fixed_vertices_scan),
         cmocka_unit_test(test_degenerate_no_nan),
         cmocka_unit_test(test_adaptive),
         cmocka_unit_test(test_cancel_and_progress),

@@ -379,37 +379,56 @@ static void check_counts(const expect_counts *e)
     mcf_mesh_free(m);
 }
 
+/* The entries of t whose mesh is in the repository (scans 0), or the large
+ * scans of $MCF_MESHES (scans 1: the test is skipped when one is missing). */
+static void check_table(const expect_counts *t, size_t n, int scans)
+{
+    size_t i;
+    for (i = 0; i < n; i++)
+        if (tl_mesh_in_repo(t[i].file) != scans)
+            check_counts(&t[i]);
+}
+
+static const expect_counts sources_closed[] = {
+    /* file                 nv     nf    unref bE lp nmE nmV dup comp g  chi */
+    {"sphere_cgal.obj", 812, 1620, 0, 0, 0, 0, 0, 0, 1, 0, 2},
+    {"bunny_npm_closed.obj", 1839, 3674, 0, 0, 0, 0, 0, 0, 1, 0, 2},
+    {"spot.obj", 2930, 5856, 0, 0, 0, 0, 0, 0, 1, 0, 2},
+    {"knot1.obj", 3200, 6400, 0, 0, 0, 0, 0, 0, 1, 1, 0},
+    {"fertility.obj", 4494, 9000, 0, 0, 0, 0, 0, 0, 1, 4, -6},
+    {"armadillo.obj", 43243, 86482, 0, 0, 0, 0, 0, 0, 1, 0, 2},
+};
+
+static const expect_counts sources_open[] = {
+    /* stanford-bunny: genus 0 with 5 holes: chi = 2 - 0 - 5 = -3. */
+    {"stanford-bunny.obj", 35947, 69451, 1113, 223, 5, 0, 0, 0, 1, 0, -3},
+    {"snowden.obj", 54559, 109259, 0, 43, 7, 88, -1, -1, 4, -1, -1},
+    {"dragon_vrip_res2.obj", 100250, 202520, 43, 0, 0, 2534, 16, 1489,
+     7, -1, -1},
+    {"test_nm.obj", 114, 170, 17, -1, 3, -1, 2, -1, -1, -1, -1},
+    /* bunny.drc: the Stanford bunny without its unreferenced vertices */
+    {"bunny.drc", 34834, 69451, 0, 223, 5, 0, 0, 0, 1, 0, -3},
+};
+
+#define NELEM(a) (sizeof(a) / sizeof((a)[0]))
+
 static void test_inspect_sources_closed(void **state)
 {
-    static const expect_counts t[] = {
-        /* file                 nv     nf    unref bE lp nmE nmV dup comp g  chi */
-        {"sphere_cgal.obj", 812, 1620, 0, 0, 0, 0, 0, 0, 1, 0, 2},
-        {"bunny_npm_closed.obj", 1839, 3674, 0, 0, 0, 0, 0, 0, 1, 0, 2},
-        {"spot.obj", 2930, 5856, 0, 0, 0, 0, 0, 0, 1, 0, 2},
-        {"knot1.obj", 3200, 6400, 0, 0, 0, 0, 0, 0, 1, 1, 0},
-        {"fertility.obj", 4494, 9000, 0, 0, 0, 0, 0, 0, 1, 4, -6},
-        {"armadillo.obj", 43243, 86482, 0, 0, 0, 0, 0, 0, 1, 0, 2},
-    };
-    size_t i;
     (void)state;
-    for (i = 0; i < sizeof t / sizeof t[0]; i++)
-        check_counts(&t[i]);
+    check_table(sources_closed, NELEM(sources_closed), 0);
 }
 
 static void test_inspect_sources_open(void **state)
 {
-    static const expect_counts t[] = {
-        /* stanford-bunny: genus 0 with 5 holes: chi = 2 - 0 - 5 = -3. */
-        {"stanford-bunny.obj", 35947, 69451, 1113, 223, 5, 0, 0, 0, 1, 0, -3},
-        {"snowden.obj", 54559, 109259, 0, 43, 7, 88, -1, -1, 4, -1, -1},
-        {"dragon_vrip_res2.obj", 100250, 202520, 43, 0, 0, 2534, 16, 1489,
-         7, -1, -1},
-        {"test_nm.obj", 114, 170, 17, -1, 3, -1, 2, -1, -1, -1, -1},
-    };
-    size_t i;
     (void)state;
-    for (i = 0; i < sizeof t / sizeof t[0]; i++)
-        check_counts(&t[i]);
+    check_table(sources_open, NELEM(sources_open), 0);
+}
+
+static void test_inspect_sources_scans(void **state)
+{
+    (void)state;
+    check_table(sources_closed, NELEM(sources_closed), 1);
+    check_table(sources_open, NELEM(sources_open), 1);
 }
 
 /* ---------------------------------------------------------------- noise */
@@ -505,7 +524,7 @@ static void test_noise_sigma(void **state)
 
 static void test_compare_identical(void **state)
 {
-    mcf_mesh *a = tl_load("spot.obj");
+    mcf_mesh *a = tl_load("bunny_npm_closed.obj");
     mcf_mesh *b = mcf_mesh_dup(a, NULL);
     mcf_compare_result r;
     (void)state;
@@ -595,6 +614,7 @@ int main(void)
         cmocka_unit_test(test_inspect_defects),
         cmocka_unit_test(test_inspect_sources_closed),
         cmocka_unit_test(test_inspect_sources_open),
+        cmocka_unit_test(test_inspect_sources_scans),
         cmocka_unit_test(test_noise_deterministic),
         cmocka_unit_test(test_noise_sigma),
         cmocka_unit_test(test_compare_identical),

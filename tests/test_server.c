@@ -6,7 +6,8 @@
  * defaults to "build") on a spool under a fresh temporary directory; the
  * test reads the one "mcfd listening on http://127.0.0.1:PORT" line from
  * its stdout and sends its stderr (JSON log lines) to a file that is
- * printed when something fails. Meshes come from $MCF_MESHES.
+ * printed when something fails. Meshes come from tests/data/meshes
+ * (tl_need_mesh).
  *
  * Nothing here can hang: every transfer has a curl timeout, every poll
  * loop a deadline, every wait for a process exit a bound after which the
@@ -221,9 +222,9 @@ typedef struct {
 } resp_t;
 
 typedef struct {
-    const char *mesh;          /* file under $MCF_MESHES, multipart field */
+    const char *mesh;          /* test mesh (or absolute path), multipart field */
     const char *params;        /* multipart field params (JSON) */
-    const char *target;        /* file under $MCF_MESHES */
+    const char *target;        /* test mesh (or absolute path) */
     const char *field, *value; /* one plain form field */
     const void *raw;           /* raw body instead of multipart */
     size_t raw_len;
@@ -258,9 +259,11 @@ static size_t on_hdr(char *p, size_t s, size_t n, void *ud)
     return api_buf_append(&r->hdr, p, s * n) == MCF_OK ? s * n : 0;
 }
 
+/* A test mesh by name (tl_need_mesh: the test is skipped when it is not
+ * available), or an absolute path as it is. */
 static void mesh_path(char *buf, size_t size, const char *name)
 {
-    snprintf(buf, size, "%s/%s", tl_meshes_dir(), name);
+    snprintf(buf, size, "%s", name[0] == '/' ? name : tl_need_mesh(name));
 }
 
 /* One request; returns the HTTP status, 0 on a transport error. */
@@ -1269,10 +1272,21 @@ static void test_errors(void **state)
         assert_non_null(strstr(buf, "\"ELIMIT\""));
         assert_non_null(strstr(buf, "Content-Length 10000000000"));
     }
-    /* 413 (b): a multipart mesh part over --max-upload (3M), after the body */
+    /* 413 (b): a multipart mesh part over --max-upload (3M), after the
+     * body: 3,584,000 bytes of OBJ comment lines */
     {
-        upload_t big = {.mesh = "armadillo.obj"}; /* 4,036,311 bytes */
+        char file[600];
+        upload_t big = {.mesh = file};
+        FILE *f;
+        int i;
+        snprintf(file, sizeof file, "%s/big.obj", g_tmp);
+        f = fopen(file, "w");
+        assert_non_null(f);
+        for (i = 0; i < 3500; i++)
+            fprintf(f, "# %1020d\n", i);
+        assert_int_equal(fclose(f), 0);
         http(&g_main, "POST", "/smooth", NULL, &big, &r);
+        unlink(file);
         expect_problem(&g_main, &r, 413, "ELIMIT", "'mesh'", "mesh part too big");
         resp_free(&r);
     }

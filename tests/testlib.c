@@ -1,10 +1,12 @@
 /*
- * testlib.c - the helpers of testlib.h: locating the shared meshes,
- * reading files, decoding a mesh or failing the test, tolerance checks, and
- * running the mcf tool as a child process in a scratch directory.
+ * testlib.c - the helpers of testlib.h: locating the test meshes (in the
+ * repository, else in $MCF_MESHES, else skipping the test), reading files,
+ * decoding a mesh or failing the test, tolerance checks, running the mcf
+ * tool as a child process in a scratch directory, and making sure no child
+ * daemon outlives the test binary.
  *
  * Plain stdio on purpose: tests may run from any directory, and a missing
- * mesh folder must fail loudly with the path it tried, not crash.
+ * file must fail (or skip) loudly with the path it tried, not crash.
  */
 #define _XOPEN_SOURCE 700 /* realpath, mkdtemp */
 #include <errno.h>
@@ -13,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -22,7 +25,62 @@
 const char *tl_meshes_dir(void)
 {
     const char *d = getenv("MCF_MESHES");
-    return (d && *d) ? d : "../shared/meshes";
+    return d ? d : "";
+}
+
+const char *tl_testdata_dir(void)
+{
+    const char *d = getenv("MCF_TESTDATA");
+    return (d && *d) ? d : "tests/data";
+}
+
+const char *tl_mesh_path(const char *name)
+{
+    static char p[4][4096];
+    static int k;
+    const char *big = tl_meshes_dir();
+
+    k = (k + 1) % 4;
+    snprintf(p[k], sizeof p[k], "%s/meshes/%s", tl_testdata_dir(), name);
+    if (access(p[k], R_OK) == 0)
+        return p[k];
+    if (*big) {
+        snprintf(p[k], sizeof p[k], "%s/%s", big, name);
+        if (access(p[k], R_OK) == 0)
+            return p[k];
+    }
+    return NULL;
+}
+
+int tl_mesh_in_repo(const char *name)
+{
+    char p[4096];
+    snprintf(p, sizeof p, "%s/meshes/%s", tl_testdata_dir(), name);
+    return access(p, R_OK) == 0;
+}
+
+const char *tl_need_mesh(const char *name)
+{
+    const char *p = tl_mesh_path(name), *big = tl_meshes_dir(), *log;
+    char why[4200];
+    FILE *f;
+
+    if (p)
+        return p;
+    if (*big)
+        snprintf(why, sizeof why, "%s is not in MESHES=%s", name, big);
+    else
+        snprintf(why, sizeof why,
+                 "%s is not in the repository (tests/data/meshes) and MESHES is unset",
+                 name);
+    print_message("[  SKIP    ] %s (make test MESHES=/path/to/meshes runs it)\n", why);
+    log = getenv("MCF_SKIP_LOG");
+    if (log && *log && (f = fopen(log, "a")) != NULL) {
+        fprintf(f, "%s\t%s\n", name, why);
+        fclose(f);
+    }
+    skip();
+    return NULL; /* not reached */
 }
 
 int tl_read_file(const char *path, char **buf, size_t *len)
@@ -75,7 +133,7 @@ mcf_mesh *tl_load(const char *name)
     mcf_mesh *m = NULL;
     mcf_status rc;
 
-    snprintf(path, sizeof path, "%s/%s", tl_meshes_dir(), name);
+    snprintf(path, sizeof path, "%s", tl_need_mesh(name));
     if (tl_read_file(path, &buf, &len) != 0)
         fail_msg("tl_load: cannot read %s: %s", path, strerror(errno));
     api_limits_default(&lim);
@@ -111,9 +169,9 @@ int tl_mcf_setup(const char *who, const char *tmpl)
         fprintf(stderr, "%s: no %s (build it, or set MCF_BUILD)\n", who, rel);
         return -1;
     }
-    snprintf(rel, sizeof rel, "%s/sphere_cgal.obj", tl_meshes_dir());
-    if (!realpath(rel, sphere)) {
-        fprintf(stderr, "%s: no %s (set MCF_MESHES)\n", who, rel);
+    if (!tl_mesh_path("sphere_cgal.obj") || !realpath(tl_mesh_path("sphere_cgal.obj"), sphere)) {
+        fprintf(stderr, "%s: no %s/meshes/sphere_cgal.obj (set MCF_TESTDATA)\n", who,
+                tl_testdata_dir());
         return -1;
     }
     if (strlen(tmpl) >= sizeof scratch)
@@ -229,4 +287,108 @@ mcf_status tl_decode_copy(tl_decoder fn, const void *buf, size_t len,
     rc = fn(copy, len, lim, m, err);
     free(copy);
     return rc;
+}
+
+/* ------------------------------------------------------ child processes */
+
+/* Plain arrays and no locks: the signal handler reads them, and only the
+ * test's main thread adds to them. */
+#define TL_MAX_CHILDREN 64
+static volatile pid_t children[TL_MAX_CHILDREN];
+static volatile sig_atomic_t nchildren;
+
+void tl_child_own_group(void)
+{
+    setpgid(0, 0);
+}
+
+/* 1 while pid runs, 0 once it exited (a zombie: its pid and the group it
+ * leads stay reserved until it is reaped), -1 when it was reaped (or is no
+ * child of ours). Reaps nothing (WNOWAIT): the tests wait for their
+ * daemons themselves. */
+static int child_state(pid_t pid)
+{
+    siginfo_t si;
+    memset(&si, 0, sizeof si);
+    if (waitid(P_PID, (id_t)pid, &si, WEXITED | WNOHANG | WNOWAIT) != 0)
+        return -1;
+    return si.si_pid == 0 ? 1 : 0;
+}
+
+/* SIGKILLs the group of every tracked child that still runs, other than
+ * keep; with reap, also reaps it (and any tracked zombie). Only system
+ * calls, so the signal handler can use it too. */
+static int kill_tracked(pid_t keep, int reap)
+{
+    int i, killed = 0;
+    for (i = 0; i < nchildren; i++) {
+        pid_t pid = children[i];
+        int st;
+        if (pid <= 0 || pid == keep)
+            continue;
+        st = child_state(pid);
+        if (st < 0) {
+            children[i] = 0;
+            continue;
+        }
+        if (st == 1) {
+            kill(-pid, SIGKILL);
+            kill(pid, SIGKILL); /* should it not have reached its own group yet */
+            killed++;
+        }
+        if (reap) {
+            waitpid(pid, NULL, 0);
+            children[i] = 0;
+        }
+    }
+    return killed;
+}
+
+static void kill_at_exit(void)
+{
+    kill_tracked(0, 1);
+}
+
+static void kill_on_signal(int sig)
+{
+    kill_tracked(0, 0);
+    signal(sig, SIG_DFL);
+    raise(sig);
+}
+
+void tl_track_child(pid_t pid)
+{
+    static int installed;
+    int i;
+
+    if (pid <= 0)
+        return;
+    if (!installed) {
+        static const int sigs[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGABRT};
+        struct sigaction sa;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = kill_on_signal;
+        sigemptyset(&sa.sa_mask);
+        for (i = 0; i < (int)(sizeof sigs / sizeof sigs[0]); i++)
+            sigaction(sigs[i], &sa, NULL);
+        atexit(kill_at_exit);
+        installed = 1;
+    }
+    setpgid(pid, pid); /* fails harmlessly once the child has exec'd */
+    for (i = 0; i < nchildren; i++)
+        if (children[i] == 0 || child_state(children[i]) < 0) {
+            children[i] = pid;
+            return;
+        }
+    if (nchildren < TL_MAX_CHILDREN) {
+        children[nchildren] = pid;
+        nchildren++;
+    } else {
+        fprintf(stderr, "tl_track_child: more than %d children\n", TL_MAX_CHILDREN);
+    }
+}
+
+int tl_kill_children(pid_t keep)
+{
+    return kill_tracked(keep, 1);
 }

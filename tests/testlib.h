@@ -1,9 +1,9 @@
 /*
  * testlib.h - helpers shared by every cmocka test binary of mcfd.
  *
- * Tests read the real meshes of ../shared/meshes through the MCF_MESHES
- * environment variable that `make test` sets, decode them with the api
- * layer and compare numbers with an explicit tolerance. Every helper that
+ * Tests read real meshes (the small ones of tests/data/meshes, the large
+ * scans of $MCF_MESHES when `make test` is given MESHES), decode them with
+ * the api layer and compare numbers with an explicit tolerance. Every helper that
  * can fail ends the current cmocka test with a message (fail_msg), so a
  * caller never has to check a return value it cannot act on.
  *
@@ -16,24 +16,52 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <sys/types.h>
 
 #include <cmocka.h>
 
 #include "../core/mcf.h"
 #include "../api/api.h"
 
-/* The folder holding the test meshes: $MCF_MESHES, else "../shared/meshes".
- * The string is owned by the environment (or static); do not free it. */
+/* ---- Test meshes. A test names a mesh by file name; it is looked up in
+ * the repository first (tests/data/meshes/NAME, or $MCF_TESTDATA/meshes/NAME;
+ * see tests/data/meshes/SOURCES.md), then in $MCF_MESHES, the folder of
+ * large scans that `make test` passes from MESHES (unset in a fresh clone:
+ * CI sets MESHES=../shared/meshes). A test that needs a mesh neither has
+ * is skipped by name, never failed: tl_need_mesh prints the reason, appends
+ * a line to $MCF_SKIP_LOG (which `make test` counts) and calls cmocka's
+ * skip(). */
+
+/* The large-mesh folder: $MCF_MESHES, or "" when unset. The string is
+ * owned by the environment (or static); do not free it. Prefer
+ * tl_mesh_path, which also finds the in-repository copies. */
 const char *tl_meshes_dir(void);
+
+/* The in-repository test data folder: $MCF_TESTDATA, else "tests/data"
+ * (`make test` runs from the top of the tree). */
+const char *tl_testdata_dir(void);
+
+/* The path of mesh NAME (see above) in one of four rotating static
+ * buffers, or NULL when neither folder has a readable file of that name. */
+const char *tl_mesh_path(const char *name);
+
+/* 1 when mesh NAME is one of the repository's own (tests/data/meshes). */
+int tl_mesh_in_repo(const char *name);
+
+/* tl_mesh_path, or, when the mesh is not available, skips the current
+ * test with the reason (MESHES unset, or the file not in it). Call it
+ * before the test has allocated anything: skip() leaves the test. */
+const char *tl_need_mesh(const char *name);
 
 /* Reads a whole file into a malloc'ed buffer, NUL-terminated (the NUL is
  * not counted in *len). Returns 0 on success, -1 on failure (errno set,
  * *buf and *len unchanged). The caller free()s *buf. */
 int tl_read_file(const char *path, char **buf, size_t *len);
 
-/* Reads $MCF_MESHES/name and decodes it with api_mesh_decode under the
- * default limits. Returns a new mesh (mcf_mesh_free it); on any failure
- * the current cmocka test fails with the file name and error message. */
+/* Reads mesh NAME (tl_need_mesh: skips the test when it is not
+ * available) and decodes it with api_mesh_decode under the default limits.
+ * Returns a new mesh (mcf_mesh_free it); on any other failure the current
+ * cmocka test fails with the file name and error message. */
 mcf_mesh *tl_load(const char *name);
 
 /* Fails the current test unless |a - b| <= tol (and both are finite, or
@@ -52,7 +80,7 @@ typedef struct {
 } tl_run_result;
 
 /* For a cmocka group setup: resolves $MCF_BUILD/mcf (default build/mcf)
- * and $MCF_MESHES/sphere_cgal.obj to absolute paths (the children run
+ * and the test mesh sphere_cgal.obj to absolute paths (the children run
  * inside the scratch directory) and creates that directory with mkdtemp
  * from tmpl (at most 63 characters, ending in XXXXXX). On failure prints
  * "who: no PATH (...)" to stderr and returns -1; else 0. */
@@ -98,5 +126,25 @@ typedef mcf_status (*tl_decoder)(const void *buf, size_t len, const api_limits *
  * *m and err reset first. */
 mcf_status tl_decode_copy(tl_decoder fn, const void *buf, size_t len,
                           const api_limits *lim, mcf_mesh **m, mcf_error *err);
+
+/* ---- Child processes that must not outlive the test binary (the
+ * daemons of test_server), whatever fails: each runs in its own process
+ * group, and every group still alive is SIGKILLed by tl_kill_children
+ * (call it from a test's teardown), at exit, and on SIGINT, SIGTERM,
+ * SIGHUP, SIGQUIT and SIGABRT (then the signal is re-raised). */
+
+/* In the child, between fork and exec: a process group of its own. */
+void tl_child_own_group(void);
+
+/* In the parent, right after fork: records the child (and sets its group
+ * too, so no signal can race the child's own call). The first call
+ * installs the atexit and signal handlers. At most 64 children at once;
+ * a reaped one stops counting by itself. */
+void tl_track_child(pid_t pid);
+
+/* SIGKILLs the process group of every tracked child that is still running
+ * (not reaped, other than keep; pass 0 to keep none) and reaps it. Returns
+ * how many it killed. */
+int tl_kill_children(pid_t keep);
 
 #endif /* TESTLIB_H */
