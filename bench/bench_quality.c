@@ -148,6 +148,19 @@ static int gnuplot(const char *dir, const char *script)
     return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
+/* v printed into b (16 bytes) with digits as %.*f, or %.*g when g; "-"
+ * when NaN. */
+static const char *fmt(char b[16], int digits, int g, double v)
+{
+    if (isnan(v))
+        snprintf(b, 16, "-");
+    else if (g)
+        snprintf(b, 16, "%.*g", digits, v);
+    else
+        snprintf(b, 16, "%.*f", digits, v);
+    return b;
+}
+
 static double median_of(const double *v, int n)
 {
     double tmp[64];
@@ -263,6 +276,10 @@ static void run_oracle_point(const case_ctx *c, double cc, result *r, mcf_mesh *
         mcf_mesh_free(m);
 }
 
+/* 1: every grid point from 0.05 to 1 (the oracle summary's columns);
+ * 0: 0.1 .. 0.5 and what bracketing the minimum needs (--oracle-grid). */
+static int g_full_grid = 0;
+
 static int better(const result *a, const result *b)
 {
     return a->ok && (!b->ok || a->ratio < b->ratio);
@@ -270,37 +287,35 @@ static int better(const result *a, const result *b)
 
 /* The oracle sweep; every point goes to sweep_csv. Returns the best. */
 static void run_oracle(const case_ctx *c, FILE *sweep_csv, const char *label, double rho,
-                       int seed, result *best, double at_report[5], mcf_mesh **out)
+                       int seed, result *best, result at_report[5], mcf_mesh **out)
 {
     result pts[NGRID + 1];
     int done[NGRID] = {0}, ib = -1;
     for (int i = 0; i < 5; i++)
-        at_report[i] = NAN;
-    /* 0.05 .. 1 first, then the ends while the minimum sits next to them */
-    for (int i = 1; i <= 6; i++) {
+        at_report[i].ok = 0;
+    /* the required points first (g_full_grid: 0.05 .. 1, else 0.1 .. 0.5),
+     * then the neighbours of the minimum until it is bracketed */
+    for (int i = g_full_grid ? 1 : 2; i <= (g_full_grid ? 6 : 5); i++) {
         run_oracle_point(c, g_grid[i], &pts[i], NULL);
         done[i] = 1;
         if (ib < 0 || better(&pts[i], &pts[ib]))
             ib = i;
     }
-    if (ib == 1) {
-        run_oracle_point(c, g_grid[0], &pts[0], NULL);
-        done[0] = 1;
-        if (better(&pts[0], &pts[ib]))
-            ib = 0;
-    }
-    for (int i = 7; i < NGRID && ib >= i - 1; i++) {
-        run_oracle_point(c, g_grid[i], &pts[i], NULL);
-        done[i] = 1;
-        if (better(&pts[i], &pts[ib]))
-            ib = i;
+    for (;;) {
+        int next = ib > 0 && !done[ib - 1] ? ib - 1 : ib < NGRID - 1 && !done[ib + 1] ? ib + 1 : -1;
+        if (next < 0)
+            break;
+        run_oracle_point(c, g_grid[next], &pts[next], NULL);
+        done[next] = 1;
+        if (better(&pts[next], &pts[ib]))
+            ib = next;
     }
     for (int i = 0; i < NGRID; i++) {
         if (!done[i])
             continue;
         for (int k = 0; k < 5; k++)
             if (g_grid[i] == g_report_c[k])
-                at_report[k] = pts[i].ok ? pts[i].ratio : NAN;
+                at_report[k] = pts[i];
         fprintf(sweep_csv, "%s,%g,%d,%.6g,%d,%.6g,%d,%.6g,%.4g,%.4f\n", label, rho, seed, g_grid[i],
                 pts[i].ok, pts[i].ratio, pts[i].folds, pts[i].drift, pts[i].maxdisp, pts[i].wall);
     }
@@ -453,8 +468,8 @@ static void view_matrix(double ax, double ay, double R[9])
         }
 }
 
-static void figure(const char *out, const figure_spec *fs, const mcf_mesh *const ms[],
-                   const char *const titles[], int n)
+static void figure(const char *out, const char *stem, const figure_spec *fs,
+                   const mcf_mesh *const ms[], const char *const titles[], int n)
 {
     double R[9], lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY}, crop[4];
     view_matrix(0, fs->view_rot_y, R);
@@ -469,18 +484,25 @@ static void figure(const char *out, const figure_spec *fs, const mcf_mesh *const
     crop[1] = lo[0] + fs->crop[1] * (hi[0] - lo[0]);
     crop[2] = lo[1] + fs->crop[2] * (hi[1] - lo[1]);
     crop[3] = lo[1] + fs->crop[3] * (hi[1] - lo[1]);
-    FILE *g = open_out(out, "renders.gp");
+    char gp[256], png[256];
+    int rows = n > 3 ? 2 : 1, cols = (n + rows - 1) / rows;
+    double aspect = (crop[3] - crop[2]) / (crop[1] - crop[0]);
+    snprintf(gp, sizeof gp, "%s.gp", stem);
+    snprintf(png, sizeof png, "%s.png", stem);
+    FILE *g = open_out(out, gp);
     fprintf(g, "# bench_quality: clean / noisy / smoothed renders of %s at noise %g (seed %d)\n"
-               "# run in this folder: gnuplot renders.gp\n"
-               "set terminal pngcairo size %d,560 font 'sans,11'\n"
-               "set output 'renders.png'\n"
-               "set multiplot layout 1,%d title '%s, noise %g mean edges (seed %d): clean, noisy, smoothed'\n"
-               "set view 0,0,1.5\nset view equal xyz\nunset border\nunset tics\nunset key\nunset colorbox\n"
+               "# run in this folder: gnuplot %s (needs the render-*.dat files bench_quality\n"
+               "# writes and removes; rerun bench_quality to regenerate)\n"
+               "set terminal pngcairo size %d,%d font 'sans,11'\n"
+               "set output '%s'\n"
+               "set multiplot layout %d,%d title '%s, noise %g mean edges (seed %d): clean, noisy, smoothed "
+               "(error / noisy error)' noenhanced\n"
+               "set view 0,0,1.4\nset view equal xy\nset size ratio -1\nunset border\nunset tics\nunset key\nunset colorbox\n"
                "set xrange [%.9g:%.9g]\nset yrange [%.9g:%.9g]\n"
                "set pm3d depthorder lighting primary 0.45 specular 0.15 spec2 0.25\n"
                "set style fill solid noborder\n",
-            fs->mesh, fs->rho, fs->seed, 360 * n, n, fs->mesh, fs->rho, fs->seed, crop[0], crop[1],
-            crop[2], crop[3]);
+            fs->mesh, fs->rho, fs->seed, gp, 420 * cols, (int)(rows * (420 * aspect + 40) + 40), png,
+            rows, cols, fs->mesh, fs->rho, fs->seed, crop[0], crop[1], crop[2], crop[3]);
     for (int i = 0; i < n; i++) {
         char name[64];
         snprintf(name, sizeof name, "render-%d.dat", i);
@@ -490,10 +512,10 @@ static void figure(const char *out, const figure_spec *fs, const mcf_mesh *const
     }
     fprintf(g, "unset multiplot\n");
     fclose(g);
-    if (gnuplot(out, "renders.gp") == 0)
-        printf("figure: %s/renders.png\n", out);
+    if (gnuplot(out, gp) == 0)
+        printf("figure: %s/%s\n", out, png);
     else
-        printf("figure: gnuplot failed or is missing (%s/renders.gp written)\n", out);
+        printf("figure: gnuplot failed or is missing (%s/%s written)\n", out, gp);
     for (int i = 0; i < n; i++) {
         char path[4096];
         snprintf(path, sizeof path, "%s/render-%d.dat", out, i);
@@ -508,7 +530,7 @@ typedef struct {
     int nv, dense, closed;
     /* [noise][seed][method] */
     result r[MAXNOISE][MAXSEED][NMETHOD];
-    double at_c[MAXNOISE][MAXSEED][5];
+    result at_c[MAXNOISE][MAXSEED][5]; /* oracle points at g_report_c */
     double wall;
 } mesh_rows;
 
@@ -546,7 +568,7 @@ static void write_oracle_summary(const char *path, const mesh_rows *mr, int nm, 
                 cb[s] = o->ok ? o->param : NAN;
                 rb[s] = o->ok ? o->ratio : NAN;
                 for (int j = 0; j < 5; j++)
-                    at[j][s] = mr[m].at_c[k][s][j];
+                    at[j][s] = mr[m].at_c[k][s][j].ok ? mr[m].at_c[k][s][j].ratio : NAN;
             }
             double mn = INFINITY, mx = -INFINITY;
             for (int s = 0; s < ns; s++) {
@@ -559,6 +581,34 @@ static void write_oracle_summary(const char *path, const mesh_rows *mr, int nm, 
                     mr[m].nv, rho[k], median_of(cb, ns), range, median_of(rb, ns), median_of(at[0], ns),
                     median_of(at[1], ns), median_of(at[2], ns), median_of(at[3], ns), median_of(at[4], ns));
         }
+    fprintf(f, "\n# worst seed at each c: largest ratio, most negative drift in %% (volume closed, area open,\n"
+               "# vs clean), most new folds\n");
+    fprintf(f, "%-22s %5s |", "mesh", "noise");
+    for (int j = 0; j < 5; j++)
+        fprintf(f, "  c=%-4g ratio drift%% fold |", g_report_c[j]);
+    fprintf(f, "\n");
+    for (int m = 0; m < nm; m++)
+        for (int k = 0; k < nr; k++) {
+            fprintf(f, "%-22s %5g |", mr[m].name, rho[k]);
+            for (int j = 0; j < 5; j++) {
+                double wr = -INFINITY, wd = INFINITY;
+                int wf = 0, any = 0;
+                for (int s = 0; s < ns; s++) {
+                    const result *r = &mr[m].at_c[k][s][j];
+                    if (!r->ok)
+                        continue;
+                    any = 1;
+                    wr = r->ratio > wr ? r->ratio : wr;
+                    wd = r->drift < wd ? r->drift : wd;
+                    wf = r->folds > wf ? r->folds : wf;
+                }
+                if (any)
+                    fprintf(f, "       %6.3f %6.2f %4d |", wr, 100 * wd, wf);
+                else
+                    fprintf(f, "       %6s %6s %4s |", "-", "-", "-");
+            }
+            fprintf(f, "\n");
+        }
     fclose(f);
     rename(tmp, path);
 }
@@ -568,7 +618,7 @@ static void usage(void)
     fprintf(stderr,
             "usage: bench_quality [--meshes DIR] [--out DIR] [--list a.obj,b.drc,...] [--noise 0.1,0.25,0.5]\n"
             "                     [--seeds N] [--methods default,auto,oracle,taubin] [--oracle-out FILE]\n"
-            "                     [--no-figure | --figure MESH[,NOISE[,SEED]]]\n");
+            "                     [--no-figure | --figure MESH[,NOISE[,SEED]]] [--oracle-grid lean|full]\n");
     exit(2);
 }
 
@@ -581,6 +631,8 @@ int main(int argc, char **argv)
     int nseeds = 3, do_figure = 1, fig_seed = 1;
     const char *fig_mesh = "stanford-bunny.obj";
     double fig_rho = 0.25;
+    /* the zoomed figure: the stanford bunny's head in the default view */
+    double fig_crop[4] = {0.0, 0.62, 0.38, 1.0};
     double t_start = mcf_now();
 
     for (int i = 1; i < argc; i++) {
@@ -601,6 +653,8 @@ int main(int argc, char **argv)
             oracle_out = v, i++;
         else if (!strcmp(a, "--no-figure"))
             do_figure = 0;
+        else if (!strcmp(a, "--oracle-grid") && v && (!strcmp(v, "full") || !strcmp(v, "lean")))
+            g_full_grid = !strcmp(v, "full"), i++;
         else if (!strcmp(a, "--figure") && v) {
             /* NAME[,NOISE[,SEED]] */
             static char fbuf[256];
@@ -762,24 +816,22 @@ int main(int argc, char **argv)
                 mcf_mesh_free(noisy);
             }
         row->wall = mcf_now() - tm0;
-        printf("  %-6s | %-20s | %-20s | %-22s | %-20s\n", "noise", "default ratio fold", "auto ratio fold",
-               "oracle ratio (c)", "taubin ratio (pass)");
+        printf("  %-5s | %-19s | %-19s | %-19s | %-19s\n", "noise", "default (t/h^2)", "auto (t/h^2)",
+               "oracle (c)", "taubin (passes)");
         for (int k = 0; k < nr; k++) {
-            double v[NMETHOD][MAXSEED], p[NMETHOD][MAXSEED], fmax[NMETHOD];
+            char b[NMETHOD][2][16];
+            printf("  %-5g |", rho[k]);
             for (int j = 0; j < NMETHOD; j++) {
-                fmax[j] = 0;
+                double v[MAXSEED], q[MAXSEED];
                 for (int s = 0; s < nseeds; s++) {
                     const result *r = &row->r[k][s][j];
-                    v[j][s] = r->ok ? r->ratio : NAN;
-                    p[j][s] = r->ok ? r->param : NAN;
-                    if (r->folds > fmax[j])
-                        fmax[j] = r->folds;
+                    v[s] = r->ok ? r->ratio : NAN;
+                    q[s] = r->ok ? r->param : NAN;
                 }
+                printf(" %7s (%7s)  |", fmt(b[j][0], 3, 0, median_of(v, nseeds)),
+                       fmt(b[j][1], 3, 1, median_of(q, nseeds)));
             }
-            printf("  %-6g | %6.3f %5.0f %7s | %6.3f %5.0f %7s | %6.3f (%5.3g) %8s | %6.3f (%4.0f) %8s\n", rho[k],
-                   median_of(v[0], nseeds), fmax[0], "", median_of(v[1], nseeds), fmax[1], "",
-                   median_of(v[2], nseeds), median_of(p[2], nseeds), "", median_of(v[3], nseeds),
-                   median_of(p[3], nseeds), "");
+            printf("\n");
         }
         printf("  (%.1f s)\n", row->wall);
         fflush(stdout);
@@ -793,30 +845,36 @@ int main(int argc, char **argv)
     printf("\n== scan quality: error / noisy input's error, median over %d seeds (folds: most new folds of a seed;\n"
            "   drift: median, volume if closed else area, vs clean; disp: max displacement in mean edges)\n",
            nseeds);
-    printf("%-21s %5s | %6s %5s %6s %5s %6s | %6s %5s | %6s %5s | %6s %4s | %s\n", "mesh", "noise", "deflt",
-           "folds", "drift%", "disp", "wall", "auto", "folds", "oracle", "c*", "taubin", "pass", "t/h^2 dflt");
+    printf("%-21s %5s | %6s %5s %6s %5s %6s %6s | %6s %6s %5s | %6s %6s | %6s %5s\n", "mesh", "noise",
+           "deflt", "folds", "drift%", "disp", "wall", "t/h^2", "auto", "t/h^2", "folds", "oracle", "c*",
+           "taubin", "pass");
     for (int m = 0; m < nm; m++)
         for (int k = 0; k < nr; k++) {
             double v[NMETHOD][MAXSEED], d[MAXSEED], dp[MAXSEED], w[MAXSEED], pa[NMETHOD][MAXSEED];
-            int fm[NMETHOD] = {0};
+            int fm[NMETHOD] = {0}, any[NMETHOD] = {0};
+            char b[14][16];
             for (int j = 0; j < NMETHOD; j++)
                 for (int s = 0; s < nseeds; s++) {
                     const result *r = &mr[m].r[k][s][j];
                     v[j][s] = r->ok ? r->ratio : NAN;
                     pa[j][s] = r->ok ? r->param : NAN;
+                    any[j] |= r->ok;
                     if (r->folds > fm[j])
                         fm[j] = r->folds;
                     if (j == M_DEFAULT) {
                         d[s] = r->ok ? 100 * r->drift : NAN;
                         dp[s] = r->ok ? r->maxdisp : NAN;
-                        w[s] = r->wall;
+                        w[s] = r->ok ? r->wall : NAN;
                     }
                 }
-            printf("%-21s %5g | %6.3f %5d %6.2f %5.2f %6.3f | %6.3f %5d | %6.3f %5.3g | %6.3f %4.0f | %.3g\n",
-                   mr[m].name, rho[k], median_of(v[0], nseeds), fm[0], median_of(d, nseeds),
-                   median_of(dp, nseeds), median_of(w, nseeds), median_of(v[1], nseeds), fm[1],
-                   median_of(v[2], nseeds), median_of(pa[2], nseeds), median_of(v[3], nseeds),
-                   median_of(pa[3], nseeds), median_of(pa[0], nseeds));
+            printf("%-21s %5g | %6s %5s %6s %5s %6s %6s | %6s %6s %5s | %6s %6s | %6s %5s\n", mr[m].name, rho[k],
+                   fmt(b[0], 3, 0, median_of(v[0], nseeds)), fmt(b[1], 0, 0, any[0] ? fm[0] : NAN),
+                   fmt(b[2], 2, 0, median_of(d, nseeds)), fmt(b[3], 2, 0, median_of(dp, nseeds)),
+                   fmt(b[4], 3, 0, median_of(w, nseeds)), fmt(b[5], 3, 1, median_of(pa[0], nseeds)),
+                   fmt(b[6], 3, 0, median_of(v[1], nseeds)), fmt(b[7], 3, 1, median_of(pa[1], nseeds)),
+                   fmt(b[8], 0, 0, any[1] ? fm[1] : NAN), fmt(b[9], 3, 0, median_of(v[2], nseeds)),
+                   fmt(b[10], 3, 1, median_of(pa[2], nseeds)), fmt(b[11], 3, 0, median_of(v[3], nseeds)),
+                   fmt(b[12], 0, 0, median_of(pa[3], nseeds)));
         }
 
     /* ---- goals (issue 12, section 5) */
@@ -881,7 +939,10 @@ int main(int argc, char **argv)
                auto_note[0] ? auto_note : "auto or taubin not run");
 
     if (do_figure && fig_n > 0) {
-        figure(out, &fs, fig_ms, fig_titles, fig_n);
+        figure(out, "renders", &fs, fig_ms, fig_titles, fig_n);
+        figure_spec zoom = fs;
+        memcpy(zoom.crop, fig_crop, sizeof zoom.crop);
+        figure(out, "renders-zoom", &zoom, fig_ms, fig_titles, fig_n);
         for (int i = 0; i < fig_n; i++)
             mcf_mesh_free((mcf_mesh *)(uintptr_t)fig_ms[i]);
     }
