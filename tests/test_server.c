@@ -2116,6 +2116,186 @@ static void test_config(void **state)
     }
 }
 
+/* ------------------------------------------ metrics: one document, CLI */
+
+/* Fails unless a and b have the same members, recursively; arrays have
+ * the same length and are compared element by element. A null on either
+ * side stands for any value: a number one door does not have (the job id
+ * in the CLI, the queue time there, the process RSS in the daemon). */
+static void same_keys(const cJSON *a, const cJSON *b, const char *path)
+{
+    char sub[256];
+    const cJSON *x;
+    int i, n;
+
+    if (cJSON_IsNull(a) || cJSON_IsNull(b))
+        return;
+    if (cJSON_IsObject(a) || cJSON_IsObject(b)) {
+        if (!cJSON_IsObject(a) || !cJSON_IsObject(b))
+            fail_msg("%s: an object in one document only", path);
+        cJSON_ArrayForEach(x, a) {
+            snprintf(sub, sizeof sub, "%s.%s", path, x->string);
+            if (!cJSON_GetObjectItemCaseSensitive(b, x->string))
+                fail_msg("%s: in the CLI's metrics only", sub);
+            same_keys(x, cJSON_GetObjectItemCaseSensitive(b, x->string), sub);
+        }
+        cJSON_ArrayForEach(x, b)
+            if (!cJSON_GetObjectItemCaseSensitive(a, x->string))
+                fail_msg("%s.%s: in the daemon's metrics only", path, x->string);
+        return;
+    }
+    if (cJSON_IsArray(a) || cJSON_IsArray(b)) {
+        n = cJSON_GetArraySize(a);
+        if (!cJSON_IsArray(a) || !cJSON_IsArray(b) || n != cJSON_GetArraySize(b))
+            fail_msg("%s: arrays of different lengths", path);
+        for (i = 0; i < n; i++) {
+            snprintf(sub, sizeof sub, "%s[%d]", path, i);
+            same_keys(cJSON_GetArrayItem(a, i), cJSON_GetArrayItem(b, i), sub);
+        }
+        return;
+    }
+    if (!(cJSON_IsBool(a) && cJSON_IsBool(b)) && (a->type & 0xff) != (b->type & 0xff))
+        fail_msg("%s: values of different types", path);
+}
+
+/* The same request through `mcf smooth --metrics` and POST /smooth: the
+ * same keys (one builder, api_metrics_json), the same parameters and the
+ * same numbers (one thread each: the runs are deterministic; relative
+ * 1e-12 covers 17-digit printing). */
+static void test_metrics_same_as_cli(void **state)
+{
+    static const char *const same[] = {
+        "flow.steps", "flow.t_final", "flow.volume0", "flow.volume1", "flow.area1",
+        "input.info.volume", "output.volume", "output.area", "output.info.edge_length.mean",
+        "curvature.before.H.mean", "curvature.after.K.p50", "curvature.after.A2.min",
+        "compare.before.rms_m", "compare.after.rms_m", "compare.rms_m", "compare.max_err",
+        NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+    tl_run_result cr;
+    resp_t r;
+    char id[64];
+    cJSON *cli, *srv;
+    int i;
+
+    (void)state;
+    assert_int_equal(tl_mcf_setup("test_server", "/tmp/mcfd-cli-XXXXXX"), 0);
+    cr = tl_run("smooth", tl_sphere(), "out.obj", "--iterations", "3", "--noise", "0.1",
+                "--seed", "5", "--target", tl_sphere(), "--metrics", "m.json", "--quiet",
+                NULL);
+    if (cr.status != 0)
+        fail_msg("mcf smooth: status %d: %s", cr.status, cr.err);
+    tl_run_free(&cr);
+    {
+        char *buf;
+        size_t len;
+        assert_int_equal(tl_read_file(tl_in_scratch("m.json"), &buf, &len), 0);
+        cli = cJSON_Parse(buf);
+        free(buf);
+        assert_non_null(cli);
+    }
+    assert_int_equal(tl_mcf_teardown(), 0);
+
+    http(&g_main, "POST", "/smooth?iterations=3&noise=0.1&seed=5", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "the CLI's request");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    srv = follow_metrics_link(&g_main, &r, id);
+    resp_free(&r);
+
+    same_keys(cli, srv, "metrics");
+    /* the door's own facts, where each door has them */
+    assert_string_equal(jstr(srv, "job"), id);
+    assert_true(cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(cli, "job")));
+    assert_true(jnum(srv, "timings.queue_s") >= 0);
+    assert_true(jnum(cli, "timings.read_s") >= 0);
+    assert_true(cJSON_Compare(cJSON_GetObjectItemCaseSensitive(cli, "params"),
+                              cJSON_GetObjectItemCaseSensitive(srv, "params"), 1));
+    for (i = 0; same[i]; i++) {
+        double a = jnum(cli, same[i]), b = jnum(srv, same[i]);
+        tl_assert_near(b, a, 1e-12 * fabs(a), same[i]);
+    }
+    {
+        const cJSON *la = cJSON_GetObjectItemCaseSensitive(
+                        cJSON_GetObjectItemCaseSensitive(cli, "flow"), "log"),
+                    *lb = cJSON_GetObjectItemCaseSensitive(
+                        cJSON_GetObjectItemCaseSensitive(srv, "flow"), "log");
+        assert_int_equal(cJSON_GetArraySize(la), 3);
+        for (i = 0; i < 3; i++) {
+            double a = jnum(cJSON_GetArrayItem(la, i), "volume");
+            tl_assert_near(jnum(cJSON_GetArrayItem(lb, i), "volume"), a, 1e-12 * fabs(a),
+                           "log volume");
+        }
+    }
+    cJSON_Delete(cli);
+    cJSON_Delete(srv);
+}
+
+/* One volume in the stream, the step log and the summary: mcf_mesh_volume's
+ * (about the input's origin), on an open mesh off the origin with a free
+ * boundary, where volumes about the origin and about the area centroid
+ * differ by about 5/3. Each streamed volume is the log's. */
+static void test_metrics_stream_volume_open(void **state)
+{
+    static const char *const h[] = {"Content-Type: model/obj", NULL};
+    const double pi = 3.14159265358979323846;
+    api_buf obj;
+    upload_t raw;
+    resp_t r;
+    char *line, *save = NULL;
+    double vol[8];
+    int i, k, n = 8, steps = 0, done = 0;
+
+    (void)state;
+    /* an 8 x 8 grid with a bump, shifted by (3, -2, 5) (test_cli's) */
+    api_buf_init(&obj, 0);
+    for (k = 0; k < n; k++)
+        for (i = 0; i < n; i++) {
+            double x = (double)i / (n - 1), y = (double)k / (n - 1);
+            assert_int_equal(api_buf_printf(&obj, "v %.17g %.17g %.17g\n", x + 3, y - 2,
+                                            0.2 * sin(pi * x) * sin(pi * y) + 5), MCF_OK);
+        }
+    for (k = 0; k + 1 < n; k++)
+        for (i = 0; i + 1 < n; i++) {
+            int a = k * n + i + 1, b = a + 1, c = a + n, d = c + 1;
+            assert_int_equal(api_buf_printf(&obj, "f %d %d %d\nf %d %d %d\n", a, b, d, a,
+                                            d, c), MCF_OK);
+        }
+    raw = (upload_t){.raw = obj.data, .raw_len = obj.len};
+    http(&g_main, "POST", "/smooth?iterations=5&dt=1e-3&boundary=free&stream=ndjson", h,
+         &raw, &r);
+    expect_status(&g_main, &r, 200, "open grid, ndjson");
+    for (line = strtok_r(r.body.data, "\n", &save); line;
+         line = strtok_r(NULL, "\n", &save)) {
+        cJSON *j = cJSON_Parse(line);
+        assert_non_null(j);
+        if (cJSON_GetObjectItemCaseSensitive(j, "done")) {
+            const cJSON *m = cJSON_GetObjectItemCaseSensitive(j, "metrics");
+            const cJSON *log = cJSON_GetObjectItemCaseSensitive(
+                cJSON_GetObjectItemCaseSensitive(m, "flow"), "log");
+            double v0 = jnum(m, "flow.volume0"), v1 = jnum(m, "flow.volume1");
+            done = 1;
+            assert_int_equal(steps, 5);
+            assert_int_equal(cJSON_GetArraySize(log), 5);
+            for (i = 0; i < 5; i++)
+                tl_assert_near(vol[i], jnum(cJSON_GetArrayItem(log, i), "volume"),
+                               1e-15 * fabs(vol[i]), "streamed = logged volume");
+            /* relative 1e-12: sums over 98 faces in different orders */
+            tl_assert_near(vol[4], v1, 1e-12 * fabs(v1), "last streamed = volume1");
+            tl_assert_near(jnum(m, "output.volume"), v1, 1e-12 * fabs(v1),
+                           "output.volume = volume1");
+            tl_assert_near(jnum(m, "input.info.volume"), v0, 1e-12 * fabs(v0),
+                           "input.info.volume = volume0");
+            assert_true(fabs(v1 - v0) > 1e-4 * fabs(v0)); /* it moved */
+        } else {
+            assert_true(steps < 8);
+            vol[steps++] = jnum(j, "volume");
+        }
+        cJSON_Delete(j);
+    }
+    assert_true(done);
+    resp_free(&r);
+    api_buf_free(&obj);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -2139,6 +2319,8 @@ int main(void)
         cmocka_unit_test(test_drain_checkpoint),
         cmocka_unit_test(test_probe),
         cmocka_unit_test(test_config),
+        cmocka_unit_test(test_metrics_same_as_cli),
+        cmocka_unit_test(test_metrics_stream_volume_open),
     };
     /* MCF_TEST_FILTER=test_errors (a cmocka pattern) runs a subset. */
     if (getenv("MCF_TEST_FILTER") && *getenv("MCF_TEST_FILTER"))
