@@ -43,6 +43,8 @@
 #include <new>
 #include <vector>
 
+#include "draco/attributes/attribute_octahedron_transform.h"
+#include "draco/attributes/attribute_quantization_transform.h"
 #include "draco/compression/decode.h"
 #include "draco/compression/encode.h"
 #include "draco/mesh/mesh.h"
@@ -60,7 +62,18 @@ namespace {
  * (undefined behaviour) and does not bound-check the last component
  * against the buffer. Integer types read as their values (divided by the
  * type's maximum when the attribute is marked normalized, as Draco does). */
+bool read_values(const draco::PointAttribute *a, uint32_t v, int n,
+                 bool unit, double *out);
+
 bool read_position(const draco::PointAttribute *a, uint32_t v, double out[3])
+{
+    return read_values(a, v, 3, false, out);
+}
+
+/* The first n components of value v; integer types are divided by their
+ * maximum when the attribute is normalized or unit is set (colours). */
+bool read_values(const draco::PointAttribute *a, uint32_t v, int n, bool unit,
+                 double *out)
 {
     const draco::DataType dt = a->data_type();
     const int64_t sz = draco::DataTypeLength(dt);
@@ -68,11 +81,11 @@ bool read_position(const draco::PointAttribute *a, uint32_t v, double out[3])
     if (dt < draco::DT_INT8 || dt > draco::DT_FLOAT64 || sz <= 0 || !db)
         return false;
     const int64_t pos = a->byte_offset() + a->byte_stride() * static_cast<int64_t>(v);
-    if (a->byte_offset() < 0 || a->byte_stride() < 3 * sz || pos < 0 ||
-        static_cast<uint64_t>(pos) + 3 * static_cast<uint64_t>(sz) > db->data_size())
+    if (a->byte_offset() < 0 || a->byte_stride() < n * sz || pos < 0 ||
+        static_cast<uint64_t>(pos) + n * static_cast<uint64_t>(sz) > db->data_size())
         return false;
     const uint8_t *p = db->data() + pos;
-    for (int k = 0; k < 3; k++, p += sz) {
+    for (int k = 0; k < n; k++, p += sz) {
         double x = 0.0, scale = 0.0;
         switch (dt) {
         case draco::DT_INT8: { int8_t t; std::memcpy(&t, p, 1); x = t; scale = INT8_MAX; break; }
@@ -87,7 +100,7 @@ bool read_position(const draco::PointAttribute *a, uint32_t v, double out[3])
         case draco::DT_FLOAT64: { double t; std::memcpy(&t, p, 8); x = t; break; }
         default: return false;
         }
-        out[k] = (a->normalized() && scale > 0.0) ? x / scale : x;
+        out[k] = ((a->normalized() || unit) && scale > 0.0) ? x / scale : x;
     }
     return true;
 }
@@ -287,8 +300,12 @@ mcf_status check_counts(const uint8_t *buf, size_t len, const api_limits *lim,
 
 /* ------------------------------------------------------------- decoder */
 
+mcf_status read_attrs(const void *buf, size_t len, const draco::Mesh &dm,
+                      const draco::PointAttribute *pos, const mcf_mesh *m,
+                      api_attrs **attrs, mcf_error *err);
+
 mcf_status decode(const void *buf, size_t len, const api_limits *lim,
-                  mcf_mesh **out, mcf_error *err)
+                  mcf_mesh **out, api_attrs **attrs, mcf_error *err)
 {
     api_limits def;
     if (!lim) {
@@ -392,7 +409,139 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
                                static_cast<int>(nfaces), F.data(), err);
     if (!m)
         return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
+    if (attrs) {
+        try {
+            rc = read_attrs(buf, len, *dm, pos, m, attrs, err);
+        } catch (...) {
+            mcf_mesh_free(m);
+            throw;
+        }
+        if (rc != MCF_OK) {
+            mcf_mesh_free(m);
+            return rc;
+        }
+    }
     *out = m;
+    return MCF_OK;
+}
+
+/* The quantization of attribute a (of a mesh decoded with the transforms
+ * skipped): its bits (0: stored raw) and, for a quantized one, the grid. */
+int transform_bits(const draco::PointAttribute *a, float origin[4], float *range)
+{
+    *range = 0.0f;
+    const draco::AttributeTransformData *td = a ? a->GetAttributeTransformData() : nullptr;
+    if (!td)
+        return 0;
+    if (td->transform_type() == draco::ATTRIBUTE_QUANTIZATION_TRANSFORM) {
+        draco::AttributeQuantizationTransform q;
+        if (!q.InitFromAttribute(*a))
+            return 0;
+        const int nc = std::min(4, static_cast<int>(a->num_components()));
+        if (static_cast<int>(q.min_values().size()) >= nc) {
+            for (int c = 0; c < nc; c++)
+                origin[c] = q.min_value(c);
+            *range = q.range();
+        }
+        return q.quantization_bits();
+    }
+    if (td->transform_type() == draco::ATTRIBUTE_OCTAHEDRON_TRANSFORM) {
+        draco::AttributeOctahedronTransform o;
+        if (!o.InitFromAttribute(*a))
+            return 0;
+        return o.quantization_bits();
+    }
+    return 0;
+}
+
+/* The attributes of the decoded dm (whose POSITION is pos) for mesh m:
+ * the first NORMAL (3 components), TEX_COORD (2) and COLOR (3 or 4) as
+ * per-corner values, and the quantization of each, learnt by decoding the
+ * stream once more with Draco's dequantization skipped (the bitstream
+ * keeps it nowhere else). One Draco cannot read is left out. */
+mcf_status read_attrs(const void *buf, size_t len, const draco::Mesh &dm,
+                      const draco::PointAttribute *pos, const mcf_mesh *m,
+                      api_attrs **attrs, mcf_error *err)
+{
+    static const struct {
+        draco::GeometryAttribute::Type type;
+        api_attr_kind kind;
+    } kinds[] = {{draco::GeometryAttribute::NORMAL, API_ATTR_NORMAL},
+                 {draco::GeometryAttribute::TEX_COORD, API_ATTR_TEXCOORD},
+                 {draco::GeometryAttribute::COLOR, API_ATTR_COLOR}};
+    const size_t nf = dm.num_faces(), npts = dm.num_points();
+    std::unique_ptr<api_attrs, void (*)(api_attrs *)> a(
+        api_attrs_new(mcf_mesh_nvertices(m), mcf_mesh_nfaces(m)), api_attrs_free);
+    if (!a)
+        return api__fail(err, MCF_ENOMEM, "draco: out of memory for the attributes");
+    a->float32 = pos->data_type() == draco::DT_FLOAT32 ? 1 : 0;
+
+    /* The quantization: a second decode, transforms skipped. */
+    std::unique_ptr<draco::Mesh> raw;
+    {
+        draco::DecoderBuffer db;
+        db.Init(static_cast<const char *>(buf), len);
+        draco::Decoder dec;
+        dec.SetSkipAttributeTransform(draco::GeometryAttribute::POSITION);
+        for (const auto &k : kinds)
+            dec.SetSkipAttributeTransform(k.type);
+        auto res = dec.DecodeMeshFromBuffer(&db);
+        if (res.ok())
+            raw = std::move(res).value();
+    }
+    if (raw) {
+        float o[4];
+        float r;
+        a->pos_bits = transform_bits(
+            raw->GetNamedAttribute(draco::GeometryAttribute::POSITION), o, &r);
+        if (a->pos_bits > 0)
+            a->float32 = 1; /* dequantized positions are float32 */
+    }
+
+    for (const auto &k : kinds) {
+        const draco::PointAttribute *att = dm.GetNamedAttribute(k.type);
+        if (!att)
+            continue;
+        const int nc = att->num_components();
+        const int want = k.kind == API_ATTR_TEXCOORD ? 2 : 3;
+        if (!(nc == want || (k.kind == API_ATTR_COLOR && nc == 4)))
+            continue;
+        const size_t nvals = att->size();
+        if (nvals > static_cast<size_t>(INT32_MAX) / 4)
+            continue;
+        std::vector<double> V(nvals * nc);
+        bool ok = true;
+        for (size_t v = 0; v < nvals && ok; v++) {
+            ok = read_values(att, static_cast<uint32_t>(v), nc,
+                             k.kind == API_ATTR_COLOR, &V[v * nc]);
+            for (int c = 0; ok && c < nc; c++)
+                ok = std::isfinite(V[v * nc + c]);
+        }
+        std::vector<int32_t> C(3 * nf);
+        for (size_t f = 0; f < nf && ok; f++) {
+            const draco::Mesh::Face &face =
+                dm.face(draco::FaceIndex(static_cast<uint32_t>(f)));
+            for (int c = 0; c < 3 && ok; c++) {
+                ok = face[c].value() < npts;
+                const uint32_t i = ok ? att->mapped_index(face[c]).value() : 0;
+                ok = ok && i < nvals;
+                C[3 * f + c] = static_cast<int32_t>(i);
+            }
+        }
+        if (!ok)
+            continue;
+        mcf_status rc = api_attrs_set(a.get(), k.kind, nc, static_cast<int>(nvals),
+                                      V.data(), C.data(), err);
+        if (rc != MCF_OK)
+            return rc;
+        api__attr &at = a->a[k.kind];
+        at.bits = 0;
+        if (raw) {
+            const draco::PointAttribute *ra = raw->GetNamedAttribute(k.type);
+            at.bits = transform_bits(ra, at.qorigin, &at.qrange);
+        }
+    }
+    *attrs = a.release();
     return MCF_OK;
 }
 
@@ -533,6 +682,91 @@ bool measure(int nv, const double *X, int nf, const int32_t *F,
 
 /* ------------------------------------------------------------- encoder */
 
+/* The encoder's choice for one attribute: bits 0 = raw float32, else
+ * quantized with that many bits (on the input's grid when grid). */
+struct attr_plan {
+    int bits = 0;
+    bool grid = false;
+};
+
+/* Bits for an attribute of kind k (or positions, API_ATTR_POSITION) under
+ * quantization_bits q: -1 auto: the Draco input's own (raw stays raw),
+ * else the stated defaults; 0 lossless: raw; q > 0: positions get q, the
+ * other attributes what auto gives them. */
+attr_plan plan_for(const api_attrs *a, int k, int q)
+{
+    attr_plan p;
+    if (q == 0)
+        return p;
+    if (k == API_ATTR_POSITION && q > 0) {
+        p.bits = q;
+        return p;
+    }
+    const int in = api_attrs_draco_bits(a, k);
+    if (in >= 0) {
+        p.bits = in;
+        p.grid = k == API_ATTR_TEXCOORD && in > 0 && a->a[k].qrange > 0.0f;
+        return p;
+    }
+    p.bits = k == API_ATTR_POSITION ? API_DRACO_DEFAULT_BITS
+             : k == API_ATTR_NORMAL ? API_DRACO_DEFAULT_NORMAL_BITS
+             : k == API_ATTR_TEXCOORD ? API_DRACO_DEFAULT_TEXCOORD_BITS
+                                       : 0;
+    return p;
+}
+
+/* A point: one vertex with one value of each attribute (-1: none). */
+struct point_key {
+    int32_t v, t, n, c;
+    bool operator<(const point_key &o) const
+    {
+        if (v != o.v) return v < o.v;
+        if (t != o.t) return t < o.t;
+        if (n != o.n) return n < o.n;
+        return c < o.c;
+    }
+    bool operator==(const point_key &o) const
+    {
+        return v == o.v && t == o.t && n == o.n && c == o.c;
+    }
+};
+
+/* Adds an attribute of type type to dm with nvalues values of nc
+ * components of dt (data holds them packed) and the point -> value map
+ * pv (identity when empty). Returns its id, or -1. */
+int add_attribute(draco::Mesh &dm, draco::GeometryAttribute::Type type, int nc,
+                  draco::DataType dt, bool normalized, size_t nvalues,
+                  const void *data, const std::vector<int32_t> &pv)
+{
+    draco::GeometryAttribute ga;
+    const int64_t sz = draco::DataTypeLength(dt);
+    ga.Init(type, nullptr, static_cast<int8_t>(nc), dt, normalized, nc * sz, 0);
+    const bool identity = pv.empty();
+    const int id = dm.AddAttribute(ga, identity, static_cast<uint32_t>(nvalues));
+    draco::PointAttribute *pa = dm.attribute(id);
+    if (!pa)
+        return -1;
+    const uint8_t *d = static_cast<const uint8_t *>(data);
+    for (size_t i = 0; i < nvalues; i++)
+        pa->SetAttributeValue(draco::AttributeValueIndex(static_cast<uint32_t>(i)),
+                              d + i * nc * sz);
+    if (!identity) {
+        pa->SetExplicitMapping(pv.size());
+        for (size_t p = 0; p < pv.size(); p++)
+            pa->SetPointMapEntry(draco::PointIndex(static_cast<uint32_t>(p)),
+                                 draco::AttributeValueIndex(static_cast<uint32_t>(pv[p])));
+    }
+    return id;
+}
+
+std::vector<float> to_float(const double *v, size_t n)
+{
+    std::vector<float> f(n);
+    for (size_t i = 0; i < n; i++)
+        f[i] = static_cast<float>(v[i]);
+    return f;
+}
+
 mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                   double *max_quant_err, mcf_error *err)
 {
@@ -541,70 +775,151 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
         api_encode_opts_init(&defo);
         o = &defo;
     }
-    const int q = o->quantization_bits;
+    const int qopt = o->quantization_bits;
     const int level = o->compression_level;
-    if (q < 0 || q > 30)
+    if (qopt < -1 || qopt > 30)
         return api__fail(err, MCF_EINVAL,
-                         "draco: quantization_bits %d out of range (0 = lossless, 1..30)",
-                         q);
+                         "draco: quantization_bits %d out of range (-1 = auto, 0 = "
+                         "lossless, 1..30)",
+                         qopt);
     if (level < 0 || level > 10)
         return api__fail(err, MCF_EINVAL,
                          "draco: compression_level %d out of range (0..10)", level);
+    const api_attrs *at = o->attrs;
+    mcf_status rc = api__attrs_check(at, m, "draco", err);
+    if (rc != MCF_OK)
+        return rc;
 
     const int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
 
-    /* float32 unless lossless needs more; quantization needs float32. */
-    bool as_float = true;
+    /* Positions: float32 unless lossless needs more; quantization needs
+     * float32. Auto falls back to lossless beyond the float range. */
+    bool exact_float = true, in_range = true;
     for (int i = 0; i < 3 * nv; i++) {
         const double x = X[i];
-        if (std::fabs(x) > FLT_MAX) {
-            if (q > 0)
-                return api__fail(err, MCF_EINVAL,
-                                 "draco: vertex %d coordinate %g exceeds the float "
-                                 "range (quantized Draco stores float32)",
-                                 i / 3, x);
-            as_float = false;
-        } else if (static_cast<double>(static_cast<float>(x)) != x) {
-            as_float = false;
-        }
+        if (std::fabs(x) > FLT_MAX)
+            in_range = exact_float = false;
+        else if (static_cast<double>(static_cast<float>(x)) != x)
+            exact_float = false;
     }
-    if (q > 0)
-        as_float = true;
+    int q = qopt;
+    if (q == -1 && !in_range)
+        q = 0;
+    attr_plan pp = plan_for(at, API_ATTR_POSITION, q);
+    if (!in_range && pp.bits > 0)
+        return api__fail(err, MCF_EINVAL,
+                         "draco: a coordinate exceeds the float range (quantized "
+                         "Draco stores float32)");
+    /* Raw: float32 when exact, or when auto keeps a raw float32 input raw;
+     * float64 only for lossless doubles. */
+    const bool as_float = pp.bits > 0 || exact_float || (q == -1 && in_range);
+
+    const api__attr *tc = at && at->a[API_ATTR_TEXCOORD].corners ? &at->a[API_ATTR_TEXCOORD] : nullptr;
+    const api__attr *nm = at && at->a[API_ATTR_NORMAL].corners ? &at->a[API_ATTR_NORMAL] : nullptr;
+    const api__attr *co = at && at->a[API_ATTR_COLOR].corners ? &at->a[API_ATTR_COLOR] : nullptr;
 
     draco::Mesh dm;
-    dm.set_num_points(static_cast<uint32_t>(nv));
-    draco::GeometryAttribute ga;
-    ga.Init(draco::GeometryAttribute::POSITION, nullptr, 3,
-            as_float ? draco::DT_FLOAT32 : draco::DT_FLOAT64, false,
-            as_float ? 3 * sizeof(float) : 3 * sizeof(double), 0);
-    const int att = dm.AddAttribute(ga, true, static_cast<uint32_t>(nv));
-    draco::PointAttribute *pa = dm.attribute(att);
-    if (!pa)
-        return api__fail(err, MCF_ENOMEM, "draco: cannot add the POSITION attribute");
-    for (int i = 0; i < nv; i++) {
-        const draco::AttributeValueIndex vi(static_cast<uint32_t>(i));
-        if (as_float) {
-            const float v[3] = {static_cast<float>(X[3 * i]),
-                                static_cast<float>(X[3 * i + 1]),
-                                static_cast<float>(X[3 * i + 2])};
-            pa->SetAttributeValue(vi, v);
-        } else {
-            pa->SetAttributeValue(vi, &X[3 * i]);
+    std::vector<int32_t> pv, pt, pn, pc;   /* point -> value, per attribute */
+    std::vector<uint32_t> corner_point;    /* face corner -> point */
+    if (!tc && !nm && !co) {
+        /* Positions only: one point per vertex, unreferenced ones too. */
+        dm.set_num_points(static_cast<uint32_t>(nv));
+    } else {
+        /* One point per distinct (vertex, texcoord, normal, colour) of the
+         * corners, in vertex order: seams split, nothing else does. */
+        const size_t nc = 3 * static_cast<size_t>(nf);
+        std::vector<point_key> keys(nc);
+        for (size_t c = 0; c < nc; c++)
+            keys[c] = point_key{F[c], tc ? tc->corners[c] : -1,
+                                nm ? nm->corners[c] : -1, co ? co->corners[c] : -1};
+        std::vector<point_key> uniq(keys);
+        std::sort(uniq.begin(), uniq.end());
+        uniq.erase(std::unique(uniq.begin(), uniq.end()), uniq.end());
+        corner_point.resize(nc);
+        for (size_t c = 0; c < nc; c++)
+            corner_point[c] = static_cast<uint32_t>(
+                std::lower_bound(uniq.begin(), uniq.end(), keys[c]) - uniq.begin());
+        dm.set_num_points(static_cast<uint32_t>(uniq.size()));
+        for (const point_key &k : uniq) {
+            pv.push_back(k.v);
+            pt.push_back(k.t);
+            pn.push_back(k.n);
+            pc.push_back(k.c);
         }
     }
+
+    int att;
+    if (as_float) {
+        std::vector<float> v = to_float(X, 3 * static_cast<size_t>(nv));
+        att = add_attribute(dm, draco::GeometryAttribute::POSITION, 3,
+                            draco::DT_FLOAT32, false, nv, v.data(), pv);
+    } else {
+        att = add_attribute(dm, draco::GeometryAttribute::POSITION, 3,
+                            draco::DT_FLOAT64, false, nv, X, pv);
+    }
+    if (att < 0)
+        return api__fail(err, MCF_ENOMEM, "draco: cannot add the POSITION attribute");
+
+    attr_plan pt_plan, pn_plan;
+    if (tc) {
+        pt_plan = plan_for(at, API_ATTR_TEXCOORD, q);
+        std::vector<float> v = to_float(tc->values, 2 * static_cast<size_t>(tc->nvalues));
+        if (add_attribute(dm, draco::GeometryAttribute::TEX_COORD, 2, draco::DT_FLOAT32,
+                          false, tc->nvalues, v.data(), pt) < 0)
+            return api__fail(err, MCF_ENOMEM, "draco: cannot add TEX_COORD");
+    }
+    if (nm) {
+        pn_plan = plan_for(at, API_ATTR_NORMAL, q);
+        double *N = nullptr;
+        if ((rc = api__attrs_normals(at, m, &N, err)) != MCF_OK)
+            return rc;
+        std::vector<float> v = to_float(N, 3 * static_cast<size_t>(nm->nvalues));
+        std::free(N);
+        if (add_attribute(dm, draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32,
+                          false, nm->nvalues, v.data(), pn) < 0)
+            return api__fail(err, MCF_ENOMEM, "draco: cannot add NORMAL");
+    }
+    if (co) {
+        /* Colours as normalized bytes, as glTF and draco_encoder store them. */
+        const size_t n = static_cast<size_t>(co->nvalues) * co->ncomp;
+        std::vector<uint8_t> v(n);
+        for (size_t i = 0; i < n; i++) {
+            const double b = std::floor(co->values[i] * 255.0 + 0.5);
+            v[i] = static_cast<uint8_t>(b < 0 ? 0 : b > 255 ? 255 : b);
+        }
+        if (add_attribute(dm, draco::GeometryAttribute::COLOR, co->ncomp,
+                          draco::DT_UINT8, true, co->nvalues, v.data(), pc) < 0)
+            return api__fail(err, MCF_ENOMEM, "draco: cannot add COLOR");
+    }
+
     dm.SetNumFaces(static_cast<size_t>(nf));
     for (int f = 0; f < nf; f++) {
         draco::Mesh::Face face;
         for (int k = 0; k < 3; k++)
-            face[k] = draco::PointIndex(static_cast<uint32_t>(F[3 * f + k]));
+            face[k] = draco::PointIndex(corner_point.empty()
+                                            ? static_cast<uint32_t>(F[3 * f + k])
+                                            : corner_point[3 * static_cast<size_t>(f) + k]);
         dm.SetFace(draco::FaceIndex(static_cast<uint32_t>(f)), face);
     }
 
     draco::Encoder enc;
-    if (q > 0)
-        enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, q);
+    if (pp.bits > 0)
+        enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, pp.bits);
+    if (tc && pt_plan.bits > 0) {
+        const api__attr &t = *tc;
+        if (pt_plan.grid && pt_plan.bits == t.bits) {
+            /* The input's grid: every value comes back exactly. */
+            enc.SetAttributeExplicitQuantization(draco::GeometryAttribute::TEX_COORD,
+                                                 t.bits, 2, t.qorigin, t.qrange);
+        } else {
+            enc.SetAttributeQuantization(draco::GeometryAttribute::TEX_COORD,
+                                         pt_plan.bits);
+        }
+    }
+    if (nm && pn_plan.bits > 0)
+        enc.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, pn_plan.bits);
     enc.SetSpeedOptions(10 - level, 10 - level);
     enc.SetEncodingMethod(o->preserve_order ? draco::MESH_SEQUENTIAL_ENCODING
                                             : draco::MESH_EDGEBREAKER_ENCODING);
@@ -626,10 +941,10 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                              res.ok() ? "no mesh" : res.status().error_msg());
         /* Draco's quantization step is range/(2^q - 1) over the largest
          * extent; rounding errs by half a step, float32 dequantization by a
-         * few ulps more: a full step bounds both. Lossless: float32 and
-         * float64 values come back exactly, so tol 0 holds. */
+         * few ulps more: a full step bounds both. Float32 storage rounds
+         * each coordinate by half an ulp. Lossless: exact, tol 0. */
         double tol = 0.0;
-        if (q > 0) {
+        if (pp.bits > 0 || (as_float && !exact_float)) {
             double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL},
                    hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
             for (int i = 0; i < 3 * nv; i++) {
@@ -637,7 +952,8 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                 hi[i % 3] = std::max(hi[i % 3], X[i]);
             }
             double range = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-            tol = range / (std::ldexp(1.0, q) - 1.0);
+            if (pp.bits > 0)
+                tol = range / (std::ldexp(1.0, pp.bits) - 1.0);
             /* plus float32 rounding of the stored inputs themselves */
             double amax = std::max({std::fabs(lo[0]), std::fabs(lo[1]),
                                     std::fabs(lo[2]), std::fabs(hi[0]),
@@ -651,7 +967,7 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                              "decoded counterpart within %g",
                              bad, tol);
     }
-    const mcf_status rc = api_buf_append(out, eb.data(), eb.size());
+    rc = api_buf_append(out, eb.data(), eb.size());
     if (rc != MCF_OK) {
         if (rc == MCF_ENOMEM)
             return api__fail(err, rc, "draco: out of memory for %zu bytes",
@@ -671,8 +987,16 @@ extern "C" mcf_status api_draco_decode(const void *buf, size_t len,
                                        const api_limits *lim, mcf_mesh **out,
                                        mcf_error *err)
 {
+    return api_draco_decode_attrs(buf, len, lim, out, nullptr, err);
+}
+
+extern "C" mcf_status api_draco_decode_attrs(const void *buf, size_t len,
+                                             const api_limits *lim,
+                                             mcf_mesh **out, api_attrs **attrs,
+                                             mcf_error *err)
+{
     try {
-        return decode(buf, len, lim, out, err);
+        return decode(buf, len, lim, out, attrs, err);
     } catch (const std::bad_alloc &) {
         return api__fail(err, MCF_ENOMEM, "draco: out of memory while decoding");
     } catch (...) {

@@ -156,4 +156,61 @@ mcf_status api__encode_end(api_buf *out, size_t len0, mcf_status rc,
                            const char *codec, int n, const char *what,
                            mcf_error *err);
 
+/* --------------------------------------------------- attributes (api_attrs.c) */
+
+/* One attribute of an api_attrs (api.h): nvalues values of ncomp doubles,
+ * and the value index of each of the 3*nf face corners; corners NULL:
+ * absent. bits: the Draco input's quantization bits (0 raw, -1 not from
+ * Draco); when qrange > 0 (a quantized Draco input), qorigin/qrange are
+ * its quantization grid, which the Draco encoder reuses so texture
+ * coordinates come back on the very same values. */
+typedef struct {
+    int ncomp, nvalues;
+    double *values;
+    int32_t *corners;
+    int bits;
+    float qorigin[4], qrange;
+} api__attr;
+
+struct api_attrs {
+    int nv, nf;
+    int float32;            /* positions were single precision */
+    int pos_bits;           /* Draco position bits (0 raw, -1 not Draco) */
+    api__attr a[API_ATTR_KINDS];
+};
+
+/* Takes ownership of values and corners (malloc'ed, corners not NULL;
+ * both freed on failure too) as attribute k, after api_attrs_set's
+ * checks. */
+mcf_status api__attrs_take(api_attrs *a, api_attr_kind k, int ncomp,
+                           int nvalues, double *values, int32_t *corners,
+                           mcf_error *err);
+
+/* EINVAL (named, prefixed by codec) unless a is NULL or was made for a
+ * mesh with m's vertex and face counts. */
+mcf_status api__attrs_check(const api_attrs *a, const mcf_mesh *m,
+                            const char *codec, mcf_error *err);
+
+/* The normals of m's surface for the normal attribute's values: each value
+ * gets the sum of the area-weighted normals of the faces whose corners
+ * use it, normalized ((0, 0, 1) where that sum vanishes). *N: 3*nvalues,
+ * malloc'ed, the caller's. ENOMEM only. */
+mcf_status api__attrs_normals(const api_attrs *a, const mcf_mesh *m,
+                              double **N, mcf_error *err);
+
+/* Stores each distinct value of at once (bitwise-equal doubles; the
+ * table comes out sorted) and renumbers its ncorners corner indices.
+ * ENOMEM only (at unchanged then). */
+mcf_status api__attr_dedupe(api__attr *at, size_t ncorners, mcf_error *err);
+
+/* Per-vertex normals of m (area-weighted, (0, 0, 1) where they vanish)
+ * into N (3*nv). */
+void api__vertex_normals(const mcf_mesh *m, double *N);
+
+/* When every vertex of m has one value of attribute at at all its corners
+ * (vertex attributes, or corner attributes without seams), fills out
+ * (nv * ncomp, unreferenced vertices 0) and returns 1; else (or out of
+ * memory) 0, out then partly filled. */
+int api__attr_per_vertex(const api__attr *at, const mcf_mesh *m, double *out);
+
 #endif /* API_INTERNAL_H */

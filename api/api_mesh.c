@@ -193,13 +193,15 @@ void api_encode_opts_init(api_encode_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->format = API_FMT_UNKNOWN;
-    o->quantization_bits = 0;
+    o->quantization_bits = -1; /* auto: the input's, else 16 bits */
     o->compression_level = 7;
     o->preserve_order = 0;
     o->ply_binary = 1;
+    o->ply_curvature = 0;
     o->ply_mean_curvature = NULL;
     o->ply_gaussian_curvature = NULL;
     o->stl_binary = 1;
+    o->attrs = NULL;
 }
 
 mcf_status api__decode_begin(const char *codec, const void *buf, size_t len,
@@ -275,8 +277,31 @@ mcf_status api__encode_end(api_buf *out, size_t len0, mcf_status rc,
 mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
                            mcf_mesh **out, api_format *fmt, mcf_error *err)
 {
+    return api_mesh_decode_attrs(buf, len, lim, out, NULL, fmt, err);
+}
+
+/* An empty attribute handle for the formats that carry none (STL, OFF);
+ * a binary STL's positions are single precision. */
+static mcf_status empty_attrs(mcf_mesh *m, int float32, api_attrs **attrs,
+                              mcf_error *err)
+{
+    api_attrs *a = api_attrs_new(mcf_mesh_nvertices(m), mcf_mesh_nfaces(m));
+    if (!a)
+        return api__fail(err, MCF_ENOMEM, "attributes: out of memory");
+    a->float32 = float32;
+    *attrs = a;
+    return MCF_OK;
+}
+
+mcf_status api_mesh_decode_attrs(const void *buf, size_t len,
+                                 const api_limits *lim, mcf_mesh **out,
+                                 api_attrs **attrs, api_format *fmt,
+                                 mcf_error *err)
+{
     api_limits def;
     api_format f;
+    mcf_mesh *m = NULL;
+    mcf_status rc;
 
     if (!lim) {
         api_limits_default(&def);
@@ -293,15 +318,29 @@ mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
         *fmt = f;
     switch (f) {
     case API_FMT_OBJ:
-        return api_obj_decode(buf, len, lim, out, err);
+        return api_obj_decode_attrs(buf, len, lim, out, attrs, err);
     case API_FMT_DRACO:
-        return api_draco_decode(buf, len, lim, out, err);
+        return api_draco_decode_attrs(buf, len, lim, out, attrs, err);
     case API_FMT_PLY:
-        return api_ply_decode(buf, len, lim, out, err);
+        return api_ply_decode_attrs(buf, len, lim, out, attrs, err);
     case API_FMT_STL:
-        return api_stl_decode(buf, len, lim, out, err);
     case API_FMT_OFF:
-        return api_off_decode(buf, len, lim, out, err);
+        rc = f == API_FMT_STL ? api_stl_decode(buf, len, lim, &m, err)
+                              : api_off_decode(buf, len, lim, &m, err);
+        if (rc == MCF_OK && attrs) {
+            /* The size rule of api_format_detect: a binary STL (float32). */
+            int bin = f == API_FMT_STL && len >= 84
+                      && 84 + 50 * (uint64_t)api__get_le32(
+                                  (const unsigned char *)buf + 80)
+                             == (uint64_t)len;
+            rc = empty_attrs(m, bin, attrs, err);
+        }
+        if (rc != MCF_OK) {
+            mcf_mesh_free(m);
+            return rc;
+        }
+        *out = m;
+        return MCF_OK;
     case API_FMT_UNKNOWN:
         break;
     }
@@ -316,7 +355,7 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
         return api__fail(err, MCF_EINVAL, "encode: NULL argument");
     switch (o->format) {
     case API_FMT_OBJ:
-        return api_obj_encode(m, out, err);
+        return api_obj_encode_opts(m, o, out, err);
     case API_FMT_DRACO:
         return api_draco_encode(m, o, out, NULL, err);
     case API_FMT_PLY:

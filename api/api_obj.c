@@ -13,8 +13,18 @@
  * indices may refer to vertices defined later in the file (the first pass
  * knows the total), as most readers allow.
  *
+ * Attributes (api_obj_decode_attrs): positions count as single precision
+ * when no coordinate has more than 7 significant digits; `vt` (u, v; a
+ * third w is dropped),
+ * `vn` and vertex colours `v x y z r g b` become per-corner texture
+ * coordinates, normals and per-vertex colours. An attribute some corner
+ * lacks or refers to out of range (or a colour some vertex lacks) is
+ * dropped, not an error: plain decoding never looked at those indices.
+ *
  * Writer: `v` with %.17g (round-trips every double exactly) and 1-based
- * `f` triangles.
+ * `f` triangles; with attributes (api_obj_encode_opts) `v x y z r g b`
+ * when every vertex has one colour, `vt` values as they were, `vn`
+ * recomputed from the surface and `f v/vt/vn` references.
  */
 #include <errno.h>
 #include <math.h>
@@ -61,11 +71,11 @@ static int binary_byte(const linecur *l)
 
 /* Pass 1: counts vertices and triangles, checking the limits as they grow. */
 static mcf_status count(const char *buf, size_t len, const api_limits *lim,
-                        int *nv, int *nf, mcf_error *err)
+                        int *nv, int *nf, long *nvt, long *nvn, mcf_error *err)
 {
     api__lines c = {buf, buf + len, 0};
     linecur l;
-    long v = 0, f = 0;
+    long v = 0, f = 0, vt = 0, vn = 0;
 
     while (api__line_next(&c, &l.s, &l.e)) {
         const char *t;
@@ -76,6 +86,12 @@ static mcf_status count(const char *buf, size_t len, const api_limits *lim,
                                  "line %ld: more than max_vertices (%d) vertices",
                                  c.line, lim->max_vertices);
             v++;
+        } else if (n == 2 && t[0] == 'v' && (t[1] == 't' || t[1] == 'n')) {
+            /* Bounded by the line count, so no limit of their own. */
+            if (t[1] == 't')
+                vt++;
+            else
+                vn++;
         } else if (n == 1 && t[0] == 'f') {
             long k = 0;
             while (next_token(&l, &t))
@@ -91,13 +107,73 @@ static mcf_status count(const char *buf, size_t len, const api_limits *lim,
     }
     *nv = (int)v;
     *nf = (int)f;
+    *nvt = vt;
+    *nvn = vn;
     return MCF_OK;
+}
+
+/* Attributes being read (api_obj_decode_attrs). An index array is freed
+ * and set to NULL once some corner cannot be given a value. */
+typedef struct {
+    long nvt, nvn, seen_vt, seen_vn;
+    double *vt, *vn, *col;          /* 2*nvt, 3*nvn, 3*nv */
+    int32_t *ct, *cn;               /* 3*nf corner indices */
+    int col_ok;                     /* every `v` had r g b so far */
+    int maxsig;                     /* most significant digits of a coordinate */
+} objattr;
+
+/* The significant digits of a number token: mantissa digits without the
+ * leading zeros and, after a decimal point, the trailing ones. */
+static int sig_digits(const char *t, size_t n)
+{
+    int lead = 1, digits = 0, zeros = 0, frac = 0;
+    size_t i;
+    for (i = 0; i < n && t[i] != 'e' && t[i] != 'E'; i++) {
+        char ch = t[i];
+        if (ch == '.') {
+            frac = 1;
+        } else if (ch >= '0' && ch <= '9') {
+            if (ch == '0' && lead)
+                continue;
+            lead = 0;
+            if (ch == '0') {
+                zeros++;
+            } else {
+                digits += zeros + 1;
+                zeros = 0;
+            }
+        }
+    }
+    /* Trailing zeros of the integer part are significant placeholders. */
+    return frac ? digits : digits + zeros;
+}
+
+/* The 0-based index of an optional vt/vn reference of n bytes (n == 0:
+ * absent), 1-based or negative relative to the seen so far; -1 when
+ * absent or out of range. */
+static long attr_ref(const char *t, size_t n, long seen, long total)
+{
+    char num[24];
+    char *end;
+    long long k;
+    if (n == 0 || n >= sizeof num)
+        return -1;
+    memcpy(num, t, n);
+    num[n] = '\0';
+    errno = 0;
+    k = strtoll(num, &end, 10);
+    if (end != num + n || errno == ERANGE || k == 0)
+        return -1;
+    if (k > 0)
+        return k <= total ? (long)(k - 1) : -1;
+    return -k <= seen ? (long)(seen + k) : -1;
 }
 
 /* The vertex index of a face reference "v", "v/vt", "v//vn", "v/vt/vn",
  * converted to 0-based. seen: vertices read so far; total: in the file. */
 static mcf_status face_ref(const char *t, size_t n, long line, int seen,
-                           int total, int32_t *out, mcf_error *err)
+                           int total, int32_t *out, const objattr *A,
+                           long *ivt, long *ivn, mcf_error *err)
 {
     char tmp[API__SHOWN], num[24], shown[API__SHOWN];
     const char *slash = memchr(t, '/', n);
@@ -149,12 +225,20 @@ static mcf_status face_ref(const char *t, size_t n, long line, int seen,
                              line, api__show_utf8(num, vlen, tmp), seen);
         *out = (int32_t)(seen + k);
     }
+    if (A) {
+        /* "v/vt", "v//vn", "v/vt/vn": the spans between the slashes. */
+        const char *a = slash ? slash + 1 : t + n, *e = t + n;
+        const char *b = a < e ? memchr(a, '/', (size_t)(e - a)) : NULL;
+        size_t la = (size_t)((b ? b : e) - a);
+        *ivt = attr_ref(a, la, A->seen_vt, A->nvt);
+        *ivn = b ? attr_ref(b + 1, (size_t)(e - b - 1), A->seen_vn, A->nvn) : -1;
+    }
     return MCF_OK;
 }
 
 /* Pass 2: parses into X (3*nv) and F (3*nf). */
 static mcf_status parse(const char *buf, size_t len, int nv, double *X,
-                        int32_t *F, mcf_error *err)
+                        int32_t *F, objattr *A, mcf_error *err)
 {
     api__lines c = {buf, buf + len, 0};
     linecur l;
@@ -192,26 +276,99 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
                     return api__fail(err, MCF_EDECODE,
                                      "line %ld: coordinate '%s' is not finite",
                                      c.line, api__show_utf8(nt, nn, shown));
+                if (A) {
+                    int sd = sig_digits(nt, nn);
+                    if (sd > A->maxsig)
+                        A->maxsig = sd;
+                }
+            }
+            if (A && A->col_ok) {
+                /* Exactly r g b after x y z, each a finite number. */
+                double *col = A->col + 3 * (size_t)seen;
+                for (k = 0; k < 3 && A->col_ok; k++) {
+                    const char *nt;
+                    size_t nn = next_token(&l, &nt);
+                    if (nn == 0 || api__parse_double(nt, nn, &col[k]) != 0
+                        || !isfinite(col[k]))
+                        A->col_ok = 0;
+                }
+                if (A->col_ok) {
+                    const char *nt;
+                    if (next_token(&l, &nt) != 0)
+                        A->col_ok = 0;
+                }
             }
             seen++;
+        } else if (A && n == 2 && t[0] == 'v' && (t[1] == 't' || t[1] == 'n')) {
+            int vt = t[1] == 't', k, want = vt ? 2 : 3;
+            double *x = vt ? A->vt + 2 * A->seen_vt : A->vn + 3 * A->seen_vn;
+            for (k = 0; k < want; k++) {
+                const char *nt;
+                size_t nn = next_token(&l, &nt);
+                x[k] = 0.0; /* "vt u" alone: v = 0, as the format says */
+                if (nn == 0 && vt && k == 1)
+                    break;
+                if (nn == 0 || api__parse_double(nt, nn, &x[k]) != 0
+                    || !isfinite(x[k])) {
+                    /* An unreadable value drops the attribute. */
+                    if (vt) {
+                        free(A->ct);
+                        A->ct = NULL;
+                    } else {
+                        free(A->cn);
+                        A->cn = NULL;
+                    }
+                    break;
+                }
+            }
+            if (vt)
+                A->seen_vt++;
+            else
+                A->seen_vn++;
         } else if (n == 1 && t[0] == 'f') {
             int32_t first = 0, prev = 0, cur = 0;
+            long tf = -1, tp = -1, tc = -1, nfst = -1, np = -1, nc = -1;
             int k = 0;
             const char *nt;
             size_t nn;
             mcf_status rc;
             while ((nn = next_token(&l, &nt)) > 0) {
-                if ((rc = face_ref(nt, nn, c.line, seen, nv, &cur, err)) != MCF_OK)
+                if ((rc = face_ref(nt, nn, c.line, seen, nv, &cur, A, &tc, &nc,
+                                   err)) != MCF_OK)
                     return rc;
-                if (k == 0)
+                if (k == 0) {
                     first = cur;
-                else if (k >= 2) {
+                    tf = tc;
+                    nfst = nc;
+                } else if (k >= 2) {
                     F[3 * tri] = first;
                     F[3 * tri + 1] = prev;
                     F[3 * tri + 2] = cur;
+                    if (A && A->ct) {
+                        if (tf < 0 || tp < 0 || tc < 0) {
+                            free(A->ct);
+                            A->ct = NULL;
+                        } else {
+                            A->ct[3 * tri] = (int32_t)tf;
+                            A->ct[3 * tri + 1] = (int32_t)tp;
+                            A->ct[3 * tri + 2] = (int32_t)tc;
+                        }
+                    }
+                    if (A && A->cn) {
+                        if (nfst < 0 || np < 0 || nc < 0) {
+                            free(A->cn);
+                            A->cn = NULL;
+                        } else {
+                            A->cn[3 * tri] = (int32_t)nfst;
+                            A->cn[3 * tri + 1] = (int32_t)np;
+                            A->cn[3 * tri + 2] = (int32_t)nc;
+                        }
+                    }
                     tri++;
                 }
                 prev = cur;
+                tp = tc;
+                np = nc;
                 k++;
             }
             if (k < 3)
@@ -235,11 +392,65 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
 mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **out, mcf_error *err)
 {
+    return api_obj_decode_attrs(buf, len, lim, out, NULL, err);
+}
+
+/* Hands what A holds to a new handle for m in *attrs; A's arrays are the
+ * handle's or freed afterwards either way. */
+static mcf_status make_attrs(objattr *A, const mcf_mesh *m, api_attrs **attrs,
+                             mcf_error *err)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
+    api_attrs *a = api_attrs_new(nv, nf);
+    mcf_status rc = MCF_OK;
+    if (!a)
+        return api__fail(err, MCF_ENOMEM, "obj: out of memory for the attributes");
+    /* Text of at most 7 significant digits (what %g of a float and most
+     * exporters write) is single precision: a float holds it. */
+    a->float32 = A->maxsig <= 7;
+    if (rc == MCF_OK && A->ct && A->nvt > 0) {
+        rc = api__attrs_take(a, API_ATTR_TEXCOORD, 2, (int)A->nvt, A->vt, A->ct, err);
+        A->vt = NULL;
+        A->ct = NULL;
+    }
+    if (rc == MCF_OK && A->cn && A->nvn > 0) {
+        rc = api__attrs_take(a, API_ATTR_NORMAL, 3, (int)A->nvn, A->vn, A->cn, err);
+        A->vn = NULL;
+        A->cn = NULL;
+    }
+    if (rc == MCF_OK && A->col_ok && nv > 0) {
+        /* Per vertex: a corner's value is its vertex. */
+        int32_t *cc = malloc(sizeof *cc * (size_t)(3 * (size_t)nf + 1));
+        if (!cc) {
+            rc = api__fail(err, MCF_ENOMEM, "obj: out of memory for the colours");
+        } else {
+            memcpy(cc, mcf_mesh_faces(m), sizeof *cc * 3 * (size_t)nf);
+            rc = api__attrs_take(a, API_ATTR_COLOR, 3, nv, A->col, cc, err);
+            A->col = NULL;
+        }
+    }
+    if (rc != MCF_OK) {
+        api_attrs_free(a);
+        return rc;
+    }
+    *attrs = a;
+    return MCF_OK;
+}
+
+mcf_status api_obj_decode_attrs(const void *buf, size_t len,
+                                const api_limits *lim, mcf_mesh **out,
+                                api_attrs **attrs, mcf_error *err)
+{
     api_limits def;
     int nv = 0, nf = 0;
+    long nvt = 0, nvn = 0;
     double *X = NULL;
     int32_t *F = NULL;
+    objattr A, *pa = NULL;
+    mcf_mesh *m = NULL;
     mcf_status rc;
+
+    memset(&A, 0, sizeof A);
 
     if ((rc = api__decode_begin("obj", buf, len, &lim, &def, err)) != MCF_OK)
         return rc;
@@ -248,7 +459,7 @@ mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
         buf = (const char *)buf + 3;
         len -= 3;
     }
-    if ((rc = count(buf, len, lim, &nv, &nf, err)) != MCF_OK)
+    if ((rc = count(buf, len, lim, &nv, &nf, &nvt, &nvn, err)) != MCF_OK)
         return rc;
     X = malloc(3 * sizeof *X * (size_t)(nv ? nv : 1));
     F = malloc(3 * sizeof *F * (size_t)(nf ? nf : 1));
@@ -257,7 +468,24 @@ mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                        nv, nf);
         goto done;
     }
-    if ((rc = parse(buf, len, nv, X, F, err)) != MCF_OK)
+    if (attrs) {
+        size_t nc = 3 * (size_t)nf + 1;
+        pa = &A;
+        A.nvt = nvt;
+        A.nvn = nvn;
+        A.col_ok = 1;
+        A.vt = malloc(2 * sizeof *A.vt * (size_t)(nvt + 1));
+        A.vn = malloc(3 * sizeof *A.vn * (size_t)(nvn + 1));
+        A.col = malloc(3 * sizeof *A.col * (size_t)(nv + 1));
+        A.ct = nvt ? malloc(sizeof *A.ct * nc) : NULL;
+        A.cn = nvn ? malloc(sizeof *A.cn * nc) : NULL;
+        if (!A.vt || !A.vn || !A.col || (nvt && !A.ct) || (nvn && !A.cn)) {
+            rc = api__fail(err, MCF_ENOMEM,
+                           "obj: no memory for the attributes of %d faces", nf);
+            goto done;
+        }
+    }
+    if ((rc = parse(buf, len, nv, X, F, pa, err)) != MCF_OK)
         goto done;
     if (nv == 0) {
         rc = api__fail(err, MCF_EDECODE, "obj: no vertices ('v' lines)");
@@ -268,27 +496,102 @@ mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                        "obj: no faces ('f' lines): %d vertices only", nv);
         goto done;
     }
-    rc = api__mesh_new(nv, X, nf, F, out, err);
+    if ((rc = api__mesh_new(nv, X, nf, F, &m, err)) != MCF_OK)
+        goto done;
+    if (attrs && (rc = make_attrs(&A, m, attrs, err)) != MCF_OK) {
+        mcf_mesh_free(m);
+        goto done;
+    }
+    *out = m;
 done:
     free(X);
     free(F);
+    free(A.vt);
+    free(A.vn);
+    free(A.col);
+    free(A.ct);
+    free(A.cn);
     return rc;
 }
 
 mcf_status api_obj_encode(const mcf_mesh *m, api_buf *out, mcf_error *err)
 {
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i;
+    return api_obj_encode_opts(m, NULL, out, err);
+}
+
+mcf_status api_obj_encode_opts(const mcf_mesh *m, const api_encode_opts *o,
+                               api_buf *out, mcf_error *err)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i, k;
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
+    const api_attrs *a = o ? o->attrs : NULL;
+    const api__attr *tc = NULL, *nm = NULL;
+    double *col = NULL, *N = NULL;
     size_t len0 = out->len;
     mcf_status rc;
 
+    if ((rc = api__attrs_check(a, m, "obj", err)) != MCF_OK)
+        return rc;
+    if (a) {
+        tc = a->a[API_ATTR_TEXCOORD].corners ? &a->a[API_ATTR_TEXCOORD] : NULL;
+        nm = a->a[API_ATTR_NORMAL].corners ? &a->a[API_ATTR_NORMAL] : NULL;
+        if (a->a[API_ATTR_COLOR].corners) {
+            col = malloc(sizeof *col * 4 * (size_t)(nv + 1));
+            if (!col)
+                return api__fail(err, MCF_ENOMEM, "obj: out of memory for colours");
+            if (!api__attr_per_vertex(&a->a[API_ATTR_COLOR], m, col)) {
+                free(col); /* colours differing at one vertex: OBJ cannot */
+                col = NULL;
+            }
+        }
+        if (nm && (rc = api__attrs_normals(a, m, &N, err)) != MCF_OK) {
+            free(col);
+            return rc;
+        }
+    }
+
     rc = api_buf_printf(out, "# mcfd: %d vertices, %d triangles\n", nv, nf);
-    for (i = 0; i < nv && rc == MCF_OK; i++)
-        rc = api_buf_printf(out, "v %.17g %.17g %.17g\n", X[3 * i],
-                            X[3 * i + 1], X[3 * i + 2]);
-    for (i = 0; i < nf && rc == MCF_OK; i++)
-        rc = api_buf_printf(out, "f %ld %ld %ld\n", (long)F[3 * i] + 1,
-                            (long)F[3 * i + 1] + 1, (long)F[3 * i + 2] + 1);
+    for (i = 0; i < nv && rc == MCF_OK; i++) {
+        rc = api_buf_printf(out, "v %.17g %.17g %.17g", X[3 * i], X[3 * i + 1],
+                            X[3 * i + 2]);
+        if (rc == MCF_OK && col) {
+            int nc = a->a[API_ATTR_COLOR].ncomp;
+            /* OBJ colours are r g b: an alpha channel is dropped. */
+            rc = api_buf_printf(out, " %.17g %.17g %.17g", col[nc * i],
+                                col[nc * i + 1], col[nc * i + 2]);
+        }
+        if (rc == MCF_OK)
+            rc = api_buf_append(out, "\n", 1);
+    }
+    for (i = 0; tc && i < tc->nvalues && rc == MCF_OK; i++)
+        rc = api_buf_printf(out, "vt %.17g %.17g\n", tc->values[2 * i],
+                            tc->values[2 * i + 1]);
+    for (i = 0; nm && i < nm->nvalues && rc == MCF_OK; i++)
+        rc = api_buf_printf(out, "vn %.9g %.9g %.9g\n", N[3 * i], N[3 * i + 1],
+                            N[3 * i + 2]);
+    for (i = 0; i < nf && rc == MCF_OK; i++) {
+        if (!tc && !nm) {
+            rc = api_buf_printf(out, "f %ld %ld %ld\n", (long)F[3 * i] + 1,
+                                (long)F[3 * i + 1] + 1, (long)F[3 * i + 2] + 1);
+            continue;
+        }
+        rc = api_buf_append(out, "f", 1);
+        for (k = 0; k < 3 && rc == MCF_OK; k++) {
+            size_t c = 3 * (size_t)i + (size_t)k;
+            long v = (long)F[c] + 1;
+            if (tc && nm)
+                rc = api_buf_printf(out, " %ld/%ld/%ld", v, (long)tc->corners[c] + 1,
+                                    (long)nm->corners[c] + 1);
+            else if (tc)
+                rc = api_buf_printf(out, " %ld/%ld", v, (long)tc->corners[c] + 1);
+            else
+                rc = api_buf_printf(out, " %ld//%ld", v, (long)nm->corners[c] + 1);
+        }
+        if (rc == MCF_OK)
+            rc = api_buf_append(out, "\n", 1);
+    }
+    free(col);
+    free(N);
     return api__encode_end(out, len0, rc, "obj", nv, "vertices", err);
 }

@@ -90,6 +90,7 @@ static void set_qbits(api_params *p, value v) { p->encode.quantization_bits = (i
 static void set_clevel(api_params *p, value v) { p->encode.compression_level = (int)v.i; }
 static void set_order(api_params *p, value v) { p->encode.preserve_order = v.e; }
 static void set_ply_binary(api_params *p, value v) { p->encode.ply_binary = v.e; }
+static void set_ply_curvature(api_params *p, value v) { p->encode.ply_curvature = v.e; }
 
 /* The one table. fixed_vertices has no apply: lists are stored by
  * set_list, which owns the array. */
@@ -110,9 +111,10 @@ static const keydef keys[] = {
     {"noise", K_NUM, 0, 10, LO_INCL, NULL, set_noise},
     {"seed", K_U64, 0, 0, 0, NULL, set_seed},
     {"format", K_FORMAT, 0, 0, 0, NULL, set_format},
-    {"quantization_bits", K_INT, 0, 30, 0, NULL, set_qbits},
+    {"quantization_bits", K_INT, 0, 30, AUTO, NULL, set_qbits},
     {"compression_level", K_INT, 0, 10, 0, NULL, set_clevel},
     {"preserve_order", K_BOOL, 0, 0, 0, NULL, set_order},
+    {"ply_curvature", K_BOOL, 0, 0, 0, NULL, set_ply_curvature},
     {"ply_binary", K_BOOL, 0, 0, 0, NULL, set_ply_binary},
 };
 #define NKEYS (sizeof keys / sizeof keys[0])
@@ -178,8 +180,9 @@ static void describe(const keydef *k, const api_limits *lim, char *out,
             snprintf(out, size, "a number > %g and <= %g", k->lo, k->hi);
         break;
     case K_INT:
-        snprintf(out, size, "an integer from %.0f to %d", k->lo,
-                 (k->flags & HI_ITER) ? lim->max_iterations : (int)k->hi);
+        snprintf(out, size, "an integer from %.0f to %d%s", k->lo,
+                 (k->flags & HI_ITER) ? lim->max_iterations : (int)k->hi,
+                 (k->flags & AUTO) ? " or \"auto\"" : "");
         break;
     case K_U64:
         snprintf(out, size, "an integer from 0 to %llu", (unsigned long long)UINT64_MAX);
@@ -275,6 +278,10 @@ static int parse_value(const keydef *k, const char *t, const api_limits *lim,
         return 0;
     case K_INT: {
         long long hi = (k->flags & HI_ITER) ? lim->max_iterations : (long long)k->hi;
+        if ((k->flags & AUTO) && strcmp(t, "auto") == 0) {
+            v->i = -1; /* an integer key's "auto" (quantization_bits) */
+            return 0;
+        }
         if (parse_ll(t, &v->i) != 0 || v->i < (long long)k->lo || v->i > hi)
             return -1;
         return 0;
@@ -395,7 +402,7 @@ static mcf_status set_shown(api_params *p, const char *key, const char *text,
     k = find_key(key);
     if (!k) {
         char list[256], s[48];
-        size_t used = 0, i;
+        size_t used = 0, i, room;
         list[0] = '\0';
         for (i = 0; i < NKEYS; i++) {
             int n = snprintf(list + used, sizeof list - used, "%s%s",
@@ -404,8 +411,12 @@ static mcf_status set_shown(api_params *p, const char *key, const char *text,
                 break;
             used += (size_t)n;
         }
+        /* The whole list fits in the message; the unknown name gets the
+         * room left (8 to 32 characters, then "..."). */
+        room = MCF_ERRMSG_SIZE - 1 - strlen("unknown parameter '...' (accepted: )");
+        room = room > used + 8 ? room - used : 8;
         return api__fail(err, MCF_EINVAL, "unknown parameter '%s' (accepted: %s)",
-                         shorten(key, 32, s), list);
+                         shorten(key, room < 32 ? room : 32, s), list);
     }
     if (!shown && text[0] == '\0')
         return api__fail(err, MCF_EINVAL, "parameter '%s' has an empty value",
@@ -821,10 +832,14 @@ cJSON *api_params_to_json(const api_params *p)
     }
     if (p->encode.format != API_FMT_UNKNOWN)
         ok &= cJSON_AddStringToObject(j, "format", api_format_name(p->encode.format)) != NULL;
-    ok &= cJSON_AddNumberToObject(j, "quantization_bits", p->encode.quantization_bits) != NULL;
+    if (p->encode.quantization_bits < 0)
+        ok &= cJSON_AddStringToObject(j, "quantization_bits", "auto") != NULL;
+    else
+        ok &= cJSON_AddNumberToObject(j, "quantization_bits", p->encode.quantization_bits) != NULL;
     ok &= cJSON_AddNumberToObject(j, "compression_level", p->encode.compression_level) != NULL;
     ok &= cJSON_AddBoolToObject(j, "preserve_order", p->encode.preserve_order) != NULL;
     ok &= cJSON_AddBoolToObject(j, "ply_binary", p->encode.ply_binary) != NULL;
+    ok &= cJSON_AddBoolToObject(j, "ply_curvature", p->encode.ply_curvature) != NULL;
     if (!ok) {
         cJSON_Delete(j);
         return NULL;

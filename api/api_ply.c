@@ -14,10 +14,20 @@
  * the element, its index and the byte offset. The buffer is never read past
  * len and need not be NUL-terminated.
  *
+ * Attributes (api_ply_decode_attrs): vertex nx ny nz, s t (or u v,
+ * texture_u texture_v), red green blue [alpha] (integer types scaled to
+ * [0, 1]) and the face `texcoord` list draco_decoder writes; one with a
+ * missing component or a non-finite value is dropped, never an error.
+ *
  * Writer: ascii or binary_little_endian (independent of the host's byte
- * order), double x y z, optional float `mean_curvature` and
- * `gaussian_curvature` vertex properties, `property list uchar int
- * vertex_indices` triangles. ASCII doubles use %.17g (exact round trip).
+ * order), x y z as float when the attributes say the input was single
+ * precision, else double; with attributes, nx ny nz recomputed from the
+ * surface (per vertex), texcoords as vertex s t (or, at UV seams, the face
+ * `texcoord` list), uchar red green blue [alpha]; optional float
+ * `mean_curvature` and `gaussian_curvature` vertex properties (given, or
+ * computed with ply_curvature); `property list uchar int vertex_indices`
+ * triangles. ASCII uses %.17g for doubles, %.9g for floats (exact round
+ * trips).
  */
 #include <limits.h>
 #include <math.h>
@@ -40,7 +50,22 @@ static const struct {
 
 static const size_t type_size[] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
 
-enum { ROLE_NONE = 0, ROLE_X, ROLE_Y, ROLE_Z, ROLE_INDICES };
+enum {
+    ROLE_NONE = 0, ROLE_X, ROLE_Y, ROLE_Z, ROLE_INDICES,
+    /* vertex attributes (read only for api_ply_decode_attrs) */
+    ROLE_NX, ROLE_NY, ROLE_NZ, ROLE_S, ROLE_T, ROLE_R, ROLE_G, ROLE_B, ROLE_A,
+    ROLE_FTC,       /* the face's `texcoord` list (u v per corner) */
+    ROLE_COUNT
+};
+#define NVROLES (ROLE_A - ROLE_NX + 1)
+
+/* Vertex property names of the attribute roles, ROLE_NX on. */
+static const char *const vrole_names[NVROLES][3] = {
+    {"nx", NULL, NULL}, {"ny", NULL, NULL}, {"nz", NULL, NULL},
+    {"s", "u", "texture_u"}, {"t", "v", "texture_v"},
+    {"red", "r", NULL}, {"green", "g", NULL}, {"blue", "b", NULL},
+    {"alpha", "a", NULL},
+};
 enum { FMT_ASCII = 0, FMT_LE, FMT_BE };
 
 typedef struct {
@@ -290,7 +315,19 @@ static mcf_status parse_header(const char *buf, size_t len, header *h,
                     pr.role = ROLE_Y;
                 else if (api__tok_is(name, nn, "z"))
                     pr.role = ROLE_Z;
+                for (i = 0; pr.role == ROLE_NONE && i < NVROLES; i++) {
+                    int j;
+                    for (j = 0; j < 3 && vrole_names[i][j]; j++)
+                        if (api__tok_is(name, nn, vrole_names[i][j]))
+                            pr.role = ROLE_NX + i;
+                }
+                /* A second name of a role taken (u after s) stays unread. */
+                for (i = 0; pr.role >= ROLE_NX && i < e->nprops; i++)
+                    if (e->props[i].role == pr.role)
+                        pr.role = ROLE_NONE;
             }
+            if (e->is_face && pr.is_list && api__tok_is(name, nn, "texcoord"))
+                pr.role = ROLE_FTC;
             if (e->is_face
                 && (api__tok_is(name, nn, "vertex_indices")
                     || api__tok_is(name, nn, "vertex_index"))) {
@@ -352,6 +389,17 @@ typedef struct {
     double *X;
     api__tris T;            /* the triangles so far */
     const api_limits *lim;
+    /* Attributes, when wanted: per-vertex arrays by role (NULL: absent),
+     * the face texcoords as 6 doubles per triangle (ftc, growing with T),
+     * the current face's list (tmp) and its vertex count. */
+    int want;
+    double *va[NVROLES];
+    double vscale[NVROLES];        /* 1 / type maximum for integer colours */
+    double *ftc;
+    long long ftc_cap;
+    int ftc_bad;                   /* some face lacks a usable list */
+    double *tmp;
+    long long tmp_n, tmp_cap, poly_n, tri0;
 } body;
 
 /* The value of type t stored at b; swap: the file's byte order differs
@@ -441,6 +489,66 @@ static mcf_status bad_count(const body *b, long long count, unsigned long long i
                      count);
 }
 
+/* An attribute value v of vertex r for property p (attributes wanted). */
+static void put_vattr(body *b, const prop *p, unsigned long long r, double v)
+{
+    int k = p->role - ROLE_NX;
+    if (b->va[k])
+        b->va[k][r] = v * b->vscale[k];
+}
+
+/* One value of the face's texcoord list, at position k of count. */
+static mcf_status put_ftc(body *b, long long k, long long count, double v,
+                          mcf_error *err)
+{
+    if (k == 0)
+        b->tmp_n = 0;
+    if (b->tmp_n == b->tmp_cap) {
+        long long nc = b->tmp_cap ? 2 * b->tmp_cap : 64;
+        double *q;
+        (void)count;
+        q = realloc(b->tmp, sizeof *q * (size_t)nc);
+        if (!q)
+            return api__fail(err, MCF_ENOMEM, "ply: out of memory for texcoords");
+        b->tmp = q;
+        b->tmp_cap = nc;
+    }
+    b->tmp[b->tmp_n++] = v;
+    return MCF_OK;
+}
+
+/* The end of face row r: hands its texcoord list (2 values per polygon
+ * corner) to the triangles the fan made of it, corner by corner. */
+static mcf_status end_face(body *b, mcf_error *err)
+{
+    long long t, ntri = b->T.n - b->tri0;
+    if (!b->want || b->ftc_bad)
+        return MCF_OK;
+    if (b->tmp_n != 2 * b->poly_n || !isfinite(b->tmp_n ? b->tmp[0] : 0.0)) {
+        b->ftc_bad = 1;
+        return MCF_OK;
+    }
+    if (b->T.n > b->ftc_cap) {
+        long long nc = b->T.cap;
+        double *q = realloc(b->ftc, 6 * sizeof *q * (size_t)nc);
+        if (!q)
+            return api__fail(err, MCF_ENOMEM, "ply: out of memory for texcoords");
+        b->ftc = q;
+        b->ftc_cap = nc;
+    }
+    for (t = 0; t < ntri; t++) {
+        double *o = b->ftc + 6 * (b->tri0 + t);
+        /* The fan's triangle t: polygon corners 0, t + 1, t + 2. */
+        o[0] = b->tmp[0];
+        o[1] = b->tmp[1];
+        o[2] = b->tmp[2 * (t + 1)];
+        o[3] = b->tmp[2 * (t + 1) + 1];
+        o[4] = b->tmp[2 * (t + 2)];
+        o[5] = b->tmp[2 * (t + 2) + 1];
+    }
+    return MCF_OK;
+}
+
 static mcf_status read_binary(body *b, const header *h, mcf_error *err)
 {
     const unsigned char *u = (const unsigned char *)b->buf;
@@ -455,6 +563,8 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
         if (e->nprops == 0) /* takes no bytes, whatever its count */
             continue;
         for (r = 0; r < e->count; r++) {
+            b->tri0 = b->T.n;
+            b->tmp_n = b->poly_n = 0;
             for (pi = 0; pi < e->nprops; pi++) {
                 const prop *p = &e->props[pi];
                 size_t left = b->len - b->pos;
@@ -470,6 +580,8 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                                              "not finite",
                                              r, api__show(p->name, p->nlen, shown));
                         b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
+                    } else if (p->role >= ROLE_NX && p->role <= ROLE_A && b->want) {
+                        put_vattr(b, p, r, get_scalar(u + b->pos, p->type, swap));
                     }
                     b->pos += sz;
                 } else {
@@ -492,16 +604,27 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                         fan f = {0, 0};
                         if (count < 3)
                             return bad_count(b, count, r, err);
+                        b->poly_n = count;
                         for (k = 0; k < count; k++) {
                             double v = get_scalar(u + b->pos + (size_t)k * is,
                                                   p->type, swap);
                             if ((rc = fan_add(b, &f, k, v, r, err)) != MCF_OK)
                                 return rc;
                         }
+                    } else if (p->role == ROLE_FTC && b->want) {
+                        b->tmp_n = 0;
+                        for (k = 0; k < count; k++)
+                            if ((rc = put_ftc(b, k, count,
+                                              get_scalar(u + b->pos + (size_t)k * is,
+                                                         p->type, swap),
+                                              err)) != MCF_OK)
+                                return rc;
                     }
                     b->pos += (size_t)count * is;
                 }
             }
+            if (e->is_face && (rc = end_face(b, err)) != MCF_OK)
+                return rc;
         }
         continue;
     truncated:
@@ -541,6 +664,8 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
         for (r = 0; r < e->count; r++) {
             const char *s, *le, *t;
             size_t n;
+            b->tri0 = b->T.n;
+            b->tmp_n = b->poly_n = 0;
             if (!next_line(b, &s, &le))
                 return api__fail(err, MCF_EDECODE,
                                  "ply: line %ld: input ends before %s %llu of %llu",
@@ -567,6 +692,8 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
                                              "finite",
                                              b->txt.line, api__show(t, n, shown));
                         b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
+                    } else if (p->role >= ROLE_NX && p->role <= ROLE_A && b->want) {
+                        put_vattr(b, p, r, v);
                     }
                 } else {
                     long long count, k;
@@ -577,6 +704,8 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
                                          b->txt.line, api__show(t, n, shown));
                     if (p->role == ROLE_INDICES && count < 3)
                         return bad_count(b, count, r, err);
+                    if (p->role == ROLE_INDICES)
+                        b->poly_n = count;
                     for (k = 0; k < count; k++) {
                         n = api__token(&s, le, &t);
                         if (n == 0)
@@ -605,6 +734,9 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
                                 return api__fail(err, MCF_EDECODE,
                                                  "ply: line %ld: bad number '%s'",
                                                  b->txt.line, api__show(t, n, shown));
+                            if (p->role == ROLE_FTC && b->want
+                                && (rc = put_ftc(b, k, count, v, err)) != MCF_OK)
+                                return rc;
                         }
                     }
                 }
@@ -615,6 +747,8 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
                                  "%d properties",
                                  b->txt.line, api__show(e->name, e->nlen, shown), r,
                                  e->nprops);
+            if (e->is_face && (rc = end_face(b, err)) != MCF_OK)
+                return rc;
         }
     }
     {
@@ -629,14 +763,107 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
 mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **out, mcf_error *err)
 {
+    return api_ply_decode_attrs(buf, len, lim, out, NULL, err);
+}
+
+/* All n values finite? */
+static int all_finite(const double *v, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; i++)
+        if (!isfinite(v[i]))
+            return 0;
+    return 1;
+}
+
+/* The attributes read into b, for mesh m, as a new handle in *attrs.
+ * Vertex attributes need all their components (nx ny nz, s t, red green
+ * blue); one with a non-finite value is dropped, as is a face texcoord
+ * list some face lacks. float32: x, y and z were all `float`. */
+static mcf_status make_attrs(body *b, const mcf_mesh *m, int float32,
+                             api_attrs **attrs, mcf_error *err)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), k, c;
+    size_t nc = 3 * (size_t)nf;
+    api_attrs *a = api_attrs_new(nv, nf);
+    mcf_status rc = MCF_OK;
+    static const struct {
+        api_attr_kind kind;
+        int first, ncomp;
+    } groups[] = {{API_ATTR_NORMAL, ROLE_NX, 3},
+                  {API_ATTR_TEXCOORD, ROLE_S, 2},
+                  {API_ATTR_COLOR, ROLE_R, 3}};
+
+    if (!a)
+        return api__fail(err, MCF_ENOMEM, "ply: out of memory for the attributes");
+    a->float32 = float32;
+    for (k = 0; k < 3 && rc == MCF_OK; k++) {
+        int first = groups[k].first - ROLE_NX, ncomp = groups[k].ncomp, i;
+        double *v;
+        int32_t *cr;
+        if (groups[k].kind == API_ATTR_COLOR && b->va[ROLE_A - ROLE_NX])
+            ncomp = 4;
+        for (c = 0; c < ncomp; c++)
+            if (!b->va[first + c])
+                break;
+        if (c < ncomp)
+            continue;
+        v = malloc(sizeof *v * (size_t)ncomp * (size_t)nv + 1);
+        cr = malloc(sizeof *cr * nc + 1);
+        if (!v || !cr) {
+            free(v);
+            free(cr);
+            rc = api__fail(err, MCF_ENOMEM, "ply: out of memory for the attributes");
+            break;
+        }
+        for (i = 0; i < nv; i++)
+            for (c = 0; c < ncomp; c++)
+                v[(size_t)i * ncomp + c] = b->va[first + c][i];
+        if (!all_finite(v, (size_t)ncomp * (size_t)nv)) {
+            free(v);
+            free(cr);
+            continue;
+        }
+        memcpy(cr, mcf_mesh_faces(m), sizeof *cr * nc);
+        rc = api__attrs_take(a, groups[k].kind, ncomp, nv, v, cr, err);
+    }
+    if (rc == MCF_OK && !a->a[API_ATTR_TEXCOORD].corners && b->ftc && !b->ftc_bad
+        && b->T.n == nf && all_finite(b->ftc, 6 * (size_t)nf)) {
+        /* One value per corner, then equal values shared. */
+        int32_t *cr = malloc(sizeof *cr * nc + 1);
+        if (!cr) {
+            rc = api__fail(err, MCF_ENOMEM, "ply: out of memory for texcoords");
+        } else {
+            size_t i;
+            for (i = 0; i < nc; i++)
+                cr[i] = (int32_t)i;
+            rc = api__attrs_take(a, API_ATTR_TEXCOORD, 2, (int)nc, b->ftc, cr, err);
+            b->ftc = NULL;
+            if (rc == MCF_OK)
+                rc = api__attr_dedupe(&a->a[API_ATTR_TEXCOORD], nc, err);
+        }
+    }
+    if (rc != MCF_OK) {
+        api_attrs_free(a);
+        return rc;
+    }
+    *attrs = a;
+    return MCF_OK;
+}
+
+mcf_status api_ply_decode_attrs(const void *buf, size_t len,
+                                const api_limits *lim, mcf_mesh **out,
+                                api_attrs **attrs, mcf_error *err)
+{
     api_limits def;
     header h;
     body b;
     const element *ve = NULL, *fe = NULL;
     unsigned long long need = 0;
     size_t blen;
-    int i, roles[5] = {0, 0, 0, 0, 0};
+    int i, roles[ROLE_COUNT] = {0}, float32 = 1;
     char shown[API__SHOWN];
+    mcf_mesh *m = NULL;
     mcf_status rc;
 
     memset(&h, 0, sizeof h);
@@ -726,13 +953,49 @@ mcf_status api_ply_decode(const void *buf, size_t len, const api_limits *lim,
         rc = api__fail(err, MCF_ENOMEM, "ply: no memory for %d vertices", b.nv);
         goto done;
     }
+    if (attrs) {
+        b.want = 1;
+        for (i = 0; i < ve->nprops; i++) {
+            const prop *p = &ve->props[i];
+            if (p->role >= ROLE_X && p->role <= ROLE_Z && p->type != T_F32)
+                float32 = 0;
+            if (p->role >= ROLE_NX && p->role <= ROLE_A) {
+                int k = p->role - ROLE_NX;
+                /* Integer colours (uchar, ushort) scale to [0, 1]. */
+                b.vscale[k] = 1.0;
+                if (p->role >= ROLE_R && is_int_type(p->type))
+                    b.vscale[k] = 1.0 / (p->type == T_U8 ? 255.0
+                                         : p->type == T_U16 ? 65535.0
+                                         : p->type == T_I8 ? 127.0
+                                         : p->type == T_I16 ? 32767.0
+                                                            : 4294967295.0);
+                b.va[k] = malloc(sizeof *b.va[k] * (size_t)b.nv);
+                if (!b.va[k]) {
+                    rc = api__fail(err, MCF_ENOMEM,
+                                   "ply: no memory for the attributes of %d vertices",
+                                   b.nv);
+                    goto done;
+                }
+            }
+        }
+    }
     rc = h.format == FMT_ASCII ? read_ascii(&b, &h, err) : read_binary(&b, &h, err);
     if (rc != MCF_OK)
         goto done;
-    rc = api__mesh_new(b.nv, b.X, (int)b.T.n, b.T.F, out, err);
+    if ((rc = api__mesh_new(b.nv, b.X, (int)b.T.n, b.T.F, &m, err)) != MCF_OK)
+        goto done;
+    if (attrs && (rc = make_attrs(&b, m, float32, attrs, err)) != MCF_OK) {
+        mcf_mesh_free(m);
+        goto done;
+    }
+    *out = m;
 done:
     free(b.X);
     free(b.T.F);
+    for (i = 0; i < NVROLES; i++)
+        free(b.va[i]);
+    free(b.ftc);
+    free(b.tmp);
     header_free(&h);
     return rc;
 }
@@ -752,69 +1015,228 @@ static void put_double(unsigned char *p, double d)
     put_le64(p, v);
 }
 
+/* What a PLY output carries besides x y z and the faces. */
+typedef struct {
+    int f32;                /* positions (and attributes) as float */
+    double *N;              /* 3*nv normals, or NULL */
+    double *T;              /* 2*nv vertex texcoords, or NULL */
+    const api__attr *ftc;   /* else texcoords per corner, or NULL */
+    double *C;              /* ccomp*nv colours in [0, 1], or NULL */
+    int ccomp;
+    const double *H, *K;    /* curvatures, or NULL */
+    double *Hown, *Kown;    /* computed here (ply_curvature) */
+} plyextra;
+
+static void extra_free(plyextra *x)
+{
+    free(x->N);
+    free(x->T);
+    free(x->C);
+    free(x->Hown);
+    free(x->Kown);
+}
+
+static mcf_status extra_init(plyextra *x, const mcf_mesh *m,
+                             const api_encode_opts *o, mcf_error *err)
+{
+    const api_attrs *a = o ? o->attrs : NULL;
+    size_t nv = (size_t)mcf_mesh_nvertices(m);
+    mcf_status rc;
+
+    memset(x, 0, sizeof *x);
+    if ((rc = api__attrs_check(a, m, "ply", err)) != MCF_OK)
+        return rc;
+    x->H = o ? o->ply_mean_curvature : NULL;
+    x->K = o ? o->ply_gaussian_curvature : NULL;
+    if (o && o->ply_curvature && !x->H && !x->K) {
+        x->Hown = malloc(sizeof *x->Hown * (nv + 1));
+        x->Kown = malloc(sizeof *x->Kown * (nv + 1));
+        if (!x->Hown || !x->Kown) {
+            extra_free(x);
+            return api__fail(err, MCF_ENOMEM, "ply: out of memory for curvatures");
+        }
+        if ((rc = mcf_curvature(m, NULL, x->Hown, x->Kown, NULL, err)) != MCF_OK) {
+            extra_free(x);
+            return rc;
+        }
+        x->H = x->Hown;
+        x->K = x->Kown;
+    }
+    if (!a)
+        return MCF_OK;
+    x->f32 = a->float32;
+    if (a->a[API_ATTR_NORMAL].corners) {
+        /* PLY normals are per vertex: creases cannot be kept here. */
+        x->N = malloc(3 * sizeof *x->N * (nv + 1));
+        if (!x->N)
+            goto nomem;
+        api__vertex_normals(m, x->N);
+    }
+    if (a->a[API_ATTR_TEXCOORD].corners) {
+        x->T = malloc(2 * sizeof *x->T * (nv + 1));
+        if (!x->T)
+            goto nomem;
+        if (!api__attr_per_vertex(&a->a[API_ATTR_TEXCOORD], m, x->T)) {
+            free(x->T); /* seams: the face `texcoord` list, as Draco writes */
+            x->T = NULL;
+            x->ftc = &a->a[API_ATTR_TEXCOORD];
+        }
+    }
+    if (a->a[API_ATTR_COLOR].corners) {
+        x->ccomp = a->a[API_ATTR_COLOR].ncomp;
+        x->C = malloc(sizeof *x->C * (size_t)x->ccomp * (nv + 1));
+        if (!x->C)
+            goto nomem;
+        if (!api__attr_per_vertex(&a->a[API_ATTR_COLOR], m, x->C)) {
+            free(x->C); /* colours differ at a vertex: not in PLY */
+            x->C = NULL;
+        }
+    }
+    return MCF_OK;
+nomem:
+    extra_free(x);
+    return api__fail(err, MCF_ENOMEM, "ply: out of memory for the attributes");
+}
+
+/* A colour component in [0, 1] as a byte (exact for 8-bit sources). */
+static unsigned char color_byte(double c)
+{
+    double v = floor(c * 255.0 + 0.5);
+    return (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v);
+}
+
+/* Appends value v as a float or a double (binary or ASCII). */
+static void put_real(unsigned char *p, size_t *n, double v, int f32)
+{
+    if (f32) {
+        api__put_f32(p + *n, (float)v);
+        *n += 4;
+    } else {
+        put_double(p + *n, v);
+        *n += 8;
+    }
+}
+
+/* ASCII: " v" with %.9g for a float (exact for floats), %.17g for a
+ * double. */
+static mcf_status print_real(api_buf *out, double v, int f32)
+{
+    return f32 ? api_buf_printf(out, " %.9g", (double)(float)v)
+               : api_buf_printf(out, " %.17g", v);
+}
+
 mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
                           api_buf *out, mcf_error *err)
 {
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i;
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i, k;
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
-    const double *H = o ? o->ply_mean_curvature : NULL;
-    const double *K = o ? o->ply_gaussian_curvature : NULL;
     int binary = o ? o->ply_binary != 0 : 1;
     size_t len0 = out->len;
+    plyextra x;
+    const char *real;
     mcf_status rc;
 
+    if ((rc = extra_init(&x, m, o, err)) != MCF_OK)
+        return rc;
+    real = x.f32 ? "float" : "double";
     rc = api_buf_printf(out,
                         "ply\nformat %s 1.0\ncomment mcfd\nelement vertex %d\n"
-                        "property double x\nproperty double y\nproperty double z\n",
-                        binary ? "binary_little_endian" : "ascii", nv);
-    if (rc == MCF_OK && H)
+                        "property %s x\nproperty %s y\nproperty %s z\n",
+                        binary ? "binary_little_endian" : "ascii", nv, real, real,
+                        real);
+    if (rc == MCF_OK && x.N)
+        rc = api_buf_printf(out, "property %s nx\nproperty %s ny\nproperty %s nz\n",
+                            real, real, real);
+    if (rc == MCF_OK && x.T)
+        rc = api_buf_printf(out, "property %s s\nproperty %s t\n", real, real);
+    if (rc == MCF_OK && x.C)
+        rc = api_buf_printf(out, "property uchar red\nproperty uchar green\n"
+                                 "property uchar blue\n%s",
+                            x.ccomp == 4 ? "property uchar alpha\n" : "");
+    if (rc == MCF_OK && x.H)
         rc = api_buf_printf(out, "property float mean_curvature\n");
-    if (rc == MCF_OK && K)
+    if (rc == MCF_OK && x.K)
         rc = api_buf_printf(out, "property float gaussian_curvature\n");
     if (rc == MCF_OK)
         rc = api_buf_printf(out, "element face %d\nproperty list uchar int "
-                                 "vertex_indices\nend_header\n",
-                            nf);
+                                 "vertex_indices\n%s",
+                            nf, x.ftc ? "" : "end_header\n");
+    if (rc == MCF_OK && x.ftc)
+        rc = api_buf_printf(out, "property list uchar %s texcoord\nend_header\n",
+                            real);
     for (i = 0; i < nv && rc == MCF_OK; i++) {
         if (binary) {
-            unsigned char v[32];
-            size_t n = 24;
-            put_double(v, X[3 * i]);
-            put_double(v + 8, X[3 * i + 1]);
-            put_double(v + 16, X[3 * i + 2]);
-            if (H) {
-                api__put_f32(v + n, (float)H[i]);
+            unsigned char v[128];
+            size_t n = 0;
+            for (k = 0; k < 3; k++)
+                put_real(v, &n, X[3 * i + k], x.f32);
+            for (k = 0; x.N && k < 3; k++)
+                put_real(v, &n, x.N[3 * i + k], x.f32);
+            for (k = 0; x.T && k < 2; k++)
+                put_real(v, &n, x.T[2 * i + k], x.f32);
+            for (k = 0; x.C && k < x.ccomp; k++)
+                v[n++] = color_byte(x.C[x.ccomp * i + k]);
+            if (x.H) {
+                api__put_f32(v + n, (float)x.H[i]);
                 n += 4;
             }
-            if (K) {
-                api__put_f32(v + n, (float)K[i]);
+            if (x.K) {
+                api__put_f32(v + n, (float)x.K[i]);
                 n += 4;
             }
             rc = api_buf_append(out, v, n);
         } else {
-            rc = api_buf_printf(out, "%.17g %.17g %.17g", X[3 * i], X[3 * i + 1],
-                                X[3 * i + 2]);
-            if (rc == MCF_OK && H)
-                rc = api_buf_printf(out, " %.9g", (double)(float)H[i]);
-            if (rc == MCF_OK && K)
-                rc = api_buf_printf(out, " %.9g", (double)(float)K[i]);
+            rc = api_buf_printf(out, x.f32 ? "%.9g %.9g %.9g" : "%.17g %.17g %.17g",
+                                x.f32 ? (double)(float)X[3 * i] : X[3 * i],
+                                x.f32 ? (double)(float)X[3 * i + 1] : X[3 * i + 1],
+                                x.f32 ? (double)(float)X[3 * i + 2] : X[3 * i + 2]);
+            for (k = 0; x.N && k < 3 && rc == MCF_OK; k++)
+                rc = print_real(out, x.N[3 * i + k], x.f32);
+            for (k = 0; x.T && k < 2 && rc == MCF_OK; k++)
+                rc = print_real(out, x.T[2 * i + k], x.f32);
+            for (k = 0; x.C && k < x.ccomp && rc == MCF_OK; k++)
+                rc = api_buf_printf(out, " %u", (unsigned)color_byte(x.C[x.ccomp * i + k]));
+            if (rc == MCF_OK && x.H)
+                rc = api_buf_printf(out, " %.9g", (double)(float)x.H[i]);
+            if (rc == MCF_OK && x.K)
+                rc = api_buf_printf(out, " %.9g", (double)(float)x.K[i]);
             if (rc == MCF_OK)
                 rc = api_buf_append(out, "\n", 1);
         }
     }
     for (i = 0; i < nf && rc == MCF_OK; i++) {
         if (binary) {
-            unsigned char f[13];
+            unsigned char f[13 + 1 + 6 * 8];
+            size_t n = 13;
             f[0] = 3;
             api__put_le32(f + 1, (uint32_t)F[3 * i]);
             api__put_le32(f + 5, (uint32_t)F[3 * i + 1]);
             api__put_le32(f + 9, (uint32_t)F[3 * i + 2]);
-            rc = api_buf_append(out, f, sizeof f);
+            if (x.ftc) {
+                f[n++] = 6;
+                for (k = 0; k < 6; k++)
+                    put_real(f, &n,
+                             x.ftc->values[2 * (size_t)x.ftc->corners[3 * (size_t)i + k / 2]
+                                           + (size_t)(k % 2)],
+                             x.f32);
+            }
+            rc = api_buf_append(out, f, n);
         } else {
-            rc = api_buf_printf(out, "3 %ld %ld %ld\n", (long)F[3 * i],
+            rc = api_buf_printf(out, "3 %ld %ld %ld", (long)F[3 * i],
                                 (long)F[3 * i + 1], (long)F[3 * i + 2]);
+            if (rc == MCF_OK && x.ftc) {
+                rc = api_buf_printf(out, " 6");
+                for (k = 0; k < 6 && rc == MCF_OK; k++) {
+                    double t = x.ftc->values[2 * (size_t)x.ftc->corners[3 * (size_t)i + k / 2]
+                                             + (size_t)(k % 2)];
+                    rc = print_real(out, t, x.f32);
+                }
+            }
+            if (rc == MCF_OK)
+                rc = api_buf_append(out, "\n", 1);
         }
     }
+    extra_free(&x);
     return api__encode_end(out, len0, rc, "ply", nv, "vertices", err);
 }

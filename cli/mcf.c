@@ -43,11 +43,15 @@ static const char usage_text[] =
     "                    [--normalize | --no-normalize] [--laplacian cotan|uniform]\n"
     "                    [--mass barycentric|voronoi] [--adaptive --tol E]\n"
     "                    [--target FILE] [--noise RHO --seed K] [--metrics FILE.json] [--quiet]\n"
-    "                    [--format F] [--quantization-bits B] [--compression-level C] [--preserve-order]\n"
+    "                    [--format F] [--quantization-bits B|auto] [--compression-level C] [--preserve-order]\n"
+    "                    [--ply-curvature]\n"
     "  mcf info IN          JSON on stdout: counts, topology, curvature summary\n"
     "  mcf schemes          JSON on stdout: every scheme with order, stability, cost per step\n"
-    "  mcf convert IN OUT   [--format F] [--quantization-bits B] [--compression-level C]\n"
-    "                       [--preserve-order]: format by content in, by OUT's extension out\n"
+    "  mcf convert IN OUT   [--format F] [--quantization-bits B|auto] [--compression-level C]\n"
+    "                       [--preserve-order] [--ply-curvature]: format by content in, by\n"
+    "                       OUT's extension out; texture coordinates, colours and normals\n"
+    "                       (recomputed) pass through; Draco keeps the input's quantization\n"
+    "                       (--quantization-bits auto; 16 bits from other formats; 0 lossless)\n"
     "  mcf experiment STUDY --out DIR [flags]: dt-sweep, stability, order or sphere\n"
     "                       studies as CSV files and plots (flags at the end)\n"
     "\n"
@@ -179,10 +183,12 @@ static int write_all(const char *path, const void *buf, size_t len)
     return 0;
 }
 
-/* Reads and decodes a mesh file; *fmt and the timings are optional. */
-static int load_mesh(const char *path, const api_limits *lim, mcf_mesh **m,
-                     api_format *fmt, size_t *bytes, double *read_s,
-                     double *decode_s)
+/* Reads and decodes a mesh file; *attrs (the input's texture coordinates,
+ * colours, normals and precision, for the output), *fmt and the timings
+ * are optional. */
+static int load_mesh_attrs(const char *path, const api_limits *lim,
+                           mcf_mesh **m, api_attrs **attrs, api_format *fmt,
+                           size_t *bytes, double *read_s, double *decode_s)
 {
     char *buf = NULL;
     size_t len = 0;
@@ -194,7 +200,7 @@ static int load_mesh(const char *path, const api_limits *lim, mcf_mesh **m,
     if ((rc = read_all(path, lim->max_input_bytes, &buf, &len)) != 0)
         return rc;
     t1 = now();
-    st = api_mesh_decode(buf, len, lim, m, fmt, &err);
+    st = api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, &err);
     free(buf);
     if (st != MCF_OK)
         return fail(1, "%s: %s", path, err.msg);
@@ -205,6 +211,13 @@ static int load_mesh(const char *path, const api_limits *lim, mcf_mesh **m,
     if (decode_s)
         *decode_s = now() - t1;
     return 0;
+}
+
+static int load_mesh(const char *path, const api_limits *lim, mcf_mesh **m,
+                     api_format *fmt, size_t *bytes, double *read_s,
+                     double *decode_s)
+{
+    return load_mesh_attrs(path, lim, m, NULL, fmt, bytes, read_s, decode_s);
 }
 
 /* -------------------------------------------------------------- arguments */
@@ -285,7 +298,7 @@ static int parse_args(const char *cmd, int argc, char **argv, int first,
         /* Switches. */
         if ((smooth && (!strcmp(name, "normalize") || !strcmp(name, "no-normalize")
                         || !strcmp(name, "adaptive") || !strcmp(name, "quiet")))
-            || !strcmp(name, "preserve-order")) {
+            || !strcmp(name, "preserve-order") || !strcmp(name, "ply-curvature")) {
             if (eq)
                 return fail(EXIT_USAGE, "option '--%s' takes no value", name);
             rc = 0;
@@ -343,9 +356,9 @@ static int output_format(api_params *p, const char *out)
     return 0;
 }
 
-/* Encodes (measuring Draco's quantization error) and writes OUT. PLY
- * output carries the per-vertex mean and Gaussian curvature of the result
- * as extra properties, for viewers that colour by a property. */
+/* Encodes (measuring Draco's quantization error) and writes OUT, with the
+ * input's attributes when opts->attrs has them. PLY curvature properties
+ * are opt-in (--ply-curvature), as in the daemon (ply_curvature). */
 static int save_mesh(const mcf_mesh *m, const api_encode_opts *opts,
                      const char *path, size_t *bytes, double *encode_s,
                      double *write_s, double *qerr)
@@ -354,28 +367,14 @@ static int save_mesh(const mcf_mesh *m, const api_encode_opts *opts,
     api_encode_opts o = *opts;
     mcf_error err = {MCF_OK, ""};
     mcf_status st;
-    double t0 = now(), t1, *H = NULL, *K = NULL;
+    double t0 = now(), t1;
     int rc;
 
     api_buf_init(&b, 0);
-    if (o.format == API_FMT_PLY) {
-        size_t nv = (size_t)mcf_mesh_nvertices(m);
-        H = malloc(nv * sizeof *H);
-        K = malloc(nv * sizeof *K);
-        if (!H || !K || mcf_curvature(m, NULL, H, K, NULL, &err) != MCF_OK) {
-            free(H);
-            free(K);
-            return fail(1, "%s: curvature: %s", path, err.msg[0] ? err.msg : "out of memory");
-        }
-        o.ply_mean_curvature = H;
-        o.ply_gaussian_curvature = K;
-    }
     if (o.format == API_FMT_DRACO)
         st = api_draco_encode(m, &o, &b, qerr, &err);
     else
         st = api_mesh_encode(m, &o, &b, &err);
-    free(H);
-    free(K);
     if (st != MCF_OK) {
         api_buf_free(&b);
         return fail(1, "%s: %s", path, err.msg);
@@ -481,6 +480,7 @@ static int cmd_smooth(int argc, char **argv)
     api_params p;
     cli_opts o;
     mcf_mesh *m = NULL, *target = NULL;
+    api_attrs *attrs = NULL;
     mcf_error err = {MCF_OK, ""};
     mcf_flow_stats st;
     api_metrics mt;
@@ -525,8 +525,10 @@ static int cmd_smooth(int argc, char **argv)
         }
     }
 
-    if ((rc = load_mesh(o.pos[0], &lim, &m, &in_fmt, &in_bytes, &read_s, &decode_s)) != 0)
+    if ((rc = load_mesh_attrs(o.pos[0], &lim, &m, &attrs, &in_fmt, &in_bytes, &read_s,
+                              &decode_s)) != 0)
         goto done;
+    p.encode.attrs = attrs;
     if ((fs = api_params_finish(&p, mcf_mesh_nvertices(m), &lim, &err)) != MCF_OK) {
         rc = fail(fs == MCF_EINVAL ? EXIT_USAGE : 1, "%s", err.msg);
         goto done;
@@ -630,6 +632,7 @@ done:
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(target);
+    api_attrs_free(attrs);
     api_params_free(&p);
     return rc;
 }
@@ -705,6 +708,7 @@ static int cmd_convert(int argc, char **argv)
     api_params p;
     cli_opts o;
     mcf_mesh *m = NULL;
+    api_attrs *attrs = NULL;
     int rc;
 
     memset(&o, 0, sizeof o);
@@ -712,9 +716,12 @@ static int cmd_convert(int argc, char **argv)
     api_params_init(&p);
     if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o)) == 0
         && (rc = output_format(&p, o.pos[1])) == 0
-        && (rc = load_mesh(o.pos[0], &lim, &m, NULL, NULL, NULL, NULL)) == 0)
+        && (rc = load_mesh_attrs(o.pos[0], &lim, &m, &attrs, NULL, NULL, NULL, NULL)) == 0) {
+        p.encode.attrs = attrs;
         rc = save_mesh(m, &p.encode, o.pos[1], NULL, NULL, NULL, NULL);
+    }
     mcf_mesh_free(m);
+    api_attrs_free(attrs);
     api_params_free(&p);
     return rc;
 }

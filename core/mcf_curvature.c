@@ -177,26 +177,26 @@ void mcf__corner_sums(const double *X, const int32_t *F, int nf,
     }
 }
 
-mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
-                         double *A2, mcf_error *err)
+/* mcf_curvature's work, also handing the topology and angle sums it
+ * found to the caller (mcf_curvature_summarize needs them too, and the
+ * edge sort is the most expensive part): bnd, used (nv bytes each) and
+ * angle (nv doubles) are caller-allocated scratch, *ne the edge count. */
+static mcf_status curvature_fields(const mcf_mesh *m, double *N, double *H,
+                                   double *K, double *A2, unsigned char *bnd,
+                                   unsigned char *used, double *angle,
+                                   int *ne, mcf_error *err)
 {
     mcf_status rc = MCF_OK;
-    double *n = NULL, *LX = NULL, *lm = NULL, *angle = NULL, *bm = NULL;
-    unsigned char *bnd = NULL, *used = NULL;
-    size_t nv, i;
-    int ne;
+    double *n = NULL, *LX = NULL, *lm = NULL, *bm = NULL;
+    size_t nv = (size_t)m->nv, i;
 
-    if (!m)
-        return mcf__fail(err, MCF_EINVAL, "mcf_curvature: NULL mesh");
-    nv = (size_t)m->nv;
+    memset(angle, 0, nv * sizeof *angle);
+    memset(used, 0, nv);
     n = mcf__malloc(3 * nv, sizeof *n);
     LX = mcf__malloc(3 * nv, sizeof *LX);
     lm = mcf__malloc(nv, sizeof *lm);
-    angle = mcf__calloc(nv, sizeof *angle);
     bm = mcf__calloc(nv, sizeof *bm);
-    bnd = mcf__malloc(nv, 1);
-    used = mcf__calloc(nv, 1);
-    if (!n || !LX || !lm || !angle || !bm || !bnd || !used) {
+    if (!n || !LX || !lm || !bm) {
         rc = mcf__fail(err, MCF_ENOMEM, "curvature of %zu vertices", nv);
         goto done;
     }
@@ -205,7 +205,7 @@ mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
                               MCF_MASS_BARYCENTRIC, LX, lm, err);
     if (rc != MCF_OK)
         goto done;
-    if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, &ne, err)) != MCF_OK)
+    if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, ne, err)) != MCF_OK)
         goto done;
     mcf__corner_sums(m->X, m->F, m->nf, angle, bm, used);
 
@@ -247,8 +247,30 @@ done:
     free(n);
     free(LX);
     free(lm);
-    free(angle);
     free(bm);
+    return rc;
+}
+
+mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
+                         double *A2, mcf_error *err)
+{
+    mcf_status rc;
+    double *angle;
+    unsigned char *bnd, *used;
+    size_t nv;
+    int ne;
+
+    if (!m)
+        return mcf__fail(err, MCF_EINVAL, "mcf_curvature: NULL mesh");
+    nv = (size_t)m->nv;
+    angle = mcf__malloc(nv, sizeof *angle);
+    bnd = mcf__malloc(nv, 1);
+    used = mcf__malloc(nv, 1);
+    if (!angle || !bnd || !used)
+        rc = mcf__fail(err, MCF_ENOMEM, "curvature of %zu vertices", nv);
+    else
+        rc = curvature_fields(m, N, H, K, A2, bnd, used, angle, &ne, err);
+    free(angle);
     free(bnd);
     free(used);
     return rc;
@@ -301,8 +323,7 @@ mcf_status mcf_curvature_summarize(const mcf_mesh *m,
 {
     mcf_status rc = MCF_OK;
     mcf_curvature_summary s;
-    double *H = NULL, *K = NULL, *A2 = NULL, *angle = NULL, *bm = NULL,
-           *tmp = NULL;
+    double *H = NULL, *K = NULL, *A2 = NULL, *angle = NULL, *tmp = NULL;
     unsigned char *bnd = NULL, *used = NULL;
     double interior = 0, boundary = 0;
     size_t nv, i;
@@ -315,19 +336,16 @@ mcf_status mcf_curvature_summarize(const mcf_mesh *m,
     K = mcf__malloc(nv, sizeof *K);
     A2 = mcf__malloc(nv, sizeof *A2);
     tmp = mcf__malloc(nv, sizeof *tmp);
-    angle = mcf__calloc(nv, sizeof *angle);
-    bm = mcf__calloc(nv, sizeof *bm);
+    angle = mcf__malloc(nv, sizeof *angle);
     bnd = mcf__malloc(nv, 1);
-    used = mcf__calloc(nv, 1);
-    if (!H || !K || !A2 || !tmp || !angle || !bm || !bnd || !used) {
+    used = mcf__malloc(nv, 1);
+    if (!H || !K || !A2 || !tmp || !angle || !bnd || !used) {
         rc = mcf__fail(err, MCF_ENOMEM, "curvature of %zu vertices", nv);
         goto done;
     }
-    if ((rc = mcf_curvature(m, NULL, H, K, A2, err)) != MCF_OK)
+    if ((rc = curvature_fields(m, NULL, H, K, A2, bnd, used, angle, &ne,
+                               err)) != MCF_OK)
         goto done;
-    if ((rc = edge_topology(m->F, m->nf, m->nv, bnd, &ne, err)) != MCF_OK)
-        goto done;
-    mcf__corner_sums(m->X, m->F, m->nf, angle, bm, used);
 
     memset(&s, 0, sizeof s);
     stats_of(H, used, nv, tmp, &s.H);
@@ -358,7 +376,6 @@ done:
     free(A2);
     free(tmp);
     free(angle);
-    free(bm);
     free(bnd);
     free(used);
     return rc;

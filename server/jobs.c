@@ -796,6 +796,7 @@ static void run_job(srv_job *j)
     api_params prm;
     int have_prm = 0;
     mcf_mesh *m = NULL, *tgt = NULL;
+    api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
     api_format fmt = API_FMT_UNKNOWN, tfmt;
     mcf_error err = {MCF_OK, ""};
     mcf_status rc;
@@ -842,8 +843,8 @@ static void run_job(srv_job *j)
         goto done;
     }
     have_prm = 1;
-    if ((rc = api_mesh_decode(input, input_len, &cfg->lim, &m, &fmt, &err)) !=
-        MCF_OK) {
+    if ((rc = api_mesh_decode_attrs(input, input_len, &cfg->lim, &m, &attrs,
+                                    &fmt, &err)) != MCF_OK) {
         srv_problem_from(&prob, rc, SRV_STAGE_DECODE, "mesh", &err);
         goto done;
     }
@@ -937,6 +938,7 @@ static void run_job(srv_job *j)
     if (prm.encode.format == API_FMT_UNKNOWN)
         prm.encode.format = fmt; /* the metrics' params say what was written */
     eo = prm.encode;
+    eo.attrs = attrs;
     rc = eo.format == API_FMT_DRACO ? api_draco_encode(m, &eo, &out, &qerr, &err)
                                     : api_mesh_encode(m, &eo, &out, &err);
     if (rc != MCF_OK) {
@@ -1013,6 +1015,7 @@ done:
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(tgt);
+    api_attrs_free(attrs);
     api_buf_free(&out);
     free(input);
     free(target);

@@ -486,6 +486,7 @@ static void test_dispatch(void **state)
     (void)state;
     api_encode_opts_init(&o);
     o.format = API_FMT_DRACO;
+    o.quantization_bits = 0; /* lossless: the default (auto) quantizes */
     api_buf_init(&b, 0);
     assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
     assert_int_equal(api_mesh_decode(b.data, b.len, NULL, &d, &f, &err), MCF_OK);

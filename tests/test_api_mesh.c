@@ -246,13 +246,15 @@ static void test_encode_opts(void **state)
     memset(&o, 0x55, sizeof o);
     api_encode_opts_init(&o);
     assert_int_equal(o.format, API_FMT_UNKNOWN);
-    assert_int_equal(o.quantization_bits, 0);
+    assert_int_equal(o.quantization_bits, -1); /* auto */
     assert_int_equal(o.compression_level, 7);
     assert_int_equal(o.preserve_order, 0);
     assert_int_equal(o.ply_binary, 1);
     assert_int_equal(o.stl_binary, 1);
     assert_null(o.ply_mean_curvature);
     assert_null(o.ply_gaussian_curvature);
+    assert_int_equal(o.ply_curvature, 0);
+    assert_null(o.attrs);
 }
 
 static void test_dispatch(void **state)

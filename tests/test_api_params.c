@@ -230,7 +230,7 @@ static void test_bad_values(void **state)
          "unknown parameter 'iterationz' (accepted: scheme,dt,iterations,time,"
          "boundary,fixed_vertices,rescale,normalize,laplacian,mass,adaptive,tol,"
          "max_steps,noise,seed,format,quantization_bits,compression_level,"
-         "preserve_order,ply_binary)");
+         "preserve_order,ply_curvature,ply_binary)");
 }
 
 /* A long value is shortened in the message, never overflowing it. */
