@@ -59,11 +59,23 @@ int tl_mesh_in_repo(const char *name)
     return access(p, R_OK) == 0;
 }
 
+void tl_skip(const char *tag, const char *why)
+{
+    const char *log = getenv("MCF_SKIP_LOG");
+    FILE *f;
+
+    print_message("[  SKIP    ] %s\n", why);
+    if (log && *log && (f = fopen(log, "a")) != NULL) {
+        fprintf(f, "%s\t%s\n", tag, why);
+        fclose(f);
+    }
+    skip();
+}
+
 const char *tl_need_mesh(const char *name)
 {
-    const char *p = tl_mesh_path(name), *big = tl_meshes_dir(), *log;
+    const char *p = tl_mesh_path(name), *big = tl_meshes_dir();
     char why[4200];
-    FILE *f;
 
     if (p)
         return p;
@@ -71,15 +83,9 @@ const char *tl_need_mesh(const char *name)
         snprintf(why, sizeof why, "%s is not in MESHES=%s", name, big);
     else
         snprintf(why, sizeof why,
-                 "%s is not in the repository (tests/data/meshes) and MESHES is unset",
-                 name);
-    print_message("[  SKIP    ] %s (make test MESHES=/path/to/meshes runs it)\n", why);
-    log = getenv("MCF_SKIP_LOG");
-    if (log && *log && (f = fopen(log, "a")) != NULL) {
-        fprintf(f, "%s\t%s\n", name, why);
-        fclose(f);
-    }
-    skip();
+                 "%s is not in the repository (tests/data/meshes) and MESHES is unset "
+                 "(make test MESHES=/path/to/meshes runs it)", name);
+    tl_skip(name, why);
     return NULL; /* not reached */
 }
 

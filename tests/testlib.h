@@ -45,6 +45,11 @@ const char *tl_testdata_dir(void);
  * buffers, or NULL when neither folder has a readable file of that name. */
 const char *tl_mesh_path(const char *name);
 
+/* Skips the current test (cmocka's skip()) with a reason: prints it and
+ * appends "tag<TAB>why" to $MCF_SKIP_LOG, whose lines `make test` counts
+ * and whose tags it lists (tl_need_mesh's tag is the mesh's name). */
+void tl_skip(const char *tag, const char *why);
+
 /* 1 when mesh NAME is one of the repository's own (tests/data/meshes). */
 int tl_mesh_in_repo(const char *name);
 
