@@ -215,14 +215,23 @@ static void test_convert(void **state)
     assert_non_null(strstr(r.out, "\"format\":\t\"draco\""));
     assert_non_null(strstr(r.out, "\"vertices\":\t812"));
     tl_run_free(&r);
-    /* To PLY, with the curvature properties in the header. */
-    r = tl_run("convert", "copy.drc", "copy.ply", NULL);
+    /* To PLY: float x y z (the Draco input was single precision), the
+     * curvature properties only with --ply-curvature (as in the daemon). */
+    r = tl_run("convert", "copy.drc", "plain.ply", NULL);
+    if (r.status != 0)
+        fail_msg("convert to ply: %s", r.err);
+    tl_run_free(&r);
+    r = tl_run("convert", "copy.drc", "copy.ply", "--ply-curvature", NULL);
     if (r.status != 0)
         fail_msg("convert to ply: %s", r.err);
     tl_run_free(&r);
     {
         char *buf;
         size_t len;
+        assert_int_equal(tl_read_file(tl_in_scratch("plain.ply"), &buf, &len), 0);
+        assert_non_null(strstr(buf, "property float x\n"));
+        assert_null(strstr(buf, "curvature"));
+        free(buf);
         assert_int_equal(tl_read_file(tl_in_scratch("copy.ply"), &buf, &len), 0);
         assert_non_null(strstr(buf, "property float mean_curvature"));
         assert_non_null(strstr(buf, "property float gaussian_curvature"));
