@@ -505,6 +505,13 @@ static char *state_json(const srv_job *j)
     cJSON_AddStringToObject(o, "in_format", j->in_format);
     cJSON_AddStringToObject(o, "out_format", j->out_format);
     cJSON_AddStringToObject(o, "result", j->result_name);
+    /* A cancel asked of a running job holds across a restart. */
+    if (!is_terminal(j->status) && j->cancel &&
+        (j->cancel_reason == SRV_CANCEL_USER ||
+         j->cancel_reason == SRV_CANCEL_CLIENT))
+        cJSON_AddStringToObject(o, "cancel_requested",
+                                j->cancel_reason == SRV_CANCEL_USER ? "user"
+                                                                    : "client");
     cJSON_AddNumberToObject(o, "result_bytes", (double)j->result_len);
     if (j->params_json)
         cJSON_AddStringToObject(o, "params", j->params_json);
@@ -1322,6 +1329,30 @@ static void recover_one(const char *id, void *arg)
         rc->restored++;
         goto out;
     }
+    if (*str_of(so, "cancel_requested")) {
+        /* Canceled while it ran, and the process ended before the step
+         * did: it stays canceled. */
+        char *s;
+        j->status = SRV_JOB_CANCELED;
+        j->finished = srv_wall();
+        j->step = (int)num_of(so, "step");
+        srv_problem_set(&j->err, 409, "ECANCELED", "canceled %s while it "
+                        "ran, before the daemon restarted; it did not run "
+                        "again", strcmp(str_of(so, "cancel_requested"),
+                                        "user") == 0
+                                 ? "by DELETE" : "when its client hung up");
+        if ((s = state_json(j)) != NULL) {
+            if (srv_spool_write(cfg->spool, id, "state.json", s, strlen(s),
+                                1) != 0)
+                srv_logf(SRV_LOG_WARN, "spool: cannot record job %s as "
+                         "canceled: %s", id, strerror(errno));
+            free(s);
+        }
+        table_insert(j);
+        j = NULL;
+        rc->restored++;
+        goto out;
+    }
     /* queued, or running when the process died: run it again */
     j->status = SRV_JOB_QUEUED;
     j->started = 0;
@@ -1468,7 +1499,11 @@ void srv_jobs_checkpoint_running(void)
     srv_lock();
     for (b = 0; b < NBUCKETS; b++)
         for (j = S.buckets[b]; j; j = j->hnext)
-            if (j->status == SRV_JOB_RUNNING) {
+            /* A job its user (or its hung-up client) canceled stays
+             * canceled: it is not put back in the queue. */
+            if (j->status == SRV_JOB_RUNNING &&
+                !(j->cancel && (j->cancel_reason == SRV_CANCEL_USER ||
+                                j->cancel_reason == SRV_CANCEL_CLIENT))) {
                 j->cancel = 1;
                 j->cancel_reason = SRV_CANCEL_SHUTDOWN;
             }

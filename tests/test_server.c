@@ -2122,6 +2122,48 @@ static void test_drain_checkpoint(void **state)
     stop_daemon(&d);
 }
 
+/* Issue 9 item 7: DELETE a running job, then SIGTERM while its current
+ * step (richardson on the armadillo, about 0.3 s) outlasts --drain-timeout
+ * 0.02: the checkpoint used to overwrite the cancel, and the job ran again
+ * after the restart. It stays canceled. */
+static void test_cancel_survives_shutdown(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--drain-timeout",
+                                        "0.02", NULL};
+    upload_t up = {.mesh = "armadillo.obj"};
+    daemon_t d;
+    char spool[600], id[SRV_ID_BUF], path[160];
+    cJSON *j;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/cancel-term", g_tmp);
+    assert_int_equal(start_daemon(&d, "cancel-term", spool, flags), 0);
+    http(&d, "POST", "/v1/jobs?scheme=richardson&iterations=1000", NULL, &up, &r);
+    expect_status(&d, &r, 202, "submit the armadillo");
+    j = body_json(&r, "submit");
+    snprintf(id, sizeof id, "%s", jstr(j, "id"));
+    cJSON_Delete(j);
+    resp_free(&r);
+    wait_running(&d, id);
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_status(&d, &r, 202, "DELETE the running job");
+    resp_free(&r);
+    stop_daemon(&d); /* SIGTERM at once: the step is still running */
+
+    assert_int_equal(start_daemon(&d, "cancel-term2", spool, flags), 0);
+    j = poll_job(&d, id, NULL, 5);
+    if (strcmp(jstr(j, "status"), "canceled") != 0)
+        fail_msg("after the restart job %s is %s, not canceled", id,
+                 jstr(j, "status"));
+    assert_string_equal(jstr(cJSON_GetObjectItemCaseSensitive(j, "error"),
+                             "code"), "ECANCELED");
+    cJSON_Delete(j);
+    wait_gauge_within(&d, "mcfd_workers_busy", 0, 1, "nothing runs again");
+    stop_daemon(&d);
+}
+
 /* mcfd --probe: 0 against a live daemon, 1 against a closed port. */
 static int run_probe(int port)
 {
@@ -2476,6 +2518,7 @@ int main(void)
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
         cmocka_unit_test_teardown(test_sigterm_drain, kill_strays),
         cmocka_unit_test_teardown(test_drain_checkpoint, kill_strays),
+        cmocka_unit_test_teardown(test_cancel_survives_shutdown, kill_strays),
         cmocka_unit_test_teardown(test_probe, kill_strays),
         cmocka_unit_test_teardown(test_config, kill_strays),
         cmocka_unit_test_teardown(test_metrics_same_as_cli, kill_strays),
