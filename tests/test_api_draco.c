@@ -10,6 +10,12 @@
  * Interop: files written by Debian's draco_encoder CLI decode to the same
  * positions. Hostile input: truncations at every offset, corrupted bytes,
  * point clouds, limits, empty input; each fails with a precise message.
+ * Attributes (issue 12): car.drc's texture coordinates come back bit for
+ * bit through smoothing and Draco (both methods) and its normals are the
+ * smoothed surface's; the default output is float32 at the input's
+ * quantization and not larger than the input; Debian's draco_decoder
+ * turns every kind of output into a PLY with typed properties that reads
+ * back, and draco_encoder reads mcfd's PLY.
  */
 #include <math.h>
 #include <stdio.h>
@@ -19,6 +25,7 @@
 
 #include "testlib.h"
 #include "../api/api.h"
+#include "../api/api_internal.h"
 
 static mcf_status dec(const void *buf, size_t len, mcf_mesh **m, mcf_error *err)
 {
@@ -821,6 +828,486 @@ static void test_limits(void **state)
     free(buf);
 }
 
+/* ------------------------------------------------------------ attributes */
+
+/* Reads $MCF_MESHES/name and decodes it with its attributes. */
+static mcf_mesh *load_attrs(const char *name, api_attrs **a, size_t *bytes)
+{
+    char *buf;
+    size_t len;
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    buf = read_mesh_file(name, &len);
+    if (api_mesh_decode_attrs(buf, len, NULL, &m, a, NULL, &err) != MCF_OK)
+        fail_msg("%s: %s", name, err.msg);
+    free(buf);
+    if (bytes)
+        *bytes = len;
+    return m;
+}
+
+/* A few implicit steps: the vertices move, the connectivity stays. */
+static void smooth_a_little(mcf_mesh *m)
+{
+    mcf_flow_params p;
+    mcf_error err;
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_DESBRUN2;
+    p.dt = 1e-5;
+    p.iterations = 2;
+    if (mcf_flow_run(m, &p, NULL, &err) != MCF_OK)
+        fail_msg("flow: %s", err.msg);
+}
+
+/* One face corner as float32 values: position, texcoord, normal. */
+typedef struct {
+    float r[8];
+} corner_rec;
+
+static int cmp_corner(const void *a, const void *b)
+{
+    return memcmp(a, b, sizeof(corner_rec));
+}
+
+/* The corners of m (positions as float32) with the texcoord of a and the
+ * normal N (per value of a's normal attribute; NULL: a's own values), as
+ * a sorted array of 3*nf records: two meshes with the same records carry
+ * the same attribute values at the same places, whatever the vertex and
+ * face order. */
+static corner_rec *corners_of(const mcf_mesh *m, const api_attrs *a,
+                              const double *N)
+{
+    int nf = mcf_mesh_nfaces(m), c, k;
+    const double *X = mcf_mesh_positions(m), *tv = NULL, *nv = NULL;
+    const int32_t *F = mcf_mesh_faces(m), *tc = NULL, *nc = NULL;
+    corner_rec *r = calloc(3 * (size_t)nf, sizeof *r);
+    assert_non_null(r);
+    api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, &tv, &tc);
+    api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, &nv, &nc);
+    if (N)
+        nv = N;
+    for (c = 0; c < 3 * nf; c++) {
+        for (k = 0; k < 3; k++)
+            r[c].r[k] = (float)X[3 * (size_t)F[c] + k];
+        for (k = 0; tc && k < 2; k++)
+            r[c].r[3 + k] = (float)tv[2 * (size_t)tc[c] + k];
+        for (k = 0; nc && k < 3; k++)
+            r[c].r[5 + k] = (float)nv[3 * (size_t)nc[c] + k];
+    }
+    qsort(r, 3 * (size_t)nf, sizeof *r, cmp_corner);
+    return r;
+}
+
+/* Encodes m with a as Draco (bits: quantization_bits; order: the
+ * sequential method) into a new buffer. */
+static api_buf encode_attrs(const mcf_mesh *m, const api_attrs *a, int bits,
+                            int order)
+{
+    api_encode_opts o;
+    api_buf b;
+    mcf_error err;
+    double qerr = -1;
+    api_encode_opts_init(&o);
+    o.format = API_FMT_DRACO;
+    o.quantization_bits = bits;
+    o.preserve_order = order;
+    o.attrs = a;
+    api_buf_init(&b, 0);
+    if (api_draco_encode(m, &o, &b, &qerr, &err) != MCF_OK)
+        fail_msg("encode: %s", err.msg);
+    assert_true(qerr >= 0);
+    return b;
+}
+
+/* car.drc (sequential, raw float32, normals and texcoords) through the
+ * flow and back through Draco with the defaults and with each method:
+ * every corner keeps its texture coordinate bit for bit, its normal is
+ * the smoothed surface's (grouped as the input grouped them), positions
+ * are the smoothed ones as float32; the output stays raw float32 like the
+ * input, no larger than it, and its attributes keep their bits. */
+static void test_attrs_car_roundtrip(void **state)
+{
+    api_attrs *a = NULL;
+    size_t in_bytes;
+    mcf_mesh *m = load_attrs("car.drc", &a, &in_bytes);
+    double *N = NULL;
+    corner_rec *want;
+    mcf_error err;
+    int order, nf = mcf_mesh_nfaces(m), ncomp, nvals;
+    (void)state;
+
+    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, &ncomp, &nvals, NULL, NULL));
+    assert_int_equal(ncomp, 2);
+    assert_int_equal(nvals, 1856);
+    assert_true(api_attrs_get(a, API_ATTR_NORMAL, &ncomp, NULL, NULL, NULL));
+    assert_int_equal(ncomp, 3);
+    assert_false(api_attrs_get(a, API_ATTR_COLOR, NULL, NULL, NULL, NULL));
+    assert_int_equal(api_attrs_float32(a), 1);
+    assert_int_equal(api_attrs_draco_bits(a, API_ATTR_POSITION), 0);
+    assert_int_equal(api_attrs_draco_bits(a, API_ATTR_TEXCOORD), 0);
+
+    smooth_a_little(m);
+    assert_int_equal(api__attrs_normals(a, m, &N, &err), MCF_OK);
+    want = corners_of(m, a, N);
+    for (order = -1; order <= 1; order++) {
+        /* -1: the defaults (auto bits, edgebreaker); 0/1 both methods */
+        api_buf b = encode_attrs(m, a, -1, order > 0);
+        mcf_mesh *d = NULL;
+        api_attrs *da = NULL;
+        corner_rec *got;
+        assert_int_equal(api_draco_decode_attrs(b.data, b.len, NULL, &d, &da, &err),
+                         MCF_OK);
+        assert_int_equal(mcf_mesh_nfaces(d), nf);
+        assert_int_equal(api_attrs_float32(da), 1);
+        assert_int_equal(api_attrs_draco_bits(da, API_ATTR_POSITION), 0);
+        assert_int_equal(api_attrs_draco_bits(da, API_ATTR_TEXCOORD), 0);
+        assert_int_equal(api_attrs_draco_bits(da, API_ATTR_NORMAL), 0);
+        got = corners_of(d, da, NULL);
+        if (memcmp(got, want, 3 * (size_t)nf * sizeof *got) != 0)
+            fail_msg("order %d: corners differ", order);
+        if (order < 0 && b.len > in_bytes)
+            fail_msg("car: %zu bytes out, %zu in", b.len, in_bytes);
+        free(got);
+        api_attrs_free(da);
+        mcf_mesh_free(d);
+        api_buf_free(&b);
+    }
+    /* The recomputed normals are unit and face outwards like the faces. */
+    {
+        const int32_t *F = mcf_mesh_faces(m), *nc;
+        const double *X = mcf_mesh_positions(m);
+        int f, k, agree = 0, total = 0;
+        assert_true(api_attrs_get(a, API_ATTR_NORMAL, NULL, &nvals, NULL, &nc));
+        for (f = 0; f < nf; f++) {
+            const double *p = X + 3 * F[3 * f], *q = X + 3 * F[3 * f + 1],
+                         *r = X + 3 * F[3 * f + 2];
+            double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+            double v[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+            double fn[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                            u[0] * v[1] - u[1] * v[0]};
+            for (k = 0; k < 3; k++) {
+                const double *n = N + 3 * nc[3 * f + k];
+                tl_assert_near(n[0] * n[0] + n[1] * n[1] + n[2] * n[2], 1.0, 1e-12,
+                               "|n|^2");
+                agree += n[0] * fn[0] + n[1] * fn[1] + n[2] * fn[2] >= 0;
+                total++;
+            }
+        }
+        if (agree < 0.99 * total)
+            fail_msg("only %d of %d corner normals agree with their face", agree,
+                     total);
+    }
+    free(want);
+    free(N);
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+}
+
+/* bunny.drc (14-bit positions) and dragon_vrip.drc (16): the default
+ * output keeps the input's bits, is float32, and is no larger than about
+ * the input (5% slack: smoothing changes what the predictor sees). */
+static void test_attrs_sizes(void **state)
+{
+    static const struct {
+        const char *name;
+        int bits;
+    } files[] = {{"bunny.drc", 14}, {"dragon_vrip.drc", 16}};
+    size_t i;
+    (void)state;
+    for (i = 0; i < sizeof files / sizeof files[0]; i++) {
+        api_attrs *a = NULL, *da = NULL;
+        size_t in_bytes;
+        mcf_mesh *m = load_attrs(files[i].name, &a, &in_bytes), *d = NULL;
+        mcf_error err;
+        api_buf b;
+        assert_int_equal(api_attrs_draco_bits(a, API_ATTR_POSITION), files[i].bits);
+        if (i == 0)
+            smooth_a_little(m);
+        b = encode_attrs(m, a, -1, 0);
+        printf("  %s: %zu bytes in, %zu out (%d bits)\n", files[i].name, in_bytes,
+               b.len, files[i].bits);
+        if ((double)b.len > 1.05 * (double)in_bytes)
+            fail_msg("%s: %zu bytes out, %zu in", files[i].name, b.len, in_bytes);
+        assert_int_equal(api_draco_decode_attrs(b.data, b.len, NULL, &d, &da, &err),
+                         MCF_OK);
+        assert_int_equal(api_attrs_draco_bits(da, API_ATTR_POSITION), files[i].bits);
+        assert_int_equal(api_attrs_float32(da), 1);
+        api_attrs_free(da);
+        mcf_mesh_free(d);
+        api_buf_free(&b);
+        api_attrs_free(a);
+        mcf_mesh_free(m);
+    }
+}
+
+/* A grid of n x n quads in the plane z = 0.1 xy, texcoords (x, y) with a
+ * seam down the middle column (the right half's corners use a second copy
+ * of the values, shifted by 0.5 in u), colours from the vertex index. */
+static mcf_mesh *grid_mesh(int n, api_attrs **out)
+{
+    int nv = (n + 1) * (n + 1), nf = 2 * n * n, i, j, c = 0;
+    double *X = malloc(3 * sizeof *X * (size_t)nv);
+    double *T = malloc(4 * sizeof *T * (size_t)nv);
+    double *C = malloc(4 * sizeof *C * (size_t)nv);
+    int32_t *F = malloc(3 * sizeof *F * (size_t)nf);
+    int32_t *TC = malloc(3 * sizeof *TC * (size_t)nf);
+    mcf_error err;
+    mcf_mesh *m;
+    api_attrs *a;
+    assert_true(X && T && C && F && TC);
+    for (i = 0; i <= n; i++)
+        for (j = 0; j <= n; j++) {
+            int v = i * (n + 1) + j;
+            X[3 * v] = j / (double)n;
+            X[3 * v + 1] = i / (double)n;
+            X[3 * v + 2] = 0.1 * X[3 * v] * X[3 * v + 1];
+            T[2 * v] = X[3 * v];
+            T[2 * v + 1] = X[3 * v + 1];
+            T[2 * (nv + v)] = X[3 * v] + 0.5;
+            T[2 * (nv + v) + 1] = X[3 * v + 1];
+            C[4 * v] = (v % 256) / 255.0;
+            C[4 * v + 1] = ((v * 7) % 256) / 255.0;
+            C[4 * v + 2] = ((v * 13) % 256) / 255.0;
+            C[4 * v + 3] = 1.0;
+        }
+    for (i = 0; i < n; i++)
+        for (j = 0; j < n; j++) {
+            int v = i * (n + 1) + j, sh = j >= n / 2 ? nv : 0;
+            int32_t q[6] = {v, v + 1, v + n + 2, v, v + n + 2, v + n + 1};
+            for (int k = 0; k < 6; k++, c++) {
+                F[c] = q[k];
+                TC[c] = q[k] + sh;
+            }
+        }
+    m = mcf_mesh_new(nv, X, nf, F, &err);
+    assert_non_null(m);
+    a = api_attrs_new(nv, nf);
+    assert_non_null(a);
+    assert_int_equal(api_attrs_set(a, API_ATTR_TEXCOORD, 2, 2 * nv, T, TC, &err), MCF_OK);
+    assert_int_equal(api_attrs_set(a, API_ATTR_COLOR, 4, nv, C, F, &err), MCF_OK);
+    /* bad input is refused, the handle unchanged */
+    TC[0] = 2 * nv;
+    assert_int_equal(api_attrs_set(a, API_ATTR_TEXCOORD, 2, 2 * nv, T, TC, &err),
+                     MCF_EINVAL);
+    assert_int_equal(api_attrs_set(a, API_ATTR_NORMAL, 2, nv, T, F, &err), MCF_EINVAL);
+    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, NULL, NULL));
+    free(X);
+    free(T);
+    free(C);
+    free(F);
+    free(TC);
+    *out = a;
+    return m;
+}
+
+/* A generated mesh that did not come from Draco: auto mode quantizes its
+ * positions and texcoords at 16 bits (errors within a step), colours
+ * come back as the same bytes, the seam stays a seam. */
+static void test_attrs_generated(void **state)
+{
+    api_attrs *a = NULL, *da = NULL;
+    mcf_mesh *m = grid_mesh(8, &a), *d = NULL;
+    api_buf b = encode_attrs(m, a, -1, 0);
+    mcf_error err;
+    int ncomp, nvals, c, k;
+    const double *tv, *cv, *tv0, *cv0;
+    const int32_t *tc, *cc, *tc0, *cc0;
+    (void)state;
+    assert_int_equal(api_draco_decode_attrs(b.data, b.len, NULL, &d, &da, &err), MCF_OK);
+    assert_int_equal(api_attrs_draco_bits(da, API_ATTR_POSITION), API_DRACO_DEFAULT_BITS);
+    assert_int_equal(api_attrs_draco_bits(da, API_ATTR_TEXCOORD),
+                     API_DRACO_DEFAULT_TEXCOORD_BITS);
+    assert_int_equal(api_attrs_draco_bits(da, API_ATTR_COLOR), 0);
+    assert_true(api_attrs_get(da, API_ATTR_COLOR, &ncomp, NULL, &cv, &cc));
+    assert_int_equal(ncomp, 4);
+    assert_true(api_attrs_get(da, API_ATTR_TEXCOORD, NULL, &nvals, &tv, &tc));
+    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, &tv0, &tc0));
+    assert_true(api_attrs_get(a, API_ATTR_COLOR, NULL, NULL, &cv0, &cc0));
+    /* Corners matched through their (unique) positions. */
+    for (c = 0; c < 3 * mcf_mesh_nfaces(d); c++) {
+        const double *y = mcf_mesh_positions(d) + 3 * mcf_mesh_faces(d)[c];
+        int best = -1;
+        double bd = 1e9;
+        for (k = 0; k < 3 * mcf_mesh_nfaces(m); k++) {
+            const double *x = mcf_mesh_positions(m) + 3 * mcf_mesh_faces(m)[k];
+            double dd = fabs(x[0] - y[0]) + fabs(x[1] - y[1]) + fabs(x[2] - y[2]);
+            /* Among the corners at that vertex, the one with the same side
+             * of the seam (the decoded u tells). */
+            if (dd < 1e-4 && fabs(tv0[2 * tc0[k]] - tv[2 * tc[c]]) < 1e-4) {
+                best = k;
+                bd = dd;
+            }
+        }
+        if (best < 0)
+            fail_msg("corner %d: no input corner (%g)", c, bd);
+        for (k = 0; k < 2; k++)
+            tl_assert_near(tv[2 * tc[c] + k], tv0[2 * tc0[best] + k], 1.5 / 65535,
+                           "texcoord");
+        for (k = 0; k < 4; k++)
+            assert_true(cv[4 * cc[c] + k] == cv0[4 * cc0[best] + k]);
+    }
+    assert_int_equal(nvals, 81 + 9); /* referenced values: the seam column twice */
+    api_attrs_free(da);
+    mcf_mesh_free(d);
+    api_buf_free(&b);
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+}
+
+/* Writes len bytes to path. */
+static void write_file(const char *path, const void *p, size_t len)
+{
+    FILE *fp = fopen(path, "wb");
+    assert_non_null(fp);
+    assert_int_equal(fwrite(p, 1, len, fp), len);
+    assert_int_equal(fclose(fp), 0);
+}
+
+/* Every property line of a PLY header names a known type (draco_decoder
+ * once wrote "property  x" for float64 positions). */
+static void assert_typed_header(const char *buf, const char *what)
+{
+    static const char *const types[] = {"char", "uchar", "short", "ushort", "int",
+                                        "uint", "float", "double", "int8", "uint8",
+                                        "int16", "uint16", "int32", "uint32",
+                                        "float32", "float64", NULL};
+    const char *p = buf, *end = strstr(buf, "end_header");
+    assert_non_null(end);
+    while ((p = strstr(p, "\nproperty")) && p < end) {
+        char w[4][32] = {"", "", "", ""};
+        int n = sscanf(p + 1, "%31s %31s %31s %31s", w[0], w[1], w[2], w[3]), i, k;
+        int first = strcmp(w[1], "list") == 0 ? 2 : 1, last = first == 2 ? 3 : 1;
+        for (k = first; k <= last; k++) {
+            int ok = 0;
+            for (i = 0; types[i]; i++)
+                ok |= strcmp(w[k], types[i]) == 0;
+            if (!ok || n < last + 1)
+                fail_msg("%s: untyped property line '%.40s'", what, p + 1);
+        }
+        p++;
+    }
+}
+
+/* Debian's draco_decoder turns every kind of mcfd Draco output into a PLY
+ * with typed properties that mcfd reads back (same face count, car's
+ * texcoords through the face `texcoord` list); draco_encoder reads mcfd's
+ * float PLY. */
+static void test_draco_tools_read_outputs(void **state)
+{
+    char tmpl[] = "/tmp/mcf_dtools_XXXXXX", *dir, path[600], ply[600], cmd[2000];
+    api_attrs *car_a = NULL, *bun_a = NULL, *grid_a = NULL;
+    mcf_mesh *car = load_attrs("car.drc", &car_a, NULL);
+    mcf_mesh *bunny = load_attrs("bunny.drc", &bun_a, NULL);
+    mcf_mesh *grid = grid_mesh(6, &grid_a);
+    struct {
+        const char *name;
+        const mcf_mesh *m;
+        const api_attrs *a;
+        int bits, order;
+    } cases[] = {
+        {"car-default", car, car_a, -1, 0},   {"car-seq", car, car_a, -1, 1},
+        {"car-q12", car, car_a, 12, 0},       {"bunny-default", bunny, bun_a, -1, 0},
+        {"bunny-lossless", bunny, bun_a, 0, 0}, {"grid-default", grid, grid_a, -1, 0},
+        {"grid-seq", grid, grid_a, -1, 1},
+    };
+    size_t i;
+    (void)state;
+    if (system("command -v draco_decoder >/dev/null 2>&1") != 0) {
+        tl_skip("draco_decoder", "Debian's draco package is not installed");
+        goto out;
+    }
+    dir = mkdtemp(tmpl);
+    assert_non_null(dir);
+    smooth_a_little(car);
+    for (i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        api_buf b = encode_attrs(cases[i].m, cases[i].a, cases[i].bits, cases[i].order);
+        char *out;
+        size_t len;
+        mcf_mesh *d = NULL;
+        api_attrs *da = NULL;
+        mcf_error err;
+        snprintf(path, sizeof path, "%s/%s.drc", dir, cases[i].name);
+        snprintf(ply, sizeof ply, "%s/%s.ply", dir, cases[i].name);
+        write_file(path, b.data, b.len);
+        snprintf(cmd, sizeof cmd, "draco_decoder -i %s -o %s >/dev/null 2>&1", path, ply);
+        if (system(cmd) != 0)
+            fail_msg("%s: draco_decoder failed", cases[i].name);
+        assert_int_equal(tl_read_file(ply, &out, &len), 0);
+        assert_typed_header(out, cases[i].name);
+        if (api_ply_decode_attrs(out, len, NULL, &d, &da, &err) != MCF_OK)
+            fail_msg("%s: %s", cases[i].name, err.msg);
+        assert_int_equal(mcf_mesh_nfaces(d), mcf_mesh_nfaces(cases[i].m));
+        assert_int_equal(api_attrs_float32(da), 1);
+        if (cases[i].a == car_a) {
+            /* draco_decoder writes texcoords per face corner */
+            corner_rec *w, *g;
+            api_attrs *only_tc = api_attrs_new(mcf_mesh_nvertices(car),
+                                               mcf_mesh_nfaces(car));
+            const double *v;
+            const int32_t *c;
+            int nvals;
+            assert_true(api_attrs_get(car_a, API_ATTR_TEXCOORD, NULL, &nvals, &v, &c));
+            assert_int_equal(api_attrs_set(only_tc, API_ATTR_TEXCOORD, 2, nvals, v, c,
+                                           &err), MCF_OK);
+            assert_true(api_attrs_get(da, API_ATTR_TEXCOORD, NULL, NULL, NULL, NULL));
+            assert_true(api_attrs_get(da, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
+            if (cases[i].bits != 12) {
+                /* raw float32: positions and texcoords bit for bit */
+                api_attrs *dt = api_attrs_new(mcf_mesh_nvertices(d), mcf_mesh_nfaces(d));
+                assert_true(api_attrs_get(da, API_ATTR_TEXCOORD, NULL, &nvals, &v, &c));
+                assert_int_equal(api_attrs_set(dt, API_ATTR_TEXCOORD, 2, nvals, v, c,
+                                               &err), MCF_OK);
+                w = corners_of(car, only_tc, NULL);
+                g = corners_of(d, dt, NULL);
+                if (memcmp(w, g, 3 * (size_t)mcf_mesh_nfaces(d) * sizeof *w) != 0)
+                    fail_msg("%s: texcoords differ after draco_decoder", cases[i].name);
+                free(w);
+                free(g);
+                api_attrs_free(dt);
+            }
+            api_attrs_free(only_tc);
+        }
+        if (cases[i].a == grid_a)
+            assert_true(api_attrs_get(da, API_ATTR_COLOR, NULL, NULL, NULL, NULL));
+        remove(ply);
+        remove(path);
+        free(out);
+        api_attrs_free(da);
+        mcf_mesh_free(d);
+        api_buf_free(&b);
+    }
+    /* mcfd's PLY of a single-precision input is float: draco_encoder
+     * reads it (it refuses double coordinates). */
+    {
+        api_encode_opts o;
+        api_buf b;
+        mcf_error err;
+        api_encode_opts_init(&o);
+        o.format = API_FMT_PLY;
+        o.attrs = car_a;
+        api_buf_init(&b, 0);
+        assert_int_equal(api_mesh_encode(car, &o, &b, &err), MCF_OK);
+        assert_non_null(strstr(b.data, "property float x\n"));
+        snprintf(ply, sizeof ply, "%s/car.ply", dir);
+        snprintf(path, sizeof path, "%s/car.drc", dir);
+        write_file(ply, b.data, b.len);
+        snprintf(cmd, sizeof cmd, "draco_encoder -i %s -o %s >/dev/null 2>&1", ply, path);
+        if (system(cmd) != 0)
+            fail_msg("draco_encoder refused mcfd's PLY");
+        remove(ply);
+        remove(path);
+        api_buf_free(&b);
+    }
+    rmdir(dir);
+out:
+    api_attrs_free(car_a);
+    api_attrs_free(bun_a);
+    api_attrs_free(grid_a);
+    mcf_mesh_free(car);
+    mcf_mesh_free(bunny);
+    mcf_mesh_free(grid);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -837,6 +1324,10 @@ int main(void)
         cmocka_unit_test(test_encode_edge_cases),
         cmocka_unit_test(test_dispatch),
         cmocka_unit_test(test_draco_encoder_cli),
+        cmocka_unit_test(test_attrs_car_roundtrip),
+        cmocka_unit_test(test_attrs_sizes),
+        cmocka_unit_test(test_attrs_generated),
+        cmocka_unit_test(test_draco_tools_read_outputs),
         cmocka_unit_test(test_malformed),
         cmocka_unit_test(test_truncated_and_corrupted),
         cmocka_unit_test(test_regression_bool_position),
