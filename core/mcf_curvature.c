@@ -107,12 +107,6 @@ mcf_status mcf_gradient(const mcf_mesh *m, const double *f, double *G, mcf_error
     return MCF_OK;
 }
 
-static int key_cmp(const void *pa, const void *pb)
-{
-    uint64_t a = *(const uint64_t *)pa, b = *(const uint64_t *)pb;
-    return (a > b) - (a < b);
-}
-
 /* Topology the curvatures need: on_boundary[v] = 1 for an endpoint of an
  * edge with exactly one face; *ne the number of unique edges (sides that
  * join a vertex to itself are no edges, as in mcf_mesh_inspect). */
@@ -120,7 +114,8 @@ static mcf_status edge_topology(const int32_t *F, int nf, int nv,
                                 unsigned char *on_boundary, int *ne,
                                 mcf_error *err)
 {
-    uint64_t *key = mcf__malloc(3 * (size_t)nf, sizeof *key);
+    /* the keys, then as many again of radix-sort scratch */
+    uint64_t *key = mcf__malloc(6 * (size_t)nf, sizeof *key);
     size_t n = 0, i, j, f;
     int k, count = 0;
 
@@ -134,7 +129,7 @@ static mcf_status edge_topology(const int32_t *F, int nf, int nv,
                 continue;
             key[n++] = u < v ? ((uint64_t)u << 32 | v) : ((uint64_t)v << 32 | u);
         }
-    qsort(key, n, sizeof *key, key_cmp);
+    mcf__radix_sort_u64(key, NULL, n, key + 3 * (size_t)nf, NULL);
     memset(on_boundary, 0, (size_t)nv);
     for (i = 0; i < n; i = j) {
         for (j = i + 1; j < n && key[j] == key[i]; j++)
@@ -276,12 +271,6 @@ mcf_status mcf_curvature(const mcf_mesh *m, double *N, double *H, double *K,
     return rc;
 }
 
-static int dbl_cmp(const void *pa, const void *pb)
-{
-    double a = *(const double *)pa, b = *(const double *)pb;
-    return (a > b) - (a < b);
-}
-
 /* Percentile q of sorted v[0..n-1], linear between order statistics at
  * position q (n - 1) (the "type 7" rule of R and NumPy's default). */
 static double percentile(const double *v, size_t n, double q)
@@ -293,22 +282,25 @@ static double percentile(const double *v, size_t n, double q)
     return v[lo] + (pos - fl) * (v[lo + 1] - v[lo]);
 }
 
-/* Statistics of x over the vertices with used[i]; tmp holds n doubles. */
+/* Statistics of x over the vertices with used[i]; tmp holds nv doubles,
+ * u 2 nv keys (sorted by radix: the sort dominated the summary). */
 static void stats_of(const double *x, const unsigned char *used, size_t nv,
-                     double *tmp, mcf_stats *s)
+                     double *tmp, uint64_t *u, mcf_stats *s)
 {
     size_t i, n = 0;
     double sum = 0, sq = 0;
     for (i = 0; i < nv; i++)
         if (used[i]) {
-            tmp[n++] = x[i];
+            u[n++] = mcf__double_key(x[i]);
             sum += x[i];
             sq += x[i] * x[i];
         }
     memset(s, 0, sizeof *s);
     if (n == 0)
         return;
-    qsort(tmp, n, sizeof *tmp, dbl_cmp);
+    mcf__radix_sort_u64(u, NULL, n, u + nv, NULL);
+    for (i = 0; i < n; i++)
+        tmp[i] = mcf__key_double(u[i]);
     s->min = tmp[0];
     s->max = tmp[n - 1];
     s->mean = sum / (double)n;
@@ -324,6 +316,7 @@ mcf_status mcf_curvature_summarize(const mcf_mesh *m,
     mcf_status rc = MCF_OK;
     mcf_curvature_summary s;
     double *H = NULL, *K = NULL, *A2 = NULL, *angle = NULL, *tmp = NULL;
+    uint64_t *u = NULL;
     unsigned char *bnd = NULL, *used = NULL;
     double interior = 0, boundary = 0;
     size_t nv, i;
@@ -336,10 +329,11 @@ mcf_status mcf_curvature_summarize(const mcf_mesh *m,
     K = mcf__malloc(nv, sizeof *K);
     A2 = mcf__malloc(nv, sizeof *A2);
     tmp = mcf__malloc(nv, sizeof *tmp);
+    u = mcf__malloc(2 * nv, sizeof *u);
     angle = mcf__malloc(nv, sizeof *angle);
     bnd = mcf__malloc(nv, 1);
     used = mcf__malloc(nv, 1);
-    if (!H || !K || !A2 || !tmp || !angle || !bnd || !used) {
+    if (!H || !K || !A2 || !tmp || !u || !angle || !bnd || !used) {
         rc = mcf__fail(err, MCF_ENOMEM, "curvature of %zu vertices", nv);
         goto done;
     }
@@ -348,9 +342,9 @@ mcf_status mcf_curvature_summarize(const mcf_mesh *m,
         goto done;
 
     memset(&s, 0, sizeof s);
-    stats_of(H, used, nv, tmp, &s.H);
-    stats_of(K, used, nv, tmp, &s.K);
-    stats_of(A2, used, nv, tmp, &s.A2);
+    stats_of(H, used, nv, tmp, u, &s.H);
+    stats_of(K, used, nv, tmp, u, &s.K);
+    stats_of(A2, used, nv, tmp, u, &s.A2);
     /* Discrete Gauss-Bonnet: with every face's angles summing to pi,
      * sum_interior (2 pi - theta_i) + sum_boundary (pi - theta_i)
      * = 2 pi (V - E + F) on any mesh whose boundary vertices each lie on
@@ -375,6 +369,7 @@ done:
     free(K);
     free(A2);
     free(tmp);
+    free(u);
     free(angle);
     free(bnd);
     free(used);

@@ -136,4 +136,15 @@ void mcf__vertex_gradient(const double *X, const int32_t *F, int nf, int nv,
 void mcf__vertex_normals(const double *X, const int32_t *F, int nf, int nv,
                          double *N);
 
+/* Sorts key[0..n) ascending, stable (LSD radix by bytes, O(n) per byte
+ * that differs between keys), permuting val alongside when it is not
+ * NULL; tk (n keys) and tv (n values, when val) are scratch.
+ * (mcf_sort.c) */
+void mcf__radix_sort_u64(uint64_t *key, uint32_t *val, size_t n, uint64_t *tk,
+                         uint32_t *tv);
+/* An order-preserving map of finite doubles to uint64 (-0 as +0) and its
+ * inverse, for sorting doubles with mcf__radix_sort_u64. (mcf_sort.c) */
+uint64_t mcf__double_key(double x);
+double mcf__key_double(uint64_t u);
+
 #endif /* MCF_INTERNAL_H */

@@ -296,6 +296,72 @@ static void uf_union(int32_t *p, int32_t a, int32_t b)
     }
 }
 
+/* The two sorts of mcf_mesh_inspect, by radix (mcf__radix_sort_u64) on
+ * the key with the position as payload, then a gather: qsort took most of
+ * an inspection. Both arrays are made in face order, so the stable sort by
+ * key gives the order of the comparators above (key, then face), and
+ * those serve as the fallback when the scratch cannot be had (or a face
+ * key does not fit in 64 bits: more than 2^21 vertices). */
+static void sort_half_edges(half_edge *he, size_t n)
+{
+    uint64_t *k = n <= UINT32_MAX ? mcf__malloc(2 * n, sizeof *k) : NULL;
+    uint32_t *p = k ? mcf__malloc(2 * n, sizeof *p) : NULL;
+    half_edge *out = NULL;
+    size_t i;
+
+    if (p) {
+        for (i = 0; i < n; i++) {
+            k[i] = he[i].key;
+            p[i] = (uint32_t)i;
+        }
+        mcf__radix_sort_u64(k, p, n, k + n, p + n);
+        free(k); /* before the gather's copy: peak about qsort's */
+        k = NULL;
+        out = mcf__malloc(n, sizeof *out);
+    }
+    if (out) {
+        for (i = 0; i < n; i++)
+            out[i] = he[p[i]];
+        memcpy(he, out, n * sizeof *he);
+    } else {
+        qsort(he, n, sizeof *he, half_edge_cmp);
+    }
+    free(k);
+    free(p);
+    free(out);
+}
+
+static void sort_face_keys(face_key *fk, size_t n, size_t nv)
+{
+    uint64_t *k = nv <= (size_t)1 << 21 && n <= UINT32_MAX
+                      ? mcf__malloc(2 * n, sizeof *k) : NULL;
+    uint32_t *p = k ? mcf__malloc(2 * n, sizeof *p) : NULL;
+    face_key *out = NULL;
+    size_t i;
+
+    if (p) {
+        for (i = 0; i < n; i++) {
+            k[i] = (uint64_t)fk[i].v[0] << 42 | (uint64_t)fk[i].v[1] << 21 |
+                   (uint64_t)fk[i].v[2];
+            p[i] = (uint32_t)i;
+        }
+        mcf__radix_sort_u64(k, p, n, k + n, p + n);
+        free(k);
+        k = NULL;
+        out = mcf__malloc(n, sizeof *out);
+    }
+    if (out) {
+        for (i = 0; i < n; i++)
+            out[i] = fk[p[i]];
+        memcpy(fk, out, n * sizeof *fk);
+    } else {
+        qsort(fk, n, sizeof *fk, face_key_cmp);
+    }
+    free(k);
+    free(p);
+    free(out);
+}
+
 /* Corner index (3f + j) of vertex v in the face of half-edge e. */
 static int32_t corner_of(const int32_t *F, const half_edge *e, int32_t v)
 {
@@ -429,7 +495,7 @@ mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
             r.unreferenced++;
 
     /* Duplicate faces: same sorted vertex triple as an earlier face. */
-    qsort(fk, nf, sizeof *fk, face_key_cmp);
+    sort_face_keys(fk, nf, nv);
     for (f = 1; f < nf; f++)
         if (memcmp(fk[f].v, fk[f - 1].v, sizeof fk[f].v) == 0)
             r.duplicate_faces++;
@@ -453,7 +519,7 @@ mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
                     uf_union(cuf, (int32_t)(3 * f + k), (int32_t)(3 * f + j));
     for (i = 0; i < nv; i++)
         vuf[i] = (int32_t)i;
-    qsort(he, nh, sizeof *he, half_edge_cmp);
+    sort_half_edges(he, nh);
     r.min_edge = HUGE_VAL;
     r.max_edge = 0;
     for (i = 0; i < nh; i = j) {
