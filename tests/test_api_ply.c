@@ -871,6 +871,206 @@ static void test_garbage(void **state)
     mcf_mesh_free(m);
 }
 
+/* ------------------------------------------------------------ attributes */
+
+/* A 3x2 strip of quads in OBJ text with a UV seam between the second and
+ * third column (the right column's corners use their own vt values),
+ * per-vertex colours and normals on every corner. */
+static const char strip_obj[] =
+    "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 2 0 0.25 0 0 1\nv 3 0 0 0.5 0.5 0\n"
+    "v 0 1 0 1 1 1\nv 1 1 0.5 0 0 0\nv 2 1 0 0.2 0.4 0.6\nv 3 1 0 1 0 1\n"
+    "vt 0 0\nvt 0.25 0\nvt 0.5 0\nvt 0 1\nvt 0.25 1\nvt 0.5 1\n"
+    "vt 0.75 0\nvt 1 0\nvt 0.75 1\nvt 1 1\n"
+    "vn 0 0 1\n"
+    "f 1/1/1 2/2/1 6/5/1 5/4/1\nf 2/2/1 3/3/1 7/6/1 6/5/1\n"
+    "f 3/7/1 4/8/1 8/10/1 7/9/1\n";
+
+/* The decoded strip and its attributes. */
+static mcf_mesh *strip(api_attrs **a)
+{
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    if (api_obj_decode_attrs(strip_obj, sizeof strip_obj - 1, NULL, &m, a, &err)
+        != MCF_OK)
+        fail_msg("strip: %s", err.msg);
+    return m;
+}
+
+/* Attribute k of a and b agree corner by corner (same face order), within
+ * tol. */
+static void assert_same_attr(const api_attrs *a, const api_attrs *b, int nf,
+                             api_attr_kind k, double tol, const char *what)
+{
+    int na, nb, c, i;
+    const double *va, *vb;
+    const int32_t *ca, *cb;
+    assert_true(api_attrs_get(a, k, &na, NULL, &va, &ca));
+    if (!api_attrs_get(b, k, &nb, NULL, &vb, &cb))
+        fail_msg("%s: attribute %d lost", what, (int)k);
+    assert_int_equal(na, nb);
+    for (c = 0; c < 3 * nf; c++)
+        for (i = 0; i < na; i++)
+            if (!(fabs(va[na * ca[c] + i] - vb[nb * cb[c] + i]) <= tol))
+                fail_msg("%s: attribute %d corner %d: %.17g vs %.17g", what, (int)k,
+                         c, va[na * ca[c] + i], vb[nb * cb[c] + i]);
+}
+
+/* The strip to PLY (binary and ASCII) and back: texcoords (with their
+ * seam, through the face `texcoord` list) and colours exactly, normals
+ * recomputed per vertex (the strip bends, so they differ from the input's
+ * single +z), positions float (OBJ text of few digits is single
+ * precision). */
+static void test_ply_attrs(void **state)
+{
+    api_attrs *a = NULL;
+    mcf_mesh *m = strip(&a);
+    int bin;
+    (void)state;
+    assert_int_equal(api_attrs_float32(a), 1);
+    for (bin = 0; bin < 2; bin++) {
+        api_encode_opts o;
+        api_buf b;
+        mcf_error err;
+        mcf_mesh *d = NULL;
+        api_attrs *da = NULL;
+        const double *N;
+        int nn, c;
+        api_encode_opts_init(&o);
+        o.format = API_FMT_PLY;
+        o.ply_binary = bin;
+        o.attrs = a;
+        api_buf_init(&b, 0);
+        assert_int_equal(api_ply_encode(m, &o, &b, &err), MCF_OK);
+        assert_non_null(strstr(b.data, "property float x\n"));
+        assert_non_null(strstr(b.data, "property float nx\n"));
+        assert_non_null(strstr(b.data, "property uchar red\n"));
+        assert_non_null(strstr(b.data, "property list uchar float texcoord\n"));
+        assert_null(strstr(b.data, "curvature"));
+        assert_int_equal(api_ply_decode_attrs(b.data, b.len, NULL, &d, &da, &err),
+                         MCF_OK);
+        assert_int_equal(api_attrs_float32(da), 1);
+        tl_assert_same_mesh(m, d);
+        assert_same_attr(a, da, 6, API_ATTR_TEXCOORD, 0.0, "texcoord");
+        /* OBJ's float colours go out as bytes: within half a step */
+        assert_same_attr(a, da, 6, API_ATTR_COLOR, 0.5 / 255 + 1e-12, "colour");
+        assert_true(api_attrs_get(da, API_ATTR_NORMAL, &nn, NULL, &N, NULL));
+        for (c = 0; c < 8; c++)
+            tl_assert_near(N[3 * c] * N[3 * c] + N[3 * c + 1] * N[3 * c + 1]
+                               + N[3 * c + 2] * N[3 * c + 2],
+                           1.0, 1e-6, "|n|^2");
+        /* the bumps (vertices 3 and 6) tilt some normals off the input's
+         * +z, none past the horizontal */
+        {
+            double tilt = 0;
+            for (c = 0; c < 8; c++) {
+                assert_true(N[3 * c + 2] > 0.3);
+                tilt = fmax(tilt, fabs(N[3 * c]) + fabs(N[3 * c + 1]));
+            }
+            assert_true(tilt > 0.1);
+        }
+        api_attrs_free(da);
+        mcf_mesh_free(d);
+        api_buf_free(&b);
+    }
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+}
+
+/* Vertex texcoords under their three usual names, uchar and float
+ * colours, normals, double positions; curvature only when asked. */
+static void test_ply_attr_names(void **state)
+{
+    static const char *const names[][2] = {{"s", "t"}, {"u", "v"},
+                                           {"texture_u", "texture_v"}};
+    size_t i;
+    (void)state;
+    for (i = 0; i < 3; i++) {
+        char text[1024];
+        mcf_mesh *m = NULL, *d = NULL;
+        api_attrs *a = NULL, *da = NULL;
+        mcf_error err;
+        const double *v;
+        int n;
+        api_encode_opts o;
+        api_buf b;
+        snprintf(text, sizeof text,
+                 "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\n"
+                 "property double y\nproperty double z\nproperty float nx\n"
+                 "property float ny\nproperty float nz\nproperty float %s\n"
+                 "property float %s\nproperty uchar red\nproperty uchar green\n"
+                 "property uchar blue\nelement face 1\n"
+                 "property list uchar int vertex_indices\nend_header\n"
+                 "0 0 0 0 0 1 0.125 0.25 255 0 7\n1 0 0 0 0 1 0.5 0.75 1 2 3\n"
+                 "0 1 0 0 0 1 1 0 10 20 30\n3 0 1 2\n",
+                 names[i][0], names[i][1]);
+        assert_int_equal(tl_decode_copy(api_ply_decode, text, strlen(text), NULL, &m,
+                                        &err), MCF_OK);
+        mcf_mesh_free(m);
+        m = NULL;
+        assert_int_equal(api_ply_decode_attrs(text, strlen(text), NULL, &m, &a, &err),
+                         MCF_OK);
+        assert_int_equal(api_attrs_float32(a), 0);
+        assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, &n, NULL, &v, NULL));
+        assert_true(v[2] == 0.5 && v[3] == 0.75);
+        assert_true(api_attrs_get(a, API_ATTR_COLOR, &n, NULL, &v, NULL));
+        assert_int_equal(n, 3);
+        assert_true(v[0] == 1.0 && v[2] == 7 / 255.0);
+        assert_true(api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
+        api_encode_opts_init(&o);
+        o.format = API_FMT_PLY;
+        o.attrs = a;
+        o.ply_curvature = (int)(i == 2);
+        api_buf_init(&b, 0);
+        assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+        assert_non_null(strstr(b.data, "property double x\n"));
+        assert_non_null(strstr(b.data, "property double s\n"));
+        assert_true((strstr(b.data, "property float mean_curvature") != NULL) == (i == 2));
+        assert_int_equal(api_ply_decode_attrs(b.data, b.len, NULL, &d, &da, &err),
+                         MCF_OK);
+        assert_same_attr(a, da, 1, API_ATTR_TEXCOORD, 0.0, "texcoord");
+        assert_same_attr(a, da, 1, API_ATTR_COLOR, 0.0, "colour");
+        api_buf_free(&b);
+        api_attrs_free(a);
+        api_attrs_free(da);
+        mcf_mesh_free(m);
+        mcf_mesh_free(d);
+    }
+}
+
+/* An attribute some vertex lacks a component of, or with a NaN, is
+ * dropped; the mesh still decodes. A handle from another mesh is
+ * refused by the encoder. */
+static void test_ply_attr_partial(void **state)
+{
+    static const char text[] =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+        "property float y\nproperty float z\nproperty float s\nproperty float nx\n"
+        "property float ny\nproperty float nz\nelement face 1\n"
+        "property list uchar int vertex_indices\nend_header\n"
+        "0 0 0 0.5 nan 0 1\n1 0 0 0.5 0 0 1\n0 1 0 0.5 0 0 1\n3 0 1 2\n";
+    mcf_mesh *m = NULL, *other;
+    api_attrs *a = NULL;
+    mcf_error err;
+    api_encode_opts o;
+    api_buf b;
+    (void)state;
+    assert_int_equal(api_ply_decode_attrs(text, sizeof text - 1, NULL, &m, &a, &err),
+                     MCF_OK);
+    assert_false(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, NULL, NULL));
+    assert_false(api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
+    other = strip(NULL);
+    api_encode_opts_init(&o);
+    o.format = API_FMT_PLY;
+    o.attrs = a;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_mesh_encode(other, &o, &b, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "attributes belong to a mesh of 3 vertices"));
+    api_buf_free(&b);
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+    mcf_mesh_free(other);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -882,6 +1082,9 @@ int main(void)
         cmocka_unit_test(test_roundtrip_be),
         cmocka_unit_test(test_curvature_properties),
         cmocka_unit_test(test_draco_decoder_ply),
+        cmocka_unit_test(test_ply_attrs),
+        cmocka_unit_test(test_ply_attr_names),
+        cmocka_unit_test(test_ply_attr_partial),
         cmocka_unit_test(test_header_errors),
         cmocka_unit_test(test_body_errors),
         cmocka_unit_test(test_binary_errors),
