@@ -430,6 +430,150 @@ static void test_huge_counts(void **state)
     free(t);
 }
 
+/* ------------------------------------------------------------ attributes */
+
+/* spot.obj (f v/vt, 3,225 vt, 6 significant digits): its texcoords come
+ * back bit for bit through OBJ, corner by corner, after smoothing too;
+ * the positions count as single precision. */
+static void test_obj_attrs_spot(void **state)
+{
+    char path[4096], *buf;
+    size_t len;
+    mcf_mesh *m = NULL, *d = NULL;
+    api_attrs *a = NULL, *da = NULL;
+    mcf_error err;
+    api_encode_opts o;
+    api_buf b;
+    mcf_flow_params p;
+    const double *v0, *v1;
+    const int32_t *c0, *c1;
+    int n0, n1, c;
+    (void)state;
+    snprintf(path, sizeof path, "%s/spot.obj", tl_meshes_dir());
+    if (tl_read_file(path, &buf, &len) != 0)
+        fail_msg("cannot read %s", path);
+    assert_int_equal(api_obj_decode_attrs(buf, len, NULL, &m, &a, &err), MCF_OK);
+    free(buf);
+    assert_int_equal(api_attrs_float32(a), 1);
+    assert_int_equal(api_attrs_draco_bits(a, API_ATTR_POSITION), -1);
+    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, &n0, &v0, &c0));
+    assert_int_equal(n0, 3225);
+    assert_false(api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
+    assert_false(api_attrs_get(a, API_ATTR_COLOR, NULL, NULL, NULL, NULL));
+    mcf_flow_params_init(&p);
+    p.dt = 1e-5;
+    p.iterations = 2;
+    assert_int_equal(mcf_flow_run(m, &p, NULL, &err), MCF_OK);
+    api_encode_opts_init(&o);
+    o.format = API_FMT_OBJ;
+    o.attrs = a;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+    assert_non_null(strstr(b.data, "\nf 739/1 735/2 736/3\n"));
+    assert_int_equal(api_obj_decode_attrs(b.data, b.len, NULL, &d, &da, &err), MCF_OK);
+    tl_assert_same_mesh(m, d);
+    assert_true(api_attrs_get(da, API_ATTR_TEXCOORD, NULL, &n1, &v1, &c1));
+    assert_int_equal(n1, n0);
+    for (c = 0; c < 3 * mcf_mesh_nfaces(m); c++)
+        if (v0[2 * c0[c]] != v1[2 * c1[c]] || v0[2 * c0[c] + 1] != v1[2 * c1[c] + 1])
+            fail_msg("corner %d: texcoord changed", c);
+    api_buf_free(&b);
+    api_attrs_free(a);
+    api_attrs_free(da);
+    mcf_mesh_free(m);
+    mcf_mesh_free(d);
+}
+
+/* vt, vn and vertex colours with every reference form: a quad with
+ * v/vt/vn, a triangle with negative references, one with v//vn. The
+ * encoder writes v x y z r g b, the vt values as they were and vn
+ * recomputed (unit, facing like the faces), f v/vt/vn. */
+static void test_obj_attrs_forms(void **state)
+{
+    static const char text[] =
+        "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 1 1 0 0 0 1\nv 0 1 0 0.5 0.5 0.5\n"
+        "v 0.5 0.5 1 0.25 0.25 0.25\n"
+        "vt 0.1 0.2\nvt 0.3 0.4\nvt 0.5 0.6\nvt 0.7 0.8\nvt 0.9\n"
+        "vn 0 0 -1\nvn 0 0 1\n"
+        "f 4/4/1 3/3/1 2/2/1 1/1/1\n"
+        "f 1/1/2 2/2/2 -1/-1/-1\n"
+        "f 2/2/2 3/3/2 5/5/2\nf 3/3/2 4/4/2 5/5/2\nf 4/4/2 1/1/2 5/5/2\n";
+    mcf_mesh *m = NULL, *d = NULL;
+    api_attrs *a = NULL, *da = NULL;
+    mcf_error err;
+    api_encode_opts o;
+    api_buf b;
+    const double *tv, *cv, *nv;
+    const int32_t *tc, *nc;
+    int n, c;
+    (void)state;
+    assert_int_equal(api_obj_decode_attrs(text, sizeof text - 1, NULL, &m, &a, &err),
+                     MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 6);
+    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, &n, &tv, &tc));
+    assert_int_equal(n, 5);
+    /* the fan of the quad: (4, 3, 2), (4, 2, 1); "vt 0.9" has v = 0 */
+    assert_int_equal(tc[0], 3);
+    assert_int_equal(tc[5], 0);
+    assert_int_equal(tc[8], 4);
+    assert_true(tv[8] == 0.9 && tv[9] == 0.0);
+    assert_true(api_attrs_get(a, API_ATTR_NORMAL, NULL, &n, NULL, &nc));
+    assert_int_equal(n, 2);
+    assert_int_equal(nc[0], 0);
+    assert_int_equal(nc[8], 1);
+    assert_true(api_attrs_get(a, API_ATTR_COLOR, &n, NULL, &cv, NULL));
+    assert_int_equal(n, 3);
+    assert_true(cv[9] == 0.5);
+
+    api_encode_opts_init(&o);
+    o.format = API_FMT_OBJ;
+    o.attrs = a;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+    assert_non_null(strstr(b.data, "\nv 0 1 0 0.5 0.5 0.5\n"));
+    assert_non_null(strstr(b.data, "\nvt 0.90000000000000002 0\n"));
+    assert_non_null(strstr(b.data, "\nf 4/4/1 3/3/1 2/2/1\n"));
+    assert_int_equal(api_obj_decode_attrs(b.data, b.len, NULL, &d, &da, &err), MCF_OK);
+    tl_assert_same_mesh(m, d);
+    assert_true(api_attrs_get(da, API_ATTR_NORMAL, NULL, &n, &nv, &nc));
+    assert_int_equal(n, 2);
+    /* normal 1: the bottom (faces 0 and 1, facing -z); normal 2: the
+     * pyramid's sides, summed: +z */
+    tl_assert_near(nv[2], -1.0, 1e-9, "bottom normal");
+    tl_assert_near(nv[5], 1.0, 1e-9, "side normal");
+    for (c = 0; c < 3 * 6; c++)
+        assert_true(nc[c] == (c < 6 ? 0 : 1));
+    api_buf_free(&b);
+    api_attrs_free(a);
+    api_attrs_free(da);
+    mcf_mesh_free(m);
+    mcf_mesh_free(d);
+}
+
+/* A corner without vt (or with one out of range) drops the texcoords, a
+ * `v` without colour the colours; nothing else changes and plain
+ * decoding never looked at them. */
+static void test_obj_attrs_dropped(void **state)
+{
+    static const char text[] =
+        "v 0 0 0 1 1 1\nv 1 0 0\nv 0 1 0 1 1 1\nv 1 1 0 1 1 1\n"
+        "vt 0 0\nvt 1 0\nvn 0 0 1\n"
+        "f 1/1/1 2/2/1 3/9/1\nf 2//1 4//1 3//1\n";
+    mcf_mesh *m = NULL;
+    api_attrs *a = NULL;
+    mcf_error err;
+    (void)state;
+    assert_int_equal(api_obj_decode_attrs(text, sizeof text - 1, NULL, &m, &a, &err),
+                     MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 2);
+    assert_false(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, NULL, NULL));
+    assert_false(api_attrs_get(a, API_ATTR_COLOR, NULL, NULL, NULL, NULL));
+    assert_true(api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
+    assert_int_equal(api_attrs_float32(a), 1);
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -451,6 +595,9 @@ int main(void)
         cmocka_unit_test(test_binary_garbage),
         cmocka_unit_test(test_limits),
         cmocka_unit_test(test_huge_counts),
+        cmocka_unit_test(test_obj_attrs_spot),
+        cmocka_unit_test(test_obj_attrs_forms),
+        cmocka_unit_test(test_obj_attrs_dropped),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
