@@ -301,7 +301,7 @@ char *api_json_print(const cJSON *j, int pretty);
  * flow statistics, with the step log when one was kept), compare (only
  * with a target: the after members, target, before, after), timings and
  * timing (the same: queue_s, read_s, decode_s, noise_s, flow_s, encode_s,
- * write_s, total_s), peak_rss_bytes. api/openapi.yaml (Metrics) describes
+ * write_s, metrics_s, total_s), peak_rss_bytes. api/openapi.yaml (Metrics) describes
  * each member. Every volume in it is mcf_mesh_volume's: signed, about the
  * input's coordinate origin, in input units. */
 
@@ -337,6 +337,7 @@ typedef struct {
     double quantization_max_error; /* Draco output (api_draco_encode) */
     double queue_s, read_s, decode_s, noise_s, flow_s, encode_s, write_s,
            total_s;                /* seconds per phase */
+    double metrics_s;              /* in api_metrics_before and _after */
     double peak_rss_bytes;         /* the process's peak resident size */
 } api_metrics_run;
 

@@ -105,7 +105,7 @@ void api_metrics_run_init(api_metrics_run *r)
     r->input_format = r->output_format = API_FMT_UNKNOWN;
     r->quantization_max_error = NAN;
     r->queue_s = r->read_s = r->decode_s = r->noise_s = NAN;
-    r->flow_s = r->encode_s = r->write_s = r->total_s = NAN;
+    r->flow_s = r->encode_s = r->write_s = r->total_s = r->metrics_s = NAN;
     r->peak_rss_bytes = NAN;
 }
 
@@ -136,6 +136,7 @@ static int timings(cJSON *t, const api_metrics_run *r)
     ok = ok && num(t, "flow_s", r->flow_s);
     ok = ok && num(t, "encode_s", r->encode_s);
     ok = ok && num(t, "write_s", r->write_s);
+    ok = ok && num(t, "metrics_s", r->metrics_s);
     ok = ok && num(t, "total_s", r->total_s);
     return ok;
 }

@@ -744,7 +744,8 @@ static char *metrics_doc(const srv_job *j, const api_metrics *mt,
                          const api_params *prm, const mcf_flow_stats *st,
                          api_format in_fmt, api_format out_fmt, double qerr,
                          size_t in_bytes, size_t out_bytes, double t_queue,
-                         double t_decode, double t_flow, double t_encode)
+                         double t_decode, double t_flow, double t_encode,
+                         double t_metrics)
 {
     api_metrics_run run;
     cJSON *o;
@@ -764,7 +765,8 @@ static char *metrics_doc(const srv_job *j, const api_metrics *mt,
     run.decode_s = t_decode;
     run.flow_s = t_flow;
     run.encode_s = t_encode;
-    run.total_s = t_decode + t_flow + t_encode;
+    run.metrics_s = t_metrics;
+    run.total_s = t_decode + t_flow + t_encode + t_metrics;
     o = api_metrics_json(mt, prm, st, &run);
     s = o ? cJSON_PrintUnformatted(o) : NULL;
     cJSON_Delete(o);
@@ -816,7 +818,7 @@ static void run_job(srv_job *j)
     char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
     double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
-           qerr = NAN;
+           t_metrics = 0, t_after, qerr = NAN;
     run_ctx ctx;
 
     memset(&st, 0, sizeof st);
@@ -886,11 +888,13 @@ static void run_job(srv_job *j)
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "noise", &err);
         goto done;
     }
+    t_decode = mcf_now() - t0;
+    t_metrics = mcf_now();
     if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "metrics", &err);
         goto done;
     }
-    t_decode = mcf_now() - t0;
+    t_metrics = mcf_now() - t_metrics;
 
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
@@ -953,10 +957,12 @@ static void run_job(srv_job *j)
         goto done;
     }
     t_encode = mcf_now() - t_encode;
+    t_after = mcf_now();
     if ((rc = api_metrics_after(&mt, m, tgt, &err)) != MCF_OK) {
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "metrics", &err);
         goto done;
     }
+    t_metrics += mcf_now() - t_after;
     srv_lock();
     snprintf(j->out_format, sizeof j->out_format, "%s",
              api_format_name(eo.format));
@@ -964,7 +970,8 @@ static void run_job(srv_job *j)
              api_format_ext(eo.format));
     srv_unlock();
     metrics = metrics_doc(j, &mt, &prm, &st, fmt, eo.format, qerr, input_len,
-                          out.len, t_queue, t_decode, t_flow, t_encode);
+                          out.len, t_queue, t_decode, t_flow, t_encode,
+                          t_metrics);
     if (!metrics) {
         srv_problem_set(&prob, 503, "ENOMEM", "out of memory writing metrics");
         goto done;

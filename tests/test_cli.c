@@ -375,7 +375,8 @@ static void test_metrics_document_layout(void **state)
                                          "area", "volume", "quantization_max_error",
                                          "info", NULL};
     static const char *const timings[] = {"queue_s", "read_s", "decode_s", "noise_s",
-                                          "flow_s", "encode_s", "write_s", "total_s", NULL};
+                                          "flow_s", "encode_s", "write_s", "metrics_s",
+                                          "total_s", NULL};
     static const char *const compare[] = {"rms_m", "rms_rel", "frobenius", "max_err",
                                           "normal_angle_deg", "inverted_faces", "target",
                                           "before", "after", NULL};
