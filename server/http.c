@@ -62,6 +62,7 @@ typedef struct {
     route rt;
     unsigned status;           /* of the queued response, 0 before */
     int started;
+    int deferred;              /* answered once the (absent) body is read */
     /* upload */
     int multipart;
     struct MHD_PostProcessor *pp;
@@ -73,6 +74,7 @@ typedef struct {
     size_t bytes_in;
     srv_problem perr;          /* found while reading; answered at the end */
     int has_perr;
+    size_t perr_at;            /* bytes_in + 1 when perr was first seen */
     /* waiting on a job */
     mode md;
     srv_job *job;
@@ -551,11 +553,18 @@ static void consume(srv_request *r, const char *data, size_t size)
     r->bytes_in += size;
     if (r->has_perr)
         return; /* discard: the error is answered at the end */
-    if (r->bytes_in > cfg->max_body ||
-        (!r->multipart && r->bytes_in > cfg->lim.max_input_bytes)) {
+    if (r->multipart && r->bytes_in > cfg->max_body) {
+        srv_problem_set(&r->perr, 413, "ELIMIT", "the multipart body exceeds "
+                        "%zu bytes, the most it may hold with --max-upload %zu "
+                        "(a mesh and a target of up to --max-upload each, and "
+                        "the parameters)", cfg->max_body,
+                        cfg->lim.max_input_bytes);
+        r->has_perr = 1;
+        return;
+    }
+    if (!r->multipart && r->bytes_in > cfg->lim.max_input_bytes) {
         srv_problem_set(&r->perr, 413, "ELIMIT", "the request body exceeds "
-                        "%zu bytes (--max-upload)",
-                        r->multipart ? cfg->max_body : cfg->lim.max_input_bytes);
+                        "%zu bytes (--max-upload)", cfg->lim.max_input_bytes);
         r->has_perr = 1;
         return;
     }
@@ -844,6 +853,19 @@ static enum MHD_Result route_job(srv_request *r, struct MHD_Connection *c,
                        "existed, deleted, or expired)", r->id);
     if (r->rt == RT_JOB) {
         ret = job_json_reply(r, c, j, 200);
+    } else if (r->rt == RT_JOB_EVENTS && strcmp(method, "HEAD") == 0) {
+        /* The stream's headers without the stream: MHD would still send
+         * the chunked body's terminator after the headers of a HEAD. */
+        struct MHD_Response *resp = MHD_create_response_from_buffer(
+            0, NULL, MHD_RESPMEM_PERSISTENT);
+        if (resp) {
+            MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
+                                    "text/event-stream");
+            MHD_add_response_header(resp, MHD_HTTP_HEADER_CACHE_CONTROL,
+                                    "no-cache");
+            MHD_add_response_header(resp, "X-Job-Id", j->id);
+        }
+        ret = respond(r, c, 200, resp);
     } else if (r->rt == RT_JOB_EVENTS) {
         const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                     "Last-Event-ID");
@@ -873,12 +895,18 @@ static int raw_mesh_type(const char *ct)
     return 0;
 }
 
-/* Content-Length above 1 MiB: worth refusing before it is read. */
+/* A body a busy daemon reads and discards so that its client, which is
+ * sending it, hears the 503: an answer queued before the body makes MHD
+ * stop reading, and the client's next bytes meet a reset. Above this, the
+ * early answer (and the reset) is the lesser evil. */
+#define DRAIN_MAX ((unsigned long long)16 << 20)
+
+/* Content-Length above DRAIN_MAX: refused before it is read. */
 static int big_body(struct MHD_Connection *c)
 {
     const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                 MHD_HTTP_HEADER_CONTENT_LENGTH);
-    return h && strtoull(h, NULL, 10) > (1u << 20);
+    return h && strtoull(h, NULL, 10) > DRAIN_MAX;
 }
 
 static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
@@ -1017,25 +1045,36 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         errno = 0;
         n = strtoull(h, &end, 10);
         if (errno == 0 && end != h && n > lim) {
-            srv_problem_set(&p, 413, "ELIMIT", "Content-Length %llu exceeds "
-                            "the limit of %zu bytes (--max-upload)", n, lim);
+            if (r->multipart)
+                srv_problem_set(&p, 413, "ELIMIT", "Content-Length %llu "
+                                "exceeds %zu bytes, the most a multipart body "
+                                "may hold with --max-upload %zu (a mesh and a "
+                                "target of up to --max-upload each, and the "
+                                "parameters)", n, lim, cfg->lim.max_input_bytes);
+            else
+                srv_problem_set(&p, 413, "ELIMIT", "Content-Length %llu exceeds "
+                                "the limit of %zu bytes (--max-upload)", n, lim);
             return send_problem(r, c, &p, NULL);
         }
     }
     /* Busy or draining: say so before the body only when the client waits
-     * for it (Expect: 100-continue) or the body is big. A client that is
-     * already sending would otherwise see its connection reset by the
-     * close that follows an early answer, and lose the 503; small bodies
-     * are read and refused by srv_jobs_submit instead. */
+     * for it (Expect: 100-continue) or the body is over DRAIN_MAX. A
+     * client that is already sending would otherwise see its connection
+     * reset by the close that follows an early answer, and lose the 503:
+     * its body is read, discarded (never buffered) and answered. */
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND, MHD_HTTP_HEADER_EXPECT);
-    if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c)) {
-        if (srv_jobs_draining())
-            return problem(r, c, 503, "EDRAINING", "the daemon is shutting "
-                           "down and accepts no new jobs");
-        if (!srv_jobs_can_accept())
-            return problem(r, c, 503, "EBUSY", "the job queue is full; retry "
-                           "after the Retry-After delay");
-    }
+    if (srv_jobs_draining())
+        srv_problem_set(&p, 503, "EDRAINING", "the daemon is shutting down "
+                        "and accepts no new jobs");
+    else if (!srv_jobs_can_accept())
+        srv_problem_set(&p, 503, "EBUSY", "the job queue is full; retry "
+                        "after the Retry-After delay");
+    else
+        return MHD_YES;
+    if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c))
+        return send_problem(r, c, &p, NULL);
+    r->perr = p;
+    r->has_perr = 1;
     return MHD_YES;
 }
 
@@ -1075,13 +1114,37 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
         return MHD_NO; /* out of memory in the URI callback */
     if (!r->started) {
         r->started = 1;
+        /* MHD takes an answer queued on this first call, before it knows
+         * there is no body, as an early one and closes the connection
+         * after it: no keep-alive, pipelined requests lost. Only uploads
+         * are answered early (401, 404, 413, 415 and 503 before the body);
+         * everything else on the next call. */
+        if (strcmp(method, "POST") != 0) {
+            r->deferred = 1;
+            return MHD_YES;
+        }
+        return first_call(r, c, url, method);
+    }
+    if (r->deferred) {
+        if (*upload_data_size > 0) { /* a body where none belongs: ignored */
+            r->bytes_in += *upload_data_size;
+            *upload_data_size = 0;
+            return MHD_YES;
+        }
+        r->deferred = 0;
         return first_call(r, c, url, method);
     }
     if (r->waiting)
         return wait_or_answer(r, c);
     if (*upload_data_size > 0) {
+        if (r->has_perr && !r->perr_at)
+            r->perr_at = r->bytes_in + 1;
         consume(r, upload_data, *upload_data_size);
         *upload_data_size = 0;
+        /* A refused body is read and discarded so that its client hears
+         * why, but only so far: then the connection is dropped. */
+        if (r->perr_at && r->bytes_in - (r->perr_at - 1) > DRAIN_MAX)
+            return MHD_NO;
         return MHD_YES;
     }
     if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && !r->job)

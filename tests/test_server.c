@@ -1521,6 +1521,139 @@ static void test_multipart_duplicates(void **state)
     api_buf_free(&b);
 }
 
+/* Sends req (len bytes, all of it, as a naive client would) on a fresh
+ * loopback connection, then reads until the server closes (bounded: 10 s
+ * without data). Returns 1 when every byte was written, 0 when the
+ * server reset the connection first; the answer goes to out. */
+static int raw_exchange(const daemon_t *d, const char *req, size_t len,
+                        api_buf *out)
+{
+    struct sockaddr_in sa;
+    struct timeval tv = {10, 0};
+    size_t sent = 0;
+    char buf[65536];
+    int fd = socket(AF_INET, SOCK_STREAM, 0), all;
+
+    api_buf_init(out, 0);
+    assert_true(fd >= 0);
+    memset(&sa, 0, sizeof sa);
+    sa.sin_family = AF_INET;
+    sa.sin_port = htons((uint16_t)d->port);
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+    assert_int_equal(connect(fd, (struct sockaddr *)&sa, sizeof sa), 0);
+    while (sent < len) {
+        ssize_t n = write(fd, req + sent, len - sent);
+        if (n <= 0)
+            break;
+        sent += (size_t)n;
+    }
+    all = sent == len;
+    for (;;) {
+        ssize_t n = read(fd, buf, sizeof buf);
+        if (n <= 0)
+            break;
+        api_buf_append(out, buf, (size_t)n);
+    }
+    close(fd);
+    api_buf_append(out, "", 1); /* NUL-terminated */
+    return all;
+}
+
+/* How many times needle occurs in hay. */
+static int count_of(const char *hay, const char *needle)
+{
+    int n = 0;
+    while (hay && (hay = strstr(hay, needle)) != NULL) {
+        n++;
+        hay += strlen(needle);
+    }
+    return n;
+}
+
+/* Issue 9 item 8, the smaller things: GET answers keep the connection
+ * (keep-alive, pipelining); HEAD on an event stream has no body; a busy
+ * daemon reads a body it refuses (bounded) so a client that sends it all
+ * hears the 503 instead of a reset; the multipart 413 names --max-upload,
+ * not the derived body limit. */
+static void test_http_small_things(void **state)
+{
+    api_buf out;
+    char id[SRV_ID_BUF], req[1024];
+
+    (void)state;
+    /* three pipelined requests on one connection, three answers */
+    {
+        static const char pipe3[] =
+            "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+            "GET /v1/schemes HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+            "HEAD /readyz HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
+        assert_true(raw_exchange(&g_main, pipe3, sizeof pipe3 - 1, &out));
+        if (count_of(out.data, "HTTP/1.1 200 OK\r\n") != 3)
+            fail_msg("3 pipelined requests, answers:\n%.1500s", out.data);
+        api_buf_free(&out);
+    }
+    /* HEAD of an event stream: the headers, no chunked body */
+    {
+        const char *end;
+        submit(&g_main, "?iterations=2", id);
+        snprintf(req, sizeof req, "HEAD /v1/jobs/%s/events HTTP/1.1\r\nHost: "
+                 "127.0.0.1\r\nConnection: close\r\n\r\n", id);
+        raw_exchange(&g_main, req, strlen(req), &out);
+        assert_true(strncmp(out.data, "HTTP/1.1 200", 12) == 0);
+        assert_non_null(strstr(out.data, "text/event-stream"));
+        end = strstr(out.data, "\r\n\r\n");
+        assert_non_null(end);
+        if (end[4] != '\0')
+            fail_msg("HEAD events sent a body: \"%s\"", end + 4);
+        api_buf_free(&out);
+    }
+    /* multipart Content-Length over the limit: the detail quotes
+     * --max-upload (3M = 3145728), not the derived multipart limit */
+    {
+        static const char big[] =
+            "POST /smooth HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: "
+            "multipart/form-data; boundary=mcfdXB\r\nContent-Length: "
+            "10000000000\r\nExpect: 100-continue\r\nConnection: close\r\n\r\n";
+        raw_exchange(&g_main, big, sizeof big - 1, &out);
+        assert_true(strncmp(out.data, "HTTP/1.1 413", 12) == 0);
+        if (!strstr(out.data, "--max-upload 3145728"))
+            fail_msg("multipart 413 without --max-upload's value: %s", out.data);
+        api_buf_free(&out);
+    }
+    /* busy: a 4 MB body sent without Expect is read and answered 503 */
+    {
+        static const char *const flags[] = {"--workers", "1", "--queue", "0",
+                                            NULL};
+        daemon_t d;
+        char spool[600], path[160];
+        size_t n = (size_t)4 << 20, hl;
+        char *msg = malloc(n + 256);
+        resp_t r;
+        assert_non_null(msg);
+        snprintf(spool, sizeof spool, "%s/busy-body", g_tmp);
+        assert_int_equal(start_daemon(&d, "busy-body", spool, flags), 0);
+        submit(&d, "?iterations=100000&dt=1e-7", id);
+        wait_running(&d, id);
+        hl = (size_t)snprintf(msg, 256, "POST /smooth HTTP/1.1\r\nHost: "
+                              "127.0.0.1\r\nContent-Type: model/obj\r\n"
+                              "Content-Length: %zu\r\nConnection: close\r\n\r\n", n);
+        memset(msg + hl, '#', n);
+        if (!raw_exchange(&d, msg, hl + n, &out))
+            fail_msg("the busy daemon reset the connection while the body "
+                     "was sent (answer: %.200s)", out.data);
+        assert_true(strncmp(out.data, "HTTP/1.1 503", 12) == 0);
+        assert_non_null(strstr(out.data, "\"EBUSY\""));
+        api_buf_free(&out);
+        free(msg);
+        snprintf(path, sizeof path, "/v1/jobs/%s", id);
+        http(&d, "DELETE", path, NULL, NULL, &r);
+        resp_free(&r);
+        stop_daemon(&d);
+    }
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -2513,6 +2646,7 @@ int main(void)
         cmocka_unit_test_teardown(test_multipart_unnamed, kill_strays),
         cmocka_unit_test_teardown(test_multipart_duplicates, kill_strays),
         cmocka_unit_test_teardown(test_hangup_and_budgets, kill_strays),
+        cmocka_unit_test_teardown(test_http_small_things, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
