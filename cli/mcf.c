@@ -59,8 +59,9 @@ static const char usage_text[] =
     "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
     "0-based vertex indices separated by white space or commas.\n";
 
-/* Set by SIGINT/SIGTERM; the flow checks it before every step. */
-static volatile int cancel_flag;
+/* Set by SIGINT/SIGTERM; the flow loads it before every step. A lock-free
+ * C11 atomic (mcf_cancel_flag), which a signal handler may store to. */
+static mcf_cancel_flag cancel_flag;
 
 static void on_signal(int sig)
 {

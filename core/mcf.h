@@ -20,6 +20,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#ifndef __cplusplus
+#include <stdatomic.h>
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -237,6 +240,17 @@ mcf_status mcf_scheme_from_name(const char *name, mcf_scheme *out);
 typedef enum { MCF_BOUNDARY_FIXED = 0, MCF_BOUNDARY_FREE = 1 } mcf_boundary;
 typedef enum { MCF_RESCALE_NONE = 0, MCF_RESCALE_VOLUME, MCF_RESCALE_AREA } mcf_rescale;
 
+/* The cancel flag of a run: another thread (or a signal handler) stores
+ * non-zero, mcf_flow_run loads it before every step. A C11 atomic, so the
+ * store and the load are no data race (a lock-free atomic_int is also
+ * safe to store from a signal handler). C++ units, which only pass the
+ * parameters through, see an int of the same size. */
+#ifndef __cplusplus
+typedef atomic_int mcf_cancel_flag;
+#else
+typedef int mcf_cancel_flag;
+#endif
+
 /* Called after every accepted step. Return non-zero to cancel the run
  * (mcf_flow_run then returns MCF_ECANCELED and leaves the mesh at the last
  * accepted step). energy is the Dirichlet energy 1/2 tr(X^T L X), which
@@ -273,7 +287,7 @@ typedef struct {
     int log_steps;            /* keep the per-step log in the stats */
     mcf_progress_fn progress;
     void *progress_ctx;
-    const volatile int *cancel; /* checked before every step; may be NULL */
+    const mcf_cancel_flag *cancel; /* loaded before every step; may be NULL */
 } mcf_flow_params;
 
 /* Fills p with the defaults: desbrun2, dt 1e-4, 10 iterations, fixed
@@ -338,7 +352,9 @@ typedef struct {
 mcf_status mcf_compare(const mcf_mesh *x, const mcf_mesh *target,
                        mcf_compare_result *out, mcf_error *err);
 
-/* Monotonic wall clock in seconds (clock_gettime is libc). */
+/* Wall clock in seconds (C11 timespec_get, TIME_UTC), for phase timings:
+ * it jumps when the system clock is set, so deadlines belong on a
+ * monotonic clock of the caller's (mcfd uses CLOCK_MONOTONIC). */
 double mcf_now(void);
 
 #ifdef __cplusplus

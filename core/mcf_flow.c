@@ -307,8 +307,12 @@ static mcf_status factorize(flow_ctx *c, mcf_error *err)
         c->L = cholmod_analyze(c->A, &c->cm);
         c->st->time_analyze += mcf_now() - t0;
         if (!c->L)
-            return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
-                             "cholmod_analyze failed (status %d)", c->cm.status);
+            return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM
+                                  : c->cm.status == CHOLMOD_TOO_LARGE ? MCF_ELIMIT
+                                                                      : MCF_ENUMERIC,
+                             "cholmod_analyze failed (status %d%s)", c->cm.status,
+                             c->cm.status == CHOLMOD_TOO_LARGE
+                                 ? ": the factor is too large for CHOLMOD's integers" : "");
         c->analyzed = 1;
     }
     double t0 = mcf_now();
@@ -318,8 +322,16 @@ static mcf_status factorize(flow_ctx *c, mcf_error *err)
     c->step_solve_s += dt;
     c->st->factorizations++;
     c->factor_valid = 0;
-    if (!ok || c->cm.status == CHOLMOD_OUT_OF_MEMORY)
+    /* By Common->status, not by the return value (which is FALSE for every
+     * error): only out of memory is worth a retry (ENOMEM, HTTP 503). */
+    if (c->cm.status == CHOLMOD_OUT_OF_MEMORY)
         return mcf__fail(err, MCF_ENOMEM, "cholmod_factorize: out of memory");
+    if (c->cm.status == CHOLMOD_TOO_LARGE)
+        return mcf__fail(err, MCF_ELIMIT, "cholmod_factorize: the factor of this "
+                         "mesh is too large for CHOLMOD's integers");
+    if (!ok && c->cm.status >= CHOLMOD_OK)
+        return mcf__fail(err, MCF_ENUMERIC, "cholmod_factorize failed (status %d)",
+                         c->cm.status);
     if (c->cm.status == CHOLMOD_NOT_POSDEF)
         return mcf__fail(err, MCF_ENOTPOSDEF,
                          "system matrix not positive definite at column %d (degenerate or inverted geometry)",
@@ -957,6 +969,9 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     double cen[3] = {0, 0, 0}, scale = 1.0;
     double area_in = area_volume(m->X, m->F, m->nf, cen, &st->volume0);
     st->area0 = area_in;
+    if (!isfinite(area_in))
+        return mcf__fail(err, MCF_EMESH, "the mesh's area overflows double precision "
+                         "(coordinates too large: keep them below about 1e150); scale it down");
     if (p->normalize) {
         if (!(area_in > 0.0))
             return mcf__fail(err, MCF_EMESH, "normalize: the mesh has zero total area");
@@ -1088,7 +1103,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     for (;;) {
         if (p->adaptive ? !(t < T * (1.0 - 1e-12)) : k >= nsteps)
             break;
-        if (p->cancel && *p->cancel) {
+        if (p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire)) {
             rc = mcf__fail(err, MCF_ECANCELED, "canceled at step %d (t = %g)", k, t);
             goto done;
         }

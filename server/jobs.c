@@ -690,7 +690,7 @@ fail:
 typedef struct {
     srv_job *job;
     const mcf_flow_stats *st; /* the run's statistics: its step log */
-    double deadline;          /* mcf_now() seconds, 0: none */
+    double deadline;          /* srv_mono() seconds, 0: none */
 } run_ctx;
 
 static void fmt_num(char *buf, size_t size, double v)
@@ -729,7 +729,7 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     if (n > 0 && api_buf_append(&j->events, line, (size_t)n) == MCF_OK)
         j->nevents++;
     srv_job_wake(j, 1);
-    if (!j->cancel && c->deadline > 0 && mcf_now() > c->deadline) {
+    if (!j->cancel && c->deadline > 0 && srv_mono() > c->deadline) {
         j->cancel = 1;
         j->cancel_reason = SRV_CANCEL_TIMEOUT;
     }
@@ -899,7 +899,7 @@ static void run_job(srv_job *j)
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
     ctx.st = &st;
-    ctx.deadline = cfg->job_timeout > 0 ? mcf_now() + cfg->job_timeout : 0;
+    ctx.deadline = cfg->job_timeout > 0 ? srv_mono() + cfg->job_timeout : 0;
     prm.flow.progress = on_progress;
     prm.flow.progress_ctx = &ctx;
     prm.flow.cancel = &j->cancel;
@@ -1390,6 +1390,18 @@ int srv_jobs_start(const srv_config *cfg, char *msg, size_t msgsize)
     memset(&rc, 0, sizeof rc);
     S.cfg = cfg;
     S.urandom = open("/dev/urandom", O_RDONLY);
+    {
+        /* The drain's timed wait on the monotonic clock, like every
+         * deadline of the daemon. */
+        pthread_condattr_t ca;
+        if (pthread_condattr_init(&ca) == 0) {
+            if (pthread_condattr_setclock(&ca, CLOCK_MONOTONIC) == 0) {
+                pthread_cond_destroy(&S.idle);
+                pthread_cond_init(&S.idle, &ca);
+            }
+            pthread_condattr_destroy(&ca);
+        }
+    }
     srv_lock();
     if (srv_spool_list(cfg->spool, recover_one, &rc) != 0) {
         srv_unlock();
@@ -1481,12 +1493,12 @@ int srv_jobs_draining(void)
 int srv_jobs_wait_idle(double timeout)
 {
     struct timespec ts;
-    double end = srv_wall() + timeout;
+    double end = srv_mono() + timeout;
     int idle;
 
     srv_lock();
     while (S.busy > 0) {
-        double now = srv_wall();
+        double now = srv_mono(); /* S.idle waits on CLOCK_MONOTONIC */
         if (now >= end)
             break;
         ts.tv_sec = (time_t)end;

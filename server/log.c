@@ -36,6 +36,13 @@ double srv_wall(void)
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
+double srv_mono(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
 void srv_time_rfc3339(double t, char *buf, size_t size)
 {
     time_t s = (time_t)t;

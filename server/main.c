@@ -170,10 +170,10 @@ static void log_start(const srv_config *cfg, const char *url)
 /* Waits (polling, bounded) until no request is in flight. */
 static void wait_requests(double seconds)
 {
-    double end = mcf_now() + seconds;
+    double end = srv_mono() + seconds;
     struct timespec ts = {0, 20 * 1000 * 1000};
 
-    while (srv_http_active() > 0 && mcf_now() < end)
+    while (srv_http_active() > 0 && srv_mono() < end)
         nanosleep(&ts, NULL);
 }
 
@@ -256,7 +256,7 @@ int main(int argc, char **argv)
             srv_jobs_sweep();
     }
 
-    t_sigterm = mcf_now();
+    t_sigterm = srv_mono();
     srv_logf(SRV_LOG_INFO, "%s: draining (readyz 503, no new jobs, running "
              "jobs finish within %g s)", sig == SIGTERM ? "SIGTERM" : "SIGINT",
              cfg.drain_timeout);
@@ -273,6 +273,6 @@ int main(int argc, char **argv)
     wait_requests(2);
     MHD_stop_daemon(d);
     srv_jobs_stop();
-    srv_logf(SRV_LOG_INFO, "stopped after %.3f s of drain", mcf_now() - t_sigterm);
+    srv_logf(SRV_LOG_INFO, "stopped after %.3f s of drain", srv_mono() - t_sigterm);
     return 0;
 }

@@ -78,8 +78,12 @@ void srv_logf(srv_log_level lvl, const char *fmt, ...)
 #endif
     ;
 
-/* Wall clock, seconds since the epoch, and its RFC 3339 form (UTC, ms). */
+/* Wall clock, seconds since the epoch, and its RFC 3339 form (UTC, ms):
+ * for timestamps only (they persist in the spool). */
 double srv_wall(void);
+/* CLOCK_MONOTONIC seconds: every deadline and timeout (a wall clock set
+ * back or forward would stretch or cut them). */
+double srv_mono(void);
 void srv_time_rfc3339(double t, char *buf, size_t size);
 
 /* ---------------------------------------------------------------- problems */
@@ -227,7 +231,8 @@ struct srv_job {
     int step;
     double t, dt, energy, volume;
     int ready;                 /* decoded and checked: streams may start */
-    volatile int cancel;       /* read by mcf_flow_run (params.cancel) */
+    mcf_cancel_flag cancel;    /* written under the lock, loaded without
+                                  it by mcf_flow_run (params.cancel) */
     int cancel_reason;
     api_buf events;            /* ndjson lines, one per step */
     int nevents;

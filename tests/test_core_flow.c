@@ -423,7 +423,12 @@ static void test_cancel_and_progress(void **state)
     assert_non_null(strstr(err.msg, "canceled"));
     mcf_flow_stats_free(&st);
     /* a cancel flag set before the run stops it before the first step */
-    volatile int flag = 1;
+    /* The flag is a C11 atomic end to end (issue 9: a volatile int
+     * written under a lock and read without one was a data race). */
+    _Static_assert(_Generic(p.cancel, const mcf_cancel_flag *: 1, default: 0) &&
+                       _Generic((mcf_cancel_flag *)0, atomic_int *: 1, default: 0),
+                   "mcf_flow_params.cancel points to an atomic_int");
+    mcf_cancel_flag flag = 1;
     p.progress = NULL;
     p.cancel = &flag;
     const double x0 = mcf_mesh_positions(m)[0];

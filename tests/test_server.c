@@ -1622,6 +1622,18 @@ static void test_http_small_things(void **state)
             fail_msg("multipart 413 without --max-upload's value: %s", out.data);
         api_buf_free(&out);
     }
+    /* coordinates of 1e300: the area overflows, said as such (it was
+     * "zero total area", then "non-finite positions") */
+    {
+        static const char huge[] = "v 0 0 0\nv 1e300 0 0\nv 0 1e300 0\n"
+                                   "v 0 0 1e300\nf 1 2 3\nf 1 3 4\nf 1 4 2\n"
+                                   "f 2 4 3\n";
+        upload_t raw = {.raw = huge, .raw_len = sizeof huge - 1};
+        resp_t r;
+        http(&g_main, "POST", "/smooth", NULL, &raw, &r);
+        expect_problem(&g_main, &r, 422, "EMESH", "overflows", "1e300 coordinates");
+        resp_free(&r);
+    }
     /* busy: a 4 MB body sent without Expect is read and answered 503 */
     {
         static const char *const flags[] = {"--workers", "1", "--queue", "0",
