@@ -12,17 +12,32 @@
  * distinct positions) decodes with those duplicate positions as separate
  * vertices: exactly what the file holds. No welding happens here.
  *
- * Encoder: a draco::Mesh with one POSITION attribute (identity point map),
- * then draco::Encoder. quantization_bits 0 is lossless: no quantization
- * is set and the values are stored raw, as float32 when every coordinate
- * is exactly a float (meshes that came from Draco, STL or float sources),
- * else as float64, so decoding gives back the very same doubles. Draco
- * quantizes float32 attributes only, so q in 1..30 stores float32 (a
- * coordinate beyond the float range is refused). Compression level L maps
- * to Draco speed 10 - L. preserve_order selects the sequential method,
- * which keeps vertex and face order (and unreferenced vertices); otherwise
- * edgebreaker, which renumbers vertices, reorders and rotates faces, drops
- * unreferenced vertices and splits non-manifold ones.
+ * Attributes (api_draco_decode_attrs): the first NORMAL, TEX_COORD and
+ * COLOR per face corner, and the quantization of every attribute, which
+ * the bitstream records only inside its attribute decoders: the stream is
+ * decoded a second time with Draco's dequantization skipped, and the bits
+ * (and a texture grid's origin and range) read from the transform data.
+ *
+ * Encoder: a draco::Mesh with a POSITION attribute and, when attributes
+ * are given, TEX_COORD (float32), NORMAL (float32, recomputed from the
+ * surface) and COLOR (normalized uint8); one point per distinct (vertex,
+ * texcoord, normal, colour) of the face corners, so only seams split
+ * points; without attributes one point per vertex (identity map).
+ * quantization_bits -1 (auto, the default) keeps a Draco input's
+ * quantization per attribute, a texture grid included (so texcoords come
+ * back as the very same floats), keeps raw raw (float32), and quantizes
+ * other inputs' positions and texcoords at 16 bits, normals at 10; 0 is
+ * lossless: no quantization, the values stored raw, as float32 when every
+ * coordinate is exactly a float (meshes that came from Draco, STL or
+ * float sources), else as float64, so decoding gives back the very same
+ * doubles (libdraco reads float64; draco_decoder's PLY writer does not).
+ * Draco quantizes float32 attributes only, so q in 1..30 stores float32
+ * (a coordinate beyond the float range is refused; auto falls back to
+ * lossless there). Compression level L maps to Draco speed 10 - L.
+ * preserve_order selects the sequential method, which keeps face order
+ * and, without attributes, vertex order (and unreferenced vertices);
+ * otherwise edgebreaker, which renumbers vertices, reorders and rotates
+ * faces, drops unreferenced vertices and splits non-manifold ones.
  *
  * *max_quant_err is measured, not predicted: the encoded bytes are decoded
  * again and every input face is compared with its decoded counterpart

@@ -6,7 +6,11 @@
  * counts; abort() otherwise. The encodings chosen are the exact ones:
  * Draco lossless sequential (keeps order), PLY ascii or binary (last byte
  * of the input picks), STL ASCII (%.17g; binary STL would round to float
- * and may weld more), OBJ and OFF (%.17g).
+ * and may weld more), OBJ and OFF (%.17g). Then once more with the
+ * input's attributes (api_mesh_decode_attrs, o.attrs) and the default
+ * Draco settings: the output must decode, with its attributes, to the same
+ * number of faces (points split at attribute seams, and positions may be
+ * rounded to float32 or quantized, so counts of faces are what must hold).
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,6 +28,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     api_limits lim;
     mcf_mesh *m = NULL, *m2 = NULL;
+    api_attrs *a = NULL, *a2 = NULL;
     mcf_error err;
     api_format fmt = API_FMT_UNKNOWN, fmt2 = API_FMT_UNKNOWN;
     api_encode_opts o;
@@ -32,7 +37,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int nv, nf;
 
     api_limits_default(&lim);
-    if (api_mesh_decode(data, size, &lim, &m, &fmt, &err) != MCF_OK)
+    if (api_mesh_decode_attrs(data, size, &lim, &m, &a, &fmt, &err) != MCF_OK)
         return 0;
     api_encode_opts_init(&o);
     o.format = fmt;
@@ -62,7 +67,31 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (memcmp(mcf_mesh_faces(m), mcf_mesh_faces(m2),
                sizeof(int32_t) * 3 * (size_t)nf) != 0)
         die("faces", api_format_name(fmt));
+
+    /* With the attributes, default Draco options. */
+    mcf_mesh_free(m2);
+    m2 = NULL;
+    api_buf_free(&out);
+    api_buf_init(&out, lim.max_input_bytes);
+    api_encode_opts_init(&o);
+    o.format = fmt;
+    o.attrs = a;
+    o.ply_binary = size > 0 && (data[size - 1] & 1);
+    rc = api_mesh_encode(m, &o, &out, &err);
+    if (rc != MCF_OK) {
+        /* Output too large, or a coordinate past the float range for
+         * quantized Draco: nothing else may refuse. */
+        if (rc != MCF_ELIMIT && !(fmt == API_FMT_DRACO && rc == MCF_EINVAL))
+            die("encode with attributes", err.msg);
+        goto done;
+    }
+    if (api_mesh_decode_attrs(out.data, out.len, &lim, &m2, &a2, &fmt2, &err) != MCF_OK)
+        die("decode with attributes", err.msg);
+    if (mcf_mesh_nfaces(m2) != nf)
+        die("faces with attributes", api_format_name(fmt));
 done:
+    api_attrs_free(a);
+    api_attrs_free(a2);
     mcf_mesh_free(m2);
     mcf_mesh_free(m);
     api_buf_free(&out);
