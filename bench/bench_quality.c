@@ -556,8 +556,9 @@ static void write_oracle_summary(const char *path, const mesh_rows *mr, int nm, 
     fprintf(f, "# bench_quality oracle: desbrun2, 10 steps, total time t = c h^2 (h = mean edge / sqrt(area)\n"
                "# of the noisy input, i.e. after normalization to unit area); error = area-weighted RMS distance\n"
                "# to the clean mesh as a ratio against the noisy input's (< 1 is better). Medians over %d seeds;\n"
-               "# best c is the median of the per-seed best (grid 0.02..5 + one parabola step), [min..max].\n",
-            ns);
+               "# best c is the median of the per-seed best, [min..max] (grid %s, bracketed, then one\n"
+               "# parabola step in log c); '-': a c the sweep did not need.\n",
+            ns, g_full_grid ? "0.05..1 always" : "0.1..0.5 always");
     fprintf(f, "%-22s %7s %5s | %6s %13s %7s | %6s %6s %6s %6s %6s\n", "mesh", "nv", "noise", "best c",
             "[min..max]", "ratio*", "c=0.1", "c=0.2", "c=0.3", "c=0.5", "c=1.0");
     for (int m = 0; m < nm; m++)
@@ -577,12 +578,14 @@ static void write_oracle_summary(const char *path, const mesh_rows *mr, int nm, 
             }
             char range[32];
             snprintf(range, sizeof range, "[%.3g..%.3g]", mn, mx);
-            fprintf(f, "%-22s %7d %5g | %6.3g %13s %7.3f | %6.3f %6.3f %6.3f %6.3f %6.3f\n", mr[m].name,
-                    mr[m].nv, rho[k], median_of(cb, ns), range, median_of(rb, ns), median_of(at[0], ns),
-                    median_of(at[1], ns), median_of(at[2], ns), median_of(at[3], ns), median_of(at[4], ns));
+            char b[6][16];
+            fprintf(f, "%-22s %7d %5g | %6.3g %13s %7.3f | %6s %6s %6s %6s %6s\n", mr[m].name, mr[m].nv,
+                    rho[k], median_of(cb, ns), range, median_of(rb, ns), fmt(b[0], 3, 0, median_of(at[0], ns)),
+                    fmt(b[1], 3, 0, median_of(at[1], ns)), fmt(b[2], 3, 0, median_of(at[2], ns)),
+                    fmt(b[3], 3, 0, median_of(at[3], ns)), fmt(b[4], 3, 0, median_of(at[4], ns)));
         }
-    fprintf(f, "\n# worst seed at each c: largest ratio, most negative drift in %% (volume closed, area open,\n"
-               "# vs clean), most new folds\n");
+    fprintf(f, "\n# worst seed at each c (what a fixed default would do): largest ratio, most negative drift\n"
+               "# in %% (volume closed, area open, vs clean), most new folds (0 when none added)\n");
     fprintf(f, "%-22s %5s |", "mesh", "noise");
     for (int j = 0; j < 5; j++)
         fprintf(f, "  c=%-4g ratio drift%% fold |", g_report_c[j]);
