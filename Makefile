@@ -7,6 +7,7 @@
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
 #   make WERROR=1 ...                  warnings are errors (CI)
 #   make check-deps the one-way dependency server -> api -> core
+#   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
 # Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
 # tests/test_*.c needs no edit here.
@@ -48,12 +49,15 @@ endif
 LIBS_CORE := -lcholmod -lsuitesparseconfig -lm
 LIBS_API  := -ldraco -lcjson
 LIBS_SRV  := -lmicrohttpd -lpthread
-LIBS_TEST := -lcmocka -lcurl
+LIBS_TEST := -lcmocka -lcurl -lyaml
 
 # Debian packages: build and test dependencies.
-DEB_PKGS := build-essential clang libclang-rt-14-dev libsuitesparse-dev libopenblas-dev \
-            libcjson-dev libmicrohttpd-dev libdraco-dev draco libcurl4-openssl-dev \
-            libcmocka-dev gnuplot-nox
+# Debian packages: what building mcf and mcfd needs (DEB_BUILD: the image's
+# build stage installs only these), then the tests', fuzzers' and plots'.
+DEB_BUILD := build-essential libsuitesparse-dev libopenblas-dev libcjson-dev \
+             libmicrohttpd-dev libdraco-dev
+DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
+            libcmocka-dev libyaml-dev gnuplot-nox
 DEB_BENCH := libeigen3-dev libcgal-dev
 
 CORE_SRC := $(wildcard core/*.c)
@@ -76,7 +80,7 @@ ifneq ($(SRV_SRC),)
 PROGS += $(B)/mcfd
 endif
 
-.PHONY: all deps test unit bench run check-deps clean asan fuzz
+.PHONY: all deps deps-build test unit bench run check-deps clean asan fuzz image image-check
 .DEFAULT_GOAL := all
 
 all: $(B)/libmcf.a $(B)/libmcfapi.a $(PROGS)
@@ -124,6 +128,10 @@ deps:
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
 
+# Only what building mcf and mcfd needs (the container's build stage).
+deps-build:
+	$(MAKE) deps DEB_PKGS="$(DEB_BUILD)"
+
 # ---- tests: every binary, MESHES passed through the environment
 # A test that needs a large mesh MESHES does not have is skipped by name
 # (cmocka's SKIPPED) with the reason, and logged to $(B)/tests/skipped.log;
@@ -137,10 +145,10 @@ test: deps
 	    MCF_IMAGE=$(IMAGE) MCF_BUILD=$(B) $$t || fail=1; done; \
 	n=0; [ -f $(B)/tests/skipped.log ] && n=$$(wc -l < $(B)/tests/skipped.log); \
 	if [ $$n -gt 0 ]; then \
-	  echo "make test: $$n test(s) skipped (SKIPPED above): they need large meshes that are"; \
-	  echo "  not in the repository and not in MESHES=$(or $(MESHES),(unset)):" \
+	  echo "make test: $$n test(s) skipped (SKIPPED above, each with its reason), for want of:" \
 	    "$$(cut -f1 $(B)/tests/skipped.log | sort -u | tr '\n' ' ')"; \
-	  echo "  run them with: make test MESHES=/path/to/meshes (the team's folder: ../shared/meshes)"; \
+	  echo "  the meshes are large scans kept out of the repository (tests/data/meshes/SOURCES.md);"; \
+	  echo "  run those tests with: make test MESHES=/path/to/meshes (the team's: ../shared/meshes)"; \
 	else echo "make test: no test skipped (MESHES=$(or $(MESHES),unset))"; fi; \
 	exit $$fail
 
@@ -189,6 +197,28 @@ $(B)/server/openapi_yaml.o: $(B)/server/openapi_yaml.c
 run: deps
 	$(MAKE) all
 	exec $(B)/mcfd
+
+# ---- the container image: docker/Dockerfile built with Debian's podman
+#   make image              builds $(IMAGE) (installs podman, runc, buildah, debootstrap)
+#   make image BASE=IMG     on that base image instead. Default: debian:bookworm-slim when
+#                           a registry answers, else a `debootstrap --variant=minbase
+#                           bookworm` imported as localhost/mcfd-base:bookworm (kept: the
+#                           next build reuses it)
+#   make image-check        runs it as CI does: HEALTHCHECK, POST /smooth through a published
+#                           127.0.0.1 port, a non-root user, `podman stop` exits 0, the size
+# docker/image.sh holds what podman needs on these machines (runc, lower ulimits) and why.
+IMAGE ?= mcfd:latest
+BASE ?=
+IMAGE_PKGS := podman runc buildah debootstrap
+
+image:
+	$(MAKE) deps DEB_PKGS="$(IMAGE_PKGS)"
+	docker/image.sh build $(IMAGE) $(BASE)
+
+image-check:
+	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS)"
+	$(MAKE) $(B)/mcf
+	docker/image.sh check $(IMAGE) $(B)/mcf
 
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \

@@ -1,7 +1,8 @@
 /*
  * test_api_draco.c - the Draco bridge (api_draco.cc).
  *
- * Real files: every .drc of ../shared/meshes decodes with the counts of
+ * Real files: every .drc of tests/data/meshes (and of $MCF_MESHES, the
+ * large dragon_vrip.drc) decodes with the counts of
  * SOURCES.md (the old v1.1 bunny.drc included), and their topology where
  * SOURCES.md states it. Round trips: lossless encoding gives back
  * bit-identical positions, compared through face corners since edgebreaker

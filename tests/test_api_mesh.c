@@ -3,7 +3,7 @@
  * (api_limits.c), format detection and naming and the decode/encode
  * dispatchers (api_mesh.c).
  *
- * Detection is checked on the real files of ../shared/meshes (OBJ and
+ * Detection is checked on the real files of tests/data/meshes (OBJ and
  * Draco) and on minimal headers of every other format, including a binary
  * STL whose header begins with "solid".
  */

@@ -1,7 +1,8 @@
 /*
  * test_api_obj.c - the OBJ reader and writer (api_obj.c).
  *
- * Real files: every OBJ of ../shared/meshes decodes with the counts of
+ * Real files: every OBJ of tests/data/meshes (and of $MCF_MESHES, the
+ * large scans) decodes with the counts of
  * SOURCES.md, and write -> read returns bit-identical positions and the
  * same faces. Syntax: every face-reference form, negative indices,
  * polygons, comments, CRLF, skipped statements. Hostile input: every
@@ -449,7 +450,7 @@ static void test_obj_attrs_spot(void **state)
     const int32_t *c0, *c1;
     int n0, n1, c;
     (void)state;
-    snprintf(path, sizeof path, "%s/spot.obj", tl_meshes_dir());
+    snprintf(path, sizeof path, "%s", tl_need_mesh("spot.obj"));
     if (tl_read_file(path, &buf, &len) != 0)
         fail_msg("cannot read %s", path);
     assert_int_equal(api_obj_decode_attrs(buf, len, NULL, &m, &a, &err), MCF_OK);

@@ -1,7 +1,8 @@
 /*
  * test_core_mesh.c - the mesh object of libmcf: construction and its
  * refusals, icospheres, mcf_mesh_inspect on hand-made cases and on the
- * real meshes of ../shared/meshes (counts from SOURCES.md), area and
+ * real meshes of tests/data/meshes and $MCF_MESHES (counts from
+ * SOURCES.md), area and
  * volume convergence, deterministic noise and mcf_compare.
  */
 #include <math.h>
