@@ -564,6 +564,52 @@ static void test_garbage(void **state)
     }
 }
 
+/* STL and OFF carry no attributes: api_mesh_decode_attrs gives an empty
+ * handle, single precision for a binary STL only; the PLY written from
+ * it is float for the binary STL, double for OFF and ASCII STL. */
+static void test_attrs_stl_off(void **state)
+{
+    static const char off[] = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    static const char astl[] =
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+        "vertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+    unsigned char bin[84 + 50];
+    const char *in[3] = {off, astl, (const char *)bin};
+    size_t len[3] = {sizeof off - 1, sizeof astl - 1, sizeof bin};
+    int want[3] = {0, 0, 1}, i, k;
+    (void)state;
+    memset(bin, 0, sizeof bin);
+    bin[80] = 1;
+    for (k = 0; k < 3; k++) { /* vertices (0,0,0) (1,0,0) (0,1,0) */
+        float v[3] = {k == 1 ? 1.0f : 0.0f, k == 2 ? 1.0f : 0.0f, 0.0f};
+        memcpy(bin + 84 + 12 + 12 * k, v, 12);
+    }
+    for (i = 0; i < 3; i++) {
+        mcf_mesh *m = NULL;
+        api_attrs *a = NULL;
+        api_format f;
+        mcf_error err;
+        api_encode_opts o;
+        api_buf b;
+        if (api_mesh_decode_attrs(in[i], len[i], NULL, &m, &a, &f, &err) != MCF_OK)
+            fail_msg("input %d: %s", i, err.msg);
+        assert_int_equal(api_attrs_float32(a), want[i]);
+        for (k = 0; k < API_ATTR_KINDS; k++)
+            assert_false(api_attrs_get(a, (api_attr_kind)k, NULL, NULL, NULL, NULL));
+        assert_int_equal(api_attrs_draco_bits(a, API_ATTR_POSITION), -1);
+        api_encode_opts_init(&o);
+        o.format = API_FMT_PLY;
+        o.attrs = a;
+        api_buf_init(&b, 0);
+        assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+        assert_non_null(strstr(b.data, want[i] ? "property float x\n"
+                                               : "property double x\n"));
+        api_buf_free(&b);
+        api_attrs_free(a);
+        mcf_mesh_free(m);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -579,6 +625,7 @@ int main(void)
         cmocka_unit_test(test_off_variants),
         cmocka_unit_test(test_off_errors),
         cmocka_unit_test(test_garbage),
+        cmocka_unit_test(test_attrs_stl_off),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
