@@ -63,6 +63,7 @@ typedef struct {
     unsigned status;           /* of the queued response, 0 before */
     int started;
     int deferred;              /* answered once the (absent) body is read */
+    void *conn;                /* its connection's conn_state, or NULL */
     /* upload */
     int multipart;
     struct MHD_PostProcessor *pp;
@@ -83,6 +84,10 @@ typedef struct {
     int sync_owner;            /* this request takes job->result */
 } srv_request;
 
+/* The longest query string read (the request line and headers together
+ * are bounded by MHD's per-connection pool, SRV_CONN_MEMORY in main.c). */
+#define SRV_MAX_QUERY 8192
+
 static pthread_mutex_t g_active_mu = PTHREAD_MUTEX_INITIALIZER;
 static int g_active;
 
@@ -99,6 +104,50 @@ static int terminal(srv_job_status s)
 {
     return s == SRV_JOB_SUCCEEDED || s == SRV_JOB_FAILED ||
            s == SRV_JOB_CANCELED;
+}
+
+/* The query string of the request target, NULL when there is none. */
+static const char *query_of(const srv_request *r)
+{
+    const char *q = strchr(r->uri, '?');
+    return q ? q + 1 : NULL;
+}
+
+/* The decoded value of `key` in the raw query (last one wins), into out;
+ * NULL when absent. %XX and '+' are decoded. */
+static const char *query_value(const srv_request *r, const char *key,
+                               char *out, size_t size)
+{
+    const char *p = query_of(r), *found = NULL;
+    size_t klen = strlen(key);
+
+    while (p && *p) {
+        size_t n = strcspn(p, "&");
+        if (n > klen && strncmp(p, key, klen) == 0 && p[klen] == '=')
+            found = p + klen + 1;
+        else if (n == klen && strncmp(p, key, klen) == 0)
+            found = p + klen;
+        p += n;
+        if (*p == '&')
+            p++;
+    }
+    if (!found)
+        return NULL;
+    {
+        size_t i = 0;
+        for (; *found && *found != '&' && i + 1 < size; found++) {
+            if (*found == '%' && isxdigit((unsigned char)found[1]) &&
+                isxdigit((unsigned char)found[2])) {
+                char hex[3] = {found[1], found[2], 0};
+                out[i++] = (char)strtol(hex, NULL, 16);
+                found += 2;
+            } else {
+                out[i++] = *found == '+' ? ' ' : *found;
+            }
+        }
+        out[i] = '\0';
+    }
+    return out;
 }
 
 /* ------------------------------------------------------------ responses */
@@ -914,12 +963,17 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
 {
     const srv_config *cfg = srv_jobs_config();
     srv_problem p;
-    const char *h;
+    const char *h, *q = query_of(r);
+    char stream[32];
 
     snprintf(r->method, sizeof r->method, "%s", method);
     snprintf(r->path, sizeof r->path, "%s", url);
     if (parse_route(r, url) != 0)
         return problem(r, c, 404, "ENOTFOUND", "no such resource: %s", url);
+    if (q && strlen(q) > SRV_MAX_QUERY)
+        return problem(r, c, 414, "ELIMIT", "the query string has %zu bytes, "
+                       "more than %d: send the parameters as a multipart "
+                       "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
     if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
         !authorized(c))
         return problem(r, c, 401, "EAUTH", "a valid 'Authorization: Bearer "
@@ -1006,7 +1060,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return send_json(r, c, 200, api_json_schemes());
 
     /* POST /smooth, /v1/smooth, /v1/jobs: decide everything from headers. */
-    h = MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "stream");
+    h = query_value(r, "stream", stream, sizeof stream);
     if (r->rt == RT_SMOOTH) {
         const char *acc = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                       MHD_HTTP_HEADER_ACCEPT);
@@ -1080,16 +1134,64 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
 
 /* ------------------------------------------------------------ MHD entry */
 
+/* What a connection holds between MHD's notifications: the request whose
+ * completion callback is still due, so that it is released when the
+ * connection closes without one (MHD skips it when a request overflows
+ * its pool after the URI callback, e.g. hundreds of headers). */
+typedef struct {
+    srv_request *req;
+} conn_state;
+
+static void request_free(srv_request *r, int toe);
+
+void srv_http_connection(void *cls, struct MHD_Connection *c,
+                         void **socket_context,
+                         enum MHD_ConnectionNotificationCode code)
+{
+    conn_state *cs = *socket_context;
+
+    (void)cls;
+    (void)c;
+    if (code == MHD_CONNECTION_NOTIFY_STARTED) {
+        *socket_context = calloc(1, sizeof(conn_state));
+        return;
+    }
+    if (cs && cs->req)
+        request_free(cs->req, -1); /* never completed: abandoned */
+    free(cs);
+    *socket_context = NULL;
+}
+
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
 {
     srv_request *r = calloc(1, sizeof *r);
     const srv_config *cfg = srv_jobs_config();
+    const union MHD_ConnectionInfo *ci =
+        MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+    conn_state *cs = ci ? ci->socket_context : NULL;
+    char *q;
 
     (void)cls;
-    (void)c;
     if (!r)
         return NULL;
     r->uri = strdup(uri ? uri : "");
+    /* MHD would next parse the query into its per-connection pool, a
+     * record per parameter: a few hundred short ones exhaust it, and MHD
+     * then neither answers nor completes the request. The daemon reads
+     * the query from its own copy (r->uri: api_params_parse_query, and
+     * query_value for `stream`), so MHD gets an empty one: the '?' it
+     * found before this callback stays, the byte after it ends the
+     * string. (uri points into MHD's writable request buffer; the
+     * parameter is const only in the API.) */
+    q = uri ? strchr(uri, '?') : NULL;
+    if (q)
+        ((char *)(uintptr_t)q)[1] = '\0';
+    if (cs) {
+        if (cs->req) /* the previous request never completed */
+            request_free(cs->req, -1);
+        cs->req = r;
+        r->conn = cs;
+    }
     r->t0 = mcf_now();
     r->rt = RT_OTHER;
     api_buf_init(&r->mesh, cfg->lim.max_input_bytes);
@@ -1156,13 +1258,23 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                         enum MHD_RequestTerminationCode toe)
 {
     srv_request *r = *con_cls;
-    cJSON *o;
 
     (void)cls;
     (void)c;
     if (!r)
         return;
     *con_cls = NULL;
+    request_free(r, (int)toe);
+}
+
+/* Releases everything a request holds and writes its log line. toe: MHD's
+ * termination code, -1 for a request MHD abandoned without completing. */
+static void request_free(srv_request *r, int toe)
+{
+    cJSON *o;
+
+    if (r->conn)
+        ((conn_state *)r->conn)->req = NULL;
     if (r->job) {
         srv_lock();
         srv_waiter_unlink(r->job, &r->w);
@@ -1188,7 +1300,9 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
         cJSON_AddNumberToObject(o, "bytes_in", (double)r->bytes_in);
         if (r->job)
             cJSON_AddStringToObject(o, "job", r->id);
-        if (toe != MHD_REQUEST_TERMINATED_COMPLETED_OK)
+        if (toe < 0)
+            cJSON_AddStringToObject(o, "terminated", "abandoned by MHD");
+        else if (toe != MHD_REQUEST_TERMINATED_COMPLETED_OK)
             cJSON_AddNumberToObject(o, "terminated", toe);
         srv_log_json(r->rt == RT_HEALTHZ || r->rt == RT_READYZ ||
                      r->rt == RT_METRICS ? SRV_LOG_DEBUG : SRV_LOG_INFO, o);

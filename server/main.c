@@ -167,6 +167,11 @@ static void log_start(const srv_config *cfg, const char *url)
     srv_log_json(SRV_LOG_INFO, o);
 }
 
+/* MHD's per-connection pool: the request line, every header and MHD's
+ * own records. MHD's default of 32 KiB overflowed on a few hundred
+ * headers (431); the query no longer counts (http.c keeps it). */
+#define SRV_CONN_MEMORY (64 * 1024)
+
 /* Waits (polling, bounded) until no request is in flight. */
 static void wait_requests(double seconds)
 {
@@ -228,6 +233,8 @@ int main(int argc, char **argv)
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)60,
         MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
         MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,
+        MHD_OPTION_NOTIFY_CONNECTION, srv_http_connection, NULL,
+        MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)SRV_CONN_MEMORY,
         MHD_OPTION_END);
     if (!d) {
         fprintf(stderr, "mcfd: cannot listen on %s:%d (%s)\n", cfg.bind,

@@ -330,6 +330,10 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c);
 void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                         enum MHD_RequestTerminationCode toe);
+/* MHD_OPTION_NOTIFY_CONNECTION: releases a request MHD never completed. */
+void srv_http_connection(void *cls, struct MHD_Connection *c,
+                         void **socket_context,
+                         enum MHD_ConnectionNotificationCode code);
 /* Requests between the URI callback and completion (drain waits on it). */
 int srv_http_active(void);
 
