@@ -216,7 +216,7 @@ image:
 	docker/image.sh build $(IMAGE) $(BASE)
 
 image-check:
-	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS)"
+	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl"
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 

@@ -98,13 +98,15 @@ check() {
     name=mcfd-check-$$
     out=$(mktemp -d "${TMPDIR:-/tmp}/mcfd-check.XXXXXX")
     trap 'pm rm -f -t 0 "$name" >/dev/null 2>&1 || true; rm -rf "$out"' EXIT
-    port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
     t0=$(now)
     # --health-interval=disable: podman's periodic health timer needs systemd, which these
     # machines do not run; the HEALTHCHECK (mcfd --probe) is run by hand below instead.
     # (podman 4.3 still says so on stderr: kept in $out/podman.err, shown on a failure)
-    pm run -d --name "$name" --health-interval=disable -p "127.0.0.1:$port:8080" "$image" \
+    # -p 127.0.0.1::8080: a free loopback port, read back with podman port
+    pm run -d --name "$name" --health-interval=disable -p 127.0.0.1::8080 "$image" \
         >/dev/null 2>"$out/podman.err" || { cat "$out/podman.err" >&2; exit 1; }
+    port=$(pm port "$name" 8080/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
+    [ -n "$port" ] || { pm port "$name" >&2; echo "image-check: FAIL: no loopback port" >&2; exit 1; }
     i=0
     until pm healthcheck run "$name" >/dev/null 2>&1; do
         i=$((i + 1))
