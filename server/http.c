@@ -875,6 +875,13 @@ static enum MHD_Result route_job(srv_request *r, struct MHD_Connection *c,
     if (r->rt == RT_JOB && strcmp(method, "DELETE") == 0) {
         srv_job_status before;
         int d = srv_jobs_delete(r->id, &before);
+        if (d == -2)
+            return problem(r, c, 500, "EIO", "job %s: the spool could not "
+                           "record the DELETE (%s); %s", r->id, strerror(errno),
+                           before == SRV_JOB_QUEUED || before == SRV_JOB_RUNNING
+                               ? "it is canceled now, but may run again after "
+                                 "a restart"
+                               : "the job is kept; retry");
         if (d < 0)
             return problem(r, c, 404, "ENOTFOUND", "no job with ID %s "
                            "(never existed, deleted, or expired)", r->id);
@@ -1010,13 +1017,19 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     if (r->rt == RT_READYZ) {
         srv_gauges g = srv_jobs_gauges();
         cJSON *o;
-        /* Only draining makes the daemon unready. A full queue does not:
+        /* Draining and a spool that cannot be written make the daemon
+         * unready. A full queue does not:
          * it is answered per request (503 + Retry-After), and an
          * orchestrator flapping every replica out of its Service under
          * load would turn those into connection errors. */
+        char why[1500];
         if (g.draining)
             return problem(r, c, 503, "EDRAINING", "the daemon is shutting "
                            "down");
+        /* Every job goes through the spool: one that cannot be written
+         * makes every job fail. */
+        if (srv_spool_ready(cfg->spool, why, sizeof why) != 0)
+            return problem(r, c, 503, "ESPOOL", "%s", why);
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ready");
         cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);

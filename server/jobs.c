@@ -817,6 +817,8 @@ static void run_job(srv_job *j)
     int failed = 1, requeue = 0, nv = 0, nf = 0;
     char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
+    srv_job_status final;
+    char *state = NULL;
     double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
            t_metrics = 0, t_after, qerr = NAN;
     run_ctx ctx;
@@ -990,17 +992,17 @@ done:
     srv_lock();
     if (requeue) {
         /* Back to queued on disk; the process is exiting. */
-        j->status = SRV_JOB_QUEUED;
+        final = SRV_JOB_QUEUED;
         j->ready = 0;
         j->err = prob;
     } else if (failed) {
-        j->status = j->cancel && (j->cancel_reason == SRV_CANCEL_USER ||
-                                  j->cancel_reason == SRV_CANCEL_CLIENT)
-                        ? SRV_JOB_CANCELED : SRV_JOB_FAILED;
+        final = j->cancel && (j->cancel_reason == SRV_CANCEL_USER ||
+                              j->cancel_reason == SRV_CANCEL_CLIENT)
+                    ? SRV_JOB_CANCELED : SRV_JOB_FAILED;
         j->err = prob;
         j->finished = srv_wall();
     } else {
-        j->status = SRV_JOB_SUCCEEDED;
+        final = SRV_JOB_SUCCEEDED;
         j->finished = srv_wall();
         j->metrics_json = metrics;
         metrics = NULL;
@@ -1010,10 +1012,34 @@ done:
             j->result = api_buf_detach(&out, &len);
         }
     }
+    /* The outcome on disk before anyone can see it (GET polls, waiters):
+     * a client told "succeeded" can always find the result again. */
+    j->status = final;
+    state = state_json(j);
+    j->status = SRV_JOB_RUNNING;
     srv_unlock();
-    /* The state on disk before the waiters hear: a client that saw the
-     * result can always find it again. */
-    write_state(j, 1);
+    if (!state || srv_spool_write(cfg->spool, j->id, "state.json", state,
+                                  strlen(state), 1) != 0) {
+        int e = state ? errno : ENOMEM;
+        srv_lock();
+        if (final == SRV_JOB_SUCCEEDED) {
+            /* Not durable, so not a success: after a restart the job,
+             * still `running` on disk, runs again. */
+            final = SRV_JOB_FAILED;
+            srv_problem_set(&j->err, 500, "EIO", "job %s finished but its "
+                            "state could not be written to the spool %s: %s",
+                            j->id, cfg->spool, strerror(e));
+            free(j->result);
+            j->result = NULL;
+        }
+        srv_unlock();
+        srv_logf(SRV_LOG_ERROR, "spool: cannot record the outcome of job %s: "
+                 "%s", j->id, strerror(e));
+    }
+    free(state);
+    srv_lock();
+    j->status = final;
+    srv_unlock();
     /* Counted before anyone hears, so /metrics agrees with what clients
      * have seen. */
     if (!requeue) {
@@ -1086,12 +1112,13 @@ static void cancel_queued_locked(srv_job *j, int reason)
     srv_job_wake(j, 0);
 }
 
-static void finish_canceled_queued(srv_job *j)
+static int finish_canceled_queued(srv_job *j)
 {
-    write_state(j, 1);
+    int rc = write_state(j, 1);
     srv_metrics_job(j->scheme, "canceled", 0);
     log_job(j, 0, 0, 0);
     srv_job_unref(j);
+    return rc;
 }
 
 /* Whether the peer of a suspended connection has closed it: a peek finds
@@ -1175,24 +1202,35 @@ int srv_jobs_delete(const char *id, srv_job_status *before)
     if (j->status == SRV_JOB_QUEUED) {
         cancel_queued_locked(j, SRV_CANCEL_USER);
         srv_unlock();
-        finish_canceled_queued(j);
-        return 0;
+        return finish_canceled_queued(j) == 0 ? 0 : -2;
     }
     if (j->status == SRV_JOB_RUNNING) {
+        int rc;
         j->cancel = 1;
         j->cancel_reason = SRV_CANCEL_USER;
         j->refs++;
         srv_unlock();
         /* On disk too: should the process end before the current step
          * does, the restart finds the job canceled, not queued. */
-        write_state(j, 1);
+        rc = write_state(j, 1);
         srv_job_unref(j);
-        return 1;
+        return rc == 0 ? 1 : -2;
     }
-    /* Finished: forget it. */
-    table_remove(j);
+    /* Finished: forget it, on disk first (a job that cannot be removed
+     * stays, rather than coming back after a restart). */
+    j->refs++;
     srv_unlock();
-    srv_spool_remove(S.cfg->spool, id);
+    if (srv_spool_remove(S.cfg->spool, id) != 0) {
+        srv_logf(SRV_LOG_ERROR, "spool: cannot remove job %s: %s", id,
+                 strerror(errno));
+        srv_job_unref(j);
+        return -2;
+    }
+    srv_lock();
+    if (j->in_table)
+        table_remove(j);
+    unref_locked(j);
+    srv_unlock();
     return 2;
 }
 
@@ -1229,11 +1267,22 @@ void srv_jobs_sweep(void)
                 cap = ncap;
             }
             memcpy(ids[n++], j->id, SRV_ID_LEN + 1);
-            table_remove(j);
         }
     srv_unlock();
+    /* Off the disk first, then out of memory: a removal that fails keeps
+     * the job (tried again at the next sweep) instead of leaving files
+     * that bring it back after a restart. */
     for (i = 0; i < n; i++) {
-        srv_spool_remove(S.cfg->spool, ids[i]);
+        if (srv_spool_remove(S.cfg->spool, ids[i]) != 0) {
+            srv_logf(SRV_LOG_WARN, "spool: cannot remove expired job %s: %s",
+                     ids[i], strerror(errno));
+            continue;
+        }
+        srv_lock();
+        j = find_locked(ids[i]);
+        if (j && is_terminal(j->status))
+            table_remove(j);
+        srv_unlock();
         srv_logf(SRV_LOG_DEBUG, "job %s expired after --result-ttl %g s",
                  ids[i], S.cfg->result_ttl);
     }

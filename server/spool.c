@@ -20,6 +20,28 @@
 
 #include "srv.h"
 
+/* What the spool's own writes found: the time of the last failure and of
+ * the last success (srv_mono seconds), for readiness. */
+static pthread_mutex_t g_health_mu = PTHREAD_MUTEX_INITIALIZER;
+static double g_last_ok, g_last_fail;
+static int g_fail_errno;
+
+static void remove_tree(const char *dir);
+
+static void note(int ok)
+{
+    int e = errno;
+    pthread_mutex_lock(&g_health_mu);
+    if (ok) {
+        g_last_ok = srv_mono();
+    } else {
+        g_last_fail = srv_mono();
+        g_fail_errno = e;
+    }
+    pthread_mutex_unlock(&g_health_mu);
+    errno = e;
+}
+
 static int fsync_dir(const char *dir)
 {
     int fd = open(dir, O_RDONLY | O_DIRECTORY);
@@ -79,6 +101,54 @@ int srv_spool_init(const char *dir, char *msg, size_t msgsize)
     }
     close(fd);
     unlink(probe);
+    /* Removals a crash interrupted: their tombstones (see srv_spool_remove). */
+    {
+        DIR *d = opendir(jobs);
+        struct dirent *e;
+        char path[1500];
+        while (d && (e = readdir(d)) != NULL)
+            if (strncmp(e->d_name, ".del-", 5) == 0) {
+                snprintf(path, sizeof path, "%s/%s", jobs, e->d_name);
+                remove_tree(path);
+            }
+        if (d)
+            closedir(d);
+    }
+    return 0;
+}
+
+int srv_spool_ready(const char *spool, char *why, size_t size)
+{
+    char probe[1300];
+    double ok, fail;
+    int fd, e;
+
+    /* Can a file be made now? (Cheap: no fsync, removed at once.) */
+    snprintf(probe, sizeof probe, "%s/jobs/.ready-probe", spool);
+    fd = open(probe, O_WRONLY | O_CREAT | O_TRUNC, 0640);
+    if (fd < 0 || write(fd, "1", 1) != 1 || close(fd) != 0) {
+        e = errno;
+        if (fd >= 0)
+            close(fd);
+        unlink(probe);
+        snprintf(why, size, "the spool %s is not writable: %s", spool,
+                 strerror(e));
+        return -1;
+    }
+    unlink(probe);
+    /* Did a real write fail lately, with none succeeding since (a probe
+     * can get through a disk too full for a mesh)? For 10 s, or until a
+     * write succeeds: no job may come to an unready daemon to clear it. */
+    pthread_mutex_lock(&g_health_mu);
+    ok = g_last_ok;
+    fail = g_last_fail;
+    e = g_fail_errno;
+    pthread_mutex_unlock(&g_health_mu);
+    if (fail > ok && srv_mono() - fail < 10) {
+        snprintf(why, size, "the last write to the spool %s failed: %s",
+                 spool, strerror(e));
+        return -1;
+    }
     return 0;
 }
 
@@ -143,6 +213,7 @@ fail:
         close(fd);
     if (rc != 0)
         unlink(tmp);
+    note(rc == 0);
     return rc;
 }
 
@@ -184,15 +255,13 @@ fail:
     return -1;
 }
 
-void srv_spool_remove(const char *spool, const char *id)
+/* Removes a directory and the files in it (best effort). */
+static void remove_tree(const char *dir)
 {
-    char dir[1300], path[1700];
-    DIR *d;
+    char path[1700];
+    DIR *d = opendir(dir);
     struct dirent *e;
 
-    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0)
-        return;
-    d = opendir(dir);
     if (d) {
         while ((e = readdir(d)) != NULL) {
             if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
@@ -203,6 +272,36 @@ void srv_spool_remove(const char *spool, const char *id)
         closedir(d);
     }
     rmdir(dir);
+}
+
+int srv_spool_remove(const char *spool, const char *id)
+{
+    char dir[1300], tomb[1300], jobs[1200];
+
+    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0 ||
+        snprintf(tomb, sizeof tomb, "%s/jobs/.del-%s", spool, id) >=
+            (int)sizeof tomb) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
+    snprintf(jobs, sizeof jobs, "%s/jobs", spool);
+    /* One atomic, durable step takes the job out of the spool: a rename
+     * to a tombstone the recovery never reads, and the fsync of jobs/.
+     * What fails here leaves the job whole; what is left after it is
+     * garbage, removed now or at the next start. */
+    if (rename(dir, tomb) != 0) {
+        if (errno == ENOENT)
+            return 0; /* already gone */
+        note(0);
+        return -1;
+    }
+    if (fsync_dir(jobs) != 0) {
+        note(0);
+        return -1;
+    }
+    note(1);
+    remove_tree(tomb);
+    return 0;
 }
 
 int srv_spool_list(const char *spool, void (*fn)(const char *id, void *ctx),

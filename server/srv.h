@@ -137,8 +137,13 @@ int srv_spool_mkjob(const char *spool, const char *id);
 /* Reads a whole job file (malloc'ed, NUL-terminated). 0 or -1. */
 int srv_spool_read(const char *spool, const char *id, const char *name,
                    char **data, size_t *len);
-/* Removes a job directory and everything in it. */
-void srv_spool_remove(const char *spool, const char *id);
+/* Removes a job directory and everything in it: first renamed to a
+ * tombstone and jobs/ fsynced (durable), then deleted. 0, or -1 with
+ * errno and the job left whole. */
+int srv_spool_remove(const char *spool, const char *id);
+/* Readiness: 0 when a file can be made in the spool and the last spool
+ * write did not fail (since the last that succeeded); else -1 and why. */
+int srv_spool_ready(const char *spool, char *why, size_t size);
 /* Calls fn for every job directory name in the spool. */
 int srv_spool_list(const char *spool, void (*fn)(const char *id, void *ctx),
                    void *ctx);
@@ -292,7 +297,9 @@ srv_job *srv_jobs_get(const char *id);
 void srv_job_unref(srv_job *j);
 /* DELETE: -1 no such job; 0 it was queued and is now canceled; 1 it runs
  * and will stop at its next step; 2 it had finished and is forgotten
- * (memory and spool). *before: the status it had. */
+ * (memory and spool); -2 the spool could not record it (errno; a queued
+ * or running job is canceled in memory all the same, a finished one is
+ * kept). *before: the status it had. */
 int srv_jobs_delete(const char *id, srv_job_status *before);
 /* The job as JSON (id, status, progress, timestamps, params, metrics or
  * error, links). Call with the lock held. */

@@ -25,8 +25,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <linux/fs.h>
 #include <sys/time.h>
 #include <sys/types.h>
 #include <sys/wait.h>
@@ -59,6 +61,7 @@ static char g_bin[512];
 static pid_t g_started[64];
 static int g_nstarted;
 static daemon_t g_main;   /* shared by the tests that need no special flags */
+static void unlock_dirs(void);
 
 static void sleep_ms(int ms)
 {
@@ -678,6 +681,7 @@ static int group_teardown(void **state)
             waitpid(g_started[i], NULL, 0);
         }
     tl_kill_children(0);
+    unlock_dirs();
     rm_rf(g_tmp);
     curl_global_cleanup();
     return rc;
@@ -1768,6 +1772,111 @@ static void test_query_flood(void **state)
                  mcf_now() - t0);
 }
 
+/* Directories made unwritable by a test (root: the immutable flag, which
+ * root's writes respect; others: mode 0555), restored by unlock_dirs. */
+static char g_locked[4][800];
+static int g_nlocked;
+
+static int set_writable(const char *path, int writable)
+{
+    int rc = -1;
+    if (geteuid() == 0) {
+        int fd = open(path, O_RDONLY | O_NONBLOCK), flags = 0;
+        if (fd < 0)
+            return -1;
+        if (ioctl(fd, FS_IOC_GETFLAGS, &flags) == 0) {
+            flags = writable ? (flags & ~FS_IMMUTABLE_FL) : (flags | FS_IMMUTABLE_FL);
+            rc = ioctl(fd, FS_IOC_SETFLAGS, &flags);
+        }
+        close(fd);
+    } else {
+        rc = chmod(path, writable ? 0750 : 0555);
+    }
+    return rc;
+}
+
+static void unlock_dirs(void)
+{
+    while (g_nlocked > 0)
+        set_writable(g_locked[--g_nlocked], 1);
+}
+
+/* Makes dir unwritable; 0, or -1 when this machine cannot (then the
+ * caller skips). */
+static int lock_dir(const char *dir)
+{
+    char probe[900];
+    int fd;
+    if (g_nlocked == 4 || set_writable(dir, 0) != 0)
+        return -1;
+    snprintf(g_locked[g_nlocked++], sizeof g_locked[0], "%s", dir);
+    snprintf(probe, sizeof probe, "%s/.probe", dir);
+    fd = open(probe, O_WRONLY | O_CREAT, 0640);
+    if (fd >= 0) { /* still writable: no use */
+        close(fd);
+        unlink(probe);
+        unlock_dirs();
+        return -1;
+    }
+    return 0;
+}
+
+/* Issue 9 item 6: with the spool unwritable after the start, a DELETE
+ * answered 204 and the job came back after a restart, and /readyz stayed
+ * 200 while every job failed. Now the DELETE is a 500 that keeps the job,
+ * /readyz is 503 ESPOOL, and once the spool is writable again the DELETE
+ * holds across a restart. */
+static void test_spool_failures(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    daemon_t d;
+    char spool[600], jobs[700], id[64], path[160];
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/spool-fail", g_tmp);
+    snprintf(jobs, sizeof jobs, "%s/jobs", spool);
+    assert_int_equal(start_daemon(&d, "spool-fail", spool, flags), 0);
+    http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+    expect_status(&d, &r, 200, "a job to delete");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    if (lock_dir(jobs) != 0) {
+        stop_daemon(&d);
+        tl_skip("test_spool_failures", "cannot make a directory unwritable "
+                "here (neither the immutable flag nor mode 0555 stops writes)");
+        return;
+    }
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_problem(&d, &r, 500, "EIO", "spool", "DELETE on an unwritable spool");
+    resp_free(&r);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the job is kept");
+    resp_free(&r);
+    http(&d, "GET", "/readyz", NULL, NULL, &r);
+    expect_problem(&d, &r, 503, "ESPOOL", "spool", "readyz, spool unwritable");
+    resp_free(&r);
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthz stays 200 (the process is alive)");
+    resp_free(&r);
+    unlock_dirs();
+
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_status(&d, &r, 204, "DELETE once writable");
+    resp_free(&r);
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "spool-fail2", spool, flags), 0);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_problem(&d, &r, 404, "ENOTFOUND", NULL, "deleted job after restart");
+    resp_free(&r);
+    http(&d, "GET", "/readyz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "readyz after the restart");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -2762,6 +2871,7 @@ int main(void)
         cmocka_unit_test_teardown(test_hangup_and_budgets, kill_strays),
         cmocka_unit_test_teardown(test_http_small_things, kill_strays),
         cmocka_unit_test_teardown(test_query_flood, kill_strays),
+        cmocka_unit_test_teardown(test_spool_failures, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
