@@ -32,7 +32,8 @@ typedef struct {
 } option;
 
 enum {
-    O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN, O_SPOOL,
+    O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
+    O_MAX_CONN_IP, O_SPOOL,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_TOKEN, O_LOG, O_PROBE,
     O_HELP, O_VERSION, O_COUNT
@@ -51,6 +52,10 @@ static const option opts[O_COUNT] = {
                         "HTTP (libmicrohttpd) threads (default 2)"},
     [O_MAX_CONN] = {"--max-connections", "MCFD_MAX_CONNECTIONS", T_INT, 4,
                     100000, "open connections (default 512)"},
+    [O_MAX_CONN_IP] = {"--max-connections-per-ip",
+                       "MCFD_MAX_CONNECTIONS_PER_IP", T_INT, 0, 100000,
+                       "open connections from one address, 0: no limit "
+                       "(default 64)"},
     [O_SPOOL] = {"--spool", "MCFD_SPOOL", T_STR, 0, 0,
                  "job spool directory (default ./var/mcfd)"},
     [O_MAX_UPLOAD] = {"--max-upload", "MCFD_MAX_UPLOAD", T_SIZE, 0, 0,
@@ -186,6 +191,7 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
     case O_QUEUE: cfg->queue = (int)i; break;
     case O_HTTP_THREADS: cfg->http_threads = (int)i; break;
     case O_MAX_CONN: cfg->max_connections = (int)i; break;
+    case O_MAX_CONN_IP: cfg->max_connections_per_ip = (int)i; break;
     case O_SPOOL:
         if (!*v || strlen(v) >= sizeof cfg->spool - 64) {
             snprintf(msg, msgsize, "%s: bad directory \"%s\"", src, v);
@@ -279,6 +285,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->queue = 64;
     cfg->http_threads = 2;
     cfg->max_connections = 512;
+    cfg->max_connections_per_ip = 64;
     snprintf(cfg->spool, sizeof cfg->spool, "./var/mcfd");
     api_limits_default(&cfg->lim);
     cfg->result_ttl = 3600;

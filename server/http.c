@@ -926,7 +926,11 @@ static enum MHD_Result route_job(srv_request *r, struct MHD_Connection *c,
         const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                     "Last-Event-ID");
         long last = h ? strtol(h, NULL, 10) : -1;
-        ret = respond(r, c, 200, srv_stream_response(j, SRV_STREAM_SSE, c, last));
+        if (!srv_stream_admit(j, &p))
+            ret = send_problem(r, c, &p, j->id);
+        else
+            ret = respond(r, c, 200,
+                          srv_stream_response(j, SRV_STREAM_SSE, c, last));
     } else {
         ret = get_job_part(r, c, j);
     }

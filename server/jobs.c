@@ -255,6 +255,16 @@ static void table_remove(srv_job *j)
     }
 }
 
+/* Lock held: puts back a job whose spool removal failed (the caller's
+ * reference becomes the table's), unless its ID came back meanwhile. */
+static void table_restore(srv_job *j)
+{
+    if (!j->in_table && !find_locked(j->id))
+        table_insert(j);
+    else
+        unref_locked(j);
+}
+
 static void queue_push(srv_job *j)
 {
     j->qnext = NULL;
@@ -1150,6 +1160,15 @@ int srv_jobs_check_clients(void)
         for (j = S.buckets[b]; j; j = j->hnext) {
             srv_waiter *w;
             int hung = 0;
+            /* Event streams whose client left: resumed to end (stream.c),
+             * which frees their connection now, not when the job moves. */
+            for (w = j->waiters; w; w = w->next)
+                if (w->want_events && w->suspended && !w->gone &&
+                    client_gone(w->conn)) {
+                    w->gone = 1;
+                    w->suspended = 0;
+                    MHD_resume_connection(w->conn);
+                }
             if (j->cancel || (j->status != SRV_JOB_QUEUED &&
                               j->status != SRV_JOB_RUNNING))
                 continue;
@@ -1216,21 +1235,23 @@ int srv_jobs_delete(const char *id, srv_job_status *before)
         srv_job_unref(j);
         return rc == 0 ? 1 : -2;
     }
-    /* Finished: forget it, on disk first (a job that cannot be removed
-     * stays, rather than coming back after a restart). */
+    /* Finished: forget it, out of the table first (a visible job always
+     * has its files), then off the disk; a job that cannot be removed
+     * is put back, rather than coming back after a restart. */
     j->refs++;
+    table_remove(j);
     srv_unlock();
     if (srv_spool_remove(S.cfg->spool, id) != 0) {
+        int e = errno;
         srv_logf(SRV_LOG_ERROR, "spool: cannot remove job %s: %s", id,
-                 strerror(errno));
-        srv_job_unref(j);
+                 strerror(e));
+        srv_lock();
+        table_restore(j);
+        srv_unlock();
+        errno = e;
         return -2;
     }
-    srv_lock();
-    if (j->in_table)
-        table_remove(j);
-    unref_locked(j);
-    srv_unlock();
+    srv_job_unref(j);
     return 2;
 }
 
@@ -1238,7 +1259,7 @@ int srv_jobs_delete(const char *id, srv_job_status *before)
 
 void srv_jobs_sweep(void)
 {
-    char (*ids)[SRV_ID_LEN + 1] = NULL;
+    srv_job **gone = NULL;
     int n = 0, cap = 0, b, i;
     double now = srv_wall();
     srv_job *j, *next;
@@ -1260,33 +1281,37 @@ void srv_jobs_sweep(void)
                 continue;
             if (n == cap) {
                 int ncap = cap ? 2 * cap : 64;
-                void *p = realloc(ids, (size_t)ncap * sizeof *ids);
+                void *p = realloc(gone, (size_t)ncap * sizeof *gone);
                 if (!p)
                     break;
-                ids = p;
+                gone = p;
                 cap = ncap;
             }
-            memcpy(ids[n++], j->id, SRV_ID_LEN + 1);
+            /* Out of the table before its files go (a visible job always
+             * has its files), held by a reference of ours. */
+            j->refs++;
+            table_remove(j);
+            gone[n++] = j;
         }
     srv_unlock();
-    /* Off the disk first, then out of memory: a removal that fails keeps
-     * the job (tried again at the next sweep) instead of leaving files
-     * that bring it back after a restart. */
+    /* A removal that fails puts the job back (tried again at the next
+     * sweep) instead of leaving files that bring it back after a
+     * restart. */
     for (i = 0; i < n; i++) {
-        if (srv_spool_remove(S.cfg->spool, ids[i]) != 0) {
+        j = gone[i];
+        if (srv_spool_remove(S.cfg->spool, j->id) != 0) {
             srv_logf(SRV_LOG_WARN, "spool: cannot remove expired job %s: %s",
-                     ids[i], strerror(errno));
+                     j->id, strerror(errno));
+            srv_lock();
+            table_restore(j);
+            srv_unlock();
             continue;
         }
-        srv_lock();
-        j = find_locked(ids[i]);
-        if (j && is_terminal(j->status))
-            table_remove(j);
-        srv_unlock();
         srv_logf(SRV_LOG_DEBUG, "job %s expired after --result-ttl %g s",
-                 ids[i], S.cfg->result_ttl);
+                 j->id, S.cfg->result_ttl);
+        srv_job_unref(j);
     }
-    free(ids);
+    free(gone);
 }
 
 /* ------------------------------------------------------------------ recovery */
@@ -1616,6 +1641,7 @@ srv_gauges srv_jobs_gauges(void)
     g.workers_busy = S.busy;
     g.jobs_in_memory = S.njobs;
     g.draining = S.draining;
+    g.followers = srv_stream_followers();
     srv_unlock();
     return g;
 }

@@ -230,6 +230,8 @@ int main(int argc, char **argv)
         MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
         MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg.http_threads,
         MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg.max_connections,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT,
+        (unsigned int)cfg.max_connections_per_ip,
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)60,
         MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
         MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,

@@ -175,5 +175,7 @@ char *srv_metrics_render(const srv_gauges *g, size_t *len)
     gauge(&b, "mcfd_jobs_in_memory", "Job records held (queued to expired).",
           g->jobs_in_memory);
     gauge(&b, "mcfd_draining", "1 after SIGTERM/SIGINT.", g->draining);
+    gauge(&b, "mcfd_followers", "Event streams (SSE, ndjson) open.",
+          g->followers);
     return api_buf_detach(&b, len);
 }

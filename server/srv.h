@@ -45,6 +45,8 @@ typedef struct {
     int queue;                 /* queued jobs beyond the running ones */
     int http_threads;          /* MHD thread pool size (default 2) */
     int max_connections;       /* MHD connection limit */
+    int max_connections_per_ip; /* from one address, 0: none; keeps one
+                                   client from taking every slot */
     char spool[1024];          /* job spool directory (default ./var/mcfd) */
     api_limits lim;            /* limits on untrusted input */
     size_t max_body;           /* whole request body, derived from lim */
@@ -163,6 +165,7 @@ typedef struct {
     int workers, workers_busy;
     int jobs_in_memory;
     int draining;
+    int followers;             /* event streams (SSE, ndjson) open */
 } srv_gauges;
 
 /* The Prometheus text exposition (format 0.0.4), malloc'ed. */
@@ -192,6 +195,7 @@ typedef struct srv_waiter {
     struct MHD_Connection *conn;
     int suspended;             /* MHD_suspend_connection called, not resumed */
     int want_events;           /* woken on every progress step */
+    int gone;                  /* its client hung up: end the stream */
     int cancel_on_hangup;      /* the job's only client: its hang-up
                                   cancels the job (srv_jobs_check_clients) */
     int linked;
@@ -323,6 +327,13 @@ typedef enum { SRV_STREAM_NDJSON = 0, SRV_STREAM_SSE } srv_stream_kind;
 struct MHD_Response *srv_stream_response(srv_job *j, srv_stream_kind kind,
                                          struct MHD_Connection *conn,
                                          long last_id);
+/* Whether one more follower of j may start (at most SRV_FOLLOWERS_PER_JOB
+ * per job and half of --max-connections in all); else 0 and a 503. */
+#define SRV_FOLLOWERS_PER_JOB 64
+int srv_stream_admit(const srv_job *j, srv_problem *p);
+/* Streams following a job now (the mcfd_followers gauge). */
+int srv_stream_followers(void);
+
 /* The final ndjson line of a job (metrics and result URL, or the error).
  * Lock held. */
 cJSON *srv_stream_final_json(const srv_job *j);

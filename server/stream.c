@@ -38,6 +38,40 @@ typedef struct {
     int started, finished;
 } stream;
 
+/* Streams open now; guarded by the job lock. */
+static int g_followers;
+
+int srv_stream_followers(void)
+{
+    return g_followers; /* read with the lock held (srv_jobs_gauges) */
+}
+
+int srv_stream_admit(const srv_job *j, srv_problem *p)
+{
+    const srv_config *cfg = srv_jobs_config();
+    const srv_waiter *w;
+    int here = 0, total, max_total = cfg->max_connections / 2;
+
+    srv_lock();
+    for (w = j->waiters; w; w = w->next)
+        here += w->want_events;
+    total = g_followers;
+    srv_unlock();
+    if (here >= SRV_FOLLOWERS_PER_JOB) {
+        srv_problem_set(p, 503, "EBUSY", "job %s already has %d followers, "
+                        "the most one job may have; poll GET /v1/jobs/%s "
+                        "instead", j->id, here, j->id);
+        return 0;
+    }
+    if (total >= max_total) {
+        srv_problem_set(p, 503, "EBUSY", "%d event streams are open, the most "
+                        "this daemon keeps (half of --max-connections %d)",
+                        total, cfg->max_connections);
+        return 0;
+    }
+    return 1;
+}
+
 static int terminal(srv_job_status s)
 {
     return s == SRV_JOB_SUCCEEDED || s == SRV_JOB_FAILED ||
@@ -165,6 +199,12 @@ static ssize_t reader(void *cls, uint64_t pos, char *buf, size_t max)
         if (s->finished)
             return MHD_CONTENT_READER_END_OF_STREAM;
         srv_lock();
+        if (s->w.gone) {
+            /* The client left while the stream slept (found by
+             * srv_jobs_check_clients): end it, freeing the connection. */
+            srv_unlock();
+            return MHD_CONTENT_READER_END_WITH_ERROR;
+        }
         if (!fill(s)) {
             /* Nothing new: sleep until the worker has more. */
             srv_waiter_suspend(&s->w);
@@ -189,6 +229,7 @@ static void release(void *cls)
 
     srv_lock();
     srv_waiter_unlink(s->job, &s->w);
+    g_followers--;
     srv_unlock();
     srv_job_unref(s->job);
     api_buf_free(&s->pend);
@@ -220,6 +261,7 @@ struct MHD_Response *srv_stream_response(srv_job *j, srv_stream_kind kind,
     srv_lock();
     j->refs++;
     srv_waiter_link(j, &s->w);
+    g_followers++;
     srv_unlock();
     MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE,
                             kind == SRV_STREAM_SSE ? "text/event-stream"

@@ -44,6 +44,7 @@
 #include "../api/api.h"
 
 #define SRV_ID_BUF 33   /* a job ID: 32 hex digits and the NUL */
+#define SRV_FOLLOWERS 64 /* event streams one job may have (srv.h) */
 
 /* ------------------------------------------------------------ processes */
 
@@ -62,6 +63,8 @@ static pid_t g_started[64];
 static int g_nstarted;
 static daemon_t g_main;   /* shared by the tests that need no special flags */
 static void unlock_dirs(void);
+static void wait_gauge_within(const daemon_t *d, const char *name, double want,
+                              double seconds, const char *what);
 
 static void sleep_ms(int ms)
 {
@@ -1877,6 +1880,104 @@ static void test_spool_failures(void **state)
     stop_daemon(&d);
 }
 
+/* A connection from source address `from` (127.0.0.x) to d, the request
+ * `req` sent; returns the socket. */
+static int connect_from(const daemon_t *d, const char *from, const char *req)
+{
+    struct sockaddr_in sa, src;
+    struct timeval tv = {5, 0};
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+
+    assert_true(fd >= 0);
+    memset(&src, 0, sizeof src);
+    src.sin_family = AF_INET;
+    inet_pton(AF_INET, from, &src.sin_addr);
+    assert_int_equal(bind(fd, (struct sockaddr *)&src, sizeof src), 0);
+    memset(&sa, 0, sizeof sa);
+    sa.sin_family = AF_INET;
+    sa.sin_port = htons((uint16_t)d->port);
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    assert_int_equal(connect(fd, (struct sockaddr *)&sa, sizeof sa), 0);
+    if (write(fd, req, strlen(req)) < 0) {
+        /* refused at once: the caller reads the outcome */
+    }
+    return fd;
+}
+
+/* Issue 9 item 3, in part: 520 SSE followers of a queued job locked the
+ * daemon out and kept their descriptors after the clients left; one
+ * address could take every connection slot (slowloris), /healthz
+ * included. Now a job has at most 64 followers (503 beyond), a follower
+ * that hangs up is let go within a tick, and one address holds at most
+ * --max-connections-per-ip connections. */
+static void test_followers_and_per_ip(void **state)
+{
+    daemon_t d;
+    char spool[600], a[SRV_ID_BUF], b[SRV_ID_BUF], req[256], path[160];
+    int fds[70], i, ok = 0, busy = 0;
+    resp_t r;
+
+    (void)state;
+    {
+        static const char *const flags[] = {"--workers", "1",
+                                            "--max-connections-per-ip", "0",
+                                            NULL};
+        snprintf(spool, sizeof spool, "%s/followers", g_tmp);
+        assert_int_equal(start_daemon(&d, "followers", spool, flags), 0);
+    }
+    submit(&d, "?iterations=100000&dt=1e-7", a);
+    wait_running(&d, a);
+    submit(&d, "?iterations=2", b); /* queued behind a */
+    snprintf(req, sizeof req, "GET /v1/jobs/%s/events HTTP/1.1\r\nHost: "
+             "127.0.0.1\r\n\r\n", b);
+    for (i = 0; i < 70; i++) {
+        char buf[512];
+        ssize_t n;
+        fds[i] = connect_from(&d, "127.0.0.1", req);
+        n = read(fds[i], buf, sizeof buf - 1);
+        buf[n > 0 ? n : 0] = '\0';
+        ok += strncmp(buf, "HTTP/1.1 200", 12) == 0;
+        busy += strncmp(buf, "HTTP/1.1 503", 12) == 0;
+    }
+    if (ok != SRV_FOLLOWERS || busy != 70 - SRV_FOLLOWERS)
+        fail_msg("70 followers of one job: %d x 200, %d x 503", ok, busy);
+    wait_gauge_within(&d, "mcfd_followers", SRV_FOLLOWERS, 3, "followers open");
+    for (i = 0; i < 70; i++)
+        close(fds[i]);
+    wait_gauge_within(&d, "mcfd_followers", 0, 3, "followers that left");
+    snprintf(path, sizeof path, "/v1/jobs/%s", b);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s", a);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    resp_free(&r);
+    stop_daemon(&d);
+
+    /* 45 slowloris connections from 127.0.0.2 against 40 slots: at most
+     * 8 are held, /healthz from 127.0.0.1 answers at once */
+    {
+        static const char *const flags[] = {"--max-connections", "40",
+                                            "--max-connections-per-ip", "8",
+                                            NULL};
+        double t0;
+        snprintf(spool, sizeof spool, "%s/per-ip", g_tmp);
+        assert_int_equal(start_daemon(&d, "per-ip", spool, flags), 0);
+        for (i = 0; i < 45; i++)
+            fds[i] = connect_from(&d, "127.0.0.2",
+                                  "GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ");
+        sleep_ms(200);
+        t0 = mcf_now();
+        http(&d, "GET", "/healthz", NULL, NULL, &r);
+        expect_status(&d, &r, 200, "healthz beside 45 slowloris connections");
+        resp_free(&r);
+        assert_true(mcf_now() - t0 < 2);
+        for (i = 0; i < 45; i++)
+            close(fds[i]);
+        stop_daemon(&d);
+    }
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -2872,6 +2973,7 @@ int main(void)
         cmocka_unit_test_teardown(test_http_small_things, kill_strays),
         cmocka_unit_test_teardown(test_query_flood, kill_strays),
         cmocka_unit_test_teardown(test_spool_failures, kill_strays),
+        cmocka_unit_test_teardown(test_followers_and_per_ip, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
