@@ -538,19 +538,30 @@ static char *state_json(const srv_job *j)
     return s;
 }
 
+/* Writers of state.json, one at a time: a snapshot and its write go
+ * together, so the last snapshot taken is the last written (a DELETE and
+ * the worker's outcome raced, and the older one could land last). Taken
+ * before the job lock; held across the write, never by MHD's threads for
+ * long (one small file). */
+static pthread_mutex_t g_state_mu = PTHREAD_MUTEX_INITIALIZER;
+
 /* Snapshot under the lock, write outside it. */
 static int write_state(srv_job *j, int durable)
 {
     char *s;
     int rc;
 
+    pthread_mutex_lock(&g_state_mu);
     srv_lock();
     s = state_json(j);
     srv_unlock();
-    if (!s)
+    if (!s) {
+        pthread_mutex_unlock(&g_state_mu);
         return -1;
+    }
     rc = srv_spool_write(S.cfg->spool, j->id, "state.json", s, strlen(s),
                          durable);
+    pthread_mutex_unlock(&g_state_mu);
     free(s);
     return rc;
 }
@@ -668,6 +679,12 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
     }
     free(rs);
     rs = NULL;
+    /* On disk now: a queued job holds no copy in memory (80 queued
+     * uploads of 7 MB held 735 MB); the worker reads it back. */
+    free(j->input);
+    j->input = NULL;
+    free(j->target);
+    j->target = NULL;
 
     srv_lock();
     S.reserved--;
@@ -999,6 +1016,9 @@ static void run_job(srv_job *j)
     failed = 0;
 
 done:
+    /* Until the outcome is published: no other state.json write between
+     * its snapshot and the publication (a DELETE's would be stale). */
+    pthread_mutex_lock(&g_state_mu);
     srv_lock();
     if (requeue) {
         /* Back to queued on disk; the process is exiting. */
@@ -1050,6 +1070,7 @@ done:
     srv_lock();
     j->status = final;
     srv_unlock();
+    pthread_mutex_unlock(&g_state_mu);
     /* Counted before anyone hears, so /metrics agrees with what clients
      * have seen. */
     if (!requeue) {

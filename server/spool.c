@@ -175,7 +175,7 @@ int srv_spool_mkjob(const char *spool, const char *id)
 int srv_spool_write(const char *spool, const char *id, const char *name,
                     const void *data, size_t len, int durable)
 {
-    char path[1400], tmp[1420], dir[1300];
+    char path[1400], tmp[1440], dir[1300];
     const char *p = data;
     size_t done = 0;
     int fd, rc = -1;
@@ -183,7 +183,17 @@ int srv_spool_write(const char *spool, const char *id, const char *name,
     if (srv_spool_path(path, sizeof path, spool, id, name) != 0 ||
         srv_spool_path(dir, sizeof dir, spool, id, "") != 0)
         return -1;
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    {
+        /* Each writer its own temporary file: two writers of one name
+         * must never rename each other's half-written bytes. */
+        static unsigned long seq;
+        static pthread_mutex_t seq_mu = PTHREAD_MUTEX_INITIALIZER;
+        unsigned long k;
+        pthread_mutex_lock(&seq_mu);
+        k = ++seq;
+        pthread_mutex_unlock(&seq_mu);
+        snprintf(tmp, sizeof tmp, "%s.%lu.tmp", path, k);
+    }
     fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0640);
     if (fd < 0)
         return -1;
