@@ -35,7 +35,8 @@ enum {
     O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
     O_MAX_CONN_IP, O_SPOOL,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
-    O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_TOKEN, O_LOG, O_PROBE,
+    O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT, O_TOKEN,
+    O_LOG, O_PROBE,
     O_HELP, O_VERSION, O_COUNT
 };
 
@@ -77,6 +78,10 @@ static const option opts[O_COUNT] = {
     [O_DRAIN] = {"--drain-timeout", "MCFD_DRAIN_TIMEOUT", T_DUR, 0, 0,
                  "SIGTERM: wait for running jobs, then checkpoint "
                  "(default 25s)"},
+    [O_HEADER_TIMEOUT] = {"--header-timeout", "MCFD_HEADER_TIMEOUT", T_DUR,
+                          0, 0, "a request's line and headers must arrive "
+                          "within this of the connection or the last answer, "
+                          "0: no limit (default 30s)"},
     [O_TOKEN] = {"--token-file", "MCFD_TOKEN_FILE", T_STR, 0, 0,
                  "file holding the bearer token (default: no auth)"},
     [O_LOG] = {"--log-level", "MCFD_LOG_LEVEL", T_LEVEL, 0, 0,
@@ -208,6 +213,7 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
     case O_TTL: cfg->result_ttl = d; break;
     case O_JOB_TIMEOUT: cfg->job_timeout = d; break;
     case O_DRAIN: cfg->drain_timeout = d; break;
+    case O_HEADER_TIMEOUT: cfg->header_timeout = d; break;
     case O_TOKEN:
         snprintf(cfg->token_file, sizeof cfg->token_file, "%s", v);
         break;
@@ -291,6 +297,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->result_ttl = 3600;
     cfg->job_timeout = 600;
     cfg->drain_timeout = 25;
+    cfg->header_timeout = 30;
     cfg->log_level = SRV_LOG_INFO;
 
     for (o = 0; o < O_COUNT; o++) {

@@ -27,6 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -1154,12 +1155,30 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
 /* What a connection holds between MHD's notifications: the request whose
  * completion callback is still due, so that it is released when the
  * connection closes without one (MHD skips it when a request overflows
- * its pool after the URI callback, e.g. hundreds of headers). */
-typedef struct {
+ * its pool after the URI callback, e.g. hundreds of headers); and, for
+ * the header deadline, whether it is waiting for a request's headers and
+ * since when. Every connection is on g_conns (g_conns_mu guards the
+ * list, receiving and since). */
+typedef struct conn_state {
     srv_request *req;
+    int fd;
+    int receiving;             /* no complete request head yet */
+    double since;              /* srv_mono() when it began waiting */
+    struct conn_state *prev, *next;
 } conn_state;
 
+static pthread_mutex_t g_conns_mu = PTHREAD_MUTEX_INITIALIZER;
+static conn_state *g_conns;
+
 static void request_free(srv_request *r, int toe);
+
+static void conn_waiting(conn_state *cs, int receiving)
+{
+    pthread_mutex_lock(&g_conns_mu);
+    cs->receiving = receiving;
+    cs->since = srv_mono();
+    pthread_mutex_unlock(&g_conns_mu);
+}
 
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
@@ -1168,15 +1187,59 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     conn_state *cs = *socket_context;
 
     (void)cls;
-    (void)c;
     if (code == MHD_CONNECTION_NOTIFY_STARTED) {
-        *socket_context = calloc(1, sizeof(conn_state));
+        const union MHD_ConnectionInfo *ci =
+            MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+        cs = calloc(1, sizeof(conn_state));
+        if (cs) {
+            cs->fd = ci ? ci->connect_fd : -1;
+            cs->receiving = 1;
+            cs->since = srv_mono();
+            pthread_mutex_lock(&g_conns_mu);
+            cs->next = g_conns;
+            if (g_conns)
+                g_conns->prev = cs;
+            g_conns = cs;
+            pthread_mutex_unlock(&g_conns_mu);
+        }
+        *socket_context = cs;
         return;
     }
-    if (cs && cs->req)
-        request_free(cs->req, -1); /* never completed: abandoned */
+    if (cs) {
+        /* Off the list before MHD closes the socket (it notifies first),
+         * so srv_http_expire_heads never touches a reused descriptor. */
+        pthread_mutex_lock(&g_conns_mu);
+        if (cs->prev)
+            cs->prev->next = cs->next;
+        else
+            g_conns = cs->next;
+        if (cs->next)
+            cs->next->prev = cs->prev;
+        pthread_mutex_unlock(&g_conns_mu);
+        if (cs->req)
+            request_free(cs->req, -1); /* never completed: abandoned */
+    }
     free(cs);
     *socket_context = NULL;
+}
+
+int srv_http_expire_heads(double timeout)
+{
+    double now = srv_mono();
+    conn_state *cs;
+    int n = 0;
+
+    pthread_mutex_lock(&g_conns_mu);
+    for (cs = g_conns; cs; cs = cs->next)
+        if (cs->receiving && cs->fd >= 0 && now - cs->since > timeout) {
+            /* MHD reads the end of the stream and closes the connection
+             * itself; the descriptor stays MHD's to close. */
+            shutdown(cs->fd, SHUT_RDWR);
+            cs->receiving = 0;
+            n++;
+        }
+    pthread_mutex_unlock(&g_conns_mu);
+    return n;
 }
 
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
@@ -1233,6 +1296,8 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
         return MHD_NO; /* out of memory in the URI callback */
     if (!r->started) {
         r->started = 1;
+        if (r->conn) /* the head is in: the deadline is met */
+            conn_waiting(r->conn, 0);
         /* MHD takes an answer queued on this first call, before it knows
          * there is no body, as an early one and closes the connection
          * after it: no keep-alive, pipelined requests lost. Only uploads
@@ -1290,8 +1355,11 @@ static void request_free(srv_request *r, int toe)
 {
     cJSON *o;
 
-    if (r->conn)
-        ((conn_state *)r->conn)->req = NULL;
+    if (r->conn) {
+        conn_state *cs = r->conn;
+        cs->req = NULL;
+        conn_waiting(cs, 1); /* keep-alive: the next request's head */
+    }
     if (r->job) {
         srv_lock();
         srv_waiter_unlink(r->job, &r->w);

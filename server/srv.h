@@ -53,6 +53,7 @@ typedef struct {
     double result_ttl;         /* seconds a finished job is kept */
     double job_timeout;        /* seconds of flow per job, 0: unlimited */
     double drain_timeout;      /* seconds SIGTERM waits for running jobs */
+    double header_timeout;     /* seconds for a request's head, 0: none */
     char token_file[1024];     /* empty: no authentication */
     char token[512];           /* the bearer token read from token_file */
     size_t token_len;
@@ -348,7 +349,13 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c);
 void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                         enum MHD_RequestTerminationCode toe);
-/* MHD_OPTION_NOTIFY_CONNECTION: releases a request MHD never completed. */
+/* Closes the connections that have waited longer than timeout seconds
+ * for a complete request head (request line and headers), since they
+ * opened or since their last answer: slowloris clients. The main loop
+ * calls it with --header-timeout. Returns how many. */
+int srv_http_expire_heads(double timeout);
+/* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
+ * deadline; releases a request MHD never completed. */
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
                          enum MHD_ConnectionNotificationCode code);

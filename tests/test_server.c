@@ -2044,6 +2044,49 @@ static void test_queued_inputs_on_disk(void **state)
     stop_daemon(&d);
 }
 
+/* Issue 9 item 3, in part: slowloris headers (one header line every
+ * 0.2 s, forever) held a connection for as long as they trickled. With
+ * --header-timeout 1 the daemon closes it after about a second; a
+ * normal request on a new connection is answered. */
+static void test_header_deadline(void **state)
+{
+    static const char *const flags[] = {"--header-timeout", "1", NULL};
+    daemon_t d;
+    char spool[600];
+    double t0, closed = -1;
+    resp_t r;
+    int fd;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/header-deadline", g_tmp);
+    assert_int_equal(start_daemon(&d, "header-deadline", spool, flags), 0);
+    t0 = mcf_now();
+    fd = connect_from(&d, "127.0.0.1", "GET /healthz HTTP/1.1\r\nHost: x\r\n");
+    while (mcf_now() - t0 < 5) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 200) > 0) {
+            char b[64];
+            if (read(fd, b, sizeof b) <= 0) {
+                closed = mcf_now() - t0;
+                break;
+            }
+        }
+        if (write(fd, "X-Slow: 1\r\n", 11) != 11) {
+            closed = mcf_now() - t0;
+            break;
+        }
+    }
+    close(fd);
+    if (closed < 0)
+        fail_msg("a trickling request head was held for 5 s (--header-timeout 1)");
+    print_message("    trickling head closed after %.2f s\n", closed);
+    assert_true(closed >= 0.9 && closed < 3);
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthz after the slowloris");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -3041,6 +3084,7 @@ int main(void)
         cmocka_unit_test_teardown(test_spool_failures, kill_strays),
         cmocka_unit_test_teardown(test_followers_and_per_ip, kill_strays),
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
+        cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
