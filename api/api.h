@@ -239,6 +239,7 @@ typedef struct {
     uint64_t seed;
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
+    int tol_set;                  /* tol given (needs adaptive) */
 } api_params;
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */

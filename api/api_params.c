@@ -81,7 +81,12 @@ static void set_normalize(api_params *p, value v) { p->flow.normalize = v.e; }
 static void set_laplacian(api_params *p, value v) { p->flow.laplacian = (mcf_laplacian)v.e; }
 static void set_mass(api_params *p, value v) { p->flow.mass = (mcf_mass)v.e; }
 static void set_adaptive(api_params *p, value v) { p->flow.adaptive = v.e; }
-static void set_tol(api_params *p, value v) { p->flow.tol = v.d; }
+static void set_tol(api_params *p, value v)
+{
+    p->flow.tol = v.d;
+    p->tol_set = 1;
+}
+static void set_strength(api_params *p, value v) { p->flow.strength = v.d; }
 static void set_max_steps(api_params *p, value v) { p->flow.max_steps = (int)v.i; }
 static void set_noise(api_params *p, value v) { p->noise_rho = v.d; }
 static void set_seed(api_params *p, value v) { p->seed = v.u; }
@@ -99,6 +104,7 @@ static const keydef keys[] = {
     {"dt", K_NUM, 0, 1e3, AUTO, NULL, set_dt},
     {"iterations", K_INT, 1, 0, HI_ITER, NULL, set_iterations},
     {"time", K_NUM, 0, HUGE_VAL, 0, NULL, set_time},
+    {"strength", K_NUM, 0, 100, 0, NULL, set_strength},
     {"boundary", K_ENUM, 0, 0, 0, boundary_names, set_boundary},
     {"fixed_vertices", K_LIST, 0, 0, 0, NULL, NULL},
     {"rescale", K_ENUM, 0, 0, 0, rescale_names, set_rescale},
@@ -445,6 +451,7 @@ void api_params_init(api_params *p)
     p->fixed_owned = NULL;
     p->time_set = 0;
     p->iterations_set = 0;
+    p->tol_set = 0;
 }
 
 void api_params_free(api_params *p)
@@ -738,9 +745,9 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         api_limits_default(&def);
         lim = &def;
     }
-    if (p->time_set && p->iterations_set)
+    if (p->tol_set && !p->flow.adaptive)
         return api__fail(err, MCF_EINVAL,
-                         "give either 'time' or 'iterations', not both");
+                         "parameter 'tol' applies to adaptive runs only: add adaptive=true or drop tol");
     for (i = 0; i < p->flow.nfixed; i++)
         if (p->flow.fixed[i] < 0 || p->flow.fixed[i] >= nv)
             return api__fail(err, MCF_EINVAL,
@@ -751,24 +758,28 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
     if (nv < 1)
         return api__fail(err, MCF_EINVAL, "mesh has no vertices");
 
-    /* Work bound: steps x vertices. A fixed-step run over a time has a
-     * known step count; an adaptive or dt=auto one does not, so its hard
+    /* Work bound: steps x vertices. When the parameters alone give the
+     * step count (mcf.h, "The amount of smoothing"), it is checked here;
+     * when it depends on the mesh's edge lengths or lambda_max (dt set
+     * and the amount from strength, dt=auto, adaptive), the core's hard
      * cap max_steps is lowered to what the limits allow instead. */
-    if (p->flow.time > 0.0 && !p->flow.adaptive && !p->flow.dt_auto) {
+    if (p->flow.scheme == MCF_TAUBIN || (!p->flow.adaptive && !p->flow.dt_auto && !(p->flow.dt > 0.0))) {
+        steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
+    } else if (!p->flow.adaptive && !p->flow.dt_auto && p->flow.time > 0.0) {
         steps = ceil(p->flow.time / p->flow.dt - 1e-9);
         if (steps > lim->max_iterations)
-            return api__fail(err, MCF_ELIMIT,
-                             "time/dt = %.3g steps exceeds max_iterations (%d)",
+            return api__fail(err, MCF_EINVAL,
+                             "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
                              steps, lim->max_iterations);
-    } else if (p->flow.time > 0.0) {
+    } else if (!p->flow.adaptive && p->flow.iterations > 0 && p->flow.time <= 0.0) {
+        steps = p->flow.iterations;
+    } else {
         double cap = floor(lim->max_work / nv);
         if (cap < p->flow.max_steps)
             p->flow.max_steps = cap < 1 ? 1 : (int)cap;
         if (p->flow.max_steps > lim->max_iterations)
             p->flow.max_steps = lim->max_iterations;
         steps = p->flow.max_steps;
-    } else {
-        steps = p->flow.iterations;
     }
     if (steps * (double)nv > lim->max_work)
         return api__fail(err, MCF_ELIMIT,
@@ -795,15 +806,17 @@ cJSON *api_params_to_json(const api_params *p)
     if (!ok)
         return NULL;
     ok &= cJSON_AddStringToObject(j, "scheme", si ? si->name : "unknown") != NULL;
+    /* What was given, so the object parses back to the same job: an
+     * unset dt, time or iterations is derived from strength by the core */
     if (p->flow.dt_auto)
         ok &= cJSON_AddStringToObject(j, "dt", "auto") != NULL;
-    else
+    else if (p->flow.dt > 0.0)
         ok &= cJSON_AddNumberToObject(j, "dt", p->flow.dt) != NULL;
-    /* One of the two, so the object parses back to the same job. */
     if (p->time_set)
         ok &= cJSON_AddNumberToObject(j, "time", p->flow.time) != NULL;
-    else
+    if (p->iterations_set)
         ok &= cJSON_AddNumberToObject(j, "iterations", p->flow.iterations) != NULL;
+    ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
     ok &= cJSON_AddStringToObject(j, "boundary",
                                   enum_name(boundary_names, (int)p->flow.boundary)) != NULL;
     fx = cJSON_AddArrayToObject(j, "fixed_vertices");
@@ -819,7 +832,8 @@ cJSON *api_params_to_json(const api_params *p)
                                   enum_name(laplacian_names, (int)p->flow.laplacian)) != NULL;
     ok &= cJSON_AddStringToObject(j, "mass", enum_name(mass_names, (int)p->flow.mass)) != NULL;
     ok &= cJSON_AddBoolToObject(j, "adaptive", p->flow.adaptive) != NULL;
-    ok &= cJSON_AddNumberToObject(j, "tol", p->flow.tol) != NULL;
+    if (p->tol_set)
+        ok &= cJSON_AddNumberToObject(j, "tol", p->flow.tol) != NULL;
     ok &= cJSON_AddNumberToObject(j, "max_steps", p->flow.max_steps) != NULL;
     ok &= cJSON_AddNumberToObject(j, "noise", p->noise_rho) != NULL;
     /* Above 2^53 a JSON number would lose bits: the seed goes as text. */

@@ -38,10 +38,10 @@
 
 static const char usage_text[] =
     "usage:\n"
-    "  mcf smooth IN OUT [--scheme S] [--dt D|auto] [--iterations N | --time T]\n"
+    "  mcf smooth IN OUT [--scheme S] [--strength S] [--time T] [--iterations N] [--dt D|auto]\n"
     "                    [--boundary fixed|free] [--fix-vertices FILE] [--rescale none|volume|area]\n"
     "                    [--normalize | --no-normalize] [--laplacian cotan|uniform]\n"
-    "                    [--mass barycentric|voronoi] [--adaptive --tol E]\n"
+    "                    [--mass barycentric|voronoi] [--adaptive [--tol E] [--max-steps N]]\n"
     "                    [--target FILE] [--noise RHO --seed K] [--metrics FILE.json] [--quiet]\n"
     "                    [--format F] [--quantization-bits B|auto] [--compression-level C] [--preserve-order]\n"
     "                    [--ply-curvature]\n"
@@ -57,7 +57,11 @@ static const char usage_text[] =
     "\n"
     "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
     "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
-    "0-based vertex indices separated by white space or commas.\n";
+    "0-based vertex indices separated by white space or commas.\n"
+    "Amount: by default the flow runs to time strength^2 h^2 (h: the mean edge\n"
+    "length; --strength is the diffusion length in mean edges, default 0.33) in 10\n"
+    "steps; --time (in unit-area units unless --no-normalize) or --iterations with\n"
+    "--dt override it; --iterations alone sets the step count.\n";
 
 /* Set by SIGINT/SIGTERM; the flow loads it before every step. A lock-free
  * C11 atomic (mcf_cancel_flag), which a signal handler may store to. */
@@ -233,8 +237,8 @@ typedef struct {
 
 /* Flags that map to a parameter with a value, by command. */
 static const char *const smooth_valued[] = {
-    "scheme", "dt", "iterations", "time", "boundary", "rescale", "laplacian",
-    "mass", "tol", "noise", "seed", "format", "quantization-bits",
+    "scheme", "dt", "iterations", "time", "strength", "boundary", "rescale",
+    "laplacian", "mass", "tol", "max-steps", "noise", "seed", "format", "quantization-bits",
     "compression-level", NULL};
 static const char *const convert_valued[] = {
     "format", "quantization-bits", "compression-level", NULL};

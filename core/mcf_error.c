@@ -1,6 +1,6 @@
 /*
- * mcf_error.c - status codes, their texts, the error-buffer helper and the
- * overflow-checked allocators every file of libmcf uses.
+ * mcf_error.c - status codes and warnings, their texts, the error-buffer
+ * helper and the overflow-checked allocators every file of libmcf uses.
  *
  * The texts come from the one MCF_ERRORS table in mcf.h, so the enum, the
  * messages and the server's HTTP map cannot drift apart.
@@ -30,6 +30,26 @@ const char *mcf_status_name(mcf_status s)
 #undef MCF_X_
     }
     return "EUNKNOWN";
+}
+
+const char *mcf_warning_name(unsigned bit)
+{
+    switch (bit) {
+#define MCF_X_(name, b, id, text) case MCF_WARN_##name: return id;
+        MCF_WARNINGS(MCF_X_)
+#undef MCF_X_
+    }
+    return NULL;
+}
+
+const char *mcf_warning_text(unsigned bit)
+{
+    switch (bit) {
+#define MCF_X_(name, b, id, text) case MCF_WARN_##name: return text;
+        MCF_WARNINGS(MCF_X_)
+#undef MCF_X_
+    }
+    return NULL;
 }
 
 mcf_status mcf_error_set(mcf_error *err, mcf_status code, const char *fmt, ...)

@@ -85,15 +85,16 @@ void mcf_flow_params_init(mcf_flow_params *p)
 {
     memset(p, 0, sizeof *p);
     p->scheme = MCF_DESBRUN2;
-    p->dt = 1e-4;
-    p->iterations = 10;
+    p->dt = 0.0;        /* derived from the amount */
+    p->iterations = 0;  /* MCF_DEFAULT_STEPS */
+    p->strength = MCF_DEFAULT_STRENGTH;
     p->boundary = MCF_BOUNDARY_FIXED;
     p->rescale = MCF_RESCALE_NONE;
     p->normalize = 1;
     p->laplacian = MCF_LAPLACIAN_COTAN;
     p->mass = MCF_MASS_BARYCENTRIC;
     p->tol = 1e-4;
-    p->max_steps = 100000;
+    p->max_steps = 10000;
     p->implicit_tol = 1e-10;
     p->implicit_maxit = 200;
 }
@@ -105,14 +106,16 @@ mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv, mcf_error *er
         return mcf__fail(err, MCF_EINVAL, "scheme: unknown scheme %d", (int)p->scheme);
     if (p->dt_auto && !si->is_explicit)
         return mcf__fail(err, MCF_EINVAL, "dt: \"auto\" applies to explicit schemes only, not '%s'", si->name);
-    if (!p->dt_auto && !(isfinite(p->dt) && p->dt > 0.0))
-        return mcf__fail(err, MCF_EINVAL, "dt: must be a finite number > 0, got %g", p->dt);
+    if (!p->dt_auto && !(isfinite(p->dt) && p->dt >= 0.0))
+        return mcf__fail(err, MCF_EINVAL, "dt: must be a finite number > 0 (or 0: derived), got %g", p->dt);
     if (!isfinite(p->time) || p->time < 0.0)
         return mcf__fail(err, MCF_EINVAL, "time: must be a finite number >= 0, got %g", p->time);
-    if (p->time <= 0.0 && p->iterations < 1)
-        return mcf__fail(err, MCF_EINVAL, "iterations: must be >= 1 when no time is given, got %d", p->iterations);
+    if (p->iterations < 0)
+        return mcf__fail(err, MCF_EINVAL, "iterations: must be >= 1 (or 0: the default), got %d", p->iterations);
+    if (!(isfinite(p->strength) && p->strength > 0.0))
+        return mcf__fail(err, MCF_EINVAL, "strength: must be a finite number > 0, got %g", p->strength);
     if (p->scheme == MCF_TAUBIN && (p->time > 0.0 || p->adaptive || p->dt_auto))
-        return mcf__fail(err, MCF_EINVAL, "taubin is a filter: it takes iterations, not time, dt=auto or adaptive");
+        return mcf__fail(err, MCF_EINVAL, "taubin is a filter: it takes iterations (passes), not time, dt=auto or adaptive");
     if (p->adaptive && !si->has_estimate)
         return mcf__fail(err, MCF_EINVAL, "adaptive: scheme '%s' has no error estimate (use desbrun2, ros2, richardson or desbrun)", si->name);
     if (p->adaptive && !(p->tol > 0.0 && p->tol <= 1.0))
@@ -495,6 +498,29 @@ static double mnorm(const flow_ctx *c, const double *D, const double *mass)
     return ms > 0.0 ? sqrt(s / ms) : 0.0;
 }
 
+/* The M-norm of W^-1 (cmass M) D, for D (3*nv, zero on fixed vertices)
+ * and the current factor W = cmass M + s L (mass: the M inside W): an
+ * error estimate seen through the step's own resolvent (Shampine's
+ * filter, as ros2 does). A mode of L with eigenvalue lambda is scaled by
+ * 1 / (1 + s lambda / cmass): smooth modes (s lambda << 1), whose local
+ * errors add up to the global one, pass unchanged; stiff modes (slivers,
+ * the noise), which the L-stable step damps anyway, are damped too. Raw,
+ * those dominate every estimate on a scan and the controller crawls
+ * (dt 1e-11 after 22k steps on an 11k-vertex head). One more back-solve
+ * (3 columns) with the factor already at hand; D is overwritten. */
+static mcf_status filtered_mnorm(flow_ctx *c, double cmass, const double *mass, double *D,
+                                 double *out, mcf_error *err)
+{
+    mcf_status rc;
+    for (int i = 0; i < c->nv; i++)
+        for (int d = 0; d < 3; d++)
+            c->B[3 * i + d] = c->fixed[i] ? 0.0 : cmass * mass[i] * D[3 * i + d];
+    if ((rc = solve(c, c->B, D, err)) != MCF_OK)
+        return rc;
+    *out = mnorm(c, D, mass);
+    return MCF_OK;
+}
+
 /* ----------------------------------------------------- the schemes */
 
 /* X+ = X + dt V + dt^2/2 ((Dh + |A|^2 h) n - h grad h): MATH.md huisken2. */
@@ -630,10 +656,10 @@ static mcf_status desbrun_step(flow_ctx *c, double h, double *est, mcf_error *er
     ops_at(c, c->T2, c->w2, c->area2, c->mass2);
     if ((rc = be_step(c, c->T2, 0.5 * h, c->w2, c->mass2, c->X, err)) != MCF_OK)
         return rc;
+    /* the last factor is that of the second half step, at T2 */
     for (size_t i = 0; i < 3 * (size_t)c->nv; i++)
         c->V[i] = c->X[i] - c->T1[i];
-    *est = mnorm(c, c->V, c->mass);
-    return MCF_OK;
+    return filtered_mnorm(c, 1.0, c->mass2, c->V, est, err);
 }
 
 /* Everything one attempted step needs to know about history. */
@@ -713,8 +739,10 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
                 double l2 = (tp - tm2) * (tp - tm1) / ((tk - tm2) * (tk - tm1));
                 for (size_t i = 0; i < n3; i++)
                     c->V[i] = X[i] - (l0 * c->Xprev2[i] + l1 * c->Xprev[i] + l2 * c->Xold[i]);
-                double fac = h * (h + h1) / ((2.0 * h + h1) * (h + h1 + h2));
-                *est = fac * mnorm(c, c->V, c->mass);
+                double fac = h * (h + h1) / ((2.0 * h + h1) * (h + h1 + h2)), e;
+                if ((rc = filtered_mnorm(c, c0, c->mass, c->V, &e, err)) != MCF_OK)
+                    break;
+                *est = fac * e;
             }
         }
         break;
@@ -769,8 +797,8 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
             c->V2[i] = c->V[i] - c->T1[i];
             X[i] = 2.0 * c->V[i] - c->T1[i];
         }
-        if (est)
-            *est = mnorm(c, c->V2, c->mass);
+        if (est) /* the last factor: the second half step's, at T2 */
+            rc = filtered_mnorm(c, 1.0, c->mass2, c->V2, est, err);
         break;
     case MCF_IMPLICIT:
         rc = step_implicit(c, h, err);
@@ -940,6 +968,84 @@ static mcf_status unstable(const flow_ctx *c, mcf_error *err, int step, double h
                      c->si->is_explicit ? " (explicit scheme beyond its stability limit: try dt=auto)" : "");
 }
 
+/* Shortest edge of positive length (0 when none). */
+static double min_edge(const double *X, const int32_t *F, int nf)
+{
+    double mn = INFINITY;
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            double e[3];
+            mcf__sub3(X + 3 * (size_t)F[3 * f + k], X + 3 * (size_t)F[3 * f + (k + 1) % 3], e);
+            double l2 = mcf__dot3(e, e);
+            if (l2 > 0.0 && l2 < mn)
+                mn = l2;
+        }
+    return isfinite(mn) ? sqrt(mn) : 0.0;
+}
+
+/* Faces of X that lie backwards in their neighbourhood: the normal
+ * points against the sum of the area-weighted normals of the faces around
+ * its three vertices (folded_faces' second test, without a "before").
+ * -1 when out of memory. */
+static int backwards_faces(const double *X, const int32_t *F, int nf, int nv)
+{
+    double *fn = mcf__malloc(3 * (size_t)nf, sizeof(double));
+    double *N = mcf__calloc(3 * (size_t)nv, sizeof(double));
+    int bad = 0;
+    if (!fn || !N) {
+        free(fn);
+        free(N);
+        return -1;
+    }
+    face_normals(X, F, nf, fn);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                N[3 * (size_t)F[3 * f + k] + d] += fn[3 * (size_t)f + d];
+    for (int f = 0; f < nf; f++) {
+        double s[3] = {0, 0, 0};
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                s[d] += N[3 * (size_t)F[3 * f + k] + d];
+        bad += mcf__dot3(fn + 3 * (size_t)f, s) < 0.0;
+    }
+    free(fn);
+    free(N);
+    return bad;
+}
+
+/* The warnings of a finished run (result X, input X_in, both in input
+ * units). Thresholds, measured on the shared scans with 0.1-0.5 mean
+ * edges of injected noise (README, "Choosing the amount"):
+ *  - folds: the result has more faces lying backwards in their
+ *    neighbourhood (backwards_faces) than the input, by over 0.1% of the
+ *    faces (and at least 3); at useful amounts the flow adds none to a
+ *    handful on clean meshes.
+ *  - edge_collapse: the shortest edge shrank more than 1000x; smoothing
+ *    noise evens edges out, it never needs to collapse one.
+ *  - area_loss: more than 30% of the area lost with rescale off; noise
+ *    of half a mean edge inflates a scan's area by about 10-15%.
+ *  - little_smoothing: less than 0.1 mean edges of diffusion (t < 0.01
+ *    h^2): the result is indistinguishable from the input. */
+static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats *st)
+{
+    const mcf_flow_params *p = c->p;
+    double me0 = min_edge(X_in, c->F, c->nf), me1 = min_edge(c->X, c->F, c->nf);
+    int b0 = backwards_faces(X_in, c->F, c->nf, c->nv), b1 = backwards_faces(c->X, c->F, c->nf, c->nv);
+    st->folded_faces = b0 < 0 || b1 < 0 || b1 < b0 ? 0 : b1 - b0;
+    st->min_edge_ratio = me0 > 0.0 ? me1 / me0 : 1.0;
+    st->area_ratio = st->area0 > 0.0 ? st->area1 / st->area0 : 1.0;
+    st->strength = st->mean_edge > 0.0 ? sqrt(st->t_final) / st->mean_edge : 0.0;
+    if (st->folded_faces >= 3 && st->folded_faces > 1e-3 * c->nf)
+        st->warnings |= MCF_WARN_FOLDS;
+    if (st->min_edge_ratio < 1e-3)
+        st->warnings |= MCF_WARN_EDGE_COLLAPSE;
+    if (p->rescale == MCF_RESCALE_NONE && st->area_ratio < 0.7)
+        st->warnings |= MCF_WARN_AREA_LOSS;
+    if (p->scheme != MCF_TAUBIN && st->strength < 0.1)
+        st->warnings |= MCF_WARN_LITTLE_SMOOTHING;
+}
+
 mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                         mcf_flow_stats *stats, mcf_error *err)
 {
@@ -996,11 +1102,20 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     c.V = ctx_alloc(&c, n3); c.V2 = ctx_alloc(&c, n3); c.B = ctx_alloc(&c, n3);
     c.T1 = ctx_alloc(&c, n3); c.T2 = ctx_alloc(&c, n3); c.Xold = ctx_alloc(&c, n3);
     c.Xprev = ctx_alloc(&c, n3); c.Xprev2 = ctx_alloc(&c, n3);
-    /* adaptive runs reject steps that fold faces (see folded_faces).
-     * Fixed-step runs do not: even a stable explicit step (dt = 0.25 /
-     * lambda_max on a noisy scan) folds the odd face through the flow's
-     * own nonlinearity, so a fold proves no instability. */
-    int check_inv = p->adaptive;
+    /* adaptive runs reject steps that fold too many faces (see
+     * folded_faces). Not every fold proves a step too large: even a stable
+     * explicit step (dt = 0.25 / lambda_max on a noisy scan) folds the odd
+     * sliver through the flow's own nonlinearity, and on a scan full of
+     * needles (snowden) every step folds 1-20 of 109k faces at any size
+     * down to 1e-9; past strength 1 the flow itself crumples ears at a
+     * rate proportional to the time covered (armadillo, t = 1e-4: about
+     * 2e8 folds per unit time). Rejecting those made dt collapse and the
+     * run crawl (dt 1e-11 after 22k steps). So a step is rejected for
+     * folds only past fold_budget (0.1% of the faces, the FOLDS warning's
+     * threshold) AND past 4x what the run's own fold rate predicts for
+     * its size: folds that grow with the step faster than linearly are a
+     * step too large; the flow's own are reported by the FOLDS warning. */
+    int check_inv = p->adaptive, fold_budget = c.nf / 1000, folds_total = 0;
     if (check_inv) {
         c.fn = ctx_alloc(&c, 3 * nf);
         c.fn2 = ctx_alloc(&c, 3 * nf);
@@ -1039,7 +1154,9 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         if (fix_boundary)
             mark_boundary(&c);
     }
-    c.delta = MCF_MOLLIFY * mcf__mean_edge(c.X, c.F, c.nf);
+    double hbar = mcf__mean_edge(c.X, c.F, c.nf);
+    st->mean_edge = hbar;
+    c.delta = MCF_MOLLIFY * hbar;
     /* vertices without mass stay put: the unreferenced ones (every
      * referenced vertex has barycentric mass, the mollified areas being
      * positive) and, with the Voronoi mass, any other */
@@ -1060,9 +1177,10 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     if (p->scheme == MCF_CMCF || p->scheme == MCF_LINEAR)
         ops_at(&c, c.X, c.w2, c.area2, c.mass2); /* L_0 (and M_0) from the input */
 
-    /* step size and count */
+    /* the amount and the steps (mcf.h, "The amount of smoothing") */
     double h = p->dt, T = p->time;
-    int nsteps = p->iterations;
+    int dt_set = p->dt_auto || p->dt > 0.0;
+    int nsteps = p->iterations > 0 ? p->iterations : MCF_DEFAULT_STEPS;
     if (p->dt_auto) {
         mcf_mesh tmp = {c.nv, c.nf, c.X, (int32_t *)(uintptr_t)c.F};
         if ((rc = mcf_lambda_max(&tmp, p->laplacian, p->mass, &st->lambda_max, err)) != MCF_OK)
@@ -1072,17 +1190,27 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
          * 10% margin for the power iteration's underestimate */
         h = 0.45 * c.si->stability / st->lambda_max;
     }
-    if (!p->adaptive && T > 0.0) {
+    if (p->scheme == MCF_TAUBIN) {
+        h = T = 0.0; /* passes, no time */
+    } else if (T <= 0.0) {
+        T = p->iterations > 0 && dt_set ? p->iterations * h
+                                        : p->strength * p->strength * hbar * hbar;
+    }
+    st->t_target = T;
+    if (p->scheme != MCF_TAUBIN && !dt_set) {
+        h = T / nsteps;
+    } else if (p->scheme != MCF_TAUBIN && !p->adaptive) {
         double k = ceil(T / h * (1.0 - 1e-12));
         if (k > (double)p->max_steps) {
-            rc = mcf__fail(err, MCF_ELIMIT, "time %g at dt %g needs %.0f steps, over max_steps %d", T, h, k, p->max_steps);
+            rc = mcf__fail(err, MCF_ELIMIT, "time %g at dt %g needs %.0f steps, over max_steps %d%s", T, h, k, p->max_steps,
+                           p->dt_auto ? " (dt=auto is set by the stiffest triangle: use an implicit scheme such as desbrun2)" : "");
             goto done;
         }
         nsteps = k < 1 ? 1 : (int)k;
         h = T / nsteps;
     }
-    if (p->adaptive && T <= 0.0)
-        T = h * p->iterations;
+    if (p->adaptive)
+        h = fmin(h, T);
     if (p->log_steps && !st->log && !p->adaptive && nsteps > 0 &&
         !(st->log = mcf__calloc((size_t)nsteps, sizeof *st->log))) {
         rc = mcf__fail(err, MCF_ENOMEM, "flow: out of memory for the step log");
@@ -1109,7 +1237,8 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         }
         if (p->adaptive) {
             if (++attempts > p->max_steps) {
-                rc = mcf__fail(err, MCF_ELIMIT, "adaptive: %d attempts reached max_steps before t = %g (at t = %g)", attempts - 1, T, t);
+                rc = mcf__fail(err, MCF_ELIMIT, "adaptive: max_steps (%d attempts, %d accepted) reached at t = %g of %g; raise max_steps or tol",
+                               p->max_steps, k, t, T);
                 goto done;
             }
             if (t + h > T || T - (t + h) < 1e-9 * h)
@@ -1151,20 +1280,23 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
             double allowed = per_unit ? p->tol * h / T : p->tol;
             double ratio = need_est && est > 0.0 ? allowed / est : 1e3;
             double fac = 0.9 * pow(ratio, per_unit ? 1.0 / q : 1.0 / (q + 1));
-            if (!finite || inv > 0 || (need_est && est > allowed)) {
+            double fold_rate = t > 0.0 ? folds_total / t : 0.0;
+            int folds = inv > fold_budget && inv > 4.0 * fold_rate * h;
+            if (!finite || folds || (need_est && est > allowed)) {
                 memcpy(c.X, c.Xold, n3 * sizeof(double));
                 in_step = 0;
                 st->rejected++;
                 rejected_here++;
-                h *= (!finite || inv > 0) ? 0.25 : fmax(0.2, fac);
+                h *= (!finite || folds) ? 0.25 : fmax(0.2, fac);
                 if (h < 1e-14 * T) {
                     rc = mcf__fail(err, MCF_ENUMERIC, "adaptive: step size underflow at t = %g (%s)", t,
-                                   !finite ? "non-finite positions" : inv > 0 ? "folded faces" : "error estimate");
+                                   !finite ? "non-finite positions" : folds ? "folded faces" : "error estimate");
                     goto done;
                 }
                 continue;
             }
             rc = MCF_OK;
+            folds_total += inv;
             /* desbrun2's second step reuses h: BDF2 starts at ratio 1 */
             h_next = per_unit && hist.nhist == 0 ? h : h * fmin(2.0, fmax(0.2, fac));
         } else {
@@ -1252,6 +1384,8 @@ done:
         rc = unstable(&c, err, st->steps, st->dt_max, st->area1 / area_in);
     if (st->dt_min == INFINITY || st->steps == 0)
         st->dt_min = 0.0;
+    if (rc == MCF_OK)
+        flow_warnings(&c, X_in, st);
     st->peak_bytes = c.bytes + (c.have_solver ? c.cm.memory_usage : 0);
     st->time_total = mcf_now() - t_start;
     free(X_in);

@@ -94,8 +94,9 @@ static void test_defaults(void **state)
     (void)state;
     api_params_init(&p);
     assert_int_equal(p.flow.scheme, MCF_DESBRUN2);
-    assert_true(p.flow.dt == 1e-4);
-    assert_int_equal(p.flow.iterations, 10);
+    assert_true(p.flow.dt == 0.0); /* derived from the amount */
+    assert_int_equal(p.flow.iterations, 0);
+    assert_true(p.flow.strength == MCF_DEFAULT_STRENGTH);
     assert_int_equal(p.flow.normalize, 1);
     assert_int_equal(p.encode.format, API_FMT_UNKNOWN);
     assert_int_equal(p.encode.compression_level, 7);
@@ -228,7 +229,7 @@ static void test_bad_values(void **state)
     bad3("fixed_vertices", "3000000000", MCF_EINVAL, "(item 1)");
     bad3("iterationz", "5", MCF_EINVAL,
          "unknown parameter 'iterationz' (accepted: scheme,dt,iterations,time,"
-         "boundary,fixed_vertices,rescale,normalize,laplacian,mass,adaptive,tol,"
+         "strength,boundary,fixed_vertices,rescale,normalize,laplacian,mass,adaptive,tol,"
          "max_steps,noise,seed,format,quantization_bits,compression_level,"
          "preserve_order,ply_curvature,ply_binary)");
 }
@@ -466,10 +467,17 @@ static void test_finish(void **state)
     (void)state;
     api_params_init(&p);
     assert_int_equal(api_params_finish(&p, 812, &L, &err), MCF_OK);
+    /* time in 5 steps is one job now; tol without adaptive is refused */
     assert_int_equal(api_params_set(&p, "time", "0.01", &L, &err), MCF_OK);
     assert_int_equal(api_params_set(&p, "iterations", "5", &L, &err), MCF_OK);
+    assert_int_equal(api_params_finish(&p, 812, &L, &err), MCF_OK);
+    assert_int_equal(api_params_set(&p, "tol", "1e-5", &L, &err), MCF_OK);
     assert_int_equal(api_params_finish(&p, 812, &L, &err), MCF_EINVAL);
-    assert_non_null(strstr(err.msg, "either 'time' or 'iterations'"));
+    assert_non_null(strstr(err.msg, "'tol' applies to adaptive runs only"));
+    assert_int_equal(api_params_set(&p, "adaptive", "true", &L, &err), MCF_OK);
+    assert_int_equal(api_params_finish(&p, 812, &L, &err), MCF_OK);
+    assert_int_equal(api_params_set(&p, "strength", "0", &L, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "parameter 'strength' must be a number > 0"));
     api_params_free(&p);
 
     api_params_init(&p);
@@ -506,7 +514,9 @@ static void test_finish(void **state)
     assert_int_equal(api_params_finish(&p, 1000, &lim, &err), MCF_OK);
     assert_int_equal(api_params_finish(&p, 1001, &lim, &err), MCF_ELIMIT);
     lim.max_iterations = 999;
-    assert_int_equal(api_params_finish(&p, 10, &lim, &err), MCF_ELIMIT);
+    /* the parameters alone exceed the limit: a bad request, not a mesh
+     * too large for the limits */
+    assert_int_equal(api_params_finish(&p, 10, &lim, &err), MCF_EINVAL);
     assert_non_null(strstr(err.msg, "max_iterations (999)"));
     api_params_free(&p);
     /* Adaptive over a time: max_steps is lowered to fit the limits. */

@@ -263,8 +263,8 @@ static void test_errors(void **state)
     tl_expect_error(&r, 2, "parameter 'dt' must be a number > 0 and <= 1000 or \"auto\", got \"abc\"");
     r = tl_run("smooth", tl_sphere(), "o.obj", "--scheme=rk4", NULL);
     tl_expect_error(&r, 2, "parameter 'scheme' must be one of");
-    r = tl_run("smooth", tl_sphere(), "o.obj", "--time", "0.1", "--iterations", "3", NULL);
-    tl_expect_error(&r, 2, "either 'time' or 'iterations'");
+    r = tl_run("smooth", tl_sphere(), "o.obj", "--tol", "1e-5", NULL);
+    tl_expect_error(&r, 2, "parameter 'tol' applies to adaptive runs only");
     r = tl_run("smooth", tl_sphere(), "o.xyz", NULL);
     tl_expect_error(&r, 2, "cannot tell the output format from 'o.xyz'");
     r = tl_run("smooth", "missing.obj", "o.obj", NULL);
