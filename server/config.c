@@ -33,7 +33,7 @@ typedef struct {
 
 enum {
     O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
-    O_MAX_CONN_IP, O_SPOOL,
+    O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT, O_TOKEN,
     O_LOG, O_PROBE,
@@ -59,6 +59,12 @@ static const option opts[O_COUNT] = {
                        "(default 64)"},
     [O_SPOOL] = {"--spool", "MCFD_SPOOL", T_STR, 0, 0,
                  "job spool directory (default ./var/mcfd)"},
+    [O_SPOOL_JOBS] = {"--spool-max-jobs", "MCFD_SPOOL_MAX_JOBS", T_INT, 0,
+                      1000000000, "jobs kept (queued to expired) before new "
+                      "ones get 503, 0: no limit (default 10000)"},
+    [O_SPOOL_BYTES] = {"--spool-max-bytes", "MCFD_SPOOL_MAX_BYTES", T_SIZE, 0,
+                       0, "bytes of jobs kept before new ones get 503 "
+                       "(default 4G)"},
     [O_MAX_UPLOAD] = {"--max-upload", "MCFD_MAX_UPLOAD", T_SIZE, 0, 0,
                       "largest mesh upload, e.g. 256M (default 256M)"},
     [O_MAX_VERTICES] = {"--max-vertices", "MCFD_MAX_VERTICES", T_INT, 3,
@@ -204,6 +210,8 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
         }
         snprintf(cfg->spool, sizeof cfg->spool, "%s", v);
         break;
+    case O_SPOOL_JOBS: cfg->spool_max_jobs = (int)i; break;
+    case O_SPOOL_BYTES: cfg->spool_max_bytes = z; break;
     case O_MAX_UPLOAD: cfg->lim.max_input_bytes = z; break;
     case O_MAX_VERTICES: cfg->lim.max_vertices = (int)i; break;
     case O_MAX_FACES: cfg->lim.max_faces = (int)i; break;
@@ -292,6 +300,8 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->http_threads = 2;
     cfg->max_connections = 512;
     cfg->max_connections_per_ip = 64;
+    cfg->spool_max_jobs = 10000;
+    cfg->spool_max_bytes = (size_t)4 << 30;
     snprintf(cfg->spool, sizeof cfg->spool, "./var/mcfd");
     api_limits_default(&cfg->lim);
     cfg->result_ttl = 3600;

@@ -44,6 +44,7 @@ static struct {
     int njobs;
     srv_job *qhead, *qtail;
     int qlen, reserved, busy;
+    size_t disk_bytes;        /* sum of disk_bytes of the jobs in the table */
     int draining, stopping;
     int closing;              /* waiters must answer now, never suspend */
     pthread_t *threads;
@@ -239,6 +240,7 @@ static void table_insert(srv_job *j)
     S.buckets[b] = j;
     j->in_table = 1;
     S.njobs++;
+    S.disk_bytes += j->disk_bytes;
 }
 
 /* Removes j from the table and drops the table's reference. */
@@ -251,6 +253,7 @@ static void table_remove(srv_job *j)
         *pp = j->hnext;
         j->in_table = 0;
         S.njobs--;
+        S.disk_bytes -= j->disk_bytes;
         unref_locked(j);
     }
 }
@@ -643,6 +646,28 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
                         "--queue %d)", q, S.nthreads, cfg->queue);
         goto fail;
     }
+    /* The spool's quota: every job stays there until its TTL (a flood of
+     * tiny jobs kept 687 MB). */
+    if (cfg->spool_max_jobs > 0 &&
+        S.njobs + S.reserved >= cfg->spool_max_jobs) {
+        int n = S.njobs;
+        srv_unlock();
+        srv_problem_set(prob, 503, "ESPOOLFULL", "the spool holds %d jobs, "
+                        "--spool-max-jobs %d; finished jobs leave after "
+                        "--result-ttl %g s or a DELETE", n, cfg->spool_max_jobs,
+                        cfg->result_ttl);
+        goto fail;
+    }
+    if (S.disk_bytes + input_len + target_len > cfg->spool_max_bytes) {
+        size_t used = S.disk_bytes;
+        srv_unlock();
+        srv_problem_set(prob, 503, "ESPOOLFULL", "the spool holds %zu bytes of "
+                        "jobs; %zu more would pass --spool-max-bytes %zu; "
+                        "finished jobs leave after --result-ttl %g s or a "
+                        "DELETE", used, input_len + target_len,
+                        cfg->spool_max_bytes, cfg->result_ttl);
+        goto fail;
+    }
     S.reserved++;
     reserved = 1;
     new_id(j->id);
@@ -657,6 +682,7 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
     j->target_len = target_len;
     input = target = NULL;
     j->keep_result = keep_result;
+    j->disk_bytes = input_len + target_len;
     j->created = srv_wall();
     j->status = SRV_JOB_QUEUED;
 
@@ -1069,6 +1095,13 @@ done:
     free(state);
     srv_lock();
     j->status = final;
+    if (final == SRV_JOB_SUCCEEDED) {
+        size_t add = j->result_len +
+                     (j->metrics_json ? strlen(j->metrics_json) : 0);
+        j->disk_bytes += add;
+        if (j->in_table)
+            S.disk_bytes += add;
+    }
     srv_unlock();
     pthread_mutex_unlock(&g_state_mu);
     /* Counted before anyone hears, so /metrics agrees with what clients
@@ -1396,6 +1429,7 @@ static void recover_one(const char *id, void *arg)
         goto out;
     }
     snprintf(j->id, sizeof j->id, "%s", id);
+    j->disk_bytes = srv_spool_du(cfg->spool, id);
     j->recovered = 1;
     j->created = num_of(so, "created");
     j->started = num_of(so, "started");
@@ -1663,6 +1697,7 @@ srv_gauges srv_jobs_gauges(void)
     g.jobs_in_memory = S.njobs;
     g.draining = S.draining;
     g.followers = srv_stream_followers();
+    g.spool_bytes = (double)S.disk_bytes;
     srv_unlock();
     return g;
 }

@@ -177,5 +177,7 @@ char *srv_metrics_render(const srv_gauges *g, size_t *len)
     gauge(&b, "mcfd_draining", "1 after SIGTERM/SIGINT.", g->draining);
     gauge(&b, "mcfd_followers", "Event streams (SSE, ndjson) open.",
           g->followers);
+    gauge(&b, "mcfd_spool_bytes", "Bytes of the jobs kept on the spool.",
+          g->spool_bytes);
     return api_buf_detach(&b, len);
 }

@@ -314,6 +314,26 @@ int srv_spool_remove(const char *spool, const char *id)
     return 0;
 }
 
+size_t srv_spool_du(const char *spool, const char *id)
+{
+    char dir[1300], path[1700];
+    size_t sum = 0;
+    struct stat st;
+    struct dirent *e;
+    DIR *d;
+
+    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0 ||
+        !(d = opendir(dir)))
+        return 0;
+    while ((e = readdir(d)) != NULL) {
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        if (e->d_name[0] != '.' && stat(path, &st) == 0 && S_ISREG(st.st_mode))
+            sum += (size_t)st.st_size;
+    }
+    closedir(d);
+    return sum;
+}
+
 int srv_spool_list(const char *spool, void (*fn)(const char *id, void *ctx),
                    void *ctx)
 {

@@ -48,6 +48,8 @@ typedef struct {
     int max_connections_per_ip; /* from one address, 0: none; keeps one
                                    client from taking every slot */
     char spool[1024];          /* job spool directory (default ./var/mcfd) */
+    int spool_max_jobs;        /* jobs kept before 503, 0: none */
+    size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
     api_limits lim;            /* limits on untrusted input */
     size_t max_body;           /* whole request body, derived from lim */
     double result_ttl;         /* seconds a finished job is kept */
@@ -147,6 +149,8 @@ int srv_spool_remove(const char *spool, const char *id);
 /* Readiness: 0 when a file can be made in the spool and the last spool
  * write did not fail (since the last that succeeded); else -1 and why. */
 int srv_spool_ready(const char *spool, char *why, size_t size);
+/* Bytes of the files of a job directory (0 when unreadable). */
+size_t srv_spool_du(const char *spool, const char *id);
 /* Calls fn for every job directory name in the spool. */
 int srv_spool_list(const char *spool, void (*fn)(const char *id, void *ctx),
                    void *ctx);
@@ -167,6 +171,7 @@ typedef struct {
     int jobs_in_memory;
     int draining;
     int followers;             /* event streams (SSE, ndjson) open */
+    double spool_bytes;        /* bytes of the jobs kept */
 } srv_gauges;
 
 /* The Prometheus text exposition (format 0.0.4), malloc'ed. */
@@ -227,6 +232,7 @@ struct srv_job {
     int in_table;
     srv_job_status status;
     srv_record rec;
+    size_t disk_bytes;         /* its files on the spool (quota) */
     char *input;               /* upload bytes until the worker takes them */
     size_t input_len;
     char *target;

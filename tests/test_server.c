@@ -2095,6 +2095,64 @@ static void test_header_deadline(void **state)
     stop_daemon(&d);
 }
 
+/* Issue 9 item 6, the quota: a flood of tiny jobs (4,287 in 40 s) kept
+ * 687 MB on the spool for the TTL. Now --spool-max-jobs and
+ * --spool-max-bytes refuse new jobs with 503 ESPOOLFULL until finished
+ * ones leave (TTL or DELETE). */
+static void test_spool_quota(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj"}; /* 72,320 bytes */
+    daemon_t d;
+    char spool[600], id[64], path[160];
+    resp_t r;
+    int i;
+
+    (void)state;
+    {
+        static const char *const flags[] = {"--spool-max-jobs", "3", NULL};
+        snprintf(spool, sizeof spool, "%s/quota-jobs", g_tmp);
+        assert_int_equal(start_daemon(&d, "quota-jobs", spool, flags), 0);
+        for (i = 0; i < 3; i++) {
+            http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+            expect_status(&d, &r, 200, "a job within --spool-max-jobs 3");
+            assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+            resp_free(&r);
+        }
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_problem(&d, &r, 503, "ESPOOLFULL", "--spool-max-jobs", "4th job");
+        resp_free(&r);
+        snprintf(path, sizeof path, "/v1/jobs/%s", id);
+        http(&d, "DELETE", path, NULL, NULL, &r);
+        expect_status(&d, &r, 204, "DELETE makes room");
+        resp_free(&r);
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_status(&d, &r, 200, "a job after the DELETE");
+        resp_free(&r);
+        stop_daemon(&d);
+    }
+    {
+        static const char *const flags[] = {"--spool-max-bytes", "100K", NULL};
+        snprintf(spool, sizeof spool, "%s/quota-bytes", g_tmp);
+        assert_int_equal(start_daemon(&d, "quota-bytes", spool, flags), 0);
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_status(&d, &r, 200, "72 KB within 100K");
+        assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+        resp_free(&r);
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_problem(&d, &r, 503, "ESPOOLFULL", "--spool-max-bytes", "over 100K");
+        resp_free(&r);
+        snprintf(path, sizeof path, "/v1/jobs/%s", id);
+        http(&d, "DELETE", path, NULL, NULL, &r);
+        expect_status(&d, &r, 204, "DELETE frees the bytes");
+        resp_free(&r);
+        wait_gauge_within(&d, "mcfd_spool_bytes", 0, 1, "spool bytes after DELETE");
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        expect_status(&d, &r, 200, "a job after the DELETE");
+        resp_free(&r);
+        stop_daemon(&d);
+    }
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -3093,6 +3151,7 @@ int main(void)
         cmocka_unit_test_teardown(test_followers_and_per_ip, kill_strays),
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
+        cmocka_unit_test_teardown(test_spool_quota, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
