@@ -182,6 +182,13 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && num(o, "volume0", st->volume0);
     ok = ok && num(o, "volume1", st->volume1);
     ok = ok && num(o, "peak_bytes", (double)st->peak_bytes);
+    /* the amount the run covered and the measures behind its warnings */
+    ok = ok && num(o, "mean_edge", st->mean_edge);
+    ok = ok && num(o, "t_target", st->t_target);
+    ok = ok && num(o, "strength", st->strength);
+    ok = ok && num(o, "folded_faces", st->folded_faces);
+    ok = ok && num(o, "min_edge_ratio", st->min_edge_ratio);
+    ok = ok && num(o, "area_ratio", st->area_ratio);
     if (ok) {
         t = cJSON_CreateObject();
         ok = put(o, "timings", t);

@@ -114,15 +114,30 @@ static const char *format_name(api_format f)
     return f == API_FMT_UNKNOWN ? NULL : api_format_name(f);
 }
 
-/* WARNINGS: the core's verdict on the result (folded faces, collapsed
- * edges, lost area, a negligible amount of smoothing), one string per
- * warning, [] when there is none. The core's mcf_flow_stats has no
- * warnings field yet (it is being added to core/mcf.h); until it has one,
- * the array is always empty, which keeps the key stable for clients. */
+/* The core's warnings about the result (mcf_flow_stats.warnings: folded
+ * faces, collapsed edges, lost area, a negligible amount of smoothing),
+ * one string each, the warning's name ("folds", "edge_collapse", ...,
+ * from the core's MCF_WARNINGS table), in bit order; [] when there is
+ * none. The numbers behind them are in flow (folded_faces,
+ * min_edge_ratio, area_ratio, strength). */
 static cJSON *warnings_json(const mcf_flow_stats *st)
 {
-    (void)st;
-    return cJSON_CreateArray();
+    cJSON *a = cJSON_CreateArray();
+    unsigned bit;
+
+    for (bit = 1; a && bit; bit <<= 1) {
+        const char *name = mcf_warning_name(bit);
+        cJSON *s;
+        if (!(st->warnings & bit) || !name)
+            continue;
+        s = cJSON_CreateString(name);
+        if (!s || !cJSON_AddItemToArray(a, s)) {
+            cJSON_Delete(s);
+            cJSON_Delete(a);
+            return NULL;
+        }
+    }
+    return a;
 }
 
 /* The timings object: the door's phases, null where the door has none. */

@@ -461,6 +461,37 @@ static void test_metrics_one_volume(void **state)
     mcf_mesh_free(out);
 }
 
+/* The core's warnings reach the document as their names: 1e-9 of
+ * unit-area time covers 8e-4 mean edges of diffusion, under the 0.1 of
+ * "little_smoothing"; the default amount warns of nothing on the sphere. */
+static void test_metrics_warnings(void **state)
+{
+    tl_run_result r = tl_run("smooth", tl_sphere(), "w.obj", "--iterations", "1", "--dt",
+                             "1e-9", "--metrics", "w.json", "--quiet", NULL);
+    cJSON *j;
+    const cJSON *w;
+    (void)state;
+    if (r.status != 0)
+        fail_msg("smooth: status %d: %s", r.status, r.err);
+    tl_run_free(&r);
+    j = load_json(tl_in_scratch("w.json"));
+    w = member(j, "warnings");
+    assert_int_equal(cJSON_GetArraySize(w), 1);
+    assert_string_equal(cJSON_GetStringValue(cJSON_GetArrayItem(w, 0)), "little_smoothing");
+    assert_true(number(member(j, "flow"), "strength") < 0.1);
+    cJSON_Delete(j);
+
+    r = tl_run("smooth", tl_sphere(), "w2.obj", "--metrics", "w2.json", "--quiet", NULL);
+    if (r.status != 0)
+        fail_msg("smooth: status %d: %s", r.status, r.err);
+    tl_run_free(&r);
+    j = load_json(tl_in_scratch("w2.json"));
+    w = member(j, "warnings");
+    assert_true(cJSON_IsArray(w));
+    assert_int_equal(cJSON_GetArraySize(w), 0);
+    cJSON_Delete(j);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -473,6 +504,7 @@ int main(void)
         cmocka_unit_test(test_errors),
         cmocka_unit_test(test_metrics_document_layout),
         cmocka_unit_test(test_metrics_one_volume),
+        cmocka_unit_test(test_metrics_warnings),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -3127,6 +3127,29 @@ static void test_metrics_stream_volume_open(void **state)
     api_buf_free(&obj);
 }
 
+/* The core's warnings in the daemon's metrics, as the CLI writes them:
+ * 1e-9 of unit-area time is "little_smoothing". */
+static void test_metrics_warnings(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    resp_t r;
+    char id[64];
+    cJSON *m;
+    const cJSON *w;
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?iterations=1&dt=1e-9", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "a negligible amount");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    m = follow_metrics_link(&g_main, &r, id);
+    w = cJSON_GetObjectItemCaseSensitive(m, "warnings");
+    assert_int_equal(cJSON_GetArraySize(w), 1);
+    assert_string_equal(cJSON_GetStringValue(cJSON_GetArrayItem(w, 0)), "little_smoothing");
+    assert_true(jnum(m, "flow.strength") < 0.1);
+    cJSON_Delete(m);
+    resp_free(&r);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -3162,6 +3185,7 @@ int main(void)
         cmocka_unit_test_teardown(test_config, kill_strays),
         cmocka_unit_test_teardown(test_metrics_same_as_cli, kill_strays),
         cmocka_unit_test_teardown(test_metrics_stream_volume_open, kill_strays),
+        cmocka_unit_test_teardown(test_metrics_warnings, kill_strays),
     };
     /* MCF_TEST_FILTER=test_errors (a cmocka pattern) runs a subset. */
     if (getenv("MCF_TEST_FILTER") && *getenv("MCF_TEST_FILTER"))
