@@ -868,6 +868,48 @@ static void test_thread_count(void **state)
     free(status);
 }
 
+/* Attributes through the daemon (issue 12): car.drc's texcoords and
+ * normals come back in the default Draco output, float32 and raw like the
+ * input; PLY is float with nx ny nz and vertex s t (car.drc's vertices
+ * are its points: no seams), and the curvature properties only with
+ * ply_curvature=true, as in mcf. */
+static void test_smooth_attributes(void **state)
+{
+    upload_t up = {.mesh = "car.drc"};
+    resp_t r;
+    mcf_mesh *m = NULL;
+    api_attrs *a = NULL;
+    mcf_error err;
+    int pass;
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?iterations=1&dt=1e-5", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "car.drc");
+    assert_int_equal(api_mesh_decode_attrs(r.body.data, r.body.len, NULL, &m, &a,
+                                           NULL, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 1744);
+    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, NULL, NULL));
+    assert_true(api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
+    assert_int_equal(api_attrs_float32(a), 1);
+    assert_int_equal(api_attrs_draco_bits(a, API_ATTR_POSITION), 0);
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+    resp_free(&r);
+    for (pass = 0; pass < 2; pass++) {
+        http(&g_main, "POST",
+             pass ? "/smooth?iterations=1&dt=1e-5&format=ply&ply_curvature=true"
+                  : "/smooth?iterations=1&dt=1e-5&format=ply",
+             NULL, &up, &r);
+        expect_status(&g_main, &r, 200, "car.drc to ply");
+        assert_non_null(strstr(r.body.data, "property float x\n"));
+        assert_non_null(strstr(r.body.data, "property float nx\n"));
+        assert_non_null(strstr(r.body.data, "property float s\n")); /* no seams */
+        assert_true((strstr(r.body.data, "property float mean_curvature\n") != NULL)
+                    == pass);
+        resp_free(&r);
+    }
+}
+
 /* The raw body, params from a JSON field and a plain field, format=. */
 static void test_smooth_raw_and_params(void **state)
 {
@@ -3157,6 +3199,7 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_obj_multipart, kill_strays),
         cmocka_unit_test_teardown(test_smooth_draco_multipart, kill_strays),
         cmocka_unit_test_teardown(test_thread_count, kill_strays),
+        cmocka_unit_test_teardown(test_smooth_attributes, kill_strays),
         cmocka_unit_test_teardown(test_smooth_raw_and_params, kill_strays),
         cmocka_unit_test_teardown(test_smooth_target, kill_strays),
         cmocka_unit_test_teardown(test_smooth_multipart_mixed, kill_strays),
