@@ -303,14 +303,40 @@ static void sanitize_name(char *out, size_t size, const char *in)
         snprintf(out, size, "mesh");
 }
 
-/* The job's id and the link to its metrics, on every result. */
+/* The job's id and the link to its metrics, on every result; and the
+ * core's warnings about the result, when there are any (the metrics'
+ * "warnings", comma-separated: "X-Warnings: folds, area_loss"), so that
+ * a pipeline can react to a damaged mesh without reading the metrics. */
 static void add_job_headers(struct MHD_Response *resp, const srv_job *j)
 {
-    char buf[160];
+    char buf[160], *doc = NULL;
+    size_t len;
+    cJSON *m;
+    const cJSON *w;
 
     MHD_add_response_header(resp, "X-Job-Id", j->id);
     snprintf(buf, sizeof buf, "</v1/jobs/%s/metrics>; rel=\"metrics\"", j->id);
     MHD_add_response_header(resp, MHD_HTTP_HEADER_LINK, buf);
+    srv_lock();
+    if (j->metrics_json)
+        doc = strdup(j->metrics_json);
+    srv_unlock();
+    if (!doc && srv_spool_read(srv_jobs_config()->spool, j->id, "metrics.json",
+                               &doc, &len) != 0)
+        doc = NULL;
+    m = doc ? cJSON_Parse(doc) : NULL;
+    free(doc);
+    buf[0] = '\0';
+    cJSON_ArrayForEach(w, cJSON_GetObjectItemCaseSensitive(m, "warnings"))
+        if (cJSON_IsString(w) &&
+            strlen(buf) + strlen(w->valuestring) + 3 < sizeof buf) {
+            if (buf[0])
+                strcat(buf, ", ");
+            strcat(buf, w->valuestring);
+        }
+    if (buf[0])
+        MHD_add_response_header(resp, "X-Warnings", buf);
+    cJSON_Delete(m);
 }
 
 /* The upload's name without extension ("mesh" when it had none). */

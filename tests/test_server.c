@@ -3188,7 +3188,27 @@ static void test_metrics_warnings(void **state)
     assert_int_equal(cJSON_GetArraySize(w), 1);
     assert_string_equal(cJSON_GetStringValue(cJSON_GetArrayItem(w, 0)), "little_smoothing");
     assert_true(jnum(m, "flow.strength") < 0.1);
+    /* and in a header of the answer, as of GET .../result */
+    {
+        char hv[128], path[160];
+        assert_non_null(header(&r, "X-Warnings", hv, sizeof hv));
+        assert_string_equal(hv, "little_smoothing");
+        resp_free(&r);
+        snprintf(path, sizeof path, "/v1/jobs/%s/result", id);
+        http(&g_main, "GET", path, NULL, NULL, &r);
+        expect_status(&g_main, &r, 200, "result of a warned job");
+        assert_non_null(header(&r, "X-Warnings", hv, sizeof hv));
+        assert_string_equal(hv, "little_smoothing");
+    }
     cJSON_Delete(m);
+    resp_free(&r);
+    /* the default amount warns of nothing: no header */
+    http(&g_main, "POST", "/smooth", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "the default amount");
+    {
+        char hv[128];
+        assert_null(header(&r, "X-Warnings", hv, sizeof hv));
+    }
     resp_free(&r);
 }
 
