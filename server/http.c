@@ -1195,6 +1195,7 @@ typedef struct conn_state {
 
 static pthread_mutex_t g_conns_mu = PTHREAD_MUTEX_INITIALIZER;
 static conn_state *g_conns;
+static int g_nconns;
 
 static void request_free(srv_request *r, int toe);
 
@@ -1226,6 +1227,7 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
             if (g_conns)
                 g_conns->prev = cs;
             g_conns = cs;
+            g_nconns++;
             pthread_mutex_unlock(&g_conns_mu);
         }
         *socket_context = cs;
@@ -1241,6 +1243,7 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
             g_conns = cs->next;
         if (cs->next)
             cs->next->prev = cs->prev;
+        g_nconns--;
         pthread_mutex_unlock(&g_conns_mu);
         if (cs->req)
             request_free(cs->req, -1); /* never completed: abandoned */
@@ -1249,13 +1252,18 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     *socket_context = NULL;
 }
 
-int srv_http_expire_heads(double timeout)
+int srv_http_expire_heads(double timeout, int max_connections)
 {
     double now = srv_mono();
     conn_state *cs;
     int n = 0;
 
     pthread_mutex_lock(&g_conns_mu);
+    /* Nine tenths of the slots taken: heads get 2 s, so that a flood of
+     * slow clients from many addresses leaves room for the probes and
+     * for clients that send their request at once. */
+    if (g_nconns * 10 >= max_connections * 9 && timeout > 2)
+        timeout = 2;
     for (cs = g_conns; cs; cs = cs->next)
         if (cs->receiving && cs->fd >= 0 && now - cs->since > timeout) {
             /* MHD reads the end of the stream and closes the connection

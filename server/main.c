@@ -262,7 +262,8 @@ int main(int argc, char **argv)
             break;
         srv_jobs_check_clients();
         if (cfg.header_timeout > 0) {
-            int n = srv_http_expire_heads(cfg.header_timeout);
+            int n = srv_http_expire_heads(cfg.header_timeout,
+                                          cfg.max_connections);
             if (n > 0)
                 srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no "
                          "complete request head within --header-timeout %g s",

@@ -1123,7 +1123,7 @@ static void test_smooth_ndjson(void **state)
 static void test_smooth_ndjson_live(void **state)
 {
     live_client_t lc = {.d = &g_main, .method = "POST", .mesh = 1,
-                        .path = "/smooth?iterations=100000&dt=1e-7&stream=ndjson",
+                        .path = "/smooth?iterations=100000&dt=1e-7&max_steps=100000&stream=ndjson",
                         .watch = "{\"step\":"};
     pthread_t th;
     char id[64], path[160];
@@ -1242,9 +1242,9 @@ static void test_cancel(void **state)
     (void)state;
     /* two long jobs for the two workers, a third waits in the queue */
     /* dt 1e-7: 100000 steps stay far from the sphere's extinction */
-    submit(&g_main, "?iterations=100000&dt=1e-7", a);
-    submit(&g_main, "?iterations=100000&dt=1e-7", b);
-    submit(&g_main, "?iterations=100000&dt=1e-7", c);
+    submit(&g_main, "?iterations=100000&dt=1e-7&max_steps=100000", a);
+    submit(&g_main, "?iterations=100000&dt=1e-7&max_steps=100000", b);
+    submit(&g_main, "?iterations=100000&dt=1e-7&max_steps=100000", c);
     wait_running(&g_main, a);
     wait_running(&g_main, b);
     j = poll_job(&g_main, c, "queued", 5);
@@ -1695,7 +1695,7 @@ static void test_http_small_things(void **state)
         assert_non_null(msg);
         snprintf(spool, sizeof spool, "%s/busy-body", g_tmp);
         assert_int_equal(start_daemon(&d, "busy-body", spool, flags), 0);
-        submit(&d, "?iterations=100000&dt=1e-7", id);
+        submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", id);
         wait_running(&d, id);
         hl = (size_t)snprintf(msg, 256, "POST /smooth HTTP/1.1\r\nHost: "
                               "127.0.0.1\r\nContent-Type: model/obj\r\n"
@@ -1968,7 +1968,7 @@ static void test_followers_and_per_ip(void **state)
         snprintf(spool, sizeof spool, "%s/followers", g_tmp);
         assert_int_equal(start_daemon(&d, "followers", spool, flags), 0);
     }
-    submit(&d, "?iterations=100000&dt=1e-7", a);
+    submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", a);
     wait_running(&d, a);
     submit(&d, "?iterations=2", b); /* queued behind a */
     snprintf(req, sizeof req, "GET /v1/jobs/%s/events HTTP/1.1\r\nHost: "
@@ -2065,7 +2065,7 @@ static void test_queued_inputs_on_disk(void **state)
         memcpy(blob + i, "v 0 0 0\n", 8);
     snprintf(spool, sizeof spool, "%s/queued-mem", g_tmp);
     assert_int_equal(start_daemon(&d, "queued-mem", spool, flags), 0);
-    submit(&d, "?iterations=100000&dt=1e-7", a);
+    submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", a);
     wait_running(&d, a);
     if ((before = rss_kib(d.pid)) < 0) {
         free(blob);
@@ -2135,6 +2135,35 @@ static void test_header_deadline(void **state)
     expect_status(&d, &r, 200, "healthz after the slowloris");
     resp_free(&r);
     stop_daemon(&d);
+
+    /* every slot taken by slow heads from another address (no per-IP
+     * limit): under that pressure heads get 2 s, then /healthz answers */
+    {
+        static const char *const full[] = {"--max-connections", "20",
+                                           "--max-connections-per-ip", "0",
+                                           NULL};
+        int fds[20], i;
+        snprintf(spool, sizeof spool, "%s/header-pressure", g_tmp);
+        assert_int_equal(start_daemon(&d, "header-pressure", spool, full), 0);
+        for (i = 0; i < 20; i++)
+            fds[i] = connect_from(&d, "127.0.0.2",
+                                  "GET /healthz HTTP/1.1\r\nHost: x\r\n");
+        t0 = mcf_now();
+        for (;;) {
+            long code = http(&d, "GET", "/healthz", NULL, NULL, &r);
+            resp_free(&r);
+            if (code == 200)
+                break;
+            if (mcf_now() - t0 > 6)
+                fail_msg("20 slow heads in 20 slots: /healthz unanswered for 6 s");
+            sleep_ms(200);
+        }
+        print_message("    20 slow heads in 20 slots: /healthz answered after "
+                      "%.2f s\n", mcf_now() - t0);
+        for (i = 0; i < 20; i++)
+            close(fds[i]);
+        stop_daemon(&d);
+    }
 }
 
 /* Issue 9 item 6, the quota: a flood of tiny jobs (4,287 in 40 s) kept
@@ -2251,7 +2280,7 @@ static void test_hangup_and_budgets(void **state)
 {
     static const char *const flags[] = {"--workers", "1", "--max-work", "9e7",
                                         NULL};
-    static const char *const long_job = "/smooth?iterations=100000&dt=1e-7";
+    static const char *const long_job = "/smooth?iterations=100000&dt=1e-7&max_steps=100000";
     daemon_t d;
     char spool[600], id[SRV_ID_BUF], path[160];
     resp_t r;
@@ -2272,7 +2301,7 @@ static void test_hangup_and_budgets(void **state)
                       1, 3, "hung-up running job counted canceled");
 
     /* queued: it leaves the queue; the running async job is not touched */
-    submit(&d, "?iterations=100000&dt=1e-7", id);
+    submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", id);
     wait_running(&d, id);
     fd = send_raw_smooth(&d, long_job);
     wait_gauge(&d, "mcfd_queue_depth", 1);
@@ -2404,7 +2433,7 @@ static void test_auth(void **state)
         }
         /* --job-timeout 0.5: a long job is stopped with 422 (not 413:
          * nothing was too large to receive) */
-        http(&d, "POST", "/smooth?iterations=100000&dt=1e-7", right, &up, &r);
+        http(&d, "POST", "/smooth?iterations=100000&dt=1e-7&max_steps=100000", right, &up, &r);
         expect_problem(&d, &r, 422, "ELIMIT", "--job-timeout", "job timeout");
         resp_free(&r);
         http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
@@ -2506,7 +2535,7 @@ static void test_concurrent_clients(void **state)
      * two queue places hold two more (their own states say so), so every
      * client of the burst is refused. */
     for (i = 0; i < 3; i++)
-        submit(&d, "?iterations=100000&dt=1e-7", hold[i]);
+        submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", hold[i]);
     wait_running(&d, hold[0]);
     for (i = 1; i < 3; i++)
         cJSON_Delete(poll_job(&d, hold[i], "queued", 5));
@@ -2742,7 +2771,7 @@ static void *long_stream_client(void *arg)
 {
     stream_client_t *s = arg;
     upload_t up = {.mesh = "sphere_cgal.obj"};
-    http(s->d, "POST", "/smooth?iterations=100000&dt=1e-7&stream=ndjson", NULL,
+    http(s->d, "POST", "/smooth?iterations=100000&dt=1e-7&max_steps=100000&stream=ndjson", NULL,
          &up, &s->r);
     return NULL;
 }
