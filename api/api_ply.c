@@ -497,17 +497,14 @@ static void put_vattr(body *b, const prop *p, unsigned long long r, double v)
         b->va[k][r] = v * b->vscale[k];
 }
 
-/* One value of the face's texcoord list, at position k of count. */
-static mcf_status put_ftc(body *b, long long k, long long count, double v,
-                          mcf_error *err)
+/* Value k of the face's texcoord list (kept in tmp until the row ends). */
+static mcf_status put_ftc(body *b, long long k, double v, mcf_error *err)
 {
     if (k == 0)
         b->tmp_n = 0;
     if (b->tmp_n == b->tmp_cap) {
         long long nc = b->tmp_cap ? 2 * b->tmp_cap : 64;
-        double *q;
-        (void)count;
-        q = realloc(b->tmp, sizeof *q * (size_t)nc);
+        double *q = realloc(b->tmp, sizeof *q * (size_t)nc);
         if (!q)
             return api__fail(err, MCF_ENOMEM, "ply: out of memory for texcoords");
         b->tmp = q;
@@ -524,7 +521,9 @@ static mcf_status end_face(body *b, mcf_error *err)
     long long t, ntri = b->T.n - b->tri0;
     if (!b->want || b->ftc_bad)
         return MCF_OK;
-    if (b->tmp_n != 2 * b->poly_n || !isfinite(b->tmp_n ? b->tmp[0] : 0.0)) {
+    /* A list of another length drops the attribute; non-finite values
+     * are caught once all are in (make_attrs). */
+    if (b->tmp_n != 2 * b->poly_n) {
         b->ftc_bad = 1;
         return MCF_OK;
     }
@@ -614,7 +613,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                     } else if (p->role == ROLE_FTC && b->want) {
                         b->tmp_n = 0;
                         for (k = 0; k < count; k++)
-                            if ((rc = put_ftc(b, k, count,
+                            if ((rc = put_ftc(b, k,
                                               get_scalar(u + b->pos + (size_t)k * is,
                                                          p->type, swap),
                                               err)) != MCF_OK)
@@ -735,7 +734,7 @@ static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
                                                  "ply: line %ld: bad number '%s'",
                                                  b->txt.line, api__show(t, n, shown));
                             if (p->role == ROLE_FTC && b->want
-                                && (rc = put_ftc(b, k, count, v, err)) != MCF_OK)
+                                && (rc = put_ftc(b, k, v, err)) != MCF_OK)
                                 return rc;
                         }
                     }
