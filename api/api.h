@@ -302,16 +302,18 @@ char *api_json_print(const cJSON *j, int pretty);
  * door returns: `mcf smooth --metrics FILE` and the daemon's job metrics.
  * The same request gives the same keys; a value a door does not have is
  * null, never a missing key. Members: command ("smooth"), job (the
- * daemon's id, else null), scheme, params, warnings (strings, [] when
- * none), input {path, format, bytes, noise, info, mesh (= info)}, output
+ * daemon's id, else null), scheme, params, warnings (the names of the
+ * core's warnings: folds, edge_collapse, area_loss, little_smoothing; []
+ * when none), input {path, format, bytes, noise, info, mesh (= info)}, output
  * {path, format, bytes, vertices, faces, area, volume,
  * quantization_max_error, info}, curvature {before, after}, flow (the
  * flow statistics, with the step log when one was kept), compare (only
  * with a target: the after members, target, before, after), timings and
- * timing (the same: queue_s, read_s, decode_s, noise_s, flow_s, encode_s,
- * write_s, metrics_s, total_s), peak_rss_bytes. api/openapi.yaml (Metrics) describes
- * each member. Every volume in it is mcf_mesh_volume's: signed, about the
- * input's coordinate origin, in input units. */
+ * timing (the same: queue_s, read_s, decode_s, noise_s, flow_s,
+ * encode_s, write_s, metrics_s, total_s), peak_rss_bytes.
+ * api/openapi.yaml (Metrics) describes each member. Every volume in it is
+ * mcf_mesh_volume's: signed, about the input's coordinate origin, in
+ * input units. */
 
 /* What a run measured, in two calls around the flow (which changes the
  * mesh in place). Plain data; api_metrics_init zeroes it. */
@@ -327,7 +329,8 @@ void api_metrics_init(api_metrics *mt);
 /* Measures m as the flow receives it (after any injected noise), resp. as
  * the flow returned it: validation, curvature summary and, when target is
  * not NULL, the comparison with it (same connectivity, else EINVAL).
- * ENOMEM; mt is unchanged on failure. O(nf log nf), no flow step's cost. */
+ * ENOMEM; mt is unchanged on failure. Linear in the mesh (radix sorts):
+ * 0.03 s per call on the 35k-vertex bunny, a fraction of a flow step. */
 mcf_status api_metrics_before(api_metrics *mt, const mcf_mesh *m,
                               const mcf_mesh *target, mcf_error *err);
 mcf_status api_metrics_after(api_metrics *mt, const mcf_mesh *m,
