@@ -11,7 +11,7 @@
  * receives it (after any injected noise), api_metrics_after on the result.
  * Each is one mcf_mesh_inspect, one mcf_curvature_summarize and, with a
  * target, one mcf_compare: linear in the mesh (radix sorts), a small
- * fraction of a flow step (0.03 s each on the 35k-vertex bunny).
+ * fraction of a flow step (about 0.06 s per call on the 35k-vertex bunny).
  * What only a door knows (names, byte counts, phase timings) comes in an
  * api_metrics_run; a number a door does not have is NaN and prints as null,
  * so a key never disappears because of the door that answered.
