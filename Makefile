@@ -52,10 +52,10 @@ LIBS_SRV  := -lmicrohttpd -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 
 # Debian packages: build and test dependencies.
-# Debian packages: what building mcf and mcfd needs (DEB_BUILD: the image's
-# build stage installs only these), then the tests', fuzzers' and plots'.
-DEB_BUILD := build-essential libsuitesparse-dev libopenblas-dev libcjson-dev \
-             libmicrohttpd-dev libdraco-dev
+# Debian packages: what building mcf and mcfd needs (DEB_BUILD, listed in
+# docker/build-packages, which the image's build stage installs), then the
+# tests', fuzzers' and plots'.
+DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox
 DEB_BENCH := libeigen3-dev libcgal-dev
@@ -312,6 +312,7 @@ EXP_STUDIES := exp-sweep-armadillo exp-sweep-bunny exp-sweep-spot exp-sphere exp
                exp-order-spot exp-stability-sphere exp-stability-spot exp-stability-big
 
 experiments: deps
+	@[ -n "$(MESHES)" ] || { echo "make experiments reads the large scans: make experiments MESHES=/path/to/meshes"; exit 2; }
 	$(MAKE) all
 	@mkdir -p $(EXP_DIR)
 	@start=$$(date +%s); $(MAKE) -j$(EXP_JOBS) $(EXP_STUDIES) || exit 1; \
