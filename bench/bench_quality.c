@@ -15,10 +15,11 @@
  *            column is skipped (said once) when the key is refused.
  *   oracle   desbrun2, 10 steps, at the best total time t = c h^2 (h: the
  *            noisy input's mean edge after normalization to unit area,
- *            i.e. mean_edge / sqrt(area)), c from a log grid 0.02 .. 5
- *            (0.1, 0.2, 0.3, 0.5, 1 always; the ends only when the minimum
- *            lies next to them), refined by one parabola step in log c.
- *            Each point is its own 10-step run (dt differs, so nothing is
+ *            i.e. mean_edge / sqrt(area)), c on the grid 0.02, 0.05, 0.1,
+ *            0.2, 0.3, 0.5, 1, 2, 5: 0.1 .. 0.5 always (--oracle-grid
+ *            full: 0.05 .. 1), then the neighbours of the minimum until it
+ *            is bracketed, then one parabola step in log c. Each point is
+ *            its own 10-step run (dt differs, so no factorization is
  *            shared between points).
  *   taubin   scheme taubin (lambda 0.5, mu -0.53) at its best pass count:
  *            passes are applied cumulatively (1, 2, ..., 500 on a growing
@@ -27,17 +28,19 @@
  *            one call for its metrics and wall time.
  *
  * For each result: folds beyond the input's (mcf_compare inverted_faces
- * against the clean mesh, minus the noisy input's), drift (volume on
+ * against the clean mesh, minus the noisy input's; also counted away from
+ * the clean mesh's own creases, see crease_mask), drift (volume on
  * closed meshes, area on open ones, relative to the clean mesh's; the
  * noisy input's drift is in the CSV too), the largest vertex displacement
  * from the input in (clean) mean edges, and wall time of the one run.
  *
  * Output: docs/quality/quality.csv (one row per case x method),
  * docs/quality/oracle-sweep.csv (every oracle point), a table of medians
- * over seeds on stdout, the issue's goals as PASS/FAIL lines, an oracle
- * summary (--oracle-out, rewritten after every mesh), and a figure
- * (clean / noisy / default / oracle / taubin renders, gnuplot) in
- * docs/quality/.
+ * over seeds on stdout, the issue's goals as PASS/FAIL lines (and the same
+ * checks for the other methods as a reference), an oracle summary
+ * (--oracle-out, rewritten after every mesh), and two figures (clean /
+ * noisy / smoothed renders of one case, whole and zoomed: gnuplot `with
+ * polygons` and pm3d lighting) in docs/quality/.
  *
  * Run single-threaded (bench/Makefile sets OPENBLAS_NUM_THREADS=1
  * OMP_THREAD_LIMIT=1). Exit status 1 on an error; a FAIL goal is a result.
