@@ -89,6 +89,10 @@ typedef struct {
  * are bounded by MHD's per-connection pool, SRV_CONN_MEMORY in main.c). */
 #define SRV_MAX_QUERY 8192
 
+/* An upload still coming after --header-timeout must have averaged this
+ * many bytes a second since its head (slow-body clients hold a slot). */
+#define SRV_MIN_BODY_RATE 4096.0
+
 static pthread_mutex_t g_active_mu = PTHREAD_MUTEX_INITIALIZER;
 static int g_active;
 
@@ -1188,7 +1192,9 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
 typedef struct conn_state {
     srv_request *req;
     int fd;
-    int receiving;             /* no complete request head yet */
+    int receiving;             /* 1: no complete request head yet; 2: the
+                                  head is in, the body is coming */
+    size_t body;               /* body bytes so far (receiving 2) */
     double since;              /* srv_mono() when it began waiting */
     struct conn_state *prev, *next;
 } conn_state;
@@ -1204,6 +1210,14 @@ static void conn_waiting(conn_state *cs, int receiving)
     pthread_mutex_lock(&g_conns_mu);
     cs->receiving = receiving;
     cs->since = srv_mono();
+    cs->body = 0;
+    pthread_mutex_unlock(&g_conns_mu);
+}
+
+static void conn_body(conn_state *cs, size_t bytes)
+{
+    pthread_mutex_lock(&g_conns_mu);
+    cs->body = bytes;
     pthread_mutex_unlock(&g_conns_mu);
 }
 
@@ -1265,7 +1279,10 @@ int srv_http_expire_heads(double timeout, int max_connections)
     if (g_nconns * 10 >= max_connections * 9 && timeout > 2)
         timeout = 2;
     for (cs = g_conns; cs; cs = cs->next)
-        if (cs->receiving && cs->fd >= 0 && now - cs->since > timeout) {
+        if (cs->fd >= 0 && now - cs->since > timeout &&
+            (cs->receiving == 1 ||
+             (cs->receiving == 2 &&
+              (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) {
             /* MHD reads the end of the stream and closes the connection
              * itself; the descriptor stays MHD's to close. */
             shutdown(cs->fd, SHUT_RDWR);
@@ -1330,8 +1347,8 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
         return MHD_NO; /* out of memory in the URI callback */
     if (!r->started) {
         r->started = 1;
-        if (r->conn) /* the head is in: the deadline is met */
-            conn_waiting(r->conn, 0);
+        if (r->conn) /* the head is in; an upload's body comes next */
+            conn_waiting(r->conn, strcmp(method, "POST") == 0 ? 2 : 0);
         /* MHD takes an answer queued on this first call, before it knows
          * there is no body, as an early one and closes the connection
          * after it: no keep-alive, pipelined requests lost. Only uploads
@@ -1359,12 +1376,16 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
             r->perr_at = r->bytes_in + 1;
         consume(r, upload_data, *upload_data_size);
         *upload_data_size = 0;
+        if (r->conn)
+            conn_body(r->conn, r->bytes_in);
         /* A refused body is read and discarded so that its client hears
          * why, but only so far: then the connection is dropped. */
         if (r->perr_at && r->bytes_in - (r->perr_at - 1) > DRAIN_MAX)
             return MHD_NO;
         return MHD_YES;
     }
+    if (r->conn) /* the body is complete */
+        conn_waiting(r->conn, 0);
     if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && !r->job)
         return submit(r, c);
     return MHD_YES;

@@ -357,9 +357,10 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                         enum MHD_RequestTerminationCode toe);
 /* Closes the connections that have waited longer than timeout seconds
  * for a complete request head (request line and headers), since they
- * opened or since their last answer: slowloris clients. With nine tenths
- * of max_connections open the timeout is 2 s at most. The main loop
- * calls it with --header-timeout. Returns how many. */
+ * opened or since their last answer, and uploads older than timeout that
+ * averaged under 4 KiB/s since their head: slowloris clients. With nine
+ * tenths of max_connections open the timeout is 2 s at most. The main
+ * loop calls it with --header-timeout. Returns how many. */
 int srv_http_expire_heads(double timeout, int max_connections);
 /* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
  * deadline; releases a request MHD never completed. */

@@ -2131,6 +2131,30 @@ static void test_header_deadline(void **state)
         fail_msg("a trickling request head was held for 5 s (--header-timeout 1)");
     print_message("    trickling head closed after %.2f s\n", closed);
     assert_true(closed >= 0.9 && closed < 3);
+    /* a slow body: 20 bytes every 0.2 s of a 100,000-byte upload */
+    t0 = mcf_now();
+    closed = -1;
+    fd = connect_from(&d, "127.0.0.1", "POST /smooth HTTP/1.1\r\nHost: x\r\n"
+                      "Content-Type: model/obj\r\nContent-Length: 100000\r\n\r\n");
+    while (mcf_now() - t0 < 5) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 200) > 0) {
+            char b[64];
+            if (read(fd, b, sizeof b) <= 0) {
+                closed = mcf_now() - t0;
+                break;
+            }
+        }
+        if (write(fd, "v 0 0 0\nv 1 0 0\n#xx\n", 20) != 20) {
+            closed = mcf_now() - t0;
+            break;
+        }
+    }
+    close(fd);
+    if (closed < 0)
+        fail_msg("a body trickled at 100 B/s was held for 5 s (--header-timeout 1)");
+    print_message("    trickling body closed after %.2f s\n", closed);
+    assert_true(closed >= 0.9 && closed < 3);
     http(&d, "GET", "/healthz", NULL, NULL, &r);
     expect_status(&d, &r, 200, "healthz after the slowloris");
     resp_free(&r);
