@@ -139,17 +139,25 @@ deps-build:
 test: deps
 	$(MAKE) all $(TEST_BIN)
 	$(MAKE) check-deps
-	@rm -f $(B)/tests/skipped.log; fail=0; for t in $(TEST_BIN); do \
-	  echo "== $$t"; OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
+	@rm -f $(B)/tests/skipped.log $(B)/tests/*.out; fail=0; for t in $(TEST_BIN); do \
+	  echo "== $$t"; { OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_SKIP_LOG=$(abspath $(B))/tests/skipped.log \
-	    MCF_IMAGE=$(IMAGE) MCF_BUILD=$(B) $$t || fail=1; done; \
-	n=0; [ -f $(B)/tests/skipped.log ] && n=$$(wc -l < $(B)/tests/skipped.log); \
-	if [ $$n -gt 0 ]; then \
-	  echo "make test: $$n test(s) skipped (SKIPPED above, each with its reason), for want of:" \
+	    MCF_IMAGE=$(IMAGE) MCF_BUILD=$(B) $$t 2>&1; echo $$? > $$t.rc; } | tee $$t.out; \
+	  rc=$$(cat $$t.rc); rm -f $$t.rc; \
+	  if [ "$$rc" != 0 ]; then fail=1; \
+	    grep -q '^\[  FAILED  \] [0-9]* test(s), listed below' $$t.out || \
+	      echo "[  FAILED  ] 1 test(s), listed below: $$t exited with status $$rc" >> $$t.out; fi; \
+	done; \
+	count() { cat $(TEST_BIN:%=%.out) | sed -n "s/^\[  $$1 *\] \([0-9]*\) test(s).*/\1/p" | \
+	  awk '{ n += $$1 } END { print n + 0 }'; }; \
+	passed=$$(count PASSED); failed=$$(count FAILED); skipped=$$(count SKIPPED); \
+	if [ -s $(B)/tests/skipped.log ]; then \
+	  echo "make test: the skipped tests (SKIPPED above, each with its reason) want:" \
 	    "$$(cut -f1 $(B)/tests/skipped.log | sort -u | tr '\n' ' ')"; \
-	  echo "  the meshes are large scans kept out of the repository (tests/data/meshes/SOURCES.md);"; \
-	  echo "  run those tests with: make test MESHES=/path/to/meshes (the team's: ../shared/meshes)"; \
-	else echo "make test: no test skipped (MESHES=$(or $(MESHES),unset))"; fi; \
+	  echo "  the meshes are large scans kept out of the repository (tests/data/meshes/SOURCES.md)"; \
+	  echo "make test: $$passed passed, $$failed failed, $$skipped skipped;" \
+	    "run the skipped with: make test MESHES=/path/to/meshes (the team's: ../shared/meshes)"; \
+	else echo "make test: $$passed passed, $$failed failed, $$skipped skipped (MESHES=$(or $(MESHES),unset))"; fi; \
 	exit $$fail
 
 asan:
