@@ -8,9 +8,10 @@
  * a face corner's point p becomes vertex att->mapped_index(p), so a mesh
  * whose points are split at normal/UV seams stays connected where the
  * encoder shared the position value (edgebreaker streams do). A sequential
- * stream that stored one position per point (car.drc: 1,856 values for 920
- * distinct positions) decodes with those duplicate positions as separate
- * vertices: exactly what the file holds. No welding happens here.
+ * stream that stored one position per point next to other attributes
+ * (car.drc: 1,856 values for 920 distinct positions) has its copies of a
+ * position welded (weld_split_points): the attributes' seams are theirs,
+ * not the surface's. A positions-only stream is taken as it is.
  *
  * Attributes (api_draco_decode_attrs): the first NORMAL, TEX_COORD and
  * COLOR per face corner, and the quantization of every attribute, which
@@ -315,6 +316,53 @@ mcf_status check_counts(const uint8_t *buf, size_t len, const api_limits *lim,
 
 /* ------------------------------------------------------------- decoder */
 
+/* A stream that stores one position per point (identity map: the
+ * sequential layout, e.g. car.drc) next to other attributes has its
+ * surface cut at every seam of those attributes: each side of a UV seam
+ * holds its own copy of the position, so the flow would see a boundary
+ * there (frozen with boundary=fixed, torn open with free) and normals
+ * from one side only. Such copies, bitwise-equal positions, become one
+ * vertex; the attributes keep their seams through their own per-corner
+ * indices. Vertices keep their order (each group at its first index).
+ * Positions-only streams are left as they are. Returns the new vertex
+ * count; X and F are rewritten in place. */
+size_t weld_split_points(const draco::Mesh &dm, const draco::PointAttribute *pos,
+                         std::vector<double> &X, std::vector<int32_t> &F)
+{
+    const size_t nv = X.size() / 3;
+    if (!pos->is_mapping_identity() || dm.num_attributes() < 2 || nv < 2)
+        return nv;
+    std::vector<uint32_t> order(nv);
+    for (size_t i = 0; i < nv; i++)
+        order[i] = static_cast<uint32_t>(i);
+    auto cmp = [&X](uint32_t a, uint32_t b) {
+        return std::memcmp(&X[3 * static_cast<size_t>(a)],
+                           &X[3 * static_cast<size_t>(b)], 3 * sizeof(double)) < 0;
+    };
+    std::stable_sort(order.begin(), order.end(), cmp);
+    std::vector<uint32_t> rep(nv);
+    for (size_t i = 0; i < nv; i++)
+        rep[order[i]] = (i > 0 && !cmp(order[i - 1], order[i])) ? rep[order[i - 1]]
+                                                                 : order[i];
+    std::vector<int32_t> id(nv, -1);
+    size_t n = 0;
+    for (size_t v = 0; v < nv; v++) {
+        if (rep[v] != v)
+            continue;
+        for (int k = 0; k < 3; k++)
+            X[3 * n + k] = X[3 * v + k];
+        id[v] = static_cast<int32_t>(n++);
+    }
+    if (n == nv)
+        return nv;
+    for (size_t v = 0; v < nv; v++)
+        id[v] = id[rep[v]];
+    for (int32_t &f : F)
+        f = id[static_cast<size_t>(f)];
+    X.resize(3 * n);
+    return n;
+}
+
 mcf_status read_attrs(const void *buf, size_t len, const draco::Mesh &dm,
                       const draco::PointAttribute *pos, const mcf_mesh *m,
                       api_attrs **attrs, mcf_error *err);
@@ -420,7 +468,8 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
             F[3 * f + k] = static_cast<int32_t>(a);
         }
     }
-    mcf_mesh *m = mcf_mesh_new(static_cast<int>(nvals), X.data(),
+    const size_t nv = weld_split_points(*dm, pos, X, F);
+    mcf_mesh *m = mcf_mesh_new(static_cast<int>(nv), X.data(),
                                static_cast<int>(nfaces), F.data(), err);
     if (!m)
         return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;

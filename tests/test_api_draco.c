@@ -178,7 +178,7 @@ static const struct {
     int nv, nf;
 } real[] = {
     {"bunny.drc", 34834, 69451},
-    {"car.drc", 1856, 1744},
+    {"car.drc", 920, 1744},             /* 1,856 points welded */
     {"test_nm.obj.edgebreaker.cl10.2.2.drc", 99, 170},
     {"test_nm.obj.sequential.cl3.2.2.drc", 97, 170},
 };
@@ -251,23 +251,29 @@ static int cmp_pos(const void *a, const void *b)
 }
 
 /* car.drc is sequential with normals and texcoords: its stream holds one
- * position value per point, so indexing by value (mapped_index) gives the
- * same 1,856 vertices draco_decoder writes, of which only 920 positions
- * are distinct (SOURCES.md's count after welding). The decoder keeps the
- * file's vertices and does not weld; STL output would weld them. */
+ * position value per point (1,856, as draco_decoder writes them), so the
+ * surface came in 118 pieces cut at every UV and normal seam (1,762
+ * boundary edges). The decoder welds such copies of a position: 920
+ * vertices (SOURCES.md's count), 80 boundary edges, 9 components; the
+ * texcoords keep their seams in the attributes (1,856 values). */
 static void test_car_seams(void **state)
 {
     mcf_mesh *m = tl_load("car.drc");
     int nv = mcf_mesh_nvertices(m), i, distinct = 1;
     double *P = malloc(sizeof *P * 3 * (size_t)nv);
+    mcf_mesh_info info;
+    mcf_error err;
     (void)state;
     assert_non_null(P);
     memcpy(P, mcf_mesh_positions(m), sizeof *P * 3 * (size_t)nv);
     qsort(P, (size_t)nv, 3 * sizeof *P, cmp_pos);
     for (i = 1; i < nv; i++)
         distinct += cmp_pt(P + 3 * i, P + 3 * (i - 1)) != 0;
-    assert_int_equal(nv, 1856);
+    assert_int_equal(nv, 920);
     assert_int_equal(distinct, 920);
+    assert_int_equal(mcf_mesh_inspect(m, &info, &err), MCF_OK);
+    assert_int_equal(info.boundary_edges, 80);
+    assert_int_equal(info.components, 9);
     free(P);
     mcf_mesh_free(m);
 }
