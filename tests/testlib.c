@@ -22,6 +22,15 @@
 #include "testlib.h"
 #include "../api/api.h"
 
+/* stdout line by line even into a pipe or file (make test tees every
+ * binary's output): cmocka's [ RUN ]/[ OK ] lines go to stdout, its errors
+ * to stderr, and a block-buffered stdout would print a failure's message
+ * far from the test it belongs to. Runs before main in every test binary. */
+__attribute__((constructor)) static void tl_line_buffered(void)
+{
+    setvbuf(stdout, NULL, _IOLBF, 0);
+}
+
 const char *tl_meshes_dir(void)
 {
     const char *d = getenv("MCF_MESHES");
