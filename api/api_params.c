@@ -117,7 +117,9 @@ static const keydef keys[] = {
     {"noise", K_NUM, 0, 10, LO_INCL, NULL, set_noise},
     {"seed", K_U64, 0, 0, 0, NULL, set_seed},
     {"format", K_FORMAT, 0, 0, 0, NULL, set_format},
-    {"quantization_bits", K_INT, 0, 30, AUTO, NULL, set_qbits},
+    /* at most 24: Draco's encoder memory doubles per bit (26: 200 MB,
+     * 30: about 3 GB, whatever the mesh) */
+    {"quantization_bits", K_INT, 0, 24, AUTO, NULL, set_qbits},
     {"compression_level", K_INT, 0, 10, 0, NULL, set_clevel},
     {"preserve_order", K_BOOL, 0, 0, 0, NULL, set_order},
     {"ply_curvature", K_BOOL, 0, 0, 0, NULL, set_ply_curvature},

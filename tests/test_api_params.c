@@ -166,8 +166,8 @@ static void test_scalar_keys(void **state)
     assert_int_equal(p.encode.format, API_FMT_DRACO);
     ok3("format", "off", &p);
     assert_int_equal(p.encode.format, API_FMT_OFF);
-    ok3("quantization_bits", "30", &p);
-    assert_int_equal(p.encode.quantization_bits, 30);
+    ok3("quantization_bits", "24", &p);
+    assert_int_equal(p.encode.quantization_bits, 24);
     ok3("compression_level", "0", &p);
     assert_int_equal(p.encode.compression_level, 0);
     ok3("preserve_order", "true", &p);
@@ -216,8 +216,8 @@ static void test_bad_values(void **state)
     bad3("format", "gltf", MCF_EINVAL,
          "parameter 'format' must be one of obj, draco, ply, stl, off, got \"gltf\"");
     bad3("format", "drc", MCF_EINVAL, "parameter 'format'");
-    bad3("quantization_bits", "31", MCF_EINVAL,
-         "parameter 'quantization_bits' must be an integer from 0 to 30");
+    bad3("quantization_bits", "25", MCF_EINVAL,
+         "parameter 'quantization_bits' must be an integer from 0 to 24");
     bad3("compression_level", "11", MCF_EINVAL,
          "parameter 'compression_level' must be an integer from 0 to 10");
     bad3("preserve_order", "on", MCF_EINVAL, "parameter 'preserve_order'");

@@ -2248,6 +2248,32 @@ static void test_spool_quota(void **state)
     }
 }
 
+/* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
+ * 649-byte mesh peaked at 2.75 GB (Draco's encoder memory doubles per
+ * bit). quantization_bits stops at 24 (58 MB on the sphere). */
+static void test_quantization_cap(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    resp_t r;
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?format=draco&quantization_bits=30", NULL,
+         &up, &r);
+    expect_problem(&g_main, &r, 400, "EINVAL", "quantization_bits",
+                   "30 quantization bits");
+    resp_free(&r);
+    http(&g_main, "POST", "/smooth?format=draco&quantization_bits=24", NULL,
+         &up, &r);
+    expect_status(&g_main, &r, 200, "24 quantization bits");
+    {
+        api_format fmt;
+        mcf_mesh *m = decode_body(&r, &fmt);
+        assert_int_equal(fmt, API_FMT_DRACO);
+        mcf_mesh_free(m);
+    }
+    resp_free(&r);
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -3291,6 +3317,7 @@ int main(void)
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
+        cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
