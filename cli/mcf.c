@@ -551,7 +551,7 @@ static int cmd_smooth(int argc, char **argv)
     }
     if (p.noise_rho > 0) {
         t0 = now();
-        if (mcf_mesh_add_noise(m, p.noise_rho, p.seed, &err) != MCF_OK) {
+        if (mcf_flow_add_noise(m, &p.flow, p.noise_rho, p.seed, &err) != MCF_OK) {
             rc = fail(1, "noise: %s", err.msg);
             goto done;
         }

@@ -293,7 +293,8 @@ typedef struct {
     mcf_boundary boundary;    /* default fixed */
     const int32_t *fixed;     /* extra fixed vertex indices (borrowed) */
     int nfixed;
-    mcf_rescale rescale;      /* about the area centroid, after each step */
+    mcf_rescale rescale;      /* about the area centroid, after each step;
+                                 volume needs a closed mesh (EINVAL) */
     int normalize;            /* default 1: centre, unit area, undo after */
     mcf_laplacian laplacian;
     mcf_mass mass;
@@ -325,6 +326,15 @@ void mcf_flow_params_init(mcf_flow_params *p);
  * estimate, a fixed index out of range); EINVAL naming the field. */
 mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv,
                                  mcf_error *err);
+
+/* mcf_mesh_add_noise on the vertices a run with parameters p would move
+ * only: its fixed vertices (p's list, the boundary with boundary=fixed,
+ * unreferenced vertices) keep their positions to the bit, so a noisy
+ * experiment fixes what the flow fixes. The other vertices get exactly
+ * mcf_mesh_add_noise's draws. EINVAL for parameters that do not check
+ * (mcf_flow_params_check), ENOMEM. */
+mcf_status mcf_flow_add_noise(mcf_mesh *m, const mcf_flow_params *p,
+                              double rho, uint64_t seed, mcf_error *err);
 
 typedef struct {
     double t, dt;

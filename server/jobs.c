@@ -939,7 +939,7 @@ static void run_job(srv_job *j)
         }
     }
     if (prm.noise_rho > 0 &&
-        (rc = mcf_mesh_add_noise(m, prm.noise_rho, prm.seed, &err)) != MCF_OK) {
+        (rc = mcf_flow_add_noise(m, &prm.flow, prm.noise_rho, prm.seed, &err)) != MCF_OK) {
         srv_problem_from(&prob, rc, SRV_STAGE_RUN, "noise", &err);
         goto done;
     }

@@ -253,6 +253,97 @@ static void test_max_steps(void **state)
     mcf_mesh_free(m);
 }
 
+static int cmp_i64(const void *a, const void *b)
+{
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* rescale=volume is refused on an open mesh (its "volume" depends on the
+ * origin), rescale=area hits its target there; noise leaves the vertices
+ * the flow fixes (boundary, the user's list) in place, bit for bit. */
+static void test_open_mesh_rescale_and_noise(void **state)
+{
+    mcf_mesh *m = tl_load("bunny.drc");
+    int nv = mcf_mesh_nvertices(m);
+    double a0 = mcf_mesh_area(m);
+    mcf_flow_params p;
+    mcf_error err = {0};
+    (void)state;
+    mcf_flow_params_init(&p);
+    p.rescale = MCF_RESCALE_VOLUME;
+    assert_int_equal(mcf_flow_run(m, &p, NULL, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "rescale: volume needs a closed mesh"));
+    p.rescale = MCF_RESCALE_AREA;
+    p.strength = 1.0;
+    assert_int_equal(mcf_flow_run(m, &p, NULL, &err), MCF_OK);
+    /* 1e-9: the rescale is exact about the working copy; the way back to
+     * input units rounds */
+    tl_assert_near(mcf_mesh_area(m) / a0, 1.0, 1e-9, "area ratio with rescale=area");
+    mcf_mesh_free(m);
+
+    m = tl_load("bunny.drc");
+    mcf_mesh *before = mcf_mesh_dup(m, NULL);
+    int32_t user[2] = {5, 7};
+    mcf_flow_params_init(&p);
+    p.fixed = user;
+    p.nfixed = 2;
+    assert_int_equal(mcf_flow_add_noise(m, &p, 0.5, 11, &err), MCF_OK);
+    /* the boundary: vertices on edges with one face */
+    mcf_mesh_info info;
+    assert_int_equal(mcf_mesh_inspect(m, &info, NULL), MCF_OK);
+    assert_true(info.boundary_edges > 0);
+    const double *X = mcf_mesh_positions(m), *X0 = mcf_mesh_positions(before);
+    const int32_t *F = mcf_mesh_faces(m);
+    int nf = mcf_mesh_nfaces(m), kept = 0, moved = 0;
+    /* the boundary, independently: sorted undirected edges used once */
+    unsigned char *bnd = calloc((size_t)nv, 1);
+    int64_t *e = malloc(sizeof *e * 3 * (size_t)nf);
+    assert_non_null(bnd);
+    assert_non_null(e);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int64_t a = F[3 * f + k], b = F[3 * f + (k + 1) % 3];
+            e[3 * f + k] = a < b ? a * nv + b : b * nv + a;
+        }
+    qsort(e, 3 * (size_t)nf, sizeof *e, cmp_i64);
+    for (size_t i = 0; i < 3 * (size_t)nf;) {
+        size_t j = i;
+        while (j < 3 * (size_t)nf && e[j] == e[i])
+            j++;
+        if (j - i == 1)
+            bnd[e[i] / nv] = bnd[e[i] % nv] = 1;
+        i = j;
+    }
+    free(e);
+    bnd[5] = bnd[7] = 1;
+    for (int i = 0; i < nv; i++) {
+        int same = memcmp(X + 3 * i, X0 + 3 * i, 3 * sizeof(double)) == 0;
+        if (bnd[i]) {
+            if (!same)
+                fail_msg("fixed vertex %d moved under noise", i);
+            kept++;
+        } else {
+            moved += !same;
+        }
+    }
+    print_message("noise: %d fixed vertices kept, %d others moved\n", kept, moved);
+    assert_true(kept >= 3 && moved > nv / 2);
+    /* with a free boundary the same call moves the boundary too */
+    mcf_mesh_free(m);
+    m = mcf_mesh_dup(before, NULL);
+    p.boundary = MCF_BOUNDARY_FREE;
+    p.nfixed = 0;
+    assert_int_equal(mcf_flow_add_noise(m, &p, 0.5, 11, &err), MCF_OK);
+    mcf_mesh *plain = mcf_mesh_dup(before, NULL);
+    assert_int_equal(mcf_mesh_add_noise(plain, 0.5, 11, &err), MCF_OK);
+    tl_assert_same_mesh(m, plain);
+    free(bnd);
+    mcf_mesh_free(plain);
+    mcf_mesh_free(before);
+    mcf_mesh_free(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -261,6 +352,7 @@ int main(void)
         cmocka_unit_test(test_warnings),
         cmocka_unit_test(test_adaptive_scan),
         cmocka_unit_test(test_max_steps),
+        cmocka_unit_test(test_open_mesh_rescale_and_noise),
     };
     return cmocka_run_group_tests_name("core_amount", tests, NULL, NULL);
 }
