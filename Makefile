@@ -163,6 +163,24 @@ test: deps
 asan:
 	$(MAKE) SAN=address,undefined test
 
+# ---- the attacks of issue 9 on a real mcfd (loopback), one test_server test
+# each, with the figures they measure (worker release, floods, slowloris,
+# followers, queued memory); the README's reliability section quotes them.
+ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
+  test_http_small_things test_query_flood test_spool_failures test_spool_quota \
+  test_followers_and_per_ip test_header_deadline test_queued_inputs_on_disk \
+  test_cancel_survives_shutdown test_quantization_cap
+attack: deps
+	$(MAKE) all $(B)/tests/test_server
+	@fail=0; for t in $(ATTACKS); do \
+	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
+	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=$(B) MCF_TEST_FILTER=$$t \
+	    $(B)/tests/test_server > $(B)/tests/attack.out 2>&1 || fail=1; \
+	  grep -E '^\[ *(OK|FAILED|SKIP) *\]|^    ' $(B)/tests/attack.out | grep -v ' test(s)'; \
+	done; rm -f $(B)/tests/attack.out; exit $$fail
+
+.PHONY: attack
+
 bench: deps
 	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
 	$(MAKE) all

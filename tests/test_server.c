@@ -1750,6 +1750,7 @@ static void test_query_flood(void **state)
         api_buf_free(&out);
         free(req);
     }
+    print_message("    20 requests of 500 query parameters: 20 answered 200\n");
     {
         upload_t up = {.mesh = "sphere_cgal.obj"};
         char *path = malloc(q.len + 64);
@@ -1812,6 +1813,7 @@ static void test_query_flood(void **state)
     assert_true(wait_exit(d.pid, 40, &st));
     d.pid = 0;
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+    print_message("    SIGTERM after the floods: exit in %.2f s\n", mcf_now() - t0);
     if (mcf_now() - t0 > 3)
         fail_msg("SIGTERM took %.1f s: a request was still counted in flight",
                  mcf_now() - t0);
@@ -1985,9 +1987,14 @@ static void test_followers_and_per_ip(void **state)
     if (ok != SRV_FOLLOWERS || busy != 70 - SRV_FOLLOWERS)
         fail_msg("70 followers of one job: %d x 200, %d x 503", ok, busy);
     wait_gauge_within(&d, "mcfd_followers", SRV_FOLLOWERS, 3, "followers open");
-    for (i = 0; i < 70; i++)
-        close(fds[i]);
-    wait_gauge_within(&d, "mcfd_followers", 0, 3, "followers that left");
+    {
+        double tc = mcf_now();
+        for (i = 0; i < 70; i++)
+            close(fds[i]);
+        wait_gauge_within(&d, "mcfd_followers", 0, 3, "followers that left");
+        print_message("    70 followers of one job: %d x 200, %d x 503; all let "
+                      "go %.2f s after they left\n", ok, busy, mcf_now() - tc);
+    }
     snprintf(path, sizeof path, "/v1/jobs/%s", b);
     http(&d, "DELETE", path, NULL, NULL, &r);
     resp_free(&r);
@@ -2345,8 +2352,13 @@ static void test_hangup_and_budgets(void **state)
     fd = send_raw_smooth(&d, long_job);
     wait_gauge(&d, "mcfd_workers_busy", 1);
     sleep_ms(300);
-    close(fd);
-    wait_gauge_within(&d, "mcfd_workers_busy", 0, 3, "hung-up running job");
+    {
+        double tc = mcf_now();
+        close(fd);
+        wait_gauge_within(&d, "mcfd_workers_busy", 0, 3, "hung-up running job");
+        print_message("    hung-up /smooth: worker free %.2f s after the close\n",
+                      mcf_now() - tc);
+    }
     wait_gauge_within(&d, "mcfd_jobs_total{scheme=\"desbrun2\",status=\"canceled\"}",
                       1, 3, "hung-up running job counted canceled");
 
