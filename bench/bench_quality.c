@@ -986,7 +986,8 @@ int main(int argc, char **argv)
         }
         printf("  (%.1f s)\n", row->wall);
         fflush(stdout);
-        write_oracle_summary(oracle_out, mr, mi + 1, rho, nr, nseeds);
+        if (want[M_ORACLE])
+            write_oracle_summary(oracle_out, mr, mi + 1, rho, nr, nseeds);
         mcf_mesh_free(clean);
         free(crease);
     }
@@ -1067,7 +1068,8 @@ int main(int argc, char **argv)
         for (int i = 0; i < fig_n; i++)
             mcf_mesh_free((mcf_mesh *)(uintptr_t)fig_ms[i]);
     }
-    write_oracle_summary(oracle_out, mr, nm, rho, nr, nseeds);
+    if (want[M_ORACLE])
+        write_oracle_summary(oracle_out, mr, nm, rho, nr, nseeds);
     printf("\nCSV: %s/quality.csv, %s/oracle-sweep.csv; run time %.0f s\n", out, out, mcf_now() - t_start);
     free(mr);
     return 0;
