@@ -242,7 +242,7 @@ image:
 	docker/image.sh build $(IMAGE) $(BASE)
 
 image-check:
-	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl"
+	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl procps"
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 

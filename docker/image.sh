@@ -118,9 +118,14 @@ check() {
         sleep 0.5
     done
     echo "image-check: healthcheck (mcfd --probe) passes"
-    user=$(pm exec "$name" id -u)
-    [ "$user" != 0 ] || { echo "image-check: FAIL: mcfd runs as root" >&2; exit 1; }
-    echo "image-check: runs as uid $user ($(pm exec "$name" id -un))"
+    # the processes themselves, seen from the host: tini (PID 1) and mcfd under it
+    pid=$(pm inspect --format '{{.State.Pid}}' "$name")
+    ps -o uid=,args= -p "$pid" --ppid "$pid" > "$out/procs"
+    grep -q 'mcfd' "$out/procs" || { cat "$out/procs" >&2; echo "image-check: FAIL: no mcfd process" >&2; exit 1; }
+    if awk '$1 == 0 { bad = 1 } END { exit !bad }' "$out/procs"; then
+        cat "$out/procs" >&2; echo "image-check: FAIL: a process runs as root" >&2; exit 1
+    fi
+    echo "image-check: tini and mcfd run as uid $(awk 'NR == 1 { print $1 }' "$out/procs") ($(pm exec "$name" id -un)), not root"
     code=$(curl -sS -o "$out/smoothed.obj" -w '%{http_code}' --max-time 60 \
         -F mesh=@tests/data/meshes/sphere_cgal.obj \
         "http://127.0.0.1:$port/smooth?scheme=desbrun2&iterations=5")
