@@ -870,8 +870,8 @@ static void test_thread_count(void **state)
 
 /* Attributes through the daemon (issue 12): car.drc's texcoords and
  * normals come back in the default Draco output, float32 and raw like the
- * input; PLY is float with nx ny nz and vertex s t (car.drc's vertices
- * are its points: no seams), and the curvature properties only with
+ * input; PLY is float with nx ny nz and the face texcoord list (UV seams
+ * at the welded vertices), and the curvature properties only with
  * ply_curvature=true, as in mcf. */
 static void test_smooth_attributes(void **state)
 {
@@ -903,7 +903,8 @@ static void test_smooth_attributes(void **state)
         expect_status(&g_main, &r, 200, "car.drc to ply");
         assert_non_null(strstr(r.body.data, "property float x\n"));
         assert_non_null(strstr(r.body.data, "property float nx\n"));
-        assert_non_null(strstr(r.body.data, "property float s\n")); /* no seams */
+        /* car.drc's seams (vertices welded, texcoords per corner) */
+        assert_non_null(strstr(r.body.data, "property list uchar float texcoord\n"));
         assert_true((strstr(r.body.data, "property float mean_curvature\n") != NULL)
                     == pass);
         resp_free(&r);
