@@ -86,7 +86,13 @@ static void set_tol(api_params *p, value v)
     p->flow.tol = v.d;
     p->tol_set = 1;
 }
-static void set_strength(api_params *p, value v) { p->flow.strength = v.d; }
+static void set_strength(api_params *p, value v)
+{
+    /* NaN stands for "auto" (see parse_value). */
+    p->flow.strength_auto = isnan(v.d);
+    if (!isnan(v.d))
+        p->flow.strength = v.d;
+}
 static void set_max_steps(api_params *p, value v) { p->flow.max_steps = (int)v.i; }
 static void set_noise(api_params *p, value v) { p->noise_rho = v.d; }
 static void set_seed(api_params *p, value v) { p->seed = v.u; }
@@ -104,7 +110,7 @@ static const keydef keys[] = {
     {"dt", K_NUM, 0, 1e3, AUTO, NULL, set_dt},
     {"iterations", K_INT, 1, 0, HI_ITER, NULL, set_iterations},
     {"time", K_NUM, 0, HUGE_VAL, 0, NULL, set_time},
-    {"strength", K_NUM, 0, 100, 0, NULL, set_strength},
+    {"strength", K_NUM, 0, 100, AUTO, NULL, set_strength},
     {"boundary", K_ENUM, 0, 0, 0, boundary_names, set_boundary},
     {"fixed_vertices", K_LIST, 0, 0, 0, NULL, NULL},
     {"rescale", K_ENUM, 0, 0, 0, rescale_names, set_rescale},
@@ -818,7 +824,10 @@ cJSON *api_params_to_json(const api_params *p)
         ok &= cJSON_AddNumberToObject(j, "time", p->flow.time) != NULL;
     if (p->iterations_set)
         ok &= cJSON_AddNumberToObject(j, "iterations", p->flow.iterations) != NULL;
-    ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
+    if (p->flow.strength_auto)
+        ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
+    else
+        ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
     ok &= cJSON_AddStringToObject(j, "boundary",
                                   enum_name(boundary_names, (int)p->flow.boundary)) != NULL;
     fx = cJSON_AddArrayToObject(j, "fixed_vertices");

@@ -274,7 +274,9 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * otherwise `iterations` steps (MCF_DEFAULT_STEPS when 0) of equal size.
  * An adaptive run starts from that step and ends at the total time.
  * `taubin` is a filter: it runs `iterations` passes (MCF_DEFAULT_STEPS
- * when 0) and ignores the amount. The default strength was chosen on real
+ * when 0) and ignores the amount. strength_auto estimates the noise and
+ * picks the time that minimizes the expected error (mcf_auto.c), in place
+ * of strength. The default strength was chosen on real
  * scans with injected noise (README, "Choosing the amount"): it reduces
  * the error at every noise level measured and harms none. */
 #define MCF_DEFAULT_STRENGTH 0.33
@@ -290,6 +292,9 @@ typedef struct {
     double time;              /* total time; > 0 overrides everything */
     double strength;          /* diffusion length in mean edges, > 0
                                  (default MCF_DEFAULT_STRENGTH) */
+    int strength_auto;        /* 1: the amount from the mesh's own noise
+                                 (mcf_auto.c: a noise estimate and Stein's
+                                 unbiased risk estimate); replaces strength */
     mcf_boundary boundary;    /* default fixed */
     const int32_t *fixed;     /* extra fixed vertex indices (borrowed) */
     int nfixed;
@@ -383,6 +388,8 @@ typedef struct {
     double mean_edge;         /* h, working units (unit area if normalize) */
     double t_target;          /* the total time the run was asked to cover */
     double strength;          /* sqrt(t_final) / h: what the run did */
+    double noise;             /* strength_auto: the estimated noise along
+                                 the normals, in mean edges; else 0 */
     unsigned warnings;        /* MCF_WARN_* bits */
     int folded_faces;         /* faces lying backwards in their
                                  neighbourhood, beyond the input's */

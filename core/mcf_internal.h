@@ -93,6 +93,14 @@ void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
 void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
                          const double *X, double *Y);
 
+/* ---- strength=auto (mcf_auto.c)
+ * The time t_best that minimizes SURE for K frozen implicit steps from X
+ * (working units, mean edge hbar), and the noise level sigma along the
+ * normals it estimated (working units). ENOMEM, ENUMERIC. */
+mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
+                          mcf_laplacian lap, mcf_mass mk, double hbar, int K,
+                          double *t_best, double *sigma, mcf_error *err);
+
 /* ---- small helpers */
 #define MCF_PI 3.14159265358979323846
 /* splitmix64's finalizer: a bijection of 64-bit words that mixes well. */
