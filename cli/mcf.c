@@ -401,6 +401,7 @@ static int save_mesh(const mcf_mesh *m, const api_encode_opts *opts,
 typedef struct {
     double total_time;    /* > 0: progress by t, else by steps */
     int total_steps;
+    const mcf_flow_stats *st; /* t_target, set by the core before step 1 */
     double last;          /* when the bar was last drawn */
     int drawn;
 } progress_state;
@@ -418,6 +419,8 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     if (tn - ps->last < 0.1)
         return 0;
     ps->last = tn;
+    if (ps->total_time <= 0 && ps->st && ps->st->t_target > 0)
+        ps->total_time = ps->st->t_target; /* the amount came from strength */
     frac = ps->total_time > 0 ? t / ps->total_time
                               : (double)step / (ps->total_steps > 0 ? ps->total_steps : 1);
     if (!(frac >= 0))
@@ -577,7 +580,8 @@ static int cmd_smooth(int argc, char **argv)
     show = !o.quiet && isatty(STDERR_FILENO);
     if (show) {
         ps.total_time = p.time_set ? p.flow.time : 0;
-        ps.total_steps = p.flow.iterations;
+        ps.total_steps = p.flow.iterations > 0 ? p.flow.iterations : MCF_DEFAULT_STEPS;
+        ps.st = &st;
         p.flow.progress = on_progress;
         p.flow.progress_ctx = &ps;
     }

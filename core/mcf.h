@@ -386,7 +386,10 @@ typedef struct {
            time_total;        /* seconds, monotonic clock */
     size_t peak_bytes;        /* peak heap held by the solver for this job */
     double mean_edge;         /* h, working units (unit area if normalize) */
-    double t_target;          /* the total time the run was asked to cover */
+    double t_target;          /* the total time the run was asked to cover
+                                 (set, with mean_edge, before the first
+                                 progress call: a progress callback may
+                                 read them to show a fraction) */
     double strength;          /* sqrt(t_final) / h: what the run did */
     double noise;             /* strength_auto: the estimated noise along
                                  the normals, in mean edges; else 0 */
