@@ -186,6 +186,8 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && num(o, "mean_edge", st->mean_edge);
     ok = ok && num(o, "t_target", st->t_target);
     ok = ok && num(o, "strength", st->strength);
+    /* strength=auto: the noise it estimated, in mean edges (else 0) */
+    ok = ok && num(o, "noise", st->noise);
     ok = ok && num(o, "folded_faces", st->folded_faces);
     ok = ok && num(o, "min_edge_ratio", st->min_edge_ratio);
     ok = ok && num(o, "area_ratio", st->area_ratio);
