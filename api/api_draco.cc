@@ -980,7 +980,17 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
         enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, pp.bits);
     if (tc && pt_plan.bits > 0) {
         const api__attr &t = *tc;
-        if (pt_plan.grid && pt_plan.bits == t.bits) {
+        /* The input's grid only when every value lies on it: a hostile
+         * stream's texcoord prediction can decode values far outside its
+         * declared range (1.8e6 on a grid of range 1), and quantizing those
+         * on that grid made libdraco's entropy coder ask for 4 GB. */
+        bool on_grid = pt_plan.grid && pt_plan.bits == t.bits;
+        for (int i = 0; on_grid && i < t.nvalues; i++)
+            for (int c = 0; c < 2; c++) {
+                const float v = static_cast<float>(t.values[2 * i + c]);
+                on_grid = on_grid && v >= t.qorigin[c] && v <= t.qorigin[c] + t.qrange;
+            }
+        if (on_grid) {
             /* The input's grid: every value comes back exactly. */
             enc.SetAttributeExplicitQuantization(draco::GeometryAttribute::TEX_COORD,
                                                  t.bits, 2, t.qorigin, t.qrange);

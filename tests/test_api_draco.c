@@ -1154,6 +1154,61 @@ static void test_attrs_generated(void **state)
             assert_true(cv[4 * cc[c] + k] == cv0[4 * cc0[best] + k]);
     }
     assert_int_equal(nvals, 81 + 9); /* referenced values: the seam column twice */
+    /* Once quantized, again through the default (after smoothing): the
+     * texcoords come back as the very same floats, at the input's bits and
+     * on its grid (values spanning the grid, as here, give Draco's own
+     * range the same grid, so this checks the result, not which path). */
+    {
+        api_buf b2;
+        mcf_mesh *d2 = NULL;
+        api_attrs *da2 = NULL;
+        corner_rec *w, *g;
+        int nf = mcf_mesh_nfaces(d);
+        smooth_a_little(d);
+        b2 = encode_attrs(d, da, -1, 0);
+        assert_int_equal(api_draco_decode_attrs(b2.data, b2.len, NULL, &d2, &da2, &err),
+                         MCF_OK);
+        assert_int_equal(api_attrs_draco_bits(da2, API_ATTR_TEXCOORD),
+                         API_DRACO_DEFAULT_TEXCOORD_BITS);
+        /* texcoords only: positions moved and were quantized again */
+        {
+            api_attrs *t1 = api_attrs_new(mcf_mesh_nvertices(d), nf);
+            api_attrs *t2 = api_attrs_new(mcf_mesh_nvertices(d2), nf);
+            const double *v;
+            const int32_t *cr;
+            int nv1;
+            mcf_mesh *flat1, *flat2;
+            double *Z1 = calloc(3 * (size_t)mcf_mesh_nvertices(d), sizeof *Z1);
+            double *Z2 = calloc(3 * (size_t)mcf_mesh_nvertices(d2), sizeof *Z2);
+            assert_true(api_attrs_get(da, API_ATTR_TEXCOORD, NULL, &nv1, &v, &cr));
+            assert_int_equal(api_attrs_set(t1, API_ATTR_TEXCOORD, 2, nv1, v, cr, &err),
+                             MCF_OK);
+            assert_true(api_attrs_get(da2, API_ATTR_TEXCOORD, NULL, &nv1, &v, &cr));
+            assert_int_equal(api_attrs_set(t2, API_ATTR_TEXCOORD, 2, nv1, v, cr, &err),
+                             MCF_OK);
+            /* corner records with the positions zeroed: the multisets of
+             * texcoords per corner must agree */
+            flat1 = mcf_mesh_new(mcf_mesh_nvertices(d), Z1, nf, mcf_mesh_faces(d), &err);
+            flat2 = mcf_mesh_new(mcf_mesh_nvertices(d2), Z2, nf, mcf_mesh_faces(d2), &err);
+            assert_non_null(flat1);
+            assert_non_null(flat2);
+            w = corners_of(flat1, t1, NULL);
+            g = corners_of(flat2, t2, NULL);
+            if (memcmp(w, g, 3 * (size_t)nf * sizeof *w) != 0)
+                fail_msg("texcoords left the input's grid");
+            free(w);
+            free(g);
+            free(Z1);
+            free(Z2);
+            mcf_mesh_free(flat1);
+            mcf_mesh_free(flat2);
+            api_attrs_free(t1);
+            api_attrs_free(t2);
+        }
+        api_attrs_free(da2);
+        mcf_mesh_free(d2);
+        api_buf_free(&b2);
+    }
     api_attrs_free(da);
     mcf_mesh_free(d);
     api_buf_free(&b);
