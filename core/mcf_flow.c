@@ -454,27 +454,37 @@ static void face_normals(const double *X, const int32_t *F, int nf, double *fn)
  * too, but ends aligned with its neighbours: not counted. The new face
  * normals go to fn_after (the next step's "before"); N (3*nv) is scratch.
  * Faces that were degenerate before (zero normal) cannot fold. */
+/* N (3*nv) = the sums of the (unnormalized) face normals fn around each
+ * vertex. */
+static void vertex_normal_sums(const int32_t *F, int nf, int nv, const double *fn, double *N)
+{
+    memset(N, 0, 3 * sizeof(double) * (size_t)nv);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                N[3 * (size_t)F[3 * f + k] + d] += fn[3 * (size_t)f + d];
+}
+
+/* 1 when face f lies backwards in its neighbourhood: its normal points
+ * against the sum of its three vertices' normal sums N. */
+static int lies_backwards(const int32_t *F, const double *fn, const double *N, int f)
+{
+    double s[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++)
+        for (int d = 0; d < 3; d++)
+            s[d] += N[3 * (size_t)F[3 * f + k] + d];
+    return mcf__dot3(fn + 3 * (size_t)f, s) < 0.0;
+}
+
 static int folded_faces(const double *X, const int32_t *F, int nf, int nv,
                         const double *fn_before, double *fn_after, double *N)
 {
     int bad = 0;
     face_normals(X, F, nf, fn_after);
-    memset(N, 0, 3 * sizeof(double) * (size_t)nv);
+    vertex_normal_sums(F, nf, nv, fn_after, N);
     for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            for (int d = 0; d < 3; d++)
-                N[3 * (size_t)F[3 * f + k] + d] += fn_after[3 * (size_t)f + d];
-    for (int f = 0; f < nf; f++) {
-        const double *n = fn_after + 3 * (size_t)f;
-        if (mcf__dot3(n, fn_before + 3 * (size_t)f) >= 0.0)
-            continue;
-        double s[3] = {0, 0, 0};
-        for (int k = 0; k < 3; k++)
-            for (int d = 0; d < 3; d++)
-                s[d] += N[3 * (size_t)F[3 * f + k] + d];
-        if (mcf__dot3(n, s) < 0.0)
-            bad++;
-    }
+        bad += mcf__dot3(fn_after + 3 * (size_t)f, fn_before + 3 * (size_t)f) < 0.0 &&
+               lies_backwards(F, fn_after, N, f);
     return bad;
 }
 
@@ -946,6 +956,15 @@ static int odd_edges(const flow_ctx *c)
     return odd;
 }
 
+/* Boundary vertices: endpoints of edges used by exactly one face. */
+static void mark_boundary(const mcf__pattern *p, unsigned char *fixed)
+{
+    for (int j = 0; j < p->n; j++)
+        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++)
+            if (p->mult[t] == 1)
+                fixed[j] = fixed[p->rowind[t]] = 1;
+}
+
 /* Marks in fixed[] (nv, zeroed by the caller) what a run with p holds in
  * place: p's list, the boundary vertices with boundary=fixed and the
  * vertices no face uses. ENOMEM only. */
@@ -959,10 +978,7 @@ static mcf_status fixed_set(const mcf_mesh *m, const mcf_flow_params *p, unsigne
         mcf_status rc = mcf__pattern_build(m->F, m->nf, m->nv, 0, &pat, err);
         if (rc != MCF_OK)
             return rc;
-        for (int j = 0; j < m->nv; j++)
-            for (int t = pat.colptr[j]; t < pat.colptr[j + 1]; t++)
-                if (pat.mult[t] == 1)
-                    fixed[j] = fixed[pat.rowind[t]] = 1;
+        mark_boundary(&pat, fixed);
         mcf__pattern_free(&pat);
     }
     unsigned char *used = mcf__calloc((size_t)m->nv, 1);
@@ -1002,16 +1018,6 @@ done:
     free(fixed);
     free(keep);
     return rc;
-}
-
-/* Boundary vertices: endpoints of edges used by exactly one face. */
-static void mark_boundary(flow_ctx *c)
-{
-    const mcf__pattern *p = &c->pat;
-    for (int j = 0; j < c->nv; j++)
-        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++)
-            if (p->mult[t] == 1)
-                c->fixed[j] = c->fixed[p->rowind[t]] = 1;
 }
 
 /* The log's area and volume are in input units, and the volume is
@@ -1077,35 +1083,22 @@ static double min_edge(const double *X, const int32_t *F, int nf)
     return isfinite(mn) ? sqrt(mn) : 0.0;
 }
 
-/* Faces of X that lie backwards in their neighbourhood: the normal
- * points against the sum of the area-weighted normals of the faces around
- * its three vertices (folded_faces' second test, without a "before").
- * -1 when out of memory. */
+/* Faces of X that lie backwards in their neighbourhood (lies_backwards:
+ * folded_faces' second test, without a "before"). -1 when out of memory. */
 static int backwards_faces(const double *X, const int32_t *F, int nf, int nv)
 {
     double *fn = mcf__malloc(3 * (size_t)nf, sizeof(double));
-    double *N = mcf__calloc(3 * (size_t)nv, sizeof(double));
+    double *N = mcf__malloc(3 * (size_t)nv, sizeof(double));
     int bad = 0;
-    if (!fn || !N) {
-        free(fn);
-        free(N);
-        return -1;
-    }
-    face_normals(X, F, nf, fn);
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            for (int d = 0; d < 3; d++)
-                N[3 * (size_t)F[3 * f + k] + d] += fn[3 * (size_t)f + d];
-    for (int f = 0; f < nf; f++) {
-        double s[3] = {0, 0, 0};
-        for (int k = 0; k < 3; k++)
-            for (int d = 0; d < 3; d++)
-                s[d] += N[3 * (size_t)F[3 * f + k] + d];
-        bad += mcf__dot3(fn + 3 * (size_t)f, s) < 0.0;
+    if (fn && N) {
+        face_normals(X, F, nf, fn);
+        vertex_normal_sums(F, nf, nv, fn, N);
+        for (int f = 0; f < nf; f++)
+            bad += lies_backwards(F, fn, N, f);
     }
     free(fn);
     free(N);
-    return bad;
+    return fn && N ? bad : -1;
 }
 
 /* The warnings of a finished run (result X, input X_in, both in input
@@ -1260,7 +1253,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
             goto done;
         c.bytes += sizeof(int) * (2 * (size_t)c.pat.nnz + 2 * nv + (c.pat.tri ? 3 * nf : 0));
         if (fix_boundary)
-            mark_boundary(&c);
+            mark_boundary(&c.pat, c.fixed);
     }
     double hbar = mcf__mean_edge(c.X, c.F, c.nf);
     st->mean_edge = hbar;
