@@ -152,11 +152,12 @@ test: deps
 	  awk '{ n += $$1 } END { print n + 0 }'; }; \
 	passed=$$(count PASSED); failed=$$(count FAILED); skipped=$$(count SKIPPED); \
 	if [ -s $(B)/tests/skipped.log ]; then \
-	  echo "make test: the skipped tests (SKIPPED above, each with its reason) want:" \
+	  echo "make test: the skipped tests (SKIPPED above, each with its reason) need:" \
 	    "$$(cut -f1 $(B)/tests/skipped.log | sort -u | tr '\n' ' ')"; \
-	  echo "  the meshes are large scans kept out of the repository (tests/data/meshes/SOURCES.md)"; \
+	  echo "  a mesh file there is a large scan kept out of the repository (tests/data/meshes/SOURCES.md);" \
+	    "anything else is what the machine or the build lacks (the reason says)"; \
 	  echo "make test: $$passed passed, $$failed failed, $$skipped skipped;" \
-	    "run the skipped with: make test MESHES=/path/to/meshes (the team's: ../shared/meshes)"; \
+	    "run the mesh ones with: make test MESHES=/path/to/meshes (the team's: ../shared/meshes)"; \
 	else echo "make test: $$passed passed, $$failed failed, $$skipped skipped (MESHES=$(or $(MESHES),unset))"; fi; \
 	exit $$fail
 
