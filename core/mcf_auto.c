@@ -38,9 +38,7 @@
 #include "mcf_internal.h"
 
 typedef struct {
-    int nv, nf;
-    const double *X;
-    const int32_t *F;
+    int nv;
     mcf__pattern pat;
     double *N;          /* 3*nv unit vertex normals of X */
     int *deg;           /* nv: 1-ring size (distinct neighbours) */
@@ -115,7 +113,8 @@ static int cmp_double(const void *x, const void *y)
 }
 
 /* Median of |v_i| over the vertices with a 1-ring of at least 3 (the
- * others, on slivers and boundaries' tips, say little); v is reordered. */
+ * others, on slivers and boundaries' tips, say little); work (nv) is
+ * scratch. */
 static double mad(const auto_ctx *a, double *v, double *work)
 {
     size_t k = 0;
@@ -161,9 +160,6 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
     double *yn = NULL, *probe = NULL;
     memset(&a, 0, sizeof a);
     a.nv = nv;
-    a.nf = nf;
-    a.X = X;
-    a.F = F;
     if ((rc = mcf__pattern_build(F, nf, nv, 1, &a.pat, err)) != MCF_OK)
         return rc;
     a.N = mcf__malloc(3 * (size_t)nv, sizeof(double));

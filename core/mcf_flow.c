@@ -965,6 +965,15 @@ static void mark_boundary(const mcf__pattern *p, unsigned char *fixed)
                 fixed[j] = fixed[p->rowind[t]] = 1;
 }
 
+/* Adds the vertices no face uses to fixed[] (nv, 0/1 entries). */
+static void mark_unreferenced(const int32_t *F, int nf, int nv, unsigned char *fixed)
+{
+    for (size_t k = 0; k < 3 * (size_t)nf; k++)
+        fixed[F[k]] |= 2; /* referenced */
+    for (int i = 0; i < nv; i++)
+        fixed[i] = fixed[i] != 2; /* fixed already, or unreferenced */
+}
+
 /* Marks in fixed[] (nv, zeroed by the caller) what a run with p holds in
  * place: p's list, the boundary vertices with boundary=fixed and the
  * vertices no face uses. ENOMEM only. */
@@ -981,14 +990,7 @@ static mcf_status fixed_set(const mcf_mesh *m, const mcf_flow_params *p, unsigne
         mark_boundary(&pat, fixed);
         mcf__pattern_free(&pat);
     }
-    unsigned char *used = mcf__calloc((size_t)m->nv, 1);
-    if (!used)
-        return mcf__fail(err, MCF_ENOMEM, "noise: out of memory (%d vertices)", m->nv);
-    for (size_t k = 0; k < 3 * (size_t)m->nf; k++)
-        used[m->F[k]] = 1;
-    for (int i = 0; i < m->nv; i++)
-        fixed[i] |= !used[i];
-    free(used);
+    mark_unreferenced(m->F, m->nf, m->nv, fixed);
     return MCF_OK;
 }
 
@@ -1262,10 +1264,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
      * referenced vertex has barycentric mass, the mollified areas being
      * positive) and, with the Voronoi mass, any other */
     if (p->mass == MCF_MASS_BARYCENTRIC) {
-        for (size_t k = 0; k < 3 * nf; k++)
-            c.fixed[c.F[k]] |= 2; /* referenced */
-        for (size_t i = 0; i < nv; i++)
-            c.fixed[i] = c.fixed[i] != 2; /* fixed already, or unreferenced */
+        mark_unreferenced(c.F, c.nf, c.nv, c.fixed);
     } else {
         ops_at(&c, c.X, c.w, c.area, c.mass);
         for (size_t i = 0; i < nv; i++)
