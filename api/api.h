@@ -273,6 +273,39 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
 /* The parameters as a JSON object (for job records and metrics). */
 cJSON *api_params_to_json(const api_params *p);
 
+/* ----------------------------------------------------------- memory estimate */
+
+/* A job's peak memory as the input declares it (api_estimate.c: how the
+ * counts are found and the fitted model with its margin). */
+typedef struct {
+    api_format format;         /* detected from the bytes */
+    long long vertices, faces; /* declared or counted (faces: triangles) */
+    double decode_bytes;       /* decoding it (sizes the Draco sandbox) */
+    double job_bytes;          /* the whole job, decode to encode */
+} api_mem_estimate;
+
+/* Fills *out from the bytes and the parameters (p may be NULL: the
+ * default scheme). Never fails; unreadable counts give 0 (the input's
+ * size term remains, and decoding will refuse it). */
+void api_estimate_memory(const void *buf, size_t len, const api_params *p,
+                         api_mem_estimate *out);
+/* The model alone: peak bytes of a job on a mesh of nv vertices and nf
+ * triangles from an input of input_bytes (the daemon re-estimates with
+ * the decoded counts before the flow). */
+double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
+                              const api_params *p);
+
+/* ------------------------------------------------------------------ pack */
+
+/* The mesh and its attributes (attrs may be NULL) appended to out as one
+ * exact binary record (api_pack.c), for the decode sandbox's pipe. */
+mcf_status api_mesh_pack(const mcf_mesh *m, const api_attrs *attrs,
+                         api_buf *out, mcf_error *err);
+/* The record back: a new mesh and attributes (attrs may be NULL), every
+ * count checked against the bytes and lim. EDECODE for a bad record. */
+mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
+                           mcf_mesh **out, api_attrs **attrs, mcf_error *err);
+
 /* ---------------------------------------------------------------- process */
 
 /* For programs, first thing in main: caps the OpenMP threads CHOLMOD opens

@@ -214,7 +214,7 @@ mcf_status skip_metadata(cursor *c, int depth, mcf_error *err)
 }
 
 mcf_status check_counts(const uint8_t *buf, size_t len, const api_limits *lim,
-                        mcf_error *err)
+                        mcf_error *err, uint32_t *declared = nullptr)
 {
     cursor c{buf, buf + len};
     if (len < 11)
@@ -300,6 +300,10 @@ mcf_status check_counts(const uint8_t *buf, size_t len, const api_limits *lim,
         }
     } else {
         return MCF_OK; /* Draco refuses unknown methods */
+    }
+    if (declared) { /* what the memory estimate sizes (api_estimate.c) */
+        declared[0] = nverts > extra ? nverts : extra;
+        declared[1] = nfaces;
     }
     if (nfaces > static_cast<uint32_t>(lim->max_faces))
         return api__fail(err, MCF_ELIMIT,
@@ -1096,4 +1100,23 @@ extern "C" mcf_status api_draco_encode(const mcf_mesh *m,
     } catch (...) {
         return api__fail(err, MCF_EMESH, "draco: the encoder failed (exception)");
     }
+}
+
+extern "C" int api__draco_declared(const void *buf, size_t len, uint32_t *nv,
+                                   uint32_t *nf)
+{
+    api_limits lim;
+    uint32_t d[2] = {0, 0};
+    if (len < 11 || memcmp(buf, "DRACO", 5) != 0)
+        return 0;
+    api_limits_default(&lim);
+    lim.max_faces = lim.max_vertices = 0x7fffffff;
+    try {
+        check_counts(static_cast<const uint8_t *>(buf), len, &lim, nullptr, d);
+    } catch (...) {
+        return 0;
+    }
+    *nv = d[0];
+    *nf = d[1];
+    return d[1] > 0;
 }

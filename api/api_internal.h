@@ -213,4 +213,12 @@ void api__vertex_normals(const mcf_mesh *m, double *N);
  * memory) 0, out then partly filled. */
 int api__attr_per_vertex(const api__attr *at, const mcf_mesh *m, double *out);
 
+/* ------------------------------------------------ Draco header (api_draco.cc) */
+
+/* The vertex and face counts a Draco stream's header declares (the ones
+ * check_counts bounds), without decoding it: 1 when both were read, else
+ * 0. For the memory estimate (api_estimate.c). */
+int api__draco_declared(const void *buf, size_t len, uint32_t *nv,
+                        uint32_t *nf);
+
 #endif /* API_INTERNAL_H */

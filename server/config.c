@@ -35,7 +35,9 @@ enum {
     O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
     O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
-    O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT, O_TOKEN,
+    O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT,
+    O_BODY_TIMEOUT, O_MAX_MEMORY, O_MAX_JOB_MEMORY, O_DECODE_CPU,
+    O_DECODE_MEMORY, O_TOKEN,
     O_LOG, O_PROBE,
     O_HELP, O_VERSION, O_COUNT
 };
@@ -88,6 +90,22 @@ static const option opts[O_COUNT] = {
                           0, 0, "a request's line and headers must arrive "
                           "within this of the connection or the last answer, "
                           "0: no limit (default 30s)"},
+    [O_BODY_TIMEOUT] = {"--body-timeout", "MCFD_BODY_TIMEOUT", T_DUR, 0, 0,
+                        "a request's whole body must arrive within this of "
+                        "its head, 0: no limit (default 60s + --max-upload at "
+                        "1 MiB/s: 316s)"},
+    [O_MAX_MEMORY] = {"--max-memory", "MCFD_MAX_MEMORY", T_SIZE, 0, 0,
+                      "estimated peak memory of the jobs running at once; "
+                      "others wait in the queue (default: half the RAM)"},
+    [O_MAX_JOB_MEMORY] = {"--max-job-memory", "MCFD_MAX_JOB_MEMORY", T_SIZE,
+                          0, 0, "estimated peak memory of one job; a larger "
+                          "one is refused with 422 (default --max-memory)"},
+    [O_DECODE_CPU] = {"--decode-cpu", "MCFD_DECODE_CPU", T_DUR, 0, 0,
+                      "CPU seconds of a sandboxed Draco decode, plus 1 us per "
+                      "declared face (default 2s)"},
+    [O_DECODE_MEMORY] = {"--decode-memory", "MCFD_DECODE_MEMORY", T_SIZE, 0,
+                         0, "smallest memory limit of a sandboxed Draco "
+                         "decode; above it twice the estimate (default 64M)"},
     [O_TOKEN] = {"--token-file", "MCFD_TOKEN_FILE", T_STR, 0, 0,
                  "file holding the bearer token (default: no auth)"},
     [O_LOG] = {"--log-level", "MCFD_LOG_LEVEL", T_LEVEL, 0, 0,
@@ -222,6 +240,17 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
     case O_JOB_TIMEOUT: cfg->job_timeout = d; break;
     case O_DRAIN: cfg->drain_timeout = d; break;
     case O_HEADER_TIMEOUT: cfg->header_timeout = d; break;
+    case O_BODY_TIMEOUT: cfg->body_timeout = d; break;
+    case O_MAX_MEMORY: cfg->max_memory = z; break;
+    case O_MAX_JOB_MEMORY: cfg->max_job_memory = z; break;
+    case O_DECODE_CPU:
+        if (!(d > 0)) {
+            snprintf(msg, msgsize, "%s: must be > 0", src);
+            return -1;
+        }
+        cfg->decode_cpu = d;
+        break;
+    case O_DECODE_MEMORY: cfg->decode_memory = z; break;
     case O_TOKEN:
         snprintf(cfg->token_file, sizeof cfg->token_file, "%s", v);
         break;
@@ -308,6 +337,15 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->job_timeout = 600;
     cfg->drain_timeout = 25;
     cfg->header_timeout = 30;
+    cfg->body_timeout = -1;    /* derived from --max-upload below */
+    cfg->decode_cpu = 2;
+    cfg->decode_memory = (size_t)64 << 20;
+    {   /* Half the machine's RAM: the daemon shares it with its host. */
+        long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGESIZE);
+        cfg->max_memory = pages > 0 && psz > 0
+                              ? (size_t)pages * (size_t)psz / 2
+                              : (size_t)4 << 30;
+    }
     cfg->log_level = SRV_LOG_INFO;
 
     for (o = 0; o < O_COUNT; o++) {
@@ -361,6 +399,14 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     }
     cfg->max_body = 2 * cfg->lim.max_input_bytes + cfg->lim.max_json_bytes +
                     (1u << 20);
+    /* A minute for the head's round trips plus the largest upload at
+     * 1 MiB/s (8 Mbit/s): a client trickling at the 4 KiB/s the average
+     * rule allows cannot keep a slot for the 18 h a 256 MiB upload would
+     * take it. */
+    if (cfg->body_timeout < 0)
+        cfg->body_timeout = 60.0 + (double)cfg->lim.max_input_bytes / 1048576.0;
+    if (cfg->max_job_memory == 0 || cfg->max_job_memory > cfg->max_memory)
+        cfg->max_job_memory = cfg->max_memory;
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
     return 0;

@@ -30,6 +30,8 @@
 #include <unistd.h>
 
 #include "srv.h"
+#include "admit.h"
+#include "sandbox.h"
 
 #define NBUCKETS 4096
 #define EVENTS_MAX ((size_t)16 << 20)   /* ndjson progress kept per job */
@@ -152,6 +154,7 @@ static cJSON *record_json(const srv_job *j)
     cJSON_AddStringToObject(o, "filename", j->rec.filename);
     cJSON_AddBoolToObject(o, "target", j->rec.has_target);
     cJSON_AddNumberToObject(o, "created", j->created);
+    cJSON_AddNumberToObject(o, "memory_estimate", j->mem_estimate);
     return o;
 }
 
@@ -592,6 +595,17 @@ static int steps_over_budget(const api_params *p, const api_limits *lim,
     return 1;
 }
 
+/* The estimate admit.c works with: the mesh's job and, with a target,
+ * its copy of the input and a second mesh of the same counts. */
+static double job_memory_estimate(const char *input, size_t input_len,
+                                      size_t target_len, const api_params *p)
+{
+    api_mem_estimate e;
+    api_estimate_memory(input, input_len, p, &e);
+    return e.job_bytes + (target_len ? 3.0 * (double)target_len +
+                                           48.0 * (double)e.vertices : 0);
+}
+
 int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
                     char *target, size_t target_len, int keep_result,
                     srv_job **out, srv_problem *prob)
@@ -605,6 +619,7 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
     char *rs = NULL;
     int reserved = 0;
     const mcf_scheme_info *si;
+    double mem;
 
     /* Parameters first: a misspelled key is a 400 even when busy. */
     if ((rc = srv_record_params(rec, &cfg->lim, &prm, &err)) != MCF_OK) {
@@ -612,6 +627,13 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
         goto fail;
     }
     if (steps_over_budget(&prm, &cfg->lim, prob)) {
+        api_params_free(&prm);
+        goto fail;
+    }
+    /* Memory admission (admit.c): the estimate from what the input
+     * declares; over --max-job-memory it is refused now. */
+    mem = job_memory_estimate(input, input_len, target_len, &prm);
+    if (srv_admit_refuse(cfg, mem, prob)) {
         api_params_free(&prm);
         goto fail;
     }
@@ -682,6 +704,7 @@ int srv_jobs_submit(srv_record *rec, char *input, size_t input_len,
     j->target_len = target_len;
     input = target = NULL;
     j->keep_result = keep_result;
+    j->mem_estimate = mem;
     j->disk_bytes = input_len + target_len;
     j->created = srv_wall();
     j->status = SRV_JOB_QUEUED;
@@ -852,6 +875,57 @@ static void log_job(const srv_job *j, int nv, int nf, double run_s)
                      ? SRV_LOG_ERROR : SRV_LOG_INFO, o);
 }
 
+/* The problem of a job stopped by its cancel flag after `steps` steps
+ * (-1: while decoding); 1 when it must run again after a restart. */
+static int canceled_problem(srv_job *j, int steps, srv_problem *prob)
+{
+    const srv_config *cfg = S.cfg;
+    char when[48];
+    int reason;
+
+    srv_lock();
+    reason = j->cancel_reason;
+    srv_unlock();
+    if (steps >= 0)
+        snprintf(when, sizeof when, "after step %d", steps);
+    else
+        snprintf(when, sizeof when, "while its input was decoded");
+    if (reason == SRV_CANCEL_SHUTDOWN) {
+        srv_problem_set(prob, 503, "EDRAINING", "the daemon shut down "
+                        "while job %s ran; it runs again after the restart",
+                        j->id);
+        return 1;
+    }
+    if (reason == SRV_CANCEL_TIMEOUT)
+        srv_problem_set(prob, 422, "ELIMIT", "the job ran longer than "
+                        "--job-timeout %g s and was stopped %s",
+                        cfg->job_timeout, when);
+    else if (reason == SRV_CANCEL_CLIENT)
+        srv_problem_set(prob, 409, "ECANCELED", "canceled %s: the client "
+                        "closed its connection before the answer", when);
+    else
+        srv_problem_set(prob, 409, "ECANCELED", "canceled by DELETE "
+                        "/v1/jobs/%s %s", j->id, when);
+    return 0;
+}
+
+/* After decoding: the estimate from the real counts; over the per-job
+ * bound a 422, else the reservation grows (waiting for memory). 0 when
+ * the job may go on, else prob is set and -1 (it failed) or 1 (canceled
+ * by the shutdown: it runs again after the restart). */
+static int job_memory_regrow(srv_job *j, int nv, int nf, size_t input_len,
+                                 size_t target_len, const api_params *p,
+                                 srv_problem *prob)
+{
+    double est = api_estimate_job_bytes(nv, nf, input_len, p) +
+                 (target_len ? 3.0 * (double)target_len + 48.0 * nv : 0);
+    if (srv_admit_refuse(S.cfg, est, prob))
+        return -1;
+    if (srv_admit_grow(S.cfg, &j->mem_held, est, &j->cancel) != 0)
+        return canceled_problem(j, -1, prob) ? 1 : -1;
+    return 0;
+}
+
 static void run_job(srv_job *j)
 {
     const srv_config *cfg = S.cfg;
@@ -907,15 +981,21 @@ static void run_job(srv_job *j)
         goto done;
     }
     have_prm = 1;
-    if ((rc = api_mesh_decode_attrs(input, input_len, &cfg->lim, &m, &attrs,
-                                    &fmt, &err)) != MCF_OK) {
-        srv_problem_from(&prob, rc, SRV_STAGE_DECODE, "mesh", &err);
-        goto done;
-    }
+    /* sandbox.c: Draco decodes in a limited child process. */
+    if ((rc = srv_decode_upload(input, input_len, cfg, &j->cancel, "mesh", &m,
+                                &attrs, &fmt, &prob)) != MCF_OK)
+        goto decode_failed;
     free(input);
     input = NULL;
     nv = mcf_mesh_nvertices(m);
     nf = mcf_mesh_nfaces(m);
+    /* admit.c: estimated again from the decoded counts (polygons split,
+     * STL welded); a larger estimate is refused or waits for memory. */
+    if ((requeue = job_memory_regrow(j, nv, nf, input_len, target_len,
+                                         &prm, &prob)) != 0) {
+        requeue = requeue > 0;
+        goto done;
+    }
     if ((rc = api_params_finish(&prm, nv, &cfg->lim, &err)) != MCF_OK) {
         /* A budget exceeded here (steps x vertices) depends on the mesh:
          * 422. What the parameters alone exceed was refused at submit. */
@@ -925,11 +1005,9 @@ static void run_job(srv_job *j)
         goto done;
     }
     if (target) {
-        if ((rc = api_mesh_decode(target, target_len, &cfg->lim, &tgt, &tfmt,
-                                  &err)) != MCF_OK) {
-            srv_problem_from(&prob, rc, SRV_STAGE_DECODE, "target", &err);
-            goto done;
-        }
+        if ((rc = srv_decode_upload(target, target_len, cfg, &j->cancel,
+                                    "target", &tgt, NULL, &tfmt, &prob)) != MCF_OK)
+            goto decode_failed;
         if (mcf_mesh_nvertices(tgt) != nv || mcf_mesh_nfaces(tgt) != nf) {
             srv_problem_set(&prob, 422, "EINVAL", "target: %d vertices and %d "
                             "faces, the mesh has %d and %d; the target must "
@@ -972,27 +1050,7 @@ static void run_job(srv_job *j)
     rc = mcf_flow_run(m, &prm.flow, &st, &err);
     t_flow = mcf_now() - t_flow;
     if (rc == MCF_ECANCELED) {
-        int reason;
-        srv_lock();
-        reason = j->cancel_reason;
-        srv_unlock();
-        if (reason == SRV_CANCEL_SHUTDOWN) {
-            requeue = 1;
-            srv_problem_set(&prob, 503, "EDRAINING", "the daemon shut down "
-                            "while job %s ran; it runs again after the restart",
-                            j->id);
-        } else if (reason == SRV_CANCEL_TIMEOUT) {
-            srv_problem_set(&prob, 422, "ELIMIT", "the job ran longer than "
-                            "--job-timeout %g s and was stopped at step %d",
-                            cfg->job_timeout, st.steps);
-        } else if (reason == SRV_CANCEL_CLIENT) {
-            srv_problem_set(&prob, 409, "ECANCELED", "canceled after step %d: "
-                            "the client closed its connection before the "
-                            "answer", st.steps);
-        } else {
-            srv_problem_set(&prob, 409, "ECANCELED", "canceled by DELETE "
-                            "/v1/jobs/%s after step %d", j->id, st.steps);
-        }
+        requeue = canceled_problem(j, st.steps, &prob);
         goto done;
     }
     if (rc != MCF_OK) {
@@ -1040,7 +1098,12 @@ static void run_job(srv_job *j)
         goto done;
     }
     failed = 0;
+    goto done;
 
+decode_failed:
+    /* srv_decode_upload filled prob, except for a cancel. */
+    if (rc == MCF_ECANCELED)
+        requeue = canceled_problem(j, -1, &prob);
 done:
     /* Until the outcome is published: no other state.json write between
      * its snapshot and the publication (a DELETE's would be stale). */
@@ -1132,11 +1195,15 @@ static void *worker_main(void *arg)
     srv_lock();
     for (;;) {
         srv_job *j;
-        while (!S.stopping && (S.draining || !S.qhead))
+        /* The head of the queue starts when its memory estimate fits
+         * (admit.c); else it waits for a running job to end. */
+        while (!S.stopping && (S.draining || !S.qhead ||
+                               !srv_admit_try(S.cfg, S.qhead->mem_estimate)))
             pthread_cond_wait(&S.work, &S.mu);
         if (S.stopping)
             break;
         j = queue_pop();
+        j->mem_held = j->mem_estimate;
         j->refs++;
         j->status = SRV_JOB_RUNNING;
         j->started = srv_wall();
@@ -1144,7 +1211,9 @@ static void *worker_main(void *arg)
         srv_job_wake(j, 0);
         srv_unlock();
         run_job(j);
+        srv_admit_release(j->mem_held); /* admit.c: its memory is free */
         srv_lock();
+        pthread_cond_broadcast(&S.work);
         S.busy--;
         unref_locked(j);
         pthread_cond_broadcast(&S.idle);
@@ -1431,6 +1500,7 @@ static void recover_one(const char *id, void *arg)
     snprintf(j->id, sizeof j->id, "%s", id);
     j->disk_bytes = srv_spool_du(cfg->spool, id);
     j->recovered = 1;
+    j->mem_estimate = num_of(ro, "memory_estimate"); /* admit.c */
     j->created = num_of(so, "created");
     j->started = num_of(so, "started");
     j->finished = num_of(so, "finished");

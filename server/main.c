@@ -37,6 +37,7 @@
 #include <unistd.h>
 
 #include "srv.h"
+#include "sandbox.h"
 
 static void mhd_log(void *cls, const char *fmt, va_list ap)
 #if defined(__GNUC__)
@@ -194,6 +195,10 @@ int main(int argc, char **argv)
     unsigned port;
     double t_sigterm;
 
+    /* The hidden decode mode of the Draco sandbox (sandbox.c): a child
+     * this daemon started, before anything else. */
+    if (argc > 1 && strcmp(argv[1], SRV_SANDBOX_ARG) == 0)
+        return srv_sandbox_child(argc, argv);
     api_bound_library_threads(argv, 1);
     rc = srv_config_load(&cfg, argc, argv, msg, sizeof msg);
     if (rc > 0)

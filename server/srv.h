@@ -56,6 +56,11 @@ typedef struct {
     double job_timeout;        /* seconds of flow per job, 0: unlimited */
     double drain_timeout;      /* seconds SIGTERM waits for running jobs */
     double header_timeout;     /* seconds for a request's head, 0: none */
+    double body_timeout;       /* seconds for its whole body, 0: none */
+    size_t max_memory;         /* estimated peak of the running jobs */
+    size_t max_job_memory;     /* estimated peak of one job */
+    double decode_cpu;         /* CPU seconds of a sandboxed decode (floor) */
+    size_t decode_memory;      /* its memory limit (floor) */
     char token_file[1024];     /* empty: no authentication */
     char token[512];           /* the bearer token read from token_file */
     size_t token_len;
@@ -243,6 +248,8 @@ struct srv_job {
     double time_planned;       /* total flow time when set, else 0 */
     double created, started, finished;   /* epoch seconds, 0: not yet */
     int recovered;             /* loaded from the spool at start */
+    double mem_estimate;       /* estimated peak bytes (admit.c) */
+    double mem_held;           /* reserved while it runs */
     /* progress, written by the worker's progress callback */
     int step;
     double t, dt, energy, volume;

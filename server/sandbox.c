@@ -1,0 +1,449 @@
+/*
+ * sandbox.c - untrusted Draco streams are decoded in a child process with
+ * a CPU limit, an address-space limit and a wall-clock deadline.
+ *
+ * Why: libdraco 1.5.5 trusts counts inside the stream that no header check
+ * can see. A 210-byte edgebreaker file whose texcoord predictor declares
+ * 2^31-1 orientations (tests/data/draco_texcoord_orientations.drc) makes
+ * MeshPredictionSchemeTexCoordsPortableDecoder allocate 256 MiB and loop
+ * for 8.8 s of CPU, then decode "successfully"; fuzzers found more such
+ * inputs. Run in a worker thread, that is a worker and a quarter of a GB
+ * per 210-byte request. In a child, the kernel enforces the bounds.
+ *
+ * How: the worker posix_spawn()s the daemon's own executable
+ * (/proc/self/exe) in its hidden decode mode (`mcfd --sandbox-decode CPU
+ * MEM MAXBYTES MAXV MAXF`, srv_sandbox_child), writes the bytes to its
+ * stdin and reads back a status, the detected format, a message and, on
+ * success, the mesh and its attributes as api_mesh_pack's exact record.
+ * The child closes every inherited descriptor above 2, sets RLIMIT_CPU
+ * (soft: SIGXCPU; hard one second later: SIGKILL) and RLIMIT_AS (its
+ * address space at start plus the memory budget) before it reads a byte,
+ * and dies with its parent (PR_SET_PDEATHSIG). The parent polls both pipes
+ * (non-blocking, 50 ms ticks) so it notices the job's cancel flag (DELETE,
+ * client hang-up, shutdown checkpoint) and the wall-clock deadline, kills
+ * the child with SIGKILL on every early exit, and always reaps it with
+ * wait4 (whose rusage tells which limit it met). Both pipes are O_CLOEXEC
+ * in the parent, so no other child inherits them.
+ *
+ * Limits per decode (srv_sandbox_limits_for): CPU = --decode-cpu (2 s)
+ * plus 1 us per declared face: libdraco decodes the 871k-face dragon in
+ * 0.19 s (0.22 us/face), so a legitimate 10M-face stream needs about
+ * 2.2 s, under half of its 2 + 10 s. Memory = the estimator's decode
+ * peak for the declared counts (api_estimate_memory) times 2, at least
+ * --decode-memory (64 MiB). Wall clock = 10 x CPU + 5 s (waiting for a
+ * core on a loaded machine is not the input's fault; a child that sleeps
+ * is). A child stopped by a limit is a 422 ELIMIT naming the limit.
+ *
+ * Cost: one process start per Draco decode, measured in the README
+ * (reliability section). Under AddressSanitizer the address-space limit
+ * is left out (ASan reserves terabytes of shadow at start); CPU and wall
+ * clock still hold.
+ */
+#define _GNU_SOURCE 1
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/time.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "sandbox.h"
+
+extern char **environ;
+
+#if defined(__SANITIZE_ADDRESS__)
+#define SANDBOX_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SANDBOX_ASAN 1
+#endif
+#endif
+#ifndef SANDBOX_ASAN
+#define SANDBOX_ASAN 0
+#endif
+
+#define MIB (1024.0 * 1024.0)
+
+/* The child's answer before the packed mesh. */
+typedef struct {
+    int32_t status;            /* mcf_status of the decode */
+    int32_t format;            /* api_format detected */
+    int32_t msglen;            /* bytes of message that follow */
+} child_head;
+
+/* ------------------------------------------------------------------ child */
+
+/* Bytes of address space mapped now (VmSize), 0 when unreadable. */
+static size_t vm_size(void)
+{
+    FILE *f = fopen("/proc/self/statm", "r");
+    unsigned long pages = 0;
+    if (!f)
+        return 0;
+    if (fscanf(f, "%lu", &pages) != 1)
+        pages = 0;
+    fclose(f);
+    return (size_t)pages * (size_t)sysconf(_SC_PAGESIZE);
+}
+
+static int write_all(int fd, const void *p, size_t n)
+{
+    const char *c = p;
+    while (n > 0) {
+        ssize_t w = write(fd, c, n);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w <= 0)
+            return -1;
+        c += w;
+        n -= (size_t)w;
+    }
+    return 0;
+}
+
+int srv_sandbox_child(int argc, char **argv)
+{
+    double cpu;
+    size_t mem, max_in, len = 0, cap;
+    api_limits lim;
+    struct rlimit rl;
+    char *buf;
+    mcf_mesh *m = NULL;
+    api_attrs *attrs = NULL;
+    api_format fmt = API_FMT_UNKNOWN;
+    mcf_error err = {MCF_OK, ""};
+    api_buf out;
+    child_head h;
+
+    if (argc != 7)
+        return 2;
+    /* Nothing but the two pipes and stderr: a descriptor of the daemon
+     * (a socket, a spool file) must not live on in here. */
+    closefrom(3);
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    cpu = strtod(argv[2], NULL);
+    mem = strtoull(argv[3], NULL, 10);
+    api_limits_default(&lim);
+    max_in = lim.max_input_bytes = strtoull(argv[4], NULL, 10);
+    lim.max_vertices = atoi(argv[5]);
+    lim.max_faces = atoi(argv[6]);
+    rl.rlim_cur = (rlim_t)(cpu + 0.999);
+    rl.rlim_max = rl.rlim_cur + 1;
+    if (setrlimit(RLIMIT_CPU, &rl) != 0)
+        return 3;
+    if (!SANDBOX_ASAN) {
+        rl.rlim_cur = rl.rlim_max = vm_size() + mem;
+        if (setrlimit(RLIMIT_AS, &rl) != 0)
+            return 3;
+    }
+    cap = 1 << 16;
+    buf = malloc(cap);
+    for (;;) {
+        ssize_t r;
+        if (!buf)
+            return 4;
+        if (len == cap) {
+            char *nb;
+            if (cap > max_in)
+                return 5;     /* the parent sends at most max_in bytes */
+            nb = realloc(buf, cap * 2);
+            if (!nb)
+                return 4;
+            buf = nb;
+            cap *= 2;
+        }
+        r = read(0, buf + len, cap - len);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0)
+            return 5;
+        if (r == 0)
+            break;
+        len += (size_t)r;
+    }
+    h.status = api_mesh_decode_attrs(buf, len, &lim, &m, &attrs, &fmt, &err);
+    free(buf);
+    api_buf_init(&out, (size_t)-1);
+    if (h.status == MCF_OK)
+        h.status = api_mesh_pack(m, attrs, &out, &err);
+    h.format = fmt;
+    h.msglen = h.status == MCF_OK ? 0 : (int32_t)strlen(err.msg);
+    if (write_all(1, &h, sizeof h) != 0 ||
+        write_all(1, err.msg, (size_t)h.msglen) != 0 ||
+        write_all(1, out.data, out.len) != 0)
+        return 6;
+    return 0;
+}
+
+/* ----------------------------------------------------------------- parent */
+
+void srv_sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
+                            size_t mem_floor, srv_sandbox_limits *out)
+{
+    double mem = 2.0 * est->decode_bytes;
+    out->cpu_s = cpu_floor + 1e-6 * (double)est->faces;
+    out->mem_bytes = mem > (double)mem_floor ? (size_t)mem : mem_floor;
+    out->wall_s = 10.0 * out->cpu_s + 5.0;
+}
+
+int srv_sandbox_wanted(api_format fmt)
+{
+    return fmt == API_FMT_DRACO;
+}
+
+static double mono(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The largest record a decode within lim can send back: head, message,
+ * and api_mesh_pack's layout with every attribute present at its largest
+ * (a value per corner, 4 components). */
+static size_t reply_max(const api_limits *lim)
+{
+    size_t nv = (size_t)lim->max_vertices, nf = (size_t)lim->max_faces;
+    return sizeof(child_head) + MCF_ERRMSG_SIZE + 64 + 24 * nv + 12 * nf +
+           3 * (48 + 3 * nf * 4 * sizeof(double) + 12 * nf);
+}
+
+mcf_status srv_sandbox_decode(const void *buf, size_t len,
+                              const api_limits *lim,
+                              const srv_sandbox_limits *sl,
+                              const mcf_cancel_flag *cancel, mcf_mesh **out,
+                              api_attrs **attrs, api_format *fmt,
+                              srv_sandbox_why *why, mcf_error *err)
+{
+    int in[2] = {-1, -1}, res[2] = {-1, -1}, status = 0, killed = 0;
+    char a_cpu[32], a_mem[32], a_in[32], a_v[16], a_f[16];
+    char *argv[] = {"mcfd", SRV_SANDBOX_ARG, a_cpu, a_mem, a_in, a_v, a_f, NULL};
+    posix_spawn_file_actions_t fa;
+    posix_spawnattr_t at;
+    sigset_t none, deflt;
+    pid_t pid = -1;
+    size_t sent = 0;
+    api_buf rep;
+    struct rusage ru;
+    double deadline;
+    child_head h;
+    mcf_status rc;
+
+    *why = SRV_SANDBOX_OK;
+    api_buf_init(&rep, reply_max(lim));
+    snprintf(a_cpu, sizeof a_cpu, "%.3f", sl->cpu_s);
+    snprintf(a_mem, sizeof a_mem, "%zu", sl->mem_bytes);
+    snprintf(a_in, sizeof a_in, "%zu", lim->max_input_bytes);
+    snprintf(a_v, sizeof a_v, "%d", lim->max_vertices);
+    snprintf(a_f, sizeof a_f, "%d", lim->max_faces);
+    if (pipe2(in, O_CLOEXEC) != 0 || pipe2(res, O_CLOEXEC) != 0) {
+        rc = mcf_error_set(err, MCF_ENOMEM, "sandbox: pipe: %s", strerror(errno));
+        goto out;
+    }
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, in[0], 0);
+    posix_spawn_file_actions_adddup2(&fa, res[1], 1);
+    posix_spawnattr_init(&at);
+    sigemptyset(&none);
+    sigemptyset(&deflt);
+    sigaddset(&deflt, SIGPIPE);
+    sigaddset(&deflt, SIGTERM);
+    sigaddset(&deflt, SIGINT);
+    sigaddset(&deflt, SIGXCPU);
+    posix_spawnattr_setsigmask(&at, &none);
+    posix_spawnattr_setsigdefault(&at, &deflt);
+    posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+    status = posix_spawn(&pid, "/proc/self/exe", &fa, &at, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    posix_spawnattr_destroy(&at);
+    close(in[0]);
+    close(res[1]);
+    in[0] = res[1] = -1;
+    if (status != 0) {
+        pid = -1;
+        rc = mcf_error_set(err, MCF_ENOMEM, "sandbox: cannot start a decoder "
+                           "process: %s", strerror(status));
+        goto out;
+    }
+    fcntl(in[1], F_SETFL, O_NONBLOCK);
+    fcntl(res[0], F_SETFL, O_NONBLOCK);
+    deadline = mono() + sl->wall_s;
+
+    while (res[0] >= 0) {
+        struct pollfd p[2];
+        int n = 0, r;
+        p[n].fd = res[0];
+        p[n++].events = POLLIN;
+        if (in[1] >= 0) {
+            p[n].fd = in[1];
+            p[n++].events = POLLOUT;
+        }
+        r = poll(p, (nfds_t)n, 50);
+        if (r < 0 && errno != EINTR)
+            break;
+        if (cancel && atomic_load_explicit(cancel, memory_order_acquire)) {
+            *why = SRV_SANDBOX_CANCELED;
+            break;
+        }
+        if (mono() > deadline) {
+            *why = SRV_SANDBOX_WALL;
+            break;
+        }
+        if (r <= 0)
+            continue;
+        if (n == 2 && (p[1].revents & (POLLOUT | POLLERR | POLLHUP))) {
+            ssize_t w = write(in[1], (const char *)buf + sent, len - sent);
+            if (w > 0)
+                sent += (size_t)w;
+            if ((w < 0 && errno != EAGAIN && errno != EINTR) || sent == len) {
+                close(in[1]); /* EOF: the child decodes now (or it died) */
+                in[1] = -1;
+            }
+        }
+        if (p[0].revents & (POLLIN | POLLERR | POLLHUP)) {
+            char chunk[1 << 16];
+            ssize_t got = read(res[0], chunk, sizeof chunk);
+            if (got > 0 && api_buf_append(&rep, chunk, (size_t)got) != MCF_OK) {
+                *why = SRV_SANDBOX_PROTOCOL; /* more than any mesh needs */
+                break;
+            }
+            if (got == 0 || (got < 0 && errno != EAGAIN && errno != EINTR)) {
+                close(res[0]);
+                res[0] = -1;
+            }
+        }
+    }
+    if (res[0] >= 0) {         /* left early: the child dies now */
+        kill(pid, SIGKILL);
+        killed = 1;
+    }
+    while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR)
+        ;
+    pid = -1;
+
+    if (*why == SRV_SANDBOX_CANCELED) {
+        rc = mcf_error_set(err, MCF_ECANCELED, "canceled while decoding");
+        goto out;
+    }
+    if (*why == SRV_SANDBOX_WALL) {
+        rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream took more than "
+                           "%.3g s of wall-clock time to decode: refused",
+                           sl->wall_s);
+        goto out;
+    }
+    {
+        double cpu = (double)ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec +
+                     (double)ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec;
+        double rss = (double)ru.ru_maxrss * 1024.0;
+        int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+        if (!killed && (sig == SIGXCPU || (sig == SIGKILL && cpu >= sl->cpu_s))) {
+            *why = SRV_SANDBOX_CPU;
+            rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
+                               "than %.3g s of CPU to decode: refused",
+                               sl->cpu_s);
+            goto out;
+        }
+        if (rep.len >= sizeof h && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+            memcpy(&h, rep.data, sizeof h);
+            if (h.msglen >= 0 && h.msglen < MCF_ERRMSG_SIZE &&
+                rep.len >= sizeof h + (size_t)h.msglen) {
+                if (fmt)
+                    *fmt = (api_format)h.format;
+                if (h.status == MCF_ENOMEM) {
+                    *why = SRV_SANDBOX_MEMORY;
+                    rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream "
+                                       "needs more than %.0f MiB to decode: "
+                                       "refused", sl->mem_bytes / MIB);
+                    goto out;
+                }
+                if (h.status != MCF_OK) {
+                    rc = mcf_error_set(err, (mcf_status)h.status, "%.*s",
+                                       (int)h.msglen, rep.data + sizeof h);
+                    goto out;
+                }
+                rc = api_mesh_unpack(rep.data + sizeof h + h.msglen,
+                                     rep.len - sizeof h - (size_t)h.msglen,
+                                     lim, out, attrs, err);
+                goto out;
+            }
+        }
+        /* Died another way: an abort or a fault inside libdraco (a failed
+         * allocation in code that cannot throw ends like this too). */
+        if (sig && !killed && !SANDBOX_ASAN &&
+            rss > 0.75 * (double)sl->mem_bytes) {
+            *why = SRV_SANDBOX_MEMORY;
+            rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
+                               "than %.0f MiB to decode: refused",
+                               sl->mem_bytes / MIB);
+            goto out;
+        }
+        *why = SRV_SANDBOX_PROTOCOL;
+        if (sig)
+            rc = mcf_error_set(err, MCF_EDECODE, "draco: the decoder process "
+                               "died of signal %d (%s): refused", sig,
+                               strsignal(sig));
+        else
+            rc = mcf_error_set(err, MCF_EDECODE, "draco: the decoder process "
+                               "exited with status %d and %zu bytes of answer",
+                               WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                               rep.len);
+    }
+out:
+    if (pid > 0) {
+        kill(pid, SIGKILL);
+        while (waitpid(pid, NULL, 0) < 0 && errno == EINTR)
+            ;
+    }
+    if (in[0] >= 0)
+        close(in[0]);
+    if (in[1] >= 0)
+        close(in[1]);
+    if (res[0] >= 0)
+        close(res[0]);
+    if (res[1] >= 0)
+        close(res[1]);
+    api_buf_free(&rep);
+    return rc;
+}
+
+/* -------------------------------------------------------------- job runner */
+
+mcf_status srv_decode_upload(const void *buf, size_t len,
+                             const srv_config *cfg,
+                             const mcf_cancel_flag *cancel, const char *what,
+                             mcf_mesh **out, api_attrs **attrs,
+                             api_format *fmt, srv_problem *prob)
+{
+    mcf_error err = {MCF_OK, ""};
+    api_mem_estimate est;
+    srv_sandbox_limits sl;
+    srv_sandbox_why why;
+    mcf_status rc;
+
+    if (!srv_sandbox_wanted(api_format_detect(buf, len))) {
+        rc = api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, &err);
+        if (rc != MCF_OK)
+            srv_problem_from(prob, rc, SRV_STAGE_DECODE, what, &err);
+        return rc;
+    }
+    api_estimate_memory(buf, len, NULL, &est);
+    srv_sandbox_limits_for(&est, cfg->decode_cpu, cfg->decode_memory, &sl);
+    rc = srv_sandbox_decode(buf, len, &cfg->lim, &sl, cancel, out, attrs, fmt,
+                            &why, &err);
+    if (rc == MCF_OK || rc == MCF_ECANCELED)
+        return rc;
+    if (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
+        why == SRV_SANDBOX_WALL)
+        srv_problem_set(prob, 422, "ELIMIT", "%s: %s", what, err.msg);
+    else
+        srv_problem_from(prob, rc, SRV_STAGE_DECODE, what, &err);
+    return rc;
+}

@@ -1,0 +1,66 @@
+/*
+ * sandbox.h - decoding untrusted meshes in a child process with CPU,
+ * memory and wall-clock limits (sandbox.c says why and how).
+ */
+#ifndef SANDBOX_H
+#define SANDBOX_H
+
+#include "srv.h"
+
+/* argv[1] of the hidden decode mode: main() hands such a process to
+ * srv_sandbox_child before anything else. */
+#define SRV_SANDBOX_ARG "--sandbox-decode"
+
+/* The child: reads the bytes on stdin, decodes them under the limits of
+ * its argv and writes the answer on stdout. Returns the exit status. */
+int srv_sandbox_child(int argc, char **argv);
+
+typedef struct {
+    double cpu_s;              /* RLIMIT_CPU of the child */
+    size_t mem_bytes;          /* address space beyond its start-up */
+    double wall_s;             /* the parent kills it after this */
+} srv_sandbox_limits;
+
+/* How a sandboxed decode ended, beyond its mcf_status. */
+typedef enum {
+    SRV_SANDBOX_OK = 0,        /* the child answered (decoded or refused) */
+    SRV_SANDBOX_CPU,           /* stopped by its CPU limit */
+    SRV_SANDBOX_MEMORY,        /* its allocations met the memory limit */
+    SRV_SANDBOX_WALL,          /* killed at the wall-clock deadline */
+    SRV_SANDBOX_CANCELED,      /* killed: the job's cancel flag was set */
+    SRV_SANDBOX_PROTOCOL       /* died otherwise, or answered nonsense */
+} srv_sandbox_why;
+
+/* The limits for an input the estimator sized: CPU cpu_floor + 1 us per
+ * declared face, memory twice the estimated decode peak (at least
+ * mem_floor), wall clock 10 x CPU + 5 s. */
+void srv_sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
+                            size_t mem_floor, srv_sandbox_limits *out);
+
+/* Whether inputs of this format decode in the sandbox (Draco: the only
+ * decoder that is not ours and not bounded by our own checks). */
+int srv_sandbox_wanted(api_format fmt);
+
+/* api_mesh_decode_attrs in a child process under sl (attrs may be NULL).
+ * ELIMIT (detail names the limit: "needs more than 2 s of CPU") when a
+ * limit stopped it; ECANCELED when *cancel became set; the decoder's own
+ * status and message otherwise. Never leaves a child or a descriptor. */
+mcf_status srv_sandbox_decode(const void *buf, size_t len,
+                              const api_limits *lim,
+                              const srv_sandbox_limits *sl,
+                              const mcf_cancel_flag *cancel, mcf_mesh **out,
+                              api_attrs **attrs, api_format *fmt,
+                              srv_sandbox_why *why, mcf_error *err);
+
+/* The job runner's decode of an upload (what: "mesh" or "target"): Draco
+ * in the sandbox with limits from the input's declared counts and cfg,
+ * other formats in this thread. On failure fills prob (a limit: 422
+ * ELIMIT; a malformed input: the decode stage's status) and returns the
+ * status; ECANCELED leaves prob to the caller. */
+mcf_status srv_decode_upload(const void *buf, size_t len,
+                             const srv_config *cfg,
+                             const mcf_cancel_flag *cancel, const char *what,
+                             mcf_mesh **out, api_attrs **attrs,
+                             api_format *fmt, srv_problem *prob);
+
+#endif /* SANDBOX_H */
