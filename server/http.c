@@ -1266,7 +1266,8 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     *socket_context = NULL;
 }
 
-int srv_http_expire_heads(double timeout, int max_connections)
+int srv_http_expire_heads(double timeout, int max_connections,
+                          double body_timeout)
 {
     double now = srv_mono();
     conn_state *cs;
@@ -1279,10 +1280,15 @@ int srv_http_expire_heads(double timeout, int max_connections)
     if (g_nconns * 10 >= max_connections * 9 && timeout > 2)
         timeout = 2;
     for (cs = g_conns; cs; cs = cs->next)
-        if (cs->fd >= 0 && now - cs->since > timeout &&
-            (cs->receiving == 1 ||
-             (cs->receiving == 2 &&
-              (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) {
+        if (cs->fd >= 0 &&
+            ((timeout > 0 && now - cs->since > timeout &&
+              (cs->receiving == 1 ||
+               (cs->receiving == 2 &&
+                (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) ||
+             /* issue 9 item 3: the ceiling on a whole body (--body-timeout),
+              * for clients just above the average rate */
+             (body_timeout > 0 && cs->receiving == 2 &&
+              now - cs->since > body_timeout))) {
             /* MHD reads the end of the stream and closes the connection
              * itself; the descriptor stays MHD's to close. */
             shutdown(cs->fd, SHUT_RDWR);

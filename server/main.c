@@ -266,13 +266,16 @@ int main(int argc, char **argv)
         if (sig == SIGTERM || sig == SIGINT)
             break;
         srv_jobs_check_clients();
-        if (cfg.header_timeout > 0) {
+        if (cfg.header_timeout > 0 || cfg.body_timeout > 0) {
             int n = srv_http_expire_heads(cfg.header_timeout,
-                                          cfg.max_connections);
+                                          cfg.max_connections,
+                                          cfg.body_timeout);
             if (n > 0)
                 srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no "
-                         "complete request head within --header-timeout %g s",
-                         n, n == 1 ? "" : "s", cfg.header_timeout);
+                         "complete request head within --header-timeout %g s "
+                         "or no complete body within --body-timeout %g s",
+                         n, n == 1 ? "" : "s", cfg.header_timeout,
+                         cfg.body_timeout);
         }
         if (ticks % 4 == 0)
             srv_jobs_sweep();

@@ -366,9 +366,12 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
  * for a complete request head (request line and headers), since they
  * opened or since their last answer, and uploads older than timeout that
  * averaged under 4 KiB/s since their head: slowloris clients. With nine
- * tenths of max_connections open the timeout is 2 s at most. The main
- * loop calls it with --header-timeout. Returns how many. */
-int srv_http_expire_heads(double timeout, int max_connections);
+ * tenths of max_connections open the timeout is 2 s at most (timeout 0:
+ * none). Also uploads whose body is still arriving body_timeout seconds
+ * after their head (--body-timeout; 0: none). The main loop calls it with
+ * --header-timeout and --body-timeout. Returns how many. */
+int srv_http_expire_heads(double timeout, int max_connections,
+                          double body_timeout);
 /* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
  * deadline; releases a request MHD never completed. */
 void srv_http_connection(void *cls, struct MHD_Connection *c,

@@ -2282,6 +2282,290 @@ static void test_quantization_cap(void **state)
     resp_free(&r);
 }
 
+/* ---------------------------------------------- issue 9: sandbox, memory */
+
+/* Child processes of pid now (from /proc/PID/task/TID/children). */
+static int count_children(pid_t pid)
+{
+    char path[384], buf[4096];
+    DIR *dir;
+    struct dirent *e;
+    int n = 0;
+
+    snprintf(path, sizeof path, "/proc/%d/task", (int)pid);
+    if (!(dir = opendir(path)))
+        return -1;
+    while ((e = readdir(dir)) != NULL) {
+        FILE *f;
+        size_t got;
+        char *p;
+        if (e->d_name[0] == '.')
+            continue;
+        snprintf(path, sizeof path, "/proc/%d/task/%s/children", (int)pid,
+                 e->d_name);
+        if (!(f = fopen(path, "r")))
+            continue;
+        got = fread(buf, 1, sizeof buf - 1, f);
+        fclose(f);
+        buf[got] = '\0';
+        for (p = strtok(buf, " \n"); p; p = strtok(NULL, " \n"))
+            n++;
+    }
+    closedir(dir);
+    return n;
+}
+
+/* Open descriptors of pid. */
+static int count_fds(pid_t pid)
+{
+    char path[64];
+    DIR *dir;
+    struct dirent *e;
+    int n = 0;
+    snprintf(path, sizeof path, "/proc/%d/fd", (int)pid);
+    if (!(dir = opendir(path)))
+        return -1;
+    while ((e = readdir(dir)) != NULL)
+        n += e->d_name[0] != '.';
+    closedir(dir);
+    return n;
+}
+
+/* POSTs a file of tests/data as the raw body of path. */
+static long post_file(const daemon_t *d, const char *path, const char *name,
+                      resp_t *r)
+{
+    char file[1024];
+    char *data = NULL;
+    size_t len = 0;
+    long code;
+    static const char *const h[] = {"Content-Type: application/octet-stream",
+                                    "Expect:", NULL};
+    upload_t up;
+
+    if (name[0] == '/')
+        snprintf(file, sizeof file, "%s", name);
+    else
+        snprintf(file, sizeof file, "%s/%s", getenv("MCF_TESTDATA"), name);
+    assert_int_equal(tl_read_file(file, &data, &len), 0);
+    memset(&up, 0, sizeof up);
+    up.raw = data;
+    up.raw_len = len;
+    code = http(d, "POST", path, h, &up, r);
+    free(data);
+    return code;
+}
+
+/* Issue 9 item 4: libdraco 1.5.5 trusts a texcoord orientation count
+ * inside the stream. draco_texcoord_orientations.drc (210 bytes: a 4x4
+ * grid with texcoords, draco_encoder -cl 10 -qt 10, the int32 count at
+ * byte 180 set to 2^31-1) makes it allocate 256 MiB and spin 8.8 s, then
+ * "succeed". Decoded in the daemon's sandbox it is a 422 naming the
+ * limit: memory (64 MiB) by default, CPU (2 s) with --decode-memory 1G;
+ * a DELETE kills the decoder at once; no child or descriptor is left. */
+static void test_draco_sandbox(void **state)
+{
+    static const char *const cpu_flags[] = {"--decode-memory", "1G", NULL};
+    const char *bomb = "draco_texcoord_orientations.drc";
+    daemon_t d;
+    char spool[600], id[SRV_ID_BUF], path[160];
+    int fds0, fds1;
+    double t0, dt;
+    resp_t r;
+    cJSON *j;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/sandbox", g_tmp);
+    assert_int_equal(start_daemon(&d, "sandbox", spool, NULL), 0);
+    post_file(&d, "/smooth", "meshes/bunny.drc", &r); /* warm: first spawn */
+    expect_status(&d, &r, 200, "bunny.drc through the sandbox");
+    resp_free(&r);
+    sleep_ms(300); /* the warm-up's connection closes on MHD's next turn */
+    fds0 = count_fds(d.pid);
+    t0 = mcf_now();
+    post_file(&d, "/smooth", bomb, &r);
+    dt = mcf_now() - t0;
+#if defined(__SANITIZE_ADDRESS__)
+    /* no address-space limit under ASan (sandbox.c): the CPU one stops it */
+    expect_problem(&d, &r, 422, "ELIMIT", "to decode: refused", "orientation bomb");
+#else
+    expect_problem(&d, &r, 422, "ELIMIT", "needs more than 64 MiB to decode",
+                   "orientation bomb");
+#endif
+    resp_free(&r);
+    print_message("    210-byte orientation bomb, default limits: 422 in %.2f s "
+                  "(8.8 s and 256 MiB in-process)\n", dt);
+    assert_true(dt < 4);
+    post_file(&d, "/smooth", "meshes/car.drc", &r);
+    expect_status(&d, &r, 200, "car.drc after the bomb");
+    resp_free(&r);
+    assert_int_equal(count_children(d.pid), 0);
+    /* the client's connections close on MHD's next turn */
+    for (t0 = mcf_now(); (fds1 = count_fds(d.pid)) > fds0 && mcf_now() - t0 < 2;)
+        sleep_ms(50);
+    print_message("    descriptors %d -> %d, children 0\n", fds0, fds1);
+    assert_true(fds1 <= fds0);
+    stop_daemon(&d);
+
+    snprintf(spool, sizeof spool, "%s/sandbox-cpu", g_tmp);
+    assert_int_equal(start_daemon(&d, "sandbox-cpu", spool, cpu_flags), 0);
+    t0 = mcf_now();
+    post_file(&d, "/smooth", bomb, &r);
+    dt = mcf_now() - t0;
+    expect_problem(&d, &r, 422, "ELIMIT", "needs more than 2 s of CPU to decode",
+                   "orientation bomb, --decode-memory 1G");
+    resp_free(&r);
+    print_message("    the same with --decode-memory 1G: 422 (CPU) in %.2f s\n", dt);
+    assert_true(dt >= 1.9 && dt < 8);
+    /* a DELETE while it decodes kills the child */
+    post_file(&d, "/v1/jobs", bomb, &r);
+    expect_status(&d, &r, 202, "async orientation bomb");
+    j = body_json(&r, "POST /v1/jobs");
+    snprintf(id, sizeof id, "%s", jstr(j, "id"));
+    cJSON_Delete(j);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&d, id, "running", 10));
+    sleep_ms(300);
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    t0 = mcf_now();
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    resp_free(&r);
+    j = poll_job(&d, id, NULL, 10);
+    dt = mcf_now() - t0;
+    assert_string_equal(jstr(j, "status"), "canceled");
+    cJSON_Delete(j);
+    print_message("    DELETE during the decode: canceled after %.2f s\n", dt);
+    assert_true(dt < 1.0);
+    assert_int_equal(count_children(d.pid), 0);
+    stop_daemon(&d);
+}
+
+/* Issue 9 item 4: admission by estimated memory. A job whose estimate
+ * exceeds --max-job-memory is a 422 naming both; with --max-memory room
+ * for one bunny job, two never run at once; and under the worst admitted
+ * set (strength=auto, the largest per-vertex peak, 2 workers) the
+ * daemon's peak RSS (VmHWM) stays under its size at rest plus
+ * --max-memory. */
+static void test_memory_admission(void **state)
+{
+    static const char *const small[] = {"--max-job-memory", "20M", NULL};
+    static const char *const one[] = {"--workers", "2", "--max-memory", "100M",
+                                      NULL};
+    daemon_t d;
+    char spool[600], ids[3][SRV_ID_BUF], path[160], line[256];
+    long rest = -1, hwm = -1;
+    int i, both = 0, done;
+    resp_t r;
+    FILE *f;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/admit-small", g_tmp);
+    assert_int_equal(start_daemon(&d, "admit-small", spool, small), 0);
+    post_file(&d, "/smooth", "meshes/bunny.drc", &r);
+    expect_problem(&d, &r, 422, "ELIMIT", "exceeds --max-job-memory 20 MiB",
+                   "bunny.drc over --max-job-memory 20M");
+    resp_free(&r);
+    post_file(&d, "/smooth", "meshes/sphere_cgal.obj", &r);
+    expect_status(&d, &r, 200, "the sphere under --max-job-memory 20M");
+    resp_free(&r);
+    stop_daemon(&d);
+
+    snprintf(spool, sizeof spool, "%s/admit-budget", g_tmp);
+    assert_int_equal(start_daemon(&d, "admit-budget", spool, one), 0);
+    rest = rss_kib(d.pid);
+    for (i = 0; i < 3; i++) {
+        cJSON *j;
+        post_file(&d, "/v1/jobs?strength=auto", "meshes/bunny.drc", &r);
+        expect_status(&d, &r, 202, "bunny.drc job");
+        j = body_json(&r, "POST /v1/jobs");
+        snprintf(ids[i], sizeof ids[i], "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+        resp_free(&r);
+    }
+    for (done = 0; done < 3;) {
+        int running = 0;
+        done = 0;
+        for (i = 0; i < 3; i++) {
+            cJSON *j;
+            snprintf(path, sizeof path, "/v1/jobs/%s", ids[i]);
+            http(&d, "GET", path, NULL, NULL, &r);
+            j = body_json(&r, "GET job");
+            resp_free(&r);
+            running += !strcmp(jstr(j, "status"), "running");
+            done += !strcmp(jstr(j, "status"), "succeeded");
+            if (!strcmp(jstr(j, "status"), "failed"))
+                fail_msg("job %s failed", ids[i]);
+            cJSON_Delete(j);
+        }
+        both |= running > 1;
+        sleep_ms(50);
+    }
+    snprintf(path, sizeof path, "/proc/%d/status", (int)d.pid);
+    if ((f = fopen(path, "r")) != NULL) {
+        while (fgets(line, sizeof line, f))
+            sscanf(line, "VmHWM: %ld kB", &hwm);
+        fclose(f);
+    }
+    print_message("    3 bunny.drc strength=auto jobs, --max-memory 100M, 2 "
+                  "workers: %s at once; RSS at rest %ld KiB, peak %ld KiB\n",
+                  both ? "two" : "never two", rest, hwm);
+    assert_false(both); /* each is estimated at 60 MiB */
+    stop_daemon(&d);
+#if defined(__SANITIZE_ADDRESS__)
+    tl_skip("test_memory_admission", "RSS is meaningless under "
+            "AddressSanitizer (freed memory stays in its quarantine)");
+    return;
+#endif
+    assert_true(rest > 0 && hwm > 0);
+    if (hwm > rest + 100 * 1024)
+        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M",
+                 hwm, rest);
+}
+
+/* Issue 9 item 3: the average-rate rule (4 KiB/s) let a client trickling
+ * just above it hold a connection for as long as its body lasts (a
+ * 256 MiB upload at 5 KiB/s: 15 h). --body-timeout ends that: a 1 MiB
+ * body sent at 8 KiB/s is cut after 2 s. */
+static void test_body_timeout(void **state)
+{
+    static const char *const flags[] = {"--body-timeout", "2", NULL};
+    char chunk[820];
+    daemon_t d;
+    char spool[600];
+    double t0, closed = -1;
+    int fd;
+
+    (void)state;
+    memset(chunk, '#', sizeof chunk);
+    chunk[sizeof chunk - 1] = '\n';
+    snprintf(spool, sizeof spool, "%s/body-timeout", g_tmp);
+    assert_int_equal(start_daemon(&d, "body-timeout", spool, flags), 0);
+    t0 = mcf_now();
+    fd = connect_from(&d, "127.0.0.1", "POST /smooth HTTP/1.1\r\nHost: x\r\n"
+                      "Content-Type: model/obj\r\nContent-Length: 1048576\r\n\r\n");
+    while (mcf_now() - t0 < 8) {
+        struct pollfd p = {fd, POLLIN, 0};
+        if (poll(&p, 1, 100) > 0) {
+            char b[64];
+            if (read(fd, b, sizeof b) <= 0) {
+                closed = mcf_now() - t0;
+                break;
+            }
+        }
+        if (write(fd, chunk, sizeof chunk) != (ssize_t)sizeof chunk) {
+            closed = mcf_now() - t0;
+            break;
+        }
+    }
+    close(fd);
+    if (closed < 0)
+        fail_msg("a body sent at 8 KiB/s was held for 8 s (--body-timeout 2)");
+    print_message("    body at 8 KiB/s closed after %.2f s (--body-timeout 2)\n",
+                  closed);
+    assert_true(closed >= 1.9 && closed < 4.5);
+    stop_daemon(&d);
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -3341,6 +3625,9 @@ int main(void)
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
+        cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
+        cmocka_unit_test_teardown(test_memory_admission, kill_strays),
+        cmocka_unit_test_teardown(test_body_timeout, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
