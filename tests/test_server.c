@@ -2566,6 +2566,92 @@ static void test_body_timeout(void **state)
     stop_daemon(&d);
 }
 
+/* Writes the wall-clock offset libfaketime reads (FAKETIME_NO_CACHE). */
+static void set_fake_offset(const char *file, const char *offset)
+{
+    FILE *f = fopen(file, "w");
+    assert_non_null(f);
+    fprintf(f, "%s\n", offset);
+    fclose(f);
+}
+
+/* Issue 9 item 9: deadlines run on CLOCK_MONOTONIC. The daemon runs under
+ * libfaketime (Debian's faketime) with only the wall clock faked, and the
+ * wall clock jumps two hours forward, then back, while a request head is
+ * pending and while a job runs: --header-timeout 3 still closes the head
+ * after 3 s (not at once, not never), --job-timeout 2 still stops the job
+ * after 2 s of flow. The log's timestamps (wall clock) show the jumps. */
+static void test_clock_jumps(void **state)
+{
+    static const char *const lib =
+        "/usr/lib/x86_64-linux-gnu/faketime/libfaketimeMT.so.1";
+    static const char *const flags[] = {"--header-timeout", "3",
+                                        "--job-timeout", "2", NULL};
+    daemon_t d;
+    char spool[600], ft[600], id[SRV_ID_BUF];
+    double t0, closed;
+    int fd, k;
+    cJSON *j;
+
+    (void)state;
+    if (access(lib, R_OK) != 0) {
+        tl_skip("libfaketime", "Debian's faketime package is not installed "
+                "(make deps installs it)");
+        return;
+    }
+    snprintf(ft, sizeof ft, "%s/faketime", g_tmp);
+    set_fake_offset(ft, "+0");
+    setenv("LD_PRELOAD", lib, 1);
+    setenv("FAKETIME_TIMESTAMP_FILE", ft, 1);
+    setenv("FAKETIME_NO_CACHE", "1", 1);
+    setenv("FAKETIME_DONT_FAKE_MONOTONIC", "1", 1);
+    snprintf(spool, sizeof spool, "%s/clock-jumps", g_tmp);
+    k = start_daemon(&d, "clock-jumps", spool, flags);
+    unsetenv("LD_PRELOAD");
+    unsetenv("FAKETIME_TIMESTAMP_FILE");
+    unsetenv("FAKETIME_NO_CACHE");
+    unsetenv("FAKETIME_DONT_FAKE_MONOTONIC");
+    assert_int_equal(k, 0);
+    for (k = 0; k < 2; k++) {
+        const char *jump = k == 0 ? "+7200" : "-7200";
+        set_fake_offset(ft, "+0");
+        t0 = mcf_now();
+        fd = connect_from(&d, "127.0.0.1", "GET /healthz HTTP/1.1\r\nHost: x\r\n");
+        sleep_ms(200);
+        set_fake_offset(ft, jump);
+        closed = -1;
+        while (mcf_now() - t0 < 8) {
+            struct pollfd p = {fd, POLLIN, 0};
+            char b[64];
+            if (poll(&p, 1, 100) > 0 && read(fd, b, sizeof b) <= 0) {
+                closed = mcf_now() - t0;
+                break;
+            }
+        }
+        close(fd);
+        print_message("    wall clock %s s during a pending head: closed after "
+                      "%.2f s (--header-timeout 3)\n", jump, closed);
+        if (closed < 2.9 || closed > 5)
+            fail_msg("a wall-clock jump of %s s moved the head deadline: "
+                     "closed after %.2f s, want 3", jump, closed);
+    }
+    set_fake_offset(ft, "+0");
+    submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", id);
+    wait_running(&d, id);
+    t0 = mcf_now();
+    set_fake_offset(ft, "+7200");
+    j = poll_job(&d, id, NULL, 10);
+    closed = mcf_now() - t0;
+    if (!strstr(jstr(cJSON_GetObjectItem(j, "error"), "detail"), "--job-timeout"))
+        fail_msg("job ended without the job timeout");
+    cJSON_Delete(j);
+    print_message("    wall clock +7200 s during a job: stopped by --job-timeout "
+                  "2 %.2f s after its first step\n", closed);
+    assert_true(closed > 0.5 && closed < 4);
+    set_fake_offset(ft, "+0");
+    stop_daemon(&d);
+}
+
 /* Opens a loopback connection to d and sends the sphere as the raw body
  * of POST path; returns the socket (the answer is never read). */
 static int send_raw_smooth(const daemon_t *d, const char *path)
@@ -3628,6 +3714,7 @@ int main(void)
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
         cmocka_unit_test_teardown(test_body_timeout, kill_strays),
+        cmocka_unit_test_teardown(test_clock_jumps, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
