@@ -16,24 +16,30 @@
  * daemon estimates again from the decoded mesh before the flow.
  *
  * The model, fitted to the peak resident size of `mcf smooth` (which runs
- * the daemon's job: decode, metrics, flow, encode) minus the process's
- * 8.5 MiB at rest, over 10 meshes of 114 to 437k vertices and 9 scheme
- * settings (90 runs; bench/ has no copy, the figures are in the README's
- * reliability section):
+ * the daemon's job: decode, metrics, flow, encode, the input and output
+ * bytes held) minus the 8.3 MiB of the process at rest, over 9 meshes of
+ * 114 to 435,545 vertices (test_nm, sphere_cgal, bunny.drc, knot1, spot,
+ * fertility, stanford-bunny, armadillo, dragon_vrip.drc) and the settings
+ * desbrun2, euler, ros2, richardson, implicit, cmcf, taubin, strength=auto
+ * and adaptive (2026-11-23, one run each, /usr/bin/time's maxrss):
  *
- *   bytes = 3 x input bytes + nv x per_vertex(scheme) + 4 MiB
+ *   bytes = 3 x input bytes + per_vertex(scheme) x nv + 4 MiB
  *
- * per_vertex: 640 B for the explicit schemes (euler, taylor2, taubin:
- * measured up to 520 B), 1,600 B for the ones that factorize or solve
- * (desbrun2 and the others: measured up to 1,290 B; strength=auto's six-
- * column solve up to 1,490 B), and twice the latter for the implicit and
- * huisken2 Picard schemes and adaptive steps (two factorizations alive).
- * The face term is folded into the vertex one (nf ~ 2 nv on every scan;
- * a mesh with more faces per vertex is charged per face, see below). The
- * largest ratio measured / estimated over the 90 runs is 0.93, i.e. the
- * estimate holds with a margin of at least 7 % on every run and 20-60 %
- * on most; it is an estimate of a peak, not a bound, and the tested
- * bound of the daemon (README) adds the process's own use.
+ * per_vertex = 640 B for the explicit schemes that factorize nothing
+ * (euler, taylor2, taubin: measured at most 353 B beyond the input term,
+ * dragon euler), 1,600 B for every other (measured at most 1,246 B:
+ * strength=auto on stanford-bunny, whose six-column solve is the largest;
+ * desbrun2 1,008-1,041 B, implicit 1,060 B, adaptive 1,220 B). CHOLMOD's
+ * fill grows a little faster than nv on scans, 1.00 -> 1.04 KB/vertex from
+ * 35k to 435k vertices for desbrun2, which the 1,600 B covers up to the
+ * 5M-vertex limit. The face term is folded into the vertex one (nf ~ 2 nv
+ * on every scan; a mesh with more than 2 faces per vertex is charged
+ * nf / 2 vertices). Measured / estimated is at most 0.80 over the runs
+ * (a margin of 20 %: strength=auto on stanford-bunny), 0.44-0.69 on the
+ * scans above 2,000 vertices otherwise; small meshes are dominated by the
+ * constant 4 MiB (ratios 0.1-0.4). An estimate of a peak, not a bound:
+ * the tested figure of the daemon (README, reliability) adds its size at
+ * rest.
  */
 #include <string.h>
 
@@ -144,9 +150,6 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
         if (!strcmp(name, "euler") || !strcmp(name, "taylor2") ||
             !strcmp(name, "taubin"))
             per_vertex = 640.0;
-        else if (!strcmp(name, "implicit") || !strcmp(name, "huisken2") ||
-                 p->flow.adaptive)
-            per_vertex = 3200.0;
     }
     /* Charged per face as well when a mesh has more than 2 faces per
      * vertex (a triangle soup, an STL counted as one vertex per face). */
@@ -196,9 +199,11 @@ void api_estimate_memory(const void *buf, size_t len, const api_params *p,
     }
     out->vertices = nv;
     out->faces = nf;
-    /* libdraco's decode: the stream's corner table and attributes (about
-     * 170 B per face, measured as the decoder process's peak minus its
-     * start-up on bunny.drc and dragon_vrip.drc) plus our copy. */
+    /* libdraco's decode, our copy and the packed answer: the decoder
+     * process's peak beyond its 12 MiB at start was 121 B per face on
+     * bunny.drc and 136 B on dragon_vrip.drc (113 MiB for 871k faces);
+     * charged 170 B per face, 64 per vertex and twice the stream (the
+     * estimate is 1.6-1.7x those peaks). */
     out->decode_bytes = 170.0 * (double)nf + 64.0 * (double)nv +
                         2.0 * (double)len;
     out->job_bytes = api_estimate_job_bytes(nv, nf, len, p);

@@ -2509,7 +2509,7 @@ static void test_memory_admission(void **state)
     print_message("    3 bunny.drc strength=auto jobs, --max-memory 100M, 2 "
                   "workers: %s at once; RSS at rest %ld KiB, peak %ld KiB\n",
                   both ? "two" : "never two", rest, hwm);
-    assert_false(both); /* each is estimated at 60 MiB */
+    assert_false(both); /* each is estimated at 57.5 MiB */
     stop_daemon(&d);
 #if defined(__SANITIZE_ADDRESS__)
     tl_skip("test_memory_admission", "RSS is meaningless under "
