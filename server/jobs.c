@@ -598,7 +598,7 @@ static int steps_over_budget(const api_params *p, const api_limits *lim,
 /* The estimate admit.c works with: the mesh's job and, with a target,
  * its copy of the input and a second mesh of the same counts. */
 static double job_memory_estimate(const char *input, size_t input_len,
-                                      size_t target_len, const api_params *p)
+                                  size_t target_len, const api_params *p)
 {
     api_mem_estimate e;
     api_estimate_memory(input, input_len, p, &e);
@@ -914,8 +914,8 @@ static int canceled_problem(srv_job *j, int steps, srv_problem *prob)
  * the job may go on, else prob is set and -1 (it failed) or 1 (canceled
  * by the shutdown: it runs again after the restart). */
 static int job_memory_regrow(srv_job *j, int nv, int nf, size_t input_len,
-                                 size_t target_len, const api_params *p,
-                                 srv_problem *prob)
+                             size_t target_len, const api_params *p,
+                             srv_problem *prob)
 {
     double est = api_estimate_job_bytes(nv, nf, input_len, p) +
                  (target_len ? 3.0 * (double)target_len + 48.0 * nv : 0);
@@ -992,7 +992,7 @@ static void run_job(srv_job *j)
     /* admit.c: estimated again from the decoded counts (polygons split,
      * STL welded); a larger estimate is refused or waits for memory. */
     if ((requeue = job_memory_regrow(j, nv, nf, input_len, target_len,
-                                         &prm, &prob)) != 0) {
+                                     &prm, &prob)) != 0) {
         requeue = requeue > 0;
         goto done;
     }

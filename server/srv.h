@@ -9,6 +9,8 @@
  *   stream.c   streamed bodies: ndjson progress and Server-Sent Events
  *   reply.c    RFC 9457 problem+json, the mcf_status -> HTTP map, helpers
  *   jobs.c     job table, bounded queue, worker pool, the job runner
+ *   admit.c    memory admission: jobs start while their estimates fit
+ *   sandbox.c  Draco decodes in a child process with CPU/memory limits
  *   spool.c    the crash-safe on-disk record of every accepted job
  *   metrics.c  Prometheus counters and histograms
  *   log.c      one JSON line per event on stderr
