@@ -17,29 +17,31 @@
  *
  * The model, fitted to the peak resident size of `mcf smooth` (which runs
  * the daemon's job: decode, metrics, flow, encode, the input and output
- * bytes held) minus the 8.3 MiB of the process at rest, over 9 meshes of
+ * bytes held) minus the 8.3 MiB of the process at rest, over 10 meshes of
  * 114 to 435,545 vertices (test_nm, sphere_cgal, bunny.drc, knot1, spot,
- * fertility, stanford-bunny, armadillo, dragon_vrip.drc) and the settings
- * desbrun2, euler, ros2, richardson, implicit, cmcf, taubin, strength=auto
- * and adaptive (2026-11-23, one run each, /usr/bin/time's maxrss):
+ * fertility, stanford-bunny, armadillo, dragon_vrip.drc, dragon_vrip_res2)
+ * and the settings desbrun2, euler, ros2, richardson, implicit, cmcf,
+ * taubin, strength=auto and adaptive: 88 runs (implicit on the two
+ * dragons did not end within 300 s), 2026-11-23, /usr/bin/time's maxrss;
+ * docs/memory/peak_rss.csv and the script that made it, peak_rss.sh:
  *
  *   bytes = 3 x input bytes + per_vertex(scheme) x nv + 4 MiB
  *
  * per_vertex = 640 B for the explicit schemes that factorize nothing
- * (euler, taylor2, taubin: measured at most 353 B beyond the input term,
- * dragon euler), 1,600 B for every other (measured at most 1,246 B:
+ * (euler, taylor2, taubin: measured at most 354 B beyond the other terms,
+ * dragon_vrip), 1,600 B for every other (measured at most 1,246 B:
  * strength=auto on stanford-bunny, whose six-column solve is the largest;
- * desbrun2 1,008-1,041 B, implicit 1,060 B, adaptive 1,220 B). CHOLMOD's
- * fill grows a little faster than nv on scans, 1.00 -> 1.04 KB/vertex from
- * 35k to 435k vertices for desbrun2, which the 1,600 B covers up to the
- * 5M-vertex limit. The face term is folded into the vertex one (nf ~ 2 nv
- * on every scan; a mesh with more than 2 faces per vertex is charged
- * nf / 2 vertices). Measured / estimated is at most 0.80 over the runs
- * (a margin of 20 %: strength=auto on stanford-bunny), 0.44-0.69 on the
- * scans above 2,000 vertices otherwise; small meshes are dominated by the
- * constant 4 MiB (ratios 0.1-0.4). An estimate of a peak, not a bound:
- * the tested figure of the daemon (README, reliability) adds its size at
- * rest.
+ * 1,215 B on the dragon; desbrun2 738-1,041 B, implicit 1,060 B, adaptive
+ * 1,220 B). CHOLMOD's fill grows a little faster than nv on scans
+ * (desbrun2 1.00 -> 1.04 KB/vertex from 35k to 435k vertices), which the
+ * 1,600 B covers well past the dragon. The face term is folded into the
+ * vertex one (nf ~ 2 nv on every scan; a mesh with more than 2 faces per
+ * vertex is charged nf / 2 vertices). Measured / estimated is at most
+ * 0.80 over the 88 runs (a margin of 20 %: strength=auto on bunny.drc and
+ * stanford-bunny; 0.76 on the dragon), 0.44-0.79 on the meshes above
+ * 2,000 vertices; small meshes are dominated by the constant 4 MiB
+ * (ratios 0-0.4). An estimate of a peak, not a bound: the tested figure
+ * of the daemon (README, reliability) adds its size at rest.
  */
 #include <string.h>
 
