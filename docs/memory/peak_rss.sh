@@ -19,7 +19,7 @@ for mesh in tests/data/meshes/test_nm.obj $M/sphere_cgal.obj $M/bunny.drc $M/kno
     OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 timeout -s KILL 300 /usr/bin/time -f "%M %e" -o $T/t \
       build/mcf smooth $mesh $T/out.$ext --scheme $sch $extra --metrics $T/m.json --quiet >/dev/null 2>&1
     rss=; wall=; [ -s $T/m.json ] && read rss wall < $T/t
-    nvnf=$(python3 -c "import json; i=json.load(open('$mesh'.replace('$mesh','$T/m.json')))['input']['info']; print(i['vertices'], i['faces'])" 2>/dev/null || echo "? ?")
+    nvnf=$(python3 -c "import json; i=json.load(open('$T/m.json'))['input']['info']; print(i['vertices'], i['faces'])" 2>/dev/null || echo "? ?")
     set -- $nvnf
     echo "$(basename $mesh),$(stat -c %s $mesh),$sch,$extra,$1,$2,$rss,$wall" >> $OUT
   done
