@@ -721,9 +721,9 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
         svc_error_set(err, SVC_ESTORAGE, "EIO", "job %s: the spool could not "
                       "record the deletion (%s); %s", id, strerror(errno),
                       *res != SVC_DELETE_FORGOTTEN
-                          ? "it is canceled now, but may run again after a "
-                            "restart"
-                          : "the job is kept; retry");
+                      ? "it is canceled now, but may run again after a "
+                      "restart"
+                      : "the job is kept; retry");
         return -1;
     }
     return 0;
