@@ -428,11 +428,11 @@ out:
 
 /* -------------------------------------------------------------- job runner */
 
-mcf_status srv_decode_upload(const void *buf, size_t len,
-                             const srv_config *cfg,
+mcf_status svc_decode_upload(const void *buf, size_t len,
+                             const svc_config *cfg,
                              const mcf_cancel_flag *cancel, const char *what,
                              mcf_mesh **out, api_attrs **attrs,
-                             api_format *fmt, srv_problem *prob)
+                             api_format *fmt, svc_error *e)
 {
     mcf_error err = {MCF_OK, ""};
     api_mem_estimate est;
@@ -443,7 +443,7 @@ mcf_status srv_decode_upload(const void *buf, size_t len,
     if (!srv_sandbox_wanted(api_format_detect(buf, len))) {
         rc = api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, &err);
         if (rc != MCF_OK)
-            srv_problem_from(prob, rc, SRV_STAGE_DECODE, what, &err);
+            svc_error_from_mcf(e, rc, SVC_STAGE_DECODE, what, &err);
         return rc;
     }
     api_estimate_memory(buf, len, NULL, &est);
@@ -452,10 +452,10 @@ mcf_status srv_decode_upload(const void *buf, size_t len,
                             &why, &err);
     if (rc == MCF_OK || rc == MCF_ECANCELED)
         return rc;
-    if (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
-        why == SRV_SANDBOX_WALL)
-        srv_problem_set(prob, 422, "ELIMIT", "%s: %s", what, err.msg);
-    else
-        srv_problem_from(prob, rc, SRV_STAGE_DECODE, what, &err);
+    /* A limit met is the input's cost, not its size: 422, not 413. */
+    svc_error_from_mcf(e, rc, (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
+                               why == SRV_SANDBOX_WALL) ? SVC_STAGE_RUN
+                                                        : SVC_STAGE_DECODE,
+                       what, &err);
     return rc;
 }

@@ -5,7 +5,7 @@
 #ifndef SANDBOX_H
 #define SANDBOX_H
 
-#include "srv.h"
+#include "service.h"
 
 /* argv[1] of the hidden decode mode: main() hands such a process to
  * srv_sandbox_child before anything else. */
@@ -52,15 +52,16 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
                               api_attrs **attrs, api_format *fmt,
                               srv_sandbox_why *why, mcf_error *err);
 
-/* The job runner's decode of an upload (what: "mesh" or "target"): Draco
- * in the sandbox with limits from the input's declared counts and cfg,
- * other formats in this thread. On failure fills prob (a limit: 422
- * ELIMIT; a malformed input: the decode stage's status) and returns the
- * status; ECANCELED leaves prob to the caller. */
-mcf_status srv_decode_upload(const void *buf, size_t len,
-                             const srv_config *cfg,
+/* The job runner's decode of an upload (what: "mesh" or "target"):
+ * Draco in the sandbox with limits from the input's declared counts and
+ * cfg (decode_cpu, decode_memory), other formats in this thread. On
+ * failure fills e (a sandbox limit: ELIMIT, REST 422; a malformed input:
+ * the decode stage's error) and returns the status; ECANCELED leaves e
+ * to the caller. */
+mcf_status svc_decode_upload(const void *buf, size_t len,
+                             const svc_config *cfg,
                              const mcf_cancel_flag *cancel, const char *what,
                              mcf_mesh **out, api_attrs **attrs,
-                             api_format *fmt, srv_problem *prob);
+                             api_format *fmt, svc_error *e);
 
 #endif /* SANDBOX_H */

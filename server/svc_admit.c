@@ -1,5 +1,5 @@
 /*
- * admit.c - memory admission of jobs: each job carries an estimate of its
+ * svc_admit.c - memory admission of the job service's jobs: each job carries an estimate of its
  * peak memory (api_estimate_memory, made from what its input declares);
  * one larger than --max-job-memory is refused at submission, and a worker
  * starts the job at the head of the queue only while the estimates of the
@@ -12,11 +12,14 @@
  * So the daemon's memory stays within its resting size plus --max-memory
  * as far as the estimates hold (their margin: api_estimate.c; the tested
  * figure: README, reliability). One mutex of its own, taken inside the
- * job lock when the worker pops the queue, never the other way round.
+ * service lock when a worker pops the queue (workers.c), never the other
+ * way round. The estimates: api/api_estimate.c.
  */
 #include <math.h>
+#include <pthread.h>
+#include <time.h>
 
-#include "admit.h"
+#include "svc_admit.h"
 
 static struct {
     pthread_mutex_t mu;
@@ -25,18 +28,36 @@ static struct {
     int holders;               /* jobs holding one */
 } A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
 
-int srv_admit_refuse(const srv_config *cfg, double estimate, srv_problem *p)
+double svc_admit_estimate(const void *input, size_t input_len,
+                          size_t target_len, const api_params *p)
 {
+    api_mem_estimate e;
+    api_estimate_memory(input, input_len, p, &e);
+    return e.job_bytes + (target_len ? 3.0 * (double)target_len +
+                                           48.0 * (double)e.vertices : 0);
+}
+
+double svc_admit_estimate_counts(int nv, int nf, size_t input_len,
+                                 size_t target_len, const api_params *p)
+{
+    return api_estimate_job_bytes(nv, nf, input_len, p) +
+           (target_len ? 3.0 * (double)target_len + 48.0 * nv : 0);
+}
+
+int svc_admit_refuse(const svc_config *cfg, double estimate, svc_error *e)
+{
+    mcf_error err;
     if (!(estimate > (double)cfg->max_job_memory))
         return 0;
-    srv_problem_set(p, 422, "ELIMIT", "the job's estimated peak memory, "
-                    "%.0f MiB, exceeds --max-job-memory %.0f MiB: refused",
-                    estimate / 1048576.0,
-                    (double)cfg->max_job_memory / 1048576.0);
+    mcf_error_set(&err, MCF_ELIMIT, "the job's estimated peak memory, %.0f "
+                  "MiB, exceeds --max-job-memory %.0f MiB: refused",
+                  estimate / 1048576.0,
+                  (double)cfg->max_job_memory / 1048576.0);
+    svc_error_from_mcf(e, MCF_ELIMIT, SVC_STAGE_RUN, NULL, &err);
     return 1;
 }
 
-int srv_admit_try(const srv_config *cfg, double estimate)
+int svc_admit_try(const svc_config *cfg, double estimate)
 {
     int ok;
     pthread_mutex_lock(&A.mu);
@@ -49,7 +70,7 @@ int srv_admit_try(const srv_config *cfg, double estimate)
     return ok;
 }
 
-int srv_admit_grow(const srv_config *cfg, double *held, double estimate,
+int svc_admit_grow(const svc_config *cfg, double *held, double estimate,
                    const mcf_cancel_flag *cancel)
 {
     int rc = 0;
@@ -80,7 +101,7 @@ int srv_admit_grow(const srv_config *cfg, double *held, double estimate,
     return rc;
 }
 
-void srv_admit_release(double held)
+void svc_admit_release(double held)
 {
     pthread_mutex_lock(&A.mu);
     A.used -= held;
@@ -90,13 +111,4 @@ void srv_admit_release(double held)
     }
     pthread_cond_broadcast(&A.freed);
     pthread_mutex_unlock(&A.mu);
-}
-
-double srv_admit_used(void)
-{
-    double u;
-    pthread_mutex_lock(&A.mu);
-    u = A.used;
-    pthread_mutex_unlock(&A.mu);
-    return u;
 }

@@ -1,0 +1,32 @@
+/*
+ * svc_admit.h - memory admission of the job service's jobs (svc_admit.c
+ * says how).
+ */
+#ifndef SVC_ADMIT_H
+#define SVC_ADMIT_H
+
+#include "service.h"
+
+/* The estimate admission works with, from the input's bytes before they
+ * are decoded: the job's (api_estimate_memory) and, with a target, its
+ * copy of the input and a second mesh of the same counts. */
+double svc_admit_estimate(const void *input, size_t input_len,
+                          size_t target_len, const api_params *p);
+/* The same from a decoded mesh's counts (polygons split, STL welded). */
+double svc_admit_estimate_counts(int nv, int nf, size_t input_len,
+                                 size_t target_len, const api_params *p);
+/* 1 and an ELIMIT error (REST 422) in e when one job's estimate exceeds
+ * --max-job-memory; else 0. */
+int svc_admit_refuse(const svc_config *cfg, double estimate, svc_error *e);
+/* Reserves estimate bytes when they fit in --max-memory beside the
+ * running jobs' (or no job holds any): 1; else 0 and nothing held. */
+int svc_admit_try(const svc_config *cfg, double estimate);
+/* Grows a reservation *held to estimate (no-op when not larger), waiting
+ * for others to release when it does not fit. 0, or -1 when *cancel was
+ * set while waiting (*held unchanged). */
+int svc_admit_grow(const svc_config *cfg, double *held, double estimate,
+                   const mcf_cancel_flag *cancel);
+/* Gives a reservation back and wakes the waiting grows. */
+void svc_admit_release(double held);
+
+#endif /* SVC_ADMIT_H */
