@@ -98,7 +98,8 @@ static const option opts[O_COUNT] = {
                         "1 MiB/s: 316s)"},
     [O_MAX_MEMORY] = {"--max-memory", "MCFD_MAX_MEMORY", T_SIZE, 0, 0,
                       "estimated peak memory of the jobs running at once; "
-                      "others wait in the queue (default: half the RAM)"},
+                      "others wait in the queue (default: half the RAM, or of "
+                      "the container's cgroup limit when lower)"},
     [O_MAX_JOB_MEMORY] = {"--max-job-memory", "MCFD_MAX_JOB_MEMORY", T_SIZE,
                           0, 0, "estimated peak memory of one job; a larger "
                           "one is refused with 422 (default --max-memory)"},
@@ -117,6 +118,36 @@ static const option opts[O_COUNT] = {
     [O_HELP] = {"--help", NULL, T_FLAG, 0, 0, "this text"},
     [O_VERSION] = {"--version", NULL, T_FLAG, 0, 0, "print the version"},
 };
+
+/* The memory this process may use: the machine's RAM, or the limit of
+ * its cgroup when that is lower (a container's --memory: cgroup v2's
+ * memory.max, or v1's memory.limit_in_bytes; "max" or a huge v1 value
+ * mean none). 8 GiB when sysconf cannot tell. The default --max-memory is
+ * half of it: the daemon shares it with its spool's page cache, the
+ * sandboxed decoders and, outside a container, its host. */
+static size_t memory_available(void)
+{
+    static const char *const limits[] = {
+        "/sys/fs/cgroup/memory.max",
+        "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+    };
+    long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGESIZE);
+    size_t ram = pages > 0 && psz > 0 ? (size_t)pages * (size_t)psz
+                                      : (size_t)8 << 30;
+    size_t i;
+
+    for (i = 0; i < sizeof limits / sizeof limits[0]; i++) {
+        FILE *f = fopen(limits[i], "r");
+        unsigned long long v;
+
+        if (!f)
+            continue;
+        if (fscanf(f, "%llu", &v) == 1 && v > 0 && v < ram)
+            ram = (size_t)v;
+        fclose(f);
+    }
+    return ram;
+}
 
 static int parse_int(const char *s, long lo, long hi, long *out)
 {
@@ -342,12 +373,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->body_timeout = -1;    /* derived from --max-upload below */
     cfg->decode_cpu = 2;
     cfg->decode_memory = (size_t)64 << 20;
-    {   /* Half the machine's RAM: the daemon shares it with its host. */
-        long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGESIZE);
-        cfg->max_memory = pages > 0 && psz > 0
-                              ? (size_t)pages * (size_t)psz / 2
-                              : (size_t)4 << 30;
-    }
+    cfg->max_memory = memory_available() / 2;
     cfg->log_level = SRV_LOG_INFO;
 
     for (o = 0; o < O_COUNT; o++) {

@@ -182,6 +182,7 @@ static void log_start(const srv_config *cfg, const char *url)
     cJSON_AddNumberToObject(o, "http_threads", cfg->http_threads);
     cJSON_AddStringToObject(o, "spool", cfg->spool);
     cJSON_AddNumberToObject(o, "max_upload", (double)cfg->lim.max_input_bytes);
+    cJSON_AddNumberToObject(o, "max_memory", (double)cfg->max_memory);
     cJSON_AddNumberToObject(o, "result_ttl_s", cfg->result_ttl);
     cJSON_AddBoolToObject(o, "auth", cfg->token_len > 0);
     cJSON_AddNumberToObject(o, "pid", getpid());
