@@ -574,7 +574,7 @@ class Follow {
     }
 
     /* Starts following j (a reference the follower now owns). */
-    void follow(svc_job *j, bool keep, int from_step, bool skip_result)
+    void follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait)
     {
         {
             std::lock_guard<std::mutex> l(mu_);
@@ -582,6 +582,7 @@ class Follow {
             keep_ = keep;
             from_step_ = from_step;
             skip_result_ = skip_result;
+            no_wait_ = no_wait;
         }
         if (svc_subscribe(j, SVC_NOTIFY_STATE | SVC_NOTIFY_PROGRESS, notify, this, &sub_) != 0) {
             svc_error e;
@@ -698,6 +699,13 @@ class Follow {
                     *st = status_from(ctx_, e);
                     return -1;
                 }
+                if (no_wait_) {
+                    svc_error e;
+                    svc_error_set(&e, SVC_ENOTREADY, NULL, "job %s is %s: no result yet", s.id,
+                                  svc_job_status_name(s.status));
+                    *st = status_from(ctx_, e);
+                    return -1;
+                }
                 return 0;
             }
             if (s.status != SVC_JOB_SUCCEEDED) {
@@ -791,7 +799,7 @@ class Follow {
     std::atomic<int> refs_{1};
     svc_job *job_ = nullptr;
     svc_sub *sub_ = nullptr;
-    bool keep_ = false, taken_ = false, skip_result_ = false;
+    bool keep_ = false, taken_ = false, skip_result_ = false, no_wait_ = false;
     int from_step_ = 0;
     /* under mu_ */
     bool writing_ = false, busy_ = false, dirty_ = false, gone_ = false;
@@ -869,7 +877,7 @@ class SmoothCall : public Follow,
             return;
         }
         ctx_->AddInitialMetadata("mcf-job-id", svc_job_id(j));
-        follow(j, true, 0, false);
+        follow(j, true, 0, false, false);
     }
 
     void OnWriteDone(bool ok) override { write_done(ok); }
@@ -901,7 +909,7 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
                                "no job '" + req->id().substr(0, 64) + "' (or it expired)"));
         } else {
             ctx->AddInitialMetadata("mcf-job-id", svc_job_id(j));
-            follow(j, false, req->from_step(), req->skip_result());
+            follow(j, false, req->from_step(), req->skip_result(), req->no_wait());
         }
     }
 
