@@ -6,7 +6,7 @@
 #   make bench      benchmarks (bench/), ratios against a peer measured in the same run
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
 #   make WERROR=1 ...                  warnings are errors (CI)
-#   make check-deps the one-way dependency server -> api -> core
+#   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
 # Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
@@ -119,6 +119,7 @@ GEN_CC := $(GEN)/mcfd.pb.cc $(GEN)/mcfd.grpc.pb.cc
 GEN_OBJ := $(GEN_CC:.cc=.o)
 ifneq ($(SRV_CXX),)
 SRV_OBJ += $(GEN_OBJ)
+$(B)/mcfd: $(GEN_OBJ)
 endif
 
 $(GEN_CC) $(GEN_CC:.cc=.h) &: api/mcfd.proto
@@ -286,16 +287,25 @@ image-check:
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 
+# The job service's files: they alone include svc_internal.h.
+SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c)
+
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
 	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }
 	@! grep -nE '#include *[<"]microhttpd\.h' api/*.c api/*.cc api/*.h || \
 	  { echo "check-deps: api/ must not include microhttpd.h"; exit 1; }
-	@! grep -nE '#include *[<"](grpc|google/protobuf)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h || \
-	  { echo "check-deps: only the server's gRPC bridge includes gRPC or protobuf"; exit 1; }
-	@[ "$$(ls server/*.cc 2>/dev/null)" = "server/grpc.cc" ] || [ -z "$$(ls server/*.cc 2>/dev/null)" ] || \
+	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out server/grpc.cc,$(wildcard server/*.[ch] server/*.cc)) || \
+	  { echo "check-deps: only the server's gRPC bridge (server/grpc.cc) includes gRPC or protobuf"; exit 1; }
+	@[ -z "$(filter-out server/grpc.cc,$(wildcard server/*.cc server/*.cpp))" ] || \
 	  { echo "check-deps: server/grpc.cc is the only C++ in server/"; exit 1; }
-	@echo "check-deps: server -> api -> core holds"
+	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] server/*.[ch] server/*.cc) || \
+	  { echo "check-deps: include a layer's header by name (\"api.h\"), not by a relative path: the -I flags say which layers a file may see"; exit 1; }
+	@! grep -nE '#include *[<"](microhttpd|http)\.h' $(SRV_SERVICE) || \
+	  { echo "check-deps: the job service (service.h) must not know the REST door or libmicrohttpd"; exit 1; }
+	@! grep -nE '#include *[<"]svc_internal\.h' $(filter-out $(SRV_SERVICE),$(wildcard server/*.c server/*.h server/*.cc)) || \
+	  { echo "check-deps: outside the job service, use service.h, not svc_internal.h"; exit 1; }
+	@echo "check-deps: server -> api -> core holds; the doors -> service.h"
 
 clean:
 	rm -rf build build-san build-fuzz

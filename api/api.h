@@ -19,7 +19,7 @@
 
 #include <cjson/cJSON.h>
 
-#include "../core/mcf.h"
+#include "mcf.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -525,28 +525,16 @@ done:
     return rc;
 }
 
-/* Centres m on its area centroid and scales it to unit area. */
+/* Centres m on its area centroid and scales it to unit area: the flow's
+ * working units (mcf_mesh_area_centroid). */
 static int normalize_unit_area(mcf_mesh *m)
 {
     double *X = mcf_mesh_positions_mut(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
-    double c[3] = {0, 0, 0}, area = 0;
-    for (int f = 0; f < nf; f++) {
-        const double *a = X + 3 * F[3 * f], *b = X + 3 * F[3 * f + 1], *d = X + 3 * F[3 * f + 2];
-        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        double w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
-        double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-        double A = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        for (int k = 0; k < 3; k++)
-            c[k] += A * (a[k] + b[k] + d[k]) / 3.0;
-        area += A;
-    }
+    int nv = mcf_mesh_nvertices(m);
+    double c[3], area = mcf_mesh_area_centroid(m, c);
     if (!(area > 0))
         return xfail(1, "the mesh has zero area");
     double s = 1.0 / sqrt(area);
-    for (int k = 0; k < 3; k++)
-        c[k] /= area;
     for (int i = 0; i < nv; i++)
         for (int k = 0; k < 3; k++)
             X[3 * i + k] = (X[3 * i + k] - c[k]) * s;

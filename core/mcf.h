@@ -130,6 +130,12 @@ mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
 /* Total area and signed enclosed volume (exact for closed meshes). */
 double mcf_mesh_area(const mcf_mesh *m);
 double mcf_mesh_volume(const mcf_mesh *m);
+/* Total area, returned, and the area centroid (the area-weighted mean of
+ * the face centroids) into centroid; the origin when the area is 0. The
+ * point the flow's normalization centres on (mcf_flow_params.normalize):
+ * a caller that wants the flow's working units uses
+ * (x - centroid) / sqrt(area). */
+double mcf_mesh_area_centroid(const mcf_mesh *m, double centroid[3]);
 
 /* Adds Gaussian noise along the area-weighted vertex normals with
  * sigma = rho * mean edge length, from a 64-bit seed (deterministic on

@@ -406,37 +406,6 @@ static mcf_status be_step(flow_ctx *c, const double *X, double h, const double *
 
 /* -------------------------------------------------------- geometry */
 
-/* Total area, area centroid (may be NULL) and signed enclosed volume
- * (divergence theorem, may be NULL) in one pass. Returns the area. */
-static double area_volume(const double *X, const int32_t *F, int nf, double *centroid,
-                          double *volume)
-{
-    double A = 0.0, cx = 0.0, cy = 0.0, cz = 0.0, v = 0.0;
-    for (int f = 0; f < nf; f++) {
-        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
-                     *d = X + 3 * (size_t)F[3 * f + 2];
-        double e1[3], e2[3], n[3], bd[3];
-        mcf__sub3(b, a, e1);
-        mcf__sub3(d, a, e2);
-        mcf__cross3(e1, e2, n);
-        double af = 0.5 * sqrt(mcf__dot3(n, n));
-        A += af;
-        cx += af * (a[0] + b[0] + d[0]);
-        cy += af * (a[1] + b[1] + d[1]);
-        cz += af * (a[2] + b[2] + d[2]);
-        mcf__cross3(b, d, bd);
-        v += mcf__dot3(a, bd);
-    }
-    if (centroid) {
-        centroid[0] = A > 0 ? cx / (3.0 * A) : 0.0;
-        centroid[1] = A > 0 ? cy / (3.0 * A) : 0.0;
-        centroid[2] = A > 0 ? cz / (3.0 * A) : 0.0;
-    }
-    if (volume)
-        *volume = v / 6.0;
-    return A;
-}
-
 static void face_normals(const double *X, const int32_t *F, int nf, double *fn)
 {
     for (int f = 0; f < nf; f++) {
@@ -865,7 +834,7 @@ static double scaled_measure(const flow_ctx *c, const double *cen, double s, dou
     for (int i = 0; i < c->nv; i++)
         for (int d = 0; d < 3; d++)
             Y[3 * i + d] = c->fixed[i] ? c->X[3 * i + d] : cen[d] + s * (c->X[3 * i + d] - cen[d]);
-    A = area_volume(Y, c->F, c->nf, NULL, &V);
+    A = mcf__area_volume(Y, c->F, c->nf, NULL, &V);
     return c->p->rescale == MCF_RESCALE_AREA ? A : V;
 }
 
@@ -878,7 +847,7 @@ static double scaled_measure(const flow_ctx *c, const double *cen, double s, dou
 static void rescale(flow_ctx *c, double area0, double vol0)
 {
     double cen[3];
-    double V, A = area_volume(c->X, c->F, c->nf, cen, &V), s = 1.0;
+    double V, A = mcf__area_volume(c->X, c->F, c->nf, cen, &V), s = 1.0;
     int area = c->p->rescale == MCF_RESCALE_AREA, any_fixed = 0;
     double target = area ? area0 : vol0, m0 = area ? A : V;
     if (area && A > 0.0)
@@ -1164,7 +1133,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
 
     /* normalize: centre on the area centroid, scale to unit area */
     double cen[3] = {0, 0, 0}, scale = 1.0;
-    double area_in = area_volume(m->X, m->F, m->nf, cen, &st->volume0);
+    double area_in = mcf__area_volume(m->X, m->F, m->nf, cen, &st->volume0);
     st->area0 = area_in;
     if (!isfinite(area_in))
         return mcf__fail(err, MCF_EMESH, "the mesh's area overflows double precision "
@@ -1463,7 +1432,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         st->steps = k;
         st->t_final = t;
         if (p->progress &&
-            p->progress(p->progress_ctx, k, t, hist.h1, area_volume(c.X, c.F, c.nf, NULL, NULL) / (scale * scale))) {
+            p->progress(p->progress_ctx, k, t, hist.h1, mcf__area_volume(c.X, c.F, c.nf, NULL, NULL) / (scale * scale))) {
             rc = mcf__fail(err, MCF_ECANCELED, "canceled by the progress callback at step %d", k);
             goto done;
         }
@@ -1485,7 +1454,7 @@ done:
             if (c.fixed[i])
                 memcpy(c.X + 3 * i, X_in + 3 * i, 3 * sizeof(double));
     }
-    st->area1 = area_volume(m->X, m->F, m->nf, NULL, &st->volume1);
+    st->area1 = mcf__area_volume(m->X, m->F, m->nf, NULL, &st->volume1);
     /* the growth check of a fixed explicit run's last state (the loop
      * checked every state before it) */
     if (rc == MCF_OK && !p->adaptive && c.si->is_explicit && p->scheme != MCF_TAUBIN &&

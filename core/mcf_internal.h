@@ -128,6 +128,13 @@ static inline void mcf__cross3(const double *a, const double *b, double *r)
     r[2] = a[0] * b[1] - a[1] * b[0];
 }
 
+/* Total area, area centroid (may be NULL; the origin when the area is
+ * 0) and signed enclosed volume (divergence theorem, may be NULL) of the
+ * faces F over positions X, in one pass. Returns the area. (mcf_mesh.c;
+ * the flow's normalization and mcf_mesh_area_centroid) */
+double mcf__area_volume(const double *X, const int32_t *F, int nf,
+                        double *centroid, double *volume);
+
 /* angle[v] += corner angles at v; mass[v] += true area/3 and used[v] = 1
  * for referenced vertices when those are non-NULL. Angles by atan2 of
  * |cross| and dot (accurate near 0 and pi). (mcf_curvature.c) */

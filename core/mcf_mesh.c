@@ -631,6 +631,42 @@ double mcf_mesh_area(const mcf_mesh *m)
     return s;
 }
 
+/* Total area, area centroid (may be NULL) and signed enclosed volume
+ * (divergence theorem, may be NULL) in one pass. Returns the area. */
+double mcf__area_volume(const double *X, const int32_t *F, int nf, double *centroid,
+                        double *volume)
+{
+    double A = 0.0, cx = 0.0, cy = 0.0, cz = 0.0, v = 0.0;
+    for (int f = 0; f < nf; f++) {
+        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
+                     *d = X + 3 * (size_t)F[3 * f + 2];
+        double e1[3], e2[3], n[3], bd[3];
+        mcf__sub3(b, a, e1);
+        mcf__sub3(d, a, e2);
+        mcf__cross3(e1, e2, n);
+        double af = 0.5 * sqrt(mcf__dot3(n, n));
+        A += af;
+        cx += af * (a[0] + b[0] + d[0]);
+        cy += af * (a[1] + b[1] + d[1]);
+        cz += af * (a[2] + b[2] + d[2]);
+        mcf__cross3(b, d, bd);
+        v += mcf__dot3(a, bd);
+    }
+    if (centroid) {
+        centroid[0] = A > 0 ? cx / (3.0 * A) : 0.0;
+        centroid[1] = A > 0 ? cy / (3.0 * A) : 0.0;
+        centroid[2] = A > 0 ? cz / (3.0 * A) : 0.0;
+    }
+    if (volume)
+        *volume = v / 6.0;
+    return A;
+}
+
+double mcf_mesh_area_centroid(const mcf_mesh *m, double centroid[3])
+{
+    return mcf__area_volume(m->X, m->F, m->nf, centroid, NULL);
+}
+
 /* Signed volume by the divergence theorem: sum over faces of the signed
  * volume of the tetrahedron (origin, a, b, c), det[a b c] / 6. Exact for a
  * closed mesh whatever the origin; positive when faces point outward. */

@@ -17,6 +17,8 @@
 #include <strings.h>
 #include <unistd.h>
 
+#include <microhttpd.h>
+
 #include "srv.h"
 
 #define MCFD_VERSION "1.0.0"

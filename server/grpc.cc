@@ -49,10 +49,11 @@
 
 #include "mcfd.grpc.pb.h"
 
-#include "grpc_door.h"
 extern "C" {
+#include "srv.h" /* plain C headers without extern "C" guards */
 #include "service.h"
 }
+#include "grpc_door.h"
 
 namespace pb = mcfd::v1;
 using grpc::CallbackServerContext;

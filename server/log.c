@@ -6,6 +6,7 @@
  * single fwrite under a mutex: workers and MHD threads never interleave.
  * The level is process-wide and set once by main() before any thread.
  */
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>

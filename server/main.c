@@ -11,7 +11,7 @@
  *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
  *     and taken synchronously by this thread with sigtimedwait, which also
  *     gives the tick for the TTL sweep and the check for clients that
- *     hung up (srv_jobs_check_clients). SIGPIPE is ignored.
+ *     hung up (srv_http_check_clients). SIGPIPE is ignored.
  *  3. The spool is recovered and the workers start before the socket
  *     opens, so the first request already sees recovered jobs.
  *  4. One line "mcfd listening on http://ADDRESS:PORT" goes to stdout
@@ -40,6 +40,8 @@
 #include <unistd.h>
 
 #include "grpc_door.h"
+#include "http.h"
+#include "service.h"
 #include "srv.h"
 
 static void mhd_log(void *cls, const char *fmt, va_list ap)
@@ -58,6 +60,20 @@ static void mhd_log(void *cls, const char *fmt, va_list ap)
     while (n > 0 && (msg[n - 1] == '\n' || msg[n - 1] == '\r'))
         msg[--n] = '\0';
     srv_logf(SRV_LOG_WARN, "libmicrohttpd: %s", msg);
+}
+
+/* The job service's part of the daemon's configuration. */
+static void service_config(const srv_config *cfg, svc_config *out)
+{
+    memset(out, 0, sizeof *out);
+    out->workers = cfg->workers;
+    out->queue = cfg->queue;
+    snprintf(out->spool, sizeof out->spool, "%s", cfg->spool);
+    out->spool_max_jobs = cfg->spool_max_jobs;
+    out->spool_max_bytes = cfg->spool_max_bytes;
+    out->lim = cfg->lim;
+    out->result_ttl = cfg->result_ttl;
+    out->job_timeout = cfg->job_timeout;
 }
 
 /* The address to connect to for a daemon bound to `bind`. */
@@ -189,6 +205,7 @@ static void wait_requests(double seconds)
 int main(int argc, char **argv)
 {
     srv_config cfg;
+    svc_config scfg;
     char msg[512], url[300];
     struct sockaddr_storage ss;
     struct MHD_Daemon *d = NULL;
@@ -222,7 +239,9 @@ int main(int argc, char **argv)
         return 1;
     }
     srv_metrics_init();
-    if (srv_jobs_start(&cfg, msg, sizeof msg) != 0) {
+    srv_http_init(&cfg);
+    service_config(&cfg, &scfg);
+    if (svc_start(&scfg, msg, sizeof msg) != 0) {
         fprintf(stderr, "mcfd: %s\n", msg);
         return 1;
     }
@@ -245,7 +264,7 @@ int main(int argc, char **argv)
     if (!d) {
         fprintf(stderr, "mcfd: cannot listen on %s:%d (%s)\n", cfg.bind,
                 cfg.port, strerror(errno));
-        srv_jobs_stop();
+        svc_stop();
         return 1;
     }
     info = MHD_get_daemon_info(d, MHD_DAEMON_INFO_BIND_PORT);
@@ -259,7 +278,7 @@ int main(int argc, char **argv)
         if (srv_grpc_start(&cfg, &gport, msg, sizeof msg) != 0) {
             fprintf(stderr, "mcfd: %s\n", msg);
             MHD_stop_daemon(d);
-            srv_jobs_stop();
+            svc_stop();
             return 1;
         }
         printf(ipv6 ? "mcfd grpc listening on [%s]:%d\n"
@@ -276,7 +295,7 @@ int main(int argc, char **argv)
         sig = sigtimedwait(&sigs, NULL, &tick);
         if (sig == SIGTERM || sig == SIGINT)
             break;
-        srv_jobs_check_clients();
+        srv_http_check_clients();
         if (cfg.header_timeout > 0) {
             int n = srv_http_expire_heads(cfg.header_timeout,
                                           cfg.max_connections);
@@ -286,29 +305,29 @@ int main(int argc, char **argv)
                          n, n == 1 ? "" : "s", cfg.header_timeout);
         }
         if (ticks % 4 == 0)
-            srv_jobs_sweep();
+            svc_sweep();
     }
 
     t_sigterm = srv_mono();
     srv_logf(SRV_LOG_INFO, "%s: draining (readyz 503, no new jobs, running "
              "jobs finish within %g s)", sig == SIGTERM ? "SIGTERM" : "SIGINT",
              cfg.drain_timeout);
-    srv_jobs_drain();
+    svc_drain();
     srv_grpc_drain();
-    if (!srv_jobs_wait_idle(cfg.drain_timeout)) {
+    if (!svc_wait_idle(cfg.drain_timeout)) {
         srv_logf(SRV_LOG_WARN, "drain timeout: checkpointing running jobs; "
                  "they run again after the restart");
-        srv_jobs_checkpoint_running();
-        srv_jobs_wait_idle(60);
+        svc_checkpoint_running();
+        svc_wait_idle(60);
     }
     /* Let finished waiters and streams deliver, then wake whoever is left. */
     wait_requests(5);
-    srv_jobs_resume_all();
+    svc_close_waiters();
     wait_requests(2);
     /* gRPC before the job service: its calls hold jobs and subscriptions */
     srv_grpc_stop();
     MHD_stop_daemon(d);
-    srv_jobs_stop();
+    svc_stop();
     srv_logf(SRV_LOG_INFO, "stopped after %.3f s of drain", srv_mono() - t_sigterm);
     return 0;
 }

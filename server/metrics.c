@@ -13,6 +13,7 @@
  * the few this daemon answers, schemes come from the core's table), so a
  * flat array with a linear search under one mutex is enough.
  */
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>

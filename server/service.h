@@ -256,9 +256,11 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
 /* A new reference to the job with that ID (a NUL-terminated string of
  * any content), or NULL. */
 svc_job *svc_job_get(const char *id);
+/* One more reference to a handle the caller holds; returns j. */
+svc_job *svc_job_ref(svc_job *j);
 /* Drops a reference (accepts NULL). */
 void svc_job_unref(svc_job *j);
-/* The job's ID (constant for the handle's life). */
+/* The job's ID (constant for the handle's life; takes no lock). */
 const char *svc_job_id(const svc_job *j);
 
 /* Cancels a queued job at once, or asks a running one to stop at its
@@ -363,7 +365,7 @@ int svc_subscribe(svc_job *j, unsigned flags, svc_notify_fn fn, void *ctx,
                   svc_sub **sub);
 /* Ends a subscription (accepts NULL); fn is not running on return. */
 void svc_unsubscribe(svc_sub *sub);
-/* Subscriptions of j with SVC_NOTIFY_PROGRESS (followers), and of all. */
-int svc_followers(const svc_job *j, int *total);
+/* How many subscriptions of j want SVC_NOTIFY_PROGRESS (followers). */
+int svc_followers(const svc_job *j);
 
 #endif /* SVC_SERVICE_H */

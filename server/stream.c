@@ -4,14 +4,13 @@
  * GET /v1/jobs/ID/events.
  *
  * Both read the job's event log (one ndjson line per accepted step, kept
- * in job->events) through a private cursor, so any number of followers
- * see every step in order, also those that join late. When the cursor
- * has caught up and the job still runs, the content reader suspends its
- * connection and returns 0; the worker's progress callback resumes it.
- * Both happen under the job lock, which is what makes the hand-over safe:
- * a resume can never come before its suspend. After the last step comes
- * one final record (the metrics and result URL, or the error) and the
- * chunked body ends.
+ * by the service: svc_job_events) through a private cursor, so any number
+ * of followers see every step in order, also those that join late. When
+ * the cursor has caught up and the job still runs, the content reader
+ * suspends its connection and returns 0; the service's progress
+ * notification resumes it (waiter.c: no notification is lost between the
+ * snapshot and the suspend). After the last step comes one final record
+ * (the metrics and result URL, or the error) and the chunked body ends.
  *
  * ndjson lines: {"step","t","dt","energy","volume"} per step, then
  * {"done":true,"job","status","result","metrics"} or {"done":...,"error"}.
@@ -22,45 +21,31 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "srv.h"
+#include "http.h"
 
 #define CHUNK (64 * 1024)
 
 typedef struct {
-    srv_job *job;
+    svc_job *job;
     srv_stream_kind kind;
     srv_waiter w;
-    size_t ev_off;            /* bytes of job->events already sent */
-    long ev_index;            /* events passed (the SSE id of the last) */
+    int ev_index;             /* events passed (the SSE id of the last) */
     long last_id;             /* SSE Last-Event-ID: skip ids <= last_id */
     api_buf pend;             /* formatted, not yet handed to MHD */
     size_t pend_off;
     int started, finished;
 } stream;
 
-/* Streams open now; guarded by the job lock. */
-static int g_followers;
-
-int srv_stream_followers(void)
+int srv_stream_admit(const svc_job *j, srv_problem *p)
 {
-    return g_followers; /* read with the lock held (srv_jobs_gauges) */
-}
+    const srv_config *cfg = srv_http_config();
+    int here = svc_followers(j), total = srv_waiter_followers(),
+        max_total = cfg->max_connections / 2;
 
-int srv_stream_admit(const srv_job *j, srv_problem *p)
-{
-    const srv_config *cfg = srv_jobs_config();
-    const srv_waiter *w;
-    int here = 0, total, max_total = cfg->max_connections / 2;
-
-    srv_lock();
-    for (w = j->waiters; w; w = w->next)
-        here += w->want_events;
-    total = g_followers;
-    srv_unlock();
     if (here >= SRV_FOLLOWERS_PER_JOB) {
         srv_problem_set(p, 503, "EBUSY", "job %s already has %d followers, "
                         "the most one job may have; poll GET /v1/jobs/%s "
-                        "instead", j->id, here, j->id);
+                        "instead", svc_job_id(j), here, svc_job_id(j));
         return 0;
     }
     if (total >= max_total) {
@@ -72,42 +57,45 @@ int srv_stream_admit(const srv_job *j, srv_problem *p)
     return 1;
 }
 
-static int terminal(srv_job_status s)
-{
-    return s == SRV_JOB_SUCCEEDED || s == SRV_JOB_FAILED ||
-           s == SRV_JOB_CANCELED;
-}
-
-cJSON *srv_stream_final_json(const srv_job *j)
+/* The final ndjson line of a job (metrics and result URL, or the error). */
+static cJSON *final_json(const svc_job *j)
 {
     char url[96];
+    svc_snap s;
     cJSON *o = cJSON_CreateObject();
 
     if (!o)
         return NULL;
-    cJSON_AddBoolToObject(o, "done", terminal(j->status));
-    cJSON_AddStringToObject(o, "job", j->id);
-    cJSON_AddStringToObject(o, "status", srv_job_status_name(j->status));
-    cJSON_AddNumberToObject(o, "steps", j->step);
-    if (j->status == SRV_JOB_SUCCEEDED) {
-        snprintf(url, sizeof url, "/v1/jobs/%s/result", j->id);
+    svc_job_snapshot(j, &s);
+    cJSON_AddBoolToObject(o, "done", svc_job_status_terminal(s.status));
+    cJSON_AddStringToObject(o, "job", s.id);
+    cJSON_AddStringToObject(o, "status", svc_job_status_name(s.status));
+    cJSON_AddNumberToObject(o, "steps", s.step);
+    if (s.status == SVC_JOB_SUCCEEDED) {
+        char *doc;
+        size_t len;
+        svc_error e;
+        snprintf(url, sizeof url, "/v1/jobs/%s/result", s.id);
         cJSON_AddStringToObject(o, "result", url);
-        snprintf(url, sizeof url, "/v1/jobs/%s/metrics", j->id);
+        snprintf(url, sizeof url, "/v1/jobs/%s/metrics", s.id);
         cJSON_AddStringToObject(o, "metrics_url", url);
-        if (j->metrics_json) {
-            cJSON *m = cJSON_Parse(j->metrics_json);
+        if (svc_job_metrics(j, &doc, &len, &e) == 0) {
+            cJSON *m = cJSON_Parse(doc);
             if (m)
                 cJSON_AddItemToObject(o, "metrics", m);
+            free(doc);
         }
     } else {
-        srv_problem p = j->err;
+        srv_problem p;
         cJSON *e;
-        if (!terminal(j->status))
+        if (!svc_job_status_terminal(s.status))
             srv_problem_set(&p, 503, "EDRAINING", "the daemon is shutting "
                             "down; job %s stays %s and runs after the "
-                            "restart", j->id, srv_job_status_name(j->status));
-        snprintf(url, sizeof url, "/v1/jobs/%s", j->id);
-        e = srv_problem_json(&p, url, j->id);
+                            "restart", s.id, svc_job_status_name(s.status));
+        else
+            srv_problem_from_svc(&p, &s.error);
+        snprintf(url, sizeof url, "/v1/jobs/%s", s.id);
+        e = srv_problem_json(&p, url, s.id);
         if (e)
             cJSON_AddItemToObject(o, "error", e);
     }
@@ -135,41 +123,53 @@ static void sse_json(api_buf *b, const char *name, cJSON *o)
     cJSON_Delete(o);
 }
 
-/* With the lock held: moves what is new into s->pend. Returns 1 when
- * something was added (or the stream ended), 0 when it must wait. */
+/* Moves what is new into s->pend. Returns 1 when something was added (or
+ * the stream ended), 0 when it must wait. The snapshot comes before the
+ * events: the service adds every event before the job ends, so an ended
+ * job and no event after its snapshot mean the stream is complete. */
 static int fill(stream *s)
 {
-    srv_job *j = s->job;
+    svc_job *j = s->job;
+    svc_snap sn;
 
     if (!s->started) {
         s->started = 1;
         if (s->kind == SRV_STREAM_SSE) {
             api_buf_append(&s->pend, "retry: 2000\n", 12);
-            sse_json(&s->pend, "status", srv_job_json(j));
+            sse_json(&s->pend, "status", srv_job_json(j, NULL));
             return 1;
         }
     }
-    while (s->ev_off < j->events.len && s->pend.len < CHUNK) {
-        const char *line = j->events.data + s->ev_off;
-        const char *nl = memchr(line, '\n', j->events.len - s->ev_off);
-        size_t n = nl ? (size_t)(nl - line) : j->events.len - s->ev_off;
+    svc_job_snapshot(j, &sn);
+    while (s->pend.len < CHUNK) {
+        char *ev, *line;
+        size_t len;
+        int n;
 
-        s->ev_off += n + (nl ? 1 : 0);
-        s->ev_index++;
-        if (s->kind == SRV_STREAM_NDJSON) {
-            api_buf_append(&s->pend, line, n);
-            api_buf_append(&s->pend, "\n", 1);
-        } else if (s->ev_index > s->last_id) {
-            sse_event(&s->pend, "progress", s->ev_index, line, n);
+        if (svc_job_events(j, s->ev_index, CHUNK, &ev, &len, &n) != 0 ||
+            n == 0)
+            break;
+        for (line = ev; line < ev + len;) {
+            char *nl = memchr(line, '\n', (size_t)(ev + len - line));
+            size_t k = nl ? (size_t)(nl - line) : (size_t)(ev + len - line);
+
+            s->ev_index++;
+            if (s->kind == SRV_STREAM_NDJSON) {
+                api_buf_append(&s->pend, line, k);
+                api_buf_append(&s->pend, "\n", 1);
+            } else if (s->ev_index > s->last_id) {
+                sse_event(&s->pend, "progress", s->ev_index, line, k);
+            }
+            line += k + 1;
         }
+        free(ev);
     }
     if (s->pend.len > 0)
         return 1;
-    if (terminal(j->status) ||
-        (j->status == SRV_JOB_QUEUED && srv_jobs_draining_locked()) ||
-        srv_jobs_closing_locked()) {
+    if (svc_job_status_terminal(sn.status) ||
+        (sn.status == SVC_JOB_QUEUED && sn.draining) || sn.closing) {
         if (s->kind == SRV_STREAM_NDJSON) {
-            cJSON *o = srv_stream_final_json(j);
+            cJSON *o = final_json(j);
             char *t = o ? cJSON_PrintUnformatted(o) : NULL;
             if (t) {
                 api_buf_append(&s->pend, t, strlen(t));
@@ -178,7 +178,7 @@ static int fill(stream *s)
             free(t);
             cJSON_Delete(o);
         } else {
-            sse_json(&s->pend, "done", srv_job_json(j));
+            sse_json(&s->pend, "done", srv_job_json(j, NULL));
         }
         s->finished = 1;
         return 1;
@@ -198,20 +198,19 @@ static ssize_t reader(void *cls, uint64_t pos, char *buf, size_t max)
         s->pend_off = 0;
         if (s->finished)
             return MHD_CONTENT_READER_END_OF_STREAM;
-        srv_lock();
-        if (s->w.gone) {
-            /* The client left while the stream slept (found by
-             * srv_jobs_check_clients): end it, freeing the connection. */
-            srv_unlock();
-            return MHD_CONTENT_READER_END_WITH_ERROR;
-        }
-        if (!fill(s)) {
+        for (;;) {
+            srv_waiter_arm(&s->w);
+            if (srv_waiter_gone(&s->w))
+                /* The client left while the stream slept (found by
+                 * srv_http_check_clients): end it, freeing the
+                 * connection. */
+                return MHD_CONTENT_READER_END_WITH_ERROR;
+            if (fill(s))
+                break;
             /* Nothing new: sleep until the worker has more. */
-            srv_waiter_suspend(&s->w);
-            srv_unlock();
-            return 0;
+            if (srv_waiter_sleep(&s->w))
+                return 0;
         }
-        srv_unlock();
         if (s->pend.len == 0)
             return MHD_CONTENT_READER_END_OF_STREAM;
     }
@@ -227,16 +226,13 @@ static void release(void *cls)
 {
     stream *s = cls;
 
-    srv_lock();
-    srv_waiter_unlink(s->job, &s->w);
-    g_followers--;
-    srv_unlock();
-    srv_job_unref(s->job);
+    srv_waiter_stop(&s->w);
+    svc_job_unref(s->job);
     api_buf_free(&s->pend);
     free(s);
 }
 
-struct MHD_Response *srv_stream_response(srv_job *j, srv_stream_kind kind,
+struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
                                          struct MHD_Connection *conn,
                                          long last_id)
 {
@@ -245,29 +241,26 @@ struct MHD_Response *srv_stream_response(srv_job *j, srv_stream_kind kind,
 
     if (!s)
         return NULL;
-    s->job = j;
+    s->job = svc_job_ref(j);
     s->kind = kind;
     s->last_id = last_id;
-    s->w.conn = conn;
-    s->w.want_events = 1;
     api_buf_init(&s->pend, 0);
-    r = MHD_create_response_from_callback(MHD_SIZE_UNKNOWN, CHUNK, reader, s,
-                                          release);
-    if (!r) {
-        api_buf_free(&s->pend);
+    if (srv_waiter_start(&s->w, j, conn, 1, 0) != 0) {
+        svc_job_unref(s->job);
         free(s);
         return NULL;
     }
-    srv_lock();
-    j->refs++;
-    srv_waiter_link(j, &s->w);
-    g_followers++;
-    srv_unlock();
+    r = MHD_create_response_from_callback(MHD_SIZE_UNKNOWN, CHUNK, reader, s,
+                                          release);
+    if (!r) {
+        release(s);
+        return NULL;
+    }
     MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE,
                             kind == SRV_STREAM_SSE ? "text/event-stream"
                                                    : "application/x-ndjson");
     MHD_add_response_header(r, MHD_HTTP_HEADER_CACHE_CONTROL, "no-cache");
     MHD_add_response_header(r, "X-Accel-Buffering", "no");
-    MHD_add_response_header(r, "X-Job-Id", j->id);
+    MHD_add_response_header(r, "X-Job-Id", svc_job_id(j));
     return r;
 }

@@ -227,6 +227,21 @@ static void test_inspect_cube(void **state)
     tl_assert_near(I.volume, 1, 1e-15, "cube volume");
     tl_assert_near(mcf_mesh_area(m), 6, 1e-15, "cube area");
     tl_assert_near(mcf_mesh_volume(m), 1, 1e-15, "cube volume");
+    {
+        /* The unit cube's area centroid is its centre; without its
+         * bottom (area 5: the top at z = 1, four sides at z = 1/2) it
+         * rises to z = 3/5. */
+        double c[3];
+        mcf_mesh *open = must_new(8, cube_X, 10, cube_F + 6);
+        tl_assert_near(mcf_mesh_area_centroid(m, c), 6, 1e-15, "cube area");
+        for (k = 0; k < 3; k++)
+            tl_assert_near(c[k], 0.5, 1e-15, "cube centroid");
+        tl_assert_near(mcf_mesh_area_centroid(open, c), 5, 1e-15, "open area");
+        tl_assert_near(c[0], 0.5, 1e-15, "open cube centroid x");
+        tl_assert_near(c[1], 0.5, 1e-15, "open cube centroid y");
+        tl_assert_near(c[2], 0.6, 1e-15, "open cube centroid z");
+        mcf_mesh_free(open);
+    }
     tl_assert_near(I.min_edge, 1, 0, "cube min edge");
     tl_assert_near(I.max_edge, sqrt(2), 0, "cube max edge");
     /* 12 unit edges and 6 face diagonals. */

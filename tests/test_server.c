@@ -2653,6 +2653,94 @@ static void test_concurrent_clients(void **state)
     stop_daemon(&d);
 }
 
+/* The error of a failed or canceled job, as GET /v1/jobs/ID shows it:
+ * "status code" into out. */
+static void job_error(const daemon_t *d, const char *id, char *out, size_t size)
+{
+    char path[128];
+    resp_t r;
+    cJSON *j;
+
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(d, "GET", path, NULL, NULL, &r);
+    expect_status(d, &r, 200, "GET a finished job");
+    j = body_json(&r, "GET a finished job");
+    snprintf(out, size, "%d %s",
+             (int)jnum(cJSON_GetObjectItemCaseSensitive(j, "error"), "status"),
+             jstr(cJSON_GetObjectItemCaseSensitive(j, "error"), "code"));
+    cJSON_Delete(j);
+    resp_free(&r);
+}
+
+/* Failures persist in state.json and answer the same after a restart; so
+ * do those a daemon from before the job service wrote
+ * ({"http","code","detail"}). */
+static void test_spool_errors_reload(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    static const char *const old_id = "0123456789abcdef0123456789abcdef";
+    daemon_t d;
+    char spool[600], dir[800], file[900], ids[2][SRV_ID_BUF], before[2][64],
+        after[64], path[160];
+    upload_t up = {.raw = "this is not a mesh", .raw_len = 18};
+    resp_t r;
+    FILE *f;
+    int i;
+    double now = (double)time(NULL);
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/errors", g_tmp);
+    assert_int_equal(start_daemon(&d, "errors1", spool, flags), 0);
+    /* a body that is no mesh, and a job canceled while queued */
+    http(&d, "POST", "/v1/jobs", NULL, &up, &r);
+    expect_status(&d, &r, 202, "POST a non-mesh");
+    {
+        cJSON *j = body_json(&r, "POST a non-mesh");
+        snprintf(ids[0], SRV_ID_BUF, "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+    }
+    resp_free(&r);
+    cJSON_Delete(poll_job(&d, ids[0], "failed", 10));
+    submit(&d, "?scheme=desbrun2&iterations=100000&dt=1e-7", ids[1]);
+    snprintf(path, sizeof path, "/v1/jobs/%s", ids[1]);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&d, ids[1], "canceled", 10));
+    for (i = 0; i < 2; i++)
+        job_error(&d, ids[i], before[i], sizeof before[i]);
+    assert_string_equal(before[1], "409 ECANCELED");
+    stop_daemon(&d);
+
+    snprintf(dir, sizeof dir, "%s/jobs/%s", spool, old_id);
+    assert_int_equal(mkdir(dir, 0755), 0);
+    snprintf(file, sizeof file, "%s/request.json", dir);
+    assert_non_null(f = fopen(file, "w"));
+    fprintf(f, "{\"id\":\"%s\",\"fields\":[],\"filename\":\"bunny\","
+               "\"target\":false,\"created\":%.0f}", old_id, now);
+    fclose(f);
+    snprintf(file, sizeof file, "%s/state.json", dir);
+    assert_non_null(f = fopen(file, "w"));
+    fprintf(f, "{\"id\":\"%s\",\"status\":\"failed\",\"created\":%.0f,"
+               "\"started\":%.0f,\"finished\":%.0f,\"scheme\":\"desbrun2\","
+               "\"step\":0,\"t\":0,\"in_format\":\"obj\",\"error\":"
+               "{\"http\":413,\"code\":\"ELIMIT\",\"detail\":\"mesh: too "
+               "many vertices\"}}", old_id, now, now, now);
+    fclose(f);
+
+    assert_int_equal(start_daemon(&d, "errors2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        job_error(&d, ids[i], after, sizeof after);
+        assert_string_equal(after, before[i]);
+    }
+    job_error(&d, old_id, after, sizeof after);
+    assert_string_equal(after, "413 ELIMIT");
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", old_id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_problem(&d, &r, 409, "ENORESULT", old_id, "result of an old failure");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* kill -9 with one job running and two queued; the restart on the same
  * spool runs all three under their IDs. */
 static void test_kill9_recovery(void **state)
@@ -3343,6 +3431,7 @@ int main(void)
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
+        cmocka_unit_test_teardown(test_spool_errors_reload, kill_strays),
         cmocka_unit_test_teardown(test_kill9_recovery, kill_strays),
         cmocka_unit_test_teardown(test_sigterm_drain, kill_strays),
         cmocka_unit_test_teardown(test_drain_checkpoint, kill_strays),

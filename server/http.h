@@ -1,0 +1,248 @@
+/*
+ * http.h - the REST door of mcfd on libmicrohttpd, shared by its files
+ * (http.c, upload.c, jobroutes.c, waiter.c, stream.c, reply.c). The door
+ * reaches jobs only through service.h: no job internals, no service lock.
+ *
+ * A request object (srv_request) is made by the URI log callback, hangs
+ * on con_cls, and is freed only in the completion callback (or when its
+ * connection closes without one). The handler runs on MHD's small thread
+ * pool and never touches a mesh. A request or stream waiting on a job
+ * suspends its connection through an srv_waiter, which a subscription of
+ * the service resumes.
+ */
+#ifndef SRV_HTTP_H
+#define SRV_HTTP_H
+
+#include <pthread.h>
+
+#include <microhttpd.h>
+
+#include "service.h"
+#include "srv.h"
+
+/* ---------------------------------------------------------------- problems */
+
+/* An error as the client will see it: HTTP status, the symbolic code
+ * ("EMESH", or a server code such as "ENOTFOUND") and a precise detail. */
+typedef struct {
+    unsigned http;
+    char code[24];
+    char detail[MCF_ERRMSG_SIZE + 128];
+} srv_problem;
+
+/* The HTTP status of a failure of the core or the codecs (table in
+ * reply.c, from MCF_ERRORS): where it came from decides 400 against 422. */
+unsigned srv_http_status(mcf_status s, svc_stage stage);
+/* A service error as the client sees it (service.h's table). */
+void srv_problem_from_svc(srv_problem *p, const svc_error *e);
+void srv_problem_set(srv_problem *p, unsigned http, const char *code,
+                     const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/* The problem as an RFC 9457 JSON object (type, title, status, detail,
+ * instance, code, and job when given). NULL on allocation failure. */
+cJSON *srv_problem_json(const srv_problem *p, const char *instance,
+                        const char *job_id);
+/* The reason phrase of an HTTP status ("Unprocessable Content"). */
+const char *srv_http_reason(unsigned status);
+/* The job document of the REST API: svc_job_json, and the error as a
+ * problem and the links. *snap (may be NULL): the state it shows. */
+cJSON *srv_job_json(const svc_job *j, svc_snap *snap);
+
+/* ----------------------------------------------------------------- waiters */
+
+/* A connection waiting on a job. Lives inside the request or stream that
+ * owns it (which holds the job reference). The door's own lock guards
+ * its flags; the service's subscription callback takes that lock. */
+typedef struct srv_waiter {
+    struct MHD_Connection *conn;
+    char id[SVC_ID_LEN + 1];   /* its job's */
+    svc_sub *sub;
+    int want_events;           /* woken on every progress event */
+    int cancel_on_hangup;      /* the job's only client: its hang-up
+                                  cancels the job (srv_http_check_clients) */
+    int suspended;             /* MHD_suspend_connection called, not resumed */
+    int pending;               /* notified since srv_waiter_arm */
+    int gone;                  /* its client hung up: end the stream */
+    int linked;
+    struct srv_waiter *prev, *next;
+} srv_waiter;
+
+/* Subscribes w to j (progress too when want_events). 0, or -1 (ENOMEM). */
+int srv_waiter_start(srv_waiter *w, svc_job *j, struct MHD_Connection *c,
+                     int want_events, int cancel_on_hangup);
+/* Ends the subscription (accepts a waiter never started). Call with no
+ * lock held, before the connection goes. */
+void srv_waiter_stop(srv_waiter *w);
+/* The wait protocol: srv_waiter_arm, then read a snapshot and answer
+ * what can be answered; else srv_waiter_sleep, which suspends the
+ * connection (1) unless a notification came since the arm (0: look
+ * again). A suspended connection is resumed by the next notification. */
+void srv_waiter_arm(srv_waiter *w);
+int srv_waiter_sleep(srv_waiter *w);
+/* Whether the client of a stream left while it slept. */
+int srv_waiter_gone(srv_waiter *w);
+/* Event streams open now (the mcfd_followers gauge). */
+int srv_waiter_followers(void);
+/* Ends the event streams whose client has closed its connection, and
+ * cancels (SVC_CANCEL_CLIENT) the jobs whose only client, a waiting
+ * request, has. Called a few times a second from the main thread.
+ * Returns how many jobs it canceled. */
+int srv_http_check_clients(void);
+
+/* ------------------------------------------------------------------ stream */
+
+typedef enum { SRV_STREAM_NDJSON = 0, SRV_STREAM_SSE } srv_stream_kind;
+
+/* A chunked response that follows the job's events until it finishes.
+ * Holds its own job reference. last_id: SSE Last-Event-ID (-1: none). */
+struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
+                                         struct MHD_Connection *conn,
+                                         long last_id);
+/* Whether one more follower of j may start (at most SRV_FOLLOWERS_PER_JOB
+ * per job and half of --max-connections in all); else 0 and a 503. */
+#define SRV_FOLLOWERS_PER_JOB 64
+int srv_stream_admit(const svc_job *j, srv_problem *p);
+
+/* ---------------------------------------------------------------- requests */
+
+typedef enum {
+    RT_HEALTHZ = 0,
+    RT_READYZ,
+    RT_METRICS,
+    RT_OPENAPI,
+    RT_SCHEMES,
+    RT_SMOOTH,
+    RT_JOBS,
+    RT_JOB,
+    RT_JOB_RESULT,
+    RT_JOB_METRICS,
+    RT_JOB_EVENTS,
+    RT_OTHER
+} srv_route;
+
+typedef enum { MODE_SYNC = 0, MODE_MIXED, MODE_NDJSON, MODE_ASYNC } srv_mode;
+
+typedef struct {
+    char *uri;                 /* raw request target, query included */
+    char path[256];
+    char method[16];
+    char id[SVC_ID_LEN + 1];
+    double t0;
+    srv_route rt;
+    unsigned status;           /* of the queued response, 0 before */
+    int started;
+    int deferred;              /* answered once the (absent) body is read */
+    void *conn;                /* its connection's conn_state, or NULL */
+    /* upload */
+    int multipart;
+    struct MHD_PostProcessor *pp;
+    api_buf mesh, target, params;
+    int has_mesh, has_target, has_params;
+    cJSON *fields;             /* [[key, value], ...] plain form fields */
+    size_t fields_bytes;
+    char filename[128];
+    size_t bytes_in;
+    srv_problem perr;          /* found while reading; answered at the end */
+    int has_perr;
+    size_t perr_at;            /* bytes_in + 1 when perr was first seen */
+    /* waiting on a job */
+    srv_mode md;
+    svc_job *job;
+    srv_waiter w;
+    int waiting;
+    int sync_owner;            /* this request takes the kept result */
+} srv_request;
+
+/* The configuration the door reads (token, limits); set once by main. */
+void srv_http_init(const srv_config *cfg);
+const srv_config *srv_http_config(void);
+
+/* The query string of the request target, NULL when there is none. */
+const char *srv_query_of(const srv_request *r);
+/* The decoded value of `key` in the raw query (last one wins), into out;
+ * NULL when absent. %XX and '+' are decoded. */
+const char *srv_query_value(const srv_request *r, const char *key, char *out,
+                            size_t size);
+
+/* Responses (reply.c). Each queues resp (NULL: MHD_NO) with status and
+ * counts it in the request metrics. */
+enum MHD_Result srv_respond(srv_request *r, struct MHD_Connection *c,
+                            unsigned status, struct MHD_Response *resp);
+/* A response holding o printed (takes o), with a trailing newline when
+ * asked and the given Content-Type; NULL when out of memory. */
+struct MHD_Response *srv_json_response(cJSON *o, const char *ctype,
+                                       int newline);
+/* Takes o. */
+enum MHD_Result srv_send_json(srv_request *r, struct MHD_Connection *c,
+                              unsigned status, cJSON *o);
+/* Takes text (malloc'ed). */
+enum MHD_Result srv_send_text(srv_request *r, struct MHD_Connection *c,
+                              unsigned status, const char *ctype, char *text,
+                              size_t len);
+/* problem+json, with Retry-After on 503, WWW-Authenticate on 401, Allow
+ * on 405 and X-Job-Id when job is given. */
+enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
+                                 const srv_problem *p, const char *job);
+enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
+                                  unsigned http, const char *code,
+                                  const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
+#endif
+    ;
+/* An empty response (204, HEAD). */
+struct MHD_Response *srv_empty_response(void);
+
+/* upload.c: the checks of an upload's head (415, 413, 503 before the
+ * body), the body's bytes, and the submission once it is complete. */
+enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c);
+void srv_upload_consume(srv_request *r, const char *data, size_t size);
+enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c);
+/* Content-Length above this: refused before it is read; a refused body
+ * is read and discarded up to this much, then the connection dropped. */
+#define SRV_DRAIN_MAX ((unsigned long long)16 << 20)
+
+/* jobroutes.c: the /v1/jobs/ID routes, and a waiting /smooth request
+ * (after submit and after every resume): answers when there is
+ * something to say, else suspends again. */
+enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
+                              const char *method);
+enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c);
+/* The request ends: drops its subscription, kept result and reference. */
+void srv_request_release_job(srv_request *r);
+
+/* ------------------------------------------------------------ MHD entries */
+
+/* The request handler and its companions for MHD_start_daemon. */
+enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
+                                const char *url, const char *method,
+                                const char *version, const char *upload_data,
+                                size_t *upload_data_size, void **con_cls);
+void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c);
+void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
+                        enum MHD_RequestTerminationCode toe);
+/* Closes the connections that have waited longer than timeout seconds
+ * for a complete request head (request line and headers), since they
+ * opened or since their last answer, and uploads older than timeout that
+ * averaged under 4 KiB/s since their head: slowloris clients. With nine
+ * tenths of max_connections open the timeout is 2 s at most. The main
+ * loop calls it with --header-timeout. Returns how many. */
+int srv_http_expire_heads(double timeout, int max_connections);
+/* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
+ * deadline; releases a request MHD never completed. */
+void srv_http_connection(void *cls, struct MHD_Connection *c,
+                         void **socket_context,
+                         enum MHD_ConnectionNotificationCode code);
+/* Requests between the URI callback and completion (drain waits on it). */
+int srv_http_active(void);
+/* The route's label in metrics and logs ("smooth", "job", ...). */
+const char *srv_route_name(srv_route rt);
+
+/* The API description embedded at build time (build/server/openapi_yaml.c). */
+extern const unsigned char srv_openapi_yaml[];
+extern const size_t srv_openapi_yaml_len;
+
+#endif /* SRV_HTTP_H */

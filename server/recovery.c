@@ -1,0 +1,156 @@
+/*
+ * recovery.c - the job service at start: every job directory of the
+ * spool back into the table. Queued jobs, and jobs that were running
+ * when the process died, go back to the queue in their original order
+ * (created, then ID) with their IDs; a job canceled while it ran stays
+ * canceled; finished jobs are served again until their TTL runs out;
+ * directories without a complete request and state (a crash before the
+ * job was acknowledged) are removed.
+ */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "svc_internal.h"
+
+typedef struct {
+    svc_job **queued;
+    int n, cap;
+    int restored, dropped;
+} recover_ctx;
+
+static int by_created(const void *a, const void *b)
+{
+    const svc_job *x = *(svc_job *const *)a, *y = *(svc_job *const *)b;
+    if (x->created != y->created)
+        return x->created < y->created ? -1 : 1;
+    return strcmp(x->id, y->id);
+}
+
+static int valid_id(const char *id)
+{
+    size_t i;
+    for (i = 0; id[i]; i++)
+        if (!((id[i] >= '0' && id[i] <= '9') || (id[i] >= 'a' && id[i] <= 'f')))
+            return 0;
+    return i == SVC_ID_LEN;
+}
+
+/* Lock held (start-up: no other thread yet). */
+static void recover_one(const char *id, void *arg)
+{
+    recover_ctx *rc = arg;
+    const svc_config *cfg = &svc__S.cfg;
+    char *state = NULL, *req = NULL;
+    size_t len;
+    cJSON *so = NULL, *ro = NULL;
+    svc_job *j = NULL;
+
+    if (!valid_id(id))
+        return; /* not ours: leave it alone */
+    if (srv_spool_read(cfg->spool, id, "state.json", &state, &len) != 0 ||
+        srv_spool_read(cfg->spool, id, "request.json", &req, &len) != 0 ||
+        !(so = cJSON_Parse(state)) || !(ro = cJSON_Parse(req)) ||
+        !(j = svc__job_new()) || svc__record_from_json(&j->rec, ro) != 0 ||
+        svc__state_load(j, so) != 0) {
+        /* Never acknowledged (crash between mkdir and state.json). */
+        srv_logf(SRV_LOG_WARN, "spool: removing incomplete job %s", id);
+        srv_spool_remove(cfg->spool, id);
+        rc->dropped++;
+        goto out;
+    }
+    snprintf(j->id, sizeof j->id, "%s", id);
+    j->disk_bytes = srv_spool_du(cfg->spool, id);
+    j->recovered = 1;
+    if (svc_job_status_terminal(j->status)) {
+        if (srv_wall() - j->finished >= cfg->result_ttl) {
+            srv_spool_remove(cfg->spool, id);
+            goto out;
+        }
+        if (j->status == SVC_JOB_SUCCEEDED &&
+            srv_spool_read(cfg->spool, id, "metrics.json", &j->metrics_json,
+                           &len) != 0) {
+            srv_logf(SRV_LOG_WARN, "spool: job %s has no metrics.json", id);
+        }
+        svc__table_insert(j);
+        j = NULL;
+        rc->restored++;
+        goto out;
+    }
+    if (j->cancel) {
+        /* Canceled while it ran, and the process ended before the step
+         * did: it stays canceled. */
+        char *s;
+        svc_cancel_reason why = j->cancel_reason;
+        j->status = SVC_JOB_CANCELED;
+        j->finished = srv_wall();
+        svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled %s while it "
+                      "ran, before the daemon restarted; it did not run "
+                      "again", why == SVC_CANCEL_USER
+                                   ? "by request" : "when its client hung up");
+        j->err.cancel = why;
+        if ((s = svc__state_json(j)) != NULL) {
+            if (srv_spool_write(cfg->spool, id, "state.json", s, strlen(s),
+                                1) != 0)
+                srv_logf(SRV_LOG_WARN, "spool: cannot record job %s as "
+                         "canceled: %s", id, strerror(errno));
+            free(s);
+        }
+        svc__table_insert(j);
+        j = NULL;
+        rc->restored++;
+        goto out;
+    }
+    /* queued, or running when the process died: run it again */
+    j->status = SVC_JOB_QUEUED;
+    j->started = 0;
+    j->step = 0;
+    j->t = 0;
+    if (rc->n == rc->cap) {
+        int ncap = rc->cap ? 2 * rc->cap : 64;
+        void *p = realloc(rc->queued, (size_t)ncap * sizeof *rc->queued);
+        if (!p)
+            goto out;
+        rc->queued = p;
+        rc->cap = ncap;
+    }
+    rc->queued[rc->n++] = j;
+    j = NULL;
+out:
+    if (j)
+        svc__job_free(j);
+    cJSON_Delete(so);
+    cJSON_Delete(ro);
+    free(state);
+    free(req);
+}
+
+int svc__recover(char *msg, size_t msgsize)
+{
+    recover_ctx rc;
+    int i;
+
+    memset(&rc, 0, sizeof rc);
+    svc__lock();
+    if (srv_spool_list(svc__S.cfg.spool, recover_one, &rc) != 0) {
+        svc__unlock();
+        snprintf(msg, msgsize, "cannot list the spool %s: %s",
+                 svc__S.cfg.spool, strerror(errno));
+        free(rc.queued);
+        return -1;
+    }
+    if (rc.n > 1)
+        qsort(rc.queued, (size_t)rc.n, sizeof *rc.queued, by_created);
+    for (i = 0; i < rc.n; i++) {
+        svc__table_insert(rc.queued[i]);
+        svc__queue_push(rc.queued[i]);
+    }
+    svc__unlock();
+    free(rc.queued);
+    if (rc.n || rc.restored || rc.dropped)
+        srv_logf(SRV_LOG_INFO, "spool %s: %d jobs queued again, %d finished "
+                 "jobs restored, %d incomplete removed", svc__S.cfg.spool, rc.n,
+                 rc.restored, rc.dropped);
+    return 0;
+}

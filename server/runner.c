@@ -1,0 +1,398 @@
+/*
+ * runner.c - one job, start to end, on a worker thread: reads the input
+ * back from the spool, rebuilds the parameters from the record, decodes,
+ * checks, smooths with progress events, encodes, computes the metrics
+ * document, writes result and metrics to the spool, and publishes the
+ * outcome (state.json first, then memory, then the subscribers).
+ *
+ * No lock is held across mesh work or disk I/O: the job's fields are
+ * read and written in short sections under the service lock. The
+ * progress callback appends one ndjson event per step, notifies the
+ * progress subscribers and turns a passed job timeout into a cancel.
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "svc_internal.h"
+
+typedef struct {
+    svc_job *job;
+    const mcf_flow_stats *st; /* the run's statistics: its step log */
+    double deadline;          /* srv_mono() seconds, 0: none */
+} run_ctx;
+
+static void fmt_num(char *buf, size_t size, double v)
+{
+    if (isfinite(v))
+        snprintf(buf, size, "%.17g", v);
+    else
+        snprintf(buf, size, "null");
+}
+
+/* Lock held: one more ndjson line in the job's event log (dropped when
+ * the log is full or memory is short: the stream then skips it). */
+static void add_event(svc_job *j, const char *line, size_t n)
+{
+    if (j->nevents == j->event_cap) {
+        int cap = j->event_cap ? 2 * j->event_cap : 256;
+        size_t *p = realloc(j->event_end, (size_t)cap * sizeof *p);
+        if (!p)
+            return;
+        j->event_end = p;
+        j->event_cap = cap;
+    }
+    if (api_buf_append(&j->events, line, n) == MCF_OK)
+        j->event_end[j->nevents++] = j->events.len;
+}
+
+static int on_progress(void *ctx, int step, double t, double dt, double energy)
+{
+    run_ctx *c = ctx;
+    svc_job *j = c->job;
+    /* The step's volume is the step log's (the core fills entry step - 1
+     * before this call): the quantity of flow.volume0/volume1 and
+     * mcf_mesh_volume, in input units (api_metrics.c). */
+    double vol = c->st->log && step >= 1 && step <= c->st->nlog
+                     ? c->st->log[step - 1].volume : NAN;
+    char line[320], a[32], b[32], e[32], v[32];
+    int stop, n;
+
+    fmt_num(a, sizeof a, t);
+    fmt_num(b, sizeof b, dt);
+    fmt_num(e, sizeof e, energy);
+    fmt_num(v, sizeof v, vol);
+    n = snprintf(line, sizeof line,
+                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
+                 step, a, b, e, v);
+    svc__lock();
+    j->step = step;
+    j->t = t;
+    j->dt = dt;
+    j->energy = energy;
+    j->volume = vol;
+    if (n > 0)
+        add_event(j, line, (size_t)n);
+    svc__notify(j, SVC_NOTIFY_PROGRESS);
+    if (!j->cancel && c->deadline > 0 && srv_mono() > c->deadline) {
+        j->cancel = 1;
+        j->cancel_reason = SVC_CANCEL_TIMEOUT;
+    }
+    stop = j->cancel;
+    svc__unlock();
+    return stop;
+}
+
+/* The metrics document of a finished job: api's, the CLI's too
+ * (api_metrics_json), with the daemon's own facts. */
+static char *metrics_doc(const svc_job *j, const api_metrics *mt,
+                         const api_params *prm, const mcf_flow_stats *st,
+                         api_format in_fmt, api_format out_fmt, double qerr,
+                         size_t in_bytes, size_t out_bytes, double t_queue,
+                         double t_decode, double t_flow, double t_encode,
+                         double t_metrics)
+{
+    api_metrics_run run;
+    cJSON *o;
+    char *s;
+
+    api_metrics_run_init(&run);
+    run.job = j->id;
+    run.input_name = j->rec.filename[0] ? j->rec.filename : NULL;
+    run.output_name = j->result_name;
+    run.target_name = j->rec.has_target ? "target" : NULL;
+    run.input_format = in_fmt;
+    run.output_format = out_fmt;
+    run.input_bytes = in_bytes;
+    run.output_bytes = out_bytes;
+    run.quantization_max_error = qerr;
+    run.queue_s = t_queue;
+    run.decode_s = t_decode;
+    run.flow_s = t_flow;
+    run.encode_s = t_encode;
+    run.metrics_s = t_metrics;
+    run.total_s = t_decode + t_flow + t_encode + t_metrics;
+    o = api_metrics_json(mt, prm, st, &run);
+    s = o ? cJSON_PrintUnformatted(o) : NULL;
+    cJSON_Delete(o);
+    return s;
+}
+
+void svc__run_job(svc_job *j)
+{
+    const svc_config *cfg = &svc__S.cfg;
+    api_params prm;
+    int have_prm = 0;
+    mcf_mesh *m = NULL, *tgt = NULL;
+    api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
+    api_format fmt = API_FMT_UNKNOWN, tfmt;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status rc;
+    mcf_flow_stats st;
+    api_metrics mt;
+    api_buf out;
+    api_encode_opts eo;
+    svc_error prob;
+    int failed = 1, requeue = 0, nv = 0, nf = 0;
+    char *input = NULL, *target = NULL, *metrics = NULL;
+    size_t input_len = 0, target_len = 0;
+    svc_job_status final;
+    char *state = NULL;
+    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
+           t_metrics = 0, t_after, qerr = NAN;
+    run_ctx ctx;
+
+    memset(&st, 0, sizeof st);
+    api_metrics_init(&mt);
+    memset(&prob, 0, sizeof prob);
+    api_buf_init(&out, SVC_RESULT_MAX);
+    svc__lock();
+    input = j->input;
+    input_len = j->input_len;
+    target = j->target;
+    target_len = j->target_len;
+    j->input = j->target = NULL;
+    t_queue = j->started - j->created;
+    svc__unlock();
+    svc__write_state(j, 0);
+
+    if (!input &&
+        srv_spool_read(cfg->spool, j->id, "input", &input, &input_len) != 0) {
+        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the input of job %s "
+                        "from the spool: %s", j->id, strerror(errno));
+        goto done;
+    }
+    if (j->rec.has_target && !target &&
+        srv_spool_read(cfg->spool, j->id, "target", &target, &target_len) != 0) {
+        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the target of job %s "
+                        "from the spool: %s", j->id, strerror(errno));
+        goto done;
+    }
+    if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_PARAMS, NULL, &err);
+        goto done;
+    }
+    have_prm = 1;
+    if ((rc = api_mesh_decode_attrs(input, input_len, &cfg->lim, &m, &attrs,
+                                    &fmt, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_DECODE, "mesh", &err);
+        goto done;
+    }
+    free(input);
+    input = NULL;
+    nv = mcf_mesh_nvertices(m);
+    nf = mcf_mesh_nfaces(m);
+    if ((rc = api_params_finish(&prm, nv, &cfg->lim, &err)) != MCF_OK) {
+        /* A budget exceeded here (steps x vertices) depends on the mesh:
+         * 422. What the parameters alone exceed was refused at submit. */
+        svc_error_from_mcf(&prob, rc, rc == MCF_ELIMIT ? SVC_STAGE_RUN
+                                                     : SVC_STAGE_PARAMS,
+                         NULL, &err);
+        goto done;
+    }
+    if (target) {
+        if ((rc = api_mesh_decode(target, target_len, &cfg->lim, &tgt, &tfmt,
+                                  &err)) != MCF_OK) {
+            svc_error_from_mcf(&prob, rc, SVC_STAGE_DECODE, "target", &err);
+            goto done;
+        }
+        if (mcf_mesh_nvertices(tgt) != nv || mcf_mesh_nfaces(tgt) != nf) {
+            mcf_error_set(&err, MCF_EINVAL, "target: %d vertices and %d "
+                          "faces, the mesh has %d and %d; the target must "
+                          "share the mesh's connectivity",
+                          mcf_mesh_nvertices(tgt), mcf_mesh_nfaces(tgt), nv, nf);
+            svc_error_from_mcf(&prob, MCF_EINVAL, SVC_STAGE_RUN, NULL, &err);
+            goto done;
+        }
+    }
+    if (prm.noise_rho > 0 &&
+        (rc = mcf_flow_add_noise(m, &prm.flow, prm.noise_rho, prm.seed, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "noise", &err);
+        goto done;
+    }
+    t_decode = mcf_now() - t0;
+    t_metrics = mcf_now();
+    if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "metrics", &err);
+        goto done;
+    }
+    t_metrics = mcf_now() - t_metrics;
+
+    memset(&ctx, 0, sizeof ctx);
+    ctx.job = j;
+    ctx.st = &st;
+    ctx.deadline = cfg->job_timeout > 0 ? srv_mono() + cfg->job_timeout : 0;
+    prm.flow.progress = on_progress;
+    prm.flow.progress_ctx = &ctx;
+    prm.flow.cancel = &j->cancel;
+    /* The step log: the metrics' flow.log (as the CLI's) and the volume of
+     * each streamed step. */
+    prm.flow.log_steps = 1;
+
+    svc__lock();
+    j->ready = 1;
+    snprintf(j->in_format, sizeof j->in_format, "%s", api_format_name(fmt));
+    svc__notify(j, SVC_NOTIFY_STATE);
+    svc__unlock();
+
+    t_flow = mcf_now();
+    rc = mcf_flow_run(m, &prm.flow, &st, &err);
+    t_flow = mcf_now() - t_flow;
+    if (rc == MCF_ECANCELED) {
+        int reason;
+        svc__lock();
+        reason = j->cancel_reason;
+        svc__unlock();
+        if (reason == SVC_CANCEL_SHUTDOWN) {
+            requeue = 1;
+            svc_error_set(&prob, SVC_EDRAINING, NULL, "the daemon shut down "
+                            "while job %s ran; it runs again after the restart",
+                            j->id);
+        } else if (reason == SVC_CANCEL_TIMEOUT) {
+            svc_error_set(&prob, SVC_ETIMEOUT, "ELIMIT", "the job ran longer than "
+                            "--job-timeout %g s and was stopped at step %d",
+                            cfg->job_timeout, st.steps);
+        } else if (reason == SVC_CANCEL_CLIENT) {
+            svc_error_set(&prob, SVC_ECANCELED, NULL, "canceled after step %d: "
+                            "the client closed its connection before the "
+                            "answer", st.steps);
+        } else {
+            svc_error_set(&prob, SVC_ECANCELED, NULL, "canceled by request "
+                          "after step %d", st.steps);
+        }
+        prob.cancel = (svc_cancel_reason)reason;
+        goto done;
+    }
+    if (rc != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "flow", &err);
+        goto done;
+    }
+
+    t_encode = mcf_now();
+    if (prm.encode.format == API_FMT_UNKNOWN)
+        prm.encode.format = fmt; /* the metrics' params say what was written */
+    eo = prm.encode;
+    eo.attrs = attrs;
+    rc = eo.format == API_FMT_DRACO ? api_draco_encode(m, &eo, &out, &qerr, &err)
+                                    : api_mesh_encode(m, &eo, &out, &err);
+    if (rc != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "encode", &err);
+        goto done;
+    }
+    t_encode = mcf_now() - t_encode;
+    t_after = mcf_now();
+    if ((rc = api_metrics_after(&mt, m, tgt, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "metrics", &err);
+        goto done;
+    }
+    t_metrics += mcf_now() - t_after;
+    svc__lock();
+    snprintf(j->out_format, sizeof j->out_format, "%s",
+             api_format_name(eo.format));
+    snprintf(j->result_name, sizeof j->result_name, "result%s",
+             api_format_ext(eo.format));
+    svc__unlock();
+    metrics = metrics_doc(j, &mt, &prm, &st, fmt, eo.format, qerr, input_len,
+                          out.len, t_queue, t_decode, t_flow, t_encode,
+                          t_metrics);
+    if (!metrics) {
+        svc_error_set(&prob, SVC_ENOMEM, NULL, "out of memory writing metrics");
+        goto done;
+    }
+    if (srv_spool_write(cfg->spool, j->id, j->result_name, out.data, out.len,
+                        1) != 0 ||
+        srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
+                        strlen(metrics), 1) != 0) {
+        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the result of job %s "
+                        "to the spool: %s", j->id, strerror(errno));
+        goto done;
+    }
+    failed = 0;
+
+done:
+    /* Until the outcome is published: no other state.json write between
+     * its snapshot and the publication (a DELETE's would be stale). */
+    pthread_mutex_lock(&svc_state_mu);
+    svc__lock();
+    if (requeue) {
+        /* Back to queued on disk; the process is exiting. */
+        final = SVC_JOB_QUEUED;
+        j->ready = 0;
+        j->err = prob;
+    } else if (failed) {
+        final = j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
+                              j->cancel_reason == SVC_CANCEL_CLIENT)
+                    ? SVC_JOB_CANCELED : SVC_JOB_FAILED;
+        j->err = prob;
+        j->finished = srv_wall();
+    } else {
+        final = SVC_JOB_SUCCEEDED;
+        j->finished = srv_wall();
+        j->metrics_json = metrics;
+        metrics = NULL;
+        j->result_len = out.len;
+        if (j->keep_result) {
+            size_t len;
+            j->result = api_buf_detach(&out, &len);
+        }
+    }
+    /* The outcome on disk before anyone can see it (GET polls, waiters):
+     * a client told "succeeded" can always find the result again. */
+    j->status = final;
+    state = svc__state_json(j);
+    j->status = SVC_JOB_RUNNING;
+    svc__unlock();
+    if (!state || srv_spool_write(cfg->spool, j->id, "state.json", state,
+                                  strlen(state), 1) != 0) {
+        int e = state ? errno : ENOMEM;
+        svc__lock();
+        if (final == SVC_JOB_SUCCEEDED) {
+            /* Not durable, so not a success: after a restart the job,
+             * still `running` on disk, runs again. */
+            final = SVC_JOB_FAILED;
+            svc_error_set(&j->err, SVC_ESTORAGE, "EIO", "job %s finished but its "
+                            "state could not be written to the spool %s: %s",
+                            j->id, cfg->spool, strerror(e));
+            free(j->result);
+            j->result = NULL;
+        }
+        svc__unlock();
+        srv_logf(SRV_LOG_ERROR, "spool: cannot record the outcome of job %s: "
+                 "%s", j->id, strerror(e));
+    }
+    free(state);
+    svc__lock();
+    j->status = final;
+    if (final == SVC_JOB_SUCCEEDED) {
+        size_t add = j->result_len +
+                     (j->metrics_json ? strlen(j->metrics_json) : 0);
+        j->disk_bytes += add;
+        if (j->in_table)
+            svc__S.disk_bytes += add;
+    }
+    svc__unlock();
+    pthread_mutex_unlock(&svc_state_mu);
+    /* Counted before anyone hears, so /metrics agrees with what clients
+     * have seen. */
+    if (!requeue) {
+        srv_metrics_job(j->scheme, svc_job_status_name(j->status),
+                        mcf_now() - t0);
+        svc__log_job(j, nv, nf, mcf_now() - t0);
+    }
+    svc__lock();
+    svc__notify(j, SVC_NOTIFY_STATE);
+    svc__unlock();
+    if (have_prm)
+        api_params_free(&prm);
+    mcf_flow_stats_free(&st);
+    mcf_mesh_free(m);
+    mcf_mesh_free(tgt);
+    api_attrs_free(attrs);
+    api_buf_free(&out);
+    free(input);
+    free(target);
+    free(metrics);
+}
+

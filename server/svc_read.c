@@ -1,0 +1,288 @@
+/*
+ * svc_read.c - the job service's readers (service.h): snapshots, the job
+ * as JSON, the parameters, the metrics document, the progress events from
+ * a given index on, and the result bytes. Every reader copies under the
+ * service lock and does its disk I/O (the spool's metrics and result
+ * files) outside it.
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "svc_internal.h"
+
+static void snapshot_locked(const svc_job *j, svc_snap *s)
+{
+    memset(s, 0, sizeof *s);
+    snprintf(s->id, sizeof s->id, "%s", j->id);
+    s->status = j->status;
+    s->ready = j->ready;
+    s->cancel_requested = j->cancel && j->cancel_reason == SVC_CANCEL_USER &&
+                          j->status == SVC_JOB_RUNNING;
+    s->recovered = j->recovered;
+    s->step = j->step;
+    s->t = j->t;
+    s->dt = j->dt;
+    s->energy = j->energy;
+    s->volume = j->volume;
+    s->steps_planned = j->steps_planned;
+    s->time_planned = j->time_planned;
+    s->created = j->created;
+    s->started = j->started;
+    s->finished = j->finished;
+    snprintf(s->scheme, sizeof s->scheme, "%s", j->scheme);
+    snprintf(s->in_format, sizeof s->in_format, "%s", j->in_format);
+    snprintf(s->out_format, sizeof s->out_format, "%s", j->out_format);
+    snprintf(s->filename, sizeof s->filename, "%s", j->rec.filename);
+    snprintf(s->result_name, sizeof s->result_name, "%s", j->result_name);
+    s->result_len = j->result_len;
+    s->nevents = j->nevents;
+    s->error = j->err;
+    s->draining = svc__S.draining;
+    s->closing = svc__S.closing;
+}
+
+void svc_job_snapshot(const svc_job *j, svc_snap *s)
+{
+    svc__lock();
+    snapshot_locked(j, s);
+    svc__unlock();
+}
+
+static void add_time(cJSON *o, const char *key, double t)
+{
+    char buf[40];
+    if (t > 0) {
+        srv_time_rfc3339(t, buf, sizeof buf);
+        cJSON_AddStringToObject(o, key, buf);
+    } else {
+        cJSON_AddNullToObject(o, key);
+    }
+}
+
+static void add_num(cJSON *o, const char *key, double v)
+{
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, key, v);
+    else
+        cJSON_AddNullToObject(o, key);
+}
+
+cJSON *svc_job_json(const svc_job *j, svc_snap *snap)
+{
+    cJSON *o = cJSON_CreateObject(), *p;
+    char *params = NULL, *metrics = NULL;
+    svc_snap s;
+
+    if (!o)
+        return NULL;
+    svc__lock();
+    snapshot_locked(j, &s);
+    if (j->params_json)
+        params = strdup(j->params_json);
+    if (j->status == SVC_JOB_SUCCEEDED && j->metrics_json)
+        metrics = strdup(j->metrics_json);
+    svc__unlock();
+    if (snap)
+        *snap = s;
+
+    cJSON_AddStringToObject(o, "id", s.id);
+    cJSON_AddStringToObject(o, "status", svc_job_status_name(s.status));
+    add_time(o, "created", s.created);
+    add_time(o, "started", s.started);
+    add_time(o, "finished", s.finished);
+    p = cJSON_AddObjectToObject(o, "progress");
+    if (p) {
+        double frac = 0;
+        cJSON_AddNumberToObject(p, "step", s.step);
+        if (s.steps_planned > 0) {
+            cJSON_AddNumberToObject(p, "steps", s.steps_planned);
+            frac = (double)s.step / s.steps_planned;
+        } else {
+            cJSON_AddNullToObject(p, "steps");
+            if (s.time_planned > 0)
+                frac = s.t / s.time_planned;
+        }
+        if (s.status == SVC_JOB_SUCCEEDED)
+            frac = 1;
+        /* Before the first step there is nothing to report. */
+        add_num(p, "t", s.step > 0 ? s.t : NAN);
+        add_num(p, "dt", s.step > 0 ? s.dt : NAN);
+        add_num(p, "energy", s.step > 0 ? s.energy : NAN);
+        add_num(p, "volume", s.step > 0 ? s.volume : NAN);
+        cJSON_AddNumberToObject(p, "fraction", frac < 0 ? 0 : frac > 1 ? 1 : frac);
+    }
+    if (s.cancel_requested)
+        cJSON_AddBoolToObject(o, "cancel_requested", 1);
+    if (params) {
+        cJSON *pj = cJSON_Parse(params);
+        if (pj)
+            cJSON_AddItemToObject(o, "params", pj);
+    }
+    if (s.in_format[0])
+        cJSON_AddStringToObject(o, "input_format", s.in_format);
+    if (metrics) {
+        cJSON *m = cJSON_Parse(metrics);
+        if (m)
+            cJSON_AddItemToObject(o, "metrics", m);
+    }
+    free(params);
+    free(metrics);
+    return o;
+}
+
+char *svc_job_params(const svc_job *j)
+{
+    char *s;
+    svc__lock();
+    s = j->params_json ? strdup(j->params_json) : NULL;
+    svc__unlock();
+    return s;
+}
+
+/* Lock held: ENOTREADY or ENORESULT unless j succeeded. */
+static int has_result_locked(const svc_job *j, const char *what,
+                             svc_error *err)
+{
+    if (j->status == SVC_JOB_SUCCEEDED)
+        return 1;
+    if (svc_job_status_terminal(j->status))
+        svc_error_set(err, SVC_ENORESULT, NULL, "job %s %s and has no %s",
+                      j->id, svc_job_status_name(j->status), what);
+    else
+        svc_error_set(err, SVC_ENOTREADY, NULL, "job %s is %s (step %d of "
+                      "%d)", j->id, svc_job_status_name(j->status), j->step,
+                      j->steps_planned);
+    return 0;
+}
+
+int svc_job_metrics(const svc_job *j, char **json, size_t *len,
+                    svc_error *err)
+{
+    svc__lock();
+    if (!has_result_locked(j, "metrics", err)) {
+        svc__unlock();
+        return -1;
+    }
+    *json = j->metrics_json ? strdup(j->metrics_json) : NULL;
+    if (j->metrics_json && !*json) {
+        svc__unlock();
+        svc_error_set(err, SVC_ENOMEM, NULL, "out of memory copying metrics");
+        return -1;
+    }
+    svc__unlock();
+    if (*json) {
+        *len = strlen(*json);
+        return 0;
+    }
+    if (srv_spool_read(svc__S.cfg.spool, j->id, "metrics.json", json, len) != 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "metrics of job %s are missing",
+                      j->id);
+        return -1;
+    }
+    return 0;
+}
+
+int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
+                   size_t *len, int *n)
+{
+    size_t a, b;
+    int k;
+
+    *data = NULL;
+    *len = 0;
+    *n = 0;
+    svc__lock();
+    if (from < 0)
+        from = 0;
+    if (from >= j->nevents) {
+        svc__unlock();
+        return 0;
+    }
+    a = from > 0 ? j->event_end[from - 1] : 0;
+    for (k = from + 1; k < j->nevents && j->event_end[k] - a <= max_bytes; k++)
+        ;
+    b = j->event_end[k - 1];
+    *data = malloc(b - a + 1);
+    if (!*data) {
+        svc__unlock();
+        return -1;
+    }
+    memcpy(*data, j->events.data + a, b - a);
+    (*data)[b - a] = '\0';
+    svc__unlock();
+    *len = b - a;
+    *n = k - from;
+    return 0;
+}
+
+int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
+                   svc_error *err)
+{
+    char name[32];
+
+    *data = NULL;
+    svc__lock();
+    if (!has_result_locked(j, "result", err)) {
+        svc__unlock();
+        return -1;
+    }
+    if ((flags & SVC_RESULT_TAKE) && j->result) {
+        *data = j->result;
+        *len = j->result_len;
+        j->result = NULL;
+    }
+    snprintf(name, sizeof name, "%s", j->result_name);
+    svc__unlock();
+    if (!*data &&
+        srv_spool_read(svc__S.cfg.spool, j->id, name, data, len) != 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s is "
+                      "missing from the spool", j->id);
+        return -1;
+    }
+    return 0;
+}
+
+int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
+                        svc_error *err)
+{
+    char name[32], path[1400];
+    struct stat sb;
+
+    svc__lock();
+    if (!has_result_locked(j, "result", err)) {
+        svc__unlock();
+        return -1;
+    }
+    snprintf(name, sizeof name, "%s", j->result_name);
+    svc__unlock();
+    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
+        (*fd = open(path, O_RDONLY)) < 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s is "
+                      "missing from the spool", j->id);
+        return -1;
+    }
+    if (fstat(*fd, &sb) != 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s: %s",
+                      j->id, strerror(errno));
+        close(*fd);
+        *fd = -1;
+        return -1;
+    }
+    *size = (size_t)sb.st_size;
+    return 0;
+}
+
+void svc_job_release_result(svc_job *j)
+{
+    svc__lock();
+    j->keep_result = 0;
+    free(j->result);
+    j->result = NULL;
+    svc__unlock();
+}
