@@ -61,8 +61,7 @@ LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
 # tests', fuzzers' and plots'.
 DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
-            libcmocka-dev libyaml-dev gnuplot-nox python3-grpcio python3-grpc-tools \
-            grpc-proto
+            libcmocka-dev libyaml-dev gnuplot-nox python3-grpcio grpc-proto
 DEB_BENCH := libeigen3-dev libcgal-dev
 
 CORE_SRC := $(wildcard core/*.c)

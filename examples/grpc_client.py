@@ -9,9 +9,10 @@ writes the result and, with --metrics, the metrics document.
         [--scheme desbrun2] [--iterations 10] [--strength 0.5|auto]
         [--format obj|draco|ply|stl|off] [--metrics FILE] [--token TOKEN]
 
-Needs Debian's python3-grpcio and python3-grpc-tools (on /usr/bin/python3):
+Needs Debian's python3-grpcio (on /usr/bin/python3) and protobuf-compiler-grpc:
 the Python stubs are generated from the proto at first use into a cache
-folder. bench/bench_grpc.py imports stubs() and smooth() from here.
+folder with protoc and grpc_python_plugin (python3-grpc-tools' bundled
+protoc 3.5 predates proto3 `optional`). bench/bench_grpc.py imports stubs() and smooth() from here.
 """
 import argparse
 import hashlib
@@ -25,14 +26,14 @@ CHUNK = 64 * 1024
 
 
 def stubs(proto=PROTO):
-    """(mcfd_pb2, mcfd_pb2_grpc), generated with grpc_tools.protoc once per
+    """(mcfd_pb2, mcfd_pb2_grpc), generated with protoc once per
     version of the proto into $TMPDIR/mcfd-stubs-<hash>."""
     with open(proto, "rb") as f:
         tag = hashlib.sha256(f.read()).hexdigest()[:12]
     out = os.path.join(tempfile.gettempdir(), "mcfd-stubs-" + tag)
     if not os.path.exists(os.path.join(out, "mcfd_pb2_grpc.py")):
         tmp = tempfile.mkdtemp(prefix="mcfd-stubs-")
-        subprocess.check_call([sys.executable, "-m", "grpc_tools.protoc",
+        subprocess.check_call(["protoc", "--plugin=protoc-gen-grpc_python=/usr/bin/grpc_python_plugin",
                                "-I" + os.path.dirname(proto), "--python_out=" + tmp,
                                "--grpc_python_out=" + tmp, os.path.basename(proto)])
         try:
