@@ -671,13 +671,14 @@ class Follow {
         }
         if (phase_ == P_STEPS) {
             svc_snap s;
-            svc_job_snapshot(job_, &s);   /* before the events: a finished
-                                             job's events are all there */
             for (;;) {
                 char *data = nullptr;
                 size_t len = 0;
                 int n = 0;
-                if (svc_job_events(job_, next_event_, 256 * 1024, &data, &len, &n) != 0) {
+                /* the snapshot before the events: when it says finished,
+                 * every event is in what follows; 64 KiB of them at a time */
+                svc_job_snapshot(job_, &s);
+                if (svc_job_events(job_, next_event_, 64 * 1024, &data, &len, &n) != 0) {
                     svc_error e;
                     svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
                     *st = status_from(ctx_, e);
@@ -688,9 +689,10 @@ class Follow {
                 next_event_ += n;
                 parse_events(data, len);
                 free(data);
+                if (!pending_.empty())
+                    return next(st);
+                /* every one before from_step: the next batch */
             }
-            if (!pending_.empty())
-                return next(st);
             if (!svc_job_status_terminal(s.status)) {
                 if (s.closing || (s.draining && s.status == SVC_JOB_QUEUED)) {
                     svc_error e = s.error;
