@@ -218,12 +218,12 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_send_problemf(r, c, 404, "ENOTFOUND", "no such resource: %s", url);
     if (q && strlen(q) > SRV_MAX_QUERY)
         return srv_send_problemf(r, c, 414, "ELIMIT", "the query string has %zu bytes, "
-                       "more than %d: send the parameters as a multipart "
-                       "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
+                                 "more than %d: send the parameters as a multipart "
+                                 "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
     if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
         !authorized(c))
         return srv_send_problemf(r, c, 401, "EAUTH", "a valid 'Authorization: Bearer "
-                       "<token>' header is required");
+                                 "<token>' header is required");
     switch (r->rt) {
     case RT_HEALTHZ:
     case RT_READYZ:
@@ -264,7 +264,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         char why[1500];
         if (g.draining)
             return srv_send_problemf(r, c, 503, "EDRAINING", "the daemon is shutting "
-                           "down");
+                                     "down");
         /* Every job goes through the spool: one that cannot be written
          * makes every job fail. */
         if (srv_spool_ready(cfg->spool, why, sizeof why) != 0)

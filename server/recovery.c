@@ -88,7 +88,7 @@ static void recover_one(const char *id, void *arg)
         svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled %s while it "
                       "ran, before the daemon restarted; it did not run "
                       "again", why == SVC_CANCEL_USER
-                                   ? "by request" : "when its client hung up");
+                      ? "by request" : "when its client hung up");
         j->err.cancel = why;
         if ((s = svc__state_json(j)) != NULL) {
             if (srv_spool_write(cfg->spool, id, "state.json", s, strlen(s),

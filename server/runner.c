@@ -161,13 +161,13 @@ void svc__run_job(svc_job *j)
     if (!input &&
         srv_spool_read(cfg->spool, j->id, "input", &input, &input_len) != 0) {
         svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the input of job %s "
-                        "from the spool: %s", j->id, strerror(errno));
+                      "from the spool: %s", j->id, strerror(errno));
         goto done;
     }
     if (j->rec.has_target && !target &&
         srv_spool_read(cfg->spool, j->id, "target", &target, &target_len) != 0) {
         svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the target of job %s "
-                        "from the spool: %s", j->id, strerror(errno));
+                      "from the spool: %s", j->id, strerror(errno));
         goto done;
     }
     if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
@@ -248,16 +248,16 @@ void svc__run_job(svc_job *j)
         if (reason == SVC_CANCEL_SHUTDOWN) {
             requeue = 1;
             svc_error_set(&prob, SVC_EDRAINING, NULL, "the daemon shut down "
-                            "while job %s ran; it runs again after the restart",
-                            j->id);
+                          "while job %s ran; it runs again after the restart",
+                          j->id);
         } else if (reason == SVC_CANCEL_TIMEOUT) {
             svc_error_set(&prob, SVC_ETIMEOUT, "ELIMIT", "the job ran longer than "
-                            "--job-timeout %g s and was stopped at step %d",
-                            cfg->job_timeout, st.steps);
+                          "--job-timeout %g s and was stopped at step %d",
+                          cfg->job_timeout, st.steps);
         } else if (reason == SVC_CANCEL_CLIENT) {
             svc_error_set(&prob, SVC_ECANCELED, NULL, "canceled after step %d: "
-                            "the client closed its connection before the "
-                            "answer", st.steps);
+                          "the client closed its connection before the "
+                          "answer", st.steps);
         } else {
             svc_error_set(&prob, SVC_ECANCELED, NULL, "canceled by request "
                           "after step %d", st.steps);
@@ -306,7 +306,7 @@ void svc__run_job(svc_job *j)
         srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
                         strlen(metrics), 1) != 0) {
         svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the result of job %s "
-                        "to the spool: %s", j->id, strerror(errno));
+                      "to the spool: %s", j->id, strerror(errno));
         goto done;
     }
     failed = 0;
@@ -353,8 +353,8 @@ done:
              * still `running` on disk, runs again. */
             final = SVC_JOB_FAILED;
             svc_error_set(&j->err, SVC_ESTORAGE, "EIO", "job %s finished but its "
-                            "state could not be written to the spool %s: %s",
-                            j->id, cfg->spool, strerror(e));
+                          "state could not be written to the spool %s: %s",
+                          j->id, cfg->spool, strerror(e));
             free(j->result);
             j->result = NULL;
         }

@@ -2,7 +2,7 @@
  * service.c - the job service's table and lifecycle (service.h): jobs and
  * their references, the ID table and the bounded queue, admission and
  * submit, cancel and delete, subscriptions, drain, close, sweep, stop and
- * the gauges; also the service's errors and request records.
+ * the gauges.
  *
  * A job is accepted only after its input, request and state are on disk
  * (spool.c), so an accepted job survives kill -9: recovery.c queues it
@@ -12,13 +12,13 @@
  *
  * One mutex (svc__S.mu) guards the table, the queue and every mutable job
  * field; see svc_internal.h. The other service files: svc_read.c (the
- * readers), svc_state.c (the persisted forms), runner.c (one job),
- * workers.c (the pool), recovery.c (the spool at start).
+ * readers), svc_state.c (the record and the persisted forms), svc_error.c
+ * (errors), runner.c (one job), workers.c (the pool), recovery.c (the
+ * spool at start).
  */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,109 +40,6 @@ void svc__lock(void)
 void svc__unlock(void)
 {
     pthread_mutex_unlock(&svc__S.mu);
-}
-
-/* ------------------------------------------------------------------ errors */
-
-static const char *const code_names[] = {
-#define X(name, text) #name,
-    SVC_CODES(X)
-#undef X
-};
-
-const char *svc_code_name(svc_code c)
-{
-    return (unsigned)c < sizeof code_names / sizeof *code_names
-               ? code_names[c] : "";
-}
-
-static void error_vset(svc_error *e, svc_code code, const char *name,
-                       const char *fmt, va_list ap)
-{
-    memset(e, 0, sizeof *e);
-    e->code = code;
-    snprintf(e->name, sizeof e->name, "%s", name ? name : svc_code_name(code));
-    vsnprintf(e->detail, sizeof e->detail, fmt, ap);
-    if (code == SVC_EBUSY || code == SVC_EQUOTA || code == SVC_ENOMEM)
-        e->retry_after = 1;
-    else if (code == SVC_EDRAINING)
-        e->retry_after = 5;
-}
-
-void svc_error_set(svc_error *e, svc_code code, const char *name,
-                   const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    error_vset(e, code, name, fmt, ap);
-    va_end(ap);
-}
-
-/* The service code of a failure of the core or the codecs. */
-static svc_code code_of_mcf(mcf_status s, svc_stage stage)
-{
-    switch (s) {
-    case MCF_OK:
-        return SVC_OK;
-    case MCF_ENOMEM:
-        return SVC_ENOMEM;
-    case MCF_ECANCELED:
-        return SVC_ECANCELED;
-    case MCF_EIO:
-        return SVC_EINTERNAL;
-    default:
-        break;
-    }
-    return stage == SVC_STAGE_PARAMS ? SVC_EPARAMS
-           : stage == SVC_STAGE_DECODE ? SVC_EINPUT : SVC_EMESH;
-}
-
-void svc_error_from_mcf(svc_error *e, mcf_status s, svc_stage stage,
-                        const char *prefix, const mcf_error *err)
-{
-    const char *msg = (err && err->msg[0]) ? err->msg : mcf_strerror(s);
-
-    svc_error_set(e, code_of_mcf(s, stage), mcf_status_name(s), "%s%s%s",
-                  prefix ? prefix : "", prefix ? ": " : "", msg);
-    e->mcf = s;
-    e->stage = stage;
-}
-
-/* ----------------------------------------------------------------- records */
-
-void svc_record_free(svc_record *r)
-{
-    free(r->query);
-    free(r->params_json);
-    cJSON_Delete(r->fields);
-    memset(r, 0, sizeof *r);
-}
-
-mcf_status svc_record_params(const svc_record *r, const api_limits *lim,
-                             api_params *p, mcf_error *err)
-{
-    static const char *const ignore[] = {"stream", NULL};
-    mcf_status rc = MCF_OK;
-    const cJSON *f;
-
-    api_params_init(p);
-    if (r->params_json &&
-        (rc = api_params_parse_json(p, r->params_json, strlen(r->params_json),
-                                    lim, err)) != MCF_OK)
-        goto fail;
-    cJSON_ArrayForEach(f, r->fields) {
-        const char *k = cJSON_GetStringValue(cJSON_GetArrayItem(f, 0));
-        const char *v = cJSON_GetStringValue(cJSON_GetArrayItem(f, 1));
-        if (k && v && (rc = api_params_set(p, k, v, lim, err)) != MCF_OK)
-            goto fail;
-    }
-    if (r->query && r->query[0] &&
-        (rc = api_params_parse_query(p, r->query, ignore, lim, err)) != MCF_OK)
-        goto fail;
-    return MCF_OK;
-fail:
-    api_params_free(p);
-    return rc;
 }
 
 /* -------------------------------------------------------------------- jobs */
@@ -433,6 +330,13 @@ static int steps_over_budget(const api_params *p, const api_limits *lim,
     return 1;
 }
 
+/* Lock held: no worker or queue place free for one more job. */
+static int queue_full_locked(void)
+{
+    return svc__S.qlen + svc__S.reserved >=
+           svc__S.cfg.queue + (svc__S.nthreads - svc__S.busy);
+}
+
 /* Admission, lock held: whether one more job of bytes fits now. */
 static int admit_locked(size_t bytes, svc_error *err)
 {
@@ -443,8 +347,7 @@ static int admit_locked(size_t bytes, svc_error *err)
                       "down and accepts no new jobs");
         return 0;
     }
-    if (svc__S.qlen + svc__S.reserved >=
-        cfg->queue + (svc__S.nthreads - svc__S.busy)) {
+    if (queue_full_locked()) {
         svc_error_set(err, SVC_EBUSY, NULL, "the job queue is full (%d "
                       "queued, %d workers busy, --queue %d)", svc__S.qlen,
                       svc__S.nthreads, cfg->queue);
@@ -588,9 +491,7 @@ int svc_can_accept(void)
 {
     int ok;
     svc__lock();
-    ok = !svc__S.draining &&
-         svc__S.qlen + svc__S.reserved <
-             svc__S.cfg.queue + (svc__S.nthreads - svc__S.busy);
+    ok = !svc__S.draining && !queue_full_locked();
     svc__unlock();
     return ok;
 }
@@ -721,9 +622,9 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
         svc_error_set(err, SVC_ESTORAGE, "EIO", "job %s: the spool could not "
                       "record the deletion (%s); %s", id, strerror(errno),
                       *res != SVC_DELETE_FORGOTTEN
-                          ? "it is canceled now, but may run again after a "
-                            "restart"
-                          : "the job is kept; retry");
+                      ? "it is canceled now, but may run again after a "
+                      "restart"
+                      : "the job is kept; retry");
         return -1;
     }
     return 0;

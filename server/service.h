@@ -15,8 +15,10 @@
  *   svc_sub   a subscription: "call fn(ctx, what) when this job moves".
  *
  * Threads and locking
- *   Every function may be called from any thread (MHD's pool, gRPC's,
- *   the main thread) after svc_start and before svc_stop. The service has
+ *   Every job function may be called from any thread (MHD's pool,
+ *   gRPC's, the main thread) after svc_start and before svc_stop; the
+ *   lifecycle functions from the main thread; svc_error_* and
+ *   svc_record_* at any time. The service has
  *   one internal lock; it is held only for short bookkeeping, never
  *   across mesh work or disk I/O, and never while calling out, except for
  *   subscription callbacks (below). Callers hold no lock of the service:
@@ -302,8 +304,9 @@ typedef struct {
     char result_name[32];      /* "result.obj" */
     size_t result_len;
     int nevents;               /* progress events kept (svc_job_events) */
-    svc_error error;           /* failed or canceled; also why a queued
-                                  job does not run now when draining */
+    svc_error error;           /* failed or canceled (and EDRAINING for a
+                                  job a shutdown interrupted: it runs
+                                  again after the restart) */
     int draining, closing;     /* the service's, at the same instant */
 } svc_snap;
 

@@ -14,7 +14,8 @@
  *   service.c   job table, references, queue, admission and submit,
  *               cancel/delete, subscriptions, drain, sweep, gauges
  *   svc_read.c  snapshots, job JSON, events, metrics and result copies
- *   svc_state.c request.json and state.json, the job's log line
+ *   svc_state.c the record, request.json and state.json, the log line
+ *   svc_error.c service errors: names, from mcf statuses
  *   runner.c    one job: decode, smooth with progress, encode, publish
  *   workers.c   the worker pool, drain waits, checkpoint
  *   recovery.c  the spool back into the table at start

@@ -1,6 +1,6 @@
 /*
  * svc_internal.h - what the files of the job service share, and only
- * they (service.c, svc_read.c, svc_state.c, runner.c, workers.c,
+ * they (service.c, svc_read.c, svc_state.c, svc_error.c, runner.c, workers.c,
  * recovery.c): the job struct, the service's state and its one lock. The
  * doors include service.h, never this.
  *

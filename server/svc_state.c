@@ -1,8 +1,9 @@
 /*
- * svc_state.c - the job service's persisted forms: a job's request.json
- * (what the client sent) and state.json (everything needed to serve it
- * after a restart), written through spool.c and read back by recovery.c;
- * and the one log line of a finished job.
+ * svc_state.c - what the job service keeps of a job: the record of what
+ * the client sent (and the parameters rebuilt from it) persisted as
+ * request.json, and state.json (everything needed to serve the job after
+ * a restart), written through spool.c and read back by recovery.c; and
+ * the one log line of a finished job.
  *
  * A failure is stored as {"kind","code","mcf","stage","cancel","detail"}
  * (svc_error). Spools written before the service split stored
@@ -50,6 +51,43 @@ static void add_num(cJSON *o, const char *key, double v)
         cJSON_AddNumberToObject(o, key, v);
     else
         cJSON_AddNullToObject(o, key);
+}
+
+/* ----------------------------------------------------------------- records */
+
+void svc_record_free(svc_record *r)
+{
+    free(r->query);
+    free(r->params_json);
+    cJSON_Delete(r->fields);
+    memset(r, 0, sizeof *r);
+}
+
+mcf_status svc_record_params(const svc_record *r, const api_limits *lim,
+                             api_params *p, mcf_error *err)
+{
+    static const char *const ignore[] = {"stream", NULL};
+    mcf_status rc = MCF_OK;
+    const cJSON *f;
+
+    api_params_init(p);
+    if (r->params_json &&
+        (rc = api_params_parse_json(p, r->params_json, strlen(r->params_json),
+                                    lim, err)) != MCF_OK)
+        goto fail;
+    cJSON_ArrayForEach(f, r->fields) {
+        const char *k = cJSON_GetStringValue(cJSON_GetArrayItem(f, 0));
+        const char *v = cJSON_GetStringValue(cJSON_GetArrayItem(f, 1));
+        if (k && v && (rc = api_params_set(p, k, v, lim, err)) != MCF_OK)
+            goto fail;
+    }
+    if (r->query && r->query[0] &&
+        (rc = api_params_parse_query(p, r->query, ignore, lim, err)) != MCF_OK)
+        goto fail;
+    return MCF_OK;
+fail:
+    api_params_free(p);
+    return rc;
 }
 
 /* ------------------------------------------------------------ request.json */

@@ -232,14 +232,14 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
                                                       MHD_HTTP_HEADER_ACCEPT);
         if (h && strcmp(h, "ndjson") != 0)
             return srv_send_problemf(r, c, 400, "EINVAL", "parameter 'stream' must be "
-                           "\"ndjson\", got \"%s\"", h);
+                                     "\"ndjson\", got \"%s\"", h);
         r->md = h ? MODE_NDJSON
                   : (acc && strstr(acc, "multipart/mixed")) ? MODE_MIXED
                                                             : MODE_SYNC;
     } else {
         if (h)
             return srv_send_problemf(r, c, 400, "EINVAL", "parameter 'stream' is only "
-                           "for /smooth; follow /v1/jobs/ID/events instead");
+                                     "for /smooth; follow /v1/jobs/ID/events instead");
         r->md = MODE_ASYNC;
     }
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
@@ -250,11 +250,11 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
         r->pp = MHD_create_post_processor(c, 64 * 1024, on_part, r);
         if (!r->pp || !r->fields)
             return srv_send_problemf(r, c, 400, "EDECODE", "cannot parse the "
-                           "multipart/form-data header '%s' (boundary?)", h);
+                                     "multipart/form-data header '%s' (boundary?)", h);
     } else if (h && !raw_mesh_type(h)) {
         return srv_send_problemf(r, c, 415, "EFORMAT", "Content-Type '%s' is not a mesh: "
-                       "send multipart/form-data with a 'mesh' field, or the "
-                       "mesh bytes as application/octet-stream or model/*", h);
+                                 "send multipart/form-data with a 'mesh' field, or the "
+                                 "mesh bytes as application/octet-stream or model/*", h);
     }
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                     MHD_HTTP_HEADER_CONTENT_LENGTH);
