@@ -577,6 +577,7 @@ class Follow {
     /* Starts following j (a reference the follower now owns). */
     void follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait)
     {
+        bool gone;
         {
             std::lock_guard<std::mutex> l(mu_);
             job_ = j;
@@ -584,6 +585,12 @@ class Follow {
             from_step_ = from_step;
             skip_result_ = skip_result;
             no_wait_ = no_wait;
+            gone = gone_;
+        }
+        if (gone) {     /* cancelled between the submission and now */
+            if (owns_job_)
+                svc_cancel(j, SVC_CANCEL_CLIENT);
+            return;
         }
         if (svc_subscribe(j, SVC_NOTIFY_STATE | SVC_NOTIFY_PROGRESS, notify, this, &sub_) != 0) {
             svc_error e;
@@ -607,8 +614,9 @@ class Follow {
         pump();
     }
 
-    /* The call was cancelled by the client or its deadline. */
-    void cancelled(bool cancel_job)
+    /* The call was cancelled by the client or its deadline; a job the
+     * call owns (Smooth's) is cancelled with it. */
+    void cancelled()
     {
         svc_job *j;
         {
@@ -616,7 +624,7 @@ class Follow {
             j = job_;
             gone_ = true;
         }
-        if (j && cancel_job) {
+        if (j && owns_job_) {
             svc_snap s;
             svc_job_snapshot(j, &s);
             if (!svc_job_status_terminal(s.status))
@@ -645,6 +653,7 @@ class Follow {
     virtual void finish_call(const Status &st) = 0;
 
     CallbackServerContext *ctx_;
+    bool owns_job_ = false;         /* Smooth: the job is this call's alone */
     bool finished_ = false;         /* under mu_ */
     std::mutex mu_;
 
@@ -851,6 +860,7 @@ class SmoothCall : public Follow,
   public:
     explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
     {
+        owns_job_ = true;
         if (!authorized(ctx))
             finish(unauthenticated(ctx));
         else if (g.draining || svc_draining())
@@ -886,7 +896,7 @@ class SmoothCall : public Follow,
     void OnWriteDone(bool ok) override { write_done(ok); }
     /* The call's end (client cancel, deadline, broken stream): the job is
      * this call's alone, so it is cancelled and its worker freed. */
-    void OnCancel() override { cancelled(true); }
+    void OnCancel() override { cancelled(); }
     void OnDone() override { done(); }
 
   private:
@@ -918,7 +928,7 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
 
     void OnWriteDone(bool ok) override { write_done(ok); }
     /* A watcher leaving does not cancel the job. */
-    void OnCancel() override { cancelled(false); }
+    void OnCancel() override { cancelled(); }
     void OnDone() override { done(); }
 
   private:
@@ -1113,6 +1123,9 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         grpc::EnableDefaultHealthCheckService(true);
         grpc::reflection::InitProtoReflectionServerBuilderPlugin();
         grpc::ServerBuilder b;
+        /* gRPC sets SO_REUSEPORT by default: a second mcfd on the same
+         * port would then share it silently instead of failing */
+        b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
         b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &selected);
         b.RegisterService(&g_service);
         /* one chunk or one header (its params at most --max-json), and a

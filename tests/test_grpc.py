@@ -601,6 +601,12 @@ def test_32_concurrent_clients_short_queue():
         h = health_pb2_grpc.HealthStub(d.channel)
         assert h.Check(health_pb2.HealthCheckRequest()).status == health_pb2.HealthCheckResponse.SERVING
         assert len(smooth(d, data, dict(iterations=2)).progress) == 2
+        # threads stay bounded after the burst: main, 1 worker, 2 HTTP
+        # threads, the door's pump, and gRPC's own pollers and executor
+        with open("/proc/%d/status" % d.p.pid) as f:
+            threads = int([l for l in f if l.startswith("Threads:")][0].split()[1])
+        print("    threads after the burst: %d" % threads)
+        assert threads <= 24, threads
         st, _, m = d.rest("GET", "/metrics")
         m = m.decode()
         assert 'mcfd_grpc_calls_total{method="Smooth",code="OK"} %d' % (len(ok) + 1) in m, m
@@ -610,7 +616,12 @@ def test_32_concurrent_clients_short_queue():
         d.kill()
 
 
-def test_grpc_port_off():
+def test_grpc_port_flags():
+    # a port in use is an error at start (gRPC's SO_REUSEPORT is off: a
+    # second daemon must not share the first one's port)
+    p = subprocess.run([MCFD, "--bind", "127.0.0.1", "--port", "0", "--grpc-port", str(MAIN.gport),
+                        "--spool", os.path.join(TMP, "dup")], capture_output=True, timeout=30)
+    assert p.returncode == 1 and b"cannot listen for gRPC" in p.stderr, (p.returncode, p.stderr[-300:])
     p = subprocess.run([MCFD, "--grpc-port", "nope"], capture_output=True, timeout=10)
     assert p.returncode == 2 and b"--grpc-port" in p.stderr, p.stderr
     p = subprocess.run([MCFD, "--help"], capture_output=True, timeout=10)
