@@ -552,6 +552,10 @@ class Follow {
                 busy_ = false;
                 if (finished_)      /* cancelled meanwhile */
                     return;
+                /* Under mu_, so that no Finish can slip between the check
+                 * and the write. Safe: gRPC 1.51 never runs a reaction
+                 * inline from StartWrite or Finish (their tags dispatch
+                 * OnWriteDone and OnDone to its executor). */
                 start_write(&out_);
                 return;
             }
