@@ -270,8 +270,9 @@ run: deps
 #                           a registry answers, else a `debootstrap --variant=minbase
 #                           bookworm` imported as localhost/mcfd-base:bookworm (kept: the
 #                           next build reuses it)
-#   make image-check        runs it as CI does: HEALTHCHECK, POST /smooth through a published
-#                           127.0.0.1 port, a non-root user, `podman stop` exits 0, the size
+#   make image-check        runs it as CI does: HEALTHCHECK, POST /smooth and gRPC Smooth
+#                           through published 127.0.0.1 ports (the same bytes), a non-root
+#                           user, `podman stop` exits 0, the size
 # docker/image.sh holds what podman needs on these machines (runc, lower ulimits) and why.
 IMAGE ?= mcfd:latest
 BASE ?=
@@ -282,7 +283,7 @@ image:
 	docker/image.sh build $(IMAGE) $(BASE)
 
 image-check:
-	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl procps"
+	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl procps python3-grpcio"
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 
