@@ -653,6 +653,9 @@ class Follow {
         finish_locked(st);
     }
 
+    /* Plain writes: gRPC's buffer hint would hold a write's OnWriteDone
+     * until something flushes it (measured: a finished job's WatchJob took
+     * 209 ms instead of 1.9). */
     virtual void start_write(const pb::SmoothResponse *m) = 0;
     virtual void finish_call(const Status &st) = 0;
 
