@@ -377,6 +377,16 @@ class Upload {
                              (unsigned long long)h.target_size(), lim->max_input_bytes);
             target_size_ = (long long)h.target_size();
         }
+        /* REST's early 503: no room now, so no reason to take the bytes */
+        if (!svc_can_accept()) {
+            svc_gauges gg = svc_get_gauges();
+            if (gg.draining)
+                svc_error_set(e, SVC_EDRAINING, NULL, "the daemon is shutting down and accepts no new jobs");
+            else
+                svc_error_set(e, SVC_EBUSY, NULL, "the job queue is full (%d queued, %d workers busy, --queue %d)",
+                              gg.queue_depth, gg.workers_busy, gg.queue_capacity);
+            return false;
+        }
         if (h.has_output_format())
             of = h.output_format();
         std::string js = params_json(h.params(), h.has_output_format() ? &of : nullptr);
@@ -421,15 +431,16 @@ class Upload {
         if (declared >= 0 && (long long)(*len + b.size()) > declared)
             return fail(e, SVC_EINPUT, "EINVAL", "more bytes of the %s than its declared size %lld",
                         what, declared);
-        size_t cap = declared >= 0 ? (size_t)declared : 0;
-        if (!*buf || (cap == 0 && (*len + b.size() > alloc_of(buf)))) {
-            /* grow geometrically (unknown size) or once (declared size) */
-            size_t want = cap ? cap : (alloc_of(buf) ? alloc_of(buf) * 2 : 256 * 1024);
+        if (*len + b.size() > alloc_of(buf)) {
+            /* geometric growth as bytes arrive, never ahead of them: a
+             * declared size is only checked, so a header alone cannot
+             * make the daemon reserve --max-upload bytes */
+            size_t want = alloc_of(buf) ? alloc_of(buf) * 2 : 256 * 1024;
             while (want < *len + b.size())
                 want *= 2;
             if (want > max)
                 want = max;
-            char *nb = (char *)realloc(*buf, want ? want : 1);
+            char *nb = (char *)realloc(*buf, want);
             if (!nb)
                 return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory for the %s", what);
             *buf = nb;
