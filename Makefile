@@ -50,6 +50,10 @@ LIBS_CORE := -lcholmod -lsuitesparseconfig -lm
 LIBS_API  := -ldraco -lcjson
 LIBS_SRV  := -lmicrohttpd -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
+# The gRPC door (server/grpc.cc): Debian's gRPC C++ 1.51 and protobuf.
+# Deferred (=): pkg-config runs once `make deps` has installed them.
+GRPC_CFLAGS = $(shell pkg-config --cflags grpc++ protobuf)
+LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
 
 # Debian packages: build and test dependencies.
 # Debian packages: what building mcf and mcfd needs (DEB_BUILD, listed in
@@ -57,7 +61,7 @@ LIBS_TEST := -lcmocka -lcurl -lyaml
 # tests', fuzzers' and plots'.
 DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
-            libcmocka-dev libyaml-dev gnuplot-nox faketime
+            libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto
 DEB_BENCH := libeigen3-dev libcgal-dev
 
 CORE_SRC := $(wildcard core/*.c)
@@ -65,15 +69,21 @@ API_SRC  := $(wildcard api/*.c)
 API_CXX  := $(wildcard api/*.cc)
 CLI_SRC  := $(wildcard cli/*.c)
 SRV_SRC  := $(wildcard server/*.c)
+SRV_CXX  := $(wildcard server/*.cc)
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTLIB  := $(wildcard tests/testlib.c)
 
 CORE_OBJ := $(CORE_SRC:%.c=$(B)/%.o)
 API_OBJ  := $(API_SRC:%.c=$(B)/%.o) $(API_CXX:%.cc=$(B)/%.o)
 CLI_OBJ  := $(CLI_SRC:%.c=$(B)/%.o)
-SRV_OBJ  := $(SRV_SRC:%.c=$(B)/%.o)
+SRV_OBJ  := $(SRV_SRC:%.c=$(B)/%.o) $(SRV_CXX:%.cc=$(B)/%.o)
 TESTLIB_OBJ := $(TESTLIB:%.c=$(B)/%.o)
 TEST_BIN := $(TEST_SRC:tests/%.c=$(B)/tests/%)
+# Python test runners (tests/test_*.py on Debian's /usr/bin/python3, whose
+# grpcio the gRPC tests use): each gets an executable wrapper in
+# $(B)/tests, run and counted by `make test` like the cmocka binaries.
+TEST_PY  := $(wildcard tests/test_*.py)
+TEST_BIN += $(TEST_PY:tests/%.py=$(B)/tests/%)
 
 PROGS := $(B)/mcf
 ifneq ($(SRV_SRC),)
@@ -97,7 +107,36 @@ $(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
 	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
 
 $(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
-	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_API) $(LIBS_CORE)
+	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_GRPC) $(LIBS_API) $(LIBS_CORE)
+
+# ---- the gRPC contract: api/mcfd.proto -> $(B)/gen/mcfd{,.grpc}.pb.{cc,h}
+# (protoc + grpc_cpp_plugin, Debian's protobuf-compiler-grpc). Generated
+# code is compiled without our warning flags (it is not ours to fix) and
+# included with -isystem, so the bridge keeps -Werror on its own lines.
+GEN := $(B)/gen
+GEN_CC := $(GEN)/mcfd.pb.cc $(GEN)/mcfd.grpc.pb.cc
+GEN_OBJ := $(GEN_CC:.cc=.o)
+ifneq ($(SRV_CXX),)
+SRV_OBJ += $(GEN_OBJ)
+$(B)/mcfd: $(GEN_OBJ)
+endif
+
+$(GEN_CC) $(GEN_CC:.cc=.h) &: api/mcfd.proto
+	@mkdir -p $(GEN)
+	protoc -Iapi --cpp_out=$(GEN) --grpc_out=$(GEN) \
+	  --plugin=protoc-gen-grpc=$$(command -v grpc_cpp_plugin) $<
+
+$(GEN)/%.o: $(GEN)/%.cc
+	$(CXX) -std=c++17 $(GRPC_CFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
+
+$(SRV_CXX:%.cc=$(B)/%.o): $(B)/%.o: %.cc $(GEN_CC:.cc=.h)
+	@mkdir -p $(@D)
+	$(CXX) $(CXXWARN) -isystem $(GEN) $(GRPC_CFLAGS) $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
+
+# A Python test: a wrapper that runs tests/NAME.py with Debian's python3.
+$(B)/tests/%: tests/%.py
+	@mkdir -p $(@D)
+	printf '#!/bin/sh\nexec /usr/bin/python3 %s "$$@"\n' '$(abspath $<)' > $@ && chmod +x $@
 
 # core/ is strict C11 with no POSIX; api/, cli/, server/ and tests/ get POSIX.
 $(B)/core/%.o: core/%.c
@@ -232,8 +271,9 @@ run: deps
 #                           a registry answers, else a `debootstrap --variant=minbase
 #                           bookworm` imported as localhost/mcfd-base:bookworm (kept: the
 #                           next build reuses it)
-#   make image-check        runs it as CI does: HEALTHCHECK, POST /smooth through a published
-#                           127.0.0.1 port, a non-root user, `podman stop` exits 0, the size
+#   make image-check        runs it as CI does: HEALTHCHECK, POST /smooth and gRPC Smooth
+#                           through published 127.0.0.1 ports (the same bytes), a non-root
+#                           user, `podman stop` exits 0, the size
 # docker/image.sh holds what podman needs on these machines (runc, lower ulimits) and why.
 IMAGE ?= mcfd:latest
 BASE ?=
@@ -244,7 +284,7 @@ image:
 	docker/image.sh build $(IMAGE) $(BASE)
 
 image-check:
-	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl procps"
+	$(MAKE) deps DEB_PKGS="$(DEB_BUILD) $(IMAGE_PKGS) curl procps python3-grpcio"
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 
@@ -256,6 +296,10 @@ check-deps:
 	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }
 	@! grep -nE '#include *[<"]microhttpd\.h' api/*.c api/*.cc api/*.h || \
 	  { echo "check-deps: api/ must not include microhttpd.h"; exit 1; }
+	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out server/grpc.cc,$(wildcard server/*.[ch] server/*.cc)) || \
+	  { echo "check-deps: only the server's gRPC bridge (server/grpc.cc) includes gRPC or protobuf"; exit 1; }
+	@[ -z "$(filter-out server/grpc.cc,$(wildcard server/*.cc server/*.cpp))" ] || \
+	  { echo "check-deps: server/grpc.cc is the only C++ in server/"; exit 1; }
 	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] server/*.[ch] server/*.cc) || \
 	  { echo "check-deps: include a layer's header by name (\"api.h\"), not by a relative path: the -I flags say which layers a file may see"; exit 1; }
 	@! grep -nE '#include *[<"](microhttpd|http)\.h' $(SRV_SERVICE) || \

@@ -866,6 +866,9 @@ int main(int argc, char **argv)
     }
     atexit(cleanup);
     signal(SIGPIPE, SIG_IGN);
+    /* REST only here (bench_grpc.py measures the gRPC door): two daemons
+     * run at once, and neither may take port 50051 */
+    setenv("MCFD_GRPC_PORT", "off", 1);
     if (curl_global_init(CURL_GLOBAL_DEFAULT) != CURLE_OK) {
         fprintf(stderr, "bench_server: curl_global_init failed\n");
         return 1;

@@ -103,7 +103,7 @@ check() {
     # machines do not run; the HEALTHCHECK (mcfd --probe) is run by hand below instead.
     # (podman 4.3 still says so on stderr: kept in $out/podman.err, shown on a failure)
     # -p 127.0.0.1::8080: a free loopback port, read back with podman port
-    pm run -d --name "$name" --health-interval=disable -p 127.0.0.1::8080 "$image" \
+    pm run -d --name "$name" --health-interval=disable -p 127.0.0.1::8080 -p 127.0.0.1::50051 "$image" \
         >/dev/null 2>"$out/podman.err" || { cat "$out/podman.err" >&2; exit 1; }
     port=$(pm port "$name" 8080/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
     [ -n "$port" ] || { pm port "$name" >&2; echo "image-check: FAIL: no loopback port" >&2; exit 1; }
@@ -135,6 +135,14 @@ check() {
     grep -Eq '"vertices":[[:space:]]*812,' "$out/info.json" ||
         { echo "image-check: FAIL: not the sphere's 812 vertices:" >&2; cat "$out/info.json" >&2; exit 1; }
     echo "image-check: POST /smooth on 127.0.0.1:$port returned a mesh of 812 vertices that decodes"
+    # the gRPC door: Smooth through the published port with the example client
+    gport=$(pm port "$name" 50051/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
+    /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --iterations 5 \
+        tests/data/meshes/sphere_cgal.obj "$out/grpc.obj" > "$out/grpc.log" 2>&1 ||
+        { cat "$out/grpc.log" >&2; echo "image-check: FAIL: gRPC Smooth on port $gport" >&2; exit 1; }
+    cmp -s "$out/grpc.obj" "$out/smoothed.obj" ||
+        { echo "image-check: FAIL: gRPC and REST results differ" >&2; exit 1; }
+    echo "image-check: gRPC Smooth on 127.0.0.1:$gport returned the same bytes as POST /smooth"
     pm stop -t 40 "$name" >/dev/null 2>>"$out/podman.err" || { cat "$out/podman.err" >&2; exit 1; }
     st=$(pm inspect "$name" --format '{{.State.ExitCode}}')
     [ "$st" = 0 ] || { pm logs "$name" | tail -20 >&2; echo "image-check: FAIL: exit status $st after podman stop" >&2; exit 1; }

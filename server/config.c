@@ -34,7 +34,7 @@ typedef struct {
 } option;
 
 enum {
-    O_BIND, O_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
+    O_BIND, O_PORT, O_GRPC_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
     O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT,
@@ -49,6 +49,9 @@ static const option opts[O_COUNT] = {
                 "address to listen on (default 127.0.0.1)"},
     [O_PORT] = {"--port", "MCFD_PORT", T_INT, 0, 65535,
                 "TCP port, 0 picks a free one (default 8080)"},
+    [O_GRPC_PORT] = {"--grpc-port", "MCFD_GRPC_PORT", T_STR, 0, 0,
+                     "gRPC port on the same address, 0 picks a free one, "
+                     "off (or -1) disables it (default 50051)"},
     [O_WORKERS] = {"--workers", "MCFD_WORKERS", T_INT, 1, 1024,
                    "mesh worker threads (default: online CPUs)"},
     [O_QUEUE] = {"--queue", "MCFD_QUEUE", T_INT, 0, 1000000,
@@ -249,6 +252,17 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
         snprintf(cfg->bind, sizeof cfg->bind, "%s", v);
         break;
     case O_PORT: cfg->port = (int)i; break;
+    case O_GRPC_PORT:
+        if (strcmp(v, "off") == 0)
+            cfg->grpc_port = -1;
+        else if (parse_int(v, -1, 65535, &i) == 0)
+            cfg->grpc_port = (int)i;
+        else {
+            snprintf(msg, msgsize, "%s: expected a port in [0, 65535], -1 or "
+                     "off, got \"%s\"", src, v);
+            return -1;
+        }
+        break;
     case O_WORKERS: cfg->workers = (int)i; break;
     case O_QUEUE: cfg->queue = (int)i; break;
     case O_HTTP_THREADS: cfg->http_threads = (int)i; break;
@@ -357,6 +371,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     memset(cfg, 0, sizeof *cfg);
     snprintf(cfg->bind, sizeof cfg->bind, "127.0.0.1");
     cfg->port = 8080;
+    cfg->grpc_port = 50051;
     cfg->workers = ncpu > 0 ? (int)(ncpu < 1024 ? ncpu : 1024) : 1;
     cfg->queue = 64;
     cfg->http_threads = 2;
@@ -438,4 +453,27 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
     return 0;
+}
+
+/* Constant time in the length of the configured token, whatever the
+ * given value (REST's Authorization header, gRPC's authorization
+ * metadata). */
+int srv_bearer_ok(const srv_config *cfg, const char *authorization)
+{
+    volatile unsigned char d;
+    size_t i, glen;
+    const char *given = authorization;
+
+    if (cfg->token_len == 0)
+        return 1;
+    if (!given || strncasecmp(given, "Bearer ", 7) != 0)
+        return 0;
+    given += 7;
+    while (*given == ' ')
+        given++;
+    glen = strlen(given);
+    d = (unsigned char)(glen != cfg->token_len);
+    for (i = 0; i < cfg->token_len; i++)
+        d |= (unsigned char)(cfg->token[i] ^ (i < glen ? given[i] : 0));
+    return d == 0;
 }

@@ -174,33 +174,13 @@ static int parse_route(srv_request *r, const char *url)
     return 0;
 }
 
-/* Constant time in the length of the configured token. */
-static int token_ok(const char *given, size_t glen, const char *want,
-                    size_t wlen)
-{
-    volatile unsigned char d = (unsigned char)(glen != wlen);
-    size_t i;
-
-    for (i = 0; i < wlen; i++)
-        d |= (unsigned char)(want[i] ^ (i < glen ? given[i] : 0));
-    return d == 0;
-}
-
+/* The bearer token, checked as the gRPC door checks it (srv_bearer_ok:
+ * constant time in the token's length). */
 static int authorized(struct MHD_Connection *c)
 {
-    const srv_config *cfg = srv_http_config();
-    const char *h;
-
-    if (cfg->token_len == 0)
-        return 1;
-    h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
-                                    MHD_HTTP_HEADER_AUTHORIZATION);
-    if (!h || strncasecmp(h, "Bearer ", 7) != 0)
-        return 0;
-    h += 7;
-    while (*h == ' ')
-        h++;
-    return token_ok(h, strlen(h), cfg->token, cfg->token_len);
+    return srv_bearer_ok(srv_http_config(),
+                         MHD_lookup_connection_value(c, MHD_HEADER_KIND,
+                                                     MHD_HTTP_HEADER_AUTHORIZATION));
 }
 
 static int is_get(const char *method)

@@ -16,8 +16,11 @@
  *     opens, so the first request already sees recovered jobs.
  *  4. One line "mcfd listening on http://ADDRESS:PORT" goes to stdout
  *     (flushed) once the socket listens; --port 0 prints the real port.
+ *     Then the gRPC door (grpc.cc) starts on --grpc-port unless it is off
+ *     and prints "mcfd grpc listening on ADDRESS:PORT".
  *
  * On SIGTERM/SIGINT: /readyz turns 503 and new jobs get 503 + Retry-After
+ * (gRPC: health NOT_SERVING, new Smooth/SubmitJob calls UNAVAILABLE)
  * while the socket stays open for probes and result downloads; running
  * jobs finish (or, after --drain-timeout, are checkpointed back to
  * `queued` on disk); every suspended connection is resumed and answered;
@@ -36,6 +39,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "grpc_door.h"
 #include "http.h"
 #include "service.h"
 #include "srv.h"
@@ -194,13 +198,13 @@ static void log_start(const srv_config *cfg, const char *url)
  * headers (431); the query no longer counts (http.c keeps it). */
 #define SRV_CONN_MEMORY (64 * 1024)
 
-/* Waits (polling, bounded) until no request is in flight. */
+/* Waits (polling, bounded) until no request or gRPC call is in flight. */
 static void wait_requests(double seconds)
 {
     double end = srv_mono() + seconds;
     struct timespec ts = {0, 20 * 1000 * 1000};
 
-    while (srv_http_active() > 0 && srv_mono() < end)
+    while (srv_http_active() + srv_grpc_active() > 0 && srv_mono() < end)
         nanosleep(&ts, NULL);
 }
 
@@ -279,6 +283,18 @@ int main(int argc, char **argv)
              cfg.bind, port);
     printf("mcfd listening on %s\n", url);
     fflush(stdout);
+    if (cfg.grpc_port >= 0) {
+        int gport = 0;
+        if (srv_grpc_start(&cfg, &gport, msg, sizeof msg) != 0) {
+            fprintf(stderr, "mcfd: %s\n", msg);
+            MHD_stop_daemon(d);
+            svc_stop();
+            return 1;
+        }
+        printf(ipv6 ? "mcfd grpc listening on [%s]:%d\n"
+                    : "mcfd grpc listening on %s:%d\n", cfg.bind, gport);
+        fflush(stdout);
+    }
     log_start(&cfg, url);
 
     for (unsigned ticks = 0;; ticks++) {
@@ -310,6 +326,7 @@ int main(int argc, char **argv)
              "jobs finish within %g s)", sig == SIGTERM ? "SIGTERM" : "SIGINT",
              cfg.drain_timeout);
     svc_drain();
+    srv_grpc_drain();
     if (!svc_wait_idle(cfg.drain_timeout)) {
         srv_logf(SRV_LOG_WARN, "drain timeout: checkpointing running jobs; "
                  "they run again after the restart");
@@ -320,6 +337,8 @@ int main(int argc, char **argv)
     wait_requests(5);
     svc_close_waiters();
     wait_requests(2);
+    /* gRPC before the job service: its calls hold jobs and subscriptions */
+    srv_grpc_stop();
     MHD_stop_daemon(d);
     svc_stop();
     srv_logf(SRV_LOG_INFO, "stopped after %.3f s of drain", srv_mono() - t_sigterm);

@@ -3,6 +3,7 @@
  *
  * Exposed at GET /metrics in the text format 0.0.4:
  *   mcfd_http_requests_total{route,code}       counter
+ *   mcfd_grpc_calls_total{method,code}         counter (gRPC status names)
  *   mcfd_jobs_total{scheme,status}             counter
  *   mcfd_job_duration_seconds                  histogram (run time)
  *   mcfd_upload_bytes                          histogram (mesh uploads)
@@ -45,6 +46,8 @@ static struct {
     int nreq;
     series jobs[MAX_SERIES];
     int njobs;
+    series grpc[MAX_SERIES];    /* 6 methods x 17 codes at most */
+    int ngrpc;
     histogram duration, upload;
     double start;
 } M = {.mu = PTHREAD_MUTEX_INITIALIZER};
@@ -52,7 +55,7 @@ static struct {
 void srv_metrics_init(void)
 {
     pthread_mutex_lock(&M.mu);
-    M.nreq = M.njobs = 0;
+    M.nreq = M.njobs = M.ngrpc = 0;
     memset(&M.duration, 0, sizeof M.duration);
     memset(&M.upload, 0, sizeof M.upload);
     M.duration.bounds = duration_bounds;
@@ -99,6 +102,13 @@ void srv_metrics_request(const char *route, unsigned status)
     snprintf(code, sizeof code, "%u", status);
     pthread_mutex_lock(&M.mu);
     bump(M.req, &M.nreq, route, code);
+    pthread_mutex_unlock(&M.mu);
+}
+
+void srv_metrics_grpc(const char *method, const char *code)
+{
+    pthread_mutex_lock(&M.mu);
+    bump(M.grpc, &M.ngrpc, method, code);
     pthread_mutex_unlock(&M.mu);
 }
 
@@ -154,6 +164,12 @@ char *srv_metrics_render(const srv_gauges *g, size_t *len)
     for (i = 0; i < M.nreq; i++)
         api_buf_printf(&b, "mcfd_http_requests_total{route=\"%s\",code=\"%s\"}"
                            " %.17g\n", M.req[i].a, M.req[i].b, M.req[i].value);
+    api_buf_printf(&b, "# HELP mcfd_grpc_calls_total gRPC calls by method "
+                       "and status code.\n"
+                       "# TYPE mcfd_grpc_calls_total counter\n");
+    for (i = 0; i < M.ngrpc; i++)
+        api_buf_printf(&b, "mcfd_grpc_calls_total{method=\"%s\",code=\"%s\"}"
+                           " %.17g\n", M.grpc[i].a, M.grpc[i].b, M.grpc[i].value);
     api_buf_printf(&b, "# HELP mcfd_jobs_total Finished jobs by scheme and "
                        "final status.\n# TYPE mcfd_jobs_total counter\n");
     for (i = 0; i < M.njobs; i++)

@@ -54,6 +54,8 @@ typedef enum {
 typedef struct {
     char bind[256];            /* address to listen on (default 127.0.0.1) */
     int port;                  /* 0: any free port (default 8080) */
+    int grpc_port;             /* gRPC door: 0 any free port, -1 off
+                                  (default 50051) */
     int workers;               /* mesh worker threads (default: online CPUs) */
     int queue;                 /* queued jobs beyond the running ones */
     int http_threads;          /* MHD thread pool size (default 2) */
@@ -86,6 +88,10 @@ typedef struct {
  * or -1 with a one-line reason in msg (exit 2). Reads the token file. */
 int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
                     size_t msgsize);
+/* Whether an Authorization value ("Bearer <token>") carries the
+ * configured token (always, when there is none); constant time in the
+ * token's length. Both doors check with it. */
+int srv_bearer_ok(const srv_config *cfg, const char *authorization);
 
 /* ------------------------------------------------------------------ logging */
 
@@ -144,6 +150,8 @@ void srv_metrics_init(void);
 /* route: a fixed label ("smooth", "jobs", "job", ...). */
 void srv_metrics_request(const char *route, unsigned status);
 void srv_metrics_upload(size_t bytes);
+/* One gRPC call: method ("Smooth", ...) and status code name ("OK"). */
+void srv_metrics_grpc(const char *method, const char *code);
 /* One finished job: scheme name ("unknown" before parsing), final status
  * and wall seconds from start to finish (queue wait excluded). */
 void srv_metrics_job(const char *scheme, const char *status, double seconds);

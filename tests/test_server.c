@@ -647,6 +647,9 @@ static int group_setup(void **state)
     (void)state;
     signal(SIGPIPE, SIG_IGN);
     curl_global_init(CURL_GLOBAL_DEFAULT);
+    /* The REST door's tests: no gRPC door (tests/test_grpc.py has it), so
+     * no daemon here takes port 50051 and the thread count is REST's. */
+    setenv("MCFD_GRPC_PORT", "off", 1);
     snprintf(g_bin, sizeof g_bin, "%s/mcfd", b && *b ? b : "build");
     if (access(g_bin, X_OK) != 0) {
         fprintf(stderr, "no executable %s (set MCF_BUILD)\n", g_bin);

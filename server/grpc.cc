@@ -1,0 +1,1202 @@
+/*
+ * grpc.cc - the gRPC door of mcfd: api/mcfd.proto's mcfd.v1.Smoother on
+ * gRPC's C++ callback API, a bridge from the transport to the job service
+ * (service.h) behind the plain C interface of grpc_door.h. The only C++
+ * in server/, as api_draco.cc is in api/; everything it decides about jobs
+ * it asks the service, everything about parameters, formats and metrics
+ * it asks api/ through the service, so both doors give the same answers.
+ *
+ * Calls
+ *   Smooth      ServerBidiReactor: reads the header and the chunks (limits
+ *               enforced as bytes arrive, before any decode), submits on
+ *               the client's half-close, then follows the job (Follow).
+ *   SubmitJob   ServerReadReactor: the same upload; answers with the Job.
+ *   WatchJob    ServerWriteReactor: follows an existing job (Follow).
+ *   GetJob, CancelJob, ListSchemes   unary, answered at once.
+ *
+ * Threads. gRPC's own threads run the reactions (OnReadDone, OnWriteDone,
+ * OnCancel, OnDone). The service calls a follower's notify function from
+ * a worker with the service lock held; it may not call the service, so it
+ * only marks the follower dirty and, when no write is in flight, posts it
+ * to the door's one pump thread. The pump (on that thread, or right in
+ * OnWriteDone) reads a snapshot and the new events and starts the next
+ * write: one write in flight per stream, never more. Lock order: service
+ * lock, then a follower's mu, then the pump queue's lock.
+ *
+ * Errors are the service's svc_error, mapped to status codes by the table
+ * of service.h; the message is REST's detail; trailing metadata `mcf-code`
+ * carries the symbolic name and `retry-after-ms` the delay of a transient
+ * refusal (full queue, quota, drain).
+ */
+#include <atomic>
+#include <cerrno>
+#include <cstdarg>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+
+#include "mcfd.grpc.pb.h"
+
+extern "C" {
+#include "srv.h" /* plain C headers without extern "C" guards */
+#include "service.h"
+}
+#include "grpc_door.h"
+
+namespace pb = mcfd::v1;
+using grpc::CallbackServerContext;
+using grpc::Status;
+using grpc::StatusCode;
+
+namespace {
+
+/* ----------------------------------------------------------------- state */
+
+const char kService[] = "mcfd.v1.Smoother";
+const size_t kChunk = 64 * 1024;   /* chunk size, both ways */
+
+struct Door {
+    std::unique_ptr<grpc::Server> server;
+    const srv_config *cfg = nullptr;
+    std::atomic<bool> draining{false};
+    std::atomic<int> active{0};
+    /* the pump thread and its queue of followers to look at */
+    std::mutex qmu;
+    std::condition_variable qcv;
+    std::deque<class Follow *> queue;
+    bool quit = false;
+    std::thread pump;
+};
+Door g;
+
+/* --------------------------------------------------------------- helpers */
+
+const char *code_name(StatusCode c)
+{
+    static const char *const names[] = {
+        "OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT", "DEADLINE_EXCEEDED",
+        "NOT_FOUND", "ALREADY_EXISTS", "PERMISSION_DENIED",
+        "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION", "ABORTED",
+        "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL", "UNAVAILABLE",
+        "DATA_LOSS", "UNAUTHENTICATED"};
+    unsigned i = (unsigned)c;
+    return i < sizeof names / sizeof names[0] ? names[i] : "UNKNOWN";
+}
+
+/* service.h's table: the gRPC column. */
+StatusCode status_of(const svc_error &e)
+{
+    switch (e.code) {
+    case SVC_OK: return StatusCode::OK;
+    case SVC_EPARAMS: return StatusCode::INVALID_ARGUMENT;
+    case SVC_EINPUT:
+    case SVC_EMESH:
+        return e.mcf == MCF_ELIMIT ? StatusCode::RESOURCE_EXHAUSTED
+                                   : StatusCode::INVALID_ARGUMENT;
+    case SVC_ENOMEM:
+    case SVC_EBUSY:
+    case SVC_EQUOTA: return StatusCode::RESOURCE_EXHAUSTED;
+    case SVC_EDRAINING: return StatusCode::UNAVAILABLE;
+    case SVC_ENOTFOUND: return StatusCode::NOT_FOUND;
+    case SVC_ENOTREADY:
+    case SVC_ENORESULT: return StatusCode::FAILED_PRECONDITION;
+    case SVC_ECANCELED: return StatusCode::CANCELLED;
+    case SVC_ETIMEOUT: return StatusCode::DEADLINE_EXCEEDED;
+    case SVC_ESTORAGE:
+    case SVC_EINTERNAL: break;
+    }
+    return StatusCode::INTERNAL;
+}
+
+/* The status of e, with its name and retry delay in trailing metadata. */
+Status status_from(CallbackServerContext *ctx, const svc_error &e)
+{
+    const char *name = e.name[0] ? e.name : svc_code_name(e.code);
+    if (*name)
+        ctx->AddTrailingMetadata("mcf-code", name);
+    if (e.retry_after > 0)
+        ctx->AddTrailingMetadata(
+            "retry-after-ms", std::to_string((long long)(e.retry_after * 1000 + 0.5)));
+    return Status(status_of(e), e.detail);
+}
+
+/* A door-made error (no svc_error behind it). */
+Status door_status(CallbackServerContext *ctx, StatusCode c, const char *name,
+                   const std::string &detail)
+{
+    ctx->AddTrailingMetadata("mcf-code", name);
+    return Status(c, detail);
+}
+
+/* Counts the call in /metrics and returns st. */
+Status counted(const char *method, const Status &st)
+{
+    srv_metrics_grpc(method, code_name(st.error_code()));
+    return st;
+}
+
+/* The bearer token check of REST (srv_bearer_ok: constant time). */
+bool authorized(CallbackServerContext *ctx)
+{
+    if (g.cfg->token_len == 0)
+        return true;
+    const auto &md = ctx->client_metadata();
+    auto it = md.find("authorization");
+    if (it == md.end())
+        return false;
+    std::string v(it->second.data(), it->second.size());
+    return srv_bearer_ok(g.cfg, v.c_str());
+}
+
+Status unauthenticated(CallbackServerContext *ctx)
+{
+    return door_status(ctx, StatusCode::UNAUTHENTICATED, "EAUTH",
+                       "metadata 'authorization: Bearer <token>' is required");
+}
+
+Status draining_status(CallbackServerContext *ctx)
+{
+    ctx->AddTrailingMetadata("retry-after-ms", "5000");
+    return door_status(ctx, StatusCode::UNAVAILABLE, "EDRAINING",
+                       "the daemon is shutting down: no new jobs (retry on "
+                       "another instance or after the restart)");
+}
+
+/* The parameters as the JSON object REST's `params` field takes: every
+ * set field under its own name (they are the REST names), NumberOrAuto
+ * as the number or "auto", 64-bit integers as text (exact). Walks the
+ * descriptor, so a new proto field needs no code here. */
+std::string params_json(const pb::Params &p, const std::string *out_format)
+{
+    using google::protobuf::FieldDescriptor;
+    std::vector<const FieldDescriptor *> fields;
+    const google::protobuf::Reflection *r = p.GetReflection();
+    cJSON *o = cJSON_CreateObject();
+    std::string s;
+
+    if (!o)
+        return s;
+    r->ListFields(p, &fields);
+    for (const FieldDescriptor *f : fields) {
+        const char *key = f->name().c_str();
+        cJSON *v = nullptr;
+        if (f->is_repeated()) {
+            v = cJSON_CreateArray();
+            for (int i = 0; v && i < r->FieldSize(p, f); i++)
+                cJSON_AddItemToArray(v, cJSON_CreateNumber(r->GetRepeatedUInt32(p, f, i)));
+        } else {
+            switch (f->cpp_type()) {
+            case FieldDescriptor::CPPTYPE_DOUBLE: v = cJSON_CreateNumber(r->GetDouble(p, f)); break;
+            case FieldDescriptor::CPPTYPE_INT32: v = cJSON_CreateNumber(r->GetInt32(p, f)); break;
+            case FieldDescriptor::CPPTYPE_UINT32: v = cJSON_CreateNumber(r->GetUInt32(p, f)); break;
+            case FieldDescriptor::CPPTYPE_INT64:
+                v = cJSON_CreateString(std::to_string(r->GetInt64(p, f)).c_str()); break;
+            case FieldDescriptor::CPPTYPE_UINT64:
+                v = cJSON_CreateString(std::to_string(r->GetUInt64(p, f)).c_str()); break;
+            case FieldDescriptor::CPPTYPE_BOOL: v = cJSON_CreateBool(r->GetBool(p, f)); break;
+            case FieldDescriptor::CPPTYPE_STRING: v = cJSON_CreateString(r->GetString(p, f).c_str()); break;
+            case FieldDescriptor::CPPTYPE_MESSAGE: {
+                const auto &n = static_cast<const pb::NumberOrAuto &>(r->GetMessage(p, f));
+                if (n.has_number())
+                    v = cJSON_CreateNumber(n.number());
+                else if (n.has_auto_())
+                    /* false is refused by the same path ("... got \"false\"") */
+                    v = n.auto_() ? cJSON_CreateString("auto") : cJSON_CreateFalse();
+                else
+                    continue; /* an empty NumberOrAuto: unset */
+                break;
+            }
+            default: continue;
+            }
+        }
+        if (v)
+            cJSON_AddItemToObject(o, key, v);
+    }
+    if (out_format)
+        cJSON_AddStringToObject(o, "format", out_format->c_str());
+    char *t = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    if (t) {
+        s = t;
+        free(t);
+    }
+    return s;
+}
+
+/* Job from the service's own rendering (svc_job_json), so GetJob and REST
+ * GET /v1/jobs/{id} read the same numbers; the error from the snapshot. */
+bool fill_job(svc_job *j, pb::Job *out)
+{
+    svc_snap s;
+    cJSON *o = svc_job_json(j, &s), *p, *x;
+    if (!o)
+        return false;
+    out->set_id(s.id);
+    out->set_status((pb::Job::Status)(s.status + 1));
+    if ((p = cJSON_GetObjectItemCaseSensitive(o, "progress"))) {
+        pb::Job::JobProgress *g2 = out->mutable_progress();
+        g2->set_step(s.step);
+        if (cJSON_IsNumber(x = cJSON_GetObjectItemCaseSensitive(p, "steps")))
+            g2->set_steps(x->valueint);
+        if (s.step > 0) {
+            g2->set_t(s.t);
+            g2->set_dt(s.dt);
+            g2->set_energy(s.energy);
+            g2->set_volume(s.volume);
+        }
+        if (cJSON_IsNumber(x = cJSON_GetObjectItemCaseSensitive(p, "fraction")))
+            g2->set_fraction(x->valuedouble);
+    }
+    if (cJSON_IsString(x = cJSON_GetObjectItemCaseSensitive(o, "created")))
+        out->set_created(x->valuestring);
+    if (cJSON_IsString(x = cJSON_GetObjectItemCaseSensitive(o, "started")))
+        out->set_started(x->valuestring);
+    if (cJSON_IsString(x = cJSON_GetObjectItemCaseSensitive(o, "finished")))
+        out->set_finished(x->valuestring);
+    out->set_cancel_requested(s.cancel_requested != 0);
+    if ((x = cJSON_GetObjectItemCaseSensitive(o, "params"))) {
+        char *t = cJSON_PrintUnformatted(x);
+        if (t)
+            out->set_params(t);
+        free(t);
+    }
+    out->set_input_format(s.in_format);
+    if ((x = cJSON_GetObjectItemCaseSensitive(o, "metrics")) && !cJSON_IsNull(x)) {
+        char *t = cJSON_PrintUnformatted(x);
+        if (t)
+            out->set_metrics(t);
+        free(t);
+    }
+    if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
+        pb::Job::Error *e = out->mutable_error();
+        e->set_code(s.error.name[0] ? s.error.name : svc_code_name(s.error.code));
+        e->set_detail(s.error.detail);
+        e->set_grpc_code((int)status_of(s.error));
+    }
+    cJSON_Delete(o);
+    return true;
+}
+
+/* ---------------------------------------------------------------- upload */
+
+/* The bytes of Smooth and SubmitJob as they stream in: the header first,
+ * then mesh and target chunks, every size checked before it is kept. */
+class Upload {
+  public:
+    ~Upload()
+    {
+        free(mesh_);
+        free(target_);
+        svc_record_free(&rec_);
+    }
+
+    /* One message; false and *e when the call must end. */
+    bool feed(const pb::SmoothRequest &m, svc_error *e)
+    {
+        switch (m.part_case()) {
+        case pb::SmoothRequest::kHeader:
+            if (have_header_)
+                return fail(e, SVC_EPARAMS, "EINVAL", "a second header: the header is sent once, first");
+            have_header_ = true;
+            return header(m.header(), e);
+        case pb::SmoothRequest::kChunk:
+        case pb::SmoothRequest::kTargetChunk: {
+            bool t = m.part_case() == pb::SmoothRequest::kTargetChunk;
+            const std::string &b = t ? m.target_chunk() : m.chunk();
+            if (!have_header_)
+                return fail(e, SVC_EPARAMS, "EINVAL", "the first message must be the header");
+            if (b.size() > kChunk)
+                return limit(e, "a %s of %zu bytes is over the %zu-byte chunk limit",
+                             t ? "target_chunk" : "chunk", b.size(), kChunk);
+            return append(t ? &target_ : &mesh_, t ? &target_len_ : &mesh_len_,
+                          t ? target_size_ : total_size_, b, t ? "target mesh" : "mesh", e);
+        }
+        default:
+            return fail(e, SVC_EPARAMS, "EINVAL", "an empty message (no part set)");
+        }
+    }
+
+    /* After the client's half-close: the upload is whole. Submits it. */
+    int submit(unsigned flags, svc_job **out, svc_error *e)
+    {
+        if (!have_header_)
+            return fail(e, SVC_EPARAMS, "EINVAL", "no header: the first message must be the header") ? 0 : -1;
+        if (mesh_len_ == 0)
+            return fail(e, SVC_EINPUT, "EDECODE", "no mesh: send its bytes in chunk messages") ? 0 : -1;
+        if (total_size_ >= 0 && (long long)mesh_len_ != total_size_)
+            return fail(e, SVC_EINPUT, "EINVAL", "total_size is %lld but %zu bytes came",
+                        total_size_, mesh_len_) ? 0 : -1;
+        if (target_size_ >= 0 && (long long)target_len_ != target_size_)
+            return fail(e, SVC_EINPUT, "EINVAL", "target_size is %lld but %zu bytes came",
+                        target_size_, target_len_) ? 0 : -1;
+        if (in_format_ != API_FMT_UNKNOWN) {
+            api_format got = api_format_detect(mesh_, mesh_len_);
+            if (got != in_format_)
+                return fail(e, SVC_EINPUT, "EFORMAT", "format is %s but the bytes are %s",
+                            api_format_name(in_format_),
+                            got == API_FMT_UNKNOWN ? "of no known format" : api_format_name(got)) ? 0 : -1;
+        }
+        srv_metrics_upload(mesh_len_);
+        char *in = mesh_, *tg = target_;
+        mesh_ = target_ = nullptr;
+        return svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
+    }
+
+  private:
+    bool header(const pb::SmoothHeader &h, svc_error *e)
+    {
+        const api_limits *lim = &g.cfg->lim;
+        std::string of;
+        if (h.has_format()) {
+            in_format_ = api_format_from_name(h.format().c_str());
+            if (in_format_ == API_FMT_UNKNOWN || h.format().find('.') != std::string::npos)
+                return fail(e, SVC_EPARAMS, "EINVAL", "format must be one of obj, draco, ply, stl, off, got \"%.64s\"",
+                            h.format().c_str());
+        }
+        if (h.has_total_size()) {
+            if (h.total_size() > lim->max_input_bytes)
+                return limit(e, "total_size %llu is over the upload limit of %zu bytes (--max-upload)",
+                             (unsigned long long)h.total_size(), lim->max_input_bytes);
+            total_size_ = (long long)h.total_size();
+        }
+        if (h.has_target_size()) {
+            if (h.target_size() > lim->max_input_bytes)
+                return limit(e, "target_size %llu is over the upload limit of %zu bytes (--max-upload)",
+                             (unsigned long long)h.target_size(), lim->max_input_bytes);
+            target_size_ = (long long)h.target_size();
+        }
+        /* REST's early 503: no room now, so no reason to take the bytes */
+        if (!svc_can_accept()) {
+            svc_gauges gg = svc_get_gauges();
+            if (gg.draining)
+                svc_error_set(e, SVC_EDRAINING, NULL, "the daemon is shutting down and accepts no new jobs");
+            else
+                svc_error_set(e, SVC_EBUSY, NULL, "the job queue is full (%d queued, %d workers busy, --queue %d)",
+                              gg.queue_depth, gg.workers_busy, gg.queue_capacity);
+            return false;
+        }
+        if (h.has_output_format())
+            of = h.output_format();
+        std::string js = params_json(h.params(), h.has_output_format() ? &of : nullptr);
+        if (js.empty())
+            return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory");
+        rec_.params_json = strdup(js.c_str());
+        if (!rec_.params_json)
+            return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory");
+        if (h.has_filename())
+            snprintf(rec_.filename, sizeof rec_.filename, "%s", basename_of(h.filename()).c_str());
+        /* The parameters now, before any byte of the mesh: the path REST's
+         * params field takes, so the same message names the field. */
+        api_params p;
+        mcf_error err;
+        api_params_init(&p);
+        mcf_status rc = svc_record_params(&rec_, lim, &p, &err);
+        api_params_free(&p);
+        if (rc != MCF_OK) {
+            svc_error_from_mcf(e, rc, SVC_STAGE_PARAMS, NULL, &err);
+            return false;
+        }
+        return true;
+    }
+
+    static std::string basename_of(const std::string &n)
+    {
+        size_t k = n.find_last_of("/\\");
+        std::string b = k == std::string::npos ? n : n.substr(k + 1);
+        std::string s;
+        for (char c : b)
+            if ((unsigned char)c >= 0x20 && c != 0x7f && c != '"')
+                s += c;
+        return s.empty() ? "mesh" : s;
+    }
+
+    bool append(char **buf, size_t *len, long long declared, const std::string &b,
+                const char *what, svc_error *e)
+    {
+        size_t max = g.cfg->lim.max_input_bytes;
+        if (b.size() > max - *len)
+            return limit(e, "the %s is over the upload limit of %zu bytes (--max-upload)", what, max);
+        if (declared >= 0 && (long long)(*len + b.size()) > declared)
+            return fail(e, SVC_EINPUT, "EINVAL", "more bytes of the %s than its declared size %lld",
+                        what, declared);
+        if (*len + b.size() > alloc_of(buf)) {
+            /* geometric growth as bytes arrive, never ahead of them: a
+             * declared size is only checked, so a header alone cannot
+             * make the daemon reserve --max-upload bytes */
+            size_t want = alloc_of(buf) ? alloc_of(buf) * 2 : 256 * 1024;
+            while (want < *len + b.size())
+                want *= 2;
+            if (want > max)
+                want = max;
+            char *nb = (char *)realloc(*buf, want);
+            if (!nb)
+                return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory for the %s", what);
+            *buf = nb;
+            alloc_of(buf) = want;
+        }
+        memcpy(*buf + *len, b.data(), b.size());
+        *len += b.size();
+        return true;
+    }
+
+    size_t &alloc_of(char **buf) { return buf == &mesh_ ? mesh_alloc_ : target_alloc_; }
+
+    static bool fail(svc_error *e, svc_code c, const char *name, const char *fmt, ...)
+#if defined(__GNUC__)
+        __attribute__((format(printf, 4, 5)))
+#endif
+    {
+        va_list ap;
+        char d[sizeof e->detail];
+        va_start(ap, fmt);
+        vsnprintf(d, sizeof d, fmt, ap);
+        va_end(ap);
+        svc_error_set(e, c, name, "%s", d);
+        return false;
+    }
+
+    /* A limit: EINPUT with mcf ELIMIT, RESOURCE_EXHAUSTED. */
+    static bool limit(svc_error *e, const char *fmt, ...)
+#if defined(__GNUC__)
+        __attribute__((format(printf, 2, 3)))
+#endif
+    {
+        va_list ap;
+        mcf_error err;
+        va_start(ap, fmt);
+        vsnprintf(err.msg, sizeof err.msg, fmt, ap);
+        va_end(ap);
+        err.status = MCF_ELIMIT;
+        svc_error_from_mcf(e, MCF_ELIMIT, SVC_STAGE_DECODE, NULL, &err);
+        return false;
+    }
+
+    bool have_header_ = false;
+    svc_record rec_ = {};
+    api_format in_format_ = API_FMT_UNKNOWN;
+    long long total_size_ = -1, target_size_ = -1;
+    char *mesh_ = nullptr, *target_ = nullptr;
+    size_t mesh_len_ = 0, target_len_ = 0, mesh_alloc_ = 0, target_alloc_ = 0;
+};
+
+/* ---------------------------------------------------------------- follow */
+
+void post(Follow *f);
+
+/* What Smooth and WatchJob share: a job followed to its end, written one
+ * message at a time. Subclasses give the transport's StartWrite and
+ * Finish. Reference counted: gRPC's reference (dropped in OnDone) and one
+ * per post to the pump queue. */
+class Follow {
+  public:
+    virtual ~Follow()
+    {
+        if (job_) {
+            if (keep_ && !taken_)
+                svc_job_release_result(job_);
+            svc_job_unref(job_);
+        }
+        free(result_);
+        g.active--;
+    }
+
+    void ref() { refs_++; }
+    /* Taken off the pump queue (a later notify may post it again). */
+    void dequeued()
+    {
+        std::lock_guard<std::mutex> l(mu_);
+        queued_ = false;
+    }
+    void unref()
+    {
+        if (--refs_ == 0)
+            delete this;
+    }
+
+    /* The service's notify function (service lock held: no service call). */
+    static void notify(void *ctx, unsigned what)
+    {
+        (void)what;
+        Follow *f = static_cast<Follow *>(ctx);
+        bool p = false;
+        {
+            std::lock_guard<std::mutex> l(f->mu_);
+            f->dirty_ = true;
+            if (!f->writing_ && !f->busy_ && !f->queued_ && !f->finished_) {
+                f->queued_ = true;
+                p = true;
+            }
+        }
+        if (p)
+            post(f);
+    }
+
+    /* Writes the next message, or finishes, or waits for a notify. Never
+     * with the service lock held (it calls the service). */
+    void pump()
+    {
+        {
+            std::lock_guard<std::mutex> l(mu_);
+            if (writing_ || busy_ || finished_ || !job_)
+                return;
+            busy_ = true;
+            dirty_ = false;
+        }
+        for (;;) {
+            Status st;
+            int r = next(&st);
+            std::lock_guard<std::mutex> l(mu_);
+            if (r > 0) {            /* out_ is ready */
+                writing_ = true;
+                busy_ = false;
+                if (finished_)      /* cancelled meanwhile */
+                    return;
+                /* Under mu_, so that no Finish can slip between the check
+                 * and the write. Safe: gRPC 1.51 never runs a reaction
+                 * inline from StartWrite or Finish (their tags dispatch
+                 * OnWriteDone and OnDone to its executor). */
+                start_write(&out_);
+                return;
+            }
+            if (r < 0) {            /* the end */
+                busy_ = false;
+                finish_locked(st);
+                return;
+            }
+            if (!dirty_) {          /* nothing new: wait for a notify */
+                busy_ = false;
+                return;
+            }
+            dirty_ = false;
+        }
+    }
+
+  protected:
+    Follow(CallbackServerContext *ctx, const char *method) : ctx_(ctx), method_(method)
+    {
+        g.active++;
+    }
+
+    /* Starts following j (a reference the follower now owns). */
+    void follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait)
+    {
+        bool gone;
+        {
+            std::lock_guard<std::mutex> l(mu_);
+            job_ = j;
+            keep_ = keep;
+            from_step_ = from_step;
+            skip_result_ = skip_result;
+            no_wait_ = no_wait;
+            gone = gone_;
+        }
+        if (gone) {     /* cancelled between the submission and now */
+            if (owns_job_)
+                svc_cancel(j, SVC_CANCEL_CLIENT);
+            return;
+        }
+        if (svc_subscribe(j, SVC_NOTIFY_STATE | SVC_NOTIFY_PROGRESS, notify, this, &sub_) != 0) {
+            svc_error e;
+            svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory");
+            finish(status_from(ctx_, e));
+            return;
+        }
+        pump();
+    }
+
+    void write_done(bool ok)
+    {
+        {
+            std::lock_guard<std::mutex> l(mu_);
+            writing_ = false;
+            if (!ok) {              /* the stream broke: the client left */
+                finish_locked(Status(StatusCode::CANCELLED, "the client left"));
+                return;
+            }
+        }
+        pump();
+    }
+
+    /* The call was cancelled by the client or its deadline; a job the
+     * call owns (Smooth's) is cancelled with it. */
+    void cancelled()
+    {
+        svc_job *j;
+        {
+            std::lock_guard<std::mutex> l(mu_);
+            j = job_;
+            gone_ = true;
+        }
+        if (j && owns_job_) {
+            svc_snap s;
+            svc_job_snapshot(j, &s);
+            if (!svc_job_status_terminal(s.status))
+                svc_cancel(j, SVC_CANCEL_CLIENT);
+        }
+        finish(ctx_->deadline() <= std::chrono::system_clock::now()
+                   ? Status(StatusCode::DEADLINE_EXCEEDED, "deadline exceeded")
+                   : Status(StatusCode::CANCELLED, "cancelled by the client"));
+    }
+
+    /* From OnDone: no notify after this, then gRPC's reference goes. */
+    void done()
+    {
+        svc_unsubscribe(sub_);
+        sub_ = nullptr;
+        unref();
+    }
+
+    void finish(const Status &st)
+    {
+        std::lock_guard<std::mutex> l(mu_);
+        finish_locked(st);
+    }
+
+    /* Plain writes: gRPC's buffer hint would hold a write's OnWriteDone
+     * until something flushes it (measured: a finished job's WatchJob took
+     * 209 ms instead of 1.9). */
+    virtual void start_write(const pb::SmoothResponse *m) = 0;
+    virtual void finish_call(const Status &st) = 0;
+
+    CallbackServerContext *ctx_;
+    bool owns_job_ = false;         /* Smooth: the job is this call's alone */
+    bool finished_ = false;         /* under mu_ */
+    std::mutex mu_;
+
+  private:
+    void finish_locked(const Status &st)
+    {
+        if (finished_)
+            return;
+        finished_ = true;
+        /* a call that is gone is counted as it ended for its client */
+        counted(method_, st);
+        finish_call(st);
+    }
+
+    /* The next message into out_: 1; nothing to send now: 0; the end:
+     * -1 and *st. */
+    int next(Status *st)
+    {
+        if (!pending_.empty()) {
+            out_.Clear();
+            *out_.mutable_progress() = pending_.front();
+            pending_.pop_front();
+            return 1;
+        }
+        if (phase_ == P_STEPS) {
+            svc_snap s;
+            for (;;) {
+                char *data = nullptr;
+                size_t len = 0;
+                int n = 0;
+                /* the snapshot before the events: when it says finished,
+                 * every event is in what follows; 64 KiB of them at a time */
+                svc_job_snapshot(job_, &s);
+                if (svc_job_events(job_, next_event_, 64 * 1024, &data, &len, &n) != 0) {
+                    svc_error e;
+                    svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
+                    *st = status_from(ctx_, e);
+                    return -1;
+                }
+                if (n == 0)
+                    break;
+                next_event_ += n;
+                parse_events(data, len);
+                free(data);
+                if (!pending_.empty())
+                    return next(st);
+                /* every one before from_step: the next batch */
+            }
+            if (!svc_job_status_terminal(s.status)) {
+                if (s.closing || (s.draining && s.status == SVC_JOB_QUEUED)) {
+                    svc_error e = s.error;
+                    if (e.code != SVC_EDRAINING)
+                        svc_error_set(&e, SVC_EDRAINING, NULL,
+                                      "the daemon is shutting down; job %s runs again after the restart", s.id);
+                    *st = status_from(ctx_, e);
+                    return -1;
+                }
+                if (no_wait_) {
+                    svc_error e;
+                    svc_error_set(&e, SVC_ENOTREADY, NULL, "job %s is %s: no result yet", s.id,
+                                  svc_job_status_name(s.status));
+                    *st = status_from(ctx_, e);
+                    return -1;
+                }
+                return 0;
+            }
+            if (s.status != SVC_JOB_SUCCEEDED) {
+                *st = status_from(ctx_, s.error);
+                return -1;
+            }
+            snprintf(result_name_, sizeof result_name_, "%s", s.result_name);
+            snprintf(out_format_, sizeof out_format_, "%s", s.out_format);
+            phase_ = P_METRICS;
+        }
+        svc_error e;
+        switch (phase_) {
+        case P_METRICS: {
+            char *m = nullptr;
+            size_t ml = 0;
+            if (svc_job_metrics(job_, &m, &ml, &e) != 0) {
+                *st = status_from(ctx_, e);
+                return -1;
+            }
+            out_.Clear();
+            out_.set_metrics(m, ml);
+            free(m);
+            phase_ = skip_result_ ? P_END : P_HEADER;
+            return 1;
+        }
+        case P_HEADER: {
+            if (svc_job_result(job_, keep_ ? SVC_RESULT_TAKE : 0, &result_, &result_len_, &e) != 0) {
+                *st = status_from(ctx_, e);
+                return -1;
+            }
+            taken_ = true;
+            out_.Clear();
+            pb::ResultHeader *h = out_.mutable_result_header();
+            h->set_format(out_format_);
+            h->set_size(result_len_);
+            h->set_file_name(result_name_);
+            h->set_job_id(svc_job_id(job_));
+            phase_ = P_CHUNKS;
+            return 1;
+        }
+        case P_CHUNKS:
+            if (result_off_ < result_len_) {
+                size_t n = result_len_ - result_off_ < kChunk ? result_len_ - result_off_ : kChunk;
+                out_.Clear();
+                out_.set_result_chunk(result_ + result_off_, n);
+                result_off_ += n;
+                return 1;
+            }
+            phase_ = P_END;
+            /* fall through */
+        default:
+            *st = Status::OK;
+            return -1;
+        }
+    }
+
+    void parse_events(const char *data, size_t len)
+    {
+        const char *p = data, *end = data + len;
+        while (p < end) {
+            const char *nl = (const char *)memchr(p, '\n', (size_t)(end - p));
+            size_t n = nl ? (size_t)(nl - p) : (size_t)(end - p);
+            cJSON *o = cJSON_ParseWithLength(p, n);
+            if (o) {
+                cJSON *s = cJSON_GetObjectItemCaseSensitive(o, "step");
+                int step = cJSON_IsNumber(s) ? s->valueint : 0;
+                if (step >= from_step_) {
+                    pb::Progress pr;
+                    pr.set_step(step);
+                    pr.set_t(num(o, "t"));
+                    pr.set_dt(num(o, "dt"));
+                    pr.set_energy(num(o, "energy"));
+                    pr.set_volume(num(o, "volume"));
+                    pending_.push_back(pr);
+                }
+                cJSON_Delete(o);
+            }
+            p += n + 1;
+        }
+    }
+
+    static double num(const cJSON *o, const char *k)
+    {
+        const cJSON *x = cJSON_GetObjectItemCaseSensitive(o, k);
+        return cJSON_IsNumber(x) ? x->valuedouble : 0;
+    }
+
+    enum { P_STEPS, P_METRICS, P_HEADER, P_CHUNKS, P_END };
+
+    const char *method_;
+    std::atomic<int> refs_{1};
+    svc_job *job_ = nullptr;
+    svc_sub *sub_ = nullptr;
+    bool keep_ = false, taken_ = false, skip_result_ = false, no_wait_ = false;
+    int from_step_ = 0;
+    /* under mu_ */
+    bool writing_ = false, busy_ = false, dirty_ = false, gone_ = false;
+    bool queued_ = false;           /* in the pump queue */
+    /* touched only by the one pump() running (busy_) */
+    int phase_ = P_STEPS;
+    int next_event_ = 0;
+    std::deque<pb::Progress> pending_;
+    pb::SmoothResponse out_;
+    char *result_ = nullptr;
+    size_t result_len_ = 0, result_off_ = 0;
+    char result_name_[32] = "", out_format_[16] = "";
+};
+
+void post(Follow *f)
+{
+    f->ref();
+    {
+        std::lock_guard<std::mutex> l(g.qmu);
+        g.queue.push_back(f);
+    }
+    g.qcv.notify_one();
+}
+
+void pump_thread()
+{
+    std::unique_lock<std::mutex> l(g.qmu);
+    for (;;) {
+        g.qcv.wait(l, [] { return g.quit || !g.queue.empty(); });
+        if (g.queue.empty())
+            return;
+        Follow *f = g.queue.front();
+        g.queue.pop_front();
+        l.unlock();
+        f->dequeued();
+        f->pump();
+        f->unref();
+        l.lock();
+    }
+}
+
+/* ------------------------------------------------------------------ Smooth */
+
+class SmoothCall : public Follow,
+                   public grpc::ServerBidiReactor<pb::SmoothRequest, pb::SmoothResponse> {
+  public:
+    explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
+    {
+        owns_job_ = true;
+        if (!authorized(ctx))
+            finish(unauthenticated(ctx));
+        else if (g.draining || svc_draining())
+            finish(draining_status(ctx));
+        else
+            StartRead(&req_);
+    }
+
+    void OnReadDone(bool ok) override
+    {
+        svc_error e;
+        if (ok) {
+            if (up_.feed(req_, &e))
+                StartRead(&req_);
+            else
+                finish(status_from(ctx_, e));
+            return;
+        }
+        {
+            std::lock_guard<std::mutex> l(mu_);
+            if (finished_)      /* cancelled while reading */
+                return;
+        }
+        svc_job *j = nullptr;
+        if (up_.submit(SVC_KEEP_RESULT, &j, &e) != 0) {
+            finish(status_from(ctx_, e));
+            return;
+        }
+        ctx_->AddInitialMetadata("mcf-job-id", svc_job_id(j));
+        follow(j, true, 0, false, false);
+    }
+
+    void OnWriteDone(bool ok) override { write_done(ok); }
+    /* The call's end (client cancel, deadline, broken stream): the job is
+     * this call's alone, so it is cancelled and its worker freed. */
+    void OnCancel() override { cancelled(); }
+    void OnDone() override { done(); }
+
+  private:
+    void start_write(const pb::SmoothResponse *m) override { StartWrite(m); }
+    void finish_call(const Status &st) override { Finish(st); }
+
+    pb::SmoothRequest req_;
+    Upload up_;
+};
+
+/* --------------------------------------------------------------- WatchJob */
+
+class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothResponse> {
+  public:
+    WatchCall(CallbackServerContext *ctx, const pb::WatchJobRequest *req)
+        : Follow(ctx, "WatchJob")
+    {
+        svc_job *j;
+        if (!authorized(ctx)) {
+            finish(unauthenticated(ctx));
+        } else if (!(j = svc_job_get(req->id().c_str()))) {
+            finish(door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
+                               "no job '" + req->id().substr(0, 64) + "' (or it expired)"));
+        } else {
+            ctx->AddInitialMetadata("mcf-job-id", svc_job_id(j));
+            follow(j, false, req->from_step(), req->skip_result(), req->no_wait());
+        }
+    }
+
+    void OnWriteDone(bool ok) override { write_done(ok); }
+    /* A watcher leaving does not cancel the job. */
+    void OnCancel() override { cancelled(); }
+    void OnDone() override { done(); }
+
+  private:
+    void start_write(const pb::SmoothResponse *m) override { StartWrite(m); }
+    void finish_call(const Status &st) override { Finish(st); }
+};
+
+/* -------------------------------------------------------------- SubmitJob */
+
+class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
+  public:
+    SubmitCall(CallbackServerContext *ctx, pb::Job *resp) : ctx_(ctx), resp_(resp)
+    {
+        g.active++;
+        if (!authorized(ctx))
+            end(unauthenticated(ctx));
+        else if (g.draining || svc_draining())
+            end(draining_status(ctx));
+        else
+            StartRead(&req_);
+    }
+
+    void OnReadDone(bool ok) override
+    {
+        svc_error e;
+        if (ok) {
+            if (up_.feed(req_, &e))
+                StartRead(&req_);
+            else
+                end(status_from(ctx_, e));
+            return;
+        }
+        {
+            std::lock_guard<std::mutex> l(mu_);
+            if (ended_)     /* cancelled while reading */
+                return;
+        }
+        svc_job *j = nullptr;
+        if (up_.submit(0, &j, &e) != 0) {
+            end(status_from(ctx_, e));
+            return;
+        }
+        bool ok2 = fill_job(j, resp_);
+        svc_job_unref(j);
+        end(ok2 ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory"));
+    }
+
+    void OnCancel() override { end(Status(StatusCode::CANCELLED, "cancelled by the client")); }
+    void OnDone() override
+    {
+        g.active--;
+        delete this;
+    }
+
+  private:
+    void end(const Status &st)
+    {
+        std::lock_guard<std::mutex> l(mu_);
+        if (ended_)
+            return;
+        ended_ = true;
+        Finish(counted("SubmitJob", st));
+    }
+
+    CallbackServerContext *ctx_;
+    pb::Job *resp_;
+    pb::SmoothRequest req_;
+    Upload up_;
+    std::mutex mu_;
+    bool ended_ = false;
+};
+
+/* ---------------------------------------------------------------- service */
+
+class Smoother final : public pb::Smoother::CallbackService {
+    grpc::ServerBidiReactor<pb::SmoothRequest, pb::SmoothResponse> *
+    Smooth(CallbackServerContext *ctx) override
+    {
+        return new SmoothCall(ctx);
+    }
+
+    grpc::ServerReadReactor<pb::SmoothRequest> *SubmitJob(CallbackServerContext *ctx,
+                                                          pb::Job *resp) override
+    {
+        return new SubmitCall(ctx, resp);
+    }
+
+    grpc::ServerWriteReactor<pb::SmoothResponse> *
+    WatchJob(CallbackServerContext *ctx, const pb::WatchJobRequest *req) override
+    {
+        return new WatchCall(ctx, req);
+    }
+
+    grpc::ServerUnaryReactor *GetJob(CallbackServerContext *ctx, const pb::GetJobRequest *req,
+                                     pb::Job *resp) override
+    {
+        return unary(ctx, "GetJob", [&]() -> Status {
+            svc_job *j = svc_job_get(req->id().c_str());
+            if (!j)
+                return not_found(ctx, req->id());
+            bool ok = fill_job(j, resp);
+            svc_job_unref(j);
+            return ok ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory");
+        });
+    }
+
+    grpc::ServerUnaryReactor *CancelJob(CallbackServerContext *ctx,
+                                        const pb::CancelJobRequest *req,
+                                        pb::Job *resp) override
+    {
+        return unary(ctx, "CancelJob", [&]() -> Status {
+            svc_job *j = svc_job_get(req->id().c_str());
+            if (!j)
+                return not_found(ctx, req->id());
+            if (svc_cancel(j, SVC_CANCEL_USER) < 0) {
+                svc_error e;
+                svc_error_set(&e, SVC_ESTORAGE, "EIO",
+                              "the spool could not record the cancellation of job %s "
+                              "(canceled in memory): %s", svc_job_id(j), strerror(errno));
+                svc_job_unref(j);
+                return status_from(ctx, e);
+            }
+            bool ok = fill_job(j, resp);
+            svc_job_unref(j);
+            return ok ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory");
+        });
+    }
+
+    grpc::ServerUnaryReactor *ListSchemes(CallbackServerContext *ctx,
+                                          const pb::ListSchemesRequest *,
+                                          pb::ListSchemesResponse *resp) override
+    {
+        return unary(ctx, "ListSchemes", [&]() -> Status {
+            for (int s = 0; s < MCF_NSCHEMES; s++) {
+                const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
+                if (!si)
+                    continue;
+                pb::Scheme *o = resp->add_schemes();
+                o->set_name(si->name);
+                o->set_title(si->title ? si->title : "");
+                o->set_order(si->order);
+                o->set_is_explicit(si->is_explicit != 0);
+                o->set_stability(si->stability);
+                o->set_solves_per_step(si->solves_per_step);
+                o->set_factorizations_per_step(si->factorizations_per_step);
+                o->set_has_estimate(si->has_estimate != 0);
+                o->set_estimate(si->estimate ? si->estimate : "");
+                o->set_best_use(si->best_use ? si->best_use : "");
+            }
+            return Status::OK;
+        });
+    }
+
+    template <class F>
+    grpc::ServerUnaryReactor *unary(CallbackServerContext *ctx, const char *method, F body)
+    {
+        grpc::ServerUnaryReactor *r = ctx->DefaultReactor();
+        r->Finish(counted(method, authorized(ctx) ? body() : unauthenticated(ctx)));
+        return r;
+    }
+
+    static Status not_found(CallbackServerContext *ctx, const std::string &id)
+    {
+        return door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
+                           "no job '" + id.substr(0, 64) + "' (or it expired)");
+    }
+};
+
+Smoother g_service;
+
+void set_serving(bool on)
+{
+    grpc::HealthCheckServiceInterface *h = g.server ? g.server->GetHealthCheckService() : nullptr;
+    if (!h)
+        return;
+    h->SetServingStatus("", on);
+    h->SetServingStatus(kService, on);
+}
+
+} // namespace
+
+/* ------------------------------------------------------------ C interface */
+
+extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_t msgsize)
+{
+    try {
+        std::string host = cfg->bind;
+        if (host.find(':') != std::string::npos && host[0] != '[')
+            host = "[" + host + "]";
+        std::string addr = host + ":" + std::to_string(cfg->grpc_port);
+        int selected = 0;
+        grpc::EnableDefaultHealthCheckService(true);
+        grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+        grpc::ServerBuilder b;
+        /* gRPC sets SO_REUSEPORT by default: a second mcfd on the same
+         * port would then share it silently instead of failing */
+        b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+        b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &selected);
+        b.RegisterService(&g_service);
+        /* one chunk or one header (its params at most --max-json), and a
+         * little for the framing: anything larger is refused by gRPC with
+         * RESOURCE_EXHAUSTED before it is buffered */
+        b.SetMaxReceiveMessageSize((int)(kChunk + cfg->lim.max_json_bytes + 4096));
+        b.SetMaxSendMessageSize((int)(kChunk + 4096 + 16 * 1024 * 1024));
+        g.cfg = cfg;
+        g.quit = false;
+        g.server = b.BuildAndStart();
+        if (!g.server || selected == 0) {
+            snprintf(msg, msgsize, "cannot listen for gRPC on %s", addr.c_str());
+            g.server.reset();
+            return -1;
+        }
+        set_serving(true);
+        g.pump = std::thread(pump_thread);
+        *port = selected;
+        return 0;
+    } catch (const std::exception &ex) {
+        snprintf(msg, msgsize, "gRPC: %s", ex.what());
+    } catch (...) {
+        snprintf(msg, msgsize, "gRPC: start-up failed");
+    }
+    return -1;
+}
+
+extern "C" void srv_grpc_drain(void)
+{
+    g.draining = true;
+    set_serving(false);
+}
+
+extern "C" void srv_grpc_stop(void)
+{
+    if (!g.server)
+        return;
+    try {
+        g.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+        g.server->Wait();
+    } catch (...) {
+    }
+    {
+        std::lock_guard<std::mutex> l(g.qmu);
+        g.quit = true;
+    }
+    g.qcv.notify_all();
+    if (g.pump.joinable())
+        g.pump.join();
+    g.server.reset();
+}
+
+extern "C" int srv_grpc_active(void)
+{
+    return g.active;
+}

@@ -1,0 +1,39 @@
+/*
+ * grpc_door.h - the gRPC door of mcfd (server/grpc.cc, the only C++ in
+ * server/): api/mcfd.proto's mcfd.v1.Smoother served on --grpc-port with
+ * gRPC's C++ callback API, beside the REST door, on the same job service
+ * (service.h). Plain C; no gRPC type crosses it.
+ *
+ * Life: srv_grpc_start after svc_start (the door reads and submits jobs
+ * from its first call), srv_grpc_drain with svc_drain (health turns
+ * NOT_SERVING; new Smooth and SubmitJob calls get UNAVAILABLE; reads and
+ * streams already open go on), srv_grpc_stop before svc_stop (every call
+ * is ended and every job reference and subscription released).
+ */
+#ifndef SRV_GRPC_DOOR_H
+#define SRV_GRPC_DOOR_H
+
+#include "srv.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Listens on cfg->bind:cfg->grpc_port (0: a free port) and serves. 0 and
+ * *port the port it listens on, or -1 with a one-line reason in msg. */
+int srv_grpc_start(const srv_config *cfg, int *port, char *msg,
+                   size_t msgsize);
+/* Health NOT_SERVING ("" and "mcfd.v1.Smoother"); new jobs refused with
+ * UNAVAILABLE. Accepts a door that never started. */
+void srv_grpc_drain(void);
+/* Ends every call (those still open after 2 s are cancelled), stops the
+ * server and its thread. Accepts a door that never started. */
+void srv_grpc_stop(void);
+/* Calls open now (a gauge for /metrics and the drain). */
+int srv_grpc_active(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* SRV_GRPC_DOOR_H */

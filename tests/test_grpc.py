@@ -1,0 +1,694 @@
+#!/usr/bin/python3
+"""test_grpc.py - the gRPC door of mcfd, end to end: the real daemon, a real
+gRPC client (Debian's python3-grpcio on /usr/bin/python3).
+
+Every daemon runs `$MCF_BUILD/mcfd --bind 127.0.0.1 --port 0 --grpc-port 0`
+on a spool under a temporary folder, in a process group of its own that is
+SIGKILLed whatever happens (atexit, signals, a failing test). The stubs of
+api/mcfd.proto, grpc.health.v1 and grpc.reflection.v1alpha are generated at
+start with Debian's protoc and grpc_python_plugin into that folder (the health and reflection
+protos from Debian's grpc-proto, each with its own -I, so no generated
+`grpc/` package shadows grpcio's).
+
+Output is cmocka's format ([ RUN ], [ OK ], [ PASSED ] N test(s), ...), which
+`make test` counts; MCF_TEST_FILTER=name runs one test. The REST side of a
+comparison is urllib on the same daemon: the same parameters must give the
+same bytes through either door.
+"""
+import atexit
+import json
+import os
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import traceback
+import urllib.error
+import urllib.request
+
+import grpc
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BUILD = os.path.abspath(os.environ.get("MCF_BUILD") or os.path.join(ROOT, "build"))
+MCFD = os.path.join(BUILD, "mcfd")
+DATA = os.environ.get("MCF_TESTDATA") or os.path.join(ROOT, "tests", "data")
+GRPC_PROTO = "/usr/share/grpc-proto/grpc"
+# Debian's protoc (3.21) with gRPC's Python plugin (protobuf-compiler-grpc):
+# python3-grpc-tools 1.14 bundles protoc 3.5.1, which predates proto3
+# `optional` (the typed Params need it to tell "unset" from 0).
+PROTOC = ["protoc", "--plugin=protoc-gen-grpc_python=/usr/bin/grpc_python_plugin"]
+TMP = tempfile.mkdtemp(prefix="mcfd-grpc-test-")
+CHILDREN = []
+LONG = dict(scheme="desbrun2", iterations=50000)   # runs for minutes: cancelled
+
+
+def kill_children():
+    for p in CHILDREN:
+        if p.poll() is None:
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            p.wait()
+
+
+def cleanup():
+    kill_children()
+    shutil.rmtree(TMP, ignore_errors=True)
+
+
+atexit.register(cleanup)
+for _s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
+    signal.signal(_s, lambda s, f: (cleanup(), os._exit(128 + s)))
+
+
+def gen_stubs():
+    out = os.path.join(TMP, "stubs")
+    os.mkdir(out)
+    for inc, proto in ((os.path.join(ROOT, "api"), "mcfd.proto"),
+                       (GRPC_PROTO + "/health/v1", "health.proto"),
+                       (GRPC_PROTO + "/reflection/v1alpha", "reflection.proto")):
+        subprocess.check_call(PROTOC + ["-I" + inc, "--python_out=" + out,
+                                        "--grpc_python_out=" + out, proto])
+    sys.path.insert(0, out)
+
+
+gen_stubs()
+import health_pb2  # noqa: E402
+import health_pb2_grpc  # noqa: E402
+import mcfd_pb2 as pb  # noqa: E402
+import mcfd_pb2_grpc  # noqa: E402
+import reflection_pb2  # noqa: E402
+import reflection_pb2_grpc  # noqa: E402
+
+
+def mesh(name):
+    with open(os.path.join(DATA, "meshes", name), "rb") as f:
+        return f.read()
+
+
+# ------------------------------------------------------------------ daemon
+
+class Daemon:
+    """One mcfd on loopback with free ports; stop() checks a clean exit."""
+
+    def __init__(self, name, *flags, spool=None):
+        self.name = name
+        self.spool = spool or os.path.join(TMP, name)
+        self.logpath = os.path.join(TMP, name + ".log")
+        self.flags = flags
+        self.start()
+
+    def start(self):
+        log = open(self.logpath, "ab")
+        self.p = subprocess.Popen(
+            [MCFD, "--bind", "127.0.0.1", "--port", "0", "--grpc-port", "0",
+             "--spool", self.spool, *self.flags],
+            stdout=subprocess.PIPE, stderr=log, start_new_session=True)
+        log.close()
+        CHILDREN.append(self.p)
+        lines = self._lines(2, 20)
+        try:
+            self.port = int(lines[0].split(":")[-1])
+            assert lines[1].startswith("mcfd grpc listening on 127.0.0.1:"), lines
+            self.gport = int(lines[1].split(":")[-1])
+        except (IndexError, ValueError, AssertionError):
+            self.kill()
+            raise AssertionError("%s did not start: stdout %r, log %s" %
+                                 (self.name, lines, self.log_tail()))
+        self.channel = grpc.insecure_channel("127.0.0.1:%d" % self.gport)
+        self.stub = mcfd_pb2_grpc.SmootherStub(self.channel)
+
+    def _lines(self, n, timeout):
+        buf, end = b"", time.time() + timeout
+        fd = self.p.stdout.fileno()
+        while buf.count(b"\n") < n and time.time() < end:
+            r, _, _ = select.select([fd], [], [], 0.2)
+            if r:
+                chunk = os.read(fd, 4096)
+                if not chunk:
+                    break
+                buf += chunk
+        return buf.decode(errors="replace").splitlines()
+
+    def log_tail(self):
+        with open(self.logpath, "rb") as f:
+            return f.read()[-2000:].decode(errors="replace")
+
+    def stop(self, timeout=40):
+        self.channel.close()
+        self.p.send_signal(signal.SIGTERM)
+        try:
+            rc = self.p.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            raise AssertionError("%s did not exit within %d s of SIGTERM" % (self.name, timeout))
+        assert rc == 0, "%s exited with %d after SIGTERM: %s" % (self.name, rc, self.log_tail())
+
+    def kill(self):
+        try:
+            os.killpg(self.p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.p.wait()
+        if hasattr(self, "channel"):
+            self.channel.close()
+
+    def rest(self, method, path, body=None, headers=None):
+        req = urllib.request.Request("http://127.0.0.1:%d%s" % (self.port, path), data=body,
+                                     method=method, headers=headers or {})
+        if body is not None:
+            req.add_header("Content-Type", "application/octet-stream")
+        try:
+            with urllib.request.urlopen(req, timeout=120) as r:
+                return r.status, dict(r.headers), r.read()
+        except urllib.error.HTTPError as e:
+            return e.code, dict(e.headers), e.read()
+
+    def rest_json(self, path):
+        st, _, b = self.rest("GET", path)
+        assert st == 200, (path, st, b[:300])
+        return json.loads(b)
+
+    def wait_job(self, jid, want, timeout=60):
+        end = time.time() + timeout
+        while time.time() < end:
+            j = self.rest_json("/v1/jobs/" + jid)
+            if j["status"] in want:
+                return j
+            time.sleep(0.05)
+        raise AssertionError("job %s is %s, not %s after %d s" % (jid, j["status"], want, timeout))
+
+
+def query(params):
+    return "&".join("%s=%s" % (k, v) for k, v in params.items())
+
+
+def upload(data, params=None, chunk=65536, total=True, target=None, **header):
+    h = pb.SmoothHeader(params=pb.Params(**(params or {})), **header)
+    if total:
+        h.total_size = len(data)
+    yield pb.SmoothRequest(header=h)
+    for i in range(0, len(data), chunk):
+        yield pb.SmoothRequest(chunk=data[i:i + chunk])
+    if target:
+        for i in range(0, len(target), chunk):
+            yield pb.SmoothRequest(target_chunk=target[i:i + chunk])
+
+
+class Smoothed:
+    def __init__(self, responses):
+        self.progress, self.metrics, self.header, self.chunks = [], None, None, []
+        for r in responses:
+            part = r.WhichOneof("part")
+            if part == "progress":
+                assert self.metrics is None, "progress after metrics"
+                self.progress.append(r.progress)
+            elif part == "metrics":
+                assert self.metrics is None, "two metrics messages"
+                self.metrics = json.loads(r.metrics)
+            elif part == "result_header":
+                assert self.metrics is not None and self.header is None
+                self.header = r.result_header
+            else:
+                assert self.header is not None, "a chunk before the result header"
+                assert 0 < len(r.result_chunk) <= 65536, len(r.result_chunk)
+                self.chunks.append(r.result_chunk)
+        self.result = b"".join(self.chunks)
+        assert self.header is not None, "no result"
+        assert self.header.size == len(self.result), (self.header.size, len(self.result))
+
+
+def smooth(d, data, params=None, metadata=None, timeout=120, **kw):
+    return Smoothed(d.stub.Smooth(upload(data, params, **kw), metadata=metadata, timeout=timeout))
+
+
+def expect_rpc_error(fn, code, *needles):
+    try:
+        fn()
+    except grpc.RpcError as e:
+        assert e.code() == code, "got %s (%s), want %s" % (e.code(), e.details(), code)
+        for n in needles:
+            assert n in e.details(), "%r not in %r" % (n, e.details())
+        return e
+    raise AssertionError("no error; want %s" % code)
+
+
+def smooth_err(d, data, params, code, *needles, **kw):
+    return expect_rpc_error(lambda: smooth(d, data, params, **kw), code, *needles)
+
+
+def trailing(e, key):
+    return dict(e.trailing_metadata() or ()).get(key)
+
+
+def wait_first_progress(call):
+    it = iter(call)
+    r = next(it)
+    assert r.WhichOneof("part") == "progress", r
+    return it
+
+
+def job_id_of(call):
+    return dict(call.initial_metadata())["mcf-job-id"]
+
+
+# ------------------------------------------------------------------- tests
+
+MAIN = None
+
+
+def test_smooth_draco_same_bytes_as_rest():
+    """Smooth on Draco: the same bytes as REST /smooth, one progress per step."""
+    data = mesh("bunny.drc")
+    params = dict(scheme="desbrun2", iterations=6)
+    g = smooth(MAIN, data, params, filename="bunny.drc")
+    st, hdr, body = MAIN.rest("POST", "/smooth?" + query(params), data)
+    assert st == 200, (st, body[:300])
+    assert g.result == body, "gRPC and REST results differ (%d vs %d bytes)" % (len(g.result), len(body))
+    assert g.header.format == "draco" and g.header.file_name == "result.drc", g.header
+    assert [p.step for p in g.progress] == list(range(1, 7)), [p.step for p in g.progress]
+    assert all(p.t > 0 and p.dt > 0 for p in g.progress)
+    assert g.metrics["job"] == g.header.job_id
+    assert g.metrics["input"]["path"] == "bunny.drc", g.metrics["input"]
+    rest_metrics = MAIN.rest_json("/v1/jobs/%s/metrics" % hdr["X-Job-Id"])
+    assert sorted(g.metrics) == sorted(rest_metrics), "metrics keys differ"
+    assert g.metrics["output"]["volume"] == rest_metrics["output"]["volume"]
+
+
+def test_smooth_obj_same_bytes_as_rest():
+    """Smooth on OBJ with typed parameters (auto, booleans, enums, a list)."""
+    data = mesh("sphere_cgal.obj")
+    params = dict(scheme="taubin", iterations=9, boundary="free", rescale="volume",
+                  normalize=False, fixed_vertices=[0, 5, 7])
+    g = smooth(MAIN, data, params, output_format="ply")
+    st, _, body = MAIN.rest("POST", "/smooth?scheme=taubin&iterations=9&boundary=free&"
+                            "rescale=volume&normalize=false&fixed_vertices=0,5,7&format=ply", data)
+    assert st == 200, (st, body[:300])
+    assert g.result == body and g.header.format == "ply"
+    assert len(g.progress) == 9
+    p = g.metrics["params"]
+    assert p["scheme"] == "taubin" and p["fixed_vertices"] == [0, 5, 7] and p["normalize"] is False
+    # NumberOrAuto: dt auto with an explicit scheme, strength as a number
+    g2 = smooth(MAIN, data, dict(scheme="euler", iterations=4, dt=pb.NumberOrAuto(auto=True)))
+    st, _, body = MAIN.rest("POST", "/smooth?scheme=euler&iterations=4&dt=auto", data)
+    assert g2.result == body and g2.metrics["params"]["dt"] == "auto"
+    g3 = smooth(MAIN, data, dict(strength=pb.NumberOrAuto(number=0.5)))
+    st, _, body = MAIN.rest("POST", "/smooth?strength=0.5", data)
+    assert g3.result == body and len(g3.progress) == 10
+
+
+def big_obj():
+    """A 330 x 330 bumpy grid as OBJ text: 108,900 vertices, over 4 MiB."""
+    n, lines = 330, []
+    for i in range(n):
+        for j in range(n):
+            lines.append("v %.6f %.6f %.6f" % (i / n, j / n, 0.01 * (((i * 7 + j * 13) % 17) / 17.0)))
+    for i in range(n - 1):
+        for j in range(n - 1):
+            a = i * n + j + 1
+            lines.append("f %d %d %d" % (a, a + n, a + 1))
+            lines.append("f %d %d %d" % (a + 1, a + n, a + n + 1))
+    return ("\n".join(lines) + "\n").encode()
+
+
+def test_large_mesh_in_chunks():
+    """A mesh over 4 MiB in 64 KiB chunks (and again without total_size)."""
+    data = big_obj()
+    assert len(data) > 4 << 20, len(data)
+    params = dict(scheme="desbrun2", iterations=1)
+    g = smooth(MAIN, data, params)
+    st, _, body = MAIN.rest("POST", "/smooth?" + query(params), data)
+    assert st == 200 and g.result == body, (st, len(g.result), len(body))
+    assert len(g.chunks) == (len(body) + 65535) // 65536
+    g2 = smooth(MAIN, data, params, chunk=50000, total=False)
+    assert g2.result == body
+
+
+def test_invalid_argument_names_the_parameter():
+    data = mesh("sphere_cgal.obj")
+    e = smooth_err(MAIN, data, dict(dt=pb.NumberOrAuto(number=-1)), grpc.StatusCode.INVALID_ARGUMENT, "'dt'")
+    st, _, body = MAIN.rest("POST", "/smooth?dt=-1", data)
+    assert st == 400 and json.loads(body)["detail"] == e.details(), (body, e.details())
+    assert trailing(e, "mcf-code") == "EINVAL", e.trailing_metadata()
+    smooth_err(MAIN, data, dict(scheme="nope"), grpc.StatusCode.INVALID_ARGUMENT, "'scheme'")
+    smooth_err(MAIN, data, dict(iterations=0), grpc.StatusCode.INVALID_ARGUMENT, "'iterations'")
+    smooth_err(MAIN, data, dict(strength=pb.NumberOrAuto(auto=False)), grpc.StatusCode.INVALID_ARGUMENT,
+               "'strength'")
+    smooth_err(MAIN, data, dict(tol=0.01), grpc.StatusCode.INVALID_ARGUMENT, "tol")
+    smooth_err(MAIN, data, None, grpc.StatusCode.INVALID_ARGUMENT, "'format'", output_format="xyz")
+    smooth_err(MAIN, data, None, grpc.StatusCode.INVALID_ARGUMENT, "format", format="fbx")
+    smooth_err(MAIN, data, None, grpc.StatusCode.INVALID_ARGUMENT, "draco", format="draco")
+    # the stream's shape
+    expect_rpc_error(lambda: list(MAIN.stub.Smooth(iter([pb.SmoothRequest(chunk=b"v 0 0 0\n")]))),
+                     grpc.StatusCode.INVALID_ARGUMENT, "header")
+    two = [pb.SmoothRequest(header=pb.SmoothHeader()), pb.SmoothRequest(header=pb.SmoothHeader())]
+    expect_rpc_error(lambda: list(MAIN.stub.Smooth(iter(two))), grpc.StatusCode.INVALID_ARGUMENT, "second header")
+    expect_rpc_error(lambda: list(MAIN.stub.Smooth(iter(two[:1]))), grpc.StatusCode.INVALID_ARGUMENT, "no mesh")
+    smooth_err(MAIN, data[:1000], None, grpc.StatusCode.INVALID_ARGUMENT, "total_size",
+               total=False, total_size=len(data))
+    # bytes that are no mesh: the decoder's message, as REST's
+    e = smooth_err(MAIN, b"v 1 2\nf 1 2 3\n", None, grpc.StatusCode.INVALID_ARGUMENT)
+    st, _, body = MAIN.rest("POST", "/smooth", b"v 1 2\nf 1 2 3\n")
+    assert json.loads(body)["detail"] == e.details(), (body, e.details())
+
+
+def test_resource_exhausted_limits():
+    data = mesh("sphere_cgal.obj")
+    e = smooth_err(MAIN, data, None, grpc.StatusCode.RESOURCE_EXHAUSTED, "upload limit",
+                   total=False, total_size=17 << 20)
+    assert trailing(e, "mcf-code") == "ELIMIT"
+    smooth_err(MAIN, data, None, grpc.StatusCode.RESOURCE_EXHAUSTED, "chunk limit", chunk=70000)
+    # a message over the receive limit is refused by gRPC itself
+    smooth_err(MAIN, data * 4, None, grpc.StatusCode.RESOURCE_EXHAUSTED, chunk=200000)
+    # no total_size: refused when the bytes pass the limit, before any decode
+    big = b"#" * (1 << 20)
+    t0 = time.time()
+    smooth_err(MAIN, big * 20, None, grpc.StatusCode.RESOURCE_EXHAUSTED, "upload limit", total=False)
+    assert time.time() - t0 < 30
+    # a budget that needs the mesh: max_work through iterations
+    e = smooth_err(MAIN, big_obj(), dict(iterations=100000), grpc.StatusCode.RESOURCE_EXHAUSTED,
+                   "max_work")
+    assert trailing(e, "mcf-code") == "ELIMIT"
+
+
+def test_not_found_and_failed_precondition():
+    for fn in (lambda: MAIN.stub.GetJob(pb.GetJobRequest(id="0" * 32)),
+               lambda: MAIN.stub.CancelJob(pb.CancelJobRequest(id="0" * 32)),
+               lambda: list(MAIN.stub.WatchJob(pb.WatchJobRequest(id="../../etc")))):
+        e = expect_rpc_error(fn, grpc.StatusCode.NOT_FOUND, "no job")
+        assert trailing(e, "mcf-code") == "ENOTFOUND"
+    job = MAIN.stub.SubmitJob(upload(mesh("bunny.drc"), LONG))
+    try:
+        e = expect_rpc_error(lambda: list(MAIN.stub.WatchJob(pb.WatchJobRequest(id=job.id, no_wait=True))),
+                             grpc.StatusCode.FAILED_PRECONDITION, "no result yet")
+        st, _, _ = MAIN.rest("GET", "/v1/jobs/%s/result" % job.id)
+        assert st == 409
+    finally:
+        MAIN.stub.CancelJob(pb.CancelJobRequest(id=job.id))
+
+
+def test_cancel_job_and_cancelled():
+    job = MAIN.stub.SubmitJob(upload(mesh("bunny.drc"), LONG))
+    assert job.status in (pb.Job.QUEUED, pb.Job.RUNNING) and len(job.id) == 32
+    call = MAIN.stub.WatchJob(pb.WatchJobRequest(id=job.id))
+    c = MAIN.stub.CancelJob(pb.CancelJobRequest(id=job.id))
+    assert c.id == job.id
+    e = expect_rpc_error(lambda: list(call), grpc.StatusCode.CANCELLED)
+    assert trailing(e, "mcf-code") == "ECANCELED", e.trailing_metadata()
+    j = MAIN.stub.GetJob(pb.GetJobRequest(id=job.id))
+    assert j.status == pb.Job.CANCELED and j.error.code == "ECANCELED"
+    assert j.error.grpc_code == grpc.StatusCode.CANCELLED.value[0]
+    assert MAIN.rest_json("/v1/jobs/" + job.id)["status"] == "canceled"
+
+
+def test_deadline_cancels_the_job():
+    call = MAIN.stub.Smooth(upload(mesh("bunny.drc"), LONG), timeout=2.0)
+    it = wait_first_progress(call)
+    jid = job_id_of(call)
+    expect_rpc_error(lambda: list(it), grpc.StatusCode.DEADLINE_EXCEEDED)
+    MAIN.wait_job(jid, ("canceled",), timeout=5)
+
+
+def test_cancelled_call_frees_its_worker():
+    d = Daemon("onewkr", "--workers", "1", "--queue", "4")
+    try:
+        call = d.stub.Smooth(upload(mesh("bunny.drc"), LONG))
+        wait_first_progress(call)
+        jid = job_id_of(call)
+        assert d.rest_json("/v1/jobs/" + jid)["status"] == "running"
+        call.cancel()
+        t0 = time.time()
+        g = smooth(d, mesh("sphere_cgal.obj"), dict(iterations=3))
+        took = time.time() - t0
+        assert len(g.progress) == 3 and took < 5, took
+        assert d.rest_json("/v1/jobs/" + jid)["status"] == "canceled"
+        print("    cancelled Smooth: the next job finished %.2f s later on the one worker" % took)
+        d.stop()
+    finally:
+        d.kill()
+
+
+def test_auth():
+    tok = os.path.join(TMP, "token")
+    with open(tok, "w") as f:
+        f.write("s3cret-token-for-grpc\n")
+    d = Daemon("auth", "--token-file", tok)
+    try:
+        data = mesh("sphere_cgal.obj")
+        calls = [lambda md: smooth(d, data, dict(iterations=2), metadata=md),
+                 lambda md: d.stub.SubmitJob(upload(data), metadata=md),
+                 lambda md: d.stub.GetJob(pb.GetJobRequest(id="0" * 32), metadata=md),
+                 lambda md: d.stub.CancelJob(pb.CancelJobRequest(id="0" * 32), metadata=md),
+                 lambda md: list(d.stub.WatchJob(pb.WatchJobRequest(id="0" * 32), metadata=md)),
+                 lambda md: d.stub.ListSchemes(pb.ListSchemesRequest(), metadata=md)]
+        for fn in calls:
+            for md in (None, [("authorization", "Bearer wrong")], [("authorization", "s3cret-token-for-grpc")],
+                       [("authorization", "Bearer s3cret-token-for-grp")]):
+                e = expect_rpc_error(lambda: fn(md), grpc.StatusCode.UNAUTHENTICATED, "authorization")
+                assert trailing(e, "mcf-code") == "EAUTH"
+        good = [("authorization", "Bearer s3cret-token-for-grpc")]
+        g = smooth(d, data, dict(iterations=2), metadata=good)
+        assert len(g.progress) == 2
+        assert len(d.stub.ListSchemes(pb.ListSchemesRequest(), metadata=good).schemes) >= 13
+        d.stop()
+    finally:
+        d.kill()
+
+
+def test_health_and_drain():
+    d = Daemon("drain", "--workers", "1", "--drain-timeout", "2s")
+    try:
+        h = health_pb2_grpc.HealthStub(d.channel)
+        for svc in ("", "mcfd.v1.Smoother"):
+            assert h.Check(health_pb2.HealthCheckRequest(service=svc)).status == \
+                health_pb2.HealthCheckResponse.SERVING
+        job = d.stub.SubmitJob(upload(mesh("bunny.drc"), LONG))
+        d.wait_job(job.id, ("running",))
+        d.p.send_signal(signal.SIGTERM)
+        end, st = time.time() + 5, None
+        while time.time() < end:
+            st = h.Check(health_pb2.HealthCheckRequest(service="mcfd.v1.Smoother")).status
+            if st == health_pb2.HealthCheckResponse.NOT_SERVING:
+                break
+            time.sleep(0.02)
+        assert st == health_pb2.HealthCheckResponse.NOT_SERVING, st
+        assert h.Check(health_pb2.HealthCheckRequest(service="")).status == \
+            health_pb2.HealthCheckResponse.NOT_SERVING
+        e = smooth_err(d, mesh("sphere_cgal.obj"), None, grpc.StatusCode.UNAVAILABLE, "shutting down")
+        assert trailing(e, "retry-after-ms") is not None
+        expect_rpc_error(lambda: d.stub.SubmitJob(upload(mesh("sphere_cgal.obj"))), grpc.StatusCode.UNAVAILABLE)
+        # reads still answer while draining
+        assert d.stub.GetJob(pb.GetJobRequest(id=job.id)).id == job.id
+        assert d.p.wait(30) == 0, d.log_tail()
+        # the checkpointed job is queued on disk and runs after a restart
+        d.flags = ("--workers", "1")
+        d.start()
+        j = d.stub.GetJob(pb.GetJobRequest(id=job.id))
+        assert j.status in (pb.Job.QUEUED, pb.Job.RUNNING), j.status
+        d.stub.CancelJob(pb.CancelJobRequest(id=job.id))
+        d.stop()
+    finally:
+        d.kill()
+
+
+def test_reflection_and_list_schemes():
+    r = reflection_pb2_grpc.ServerReflectionStub(MAIN.channel)
+    resp = list(r.ServerReflectionInfo(iter([reflection_pb2.ServerReflectionRequest(list_services="")])))
+    names = [s.name for s in resp[0].list_services_response.service]
+    assert "mcfd.v1.Smoother" in names and "grpc.health.v1.Health" in names, names
+    fd = list(r.ServerReflectionInfo(iter([reflection_pb2.ServerReflectionRequest(
+        file_containing_symbol="mcfd.v1.Smoother")])))
+    assert fd[0].file_descriptor_response.file_descriptor_proto, fd
+    schemes = MAIN.stub.ListSchemes(pb.ListSchemesRequest()).schemes
+    rest = MAIN.rest_json("/v1/schemes")["schemes"]
+    assert [s.name for s in schemes] == [s["name"] for s in rest]
+    assert [s.order for s in schemes] == [s["order"] for s in rest]
+
+
+def test_jobs_visible_through_both_doors():
+    data = mesh("bunny.drc")
+    params = dict(scheme="ros2", iterations=5)
+    # gRPC -> REST
+    job = MAIN.stub.SubmitJob(upload(data, params))
+    j = MAIN.wait_job(job.id, ("succeeded",))
+    assert j["params"]["scheme"] == "ros2"
+    st, _, rest_result = MAIN.rest("GET", "/v1/jobs/%s/result" % job.id)
+    assert st == 200
+    st, _, direct = MAIN.rest("POST", "/smooth?" + query(params), data)
+    assert rest_result == direct
+    g = MAIN.stub.GetJob(pb.GetJobRequest(id=job.id))
+    assert g.status == pb.Job.SUCCEEDED and json.loads(g.metrics)["job"] == job.id
+    assert g.progress.step == 5 and g.progress.fraction == 1 and g.finished
+    # REST -> gRPC
+    st, _, body = MAIN.rest("POST", "/v1/jobs?" + query(params), data)
+    assert st == 202, (st, body[:300])
+    rid = json.loads(body)["id"]
+    w = Smoothed(MAIN.stub.WatchJob(pb.WatchJobRequest(id=rid)))
+    assert w.result == direct and w.header.job_id == rid
+    assert [p.step for p in w.progress] == [1, 2, 3, 4, 5]
+    w2 = Smoothed(MAIN.stub.WatchJob(pb.WatchJobRequest(id=rid, from_step=4)))
+    assert [p.step for p in w2.progress] == [4, 5] and w2.result == direct
+    # a finished job streams at once (gRPC's buffer hint once held each
+    # write until a flush: 209 ms for this)
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        Smoothed(MAIN.stub.WatchJob(pb.WatchJobRequest(id=rid)))
+        times.append(time.perf_counter() - t0)
+    times.sort()
+    print("    WatchJob of a finished job: %.1f ms (median of 5)" % (times[2] * 1e3))
+    assert times[2] < 0.1, times
+    # a failed job: WatchJob ends with its error
+    st, _, body = MAIN.rest("POST", "/v1/jobs", b"v 1 2 3\nf 1 2 9\n")
+    fid = json.loads(body)["id"]
+    MAIN.wait_job(fid, ("failed",))
+    e = expect_rpc_error(lambda: list(MAIN.stub.WatchJob(pb.WatchJobRequest(id=fid))),
+                         grpc.StatusCode.INVALID_ARGUMENT)
+    assert MAIN.rest_json("/v1/jobs/" + fid)["error"]["detail"] == e.details()
+
+
+def test_kill9_recovery():
+    spool = os.path.join(TMP, "k9")
+    d = Daemon("k9", "--workers", "1", "--queue", "4", spool=spool)
+    try:
+        data = mesh("bunny.drc")
+        slow = d.stub.SubmitJob(upload(data, dict(scheme="desbrun2", iterations=3000)))
+        quick = d.stub.SubmitJob(upload(data, dict(scheme="desbrun2", iterations=4)))
+        d.wait_job(slow.id, ("running",))
+        assert d.stub.GetJob(pb.GetJobRequest(id=quick.id)).status == pb.Job.QUEUED
+        d.kill()
+        d.start()
+        # both are back under their IDs, in their order: the interrupted one
+        # runs again (cancelled here to save time), then the queued one
+        j = d.stub.GetJob(pb.GetJobRequest(id=slow.id))
+        assert j.status in (pb.Job.QUEUED, pb.Job.RUNNING), j
+        assert d.stub.GetJob(pb.GetJobRequest(id=quick.id)).status == pb.Job.QUEUED
+        d.stub.CancelJob(pb.CancelJobRequest(id=slow.id))
+        w = Smoothed(d.stub.WatchJob(pb.WatchJobRequest(id=quick.id), timeout=120))
+        st, _, direct = MAIN.rest("POST", "/smooth?scheme=desbrun2&iterations=4", data)
+        assert w.result == direct and len(w.progress) == 4
+        assert d.rest_json("/v1/jobs/" + quick.id)["status"] == "succeeded"
+        d.stop()
+    finally:
+        d.kill()
+
+
+def test_32_concurrent_clients_short_queue():
+    d = Daemon("busy", "--workers", "1", "--queue", "2")
+    try:
+        data = mesh("bunny.drc")
+        params = dict(scheme="desbrun2", iterations=20)
+        outcome, lock = [], threading.Lock()
+
+        def client():
+            try:
+                g = smooth(d, data, params)
+                r = ("ok", len(g.progress), g.result)
+            except grpc.RpcError as e:
+                r = (e.code(), trailing(e, "retry-after-ms"), trailing(e, "mcf-code"))
+            with lock:
+                outcome.append(r)
+
+        ts = [threading.Thread(target=client) for _ in range(32)]
+        for t in ts:
+            t.start()
+        for t in ts:
+            t.join(180)
+        assert len(outcome) == 32
+        ok = [o for o in outcome if o[0] == "ok"]
+        busy = [o for o in outcome if o[0] == grpc.StatusCode.RESOURCE_EXHAUSTED]
+        assert len(ok) + len(busy) == 32, [o[:2] for o in outcome if o[0] != "ok"]
+        assert len(ok) >= 3 and busy, (len(ok), len(busy))
+        assert all(o[1] == 20 and o[2] == ok[0][2] for o in ok)
+        assert all(o[2] == "EBUSY" and int(o[1]) > 0 for o in busy), busy[:3]
+        print("    32 clients, 1 worker, queue 2: %d succeeded, %d RESOURCE_EXHAUSTED (retry-after-ms %s)"
+              % (len(ok), len(busy), busy[0][1]))
+        h = health_pb2_grpc.HealthStub(d.channel)
+        assert h.Check(health_pb2.HealthCheckRequest()).status == health_pb2.HealthCheckResponse.SERVING
+        assert len(smooth(d, data, dict(iterations=2)).progress) == 2
+        # threads stay bounded after the burst: main, 1 worker, 2 HTTP
+        # threads, the door's pump, and gRPC's own pollers and executor
+        with open("/proc/%d/status" % d.p.pid) as f:
+            threads = int([l for l in f if l.startswith("Threads:")][0].split()[1])
+        print("    threads after the burst: %d" % threads)
+        assert threads <= 24, threads
+        st, _, m = d.rest("GET", "/metrics")
+        m = m.decode()
+        assert 'mcfd_grpc_calls_total{method="Smooth",code="OK"} %d' % (len(ok) + 1) in m, m
+        assert 'mcfd_grpc_calls_total{method="Smooth",code="RESOURCE_EXHAUSTED"} %d' % len(busy) in m
+        d.stop()
+    finally:
+        d.kill()
+
+
+def test_grpc_port_flags():
+    # a port in use is an error at start (gRPC's SO_REUSEPORT is off: a
+    # second daemon must not share the first one's port)
+    p = subprocess.run([MCFD, "--bind", "127.0.0.1", "--port", "0", "--grpc-port", str(MAIN.gport),
+                        "--spool", os.path.join(TMP, "dup")], capture_output=True, timeout=30)
+    assert p.returncode == 1 and b"cannot listen for gRPC" in p.stderr, (p.returncode, p.stderr[-300:])
+    p = subprocess.run([MCFD, "--grpc-port", "nope"], capture_output=True, timeout=10)
+    assert p.returncode == 2 and b"--grpc-port" in p.stderr, p.stderr
+    p = subprocess.run([MCFD, "--help"], capture_output=True, timeout=10)
+    assert b"--grpc-port" in p.stdout and b"MCFD_GRPC_PORT" in p.stdout
+    spool = os.path.join(TMP, "off")
+    q = subprocess.Popen([MCFD, "--bind", "127.0.0.1", "--port", "0", "--spool", spool],
+                         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, start_new_session=True,
+                         env=dict(os.environ, MCFD_GRPC_PORT="off"))
+    CHILDREN.append(q)
+    line = q.stdout.readline().decode()
+    assert line.startswith("mcfd listening on http://127.0.0.1:"), line
+    q.send_signal(signal.SIGTERM)
+    rest = q.stdout.read().decode()
+    assert q.wait(30) == 0 and "grpc" not in rest, rest
+
+
+TESTS = [v for k, v in list(globals().items()) if k.startswith("test_") and callable(v)]
+
+
+def main():
+    global MAIN
+    flt = os.environ.get("MCF_TEST_FILTER")
+    tests = [t for t in TESTS if not flt or t.__name__ == flt]
+    print("[==========] Running %d test(s)." % len(tests), flush=True)
+    failed = []
+    try:
+        # --max-work: a grid of 108,900 vertices x 100,000 steps is over it,
+        # 50,000 steps of bunny.drc (LONG) under it
+        MAIN = Daemon("main", "--workers", "2", "--queue", "8", "--max-upload", "16M",
+                      "--max-work", "5e9")
+    except Exception as e:  # noqa: BLE001
+        print("[  ERROR   ] the main daemon: %s" % e)
+        print("[  FAILED  ] %d test(s), listed below:" % len(tests))
+        return 1
+    for t in tests:
+        print("[ RUN      ] %s" % t.__name__, flush=True)
+        t0 = time.time()
+        try:
+            t()
+            print("[       OK ] %s (%.1f s)" % (t.__name__, time.time() - t0), flush=True)
+        except Exception:  # noqa: BLE001
+            traceback.print_exc(file=sys.stdout)
+            print("[  FAILED  ] %s" % t.__name__, flush=True)
+            failed.append(t.__name__)
+    try:
+        MAIN.stop()
+    except AssertionError as e:
+        print("[  ERROR   ] %s" % e)
+        failed.append("main daemon shutdown")
+    print("[==========] %d test(s) run." % len(tests))
+    print("[  PASSED  ] %d test(s)." % (len(tests) - len([f for f in failed if f in [t.__name__ for t in tests]])))
+    if failed:
+        print("[  FAILED  ] %d test(s), listed below:" % len(failed))
+        for f in failed:
+            print("[  FAILED  ] %s" % f)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
