@@ -37,6 +37,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <deque>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -72,6 +73,10 @@ struct Door {
     const srv_config *cfg = nullptr;
     std::atomic<bool> draining{false};
     std::atomic<int> active{0};
+    /* streaming calls held now, in all and by client address (Slot) */
+    std::mutex smu;
+    int streams = 0;
+    std::map<std::string, int> per_peer;
     /* the pump thread and its queue of followers to look at */
     std::mutex qmu;
     std::condition_variable qcv;
@@ -293,6 +298,61 @@ bool fill_job(svc_job *j, pb::Job *out)
 
 /* The bytes of Smooth and SubmitJob as they stream in: the header first,
  * then mesh and target chunks, every size checked before it is kept. */
+/* A streaming call's place in the door. REST bounds what clients hold by
+ * connections (--max-connections, --max-connections-per-ip); over gRPC
+ * one connection carries any number of calls, so the same two numbers
+ * bound the streaming calls (Smooth, SubmitJob, WatchJob) open at once, in
+ * all and from one address: each upload may buffer up to --max-upload,
+ * each follower is woken on every step. Beyond them a call ends with
+ * RESOURCE_EXHAUSTED (EBUSY) before it reads a message. */
+class Slot {
+  public:
+    ~Slot()
+    {
+        if (!held_)
+            return;
+        std::lock_guard<std::mutex> l(g.smu);
+        auto it = g.per_peer.find(peer_);
+        if (it != g.per_peer.end() && --it->second <= 0)
+            g.per_peer.erase(it);
+        g.streams--;
+    }
+
+    /* true when taken; else false and st says why. */
+    bool take(CallbackServerContext *ctx, Status *st)
+    {
+        const srv_config *cfg = g.cfg;
+        std::string peer = ctx->peer();      /* "ipv4:127.0.0.1:port" */
+        size_t k = peer.rfind(':');
+        if (k != std::string::npos)
+            peer.resize(k);
+        std::lock_guard<std::mutex> l(g.smu);
+        int here = g.per_peer.count(peer) ? g.per_peer[peer] : 0;
+        char d[200];
+        if (cfg->max_connections > 0 && g.streams >= cfg->max_connections)
+            snprintf(d, sizeof d, "%d streaming calls are open, the most this daemon "
+                     "keeps (--max-connections %d)", g.streams, cfg->max_connections);
+        else if (cfg->max_connections_per_ip > 0 && here >= cfg->max_connections_per_ip)
+            snprintf(d, sizeof d, "%d streaming calls are open from your address, the "
+                     "most one address may hold (--max-connections-per-ip %d)", here,
+                     cfg->max_connections_per_ip);
+        else {
+            g.per_peer[peer] = here + 1;
+            g.streams++;
+            peer_ = peer;
+            held_ = true;
+            return true;
+        }
+        ctx->AddTrailingMetadata("retry-after-ms", "1000");
+        *st = door_status(ctx, StatusCode::RESOURCE_EXHAUSTED, "EBUSY", d);
+        return false;
+    }
+
+  private:
+    bool held_ = false;
+    std::string peer_;
+};
+
 class Upload {
   public:
     ~Upload()
@@ -672,6 +732,7 @@ class Follow {
 
     CallbackServerContext *ctx_;
     bool owns_job_ = false;         /* Smooth: the job is this call's alone */
+    Slot slot_;                     /* its place among the streaming calls */
     bool finished_ = false;         /* under mu_ */
     std::mutex mu_;
 
@@ -879,8 +940,11 @@ class SmoothCall : public Follow,
     explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
     {
         owns_job_ = true;
+        Status st;
         if (!authorized(ctx))
             finish(unauthenticated(ctx));
+        else if (!slot_.take(ctx, &st))
+            finish(st);
         else if (g.draining || svc_draining())
             finish(draining_status(ctx));
         else
@@ -933,11 +997,22 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
         : Follow(ctx, "WatchJob")
     {
         svc_job *j;
+        Status st;
+        int here;
         if (!authorized(ctx)) {
             finish(unauthenticated(ctx));
+        } else if (!slot_.take(ctx, &st)) {
+            finish(st);
         } else if (!(j = svc_job_get(req->id().c_str()))) {
             finish(door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
                                "no job '" + req->id().substr(0, 64) + "' (or it expired)"));
+        } else if ((here = svc_followers(j)) >= SVC_FOLLOWERS_PER_JOB) {
+            ctx->AddTrailingMetadata("retry-after-ms", "1000");
+            finish(door_status(ctx, StatusCode::RESOURCE_EXHAUSTED, "EBUSY",
+                               "job " + std::string(svc_job_id(j)) + " already has " +
+                                   std::to_string(here) + " followers, the most one job "
+                                   "may have; poll GetJob instead"));
+            svc_job_unref(j);
         } else {
             ctx->AddInitialMetadata("mcf-job-id", svc_job_id(j));
             follow(j, false, req->from_step(), req->skip_result(), req->no_wait());
@@ -961,8 +1036,11 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
     SubmitCall(CallbackServerContext *ctx, pb::Job *resp) : ctx_(ctx), resp_(resp)
     {
         g.active++;
+        Status st;
         if (!authorized(ctx))
             end(unauthenticated(ctx));
+        else if (!slot_.take(ctx, &st))
+            end(st);
         else if (g.draining || svc_draining())
             end(draining_status(ctx));
         else
@@ -1015,6 +1093,7 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
     pb::Job *resp_;
     pb::SmoothRequest req_;
     Upload up_;
+    Slot slot_;
     std::mutex mu_;
     bool ended_ = false;
 };

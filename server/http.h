@@ -101,9 +101,9 @@ typedef enum { SRV_STREAM_NDJSON = 0, SRV_STREAM_SSE } srv_stream_kind;
 struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
                                          struct MHD_Connection *conn,
                                          long last_id);
-/* Whether one more follower of j may start (at most SRV_FOLLOWERS_PER_JOB
- * per job and half of --max-connections in all); else 0 and a 503. */
-#define SRV_FOLLOWERS_PER_JOB 64
+/* Whether one more follower of j may start (at most SVC_FOLLOWERS_PER_JOB
+ * per job, counting gRPC's, and half of --max-connections in all); else 0
+ * and a 503. */
 int srv_stream_admit(const svc_job *j, srv_problem *p);
 
 /* ---------------------------------------------------------------- requests */

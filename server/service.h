@@ -372,7 +372,10 @@ int svc_subscribe(svc_job *j, unsigned flags, svc_notify_fn fn, void *ctx,
                   svc_sub **sub);
 /* Ends a subscription (accepts NULL); fn is not running on return. */
 void svc_unsubscribe(svc_sub *sub);
-/* How many subscriptions of j want SVC_NOTIFY_PROGRESS (followers). */
+/* How many subscriptions of j want SVC_NOTIFY_PROGRESS (followers), from
+ * either door. A door starts no follower beyond SVC_FOLLOWERS_PER_JOB (one
+ * job's followers are woken one by one on every step, under the lock). */
+#define SVC_FOLLOWERS_PER_JOB 64
 int svc_followers(const svc_job *j);
 
 #endif /* SVC_SERVICE_H */

@@ -42,7 +42,7 @@ int srv_stream_admit(const svc_job *j, srv_problem *p)
     int here = svc_followers(j), total = srv_waiter_followers(),
         max_total = cfg->max_connections / 2;
 
-    if (here >= SRV_FOLLOWERS_PER_JOB) {
+    if (here >= SVC_FOLLOWERS_PER_JOB) {
         srv_problem_set(p, 503, "EBUSY", "job %s already has %d followers, "
                         "the most one job may have; poll GET /v1/jobs/%s "
                         "instead", svc_job_id(j), here, svc_job_id(j));

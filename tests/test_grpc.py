@@ -626,6 +626,54 @@ def test_32_concurrent_clients_short_queue():
         d.kill()
 
 
+def test_streaming_call_caps():
+    # --max-connections-per-ip bounds the streaming calls one address holds
+    # (each upload may buffer up to --max-upload); SVC_FOLLOWERS_PER_JOB (64)
+    # the followers of one job, counted across both doors
+    d = Daemon("caps", "--workers", "1", "--queue", "4", "--max-connections-per-ip", "2")
+    release = threading.Event()
+
+    def held():                      # a header, then nothing until released
+        yield pb.SmoothRequest(header=pb.SmoothHeader(params=pb.Params(iterations=2)))
+        release.wait(30)
+
+    try:
+        calls = [d.stub.SubmitJob.future(held()) for _ in range(2)]
+        time.sleep(0.5)              # both calls are in the daemon
+        e = expect_rpc_error(lambda: d.stub.SubmitJob(upload(mesh("sphere_cgal.obj"))),
+                             grpc.StatusCode.RESOURCE_EXHAUSTED, "--max-connections-per-ip 2")
+        assert trailing(e, "mcf-code") == "EBUSY" and trailing(e, "retry-after-ms") == "1000"
+        release.set()
+        for c in calls:              # the held uploads end without a mesh
+            expect_rpc_error(c.result, grpc.StatusCode.INVALID_ARGUMENT, "no mesh")
+        job = d.stub.SubmitJob(upload(mesh("sphere_cgal.obj"), dict(iterations=2)))
+        d.wait_job(job.id, ("succeeded",))
+        d.stop()
+    finally:
+        release.set()
+        d.kill()
+    d = Daemon("followers", "--workers", "1", "--max-connections-per-ip", "0")
+    try:
+        job = d.stub.SubmitJob(upload(mesh("bunny.drc"), LONG))
+        watchers = [d.stub.WatchJob(pb.WatchJobRequest(id=job.id)) for _ in range(64)]
+        for w in watchers:           # each one subscribed: it has a progress message
+            assert next(w).WhichOneof("part") == "progress"
+        e = expect_rpc_error(lambda: next(d.stub.WatchJob(pb.WatchJobRequest(id=job.id))),
+                             grpc.StatusCode.RESOURCE_EXHAUSTED, "already has 64 followers")
+        st, _, body = d.rest("GET", "/v1/jobs/%s/events" % job.id)
+        assert st == 503 and b"already has 64 followers" in body, (st, body[:200])
+        for w in watchers[:2]:
+            w.cancel()
+        time.sleep(0.5)
+        assert next(d.stub.WatchJob(pb.WatchJobRequest(id=job.id))).WhichOneof("part") == "progress"
+        for w in watchers:
+            w.cancel()
+        d.stub.CancelJob(pb.CancelJobRequest(id=job.id))
+        d.stop()
+    finally:
+        d.kill()
+
+
 def test_grpc_port_flags():
     # a port in use is an error at start (gRPC's SO_REUSEPORT is off: a
     # second daemon must not share the first one's port)
