@@ -118,7 +118,8 @@ static int yhas(yaml_document_t *d, yaml_node_t *n, const char *path, const char
 /* ------------------------------------------------------------ Dockerfile */
 
 typedef struct {
-    char port[16];      /* EXPOSE */
+    char port[16];      /* EXPOSE: the first port (HTTP) */
+    char grpc_port[16]; /* EXPOSE: the second (gRPC), and ENV MCFD_GRPC_PORT */
     char volume[256];   /* VOLUME ["..."] */
     char uid[16];       /* useradd --uid */
     char user[64];      /* USER name:group */
@@ -134,7 +135,11 @@ static void read_dockerfile(dockerfile *df)
     if (tl_read_file("docker/Dockerfile", &buf, &len) != 0)
         fail_msg("cannot read docker/Dockerfile");
     if ((p = strstr(buf, "\nEXPOSE ")))
-        sscanf(p + 8, "%15s", df->port);
+        sscanf(p + 8, "%15s %15s", df->port, df->grpc_port);
+    if ((p = strstr(buf, "MCFD_GRPC_PORT=")) &&
+        strncmp(p + 15, df->grpc_port, strlen(df->grpc_port)) != 0)
+        fail_msg("docker/Dockerfile: MCFD_GRPC_PORT is not the EXPOSEd %s",
+                 df->grpc_port);
     if ((p = strstr(buf, "\nVOLUME [\"")))
         sscanf(p + 10, "%255[^\"]", df->volume);
     if ((p = strstr(buf, "--uid ")))
@@ -144,9 +149,10 @@ static void read_dockerfile(dockerfile *df)
     p = strstr(buf, "\nHEALTHCHECK ");
     df->probe = p && strstr(p, "\"/usr/local/bin/mcfd\", \"--probe\"") != NULL;
     free(buf);
-    if (!*df->port || !*df->volume || !*df->uid || !*df->user || !df->probe)
-        fail_msg("docker/Dockerfile: EXPOSE '%s', VOLUME '%s', --uid '%s', USER '%s', "
-                 "HEALTHCHECK mcfd --probe %d: one is missing", df->port, df->volume,
+    if (!*df->port || !*df->grpc_port || !*df->volume || !*df->uid || !*df->user || !df->probe)
+        fail_msg("docker/Dockerfile: EXPOSE '%s' '%s', VOLUME '%s', --uid '%s', USER '%s', "
+                 "HEALTHCHECK mcfd --probe %d: one is missing", df->port, df->grpc_port,
+                 df->volume,
                  df->uid, df->user, df->probe);
     assert_string_not_equal(df->uid, "0");
     assert_string_not_equal(df->user, "root");
@@ -185,6 +191,12 @@ static void test_compose(void **state)
     if (!yhas(d, svc, "ports", want))
         fail_msg("%s: ports do not publish %s", file, want);
     assert_string_equal(ystr(d, svc, "environment.MCFD_PORT", file), df.port);
+    /* the gRPC door's, the same way */
+    snprintf(want, sizeof want, "127.0.0.1:%s:%s", df.grpc_port, df.grpc_port);
+    if (!yhas(d, svc, "ports", want))
+        fail_msg("%s: ports do not publish gRPC's %s", file, want);
+    assert_string_equal(ystr(d, svc, "environment.MCFD_GRPC_PORT", file),
+                        df.grpc_port);
     /* the image's health check, the spool volume, a non-root user */
     if (!yhas(d, svc, "healthcheck.test", "--probe") ||
         !yhas(d, svc, "healthcheck.test", "/usr/local/bin/mcfd"))
@@ -220,6 +232,9 @@ static void test_kubernetes(void **state)
             fail_msg("%s: the Deployment has no container", file);
         assert_string_equal(ystr(d, c, "image", file), image_name());
         assert_string_equal(ystr(d, c, "ports.[0].containerPort", file), df.port);
+        assert_string_equal(ystr(d, c, "ports.[1].containerPort", file),
+                            df.grpc_port);
+        assert_string_equal(ystr(d, c, "ports.[1].name", file), "grpc");
         assert_string_equal(ystr(d, pod, "securityContext.runAsUser", file), df.uid);
         assert_string_equal(ystr(d, pod, "securityContext.runAsNonRoot", file), "true");
         assert_string_equal(ystr(d, c, "livenessProbe.httpGet.path", file), "/healthz");
