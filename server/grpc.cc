@@ -353,6 +353,20 @@ class Slot {
     std::string peer_;
 };
 
+/* Whether an upload (Smooth, SubmitJob) may start reading: the token, a
+ * slot, and not draining, in that order. OK, or the status to end with. */
+Status admit_upload(CallbackServerContext *ctx, Slot *slot)
+{
+    Status st;
+    if (!authorized(ctx))
+        return unauthenticated(ctx);
+    if (!slot->take(ctx, &st))
+        return st;
+    if (g.draining || svc_draining())
+        return draining_status(ctx);
+    return Status::OK;
+}
+
 class Upload {
   public:
     ~Upload()
@@ -940,15 +954,11 @@ class SmoothCall : public Follow,
     explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
     {
         owns_job_ = true;
-        Status st;
-        if (!authorized(ctx))
-            finish(unauthenticated(ctx));
-        else if (!slot_.take(ctx, &st))
-            finish(st);
-        else if (g.draining || svc_draining())
-            finish(draining_status(ctx));
-        else
+        Status st = admit_upload(ctx, &slot_);
+        if (st.ok())
             StartRead(&req_);
+        else
+            finish(st);
     }
 
     void OnReadDone(bool ok) override
@@ -1036,15 +1046,11 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
     SubmitCall(CallbackServerContext *ctx, pb::Job *resp) : ctx_(ctx), resp_(resp)
     {
         g.active++;
-        Status st;
-        if (!authorized(ctx))
-            end(unauthenticated(ctx));
-        else if (!slot_.take(ctx, &st))
-            end(st);
-        else if (g.draining || svc_draining())
-            end(draining_status(ctx));
-        else
+        Status st = admit_upload(ctx, &slot_);
+        if (st.ok())
             StartRead(&req_);
+        else
+            end(st);
     }
 
     void OnReadDone(bool ok) override
