@@ -103,7 +103,9 @@ check() {
     # machines do not run; the HEALTHCHECK (mcfd --probe) is run by hand below instead.
     # (podman 4.3 still says so on stderr: kept in $out/podman.err, shown on a failure)
     # -p 127.0.0.1::8080: a free loopback port, read back with podman port
-    pm run -d --name "$name" --health-interval=disable -p 127.0.0.1::8080 -p 127.0.0.1::50051 "$image" \
+    # --memory 1g: the default --max-memory must follow the container's limit, not the host's RAM
+    pm run -d --name "$name" --health-interval=disable --memory 1g \
+        -p 127.0.0.1::8080 -p 127.0.0.1::50051 "$image" \
         >/dev/null 2>"$out/podman.err" || { cat "$out/podman.err" >&2; exit 1; }
     port=$(pm port "$name" 8080/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
     [ -n "$port" ] || { pm port "$name" >&2; echo "image-check: FAIL: no loopback port" >&2; exit 1; }
@@ -118,6 +120,10 @@ check() {
         sleep 0.5
     done
     echo "image-check: healthcheck (mcfd --probe) passes"
+    mm=$(pm logs "$name" 2>&1 | sed -n 's/.*"max_memory":\([0-9]*\).*/\1/p' | head -1)
+    [ "$mm" = 536870912 ] ||
+        { echo "image-check: FAIL: max_memory '$mm' under --memory 1g, want half of it (536870912)" >&2; exit 1; }
+    echo "image-check: under --memory 1g the default --max-memory is 512 MiB (half the cgroup limit)"
     # the processes themselves, seen from the host: tini (PID 1) and mcfd under it
     pid=$(pm inspect --format '{{.State.Pid}}' "$name")
     ps -o uid=,args= -p "$pid" --ppid "$pid" > "$out/procs"
@@ -135,6 +141,13 @@ check() {
     grep -Eq '"vertices":[[:space:]]*812,' "$out/info.json" ||
         { echo "image-check: FAIL: not the sphere's 812 vertices:" >&2; cat "$out/info.json" >&2; exit 1; }
     echo "image-check: POST /smooth on 127.0.0.1:$port returned a mesh of 812 vertices that decodes"
+    # a Draco upload: decoded in the sandboxed child (posix_spawn of /proc/self/exe) inside the container
+    code=$(curl -sS -o "$out/smoothed.drc" -w '%{http_code}' --max-time 120 \
+        -F mesh=@tests/data/meshes/bunny.drc "http://127.0.0.1:$port/smooth")
+    [ "$code" = 200 ] || { cat "$out/smoothed.drc" >&2; echo "image-check: FAIL: POST /smooth bunny.drc: HTTP $code" >&2; exit 1; }
+    "$mcf" info "$out/smoothed.drc" | grep -Eq '"vertices":[[:space:]]*34834,' ||
+        { echo "image-check: FAIL: the smoothed bunny.drc is not the bunny's 34834 vertices" >&2; exit 1; }
+    echo "image-check: POST /smooth of bunny.drc (a sandboxed Draco decode) returned the bunny's 34834 vertices"
     # the gRPC door: Smooth through the published port with the example client
     gport=$(pm port "$name" 50051/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
     /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --iterations 5 \
