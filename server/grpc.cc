@@ -40,6 +40,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -77,6 +78,9 @@ struct Door {
     std::mutex smu;
     int streams = 0;
     std::map<std::string, int> per_peer;
+    /* uploads still being received (srv_grpc_expire_uploads) */
+    std::mutex umu;
+    std::set<std::shared_ptr<struct Deadline>> uploads;
     /* the pump thread and its queue of followers to look at */
     std::mutex qmu;
     std::condition_variable qcv;
@@ -177,6 +181,16 @@ Status draining_status(CallbackServerContext *ctx)
     return door_status(ctx, StatusCode::UNAVAILABLE, "EDRAINING",
                        "the daemon is shutting down: no new jobs (retry on "
                        "another instance or after the restart)");
+}
+
+/* An upload that missed a deadline of the door (not the client's own). */
+Status late_status(CallbackServerContext *ctx, const char *what, const char *flag,
+                   double limit)
+{
+    char d[200];
+    snprintf(d, sizeof d, "%s did not arrive within %s %g s of the call's start", what,
+             flag, limit);
+    return door_status(ctx, StatusCode::DEADLINE_EXCEEDED, "ETIMEOUT", d);
 }
 
 /* The parameters as the JSON object REST's `params` field takes: every
@@ -367,10 +381,36 @@ Status admit_upload(CallbackServerContext *ctx, Slot *slot)
     return Status::OK;
 }
 
+/* An upload call (Smooth, SubmitJob) the main thread may end when its
+ * upload is late. */
+class Expirable {
+  public:
+    /* Ends the call with DEADLINE_EXCEEDED: what was late and its limit. */
+    virtual void expire(const char *what, const char *flag, double limit) = 0;
+
+  protected:
+    ~Expirable() = default;
+};
+
+/* An upload's deadlines, shared by its call and srv_grpc_expire_uploads on
+ * the main thread. The call may end, and be deleted, on a gRPC thread at
+ * any time, so the main thread reaches it only through this record, under
+ * mu and while alive; the call clears alive (disarm) at the latest in its
+ * OnDone. mu is recursive: ending the call may run its reactions, which
+ * disarm it, on the same thread. */
+struct Deadline {
+    std::recursive_mutex mu;
+    Expirable *call = nullptr;     /* valid while alive */
+    bool alive = true;
+    std::atomic<bool> have_header{false};
+    double started = 0;            /* srv_mono() at the call's start */
+};
+
 class Upload {
   public:
     ~Upload()
     {
+        disarm();
         free(mesh_);
         free(target_);
         svc_record_free(&rec_);
@@ -384,6 +424,8 @@ class Upload {
             if (have_header_)
                 return fail(e, SVC_EPARAMS, "EINVAL", "a second header: the header is sent once, first");
             have_header_ = true;
+            if (dl_)
+                dl_->have_header = true;
             return header(m.header(), e);
         case pb::SmoothRequest::kChunk:
         case pb::SmoothRequest::kTargetChunk: {
@@ -426,6 +468,34 @@ class Upload {
         char *in = mesh_, *tg = target_;
         mesh_ = target_ = nullptr;
         return svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
+    }
+
+    /* The upload's deadlines start now: --header-timeout for the header,
+     * --body-timeout for the whole upload (srv_grpc_expire_uploads). */
+    void arm(Expirable *call)
+    {
+        dl_ = std::make_shared<Deadline>();
+        dl_->call = call;
+        dl_->started = srv_mono();
+        std::lock_guard<std::mutex> l(g.umu);
+        g.uploads.insert(dl_);
+    }
+
+    /* The upload is whole, or the call ends: no deadline from now on.
+     * Never with a lock held that expire() takes. */
+    void disarm()
+    {
+        if (!dl_)
+            return;
+        {
+            std::lock_guard<std::mutex> l(g.umu);
+            g.uploads.erase(dl_);
+        }
+        {
+            std::lock_guard<std::recursive_mutex> l(dl_->mu);
+            dl_->alive = false;
+        }
+        dl_.reset();
     }
 
   private:
@@ -563,6 +633,7 @@ class Upload {
     long long total_size_ = -1, target_size_ = -1;
     char *mesh_ = nullptr, *target_ = nullptr;
     size_t mesh_len_ = 0, target_len_ = 0, mesh_alloc_ = 0, target_alloc_ = 0;
+    std::shared_ptr<Deadline> dl_;
 };
 
 /* ---------------------------------------------------------------- follow */
@@ -949,16 +1020,19 @@ void pump_thread()
 /* ------------------------------------------------------------------ Smooth */
 
 class SmoothCall : public Follow,
-                   public grpc::ServerBidiReactor<pb::SmoothRequest, pb::SmoothResponse> {
+                   public grpc::ServerBidiReactor<pb::SmoothRequest, pb::SmoothResponse>,
+                   public Expirable {
   public:
     explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
     {
         owns_job_ = true;
         Status st = admit_upload(ctx, &slot_);
-        if (st.ok())
+        if (st.ok()) {
+            up_.arm(this);
             StartRead(&req_);
-        else
+        } else {
             finish(st);
+        }
     }
 
     void OnReadDone(bool ok) override
@@ -971,9 +1045,10 @@ class SmoothCall : public Follow,
                 finish(status_from(ctx_, e));
             return;
         }
+        up_.disarm();           /* whole: no expiry from now on */
         {
             std::lock_guard<std::mutex> l(mu_);
-            if (finished_)      /* cancelled while reading */
+            if (finished_)      /* cancelled or expired while reading */
                 return;
         }
         svc_job *j = nullptr;
@@ -989,7 +1064,15 @@ class SmoothCall : public Follow,
     /* The call's end (client cancel, deadline, broken stream): the job is
      * this call's alone, so it is cancelled and its worker freed. */
     void OnCancel() override { cancelled(); }
-    void OnDone() override { done(); }
+    void OnDone() override
+    {
+        up_.disarm();
+        done();
+    }
+    void expire(const char *what, const char *flag, double limit) override
+    {
+        finish(late_status(ctx_, what, flag, limit));
+    }
 
   private:
     void start_write(const pb::SmoothResponse *m) override { StartWrite(m); }
@@ -1041,16 +1124,18 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
 
 /* -------------------------------------------------------------- SubmitJob */
 
-class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
+class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest>, public Expirable {
   public:
     SubmitCall(CallbackServerContext *ctx, pb::Job *resp) : ctx_(ctx), resp_(resp)
     {
         g.active++;
         Status st = admit_upload(ctx, &slot_);
-        if (st.ok())
+        if (st.ok()) {
+            up_.arm(this);
             StartRead(&req_);
-        else
+        } else {
             end(st);
+        }
     }
 
     void OnReadDone(bool ok) override
@@ -1063,9 +1148,10 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
                 end(status_from(ctx_, e));
             return;
         }
+        up_.disarm();       /* whole: no expiry from now on */
         {
             std::lock_guard<std::mutex> l(mu_);
-            if (ended_)     /* cancelled while reading */
+            if (ended_)     /* cancelled or expired while reading */
                 return;
         }
         svc_job *j = nullptr;
@@ -1081,8 +1167,13 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest> {
     void OnCancel() override { end(Status(StatusCode::CANCELLED, "cancelled by the client")); }
     void OnDone() override
     {
+        up_.disarm();
         g.active--;
         delete this;
+    }
+    void expire(const char *what, const char *flag, double limit) override
+    {
+        end(late_status(ctx_, what, flag, limit));
     }
 
   private:
@@ -1279,6 +1370,34 @@ extern "C" void srv_grpc_stop(void)
     if (g.pump.joinable())
         g.pump.join();
     g.server.reset();
+}
+
+extern "C" int srv_grpc_expire_uploads(double header_timeout, double body_timeout)
+{
+    std::vector<std::shared_ptr<Deadline>> late;
+    double now = srv_mono();
+    {
+        std::lock_guard<std::mutex> l(g.umu);
+        for (const auto &d : g.uploads) {
+            double age = now - d->started;
+            if ((header_timeout > 0 && !d->have_header && age > header_timeout) ||
+                (body_timeout > 0 && age > body_timeout))
+                late.push_back(d);
+        }
+    }
+    int n = 0;
+    for (const auto &d : late) {
+        std::lock_guard<std::recursive_mutex> l(d->mu);
+        if (!d->alive)
+            continue;
+        d->alive = false;
+        if (!d->have_header)
+            d->call->expire("the header", "--header-timeout", header_timeout);
+        else
+            d->call->expire("the whole upload", "--body-timeout", body_timeout);
+        n++;
+    }
+    return n;
 }
 
 extern "C" int srv_grpc_active(void)

@@ -29,6 +29,13 @@ void srv_grpc_drain(void);
 /* Ends every call (those still open after 2 s are cancelled), stops the
  * server and its thread. Accepts a door that never started. */
 void srv_grpc_stop(void);
+/* Ends with DEADLINE_EXCEEDED (ETIMEOUT) the Smooth and SubmitJob calls
+ * whose header has not come within header_timeout seconds of the call's
+ * start, or whose whole upload has not come within body_timeout: REST's
+ * --header-timeout and --body-timeout, so a stalled or trickling client
+ * cannot hold a slot and its buffer (0: no such limit). Called from the
+ * main thread's tick. Returns how many calls it ended. */
+int srv_grpc_expire_uploads(double header_timeout, double body_timeout);
 /* Calls open now (a gauge for /metrics and the drain). */
 int srv_grpc_active(void);
 

@@ -317,6 +317,16 @@ int main(int argc, char **argv)
                          n, n == 1 ? "" : "s", cfg.header_timeout,
                          cfg.body_timeout);
         }
+        if (cfg.grpc_port >= 0 && (cfg.header_timeout > 0 || cfg.body_timeout > 0)) {
+            int n = srv_grpc_expire_uploads(cfg.header_timeout,
+                                            cfg.body_timeout);
+            if (n > 0)
+                srv_logf(SRV_LOG_WARN, "ended %d gRPC upload%s that sent no "
+                         "header within --header-timeout %g s or no whole "
+                         "upload within --body-timeout %g s", n,
+                         n == 1 ? "" : "s", cfg.header_timeout,
+                         cfg.body_timeout);
+        }
         if (ticks % 4 == 0)
             svc_sweep();
     }

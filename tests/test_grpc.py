@@ -674,6 +674,54 @@ def test_streaming_call_caps():
         d.kill()
 
 
+def test_upload_deadlines():
+    # REST's --header-timeout and --body-timeout hold for gRPC uploads: a
+    # call that sends no header, or trickles its mesh, is ended with
+    # DEADLINE_EXCEEDED (ETIMEOUT) and its slot freed; an upload in time is
+    # not touched
+    d = Daemon("deadlines", "--header-timeout", "1", "--body-timeout", "2",
+               "--max-connections-per-ip", "2")
+    stop = threading.Event()
+
+    def silent():                    # the call opens, nothing is sent
+        stop.wait(30)
+        return
+        yield
+
+    def trickle():                   # a header, then 1 KiB every 0.2 s
+        data = mesh("sphere_cgal.obj")
+        yield pb.SmoothRequest(header=pb.SmoothHeader(params=pb.Params(iterations=2)))
+        for i in range(0, len(data), 1024):
+            if stop.wait(0.2):
+                return
+            yield pb.SmoothRequest(chunk=data[i:i + 1024])
+
+    try:
+        for gen, what, lo, hi in ((silent, "--header-timeout 1", 0.9, 3.5),
+                                  (trickle, "--body-timeout 2", 1.9, 4.5)):
+            t0 = time.time()
+            e = expect_rpc_error(lambda: d.stub.SubmitJob(gen(), timeout=30),
+                                 grpc.StatusCode.DEADLINE_EXCEEDED, what)
+            dt = time.time() - t0
+            assert trailing(e, "mcf-code") == "ETIMEOUT", e.trailing_metadata()
+            assert lo <= dt <= hi, (what, dt)
+            print("    %s: ended after %.2f s" % (what, dt))
+        # a trickling Smooth too, and neither held a slot after: two calls
+        # (the per-address cap) still go through
+        e = expect_rpc_error(lambda: list(d.stub.Smooth(trickle(), timeout=30)),
+                             grpc.StatusCode.DEADLINE_EXCEEDED, "--body-timeout 2")
+        for _ in range(2):
+            g = smooth(d, mesh("sphere_cgal.obj"), dict(iterations=2))
+            assert len(g.progress) == 2
+        st, _, m = d.rest("GET", "/metrics")
+        assert b'mcfd_grpc_calls_total{method="SubmitJob",code="DEADLINE_EXCEEDED"} 2' in m, m
+        stop.set()
+        d.stop()
+    finally:
+        stop.set()
+        d.kill()
+
+
 def test_grpc_port_flags():
     # a port in use is an error at start (gRPC's SO_REUSEPORT is off: a
     # second daemon must not share the first one's port)
