@@ -722,6 +722,42 @@ def test_upload_deadlines():
         d.kill()
 
 
+def test_corrupt_message_is_not_the_end_of_the_upload():
+    # gRPC's own parse failure ends a read as a half-close does, so a
+    # corrupt message after some chunks passed for the end of the upload
+    # and the bytes before it were submitted (SubmitJob answered with a job
+    # made from a truncated mesh). Now the door parses the bytes itself: any
+    # message that is not a SmoothRequest is INVALID_ARGUMENT, nothing is
+    # submitted; unknown fields are still skipped (proto3)
+    ch = MAIN.channel
+    smooth_raw = ch.stream_stream("/mcfd.v1.Smoother/Smooth", request_serializer=lambda b: b,
+                                  response_deserializer=pb.SmoothResponse.FromString)
+    submit_raw = ch.stream_unary("/mcfd.v1.Smoother/SubmitJob", request_serializer=lambda b: b,
+                                 response_deserializer=pb.Job.FromString)
+    data = mesh("sphere_cgal.obj")
+    hdr = pb.SmoothRequest(header=pb.SmoothHeader(params=pb.Params(iterations=2))).SerializeToString()
+    chunks = [pb.SmoothRequest(chunk=data[i:i + 4096]).SerializeToString()
+              for i in range(0, len(data), 4096)]
+    junk = b"\xff\xff\xff\xff\xff"          # a truncated varint: no protobuf at all
+    for name, msgs, n in (("first", [junk], 1), ("after the header", [hdr, junk], 2),
+                          ("after 3 chunks", [hdr] + chunks[:3] + [junk], 5)):
+        for call in (lambda m: list(smooth_raw(iter(m), timeout=10)),
+                     lambda m: submit_raw(iter(m), timeout=10)):
+            t0 = time.time()
+            e = expect_rpc_error(lambda: call(msgs), grpc.StatusCode.INVALID_ARGUMENT,
+                                 "message %d of the upload is not a SmoothRequest" % n)
+            assert trailing(e, "mcf-code") == "EINVAL", e.trailing_metadata()
+            assert time.time() - t0 < 5
+        print("    junk %s: INVALID_ARGUMENT %r" % (name, e.details()[:60]))
+    # an unknown field (number 127, varint) in every message is skipped
+    unk = b"\xf8\x07\x01"
+    g = Smoothed(smooth_raw(iter([hdr + unk] + [c + unk for c in chunks]), timeout=30))
+    assert len(g.progress) == 2 and g.header.size > 0
+    # the daemon is as it was: the next upload goes through
+    job = MAIN.stub.SubmitJob(upload(data, dict(iterations=2)))
+    MAIN.wait_job(job.id, ("succeeded",))
+
+
 def test_grpc_port_flags():
     # a port in use is an error at start (gRPC's SO_REUSEPORT is off: a
     # second daemon must not share the first one's port)
