@@ -776,7 +776,12 @@ def test_open_and_cancel_thousands_of_calls():
         data = mesh("sphere_cgal.obj")
         smooth(d, data, dict(iterations=2))
         job = d.stub.SubmitJob(upload(mesh("bunny.drc"), LONG))
+        d.wait_job(job.id, ("running",))
+        next(d.stub.WatchJob(pb.WatchJobRequest(id=job.id)))   # decoded: the sandbox is gone
+        time.sleep(0.3)
         base = proc_figures(d.p.pid)
+        with open("/proc/%d/maps" % d.p.pid) as f:
+            asan = "libasan" in f.read()                       # its quarantine holds freed memory
         busy, t0 = 0, time.time()
         for r in range(2):
             for i in range(500):
@@ -797,18 +802,19 @@ def test_open_and_cancel_thousands_of_calls():
         while time.time() < end:
             m = d.rest("GET", "/metrics")[2].decode()
             after = proc_figures(d.p.pid)
-            if "\nmcfd_followers 0\n" in m and after[1] == base[1]:
+            if "\nmcfd_followers 0\n" in m and after[1] <= base[1]:
                 break
             time.sleep(0.1)
         print("    1500 calls opened and cancelled in %.1f s (%d refused while retiring): "
               "threads %d -> %d, fds %d -> %d, RSS %d -> %d KiB (%d after the first 750)"
               % (took, busy, base[0], after[0], base[1], after[1], base[2], after[2], mid[2]))
         assert "\nmcfd_followers 0\n" in m, [l for l in m.splitlines() if "follower" in l]
-        assert after[1] == base[1], (base, after)
+        assert after[1] <= base[1], (base, after)
         assert after[0] <= base[0] + 4, (base, after)
         # gRPC's and malloc's pools fill in the first half; a call that left
         # anything behind would show in the second (measured +2.7 MiB)
-        assert after[2] - mid[2] < 12 * 1024 and after[2] - base[2] < 96 * 1024, (base, mid, after)
+        assert asan or (after[2] - mid[2] < 12 * 1024 and after[2] - base[2] < 96 * 1024), \
+            (base, mid, after)
         # the slots are free: 64 followers fit again
         ws = [d.stub.WatchJob(pb.WatchJobRequest(id=job.id)) for _ in range(64)]
         for w in ws:
