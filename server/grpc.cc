@@ -416,7 +416,24 @@ class Upload {
         svc_record_free(&rec_);
     }
 
-    /* One message; false and *e when the call must end. */
+    /* One message as it came, parsed here: gRPC's own parse failure ends
+     * a read as the client's half-close does (OnReadDone(false)), so a
+     * corrupt message in the middle of an upload would pass for its end
+     * and the bytes before it would be submitted as the mesh (a job was
+     * made from a truncated mesh). Clears b. false and *e when the call
+     * must end. */
+    bool feed(grpc::ByteBuffer *b, svc_error *e)
+    {
+        nmsg_++;
+        Status ps = grpc::SerializationTraits<pb::SmoothRequest>::Deserialize(b, &req_);
+        if (!ps.ok())
+            return fail(e, SVC_EPARAMS, "EINVAL", "message %ld of the upload is not a "
+                        "SmoothRequest (its bytes do not parse as one): the upload is "
+                        "refused, nothing is submitted", nmsg_);
+        return feed(req_, e);
+    }
+
+    /* One parsed message; false and *e when the call must end. */
     bool feed(const pb::SmoothRequest &m, svc_error *e)
     {
         switch (m.part_case()) {
@@ -628,6 +645,8 @@ class Upload {
     }
 
     bool have_header_ = false;
+    long nmsg_ = 0;                 /* messages received */
+    pb::SmoothRequest req_;
     svc_record rec_ = {};
     api_format in_format_ = API_FMT_UNKNOWN;
     long long total_size_ = -1, target_size_ = -1;
@@ -1020,7 +1039,7 @@ void pump_thread()
 /* ------------------------------------------------------------------ Smooth */
 
 class SmoothCall : public Follow,
-                   public grpc::ServerBidiReactor<pb::SmoothRequest, pb::SmoothResponse>,
+                   public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
                    public Expirable {
   public:
     explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
@@ -1039,7 +1058,7 @@ class SmoothCall : public Follow,
     {
         svc_error e;
         if (ok) {
-            if (up_.feed(req_, &e))
+            if (up_.feed(&req_, &e))
                 StartRead(&req_);
             else
                 finish(status_from(ctx_, e));
@@ -1075,10 +1094,21 @@ class SmoothCall : public Follow,
     }
 
   private:
-    void start_write(const pb::SmoothResponse *m) override { StartWrite(m); }
+    /* Under mu_ (Follow::pump); one write in flight, so one buffer. */
+    void start_write(const pb::SmoothResponse *m) override
+    {
+        bool own;
+        wbuf_.Clear();              /* the last write is done: its bytes go */
+        if (!grpc::SerializationTraits<pb::SmoothResponse>::Serialize(*m, &wbuf_, &own).ok()) {
+            finished_ = true;
+            Finish(counted("Smooth", Status(StatusCode::INTERNAL, "cannot serialize a response")));
+            return;
+        }
+        StartWrite(&wbuf_);
+    }
     void finish_call(const Status &st) override { Finish(st); }
 
-    pb::SmoothRequest req_;
+    grpc::ByteBuffer req_, wbuf_;   /* parsed and serialized here (Upload::feed) */
     Upload up_;
 };
 
@@ -1124,9 +1154,9 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
 
 /* -------------------------------------------------------------- SubmitJob */
 
-class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest>, public Expirable {
+class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>, public Expirable {
   public:
-    SubmitCall(CallbackServerContext *ctx, pb::Job *resp) : ctx_(ctx), resp_(resp)
+    SubmitCall(CallbackServerContext *ctx, grpc::ByteBuffer *resp) : ctx_(ctx), resp_(resp)
     {
         g.active++;
         Status st = admit_upload(ctx, &slot_);
@@ -1142,7 +1172,7 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest>, public Exp
     {
         svc_error e;
         if (ok) {
-            if (up_.feed(req_, &e))
+            if (up_.feed(&req_, &e))
                 StartRead(&req_);
             else
                 end(status_from(ctx_, e));
@@ -1159,7 +1189,9 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest>, public Exp
             end(status_from(ctx_, e));
             return;
         }
-        bool ok2 = fill_job(j, resp_);
+        pb::Job job;
+        bool own, ok2 = fill_job(j, &job) &&
+                        grpc::SerializationTraits<pb::Job>::Serialize(job, resp_, &own).ok();
         svc_job_unref(j);
         end(ok2 ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory"));
     }
@@ -1187,8 +1219,8 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest>, public Exp
     }
 
     CallbackServerContext *ctx_;
-    pb::Job *resp_;
-    pb::SmoothRequest req_;
+    grpc::ByteBuffer *resp_;        /* the Job, serialized here */
+    grpc::ByteBuffer req_;          /* parsed by Upload::feed */
     Upload up_;
     Slot slot_;
     std::mutex mu_;
@@ -1197,15 +1229,24 @@ class SubmitCall : public grpc::ServerReadReactor<pb::SmoothRequest>, public Exp
 
 /* ---------------------------------------------------------------- service */
 
-class Smoother final : public pb::Smoother::CallbackService {
-    grpc::ServerBidiReactor<pb::SmoothRequest, pb::SmoothResponse> *
+/* Smooth and SubmitJob are raw methods: their requests come as bytes and
+ * are parsed by the door (Upload::feed), the only way to tell a corrupt
+ * message from the end of the upload. Reflection still describes them
+ * from the proto. */
+using SmootherBase = pb::Smoother::WithRawCallbackMethod_Smooth<
+    pb::Smoother::WithRawCallbackMethod_SubmitJob<pb::Smoother::WithCallbackMethod_GetJob<
+        pb::Smoother::WithCallbackMethod_CancelJob<pb::Smoother::WithCallbackMethod_WatchJob<
+            pb::Smoother::WithCallbackMethod_ListSchemes<pb::Smoother::Service>>>>>>;
+
+class Smoother final : public SmootherBase {
+    grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> *
     Smooth(CallbackServerContext *ctx) override
     {
         return new SmoothCall(ctx);
     }
 
-    grpc::ServerReadReactor<pb::SmoothRequest> *SubmitJob(CallbackServerContext *ctx,
-                                                          pb::Job *resp) override
+    grpc::ServerReadReactor<grpc::ByteBuffer> *SubmitJob(CallbackServerContext *ctx,
+                                                         grpc::ByteBuffer *resp) override
     {
         return new SubmitCall(ctx, resp);
     }
