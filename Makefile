@@ -5,6 +5,7 @@
 #   make test       deps, build, then every unit test binary (build/tests/test_*)
 #   make bench      benchmarks (bench/), ratios against a peer measured in the same run
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
+#   make tsan       the daemon's tests under ThreadSanitizer (build-tsan/, tests/tsan.supp)
 #   make WERROR=1 ...                  warnings are errors (CI)
 #   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
@@ -203,6 +204,30 @@ test: deps
 asan:
 	$(MAKE) SAN=address,undefined test
 
+# ---- ThreadSanitizer on the daemon (build-tsan/): test_server against
+# TSan builds of mcfd (the job service, the REST door, the sandbox), with
+# tests/tsan.supp. Fails on any report; they are kept in build-tsan/tsan/
+# (one file per process that had one). TSAN_GRPC=1 adds test_grpc: not
+# clean yet, gRPC's libraries are not instrumented and TSan cannot see the
+# order gRPC gives a call's reactions (tests/tsan.supp says what is left).
+TSAN_OPTS = halt_on_error=0 second_deadlock_stack=1 \
+  suppressions=$(CURDIR)/tests/tsan.supp log_path=$(CURDIR)/build-tsan/tsan/report
+tsan: deps
+	$(MAKE) SAN=thread B=build-tsan build-tsan/mcfd build-tsan/mcf build-tsan/tests/test_server
+	@rm -rf build-tsan/tsan; mkdir -p build-tsan/tsan; fail=0; \
+	OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
+	  MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=build-tsan TSAN_OPTIONS="$(TSAN_OPTS)" \
+	  build-tsan/tests/test_server || fail=1; \
+	[ "$(TSAN_GRPC)" != 1 ] || OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
+	  MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=build-tsan TSAN_OPTIONS="$(TSAN_OPTS)" \
+	  /usr/bin/python3 tests/test_grpc.py || fail=1; \
+	if [ -n "$$(ls build-tsan/tsan)" ]; then fail=1; \
+	  echo "make tsan: ThreadSanitizer reports in build-tsan/tsan/:"; \
+	  grep -h '^SUMMARY' build-tsan/tsan/* | sort | uniq -c; fi; \
+	echo "make tsan: $$([ $$fail = 0 ] && echo clean || echo FAILED)"; exit $$fail
+
+.PHONY: tsan
+
 # ---- the attacks of issue 9 on a real mcfd (loopback), one test_server test
 # each, with the figures they measure (worker release, floods, slowloris,
 # followers, queued memory); the README's reliability section quotes them.
@@ -309,7 +334,7 @@ check-deps:
 	@echo "check-deps: server -> api -> core holds; the doors -> service.h"
 
 clean:
-	rm -rf build build-san build-fuzz
+	rm -rf build build-san build-tsan build-fuzz
 
 # ---- fuzzing: libFuzzer with Debian clang, ASan + UBSan, in build-fuzz/
 #   make fuzz FUZZ_TIME=30    builds every tests/fuzz/fuzz_*.c and runs each

@@ -59,15 +59,18 @@
 
 extern char **environ;
 
-#if defined(__SANITIZE_ADDRESS__)
-#define SANDBOX_ASAN 1
+/* ASan and TSan reserve terabytes of shadow address space and die rather
+ * than return NULL from a failed operator new: no RLIMIT_AS under them
+ * (the CPU limit still stops a bomb), and a signal says nothing of RSS. */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define SANDBOX_SANITIZER 1
 #elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define SANDBOX_ASAN 1
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define SANDBOX_SANITIZER 1
 #endif
 #endif
-#ifndef SANDBOX_ASAN
-#define SANDBOX_ASAN 0
+#ifndef SANDBOX_SANITIZER
+#define SANDBOX_SANITIZER 0
 #endif
 
 #define MIB (1024.0 * 1024.0)
@@ -139,7 +142,7 @@ int srv_sandbox_child(int argc, char **argv)
     rl.rlim_max = rl.rlim_cur + 1;
     if (setrlimit(RLIMIT_CPU, &rl) != 0)
         return 3;
-    if (!SANDBOX_ASAN) {
+    if (!SANDBOX_SANITIZER) {
         rl.rlim_cur = rl.rlim_max = vm_size() + mem;
         if (setrlimit(RLIMIT_AS, &rl) != 0)
             return 3;
@@ -389,7 +392,7 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
         }
         /* Died another way: an abort or a fault inside libdraco (a failed
          * allocation in code that cannot throw ends like this too). */
-        if (sig && !killed && !SANDBOX_ASAN &&
+        if (sig && !killed && !SANDBOX_SANITIZER &&
             rss > 0.75 * (double)sl->mem_bytes) {
             *why = SRV_SANDBOX_MEMORY;
             rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "

@@ -45,8 +45,9 @@ const char *tl_testdata_dir(void)
 
 const char *tl_mesh_path(const char *name)
 {
-    static char p[4][4096];
-    static int k;
+    /* per thread: test_concurrent_clients' clients call this at once */
+    static _Thread_local char p[4][4096];
+    static _Thread_local int k;
     const char *big = tl_meshes_dir();
 
     k = (k + 1) % 4;
@@ -214,8 +215,9 @@ const char *tl_sphere(void)
 
 const char *tl_in_scratch(const char *name)
 {
-    static char p[4][4096];
-    static int k;
+    /* per thread, as tl_mesh_path */
+    static _Thread_local char p[4][4096];
+    static _Thread_local int k;
     k = (k + 1) % 4;
     snprintf(p[k], sizeof p[k], "%s/%s", scratch, name);
     return p[k];
