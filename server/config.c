@@ -38,7 +38,7 @@ enum {
     O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT,
-    O_BODY_TIMEOUT, O_MAX_MEMORY, O_MAX_JOB_MEMORY, O_DECODE_CPU,
+    O_BODY_TIMEOUT, O_SEND_TIMEOUT, O_MAX_MEMORY, O_MAX_JOB_MEMORY, O_DECODE_CPU,
     O_DECODE_MEMORY, O_TOKEN,
     O_LOG, O_PROBE,
     O_HELP, O_VERSION, O_COUNT
@@ -99,6 +99,10 @@ static const option opts[O_COUNT] = {
                         "a request's whole body must arrive within this of "
                         "its head, 0: no limit (default 60s + --max-upload at "
                         "1 MiB/s: 316s)"},
+    [O_SEND_TIMEOUT] = {"--send-timeout", "MCFD_SEND_TIMEOUT", T_DUR, 0, 0,
+                        "a client that reads nothing of its answer for this "
+                        "long loses its connection (REST, also an idle "
+                        "keep-alive one) or its gRPC call (default 60s)"},
     [O_MAX_MEMORY] = {"--max-memory", "MCFD_MAX_MEMORY", T_SIZE, 0, 0,
                       "estimated peak memory of the jobs running at once; "
                       "others wait in the queue (default: half the RAM, or of "
@@ -288,6 +292,7 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
     case O_DRAIN: cfg->drain_timeout = d; break;
     case O_HEADER_TIMEOUT: cfg->header_timeout = d; break;
     case O_BODY_TIMEOUT: cfg->body_timeout = d; break;
+    case O_SEND_TIMEOUT: cfg->send_timeout = d; break;
     case O_MAX_MEMORY: cfg->max_memory = z; break;
     case O_MAX_JOB_MEMORY: cfg->max_job_memory = z; break;
     case O_DECODE_CPU:
@@ -386,6 +391,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->drain_timeout = 25;
     cfg->header_timeout = 30;
     cfg->body_timeout = -1;    /* derived from --max-upload below */
+    cfg->send_timeout = 60;
     cfg->decode_cpu = 2;
     cfg->decode_memory = (size_t)64 << 20;
     cfg->max_memory = memory_available() / 2;

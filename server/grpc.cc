@@ -107,9 +107,11 @@ struct Door {
     std::mutex smu;
     int streams = 0;
     std::map<std::string, int> per_peer;
-    /* uploads still being received (srv_grpc_expire_uploads) */
+    /* uploads still being received (srv_grpc_expire) */
     std::mutex umu;
     std::set<std::shared_ptr<struct Deadline>> uploads;
+    /* answers being streamed (srv_grpc_expire: stalled writes) */
+    std::set<std::shared_ptr<struct Stall>> answers;
     /* the pump thread and its queue of followers to look at */
     std::mutex qmu;
     std::condition_variable qcv;
@@ -430,7 +432,7 @@ class Expirable {
     ~Expirable() = default;
 };
 
-/* An upload's deadlines, shared by its call and srv_grpc_expire_uploads on
+/* An upload's deadlines, shared by its call and srv_grpc_expire on
  * the main thread. The call may end, and be deleted, on a gRPC thread at
  * any time, so the main thread reaches it only through this record, under
  * mu and while alive; the call clears alive (disarm) at the latest in its
@@ -526,7 +528,7 @@ class Upload {
     }
 
     /* The upload's deadlines start now: --header-timeout for the header,
-     * --body-timeout for the whole upload (srv_grpc_expire_uploads). */
+     * --body-timeout for the whole upload (srv_grpc_expire). */
     void arm(Expirable *call)
     {
         dl_ = std::make_shared<Deadline>();
@@ -697,6 +699,17 @@ class Upload {
 
 void post(Follow *f);
 
+/* A streamed answer's write in flight, shared by its call and srv_grpc_expire
+ * on the main thread, as Deadline is: reached under mu while alive (the
+ * call clears it in OnDone); mu is recursive because cancelling may run the
+ * call's reactions on the same thread. */
+struct Stall {
+    std::recursive_mutex mu;
+    CallbackServerContext *ctx = nullptr;   /* valid while alive */
+    bool alive = true;
+    std::atomic<double> since{0};  /* srv_mono() when the write started, 0: none */
+};
+
 /* What Smooth and WatchJob share: a job followed to its end, written one
  * message at a time. Subclasses give the transport's StartWrite and
  * Finish. Reference counted: gRPC's reference (dropped in OnDone) and one
@@ -769,6 +782,7 @@ class Follow {
                  * and the write. Safe: gRPC 1.51 never runs a reaction
                  * inline from StartWrite or Finish (their tags dispatch
                  * OnWriteDone and OnDone to its executor). */
+                stall_->since = srv_mono();
                 start_write(&out_);
                 return;
             }
@@ -790,6 +804,10 @@ class Follow {
     Follow(CallbackServerContext *ctx, const char *method) : ctx_(ctx), method_(method)
     {
         g.active++;
+        stall_ = std::make_shared<Stall>();
+        stall_->ctx = ctx;
+        std::lock_guard<std::mutex> l(g.umu);
+        g.answers.insert(stall_);
     }
 
     /* Starts following j (a reference the follower now owns). */
@@ -824,6 +842,7 @@ class Follow {
         {
             std::lock_guard<std::mutex> l(mu_);
             writing_ = false;
+            stall_->since = 0;
             if (!ok) {              /* the stream broke: the client left */
                 finish_locked(Status(StatusCode::CANCELLED, "the client left"));
                 return;
@@ -856,6 +875,14 @@ class Follow {
     /* From OnDone: no notify after this, then gRPC's reference goes. */
     void done()
     {
+        {
+            std::lock_guard<std::mutex> l(g.umu);
+            g.answers.erase(stall_);
+        }
+        {
+            std::lock_guard<std::recursive_mutex> l(stall_->mu);
+            stall_->alive = false;
+        }
         svc_unsubscribe(sub_);
         sub_ = nullptr;
         unref();
@@ -1053,6 +1080,7 @@ class Follow {
     bool keep_ = false, taken_ = false, skip_result_ = false, no_wait_ = false;
     int from_step_ = 0;
     /* under mu_ */
+    std::shared_ptr<Stall> stall_;  /* the write in flight, for srv_grpc_expire */
     bool writing_ = false, busy_ = false, dirty_ = false, gone_ = false;
     bool queued_ = false;           /* in the pump queue */
     /* touched only by the one pump() running (busy_) */
@@ -1543,9 +1571,11 @@ extern "C" void srv_grpc_stop(void)
     g.server.reset();
 }
 
-extern "C" int srv_grpc_expire_uploads(double header_timeout, double body_timeout)
+extern "C" int srv_grpc_expire(double header_timeout, double body_timeout,
+                               double send_timeout)
 {
     std::vector<std::shared_ptr<Deadline>> late;
+    std::vector<std::shared_ptr<Stall>> stalled;
     double now = srv_mono();
     {
         std::lock_guard<std::mutex> l(g.umu);
@@ -1555,8 +1585,26 @@ extern "C" int srv_grpc_expire_uploads(double header_timeout, double body_timeou
                 (body_timeout > 0 && age > body_timeout))
                 late.push_back(d);
         }
+        for (const auto &w : g.answers) {
+            double since = w->since;
+            if (send_timeout > 0 && since > 0 && now - since > send_timeout)
+                stalled.push_back(w);
+        }
     }
     int n = 0;
+    /* A write the client's flow control has held for send_timeout: the
+     * call is cancelled, its write then fails and the call ends (a Smooth
+     * cancels its job), releasing the result it held. */
+    for (const auto &w : stalled) {
+        std::lock_guard<std::recursive_mutex> l(w->mu);
+        if (!w->alive || w->since == 0)
+            continue;
+        w->since = 0;
+        srv_logf(SRV_LOG_INFO, "gRPC call cancelled: its client read nothing for "
+                 "--send-timeout %g s", send_timeout);
+        w->ctx->TryCancel();
+        n++;
+    }
     for (const auto &d : late) {
         std::lock_guard<std::recursive_mutex> l(d->mu);
         if (!d->alive)

@@ -33,9 +33,13 @@ void srv_grpc_stop(void);
  * whose header has not come within header_timeout seconds of the call's
  * start, or whose whole upload has not come within body_timeout: REST's
  * --header-timeout and --body-timeout, so a stalled or trickling client
- * cannot hold a slot and its buffer (0: no such limit). Called from the
- * main thread's tick. Returns how many calls it ended. */
-int srv_grpc_expire_uploads(double header_timeout, double body_timeout);
+ * cannot hold a slot and its buffer. Cancels the Smooth and WatchJob calls
+ * whose client has let one message go unread for send_timeout seconds
+ * (flow control holds the write): REST's connection timeout, so a client
+ * that never reads cannot hold its result in memory. 0: no such limit.
+ * Called from the main thread's tick. Returns how many calls it ended. */
+int srv_grpc_expire(double header_timeout, double body_timeout,
+                    double send_timeout);
 /* Calls open now (a gauge for /metrics and the drain). */
 int srv_grpc_active(void);
 

@@ -265,7 +265,7 @@ int main(int argc, char **argv)
         MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg.max_connections,
         MHD_OPTION_PER_IP_CONNECTION_LIMIT,
         (unsigned int)cfg.max_connections_per_ip,
-        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)60,
+        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)cfg.send_timeout,
         MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
         MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,
         MHD_OPTION_NOTIFY_CONNECTION, srv_http_connection, NULL,
@@ -317,15 +317,16 @@ int main(int argc, char **argv)
                          n, n == 1 ? "" : "s", cfg.header_timeout,
                          cfg.body_timeout);
         }
-        if (cfg.grpc_port >= 0 && (cfg.header_timeout > 0 || cfg.body_timeout > 0)) {
-            int n = srv_grpc_expire_uploads(cfg.header_timeout,
-                                            cfg.body_timeout);
+        if (cfg.grpc_port >= 0) {
+            int n = srv_grpc_expire(cfg.header_timeout, cfg.body_timeout,
+                                    cfg.send_timeout);
             if (n > 0)
-                srv_logf(SRV_LOG_WARN, "ended %d gRPC upload%s that sent no "
-                         "header within --header-timeout %g s or no whole "
-                         "upload within --body-timeout %g s", n,
-                         n == 1 ? "" : "s", cfg.header_timeout,
-                         cfg.body_timeout);
+                srv_logf(SRV_LOG_WARN, "ended %d gRPC call%s that sent no "
+                         "header within --header-timeout %g s, no whole "
+                         "upload within --body-timeout %g s, or read nothing "
+                         "for --send-timeout %g s", n, n == 1 ? "" : "s",
+                         cfg.header_timeout, cfg.body_timeout,
+                         cfg.send_timeout);
         }
         if (ticks % 4 == 0)
             svc_sweep();

@@ -72,6 +72,9 @@ typedef struct {
     double drain_timeout;      /* seconds SIGTERM waits for running jobs */
     double header_timeout;     /* seconds for a request's head, 0: none */
     double body_timeout;       /* seconds for its whole body, 0: none */
+    double send_timeout;       /* seconds an answer may go unread: MHD's
+                                  connection timeout, gRPC's stalled write;
+                                  0: none */
     size_t max_memory;         /* estimated peak of the running jobs */
     size_t max_job_memory;     /* estimated peak of one job */
     double decode_cpu;         /* CPU seconds of a sandboxed decode (floor) */

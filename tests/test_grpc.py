@@ -827,6 +827,37 @@ def test_open_and_cancel_thousands_of_calls():
         d.kill()
 
 
+def test_unread_answer_is_cancelled():
+    # --send-timeout: a Smooth whose client reads nothing of its answer
+    # (flow control holds the daemon's write) is cancelled after it, and
+    # the result it held goes; a client that reads is not touched
+    d = Daemon("unread", "--send-timeout", "2", "--max-upload", "16M")
+    try:
+        data = big_obj()
+        t0 = time.time()
+        call = d.stub.Smooth(upload(data, dict(iterations=1)), timeout=120)
+        jid = job_id_of(call)        # the job is submitted; nothing is read
+        d.wait_job(jid, ("succeeded",), timeout=90)
+        deadline = time.time() + 30
+        while time.time() < deadline:
+            st, _, m = d.rest("GET", "/metrics")
+            if b'mcfd_grpc_calls_total{method="Smooth",code="CANCELLED"} 1' in m:
+                break
+            time.sleep(0.2)
+        else:
+            raise AssertionError("the unread Smooth was not cancelled: %s" % d.log_tail())
+        print("    an unread %.1f MB answer: cancelled %.1f s after the call began (--send-timeout 2)"
+              % (len(data) / 1e6, time.time() - t0))
+        assert "read nothing for --send-timeout 2" in d.log_tail()
+        expect_rpc_error(lambda: list(call), grpc.StatusCode.CANCELLED)
+        # a slow reader that keeps reading within the timeout gets everything
+        got = Smoothed(d.stub.Smooth(upload(mesh("sphere_cgal.obj"), dict(iterations=3))))
+        assert len(got.progress) == 3 and got.result
+        d.stop()
+    finally:
+        d.kill()
+
+
 def test_grpc_port_flags():
     # a port in use is an error at start (gRPC's SO_REUSEPORT is off: a
     # second daemon must not share the first one's port)
