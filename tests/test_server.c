@@ -1982,6 +1982,27 @@ static int connect_from(const daemon_t *d, const char *from, const char *req)
     return fd;
 }
 
+/* Writes piece (len bytes; NULL: nothing) to fd every interval_ms until
+ * the daemon closes the connection or max_s seconds from t0 pass, then
+ * closes fd. Seconds from t0 to the close, or -1 when it stayed open. */
+static double until_closed(int fd, double t0, const char *piece, size_t len,
+                           int interval_ms, double max_s)
+{
+    double closed = -1;
+
+    while (mcf_now() - t0 < max_s) {
+        struct pollfd p = {fd, POLLIN, 0};
+        char b[64];
+        if ((poll(&p, 1, interval_ms) > 0 && read(fd, b, sizeof b) <= 0) ||
+            (piece && write(fd, piece, len) != (ssize_t)len)) {
+            closed = mcf_now() - t0;
+            break;
+        }
+    }
+    close(fd);
+    return closed;
+}
+
 /* Issue 9 item 3, in part: 520 SSE followers of a queued job locked the
  * daemon out and kept their descriptors after the clients left; one
  * address could take every connection slot (slowloris), /healthz
@@ -2152,45 +2173,16 @@ static void test_header_deadline(void **state)
     assert_int_equal(start_daemon(&d, "header-deadline", spool, flags), 0);
     t0 = mcf_now();
     fd = connect_from(&d, "127.0.0.1", "GET /healthz HTTP/1.1\r\nHost: x\r\n");
-    while (mcf_now() - t0 < 5) {
-        struct pollfd p = {fd, POLLIN, 0};
-        if (poll(&p, 1, 200) > 0) {
-            char b[64];
-            if (read(fd, b, sizeof b) <= 0) {
-                closed = mcf_now() - t0;
-                break;
-            }
-        }
-        if (write(fd, "X-Slow: 1\r\n", 11) != 11) {
-            closed = mcf_now() - t0;
-            break;
-        }
-    }
-    close(fd);
+    closed = until_closed(fd, t0, "X-Slow: 1\r\n", 11, 200, 5);
     if (closed < 0)
         fail_msg("a trickling request head was held for 5 s (--header-timeout 1)");
     print_message("    trickling head closed after %.2f s\n", closed);
     assert_true(closed >= 0.9 && closed < 3);
     /* a slow body: 20 bytes every 0.2 s of a 100,000-byte upload */
     t0 = mcf_now();
-    closed = -1;
     fd = connect_from(&d, "127.0.0.1", "POST /smooth HTTP/1.1\r\nHost: x\r\n"
                       "Content-Type: model/obj\r\nContent-Length: 100000\r\n\r\n");
-    while (mcf_now() - t0 < 5) {
-        struct pollfd p = {fd, POLLIN, 0};
-        if (poll(&p, 1, 200) > 0) {
-            char b[64];
-            if (read(fd, b, sizeof b) <= 0) {
-                closed = mcf_now() - t0;
-                break;
-            }
-        }
-        if (write(fd, "v 0 0 0\nv 1 0 0\n#xx\n", 20) != 20) {
-            closed = mcf_now() - t0;
-            break;
-        }
-    }
-    close(fd);
+    closed = until_closed(fd, t0, "v 0 0 0\nv 1 0 0\n#xx\n", 20, 200, 5);
     if (closed < 0)
         fail_msg("a body trickled at 100 B/s was held for 5 s (--header-timeout 1)");
     print_message("    trickling body closed after %.2f s\n", closed);
@@ -2604,21 +2596,7 @@ static void test_body_timeout(void **state)
     t0 = mcf_now();
     fd = connect_from(&d, "127.0.0.1", "POST /smooth HTTP/1.1\r\nHost: x\r\n"
                       "Content-Type: model/obj\r\nContent-Length: 1048576\r\n\r\n");
-    while (mcf_now() - t0 < 8) {
-        struct pollfd p = {fd, POLLIN, 0};
-        if (poll(&p, 1, 100) > 0) {
-            char b[64];
-            if (read(fd, b, sizeof b) <= 0) {
-                closed = mcf_now() - t0;
-                break;
-            }
-        }
-        if (write(fd, chunk, sizeof chunk) != (ssize_t)sizeof chunk) {
-            closed = mcf_now() - t0;
-            break;
-        }
-    }
-    close(fd);
+    closed = until_closed(fd, t0, chunk, sizeof chunk, 100, 8);
     if (closed < 0)
         fail_msg("a body sent at 8 KiB/s was held for 8 s (--body-timeout 2)");
     print_message("    body at 8 KiB/s closed after %.2f s (--body-timeout 2)\n",
@@ -2701,16 +2679,7 @@ static void test_clock_jumps(void **state)
         fd = connect_from(&d, "127.0.0.1", "GET /healthz HTTP/1.1\r\nHost: x\r\n");
         sleep_ms(200);
         set_fake_offset(ft, jump);
-        closed = -1;
-        while (mcf_now() - t0 < 8) {
-            struct pollfd p = {fd, POLLIN, 0};
-            char b[64];
-            if (poll(&p, 1, 100) > 0 && read(fd, b, sizeof b) <= 0) {
-                closed = mcf_now() - t0;
-                break;
-            }
-        }
-        close(fd);
+        closed = until_closed(fd, t0, NULL, 0, 100, 8);
         print_message("    wall clock %s s during a pending head: closed after "
                       "%.2f s (--header-timeout 3)\n", jump, closed);
         if (closed < 2.9 || closed > 5)
