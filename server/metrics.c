@@ -151,31 +151,31 @@ static void gauge(api_buf *b, const char *name, const char *help, double v)
                    name, name, v);
 }
 
+/* A counter family with two labels, la and lb (a and b of each series). */
+static void counter(api_buf *b, const char *name, const char *help,
+                    const char *la, const char *lb, const series *s, int n)
+{
+    int i;
+
+    api_buf_printf(b, "# HELP %s %s\n# TYPE %s counter\n", name, help, name);
+    for (i = 0; i < n; i++)
+        api_buf_printf(b, "%s{%s=\"%s\",%s=\"%s\"} %.17g\n", name, la, s[i].a,
+                       lb, s[i].b, s[i].value);
+}
+
 char *srv_metrics_render(const srv_gauges *g, size_t *len)
 {
     api_buf b;
-    int i;
 
     api_buf_init(&b, 16u << 20);
     pthread_mutex_lock(&M.mu);
-    api_buf_printf(&b, "# HELP mcfd_http_requests_total HTTP responses by "
-                       "route and status code.\n"
-                       "# TYPE mcfd_http_requests_total counter\n");
-    for (i = 0; i < M.nreq; i++)
-        api_buf_printf(&b, "mcfd_http_requests_total{route=\"%s\",code=\"%s\"}"
-                           " %.17g\n", M.req[i].a, M.req[i].b, M.req[i].value);
-    api_buf_printf(&b, "# HELP mcfd_grpc_calls_total gRPC calls by method "
-                       "and status code.\n"
-                       "# TYPE mcfd_grpc_calls_total counter\n");
-    for (i = 0; i < M.ngrpc; i++)
-        api_buf_printf(&b, "mcfd_grpc_calls_total{method=\"%s\",code=\"%s\"}"
-                           " %.17g\n", M.grpc[i].a, M.grpc[i].b, M.grpc[i].value);
-    api_buf_printf(&b, "# HELP mcfd_jobs_total Finished jobs by scheme and "
-                       "final status.\n# TYPE mcfd_jobs_total counter\n");
-    for (i = 0; i < M.njobs; i++)
-        api_buf_printf(&b, "mcfd_jobs_total{scheme=\"%s\",status=\"%s\"} "
-                           "%.17g\n", M.jobs[i].a, M.jobs[i].b,
-                       M.jobs[i].value);
+    counter(&b, "mcfd_http_requests_total",
+            "HTTP responses by route and status code.", "route", "code",
+            M.req, M.nreq);
+    counter(&b, "mcfd_grpc_calls_total", "gRPC calls by method and status code.",
+            "method", "code", M.grpc, M.ngrpc);
+    counter(&b, "mcfd_jobs_total", "Finished jobs by scheme and final status.",
+            "scheme", "status", M.jobs, M.njobs);
     render_histogram(&b, "mcfd_job_duration_seconds",
                      "Job run time from start to finish (queue wait excluded).",
                      &M.duration);
