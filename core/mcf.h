@@ -347,6 +347,16 @@ mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv,
 mcf_status mcf_flow_add_noise(mcf_mesh *m, const mcf_flow_params *p,
                               double rho, uint64_t seed, mcf_error *err);
 
+/* The standard deviation of the noise along the normals of m, in m's
+ * units, estimated from m alone (mcf_auto.c: a second-order high-pass
+ * along the normals of 10 uniform Taubin passes of m, calibrated by its
+ * response to unit noise, as a median over the vertices a run with p
+ * would move, of degree >= 3: the fixed ones carry no noise). What
+ * strength=auto uses. EINVAL for parameters that
+ * do not check, ENOMEM. */
+mcf_status mcf_noise_estimate(const mcf_mesh *m, const mcf_flow_params *p, double *sigma,
+                              mcf_error *err);
+
 typedef struct {
     double t, dt;
     double area, volume;      /* input units; the volume is volume0/1's

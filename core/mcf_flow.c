@@ -991,6 +991,25 @@ done:
     return rc;
 }
 
+mcf_status mcf_noise_estimate(const mcf_mesh *m, const mcf_flow_params *p, double *sigma,
+                              mcf_error *err)
+{
+    mcf_status rc;
+    if (!m || !p || !sigma)
+        return mcf__fail(err, MCF_EINVAL, "mcf_noise_estimate: NULL argument");
+    if ((rc = mcf_flow_params_check(p, m->nv, err)) != MCF_OK)
+        return rc;
+    unsigned char *fixed = mcf__calloc((size_t)m->nv, 1);
+    if (!fixed)
+        return mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", m->nv);
+    double s = 0.0;
+    if ((rc = fixed_set(m, p, fixed, err)) == MCF_OK &&
+        (rc = mcf__noise_level(m->X, m->F, m->nf, m->nv, fixed, &s, err)) == MCF_OK)
+        *sigma = s;
+    free(fixed);
+    return rc;
+}
+
 /* The log's area and volume are in input units, and the volume is
  * volume0/volume1's (mcf_mesh_volume's): about the input's origin, from
  * the positions mapped back as the run's end maps them. (The working
@@ -1265,8 +1284,8 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
         double sigma;
-        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, p->laplacian, p->mass, hbar, nsteps, &T, &sigma,
-                                 err)) != MCF_OK)
+        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass, hbar, nsteps, &T,
+                                 &sigma, err)) != MCF_OK)
             goto done;
         st->noise = sigma / hbar;
     } else if (T <= 0.0) {
