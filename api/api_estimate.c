@@ -48,6 +48,8 @@
 #include "api_internal.h"
 
 #define MIB (1024.0 * 1024.0)
+/* `fairing`'s factor: see the model above */
+#define FAIRING_PER_VERTEX 3200.0
 
 /* The first occurrence of word in s[0, len), or NULL (memmem is GNU). */
 static const char *find(const char *s, size_t len, const char *word)
@@ -146,13 +148,15 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
                               const api_params *p)
 {
     double per_vertex = 1600.0;
-    if (p) {
-        const mcf_scheme_info *si = mcf_scheme_get(p->flow.scheme);
-        const char *name = si ? si->name : "";
-        if (!strcmp(name, "euler") || !strcmp(name, "taylor2") ||
-            !strcmp(name, "taubin"))
-            per_vertex = 640.0;
-    }
+    /* the scheme the job will run (api_params_finish's choice when the
+     * request names none) */
+    mcf_scheme s = !p ? api_default_scheme(nv)
+                   : p->scheme_set || p->scheme_chosen ? p->flow.scheme
+                   : p->flow_keys_set ? MCF_DESBRUN2 : api_default_scheme(nv);
+    if (s == MCF_EULER || s == MCF_TAYLOR2 || s == MCF_TAUBIN || s == MCF_FAIRING_EXPLICIT)
+        per_vertex = 640.0;
+    else if (s == MCF_FAIRING)
+        per_vertex = FAIRING_PER_VERTEX;
     /* Charged per face as well when a mesh has more than 2 faces per
      * vertex (a triangle soup, an STL counted as one vertex per face). */
     if (nf > 2 * nv)

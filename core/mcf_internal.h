@@ -138,6 +138,22 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
                           double hbar, int K, double *t_best, double *sigma,
                           mcf_error *err);
 
+/* ---- the fairing filter (mcf_fairing.c)
+ * The hook mcf_flow_run gives the filter: called with X NULL before step
+ * k + 1 (k steps done) and with the positions X (3*nv, working units)
+ * after step k; non-zero cancels the run (ECANCELED). */
+typedef int (*mcf__step_hook)(void *ctx, int k, const double *X);
+
+/* Runs `fairing` or `fairing_explicit` (p->scheme) on X (3*nv, working
+ * units, mean edge hbar) in place; fixed[i] (nv) holds vertex i. Fills
+ * st's steps, noise, sure/nsure, guard_rounds/guard_vertices,
+ * factorizations, solves, timings and peak_bytes. On failure X is
+ * unchanged. ENOMEM, ENUMERIC, ELIMIT (a factor too large for CHOLMOD),
+ * ECANCELED. */
+mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
+                        mcf__step_hook hook, void *hook_ctx, mcf_error *err);
+
 /* n standard normal draws from a 64-bit seed, mcf_mesh_add_noise's
  * generator (the same draws in the same order). (mcf_mesh.c) */
 void mcf__gauss_fill(uint64_t seed, double *z, size_t n);
