@@ -192,6 +192,8 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     /* fairing: the estimated mean squared error (squared mean edges) after
      * K = 0, 1, ... steps, whose minimum gave `steps`; null without */
     ok = ok && put(o, "sure", st->sure ? cJSON_CreateDoubleArray(st->sure, st->nsure) : cJSON_CreateNull());
+    ok = ok && num(o, "noise_tangential", st->noise_tangential);
+    ok = ok && num(o, "tangential_steps", st->tangential_steps);
     ok = ok && num(o, "guard_rounds", st->guard_rounds);
     ok = ok && num(o, "guard_vertices", st->guard_vertices);
     ok = ok && num(o, "folded_faces", st->folded_faces);

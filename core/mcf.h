@@ -445,6 +445,10 @@ typedef struct {
                                  weighted) in squared mean edges; the
                                  minimum is at K = steps. NULL otherwise */
     int nsure;
+    double noise_tangential;  /* fairing: the tangential noise its
+                                 relaxation assumed, in mean edges */
+    int tangential_steps;     /* fairing: the steps whose tangential
+                                 displacement the result took (0: none) */
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-5) */
     int guard_vertices;       /* fairing: vertex moves by the guard */

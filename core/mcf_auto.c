@@ -112,8 +112,37 @@ static double mad(const mcf__graph *g, const unsigned char *fixed, const double 
     return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
 }
 
+/* The tangential second-order high-pass of P (3*nv) into e (nv): the
+ * length of the tangential part (normals N) of (I - Avg)^2 P; tmp and t2
+ * are 3*nv scratch. */
+static void tangential_high_pass(const mcf__graph *g, const double *N, const double *P, double *e,
+                                 double *tmp, double *t2)
+{
+    size_t n3 = 3 * (size_t)g->n;
+    mcf__graph_average(g, P, 3, tmp);
+    for (size_t q = 0; q < n3; q++)
+        tmp[q] = P[q] - tmp[q];
+    mcf__graph_average(g, tmp, 3, t2);
+    for (int i = 0; i < g->n; i++) {
+        double r[3];
+        const double *n = N + 3 * (size_t)i;
+        mcf__sub3(tmp + 3 * (size_t)i, t2 + 3 * (size_t)i, r);
+        double a = mcf__dot3(n, r);
+        for (int c = 0; c < 3; c++)
+            r[c] -= a * n[c];
+        e[i] = sqrt(mcf__dot3(r, r));
+    }
+}
+
 mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
                             const unsigned char *fixed, double *sigma, mcf_error *err)
+{
+    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, err);
+}
+
+mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
+                             const unsigned char *fixed, double *sigma, double *sigma_t,
+                             mcf_error *err)
 {
     mcf__graph g;
     mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
@@ -145,6 +174,27 @@ mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
     high_pass(&g, N, P, e, d, tmp);
     double mad_n = mad(&g, fixed, e, P);
     *sigma = mad_n > 0.0 ? mad_y / mad_n : 0.0;
+    if (sigma_t) {
+        /* the same for the tangential part, calibrated by unit Gaussian
+         * noise in the tangent planes (two independent components) */
+        double *t2 = mcf__malloc(3 * (size_t)nv, sizeof(double));
+        if (!t2) {
+            rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
+            goto done;
+        }
+        tangential_high_pass(&g, N, X, e, tmp, t2);
+        double mt_y = mad(&g, fixed, e, d);
+        mcf__gauss_fill(0x7a5eed5eULL, P, 3 * (size_t)nv);
+        for (int i = 0; i < nv; i++) {
+            double *z = P + 3 * (size_t)i, a = mcf__dot3(z, N + 3 * (size_t)i);
+            for (int c = 0; c < 3; c++)
+                z[c] = fixed && fixed[i] ? 0.0 : z[c] - a * N[3 * (size_t)i + c];
+        }
+        tangential_high_pass(&g, N, P, e, tmp, t2);
+        double mt_n = mad(&g, fixed, e, d);
+        *sigma_t = mt_n > 0.0 ? mt_y / mt_n : 0.0;
+        free(t2);
+    }
 done:
     free(N);
     free(P);

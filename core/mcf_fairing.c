@@ -45,6 +45,7 @@
 #include "mcf_internal.h"
 
 enum { NPROBE = 6, NCOL = 3 + NPROBE, GUARD_ROUNDS = 5 };
+#define TANGENTIAL_FLOOR 0.12
 
 typedef struct {
     const mcf_flow_params *p;
@@ -327,18 +328,21 @@ static double weighted_trace(const fair_ctx *c)
     return tr / NPROBE;
 }
 
-/* The normal displacement's part of SURE, sum_F w r^2, r along n0. */
-static double weighted_r2(const fair_ctx *c, const double *Y)
+/* The displacement's parts of SURE: sum_F w r^2, r along n0 (*rn), and
+ * sum_F w |t|^2, t its part in the tangent planes of n0 (*rt). */
+static void weighted_r2(const fair_ctx *c, const double *Y, double *rn, double *rt)
 {
-    double s = 0.0;
+    double s = 0.0, t = 0.0;
     for (int k = 0; k < c->nfree; k++) {
         size_t i = (size_t)c->vert[k];
         double d[3];
         mcf__sub3(Y + 3 * i, c->X0 + 3 * i, d);
         double r = mcf__dot3(c->n0 + 3 * i, d);
         s += c->w[i] * r * r;
+        t += c->w[i] * (mcf__dot3(d, d) - r * r);
     }
-    return s;
+    *rn = s;
+    *rt = t;
 }
 
 static void face_normal(const double *X, const int32_t *t, double *n)
@@ -349,8 +353,124 @@ static void face_normal(const double *X, const int32_t *t, double *n)
     mcf__cross3(e1, e2, n);
 }
 
-/* X = X0 + n <n, Y - X0> on the free vertices, n the normals of Y (N is
- * 3*nv scratch); then the fold guard. */
+/* The closest point to p on triangle (a, b, c) (Ericson, Real-Time
+ * Collision Detection, 5.1.5) into q. */
+static void closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
+                                double *q)
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3];
+    mcf__sub3(b, a, ab);
+    mcf__sub3(c, a, ac);
+    mcf__sub3(p, a, ap);
+    double d1 = mcf__dot3(ab, ap), d2 = mcf__dot3(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        memcpy(q, a, 3 * sizeof(double));
+        return;
+    }
+    mcf__sub3(p, b, bp);
+    double d3 = mcf__dot3(ab, bp), d4 = mcf__dot3(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        memcpy(q, b, 3 * sizeof(double));
+        return;
+    }
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        double v = d1 / (d1 - d3);
+        for (int e = 0; e < 3; e++)
+            q[e] = a[e] + v * ab[e];
+        return;
+    }
+    mcf__sub3(p, c, cp);
+    double d5 = mcf__dot3(ab, cp), d6 = mcf__dot3(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        memcpy(q, c, 3 * sizeof(double));
+        return;
+    }
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        double w = d2 / (d2 - d6);
+        for (int e = 0; e < 3; e++)
+            q[e] = a[e] + w * ac[e];
+        return;
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int e = 0; e < 3; e++)
+            q[e] = b[e] + w * (c[e] - b[e]);
+        return;
+    }
+    double den = va + vb + vc;
+    if (!(den > 0.0)) { /* degenerate triangle: its first corner */
+        memcpy(q, a, 3 * sizeof(double));
+        return;
+    }
+    double v = vb / den, w = vc / den;
+    for (int e = 0; e < 3; e++)
+        q[e] = a[e] + v * ab[e] + w * ac[e];
+}
+
+/* The tangential relaxation: every free vertex of X moves by the part of
+ * Yt - X0 in its tangent plane (normals N), then back onto the surface X
+ * had: to the closest point of the faces around it and its neighbours.
+ * ENOMEM only. */
+static mcf_status tangential_output(fair_ctx *c, const double *Yt, const double *N, double *X,
+                                    mcf_error *err)
+{
+    int nv = c->nv;
+    int *vp = mcf__calloc((size_t)nv + 1, sizeof(int)), *vf = mcf__malloc(3 * (size_t)c->nf + 1, sizeof(int));
+    double *S = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    c->bytes += sizeof(int) * (4 * (size_t)nv + 3 * (size_t)c->nf);
+    if (!vp || !vf || !S) {
+        free(vp);
+        free(vf);
+        free(S);
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d faces)", c->nf);
+    }
+    for (size_t q = 0; q < 3 * (size_t)c->nf; q++)
+        vp[c->F[q] + 1]++;
+    for (int i = 0; i < nv; i++)
+        vp[i + 1] += vp[i];
+    for (int f = 0; f < c->nf; f++)
+        for (int k = 0; k < 3; k++)
+            vf[vp[c->F[3 * f + k]]++] = f;
+    for (int i = nv; i > 0; i--)
+        vp[i] = vp[i - 1];
+    vp[0] = 0;
+    memcpy(S, X, 3 * sizeof(double) * (size_t)nv);
+    for (int k = 0; k < c->nfree; k++) {
+        int i = c->vert[k];
+        const double *n = N + 3 * (size_t)i;
+        double d[3], p[3], best = INFINITY, q[3], bq[3];
+        mcf__sub3(Yt + 3 * (size_t)i, c->X0 + 3 * (size_t)i, d);
+        double a = mcf__dot3(n, d);
+        for (int e = 0; e < 3; e++)
+            p[e] = S[3 * (size_t)i + e] + d[e] - a * n[e];
+        memcpy(bq, S + 3 * (size_t)i, 3 * sizeof(double));
+        for (int t = c->g.ptr[i] - 1; t < c->g.ptr[i + 1]; t++) {
+            int v = t < c->g.ptr[i] ? i : c->g.adj[t];
+            for (int r = vp[v]; r < vp[v + 1]; r++) {
+                const int32_t *tri = c->F + 3 * (size_t)vf[r];
+                closest_on_triangle(p, S + 3 * (size_t)tri[0], S + 3 * (size_t)tri[1], S + 3 * (size_t)tri[2], q);
+                double e3[3];
+                mcf__sub3(q, p, e3);
+                double dd = mcf__dot3(e3, e3);
+                if (dd < best) {
+                    best = dd;
+                    memcpy(bq, q, sizeof q);
+                }
+            }
+        }
+        memcpy(X + 3 * (size_t)i, bq, sizeof bq);
+    }
+    free(vp);
+    free(vf);
+    free(S);
+    return MCF_OK;
+}
+
+/* X = X0 + n <n, Y - X0> on the free vertices, n the normals of Y, into
+ * X; N (3*nv) gets those normals. */
 static void normal_output(fair_ctx *c, const double *Y, double *X, double *N)
 {
     mcf__vertex_normals(Y, c->F, c->nf, c->nv, N);
@@ -363,9 +483,13 @@ static void normal_output(fair_ctx *c, const double *Y, double *X, double *N)
         for (int e = 0; e < 3; e++)
             X[3 * i + e] += a * N[3 * i + e];
     }
-    /* the guard: a face of X facing against the same face of Y takes Y's
-     * positions at its free vertices; a round can turn a neighbour, hence
-     * the rounds */
+}
+
+/* The guard: a face of X facing against the same face of Y takes Y's
+ * positions at its free vertices; a round can turn a neighbour, hence
+ * the rounds. */
+static void fold_guard(fair_ctx *c, const double *Y, double *X)
+{
     for (int round = 0; round < GUARD_ROUNDS; round++) {
         int moved = 0;
         for (int f = 0; f < c->nf; f++) {
@@ -396,7 +520,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
 {
     fair_ctx c;
     mcf_status rc;
-    double *Y = NULL, *Ybest = NULL;
+    double *Y = NULL, *Ybest = NULL, *Yt = NULL;
     memset(&c, 0, sizeof c);
     c.p = p;
     c.nv = nv;
@@ -418,13 +542,19 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
               : (c.is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
     if (cap > p->max_steps && !(p->iterations > 0))
         cap = p->max_steps;
-    double s = 0.0;
+    double s = 0.0, s_est = 0.0, s_t = 0.0;
     if (sure) {
-        if (p->noise_sigma > 0.0)
-            s = p->noise_sigma * hbar;
-        else if ((rc = mcf__noise_level(c.X0, F, nf, nv, c.fx, &s, err)) != MCF_OK)
+        if ((rc = mcf__noise_levels(c.X0, F, nf, nv, c.fx, &s_est, &s_t, err)) != MCF_OK)
             goto done;
+        s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
+        /* the tangential noise: what the tangential reading shows beyond
+         * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
+         * triangles read as (0.02-0.12 on the shared scans: noise below
+         * it cannot be told from the mesh), and at most the normal
+         * noise (scanners' noise is isotropic at most) */
+        s_t = fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
+        st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
         /* no noise (or nothing free): nothing to remove */
         if (!(s > 0.0) || c.nfree == 0)
             cap = 0;
@@ -433,12 +563,14 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     c.ncol = sure ? NCOL : 3;
     Y = alloc_d(&c, 3 * (size_t)nv);
     Ybest = alloc_d(&c, 3 * (size_t)nv);
+    Yt = alloc_d(&c, 3 * (size_t)nv);
     c.probe = sure ? alloc_d(&c, NPROBE * (size_t)(c.nfree ? c.nfree : 1)) : NULL;
-    if (!Y || !Ybest || (sure && !c.probe)) {
+    if (!Y || !Ybest || !Yt || (sure && !c.probe)) {
         rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
         goto done;
     }
     memcpy(Ybest, c.X0, 3 * sizeof(double) * (size_t)nv);
+    memcpy(Yt, c.X0, 3 * sizeof(double) * (size_t)nv);
     if (sure) {
         init_probes(&c);
         st->sure = mcf__malloc((size_t)cap + 1, sizeof(double));
@@ -450,10 +582,11 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     if (cap > 0 && (rc = c.is_explicit ? explicit_init(&c, err) : implicit_init(&c, err)) != MCF_OK)
         goto done;
 
-    double sumw = (double)c.nfree, best = 0.0;
-    int kbest = 0;
+    double sumw = (double)c.nfree, best = 0.0, best_t = 0.0;
+    int kbest = 0, kbest_t = 0;
     if (sure) {
         best = s * s * sumw; /* SURE(0): the input, trace sum w */
+        best_t = 2.0 * s_t * s_t * sumw;
         st->sure[0] = best / sumw / (hbar * hbar);
         st->nsure = 1;
     }
@@ -473,26 +606,40 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (!sure) {
             kbest = k;
         } else {
-            double risk = weighted_r2(&c, Y) - s * s * sumw + 2.0 * s * s * weighted_trace(&c);
+            double rn, rt, tr = weighted_trace(&c);
+            weighted_r2(&c, Y, &rn, &rt);
+            double risk = rn - s * s * sumw + 2.0 * s * s * tr;
+            /* the tangential part: two directions, the same smoother */
+            double risk_t = rt - 2.0 * s_t * s_t * sumw + 4.0 * s_t * s_t * tr;
             st->sure[st->nsure++] = risk / sumw / (hbar * hbar);
             if (risk < best) {
                 best = risk;
                 kbest = k;
                 memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
             }
+            if (risk_t < best_t) {
+                best_t = risk_t;
+                kbest_t = k;
+                memcpy(Yt, Y, 3 * sizeof(double) * (size_t)nv);
+            }
         }
         if (hook && hook(hook_ctx, k, Y)) {
             rc = mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
             goto done;
         }
-        if (sure && k > 2 * kbest + 10)
+        if (sure && k > 2 * (kbest > kbest_t ? kbest : kbest_t) + 10)
             break;
     }
     if (!sure && cap > 0)
         memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
     st->steps = kbest;
-    /* the output along the normals of the filtered surface, guarded */
+    st->tangential_steps = kbest_t;
+    /* the output along the normals of the filtered surface, relaxed in
+     * its tangent planes, guarded */
     normal_output(&c, Ybest, X, Y);
+    if (kbest_t > 0 && (rc = tangential_output(&c, Yt, Y, X, err)) != MCF_OK)
+        goto done;
+    fold_guard(&c, Ybest, X);
     rc = MCF_OK;
 done:
     if (c.cm_started)
@@ -501,6 +648,7 @@ done:
     free(c.X0);
     free(Y);
     free(Ybest);
+    free(Yt);
     fair_free(&c);
     return rc;
 }
