@@ -263,6 +263,10 @@ typedef struct {
  * vertex) above: api_estimate.c has the measured memory and times. */
 #define API_FAIRING_IMPLICIT_MAX 200000
 mcf_scheme api_default_scheme(long long nv);
+/* The scheme a job with parameters p runs on a mesh of nv vertices: the
+ * one named, else api_default_scheme(nv), or desbrun2 when p sets a
+ * flow's keys (flow_keys_set). p may be NULL (no parameters). */
+mcf_scheme api_params_scheme(const api_params *p, long long nv);
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
 void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */

@@ -150,9 +150,7 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
     double per_vertex = 1600.0;
     /* the scheme the job will run (api_params_finish's choice when the
      * request names none) */
-    mcf_scheme s = !p ? api_default_scheme(nv)
-                   : p->scheme_set || p->scheme_chosen ? p->flow.scheme
-                   : p->flow_keys_set ? MCF_DESBRUN2 : api_default_scheme(nv);
+    mcf_scheme s = api_params_scheme(p, nv);
     if (s == MCF_EULER || s == MCF_TAYLOR2 || s == MCF_TAUBIN || s == MCF_FAIRING_EXPLICIT)
         per_vertex = 640.0;
     else if (s == MCF_FAIRING)

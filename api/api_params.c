@@ -497,6 +497,18 @@ mcf_scheme api_default_scheme(long long nv)
     return nv > API_FAIRING_IMPLICIT_MAX ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
 }
 
+mcf_scheme api_params_scheme(const api_params *p, long long nv)
+{
+    if (!p)
+        return api_default_scheme(nv);
+    if (p->scheme_set || p->scheme_chosen)
+        return p->flow.scheme;
+    /* a request that sets a flow's parameters (time, dt, adaptive,
+     * laplacian, mass, rescale) and no scheme is a flow request, as
+     * before the fairing filter became the default: desbrun2 */
+    return p->flow_keys_set ? MCF_DESBRUN2 : api_default_scheme(nv);
+}
+
 static int is_fairing(mcf_scheme s)
 {
     return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
@@ -797,10 +809,8 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         return api__fail(err, MCF_EINVAL,
                          "parameter 'tol' applies to adaptive runs only: add adaptive=true or drop tol");
     if (!p->scheme_set) {
-        /* a request that sets a flow's parameters (time, dt, adaptive,
-         * laplacian, mass, rescale) and no scheme is a flow request, as
-         * before the fairing filter became the default: desbrun2 */
-        p->flow.scheme = p->flow_keys_set ? MCF_DESBRUN2 : api_default_scheme(nv);
+        p->scheme_chosen = 0;
+        p->flow.scheme = api_params_scheme(p, nv);
         p->scheme_chosen = 1;
     }
     /* the fairing filters' strength: the noise level (mean edges) whose

@@ -1137,7 +1137,8 @@ static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats 
         st->warnings |= MCF_WARN_EDGE_COLLAPSE;
     if (p->rescale == MCF_RESCALE_NONE && st->area_ratio < 0.6)
         st->warnings |= MCF_WARN_AREA_LOSS;
-    if (is_fairing(p->scheme) ? st->steps == 0 : p->scheme != MCF_TAUBIN && st->strength < 0.1)
+    /* (a fairing filter's 0 steps is its finding: no noise to remove) */
+    if (!is_fairing(p->scheme) && p->scheme != MCF_TAUBIN && st->strength < 0.1)
         st->warnings |= MCF_WARN_LITTLE_SMOOTHING;
 }
 

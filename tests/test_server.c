@@ -2546,7 +2546,7 @@ static void test_memory_admission(void **state)
     rest = rss_kib(d.pid);
     for (i = 0; i < 3; i++) {
         cJSON *j;
-        post_file(&d, "/v1/jobs?strength=auto", "meshes/bunny.drc", &r);
+        post_file(&d, "/v1/jobs?scheme=desbrun2&strength=auto", "meshes/bunny.drc", &r);
         expect_status(&d, &r, 202, "bunny.drc job");
         j = body_json(&r, "POST /v1/jobs");
         snprintf(ids[i], sizeof ids[i], "%s", jstr(j, "id"));
