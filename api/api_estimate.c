@@ -42,14 +42,23 @@
  * 2,000 vertices; small meshes are dominated by the constant 4 MiB
  * (ratios 0-0.4). An estimate of a peak, not a bound: the tested figure
  * of the daemon (README, reliability) adds its size at rest.
+ *
+ * The fairing filters (issue 16; the default when a request names no
+ * scheme: api_params_scheme), measured the same way on 2026-11-24 with
+ * noise 0.25 (their automatic amount, 6 probe columns): `fairing`
+ * factors a 2-ring matrix once, 1,525-2,330 B per vertex (armadillo
+ * 1,525, fertility 1,843, stanford-bunny 1,946, dragon_vrip 2,014,
+ * bunny.drc 2,330), charged 2,900 (the same 0.8 margin);
+ * `fairing_explicit` 185-491 B (dragon_vrip 432), charged 640 with the
+ * other explicit schemes.
  */
 #include <string.h>
 
 #include "api_internal.h"
 
 #define MIB (1024.0 * 1024.0)
-/* `fairing`'s factor: see the model above */
-#define FAIRING_PER_VERTEX 3200.0
+/* `fairing`: see the model above */
+#define FAIRING_PER_VERTEX 2900.0
 
 /* The first occurrence of word in s[0, len), or NULL (memmem is GNU). */
 static const char *find(const char *s, size_t len, const char *word)

@@ -58,10 +58,15 @@ static const char usage_text[] =
     "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
     "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
     "0-based vertex indices separated by white space or commas.\n"
-    "Amount: by default the flow runs to time strength^2 h^2 (h: the mean edge\n"
-    "length; --strength is the diffusion length in mean edges, default 0.33) in 10\n"
-    "steps; --time (in unit-area units unless --no-normalize) or --iterations with\n"
-    "--dt override it; --iterations alone sets the step count.\n";
+    "Default: the fairing denoiser (--scheme fairing; fairing_explicit above 200,000\n"
+    "vertices): as many steps as Stein's unbiased risk estimate says for the noise it\n"
+    "reads off the mesh, along the normals only; --iterations sets the steps,\n"
+    "--strength the noise level (mean edges). With --time, --dt, --adaptive,\n"
+    "--laplacian, --mass or --rescale and no --scheme: desbrun2, as before.\n"
+    "Amount of an MCF scheme: by default the flow runs to time strength^2 h^2 (h: the\n"
+    "mean edge length; --strength is the diffusion length in mean edges, default\n"
+    "0.33) in 10 steps; --time (in unit-area units unless --no-normalize) or\n"
+    "--iterations with --dt override it; --iterations alone sets the step count.\n";
 
 /* Set by SIGINT/SIGTERM; the flow loads it before every step. A lock-free
  * C11 atomic (mcf_cancel_flag), which a signal handler may store to. */
