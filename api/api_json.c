@@ -194,6 +194,7 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && put(o, "sure", st->sure ? cJSON_CreateDoubleArray(st->sure, st->nsure) : cJSON_CreateNull());
     ok = ok && num(o, "noise_tangential", st->noise_tangential);
     ok = ok && num(o, "tangential_steps", st->tangential_steps);
+    ok = ok && num(o, "crease_vertices", st->crease_vertices);
     ok = ok && num(o, "guard_rounds", st->guard_rounds);
     ok = ok && num(o, "guard_vertices", st->guard_vertices);
     ok = ok && num(o, "folded_faces", st->folded_faces);

@@ -449,6 +449,9 @@ typedef struct {
                                  relaxation assumed, in mean edges */
     int tangential_steps;     /* fairing: the steps whose tangential
                                  displacement the result took (0: none) */
+    int crease_vertices;      /* fairing: vertices on the creases it kept
+                                 (smoothed along them, held for the
+                                 surface's filter) */
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-5) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
