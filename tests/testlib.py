@@ -61,15 +61,15 @@ class SkipTest(Exception):
 
 
 class Daemon:
-    """One mcfd on loopback with free ports: .port (REST), .gport (gRPC),
-    .url (http://...), .grpc_url (grpc://...)."""
+    """One mcfd (BUILD's, or binary) on loopback with free ports: .port
+    (REST), .gport (gRPC), .url (http://...), .grpc_url (grpc://...)."""
 
-    def __init__(self, name, *flags):
+    def __init__(self, name, *flags, binary=None):
         self.name = name
         self.logpath = os.path.join(TMP, name + ".log")
         with open(self.logpath, "ab") as log:
             self.p = track(subprocess.Popen(
-                [os.path.join(BUILD, "mcfd"), "--bind", "127.0.0.1", "--port", "0",
+                [binary or os.path.join(BUILD, "mcfd"), "--bind", "127.0.0.1", "--port", "0",
                  "--grpc-port", "0", "--spool", os.path.join(TMP, name), *flags],
                 stdout=subprocess.PIPE, stderr=log, start_new_session=True))
         lines = self._lines(2, 30)
