@@ -281,7 +281,8 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
 cJSON *api_params_to_json(const api_params *p);
 /* Every parameter as the one table in api_params.c defines it, a JSON
  * array of {name, type (number, integer, boolean, string, array), auto
- * (accepts "auto"), minimum or exclusiveMinimum, maximum (or
+ * (accepts "auto"), format (uint64 for an unsigned 64-bit integer),
+ * minimum or exclusiveMinimum, maximum (or
  * maximum_limit: the name of the api_limits field that bounds it), enum,
  * default (a value) or default_text (how it is derived), accepts (the
  * range in the words of the errors), unit, help, output (an encoder option

@@ -1037,6 +1037,8 @@ cJSON *api_params_describe(const api_limits *lim)
         if (k->kind == K_NUM || k->kind == K_INT || k->kind == K_U64) {
             ok &= cJSON_AddNumberToObject(o, (k->kind == K_NUM && !(k->flags & LO_INCL))
                                           ? "exclusiveMinimum" : "minimum", k->lo) != NULL;
+            if (k->kind == K_U64)
+                ok &= cJSON_AddStringToObject(o, "format", "uint64") != NULL;
             if (k->flags & HI_ITER)
                 ok &= cJSON_AddStringToObject(o, "maximum_limit", "max_iterations") != NULL;
             else if (k->kind != K_U64 && !isinf(k->hi))
