@@ -457,8 +457,18 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
         srv_spool_write(cfg->spool, j->id, "request.json", rs, strlen(rs),
                         1) != 0 ||
         svc__write_state(j, 1) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "cannot write job %s to the "
-                      "spool %s: %s", j->id, cfg->spool, strerror(errno));
+        int e = errno;
+        if (e == ENOSPC || e == EDQUOT) {
+            /* A full disk is a full spool: transient, the client's to
+             * retry, like the quota's (and /readyz says so meanwhile). */
+            svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool's "
+                          "filesystem has no room for job %s (%zu bytes): "
+                          "%s", j->id, input_len + target_len, strerror(e));
+            err->retry_after = 5;
+        } else {
+            svc_error_set(err, SVC_ESTORAGE, "EIO", "cannot write job %s to "
+                          "the spool %s: %s", j->id, cfg->spool, strerror(e));
+        }
         srv_spool_remove(cfg->spool, j->id);
         goto fail;
     }

@@ -138,8 +138,11 @@ int srv_spool_read(const char *spool, const char *id, const char *name,
  * tombstone and jobs/ fsynced (durable), then deleted. 0, or -1 with
  * errno and the job left whole. */
 int srv_spool_remove(const char *spool, const char *id);
-/* Readiness: 0 when a file can be made in the spool and the last spool
- * write did not fail (since the last that succeeded); else -1 and why. */
+/* Readiness: 0 when a file can be made in the spool and no write failed
+ * without a write at least as large succeeding since (this call probes
+ * one, of at most SRV_SPOOL_PROBE_MAX bytes, twice a second at most);
+ * removals and smaller writes do not count. Else -1 and why. */
+#define SRV_SPOOL_PROBE_MAX ((size_t)4 << 20)
 int srv_spool_ready(const char *spool, char *why, size_t size);
 /* Bytes of the files of a job directory (0 when unreadable). */
 size_t srv_spool_du(const char *spool, const char *id);

@@ -28,6 +28,7 @@
 #include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <linux/fs.h>
 #include <sys/time.h>
 #include <sys/types.h>
@@ -63,6 +64,7 @@ static pid_t g_started[64];
 static int g_nstarted;
 static daemon_t g_main;   /* shared by the tests that need no special flags */
 static void unlock_dirs(void);
+static void unmount_all(void);
 static void wait_gauge_within(const daemon_t *d, const char *name, double want,
                               double seconds, const char *what);
 
@@ -687,6 +689,7 @@ static int group_teardown(void **state)
             waitpid(g_started[i], NULL, 0);
         }
     tl_kill_children(0);
+    unmount_all();
     unlock_dirs();
     rm_rf(g_tmp);
     curl_global_cleanup();
@@ -700,6 +703,7 @@ static int kill_strays(void **state)
 {
     (void)state;
     tl_kill_children(g_main.pid);
+    unmount_all();
     return 0;
 }
 
@@ -2280,6 +2284,154 @@ static void test_spool_quota(void **state)
     }
 }
 
+/* ------------------------------------------------------------ a full spool */
+
+/* Small filesystems mounted by a test (tmpfs with size=), unmounted by
+ * unmount_all at the end of the test or the group. */
+static char g_mounted[2][800];
+static int g_nmounted;
+
+static void unmount_all(void)
+{
+    char cmd[900];
+    while (g_nmounted > 0) {
+        snprintf(cmd, sizeof cmd, "umount -l '%s' 2>/dev/null",
+                 g_mounted[--g_nmounted]);
+        if (system(cmd) != 0)
+            fprintf(stderr, "could not unmount %s\n", g_mounted[g_nmounted]);
+    }
+}
+
+/* A tmpfs of `size` (mount's syntax) at dir; 0, or -1 when this machine
+ * cannot mount one (not root, no mount(8), a sandbox without the right). */
+static int mount_small(const char *dir, const char *size)
+{
+    char cmd[1000];
+    if (geteuid() != 0 || g_nmounted == 2 || mkdir(dir, 0750) != 0)
+        return -1;
+    snprintf(cmd, sizeof cmd, "mount -t tmpfs -o size=%s,mode=0750 tmpfs "
+             "'%s' 2>/dev/null", size, dir);
+    if (system(cmd) != 0)
+        return -1;
+    snprintf(g_mounted[g_nmounted++], sizeof g_mounted[0], "%s", dir);
+    return 0;
+}
+
+/* The bytes free on the filesystem of path. */
+static double free_bytes(const char *path)
+{
+    struct statvfs sv;
+    assert_int_equal(statvfs(path, &sv), 0);
+    return (double)sv.f_bavail * (double)sv.f_frsize;
+}
+
+/* Makes (or truncates) file so that about `leave` bytes stay free. */
+static void fill_leaving(const char *file, double leave)
+{
+    static const char zeros[65536];
+    struct stat st;
+    double want;
+    off_t at;
+    int fd = open(file, O_WRONLY | O_CREAT, 0640);
+
+    assert_true(fd >= 0 && fstat(fd, &st) == 0);
+    at = st.st_size;
+    want = (double)at + free_bytes(file) - leave;
+    if (want < (double)at) {
+        assert_int_equal(ftruncate(fd, want > 0 ? (off_t)want : 0), 0);
+    } else {
+        assert_true(lseek(fd, at, SEEK_SET) >= 0);
+        while ((double)at < want) {
+            size_t n = sizeof zeros;
+            ssize_t w;
+            if ((double)at + (double)n > want)
+                n = (size_t)(want - (double)at);
+            if ((w = write(fd, zeros, n)) <= 0)
+                break; /* full: as close as it gets */
+            at += w;
+        }
+    }
+    close(fd);
+}
+
+/* Polls /readyz until its status is want (bounded); the last status. */
+static long wait_ready(const daemon_t *d, long want, double seconds)
+{
+    double end = mcf_now() + seconds;
+    long got;
+    for (;;) {
+        resp_t r;
+        got = http(d, "GET", "/readyz", NULL, NULL, &r);
+        resp_free(&r);
+        if (got == want || mcf_now() > end)
+            return got;
+        sleep_ms(50);
+    }
+}
+
+/* Issue 17 item 8: with the spool's filesystem full every job failed
+ * (500) while /readyz stayed 200: the removal of the failed job's
+ * directory, and the small state.json written after a failed result,
+ * counted as successful writes and cleared the failure. Now a refused
+ * upload is a 503 ESPOOLFULL with Retry-After, and /readyz is 503 ESPOOL
+ * until a write as large as the one that failed succeeds. */
+static void test_spool_full(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"}; /* 72,320 bytes */
+    daemon_t d;
+    char mnt[600], spool[700], filler[700], id[SRV_ID_BUF];
+    resp_t r;
+    long st;
+
+    (void)state;
+    snprintf(mnt, sizeof mnt, "%s/full", g_tmp);
+    if (mount_small(mnt, "1m") != 0) {
+        tl_skip("test_spool_full", "cannot mount a small tmpfs here (needs "
+                "root and mount(8))");
+        return;
+    }
+    snprintf(spool, sizeof spool, "%s/spool", mnt);
+    snprintf(filler, sizeof filler, "%s/filler", mnt);
+    assert_int_equal(start_daemon(&d, "spool-full", spool, flags), 0);
+
+    /* No room for the input: refused as a full spool, and unready. */
+    fill_leaving(filler, 40e3);
+    http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+    expect_problem(&d, &r, 503, "ESPOOLFULL", "spool", "an upload to a full spool");
+    resp_free(&r);
+    st = wait_ready(&d, 503, 1);
+    print_message("    readyz after a refused upload: %ld (main: 200)\n", st);
+    if (st != 503) {
+        print_log_tail(&d);
+        fail_msg("/readyz %ld after the spool refused an upload", st);
+    }
+    /* Room for the input (a write as large as the failed one) but not
+     * for the result: ready again, then unready while the result waits. */
+    fill_leaving(filler, 100e3);
+    st = wait_ready(&d, 200, 5);
+    assert_int_equal(st, 200);
+    http(&d, "POST", "/v1/jobs?iterations=2", NULL, &up, &r);
+    expect_status(&d, &r, 202, "a job whose result finds no room");
+    {
+        cJSON *j = body_json(&r, "POST /v1/jobs");
+        snprintf(id, sizeof id, "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+    }
+    resp_free(&r);
+    st = wait_ready(&d, 503, 10);
+    print_message("    readyz while a result finds no room: %ld (main: 200)\n", st);
+    if (st != 503) {
+        print_log_tail(&d);
+        fail_msg("/readyz %ld while the spool cannot take a result", st);
+    }
+    unlink(filler);
+    st = wait_ready(&d, 200, 20);
+    assert_int_equal(st, 200);
+    stop_daemon(&d);
+    unmount_all();
+}
+
 /* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
  * 649-byte mesh peaked at 2.75 GB (Draco's encoder memory doubles per
  * bit). quantization_bits stops at 24 (58 MB on the sphere). */
@@ -3849,6 +4001,7 @@ int main(void)
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
+        cmocka_unit_test_teardown(test_spool_full, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
