@@ -2428,8 +2428,199 @@ static void test_spool_full(void **state)
     unlink(filler);
     st = wait_ready(&d, 200, 20);
     assert_int_equal(st, 200);
+    {   /* item 2: the result's write was tried again, not failed */
+        cJSON *j = poll_job(&d, id, NULL, 40);
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
     stop_daemon(&d);
     unmount_all();
+}
+
+/* ------------------------------------------------- descriptor exhaustion */
+
+/* Sets the soft RLIMIT_NOFILE of process pid (prlimit(1), util-linux) to
+ * the lowest descriptor number it has free, so that its next open(),
+ * pipe() or accept() fails with EMFILE (n < 0), or back to n. 0 or -1. */
+static int set_nofile(pid_t pid, long n)
+{
+    char cmd[200], dir[64], path[128];
+    if (n < 0) {
+        /* the lowest free number: none below it is free */
+        struct stat st;
+        snprintf(dir, sizeof dir, "/proc/%d/fd", (int)pid);
+        for (n = 0; n < 65536; n++) {
+            snprintf(path, sizeof path, "%s/%ld", dir, n);
+            if (lstat(path, &st) != 0)
+                break;
+        }
+    }
+    snprintf(cmd, sizeof cmd, "prlimit --pid %d --nofile=%ld: 2>/dev/null",
+             (int)pid, n);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+/* Bytes of the daemon's log so far. */
+static size_t log_size(const daemon_t *d)
+{
+    struct stat st;
+    return stat(d->log, &st) == 0 ? (size_t)st.st_size : 0;
+}
+
+/* Waits until the daemon's log past byte `from` names job id (bounded). */
+static int log_names(const daemon_t *d, size_t from, const char *id,
+                     double seconds)
+{
+    double end = mcf_now() + seconds;
+    do {
+        char *buf = NULL;
+        size_t len = 0;
+        int found = 0;
+        if (tl_read_file(d->log, &buf, &len) == 0) {
+            found = len > from && strstr(buf + from, id) != NULL;
+            free(buf);
+        }
+        if (found)
+            return 1;
+        sleep_ms(50);
+    } while (mcf_now() < end);
+    return 0;
+}
+
+/* Issue 17 item 2: with every descriptor taken, a running job and a
+ * queued one failed "EIO: Too many open files", and after a restart one
+ * of them came back succeeded. Now a step that meets a resource a client
+ * can exhaust (EMFILE, ENFILE, ENOSPC, EDQUOT, ENOMEM) is tried again with
+ * backoff; both jobs succeed, and stay so after a restart. */
+static void test_descriptor_exhaustion(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], a[SRV_ID_BUF], b[SRV_ID_BUF];
+    const char *ids[2] = {a, b};
+    size_t from;
+    double t0, held;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/nofile", g_tmp);
+    assert_int_equal(start_daemon(&d, "nofile", spool, flags), 0);
+    submit(&d, "?iterations=1500", a); /* about 1 s of flow */
+    submit(&d, "?iterations=2", b);    /* queued behind it */
+    wait_running(&d, a);
+    from = log_size(&d);
+    t0 = mcf_now();
+    if (set_nofile(d.pid, -1) != 0) {
+        stop_daemon(&d);
+        tl_skip("test_descriptor_exhaustion", "prlimit(1) cannot lower the "
+                "daemon's RLIMIT_NOFILE here");
+        return;
+    }
+    /* Until the job meets it (its retries, or on main its failure, are
+     * logged on the descriptor the log already has), and a while more. */
+    if (!log_names(&d, from, a, 60)) {
+        set_nofile(d.pid, 1024);
+        print_log_tail(&d);
+        fail_msg("job %s said nothing within 60 s of the exhaustion", a);
+    }
+    sleep_ms(1000);
+    held = mcf_now() - t0;
+    assert_int_equal(set_nofile(d.pid, 1024), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 60);
+        const char *st = jstr(j, "status");
+        print_message("    job %d after %.1f s without descriptors: %s "
+                      "(main: failed EIO)\n", i, held, st);
+        if (strcmp(st, "succeeded") != 0) {
+            print_log_tail(&d);
+            fail_msg("job %s %s after descriptors ran out for %.1f s", ids[i],
+                     st, held);
+        }
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "nofile2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 30);
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+}
+
+/* Issue 17, sharp edge: with the spool read-only while jobs ran, a
+ * refused cancel (500) came back canceled at once and a job whose result
+ * could not be written came back failed EIO, and after a restart both
+ * were succeeded. Now a refused cancel changes nothing, and an outcome
+ * the spool will not take is not shown: the job is queued again (it runs
+ * again later, as after a restart). A terminal state seen before the
+ * restart is the one seen after it. */
+static void test_readonly_outcomes(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], dir[800], a[SRV_ID_BUF], b[SRV_ID_BUF], path[160],
+        seen[2][16] = {"", ""};
+    const char *ids[2] = {a, b};
+    double end;
+    resp_t r;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/readonly", g_tmp);
+    assert_int_equal(start_daemon(&d, "readonly", spool, flags), 0);
+    submit(&d, "?iterations=1500", a);
+    submit(&d, "?iterations=2", b);
+    wait_running(&d, a);
+    for (i = 0; i < 2; i++) {
+        snprintf(dir, sizeof dir, "%s/jobs/%s", spool, ids[i]);
+        if (lock_dir(dir) != 0) {
+            unlock_dirs();
+            stop_daemon(&d);
+            tl_skip("test_readonly_outcomes", "cannot make a directory "
+                    "unwritable here");
+            return;
+        }
+    }
+    snprintf(path, sizeof path, "/v1/jobs/%s", a);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_problem(&d, &r, 500, "EIO", "not canceled", "a cancel the spool refuses");
+    resp_free(&r);
+    /* Both jobs end their work while the spool refuses their outcome:
+     * whatever GET shows meanwhile is what the restart must show. */
+    end = mcf_now() + 6;
+    while (mcf_now() < end) {
+        for (i = 0; i < 2; i++) {
+            cJSON *j;
+            snprintf(path, sizeof path, "/v1/jobs/%s", ids[i]);
+            http(&d, "GET", path, NULL, NULL, &r);
+            expect_status(&d, &r, 200, "GET a job on a read-only spool");
+            j = body_json(&r, "GET");
+            if (!seen[i][0] && (!strcmp(jstr(j, "status"), "succeeded") ||
+                                !strcmp(jstr(j, "status"), "failed") ||
+                                !strcmp(jstr(j, "status"), "canceled")))
+                snprintf(seen[i], sizeof seen[i], "%s", jstr(j, "status"));
+            cJSON_Delete(j);
+            resp_free(&r);
+        }
+        sleep_ms(100);
+    }
+    unlock_dirs();
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "readonly2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 30);
+        print_message("    job %d on a read-only spool: %s, after the restart "
+                      "%s (main: canceled and failed, then succeeded)\n", i,
+                      seen[i][0] ? seen[i] : "never finished",
+                      jstr(j, "status"));
+        if (seen[i][0] && strcmp(seen[i], jstr(j, "status")) != 0)
+            fail_msg("job %s was %s, and %s after a restart", ids[i], seen[i],
+                     jstr(j, "status"));
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
 }
 
 /* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
@@ -4002,6 +4193,8 @@ int main(void)
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
         cmocka_unit_test_teardown(test_spool_full, kill_strays),
+        cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
+        cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
