@@ -73,11 +73,6 @@ static void recover_one(const char *id, void *arg)
             srv_spool_remove(cfg->spool, id);
             goto out;
         }
-        if (j->status == SVC_JOB_SUCCEEDED &&
-            srv_spool_read(cfg->spool, id, "metrics.json", &j->metrics_json,
-                           &len) != 0) {
-            srv_logf(SRV_LOG_WARN, "spool: job %s has no metrics.json", id);
-        }
         svc__table_insert(j);
         j = NULL;
         rc->restored++;

@@ -221,7 +221,8 @@ static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
                          size_t target_len, const api_params *p,
                          svc_error *prob)
 {
-    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p);
+    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p,
+                                           &svc__S.cfg.lim);
     if (svc_admit_refuse(&svc__S.cfg, est, prob))
         return -1;
     if (svc_admit_grow(&svc__S.cfg, &j->mem_held, est, &j->cancel) != 0)
@@ -503,9 +504,8 @@ done:
     } else {
         j->status = final;
         if (final == SVC_JOB_SUCCEEDED) {
+            /* its metrics stay on disk only (svc_read.c reads them) */
             size_t add = j->result_len + strlen(metrics);
-            j->metrics_json = metrics;
-            metrics = NULL;
             if (j->keep_result) {
                 size_t len;
                 j->result = api_buf_detach(&out, &len);

@@ -76,7 +76,6 @@ void svc__job_free(svc_job *j)
     free(j->input);
     free(j->target);
     free(j->params_json);
-    free(j->metrics_json);
     free(j->result);
     api_buf_free(&j->events);
     free(j->event_end);
@@ -401,7 +400,7 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
     }
     /* Memory admission (svc_admit.c): the estimate from what the input
      * declares; over --max-job-memory it is refused now. */
-    mem = svc_admit_estimate(input, input_len, target_len, &prm);
+    mem = svc_admit_estimate(input, input_len, target_len, &prm, &cfg->lim);
     if (svc_admit_refuse(cfg, mem, err)) {
         api_params_free(&prm);
         goto fail;

@@ -71,7 +71,6 @@ struct svc_job {
     int nevents, event_cap;
     /* outcome */
     svc_error err;             /* when failed or canceled */
-    char *metrics_json;        /* when succeeded */
     char in_format[16];
     char out_format[16];
     char result_name[32];      /* "result.obj" in the job directory */

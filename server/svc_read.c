@@ -85,11 +85,16 @@ cJSON *svc_job_json(const svc_job *j, svc_snap *snap)
     snapshot_locked(j, &s);
     if (j->params_json)
         params = strdup(j->params_json);
-    if (j->status == SVC_JOB_SUCCEEDED && j->metrics_json)
-        metrics = strdup(j->metrics_json);
     svc__unlock();
     if (snap)
         *snap = s;
+    /* A finished job's metrics are on disk only (its memory is disk's). */
+    if (s.status == SVC_JOB_SUCCEEDED) {
+        size_t len;
+        if (srv_spool_read(svc__S.cfg.spool, s.id, "metrics.json", &metrics,
+                           &len) != 0)
+            metrics = NULL;
+    }
 
     cJSON_AddStringToObject(o, "id", s.id);
     cJSON_AddStringToObject(o, "status", svc_job_status_name(s.status));
@@ -169,17 +174,7 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
         svc__unlock();
         return -1;
     }
-    *json = j->metrics_json ? strdup(j->metrics_json) : NULL;
-    if (j->metrics_json && !*json) {
-        svc__unlock();
-        svc_error_set(err, SVC_ENOMEM, NULL, "out of memory copying metrics");
-        return -1;
-    }
     svc__unlock();
-    if (*json) {
-        *len = strlen(*json);
-        return 0;
-    }
     if (srv_spool_read(svc__S.cfg.spool, j->id, "metrics.json", json, len) != 0) {
         svc_error_set(err, SVC_ESTORAGE, "EIO", "metrics of job %s are missing",
                       j->id);

@@ -2623,6 +2623,88 @@ static void test_readonly_outcomes(void **state)
     stop_daemon(&d);
 }
 
+/* An octahedron (6 vertices, 8 faces) as an OBJ body: steps cost
+ * microseconds, so tens of thousands of them take a second or two. */
+static const char k_octa[] =
+    "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+    "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+
+/* Issue 17 item 6: a 72 KB mesh run for 100,000 steps was admitted at
+ * 4.9 MB but kept a 15 MB metrics document (every step in flow.log) in
+ * memory for its whole TTL; 20 such jobs held 663 MiB against a bound of
+ * 124 MiB. Now admission counts the steps' memory (the step log and the
+ * progress events), the document's flow.log keeps at most 1000 entries
+ * (first, last and evenly between, each with its step), and a finished
+ * job's metrics are on disk only. */
+static void test_step_log_memory(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--max-job-memory",
+                                        "12M", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    upload_t octa = {.raw = k_octa, .raw_len = sizeof k_octa - 1};
+    daemon_t d;
+    char spool[600], id[SRV_ID_BUF], path[200], file[900];
+    struct stat st;
+    resp_t r;
+    cJSON *j;
+    const cJSON *log;
+    int n;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/steplog", g_tmp);
+    assert_int_equal(start_daemon(&d, "steplog", spool, flags), 0);
+    /* 100,000 steps of the sphere: 4.9 MB of mesh work, ~17 MB of log
+     * and events. main: admitted (202). */
+    http(&d, "POST", "/v1/jobs?iterations=100000&scheme=euler", NULL, &up, &r);
+    print_message("    100,000 steps of a 72 KB mesh, --max-job-memory 12M: "
+                  "HTTP %ld (main: 202)\n", r.code);
+    if (r.code == 202) {
+        cJSON *k = body_json(&r, "POST");
+        snprintf(path, sizeof path, "/v1/jobs/%s", jstr(k, "id"));
+        cJSON_Delete(k);
+        resp_free(&r);
+        http(&d, "DELETE", path, NULL, NULL, &r);
+        resp_free(&r);
+        fail_msg("a job whose steps' log exceeds --max-job-memory was admitted");
+    }
+    expect_problem(&d, &r, 422, "ELIMIT", "--max-job-memory", "100,000 steps");
+    resp_free(&r);
+
+    http(&d, "POST", "/v1/jobs?iterations=20000&scheme=euler&dt=1e-6", NULL,
+         &octa, &r);
+    expect_status(&d, &r, 202, "20,000 steps of an octahedron");
+    j = body_json(&r, "POST");
+    snprintf(id, sizeof id, "%s", jstr(j, "id"));
+    cJSON_Delete(j);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&d, id, "succeeded", 60));
+    snprintf(file, sizeof file, "%s/jobs/%s/metrics.json", spool, id);
+    assert_int_equal(stat(file, &st), 0);
+    print_message("    metrics.json of 20,000 steps: %.0f KB (main: 2,900 KB)\n",
+                  st.st_size / 1e3);
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the metrics");
+    j = body_json(&r, "metrics");
+    log = cJSON_GetObjectItemCaseSensitive(
+        cJSON_GetObjectItemCaseSensitive(j, "flow"), "log");
+    n = cJSON_GetArraySize(log);
+    assert_int_equal(n, 1000);
+    assert_int_equal((int)jnum(cJSON_GetArrayItem(log, 0), "step"), 1);
+    assert_int_equal((int)jnum(cJSON_GetArrayItem(log, n - 1), "step"), 20000);
+    assert_int_equal((int)jnum(j, "flow.steps"), 20000);
+    cJSON_Delete(j);
+    resp_free(&r);
+    /* the job's own document has them too, read back from the spool */
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    j = body_json(&r, "GET job");
+    assert_int_equal((int)jnum(j, "metrics.flow.steps"), 20000);
+    cJSON_Delete(j);
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
  * 649-byte mesh peaked at 2.75 GB (Draco's encoder memory doubles per
  * bit). quantization_bits stops at 24 (58 MB on the sphere). */
@@ -4195,6 +4277,7 @@ int main(void)
         cmocka_unit_test_teardown(test_spool_full, kill_strays),
         cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
         cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
+        cmocka_unit_test_teardown(test_step_log_memory, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
