@@ -351,6 +351,51 @@ int srv_spool_remove(const char *spool, const char *id)
     return 0;
 }
 
+int srv_spool_quarantine(const char *spool, const char *id)
+{
+    char dir[1300], qdir[1200], dest[1400], jobs[1200];
+    int k;
+
+    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0 ||
+        snprintf(qdir, sizeof qdir, "%s/quarantine", spool) >= (int)sizeof qdir) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
+    if (mkdir(qdir, 0750) != 0 && errno != EEXIST)
+        return -1;
+    /* A name not taken yet: the same ID may be quarantined twice. */
+    for (k = 0; k < 100; k++) {
+        struct stat st;
+        snprintf(dest, sizeof dest, k ? "%s/%s.%d" : "%s/%s", qdir, id, k);
+        if (lstat(dest, &st) != 0)
+            break;
+    }
+    snprintf(jobs, sizeof jobs, "%s/jobs", spool);
+    if (rename(dir, dest) != 0 || fsync_dir(jobs) != 0 || fsync_dir(qdir) != 0)
+        return -1;
+    srv_metrics_quarantined();
+    return 0;
+}
+
+void srv_spool_clean_tmp(const char *spool, const char *id)
+{
+    char dir[1300], path[1700];
+    struct dirent *e;
+    DIR *d;
+
+    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0 ||
+        !(d = opendir(dir)))
+        return;
+    while ((e = readdir(d)) != NULL) {
+        size_t n = strlen(e->d_name);
+        if (n > 4 && strcmp(e->d_name + n - 4, ".tmp") == 0) {
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            unlink(path);
+        }
+    }
+    closedir(d);
+}
+
 size_t srv_spool_du(const char *spool, const char *id)
 {
     char dir[1300], path[1700];

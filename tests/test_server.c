@@ -2705,6 +2705,74 @@ static void test_step_log_memory(void **state)
     stop_daemon(&d);
 }
 
+/* Cuts a file to half its size. */
+static void truncate_half(const char *path)
+{
+    struct stat st;
+    assert_int_equal(stat(path, &st), 0);
+    assert_int_equal(truncate(path, st.st_size / 2), 0);
+}
+
+/* Issue 17, sharp edge: a damaged state.json or request.json of an
+ * acknowledged, succeeded job made start-up delete its whole directory,
+ * intact result included, and a result cut to half was served as 200
+ * although state.json records its size. Now such a directory is moved to
+ * <spool>/quarantine (logged, counted in /metrics), a result of the wrong
+ * size is never served (500 EIO), and stray *.tmp files are removed. */
+static void test_spool_damage(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], ids[4][SRV_ID_BUF], file[900], path[200];
+    const char *damage[3] = {"state.json", "request.json", "result.obj"};
+    struct stat st;
+    resp_t r;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/damage", g_tmp);
+    assert_int_equal(start_daemon(&d, "damage", spool, flags), 0);
+    for (i = 0; i < 4; i++)
+        submit(&d, "?iterations=2", ids[i]);
+    for (i = 0; i < 4; i++)
+        cJSON_Delete(poll_job(&d, ids[i], "succeeded", 30));
+    stop_daemon(&d);
+    for (i = 0; i < 3; i++) {
+        snprintf(file, sizeof file, "%s/jobs/%s/%s", spool, ids[i], damage[i]);
+        truncate_half(file);
+    }
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj.7.tmp", spool, ids[3]);
+    fclose(fopen(file, "w"));
+
+    assert_int_equal(start_daemon(&d, "damage2", spool, flags), 0);
+    for (i = 0; i < 3; i++) {
+        snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[i]);
+        http(&d, "GET", path, NULL, NULL, &r);
+        print_message("    %s cut to half: GET result %ld (main: %s)\n",
+                      damage[i], r.code, i < 2 ? "404, the job deleted" : "200");
+        expect_status(&d, &r, 404, "the result of a damaged job");
+        resp_free(&r);
+        snprintf(file, sizeof file, "%s/quarantine/%s/result.obj", spool, ids[i]);
+        if (stat(file, &st) != 0)
+            fail_msg("%s: not in quarantine", file);
+    }
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    assert_int_equal((int)metric(r.body.data, "mcfd_spool_quarantined_total"), 3);
+    resp_free(&r);
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj.7.tmp", spool, ids[3]);
+    assert_int_not_equal(stat(file, &st), 0);
+    /* damaged while served */
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj", spool, ids[3]);
+    truncate_half(file);
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[3]);
+    http(&d, "GET", path, NULL, NULL, &r);
+    print_message("    a result cut to half while served: %ld (main: 200)\n",
+                  r.code);
+    expect_problem(&d, &r, 500, "EIO", "damaged", "a result cut to half");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
  * 649-byte mesh peaked at 2.75 GB (Draco's encoder memory doubles per
  * bit). quantization_bits stops at 24 (58 MB on the sphere). */
@@ -4278,6 +4346,7 @@ int main(void)
         cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
         cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
         cmocka_unit_test_teardown(test_step_log_memory, kill_strays),
+        cmocka_unit_test_teardown(test_spool_damage, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
