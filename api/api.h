@@ -341,6 +341,9 @@ void api_bound_library_threads(char **argv, int blas_too);
 cJSON *api_json_mesh_info(const mcf_mesh_info *info,
                           const mcf_curvature_summary *curv);
 cJSON *api_json_curvature(const mcf_curvature_summary *curv);
+/* Its "log" holds at most API_LOG_MAX entries: the first and last steps
+ * and evenly spaced ones between, each with its "step". */
+#define API_LOG_MAX 1000
 cJSON *api_json_flow_stats(const mcf_flow_stats *st);
 cJSON *api_json_compare(const mcf_compare_result *cmp);
 cJSON *api_json_schemes(void);

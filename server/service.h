@@ -270,9 +270,9 @@ void svc_job_unref(svc_job *j);
 const char *svc_job_id(const svc_job *j);
 
 /* Cancels a queued job at once, or asks a running one to stop at its
- * next step (reason USER or CLIENT). 1 when this call changed the job, 0
- * when it had finished or was already canceled, -1 when the spool could
- * not record it (errno; canceled in memory all the same). */
+ * next step (reason USER or CLIENT), durably first. 1 when this call
+ * changed the job, 0 when it had finished or was already canceled, -1
+ * when the spool could not record it (errno): then nothing changed. */
 int svc_cancel(svc_job *j, svc_cancel_reason reason);
 
 typedef enum {
@@ -283,8 +283,8 @@ typedef enum {
 
 /* DELETE semantics: cancels a queued or running job (reason USER) and
  * forgets a finished one. 0 and *res, or -1 and *err: ENOTFOUND, or
- * ESTORAGE when the spool could not record it (a queued or running job
- * is canceled in memory all the same, a finished one is kept). *before:
+ * ESTORAGE when the spool could not record it (then nothing changed:
+ * the job goes on, or is kept). *before:
  * the status it had (also on ESTORAGE). */
 int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
                svc_error *err);

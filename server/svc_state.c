@@ -239,9 +239,12 @@ char *svc__state_json(const svc_job *j)
     cJSON_AddStringToObject(o, "out_format", j->out_format);
     cJSON_AddStringToObject(o, "result", j->result_name);
     /* A cancel asked of a running job holds across a restart. */
-    if (!svc_job_status_terminal(j->status) && j->cancel &&
-        (j->cancel_reason == SVC_CANCEL_USER ||
-         j->cancel_reason == SVC_CANCEL_CLIENT))
+    if (!svc_job_status_terminal(j->status) && j->cancel_asked)
+        cJSON_AddStringToObject(o, "cancel_requested",
+                                cancel_names[j->cancel_asked]);
+    else if (!svc_job_status_terminal(j->status) && j->cancel &&
+             (j->cancel_reason == SVC_CANCEL_USER ||
+              j->cancel_reason == SVC_CANCEL_CLIENT))
         cJSON_AddStringToObject(o, "cancel_requested",
                                 cancel_names[j->cancel_reason]);
     cJSON_AddNumberToObject(o, "result_bytes", (double)j->result_len);

@@ -28,6 +28,7 @@
 #include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <linux/fs.h>
 #include <sys/time.h>
 #include <sys/types.h>
@@ -63,6 +64,7 @@ static pid_t g_started[64];
 static int g_nstarted;
 static daemon_t g_main;   /* shared by the tests that need no special flags */
 static void unlock_dirs(void);
+static void unmount_all(void);
 static void wait_gauge_within(const daemon_t *d, const char *name, double want,
                               double seconds, const char *what);
 
@@ -687,6 +689,7 @@ static int group_teardown(void **state)
             waitpid(g_started[i], NULL, 0);
         }
     tl_kill_children(0);
+    unmount_all();
     unlock_dirs();
     rm_rf(g_tmp);
     curl_global_cleanup();
@@ -700,6 +703,7 @@ static int kill_strays(void **state)
 {
     (void)state;
     tl_kill_children(g_main.pid);
+    unmount_all();
     return 0;
 }
 
@@ -2280,6 +2284,495 @@ static void test_spool_quota(void **state)
     }
 }
 
+/* ------------------------------------------------------------ a full spool */
+
+/* Small filesystems mounted by a test (tmpfs with size=), unmounted by
+ * unmount_all at the end of the test or the group. */
+static char g_mounted[2][800];
+static int g_nmounted;
+
+static void unmount_all(void)
+{
+    char cmd[900];
+    while (g_nmounted > 0) {
+        snprintf(cmd, sizeof cmd, "umount -l '%s' 2>/dev/null",
+                 g_mounted[--g_nmounted]);
+        if (system(cmd) != 0)
+            fprintf(stderr, "could not unmount %s\n", g_mounted[g_nmounted]);
+    }
+}
+
+/* A tmpfs of `size` (mount's syntax) at dir; 0, or -1 when this machine
+ * cannot mount one (not root, no mount(8), a sandbox without the right). */
+static int mount_small(const char *dir, const char *size)
+{
+    char cmd[1000];
+    if (geteuid() != 0 || g_nmounted == 2 || mkdir(dir, 0750) != 0)
+        return -1;
+    snprintf(cmd, sizeof cmd, "mount -t tmpfs -o size=%s,mode=0750 tmpfs "
+             "'%s' 2>/dev/null", size, dir);
+    if (system(cmd) != 0)
+        return -1;
+    snprintf(g_mounted[g_nmounted++], sizeof g_mounted[0], "%s", dir);
+    return 0;
+}
+
+/* The bytes free on the filesystem of path. */
+static double free_bytes(const char *path)
+{
+    struct statvfs sv;
+    assert_int_equal(statvfs(path, &sv), 0);
+    return (double)sv.f_bavail * (double)sv.f_frsize;
+}
+
+/* Makes (or truncates) file so that about `leave` bytes stay free. */
+static void fill_leaving(const char *file, double leave)
+{
+    static const char zeros[65536];
+    struct stat st;
+    double want;
+    off_t at;
+    int fd = open(file, O_WRONLY | O_CREAT, 0640);
+
+    assert_true(fd >= 0 && fstat(fd, &st) == 0);
+    at = st.st_size;
+    want = (double)at + free_bytes(file) - leave;
+    if (want < (double)at) {
+        assert_int_equal(ftruncate(fd, want > 0 ? (off_t)want : 0), 0);
+    } else {
+        assert_true(lseek(fd, at, SEEK_SET) >= 0);
+        while ((double)at < want) {
+            size_t n = sizeof zeros;
+            ssize_t w;
+            if ((double)at + (double)n > want)
+                n = (size_t)(want - (double)at);
+            if ((w = write(fd, zeros, n)) <= 0)
+                break; /* full: as close as it gets */
+            at += w;
+        }
+    }
+    close(fd);
+}
+
+/* Polls /readyz until its status is want (bounded); the last status. */
+static long wait_ready(const daemon_t *d, long want, double seconds)
+{
+    double end = mcf_now() + seconds;
+    long got;
+    for (;;) {
+        resp_t r;
+        got = http(d, "GET", "/readyz", NULL, NULL, &r);
+        resp_free(&r);
+        if (got == want || mcf_now() > end)
+            return got;
+        sleep_ms(50);
+    }
+}
+
+/* Issue 17 item 8: with the spool's filesystem full every job failed
+ * (500) while /readyz stayed 200: the removal of the failed job's
+ * directory, and the small state.json written after a failed result,
+ * counted as successful writes and cleared the failure. Now a refused
+ * upload is a 503 ESPOOLFULL with Retry-After, and /readyz is 503 ESPOOL
+ * until a write as large as the one that failed succeeds. */
+static void test_spool_full(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"}; /* 72,320 bytes */
+    daemon_t d;
+    char mnt[600], spool[700], filler[700], id[SRV_ID_BUF];
+    resp_t r;
+    long st;
+
+    (void)state;
+    snprintf(mnt, sizeof mnt, "%s/full", g_tmp);
+    if (mount_small(mnt, "1m") != 0) {
+        tl_skip("test_spool_full", "cannot mount a small tmpfs here (needs "
+                "root and mount(8))");
+        return;
+    }
+    snprintf(spool, sizeof spool, "%s/spool", mnt);
+    snprintf(filler, sizeof filler, "%s/filler", mnt);
+    assert_int_equal(start_daemon(&d, "spool-full", spool, flags), 0);
+
+    /* No room for the input: refused as a full spool, and unready. */
+    fill_leaving(filler, 40e3);
+    http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+    expect_problem(&d, &r, 503, "ESPOOLFULL", "spool", "an upload to a full spool");
+    resp_free(&r);
+    st = wait_ready(&d, 503, 1);
+    print_message("    readyz after a refused upload: %ld (main: 200)\n", st);
+    if (st != 503) {
+        print_log_tail(&d);
+        fail_msg("/readyz %ld after the spool refused an upload", st);
+    }
+    /* Room for the input (a write as large as the failed one) but not
+     * for the result: ready again, then unready while the result waits. */
+    fill_leaving(filler, 100e3);
+    st = wait_ready(&d, 200, 5);
+    assert_int_equal(st, 200);
+    http(&d, "POST", "/v1/jobs?iterations=2", NULL, &up, &r);
+    expect_status(&d, &r, 202, "a job whose result finds no room");
+    {
+        cJSON *j = body_json(&r, "POST /v1/jobs");
+        snprintf(id, sizeof id, "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+    }
+    resp_free(&r);
+    st = wait_ready(&d, 503, 10);
+    print_message("    readyz while a result finds no room: %ld (main: 200)\n", st);
+    if (st != 503) {
+        print_log_tail(&d);
+        fail_msg("/readyz %ld while the spool cannot take a result", st);
+    }
+    unlink(filler);
+    st = wait_ready(&d, 200, 20);
+    assert_int_equal(st, 200);
+    {   /* item 2: the result's write was tried again, not failed */
+        cJSON *j = poll_job(&d, id, NULL, 40);
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+    unmount_all();
+}
+
+/* ------------------------------------------------- descriptor exhaustion */
+
+/* Sets the soft RLIMIT_NOFILE of process pid (prlimit(1), util-linux) to
+ * the lowest descriptor number it has free, so that its next open(),
+ * pipe() or accept() fails with EMFILE (n < 0), or back to n. 0 or -1. */
+static int set_nofile(pid_t pid, long n)
+{
+    char cmd[200], dir[64], path[128];
+    if (n < 0) {
+        /* the lowest free number: none below it is free */
+        struct stat st;
+        snprintf(dir, sizeof dir, "/proc/%d/fd", (int)pid);
+        for (n = 0; n < 65536; n++) {
+            snprintf(path, sizeof path, "%s/%ld", dir, n);
+            if (lstat(path, &st) != 0)
+                break;
+        }
+    }
+    snprintf(cmd, sizeof cmd, "prlimit --pid %d --nofile=%ld: 2>/dev/null",
+             (int)pid, n);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+/* Bytes of the daemon's log so far. */
+static size_t log_size(const daemon_t *d)
+{
+    struct stat st;
+    return stat(d->log, &st) == 0 ? (size_t)st.st_size : 0;
+}
+
+/* Waits until the daemon's log past byte `from` names job id (bounded). */
+static int log_names(const daemon_t *d, size_t from, const char *id,
+                     double seconds)
+{
+    double end = mcf_now() + seconds;
+    do {
+        char *buf = NULL;
+        size_t len = 0;
+        int found = 0;
+        if (tl_read_file(d->log, &buf, &len) == 0) {
+            found = len > from && strstr(buf + from, id) != NULL;
+            free(buf);
+        }
+        if (found)
+            return 1;
+        sleep_ms(50);
+    } while (mcf_now() < end);
+    return 0;
+}
+
+/* Issue 17 item 2: with every descriptor taken, a running job and a
+ * queued one failed "EIO: Too many open files", and after a restart one
+ * of them came back succeeded. Now a step that meets a resource a client
+ * can exhaust (EMFILE, ENFILE, ENOSPC, EDQUOT, ENOMEM) is tried again with
+ * backoff; both jobs succeed, and stay so after a restart. */
+static void test_descriptor_exhaustion(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], a[SRV_ID_BUF], b[SRV_ID_BUF];
+    const char *ids[2] = {a, b};
+    size_t from;
+    double t0, held;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/nofile", g_tmp);
+    assert_int_equal(start_daemon(&d, "nofile", spool, flags), 0);
+    submit(&d, "?iterations=1500", a); /* about 1 s of flow */
+    submit(&d, "?iterations=2", b);    /* queued behind it */
+    wait_running(&d, a);
+    from = log_size(&d);
+    t0 = mcf_now();
+    if (set_nofile(d.pid, -1) != 0) {
+        stop_daemon(&d);
+        tl_skip("test_descriptor_exhaustion", "prlimit(1) cannot lower the "
+                "daemon's RLIMIT_NOFILE here");
+        return;
+    }
+    /* Until the job meets it (its retries, or on main its failure, are
+     * logged on the descriptor the log already has), and a while more. */
+    if (!log_names(&d, from, a, 60)) {
+        set_nofile(d.pid, 1024);
+        print_log_tail(&d);
+        fail_msg("job %s said nothing within 60 s of the exhaustion", a);
+    }
+    sleep_ms(1000);
+    held = mcf_now() - t0;
+    assert_int_equal(set_nofile(d.pid, 1024), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 60);
+        const char *st = jstr(j, "status");
+        print_message("    job %d after %.1f s without descriptors: %s "
+                      "(main: failed EIO)\n", i, held, st);
+        if (strcmp(st, "succeeded") != 0) {
+            print_log_tail(&d);
+            fail_msg("job %s %s after descriptors ran out for %.1f s", ids[i],
+                     st, held);
+        }
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "nofile2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 30);
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+}
+
+/* Issue 17, sharp edge: with the spool read-only while jobs ran, a
+ * refused cancel (500) came back canceled at once and a job whose result
+ * could not be written came back failed EIO, and after a restart both
+ * were succeeded. Now a refused cancel changes nothing, and an outcome
+ * the spool will not take is not shown: the job is queued again (it runs
+ * again later, as after a restart). A terminal state seen before the
+ * restart is the one seen after it. */
+static void test_readonly_outcomes(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], dir[800], a[SRV_ID_BUF], b[SRV_ID_BUF], path[160],
+        seen[2][16] = {"", ""};
+    const char *ids[2] = {a, b};
+    double end;
+    resp_t r;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/readonly", g_tmp);
+    assert_int_equal(start_daemon(&d, "readonly", spool, flags), 0);
+    submit(&d, "?iterations=1500", a);
+    submit(&d, "?iterations=2", b);
+    wait_running(&d, a);
+    for (i = 0; i < 2; i++) {
+        snprintf(dir, sizeof dir, "%s/jobs/%s", spool, ids[i]);
+        if (lock_dir(dir) != 0) {
+            unlock_dirs();
+            stop_daemon(&d);
+            tl_skip("test_readonly_outcomes", "cannot make a directory "
+                    "unwritable here");
+            return;
+        }
+    }
+    snprintf(path, sizeof path, "/v1/jobs/%s", a);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_problem(&d, &r, 500, "EIO", "not canceled", "a cancel the spool refuses");
+    resp_free(&r);
+    /* Both jobs end their work while the spool refuses their outcome:
+     * whatever GET shows meanwhile is what the restart must show. */
+    end = mcf_now() + 6;
+    while (mcf_now() < end) {
+        for (i = 0; i < 2; i++) {
+            cJSON *j;
+            snprintf(path, sizeof path, "/v1/jobs/%s", ids[i]);
+            http(&d, "GET", path, NULL, NULL, &r);
+            expect_status(&d, &r, 200, "GET a job on a read-only spool");
+            j = body_json(&r, "GET");
+            if (!seen[i][0] && (!strcmp(jstr(j, "status"), "succeeded") ||
+                                !strcmp(jstr(j, "status"), "failed") ||
+                                !strcmp(jstr(j, "status"), "canceled")))
+                snprintf(seen[i], sizeof seen[i], "%s", jstr(j, "status"));
+            cJSON_Delete(j);
+            resp_free(&r);
+        }
+        sleep_ms(100);
+    }
+    unlock_dirs();
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "readonly2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 30);
+        print_message("    job %d on a read-only spool: %s, after the restart "
+                      "%s (main: canceled and failed, then succeeded)\n", i,
+                      seen[i][0] ? seen[i] : "never finished",
+                      jstr(j, "status"));
+        if (seen[i][0] && strcmp(seen[i], jstr(j, "status")) != 0)
+            fail_msg("job %s was %s, and %s after a restart", ids[i], seen[i],
+                     jstr(j, "status"));
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+}
+
+/* An octahedron (6 vertices, 8 faces) as an OBJ body: steps cost
+ * microseconds, so tens of thousands of them take a second or two. */
+static const char k_octa[] =
+    "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+    "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+
+/* Issue 17 item 6: a 72 KB mesh run for 100,000 steps was admitted at
+ * 4.9 MB but kept a 15 MB metrics document (every step in flow.log) in
+ * memory for its whole TTL; 20 such jobs held 663 MiB against a bound of
+ * 124 MiB. Now admission counts the steps' memory (the step log and the
+ * progress events), the document's flow.log keeps at most 1000 entries
+ * (first, last and evenly between, each with its step), and a finished
+ * job's metrics are on disk only. */
+static void test_step_log_memory(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--max-job-memory",
+                                        "12M", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    upload_t octa = {.raw = k_octa, .raw_len = sizeof k_octa - 1};
+    daemon_t d;
+    char spool[600], id[SRV_ID_BUF], path[200], file[900];
+    struct stat st;
+    resp_t r;
+    cJSON *j;
+    const cJSON *log;
+    int n;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/steplog", g_tmp);
+    assert_int_equal(start_daemon(&d, "steplog", spool, flags), 0);
+    /* 100,000 steps of the sphere: 4.9 MB of mesh work, ~17 MB of log
+     * and events. main: admitted (202). */
+    http(&d, "POST", "/v1/jobs?iterations=100000&scheme=euler", NULL, &up, &r);
+    print_message("    100,000 steps of a 72 KB mesh, --max-job-memory 12M: "
+                  "HTTP %ld (main: 202)\n", r.code);
+    if (r.code == 202) {
+        cJSON *k = body_json(&r, "POST");
+        snprintf(path, sizeof path, "/v1/jobs/%s", jstr(k, "id"));
+        cJSON_Delete(k);
+        resp_free(&r);
+        http(&d, "DELETE", path, NULL, NULL, &r);
+        resp_free(&r);
+        fail_msg("a job whose steps' log exceeds --max-job-memory was admitted");
+    }
+    expect_problem(&d, &r, 422, "ELIMIT", "--max-job-memory", "100,000 steps");
+    resp_free(&r);
+
+    http(&d, "POST", "/v1/jobs?iterations=20000&scheme=euler&dt=1e-6", NULL,
+         &octa, &r);
+    expect_status(&d, &r, 202, "20,000 steps of an octahedron");
+    j = body_json(&r, "POST");
+    snprintf(id, sizeof id, "%s", jstr(j, "id"));
+    cJSON_Delete(j);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&d, id, "succeeded", 60));
+    snprintf(file, sizeof file, "%s/jobs/%s/metrics.json", spool, id);
+    assert_int_equal(stat(file, &st), 0);
+    print_message("    metrics.json of 20,000 steps: %.0f KB (main: 2,900 KB)\n",
+                  st.st_size / 1e3);
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the metrics");
+    j = body_json(&r, "metrics");
+    log = cJSON_GetObjectItemCaseSensitive(
+        cJSON_GetObjectItemCaseSensitive(j, "flow"), "log");
+    n = cJSON_GetArraySize(log);
+    assert_int_equal(n, 1000);
+    assert_int_equal((int)jnum(cJSON_GetArrayItem(log, 0), "step"), 1);
+    assert_int_equal((int)jnum(cJSON_GetArrayItem(log, n - 1), "step"), 20000);
+    assert_int_equal((int)jnum(j, "flow.steps"), 20000);
+    cJSON_Delete(j);
+    resp_free(&r);
+    /* the job's own document has them too, read back from the spool */
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    j = body_json(&r, "GET job");
+    assert_int_equal((int)jnum(j, "metrics.flow.steps"), 20000);
+    cJSON_Delete(j);
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
+/* Cuts a file to half its size. */
+static void truncate_half(const char *path)
+{
+    struct stat st;
+    assert_int_equal(stat(path, &st), 0);
+    assert_int_equal(truncate(path, st.st_size / 2), 0);
+}
+
+/* Issue 17, sharp edge: a damaged state.json or request.json of an
+ * acknowledged, succeeded job made start-up delete its whole directory,
+ * intact result included, and a result cut to half was served as 200
+ * although state.json records its size. Now such a directory is moved to
+ * <spool>/quarantine (logged, counted in /metrics), a result of the wrong
+ * size is never served (500 EIO), and stray *.tmp files are removed. */
+static void test_spool_damage(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], ids[4][SRV_ID_BUF], file[900], path[200];
+    const char *damage[3] = {"state.json", "request.json", "result.obj"};
+    struct stat st;
+    resp_t r;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/damage", g_tmp);
+    assert_int_equal(start_daemon(&d, "damage", spool, flags), 0);
+    for (i = 0; i < 4; i++)
+        submit(&d, "?iterations=2", ids[i]);
+    for (i = 0; i < 4; i++)
+        cJSON_Delete(poll_job(&d, ids[i], "succeeded", 30));
+    stop_daemon(&d);
+    for (i = 0; i < 3; i++) {
+        snprintf(file, sizeof file, "%s/jobs/%s/%s", spool, ids[i], damage[i]);
+        truncate_half(file);
+    }
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj.7.tmp", spool, ids[3]);
+    fclose(fopen(file, "w"));
+
+    assert_int_equal(start_daemon(&d, "damage2", spool, flags), 0);
+    for (i = 0; i < 3; i++) {
+        snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[i]);
+        http(&d, "GET", path, NULL, NULL, &r);
+        print_message("    %s cut to half: GET result %ld (main: %s)\n",
+                      damage[i], r.code, i < 2 ? "404, the job deleted" : "200");
+        expect_status(&d, &r, 404, "the result of a damaged job");
+        resp_free(&r);
+        snprintf(file, sizeof file, "%s/quarantine/%s/result.obj", spool, ids[i]);
+        if (stat(file, &st) != 0)
+            fail_msg("%s: not in quarantine", file);
+    }
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    assert_int_equal((int)metric(r.body.data, "mcfd_spool_quarantined_total"), 3);
+    resp_free(&r);
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj.7.tmp", spool, ids[3]);
+    assert_int_not_equal(stat(file, &st), 0);
+    /* damaged while served */
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj", spool, ids[3]);
+    truncate_half(file);
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[3]);
+    http(&d, "GET", path, NULL, NULL, &r);
+    print_message("    a result cut to half while served: %ld (main: 200)\n",
+                  r.code);
+    expect_problem(&d, &r, 500, "EIO", "damaged", "a result cut to half");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
  * 649-byte mesh peaked at 2.75 GB (Draco's encoder memory doubles per
  * bit). quantization_bits stops at 24 (58 MB on the sphere). */
@@ -3849,6 +4342,11 @@ int main(void)
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
+        cmocka_unit_test_teardown(test_spool_full, kill_strays),
+        cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
+        cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
+        cmocka_unit_test_teardown(test_step_log_memory, kill_strays),
+        cmocka_unit_test_teardown(test_spool_damage, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
