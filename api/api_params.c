@@ -138,9 +138,8 @@ static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", 
 /* What each key means, for people: the unit and one line of help, the
  * default in words where it is derived rather than a value, and whether it
  * is an output (encoder) option, which `mcf convert` takes too. Every key
- * of the table above has its line here (api_params_describe fails the
- * test that compares the three descriptions of the parameters otherwise:
- * tests/test_contract.py). */
+ * of the table above needs its line here: without one, api_params_describe
+ * gives it a null help, and tests/test_contract.py fails naming it. */
 typedef struct {
     const char *name, *unit, *help, *derived;
     int output;

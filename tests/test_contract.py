@@ -100,6 +100,7 @@ def test_params_openapi():
         "names differ: the table has %s, openapi.yaml %s" % ([r["name"] for r in rows], list(props)))
     for r in rows:
         name, prop = r["name"], props[r["name"]]
+        assert r.get("help"), "%s: no line in api_params.c's docs[] (its help, unit, default)" % name
         val, auto = _branches(prop)
         assert auto == r["auto"], "%s: 'auto' accepted by the table: %s, by openapi.yaml: %s" % (
             name, r["auto"], auto)
