@@ -964,21 +964,23 @@ done:
     return rc;
 }
 
-/* ---------------------------------------------------------------- schemes */
+/* ------------------------------------------------------- schemes, params */
 
-static int cmd_schemes(int argc)
+/* `mcf schemes` and `mcf params`: a document of the libraries, printed
+ * as JSON on stdout (j is taken and freed; NULL: out of memory). */
+static int print_document(const char *cmd, int argc, cJSON *j)
 {
-    cJSON *j;
     char *s;
     int rc = 0;
 
-    if (argc != 2)
-        return fail(EXIT_USAGE, "schemes: takes no arguments");
-    j = api_json_schemes();
-    s = api_json_print(j, 1);
+    if (argc != 2) {
+        cJSON_Delete(j);
+        return fail(EXIT_USAGE, "%s: takes no arguments", cmd);
+    }
+    s = j ? api_json_print(j, 1) : NULL;
     cJSON_Delete(j);
     if (!s)
-        return fail(1, "schemes: out of memory");
+        return fail(1, "%s: out of memory", cmd);
     if (printf("%s\n", s) < 0 || fflush(stdout) != 0)
         rc = fail(1, "cannot write to stdout: %s", strerror(errno));
     free(s);
@@ -1012,29 +1014,6 @@ static int cmd_convert(int argc, char **argv)
     api_attrs_free(attrs);
     api_params_free(&p);
     cJSON_Delete(table);
-    return rc;
-}
-
-/* ----------------------------------------------------------------- params */
-
-static int cmd_params(int argc)
-{
-    cJSON *j;
-    char *s;
-    int rc = 0;
-
-    if (argc != 2)
-        return fail(EXIT_USAGE, "params: takes no arguments");
-    j = param_table();
-    if (!j)
-        return 1;
-    s = api_json_print(j, 1);
-    cJSON_Delete(j);
-    if (!s)
-        return fail(1, "params: out of memory");
-    if (printf("%s\n", s) < 0 || fflush(stdout) != 0)
-        rc = fail(1, "cannot write to stdout: %s", strerror(errno));
-    free(s);
     return rc;
 }
 
@@ -1085,9 +1064,9 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "info"))
         return cmd_info(argc, argv);
     if (!strcmp(cmd, "schemes"))
-        return cmd_schemes(argc);
+        return print_document(cmd, argc, api_json_schemes());
     if (!strcmp(cmd, "params"))
-        return cmd_params(argc);
+        return print_document(cmd, argc, api_params_describe(NULL));
     if (!strcmp(cmd, "convert"))
         return cmd_convert(argc, argv);
     return mcf_experiment_main(argc, argv);
