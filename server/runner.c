@@ -177,14 +177,14 @@ void svc__run_job(svc_job *j)
     const svc_config *cfg = &svc__S.cfg;
     api_params prm;
     int have_prm = 0;
-    mcf_mesh *m = NULL, *tgt = NULL;
+    mcf_mesh *m = NULL, *tgt = NULL, *before = NULL;
     api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
     api_format fmt = API_FMT_UNKNOWN, tfmt;
     mcf_error err = {MCF_OK, ""};
     mcf_status rc;
     mcf_flow_stats st;
     api_metrics mt;
-    api_buf out;
+    api_buf out, fields;
     api_encode_opts eo;
     svc_error prob;
     int failed = 1, requeue = 0, nv = 0, nf = 0;
@@ -200,6 +200,7 @@ void svc__run_job(svc_job *j)
     api_metrics_init(&mt);
     memset(&prob, 0, sizeof prob);
     api_buf_init(&out, SVC_RESULT_MAX);
+    api_buf_init(&fields, 0);
     svc__lock();
     input = j->input;
     input_len = j->input_len;
@@ -275,6 +276,12 @@ void svc__run_job(svc_job *j)
         goto done;
     }
     t_metrics = mcf_now() - t_metrics;
+    /* fields=true: the mesh as the flow receives it, for the per-vertex
+     * fields (api_fields_encode) written beside the result. */
+    if (prm.fields && !(before = mcf_mesh_dup(m, &err))) {
+        svc_error_from_mcf(&prob, err.status, SVC_STAGE_RUN, "fields", &err);
+        goto done;
+    }
 
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
@@ -323,6 +330,10 @@ void svc__run_job(svc_job *j)
         goto done;
     }
     t_metrics += mcf_now() - t_after;
+    if (before && (rc = api_fields_encode(before, m, &fields, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, NULL, &err);
+        goto done;
+    }
     svc__lock();
     snprintf(j->out_format, sizeof j->out_format, "%s",
              api_format_name(eo.format));
@@ -339,7 +350,9 @@ void svc__run_job(svc_job *j)
     if (srv_spool_write(cfg->spool, j->id, j->result_name, out.data, out.len,
                         1) != 0 ||
         srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
-                        strlen(metrics), 1) != 0) {
+                        strlen(metrics), 1) != 0 ||
+        (before && srv_spool_write(cfg->spool, j->id, SVC_FIELDS_FILE,
+                                   fields.data, fields.len, 1) != 0)) {
         svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the result of job %s "
                       "to the spool: %s", j->id, strerror(errno));
         goto done;
@@ -406,7 +419,7 @@ done:
     svc__lock();
     j->status = final;
     if (final == SVC_JOB_SUCCEEDED) {
-        size_t add = j->result_len +
+        size_t add = j->result_len + fields.len +
                      (j->metrics_json ? strlen(j->metrics_json) : 0);
         j->disk_bytes += add;
         if (j->in_table)
@@ -429,8 +442,10 @@ done:
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(tgt);
+    mcf_mesh_free(before);
     api_attrs_free(attrs);
     api_buf_free(&out);
+    api_buf_free(&fields);
     free(input);
     free(target);
     free(metrics);

@@ -350,6 +350,12 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
  * 0, or -1 and *err. The caller closes *fd. */
 int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
                         svc_error *err);
+/* The per-vertex fields of a succeeded job submitted with fields=true
+ * (api_fields_encode's document), opened read-only, and its size. 0, or
+ * -1 and *err: ENOTREADY, ENORESULT (failed, canceled, or submitted
+ * without fields=true), ESTORAGE. The caller closes *fd. */
+int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
+                        svc_error *err);
 /* The submitter will not take the kept copy: it is freed (and none is
  * kept from now on). */
 void svc_job_release_result(svc_job *j);

@@ -21,6 +21,7 @@
 #define SVC_NBUCKETS 4096
 #define SVC_EVENTS_MAX ((size_t)16 << 20)   /* ndjson progress kept per job */
 #define SVC_RESULT_MAX ((size_t)4 << 30)    /* an encoded result */
+#define SVC_FIELDS_FILE "fields.bin"        /* fields=true: api_fields_encode */
 
 struct svc_sub {
     svc_job *job;

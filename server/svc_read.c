@@ -248,11 +248,34 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
     return 0;
 }
 
+/* A file of a succeeded job's directory opened read-only, and its size. */
+static int open_job_file(const svc_job *j, const char *name, const char *what,
+                         int *fd, size_t *size, svc_error *err)
+{
+    char path[1400];
+    struct stat sb;
+
+    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
+        (*fd = open(path, O_RDONLY)) < 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s is "
+                      "missing from the spool", what, j->id);
+        return -1;
+    }
+    if (fstat(*fd, &sb) != 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s: %s",
+                      what, j->id, strerror(errno));
+        close(*fd);
+        *fd = -1;
+        return -1;
+    }
+    *size = (size_t)sb.st_size;
+    return 0;
+}
+
 int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
                         svc_error *err)
 {
-    char name[32], path[1400];
-    struct stat sb;
+    char name[32];
 
     svc__lock();
     if (!has_result_locked(j, "result", err)) {
@@ -261,21 +284,30 @@ int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
     }
     snprintf(name, sizeof name, "%s", j->result_name);
     svc__unlock();
-    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
-        (*fd = open(path, O_RDONLY)) < 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s is "
-                      "missing from the spool", j->id);
+    return open_job_file(j, name, "result", fd, size, err);
+}
+
+int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
+                        svc_error *err)
+{
+    cJSON *p;
+    int asked;
+
+    svc__lock();
+    if (!has_result_locked(j, "fields", err)) {
+        svc__unlock();
         return -1;
     }
-    if (fstat(*fd, &sb) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s: %s",
-                      j->id, strerror(errno));
-        close(*fd);
-        *fd = -1;
+    p = j->params_json ? cJSON_Parse(j->params_json) : NULL;
+    svc__unlock();
+    asked = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(p, "fields"));
+    cJSON_Delete(p);
+    if (!asked) {
+        svc_error_set(err, SVC_ENORESULT, NULL, "job %s was submitted without "
+                      "fields=true and has no fields", j->id);
         return -1;
     }
-    *size = (size_t)sb.st_size;
-    return 0;
+    return open_job_file(j, SVC_FIELDS_FILE, "fields", fd, size, err);
 }
 
 void svc_job_release_result(svc_job *j)
