@@ -253,7 +253,8 @@ int srv_http_active(void);
 const char *srv_route_name(srv_route rt);
 
 /* ui.c: the page (GET / and /ui/NAME), public, from the files embedded
- * at build time. 1 when path is one of them (*asset set), else 0. */
+ * at build time, and /ui/config.json. 1 when path is one of them (*asset
+ * set; NULL for the config), else 0. */
 int srv_ui_find(const char *path, const srv_asset **asset);
 enum MHD_Result srv_ui_send(srv_request *r, struct MHD_Connection *c,
                             const srv_asset *a);

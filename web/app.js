@@ -178,9 +178,9 @@ $('job-form').addEventListener('submit', async e => {
 
 $('cancel').addEventListener('click', async () => {
   if (!state.job) return;
+  status('Canceling...'); // the job's last event says when it has stopped
   try {
     await api.cancel(state.job.id);
-    status('Canceling...');
   } catch (e) {
     fail(e);
   }
@@ -358,9 +358,18 @@ function downloads(job) {
 
 // ------------------------------------------------------------ start
 
-const saved = sessionStorage.getItem('mcfd-token');
-if (saved) {
-  $('token').value = saved;
-  api.setToken(saved);
+// Asks for the token first when the daemon needs one (and none was typed
+// in this tab), rather than provoking a 401.
+async function start() {
+  const saved = sessionStorage.getItem('mcfd-token');
+  if (saved) {
+    $('token').value = saved;
+    api.setToken(saved);
+  }
+  const config = await api.getJSON('/ui/config.json');
+  if (config.token_required && !saved)
+    return showToken('This daemon needs its bearer token: type it above.');
+  if (config.token_required) $('token-box').hidden = false;
+  return loadSchemes();
 }
-loadSchemes();
+start().catch(fail);
