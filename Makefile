@@ -275,7 +275,15 @@ bench: deps
 	$(MAKE) all
 	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
 
-# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
+# ---- the page on a large scan in headless chromium (bench/bench_ui.mjs):
+#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   load to first frame, frame time
+bench-ui: deps
+	$(MAKE) all
+	MCF_BUILD=$(B) MESHES=$(MESHES) UI_MESH=$(UI_MESH) UI_REPS=$(UI_REPS) node bench/bench_ui.mjs
+
+.PHONY: bench-ui
+
+# ---- the scan-quality benchmark# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
 #   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
 quality: deps
 	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a

@@ -15,70 +15,29 @@
 // test's count; when chromium cannot start at all, the tests are SKIPPED
 // with the reason (and logged to $MCF_SKIP_LOG). MCF_TEST_FILTER=name runs
 // one test (the ones before it too: they share the page).
-import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import readline from 'node:readline';
 import { fileURLToPath } from 'node:url';
-import puppeteer from 'puppeteer-core';
+import { CHROMIUM, launch, startDaemon } from './browser.mjs';
 
 const ROOT = path.dirname(path.dirname(fileURLToPath(import.meta.url)));
 const BUILD = path.resolve(ROOT, process.env.MCF_BUILD || 'build');
 const DATA = process.env.MCF_TESTDATA || path.join(ROOT, 'tests', 'data');
-const CHROMIUM = process.env.MCF_CHROMIUM || '/usr/lib/chromium/chromium';
 const SHOTS = path.join(BUILD, 'tests', 'ui');
 const TMP = fs.mkdtempSync(path.join(os.tmpdir(), 'mcfd-ui-test-'));
 const TOKEN = 'ui-test-token-3f9c';
 const BACKGROUND = [242, 244, 247]; // view.js BACKGROUND
-// Chromium as the team runs it here: the /usr/bin/chromium wrapper
-// misbehaves; no sandbox (root), software WebGL, nothing from the network.
-const ARGS = ['--no-sandbox', '--enable-unsafe-swiftshader', '--disable-gpu-sandbox',
-              '--disable-background-networking', '--disable-component-update',
-              '--disable-sync', '--no-first-run', '--disable-quic', '--window-size=1400,1300'];
 
-let daemon = null, browser = null, page = null, base = '';
+let daemon = null, browser = null, page = null;
 const consoleErrors = [];
 
-function cleanup() {
-  if (daemon && daemon.exitCode === null) {
-    try { process.kill(-daemon.pid, 'SIGKILL'); } catch (e) { /* gone */ }
-  }
-  fs.rmSync(TMP, { recursive: true, force: true });
-}
-process.on('exit', cleanup);
+process.on('exit', () => fs.rmSync(TMP, { recursive: true, force: true }));
 for (const s of ['SIGINT', 'SIGTERM', 'SIGHUP'])
-  process.on(s, () => { cleanup(); process.exit(128 + os.constants.signals[s]); });
+  process.on(s, () => process.exit(128 + os.constants.signals[s]));
 
 function assert(cond, what) {
   if (!cond) throw new Error(`assertion failed: ${what}`);
-}
-
-// mcfd on a free loopback port; resolves once it prints where it listens.
-function startDaemon() {
-  const tokenFile = path.join(TMP, 'token');
-  fs.writeFileSync(tokenFile, TOKEN + '\n', { mode: 0o600 });
-  daemon = spawn(path.join(BUILD, 'mcfd'),
-                 ['--bind', '127.0.0.1', '--port', '0', '--grpc-port', '0', '--workers', '2',
-                  '--spool', path.join(TMP, 'spool'), '--token-file', tokenFile],
-                 { stdio: ['ignore', 'pipe', fs.openSync(path.join(TMP, 'mcfd.log'), 'a')],
-                   detached: true });
-  return new Promise((resolve, reject) => {
-    const t = setTimeout(() => reject(new Error('mcfd did not start in 20 s')), 20000);
-    daemon.on('exit', code => reject(new Error(`mcfd exited (${code}): ` +
-      fs.readFileSync(path.join(TMP, 'mcfd.log'), 'utf8').slice(-2000))));
-    readline.createInterface({ input: daemon.stdout }).on('line', line => {
-      const m = /^mcfd listening on (http:\/\/127\.0\.0\.1:\d+)/.exec(line);
-      if (m) { clearTimeout(t); resolve(m[1]); }
-    });
-  });
-}
-
-async function stopDaemon() {
-  const exited = new Promise(resolve => daemon.on('exit', code => resolve(code)));
-  process.kill(daemon.pid, 'SIGTERM');
-  const code = await Promise.race([exited, new Promise(r => setTimeout(() => r('timeout'), 40000))]);
-  assert(code === 0, `mcfd exits 0 after SIGTERM (got ${code})`);
 }
 
 // Pixels of a view's canvas unlike the background (more than 24 levels in
@@ -124,7 +83,7 @@ const statusText = () => page.$eval('#status', e => e.textContent);
 // ------------------------------------------------------------ tests
 
 async function test_page_asks_for_token() {
-  const resp = await page.goto(base + '/', { waitUntil: 'load' });
+  const resp = await page.goto(daemon.url + '/', { waitUntil: 'load' });
   assert(resp.status() === 200, 'GET / is 200 without a token');
   assert(/script-src 'self'/.test(resp.headers()['content-security-policy'] || ''),
          'the page has its Content-Security-Policy');
@@ -258,10 +217,7 @@ async function main() {
   console.log(`[==========] Running ${tests.length} test(s).`);
   fs.mkdirSync(SHOTS, { recursive: true });
   try {
-    browser = await puppeteer.launch({
-      executablePath: CHROMIUM, headless: true, args: ARGS, timeout: 60000,
-      userDataDir: path.join(TMP, 'profile'),
-    });
+    browser = await launch(TMP);
   } catch (e) {
     skipAll(tests, `chromium (${CHROMIUM}) cannot start: ${String(e.message).split('\n')[0]}`);
     return 0;
@@ -269,7 +225,9 @@ async function main() {
   const failed = [];
   let passed = 0;
   try {
-    base = await startDaemon();
+    const tokenFile = path.join(TMP, 'token');
+    fs.writeFileSync(tokenFile, TOKEN + '\n', { mode: 0o600 });
+    daemon = await startDaemon(BUILD, TMP, ['--workers', '2', '--token-file', tokenFile]);
     page = await browser.newPage();
     await page.setViewport({ width: 1400, height: 1300 });
     page.on('console', m => { if (m.type() === 'error') consoleErrors.push(m.text()); });
@@ -288,7 +246,8 @@ async function main() {
         failed.push(t.name);
       }
     }
-    await stopDaemon();
+    const code = await daemon.stop();
+    assert(code === 0, `mcfd exits 0 after SIGTERM (got ${code})`);
   } catch (e) {
     console.log(`[  ERROR   ] ${e.stack}`);
     failed.push('set-up');
