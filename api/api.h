@@ -247,9 +247,6 @@ typedef struct {
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
     int tol_set;                  /* tol given (needs adaptive) */
-    int fields;                   /* the daemon keeps the per-vertex fields
-                                     (api_fields_encode) for GET
-                                     /v1/jobs/{id}/fields */
 } api_params;
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */

@@ -153,11 +153,6 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
             !strcmp(name, "taubin"))
             per_vertex = 640.0;
     }
-    /* fields=true (api_fields_encode): the mesh kept from before the flow
-     * (48 bytes a vertex with its faces), five double fields (40) and the
-     * document (68, up to twice that while its buffer grows). */
-    if (p && p->fields)
-        per_vertex += 256.0;
     /* Charged per face as well when a mesh has more than 2 faces per
      * vertex (a triangle soup, an STL counted as one vertex per face). */
     if (nf > 2 * nv)

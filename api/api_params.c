@@ -100,7 +100,6 @@ static void set_format(api_params *p, value v) { p->encode.format = (api_format)
 static void set_qbits(api_params *p, value v) { p->encode.quantization_bits = (int)v.i; }
 static void set_clevel(api_params *p, value v) { p->encode.compression_level = (int)v.i; }
 static void set_order(api_params *p, value v) { p->encode.preserve_order = v.e; }
-static void set_fields(api_params *p, value v) { p->fields = v.e; }
 static void set_ply_binary(api_params *p, value v) { p->encode.ply_binary = v.e; }
 static void set_ply_curvature(api_params *p, value v) { p->encode.ply_curvature = v.e; }
 
@@ -131,7 +130,6 @@ static const keydef keys[] = {
     {"preserve_order", K_BOOL, 0, 0, 0, NULL, set_order},
     {"ply_curvature", K_BOOL, 0, 0, 0, NULL, set_ply_curvature},
     {"ply_binary", K_BOOL, 0, 0, 0, NULL, set_ply_binary},
-    {"fields", K_BOOL, 0, 0, 0, NULL, set_fields},
 };
 #define NKEYS (sizeof keys / sizeof keys[0])
 
@@ -867,7 +865,6 @@ cJSON *api_params_to_json(const api_params *p)
     ok &= cJSON_AddBoolToObject(j, "preserve_order", p->encode.preserve_order) != NULL;
     ok &= cJSON_AddBoolToObject(j, "ply_binary", p->encode.ply_binary) != NULL;
     ok &= cJSON_AddBoolToObject(j, "ply_curvature", p->encode.ply_curvature) != NULL;
-    ok &= cJSON_AddBoolToObject(j, "fields", p->fields) != NULL;
     if (!ok) {
         cJSON_Delete(j);
         return NULL;

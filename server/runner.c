@@ -162,9 +162,13 @@ static int canceled_error(svc_job *j, int steps, svc_error *prob)
  * or 1 (canceled by the shutdown: it runs again after the restart). */
 static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
                          size_t target_len, const api_params *p,
-                         svc_error *prob)
+                         int keep_fields, svc_error *prob)
 {
-    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p);
+    /* fields=true: the mesh kept from before the flow (48 bytes a vertex
+     * with its faces), five double fields (40) and the document (68, up
+     * to twice that while its buffer grows). */
+    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p) +
+                 (keep_fields ? 256.0 * nv : 0);
     if (svc_admit_refuse(&svc__S.cfg, est, prob))
         return -1;
     if (svc_admit_grow(&svc__S.cfg, &j->mem_held, est, &j->cancel) != 0)
@@ -187,7 +191,7 @@ void svc__run_job(svc_job *j)
     api_buf out, fields;
     api_encode_opts eo;
     svc_error prob;
-    int failed = 1, requeue = 0, nv = 0, nf = 0;
+    int failed = 1, requeue = 0, nv = 0, nf = 0, keep_fields = 0;
     char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
     svc_job_status final;
@@ -227,6 +231,8 @@ void svc__run_job(svc_job *j)
         svc_error_from_mcf(&prob, rc, SVC_STAGE_PARAMS, NULL, &err);
         goto done;
     }
+    if (svc_record_fields(&j->rec, &keep_fields, &prob) != 0)
+        goto done;
     have_prm = 1;
     /* sandbox.c: Draco decodes in a child process under limits. */
     if ((rc = svc_decode_upload(input, input_len, cfg, &j->cancel, "mesh", &m,
@@ -239,7 +245,7 @@ void svc__run_job(svc_job *j)
     /* svc_admit.c: estimated again from the decoded counts (polygons
      * split, STL welded); a larger estimate is refused or waits. */
     if ((requeue = memory_regrow(j, nv, nf, input_len, target_len, &prm,
-                                 &prob)) != 0) {
+                                 keep_fields, &prob)) != 0) {
         requeue = requeue > 0;
         goto done;
     }
@@ -278,7 +284,7 @@ void svc__run_job(svc_job *j)
     t_metrics = mcf_now() - t_metrics;
     /* fields=true: the mesh as the flow receives it, for the per-vertex
      * fields (api_fields_encode) written beside the result. */
-    if (prm.fields && !(before = mcf_mesh_dup(m, &err))) {
+    if (keep_fields && !(before = mcf_mesh_dup(m, &err))) {
         svc_error_from_mcf(&prob, err.status, SVC_STAGE_RUN, "fields", &err);
         goto done;
     }

@@ -290,19 +290,17 @@ int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
 int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
                         svc_error *err)
 {
-    cJSON *p;
-    int asked;
+    svc_error e;
+    int asked = 0;
 
     svc__lock();
     if (!has_result_locked(j, "fields", err)) {
         svc__unlock();
         return -1;
     }
-    p = j->params_json ? cJSON_Parse(j->params_json) : NULL;
+    /* the record is constant once submitted; a bad value was refused */
     svc__unlock();
-    asked = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(p, "fields"));
-    cJSON_Delete(p);
-    if (!asked) {
+    if (svc_record_fields(&j->rec, &asked, &e) != 0 || !asked) {
         svc_error_set(err, SVC_ENORESULT, NULL, "job %s was submitted without "
                       "fields=true and has no fields", j->id);
         return -1;

@@ -80,7 +80,7 @@ $('strength-auto').addEventListener('change', () => {
 for (const [value, label] of FORMATS) $('format').add(new Option(label, value));
 
 function params() {
-  const p = { fields: true };
+  const p = {};
   const num = id => $(id).value.trim() === '' ? undefined : Number($(id).value);
   if ($('scheme').value) p.scheme = $('scheme').value;
   if ($('strength-auto').checked) p.strength = 'auto';
@@ -123,8 +123,8 @@ drop.addEventListener('drop', e => {
 // the final Job document. With noise, the clean upload is also the target,
 // so that the metrics measure the error before and after against it.
 // onProgress(fraction or null when unknown, step, status).
-async function runJob(file, p, onProgress) {
-  let job = await api.submit(file, p, p.noise > 0 ? file : null);
+async function runJob(file, p, onProgress, fields = false) {
+  let job = await api.submit(file, p, p.noise > 0 ? file : null, fields);
   state.job = job;
   const planned = j => j.progress.steps ||
     (p.adaptive || p.time ? null : p.iterations || DEFAULT_ITERATIONS);
@@ -159,7 +159,7 @@ $('job-form').addEventListener('submit', async e => {
   status('Uploading...');
   try {
     state.jobFile = state.file;
-    const job = await runJob(state.file, params(), showProgress);
+    const job = await runJob(state.file, params(), showProgress, true);
     if (job.status !== 'succeeded') {
       status(`Job ${job.status}: ${job.error ? job.error.detail : ''}`, job.status === 'failed');
     } else {
@@ -329,7 +329,7 @@ async function download(job, format) {
     }
     state.busy = true;
     updateRun();
-    const p = { ...job.params, format, fields: false };
+    const p = { ...job.params, format };
     const again = await runJob(state.jobFile, p, (f, step) => {
       $('progress').value = f ?? 0;
       status(`Writing ${format}: step ${step}`);
