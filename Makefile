@@ -2,7 +2,7 @@
 #
 #   make            build/libmcf.a, build/libmcfapi.a, build/mcf (and build/mcfd once server/ exists)
 #   make deps       install missing Debian packages (dpkg -s, then apt-get install -y; sudo when not root),
-#                   then the npm packages of tools/ (npm ci, when node_modules is missing or stale)
+#                   then the npm packages of package-lock.json (npm ci, when node_modules is missing or stale)
 #   make install    mcf, mcfd and their man pages under $(DESTDIR)$(PREFIX) (PREFIX=/usr/local);
 #                   make uninstall removes them
 #   make test       deps, build, then every unit test binary (build/tests/test_*)
@@ -66,13 +66,12 @@ LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
 DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
-            python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
+            chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
             python3-setuptools python3-wheel curl
-# Node and npm (Debian's nodejs and npm), only where no `npm` is on PATH:
-# tools/ pins the npm packages the tests use (@redocly/cli, the OpenAPI
-# linter) in its package-lock.json; `make deps` runs `npm ci` there.
-NODE_PKGS := nodejs npm
 DEB_BENCH := libeigen3-dev libcgal-dev
+# npm's packages (package.json, package-lock.json): `npm ci` below.
+NPM_STAMP := node_modules/.package-lock.json
+NPM_CI_FLAGS ?=
 
 CORE_SRC := $(wildcard core/*.c)
 API_SRC  := $(wildcard api/*.c)
@@ -90,10 +89,13 @@ SRV_OBJ  := $(SRV_SRC:%.c=$(B)/%.o) $(SRV_CXX:%.cc=$(B)/%.o)
 TESTLIB_OBJ := $(TESTLIB:%.c=$(B)/%.o)
 TEST_BIN := $(TEST_SRC:tests/%.c=$(B)/tests/%)
 # Python test runners (tests/test_*.py on Debian's /usr/bin/python3, whose
-# grpcio the gRPC tests use): each gets an executable wrapper in
+# grpcio the gRPC tests use) and node ones (tests/test_*.mjs, the page's
+# browser test with puppeteer-core): each gets an executable wrapper in
 # $(B)/tests, run and counted by `make test` like the cmocka binaries.
 TEST_PY  := $(wildcard tests/test_*.py)
 TEST_BIN += $(TEST_PY:tests/%.py=$(B)/tests/%)
+TEST_MJS := $(wildcard tests/test_*.mjs)
+TEST_BIN += $(TEST_MJS:tests/%.mjs=$(B)/tests/%)
 
 PROGS := $(B)/mcf
 ifneq ($(SRV_SRC),)
@@ -148,6 +150,11 @@ $(B)/tests/%: tests/%.py
 	@mkdir -p $(@D)
 	printf '#!/bin/sh\nexec /usr/bin/python3 %s "$$@"\n' '$(abspath $<)' > $@ && chmod +x $@
 
+# A node test: a wrapper that runs tests/NAME.mjs with the machine's node.
+$(B)/tests/%: tests/%.mjs $(NPM_STAMP)
+	@mkdir -p $(@D)
+	printf '#!/bin/sh\nexec node %s "$$@"\n' '$(abspath $<)' > $@ && chmod +x $@
+
 # core/ is strict C11 with no POSIX; api/, cli/, server/ and tests/ get POSIX.
 $(B)/core/%.o: core/%.c
 	@mkdir -p $(@D)
@@ -170,20 +177,23 @@ $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
 deps:
 	@missing=""; for p in $(DEB_PKGS) $(EXTRA_PKGS); do \
 	  dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
-	if [ -n "$(NPM_CI)" ] && ! command -v npm >/dev/null; then missing="$$missing $(NODE_PKGS)"; fi; \
 	if [ -n "$$missing" ]; then \
 	  echo "make deps: installing$$missing"; \
 	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
 	  $$SUDO apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
-	@[ -z "$(NPM_CI)" ] || [ tools/node_modules/.package-lock.json -nt tools/package-lock.json ] || \
-	  { echo "make deps: npm ci in tools/ (the pinned @redocly/cli)"; \
-	    cd tools && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error; }
+	@$(MAKE) --no-print-directory $(NPM_STAMP)
 
-# npm ci in tools/ comes with the default package list, not with a list
-# another target passes (deps-build, image, bench).
-NPM_CI = $(if $(filter command line,$(origin DEB_PKGS)),,1)
+# ---- npm: package.json + package-lock.json (three for the page, and the
+# test tools), `npm ci` into node_modules/ when it is missing or older than
+# them. Debian's nodejs and npm are installed when there is no npm (a
+# machine's own node, e.g. NodeSource's, which bundles npm, is kept).
+# NPM_CI_FLAGS=--omit=dev: three only (the image's build).
+$(NPM_STAMP): package.json package-lock.json
+	@command -v npm >/dev/null 2>&1 || $(MAKE) --no-print-directory deps DEB_PKGS="nodejs npm"
+	npm ci --ignore-scripts --no-audit --no-fund $(NPM_CI_FLAGS)
+	@touch $@
 
 # Only what building mcf and mcfd needs (the container's build stage).
 deps-build:
@@ -270,7 +280,15 @@ bench: deps
 	$(MAKE) all
 	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
 
-# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
+# ---- the page on a large scan in headless chromium (bench/bench_ui.mjs):
+#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   load to first frame, frame time
+bench-ui: deps
+	$(MAKE) all
+	MCF_BUILD=$(B) MESHES=$(MESHES) UI_MESH=$(UI_MESH) UI_REPS=$(UI_REPS) node bench/bench_ui.mjs
+
+.PHONY: bench-ui
+
+# ---- the scan-quality benchmark# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
 #   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
 quality: deps
 	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
@@ -301,6 +319,29 @@ $(B)/server/openapi_yaml.c: api/openapi.yaml
 
 $(B)/server/openapi_yaml.o: $(B)/server/openapi_yaml.c
 	$(CC) $(WARN) $(CFLAGS) -c $< -o $@
+
+# The page (server/ui.c): web/'s files and three.js (node_modules, `npm ci`
+# above) embedded by web/embed.sh as build/server/ui_assets.c. The addon's
+# bare `from 'three'` becomes a relative import: the page needs no import
+# map (an inline script its Content-Security-Policy forbids).
+UI_WEB := $(filter-out web/index.html,$(wildcard web/*.js web/*.css web/*.svg))
+THREE := node_modules/three
+ifneq ($(SRV_SRC),)
+SRV_OBJ += $(B)/server/ui_assets.o
+$(B)/mcfd: $(B)/server/ui_assets.o
+endif
+
+$(B)/server/ui_assets.c: web/embed.sh web/index.html $(UI_WEB) $(NPM_STAMP)
+	@mkdir -p $(@D) $(B)/ui
+	sed "s#from 'three'#from './three.module.js'#" \
+	  $(THREE)/examples/jsm/controls/OrbitControls.js > $(B)/ui/OrbitControls.js
+	web/embed.sh $@ /=web/index.html $(foreach f,$(UI_WEB),/ui/$(notdir $f)=$f) \
+	  /ui/three.module.js=$(THREE)/build/three.module.js \
+	  /ui/three.core.js=$(THREE)/build/three.core.js \
+	  /ui/OrbitControls.js=$(B)/ui/OrbitControls.js
+
+$(B)/server/ui_assets.o: $(B)/server/ui_assets.c server/ui_assets.h
+	$(CC) $(WARN) -Iserver $(CFLAGS) -c $< -o $@
 
 # ---- make install: the two programs, their man pages (made from their
 # --help, so they cannot drift), the licence and the API contracts.

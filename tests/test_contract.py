@@ -9,8 +9,9 @@ served as it is) and held equal here: names, types, choices, ranges and
 defaults, field by field, so a change to one that misses another fails with
 the field named. Also:
 - api/openapi.yaml passes @redocly/cli lint (the version pinned in
-  tools/package-lock.json, `make deps` installs it) with no error and no
-  warning, and the linter does catch a broken file;
+  package-lock.json, `make deps` installs it; api/redocly.yaml: the
+  recommended rules) with no error and no warning, and the linter does
+  catch a broken file;
 - one version (mcf, mcfd, openapi.yaml, the Python client) and one licence
   (LICENSE, openapi.yaml's SPDX identifier, the Python client's);
 - the Python client's committed gRPC stubs are what api/mcfd.proto gives
@@ -29,7 +30,7 @@ from testlib import BUILD, ROOT, TMP
 
 OPENAPI = os.path.join(ROOT, "api", "openapi.yaml")
 PROTO = os.path.join(ROOT, "api", "mcfd.proto")
-REDOCLY = os.path.join(ROOT, "tools", "node_modules", ".bin", "redocly")
+REDOCLY = os.path.join(ROOT, "node_modules", ".bin", "redocly")
 
 
 def table():
@@ -45,8 +46,8 @@ def openapi():
 
 def lint(path):
     """(errors, warnings, problems) of redocly lint on path."""
-    assert os.access(REDOCLY, os.X_OK), "%s is missing: run make deps (npm ci in tools/)" % REDOCLY
-    r = subprocess.run([REDOCLY, "lint", "--config", os.path.join(ROOT, "tools", "redocly.yaml"),
+    assert os.access(REDOCLY, os.X_OK), "%s is missing: run make deps (npm ci)" % REDOCLY
+    r = subprocess.run([REDOCLY, "lint", "--config", os.path.join(ROOT, "api", "redocly.yaml"),
                         "--format=json", path], capture_output=True, text=True, cwd=TMP)
     doc = json.loads(r.stdout)
     t = doc["totals"]
@@ -205,7 +206,7 @@ def test_one_version_one_licence():
         assert f.readline() == "MIT License\n"
     assert doc["info"]["license"] == {"name": "MIT", "identifier": "MIT"}, doc["info"]["license"]
     assert 'license = {text = "MIT"}' in pyproject
-    with open(os.path.join(ROOT, "tools", "package.json")) as f:
+    with open(os.path.join(ROOT, "package.json")) as f:
         assert json.load(f)["license"] == "MIT"
 
 
