@@ -381,11 +381,13 @@ install: $(PROGS) $(MANPAGES)
 	install -m 755 $(PROGS) $(DESTDIR)$(BINDIR)/
 	install -m 644 $(MANPAGES) $(DESTDIR)$(MANDIR)/
 	install -m 644 LICENSE api/openapi.yaml api/mcfd.proto $(DESTDIR)$(DOCDIR)/
+	install -m 644 $(THREE)/LICENSE $(DESTDIR)$(DOCDIR)/three.js-LICENSE
 
 uninstall:
 	rm -f $(DESTDIR)$(BINDIR)/mcf $(DESTDIR)$(BINDIR)/mcfd \
 	  $(DESTDIR)$(MANDIR)/mcf.1 $(DESTDIR)$(MANDIR)/mcfd.1 \
-	  $(DESTDIR)$(DOCDIR)/LICENSE $(DESTDIR)$(DOCDIR)/openapi.yaml $(DESTDIR)$(DOCDIR)/mcfd.proto
+	  $(DESTDIR)$(DOCDIR)/LICENSE $(DESTDIR)$(DOCDIR)/openapi.yaml $(DESTDIR)$(DOCDIR)/mcfd.proto \
+	  $(DESTDIR)$(DOCDIR)/three.js-LICENSE
 	-rmdir $(DESTDIR)$(DOCDIR)
 
 # ---- the Python client's gRPC stubs (committed: clients/python/gen_stubs.sh

@@ -157,6 +157,7 @@ check() {
     echo "image-check: tini and mcfd run as uid $(awk 'NR == 1 { print $1 }' "$out/procs") ($(pm exec "$name" id -un)), not root"
     # the licence and the third-party notice: every Debian package of the image listed
     pm exec "$name" cat /usr/share/doc/mcfd/LICENSE /usr/share/doc/mcfd/THIRD-PARTY-NOTICES \
+        /usr/share/doc/mcfd/three.js-LICENSE \
         > "$out/notices" || { echo "image-check: FAIL: no licence or notice in the image" >&2; exit 1; }
     pm exec "$name" dpkg-query -W -f '${Package}\n' > "$out/packages"
     missing=$(while read -r p; do grep -q "^$p " "$out/notices" || echo "$p"; done < "$out/packages")

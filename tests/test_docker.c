@@ -249,8 +249,9 @@ static void test_kubernetes(void **state)
 /* The licence and the third-party notice travel in the image: the
  * runtime stage copies LICENSE and docker/THIRD-PARTY-NOTICES to
  * /usr/share/doc/mcfd and appends the package list (docker/notices.sh;
- * `make image-check` checks that list against the image), and every
- * package the runtime stage installs is named in the notice's table. */
+ * `make image-check` checks that list against the image), every package
+ * the runtime stage installs is named in the notice's table, and three.js,
+ * which mcfd embeds for its page, is named with its licence shipped. */
 static void test_notices(void **state)
 {
     char *df, *notice, *lic, *at, *end;
@@ -265,6 +266,9 @@ static void test_notices(void **state)
     assert_int_equal(strncmp(lic, "MIT License\n", 12), 0);
     assert_non_null(strstr(df, "COPY LICENSE docker/THIRD-PARTY-NOTICES /usr/share/doc/mcfd/"));
     assert_non_null(strstr(df, "sh /tmp/notices.sh /usr/share/doc/mcfd/THIRD-PARTY-NOTICES"));
+    /* three.js is embedded in mcfd (the page): named, its licence shipped */
+    assert_non_null(strstr(notice, "three.js"));
+    assert_non_null(strstr(df, "COPY node_modules/three/LICENSE /usr/share/doc/mcfd/three.js-LICENSE"));
     /* the runtime stage's package list: from its --no-install-recommends
      * to the `&&` that ends it */
     at = strstr(df, "AS runtime");

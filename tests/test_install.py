@@ -40,6 +40,7 @@ def test_install_run_uninstall():
     want = ["opt/mcfd-test/bin/mcf", "opt/mcfd-test/bin/mcfd",
             "opt/mcfd-test/share/doc/mcfd/LICENSE", "opt/mcfd-test/share/doc/mcfd/mcfd.proto",
             "opt/mcfd-test/share/doc/mcfd/openapi.yaml",
+            "opt/mcfd-test/share/doc/mcfd/three.js-LICENSE",
             "opt/mcfd-test/share/man/man1/mcf.1", "opt/mcfd-test/share/man/man1/mcfd.1"]
     assert installed() == want, installed()
     bindir = DEST + PREFIX + "/bin"
