@@ -908,7 +908,12 @@ static int cmd_smooth(int argc, char **argv)
                   nwarn, nwarn > 1 ? "s" : "", o.pos[1]);
         goto done;
     }
-    if (!o.quiet) {
+    if (!o.quiet && (p.flow.scheme == MCF_FAIRING || p.flow.scheme == MCF_FAIRING_EXPLICIT)) {
+        /* a filter: its steps and the noise they were chosen for */
+        fprintf(stderr, "mcf: %s -> %s: %d vertices, %s %d step%s for noise %.3g mean edges in %.2f s%s\n",
+                o.pos[0], o.pos[1], mcf_mesh_nvertices(m), mcf_scheme_get(p.flow.scheme)->name, st.steps,
+                st.steps == 1 ? "" : "s", st.noise, flow_s, nwarn ? " (with warnings)" : "");
+    } else if (!o.quiet) {
         char strength[48] = "";
         if (st.strength > 0)
             snprintf(strength, sizeof strength, ", strength %.3g mean edges", st.strength);

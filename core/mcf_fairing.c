@@ -30,9 +30,13 @@
  *
  * The output moves each free vertex along the normal n of Y only,
  * X_i = X0_i + n_i <n_i, Y_i - X0_i>, so vertices stay where the scanner
- * put them along the surface. A guard then gives every face of X that
- * faces against the same face of Y Y's positions at its free vertices, up
- * to 5 rounds.
+ * put them along the surface. Tangential noise (isotropic scanner noise)
+ * is removed by a second SURE over the same steps for the tangential part
+ * of the displacement, moved in the tangent planes and put back on the
+ * surface (tangential_output). Creases found on the smoothed input are
+ * smoothed along and held (creases). A guard then gives every face of X
+ * that faces against the same face of Y Y's positions at its free
+ * vertices, up to 5 rounds. docs/fairing.md has the math in words.
  *
  * Pure C11 and CHOLMOD; its own cholmod_common; no globals.
  */

@@ -280,6 +280,20 @@ static void reference_steps(const graph *g, const double *T, const double *c, co
     }
 }
 
+/* Runs variant var (0 implicit, 1 explicit) on m: K steps, or (K 0) the
+ * automatic amount for noise sigma mean edges. */
+static void run_variant(mcf_mesh *m, int var, int K, double sigma, mcf_flow_stats *st)
+{
+    mcf_flow_params p;
+    mcf_error err = {0};
+    mcf_flow_params_init(&p);
+    p.scheme = var ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
+    p.iterations = K;
+    p.noise_sigma = sigma;
+    if (mcf_flow_run(m, &p, st, &err) != MCF_OK)
+        fail_msg("%s: %s", var ? "fairing_explicit" : "fairing", err.msg);
+}
+
 /* Both variants at a fixed step count against the equations: the same
  * positions to 1e-10 of the field's extent (dense Cholesky against
  * CHOLMOD, and the run's normalization to unit area and back: rounding at
@@ -304,14 +318,8 @@ static void test_equations_fixed_steps(void **state)
         reference_steps(&g, T, c, X0, K, Y);
         reference_output(&g, X0, Y, F, Xref);
 
-        mcf_flow_params p;
         mcf_flow_stats st;
-        mcf_error err = {0};
-        mcf_flow_params_init(&p);
-        p.scheme = var ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
-        p.iterations = K;
-        if (mcf_flow_run(m, &p, &st, &err) != MCF_OK)
-            fail_msg("%s: %s", var ? "fairing_explicit" : "fairing", err.msg);
+        run_variant(m, var, K, 0.0, &st);
         const double *Xc = mcf_mesh_positions(m);
         double worst = 0.0, moved = 0.0;
         for (int q = 0; q < 3 * NV; q++) {
@@ -376,14 +384,8 @@ static void test_equations_sure(void **state)
         assert_non_null(tmp);
         step_operator(&g, X0, var, T, c);
 
-        mcf_flow_params p;
         mcf_flow_stats st;
-        mcf_error err = {0};
-        mcf_flow_params_init(&p);
-        p.scheme = var ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
-        p.noise_sigma = sigma;
-        if (mcf_flow_run(m, &p, &st, &err) != MCF_OK)
-            fail_msg("%s: %s", var ? "fairing_explicit" : "fairing", err.msg);
+        run_variant(m, var, 0, sigma, &st);
         assert_non_null(st.sure);
         assert_true(st.nsure >= 2);
         /* identity to start: T^0 */
