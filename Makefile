@@ -62,7 +62,8 @@ LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
 # tests', fuzzers' and plots'.
 DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
-            libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto
+            libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
+            assimp-utils
 DEB_BENCH := libeigen3-dev libcgal-dev
 
 CORE_SRC := $(wildcard core/*.c)

@@ -71,7 +71,9 @@ typedef enum {
     API_FMT_DRACO,
     API_FMT_PLY,
     API_FMT_STL,
-    API_FMT_OFF
+    API_FMT_OFF,
+    API_FMT_GLB,               /* glTF 2.0 binary (model/gltf-binary) */
+    API_FMT_GLTF               /* glTF 2.0 JSON, buffers embedded (model/gltf+json) */
 } api_format;
 
 /* From the bytes: "DRACO" magic, "ply\n", "OFF", binary STL size rule or
@@ -229,6 +231,17 @@ mcf_status api_draco_decode(const void *buf, size_t len, const api_limits *lim,
 mcf_status api_draco_decode_attrs(const void *buf, size_t len,
                                   const api_limits *lim, mcf_mesh **out,
                                   api_attrs **attrs, mcf_error *err);
+/* glTF 2.0, GLB or .gltf with embedded buffers (api_gltf_decode.c says what is
+ * read, refused and welded). Encoding a mesh decoded from glTF (o->attrs
+ * holds its document) rewrites that document: positions and normals
+ * changed, everything else as it came, each primitive compressed as it
+ * was; o->format (GLB or GLTF) picks the container. Any other mesh is
+ * written as a new document of one mesh and one primitive. */
+mcf_status api_gltf_decode_attrs(const void *buf, size_t len,
+                                 const api_limits *lim, mcf_mesh **out,
+                                 api_attrs **attrs, mcf_error *err);
+mcf_status api_gltf_encode(const mcf_mesh *m, const api_encode_opts *o,
+                           api_buf *out, mcf_error *err);
 /* *max_quant_err (may be NULL): largest |decoded - input| coordinate error
  * of the encoded result (0 when lossless). */
 mcf_status api_draco_encode(const mcf_mesh *m, const api_encode_opts *o,
@@ -281,6 +294,8 @@ typedef struct {
     api_format format;         /* detected from the bytes */
     long long vertices, faces; /* declared or counted (faces: triangles) */
     double decode_bytes;       /* decoding it (sizes the Draco sandbox) */
+    int draco;                 /* decoding it runs libdraco (a Draco stream, or a
+                                * glTF with KHR_draco_mesh_compression) */
     double job_bytes;          /* the whole job, decode to encode */
 } api_mem_estimate;
 
@@ -301,6 +316,8 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
  * exact binary record (api_pack.c), for the decode sandbox's pipe. */
 mcf_status api_mesh_pack(const mcf_mesh *m, const api_attrs *attrs,
                          api_buf *out, mcf_error *err);
+/* The largest record api_mesh_pack writes for a mesh decoded within lim. */
+size_t api_mesh_pack_max(const api_limits *lim);
 /* The record back: a new mesh and attributes (attrs may be NULL), every
  * count checked against the bytes and lim. EDECODE for a bad record. */
 mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,

@@ -51,6 +51,7 @@ void api_attrs_free(api_attrs *a)
         return;
     for (k = 0; k < API_ATTR_KINDS; k++)
         attr_clear(&a->a[k]);
+    free(a->gltf);
     free(a);
 }
 

@@ -13,7 +13,10 @@
  * so they are counted: one pass over the lines (`v` lines; `f` lines give
  * tokens - 2 triangles; `endfacet` for STL), about 1 GB/s. PLY and OFF
  * faces may be polygons: a face counts as one triangle here, and the
- * daemon estimates again from the decoded mesh before the flow.
+ * daemon estimates again from the decoded mesh before the flow. A glTF
+ * declares its accessors' counts: the POSITION and indices counts of its
+ * triangle primitives (api__gltf_declared; its document record, at most
+ * twice the input, is in the 3 x input bytes term).
  *
  * The model, fitted to the peak resident size of `mcf smooth` (which runs
  * the daemon's job: decode, metrics, flow, encode, the input and output
@@ -171,10 +174,15 @@ void api_estimate_memory(const void *buf, size_t len, const api_params *p,
     out->format = api_format_detect(buf, len);
     switch (out->format) {
     case API_FMT_DRACO:
+        out->draco = 1;
         if (api__draco_declared(buf, len, &dv, &df)) {
             nv = dv;
             nf = df;
         }
+        break;
+    case API_FMT_GLB:
+    case API_FMT_GLTF:
+        api__gltf_declared(buf, len, &nv, &nf, &out->draco);
         break;
     case API_FMT_PLY: {
         const char *end = find(s, len < 65536 ? len : 65536, "end_header");

@@ -17,6 +17,8 @@
  *     int32 present; when 1: int32 ncomp, nvalues, bits;
  *     float qorigin[4], qrange; double values[ncomp nvalues];
  *     int32 corners[3 nf]
+ *   uint64 bytes of a glTF input's document record (api__gltf_plan), the
+ *   record
  *
  * Unpacking trusts nothing: every count is checked against the bytes left
  * and the limits, the mesh goes through core's checks and every attribute
@@ -66,6 +68,13 @@ mcf_status api_mesh_pack(const mcf_mesh *m, const api_attrs *attrs,
                                  (size_t)at->ncomp * (size_t)at->nvalues)) != MCF_OK ||
             (rc = api_buf_append(out, at->corners,
                                  3 * sizeof(int32_t) * (size_t)nf)) != MCF_OK)
+            goto fail;
+    }
+    {
+        uint64_t gl = attrs && attrs->gltf ? attrs->gltf_len : 0;
+        if ((rc = api_buf_append(out, &gl, sizeof gl)) != MCF_OK ||
+            (rc = api_buf_append(out, attrs && attrs->gltf ? attrs->gltf : NULL,
+                                 (size_t)gl)) != MCF_OK)
             goto fail;
     }
     return MCF_OK;
@@ -174,6 +183,19 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
         memcpy(a->a[k].qorigin, qo, sizeof qo);
         a->a[k].qrange = qr;
     }
+    {
+        uint64_t gl = 0;
+        if (!take(&r, &gl, sizeof gl) || gl > api_mesh_pack_max(lim)) {
+            rc = api__fail(err, MCF_EDECODE, "unpack: bad glTF record");
+            goto fail;
+        }
+        if (gl && !(a->gltf = take_array(&r, (size_t)gl, 1, &shrt))) {
+            rc = shrt ? api__fail(err, MCF_EDECODE, "unpack: truncated glTF record")
+                      : api__fail(err, MCF_ENOMEM, "unpack: out of memory");
+            goto fail;
+        }
+        a->gltf_len = (size_t)gl;
+    }
     if (r.p != r.end) {
         rc = api__fail(err, MCF_EDECODE, "unpack: %zu bytes after the record",
                        (size_t)(r.end - r.p));
@@ -193,4 +215,13 @@ fail:
     mcf_mesh_free(m);
     api_attrs_free(a);
     return rc;
+}
+
+size_t api_mesh_pack_max(const api_limits *lim)
+{
+    size_t nv = (size_t)lim->max_vertices, nf = (size_t)lim->max_faces;
+    /* the mesh, every attribute at its largest (a value per corner, 4
+     * components), and a glTF record (API_GLTF_RECORD_MAX) */
+    return 64 + 24 * nv + 12 * nf + 3 * (48 + 3 * nf * 4 * sizeof(double) + 12 * nf) +
+           API_GLTF_RECORD_MAX(lim);
 }

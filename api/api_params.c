@@ -133,7 +133,7 @@ static const keydef keys[] = {
 };
 #define NKEYS (sizeof keys / sizeof keys[0])
 
-static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", NULL};
+static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", "glb", "gltf", NULL};
 
 /* --------------------------------------------------------------- helpers */
 

@@ -1,0 +1,848 @@
+/*
+ * api_gltf_decode.c - glTF 2.0 (GLB and .gltf) decoding: the checks before any
+ * parser runs, and the weld that turns a document's triangle primitives
+ * into the one surface core smooths.
+ *
+ * Checks (before tinygltf sees a byte): a GLB's header and chunks exactly
+ * (api__glb_split); the JSON's nesting (API_GLTF_MAX_DEPTH) and number of
+ * values (API_GLTF_MAX_VALUES), scanned without a parser; then, parsed
+ * with cJSON: no duplicate key anywhere (two readers must see the same
+ * document), asset.version 2.x, no required extension that stores
+ * geometry another way (KHR_mesh_quantization, meshopt), every buffer
+ * embedded (GLB's BIN chunk or a data: URI: a request carries one file, so
+ * a .gltf naming an external .bin is refused, and no URI is ever opened),
+ * every buffer view inside its buffer. api_gltf.cc then reads the
+ * accessors with their own checks.
+ *
+ * The weld: the vertices of all triangle primitives of one mesh (and of
+ * meshes that share a POSITION accessor) that sit at bitwise the same
+ * position become one vertex, so primitives (material boundaries) and UV
+ * or normal seams do not open when the surface moves; triangles that the
+ * weld collapses are left out of the flow (they stay in the file). Meshes
+ * are smoothed in their own coordinates (node transforms are not applied:
+ * a mesh instanced by several nodes is one surface), each mesh a separate
+ * component of the one mcf_mesh. Vertices are numbered in order of first
+ * appearance. The side channel (api_attrs): normals grouped by (welded
+ * vertex, input normal), so a seam whose sides shared a normal keeps one,
+ * texture coordinates (v flipped: api_attrs holds OBJ's bottom-up
+ * convention) and colours when every primitive has them; and the plan
+ * record the encoder rewrites the document from (api_gltf_encode.c).
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "api_internal.h"
+
+/* ----------------------------------------------------------- container */
+
+mcf_status api__glb_split(const void *buf, size_t len, const char **json,
+                          size_t *json_len, const unsigned char **bin,
+                          size_t *bin_len, mcf_error *err)
+{
+    const unsigned char *p = buf;
+    uint32_t total, jlen, blen;
+    if (len < 20 || memcmp(p, "glTF", 4) != 0)
+        return api__fail(err, MCF_EDECODE, "glb: no \"glTF\" header (%zu bytes)", len);
+    if (api__get_le32(p + 4) != 2)
+        return api__fail(err, MCF_EDECODE, "glb: version %u (2 expected)",
+                         (unsigned)api__get_le32(p + 4));
+    total = api__get_le32(p + 8);
+    jlen = api__get_le32(p + 12);
+    if (total != len)
+        return api__fail(err, MCF_EDECODE,
+                         "glb: header says %u bytes, the input has %zu", (unsigned)total,
+                         len);
+    if (api__get_le32(p + 16) != 0x4E4F534Au || jlen == 0 || jlen % 4 != 0 ||
+        jlen > len - 20)
+        return api__fail(err, MCF_EDECODE,
+                         "glb: the first chunk must be JSON, 4-aligned, inside the "
+                         "input (%u bytes declared)", (unsigned)jlen);
+    *json = (const char *)p + 20;
+    *json_len = jlen;
+    *bin = NULL;
+    *bin_len = 0;
+    if (len - 20 - jlen == 0)
+        return MCF_OK;
+    if (len - 20 - jlen < 8)
+        return api__fail(err, MCF_EDECODE, "glb: %zu stray bytes after the JSON chunk",
+                         len - 20 - jlen);
+    blen = api__get_le32(p + 20 + jlen);
+    if (api__get_le32(p + 24 + jlen) != 0x004E4942u || blen % 4 != 0 ||
+        blen != len - 28 - jlen)
+        return api__fail(err, MCF_EDECODE,
+                         "glb: the second chunk must be BIN, 4-aligned and end the "
+                         "input (%u bytes declared, %zu there)", (unsigned)blen,
+                         len - 28 - jlen);
+    *bin = p + 28 + jlen;
+    *bin_len = blen;
+    return MCF_OK;
+}
+
+/* ---------------------------------------------------------- JSON checks */
+
+/* Nesting and the number of values, without parsing (strings skipped,
+ * escapes included), so no parser meets a bomb. Malformed JSON passes
+ * here: the parser names it. */
+static mcf_status json_scan(const char *s, size_t n, mcf_error *err)
+{
+    size_t i, values = 0;
+    int depth = 0, in_str = 0;
+    for (i = 0; i < n; i++) {
+        char c = s[i];
+        if (in_str) {
+            if (c == '\\')
+                i++;
+            else if (c == '"')
+                in_str = 0;
+            continue;
+        }
+        if (c == '"') {
+            in_str = 1;
+            values++;
+        } else if (c == '{' || c == '[') {
+            if (++depth > API_GLTF_MAX_DEPTH)
+                return api__fail(err, MCF_ELIMIT,
+                                 "gltf: JSON nested deeper than %d levels",
+                                 API_GLTF_MAX_DEPTH);
+            values++;
+        } else if (c == '}' || c == ']') {
+            depth--;
+        } else if (c == ',' || c == ':') {
+            values++;
+        }
+        if (values > 2 * (size_t)API_GLTF_MAX_VALUES)
+            return api__fail(err, MCF_ELIMIT, "gltf: JSON of more than %d values",
+                             API_GLTF_MAX_VALUES);
+    }
+    return MCF_OK;
+}
+
+static int cmp_str(const void *a, const void *b)
+{
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* The first key that an object of j (at any depth) holds twice, or NULL;
+ * *oom on allocation failure. */
+static const char *duplicate_key(const cJSON *j, int *oom)
+{
+    const cJSON *c;
+    if (cJSON_IsObject(j)) {
+        size_t n = 0, i;
+        const char **k;
+        const char *dup = NULL;
+        for (c = j->child; c; c = c->next)
+            n++;
+        k = malloc(sizeof *k * (n ? n : 1));
+        if (!k) {
+            *oom = 1;
+            return NULL;
+        }
+        for (i = 0, c = j->child; c; c = c->next)
+            k[i++] = c->string ? c->string : "";
+        qsort(k, n, sizeof *k, cmp_str);
+        for (i = 1; i < n && !dup; i++)
+            if (strcmp(k[i - 1], k[i]) == 0)
+                dup = k[i];
+        free(k);
+        if (dup)
+            return dup;
+    }
+    if (cJSON_IsObject(j) || cJSON_IsArray(j))
+        for (c = j->child; c; c = c->next) {
+            const char *d = duplicate_key(c, oom);
+            if (d || *oom)
+                return d;
+        }
+    return NULL;
+}
+
+/* Member k of o as an integer in [lo, hi]: 1 (in *v), 0 when absent (*v =
+ * def), -1 when not such an integer. */
+static int int_member(const cJSON *o, const char *k, long long lo, long long hi,
+                      long long def, long long *v)
+{
+    const cJSON *x = cJSON_GetObjectItemCaseSensitive(o, k);
+    *v = def;
+    if (!x)
+        return 0;
+    if (!cJSON_IsNumber(x) || x->valuedouble != (double)(long long)x->valuedouble ||
+        x->valuedouble < (double)lo || x->valuedouble > (double)hi)
+        return -1;
+    *v = (long long)x->valuedouble;
+    return 1;
+}
+
+static int has_string(const cJSON *arr, const char *s)
+{
+    const cJSON *c;
+    cJSON_ArrayForEach(c, arr)
+        if (cJSON_IsString(c) && strcmp(c->valuestring, s) == 0)
+            return 1;
+    return 0;
+}
+
+#define MAX_BYTES (1LL << 40)
+
+/* The document-level checks of the file comment on the parsed JSON. */
+static mcf_status check_doc(const cJSON *root, int glb, mcf_error *err)
+{
+    static const char *const refused[] = {"KHR_mesh_quantization",
+                                          "EXT_meshopt_compression",
+                                          "KHR_meshopt_compression", NULL};
+    const cJSON *asset = cJSON_GetObjectItemCaseSensitive(root, "asset");
+    const cJSON *ver = cJSON_GetObjectItemCaseSensitive(asset, "version");
+    const cJSON *used = cJSON_GetObjectItemCaseSensitive(root, "extensionsUsed");
+    const cJSON *buffers = cJSON_GetObjectItemCaseSensitive(root, "buffers");
+    const cJSON *views = cJSON_GetObjectItemCaseSensitive(root, "bufferViews");
+    const cJSON *b, *v;
+    long long *blen = NULL, x, off, n;
+    int nb = cJSON_GetArraySize(buffers), i;
+
+    if (!cJSON_IsString(ver) || strncmp(ver->valuestring, "2.", 2) != 0)
+        return api__fail(err, MCF_EDECODE,
+                         "gltf: asset.version must be \"2.x\" (glTF 2.0)");
+    for (i = 0; refused[i]; i++)
+        if (has_string(used, refused[i]))
+            return api__fail(err, MCF_EDECODE,
+                             "gltf: extension %s stores geometry in a way mcfd does not "
+                             "read (plain accessors and KHR_draco_mesh_compression are)",
+                             refused[i]);
+    if (buffers && !cJSON_IsArray(buffers))
+        return api__fail(err, MCF_EDECODE, "gltf: buffers is not an array");
+    blen = malloc(sizeof *blen * (size_t)(nb ? nb : 1));
+    if (!blen)
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    i = 0;
+    cJSON_ArrayForEach(b, buffers) {
+        const cJSON *uri = cJSON_GetObjectItemCaseSensitive(b, "uri");
+        if (int_member(b, "byteLength", 1, MAX_BYTES, -1, &blen[i]) != 1) {
+            free(blen);
+            return api__fail(err, MCF_EDECODE,
+                             "gltf: buffer %d has no byteLength of at least 1", i);
+        }
+        if (uri ? !cJSON_IsString(uri) || strncmp(uri->valuestring, "data:", 5) != 0
+                : !(glb && i == 0)) {
+            char shown[API__SHOWN];
+            free(blen);
+            return api__fail(err, MCF_EDECODE,
+                             "gltf: buffer %d refers to the file '%s': mcfd reads one "
+                             "file per request and never opens a URI; send a GLB, or a "
+                             ".gltf with its buffers embedded as data: URIs", i,
+                             cJSON_IsString(uri)
+                                 ? api__show(uri->valuestring, strlen(uri->valuestring), shown)
+                                 : "(none)");
+        }
+        i++;
+    }
+    if (views && !cJSON_IsArray(views)) {
+        free(blen);
+        return api__fail(err, MCF_EDECODE, "gltf: bufferViews is not an array");
+    }
+    i = 0;
+    cJSON_ArrayForEach(v, views) {
+        long long bi;
+        if (int_member(v, "buffer", 0, nb - 1, -1, &bi) != 1 ||
+            int_member(v, "byteOffset", 0, MAX_BYTES, 0, &off) < 0 ||
+            int_member(v, "byteLength", 1, MAX_BYTES, -1, &n) != 1 ||
+            int_member(v, "byteStride", 4, 252, 0, &x) < 0 ||
+            off + n > blen[bi]) {
+            free(blen);
+            return api__fail(err, MCF_EDECODE,
+                             "gltf: buffer view %d lies outside its buffer (or names "
+                             "none, or a bad offset, length or stride)", i);
+        }
+        i++;
+    }
+    free(blen);
+    n = cJSON_GetArraySize(views);
+    i = 0;
+    cJSON_ArrayForEach(v, cJSON_GetObjectItemCaseSensitive(root, "images")) {
+        if (int_member(v, "bufferView", 0, n - 1, 0, &x) < 0)
+            return api__fail(err, MCF_EDECODE,
+                             "gltf: image %d names a buffer view that does not exist", i);
+        i++;
+    }
+    return MCF_OK;
+}
+
+/* tinygltf 2.7 refuses a primitive whose indices accessor has no buffer
+ * view, which every KHR_draco_mesh_compression primitive has (the stream
+ * holds the faces): the JSON it reads leaves such indices out (the
+ * document the encoder rewrites keeps them). Returns 1 when it removed
+ * one. */
+static int hide_draco_indices(cJSON *root)
+{
+    const cJSON *mesh;
+    cJSON *prim;
+    int n = 0;
+    cJSON_ArrayForEach(mesh, cJSON_GetObjectItemCaseSensitive(root, "meshes"))
+        cJSON_ArrayForEach(prim, cJSON_GetObjectItemCaseSensitive(mesh, "primitives"))
+            if (cJSON_GetObjectItemCaseSensitive(
+                    cJSON_GetObjectItemCaseSensitive(prim, "extensions"),
+                    "KHR_draco_mesh_compression") &&
+                cJSON_GetObjectItemCaseSensitive(prim, "indices")) {
+                cJSON_DeleteItemFromObjectCaseSensitive(prim, "indices");
+                n = 1;
+            }
+    return n;
+}
+
+/* Every check before tinygltf, on the input's JSON text; *tiny (NULL: the
+ * input as it is) the input tinygltf reads instead (hide_draco_indices),
+ * malloc'ed, *tiny_len bytes: the JSON, or for a GLB the same GLB with
+ * that JSON. */
+static mcf_status check_json(const void *in, size_t in_len, const char *json, size_t n,
+                             int glb, char **tiny, size_t *tiny_len, mcf_error *err)
+{
+    cJSON *root;
+    const char *dup;
+    int oom = 0;
+    mcf_status rc = json_scan(json, n, err);
+    *tiny = NULL;
+    if (rc != MCF_OK)
+        return rc;
+    root = cJSON_ParseWithLength(json, n);
+    if (!root) {
+        const char *at = cJSON_GetErrorPtr();
+        char shown[API__SHOWN];
+        size_t left = at && at >= json && at < json + n ? (size_t)(json + n - at) : 0;
+        return api__fail(err, MCF_EDECODE, "gltf: malformed JSON near '%s'",
+                         left ? api__show(at, left < 32 ? left : 32, shown) : "the end");
+    }
+    if (!cJSON_IsObject(root))
+        rc = api__fail(err, MCF_EDECODE, "gltf: the JSON is not an object");
+    else if ((dup = duplicate_key(root, &oom)) != NULL) {
+        char shown[API__SHOWN];
+        rc = api__fail(err, MCF_EDECODE, "gltf: key '%s' appears twice in one object",
+                       api__show(dup, strlen(dup), shown));
+    } else if (oom)
+        rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    else
+        rc = check_doc(root, glb, err);
+    if (rc == MCF_OK && hide_draco_indices(root)) {
+        char *j = cJSON_PrintUnformatted(root);
+        size_t jl = j ? strlen(j) : 0, jp = (jl + 3) / 4 * 4;
+        const size_t rest = glb ? in_len - 20 - n : 0; /* the BIN chunk */
+        *tiny_len = glb ? 20 + jp + rest : jl;
+        *tiny = j && *tiny_len <= 0xffffffffu ? malloc(*tiny_len + 1) : NULL;
+        if (!*tiny) {
+            rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+        } else if (!glb) {
+            memcpy(*tiny, j, jl);
+        } else {
+            memcpy(*tiny, in, 20);
+            api__put_le32((unsigned char *)*tiny + 8, (uint32_t)*tiny_len);
+            api__put_le32((unsigned char *)*tiny + 12, (uint32_t)jp);
+            memcpy(*tiny + 20, j, jl);
+            memset(*tiny + 20 + jl, ' ', jp - jl);
+            memcpy(*tiny + 20 + jp, (const char *)in + 20 + n, rest);
+        }
+        free(j);
+    }
+    cJSON_Delete(root);
+    return rc;
+}
+
+int api__gltf_declared(const void *buf, size_t len, long long *nv, long long *nf,
+                       int *draco)
+{
+    const char *json = buf;
+    size_t json_len = len;
+    const unsigned char *bin;
+    size_t bin_len;
+    const cJSON *mesh, *prim;
+    cJSON *root;
+    int na;
+    *nv = *nf = 0;
+    *draco = 0;
+    if (len >= 4 && memcmp(buf, "glTF", 4) == 0 &&
+        api__glb_split(buf, len, &json, &json_len, &bin, &bin_len, NULL) != MCF_OK)
+        return 0;
+    if (json_scan(json, json_len, NULL) != MCF_OK ||
+        !(root = cJSON_ParseWithLength(json, json_len)))
+        return 0;
+    na = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(root, "accessors"));
+    cJSON_ArrayForEach(mesh, cJSON_GetObjectItemCaseSensitive(root, "meshes"))
+        cJSON_ArrayForEach(prim, cJSON_GetObjectItemCaseSensitive(mesh, "primitives")) {
+            const cJSON *acc = cJSON_GetObjectItemCaseSensitive(root, "accessors");
+            long long mode, pa, ia, n, idx;
+            int_member(prim, "mode", 0, 6, 4, &mode);
+            if (mode < 4)
+                continue;
+            *draco |= cJSON_GetObjectItemCaseSensitive(
+                          cJSON_GetObjectItemCaseSensitive(prim, "extensions"),
+                          "KHR_draco_mesh_compression") != NULL;
+            if (int_member(cJSON_GetObjectItemCaseSensitive(prim, "attributes"),
+                           "POSITION", 0, na - 1, -1, &pa) != 1 ||
+                int_member(cJSON_GetArrayItem(acc, (int)pa), "count", 0, 1LL << 40, 0,
+                           &n) != 1)
+                continue;
+            idx = n;
+            if (int_member(prim, "indices", 0, na - 1, -1, &ia) == 1)
+                int_member(cJSON_GetArrayItem(acc, (int)ia), "count", 0, 1LL << 40, 0, &idx);
+            *nv += n;
+            *nf += mode == 4 ? idx / 3 : idx > 2 ? idx - 2 : 0;
+        }
+    cJSON_Delete(root);
+    return 1;
+}
+
+/* ------------------------------------------------------------------ weld */
+
+/* One vertex of a primitive, keyed for the weld (and the normal groups). */
+typedef struct {
+    double k[4];            /* group, x, y, z (or welded vertex, nx, ny, nz) */
+    int32_t prim, vert;
+} wkey;
+
+static int cmp_wkey(const void *pa, const void *pb)
+{
+    const wkey *a = pa, *b = pb;
+    int c;
+    for (c = 0; c < 4; c++)
+        if (a->k[c] != b->k[c])
+            return a->k[c] < b->k[c] ? -1 : 1;
+    if (a->prim != b->prim)
+        return a->prim < b->prim ? -1 : 1;
+    return (a->vert > b->vert) - (a->vert < b->vert);
+}
+
+/* x with -0 as 0, so equal coordinates compare equal. */
+static double z0(double x)
+{
+    return x == 0.0 ? 0.0 : x;
+}
+
+/* Union-find over meshes: meshes sharing a plain POSITION accessor weld
+ * as one. */
+static int root_of(int *up, int i)
+{
+    while (up[i] != i)
+        i = up[i] = up[up[i]];
+    return i;
+}
+
+/* Sorts keys and numbers their runs (equal k) in order of their first
+ * member's (prim, vert) position, ord giving each prim's first global
+ * index: run id per key into id (by key index after sorting). Returns the
+ * run count, -1 out of memory. */
+static long long number_runs(wkey *w, size_t n, const long long *base, int32_t *id)
+{
+    size_t i, r = 0;
+    long long *first;
+    size_t *run_of;
+    qsort(w, n, sizeof *w, cmp_wkey);
+    first = malloc(sizeof *first * (n ? n : 1));
+    run_of = malloc(sizeof *run_of * (n ? n : 1));
+    if (!first || !run_of) {
+        free(first);
+        free(run_of);
+        return -1;
+    }
+    for (i = 0; i < n; i++) {
+        if (i == 0 || memcmp(w[i].k, w[i - 1].k, sizeof w[i].k) != 0)
+            first[r++] = base[w[i].prim] + w[i].vert;
+        run_of[i] = r - 1;
+    }
+    /* rank the runs by their first member (already the smallest (prim,
+     * vert) of each run, as the sort's tie-break puts it first) */
+    {
+        wkey *t = malloc(sizeof *t * (r ? r : 1));
+        int32_t *rank = malloc(sizeof *rank * (r ? r : 1));
+        size_t j;
+        if (!t || !rank) {
+            free(t);
+            free(rank);
+            free(first);
+            free(run_of);
+            return -1;
+        }
+        for (j = 0; j < r; j++) {
+            memset(&t[j], 0, sizeof t[j]);
+            t[j].k[0] = (double)first[j];
+            t[j].vert = (int32_t)j;
+        }
+        qsort(t, r, sizeof *t, cmp_wkey);
+        for (j = 0; j < r; j++)
+            rank[t[j].vert] = (int32_t)j;
+        for (i = 0; i < n; i++)
+            id[i] = rank[run_of[i]];
+        free(t);
+        free(rank);
+    }
+    free(first);
+    free(run_of);
+    return (long long)r;
+}
+
+/* The weld: each prim's vmap and the positions X of the nv welded
+ * vertices (malloc'ed). */
+static mcf_status weld(api__gltf_doc *d, double **X, int *nv, long long *base,
+                       mcf_error *err)
+{
+    int nmesh = 0, nacc = 0, p, *up, *owner;
+    size_t n = 0, i;
+    wkey *w;
+    int32_t *id;
+    long long r;
+    for (p = 0; p < d->nprim; p++) {
+        nmesh = d->prim[p].mesh + 1 > nmesh ? d->prim[p].mesh + 1 : nmesh;
+        nacc = d->prim[p].pos.acc + 1 > nacc ? d->prim[p].pos.acc + 1 : nacc;
+        base[p] = p ? base[p - 1] + d->prim[p - 1].nvert : 0;
+    }
+    up = malloc(sizeof *up * (size_t)(nmesh + nacc));
+    if (!up)
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    owner = up + nmesh; /* a plain POSITION accessor's first mesh */
+    for (p = 0; p < nmesh; p++)
+        up[p] = p;
+    for (p = 0; p < nacc; p++)
+        owner[p] = -1;
+    for (p = 0; p < d->nprim; p++) {
+        const api__gltf_prim *g = &d->prim[p];
+        if (g->draco_view < 0 && g->pos.acc >= 0) {
+            if (owner[g->pos.acc] < 0)
+                owner[g->pos.acc] = g->mesh;
+            else
+                up[root_of(up, g->mesh)] = root_of(up, owner[g->pos.acc]);
+        }
+        if (!(d->prim[p].vmap = malloc(sizeof(int32_t) * (size_t)d->prim[p].nvert + 1))) {
+            free(up);
+            return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+        }
+        for (i = 0; i < (size_t)d->prim[p].nvert; i++)
+            d->prim[p].vmap[i] = -1;
+        for (i = 0; i < 3 * (size_t)d->prim[p].ntri; i++)
+            if (d->prim[p].vmap[d->prim[p].tri[i]] == -1) {
+                d->prim[p].vmap[d->prim[p].tri[i]] = -2; /* in a triangle */
+                n++;
+            }
+    }
+    w = malloc(sizeof *w * (n ? n : 1));
+    id = malloc(sizeof *id * (n ? n : 1));
+    if (!w || !id) {
+        free(up);
+        free(w);
+        free(id);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory welding %zu vertices", n);
+    }
+    for (i = 0, p = 0; p < d->nprim; p++) {
+        const api__gltf_prim *g = &d->prim[p];
+        int v;
+        for (v = 0; v < g->nvert; v++)
+            if (g->vmap[v] == -2) {
+                const double *x = g->xyz + 3 * (size_t)v;
+                w[i].k[0] = root_of(up, g->mesh);
+                w[i].k[1] = z0(x[0]);
+                w[i].k[2] = z0(x[1]);
+                w[i].k[3] = z0(x[2]);
+                w[i].prim = p;
+                w[i++].vert = v;
+            }
+    }
+    free(up);
+    r = number_runs(w, n, base, id);
+    if (r < 0) {
+        free(w);
+        free(id);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory welding");
+    }
+    *X = malloc(3 * sizeof **X * (size_t)(r ? r : 1));
+    if (!*X) {
+        free(w);
+        free(id);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    }
+    for (i = 0; i < n; i++) {
+        d->prim[w[i].prim].vmap[w[i].vert] = id[i];
+        memcpy(*X + 3 * (size_t)id[i], w[i].k + 1, 3 * sizeof(double));
+    }
+    free(w);
+    free(id);
+    *nv = (int)r;
+    return MCF_OK;
+}
+
+/* Normal groups: (welded vertex, input normal) -> one value; *ngroups
+ * values in N (malloc'ed). Prims without normals keep ngroup NULL. */
+static mcf_status normal_groups(api__gltf_doc *d, const long long *base,
+                                double **N, int *ngroups, mcf_error *err)
+{
+    size_t n = 0, i;
+    int p;
+    wkey *w;
+    int32_t *id;
+    long long r;
+    for (p = 0; p < d->nprim; p++)
+        if (d->prim[p].nxyz) {
+            int v;
+            if (!(d->prim[p].ngroup = malloc(sizeof(int32_t) * (size_t)d->prim[p].nvert + 1)))
+                return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+            for (v = 0; v < d->prim[p].nvert; v++) {
+                d->prim[p].ngroup[v] = -1;
+                n += d->prim[p].vmap[v] >= 0;
+            }
+        }
+    w = malloc(sizeof *w * (n ? n : 1));
+    id = malloc(sizeof *id * (n ? n : 1));
+    if (!w || !id) {
+        free(w);
+        free(id);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    }
+    for (i = 0, p = 0; p < d->nprim; p++) {
+        const api__gltf_prim *g = &d->prim[p];
+        int v;
+        for (v = 0; g->nxyz && v < g->nvert; v++)
+            if (g->vmap[v] >= 0) {
+                w[i].k[0] = g->vmap[v];
+                w[i].k[1] = z0(g->nxyz[3 * (size_t)v]);
+                w[i].k[2] = z0(g->nxyz[3 * (size_t)v + 1]);
+                w[i].k[3] = z0(g->nxyz[3 * (size_t)v + 2]);
+                w[i].prim = p;
+                w[i++].vert = v;
+            }
+    }
+    r = number_runs(w, n, base, id);
+    *N = r >= 0 ? malloc(3 * sizeof **N * (size_t)(r ? r : 1)) : NULL;
+    if (!*N) {
+        free(w);
+        free(id);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    }
+    for (i = 0; i < n; i++) {
+        d->prim[w[i].prim].ngroup[w[i].vert] = id[i];
+        memcpy(*N + 3 * (size_t)id[i], w[i].k + 1, 3 * sizeof(double));
+    }
+    free(w);
+    free(id);
+    *ngroups = (int)r;
+    return MCF_OK;
+}
+
+/* The faces of the flow (welded, collapsed triangles left out) and, per
+ * face corner, its primitive and vertex. */
+static mcf_status faces(const api__gltf_doc *d, int32_t **F, int32_t **cp,
+                        int32_t **cv, int *nf, mcf_error *err)
+{
+    size_t n = 0, t;
+    int p, k;
+    for (p = 0; p < d->nprim; p++)
+        n += (size_t)d->prim[p].ntri;
+    *F = malloc(3 * sizeof **F * (n ? n : 1));
+    *cp = malloc(3 * sizeof **cp * (n ? n : 1));
+    *cv = malloc(3 * sizeof **cv * (n ? n : 1));
+    if (!*F || !*cp || !*cv)
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory for %zu faces", n);
+    *nf = 0;
+    for (p = 0; p < d->nprim; p++) {
+        const api__gltf_prim *g = &d->prim[p];
+        for (t = 0; t < (size_t)g->ntri; t++) {
+            const int32_t *c = g->tri + 3 * t;
+            int32_t a = g->vmap[c[0]], b = g->vmap[c[1]], e = g->vmap[c[2]];
+            if (a == b || b == e || a == e)
+                continue;
+            for (k = 0; k < 3; k++) {
+                (*F)[3 * (size_t)*nf + k] = g->vmap[c[k]];
+                (*cp)[3 * (size_t)*nf + k] = p;
+                (*cv)[3 * (size_t)*nf + k] = c[k];
+            }
+            (*nf)++;
+        }
+    }
+    if (*nf == 0)
+        return api__fail(err, MCF_EDECODE, "gltf: every triangle is degenerate");
+    return MCF_OK;
+}
+
+/* Texture coordinates (k = API_ATTR_TEXCOORD) or colours into a when
+ * every primitive has them: one value per primitive vertex, deduplicated. */
+static mcf_status side_attr(const api__gltf_doc *d, api_attrs *a, api_attr_kind k,
+                            const int32_t *cp, const int32_t *cv, const long long *base,
+                            mcf_error *err)
+{
+    int nc = k == API_ATTR_TEXCOORD ? 2 : 3, p;
+    size_t nvals = 0, i, nf3 = 3 * (size_t)a->nf;
+    double *vals;
+    int32_t *corners;
+    mcf_status rc;
+    for (p = 0; p < d->nprim; p++) {
+        const double *src = k == API_ATTR_TEXCOORD ? d->prim[p].uv : d->prim[p].rgba;
+        if (!src)
+            return MCF_OK;
+        for (i = 0; k == API_ATTR_COLOR && i < (size_t)d->prim[p].nvert; i++)
+            if (src[4 * i + 3] != 1.0)
+                nc = 4;
+        nvals += (size_t)d->prim[p].nvert;
+    }
+    vals = malloc(sizeof *vals * (size_t)nc * nvals + 1);
+    corners = malloc(sizeof *corners * nf3 + 1);
+    if (!vals || !corners) {
+        free(vals);
+        free(corners);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    }
+    for (p = 0; p < d->nprim; p++) {
+        const api__gltf_prim *g = &d->prim[p];
+        for (i = 0; i < (size_t)g->nvert; i++) {
+            double *o = vals + (size_t)nc * (size_t)(base[p] + (long long)i);
+            if (k == API_ATTR_TEXCOORD) {
+                o[0] = g->uv[2 * i];
+                o[1] = 1.0 - g->uv[2 * i + 1]; /* glTF's v runs top-down */
+            } else {
+                memcpy(o, g->rgba + 4 * i, sizeof *o * (size_t)nc);
+            }
+        }
+    }
+    for (i = 0; i < nf3; i++)
+        corners[i] = (int32_t)(base[cp[i]] + cv[i]);
+    rc = api__attrs_take(a, k, nc, (int)nvals, vals, corners, err);
+    return rc == MCF_OK ? api__attr_dedupe(&a->a[k], nf3, err) : rc;
+}
+
+/* The normal attribute: the groups' input normals; corners of primitives
+ * without normals get a value per welded vertex after them. */
+static mcf_status side_normals(const api__gltf_doc *d, api_attrs *a, double *N,
+                               int ngroups, const int32_t *F, const int32_t *cp,
+                               const int32_t *cv, mcf_error *err)
+{
+    size_t i, nf3 = 3 * (size_t)a->nf;
+    int32_t *corners = malloc(sizeof *corners * nf3 + 1);
+    double *vals = realloc(N, 3 * sizeof *vals * ((size_t)ngroups + (size_t)a->nv));
+    if (!corners || !vals) {
+        free(corners);
+        free(vals ? vals : N);
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    }
+    for (i = 0; i < (size_t)a->nv; i++) {
+        double *o = vals + 3 * ((size_t)ngroups + i);
+        o[0] = o[1] = 0.0;
+        o[2] = 1.0;
+    }
+    for (i = 0; i < nf3; i++) {
+        const int32_t *ng = d->prim[cp[i]].ngroup;
+        corners[i] = ng ? ng[cv[i]] : ngroups + F[i];
+    }
+    return api__attrs_take(a, API_ATTR_NORMAL, 3, ngroups + a->nv, vals, corners, err);
+}
+
+static mcf_status decode_doc(api__gltf_doc *d, const api_limits *lim,
+                             mcf_mesh **out, api_attrs **attrs, mcf_error *err)
+{
+    double *X = NULL, *N = NULL;
+    int32_t *F = NULL, *cp = NULL, *cv = NULL;
+    long long *base = malloc(sizeof *base * (size_t)d->nprim);
+    int nv = 0, nf = 0, ng = 0, p, has_n = 0;
+    mcf_mesh *m = NULL;
+    api_attrs *a = NULL;
+    api_buf plan;
+    mcf_status rc;
+
+    api_buf_init(&plan, API_GLTF_RECORD_MAX(lim));
+    if (!base)
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    if ((rc = weld(d, &X, &nv, base, err)) != MCF_OK ||
+        (rc = faces(d, &F, &cp, &cv, &nf, err)) != MCF_OK)
+        goto done;
+    if (nv > lim->max_vertices || nf > lim->max_faces) {
+        rc = api__fail(err, MCF_ELIMIT, "gltf: %d vertices and %d faces exceed "
+                       "max_vertices (%d) or max_faces (%d)", nv, nf,
+                       lim->max_vertices, lim->max_faces);
+        goto done;
+    }
+    for (p = 0; p < d->nprim; p++)
+        has_n |= d->prim[p].nxyz != NULL;
+    if ((rc = api__mesh_new(nv, X, nf, F, &m, err)) != MCF_OK)
+        goto done;
+    if (!(a = api_attrs_new(nv, nf))) {
+        rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+        goto done;
+    }
+    a->float32 = 1;
+    for (p = 0; p < d->nprim && a->pos_bits < 0; p++)
+        if (d->prim[p].draco_view >= 0)
+            a->pos_bits = d->prim[p].draco.attr[d->prim[p].draco_pos].bits;
+    if (has_n) {
+        if ((rc = normal_groups(d, base, &N, &ng, err)) != MCF_OK)
+            goto done;
+        rc = side_normals(d, a, N, ng, F, cp, cv, err);
+        N = NULL; /* taken (or freed) */
+        if (rc != MCF_OK)
+            goto done;
+    }
+    if ((rc = side_attr(d, a, API_ATTR_TEXCOORD, cp, cv, base, err)) != MCF_OK ||
+        (rc = side_attr(d, a, API_ATTR_COLOR, cp, cv, base, err)) != MCF_OK ||
+        (rc = api__gltf_plan(d, &plan, err)) != MCF_OK)
+        goto done;
+    a->gltf = (unsigned char *)api_buf_detach(&plan, &a->gltf_len);
+    *out = m;
+    m = NULL;
+    if (attrs) {
+        *attrs = a;
+        a = NULL;
+    }
+done:
+    free(base);
+    free(X);
+    free(N);
+    free(F);
+    free(cp);
+    free(cv);
+    api_buf_free(&plan);
+    mcf_mesh_free(m);
+    api_attrs_free(a);
+    return rc;
+}
+
+mcf_status api_gltf_decode_attrs(const void *buf, size_t len, const api_limits *lim,
+                                 mcf_mesh **out, api_attrs **attrs, mcf_error *err)
+{
+    api_limits def;
+    api__gltf_doc d;
+    const char *json = buf;
+    char *tiny = NULL;
+    size_t json_len = len, tiny_len = 0;
+    mcf_status rc = api__decode_begin("gltf", buf, len, &lim, &def, err);
+    if (rc != MCF_OK)
+        return rc;
+    memset(&d, 0, sizeof d);
+    d.container = len >= 4 && memcmp(buf, "glTF", 4) == 0 ? API_FMT_GLB : API_FMT_GLTF;
+    if (d.container == API_FMT_GLB) {
+        const unsigned char *bin;
+        size_t bin_len;
+        if ((rc = api__glb_split(buf, len, &json, &json_len, &bin, &bin_len, err)) != MCF_OK)
+            return rc;
+    }
+    if ((rc = check_json(buf, len, json, json_len, d.container == API_FMT_GLB, &tiny,
+                         &tiny_len, err)) == MCF_OK &&
+        (rc = api__gltf_parse(tiny ? tiny : buf, tiny ? tiny_len : len, json, json_len,
+                              lim, &d, err)) == MCF_OK)
+        rc = decode_doc(&d, lim, out, attrs, err);
+    free(tiny);
+    api__gltf_doc_free(&d);
+    return rc;
+}
+
+void api__gltf_doc_free(api__gltf_doc *d)
+{
+    int i;
+    for (i = 0; i < d->nbuf; i++)
+        free(d->buf[i]);
+    free(d->buf);
+    free(d->buf_len);
+    free(d->json);
+    for (i = 0; i < d->nprim; i++) {
+        api__gltf_prim *g = &d->prim[i];
+        api__draco_prim_free(&g->draco);
+        free(g->tri);
+        free(g->xyz);
+        free(g->nxyz);
+        free(g->uv);
+        free(g->rgba);
+        free(g->vmap);
+        free(g->ngroup);
+    }
+    free(d->prim);
+    memset(d, 0, sizeof *d);
+}
