@@ -20,8 +20,9 @@
  * Each touched POSITION accessor gets its min and max anew (required by
  * glTF), from the values written (Draco: as they decode). The JSON is
  * edited with cJSON, so members, extensions and extras nobody reads pass
- * through (a number may print differently: cJSON prints the shortest
- * form that reads back the same double). The container is the output
+ * through (a number is printed anew by cJSON, which may move it by a
+ * double's last bit, far below the float32 precision of glTF's data). The
+ * container is the output
  * format's: GLB (buffer 0 as its BIN chunk) or .gltf (every buffer a
  * base64 data: URI; one that was already a URI and did not change keeps
  * its text).
@@ -40,6 +41,7 @@
  * the encoder writes against its buffer.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -309,9 +311,14 @@ static int set_num(cJSON *o, const char *k, double v)
     return set_item(o, k, cJSON_CreateNumber(v));
 }
 
+/* Bounds as exact decimals: cJSON prints 15 significant digits whenever
+ * they read back within a relative 2^-52, which can miss a float's value
+ * by a double's ulp, and readers check min and max against the data. */
 static int set_vec3(cJSON *o, const char *k, const double v[3])
 {
-    return set_item(o, k, cJSON_CreateDoubleArray(v, 3));
+    char s[96];
+    snprintf(s, sizeof s, "[%.17g,%.17g,%.17g]", v[0], v[1], v[2]);
+    return set_item(o, k, cJSON_CreateRaw(s));
 }
 
 /* A non-negative integer member (-1: absent or not one). */
@@ -493,11 +500,10 @@ static mcf_status redraco(api__gltf_prim *g, const double *X, const double *N,
     ix = int_of(prim, "indices");
     if (ix >= 0 && ix < nacc) {
         set_num(acc[ix], "count", 3.0 * back.nfaces);
-        /* indices of a type too narrow for the new point count widen
-         * (unsigned short where they fit, as most readers expect) */
-        if (int_of(acc[ix], "componentType") != GL_UINT &&
-            back.npoints > (int_of(acc[ix], "componentType") == GL_USHORT ? 65535 : 255))
-            set_num(acc[ix], "componentType", back.npoints <= 65535 ? GL_USHORT : GL_UINT);
+        /* unsigned short indices where they fit (a type too narrow for
+         * the new point count would be wrong; assimp 5.2 reads Draco's
+         * unsigned int indices as none), unsigned int beyond */
+        set_num(acc[ix], "componentType", back.npoints <= 65535 ? GL_USHORT : GL_UINT);
     }
     if (g->pos.acc >= 0 && g->pos.acc < nacc &&
         !(set_vec3(acc[g->pos.acc], "min", lo) && set_vec3(acc[g->pos.acc], "max", hi)))
