@@ -28,6 +28,7 @@
  * convention) and colours when every primitive has them; and the plan
  * record the encoder rewrites the document from (api_gltf_encode.c).
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -166,8 +167,8 @@ static int int_member(const cJSON *o, const char *k, long long lo, long long hi,
     *v = def;
     if (!x)
         return 0;
-    if (!cJSON_IsNumber(x) || x->valuedouble != (double)(long long)x->valuedouble ||
-        x->valuedouble < (double)lo || x->valuedouble > (double)hi)
+    if (!cJSON_IsNumber(x) || !(x->valuedouble >= (double)lo && x->valuedouble <= (double)hi) ||
+        x->valuedouble != floor(x->valuedouble))
         return -1;
     *v = (long long)x->valuedouble;
     return 1;
@@ -656,6 +657,38 @@ static mcf_status faces(const api__gltf_doc *d, int32_t **F, int32_t **cp,
     return MCF_OK;
 }
 
+/* Keeps only the values of at that some corner uses (at most one per
+ * corner, as every decoder's attributes), renumbering the corners; *kept
+ * (when not NULL) the old -> new map (-1: dropped), malloc'ed. */
+static mcf_status keep_used(api__attr *at, size_t ncorners, int32_t **kept,
+                            mcf_error *err)
+{
+    int32_t *map = malloc(sizeof *map * (size_t)(at->nvalues ? at->nvalues : 1));
+    int i, n = 0;
+    size_t c;
+    if (!map)
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    for (i = 0; i < at->nvalues; i++)
+        map[i] = -1;
+    for (c = 0; c < ncorners; c++)
+        if (map[at->corners[c]] < 0)
+            map[at->corners[c]] = 0;
+    for (i = 0; i < at->nvalues; i++)
+        if (map[i] == 0) {
+            memmove(at->values + (size_t)n * at->ncomp, at->values + (size_t)i * at->ncomp,
+                    sizeof *at->values * (size_t)at->ncomp);
+            map[i] = n++;
+        }
+    for (c = 0; c < ncorners; c++)
+        at->corners[c] = map[at->corners[c]];
+    at->nvalues = n;
+    if (kept)
+        *kept = map;
+    else
+        free(map);
+    return MCF_OK;
+}
+
 /* Texture coordinates (k = API_ATTR_TEXCOORD) or colours into a when
  * every primitive has them: one value per primitive vertex, deduplicated. */
 static mcf_status side_attr(const api__gltf_doc *d, api_attrs *a, api_attr_kind k,
@@ -698,12 +731,14 @@ static mcf_status side_attr(const api__gltf_doc *d, api_attrs *a, api_attr_kind 
     for (i = 0; i < nf3; i++)
         corners[i] = (int32_t)(base[cp[i]] + cv[i]);
     rc = api__attrs_take(a, k, nc, (int)nvals, vals, corners, err);
+    if (rc == MCF_OK)
+        rc = keep_used(&a->a[k], nf3, NULL, err);
     return rc == MCF_OK ? api__attr_dedupe(&a->a[k], nf3, err) : rc;
 }
 
 /* The normal attribute: the groups' input normals; corners of primitives
  * without normals get a value per welded vertex after them. */
-static mcf_status side_normals(const api__gltf_doc *d, api_attrs *a, double *N,
+static mcf_status side_normals(api__gltf_doc *d, api_attrs *a, double *N,
                                int ngroups, const int32_t *F, const int32_t *cp,
                                const int32_t *cv, mcf_error *err)
 {
@@ -724,7 +759,77 @@ static mcf_status side_normals(const api__gltf_doc *d, api_attrs *a, double *N,
         const int32_t *ng = d->prim[cp[i]].ngroup;
         corners[i] = ng ? ng[cv[i]] : ngroups + F[i];
     }
-    return api__attrs_take(a, API_ATTR_NORMAL, 3, ngroups + a->nv, vals, corners, err);
+    {
+        int32_t *map;
+        int p;
+        mcf_status rc = api__attrs_take(a, API_ATTR_NORMAL, 3, ngroups + a->nv, vals,
+                                        corners, err);
+        if (rc != MCF_OK || (rc = keep_used(&a->a[API_ATTR_NORMAL], nf3, &map, err)) != MCF_OK)
+            return rc;
+        /* the primitives' groups follow (-1: only in collapsed triangles) */
+        for (p = 0; p < d->nprim; p++)
+            for (i = 0; d->prim[p].ngroup && i < (size_t)d->prim[p].nvert; i++)
+                if (d->prim[p].ngroup[i] >= 0)
+                    d->prim[p].ngroup[i] = map[d->prim[p].ngroup[i]];
+        free(map);
+        return MCF_OK;
+    }
+}
+
+/* A byte region the encoder writes: VEC3 floats of one accessor. */
+typedef struct {
+    long long lo, hi, off;      /* span [lo, hi), first element at off */
+    int buf, stride, acc;
+} region;
+
+static int cmp_region(const void *pa, const void *pb)
+{
+    const region *a = pa, *b = pb;
+    if (a->buf != b->buf)
+        return a->buf < b->buf ? -1 : 1;
+    return (a->lo > b->lo) - (a->lo < b->lo);
+}
+
+/* The encoder writes positions and normals in place: two accessors it
+ * writes must not share a byte (one would overwrite the other), unless
+ * they interleave in the same stride. A shared accessor is one region. */
+static mcf_status check_overlaps(const api__gltf_doc *d, mcf_error *err)
+{
+    region *r = malloc(sizeof *r * (2 * (size_t)d->nprim + 1));
+    int n = 0, i, j, p, k;
+    if (!r)
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    for (p = 0; p < d->nprim; p++)
+        for (k = 0; k < 2; k++) {
+            const api__gltf_at *at = k ? &d->prim[p].nrm : &d->prim[p].pos;
+            if (at->buf < 0)
+                continue;
+            r[n].buf = at->buf;
+            r[n].off = r[n].lo = at->off;
+            r[n].hi = at->off + (long long)at->stride * (d->prim[p].nvert - 1) + 12;
+            r[n].stride = at->stride;
+            r[n++].acc = at->acc;
+        }
+    qsort(r, (size_t)n, sizeof *r, cmp_region);
+    for (i = 0; i < n; i++)
+        for (j = i + 1; j < n && r[j].buf == r[i].buf && r[j].lo < r[i].hi; j++) {
+            long long gap = (r[j].off - r[i].off) % r[i].stride;
+            if (r[j].acc == r[i].acc && r[j].off == r[i].off)
+                continue;
+            if (r[j].acc != r[i].acc && r[j].stride == r[i].stride && gap >= 12 &&
+                gap <= r[i].stride - 12)
+                continue; /* interleaved */
+            {
+                const int a = r[i].acc, b = r[j].acc, buf = r[i].buf;
+                free(r);
+                return api__fail(err, MCF_EDECODE,
+                                 "gltf: accessors %d and %d (POSITION or NORMAL) share "
+                                 "bytes of buffer %d; each needs its own to be written "
+                                 "back", a, b, buf);
+            }
+        }
+    free(r);
+    return MCF_OK;
 }
 
 static mcf_status decode_doc(api__gltf_doc *d, const api_limits *lim,
@@ -742,7 +847,7 @@ static mcf_status decode_doc(api__gltf_doc *d, const api_limits *lim,
     api_buf_init(&plan, API_GLTF_RECORD_MAX(lim));
     if (!base)
         return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-    if ((rc = weld(d, &X, &nv, base, err)) != MCF_OK ||
+    if ((rc = check_overlaps(d, err)) != MCF_OK || (rc = weld(d, &X, &nv, base, err)) != MCF_OK ||
         (rc = faces(d, &F, &cp, &cv, &nf, err)) != MCF_OK)
         goto done;
     if (nv > lim->max_vertices || nf > lim->max_faces) {
