@@ -100,35 +100,6 @@ static int num(const cJSON *o, const char *k)
     return cJSON_IsNumber(x) ? x->valueint : 0;
 }
 
-/* Runs Debian's assimp on the bytes (in a file named name): its info must
- * name the expected vertex and face counts (0: only that it loads). */
-static void assimp_reads(const char *bytes, size_t len, const char *name, int nv, int nf)
-{
-    char path[4096], cmd[8400], line[512];
-    FILE *f, *p;
-    int got_v = -1, got_f = -1;
-    snprintf(path, sizeof path, "%s/%s", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp", name);
-    f = fopen(path, "wb");
-    assert_non_null(f);
-    assert_int_equal(fwrite(bytes, 1, len, f), len);
-    fclose(f);
-    snprintf(cmd, sizeof cmd, "assimp info '%s' 2>&1", path);
-    p = popen(cmd, "r");
-    assert_non_null(p);
-    while (fgets(line, sizeof line, p)) {
-        sscanf(line, "Vertices: %d", &got_v);
-        sscanf(line, "Faces: %d", &got_f);
-        if (strstr(line, "ERROR"))
-            fail_msg("assimp on %s: %s", name, line);
-    }
-    if (pclose(p) != 0)
-        fail_msg("assimp info %s failed (is assimp-utils installed? make deps)", name);
-    remove(path);
-    if ((nv && got_v != nv) || (nf && got_f != nf))
-        fail_msg("assimp reads %s as %d vertices, %d faces; expected %d, %d", name, got_v,
-                 got_f, nv, nf);
-}
-
 /* ------------------------------------------------------------------ tests */
 
 static void test_detect_and_names(void **state)
@@ -253,7 +224,7 @@ static void test_weld_and_rewrite(void **state)
                                   cJSON_GetObjectItemCaseSensitive(item(oj, "meshes", 0), "primitives"), 1));
     }
     assert_true(changed == 0);
-    assimp_reads(out, olen, "weld.glb", 966, 1670); /* assimp: lines count as faces */
+    tl_assimp_reads(out, olen, "weld.glb", 966, 1670); /* assimp: lines count as faces */
     cJSON_Delete(j);
     cJSON_Delete(oj);
     free(mask);
@@ -293,8 +264,8 @@ static void test_containers(void **state)
     decode(o3, l3, &m3, NULL);
     for (i = 0; i < 3 * mcf_mesh_nvertices(m); i++)
         assert_true(mcf_mesh_positions(m3)[i] == (double)(float)mcf_mesh_positions(m)[i]);
-    assimp_reads(o1, l1, "c.gltf", 866, 1620);
-    assimp_reads(o2, l2, "c.glb", 866, 1620);
+    tl_assimp_reads(o1, l1, "c.gltf", 866, 1620);
+    tl_assimp_reads(o2, l2, "c.glb", 866, 1620);
     free(in);
     free(o1);
     free(o2);
@@ -335,7 +306,7 @@ static void test_draco(void **state)
     assert_int_equal(mcf_mesh_nfaces(m1), mcf_mesh_nfaces(m0));
     assert_int_equal(api_attrs_draco_bits(a1, API_ATTR_POSITION),
                      api_attrs_draco_bits(a0, API_ATTR_POSITION));
-    assimp_reads(g1, l1, "car.glb", 0, mcf_mesh_nfaces(m0));
+    tl_assimp_reads(g1, l1, "car.glb", 0, mcf_mesh_nfaces(m0));
 
     /* smoothed and rewritten: Draco again, UVs bit for bit */
     smooth_a_little(m1);
@@ -393,7 +364,7 @@ static void test_draco(void **state)
                 fail_msg("vertex %d moved %g by the re-encode (step %g)", i / 3, d, step);
         }
     }
-    assimp_reads(g2, l2, "car_s.glb", 0, mcf_mesh_nfaces(m0));
+    tl_assimp_reads(g2, l2, "car_s.glb", 0, mcf_mesh_nfaces(m0));
     free(drc);
     free(g1);
     free(g2);
@@ -458,7 +429,7 @@ static void test_foreign_draco(void **state)
     smooth_a_little(m);
     o = encode(m, a, API_FMT_GLB, &ol);
     /* assimp counts Draco's points: the re-encode splits a few more */
-    assimp_reads(o, ol, "bunny_s.glb", 0, mcf_mesh_nfaces(m0));
+    tl_assimp_reads(o, ol, "bunny_s.glb", 0, mcf_mesh_nfaces(m0));
     free(drc);
     free(g);
     free(o);
@@ -483,7 +454,7 @@ static void test_new_document(void **state)
     for (i = 0; i < 3 * mcf_mesh_nvertices(m); i++)
         assert_true(mcf_mesh_positions(m2)[i] == (double)(float)mcf_mesh_positions(m)[i]);
     assert_memory_equal(mcf_mesh_faces(m2), mcf_mesh_faces(m), 12 * (size_t)mcf_mesh_nfaces(m));
-    assimp_reads(o, ol, "new.glb", 812, 1620);
+    tl_assimp_reads(o, ol, "new.glb", 812, 1620);
     free(obj);
     free(o);
     mcf_mesh_free(m);

@@ -152,4 +152,11 @@ void tl_track_child(pid_t pid);
  * how many it killed. */
 int tl_kill_children(pid_t keep);
 
+/* ---- A third-party reader: Debian's assimp (assimp-utils, installed by
+ * make deps) runs `assimp info` on the bytes, written to $TMPDIR/name (the
+ * extension tells assimp the format). Fails the current test unless it
+ * loads them and, when nv or nf is not 0, counts that many vertices and
+ * faces (assimp's counts: Draco points, line segments as faces). */
+void tl_assimp_reads(const void *bytes, size_t len, const char *name, int nv, int nf);
+
 #endif /* TESTLIB_H */

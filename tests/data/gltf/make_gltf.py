@@ -18,14 +18,23 @@ sphere_2prims.glb   the same as GLB, primitive 0's POSITION and NORMAL
                     interleaved in one buffer view (byteStride 24), an
                     8-byte image in a buffer view (never decoded), and a
                     LINES primitive over primitive 0's POSITION accessor.
+car_draco.glb       tests/data/meshes/car.drc (Draco's own test file,
+                    Apache-2.0) as a KHR_draco_mesh_compression GLB, written
+                    by `mcf convert` (build/mcf, or $MCF).
+draco_bomb.glb      tests/data/draco_texcoord_orientations.drc (the 210-byte
+                    stream that costs libdraco 8.8 s and 256 MiB) wrapped in
+                    a GLB as a Draco primitive: the daemon must decode it in
+                    its sandbox, as the bare stream.
 """
 import base64
 import json
 import math
 import os
 import struct
+import subprocess
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+TOP = os.path.join(HERE, "..", "..", "..")
 OBJ = os.path.join(HERE, "..", "meshes", "sphere_cgal.obj")
 
 
@@ -160,5 +169,35 @@ def main():
     open(os.path.join(HERE, "sphere_2prims.glb"), "wb").write(build(True, True))
 
 
+def glb(doc, blob):
+    j = json.dumps(doc, separators=(",", ":")).encode()
+    j += b" " * (-len(j) % 4)
+    blob = blob + b"\0" * (-len(blob) % 4)
+    return (b"glTF" + struct.pack("<II", 2, 12 + 8 + len(j) + 8 + len(blob)) +
+            struct.pack("<I", len(j)) + b"JSON" + j + struct.pack("<I", len(blob)) + b"BIN\0" + blob)
+
+
+def wrap_drc(drc, npoints, nfaces):
+    """A GLB whose one primitive is the Draco stream drc (POSITION id 0)."""
+    doc = {"asset": {"version": "2.0", "generator": "mcfd tests/data/gltf/make_gltf.py"},
+           "extensionsUsed": ["KHR_draco_mesh_compression"],
+           "extensionsRequired": ["KHR_draco_mesh_compression"],
+           "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1,
+                                       "extensions": {"KHR_draco_mesh_compression":
+                                                      {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],
+           "accessors": [{"componentType": 5126, "count": npoints, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 1]},
+                         {"componentType": 5123, "count": 3 * nfaces, "type": "SCALAR"}],
+           "bufferViews": [{"buffer": 0, "byteLength": len(drc)}],
+           "buffers": [{"byteLength": len(drc) + (-len(drc) % 4)}]}
+    return glb(doc, drc)
+
+
 if __name__ == "__main__":
     main()
+    bomb = open(os.path.join(HERE, "..", "draco_texcoord_orientations.drc"), "rb").read()
+    open(os.path.join(HERE, "draco_bomb.glb"), "wb").write(wrap_drc(bomb, 3, 1))
+    mcf = os.environ.get("MCF", os.path.join(TOP, "build", "mcf"))
+    subprocess.run([mcf, "convert", os.path.join(HERE, "..", "meshes", "car.drc"),
+                    os.path.join(HERE, "car_draco.glb")], check=True)
