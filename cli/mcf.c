@@ -55,7 +55,7 @@ static const char usage_text[] =
     "  mcf experiment STUDY --out DIR [flags]: dt-sweep, stability, order or sphere\n"
     "                       studies as CSV files and plots (flags at the end)\n"
     "\n"
-    "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
+    "Formats: obj, draco (.drc), ply, stl, off, glb, gltf (glTF 2.0). IN or OUT may be '-' (stdin/stdout;\n"
     "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
     "0-based vertex indices separated by white space or commas.\n"
     "Amount: by default the flow runs to time strength^2 h^2 (h: the mean edge\n"
