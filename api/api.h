@@ -103,7 +103,10 @@ const char *api_format_mime(api_format f);       /* "model/obj", ... */
  * their quantization; OBJ vt and vn (per corner) and `v x y z r g b`; PLY
  * vertex nx ny nz, s t (also u v, texture_u texture_v), red green blue
  * [alpha], and the face `texcoord` list (6 floats) draco_decoder writes.
- * STL and OFF carry none. Colours are held in [0, 1] (8-bit sources
+ * STL and OFF carry none. The connectivity as it came: the polygons of
+ * an OBJ, PLY or OFF (smoothed as their fan triangles) are written back
+ * as those polygons by the same three formats, and OBJ's g, o, s, usemtl
+ * and mtllib statements in their place. Colours are held in [0, 1] (8-bit sources
  * divided by 255, and written back as bytes exactly). */
 typedef struct api_attrs api_attrs;
 
@@ -202,8 +205,9 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
 
 /* Per-format codecs, same contracts. The *_decode_attrs forms also
  * return the attributes (attrs may be NULL); encoders take them from
- * o->attrs (OBJ and OFF, which have no options, write none through these
- * two: use api_mesh_encode or api_obj_encode_opts). */
+ * o->attrs (OBJ and OFF, which have no options, write none through
+ * api_obj_encode and api_off_encode: use api_mesh_encode or the _opts
+ * forms). */
 mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **out, mcf_error *err);
 mcf_status api_obj_encode(const mcf_mesh *m, api_buf *out, mcf_error *err);
@@ -226,6 +230,11 @@ mcf_status api_stl_encode(const mcf_mesh *m, const api_encode_opts *o,
 mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **out, mcf_error *err);
 mcf_status api_off_encode(const mcf_mesh *m, api_buf *out, mcf_error *err);
+mcf_status api_off_decode_attrs(const void *buf, size_t len,
+                                const api_limits *lim, mcf_mesh **out,
+                                api_attrs **attrs, mcf_error *err);
+mcf_status api_off_encode_opts(const mcf_mesh *m, const api_encode_opts *o,
+                               api_buf *out, mcf_error *err);
 mcf_status api_draco_decode(const void *buf, size_t len, const api_limits *lim,
                             mcf_mesh **out, mcf_error *err);
 mcf_status api_draco_decode_attrs(const void *buf, size_t len,

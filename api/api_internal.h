@@ -172,6 +172,11 @@ typedef struct {
     float qorigin[4], qrange;
 } api__attr;
 
+typedef struct {
+    int32_t at;
+    char *text;             /* the statement's line, NUL-terminated */
+} api__stmt;
+
 struct api_attrs {
     int nv, nf;
     int float32;            /* positions were single precision */
@@ -181,6 +186,15 @@ struct api_attrs {
      * each welded vertex came from, which the glTF encoder rewrites. */
     unsigned char *gltf;
     size_t gltf_len;
+    /* The input's polygons (OBJ, PLY, OFF): polygon p has poly[p] >= 3
+     * corners and became the next poly[p] - 2 faces of the mesh, a fan
+     * (c0, ck, ck+1); NULL when every face was a triangle. */
+    int32_t *poly;
+    int npoly, maxpoly;
+    /* OBJ's g, o, s, usemtl and mtllib statements, in order, each written
+     * back before polygon stmt[i].at (npoly: after the last). */
+    api__stmt *stmt;
+    int nstmt;
 };
 
 /* Takes ownership of values and corners (malloc'ed, corners not NULL;
@@ -189,6 +203,26 @@ struct api_attrs {
 mcf_status api__attrs_take(api_attrs *a, api_attr_kind k, int ncomp,
                            int nvalues, double *values, int32_t *corners,
                            mcf_error *err);
+
+/* The input's polygon sizes (npoly of them, each >= 3, their triangles
+ * summing to the handle's face count; copied, and kept only when one has
+ * more than 3 corners). EINVAL, ENOMEM. */
+mcf_status api__attrs_polys(api_attrs *a, const int32_t *sizes, int npoly,
+                            mcf_error *err);
+/* Appends an OBJ statement line (n bytes at s) before polygon at. ENOMEM. */
+mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
+                           mcf_error *err);
+
+/* Walks the polygons a mesh of nf triangles came from (a NULL handle or
+ * one without polygons: each triangle its own): start with it zeroed; each
+ * call gives the next polygon's corner count *n and its corners as
+ * indices c[] (3 x face + slot) into the face and attribute corner
+ * arrays (room for api__attrs_maxpoly(a)), and returns 0 after the last. */
+typedef struct {
+    int p, face;
+} api__poly_it;
+int api__poly_next(const api_attrs *a, int nf, api__poly_it *it, size_t *c, int *n);
+int api__attrs_maxpoly(const api_attrs *a);
 
 /* EINVAL (named, prefixed by codec) unless a is NULL or was made for a
  * mesh with m's vertex and face counts. */

@@ -293,7 +293,7 @@ mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
     return api_mesh_decode_attrs(buf, len, lim, out, NULL, fmt, err);
 }
 
-/* An empty attribute handle for the formats that carry none (STL, OFF);
+/* An empty attribute handle for the format that carries none (STL);
  * a binary STL's positions are single precision. */
 static mcf_status empty_attrs(mcf_mesh *m, int float32, api_attrs **attrs,
                               mcf_error *err)
@@ -339,13 +339,13 @@ mcf_status api_mesh_decode_attrs(const void *buf, size_t len,
     case API_FMT_GLB:
     case API_FMT_GLTF:
         return api_gltf_decode_attrs(buf, len, lim, out, attrs, err);
-    case API_FMT_STL:
     case API_FMT_OFF:
-        rc = f == API_FMT_STL ? api_stl_decode(buf, len, lim, &m, err)
-                              : api_off_decode(buf, len, lim, &m, err);
+        return api_off_decode_attrs(buf, len, lim, out, attrs, err);
+    case API_FMT_STL:
+        rc = api_stl_decode(buf, len, lim, &m, err);
         if (rc == MCF_OK && attrs) {
             /* The size rule of api_format_detect: a binary STL (float32). */
-            int bin = f == API_FMT_STL && len >= 84
+            int bin = len >= 84
                       && 84 + 50 * (uint64_t)api__get_le32(
                                   (const unsigned char *)buf + 80)
                              == (uint64_t)len;
@@ -379,7 +379,7 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
     case API_FMT_STL:
         return api_stl_encode(m, o, out, err);
     case API_FMT_OFF:
-        return api_off_encode(m, out, err);
+        return api_off_encode_opts(m, o, out, err);
     case API_FMT_GLB:
     case API_FMT_GLTF:
         return api_gltf_encode(m, o, out, err);
