@@ -436,3 +436,34 @@ void tl_assimp_reads(const void *bytes, size_t len, const char *name, int nv, in
         fail_msg("assimp reads %s as %d vertices, %d faces; expected %d, %d", name, got_v,
                  got_f, nv, nf);
 }
+
+void tl_quad_grid(double X[147], int Q[144])
+{
+    int i, j;
+    for (j = 0; j < 7; j++)
+        for (i = 0; i < 7; i++) {
+            X[3 * (7 * j + i)] = i / 6.0;
+            X[3 * (7 * j + i) + 1] = j / 6.0;
+            X[3 * (7 * j + i) + 2] = 0.05 * ((i * 3 + j * 5) % 4);
+        }
+    for (j = 0; j < 6; j++)
+        for (i = 0; i < 6; i++) {
+            int *q = Q + 4 * (6 * j + i);
+            q[0] = 7 * j + i;
+            q[1] = 7 * j + i + 1;
+            q[2] = 7 * (j + 1) + i + 1;
+            q[3] = 7 * (j + 1) + i;
+        }
+}
+
+void tl_smooth_a_little(mcf_mesh *m)
+{
+    mcf_flow_params p;
+    mcf_error err;
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_DESBRUN2;
+    p.dt = 1e-4;
+    p.iterations = 2;
+    if (mcf_flow_run(m, &p, NULL, &err) != MCF_OK)
+        fail_msg("flow: %s", err.msg);
+}
