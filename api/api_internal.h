@@ -302,7 +302,8 @@ mcf_status api__draco_prim_encode(const api__draco_prim *p, int level,
                                   api_buf *out, mcf_error *err);
 void api__draco_prim_free(api__draco_prim *p);
 
-/* ----------------------------------- glTF (api_gltf_decode.c, api_gltf.cc, api_gltf_encode.c) */
+/* ------- glTF (api_gltf_check.c, api_gltf.cc, api_gltf_decode.c, api_gltf_plan.c,
+ * api_gltf_encode.c) */
 
 /* Where a primitive's POSITION or NORMAL values lie in a buffer (a dense
  * float VEC3 accessor): buf -1 when they have no buffer view (a Draco
@@ -369,6 +370,14 @@ mcf_status api__glb_split(const void *buf, size_t len, const char **json,
                           size_t *json_len, const unsigned char **bin,
                           size_t *bin_len, mcf_error *err);
 
+/* Every check before tinygltf (api_gltf_check.c) on the input (in,
+ * in_len) whose JSON text is (json, n); *tiny (NULL: the input as it is)
+ * the input tinygltf reads instead, malloc'ed, *tiny_len bytes: the JSON,
+ * or for a GLB the same GLB with that JSON. EDECODE, ELIMIT, ENOMEM. */
+mcf_status api__gltf_check_json(const void *in, size_t in_len, const char *json,
+                                size_t n, int glb, char **tiny, size_t *tiny_len,
+                                mcf_error *err);
+
 /* Parses a glTF or GLB (container set by the caller's detection) whose
  * JSON passed api_gltf_decode.c's checks with tinygltf (no file is ever
  * opened: built without file system access), checks every accessor it
@@ -380,8 +389,8 @@ mcf_status api__gltf_parse(const void *buf, size_t len, const char *json,
                            api__gltf_doc *doc, mcf_error *err);
 void api__gltf_doc_free(api__gltf_doc *doc);
 
-/* The encoder's side of the document (api_gltf_encode.c): the plan record
- * the decoder leaves in api_attrs (api__gltf_plan) and what reads it. */
+/* The plan record the decoder leaves in api_attrs (api__gltf_plan) and
+ * what reads it for the encoder (api_gltf_plan.c). */
 mcf_status api__gltf_plan(const api__gltf_doc *doc, api_buf *out,
                           mcf_error *err);
 mcf_status api__gltf_unplan(const void *buf, size_t len, api__gltf_doc *doc,
