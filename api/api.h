@@ -6,7 +6,8 @@
  * size_t len) in, an mcf_mesh out; an mcf_mesh in, an api_buf out. Every
  * decoder checks the api_limits before data reaches core/ and names the
  * offending line, element or key in the mcf_error message. The Draco codec
- * is the only C++ (api_draco.cc); it exports plain C through this header.
+ * and the glTF reader are C++ (api_draco.cc, api_gltf.cc over tinygltf);
+ * they export plain C through this header.
  *
  * Dependencies run one way: server -> api -> core. This header may include
  * mcf.h and cJSON, never microhttpd.h.

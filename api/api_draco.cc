@@ -1,6 +1,6 @@
 /*
- * api_draco.cc - Google Draco (.drc) decoder and encoder, the only C++ of
- * mcfd: a thin extern "C" bridge over Debian's libdraco 1.5.5.
+ * api_draco.cc - Google Draco (.drc) decoder and encoder: a thin extern "C"
+ * bridge over Debian's libdraco 1.5.5.
  *
  * Decoder: any Draco mesh bitstream the library reads (old v1.x such as
  * bunny.drc, current v2.2; edgebreaker and sequential). A point cloud is
@@ -39,6 +39,13 @@
  * and, without attributes, vertex order (and unreferenced vertices);
  * otherwise edgebreaker, which renumbers vertices, reorders and rotates
  * faces, drops unreferenced vertices and splits non-manifold ones.
+ *
+ * Primitives (api__draco_prim_decode / _encode, for glTF's
+ * KHR_draco_mesh_compression): every attribute as it came, by unique id,
+ * its points' values as raw bytes of their data type and its quantization
+ * (bits and grid, from the same second decode), and back: the same ids,
+ * types and quantization (a grid reused where the values still lie on
+ * it), edgebreaker, through the ExpertEncoder's per-attribute options.
  *
  * *max_quant_err is measured, not predicted: the encoded bytes are decoded
  * again and every input face is compared with its decoded counterpart

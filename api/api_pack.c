@@ -20,6 +20,9 @@
  *   uint64 bytes of a glTF input's document record (api__gltf_plan), the
  *   record
  *
+ * An OBJ's, PLY's or OFF's polygons and OBJ statements are not in it: those
+ * formats never decode in the sandbox.
+ *
  * Unpacking trusts nothing: every count is checked against the bytes left
  * and the limits, the mesh goes through core's checks and every attribute
  * through api_attrs_set's (indices in range, finite values), so a child

@@ -131,7 +131,7 @@ static void test_weld_and_rewrite(void **state)
     cJSON *j, *oj;
     double *VN;
     const double *X, *X2;
-    int nv, i, k, p, changed = 0;
+    int nv, i, k, p;
     unsigned char *mask;
     (void)state;
 
@@ -149,10 +149,8 @@ static void test_weld_and_rewrite(void **state)
     assert_int_equal(mcf_mesh_nvertices(m2), 812);
     X = mcf_mesh_positions(m);
     X2 = mcf_mesh_positions(m2);
-    for (i = 0; i < 3 * nv; i++) {
+    for (i = 0; i < 3 * nv; i++)
         assert_true(X2[i] == (double)(float)X[i]);
-        changed += (float)X[i] != (float)mcf_mesh_positions(m2)[i] ? 1 : 0;
-    }
 
     /* every byte but POSITION and NORMAL values the same; those changed */
     j = glb_parts(in, len, &bin, &blen);
@@ -223,7 +221,6 @@ static void test_weld_and_rewrite(void **state)
         assert_true(cJSON_Compare(cJSON_GetObjectItemCaseSensitive(item(j, "meshes", 0), "primitives"),
                                   cJSON_GetObjectItemCaseSensitive(item(oj, "meshes", 0), "primitives"), 1));
     }
-    assert_true(changed == 0);
     tl_assimp_reads(out, olen, "weld.glb", 966, 1670); /* assimp: lines count as faces */
     cJSON_Delete(j);
     cJSON_Delete(oj);
@@ -277,16 +274,6 @@ static void test_containers(void **state)
     api_attrs_free(a1);
 }
 
-/* The texcoords of corner c as floats. */
-static void uv_of(const api_attrs *a, int c, float uv[2])
-{
-    const double *v;
-    const int32_t *cn;
-    assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, &v, &cn));
-    uv[0] = (float)v[2 * cn[c]];
-    uv[1] = (float)v[2 * cn[c] + 1];
-}
-
 /* Draco in, Draco out: car.drc as a KHR_draco_mesh_compression GLB. */
 static void test_draco(void **state)
 {
@@ -314,10 +301,6 @@ static void test_draco(void **state)
     assert_non_null(strstr(g2 + 20, "\"KHR_draco_mesh_compression\":{\"bufferView\""));
     decode(g2, l2, &m2, &a2);
     assert_int_equal(mcf_mesh_nvertices(m2), mcf_mesh_nvertices(m1));
-    for (i = 0; i < 3 * mcf_mesh_nfaces(m2); i += 7) {
-        /* faces may be reordered: compare the UV sets through positions */
-        (void)i;
-    }
     {
         /* the UV values are on the input's grid: every value of the output
          * is a value of the input */
@@ -332,11 +315,6 @@ static void test_draco(void **state)
             if (j == n1)
                 fail_msg("texcoord %d (%g, %g) is not one of the input's", i, v2[2 * i],
                          v2[2 * i + 1]);
-        }
-        {
-            float uv[2];
-            uv_of(a2, 0, uv);
-            assert_true(uv[0] == uv[0]);
         }
     }
     /* positions: within the quantization step of the smoothed ones */
