@@ -379,6 +379,29 @@ mcf_status read_attrs(const void *buf, size_t len, const draco::Mesh &dm,
                       const draco::PointAttribute *pos, const mcf_mesh *m,
                       api_attrs **attrs, mcf_error *err);
 
+/* The checks before libdraco decodes a stream: magic, a triangle mesh
+ * (not a point cloud), the header's counts within lim. */
+mcf_status check_stream(const void *buf, size_t len, const api_limits *lim,
+                        mcf_error *err)
+{
+    if (len < 5 || std::memcmp(buf, "DRACO", 5) != 0)
+        return api__fail(err, MCF_EDECODE,
+                         "draco: no \"DRACO\" magic at the start of the input");
+    draco::DecoderBuffer db;
+    db.Init(static_cast<const char *>(buf), len);
+    auto type = draco::Decoder::GetEncodedGeometryType(&db);
+    if (!type.ok())
+        return api__fail(err, MCF_EDECODE, "draco: bad header: %s",
+                         type.status().error_msg());
+    if (type.value() == draco::POINT_CLOUD)
+        return api__fail(err, MCF_EDECODE,
+                         "Draco point cloud, not a triangle mesh");
+    if (type.value() != draco::TRIANGULAR_MESH)
+        return api__fail(err, MCF_EDECODE, "draco: unknown geometry type %d",
+                         static_cast<int>(type.value()));
+    return check_counts(static_cast<const uint8_t *>(buf), len, lim, err);
+}
+
 mcf_status decode(const void *buf, size_t len, const api_limits *lim,
                   mcf_mesh **out, api_attrs **attrs, mcf_error *err)
 {
@@ -395,27 +418,12 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
                          len, lim->max_input_bytes);
     if (len == 0)
         return api__fail(err, MCF_EDECODE, "draco: empty input");
-    if (len < 5 || std::memcmp(buf, "DRACO", 5) != 0)
-        return api__fail(err, MCF_EDECODE,
-                         "draco: no \"DRACO\" magic at the start of the input");
-
-    draco::DecoderBuffer db;
-    db.Init(static_cast<const char *>(buf), len);
-    auto type = draco::Decoder::GetEncodedGeometryType(&db);
-    if (!type.ok())
-        return api__fail(err, MCF_EDECODE, "draco: bad header: %s",
-                         type.status().error_msg());
-    if (type.value() == draco::POINT_CLOUD)
-        return api__fail(err, MCF_EDECODE,
-                         "Draco point cloud, not a triangle mesh");
-    if (type.value() != draco::TRIANGULAR_MESH)
-        return api__fail(err, MCF_EDECODE, "draco: unknown geometry type %d",
-                         static_cast<int>(type.value()));
-
-    mcf_status rc = check_counts(static_cast<const uint8_t *>(buf), len, lim, err);
+    mcf_status rc = check_stream(buf, len, lim, err);
     if (rc != MCF_OK)
         return rc;
 
+    draco::DecoderBuffer db;
+    db.Init(static_cast<const char *>(buf), len);
     draco::Decoder dec;
     auto res = dec.DecodeMeshFromBuffer(&db);
     if (!res.ok())
@@ -1081,29 +1089,11 @@ static_assert(draco::GeometryAttribute::POSITION == API__DRACO_POSITION &&
                   draco::DT_FLOAT32 == API__DRACO_FLOAT32,
               "api_internal.h's Draco numbers");
 
-/* The geometry checks api_draco_decode makes before libdraco decodes:
- * magic, a triangle mesh, the header's counts within lim. */
-mcf_status check_stream(const void *buf, size_t len, const api_limits *lim,
-                        mcf_error *err)
-{
-    if (!buf || len < 5 || std::memcmp(buf, "DRACO", 5) != 0)
-        return api__fail(err, MCF_EDECODE,
-                         "draco: no \"DRACO\" magic at the start of the stream");
-    draco::DecoderBuffer db;
-    db.Init(static_cast<const char *>(buf), len);
-    auto type = draco::Decoder::GetEncodedGeometryType(&db);
-    if (!type.ok())
-        return api__fail(err, MCF_EDECODE, "draco: bad header: %s",
-                         type.status().error_msg());
-    if (type.value() != draco::TRIANGULAR_MESH)
-        return api__fail(err, MCF_EDECODE, "draco: not a triangle mesh");
-    return check_counts(static_cast<const uint8_t *>(buf), len, lim, err);
-}
-
 mcf_status prim_decode(const void *buf, size_t len, const api_limits *lim,
                        api__draco_prim *out, mcf_error *err)
 {
-    mcf_status rc = check_stream(buf, len, lim, err);
+    mcf_status rc = buf ? check_stream(buf, len, lim, err)
+                        : api__fail(err, MCF_EDECODE, "draco: no stream");
     if (rc != MCF_OK)
         return rc;
     std::unique_ptr<draco::Mesh> dm, raw;

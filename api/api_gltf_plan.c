@@ -92,21 +92,8 @@ fail:
     return api__fail(err, rc, "gltf: out of memory for the document's record");
 }
 
-typedef struct {
-    const unsigned char *p, *end;
-} reader;
-
-static int take(reader *r, void *dst, size_t n)
-{
-    if ((size_t)(r->end - r->p) < n)
-        return 0;
-    memcpy(dst, r->p, n);
-    r->p += n;
-    return 1;
-}
-
 /* A malloc'ed copy of n bytes (extra spare bytes, zeroed), or NULL. */
-static void *take_copy(reader *r, uint64_t n, size_t extra, int *oom)
+static void *take_copy(api__reader *r, uint64_t n, size_t extra, int *oom)
 {
     unsigned char *a;
     if ((uint64_t)(r->end - r->p) < n)
@@ -133,12 +120,12 @@ static int fits(const api__gltf_doc *d, const api__gltf_at *at, int nvert)
                d->buf_len[at->buf];
 }
 
-static int take_prim(reader *r, api__gltf_doc *d, api__gltf_prim *g, int *oom)
+static int take_prim(api__reader *r, api__gltf_doc *d, api__gltf_prim *g, int *oom)
 {
     int32_t h[14];
     int64_t off[2];
     int i;
-    if (!take(r, h, sizeof h) || !take(r, off, sizeof off) || h[3] < 1)
+    if (!api__take(r, h, sizeof h) || !api__take(r, off, sizeof off) || h[3] < 1)
         return 0;
     g->mesh = h[0];
     g->index = h[1];
@@ -157,8 +144,8 @@ static int take_prim(reader *r, api__gltf_doc *d, api__gltf_prim *g, int *oom)
         return 0;
     if (g->draco_view < 0)
         return 1;
-    if (!take(r, &g->draco.npoints, 4) || !take(r, &g->draco.nfaces, 4) ||
-        !take(r, &g->draco.nattr, 4) || g->draco.npoints != g->nvert ||
+    if (!api__take(r, &g->draco.npoints, 4) || !api__take(r, &g->draco.nfaces, 4) ||
+        !api__take(r, &g->draco.nattr, 4) || g->draco.npoints != g->nvert ||
         g->draco.nfaces < 1 || g->draco.nattr < 1 || g->draco.nattr > 256 ||
         !(g->draco.faces = take_copy(r, 12 * (uint64_t)g->draco.nfaces, 0, oom)) ||
         !(g->draco.attr = calloc((size_t)g->draco.nattr, sizeof *g->draco.attr)))
@@ -166,8 +153,8 @@ static int take_prim(reader *r, api__gltf_doc *d, api__gltf_prim *g, int *oom)
     for (i = 0; i < g->draco.nattr; i++) {
         api__draco_attr *a = &g->draco.attr[i];
         int32_t ah[7];
-        if (!take(r, ah, sizeof ah) || !take(r, a->qorigin, sizeof a->qorigin) ||
-            !take(r, &a->qrange, sizeof a->qrange))
+        if (!api__take(r, ah, sizeof ah) || !api__take(r, a->qorigin, sizeof a->qorigin) ||
+            !api__take(r, &a->qrange, sizeof a->qrange))
             return 0;
         a->id = ah[0];
         a->type = ah[1];
@@ -194,16 +181,16 @@ static int take_prim(reader *r, api__gltf_doc *d, api__gltf_prim *g, int *oom)
 mcf_status api__gltf_unplan(const void *buf, size_t len, api__gltf_doc *d,
                             mcf_error *err)
 {
-    reader r = {buf, (const unsigned char *)buf + len};
+    api__reader r = {buf, (const unsigned char *)buf + len};
     char magic[8];
     int32_t c, n;
     uint64_t jl;
     int oom = 0, i;
 
     memset(d, 0, sizeof *d);
-    if (!take(&r, magic, 8) || memcmp(magic, MAGIC, 8) != 0 || !take(&r, &c, 4) ||
-        (c != API_FMT_GLB && c != API_FMT_GLTF) || !take(&r, &jl, 8) ||
-        !(d->json = take_copy(&r, jl, 0, &oom)) || !take(&r, &n, 4) || n < 0 ||
+    if (!api__take(&r, magic, 8) || memcmp(magic, MAGIC, 8) != 0 || !api__take(&r, &c, 4) ||
+        (c != API_FMT_GLB && c != API_FMT_GLTF) || !api__take(&r, &jl, 8) ||
+        !(d->json = take_copy(&r, jl, 0, &oom)) || !api__take(&r, &n, 4) || n < 0 ||
         (size_t)n > len / 8)
         goto bad;
     d->container = (api_format)c;
@@ -213,11 +200,11 @@ mcf_status api__gltf_unplan(const void *buf, size_t len, api__gltf_doc *d,
     if (!d->buf || !d->buf_len)
         goto nomem;
     for (i = 0; i < n; i++, d->nbuf++)
-        if (!take(&r, &jl, 8) || !(d->buf[i] = take_copy(&r, jl, 0, &oom)))
+        if (!api__take(&r, &jl, 8) || !(d->buf[i] = take_copy(&r, jl, 0, &oom)))
             goto bad;
         else
             d->buf_len[i] = (size_t)jl;
-    if (!take(&r, &n, 4) || n < 1 || n > API_GLTF_MAX_PRIMS ||
+    if (!api__take(&r, &n, 4) || n < 1 || n > API_GLTF_MAX_PRIMS ||
         !(d->prim = calloc((size_t)n, sizeof *d->prim)))
         goto bad;
     for (i = 0; i < n; i++) {

@@ -110,6 +110,21 @@ static inline void api__put_f32(unsigned char *p, float f)
     api__put_le32(p, v);
 }
 
+/* A cursor over a binary record (api_pack.c, api_gltf_plan.c). */
+typedef struct {
+    const unsigned char *p, *end;
+} api__reader;
+
+/* Copies n bytes out and moves on; 0 (nothing read) when fewer are left. */
+static inline int api__take(api__reader *r, void *dst, size_t n)
+{
+    if ((size_t)(r->end - r->p) < n)
+        return 0;
+    memcpy(dst, r->p, n);
+    r->p += n;
+    return 1;
+}
+
 /* ----------------------------------------------------- codecs (api_mesh.c) */
 
 /* The checks every text or binary decoder makes first, with messages

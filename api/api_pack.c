@@ -86,23 +86,9 @@ fail:
                      mcf_strerror(rc));
 }
 
-typedef struct {
-    const unsigned char *p, *end;
-} reader;
-
-/* Copies n bytes out, or 0 when fewer are left. */
-static int take(reader *r, void *dst, size_t n)
-{
-    if ((size_t)(r->end - r->p) < n)
-        return 0;
-    memcpy(dst, r->p, n);
-    r->p += n;
-    return 1;
-}
-
 /* A malloc'ed copy of count items of size bytes, or NULL (short input,
  * overflow or no memory; *short_input says which). */
-static void *take_array(reader *r, size_t count, size_t size, int *short_input)
+static void *take_array(api__reader *r, size_t count, size_t size, int *short_input)
 {
     void *a;
     *short_input = 0;
@@ -121,7 +107,7 @@ static void *take_array(reader *r, size_t count, size_t size, int *short_input)
 mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
                            mcf_mesh **out, api_attrs **attrs, mcf_error *err)
 {
-    reader r = {buf, (const unsigned char *)buf + len};
+    api__reader r = {buf, (const unsigned char *)buf + len};
     char magic[8];
     int32_t nv, nf, f32, pbits;
     double *X = NULL;
@@ -131,9 +117,9 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
     mcf_status rc = MCF_EDECODE;
     int k, shrt;
 
-    if (!take(&r, magic, sizeof magic) || memcmp(magic, MAGIC, sizeof magic) ||
-        !take(&r, &nv, 4) || !take(&r, &nf, 4) || !take(&r, &f32, 4) ||
-        !take(&r, &pbits, 4))
+    if (!api__take(&r, magic, sizeof magic) || memcmp(magic, MAGIC, sizeof magic) ||
+        !api__take(&r, &nv, 4) || !api__take(&r, &nf, 4) || !api__take(&r, &f32, 4) ||
+        !api__take(&r, &pbits, 4))
         return api__fail(err, MCF_EDECODE, "unpack: no mesh record");
     if (nv <= 0 || nf <= 0 || nv > lim->max_vertices || nf > lim->max_faces)
         return api__fail(err, MCF_EDECODE, "unpack: %ld vertices, %ld faces",
@@ -158,15 +144,15 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
         float qo[4], qr;
         double *v;
         int32_t *c;
-        if (!take(&r, &present, 4)) {
+        if (!api__take(&r, &present, 4)) {
             rc = api__fail(err, MCF_EDECODE, "unpack: truncated attributes");
             goto fail;
         }
         if (!present)
             continue;
-        if (!take(&r, &ncomp, 4) || !take(&r, &nvalues, 4) ||
-            !take(&r, &bits, 4) || !take(&r, qo, sizeof qo) ||
-            !take(&r, &qr, sizeof qr) || ncomp < 2 || ncomp > 4 ||
+        if (!api__take(&r, &ncomp, 4) || !api__take(&r, &nvalues, 4) ||
+            !api__take(&r, &bits, 4) || !api__take(&r, qo, sizeof qo) ||
+            !api__take(&r, &qr, sizeof qr) || ncomp < 2 || ncomp > 4 ||
             nvalues < 0 || nvalues > 3 * nf) {
             rc = api__fail(err, MCF_EDECODE, "unpack: bad attribute %d", k);
             goto fail;
@@ -188,7 +174,7 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
     }
     {
         uint64_t gl = 0;
-        if (!take(&r, &gl, sizeof gl) || gl > api_mesh_pack_max(lim)) {
+        if (!api__take(&r, &gl, sizeof gl) || gl > api_mesh_pack_max(lim)) {
             rc = api__fail(err, MCF_EDECODE, "unpack: bad glTF record");
             goto fail;
         }

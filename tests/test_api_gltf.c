@@ -61,19 +61,6 @@ static char *encode(const mcf_mesh *m, const api_attrs *a, api_format fmt, size_
     return api_buf_detach(&b, len);
 }
 
-/* A few implicit steps: every vertex moves. */
-static void smooth_a_little(mcf_mesh *m)
-{
-    mcf_flow_params p;
-    mcf_error err;
-    mcf_flow_params_init(&p);
-    p.scheme = MCF_DESBRUN2;
-    p.dt = 1e-3;
-    p.iterations = 3;
-    if (mcf_flow_run(m, &p, NULL, &err) != MCF_OK)
-        fail_msg("flow: %s", err.msg);
-}
-
 /* The JSON and BIN chunks of a GLB (the JSON parsed). */
 static cJSON *glb_parts(const char *buf, size_t len, const unsigned char **bin,
                         size_t *bin_len)
@@ -141,7 +128,7 @@ static void test_weld_and_rewrite(void **state)
     assert_int_equal(mcf_mesh_nfaces(m), 1620);
     assert_true(api_attrs_get(a, API_ATTR_NORMAL, NULL, NULL, NULL, NULL));
     assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, NULL, NULL, NULL));
-    smooth_a_little(m);
+    tl_smooth_a_little(m);
     out = encode(m, a, API_FMT_GLB, &olen);
 
     /* read back: the same 812 vertices at the smoothed positions */
@@ -245,7 +232,7 @@ static void test_containers(void **state)
     int i;
     (void)state;
     decode(in, len, &m, &a);
-    smooth_a_little(m);
+    tl_smooth_a_little(m);
     o1 = encode(m, a, API_FMT_GLTF, &l1);
     assert_int_equal(api_format_detect(o1, l1), API_FMT_GLTF);
     j = cJSON_ParseWithLength(o1, l1);
@@ -296,7 +283,7 @@ static void test_draco(void **state)
     tl_assimp_reads(g1, l1, "car.glb", 0, mcf_mesh_nfaces(m0));
 
     /* smoothed and rewritten: Draco again, UVs bit for bit */
-    smooth_a_little(m1);
+    tl_smooth_a_little(m1);
     g2 = encode(m1, a1, API_FMT_GLB, &l2);
     assert_non_null(strstr(g2 + 20, "\"KHR_draco_mesh_compression\":{\"bufferView\""));
     decode(g2, l2, &m2, &a2);
@@ -404,7 +391,7 @@ static void test_foreign_draco(void **state)
     decode(g, gl, &m, &a);
     assert_int_equal(mcf_mesh_nvertices(m), mcf_mesh_nvertices(m0));
     assert_int_equal(mcf_mesh_nfaces(m), mcf_mesh_nfaces(m0));
-    smooth_a_little(m);
+    tl_smooth_a_little(m);
     o = encode(m, a, API_FMT_GLB, &ol);
     /* assimp counts Draco's points: the re-encode splits a few more */
     tl_assimp_reads(o, ol, "bunny_s.glb", 0, mcf_mesh_nfaces(m0));
