@@ -15,8 +15,8 @@
  * faces may be polygons: a face counts as one triangle here, and the
  * daemon estimates again from the decoded mesh before the flow. A glTF
  * declares its accessors' counts: the POSITION and indices counts of its
- * triangle primitives (api__gltf_declared; its document record, at most
- * twice the input, is in the 3 x input bytes term).
+ * triangle primitives (api__gltf_declared), and the copies of its
+ * buffers are charged per input byte (below).
  *
  * The model, fitted to the peak resident size of `mcf smooth` (which runs
  * the daemon's job: decode, metrics, flow, encode, the input and output
@@ -217,4 +217,11 @@ void api_estimate_memory(const void *buf, size_t len, const api_params *p,
     out->decode_bytes = 170.0 * (double)nf + 64.0 * (double)nv +
                         2.0 * (double)len;
     out->job_bytes = api_estimate_job_bytes(nv, nf, len, p);
+    if (out->format == API_FMT_GLB || out->format == API_FMT_GLTF) {
+        /* A glTF's buffers (textures too) are copied by tinygltf, into the
+         * document and into its record, which the job keeps to the end:
+         * charged 4 and 2 more times the input (not measured yet). */
+        out->decode_bytes += 4.0 * (double)len;
+        out->job_bytes += 2.0 * (double)len;
+    }
 }
