@@ -48,9 +48,13 @@
 #include <thread>
 #include <vector>
 
+#include <unistd.h>
+
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/resource_quota.h>
+#include <grpcpp/server_posix.h>
 
 #include "mcfd.grpc.pb.h"
 
@@ -59,6 +63,7 @@ extern "C" {
 #include "service.h"
 }
 #include "grpc_door.h"
+#include "h2gate.h"
 
 /* ThreadSanitizer cannot see how gRPC orders the reactions of one call
  * (its completion queue hands them between its threads through absl's
@@ -97,6 +102,20 @@ namespace {
 
 const char kService[] = "mcfd.v1.Smoother";
 const size_t kChunk = 64 * 1024;   /* chunk size, both ways */
+
+/* The gate's bounds on streams (h2gate.h; measured: README, reliability).
+ * gRPC 1.51 holds about 12 KiB per stream it has accepted, so the door's
+ * streams cost at most about kMaxStreams x 12 KiB. */
+const int kStreamsPerConn = 100;   /* MAX_CONCURRENT_STREAMS, advertised */
+const int kMaxStreams = 1024;      /* in the door at once */
+const int kMaxStreamsPerIp = 256;  /* ... from one address */
+/* gRPC 1.51 disposed of about 15,000 client-reset streams a second on one
+ * core of the test machine; the gate assumes a fifteenth of that */
+const double kResetsPerS = 1000;
+/* a header block: twice gRPC's 8 KiB metadata limit, in at most 16
+ * frames; gRPC's HPACK parser then copies at most 16 x 16 KiB per block */
+const size_t kMaxHeaderBlock = 16 * 1024;
+const int kMaxHeaderFrames = 16;
 
 struct Door {
     std::unique_ptr<grpc::Server> server;
@@ -348,6 +367,17 @@ bool fill_job(svc_job *j, pb::Job *out)
     return true;
 }
 
+/* The client's address: gRPC knows each connection by the inner end of
+ * the gate's socketpair ("fd:12"), the gate knows whose it is. */
+std::string client_address(CallbackServerContext *ctx)
+{
+    std::string peer = ctx->peer();
+    char ip[64];
+    if (peer.compare(0, 3, "fd:") == 0 && h2gate_peer(atoi(peer.c_str() + 3), ip, sizeof ip) == 0)
+        return ip;
+    return peer;
+}
+
 /* ---------------------------------------------------------------- upload */
 
 /* The bytes of Smooth and SubmitJob as they stream in: the header first,
@@ -376,10 +406,7 @@ class Slot {
     bool take(CallbackServerContext *ctx, Status *st)
     {
         const srv_config *cfg = g.cfg;
-        std::string peer = ctx->peer();      /* "ipv4:127.0.0.1:port" */
-        size_t k = peer.rfind(':');
-        if (k != std::string::npos)
-            peer.resize(k);
+        std::string peer = client_address(ctx);
         std::lock_guard<std::mutex> l(g.smu);
         int here = g.per_peer.count(peer) ? g.per_peer[peer] : 0;
         char d[200];
@@ -1501,6 +1528,17 @@ void set_serving(bool on)
     h->SetServingStatus(kService, on);
 }
 
+/* The gate hands each admitted connection's inner end to gRPC (on the
+ * gate's thread). */
+void adopt(int fd, void *)
+{
+    try {
+        grpc::AddInsecureChannelFromFd(g.server.get(), fd);
+    } catch (...) {
+        close(fd);
+    }
+}
+
 } // namespace
 
 /* ------------------------------------------------------------ C interface */
@@ -1508,19 +1546,20 @@ void set_serving(bool on)
 extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_t msgsize)
 {
     try {
-        std::string host = cfg->bind;
-        if (host.find(':') != std::string::npos && host[0] != '[')
-            host = "[" + host + "]";
-        std::string addr = host + ":" + std::to_string(cfg->grpc_port);
-        int selected = 0;
         grpc::EnableDefaultHealthCheckService(true);
         grpc::reflection::InitProtoReflectionServerBuilderPlugin();
         grpc::ServerBuilder b;
-        /* gRPC sets SO_REUSEPORT by default: a second mcfd on the same
-         * port would then share it silently instead of failing */
-        b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
-        b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &selected);
+        /* No listening port: the gate (h2gate.c) owns the socket and hands
+         * gRPC each admitted connection; h2gate.c says why. */
         b.RegisterService(&g_service);
+        /* The streams one connection may hold (the gate enforces it even
+         * for a client that never acknowledges the setting). */
+        b.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, kStreamsPerConn);
+        /* A connection without a call for --send-timeout is closed (REST's
+         * keep-alive connections are held as long) */
+        if (cfg->send_timeout > 0)
+            b.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS,
+                                 (int)(cfg->send_timeout * 1000));
         /* one chunk or one header (its params at most --max-json), and a
          * little for the framing: anything larger is refused by gRPC with
          * RESOURCE_EXHAUSTED before it is buffered */
@@ -1529,14 +1568,36 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         g.cfg = cfg;
         g.quit = false;
         g.server = b.BuildAndStart();
-        if (!g.server || selected == 0) {
-            snprintf(msg, msgsize, "cannot listen for gRPC on %s", addr.c_str());
+        if (!g.server) {
+            snprintf(msg, msgsize, "gRPC: the server did not start");
+            return -1;
+        }
+        h2gate_config gc = {};
+        gc.bind = cfg->bind;
+        gc.port = cfg->grpc_port;
+        gc.max_conns = cfg->grpc_max_connections;
+        gc.max_conns_per_ip = cfg->max_connections_per_ip;
+        gc.fd_reserve = cfg->fd_reserve;
+        gc.streams_per_conn = kStreamsPerConn;
+        gc.max_streams = kMaxStreams;
+        gc.max_streams_per_ip = kMaxStreamsPerIp;
+        gc.resets_per_s = kResetsPerS;
+        gc.max_header_block = kMaxHeaderBlock;
+        gc.max_header_frames = kMaxHeaderFrames;
+        gc.header_timeout = cfg->header_timeout;
+        /* a second more than the door's own upload deadline (expire):
+         * an upload gets its DEADLINE_EXCEEDED from the door first */
+        gc.message_timeout = cfg->header_timeout > 0 ? cfg->header_timeout + 1 : 0;
+        gc.unhealthy_after = SRV_FDS_DEAD;
+        gc.adopt = adopt;
+        if (h2gate_start(&gc, port, msg, msgsize) != 0) {
+            g.server->Shutdown();
+            g.server->Wait();
             g.server.reset();
             return -1;
         }
         set_serving(true);
         g.pump = std::thread(pump_thread);
-        *port = selected;
         return 0;
     } catch (const std::exception &ex) {
         snprintf(msg, msgsize, "gRPC: %s", ex.what());
@@ -1556,11 +1617,13 @@ extern "C" void srv_grpc_stop(void)
 {
     if (!g.server)
         return;
+    h2gate_stop_accepting();
     try {
         g.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
         g.server->Wait();
     } catch (...) {
     }
+    h2gate_stop();
     {
         std::lock_guard<std::mutex> l(g.qmu);
         g.quit = true;
@@ -1622,4 +1685,9 @@ extern "C" int srv_grpc_expire(double header_timeout, double body_timeout,
 extern "C" int srv_grpc_active(void)
 {
     return g.active;
+}
+
+extern "C" int srv_grpc_health(char *why, size_t size)
+{
+    return g.server ? h2gate_health(why, size) : 0;
 }

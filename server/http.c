@@ -42,10 +42,12 @@ const char *srv_route_name(srv_route rt)
 }
 
 static const srv_config *g_cfg;
+static int (*g_health)(char *why, size_t size);
 
-void srv_http_init(const srv_config *cfg)
+void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size))
 {
     g_cfg = cfg;
+    g_health = health;
 }
 
 const srv_config *srv_http_config(void)
@@ -248,6 +250,13 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_route_job(r, c, method);
     }
 
+    /* A door that no longer accepts (the gRPC door: h2gate_health) makes
+     * the daemon unhealthy, so an orchestrator restarts it. */
+    if (r->rt == RT_HEALTHZ || r->rt == RT_READYZ) {
+        char why[300];
+        if (g_health && g_health(why, sizeof why) != 0)
+            return srv_send_problemf(r, c, 503, "EUNHEALTHY", "%s", why);
+    }
     if (r->rt == RT_HEALTHZ) {
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ok");
