@@ -50,6 +50,7 @@
 
 #include <unistd.h>
 
+#include <grpc/compression.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
@@ -1560,6 +1561,13 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         if (cfg->send_timeout > 0)
             b.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS,
                                  (int)(cfg->send_timeout * 1000));
+        /* Requests are not compressed: gRPC 1.51 inflates a whole message
+         * before any size limit (message_decompress_filter.cc: 132 KiB of
+         * gzip became 128 MiB), so only identity is enabled and a
+         * compressed message is refused (UNIMPLEMENTED) unread. Answers
+         * are not compressed either. */
+        b.AddChannelArgument(GRPC_COMPRESSION_CHANNEL_ENABLED_ALGORITHMS_BITSET,
+                             1 << GRPC_COMPRESS_NONE);
         /* one chunk or one header (its params at most --max-json), and a
          * little for the framing: anything larger is refused by gRPC with
          * RESOURCE_EXHAUSTED before it is buffered */

@@ -1222,6 +1222,41 @@ def test_rapid_reset_is_paced():
         d.kill()
 
 
+def test_compressed_messages_are_refused():
+    # issue 17, a sharp edge: gRPC 1.51 inflates a whole compressed message
+    # before any size limit (132 KB of gzip became 128 MiB, VmHWM +137
+    # MiB), no token needed. Only identity is enabled now: a compressed
+    # message is UNIMPLEMENTED, unread
+    e = expect_rpc_error(lambda: MAIN.stub.GetJob(pb.GetJobRequest(id="x" * 100),
+                                                  compression=grpc.Compression.Gzip),
+                         grpc.StatusCode.UNIMPLEMENTED, "gzip")
+    d = Daemon("gzip")
+    try:
+        hwm0 = vm_hwm(d.p.pid)
+        bomb = h2raw.message(h2raw.gzip_bomb(128 << 20), compressed=True)
+        c = h2raw.Conn(d.gport, timeout=10)
+        sid = c.stream()
+        c.send(h2raw.frame(h2raw.HEADERS, h2raw.END_HEADERS, sid,
+                           h2raw.request_headers(b"/mcfd.v1.Smoother/Smooth", [(b"grpc-encoding", b"gzip")])))
+        for i in range(0, len(bomb), 16384):
+            try:
+                c.send(h2raw.frame(h2raw.DATA, 0, sid, bomb[i:i + 16384]))
+            except OSError:
+                break
+        c.frames(2)
+        c.close()
+        time.sleep(0.5)
+        grew = vm_hwm(d.p.pid) - hwm0
+        print("    a gzip message: %s (%s); %d KB inflating to 128 MiB: VmHWM +%.1f MiB"
+              % (e.code().name, e.details(), len(bomb) / 1000, grew / 1024))
+        assert grew < 16 * 1024, grew
+        assert list_schemes(d)[0] == "OK"
+        d.stop()
+    finally:
+        d.kill()
+
+
+
 TESTS = [v for k, v in list(globals().items()) if k.startswith("test_") and callable(v)]
 
 
