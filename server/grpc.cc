@@ -481,6 +481,7 @@ class Upload {
         disarm();
         free(mesh_);
         free(target_);
+        svc_upload_release(&mem_held_);
         svc_record_free(&rec_);
     }
 
@@ -552,7 +553,9 @@ class Upload {
         srv_metrics_upload(mesh_len_);
         char *in = mesh_, *tg = target_;
         mesh_ = target_ = nullptr;
-        return svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
+        int rc = svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
+        svc_upload_release(&mem_held_);   /* the bytes are on the spool, or gone */
+        return rc;
     }
 
     /* The upload's deadlines start now: --header-timeout for the header,
@@ -616,6 +619,12 @@ class Upload {
                               gg.queue_depth, gg.workers_busy, gg.queue_capacity);
             return false;
         }
+        /* the memory the upload will take, reserved by its declared sizes
+         * (without them, as the bytes come: append) */
+        size_t declared = (size_t)(total_size_ > 0 ? total_size_ : 0) +
+                          (size_t)(target_size_ > 0 ? target_size_ : 0);
+        if (declared > 0 && svc_upload_reserve(&mem_held_, declared, e) != 0)
+            return false;
         if (h.has_output_format())
             of = h.output_format();
         std::string js = params_json(h.params(), h.has_output_format() ? &of : nullptr);
@@ -660,6 +669,8 @@ class Upload {
         if (declared >= 0 && (long long)(*len + b.size()) > declared)
             return fail(e, SVC_EINPUT, "EINVAL", "more bytes of the %s than its declared size %lld",
                         what, declared);
+        if (svc_upload_reserve(&mem_held_, mesh_len_ + target_len_ + b.size(), e) != 0)
+            return false;
         if (*len + b.size() > alloc_of(buf)) {
             /* geometric growth as bytes arrive, never ahead of them: a
              * declared size is only checked, so a header alone cannot
@@ -720,6 +731,7 @@ class Upload {
     long long total_size_ = -1, target_size_ = -1;
     char *mesh_ = nullptr, *target_ = nullptr;
     size_t mesh_len_ = 0, target_len_ = 0, mesh_alloc_ = 0, target_alloc_ = 0;
+    size_t mem_held_ = 0;           /* svc_upload_reserve */
     std::shared_ptr<Deadline> dl_;
 };
 

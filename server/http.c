@@ -590,6 +590,7 @@ static void request_free(srv_request *r, int toe)
     api_buf_free(&r->mesh);
     api_buf_free(&r->target);
     api_buf_free(&r->params);
+    svc_upload_release(&r->mem_held);
     cJSON_Delete(r->fields);
     free(r->uri);
     free(r);

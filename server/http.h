@@ -148,6 +148,8 @@ typedef struct {
     srv_problem perr;          /* found while reading; answered at the end */
     int has_perr;
     size_t perr_at;            /* bytes_in + 1 when perr was first seen */
+    size_t mem_held;           /* its bytes' reservation in --max-memory
+                                  (svc_upload_reserve) */
     /* waiting on a job */
     srv_mode md;
     svc_job *job;

@@ -267,6 +267,12 @@ int main(int argc, char **argv)
         return probe(&cfg);
     srv_log_set_level(cfg.log_level);
     srv_fds_fit(&cfg);
+    /* Buffers of 256 KiB and more (uploads, results, meshes) are mapped on
+     * their own: freed, they go back to the system; grown, they are
+     * remapped, not copied. glibc's default threshold rises after the
+     * first large free (to 32 MiB), after which an upload's buffer grew in
+     * the heap by copying, the old and new copies both resident. */
+    mallopt(M_MMAP_THRESHOLD, 256 * 1024);
 
     signal(SIGPIPE, SIG_IGN);
     sigemptyset(&sigs);
