@@ -1711,3 +1711,16 @@ extern "C" int srv_grpc_health(char *why, size_t size)
 {
     return g.server ? h2gate_health(why, size) : 0;
 }
+
+extern "C" void srv_grpc_gauges(srv_gauges *out)
+{
+    h2gate_stats st;
+    h2gate_get_stats(&st);
+    out->grpc_connections = st.conns;
+    out->grpc_streams = st.streams;
+    out->grpc_waiting = st.waiting;
+    out->grpc_refused = (double)st.refused;
+    out->grpc_closed = (double)st.closed;
+    out->grpc_reset = (double)st.streams_reset;
+    out->grpc_accept_errors = (double)st.accept_errors;
+}

@@ -47,6 +47,8 @@ int srv_grpc_active(void);
 /* 0 when the door accepts connections and gRPC answers them (always, for
  * a door that is off); else -1 and why (h2gate_health). */
 int srv_grpc_health(char *why, size_t size);
+/* The gate's connections, streams and refusals, into g (its grpc_ fields). */
+void srv_grpc_gauges(srv_gauges *g);
 
 #ifdef __cplusplus
 }

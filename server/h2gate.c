@@ -992,7 +992,6 @@ static void admit(int fd, const struct sockaddr_storage *ss, double now)
         G.conns->prev = c;
     G.conns = c;
     G.nconns++;
-    G.stats.accepted++;
     pthread_mutex_unlock(&G.mu);
 }
 

@@ -62,9 +62,9 @@ typedef struct {
     int conns;                 /* connections open (relayed or in preface) */
     int streams;               /* streams open in the server */
     int waiting;               /* connections waiting for stream room */
-    unsigned long accepted, refused, closed; /* refused: caps or reserve;
-                                  closed: by a bound (preface, header
-                                  block, protocol) */
+    unsigned long refused, closed; /* refused: caps or reserve; closed: by
+                                  a bound (preface, header block,
+                                  protocol) */
     unsigned long streams_reset; /* silent streams reset by the gate */
     unsigned long accept_errors;
 } h2gate_stats;

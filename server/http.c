@@ -43,11 +43,14 @@ const char *srv_route_name(srv_route rt)
 
 static const srv_config *g_cfg;
 static int (*g_health)(char *why, size_t size);
+static void (*g_more_gauges)(srv_gauges *g);
 
-void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size))
+void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
+                   void (*more_gauges)(srv_gauges *g))
 {
     g_cfg = cfg;
     g_health = health;
+    g_more_gauges = more_gauges;
 }
 
 const srv_config *srv_http_config(void)
@@ -196,6 +199,7 @@ static srv_gauges gauges(void)
     svc_gauges s = svc_get_gauges();
     srv_gauges g;
 
+    memset(&g, 0, sizeof g);
     g.queue_depth = s.queue_depth;
     g.queue_capacity = s.queue_capacity;
     g.workers = s.workers;
@@ -204,6 +208,8 @@ static srv_gauges gauges(void)
     g.draining = s.draining;
     g.followers = srv_waiter_followers();
     g.spool_bytes = s.spool_bytes;
+    if (g_more_gauges)
+        g_more_gauges(&g);
     return g;
 }
 

@@ -158,10 +158,12 @@ typedef struct {
     int sync_owner;            /* this request takes the kept result */
 } srv_request;
 
-/* The configuration the door reads (token, limits) and the health of the
+/* The configuration the door reads (token, limits), the health of the
  * rest of the daemon /healthz and /readyz report (0, or -1 and why: the
- * gRPC door's; NULL: none); set once by main. */
-void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size));
+ * gRPC door's; NULL: none) and what /metrics adds about it (NULL: none);
+ * set once by main. */
+void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
+                   void (*more_gauges)(srv_gauges *g));
 const srv_config *srv_http_config(void);
 
 /* The query string of the request target, NULL when there is none. */

@@ -286,7 +286,7 @@ int main(int argc, char **argv)
         return 1;
     }
     srv_metrics_init();
-    srv_http_init(&cfg, doors_health);
+    srv_http_init(&cfg, doors_health, srv_grpc_gauges);
     service_config(&cfg, &scfg);
     if (svc_start(&scfg, msg, sizeof msg) != 0) {
         fprintf(stderr, "mcfd: %s\n", msg);

@@ -214,6 +214,9 @@ typedef struct {
     int draining;
     int followers;             /* event streams (SSE, ndjson) open */
     double spool_bytes;        /* bytes of the jobs kept */
+    /* the gRPC door's gate (h2gate.c): gauges, then counters */
+    int grpc_connections, grpc_streams, grpc_waiting;
+    double grpc_refused, grpc_closed, grpc_reset, grpc_accept_errors;
 } srv_gauges;
 
 /* The Prometheus text exposition (format 0.0.4), malloc'ed. */

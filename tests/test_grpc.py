@@ -955,6 +955,8 @@ def test_connection_flood_leaves_the_doors_working():
         st, _, _ = d.rest("GET", "/healthz")
         rest_s = time.time() - t1
         refusal = h2raw.goaway_text(conns[-1].frames(2, until=lambda f: f and f[0] == h2raw.GOAWAY))
+        m = d.rest("GET", "/metrics")[2].decode()
+        refused = [l for l in m.splitlines() if l.startswith("mcfd_grpc_connections_refused_total ")]
         t2 = time.time()
         closed = h2raw.wait_closed(conns, 10)
         idle_s = time.time() - t2
@@ -973,6 +975,7 @@ def test_connection_flood_leaves_the_doors_working():
         assert flood[1] <= 1024 - 64, flood          # the reserve is untouched
         assert st == 200 and rest_s < 2, (st, rest_s)
         assert refusal and "--max-connections" in refusal, refusal
+        assert refused and float(refused[0].split()[1]) >= 1010 - 157, refused
         assert closed == len(conns), (closed, len(conns))
         assert after[0] == "OK" and again[0] == "OK", (after, again)
         assert end[1] <= base[1] + 4, (base, end)
