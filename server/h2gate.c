@@ -336,6 +336,21 @@ static void wl_remove(conn *c)
     c->wl = NULL;
 }
 
+/* A growing array p of *cap elements of elem bytes, n used, with room
+ * for one more: the array (moved, perhaps), or NULL when out of memory
+ * (p is unchanged). */
+static void *grow(void *p, int *cap, int n, size_t elem)
+{
+    int want = *cap ? *cap * 2 : 8;
+    void *np;
+    if (n < *cap)
+        return p;
+    if (!(np = realloc(p, (size_t)want * elem)))
+        return NULL;
+    *cap = want;
+    return np;
+}
+
 /* ---------------------------------------------------------------- streams */
 
 static stream *stream_find(conn *c, uint32_t id)
@@ -363,15 +378,10 @@ static int stream_room(conn *c, double now)
 
 static int stream_open(conn *c, uint32_t id, double now)
 {
-    stream *s;
-    if (c->nst == c->capst) {
-        int cap = c->capst ? c->capst * 2 : 8;
-        stream *n = realloc(c->st, (size_t)cap * sizeof *n);
-        if (!n)
-            return -1;
-        c->st = n;
-        c->capst = cap;
-    }
+    stream *s = grow(c->st, &c->capst, c->nst, sizeof *s);
+    if (!s)
+        return -1;
+    c->st = s;
     s = &c->st[c->nst++];
     memset(s, 0, sizeof *s);
     s->id = id;
@@ -403,14 +413,10 @@ static void conn_close(conn *c, const char *why);
 
 static int inject_rst(dir *d, uint32_t id)
 {
-    if (d->ninject == d->capinject) {
-        int cap = d->capinject ? d->capinject * 2 : 4;
-        uint32_t *n = realloc(d->inject, (size_t)cap * sizeof *n);
-        if (!n)
-            return -1;
-        d->inject = n;
-        d->capinject = cap;
-    }
+    uint32_t *n = grow(d->inject, &d->capinject, d->ninject, sizeof *n);
+    if (!n)
+        return -1;
+    d->inject = n;
     d->inject[d->ninject++] = id;
     return 0;
 }

@@ -31,7 +31,7 @@ static struct {
     pthread_mutex_t mu;
     pthread_cond_t freed;
     double used;               /* sum of the running jobs' reservations */
-    int holders;               /* jobs holding one */
+    int holders;               /* jobs and uploads holding one */
 } A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
 
 /* The steps a run may take, from the parameters alone (mcf.h's rules):

@@ -2086,20 +2086,28 @@ static void test_followers_and_per_ip(void **state)
     }
 }
 
-/* VmRSS of a process in KiB, -1 when /proc cannot say. */
-static long rss_kib(pid_t pid)
+/* A size field of a process's status ("VmRSS", "VmHWM": its peak) in
+ * KiB, -1 when /proc cannot say. */
+static long status_kib(pid_t pid, const char *field)
 {
     char path[64], line[256];
+    size_t n = strlen(field);
     long kib = -1;
     FILE *f;
     snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
     if (!(f = fopen(path, "r")))
         return -1;
     while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmRSS: %ld kB", &kib) == 1)
+        if (strncmp(line, field, n) == 0 && line[n] == ':' &&
+            sscanf(line + n + 1, "%ld", &kib) == 1)
             break;
     fclose(f);
     return kib;
+}
+
+static long rss_kib(pid_t pid)
+{
+    return status_kib(pid, "VmRSS");
 }
 
 /* Issue 9 item 4, in part: queued jobs held their whole input in memory
@@ -3069,22 +3077,6 @@ static void test_memory_admission(void **state)
                  hwm, rest);
 }
 
-/* A process's VmHWM (peak RSS) in KiB, -1 when /proc cannot say. */
-static long hwm_kib(pid_t pid)
-{
-    char path[64], line[256];
-    long kib = -1;
-    FILE *f;
-    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
-    if (!(f = fopen(path, "r")))
-        return -1;
-    while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmHWM: %ld kB", &kib) == 1)
-            break;
-    fclose(f);
-    return kib;
-}
-
 /* Sends n bytes of an OBJ-looking body to fd; how many went before the
  * daemon closed or answered (a refused upload is answered early). */
 static size_t send_body(int fd, size_t n)
@@ -3136,7 +3128,7 @@ static void test_uploads_in_flight(void **state)
             held++;
     }
     sleep_ms(300);
-    hwm = hwm_kib(d.pid);
+    hwm = status_kib(d.pid, "VmHWM");
     for (i = 0; i < 16; i++) {
         struct pollfd p = {fds[i], POLLIN, 0};
         ssize_t k = poll(&p, 1, 0) > 0 ? read(fds[i], buf, sizeof buf - 1) : 0;
@@ -3170,7 +3162,7 @@ static void test_uploads_in_flight(void **state)
             buf[n] = '\0';
         else
             snprintf(buf, sizeof buf, "(no answer)");
-        hwm2 = hwm_kib(d.pid);
+        hwm2 = status_kib(d.pid, "VmHWM");
         print_message("    16 uploads of 40 MiB held open (--max-memory 100M): %d taken, %d "
                       "refused 503 EBUSY before their body; a chunked one beside a held "
                       "40 MiB one: %zu MiB sent, answered %.12s; VmHWM %ld then %ld MiB "
