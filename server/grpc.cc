@@ -117,6 +117,14 @@ const double kResetsPerS = 1000;
  * frames; gRPC's HPACK parser then copies at most 16 x 16 KiB per block */
 const size_t kMaxHeaderBlock = 16 * 1024;
 const int kMaxHeaderFrames = 16;
+/* gRPC's resource quota, a backstop behind the gate: 1.51 charges each
+ * call's arena and the transports' buffers to it and, past it, cancels
+ * streams at random (chttp2_transport.cc, destructive_reclaimer_locked:
+ * RESOURCE_EXHAUSTED "Buffers full"). The gate's bounds keep the door far
+ * below it (about 15 MiB at its caps). Threads: those of gRPC's sync
+ * server (the health service); the callback calls run on gRPC's executor. */
+const size_t kQuotaBytes = 64 * 1024 * 1024;
+const int kQuotaThreads = 16;
 
 struct Door {
     std::unique_ptr<grpc::Server> server;
@@ -1580,6 +1588,10 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
          * are not compressed either. */
         b.AddChannelArgument(GRPC_COMPRESSION_CHANNEL_ENABLED_ALGORITHMS_BITSET,
                              1 << GRPC_COMPRESS_NONE);
+        grpc::ResourceQuota quota("mcfd-grpc");
+        quota.Resize(kQuotaBytes);
+        quota.SetMaxThreads(kQuotaThreads);
+        b.SetResourceQuota(quota);
         /* one chunk or one header (its params at most --max-json), and a
          * little for the framing: anything larger is refused by gRPC with
          * RESOURCE_EXHAUSTED before it is buffered */
