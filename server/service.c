@@ -522,7 +522,7 @@ int svc_upload_reserve(size_t *held, size_t want, svc_error *e)
     const svc_config *cfg = &svc__S.cfg;
     double h = (double)*held;
     size_t more;
-    want += SVC_UPLOAD_STEP;   /* and the buffers of its connection and parser */
+    want += SVC_UPLOAD_AROUND;
     if (want <= *held)
         return 0;
     more = want - *held;
