@@ -65,6 +65,16 @@ def cleanup():
 
 
 atexit.register(cleanup)
+
+# The connection floods open over a thousand sockets from this process: its
+# own descriptor limit up to the hard one (and to 4096 when root may raise it)
+_soft, _hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+for _want in ((max(_hard, 4096), max(_hard, 4096)), (_hard, _hard)):
+    try:
+        resource.setrlimit(resource.RLIMIT_NOFILE, _want)
+        break
+    except (ValueError, OSError):
+        pass
 for _s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
     signal.signal(_s, lambda s, f: (cleanup(), os._exit(128 + s)))
 
