@@ -31,7 +31,8 @@
  *    stream counting until gRPC could have disposed of it;
  *  - a unary call whose message never comes is held by gRPC before any
  *    handler sees it: here a stream must send its first whole message (or
- *    end its side) within header_timeout, else it is reset both ways.
+ *    end its side) within message_timeout, else it is reset both ways.
+ * The resource quota (grpc.cc) stays as gRPC's own backstop behind this.
  * The price: two more descriptors per connection (the socketpair) and one
  * copy of the bytes each way, on this one thread.
  *
