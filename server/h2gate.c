@@ -435,6 +435,13 @@ static void frame_head(unsigned char *h, uint32_t len, int type, int flags, uint
     h[8] = (unsigned char)sid;
 }
 
+/* A frame header's length and stream (its type and flags are h[3], h[4]). */
+static void read_head(const unsigned char *h, uint32_t *len, uint32_t *sid)
+{
+    *len = (uint32_t)h[0] << 16 | (uint32_t)h[1] << 8 | h[2];
+    *sid = ((uint32_t)h[5] & 0x7f) << 24 | (uint32_t)h[6] << 16 | (uint32_t)h[7] << 8 | h[8];
+}
+
 /* Adds the pending RST_STREAMs when d is between frames and blocks. */
 static int flush_injections(dir *d)
 {
@@ -581,9 +588,7 @@ static int parse_client(conn *c, double now)
             }
             if (avail < 9)
                 return 0;
-            len = (uint32_t)p[0] << 16 | (uint32_t)p[1] << 8 | p[2];
-            sid = ((uint32_t)p[5] & 0x7f) << 24 | (uint32_t)p[6] << 16 |
-                  (uint32_t)p[7] << 8 | p[8];
+            read_head(p, &len, &sid);
             rc = client_frame(c, len, p[3], p[4], sid, now, &why);
             if (rc == KILL) {
                 conn_close(c, why);
@@ -657,11 +662,9 @@ static int parse_server(conn *c, double now)
             }
             if (avail < 9)
                 return 0;
-            len = (uint32_t)p[0] << 16 | (uint32_t)p[1] << 8 | p[2];
+            read_head(p, &len, &sid);
             type = p[3];
             flags = p[4];
-            sid = ((uint32_t)p[5] & 0x7f) << 24 | (uint32_t)p[6] << 16 |
-                  (uint32_t)p[7] << 8 | p[8];
             s = sid ? stream_find(c, sid) : NULL;
             if (type == F_HEADERS || type == F_PUSH_PROMISE) {
                 d->block = !(flags & FL_END_HEADERS);
