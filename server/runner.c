@@ -1,14 +1,16 @@
 /*
  * runner.c - one job, start to end, on a worker thread: reads the input
- * back from the spool, rebuilds the parameters from the record, decodes,
- * checks, smooths with progress events, encodes, computes the metrics
- * document, writes result and metrics to the spool, and publishes the
- * outcome (state.json first, then memory, then the subscribers).
+ * back from the spool, runs the job (api_job_run: decode, check, smooth
+ * with progress events, encode, the metrics document), writes result and
+ * metrics to the spool, and publishes the outcome (state.json first, then
+ * memory, then the subscribers).
  *
- * No lock is held across mesh work or disk I/O: the job's fields are
- * read and written in short sections under the service lock. The
- * progress callback appends one ndjson event per step, notifies the
- * progress subscribers and turns a passed job timeout into a cancel.
+ * What is the daemon's comes in through api_job_run's hooks: the Draco
+ * sandbox (sandbox.c), memory admission once the counts are known
+ * (svc_admit.c), the progress events and the job timeout, the result
+ * written to the spool. No lock is held across mesh work or disk I/O: the
+ * job's fields are read and written in short sections under the service
+ * lock.
  */
 #include <errno.h>
 #include <math.h>
@@ -23,8 +25,12 @@
 
 typedef struct {
     svc_job *job;
-    const mcf_flow_stats *st; /* the run's statistics: its step log */
     double deadline;          /* srv_mono() seconds, 0: none */
+    int tries;                /* retries spent (runner's retry) */
+    int keep_fields;          /* fields=true */
+    size_t input_len, target_len;
+    svc_error prob;           /* a hook's own error (memory, the spool) */
+    int has_prob;
 } run_ctx;
 
 static void fmt_num(char *buf, size_t size, double v)
@@ -91,6 +97,16 @@ static int read_retry(svc_job *j, const char *name, char **data, size_t *len,
     return 0;
 }
 
+/* srv_spool_write (durable), tried again on a transient error. */
+static int write_retry(svc_job *j, const char *name, const void *data,
+                       size_t len, int *tries)
+{
+    while (srv_spool_write(svc__S.cfg.spool, j->id, name, data, len, 1) != 0)
+        if (!retry(j, tries, errno, "writing its result", 0))
+            return -1;
+    return 0;
+}
+
 /* Lock held: one more ndjson line in the job's event log (dropped when
  * the log is full or memory is short: the stream then skips it). */
 static void add_event(svc_job *j, const char *line, size_t n)
@@ -107,81 +123,8 @@ static void add_event(svc_job *j, const char *line, size_t n)
         j->event_end[j->nevents++] = j->events.len;
 }
 
-static int on_progress(void *ctx, int step, double t, double dt, double energy)
-{
-    run_ctx *c = ctx;
-    svc_job *j = c->job;
-    /* The step's volume is the step log's (the core fills entry step - 1
-     * before this call): the quantity of flow.volume0/volume1 and
-     * mcf_mesh_volume, in input units (api_metrics.c). */
-    double vol = c->st->log && step >= 1 && step <= c->st->nlog
-                     ? c->st->log[step - 1].volume : NAN;
-    char line[320], a[32], b[32], e[32], v[32];
-    int stop, n;
-
-    fmt_num(a, sizeof a, t);
-    fmt_num(b, sizeof b, dt);
-    fmt_num(e, sizeof e, energy);
-    fmt_num(v, sizeof v, vol);
-    n = snprintf(line, sizeof line,
-                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
-                 step, a, b, e, v);
-    svc__lock();
-    j->step = step;
-    j->t = t;
-    j->dt = dt;
-    j->energy = energy;
-    j->volume = vol;
-    if (n > 0)
-        add_event(j, line, (size_t)n);
-    svc__notify(j, SVC_NOTIFY_PROGRESS);
-    if (!j->cancel && c->deadline > 0 && srv_mono() > c->deadline) {
-        j->cancel = 1;
-        j->cancel_reason = SVC_CANCEL_TIMEOUT;
-    }
-    stop = j->cancel;
-    svc__unlock();
-    return stop;
-}
-
-/* The metrics document of a finished job: api's, the CLI's too
- * (api_metrics_json), with the daemon's own facts. */
-static char *metrics_doc(const svc_job *j, const api_metrics *mt,
-                         const api_params *prm, const mcf_flow_stats *st,
-                         api_format in_fmt, api_format out_fmt, double qerr,
-                         size_t in_bytes, size_t out_bytes, double t_queue,
-                         double t_decode, double t_flow, double t_encode,
-                         double t_metrics)
-{
-    api_metrics_run run;
-    cJSON *o;
-    char *s;
-
-    api_metrics_run_init(&run);
-    run.job = j->id;
-    run.input_name = j->rec.filename[0] ? j->rec.filename : NULL;
-    run.output_name = j->result_name;
-    run.target_name = j->rec.has_target ? "target" : NULL;
-    run.input_format = in_fmt;
-    run.output_format = out_fmt;
-    run.input_bytes = in_bytes;
-    run.output_bytes = out_bytes;
-    run.quantization_max_error = qerr;
-    run.queue_s = t_queue;
-    run.decode_s = t_decode;
-    run.flow_s = t_flow;
-    run.encode_s = t_encode;
-    run.metrics_s = t_metrics;
-    run.total_s = t_decode + t_flow + t_encode + t_metrics;
-    o = api_metrics_json(mt, prm, st, &run);
-    s = o ? cJSON_PrintUnformatted(o) : NULL;
-    cJSON_Delete(o);
-    return s;
-}
-
 /* The error of a job stopped by its cancel flag after `steps` steps
- * (-1: while its input was decoded); 1 when it must run again after a
- * restart. */
+ * (-1: before its flow); 1 when it must run again after a restart. */
 static int canceled_error(svc_job *j, int steps, svc_error *prob)
 {
     const svc_config *cfg = &svc__S.cfg;
@@ -213,25 +156,239 @@ static int canceled_error(svc_job *j, int steps, svc_error *prob)
     return reason == SVC_CANCEL_SHUTDOWN;
 }
 
+/* ------------------------------------------------------------------ hooks */
+
+/* sandbox.c: Draco decodes in a child process under limits; a decode out
+ * of memory is tried again (retry). */
+static mcf_status hook_decode(void *ctx, const char *part, const void *buf,
+                              size_t len, const api_limits *lim,
+                              mcf_mesh **out, api_attrs **attrs,
+                              api_format *fmt, api_job_stage *stage,
+                              mcf_error *err)
+{
+    run_ctx *c = ctx;
+    mcf_status rc;
+
+    (void)lim;
+    while ((rc = svc_decode_upload(buf, len, &svc__S.cfg, &c->job->cancel,
+                                   out, attrs, fmt, stage, err)) == MCF_ENOMEM &&
+           strcmp(part, "mesh") == 0 &&
+           retry(c->job, &c->tries, ENOMEM, "decoding", 0))
+        ;
+    return rc;
+}
+
 /* After decoding: the estimate from the real counts (svc_admit.c); over
  * --max-job-memory an ELIMIT, else the reservation grows (waiting for
- * memory). 0 when the job may go on, else prob is set and -1 (it failed)
- * or 1 (canceled by the shutdown: it runs again after the restart). */
-static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
-                         size_t target_len, const api_params *p,
-                         int keep_fields, svc_error *prob)
+ * memory; ECANCELED when the job is stopped meanwhile). */
+static mcf_status hook_decoded(void *ctx, int nv, int nf, const api_params *p,
+                               mcf_error *err)
 {
+    run_ctx *c = ctx;
     /* fields=true: the mesh kept from before the flow (48 bytes a vertex
      * with its faces), five double fields (40) and the document (68, up
      * to twice that while its buffer grows). */
-    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p,
-                                           &svc__S.cfg.lim) +
-                 (keep_fields ? 256.0 * nv : 0);
-    if (svc_admit_refuse(&svc__S.cfg, est, prob))
-        return -1;
-    if (svc_admit_grow(&svc__S.cfg, &j->mem_held, est, &j->cancel) != 0)
-        return canceled_error(j, -1, prob) ? 1 : -1;
+    double est = svc_admit_estimate_counts(nv, nf, c->input_len, c->target_len,
+                                           p, &svc__S.cfg.lim) +
+                 (c->keep_fields ? 256.0 * nv : 0);
+
+    if (svc_admit_refuse(&svc__S.cfg, est, &c->prob)) {
+        c->has_prob = 1;
+        return mcf_error_set(err, MCF_ELIMIT, "%s", c->prob.detail);
+    }
+    if (svc_admit_grow(&svc__S.cfg, &c->job->mem_held, est, &c->job->cancel) != 0)
+        return mcf_error_set(err, MCF_ECANCELED, "canceled");
+    return MCF_OK;
+}
+
+/* Decoded and checked: the scheme it runs (a request without one runs
+ * the default the mesh's size chose), its input format; streams may
+ * start. */
+static void hook_ready(void *ctx, const api_params *p, api_format in_fmt)
+{
+    svc_job *j = ((run_ctx *)ctx)->job;
+
+    svc__lock();
+    snprintf(j->scheme, sizeof j->scheme, "%s", mcf_scheme_get(p->flow.scheme)->name);
+    j->ready = 1;
+    snprintf(j->in_format, sizeof j->in_format, "%s", api_format_name(in_fmt));
+    svc__notify(j, SVC_NOTIFY_STATE);
+    svc__unlock();
+}
+
+/* One ndjson event per step for the followers; a passed job timeout
+ * becomes a cancel. */
+static int hook_progress(void *ctx, const api_job_step *s)
+{
+    run_ctx *c = ctx;
+    svc_job *j = c->job;
+    char line[320], a[32], b[32], e[32], v[32];
+    int stop, n;
+
+    fmt_num(a, sizeof a, s->t);
+    fmt_num(b, sizeof b, s->dt);
+    fmt_num(e, sizeof e, s->energy);
+    fmt_num(v, sizeof v, s->volume);
+    n = snprintf(line, sizeof line,
+                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
+                 s->step, a, b, e, v);
+    svc__lock();
+    j->step = s->step;
+    j->t = s->t;
+    j->dt = s->dt;
+    j->energy = s->energy;
+    j->volume = s->volume;
+    if (n > 0)
+        add_event(j, line, (size_t)n);
+    svc__notify(j, SVC_NOTIFY_PROGRESS);
+    if (!j->cancel && c->deadline > 0 && srv_mono() > c->deadline) {
+        j->cancel = 1;
+        j->cancel_reason = SVC_CANCEL_TIMEOUT;
+    }
+    stop = j->cancel;
+    svc__unlock();
+    return stop;
+}
+
+/* The result on the spool (durable, retried). */
+static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
+                             mcf_error *err)
+{
+    run_ctx *c = ctx;
+    svc_job *j = c->job;
+
+    if (write_retry(j, name, out->data ? out->data : "", out->len, &c->tries) == 0)
+        return MCF_OK;
+    svc_error_set(&c->prob, SVC_ESTORAGE, "EIO", "cannot write the result of "
+                  "job %s to the spool (%d tries): %s", j->id, c->tries + 1,
+                  strerror(errno));
+    c->has_prob = 1;
+    return mcf_error_set(err, MCF_EIO, "%s", c->prob.detail);
+}
+
+/* ---------------------------------------------------------------- the run */
+
+/* The service error of a failed api_job_run: a hook's own, a cancel, or
+ * the core's or a codec's with its stage and part. 1 when the job must
+ * run again after a restart. */
+static int job_error(run_ctx *c, const api_job_result *res, svc_error *prob)
+{
+    static const svc_stage stages[] = {SVC_STAGE_NONE, SVC_STAGE_PARAMS,
+                                       SVC_STAGE_DECODE, SVC_STAGE_RUN};
+    const char *part = res->part ? res->part : "";
+    int prefixed = strcmp(part, "params") != 0 && strcmp(part, "fields") != 0;
+
+    if (res->err.status == MCF_ECANCELED && c->job->cancel)
+        return canceled_error(c->job, strcmp(part, "flow") == 0
+                                           ? res->stats.steps : -1, prob);
+    if (c->has_prob) {
+        *prob = c->prob;
+        return c->job->cancel ? canceled_error(c->job, -1, prob) : 0;
+    }
+    svc_error_from_mcf(prob, res->err.status, stages[res->stage],
+                       prefixed ? part : NULL, &res->err);
     return 0;
+}
+
+/* Reads the input (and target) back, runs the job, writes the result,
+ * the metrics and the fields. 0 and *disk_add the bytes written, or -1
+ * with *prob (and *requeue when the job must run again after a restart). */
+static int run(svc_job *j, api_job_result *res, svc_error *prob, int *requeue,
+               size_t *disk_add)
+{
+    const svc_config *cfg = &svc__S.cfg;
+    api_job_request rq;
+    api_job_hooks h;
+    api_params prm;
+    run_ctx c;
+    char *input = NULL, *target = NULL, *metrics = NULL;
+    mcf_error err = {MCF_OK, ""};
+    mcf_status rc;
+    int ok = -1;
+    double t0 = mcf_now();
+
+    memset(&c, 0, sizeof c);
+    c.job = j;
+    api_job_request_init(&rq);
+    svc__lock();
+    rq.queue_s = j->started - j->created;
+    svc__unlock();
+    if (read_retry(j, "input", &input, &c.input_len, &c.tries) != 0 ||
+        (j->rec.has_target &&
+         read_retry(j, "target", &target, &c.target_len, &c.tries) != 0)) {
+        svc_error_set(prob, SVC_ESTORAGE, "EIO", "cannot read the input of "
+                      "job %s from the spool (%d tries): %s", j->id,
+                      c.tries + 1, strerror(errno));
+        *requeue = j->cancel && canceled_error(j, -1, prob);
+        goto out;
+    }
+    rq.read_s = mcf_now() - t0;
+    if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
+        svc_error_from_mcf(prob, rc, SVC_STAGE_PARAMS, NULL, &err);
+        goto out;
+    }
+    if (svc_record_fields(&j->rec, &c.keep_fields, prob) != 0) {
+        api_params_free(&prm);
+        goto out;
+    }
+    rq.input = input;
+    rq.input_len = c.input_len;
+    rq.target = target;
+    rq.target_len = c.target_len;
+    rq.free_bytes = 1;
+    input = target = NULL;
+    rq.lim = &cfg->lim;
+    rq.metrics = 1;
+    rq.fields = c.keep_fields;
+    rq.max_output = SVC_RESULT_MAX;
+    rq.job = j->id;
+    rq.input_name = j->rec.filename[0] ? j->rec.filename : NULL;
+    rq.target_name = "target";
+    rq.output_stem = "result";
+    c.deadline = cfg->job_timeout > 0 ? srv_mono() + cfg->job_timeout : 0;
+    memset(&h, 0, sizeof h);
+    h.ctx = &c;
+    h.decode = hook_decode;
+    h.decoded = hook_decoded;
+    h.ready = hook_ready;
+    h.progress = hook_progress;
+    h.store = hook_store;
+    h.cancel = &j->cancel;
+    rc = api_job_run(&rq, &prm, &h, res);
+    api_params_free(&prm);
+    free(rq.input);
+    free(rq.target);
+    if (rc != MCF_OK) {
+        *requeue = job_error(&c, res, prob);
+        goto out;
+    }
+    metrics = cJSON_PrintUnformatted(res->metrics);
+    if (!metrics) {
+        svc_error_set(prob, SVC_ENOMEM, NULL, "out of memory writing metrics");
+        goto out;
+    }
+    if (write_retry(j, "metrics.json", metrics, strlen(metrics), &c.tries) != 0 ||
+        (c.keep_fields && write_retry(j, SVC_FIELDS_FILE, res->fields.data,
+                                      res->fields.len, &c.tries) != 0)) {
+        svc_error_set(prob, SVC_ESTORAGE, "EIO", "cannot write the result of "
+                      "job %s to the spool (%d tries): %s", j->id, c.tries + 1,
+                      strerror(errno));
+        *requeue = j->cancel && canceled_error(j, -1, prob);
+        goto out;
+    }
+    svc__lock();
+    snprintf(j->out_format, sizeof j->out_format, "%s",
+             api_format_name(res->output_format));
+    snprintf(j->result_name, sizeof j->result_name, "%s", res->output_name);
+    svc__unlock();
+    /* its metrics stay on disk only (svc_read.c reads them) */
+    *disk_add = res->output.len + strlen(metrics) + res->fields.len;
+    ok = 0;
+out:
+    free(input);
+    free(target);
+    free(metrics);
+    return ok;
 }
 
 /* Lock held: a job whose outcome (final) the spool would not take goes
@@ -267,217 +424,18 @@ static void park_locked(svc_job *j, svc_job_status final, int e)
 void svc__run_job(svc_job *j)
 {
     const svc_config *cfg = &svc__S.cfg;
-    api_params prm;
-    int have_prm = 0;
-    mcf_mesh *m = NULL, *tgt = NULL, *before = NULL;
-    api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
-    api_format fmt = API_FMT_UNKNOWN, tfmt;
-    mcf_error err = {MCF_OK, ""};
-    mcf_status rc;
-    mcf_flow_stats st;
-    api_metrics mt;
-    api_buf out, fields;
-    api_encode_opts eo;
+    api_job_result res;
     svc_error prob;
-    int failed = 1, requeue = 0, nv = 0, nf = 0, tries = 0, written = 0,
-        e = 0, keep_fields = 0;
-    char *input = NULL, *target = NULL, *metrics = NULL;
-    size_t input_len = 0, target_len = 0;
+    int failed, requeue = 0, tries, written = 0, e = 0;
+    size_t disk_add = 0;
     svc_job_status final;
     char *state = NULL;
-    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
-           t_metrics = 0, t_after, qerr = NAN;
-    run_ctx ctx;
+    double t0 = mcf_now();
 
-    memset(&st, 0, sizeof st);
-    api_metrics_init(&mt);
     memset(&prob, 0, sizeof prob);
-    api_buf_init(&out, SVC_RESULT_MAX);
-    api_buf_init(&fields, 0);
-    svc__lock();
-    input = j->input;
-    input_len = j->input_len;
-    target = j->target;
-    target_len = j->target_len;
-    j->input = j->target = NULL;
-    t_queue = j->started - j->created;
-    svc__unlock();
+    api_job_result_init(&res);
     svc__write_state(j, 0);
-
-    if (!input && read_retry(j, "input", &input, &input_len, &tries) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the input of "
-                      "job %s from the spool (%d tries): %s", j->id, tries + 1,
-                      strerror(errno));
-        goto stopped_or_done;
-    }
-    if (j->rec.has_target && !target &&
-        read_retry(j, "target", &target, &target_len, &tries) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the target of "
-                      "job %s from the spool (%d tries): %s", j->id, tries + 1,
-                      strerror(errno));
-        goto stopped_or_done;
-    }
-    if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_PARAMS, NULL, &err);
-        goto done;
-    }
-    if (svc_record_fields(&j->rec, &keep_fields, &prob) != 0)
-        goto done;
-    have_prm = 1;
-    /* sandbox.c: Draco decodes in a child process under limits. */
-    while ((rc = svc_decode_upload(input, input_len, cfg, &j->cancel, "mesh",
-                                   &m, &attrs, &fmt, &prob)) == MCF_ENOMEM &&
-           retry(j, &tries, ENOMEM, "decoding", 0))
-        ;
-    if (rc != MCF_OK)
-        goto decode_failed;
-    free(input);
-    input = NULL;
-    nv = mcf_mesh_nvertices(m);
-    nf = mcf_mesh_nfaces(m);
-    /* svc_admit.c: estimated again from the decoded counts (polygons
-     * split, STL welded); a larger estimate is refused or waits. */
-    if ((requeue = memory_regrow(j, nv, nf, input_len, target_len, &prm,
-                                 keep_fields, &prob)) != 0) {
-        requeue = requeue > 0;
-        goto done;
-    }
-    if ((rc = api_params_finish(&prm, nv, &cfg->lim, &err)) != MCF_OK) {
-        /* A budget exceeded here (steps x vertices) depends on the mesh:
-         * 422. What the parameters alone exceed was refused at submit. */
-        svc_error_from_mcf(&prob, rc, rc == MCF_ELIMIT ? SVC_STAGE_RUN
-                                                     : SVC_STAGE_PARAMS,
-                         NULL, &err);
-        goto done;
-    }
-    /* a request without a scheme runs the default the mesh's size
-     * chose (api_default_scheme): the job says which */
-    svc__lock();
-    snprintf(j->scheme, sizeof j->scheme, "%s", mcf_scheme_get(prm.flow.scheme)->name);
-    svc__unlock();
-    if (target) {
-        if ((rc = svc_decode_upload(target, target_len, cfg, &j->cancel,
-                                    "target", &tgt, NULL, &tfmt, &prob)) != MCF_OK)
-            goto decode_failed;
-        if (mcf_mesh_nvertices(tgt) != nv || mcf_mesh_nfaces(tgt) != nf) {
-            mcf_error_set(&err, MCF_EINVAL, "target: %d vertices and %d "
-                          "faces, the mesh has %d and %d; the target must "
-                          "share the mesh's connectivity",
-                          mcf_mesh_nvertices(tgt), mcf_mesh_nfaces(tgt), nv, nf);
-            svc_error_from_mcf(&prob, MCF_EINVAL, SVC_STAGE_RUN, NULL, &err);
-            goto done;
-        }
-    }
-    if (prm.noise_rho > 0 &&
-        (rc = mcf_flow_add_noise(m, &prm.flow, prm.noise_rho, prm.seed, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "noise", &err);
-        goto done;
-    }
-    t_decode = mcf_now() - t0;
-    t_metrics = mcf_now();
-    if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "metrics", &err);
-        goto done;
-    }
-    t_metrics = mcf_now() - t_metrics;
-    /* fields=true: the mesh as the flow receives it, for the per-vertex
-     * fields (api_fields_encode) written beside the result. */
-    if (keep_fields && !(before = mcf_mesh_dup(m, &err))) {
-        svc_error_from_mcf(&prob, err.status, SVC_STAGE_RUN, "fields", &err);
-        goto done;
-    }
-
-    memset(&ctx, 0, sizeof ctx);
-    ctx.job = j;
-    ctx.st = &st;
-    ctx.deadline = cfg->job_timeout > 0 ? srv_mono() + cfg->job_timeout : 0;
-    prm.flow.progress = on_progress;
-    prm.flow.progress_ctx = &ctx;
-    prm.flow.cancel = &j->cancel;
-    /* The step log: the metrics' flow.log (as the CLI's) and the volume of
-     * each streamed step. */
-    prm.flow.log_steps = 1;
-
-    svc__lock();
-    j->ready = 1;
-    snprintf(j->in_format, sizeof j->in_format, "%s", api_format_name(fmt));
-    svc__notify(j, SVC_NOTIFY_STATE);
-    svc__unlock();
-
-    t_flow = mcf_now();
-    rc = mcf_flow_run(m, &prm.flow, &st, &err);
-    t_flow = mcf_now() - t_flow;
-    if (rc == MCF_ECANCELED) {
-        requeue = canceled_error(j, st.steps, &prob);
-        goto done;
-    }
-    if (rc != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "flow", &err);
-        goto done;
-    }
-
-    t_encode = mcf_now();
-    if (prm.encode.format == API_FMT_UNKNOWN)
-        prm.encode.format = fmt; /* the metrics' params say what was written */
-    eo = prm.encode;
-    eo.attrs = attrs;
-    rc = eo.format == API_FMT_DRACO ? api_draco_encode(m, &eo, &out, &qerr, &err)
-                                    : api_mesh_encode(m, &eo, &out, &err);
-    if (rc != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "encode", &err);
-        goto done;
-    }
-    t_encode = mcf_now() - t_encode;
-    t_after = mcf_now();
-    if ((rc = api_metrics_after(&mt, m, tgt, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "metrics", &err);
-        goto done;
-    }
-    t_metrics += mcf_now() - t_after;
-    if (before && (rc = api_fields_encode(before, m, &fields, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, NULL, &err);
-        goto done;
-    }
-    svc__lock();
-    snprintf(j->out_format, sizeof j->out_format, "%s",
-             api_format_name(eo.format));
-    snprintf(j->result_name, sizeof j->result_name, "result%s",
-             api_format_ext(eo.format));
-    svc__unlock();
-    metrics = metrics_doc(j, &mt, &prm, &st, fmt, eo.format, qerr, input_len,
-                          out.len, t_queue, t_decode, t_flow, t_encode,
-                          t_metrics);
-    if (!metrics) {
-        svc_error_set(&prob, SVC_ENOMEM, NULL, "out of memory writing metrics");
-        goto done;
-    }
-    while (srv_spool_write(cfg->spool, j->id, j->result_name, out.data,
-                           out.len, 1) != 0 ||
-           srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
-                           strlen(metrics), 1) != 0 ||
-           (before && srv_spool_write(cfg->spool, j->id, SVC_FIELDS_FILE,
-                                      fields.data, fields.len, 1) != 0))
-        if (!retry(j, &tries, errno, "writing its result", 0)) {
-            svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the "
-                          "result of job %s to the spool (%d tries): %s",
-                          j->id, tries + 1, strerror(errno));
-            goto stopped_or_done;
-        }
-    failed = 0;
-    goto done;
-
-stopped_or_done:
-    /* A retry given up because the job was stopped: canceled, or put
-     * back for the restart, as a stop during the flow. */
-    if (j->cancel)
-        requeue = canceled_error(j, -1, &prob);
-    goto done;
-
-decode_failed:
-    /* svc_decode_upload filled prob, except for a cancel. */
-    if (rc == MCF_ECANCELED)
-        requeue = canceled_error(j, -1, &prob);
-done:
+    failed = run(j, &res, &prob, &requeue, &disk_add) != 0;
     /* The outcome is on disk before anyone can see it (GET polls,
      * waiters, a restart): a client told "succeeded" can always find the
      * result again, and no terminal state a client saw changes after a
@@ -497,7 +455,7 @@ done:
                     ? SVC_JOB_CANCELED : SVC_JOB_FAILED;
         j->err = prob;
         j->finished = srv_wall();
-        j->result_len = failed ? 0 : out.len;
+        j->result_len = failed ? 0 : res.output.len;
     }
     svc__unlock();
     for (tries = 0;;) {
@@ -528,11 +486,10 @@ done:
     } else {
         j->status = final;
         if (final == SVC_JOB_SUCCEEDED) {
-            /* its metrics stay on disk only (svc_read.c reads them) */
-            size_t add = j->result_len + strlen(metrics) + fields.len;
+            size_t add = disk_add;
             if (j->keep_result) {
                 size_t len;
-                j->result = api_buf_detach(&out, &len);
+                j->result = api_buf_detach(&res.output, &len);
             }
             j->disk_bytes += add;
             if (j->in_table)
@@ -547,22 +504,10 @@ done:
     if (written && !requeue) {
         srv_metrics_job(j->scheme, svc_job_status_name(j->status),
                         mcf_now() - t0);
-        svc__log_job(j, nv, nf, mcf_now() - t0);
+        svc__log_job(j, res.nv, res.nf, mcf_now() - t0);
     }
     svc__lock();
     svc__notify(j, SVC_NOTIFY_STATE);
     svc__unlock();
-    if (have_prm)
-        api_params_free(&prm);
-    mcf_flow_stats_free(&st);
-    mcf_mesh_free(m);
-    mcf_mesh_free(tgt);
-    mcf_mesh_free(before);
-    api_attrs_free(attrs);
-    api_buf_free(&out);
-    api_buf_free(&fields);
-    free(input);
-    free(target);
-    free(metrics);
+    api_job_result_free(&res);
 }
-
