@@ -246,8 +246,15 @@ typedef struct {
     uint64_t seed;
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
+    int dt_set, strength_set;     /* dt (a number or auto), strength given */
     int tol_set;                  /* tol given (needs adaptive) */
 } api_params;
+
+/* 1 when the job's amount is automatic (mcf_auto.c): strength=auto, or
+ * a request that names no amount (none of time, iterations, dt and
+ * strength). api_params_finish then sets flow.strength_auto. Every
+ * scheme's default: an MCF scheme's time, Taubin's pass count. */
+int api_params_auto_amount(const api_params *p);
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
 void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */
@@ -267,7 +274,8 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
                                   const char *const *ignore,
                                   const api_limits *lim, mcf_error *err);
 /* Final checks once the mesh is known: mcf_flow_params_check, fixed
- * indices in range, iterations x vertices within max_work. */
+ * indices in range, iterations x vertices within max_work; the automatic
+ * amount (api_params_auto_amount) becomes flow.strength_auto. */
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);
 /* The parameters as a JSON object (for job records and metrics). */

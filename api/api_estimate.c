@@ -28,8 +28,9 @@
  *   bytes = 3 x input bytes + per_vertex(scheme) x nv + 4 MiB
  *
  * per_vertex = 640 B for the explicit schemes that factorize nothing
- * (euler, taylor2, taubin: measured at most 354 B beyond the other terms,
- * dragon_vrip), 1,600 B for every other (measured at most 1,246 B:
+ * (euler, taylor2 with an amount given, taubin: measured at most 354 B
+ * beyond the other terms, dragon_vrip), 1,600 B for every other (the
+ * automatic amount factorizes) (measured at most 1,246 B:
  * strength=auto on stanford-bunny, whose six-column solve is the largest;
  * 1,215 B on the dragon; desbrun2 738-1,041 B, implicit 1,060 B, adaptive
  * 1,220 B). CHOLMOD's fill grows a little faster than nv on scans
@@ -149,8 +150,11 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
     if (p) {
         const mcf_scheme_info *si = mcf_scheme_get(p->flow.scheme);
         const char *name = si ? si->name : "";
-        if (!strcmp(name, "euler") || !strcmp(name, "taylor2") ||
-            !strcmp(name, "taubin"))
+        /* an automatic amount factorizes for every scheme but taubin,
+         * whose frozen passes and probes add about 150 B (dragon_vrip_res2:
+         * 55 MB peak against 40 MB for 10 passes) */
+        if (!strcmp(name, "taubin") ||
+            (!api_params_auto_amount(p) && (!strcmp(name, "euler") || !strcmp(name, "taylor2"))))
             per_vertex = 640.0;
     }
     /* Charged per face as well when a mesh has more than 2 faces per

@@ -57,6 +57,7 @@ static const char *const mass_names[] = {"barycentric", "voronoi", NULL};
 static void set_scheme(api_params *p, value v) { p->flow.scheme = (mcf_scheme)v.e; }
 static void set_dt(api_params *p, value v)
 {
+    p->dt_set = 1;
     /* NaN stands for "auto" (see parse_value). */
     if (isnan(v.d)) {
         p->flow.dt_auto = 1;
@@ -89,6 +90,7 @@ static void set_tol(api_params *p, value v)
 static void set_strength(api_params *p, value v)
 {
     /* NaN stands for "auto" (see parse_value). */
+    p->strength_set = 1;
     p->flow.strength_auto = isnan(v.d);
     if (!isnan(v.d))
         p->flow.strength = v.d;
@@ -459,7 +461,15 @@ void api_params_init(api_params *p)
     p->fixed_owned = NULL;
     p->time_set = 0;
     p->iterations_set = 0;
+    p->dt_set = 0;
+    p->strength_set = 0;
     p->tol_set = 0;
+}
+
+int api_params_auto_amount(const api_params *p)
+{
+    return p->flow.strength_auto ||
+           !(p->time_set || p->iterations_set || p->dt_set || p->strength_set);
 }
 
 void api_params_free(api_params *p)
@@ -761,6 +771,7 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
             return api__fail(err, MCF_EINVAL,
                              "parameter 'fixed_vertices': index %ld out of range (0..%d)",
                              (long)p->flow.fixed[i], nv - 1);
+    p->flow.strength_auto = api_params_auto_amount(p);
     if ((rc = mcf_flow_params_check(&p->flow, nv, err)) != MCF_OK)
         return rc;
     if (nv < 1)
@@ -769,17 +780,20 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
     /* Work bound: steps x vertices. When the parameters alone give the
      * step count (mcf.h, "The amount of smoothing"), it is checked here;
      * when it depends on the mesh's edge lengths or lambda_max (dt set
-     * and the amount from strength, dt=auto, adaptive), the core's hard
-     * cap max_steps is lowered to what the limits allow instead. */
-    if (p->flow.scheme == MCF_TAUBIN || (!p->flow.adaptive && !p->flow.dt_auto && !(p->flow.dt > 0.0))) {
+     * and the amount from strength, dt=auto, adaptive, Taubin's automatic
+     * pass count), the core's hard cap max_steps is lowered to what the
+     * limits allow instead. */
+    int auto_passes = p->flow.scheme == MCF_TAUBIN && p->flow.strength_auto && p->flow.iterations <= 0;
+    if (!auto_passes &&
+        (p->flow.scheme == MCF_TAUBIN || (!p->flow.adaptive && !p->flow.dt_auto && !(p->flow.dt > 0.0)))) {
         steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
-    } else if (!p->flow.adaptive && !p->flow.dt_auto && p->flow.time > 0.0) {
+    } else if (!auto_passes && !p->flow.adaptive && !p->flow.dt_auto && p->flow.time > 0.0) {
         steps = ceil(p->flow.time / p->flow.dt - 1e-9);
         if (steps > lim->max_iterations)
             return api__fail(err, MCF_EINVAL,
                              "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
                              steps, lim->max_iterations);
-    } else if (!p->flow.adaptive && p->flow.iterations > 0 && p->flow.time <= 0.0) {
+    } else if (!auto_passes && !p->flow.adaptive && p->flow.iterations > 0 && p->flow.time <= 0.0) {
         steps = p->flow.iterations;
     } else {
         double cap = floor(lim->max_work / nv);
@@ -815,7 +829,8 @@ cJSON *api_params_to_json(const api_params *p)
         return NULL;
     ok &= cJSON_AddStringToObject(j, "scheme", si ? si->name : "unknown") != NULL;
     /* What was given, so the object parses back to the same job: an
-     * unset dt, time or iterations is derived from strength by the core */
+     * unset dt, time or iterations is derived from strength by the core,
+     * and with none of them nor strength the amount is automatic */
     if (p->flow.dt_auto)
         ok &= cJSON_AddStringToObject(j, "dt", "auto") != NULL;
     else if (p->flow.dt > 0.0)
@@ -826,7 +841,7 @@ cJSON *api_params_to_json(const api_params *p)
         ok &= cJSON_AddNumberToObject(j, "iterations", p->flow.iterations) != NULL;
     if (p->flow.strength_auto)
         ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
-    else
+    else if (p->strength_set)
         ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
     ok &= cJSON_AddStringToObject(j, "boundary",
                                   enum_name(boundary_names, (int)p->flow.boundary)) != NULL;

@@ -1261,12 +1261,21 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     }
     if (p->scheme == MCF_TAUBIN) {
         h = T = 0.0; /* passes, no time */
+        if (p->strength_auto && p->iterations <= 0) {
+            double sigma;
+            if ((rc = mcf__auto_passes(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, hbar, &nsteps, &sigma,
+                                       err)) != MCF_OK)
+                goto done;
+            if (nsteps > p->max_steps)
+                nsteps = p->max_steps;
+            st->noise = sigma / hbar;
+        }
     } else if (T <= 0.0 && p->iterations > 0 && dt_set) {
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
         double sigma;
-        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, p->laplacian, p->mass, hbar, nsteps, &T, &sigma,
-                                 err)) != MCF_OK)
+        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass,
+                                 p->scheme != MCF_LINEAR, hbar, nsteps, &T, &sigma, err)) != MCF_OK)
             goto done;
         st->noise = sigma / hbar;
     } else if (T <= 0.0) {

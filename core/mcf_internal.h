@@ -93,13 +93,23 @@ void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
 void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
                          const double *X, double *Y);
 
-/* ---- strength=auto (mcf_auto.c)
+/* ---- the automatic amount (mcf_auto.c)
  * The time t_best that minimizes SURE for K frozen implicit steps from X
  * (working units, mean edge hbar), and the noise level sigma along the
- * normals it estimated (working units). ENOMEM, ENUMERIC. */
+ * normals it estimated (working units). fixed (nv, may be NULL): the
+ * vertices the run holds; moving_mass: the run's mass follows its area
+ * (every scheme but `linear`). ENOMEM, ENUMERIC. */
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
-                          mcf_laplacian lap, mcf_mass mk, double hbar, int K,
+                          const unsigned char *fixed, mcf_laplacian lap,
+                          mcf_mass mk, int moving_mass, double hbar, int K,
                           double *t_best, double *sigma, mcf_error *err);
+/* Taubin's pass count (0..MCF_AUTO_MAX_PASSES) that minimizes SURE for
+ * the passes frozen at X, and sigma as above. ENOMEM. */
+#define MCF_AUTO_MAX_PASSES 500
+mcf_status mcf__auto_passes(const double *X, const int32_t *F, int nf, int nv,
+                            const unsigned char *fixed, mcf_laplacian lap,
+                            double hbar, int *passes, double *sigma,
+                            mcf_error *err);
 
 /* ---- small helpers */
 #define MCF_PI 3.14159265358979323846
