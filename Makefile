@@ -64,6 +64,8 @@ DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto
 DEB_BENCH := libeigen3-dev libcgal-dev
+# make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
+DEB_QUALITY := python3-open3d python3-numpy
 
 CORE_SRC := $(wildcard core/*.c)
 API_SRC  := $(wildcard api/*.c)
@@ -252,9 +254,12 @@ bench: deps
 	$(MAKE) all
 	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
 
-# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
-#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
+# ---- the scan-quality benchmark (issue 16: bench/bench_quality.c): every
+# shared mesh, normal and isotropic noise, the default request, each scheme's
+# automatic amount, Taubin's best, Open3D's filter_smooth_taubin:
+#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, tables, renders -> docs/quality/
 quality: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
 	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
 	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
 
