@@ -58,10 +58,12 @@ static const char usage_text[] =
     "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
     "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
     "0-based vertex indices separated by white space or commas.\n"
-    "Amount: by default the flow runs to time strength^2 h^2 (h: the mean edge\n"
-    "length; --strength is the diffusion length in mean edges, default 0.33) in 10\n"
-    "steps; --time (in unit-area units unless --no-normalize) or --iterations with\n"
-    "--dt override it; --iterations alone sets the step count.\n";
+    "Amount: automatic by default, for every scheme: the noise of the mesh is\n"
+    "estimated and the time (taubin: the pass count) minimizing Stein's unbiased\n"
+    "risk estimate is run, in 10 steps. --strength S runs to time S^2 h^2 instead\n"
+    "(h: the mean edge length; S is the diffusion length in mean edges); --time\n"
+    "(in unit-area units unless --no-normalize) or --iterations with --dt override\n"
+    "it; --iterations or --dt alone keeps the old fixed amount, strength 0.33.\n";
 
 /* Set by SIGINT/SIGTERM; the flow loads it before every step. A lock-free
  * C11 atomic (mcf_cancel_flag), which a signal handler may store to. */
