@@ -1113,7 +1113,9 @@ static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats 
         st->warnings |= MCF_WARN_EDGE_COLLAPSE;
     if (p->rescale == MCF_RESCALE_NONE && st->area_ratio < 0.6)
         st->warnings |= MCF_WARN_AREA_LOSS;
-    if (p->scheme != MCF_TAUBIN && st->strength < 0.1)
+    /* an automatic amount that found little noise is the finding, not a
+     * warning */
+    if (p->scheme != MCF_TAUBIN && !p->strength_auto && st->strength < 0.1)
         st->warnings |= MCF_WARN_LITTLE_SMOOTHING;
 }
 
@@ -1289,12 +1291,14 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                                  p->scheme != MCF_LINEAR, hbar, nsteps, &T, &sigma, err)) != MCF_OK)
             goto done;
         st->noise = sigma / hbar;
+        if (!(T > 0.0))
+            nsteps = 0; /* no noise to remove: the mesh comes back as it came */
     } else if (T <= 0.0) {
         T = p->strength * p->strength * hbar * hbar;
     }
     st->t_target = T;
     if (p->scheme != MCF_TAUBIN && !dt_set) {
-        h = T / nsteps;
+        h = nsteps > 0 ? T / nsteps : 0.0;
     } else if (p->scheme != MCF_TAUBIN && !p->adaptive) {
         double k = ceil(T / h * (1.0 - 1e-12));
         /* a step count the caller gave (iterations with dt) is the
