@@ -343,15 +343,15 @@ static void grid_build(tri_grid *g, const mcf_mesh *m)
         const double *a = g->X + 3 * (size_t)g->F[3 * f], *b = g->X + 3 * (size_t)g->F[3 * f + 1];
         edge += sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
     }
-    /* cells of about two mean edges, at most 2^21 of them */
-    g->cell = fmax(2.0 * edge / (nf > 0 ? nf : 1), 1e-12);
+    /* cells of about a mean edge (a few triangles each), at most 2^22 */
+    g->cell = fmax(edge / (nf > 0 ? nf : 1), 1e-12);
     for (;;) {
         double cells = 1;
         for (int d = 0; d < 3; d++) {
             g->n[d] = (int)((hi[d] - g->lo[d]) / g->cell) + 1;
             cells *= g->n[d];
         }
-        if (cells <= 2097152)
+        if (cells <= 4194304)
             break;
         g->cell *= 1.5;
     }
@@ -457,14 +457,19 @@ static double tri_dist2(const double *p, const double *a, const double *b, const
 static double grid_dist2(const tri_grid *g, const double *p)
 {
     int c0[3];
-    for (int d = 0; d < 3; d++)
-        c0[d] = clampi((int)floor((p[d] - g->lo[d]) / g->cell), 0, g->n[d] - 1);
+    double margin = INFINITY; /* p's distance to its own cell's nearest face */
+    for (int d = 0; d < 3; d++) {
+        double u = (p[d] - g->lo[d]) / g->cell;
+        c0[d] = clampi((int)floor(u), 0, g->n[d] - 1);
+        double fr = u - c0[d];
+        margin = fmin(margin, fr < 0 || fr > 1 ? 0.0 : fmin(fr, 1.0 - fr));
+    }
     double best = INFINITY;
     int rmax = g->n[0] + g->n[1] + g->n[2];
     for (int r = 0; r <= rmax; r++) {
-        /* every cell of the shell is at least (r - 1) cells from p */
-        double near = (r - 1) * g->cell;
-        if (r > 0 && near > 0 && near * near > best)
+        /* every cell of shell r lies at least (r - 1 + margin) cells from p */
+        double near = (r - 1 + margin) * g->cell;
+        if (r > 0 && near > 0 && near * near >= best)
             break;
         for (int x = c0[0] - r; x <= c0[0] + r; x++)
             for (int y = c0[1] - r; y <= c0[1] + r; y++)
