@@ -139,17 +139,22 @@ cJSON *api_json_mesh_info(const mcf_mesh_info *i, const mcf_curvature_summary *c
     return finish(o, ok);
 }
 
+/* The step log: every step up to API_LOG_MAX, else API_LOG_MAX of them,
+ * the first, the last and evenly spaced between (a 100,000-step run
+ * wrote 15 MB); each entry says its step (1-based). */
 static cJSON *step_log(const mcf_step_log *s, int n)
 {
     cJSON *a = cJSON_CreateArray();
-    int k, ok = a != NULL;
-    for (k = 0; ok && k < n; k++) {
+    int i, k, m = n <= API_LOG_MAX ? n : API_LOG_MAX, ok = a != NULL;
+    for (i = 0; ok && i < m; i++) {
         cJSON *e = cJSON_CreateObject();
+        k = m == n ? i : (int)((double)i * (n - 1) / (m - 1) + 0.5);
         if (!e || !cJSON_AddItemToArray(a, e)) {
             cJSON_Delete(e);
             ok = 0;
             break;
         }
+        ok = ok && num(e, "step", k + 1);
         ok = ok && num(e, "t", s[k].t);
         ok = ok && num(e, "dt", s[k].dt);
         ok = ok && num(e, "area", s[k].area);

@@ -190,6 +190,95 @@ static int write_all(const char *path, const void *buf, size_t len)
     return 0;
 }
 
+/* Draco decodes under the daemon's bound (server/sandbox.c, in process
+ * here: the CLI's files are its user's): libdraco 1.5.5 trusts counts
+ * inside a stream that no header check sees (210 bytes cost 256 MiB and
+ * 8.8 s of CPU). While it decodes, the soft RLIMIT_AS is the process's
+ * size plus twice the estimated decode peak, at least 64 MiB (a failed
+ * allocation is an ENOMEM), and the soft RLIMIT_CPU 2 s plus 1 us per
+ * declared face beyond what it used (SIGXCPU: the message below, exit
+ * 1); both are put back after. Not under ASan/TSan, whose shadow memory
+ * cannot live under RLIMIT_AS (the CPU limit still holds). */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define CLI_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define CLI_SANITIZER 1
+#endif
+#endif
+#ifndef CLI_SANITIZER
+#define CLI_SANITIZER 0
+#endif
+#define DECODE_CPU_S 2.0
+#define DECODE_MEMORY ((double)(64 << 20))
+
+static void on_decode_cpu(int sig)
+{
+    static const char msg[] = "mcf: the Draco stream needs more than its "
+                              "decode CPU limit (2 s + 1 us per declared face): refused\n";
+    (void)sig;
+    if (write(2, msg, sizeof msg - 1) < 0) {
+        /* nothing more to say */
+    }
+    _exit(1);
+}
+
+static double vm_bytes(void)
+{
+    FILE *f = fopen("/proc/self/statm", "r");
+    unsigned long pages = 0;
+    if (!f)
+        return 0;
+    if (fscanf(f, "%lu", &pages) != 1)
+        pages = 0;
+    fclose(f);
+    return (double)pages * (double)sysconf(_SC_PAGESIZE);
+}
+
+static mcf_status decode_bounded(const char *buf, size_t len,
+                                 const api_limits *lim, mcf_mesh **m,
+                                 api_attrs **attrs, api_format *fmt,
+                                 mcf_error *err)
+{
+    struct rlimit as0, cpu0, rl;
+    struct rusage ru;
+    api_mem_estimate est;
+    double mem, cpu;
+    int bound_as = 0, bound_cpu = 0;
+    mcf_status st;
+    void (*old)(int);
+
+    if (len < 5 || memcmp(buf, "DRACO", 5) != 0)
+        return api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
+    api_estimate_memory(buf, len, NULL, &est);
+    mem = 2.0 * est.decode_bytes > DECODE_MEMORY ? 2.0 * est.decode_bytes
+                                                 : DECODE_MEMORY;
+    cpu = DECODE_CPU_S + 1e-6 * (double)est.faces;
+    if (!CLI_SANITIZER && getrlimit(RLIMIT_AS, &as0) == 0) {
+        rl = as0;
+        rl.rlim_cur = (rlim_t)(vm_bytes() + mem);
+        bound_as = (as0.rlim_max == RLIM_INFINITY || rl.rlim_cur < as0.rlim_max) &&
+                   setrlimit(RLIMIT_AS, &rl) == 0;
+    }
+    old = signal(SIGXCPU, on_decode_cpu);
+    if (getrlimit(RLIMIT_CPU, &cpu0) == 0 && getrusage(RUSAGE_SELF, &ru) == 0) {
+        rl = cpu0;
+        rl.rlim_cur = (rlim_t)(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + cpu + 1);
+        bound_cpu = (cpu0.rlim_max == RLIM_INFINITY || rl.rlim_cur < cpu0.rlim_max) &&
+                    setrlimit(RLIMIT_CPU, &rl) == 0;
+    }
+    st = api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
+    if (bound_cpu)
+        setrlimit(RLIMIT_CPU, &cpu0);
+    signal(SIGXCPU, old);
+    if (bound_as)
+        setrlimit(RLIMIT_AS, &as0);
+    if (st == MCF_ENOMEM && bound_as)
+        mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more than %.0f "
+                      "MiB to decode: refused", mem / 1048576.0);
+    return st;
+}
+
 /* Reads and decodes a mesh file; *attrs (the input's texture coordinates,
  * colours, normals and precision, for the output), *fmt and the timings
  * are optional. */
@@ -207,7 +296,7 @@ static int load_mesh_attrs(const char *path, const api_limits *lim,
     if ((rc = read_all(path, lim->max_input_bytes, &buf, &len)) != 0)
         return rc;
     t1 = now();
-    st = api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, &err);
+    st = decode_bounded(buf, len, lim, m, attrs, fmt, &err);
     free(buf);
     if (st != MCF_OK)
         return fail(1, "%s: %s", path, err.msg);

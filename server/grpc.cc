@@ -1440,7 +1440,7 @@ class Smoother final : public SmootherBase {
                 svc_error e;
                 svc_error_set(&e, SVC_ESTORAGE, "EIO",
                               "the spool could not record the cancellation of job %s "
-                              "(canceled in memory): %s", svc_job_id(j), strerror(errno));
+                              "(not canceled; retry): %s", svc_job_id(j), strerror(errno));
                 svc_job_unref(j);
                 return status_from(ctx, e);
             }

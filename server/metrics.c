@@ -7,6 +7,7 @@
  *   mcfd_jobs_total{scheme,status}             counter
  *   mcfd_job_duration_seconds                  histogram (run time)
  *   mcfd_upload_bytes                          histogram (mesh uploads)
+ *   mcfd_spool_quarantined_total               counter (damaged jobs)
  *   mcfd_queue_depth, mcfd_queue_capacity, mcfd_workers,
  *   mcfd_workers_busy, mcfd_jobs_in_memory, mcfd_draining   gauges
  * Label sets are small and bounded (routes are a fixed list, codes are
@@ -50,6 +51,7 @@ static struct {
     int ngrpc;
     histogram duration, upload;
     double start;
+    double quarantined;
 } M = {.mu = PTHREAD_MUTEX_INITIALIZER};
 
 void srv_metrics_init(void)
@@ -127,6 +129,13 @@ void srv_metrics_job(const char *scheme, const char *status, double seconds)
     pthread_mutex_unlock(&M.mu);
 }
 
+void srv_metrics_quarantined(void)
+{
+    pthread_mutex_lock(&M.mu);
+    M.quarantined++;
+    pthread_mutex_unlock(&M.mu);
+}
+
 static void render_histogram(api_buf *b, const char *name, const char *help,
                              const histogram *h)
 {
@@ -183,6 +192,10 @@ char *srv_metrics_render(const srv_gauges *g, size_t *len)
                      &M.upload);
     gauge(&b, "mcfd_start_time_seconds", "Start time since the epoch.",
           M.start);
+    api_buf_printf(&b, "# HELP mcfd_spool_quarantined_total Damaged job "
+                   "directories moved to <spool>/quarantine.\n# TYPE "
+                   "mcfd_spool_quarantined_total counter\n"
+                   "mcfd_spool_quarantined_total %.17g\n", M.quarantined);
     pthread_mutex_unlock(&M.mu);
     gauge(&b, "mcfd_queue_depth", "Jobs waiting for a worker.", g->queue_depth);
     gauge(&b, "mcfd_queue_capacity", "Longest queue before 503.",

@@ -4,20 +4,24 @@
  * when the process died, go back to the queue in their original order
  * (created, then ID) with their IDs; a job canceled while it ran stays
  * canceled; finished jobs are served again until their TTL runs out;
- * directories without a complete request and state (a crash before the
- * job was acknowledged) are removed.
+ * directories without a state.json (a crash before the job was
+ * acknowledged) are removed; acknowledged ones whose state or request is
+ * damaged, or whose result is not the size recorded, are moved to
+ * <spool>/quarantine (never deleted, never served); temporary files a
+ * crash left are removed.
  */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "svc_internal.h"
 
 typedef struct {
     svc_job **queued;
     int n, cap;
-    int restored, dropped;
+    int restored, dropped, quarantined;
 } recover_ctx;
 
 static int by_created(const void *a, const void *b)
@@ -37,6 +41,38 @@ static int valid_id(const char *id)
     return i == SVC_ID_LEN;
 }
 
+/* An acknowledged job whose files are damaged is kept for a person to
+ * look at, never deleted (its result may be intact), and never served. */
+static void quarantine(recover_ctx *rc, const char *id, const char *why)
+{
+    if (srv_spool_quarantine(svc__S.cfg.spool, id) == 0)
+        srv_logf(SRV_LOG_ERROR, "spool: job %s moved to %s/quarantine: %s",
+                 id, svc__S.cfg.spool, why);
+    else
+        srv_logf(SRV_LOG_ERROR, "spool: job %s is damaged (%s) and could not "
+                 "be moved to quarantine (%s); not loaded", id, why,
+                 strerror(errno));
+    rc->quarantined++;
+}
+
+/* A succeeded job's result has the size state.json records (when it
+ * records one: spools from before result_bytes), and its metrics.json is
+ * there. */
+static int result_intact(const svc_job *j)
+{
+    char path[1400];
+    struct stat st;
+
+    if (!j->result_name[0])
+        return 1; /* nothing recorded to check against */
+    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id,
+                       j->result_name) != 0 || stat(path, &st) != 0 ||
+        (j->result_len > 0 && (size_t)st.st_size != j->result_len))
+        return 0;
+    return srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id,
+                          "metrics.json") == 0 && stat(path, &st) == 0;
+}
+
 /* Lock held (start-up: no other thread yet). */
 static void recover_one(const char *id, void *arg)
 {
@@ -49,18 +85,35 @@ static void recover_one(const char *id, void *arg)
 
     if (!valid_id(id))
         return; /* not ours: leave it alone */
-    if (srv_spool_read(cfg->spool, id, "state.json", &state, &len) != 0 ||
-        srv_spool_read(cfg->spool, id, "request.json", &req, &len) != 0 ||
+    srv_spool_clean_tmp(cfg->spool, id); /* writes a crash interrupted */
+    if (srv_spool_read(cfg->spool, id, "state.json", &state, &len) != 0) {
+        if (errno == ENOENT) {
+            /* Never acknowledged (a crash between mkdir and state.json,
+             * the last file a submission writes). */
+            srv_logf(SRV_LOG_WARN, "spool: removing incomplete job %s", id);
+            srv_spool_remove(cfg->spool, id);
+            rc->dropped++;
+        } else {
+            srv_logf(SRV_LOG_ERROR, "spool: cannot read job %s (left as it "
+                     "is, loaded at the next start): %s", id, strerror(errno));
+        }
+        goto out;
+    }
+    if (!(j = svc__job_new()))
+        goto out;
+    if (srv_spool_read(cfg->spool, id, "request.json", &req, &len) != 0 ||
         !(so = cJSON_Parse(state)) || !(ro = cJSON_Parse(req)) ||
-        !(j = svc__job_new()) || svc__record_from_json(&j->rec, ro) != 0 ||
+        svc__record_from_json(&j->rec, ro) != 0 ||
         svc__state_load(j, so) != 0) {
-        /* Never acknowledged (crash between mkdir and state.json). */
-        srv_logf(SRV_LOG_WARN, "spool: removing incomplete job %s", id);
-        srv_spool_remove(cfg->spool, id);
-        rc->dropped++;
+        quarantine(rc, id, "its state.json or request.json is damaged");
         goto out;
     }
     snprintf(j->id, sizeof j->id, "%s", id);
+    if (j->status == SVC_JOB_SUCCEEDED && !result_intact(j)) {
+        quarantine(rc, id, "its result or metrics are missing or not the "
+                   "size its state.json records");
+        goto out;
+    }
     j->disk_bytes = srv_spool_du(cfg->spool, id);
     j->recovered = 1;
     {   /* svc_admit.c; 0 (re-estimated after decoding) when absent */
@@ -72,11 +125,6 @@ static void recover_one(const char *id, void *arg)
         if (srv_wall() - j->finished >= cfg->result_ttl) {
             srv_spool_remove(cfg->spool, id);
             goto out;
-        }
-        if (j->status == SVC_JOB_SUCCEEDED &&
-            srv_spool_read(cfg->spool, id, "metrics.json", &j->metrics_json,
-                           &len) != 0) {
-            srv_logf(SRV_LOG_WARN, "spool: job %s has no metrics.json", id);
         }
         svc__table_insert(j);
         j = NULL;
@@ -153,9 +201,10 @@ int svc__recover(char *msg, size_t msgsize)
     }
     svc__unlock();
     free(rc.queued);
-    if (rc.n || rc.restored || rc.dropped)
+    if (rc.n || rc.restored || rc.dropped || rc.quarantined)
         srv_logf(SRV_LOG_INFO, "spool %s: %d jobs queued again, %d finished "
-                 "jobs restored, %d incomplete removed", svc__S.cfg.spool, rc.n,
-                 rc.restored, rc.dropped);
+                 "jobs restored, %d incomplete removed, %d damaged moved to "
+                 "quarantine", svc__S.cfg.spool, rc.n, rc.restored, rc.dropped,
+                 rc.quarantined);
     return 0;
 }

@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "svc_internal.h"
 #include "svc_admit.h"
@@ -32,6 +33,62 @@ static void fmt_num(char *buf, size_t size, double v)
         snprintf(buf, size, "%.17g", v);
     else
         snprintf(buf, size, "null");
+}
+
+/* Errors of a resource a client can exhaust (descriptors, disk space,
+ * memory) are worth trying again; any other is final at once. */
+static int transient(int e)
+{
+    return e == EMFILE || e == ENFILE || e == ENOSPC || e == EDQUOT ||
+           e == ENOMEM || e == EAGAIN || e == ENOBUFS;
+}
+
+/* Before attempt *tries + 2 of a step that failed with errno e: waits
+ * 0.1 s doubling to at most 8 s (SVC_RETRY_TRIES retries: 37 s in all),
+ * watching the cancel flag (any cancel, or with only_shutdown the
+ * shutdown's alone). 1 to try again; 0 to give up: e is not transient,
+ * the tries are spent, or the job is being stopped. errno is kept. */
+static int retry(svc_job *j, int *tries, int e, const char *what,
+                 int only_shutdown)
+{
+    double delay, end;
+
+    if (!transient(e) || *tries >= SVC_RETRY_TRIES)
+        goto give_up;
+    delay = 0.1 * (double)(1 << *tries);
+    if (delay > 8)
+        delay = 8;
+    (*tries)++;
+    srv_logf(SRV_LOG_WARN, "job %s: %s: %s; try %d of %d in %.1f s", j->id,
+             what, strerror(e), *tries + 1, SVC_RETRY_TRIES + 1, delay);
+    for (end = srv_mono() + delay; srv_mono() < end;) {
+        struct timespec ts = {0, 20 * 1000 * 1000};
+        int stop;
+        svc__lock();
+        stop = j->cancel && (!only_shutdown ||
+                             j->cancel_reason == SVC_CANCEL_SHUTDOWN);
+        svc__unlock();
+        if (stop)
+            goto give_up;
+        nanosleep(&ts, NULL);
+    }
+    errno = e;
+    return 1;
+give_up:
+    errno = e;
+    return 0;
+}
+
+/* srv_spool_read, tried again on a transient error (retry). */
+static int read_retry(svc_job *j, const char *name, char **data, size_t *len,
+                      int *tries)
+{
+    char what[64];
+    snprintf(what, sizeof what, "reading its %s", name);
+    while (srv_spool_read(svc__S.cfg.spool, j->id, name, data, len) != 0)
+        if (!retry(j, tries, errno, what, 0))
+            return -1;
+    return 0;
 }
 
 /* Lock held: one more ndjson line in the job's event log (dropped when
@@ -162,9 +219,14 @@ static int canceled_error(svc_job *j, int steps, svc_error *prob)
  * or 1 (canceled by the shutdown: it runs again after the restart). */
 static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
                          size_t target_len, const api_params *p,
-                         svc_error *prob)
+                         int keep_fields, svc_error *prob)
 {
-    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p);
+    /* fields=true: the mesh kept from before the flow (48 bytes a vertex
+     * with its faces), five double fields (40) and the document (68, up
+     * to twice that while its buffer grows). */
+    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p,
+                                           &svc__S.cfg.lim) +
+                 (keep_fields ? 256.0 * nv : 0);
     if (svc_admit_refuse(&svc__S.cfg, est, prob))
         return -1;
     if (svc_admit_grow(&svc__S.cfg, &j->mem_held, est, &j->cancel) != 0)
@@ -172,22 +234,53 @@ static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
     return 0;
 }
 
+/* Lock held: a job whose outcome (final) the spool would not take goes
+ * back to queued, where its state.json still has it, and runs again
+ * after a delay (svc_sweep puts it back in the queue): 2, 4, ... 60 s.
+ * A client never sees an outcome a restart could change. */
+static void park_locked(svc_job *j, svc_job_status final, int e)
+{
+    int k = j->parks < 5 ? j->parks : 5;
+    double delay = (double)(2 << k);
+
+    if (delay > 60)
+        delay = 60;
+    j->parks++;
+    j->parked = 1;
+    j->retry_at = srv_mono() + delay;
+    j->status = SVC_JOB_QUEUED;
+    j->ready = 0;
+    j->started = j->finished = 0;
+    j->step = 0;
+    j->t = 0;
+    j->result_len = 0;
+    /* its progress runs again from step 1 */
+    api_buf_free(&j->events);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    j->nevents = 0;
+    svc_error_set(&j->err, SVC_ESTORAGE, "EIO", "job %s %s, but the spool "
+                  "could not record it (%s); it runs again in %g s", j->id,
+                  svc_job_status_name(final), strerror(e), delay);
+    srv_logf(SRV_LOG_ERROR, "spool: %s", j->err.detail);
+}
+
 void svc__run_job(svc_job *j)
 {
     const svc_config *cfg = &svc__S.cfg;
     api_params prm;
     int have_prm = 0;
-    mcf_mesh *m = NULL, *tgt = NULL;
+    mcf_mesh *m = NULL, *tgt = NULL, *before = NULL;
     api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
     api_format fmt = API_FMT_UNKNOWN, tfmt;
     mcf_error err = {MCF_OK, ""};
     mcf_status rc;
     mcf_flow_stats st;
     api_metrics mt;
-    api_buf out;
+    api_buf out, fields;
     api_encode_opts eo;
     svc_error prob;
-    int failed = 1, requeue = 0, nv = 0, nf = 0;
+    int failed = 1, requeue = 0, nv = 0, nf = 0, tries = 0, written = 0,
+        e = 0, keep_fields = 0;
     char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
     svc_job_status final;
@@ -200,6 +293,7 @@ void svc__run_job(svc_job *j)
     api_metrics_init(&mt);
     memset(&prob, 0, sizeof prob);
     api_buf_init(&out, SVC_RESULT_MAX);
+    api_buf_init(&fields, 0);
     svc__lock();
     input = j->input;
     input_len = j->input_len;
@@ -210,26 +304,32 @@ void svc__run_job(svc_job *j)
     svc__unlock();
     svc__write_state(j, 0);
 
-    if (!input &&
-        srv_spool_read(cfg->spool, j->id, "input", &input, &input_len) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the input of job %s "
-                      "from the spool: %s", j->id, strerror(errno));
-        goto done;
+    if (!input && read_retry(j, "input", &input, &input_len, &tries) != 0) {
+        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the input of "
+                      "job %s from the spool (%d tries): %s", j->id, tries + 1,
+                      strerror(errno));
+        goto stopped_or_done;
     }
     if (j->rec.has_target && !target &&
-        srv_spool_read(cfg->spool, j->id, "target", &target, &target_len) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the target of job %s "
-                      "from the spool: %s", j->id, strerror(errno));
-        goto done;
+        read_retry(j, "target", &target, &target_len, &tries) != 0) {
+        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the target of "
+                      "job %s from the spool (%d tries): %s", j->id, tries + 1,
+                      strerror(errno));
+        goto stopped_or_done;
     }
     if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
         svc_error_from_mcf(&prob, rc, SVC_STAGE_PARAMS, NULL, &err);
         goto done;
     }
+    if (svc_record_fields(&j->rec, &keep_fields, &prob) != 0)
+        goto done;
     have_prm = 1;
     /* sandbox.c: Draco decodes in a child process under limits. */
-    if ((rc = svc_decode_upload(input, input_len, cfg, &j->cancel, "mesh", &m,
-                                &attrs, &fmt, &prob)) != MCF_OK)
+    while ((rc = svc_decode_upload(input, input_len, cfg, &j->cancel, "mesh",
+                                   &m, &attrs, &fmt, &prob)) == MCF_ENOMEM &&
+           retry(j, &tries, ENOMEM, "decoding", 0))
+        ;
+    if (rc != MCF_OK)
         goto decode_failed;
     free(input);
     input = NULL;
@@ -238,7 +338,7 @@ void svc__run_job(svc_job *j)
     /* svc_admit.c: estimated again from the decoded counts (polygons
      * split, STL welded); a larger estimate is refused or waits. */
     if ((requeue = memory_regrow(j, nv, nf, input_len, target_len, &prm,
-                                 &prob)) != 0) {
+                                 keep_fields, &prob)) != 0) {
         requeue = requeue > 0;
         goto done;
     }
@@ -275,6 +375,12 @@ void svc__run_job(svc_job *j)
         goto done;
     }
     t_metrics = mcf_now() - t_metrics;
+    /* fields=true: the mesh as the flow receives it, for the per-vertex
+     * fields (api_fields_encode) written beside the result. */
+    if (keep_fields && !(before = mcf_mesh_dup(m, &err))) {
+        svc_error_from_mcf(&prob, err.status, SVC_STAGE_RUN, "fields", &err);
+        goto done;
+    }
 
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
@@ -323,6 +429,10 @@ void svc__run_job(svc_job *j)
         goto done;
     }
     t_metrics += mcf_now() - t_after;
+    if (before && (rc = api_fields_encode(before, m, &fields, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, NULL, &err);
+        goto done;
+    }
     svc__lock();
     snprintf(j->out_format, sizeof j->out_format, "%s",
              api_format_name(eo.format));
@@ -336,15 +446,26 @@ void svc__run_job(svc_job *j)
         svc_error_set(&prob, SVC_ENOMEM, NULL, "out of memory writing metrics");
         goto done;
     }
-    if (srv_spool_write(cfg->spool, j->id, j->result_name, out.data, out.len,
-                        1) != 0 ||
-        srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
-                        strlen(metrics), 1) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the result of job %s "
-                      "to the spool: %s", j->id, strerror(errno));
-        goto done;
-    }
+    while (srv_spool_write(cfg->spool, j->id, j->result_name, out.data,
+                           out.len, 1) != 0 ||
+           srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
+                           strlen(metrics), 1) != 0 ||
+           (before && srv_spool_write(cfg->spool, j->id, SVC_FIELDS_FILE,
+                                      fields.data, fields.len, 1) != 0))
+        if (!retry(j, &tries, errno, "writing its result", 0)) {
+            svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the "
+                          "result of job %s to the spool (%d tries): %s",
+                          j->id, tries + 1, strerror(errno));
+            goto stopped_or_done;
+        }
     failed = 0;
+    goto done;
+
+stopped_or_done:
+    /* A retry given up because the job was stopped: canceled, or put
+     * back for the restart, as a stop during the flow. */
+    if (j->cancel)
+        requeue = canceled_error(j, -1, &prob);
     goto done;
 
 decode_failed:
@@ -352,71 +473,73 @@ decode_failed:
     if (rc == MCF_ECANCELED)
         requeue = canceled_error(j, -1, &prob);
 done:
-    /* Until the outcome is published: no other state.json write between
-     * its snapshot and the publication (a DELETE's would be stale). */
-    pthread_mutex_lock(&svc_state_mu);
+    /* The outcome is on disk before anyone can see it (GET polls,
+     * waiters, a restart): a client told "succeeded" can always find the
+     * result again, and no terminal state a client saw changes after a
+     * restart. From each snapshot to its publication no other state.json
+     * write (a DELETE's would be stale): svc_state_mu, let go between
+     * tries. */
     svc__lock();
     if (requeue) {
         /* Back to queued on disk; the process is exiting. */
         final = SVC_JOB_QUEUED;
         j->ready = 0;
         j->err = prob;
-    } else if (failed) {
-        final = j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
-                              j->cancel_reason == SVC_CANCEL_CLIENT)
+    } else {
+        final = !failed ? SVC_JOB_SUCCEEDED
+                : j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
+                                j->cancel_reason == SVC_CANCEL_CLIENT)
                     ? SVC_JOB_CANCELED : SVC_JOB_FAILED;
         j->err = prob;
         j->finished = srv_wall();
-    } else {
-        final = SVC_JOB_SUCCEEDED;
-        j->finished = srv_wall();
-        j->metrics_json = metrics;
-        metrics = NULL;
-        j->result_len = out.len;
-        if (j->keep_result) {
-            size_t len;
-            j->result = api_buf_detach(&out, &len);
-        }
+        j->result_len = failed ? 0 : out.len;
     }
-    /* The outcome on disk before anyone can see it (GET polls, waiters):
-     * a client told "succeeded" can always find the result again. */
-    j->status = final;
-    state = svc__state_json(j);
-    j->status = SVC_JOB_RUNNING;
     svc__unlock();
-    if (!state || srv_spool_write(cfg->spool, j->id, "state.json", state,
-                                  strlen(state), 1) != 0) {
-        int e = state ? errno : ENOMEM;
+    for (tries = 0;;) {
+        pthread_mutex_lock(&svc_state_mu);
         svc__lock();
-        if (final == SVC_JOB_SUCCEEDED) {
-            /* Not durable, so not a success: after a restart the job,
-             * still `running` on disk, runs again. */
-            final = SVC_JOB_FAILED;
-            svc_error_set(&j->err, SVC_ESTORAGE, "EIO", "job %s finished but its "
-                          "state could not be written to the spool %s: %s",
-                          j->id, cfg->spool, strerror(e));
-            free(j->result);
-            j->result = NULL;
-        }
+        j->status = final;
+        state = svc__state_json(j);
+        j->status = SVC_JOB_RUNNING;
         svc__unlock();
-        srv_logf(SRV_LOG_ERROR, "spool: cannot record the outcome of job %s: "
-                 "%s", j->id, strerror(e));
+        if (state && srv_spool_write(cfg->spool, j->id, "state.json", state,
+                                     strlen(state), 1) == 0) {
+            written = 1;
+            break; /* svc_state_mu held until published */
+        }
+        e = state ? errno : ENOMEM;
+        free(state);
+        state = NULL;
+        pthread_mutex_unlock(&svc_state_mu);
+        /* A shutdown alone stops these tries: a cancel asked now changes
+         * nothing of an outcome already reached. */
+        if (requeue || !retry(j, &tries, e, "recording its outcome", 1))
+            break;
     }
     free(state);
     svc__lock();
-    j->status = final;
-    if (final == SVC_JOB_SUCCEEDED) {
-        size_t add = j->result_len +
-                     (j->metrics_json ? strlen(j->metrics_json) : 0);
-        j->disk_bytes += add;
-        if (j->in_table)
-            svc__S.disk_bytes += add;
+    if (!written && !requeue) {
+        park_locked(j, final, e);
+    } else {
+        j->status = final;
+        if (final == SVC_JOB_SUCCEEDED) {
+            /* its metrics stay on disk only (svc_read.c reads them) */
+            size_t add = j->result_len + strlen(metrics) + fields.len;
+            if (j->keep_result) {
+                size_t len;
+                j->result = api_buf_detach(&out, &len);
+            }
+            j->disk_bytes += add;
+            if (j->in_table)
+                svc__S.disk_bytes += add;
+        }
     }
     svc__unlock();
-    pthread_mutex_unlock(&svc_state_mu);
+    if (written)
+        pthread_mutex_unlock(&svc_state_mu);
     /* Counted before anyone hears, so /metrics agrees with what clients
      * have seen. */
-    if (!requeue) {
+    if (written && !requeue) {
         srv_metrics_job(j->scheme, svc_job_status_name(j->status),
                         mcf_now() - t0);
         svc__log_job(j, nv, nf, mcf_now() - t0);
@@ -429,8 +552,10 @@ done:
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(tgt);
+    mcf_mesh_free(before);
     api_attrs_free(attrs);
     api_buf_free(&out);
+    api_buf_free(&fields);
     free(input);
     free(target);
     free(metrics);

@@ -76,7 +76,6 @@ void svc__job_free(svc_job *j)
     free(j->input);
     free(j->target);
     free(j->params_json);
-    free(j->metrics_json);
     free(j->result);
     api_buf_free(&j->events);
     free(j->event_end);
@@ -389,19 +388,21 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
     int reserved = 0;
     const mcf_scheme_info *si;
     double mem;
+    int fields;
 
     /* Parameters first: a misspelled key is refused even when busy. */
     if ((rc = svc_record_params(rec, &cfg->lim, &prm, &merr)) != MCF_OK) {
         svc_error_from_mcf(err, rc, SVC_STAGE_PARAMS, NULL, &merr);
         goto fail;
     }
-    if (steps_over_budget(&prm, &cfg->lim, err)) {
+    if (svc_record_fields(rec, &fields, err) != 0 ||
+        steps_over_budget(&prm, &cfg->lim, err)) {
         api_params_free(&prm);
         goto fail;
     }
     /* Memory admission (svc_admit.c): the estimate from what the input
      * declares; over --max-job-memory it is refused now. */
-    mem = svc_admit_estimate(input, input_len, target_len, &prm);
+    mem = svc_admit_estimate(input, input_len, target_len, &prm, &cfg->lim);
     if (svc_admit_refuse(cfg, mem, err)) {
         api_params_free(&prm);
         goto fail;
@@ -457,8 +458,18 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
         srv_spool_write(cfg->spool, j->id, "request.json", rs, strlen(rs),
                         1) != 0 ||
         svc__write_state(j, 1) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "cannot write job %s to the "
-                      "spool %s: %s", j->id, cfg->spool, strerror(errno));
+        int e = errno;
+        if (e == ENOSPC || e == EDQUOT) {
+            /* A full disk is a full spool: transient, the client's to
+             * retry, like the quota's (and /readyz says so meanwhile). */
+            svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool's "
+                          "filesystem has no room for job %s (%zu bytes): "
+                          "%s", j->id, input_len + target_len, strerror(e));
+            err->retry_after = 5;
+        } else {
+            svc_error_set(err, SVC_ESTORAGE, "EIO", "cannot write job %s to "
+                          "the spool %s: %s", j->id, cfg->spool, strerror(e));
+        }
         srv_spool_remove(cfg->spool, j->id);
         goto fail;
     }
@@ -517,67 +528,139 @@ int svc_draining(void)
 
 /* ------------------------------------------------------------------ cancel */
 
-/* Lock held: a queued job becomes canceled and its subscribers hear. The
- * caller then unlocks and calls finish_canceled_queued (which drops the
- * reference taken here). */
-static void cancel_queued_locked(svc_job *j, svc_cancel_reason reason)
+/* A cancel is on disk before anyone sees it, and a refused one changes
+ * nothing: a client told 500 finds the job as it was, and no state a
+ * client saw changes after a restart. Both helpers are called with
+ * svc_state_mu and the service lock held (in that order; the state.json
+ * snapshot and its write go together, see svc__write_state) and return
+ * with both let go: 0, or -1 with errno when the spool refused. */
+
+/* Writes j's state as it would be after apply(j) (snapshot taken with
+ * the change made, then undone by undo(j)); a job's fields change only
+ * when the write succeeded. Lock held on entry and on return; svc_state_mu
+ * held throughout. */
+static int write_state_as(svc_job *j, void (*apply)(svc_job *, void *),
+                          void (*undo)(svc_job *, void *), void *ctx)
 {
-    /* Not in the queue only when a shutdown just put it back. */
-    (void)queue_remove(j);
+    char *s;
+    int rc, e;
+
+    apply(j, ctx);
+    s = svc__state_json(j);
+    undo(j, ctx);
+    j->refs++;
+    svc__unlock();
+    rc = s ? srv_spool_write(svc__S.cfg.spool, j->id, "state.json", s,
+                             strlen(s), 1) : -1;
+    e = s ? errno : ENOMEM;
+    free(s);
+    svc__lock();
+    svc__unref_locked(j);
+    errno = e;
+    return rc;
+}
+
+typedef struct {
+    svc_cancel_reason reason;
+    svc_job_status status;
+    double finished;
+    svc_error err;
+} cancel_change;
+
+/* The change of a cancel: a queued job becomes canceled; a running one
+ * is asked (cancel_asked: cancel_requested in its state.json; its cancel
+ * flag, which the flow reads without the lock, is set only for real). */
+static void cancel_apply(svc_job *j, void *arg)
+{
+    cancel_change *c = arg;
+    c->status = j->status;
+    c->finished = j->finished;
+    c->err = j->err;
+    if (j->status != SVC_JOB_QUEUED) {
+        j->cancel_asked = c->reason;
+        return;
+    }
     j->status = SVC_JOB_CANCELED;
     j->cancel = 1;
-    j->cancel_reason = reason;
+    j->cancel_reason = c->reason;
     j->finished = srv_wall();
-    if (reason == SVC_CANCEL_CLIENT)
+    if (c->reason == SVC_CANCEL_CLIENT)
         svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled while queued: "
                       "the client closed its connection before the answer");
     else
         svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled by request "
                       "while queued");
-    j->err.cancel = reason;
+    j->err.cancel = c->reason;
+}
+
+static void cancel_undo(svc_job *j, void *arg)
+{
+    cancel_change *c = arg;
+    if (c->status == SVC_JOB_QUEUED) {
+        j->cancel = 0;
+        j->cancel_reason = SVC_CANCEL_NONE;
+    }
+    j->cancel_asked = SVC_CANCEL_NONE;
+    j->status = c->status;
+    j->finished = c->finished;
+    j->err = c->err;
+}
+
+/* Cancels a queued or running job (see above). A queued one leaves the
+ * queue while its state is written (no worker takes it, nor svc_sweep
+ * when it was parked) and comes back to the head of the queue when the
+ * write fails; a running one gets its cancel flag only once
+ * cancel_requested is on disk. */
+static int cancel_locked(svc_job *j, svc_cancel_reason reason)
+{
+    cancel_change c = {.reason = reason};
+    int was = j->status, parked = j->parked;
+    int inq = was == SVC_JOB_QUEUED && queue_remove(j), rc, e;
+
+    j->parked = 0;
+    rc = write_state_as(j, cancel_apply, cancel_undo, &c);
+    e = errno;
+    if (rc == 0 && j->status == SVC_JOB_QUEUED) {
+        cancel_apply(j, &c);
+        svc__notify(j, SVC_NOTIFY_STATE);
+    } else if (rc == 0 && j->status == SVC_JOB_RUNNING) {
+        j->cancel_reason = reason;
+        j->cancel = 1;
+    } else if (rc != 0) {
+        j->parked = parked;
+        if (inq) {
+            j->qnext = svc__S.qhead;
+            svc__S.qhead = j;
+            if (!svc__S.qtail)
+                svc__S.qtail = j;
+            svc__S.qlen++;
+            pthread_cond_signal(&svc__S.work);
+        }
+    }
+    was = was == SVC_JOB_QUEUED && j->status == SVC_JOB_CANCELED;
     j->refs++;
-    svc__notify(j, SVC_NOTIFY_STATE);
-}
-
-static int finish_canceled_queued(svc_job *j)
-{
-    int rc = svc__write_state(j, 1);
-    srv_metrics_job(j->scheme, "canceled", 0);
-    svc__log_job(j, 0, 0, 0);
+    svc__unlock();
+    pthread_mutex_unlock(&svc_state_mu);
+    if (was) {
+        srv_metrics_job(j->scheme, "canceled", 0);
+        svc__log_job(j, 0, 0, 0);
+    }
     svc_job_unref(j);
+    errno = e;
     return rc;
-}
-
-/* Lock held: asks a running job to stop; the caller writes its state. */
-static void cancel_running_locked(svc_job *j, svc_cancel_reason reason)
-{
-    j->cancel = 1;
-    j->cancel_reason = reason;
 }
 
 int svc_cancel(svc_job *j, svc_cancel_reason reason)
 {
-    int rc;
-
+    pthread_mutex_lock(&svc_state_mu);
     svc__lock();
-    if (j->cancel || (j->status != SVC_JOB_QUEUED &&
-                      j->status != SVC_JOB_RUNNING)) {
+    if ((j->cancel && j->status == SVC_JOB_RUNNING) ||
+        (j->status != SVC_JOB_QUEUED && j->status != SVC_JOB_RUNNING)) {
         svc__unlock();
+        pthread_mutex_unlock(&svc_state_mu);
         return 0;
     }
-    if (j->status == SVC_JOB_QUEUED) {
-        cancel_queued_locked(j, reason);
-        svc__unlock();
-        return finish_canceled_queued(j) == 0 ? 1 : -1;
-    }
-    cancel_running_locked(j, reason);
-    j->refs++;
-    svc__unlock();
-    /* On disk too: should the process end before the current step does,
-     * the restart finds the job canceled, not queued. */
-    rc = svc__write_state(j, 1);
-    svc_job_unref(j);
-    return rc == 0 ? 1 : -1;
+    return cancel_locked(j, reason) == 0 ? 1 : -1;
 }
 
 int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
@@ -586,28 +669,28 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
     svc_job *j;
     int rc;
 
+    pthread_mutex_lock(&svc_state_mu);
     svc__lock();
     j = svc__find_locked(id);
     if (!j) {
         svc__unlock();
+        pthread_mutex_unlock(&svc_state_mu);
         svc_error_set(err, SVC_ENOTFOUND, NULL, "no job with ID %s (never "
                       "existed, deleted, or expired)", id);
         return -1;
     }
     *before = j->status;
-    if (j->status == SVC_JOB_QUEUED) {
-        cancel_queued_locked(j, SVC_CANCEL_USER);
-        svc__unlock();
-        *res = SVC_DELETE_CANCELED;
-        rc = finish_canceled_queued(j);
-    } else if (j->status == SVC_JOB_RUNNING) {
-        cancel_running_locked(j, SVC_CANCEL_USER);
-        j->refs++;
-        svc__unlock();
-        *res = SVC_DELETE_STOPPING;
-        rc = svc__write_state(j, 1);
-        svc_job_unref(j);
+    if (j->status == SVC_JOB_QUEUED || j->status == SVC_JOB_RUNNING) {
+        *res = j->status == SVC_JOB_QUEUED ? SVC_DELETE_CANCELED
+                                           : SVC_DELETE_STOPPING;
+        if (j->cancel && j->status == SVC_JOB_RUNNING) { /* asked already */
+            svc__unlock();
+            pthread_mutex_unlock(&svc_state_mu);
+            return 0;
+        }
+        rc = cancel_locked(j, SVC_CANCEL_USER);
     } else {
+        pthread_mutex_unlock(&svc_state_mu);
         /* Finished: forget it, out of the table first (a visible job
          * always has its files), then off the disk; a job that cannot be
          * removed is put back, rather than coming back after a restart. */
@@ -632,8 +715,7 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
         svc_error_set(err, SVC_ESTORAGE, "EIO", "job %s: the spool could not "
                       "record the deletion (%s); %s", id, strerror(errno),
                       *res != SVC_DELETE_FORGOTTEN
-                      ? "it is canceled now, but may run again after a "
-                      "restart"
+                      ? "it was not canceled; retry"
                       : "the job is kept; retry");
         return -1;
     }
@@ -653,6 +735,13 @@ void svc_sweep(void)
     for (b = 0; b < SVC_NBUCKETS; b++)
         for (j = svc__S.buckets[b]; j; j = next) {
             next = j->hnext;
+            if (j->parked && !svc__S.draining &&
+                srv_mono() >= j->retry_at) {
+                /* runner.c: its outcome could not be recorded; again */
+                j->parked = 0;
+                svc__queue_push(j);
+                pthread_cond_signal(&svc__S.work);
+            }
             if (!svc_job_status_terminal(j->status))
                 continue;
             /* Progress lines are only replayed to late followers: drop

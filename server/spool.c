@@ -21,23 +21,31 @@
 
 #include "srv.h"
 
-/* What the spool's own writes found: the time of the last failure and of
- * the last success (srv_mono seconds), for readiness. */
+/* What the spool's own writes found, for readiness: whether a write
+ * failed with no write as large succeeding since (pending), its size and
+ * errno. A removal or a small state.json after a failed result proves
+ * nothing about room for the next job: only a write of at least the
+ * failed size clears it (a job's, or the probe's of srv_spool_ready). */
 static pthread_mutex_t g_health_mu = PTHREAD_MUTEX_INITIALIZER;
-static double g_last_ok, g_last_fail;
-static int g_fail_errno;
+static int g_pending, g_fail_errno;
+static size_t g_fail_bytes;
+static double g_probed;      /* srv_mono() of the last job-sized probe */
+static int g_probe_errno;    /* its outcome: 0 or errno */
 
 static void remove_tree(const char *dir);
 
-static void note(int ok)
+static void note(int ok, size_t bytes)
 {
     int e = errno;
     pthread_mutex_lock(&g_health_mu);
-    if (ok) {
-        g_last_ok = srv_mono();
-    } else {
-        g_last_fail = srv_mono();
+    if (!ok) {
+        if (!g_pending || bytes > g_fail_bytes)
+            g_fail_bytes = bytes;
+        g_pending = 1;
         g_fail_errno = e;
+    } else if (bytes >= g_fail_bytes) {
+        g_pending = 0;
+        g_fail_bytes = 0;
     }
     pthread_mutex_unlock(&g_health_mu);
     errno = e;
@@ -118,36 +126,65 @@ int srv_spool_init(const char *dir, char *msg, size_t msgsize)
     return 0;
 }
 
+/* Writes len bytes of zeros to path (no fsync: the question is room, and
+ * tmpfs, ext4 and xfs all reserve blocks at write()); 0 or -1 (errno). */
+static int write_zeros(const char *path, size_t len)
+{
+    static const char zeros[65536];
+    int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0640), e = 0;
+
+    if (fd < 0)
+        return -1;
+    while (len > 0 && !e) {
+        ssize_t w = write(fd, zeros, len < sizeof zeros ? len : sizeof zeros);
+        if (w < 0 && errno != EINTR)
+            e = errno;
+        else if (w > 0)
+            len -= (size_t)w;
+    }
+    if (close(fd) != 0 && !e)
+        e = errno;
+    unlink(path);
+    errno = e;
+    return e ? -1 : 0;
+}
+
 int srv_spool_ready(const char *spool, char *why, size_t size)
 {
     char probe[1300];
-    double ok, fail;
-    int fd, e;
+    size_t need;
+    int pending, e;
 
     /* Can a file be made now? (Cheap: no fsync, removed at once.) */
     snprintf(probe, sizeof probe, "%s/jobs/.ready-probe", spool);
-    fd = open(probe, O_WRONLY | O_CREAT | O_TRUNC, 0640);
-    if (fd < 0 || write(fd, "1", 1) != 1 || close(fd) != 0) {
-        e = errno;
-        if (fd >= 0)
-            close(fd);
-        unlink(probe);
+    if (write_zeros(probe, 1) != 0) {
         snprintf(why, size, "the spool %s is not writable: %s", spool,
-                 strerror(e));
+                 strerror(errno));
         return -1;
     }
-    unlink(probe);
-    /* Did a real write fail lately, with none succeeding since (a probe
-     * can get through a disk too full for a mesh)? For 10 s, or until a
-     * write succeeds: no job may come to an unready daemon to clear it. */
+    /* After a failed write, ready only once a write as large succeeds: a
+     * probe of that size (up to SRV_SPOOL_PROBE_MAX), at most twice a
+     * second whoever asks, until a job's own write does it. */
     pthread_mutex_lock(&g_health_mu);
-    ok = g_last_ok;
-    fail = g_last_fail;
+    pending = g_pending;
+    need = g_fail_bytes < SRV_SPOOL_PROBE_MAX ? g_fail_bytes
+                                              : SRV_SPOOL_PROBE_MAX;
     e = g_fail_errno;
+    if (pending && srv_mono() - g_probed >= 0.5) {
+        g_probed = srv_mono();
+        g_probe_errno = write_zeros(probe, need) == 0 ? 0 : errno;
+        if (g_probe_errno == 0) {
+            g_pending = 0;
+            g_fail_bytes = 0;
+        }
+    }
+    if (g_pending && g_probe_errno)
+        e = g_probe_errno;
+    pending = g_pending;
     pthread_mutex_unlock(&g_health_mu);
-    if (fail > ok && srv_mono() - fail < 10) {
-        snprintf(why, size, "the last write to the spool %s failed: %s",
-                 spool, strerror(e));
+    if (pending) {
+        snprintf(why, size, "a write of %zu bytes to the spool %s failed: %s",
+                 need, spool, strerror(e));
         return -1;
     }
     return 0;
@@ -224,7 +261,7 @@ fail:
         close(fd);
     if (rc != 0)
         unlink(tmp);
-    note(rc == 0);
+    note(rc == 0, len);
     return rc;
 }
 
@@ -303,16 +340,60 @@ int srv_spool_remove(const char *spool, const char *id)
     if (rename(dir, tomb) != 0) {
         if (errno == ENOENT)
             return 0; /* already gone */
-        note(0);
+        note(0, 0);
         return -1;
     }
     if (fsync_dir(jobs) != 0) {
-        note(0);
+        note(0, 0);
         return -1;
     }
-    note(1);
-    remove_tree(tomb);
+    remove_tree(tomb); /* a removal proves no room: no note() */
     return 0;
+}
+
+int srv_spool_quarantine(const char *spool, const char *id)
+{
+    char dir[1300], qdir[1200], dest[1400], jobs[1200];
+    int k;
+
+    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0 ||
+        snprintf(qdir, sizeof qdir, "%s/quarantine", spool) >= (int)sizeof qdir) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
+    if (mkdir(qdir, 0750) != 0 && errno != EEXIST)
+        return -1;
+    /* A name not taken yet: the same ID may be quarantined twice. */
+    for (k = 0; k < 100; k++) {
+        struct stat st;
+        snprintf(dest, sizeof dest, k ? "%s/%s.%d" : "%s/%s", qdir, id, k);
+        if (lstat(dest, &st) != 0)
+            break;
+    }
+    snprintf(jobs, sizeof jobs, "%s/jobs", spool);
+    if (rename(dir, dest) != 0 || fsync_dir(jobs) != 0 || fsync_dir(qdir) != 0)
+        return -1;
+    srv_metrics_quarantined();
+    return 0;
+}
+
+void srv_spool_clean_tmp(const char *spool, const char *id)
+{
+    char dir[1300], path[1700];
+    struct dirent *e;
+    DIR *d;
+
+    if (srv_spool_path(dir, sizeof dir, spool, id, "") != 0 ||
+        !(d = opendir(dir)))
+        return;
+    while ((e = readdir(d)) != NULL) {
+        size_t n = strlen(e->d_name);
+        if (n > 4 && strcmp(e->d_name + n - 4, ".tmp") == 0) {
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            unlink(path);
+        }
+    }
+    closedir(d);
 }
 
 size_t srv_spool_du(const char *spool, const char *id)

@@ -138,9 +138,18 @@ int srv_spool_read(const char *spool, const char *id, const char *name,
  * tombstone and jobs/ fsynced (durable), then deleted. 0, or -1 with
  * errno and the job left whole. */
 int srv_spool_remove(const char *spool, const char *id);
-/* Readiness: 0 when a file can be made in the spool and the last spool
- * write did not fail (since the last that succeeded); else -1 and why. */
+/* Readiness: 0 when a file can be made in the spool and no write failed
+ * without a write at least as large succeeding since (this call probes
+ * one, of at most SRV_SPOOL_PROBE_MAX bytes, twice a second at most);
+ * removals and smaller writes do not count. Else -1 and why. */
+#define SRV_SPOOL_PROBE_MAX ((size_t)4 << 20)
 int srv_spool_ready(const char *spool, char *why, size_t size);
+/* Moves a damaged job directory out of the spool, to
+ * <spool>/quarantine/<id> (with a suffix when taken), durably, and counts
+ * it (mcfd_spool_quarantined_total). 0 or -1 (errno). */
+int srv_spool_quarantine(const char *spool, const char *id);
+/* Removes the temporary files a crash left in a job directory. */
+void srv_spool_clean_tmp(const char *spool, const char *id);
 /* Bytes of the files of a job directory (0 when unreadable). */
 size_t srv_spool_du(const char *spool, const char *id);
 /* Calls fn for every job directory name in the spool. */
@@ -158,6 +167,8 @@ void srv_metrics_grpc(const char *method, const char *code);
 /* One finished job: scheme name ("unknown" before parsing), final status
  * and wall seconds from start to finish (queue wait excluded). */
 void srv_metrics_job(const char *scheme, const char *status, double seconds);
+/* One job directory moved to the spool's quarantine (spool.c). */
+void srv_metrics_quarantined(void);
 
 typedef struct {
     int queue_depth, queue_capacity;

@@ -7,7 +7,8 @@
  * queue, in order). After decoding, the job's estimate is made again from
  * the real counts (polygons split, STL welded) and its reservation grown,
  * waiting for running jobs to finish when it does not fit; a job alone
- * always runs, so a grow can never deadlock.
+ * always runs, so a grow can never deadlock. The estimate counts the
+ * steps too (their log and progress events: step_bytes).
  *
  * So the daemon's memory stays within its resting size plus --max-memory
  * as far as the estimates hold (their margin: api_estimate.c; the tested
@@ -20,6 +21,7 @@
 #include <time.h>
 
 #include "svc_admit.h"
+#include "svc_internal.h"
 
 static struct {
     pthread_mutex_t mu;
@@ -28,19 +30,50 @@ static struct {
     int holders;               /* jobs holding one */
 } A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
 
+/* The steps a run may take, from the parameters alone (mcf.h's rules):
+ * its iterations, time/dt, or, when the mesh decides (adaptive, dt_auto,
+ * an amount with a fixed dt), the most it may take. */
+static double planned_steps(const mcf_flow_params *f, const api_limits *lim)
+{
+    double n;
+    if (f->adaptive || f->dt_auto)
+        n = f->max_steps > 0 ? f->max_steps : lim->max_iterations;
+    else if (f->dt > 0)
+        n = f->time > 0 ? ceil(f->time / f->dt - 1e-9)
+            : f->iterations > 0 ? f->iterations : lim->max_iterations;
+    else
+        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
+    return n < lim->max_iterations ? n : lim->max_iterations;
+}
+
+/* What a run's steps hold while it runs: the core's step log (56 B a
+ * step) and the events' offsets (8 B, in an array that doubles), and the
+ * progress events (an ndjson line of about 110 B each, in a buffer that
+ * doubles, SVC_EVENTS_MAX at most). 100,000 steps: 31 MB. */
+static double step_bytes(const api_params *p, const api_limits *lim)
+{
+    double n = planned_steps(&p->flow, lim), ev = 240.0 * n;
+    if (ev > 2.0 * (double)SVC_EVENTS_MAX)
+        ev = 2.0 * (double)SVC_EVENTS_MAX;
+    return 72.0 * n + ev;
+}
+
 double svc_admit_estimate(const void *input, size_t input_len,
-                          size_t target_len, const api_params *p)
+                          size_t target_len, const api_params *p,
+                          const api_limits *lim)
 {
     api_mem_estimate e;
     api_estimate_memory(input, input_len, p, &e);
-    return e.job_bytes + (target_len ? 3.0 * (double)target_len +
-                                           48.0 * (double)e.vertices : 0);
+    return e.job_bytes + step_bytes(p, lim) +
+           (target_len ? 3.0 * (double)target_len + 48.0 * (double)e.vertices
+                       : 0);
 }
 
 double svc_admit_estimate_counts(int nv, int nf, size_t input_len,
-                                 size_t target_len, const api_params *p)
+                                 size_t target_len, const api_params *p,
+                                 const api_limits *lim)
 {
-    return api_estimate_job_bytes(nv, nf, input_len, p) +
+    return api_estimate_job_bytes(nv, nf, input_len, p) + step_bytes(p, lim) +
            (target_len ? 3.0 * (double)target_len + 48.0 * nv : 0);
 }
 

@@ -9,12 +9,16 @@
 
 /* The estimate admission works with, from the input's bytes before they
  * are decoded: the job's (api_estimate_memory) and, with a target, its
- * copy of the input and a second mesh of the same counts. */
+ * copy of the input and a second mesh of the same counts; and the
+ * memory of the steps (their log and progress events) the parameters
+ * plan, at most lim's max_iterations. */
 double svc_admit_estimate(const void *input, size_t input_len,
-                          size_t target_len, const api_params *p);
+                          size_t target_len, const api_params *p,
+                          const api_limits *lim);
 /* The same from a decoded mesh's counts (polygons split, STL welded). */
 double svc_admit_estimate_counts(int nv, int nf, size_t input_len,
-                                 size_t target_len, const api_params *p);
+                                 size_t target_len, const api_params *p,
+                                 const api_limits *lim);
 /* 1 and an ELIMIT error (REST 422) in e when one job's estimate exceeds
  * --max-job-memory; else 0. */
 int svc_admit_refuse(const svc_config *cfg, double estimate, svc_error *e);

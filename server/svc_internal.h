@@ -21,6 +21,12 @@
 #define SVC_NBUCKETS 4096
 #define SVC_EVENTS_MAX ((size_t)16 << 20)   /* ndjson progress kept per job */
 #define SVC_RESULT_MAX ((size_t)4 << 30)    /* an encoded result */
+/* Retries of a job's step that met a resource a client can exhaust
+ * (EMFILE, ENFILE, ENOSPC, EDQUOT, ENOMEM): 0.1 s doubling to 8 s, 37 s
+ * in all (runner.c), long enough for connections to time out or be
+ * closed, short enough that a full disk fails the job within a minute. */
+#define SVC_RETRY_TRIES 10
+#define SVC_FIELDS_FILE "fields.bin"        /* fields=true: api_fields_encode */
 
 struct svc_sub {
     svc_job *job;
@@ -47,6 +53,10 @@ struct svc_job {
     double time_planned;       /* total flow time when set, else 0 */
     double created, started, finished;   /* epoch seconds, 0: not yet */
     int recovered;             /* loaded from the spool at start */
+    int parked;                /* queued, out of the queue until retry_at:
+                                  its outcome could not be recorded */
+    int parks;                 /* times it was */
+    double retry_at;           /* srv_mono() seconds */
     double mem_estimate;       /* estimated peak bytes (svc_admit.c) */
     double mem_held;           /* reserved while it runs */
     /* progress, written by the runner's progress callback */
@@ -56,12 +66,12 @@ struct svc_job {
     mcf_cancel_flag cancel;    /* written under the lock, loaded without
                                   it by mcf_flow_run (params.cancel) */
     svc_cancel_reason cancel_reason;
+    svc_cancel_reason cancel_asked; /* service.c: a cancel being written */
     api_buf events;            /* ndjson lines, one per step */
     size_t *event_end;         /* byte offset past each line */
     int nevents, event_cap;
     /* outcome */
     svc_error err;             /* when failed or canceled */
-    char *metrics_json;        /* when succeeded */
     char in_format[16];
     char out_format[16];
     char result_name[32];      /* "result.obj" in the job directory */

@@ -85,11 +85,16 @@ cJSON *svc_job_json(const svc_job *j, svc_snap *snap)
     snapshot_locked(j, &s);
     if (j->params_json)
         params = strdup(j->params_json);
-    if (j->status == SVC_JOB_SUCCEEDED && j->metrics_json)
-        metrics = strdup(j->metrics_json);
     svc__unlock();
     if (snap)
         *snap = s;
+    /* A finished job's metrics are on disk only (its memory is disk's). */
+    if (s.status == SVC_JOB_SUCCEEDED) {
+        size_t len;
+        if (srv_spool_read(svc__S.cfg.spool, s.id, "metrics.json", &metrics,
+                           &len) != 0)
+            metrics = NULL;
+    }
 
     cJSON_AddStringToObject(o, "id", s.id);
     cJSON_AddStringToObject(o, "status", svc_job_status_name(s.status));
@@ -169,17 +174,7 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
         svc__unlock();
         return -1;
     }
-    *json = j->metrics_json ? strdup(j->metrics_json) : NULL;
-    if (j->metrics_json && !*json) {
-        svc__unlock();
-        svc_error_set(err, SVC_ENOMEM, NULL, "out of memory copying metrics");
-        return -1;
-    }
     svc__unlock();
-    if (*json) {
-        *len = strlen(*json);
-        return 0;
-    }
     if (srv_spool_read(svc__S.cfg.spool, j->id, "metrics.json", json, len) != 0) {
         svc_error_set(err, SVC_ESTORAGE, "EIO", "metrics of job %s are missing",
                       j->id);
@@ -221,10 +216,25 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
     return 0;
 }
 
+/* A result whose size is not the one state.json records (0: spools from
+ * before it did) is never served: ESTORAGE. */
+static int result_damaged(const svc_job *j, size_t got, size_t want,
+                          svc_error *err)
+{
+    if (want == 0 || got == want)
+        return 0;
+    svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s on the "
+                  "spool is damaged: %zu bytes, %zu recorded", j->id, got,
+                  want);
+    srv_logf(SRV_LOG_ERROR, "spool: %s", err->detail);
+    return 1;
+}
+
 int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
                    svc_error *err)
 {
     char name[32];
+    size_t want;
 
     *data = NULL;
     svc__lock();
@@ -238,6 +248,7 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
         j->result = NULL;
     }
     snprintf(name, sizeof name, "%s", j->result_name);
+    want = j->result_len;
     svc__unlock();
     if (!*data &&
         srv_spool_read(svc__S.cfg.spool, j->id, name, data, len) != 0) {
@@ -245,14 +256,43 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
                       "missing from the spool", j->id);
         return -1;
     }
+    if (result_damaged(j, *len, want, err)) {
+        free(*data);
+        *data = NULL;
+        return -1;
+    }
+    return 0;
+}
+
+/* A file of a succeeded job's directory opened read-only, and its size. */
+static int open_job_file(const svc_job *j, const char *name, const char *what,
+                         int *fd, size_t *size, svc_error *err)
+{
+    char path[1400];
+    struct stat sb;
+
+    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
+        (*fd = open(path, O_RDONLY)) < 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s is "
+                      "missing from the spool", what, j->id);
+        return -1;
+    }
+    if (fstat(*fd, &sb) != 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s: %s",
+                      what, j->id, strerror(errno));
+        close(*fd);
+        *fd = -1;
+        return -1;
+    }
+    *size = (size_t)sb.st_size;
     return 0;
 }
 
 int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
                         svc_error *err)
 {
-    char name[32], path[1400];
-    struct stat sb;
+    char name[32];
+    size_t want;
 
     svc__lock();
     if (!has_result_locked(j, "result", err)) {
@@ -260,22 +300,37 @@ int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
         return -1;
     }
     snprintf(name, sizeof name, "%s", j->result_name);
+    want = j->result_len;
     svc__unlock();
-    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
-        (*fd = open(path, O_RDONLY)) < 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s is "
-                      "missing from the spool", j->id);
+    if (open_job_file(j, name, "result", fd, size, err) != 0)
         return -1;
-    }
-    if (fstat(*fd, &sb) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s: %s",
-                      j->id, strerror(errno));
+    if (result_damaged(j, *size, want, err)) {
         close(*fd);
         *fd = -1;
         return -1;
     }
-    *size = (size_t)sb.st_size;
     return 0;
+}
+
+int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
+                        svc_error *err)
+{
+    svc_error e;
+    int asked = 0;
+
+    svc__lock();
+    if (!has_result_locked(j, "fields", err)) {
+        svc__unlock();
+        return -1;
+    }
+    /* the record is constant once submitted; a bad value was refused */
+    svc__unlock();
+    if (svc_record_fields(&j->rec, &asked, &e) != 0 || !asked) {
+        svc_error_set(err, SVC_ENORESULT, NULL, "job %s was submitted without "
+                      "fields=true and has no fields", j->id);
+        return -1;
+    }
+    return open_job_file(j, SVC_FIELDS_FILE, "fields", fd, size, err);
 }
 
 void svc_job_release_result(svc_job *j)

@@ -156,6 +156,33 @@ static void test_flow_stats(void **state)
     j = reparse(api_json_flow_stats(&st), 1);
     assert_null(cJSON_GetObjectItem(j, "log"));
     cJSON_Delete(j);
+    {
+        /* A long run's log: API_LOG_MAX entries, the first and last steps
+         * and evenly spaced ones between, each with its step. */
+        enum { N = 2 * API_LOG_MAX + 501 };
+        mcf_step_log *big = calloc(N, sizeof *big);
+        int k, prev = 0;
+        assert_non_null(big);
+        for (k = 0; k < N; k++)
+            big[k].t = k + 1;
+        st.log = big;
+        st.nlog = N;
+        j = reparse(api_json_flow_stats(&st), 0);
+        l = cJSON_GetObjectItem(j, "log");
+        assert_int_equal(cJSON_GetArraySize(l), API_LOG_MAX);
+        for (k = 0; k < API_LOG_MAX; k++) {
+            int step = (int)get(cJSON_GetArrayItem(l, k), "step");
+            same(get(cJSON_GetArrayItem(l, k), "t"), step, "log t");
+            /* strides of 2 or 3 steps: evenly spaced */
+            assert_true(k == 0 ? step == 1 : step - prev >= 2 && step - prev <= 3);
+            prev = step;
+        }
+        assert_int_equal(prev, N);
+        cJSON_Delete(j);
+        st.log = NULL;
+        st.nlog = 0;
+        free(big);
+    }
 }
 
 static void test_compare(void **state)

@@ -8,9 +8,11 @@
  */
 #include <math.h>
 #include <stdio.h>
+#include <sys/resource.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "testlib.h"
 #include "../api/api.h"
@@ -96,6 +98,36 @@ static void test_info(void **state)
     assert_non_null(cJSON_GetObjectItem(cJSON_GetObjectItem(j, "curvature"), "H"));
     cJSON_Delete(j);
     tl_run_free(&r);
+}
+
+/* Issue 17: `mcf info` on draco_texcoord_orientations.drc (210 bytes,
+ * 2^31-1 texcoord orientations inside the stream) took 256 MiB and 6-9 s
+ * of CPU, then decoded. The CLI decodes Draco under the daemon's bound
+ * (64 MiB beyond its size, 2 s of CPU): refused at once (under ASan,
+ * which cannot run under RLIMIT_AS, by the CPU limit). */
+static void test_draco_bound(void **state)
+{
+    char bomb[600];
+    struct rusage before, after;
+    tl_run_result r;
+
+    (void)state;
+    snprintf(bomb, sizeof bomb, "%s/draco_texcoord_orientations.drc",
+             tl_testdata_dir());
+    if (bomb[0] != '/') {
+        char cwd[400];
+        assert_non_null(getcwd(cwd, sizeof cwd));
+        snprintf(bomb, sizeof bomb, "%s/%s/draco_texcoord_orientations.drc",
+                 cwd, tl_testdata_dir());
+    }
+    getrusage(RUSAGE_CHILDREN, &before);
+    r = tl_run("info", bomb, NULL);
+    getrusage(RUSAGE_CHILDREN, &after);
+    print_message("    mcf info on a 210-byte Draco bomb: exit %d, %.2f s of CPU "
+                  "(main: exit 0 after 256 MiB and 6-9 s)\n", r.status,
+                  (double)(after.ru_utime.tv_sec - before.ru_utime.tv_sec) +
+                      (after.ru_utime.tv_usec - before.ru_utime.tv_usec) / 1e6);
+    tl_expect_error(&r, 1, "refused");
 }
 
 static void test_smooth_metrics(void **state)
@@ -501,6 +533,7 @@ int main(void)
         cmocka_unit_test(test_help),
         cmocka_unit_test(test_schemes),
         cmocka_unit_test(test_info),
+        cmocka_unit_test(test_draco_bound),
         cmocka_unit_test(test_smooth_metrics),
         cmocka_unit_test(test_smooth_noise_target_fixed),
         cmocka_unit_test(test_convert),

@@ -28,6 +28,7 @@
 #include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <linux/fs.h>
 #include <sys/time.h>
 #include <sys/types.h>
@@ -63,6 +64,7 @@ static pid_t g_started[64];
 static int g_nstarted;
 static daemon_t g_main;   /* shared by the tests that need no special flags */
 static void unlock_dirs(void);
+static void unmount_all(void);
 static void wait_gauge_within(const daemon_t *d, const char *name, double want,
                               double seconds, const char *what);
 
@@ -302,6 +304,7 @@ static long http_watch(const daemon_t *d, const char *method, const char *path,
         return 0;
     snprintf(url, sizeof url, "http://127.0.0.1:%d%s", d->port, path);
     curl_easy_setopt(c, CURLOPT_URL, url);
+    curl_easy_setopt(c, CURLOPT_PATH_AS_IS, 1L); /* "/../" reaches the daemon */
     curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
     curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT, 5L);
     curl_easy_setopt(c, CURLOPT_TIMEOUT, 60L);
@@ -687,6 +690,7 @@ static int group_teardown(void **state)
             waitpid(g_started[i], NULL, 0);
         }
     tl_kill_children(0);
+    unmount_all();
     unlock_dirs();
     rm_rf(g_tmp);
     curl_global_cleanup();
@@ -700,6 +704,7 @@ static int kill_strays(void **state)
 {
     (void)state;
     tl_kill_children(g_main.pid);
+    unmount_all();
     return 0;
 }
 
@@ -2280,6 +2285,495 @@ static void test_spool_quota(void **state)
     }
 }
 
+/* ------------------------------------------------------------ a full spool */
+
+/* Small filesystems mounted by a test (tmpfs with size=), unmounted by
+ * unmount_all at the end of the test or the group. */
+static char g_mounted[2][800];
+static int g_nmounted;
+
+static void unmount_all(void)
+{
+    char cmd[900];
+    while (g_nmounted > 0) {
+        snprintf(cmd, sizeof cmd, "umount -l '%s' 2>/dev/null",
+                 g_mounted[--g_nmounted]);
+        if (system(cmd) != 0)
+            fprintf(stderr, "could not unmount %s\n", g_mounted[g_nmounted]);
+    }
+}
+
+/* A tmpfs of `size` (mount's syntax) at dir; 0, or -1 when this machine
+ * cannot mount one (not root, no mount(8), a sandbox without the right). */
+static int mount_small(const char *dir, const char *size)
+{
+    char cmd[1000];
+    if (geteuid() != 0 || g_nmounted == 2 || mkdir(dir, 0750) != 0)
+        return -1;
+    snprintf(cmd, sizeof cmd, "mount -t tmpfs -o size=%s,mode=0750 tmpfs "
+             "'%s' 2>/dev/null", size, dir);
+    if (system(cmd) != 0)
+        return -1;
+    snprintf(g_mounted[g_nmounted++], sizeof g_mounted[0], "%s", dir);
+    return 0;
+}
+
+/* The bytes free on the filesystem of path. */
+static double free_bytes(const char *path)
+{
+    struct statvfs sv;
+    assert_int_equal(statvfs(path, &sv), 0);
+    return (double)sv.f_bavail * (double)sv.f_frsize;
+}
+
+/* Makes (or truncates) file so that about `leave` bytes stay free. */
+static void fill_leaving(const char *file, double leave)
+{
+    static const char zeros[65536];
+    struct stat st;
+    double want;
+    off_t at;
+    int fd = open(file, O_WRONLY | O_CREAT, 0640);
+
+    assert_true(fd >= 0 && fstat(fd, &st) == 0);
+    at = st.st_size;
+    want = (double)at + free_bytes(file) - leave;
+    if (want < (double)at) {
+        assert_int_equal(ftruncate(fd, want > 0 ? (off_t)want : 0), 0);
+    } else {
+        assert_true(lseek(fd, at, SEEK_SET) >= 0);
+        while ((double)at < want) {
+            size_t n = sizeof zeros;
+            ssize_t w;
+            if ((double)at + (double)n > want)
+                n = (size_t)(want - (double)at);
+            if ((w = write(fd, zeros, n)) <= 0)
+                break; /* full: as close as it gets */
+            at += w;
+        }
+    }
+    close(fd);
+}
+
+/* Polls /readyz until its status is want (bounded); the last status. */
+static long wait_ready(const daemon_t *d, long want, double seconds)
+{
+    double end = mcf_now() + seconds;
+    long got;
+    for (;;) {
+        resp_t r;
+        got = http(d, "GET", "/readyz", NULL, NULL, &r);
+        resp_free(&r);
+        if (got == want || mcf_now() > end)
+            return got;
+        sleep_ms(50);
+    }
+}
+
+/* Issue 17 item 8: with the spool's filesystem full every job failed
+ * (500) while /readyz stayed 200: the removal of the failed job's
+ * directory, and the small state.json written after a failed result,
+ * counted as successful writes and cleared the failure. Now a refused
+ * upload is a 503 ESPOOLFULL with Retry-After, and /readyz is 503 ESPOOL
+ * until a write as large as the one that failed succeeds. */
+static void test_spool_full(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"}; /* 72,320 bytes */
+    daemon_t d;
+    char mnt[600], spool[700], filler[700], id[SRV_ID_BUF];
+    resp_t r;
+    long st;
+
+    (void)state;
+    snprintf(mnt, sizeof mnt, "%s/full", g_tmp);
+    if (mount_small(mnt, "1m") != 0) {
+        tl_skip("test_spool_full", "cannot mount a small tmpfs here (needs "
+                "root and mount(8))");
+        return;
+    }
+    snprintf(spool, sizeof spool, "%s/spool", mnt);
+    snprintf(filler, sizeof filler, "%s/filler", mnt);
+    assert_int_equal(start_daemon(&d, "spool-full", spool, flags), 0);
+
+    /* No room for the input: refused as a full spool, and unready. */
+    fill_leaving(filler, 40e3);
+    http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+    expect_problem(&d, &r, 503, "ESPOOLFULL", "spool", "an upload to a full spool");
+    resp_free(&r);
+    st = wait_ready(&d, 503, 1);
+    print_message("    readyz after a refused upload: %ld (main: 200)\n", st);
+    if (st != 503) {
+        print_log_tail(&d);
+        fail_msg("/readyz %ld after the spool refused an upload", st);
+    }
+    /* Room for the input (a write as large as the failed one) but not
+     * for the result: ready again, then unready while the result waits. */
+    fill_leaving(filler, 100e3);
+    st = wait_ready(&d, 200, 5);
+    assert_int_equal(st, 200);
+    http(&d, "POST", "/v1/jobs?iterations=2", NULL, &up, &r);
+    expect_status(&d, &r, 202, "a job whose result finds no room");
+    {
+        cJSON *j = body_json(&r, "POST /v1/jobs");
+        snprintf(id, sizeof id, "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+    }
+    resp_free(&r);
+    st = wait_ready(&d, 503, 10);
+    print_message("    readyz while a result finds no room: %ld (main: 200)\n", st);
+    if (st != 503) {
+        print_log_tail(&d);
+        fail_msg("/readyz %ld while the spool cannot take a result", st);
+    }
+    unlink(filler);
+    st = wait_ready(&d, 200, 20);
+    assert_int_equal(st, 200);
+    {   /* item 2: the result's write was tried again, not failed */
+        cJSON *j = poll_job(&d, id, NULL, 40);
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+    unmount_all();
+}
+
+/* ------------------------------------------------- descriptor exhaustion */
+
+/* Sets the soft RLIMIT_NOFILE of process pid (prlimit(1), util-linux) to
+ * the lowest descriptor number it has free, so that its next open(),
+ * pipe() or accept() fails with EMFILE (n < 0), or back to n. 0 or -1. */
+static int set_nofile(pid_t pid, long n)
+{
+    char cmd[200], dir[64], path[128];
+    if (n < 0) {
+        /* the lowest free number: none below it is free */
+        struct stat st;
+        snprintf(dir, sizeof dir, "/proc/%d/fd", (int)pid);
+        for (n = 0; n < 65536; n++) {
+            snprintf(path, sizeof path, "%s/%ld", dir, n);
+            if (lstat(path, &st) != 0)
+                break;
+        }
+    }
+    snprintf(cmd, sizeof cmd, "prlimit --pid %d --nofile=%ld: 2>/dev/null",
+             (int)pid, n);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+/* Bytes of the daemon's log so far. */
+static size_t log_size(const daemon_t *d)
+{
+    struct stat st;
+    return stat(d->log, &st) == 0 ? (size_t)st.st_size : 0;
+}
+
+/* Waits until the daemon's log past byte `from` names job id (bounded). */
+static int log_names(const daemon_t *d, size_t from, const char *id,
+                     double seconds)
+{
+    double end = mcf_now() + seconds;
+    do {
+        char *buf = NULL;
+        size_t len = 0;
+        int found = 0;
+        if (tl_read_file(d->log, &buf, &len) == 0) {
+            found = len > from && strstr(buf + from, id) != NULL;
+            free(buf);
+        }
+        if (found)
+            return 1;
+        sleep_ms(50);
+    } while (mcf_now() < end);
+    return 0;
+}
+
+/* Issue 17 item 2: with every descriptor taken, a running job and a
+ * queued one failed "EIO: Too many open files", and after a restart one
+ * of them came back succeeded. Now a step that meets a resource a client
+ * can exhaust (EMFILE, ENFILE, ENOSPC, EDQUOT, ENOMEM) is tried again with
+ * backoff; both jobs succeed, and stay so after a restart. */
+static void test_descriptor_exhaustion(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], a[SRV_ID_BUF], b[SRV_ID_BUF];
+    const char *ids[2] = {a, b};
+    size_t from;
+    double t0, held;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/nofile", g_tmp);
+    assert_int_equal(start_daemon(&d, "nofile", spool, flags), 0);
+    submit(&d, "?iterations=1500", a); /* about 1 s of flow */
+    submit(&d, "?iterations=2", b);    /* queued behind it */
+    wait_running(&d, a);
+    from = log_size(&d);
+    t0 = mcf_now();
+    if (set_nofile(d.pid, -1) != 0) {
+        stop_daemon(&d);
+        tl_skip("test_descriptor_exhaustion", "prlimit(1) cannot lower the "
+                "daemon's RLIMIT_NOFILE here");
+        return;
+    }
+    /* Until the job meets it (its retries, or on main its failure, are
+     * logged on the descriptor the log already has), and a while more. */
+    if (!log_names(&d, from, a, 60)) {
+        set_nofile(d.pid, 1024);
+        print_log_tail(&d);
+        fail_msg("job %s said nothing within 60 s of the exhaustion", a);
+    }
+    sleep_ms(1000);
+    held = mcf_now() - t0;
+    assert_int_equal(set_nofile(d.pid, 1024), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 60);
+        const char *st = jstr(j, "status");
+        print_message("    job %d after %.1f s without descriptors: %s "
+                      "(main: failed EIO)\n", i, held, st);
+        if (strcmp(st, "succeeded") != 0) {
+            print_log_tail(&d);
+            fail_msg("job %s %s after descriptors ran out for %.1f s", ids[i],
+                     st, held);
+        }
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "nofile2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 30);
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+}
+
+/* Issue 17, sharp edge: with the spool read-only while jobs ran, a
+ * refused cancel (500) came back canceled at once and a job whose result
+ * could not be written came back failed EIO, and after a restart both
+ * were succeeded. Now a refused cancel changes nothing, and an outcome
+ * the spool will not take is not shown: the job is queued again (it runs
+ * again later, as after a restart). A terminal state seen before the
+ * restart is the one seen after it. */
+static void test_readonly_outcomes(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], dir[800], a[SRV_ID_BUF], b[SRV_ID_BUF], path[160],
+        seen[2][16] = {"", ""};
+    const char *ids[2] = {a, b};
+    double end;
+    resp_t r;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/readonly", g_tmp);
+    assert_int_equal(start_daemon(&d, "readonly", spool, flags), 0);
+    submit(&d, "?iterations=1500", a);
+    submit(&d, "?iterations=2", b);
+    wait_running(&d, a);
+    for (i = 0; i < 2; i++) {
+        snprintf(dir, sizeof dir, "%s/jobs/%s", spool, ids[i]);
+        if (lock_dir(dir) != 0) {
+            unlock_dirs();
+            stop_daemon(&d);
+            tl_skip("test_readonly_outcomes", "cannot make a directory "
+                    "unwritable here");
+            return;
+        }
+    }
+    snprintf(path, sizeof path, "/v1/jobs/%s", a);
+    http(&d, "DELETE", path, NULL, NULL, &r);
+    expect_problem(&d, &r, 500, "EIO", "not canceled", "a cancel the spool refuses");
+    resp_free(&r);
+    /* Both jobs end their work while the spool refuses their outcome:
+     * whatever GET shows meanwhile is what the restart must show. */
+    end = mcf_now() + 6;
+    while (mcf_now() < end) {
+        for (i = 0; i < 2; i++) {
+            cJSON *j;
+            snprintf(path, sizeof path, "/v1/jobs/%s", ids[i]);
+            http(&d, "GET", path, NULL, NULL, &r);
+            expect_status(&d, &r, 200, "GET a job on a read-only spool");
+            j = body_json(&r, "GET");
+            if (!seen[i][0] && (!strcmp(jstr(j, "status"), "succeeded") ||
+                                !strcmp(jstr(j, "status"), "failed") ||
+                                !strcmp(jstr(j, "status"), "canceled")))
+                snprintf(seen[i], sizeof seen[i], "%s", jstr(j, "status"));
+            cJSON_Delete(j);
+            resp_free(&r);
+        }
+        sleep_ms(100);
+    }
+    unlock_dirs();
+    stop_daemon(&d);
+    assert_int_equal(start_daemon(&d, "readonly2", spool, flags), 0);
+    for (i = 0; i < 2; i++) {
+        cJSON *j = poll_job(&d, ids[i], NULL, 30);
+        print_message("    job %d on a read-only spool: %s, after the restart "
+                      "%s (main: canceled and failed, then succeeded)\n", i,
+                      seen[i][0] ? seen[i] : "never finished",
+                      jstr(j, "status"));
+        if (seen[i][0] && strcmp(seen[i], jstr(j, "status")) != 0)
+            fail_msg("job %s was %s, and %s after a restart", ids[i], seen[i],
+                     jstr(j, "status"));
+        assert_string_equal(jstr(j, "status"), "succeeded");
+        cJSON_Delete(j);
+    }
+    stop_daemon(&d);
+}
+
+/* An octahedron (6 vertices, 8 faces) as an OBJ body: steps cost
+ * microseconds, so tens of thousands of them take a second or two. */
+static const char k_octa[] =
+    "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+    "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+
+/* Issue 17 item 6: a 72 KB mesh run for 100,000 steps was admitted at
+ * 4.9 MB but kept a 15 MB metrics document (every step in flow.log) in
+ * memory for its whole TTL; 20 such jobs held 663 MiB against a bound of
+ * 124 MiB. Now admission counts the steps' memory (the step log and the
+ * progress events), the document's flow.log keeps at most 1000 entries
+ * (first, last and evenly between, each with its step), and a finished
+ * job's metrics are on disk only. */
+static void test_step_log_memory(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--max-job-memory",
+                                        "12M", NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    upload_t octa = {.raw = k_octa, .raw_len = sizeof k_octa - 1};
+    daemon_t d;
+    char spool[600], id[SRV_ID_BUF], path[200], file[900];
+    struct stat st;
+    resp_t r;
+    cJSON *j;
+    const cJSON *log;
+    int n;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/steplog", g_tmp);
+    assert_int_equal(start_daemon(&d, "steplog", spool, flags), 0);
+    /* 100,000 steps of the sphere: 4.9 MB of mesh work, ~17 MB of log
+     * and events. main: admitted (202). */
+    http(&d, "POST", "/v1/jobs?iterations=100000&scheme=euler", NULL, &up, &r);
+    print_message("    100,000 steps of a 72 KB mesh, --max-job-memory 12M: "
+                  "HTTP %ld (main: 202)\n", r.code);
+    if (r.code == 202) {
+        cJSON *k = body_json(&r, "POST");
+        snprintf(path, sizeof path, "/v1/jobs/%s", jstr(k, "id"));
+        cJSON_Delete(k);
+        resp_free(&r);
+        http(&d, "DELETE", path, NULL, NULL, &r);
+        resp_free(&r);
+        fail_msg("a job whose steps' log exceeds --max-job-memory was admitted");
+    }
+    expect_problem(&d, &r, 422, "ELIMIT", "--max-job-memory", "100,000 steps");
+    resp_free(&r);
+
+    http(&d, "POST", "/v1/jobs?iterations=20000&scheme=euler&dt=1e-6", NULL,
+         &octa, &r);
+    expect_status(&d, &r, 202, "20,000 steps of an octahedron");
+    j = body_json(&r, "POST");
+    snprintf(id, sizeof id, "%s", jstr(j, "id"));
+    cJSON_Delete(j);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&d, id, "succeeded", 60));
+    snprintf(file, sizeof file, "%s/jobs/%s/metrics.json", spool, id);
+    assert_int_equal(stat(file, &st), 0);
+    print_message("    metrics.json of 20,000 steps: %.0f KB (main: 2,900 KB)\n",
+                  st.st_size / 1e3);
+    snprintf(path, sizeof path, "/v1/jobs/%s/metrics", id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the metrics");
+    j = body_json(&r, "metrics");
+    log = cJSON_GetObjectItemCaseSensitive(
+        cJSON_GetObjectItemCaseSensitive(j, "flow"), "log");
+    n = cJSON_GetArraySize(log);
+    assert_int_equal(n, 1000);
+    assert_int_equal((int)jnum(cJSON_GetArrayItem(log, 0), "step"), 1);
+    assert_int_equal((int)jnum(cJSON_GetArrayItem(log, n - 1), "step"), 20000);
+    assert_int_equal((int)jnum(j, "flow.steps"), 20000);
+    cJSON_Delete(j);
+    resp_free(&r);
+    /* the job's own document has them too, read back from the spool */
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&d, "GET", path, NULL, NULL, &r);
+    j = body_json(&r, "GET job");
+    assert_int_equal((int)jnum(j, "metrics.flow.steps"), 20000);
+    cJSON_Delete(j);
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
+/* Cuts a file to half its size. */
+static void truncate_half(const char *path)
+{
+    struct stat st;
+    assert_int_equal(stat(path, &st), 0);
+    assert_int_equal(truncate(path, st.st_size / 2), 0);
+}
+
+/* Issue 17, sharp edge: a damaged state.json or request.json of an
+ * acknowledged, succeeded job made start-up delete its whole directory,
+ * intact result included, and a result cut to half was served as 200
+ * although state.json records its size. Now such a directory is moved to
+ * <spool>/quarantine (logged, counted in /metrics), a result of the wrong
+ * size is never served (500 EIO), and stray *.tmp files are removed. */
+static void test_spool_damage(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", NULL};
+    daemon_t d;
+    char spool[600], ids[4][SRV_ID_BUF], file[900], path[200];
+    const char *damage[3] = {"state.json", "request.json", "result.obj"};
+    struct stat st;
+    resp_t r;
+    int i;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/damage", g_tmp);
+    assert_int_equal(start_daemon(&d, "damage", spool, flags), 0);
+    for (i = 0; i < 4; i++)
+        submit(&d, "?iterations=2", ids[i]);
+    for (i = 0; i < 4; i++)
+        cJSON_Delete(poll_job(&d, ids[i], "succeeded", 30));
+    stop_daemon(&d);
+    for (i = 0; i < 3; i++) {
+        snprintf(file, sizeof file, "%s/jobs/%s/%s", spool, ids[i], damage[i]);
+        truncate_half(file);
+    }
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj.7.tmp", spool, ids[3]);
+    fclose(fopen(file, "w"));
+
+    assert_int_equal(start_daemon(&d, "damage2", spool, flags), 0);
+    for (i = 0; i < 3; i++) {
+        snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[i]);
+        http(&d, "GET", path, NULL, NULL, &r);
+        print_message("    %s cut to half: GET result %ld (main: %s)\n",
+                      damage[i], r.code, i < 2 ? "404, the job deleted" : "200");
+        expect_status(&d, &r, 404, "the result of a damaged job");
+        resp_free(&r);
+        snprintf(file, sizeof file, "%s/quarantine/%s/result.obj", spool, ids[i]);
+        if (stat(file, &st) != 0)
+            fail_msg("%s: not in quarantine", file);
+    }
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    assert_int_equal((int)metric(r.body.data, "mcfd_spool_quarantined_total"), 3);
+    resp_free(&r);
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj.7.tmp", spool, ids[3]);
+    assert_int_not_equal(stat(file, &st), 0);
+    /* damaged while served */
+    snprintf(file, sizeof file, "%s/jobs/%s/result.obj", spool, ids[3]);
+    truncate_half(file);
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", ids[3]);
+    http(&d, "GET", path, NULL, NULL, &r);
+    print_message("    a result cut to half while served: %ld (main: 200)\n",
+                  r.code);
+    expect_problem(&d, &r, 500, "EIO", "damaged", "a result cut to half");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* Issue 9 item 4, in part: format=draco&quantization_bits=30 on a
  * 649-byte mesh peaked at 2.75 GB (Draco's encoder memory doubles per
  * bit). quantization_bits stops at 24 (58 MB on the sphere). */
@@ -2832,6 +3326,283 @@ static void test_hangup_and_budgets(void **state)
     stop_daemon(&d);
 }
 
+/* The page (issue 21): GET / and its files under /ui/, embedded at build
+ * time, public, with their media type, ETag (304 on If-None-Match), the
+ * page's Content-Security-Policy; unknown files and other methods refused. */
+static void test_page(void **state)
+{
+    resp_t r;
+    char buf[512], etag[64];
+    cJSON *j;
+    static const char *const unknown[] = {
+        "/ui/", "/ui/nope.js", "/ui/../openapi.yaml", "/ui/app.js/", "/ui//app.js",
+        "/ui/APP.JS", "/index.htm", "//"};
+    size_t i;
+
+    (void)state;
+    http(&g_main, "GET", "/", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "GET /");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf),
+                        "text/html; charset=utf-8");
+    assert_non_null(strstr(r.body.data, "<script type=\"module\" src=\"/ui/app.js\">"));
+    assert_non_null(header(&r, "Content-Security-Policy", buf, sizeof buf));
+    assert_non_null(strstr(buf, "default-src 'none'"));
+    assert_non_null(strstr(buf, "script-src 'self';"));
+    assert_null(strstr(buf, "unsafe"));
+    assert_string_equal(header(&r, "X-Content-Type-Options", buf, sizeof buf), "nosniff");
+    assert_string_equal(header(&r, "Cache-Control", buf, sizeof buf), "no-cache");
+    assert_non_null(header(&r, "ETag", etag, sizeof etag));
+    assert_int_equal(strlen(etag), 18); /* "16 hex digits" */
+    resp_free(&r);
+    {
+        char inm[160];
+        const char *h[] = {inm, NULL};
+        snprintf(inm, sizeof inm, "If-None-Match: \"0000000000000000\", %s", etag);
+        http(&g_main, "GET", "/", h, NULL, &r);
+        expect_status(&g_main, &r, 304, "GET / revalidated");
+        assert_int_equal(r.body.len, 0);
+        assert_string_equal(header(&r, "ETag", buf, sizeof buf), etag);
+        resp_free(&r);
+        snprintf(inm, sizeof inm, "If-None-Match: \"0000000000000000\"");
+        http(&g_main, "GET", "/", h, NULL, &r);
+        expect_status(&g_main, &r, 200, "GET / with another ETag");
+        resp_free(&r);
+    }
+    /* three.js and the page's modules, as the Makefile embedded them */
+    http(&g_main, "GET", "/ui/three.module.js", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "three.module.js");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf),
+                        "text/javascript; charset=utf-8");
+    assert_true(r.body.len > 100000);
+    resp_free(&r);
+    http(&g_main, "GET", "/ui/OrbitControls.js", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "OrbitControls.js");
+    assert_null(strstr(r.body.data, "from 'three'")); /* no bare import left */
+    assert_non_null(strstr(r.body.data, "from './three.module.js'"));
+    resp_free(&r);
+    http(&g_main, "GET", "/ui/style.css", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "style.css");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "text/css; charset=utf-8");
+    resp_free(&r);
+    http(&g_main, "HEAD", "/ui/app.js", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "HEAD app.js");
+    resp_free(&r);
+    http(&g_main, "GET", "/ui/config.json", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "config.json");
+    j = body_json(&r, "config.json");
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(j, "token_required")));
+    cJSON_Delete(j);
+    resp_free(&r);
+
+    for (i = 0; i < sizeof unknown / sizeof unknown[0]; i++) {
+        http(&g_main, "GET", unknown[i], NULL, NULL, &r);
+        expect_problem(&g_main, &r, 404, "ENOTFOUND", NULL, unknown[i]);
+        resp_free(&r);
+    }
+    http(&g_main, "POST", "/", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "POST", "POST /");
+    resp_free(&r);
+    http(&g_main, "DELETE", "/ui/app.js", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "DELETE", "DELETE /ui/app.js");
+    resp_free(&r);
+}
+
+/* Reads the fields document's header: the JSON (caller deletes) and where
+ * the data begins. */
+static cJSON *fields_header(const resp_t *r, size_t *data)
+{
+    const unsigned char *b = (const unsigned char *)r->body.data;
+    uint32_t v, h;
+    char *text;
+    cJSON *j;
+
+    assert_true(r->body.len >= 12);
+    assert_memory_equal(b, "MCFF", 4);
+    v = b[4] | b[5] << 8 | b[6] << 16 | (uint32_t)b[7] << 24;
+    h = b[8] | b[9] << 8 | b[10] << 16 | (uint32_t)b[11] << 24;
+    assert_int_equal(v, 1);
+    assert_int_equal(h % 4, 0);
+    assert_true(12 + (size_t)h <= r->body.len);
+    text = strndup(r->body.data + 12, h);
+    j = cJSON_Parse(text);
+    free(text);
+    assert_non_null(j);
+    *data = 12 + h;
+    return j;
+}
+
+/* The float32 array `name` of a fields document, converted to doubles
+ * (malloc'ed; *n values). */
+static double *fields_array(const resp_t *r, const cJSON *hdr, size_t data,
+                            const char *name, int *n)
+{
+    const cJSON *a;
+    cJSON_ArrayForEach(a, cJSON_GetObjectItemCaseSensitive(hdr, "arrays"))
+        if (strcmp(jstr(a, "name"), name) == 0) {
+            int k, count = (int)(jnum(a, "count") * jnum(a, "components"));
+            size_t off = data + (size_t)jnum(a, "offset");
+            double *v = malloc((size_t)count * sizeof *v);
+            assert_string_equal(jstr(a, "type"), "float32");
+            assert_true(off + 4 * (size_t)count <= r->body.len);
+            for (k = 0; k < count; k++) {
+                float f;
+                memcpy(&f, r->body.data + off + 4 * (size_t)k, 4); /* x86: LE */
+                v[k] = f;
+            }
+            *n = count;
+            return v;
+        }
+    fail_msg("no array %s in the fields document", name);
+    return NULL;
+}
+
+/* GET /v1/jobs/ID/fields (issue 21): the per-vertex fields of a job
+ * submitted with fields=true, checked against the core on the same meshes
+ * (the input as uploaded, the result as downloaded); and its refusals:
+ * unknown, unfinished and field-less jobs, hostile IDs. */
+static void test_fields(void **state)
+{
+    char id[SRV_ID_BUF], plain[SRV_ID_BUF], run[SRV_ID_BUF], path[200];
+    resp_t r, res;
+    cJSON *hdr;
+    size_t data;
+    int n, i, nv;
+    double *X0, *H0, *X1, *H1, *K1, *D, *H, *K;
+    api_format fmt;
+    mcf_mesh *in = tl_load("sphere_cgal.obj"), *out;
+    mcf_error err;
+    static const char *const hostile[] = {
+        "/v1/jobs/../../etc/passwd/fields",
+        "/v1/jobs/0123456789ABCDEF0123456789abcdef/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcde/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcdef0/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcde%2e/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcdef/fields/x",
+        "/v1/jobs/0123456789abcdef0123456789abcdef/field"};
+
+    (void)state;
+    submit(&g_main, "?fields=true&iterations=5", id);
+    submit(&g_main, "?iterations=5", plain);
+    cJSON_Delete(poll_job(&g_main, id, "succeeded", 30));
+    cJSON_Delete(poll_job(&g_main, plain, "succeeded", 30));
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "GET fields");
+    {
+        char ct[64], jid[64];
+        assert_string_equal(header(&r, "Content-Type", ct, sizeof ct),
+                            "application/vnd.mcfd.fields");
+        assert_string_equal(header(&r, "X-Job-Id", jid, sizeof jid), id);
+    }
+    hdr = fields_header(&r, &data);
+    nv = mcf_mesh_nvertices(in);
+    assert_int_equal((int)jnum(hdr, "vertices"), nv);
+    assert_int_equal((int)jnum(hdr, "faces"), mcf_mesh_nfaces(in));
+    /* 12 + header + faces (3 x 4 bytes) + 2 positions (3 x 4) + 5 fields */
+    assert_int_equal(r.body.len, data + 12 * (size_t)mcf_mesh_nfaces(in) +
+                                     (24 + 20) * (size_t)nv);
+    {   /* the faces are the input's, in order */
+        const cJSON *a = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(hdr, "arrays"), 0);
+        const int32_t *F = mcf_mesh_faces(in);
+        assert_string_equal(jstr(a, "name"), "faces");
+        assert_string_equal(jstr(a, "type"), "uint32");
+        for (i = 0; i < 3 * mcf_mesh_nfaces(in); i++) {
+            const unsigned char *b = (const unsigned char *)r.body.data + data + 4 * (size_t)i;
+            assert_int_equal((int32_t)(b[0] | b[1] << 8 | b[2] << 16 | (uint32_t)b[3] << 24), F[i]);
+        }
+    }
+    /* the result as GET /result serves it: the fields describe that mesh */
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", id);
+    http(&g_main, "GET", path, NULL, NULL, &res);
+    expect_status(&g_main, &res, 200, "GET result");
+    out = decode_body(&res, &fmt);
+    resp_free(&res);
+    X0 = fields_array(&r, hdr, data, "input.positions", &n);
+    assert_int_equal(n, 3 * nv);
+    X1 = fields_array(&r, hdr, data, "result.positions", &n);
+    H0 = fields_array(&r, hdr, data, "input.mean_curvature", &n);
+    H1 = fields_array(&r, hdr, data, "result.mean_curvature", &n);
+    K1 = fields_array(&r, hdr, data, "result.gaussian_curvature", &n);
+    D = fields_array(&r, hdr, data, "displacement", &n);
+    assert_int_equal(n, nv);
+    H = malloc((size_t)nv * sizeof *H);
+    K = malloc((size_t)nv * sizeof *K);
+    assert_int_equal(mcf_curvature(in, NULL, H, NULL, NULL, &err), MCF_OK);
+    /* float32 of the core's doubles: a relative 2^-24, 1e-6 with margin */
+    for (i = 0; i < 3 * nv; i++) {
+        tl_assert_near(X0[i], mcf_mesh_positions(in)[i], 1e-6, "input position");
+        tl_assert_near(X1[i], mcf_mesh_positions(out)[i], 1e-6, "result position");
+    }
+    for (i = 0; i < nv; i++)
+        tl_assert_near(H0[i], H[i], 1e-6 * (1 + fabs(H[i])), "input H");
+    assert_int_equal(mcf_curvature(out, NULL, H, K, NULL, &err), MCF_OK);
+    for (i = 0; i < nv; i++) {
+        const double *a = mcf_mesh_positions(in) + 3 * i, *b = mcf_mesh_positions(out) + 3 * i;
+        double d = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) +
+                        (b[2] - a[2]) * (b[2] - a[2]));
+        /* the result's OBJ keeps every double (%.17g): the same curvature */
+        tl_assert_near(H1[i], H[i], 1e-6 * (1 + fabs(H[i])), "result H");
+        tl_assert_near(K1[i], K[i], 1e-6 * (1 + fabs(K[i])), "result K");
+        tl_assert_near(D[i], d, 1e-6 * (1 + d), "displacement");
+    }
+    /* a sphere of radius ~1 smoothed 5 steps: H about 1 (outward normals) */
+    {
+        const cJSON *a;
+        cJSON_ArrayForEach(a, cJSON_GetObjectItemCaseSensitive(hdr, "arrays"))
+            if (strcmp(jstr(a, "name"), "result.mean_curvature") == 0) {
+                assert_true(jnum(a, "stats.p02") > 0.8 && jnum(a, "stats.p98") < 1.3);
+                assert_true(jnum(a, "stats.min") <= jnum(a, "stats.p02"));
+            }
+    }
+    free(X0); free(X1); free(H0); free(H1); free(K1); free(D); free(H); free(K);
+    mcf_mesh_free(out);
+    cJSON_Delete(hdr);
+    resp_free(&r);
+    mcf_mesh_free(in);
+
+    /* refusals */
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", plain);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENORESULT", "without fields=true", "no fields asked");
+    resp_free(&r);
+    http(&g_main, "GET", "/v1/jobs/0123456789abcdef0123456789abcdef/fields", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 404, "ENOTFOUND", "0123456789abcdef0123456789abcdef",
+                   "unknown job");
+    resp_free(&r);
+    for (i = 0; i < (int)(sizeof hostile / sizeof hostile[0]); i++) {
+        http(&g_main, "GET", hostile[i], NULL, NULL, &r);
+        expect_problem(&g_main, &r, 404, "ENOTFOUND", NULL, hostile[i]);
+        resp_free(&r);
+    }
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", id);
+    http(&g_main, "POST", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "POST", "POST fields");
+    resp_free(&r);
+    {   /* a query key of the daemon, like stream; its value is checked */
+        upload_t up = {.mesh = "sphere_cgal.obj"};
+        http(&g_main, "POST", "/v1/jobs?fields=maybe", NULL, &up, &r);
+        expect_problem(&g_main, &r, 400, "EINVAL", "'fields' must be true or false",
+                       "fields=maybe");
+        resp_free(&r);
+    }
+    /* running: not yet; canceled: never */
+    submit(&g_main, "?fields=true&iterations=100000&dt=1e-7&max_steps=100000", run);
+    wait_running(&g_main, run);
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", run);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENOTREADY", "running", "fields too early");
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s", run);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&g_main, run, "canceled", 30));
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", run);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENORESULT", "canceled", "fields of a canceled job");
+    resp_free(&r);
+}
+
 /* --token-file: 401 without or with a wrong token; probes stay open. */
 static void test_auth(void **state)
 {
@@ -2855,6 +3626,21 @@ static void test_auth(void **state)
     http(&d, "GET", "/v1/schemes", NULL, NULL, &r);
     expect_problem(&d, &r, 401, "EAUTH", "Bearer", "no token");
     assert_non_null(header(&r, "WWW-Authenticate", auth, sizeof auth));
+    resp_free(&r);
+    /* the page is public and says the API needs a token; its data is not */
+    http(&d, "GET", "/", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the page without a token");
+    resp_free(&r);
+    http(&d, "GET", "/ui/config.json", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "config.json without a token");
+    {
+        cJSON *c = body_json(&r, "config.json");
+        assert_true(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(c, "token_required")));
+        cJSON_Delete(c);
+    }
+    resp_free(&r);
+    http(&d, "GET", "/v1/jobs/0123456789abcdef0123456789abcdef/fields", NULL, NULL, &r);
+    expect_problem(&d, &r, 401, "EAUTH", NULL, "fields without a token");
     resp_free(&r);
     {
         static const char *const wrong[] = {"Authorization: Bearer s3cret-T0kem", NULL};
@@ -3838,6 +4624,8 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_ndjson_live, kill_strays),
         cmocka_unit_test_teardown(test_async_job, kill_strays),
         cmocka_unit_test_teardown(test_cancel, kill_strays),
+        cmocka_unit_test_teardown(test_page, kill_strays),
+        cmocka_unit_test_teardown(test_fields, kill_strays),
         cmocka_unit_test_teardown(test_errors, kill_strays),
         cmocka_unit_test_teardown(test_multipart_unnamed, kill_strays),
         cmocka_unit_test_teardown(test_multipart_duplicates, kill_strays),
@@ -3849,6 +4637,11 @@ int main(void)
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
+        cmocka_unit_test_teardown(test_spool_full, kill_strays),
+        cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
+        cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
+        cmocka_unit_test_teardown(test_step_log_memory, kill_strays),
+        cmocka_unit_test_teardown(test_spool_damage, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
