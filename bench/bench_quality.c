@@ -402,6 +402,13 @@ static void grid_free(tri_grid *g)
     free(g->idx);
 }
 
+/* |a + t e - p|^2 */
+static double along2(const double *a, const double *e, double t, const double *p)
+{
+    double q[3] = {a[0] + t * e[0] - p[0], a[1] + t * e[1] - p[1], a[2] + t * e[2] - p[2]};
+    return q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+}
+
 /* Squared distance from p to triangle abc (Ericson, Real-Time Collision
  * Detection, 5.1.5: the closest point by Voronoi regions). */
 static double tri_dist2(const double *p, const double *a, const double *b, const double *c)
@@ -421,29 +428,19 @@ static double tri_dist2(const double *p, const double *a, const double *b, const
     if (d3 >= 0 && d4 <= d3)
         return DOT(bp, bp);
     double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-        double v = d1 / (d1 - d3);
-        for (int d = 0; d < 3; d++)
-            q[d] = a[d] + v * ab[d] - p[d];
-        return DOT(q, q);
-    }
+    if (vc <= 0 && d1 >= 0 && d3 <= 0)
+        return along2(a, ab, d1 / (d1 - d3), p);
     double cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
     double d5 = DOT(ab, cp), d6 = DOT(ac, cp);
     if (d6 >= 0 && d5 <= d6)
         return DOT(cp, cp);
     double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-        double w = d2 / (d2 - d6);
-        for (int d = 0; d < 3; d++)
-            q[d] = a[d] + w * ac[d] - p[d];
-        return DOT(q, q);
-    }
+    if (vb <= 0 && d2 >= 0 && d6 <= 0)
+        return along2(a, ac, d2 / (d2 - d6), p);
     double va = d3 * d6 - d5 * d4;
     if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        for (int d = 0; d < 3; d++)
-            q[d] = b[d] + w * (c[d] - b[d]) - p[d];
-        return DOT(q, q);
+        double bc[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
+        return along2(b, bc, (d4 - d3) / ((d4 - d3) + (d5 - d6)), p);
     }
     double den = 1.0 / (va + vb + vc), v = vb * den, w = vc * den;
     for (int d = 0; d < 3; d++)

@@ -81,6 +81,8 @@ typedef struct {
     int nfree;          /* vertices not held */
     double *probe;      /* NPROBE*nv Rademacher probes, 0 on fixed */
     double *yn;         /* nv: n_i . X_i */
+    double *mass;       /* nv: the lumped mass at X */
+    double *lval;       /* pattern nnz: L's upper values at X */
     cholmod_common cm;
     int cm_started;
     cholmod_sparse *A;
@@ -95,6 +97,8 @@ static void auto_free(auto_ctx *a)
     free(a->fix);
     free(a->probe);
     free(a->yn);
+    free(a->mass);
+    free(a->lval);
     mcf__pattern_free(&a->pat);
     if (a->cm_started) {
         cholmod_free_factor(&a->L, &a->cm);
@@ -200,27 +204,38 @@ done:
     return rc;
 }
 
-/* What both amounts need: the pattern (with the face map when want_tri),
- * the normals and valences, the noise level, the fixed set (fixed, or
- * massless under mass) and the probes. */
+/* What both amounts need: the pattern, the operators at X (the run's
+ * Laplacian lap and mass mk), the normals and valences, the noise level,
+ * the fixed set (fixed, or massless) and the probes. */
 static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int nf, int nv,
-                             const unsigned char *fixed, const double *mass, int want_tri,
-                             double *s, mcf_error *err)
+                             const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
+                             double hbar, double *s, mcf_error *err)
 {
     mcf_status rc;
     memset(a, 0, sizeof *a);
     a->nv = nv;
     a->nf = nf;
     a->F = F;
-    if ((rc = mcf__pattern_build(F, nf, nv, want_tri, &a->pat, err)) != MCF_OK)
+    if ((rc = mcf__pattern_build(F, nf, nv, 1, &a->pat, err)) != MCF_OK)
         return rc;
     a->N = mcf__malloc(3 * (size_t)nv, sizeof(double));
     a->deg = mcf__calloc((size_t)nv, sizeof(int));
     a->fix = mcf__calloc((size_t)nv, 1);
     a->probe = mcf__malloc(NPROBE * (size_t)nv, sizeof(double));
     a->yn = mcf__malloc((size_t)nv, sizeof(double));
-    if (!a->N || !a->deg || !a->fix || !a->probe || !a->yn)
+    a->mass = mcf__malloc((size_t)nv, sizeof(double));
+    a->lval = mcf__malloc((size_t)a->pat.nnz, sizeof(double));
+    double *w = mcf__malloc(3 * (size_t)nf, sizeof(double)), *area = mcf__malloc((size_t)nf, sizeof(double));
+    if (!a->N || !a->deg || !a->fix || !a->probe || !a->yn || !a->mass || !a->lval || !w || !area) {
+        free(w);
+        free(area);
         return mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
+    }
+    mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * hbar, w, area);
+    mcf__mass(X, F, nf, nv, mk, area, a->mass);
+    mcf__pattern_fill_L(&a->pat, F, nf, w, a->lval);
+    free(w);
+    free(area);
     for (int j = 0; j < nv; j++)
         for (int t = a->pat.colptr[j]; t < a->pat.colptr[j + 1]; t++)
             if (a->pat.rowind[t] != j) {
@@ -231,7 +246,7 @@ static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int
     if ((rc = estimate_noise(a, X, s, err)) != MCF_OK)
         return rc;
     for (int i = 0; i < nv; i++) {
-        a->fix[i] = (fixed && fixed[i]) || !(mass[i] > 0.0);
+        a->fix[i] = (fixed && fixed[i]) || !(a->mass[i] > 0.0);
         a->nfree += !a->fix[i];
         a->yn[i] = mcf__dot3(a->N + 3 * (size_t)i, X + 3 * (size_t)i);
     }
@@ -310,27 +325,15 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
     auto_ctx a;
     mcf_status rc = MCF_OK;
     double risk[MAX_CANDIDATES + 1], aratio[MAX_CANDIDATES + 1]; /* area over the input's */
-    double *w = mcf__malloc(3 * (size_t)nf, sizeof(double)), *area = mcf__malloc((size_t)nf, sizeof(double));
-    double *mass = mcf__malloc((size_t)nv, sizeof(double)), *lval = NULL, *cpl = NULL;
-    memset(&a, 0, sizeof a);
-    if (!w || !area || !mass) {
-        rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
-        goto done;
-    }
-    /* the operators at X */
-    mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * hbar, w, area);
-    mcf__mass(X, F, nf, nv, mk, area, mass);
-    double s;
-    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, mass, 1, &s, err)) != MCF_OK)
+    double *cpl = NULL, s;
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, mk, hbar, &s, err)) != MCF_OK)
         goto done;
     *sigma = s;
-    lval = mcf__malloc((size_t)a.pat.nnz, sizeof(double));
-    cpl = mcf__calloc(3 * (size_t)nv, sizeof(double));
-    if (!lval || !cpl) {
+    const double *mass = a.mass, *lval = a.lval;
+    if (!(cpl = mcf__calloc(3 * (size_t)nv, sizeof(double)))) {
         rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
         goto done;
     }
-    mcf__pattern_fill_L(&a.pat, F, nf, w, lval);
 
     /* the prior: strength 0.8 rho + 0.25 mean edges, in Kc steps */
     int Kc = K < 10 ? K : 10;
@@ -419,10 +422,6 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
         *t_best *= ar;
     }
 done:
-    free(w);
-    free(area);
-    free(mass);
-    free(lval);
     free(cpl);
     auto_free(&a);
     return rc;
@@ -461,28 +460,17 @@ mcf_status mcf__auto_passes(const double *X, const int32_t *F, int nf, int nv, c
     static const double coef[2] = {0.5, -0.53}; /* step_taubin's */
     auto_ctx a;
     mcf_status rc = MCF_OK;
-    double *risk = mcf__malloc(MCF_AUTO_MAX_PASSES + 1, sizeof(double));
-    double *w = mcf__malloc(3 * (size_t)nf, sizeof(double)), *area = mcf__malloc((size_t)nf, sizeof(double));
-    double *mass = mcf__malloc((size_t)nv, sizeof(double)), *val = NULL, *D = NULL;
+    double *risk = mcf__malloc(MCF_AUTO_MAX_PASSES + 1, sizeof(double)), *D = NULL, s;
     double *P = mcf__malloc(NCOL * (size_t)nv, sizeof(double)), *U = mcf__malloc(NCOL * (size_t)nv, sizeof(double));
     memset(&a, 0, sizeof a);
-    if (!risk || !w || !area || !mass || !P || !U) {
+    if (!risk || !P || !U || !(D = mcf__calloc((size_t)nv, sizeof(double)))) {
         rc = mcf__fail(err, MCF_ENOMEM, "automatic passes: out of memory (%d vertices)", nv);
         goto done;
     }
-    mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * hbar, w, area);
-    mcf__mass(X, F, nf, nv, MCF_MASS_BARYCENTRIC, area, mass);
-    double s;
-    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, mass, 1, &s, err)) != MCF_OK)
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, MCF_MASS_BARYCENTRIC, hbar, &s, err)) != MCF_OK)
         goto done;
     *sigma = s;
-    val = mcf__malloc((size_t)a.pat.nnz, sizeof(double));
-    D = mcf__calloc((size_t)nv, sizeof(double));
-    if (!val || !D) {
-        rc = mcf__fail(err, MCF_ENOMEM, "automatic passes: out of memory (%d vertices)", nv);
-        goto done;
-    }
-    mcf__pattern_fill_L(&a.pat, F, nf, w, val);
+    const double *val = a.lval;
     for (int j = 0; j < nv; j++)
         D[j] = val[a.pat.diag[j]];
     for (int i = 0; i < nv; i++) {
@@ -505,10 +493,6 @@ mcf_status mcf__auto_passes(const double *X, const int32_t *F, int nf, int nv, c
     *passes = kb;
 done:
     free(risk);
-    free(w);
-    free(area);
-    free(mass);
-    free(val);
     free(D);
     free(P);
     free(U);
