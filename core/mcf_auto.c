@@ -36,14 +36,15 @@
  * MCF (mcf__auto_time): the run does K steps of size T/K; its smoother is
  * modelled by K frozen implicit Euler steps, ((M + T/K L)^-1 M)^K. One
  * factorization serves every candidate: M + h0 L with h0 = t0 / K' (K' =
- * min(K, 10)), t0 the time a prior from the noise level expects (strength
+ * min(K, 6)), t0 the time a prior from the noise level expects (strength
  * 0.8 rho + 0.25 mean edges, the fit of the oracle's best times in `make
  * quality`), and candidate k is k steps of h0, one more four-column solve
  * each; the search stops 3 steps past the minimum (cap 4 K'). k steps of
  * h0 and K steps of T/K are different rational filters; candidate k is
  * mapped to the run's time whose filter halves the same frequency (the
  * gains (1 + h lambda)^-k = 1/2 at h lambda = 2^(1/k) - 1), 4% apart at
- * k = 5 and K = 10. The frozen model runs slower than the run: the noise
+ * k = 5 and K = 10 (K' = 10 instead of 6: the same errors, 4 more
+ * solves). The frozen model runs slower than the run: the noise
  * inflates the area, the mass M follows it (L's weights are scale-free),
  * and the run's diffusion M^-1 L speeds up as the noise goes, most of it
  * early. So the time is scaled by the area of the frozen result at the
@@ -51,9 +52,10 @@
  * 0.5); given the true noise level, desbrun2 then came within 1% of the
  * best time's error on spot, armadillo and the coarse bunny at noise 0.5
  * (1.15x, 1.07x, 1.25x without it). moving_mass 0 (the `linear` scheme,
- * whose operators are the frozen ones) skips it. Cost: one analysis, one factorization and k* + 3
- * solves (about 13 when the prior is right), against the run's K
- * factorizations: 1.2-1.4x the fixed amount's run in all.
+ * whose operators are the frozen ones) skips it. Cost: one analysis, one
+ * factorization and k* + 3 solves (about 10), against the run's K
+ * factorizations: 1.2-1.45x the fixed amount's run in all, the noise
+ * estimate included.
  *
  * Taubin (mcf__auto_passes): the passes x += lambda U x, x += mu U x with
  * U = -D^-1 L frozen at the input, on the positions and the probes; SURE
@@ -300,7 +302,7 @@ static double half_gain(double x)
     return x * expm1(log(2.0) / x);
 }
 
-#define MAX_CANDIDATES 40 /* 4 x 10 */
+#define MAX_CANDIDATES 24 /* 4 x 6 */
 /* The area of the faces F over positions P held column-major (nv x 3). */
 static double positions_area(const double *P, int nv, const int32_t *F, int nf)
 {
@@ -336,7 +338,7 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
     }
 
     /* the prior: strength 0.8 rho + 0.25 mean edges, in Kc steps */
-    int Kc = K < 10 ? K : 10;
+    int Kc = K < 6 ? K : 6;
     double str0 = 0.8 * s / hbar + 0.25, h0 = str0 * str0 * hbar * hbar / Kc;
 
     cholmod_start(&a.cm);
