@@ -61,7 +61,9 @@
  * U = -D^-1 L frozen at the input, on the positions and the probes; SURE
  * after every pass, stopping at 2 k* + 10 passes (cap MCF_AUTO_MAX_PASSES).
  *
- * Pure C11 and CHOLMOD, no globals; its own cholmod_common.
+ * Pure C11 and CHOLMOD, no globals; the run's solver when it lends it (an
+ * implicit scheme: its pattern, matrix and symbolic analysis, which the
+ * run's own factorizations then reuse), else its own cholmod_common.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -76,7 +78,8 @@ enum { NPROBE = 1, NCOL = 3 + NPROBE };
 typedef struct {
     int nv, nf;
     const int32_t *F;
-    mcf__pattern pat;
+    mcf__pattern own_pat; /* built here unless the run lends its own */
+    const mcf__pattern *pat;
     double *N;          /* 3*nv unit vertex normals of X */
     int *deg;           /* nv: 1-ring size (distinct neighbours) */
     unsigned char *fix; /* nv: held by the run (or massless) */
@@ -85,11 +88,11 @@ typedef struct {
     double *yn;         /* nv: n_i . X_i */
     double *mass;       /* nv: the lumped mass at X */
     double *lval;       /* pattern nnz: L's upper values at X */
-    cholmod_common cm;
-    int cm_started;
-    cholmod_sparse *A;
-    cholmod_factor *L;
-    cholmod_dense *B, *Y, *Yw, *Ew;
+    cholmod_common own_cm, *cm; /* cm: own_cm, or the run's */
+    int cm_started;             /* own_cm started */
+    cholmod_sparse *own_A, *A;
+    cholmod_factor *own_L, **L;
+    cholmod_dense *B, *Y, *Yw, *Ew; /* on *cm */
 } auto_ctx;
 
 static void auto_free(auto_ctx *a)
@@ -101,15 +104,17 @@ static void auto_free(auto_ctx *a)
     free(a->yn);
     free(a->mass);
     free(a->lval);
-    mcf__pattern_free(&a->pat);
+    mcf__pattern_free(&a->own_pat);
+    if (a->cm) {
+        cholmod_free_dense(&a->B, a->cm);
+        cholmod_free_dense(&a->Y, a->cm);
+        cholmod_free_dense(&a->Yw, a->cm);
+        cholmod_free_dense(&a->Ew, a->cm);
+    }
     if (a->cm_started) {
-        cholmod_free_factor(&a->L, &a->cm);
-        cholmod_free_sparse(&a->A, &a->cm);
-        cholmod_free_dense(&a->B, &a->cm);
-        cholmod_free_dense(&a->Y, &a->cm);
-        cholmod_free_dense(&a->Yw, &a->cm);
-        cholmod_free_dense(&a->Ew, &a->cm);
-        cholmod_finish(&a->cm);
+        cholmod_free_factor(&a->own_L, &a->own_cm);
+        cholmod_free_sparse(&a->own_A, &a->own_cm);
+        cholmod_finish(&a->own_cm);
     }
 }
 
@@ -117,7 +122,7 @@ static void auto_free(auto_ctx *a)
  * pattern's off-diagonal entries (upper triangle, both directions). */
 static void ring_average(const auto_ctx *a, const double *v, double *out)
 {
-    const mcf__pattern *p = &a->pat;
+    const mcf__pattern *p = a->pat;
     memset(out, 0, sizeof(double) * (size_t)a->nv);
     for (int j = 0; j < a->nv; j++)
         for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++) {
@@ -211,22 +216,25 @@ done:
  * the fixed set (fixed, or massless) and the probes. */
 static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
-                             double hbar, double *s, mcf_error *err)
+                             double hbar, const mcf__pattern *lent, double *s, mcf_error *err)
 {
     mcf_status rc;
     memset(a, 0, sizeof *a);
     a->nv = nv;
     a->nf = nf;
     a->F = F;
-    if ((rc = mcf__pattern_build(F, nf, nv, 1, &a->pat, err)) != MCF_OK)
+    a->pat = lent;
+    if (!lent && (rc = mcf__pattern_build(F, nf, nv, 1, &a->own_pat, err)) != MCF_OK)
         return rc;
+    if (!lent)
+        a->pat = &a->own_pat;
     a->N = mcf__malloc(3 * (size_t)nv, sizeof(double));
     a->deg = mcf__calloc((size_t)nv, sizeof(int));
     a->fix = mcf__calloc((size_t)nv, 1);
     a->probe = mcf__malloc(NPROBE * (size_t)nv, sizeof(double));
     a->yn = mcf__malloc((size_t)nv, sizeof(double));
     a->mass = mcf__malloc((size_t)nv, sizeof(double));
-    a->lval = mcf__malloc((size_t)a->pat.nnz, sizeof(double));
+    a->lval = mcf__malloc((size_t)a->pat->nnz, sizeof(double));
     double *w = mcf__malloc(3 * (size_t)nf, sizeof(double)), *area = mcf__malloc((size_t)nf, sizeof(double));
     if (!a->N || !a->deg || !a->fix || !a->probe || !a->yn || !a->mass || !a->lval || !w || !area) {
         free(w);
@@ -235,14 +243,14 @@ static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int
     }
     mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * hbar, w, area);
     mcf__mass(X, F, nf, nv, mk, area, a->mass);
-    mcf__pattern_fill_L(&a->pat, F, nf, w, a->lval);
+    mcf__pattern_fill_L(a->pat, F, nf, w, a->lval);
     free(w);
     free(area);
     for (int j = 0; j < nv; j++)
-        for (int t = a->pat.colptr[j]; t < a->pat.colptr[j + 1]; t++)
-            if (a->pat.rowind[t] != j) {
+        for (int t = a->pat->colptr[j]; t < a->pat->colptr[j + 1]; t++)
+            if (a->pat->rowind[t] != j) {
                 a->deg[j]++;
-                a->deg[a->pat.rowind[t]]++;
+                a->deg[a->pat->rowind[t]]++;
             }
     mcf__vertex_normals(X, F, nf, nv, a->N);
     if ((rc = estimate_noise(a, X, s, err)) != MCF_OK)
@@ -322,13 +330,13 @@ static double positions_area(const double *P, int nv, const int32_t *F, int nf)
 
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
                           mcf_laplacian lap, mcf_mass mk, int moving_mass, double hbar, int K,
-                          double *t_best, double *sigma, mcf_error *err)
+                          const mcf__solver *lend, double *t_best, double *sigma, mcf_error *err)
 {
     auto_ctx a;
     mcf_status rc = MCF_OK;
     double risk[MAX_CANDIDATES + 1], aratio[MAX_CANDIDATES + 1]; /* area over the input's */
     double *cpl = NULL, s;
-    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, mk, hbar, &s, err)) != MCF_OK)
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, mk, hbar, lend ? lend->pat : NULL, &s, err)) != MCF_OK)
         goto done;
     *sigma = s;
     const double *mass = a.mass, *lval = a.lval;
@@ -341,25 +349,39 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
     int Kc = K < 6 ? K : 6;
     double str0 = 0.8 * s / hbar + 0.25, h0 = str0 * str0 * hbar * hbar / Kc;
 
-    cholmod_start(&a.cm);
-    a.cm_started = 1;
-    a.cm.error_handler = NULL;
-    a.cm.print = 0;
-    a.A = cholmod_allocate_sparse((size_t)nv, (size_t)nv, (size_t)a.pat.nnz, 1, 1, 1, CHOLMOD_REAL, &a.cm);
-    a.B = cholmod_allocate_dense((size_t)nv, NCOL, (size_t)nv, CHOLMOD_REAL, &a.cm);
+    /* the run's matrix, analysis and factor when it lends them (its
+     * pattern is this one: one symbolic analysis serves both), else our
+     * own */
+    if (lend) {
+        a.cm = lend->cm;
+        a.A = lend->A;
+        a.L = lend->L;
+    } else {
+        cholmod_start(&a.own_cm);
+        a.cm_started = 1;
+        a.cm = &a.own_cm;
+        a.own_cm.error_handler = NULL;
+        a.own_cm.print = 0;
+        a.A = a.own_A = cholmod_allocate_sparse((size_t)nv, (size_t)nv, (size_t)a.pat->nnz, 1, 1, 1,
+                                                CHOLMOD_REAL, a.cm);
+        a.L = &a.own_L;
+        if (a.A) {
+            memcpy(a.A->p, a.pat->colptr, sizeof(int) * ((size_t)nv + 1));
+            memcpy(a.A->i, a.pat->rowind, sizeof(int) * (size_t)a.pat->nnz);
+        }
+    }
+    a.B = cholmod_allocate_dense((size_t)nv, NCOL, (size_t)nv, CHOLMOD_REAL, a.cm);
     if (!a.A || !a.B) {
         rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: CHOLMOD allocation failed");
         goto done;
     }
-    memcpy(a.A->p, a.pat.colptr, sizeof(int) * ((size_t)nv + 1));
-    memcpy(a.A->i, a.pat.rowind, sizeof(int) * (size_t)a.pat.nnz);
     /* M + h0 L; a fixed vertex's row and column become the identity and
      * its couplings -h0 L_ij x_j move to the free rows' right-hand side
      * (cpl), as the run's Dirichlet rows do */
     double *ax = a.A->x;
     for (int j = 0; j < nv; j++)
-        for (int t = a.pat.colptr[j]; t < a.pat.colptr[j + 1]; t++) {
-            int i = a.pat.rowind[t];
+        for (int t = a.pat->colptr[j]; t < a.pat->colptr[j + 1]; t++) {
+            int i = a.pat->rowind[t];
             ax[t] = h0 * lval[t];
             if (i == j) {
                 ax[t] = a.fix[j] ? 1.0 : ax[t] + mass[j];
@@ -371,10 +393,10 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
                 ax[t] = 0.0;
             }
         }
-    if (!(a.L = cholmod_analyze(a.A, &a.cm)) || !cholmod_factorize(a.A, a.L, &a.cm) ||
-        a.cm.status != CHOLMOD_OK) {
-        rc = mcf__fail(err, a.cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
-                       "automatic amount: factorization failed (status %d)", a.cm.status);
+    if ((!*a.L && !(*a.L = cholmod_analyze(a.A, a.cm))) || !cholmod_factorize(a.A, *a.L, a.cm) ||
+        a.cm->status != CHOLMOD_OK) {
+        rc = mcf__fail(err, a.cm->status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
+                       "automatic amount: factorization failed (status %d)", a.cm->status);
         goto done;
     }
     /* the state: positions (0-2) and probes (3..), column-major */
@@ -400,8 +422,8 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
             for (int c = 0; c < 3; c++)
                 b[(size_t)c * nv + i] += cpl[3 * (size_t)i + c];
         }
-        if (!cholmod_solve2(CHOLMOD_A, a.L, a.B, NULL, &a.Y, NULL, &a.Yw, &a.Ew, &a.cm)) {
-            rc = mcf__fail(err, MCF_ENUMERIC, "automatic amount: cholmod_solve failed (status %d)", a.cm.status);
+        if (!cholmod_solve2(CHOLMOD_A, *a.L, a.B, NULL, &a.Y, NULL, &a.Yw, &a.Ew, a.cm)) {
+            rc = mcf__fail(err, MCF_ENUMERIC, "automatic amount: cholmod_solve failed (status %d)", a.cm->status);
             goto done;
         }
         memcpy(a.B->x, a.Y->x, sizeof(double) * NCOL * (size_t)nv);
@@ -435,7 +457,7 @@ done:
 static void taubin_half(const auto_ctx *a, const double *val, const double *D, double coef,
                         double *P, double *U)
 {
-    const mcf__pattern *p = &a->pat;
+    const mcf__pattern *p = a->pat;
     int nv = a->nv;
     memset(U, 0, sizeof(double) * NCOL * (size_t)nv);
     for (int j = 0; j < nv; j++)
@@ -469,12 +491,12 @@ mcf_status mcf__auto_passes(const double *X, const int32_t *F, int nf, int nv, c
         rc = mcf__fail(err, MCF_ENOMEM, "automatic passes: out of memory (%d vertices)", nv);
         goto done;
     }
-    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, MCF_MASS_BARYCENTRIC, hbar, &s, err)) != MCF_OK)
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, MCF_MASS_BARYCENTRIC, hbar, NULL, &s, err)) != MCF_OK)
         goto done;
     *sigma = s;
     const double *val = a.lval;
     for (int j = 0; j < nv; j++)
-        D[j] = val[a.pat.diag[j]];
+        D[j] = val[a.pat->diag[j]];
     for (int i = 0; i < nv; i++) {
         for (int c = 0; c < 3; c++)
             P[(size_t)c * nv + i] = X[3 * (size_t)i + c];
