@@ -57,20 +57,28 @@ def smooth(mesh, n):
     return out, time.process_time() - t0
 
 
+def positions(mesh, X):
+    """The vertices of mesh; where Open3D left them non-finite (a vertex no
+    face uses has no neighbours: its umbrella divides by zero, NaN on
+    stanford-bunny's 1,113), the input's, as a user who drops them gets."""
+    Y = np.asarray(mesh.vertices)
+    return np.where(np.isfinite(Y), Y, X)
+
+
 def one(noisy, clean, out):
     X, F = read_mesh(noisy)
     C, _ = read_mesh(clean)
     m = barycentric_mass(C, F)
     mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(X), o3d.utility.Vector3iVector(F))
     dflt, cpu_default = smooth(mesh, 1)  # filter_smooth_taubin()'s default: 1 iteration
-    Xd = np.asarray(dflt.vertices)
+    Xd = positions(dflt, X)
     cur, have, cpu = mesh, 0, 0.0
     best, best_p, best_cpu, best_X = np.inf, 0, 0.0, X
     for p in PASSES:
         cur, dt = smooth(cur, p - have)
         cpu += dt
         have = p
-        Y = np.asarray(cur.vertices)
+        Y = positions(cur, X)
         e = rms(Y, C, m)
         if e < best:
             best, best_p, best_cpu, best_X = e, p, cpu, Y.copy()
