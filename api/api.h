@@ -273,10 +273,28 @@ typedef struct {
     uint64_t seed;
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
-    int dt_set, strength_set;     /* dt (a number or auto), strength given */
+    int dt_set;                   /* dt given (a number or auto) */
     int tol_set;                  /* tol given (needs adaptive) */
+    int scheme_set;               /* scheme given */
+    int scheme_chosen;            /* not given: api_params_finish chose it
+                                     (again at every call) */
+    int strength_set;             /* strength given (a number or auto) */
+    int flow_keys_set;            /* time, dt, adaptive, laplacian, mass or
+                                     rescale given: without a scheme, the
+                                     job is desbrun2's flow */
 } api_params;
 
+/* The scheme of a request that names none, on a mesh of nv vertices: the
+ * fairing filter, `fairing` (implicit, one CHOLMOD factorization of a
+ * 2-ring matrix: about 2 KB per vertex) up to API_FAIRING_IMPLICIT_MAX
+ * vertices, `fairing_explicit` (no factorization, a few hundred bytes per
+ * vertex) above: api_estimate.c has the measured memory and times. */
+#define API_FAIRING_IMPLICIT_MAX 200000
+mcf_scheme api_default_scheme(long long nv);
+/* The scheme a job with parameters p runs on a mesh of nv vertices: the
+ * one named, else api_default_scheme(nv), or desbrun2 when p sets a
+ * flow's keys (flow_keys_set). p may be NULL (no parameters). */
+mcf_scheme api_params_scheme(const api_params *p, long long nv);
 /* 1 when the job's amount is automatic (mcf_auto.c): strength=auto, or
  * a request that names no amount (none of time, iterations, dt and
  * strength). api_params_finish then sets flow.strength_auto. Every
@@ -300,11 +318,14 @@ mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
 mcf_status api_params_parse_query(api_params *p, const char *qs,
                                   const char *const *ignore,
                                   const api_limits *lim, mcf_error *err);
-/* Final checks once the mesh is known: mcf_flow_params_check, fixed
- * indices in range, iterations x vertices within max_work; and amounts
- * that contradict each other (EINVAL naming them): time, dt and
- * iterations all given and ceil(time / dt) != iterations (or dt=auto), or
- * a dt larger than the time. The automatic amount (api_params_auto_amount)
+/* Final checks once the mesh is known: the default scheme when none was
+ * named (api_default_scheme; desbrun2 when flow_keys_set), a fairing
+ * filter's strength as its noise level (mcf_flow_params.noise_sigma;
+ * unset or auto: estimated), mcf_flow_params_check, fixed indices in
+ * range, iterations x vertices within max_work; and amounts that
+ * contradict each other (EINVAL naming them): time, dt and iterations
+ * all given and ceil(time / dt) != iterations (or dt=auto), or a dt
+ * larger than the time. The automatic amount (api_params_auto_amount)
  * becomes flow.strength_auto. */
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);

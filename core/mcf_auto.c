@@ -27,11 +27,17 @@
  * noise, the surface's own detail adds to it). Here s is measured by a
  * second-order high-pass that cancels a smooth surface to second order,
  * e_i = d_i - avg_j d_j with d_i = n_i . (Y_i - avg_j Y_j) over the
- * 1-ring, whose response to noise depends on the valences and shapes
- * around each vertex; it is calibrated on the same mesh by the response to
- * unit Gaussian noise along the normals (s = MAD(e_Y) / MAD(e_noise)), and
- * the median absolute deviation ignores the features (creases, ears)
- * where the surface itself does not cancel.
+ * 1-ring (the uniform graph Laplacian, mcf_graph.c), whose response to
+ * noise depends on the valences and shapes around each vertex; it is
+ * calibrated on the same mesh by the response to unit Gaussian noise along
+ * the normals (s = MAD(e_Y) / MAD(e_noise)), and the median absolute
+ * deviation ignores the features (creases, ears) where the surface itself
+ * does not cancel. The normals n are those of 10 uniform Taubin passes of
+ * Y, not Y's own: a noisy normal tilts with the noise and the projection
+ * then misses part of it (0.36-0.39 read for 0.5). Both medians run over
+ * the free vertices of degree >= 3 only: fixed and boundary vertices
+ * carry no noise, and counting them read 0.5 as 0.23 on a scan with many
+ * holes.
  *
  * MCF (mcf__auto_time): the run does K steps of size T/K; its smoother is
  * modelled by K frozen implicit Euler steps, ((M + T/K L)^-1 M)^K. One
@@ -81,7 +87,6 @@ typedef struct {
     mcf__pattern own_pat; /* built here unless the run lends its own */
     const mcf__pattern *pat;
     double *N;          /* 3*nv unit vertex normals of X */
-    int *deg;           /* nv: 1-ring size (distinct neighbours) */
     unsigned char *fix; /* nv: held by the run (or massless) */
     int nfree;          /* vertices not held */
     double *probe;      /* NPROBE*nv Rademacher probes, 0 on fixed */
@@ -98,7 +103,6 @@ typedef struct {
 static void auto_free(auto_ctx *a)
 {
     free(a->N);
-    free(a->deg);
     free(a->fix);
     free(a->probe);
     free(a->yn);
@@ -118,40 +122,20 @@ static void auto_free(auto_ctx *a)
     }
 }
 
-/* out_i = avg over the 1-ring of v (per vertex scalar), from the
- * pattern's off-diagonal entries (upper triangle, both directions). */
-static void ring_average(const auto_ctx *a, const double *v, double *out)
+/* The second-order high-pass along the unit normals N (3*nv) of positions
+ * P (3*nv) into e (nv): d_i = n_i . (P_i - avg_j P_j) over the 1-ring,
+ * e_i = d_i - avg_j d_j. d (nv) and tmp (3*nv) are scratch. */
+static void high_pass(const mcf__graph *g, const double *N, const double *P, double *e,
+                      double *d, double *tmp)
 {
-    const mcf__pattern *p = a->pat;
-    memset(out, 0, sizeof(double) * (size_t)a->nv);
-    for (int j = 0; j < a->nv; j++)
-        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++) {
-            int i = p->rowind[t];
-            if (i == j)
-                continue;
-            out[i] += v[j];
-            out[j] += v[i];
-        }
-    for (int i = 0; i < a->nv; i++)
-        out[i] = a->deg[i] > 0 ? out[i] / a->deg[i] : v[i];
-}
-
-/* The second-order high-pass of positions P (3*nv) into e (nv); d and
- * tmp are nv scratch. */
-static void high_pass(const auto_ctx *a, const double *P, double *e, double *d, double *tmp)
-{
-    /* d_i = n_i . (P_i - avg_j P_j): the ring average, coordinate-wise */
-    for (int i = 0; i < a->nv; i++)
-        d[i] = 0.0;
-    for (int c = 0; c < 3; c++) {
-        for (int i = 0; i < a->nv; i++)
-            e[i] = P[3 * (size_t)i + c];
-        ring_average(a, e, tmp);
-        for (int i = 0; i < a->nv; i++)
-            d[i] += a->N[3 * (size_t)i + c] * (e[i] - tmp[i]);
+    mcf__graph_average(g, P, 3, tmp);
+    for (int i = 0; i < g->n; i++) {
+        double r[3];
+        mcf__sub3(P + 3 * (size_t)i, tmp + 3 * (size_t)i, r);
+        d[i] = mcf__dot3(N + 3 * (size_t)i, r);
     }
-    ring_average(a, d, tmp);
-    for (int i = 0; i < a->nv; i++)
+    mcf__graph_average(g, d, 1, tmp);
+    for (int i = 0; i < g->n; i++)
         e[i] = d[i] - tmp[i];
 }
 
@@ -161,14 +145,15 @@ static int cmp_double(const void *x, const void *y)
     return (a > b) - (a < b);
 }
 
-/* Median of |v_i| over the vertices with a 1-ring of at least 3 (the
- * others, on slivers and boundaries' tips, say little); work (nv) is
- * scratch. */
-static double mad(const auto_ctx *a, double *v, double *work)
+/* Median of |v_i| over the free vertices with a 1-ring of at least 3 (the
+ * others, on slivers and boundaries' tips, say little; fixed vertices
+ * carry no noise); work (nv) is scratch. */
+static double mad(const mcf__graph *g, const unsigned char *fixed, const double *v,
+                  double *work)
 {
     size_t k = 0;
-    for (int i = 0; i < a->nv; i++)
-        if (a->deg[i] >= 3)
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]))
             work[k++] = fabs(v[i]);
     if (k == 0)
         return 0.0;
@@ -176,38 +161,96 @@ static double mad(const auto_ctx *a, double *v, double *work)
     return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
 }
 
-/* The noise level s along the normals (working units): the high-pass of
- * the mesh against that of unit Gaussian noise along the same normals
- * (mcf_mesh_add_noise's generator, so the calibration is reproducible). */
-static mcf_status estimate_noise(auto_ctx *a, const double *X, double *s, mcf_error *err)
+/* The tangential second-order high-pass of P (3*nv) into e (nv): the
+ * length of the tangential part (normals N) of (I - Avg)^2 P; tmp and t2
+ * are 3*nv scratch. */
+static void tangential_high_pass(const mcf__graph *g, const double *N, const double *P, double *e,
+                                 double *tmp, double *t2)
 {
-    int nv = a->nv;
-    mcf_status rc = MCF_OK;
-    double *e = mcf__malloc((size_t)nv, sizeof(double)), *d = mcf__malloc((size_t)nv, sizeof(double));
-    double *tmp = mcf__malloc((size_t)nv, sizeof(double)), *P = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    if (!e || !d || !tmp || !P) {
-        rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
+    size_t n3 = 3 * (size_t)g->n;
+    mcf__graph_average(g, P, 3, tmp);
+    for (size_t q = 0; q < n3; q++)
+        tmp[q] = P[q] - tmp[q];
+    mcf__graph_average(g, tmp, 3, t2);
+    for (int i = 0; i < g->n; i++) {
+        double r[3];
+        const double *n = N + 3 * (size_t)i;
+        mcf__sub3(tmp + 3 * (size_t)i, t2 + 3 * (size_t)i, r);
+        double a = mcf__dot3(n, r);
+        for (int c = 0; c < 3; c++)
+            r[c] -= a * n[c];
+        e[i] = sqrt(mcf__dot3(r, r));
+    }
+}
+
+mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
+                            const unsigned char *fixed, double *sigma, mcf_error *err)
+{
+    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, err);
+}
+
+mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
+                             const unsigned char *fixed, double *sigma, double *sigma_t,
+                             mcf_error *err)
+{
+    mcf__graph g;
+    mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
+    if (rc != MCF_OK)
+        return rc;
+    double *N = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *e = mcf__malloc((size_t)nv, sizeof(double));
+    double *d = mcf__malloc((size_t)nv, sizeof(double));
+    if (!N || !P || !tmp || !e || !d) {
+        rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
         goto done;
     }
-    high_pass(a, X, e, d, tmp);
-    double mad_y = mad(a, e, tmp);
-    {
-        mcf_mesh tmpm = {nv, a->nf, P, (int32_t *)(uintptr_t)a->F};
-        double me = mcf__mean_edge(X, a->F, a->nf);
-        memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
-        if ((rc = mcf_mesh_add_noise(&tmpm, 1.0, 0x5eed5eedULL, err)) != MCF_OK)
+    /* the normals of the surface without its noise: those of the noisy
+     * mesh itself tilt with the noise, and the high-pass along them then
+     * misses a part of it (0.36-0.39 read for 0.5 mean edges) */
+    memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
+    mcf__graph_taubin(&g, fixed, P, 3, 10, tmp);
+    mcf__vertex_normals(P, F, nf, nv, N);
+    high_pass(&g, N, X, e, d, tmp);
+    double mad_y = mad(&g, fixed, e, P);
+    /* the response to unit Gaussian noise along the same normals on the
+     * free vertices (mcf_mesh_add_noise's generator: reproducible) */
+    mcf__gauss_fill(0x5eed5eedULL, d, (size_t)nv);
+    for (int i = 0; i < nv; i++)
+        for (int c = 0; c < 3; c++)
+            P[3 * (size_t)i + c] = fixed && fixed[i] ? 0.0 : d[i] * N[3 * (size_t)i + c];
+    high_pass(&g, N, P, e, d, tmp);
+    double mad_n = mad(&g, fixed, e, P);
+    *sigma = mad_n > 0.0 ? mad_y / mad_n : 0.0;
+    if (sigma_t) {
+        /* the same for the tangential part, calibrated by unit Gaussian
+         * noise in the tangent planes (two independent components) */
+        double *t2 = mcf__malloc(3 * (size_t)nv, sizeof(double));
+        if (!t2) {
+            rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
             goto done;
-        for (size_t i = 0; i < 3 * (size_t)nv; i++)
-            P[i] = (P[i] - X[i]) / me; /* unit Gaussian w_i n_i */
+        }
+        tangential_high_pass(&g, N, X, e, tmp, t2);
+        double mt_y = mad(&g, fixed, e, d);
+        mcf__gauss_fill(0x7a5eed5eULL, P, 3 * (size_t)nv);
+        for (int i = 0; i < nv; i++) {
+            double *z = P + 3 * (size_t)i, a = mcf__dot3(z, N + 3 * (size_t)i);
+            for (int c = 0; c < 3; c++)
+                z[c] = fixed && fixed[i] ? 0.0 : z[c] - a * N[3 * (size_t)i + c];
+        }
+        tangential_high_pass(&g, N, P, e, tmp, t2);
+        double mt_n = mad(&g, fixed, e, d);
+        *sigma_t = mt_n > 0.0 ? mt_y / mt_n : 0.0;
+        free(t2);
     }
-    high_pass(a, P, e, d, tmp);
-    double mad_n = mad(a, e, tmp);
-    *s = mad_n > 0.0 ? mad_y / mad_n : 0.0;
 done:
+    free(N);
+    free(P);
+    free(tmp);
     free(e);
     free(d);
-    free(tmp);
-    free(P);
+    mcf__graph_free(&g);
     return rc;
 }
 
@@ -229,14 +272,13 @@ static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int
     if (!lent)
         a->pat = &a->own_pat;
     a->N = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    a->deg = mcf__calloc((size_t)nv, sizeof(int));
     a->fix = mcf__calloc((size_t)nv, 1);
     a->probe = mcf__malloc(NPROBE * (size_t)nv, sizeof(double));
     a->yn = mcf__malloc((size_t)nv, sizeof(double));
     a->mass = mcf__malloc((size_t)nv, sizeof(double));
     a->lval = mcf__malloc((size_t)a->pat->nnz, sizeof(double));
     double *w = mcf__malloc(3 * (size_t)nf, sizeof(double)), *area = mcf__malloc((size_t)nf, sizeof(double));
-    if (!a->N || !a->deg || !a->fix || !a->probe || !a->yn || !a->mass || !a->lval || !w || !area) {
+    if (!a->N || !a->fix || !a->probe || !a->yn || !a->mass || !a->lval || !w || !area) {
         free(w);
         free(area);
         return mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
@@ -246,20 +288,14 @@ static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int
     mcf__pattern_fill_L(a->pat, F, nf, w, a->lval);
     free(w);
     free(area);
-    for (int j = 0; j < nv; j++)
-        for (int t = a->pat->colptr[j]; t < a->pat->colptr[j + 1]; t++)
-            if (a->pat->rowind[t] != j) {
-                a->deg[j]++;
-                a->deg[a->pat->rowind[t]]++;
-            }
     mcf__vertex_normals(X, F, nf, nv, a->N);
-    if ((rc = estimate_noise(a, X, s, err)) != MCF_OK)
-        return rc;
     for (int i = 0; i < nv; i++) {
         a->fix[i] = (fixed && fixed[i]) || !(a->mass[i] > 0.0);
         a->nfree += !a->fix[i];
         a->yn[i] = mcf__dot3(a->N + 3 * (size_t)i, X + 3 * (size_t)i);
     }
+    if ((rc = mcf__noise_level(X, F, nf, nv, a->fix, s, err)) != MCF_OK)
+        return rc;
     /* Rademacher probes, deterministic, on the free vertices */
     for (size_t i = 0; i < NPROBE * (size_t)nv; i++)
         a->probe[i] = a->fix[i % (size_t)nv] ? 0.0
