@@ -378,6 +378,7 @@ static void test_auto_never_harms(void **state)
         mcf_mesh_free(clean);
     }
     print_message("worst error ratio %.3f\n", worst);
+}
 
 /* The noise estimate (mcf_noise_estimate) with a large fixed part: on
  * bunny.drc (35k vertices, five holes) the lowest 40% of the vertices by
