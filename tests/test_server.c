@@ -783,7 +783,9 @@ static cJSON *follow_metrics_link(const daemon_t *d, const resp_t *r,
     return j;
 }
 
-/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2' */
+/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2&strength=0.33' (an
+ * amount named: without one, the automatic amount finds no noise on this
+ * clean sphere and returns it unchanged) */
 static void test_smooth_obj_multipart(void **state)
 {
     upload_t up = {.mesh = "sphere_cgal.obj"};
@@ -794,7 +796,7 @@ static void test_smooth_obj_multipart(void **state)
     cJSON *m;
 
     (void)state;
-    http(&g_main, "POST", "/smooth?scheme=desbrun2", NULL, &up, &r);
+    http(&g_main, "POST", "/smooth?scheme=desbrun2&strength=0.33", NULL, &up, &r);
     expect_status(&g_main, &r, 200, "POST /smooth obj");
     assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/obj");
     assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
@@ -3023,7 +3025,12 @@ static void test_draco_sandbox(void **state)
     resp_free(&r);
     print_message("    210-byte orientation bomb, default limits: 422 in %.2f s "
                   "(8.8 s and 256 MiB in-process)\n", dt);
-    assert_true(dt < 4);
+    /* The 422's text names the limit that stopped it (that is the
+     * behaviour); the time is printed, and bounded only as a hang guard:
+     * a child under RLIMIT_CPU of 2 s stretches in wall time with the
+     * machine's load (CI saw 6-8.6 s under sanitizers at load 10), while
+     * the unbounded decode would spin for ever at 2^31 orientations. */
+    assert_true(dt < 30);
     /* the same stream as a glTF's Draco primitive: the same sandbox */
     t0 = mcf_now();
     post_file(&d, "/smooth", "gltf/draco_bomb.glb", &r);
@@ -3055,7 +3062,7 @@ static void test_draco_sandbox(void **state)
                    "orientation bomb, --decode-memory 1G");
     resp_free(&r);
     print_message("    the same with --decode-memory 1G: 422 (CPU) in %.2f s\n", dt);
-    assert_true(dt >= 1.9 && dt < 8);
+    assert_true(dt >= 1.9 && dt < 30); /* 2 s of CPU; hang guard as above */
     /* a DELETE while it decodes kills the child */
     post_file(&d, "/v1/jobs", bomb, &r);
     expect_status(&d, &r, 202, "async orientation bomb");
@@ -3074,7 +3081,9 @@ static void test_draco_sandbox(void **state)
     assert_string_equal(jstr(j, "status"), "canceled");
     cJSON_Delete(j);
     print_message("    DELETE during the decode: canceled after %.2f s\n", dt);
-    assert_true(dt < 1.0);
+    /* killed, not run to its CPU limit: well under the 2 s it would take,
+     * with room for a loaded machine's scheduling */
+    assert_true(dt < 1.9);
     assert_int_equal(count_children(d.pid), 0);
     stop_daemon(&d);
 }
