@@ -172,49 +172,23 @@ const char *code_name(StatusCode c)
     return i < sizeof names / sizeof names[0] ? names[i] : "UNKNOWN";
 }
 
-/* service.h's table: the gRPC column. */
-StatusCode status_of(const svc_error &e)
-{
-    switch (e.code) {
-    case SVC_OK: return StatusCode::OK;
-    case SVC_EPARAMS: return StatusCode::INVALID_ARGUMENT;
-    case SVC_EINPUT:
-    case SVC_EMESH:
-        return e.mcf == MCF_ELIMIT ? StatusCode::RESOURCE_EXHAUSTED
-                                   : StatusCode::INVALID_ARGUMENT;
-    case SVC_ENOMEM:
-    case SVC_EBUSY:
-    case SVC_EQUOTA: return StatusCode::RESOURCE_EXHAUSTED;
-    case SVC_EDRAINING: return StatusCode::UNAVAILABLE;
-    case SVC_ENOTFOUND: return StatusCode::NOT_FOUND;
-    case SVC_ENOTREADY:
-    case SVC_ENORESULT: return StatusCode::FAILED_PRECONDITION;
-    case SVC_ECANCELED: return StatusCode::CANCELLED;
-    case SVC_ETIMEOUT: return StatusCode::DEADLINE_EXCEEDED;
-    case SVC_ESTORAGE:
-    case SVC_EINTERNAL: break;
-    }
-    return StatusCode::INTERNAL;
-}
-
-/* The status of e, with its name and retry delay in trailing metadata. */
+/* The status of e (service.h's table: its gRPC column), with its name
+ * and retry delay in trailing metadata. */
 Status status_from(CallbackServerContext *ctx, const svc_error &e)
 {
-    const char *name = e.name[0] ? e.name : svc_code_name(e.code);
-    if (*name)
-        ctx->AddTrailingMetadata("mcf-code", name);
+    ctx->AddTrailingMetadata("mcf-code", svc_problem_name(e.problem));
     if (e.retry_after > 0)
         ctx->AddTrailingMetadata(
             "retry-after-ms", std::to_string((long long)(e.retry_after * 1000 + 0.5)));
-    return Status(status_of(e), e.detail);
+    return Status((StatusCode)svc_problem_grpc(e.problem), e.detail);
 }
 
-/* A door-made error (no svc_error behind it). */
-Status door_status(CallbackServerContext *ctx, StatusCode c, const char *name,
-                   const std::string &detail)
+/* A door-made error: problem p with the detail. */
+Status door_status(CallbackServerContext *ctx, svc_problem p, const std::string &detail)
 {
-    ctx->AddTrailingMetadata("mcf-code", name);
-    return Status(c, detail);
+    svc_error e;
+    svc_error_set(&e, p, "%s", detail.c_str());
+    return status_from(ctx, e);
 }
 
 /* Counts the call in /metrics and returns st. */
@@ -239,14 +213,13 @@ bool authorized(CallbackServerContext *ctx)
 
 Status unauthenticated(CallbackServerContext *ctx)
 {
-    return door_status(ctx, StatusCode::UNAUTHENTICATED, "EAUTH",
+    return door_status(ctx, SVC_P_AUTH,
                        "metadata 'authorization: Bearer <token>' is required");
 }
 
 Status draining_status(CallbackServerContext *ctx)
 {
-    ctx->AddTrailingMetadata("retry-after-ms", "5000");
-    return door_status(ctx, StatusCode::UNAVAILABLE, "EDRAINING",
+    return door_status(ctx, SVC_P_DRAINING,
                        "the daemon is shutting down: no new jobs (retry on "
                        "another instance or after the restart)");
 }
@@ -258,7 +231,7 @@ Status late_status(CallbackServerContext *ctx, const char *what, const char *fla
     char d[200];
     snprintf(d, sizeof d, "%s did not arrive within %s %g s of the call's start", what,
              flag, limit);
-    return door_status(ctx, StatusCode::DEADLINE_EXCEEDED, "ETIMEOUT", d);
+    return door_status(ctx, SVC_P_UPLOAD_TIMEOUT, d);
 }
 
 /* The parameters as the JSON object REST's `params` field takes: every
@@ -368,9 +341,9 @@ bool fill_job(svc_job *j, pb::Job *out)
     }
     if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
         pb::Job::Error *e = out->mutable_error();
-        e->set_code(s.error.name[0] ? s.error.name : svc_code_name(s.error.code));
+        e->set_code(svc_problem_name(s.error.problem));
         e->set_detail(s.error.detail);
-        e->set_grpc_code((int)status_of(s.error));
+        e->set_grpc_code((int)svc_problem_grpc(s.error.problem));
     }
     cJSON_Delete(o);
     return true;
@@ -433,8 +406,7 @@ class Slot {
             held_ = true;
             return true;
         }
-        ctx->AddTrailingMetadata("retry-after-ms", "1000");
-        *st = door_status(ctx, StatusCode::RESOURCE_EXHAUSTED, "EBUSY", d);
+        *st = door_status(ctx, SVC_P_BUSY, d);
         return false;
     }
 
@@ -504,7 +476,7 @@ class Upload {
         nmsg_++;
         Status ps = grpc::SerializationTraits<pb::SmoothRequest>::Deserialize(b, &req_);
         if (!ps.ok())
-            return fail(e, SVC_EPARAMS, "EINVAL", "message %ld of the upload is not a "
+            return fail(e, SVC_P_PARAM_INVALID, "message %ld of the upload is not a "
                         "SmoothRequest (its bytes do not parse as one): the upload is "
                         "refused, nothing is submitted", nmsg_);
         return feed(req_, e);
@@ -516,7 +488,7 @@ class Upload {
         switch (m.part_case()) {
         case pb::SmoothRequest::kHeader:
             if (have_header_)
-                return fail(e, SVC_EPARAMS, "EINVAL", "a second header: the header is sent once, first");
+                return fail(e, SVC_P_PARAM_INVALID, "a second header: the header is sent once, first");
             have_header_ = true;
             if (dl_)
                 dl_->have_header = true;
@@ -526,7 +498,7 @@ class Upload {
             bool t = m.part_case() == pb::SmoothRequest::kTargetChunk;
             const std::string &b = t ? m.target_chunk() : m.chunk();
             if (!have_header_)
-                return fail(e, SVC_EPARAMS, "EINVAL", "the first message must be the header");
+                return fail(e, SVC_P_PARAM_INVALID, "the first message must be the header");
             if (b.size() > kChunk)
                 return limit(e, "a %s of %zu bytes is over the %zu-byte chunk limit",
                              t ? "target_chunk" : "chunk", b.size(), kChunk);
@@ -534,7 +506,7 @@ class Upload {
                           t ? target_size_ : total_size_, b, t ? "target mesh" : "mesh", e);
         }
         default:
-            return fail(e, SVC_EPARAMS, "EINVAL", "an empty message (no part set)");
+            return fail(e, SVC_P_PARAM_INVALID, "an empty message (no part set)");
         }
     }
 
@@ -542,19 +514,19 @@ class Upload {
     int submit(unsigned flags, svc_job **out, svc_error *e)
     {
         if (!have_header_)
-            return fail(e, SVC_EPARAMS, "EINVAL", "no header: the first message must be the header") ? 0 : -1;
+            return fail(e, SVC_P_PARAM_INVALID, "no header: the first message must be the header") ? 0 : -1;
         if (mesh_len_ == 0)
-            return fail(e, SVC_EINPUT, "EDECODE", "no mesh: send its bytes in chunk messages") ? 0 : -1;
+            return fail(e, SVC_P_INPUT_DECODE, "no mesh: send its bytes in chunk messages") ? 0 : -1;
         if (total_size_ >= 0 && (long long)mesh_len_ != total_size_)
-            return fail(e, SVC_EINPUT, "EINVAL", "total_size is %lld but %zu bytes came",
+            return fail(e, SVC_P_INPUT_INVALID, "total_size is %lld but %zu bytes came",
                         total_size_, mesh_len_) ? 0 : -1;
         if (target_size_ >= 0 && (long long)target_len_ != target_size_)
-            return fail(e, SVC_EINPUT, "EINVAL", "target_size is %lld but %zu bytes came",
+            return fail(e, SVC_P_INPUT_INVALID, "target_size is %lld but %zu bytes came",
                         target_size_, target_len_) ? 0 : -1;
         if (in_format_ != API_FMT_UNKNOWN) {
             api_format got = api_format_detect(mesh_, mesh_len_);
             if (got != in_format_)
-                return fail(e, SVC_EINPUT, "EFORMAT", "format is %s but the bytes are %s",
+                return fail(e, SVC_P_INPUT_FORMAT, "format is %s but the bytes are %s",
                             api_format_name(in_format_),
                             got == API_FMT_UNKNOWN ? "of no known format" : api_format_name(got)) ? 0 : -1;
         }
@@ -602,7 +574,7 @@ class Upload {
         if (h.has_format()) {
             in_format_ = api_format_from_name(h.format().c_str());
             if (in_format_ == API_FMT_UNKNOWN || h.format().find('.') != std::string::npos)
-                return fail(e, SVC_EPARAMS, "EINVAL", "format must be one of obj, draco, ply, stl, off, got \"%.64s\"",
+                return fail(e, SVC_P_PARAM_INVALID, "format must be one of obj, draco, ply, stl, off, got \"%.64s\"",
                             h.format().c_str());
         }
         if (h.has_total_size()) {
@@ -621,9 +593,9 @@ class Upload {
         if (!svc_can_accept()) {
             svc_gauges gg = svc_get_gauges();
             if (gg.draining)
-                svc_error_set(e, SVC_EDRAINING, NULL, "the daemon is shutting down and accepts no new jobs");
+                svc_error_set(e, SVC_P_DRAINING, "the daemon is shutting down and accepts no new jobs");
             else
-                svc_error_set(e, SVC_EBUSY, NULL, "the job queue is full (%d queued, %d workers busy, --queue %d)",
+                svc_error_set(e, SVC_P_BUSY, "the job queue is full (%d queued, %d workers busy, --queue %d)",
                               gg.queue_depth, gg.workers_busy, gg.queue_capacity);
             return false;
         }
@@ -637,10 +609,10 @@ class Upload {
             of = h.output_format();
         std::string js = params_json(h.params(), h.has_output_format() ? &of : nullptr);
         if (js.empty())
-            return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory");
+            return fail(e, SVC_P_NOMEM, "out of memory");
         rec_.params_json = strdup(js.c_str());
         if (!rec_.params_json)
-            return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory");
+            return fail(e, SVC_P_NOMEM, "out of memory");
         if (h.has_filename())
             snprintf(rec_.filename, sizeof rec_.filename, "%s", basename_of(h.filename()).c_str());
         /* The parameters now, before any byte of the mesh: the path REST's
@@ -651,7 +623,7 @@ class Upload {
         mcf_status rc = svc_record_params(&rec_, lim, &p, &err);
         api_params_free(&p);
         if (rc != MCF_OK) {
-            svc_error_from_mcf(e, rc, SVC_STAGE_PARAMS, NULL, &err);
+            svc_error_from_mcf(e, rc, API_JOB_PARAMS, NULL, &err);
             return false;
         }
         return true;
@@ -675,7 +647,7 @@ class Upload {
         if (b.size() > max - *len)
             return limit(e, "the %s is over the upload limit of %zu bytes (--max-upload)", what, max);
         if (declared >= 0 && (long long)(*len + b.size()) > declared)
-            return fail(e, SVC_EINPUT, "EINVAL", "more bytes of the %s than its declared size %lld",
+            return fail(e, SVC_P_INPUT_INVALID, "more bytes of the %s than its declared size %lld",
                         what, declared);
         if (svc_upload_reserve(&mem_held_, mesh_len_ + target_len_ + b.size(), e) != 0)
             return false;
@@ -690,7 +662,7 @@ class Upload {
                 want = max;
             char *nb = (char *)realloc(*buf, want);
             if (!nb)
-                return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory for the %s", what);
+                return fail(e, SVC_P_NOMEM, "out of memory for the %s", what);
             *buf = nb;
             alloc_of(buf) = want;
         }
@@ -701,9 +673,9 @@ class Upload {
 
     size_t &alloc_of(char **buf) { return buf == &mesh_ ? mesh_alloc_ : target_alloc_; }
 
-    static bool fail(svc_error *e, svc_code c, const char *name, const char *fmt, ...)
+    static bool fail(svc_error *e, svc_problem p, const char *fmt, ...)
 #if defined(__GNUC__)
-        __attribute__((format(printf, 4, 5)))
+        __attribute__((format(printf, 3, 4)))
 #endif
     {
         va_list ap;
@@ -711,7 +683,7 @@ class Upload {
         va_start(ap, fmt);
         vsnprintf(d, sizeof d, fmt, ap);
         va_end(ap);
-        svc_error_set(e, c, name, "%s", d);
+        svc_error_set(e, p, "%s", d);
         return false;
     }
 
@@ -727,7 +699,7 @@ class Upload {
         vsnprintf(err.msg, sizeof err.msg, fmt, ap);
         va_end(ap);
         err.status = MCF_ELIMIT;
-        svc_error_from_mcf(e, MCF_ELIMIT, SVC_STAGE_DECODE, NULL, &err);
+        svc_error_from_mcf(e, MCF_ELIMIT, API_JOB_DECODE, NULL, &err);
         return false;
     }
 
@@ -878,7 +850,7 @@ class Follow {
         }
         if (svc_subscribe(j, SVC_NOTIFY_STATE | SVC_NOTIFY_PROGRESS, notify, this, &sub_) != 0) {
             svc_error e;
-            svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory");
+            svc_error_set(&e, SVC_P_NOMEM, "out of memory");
             finish_error(e);
             return;
         }
@@ -998,7 +970,7 @@ class Follow {
                 svc_job_snapshot(job_, &s);
                 if (svc_job_events(job_, next_event_, 64 * 1024, &data, &len, &n) != 0) {
                     svc_error e;
-                    svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
+                    svc_error_set(&e, SVC_P_NOMEM, "out of memory reading the job's events");
                     set_end(e);
                     return -1;
                 }
@@ -1014,15 +986,15 @@ class Follow {
             if (!svc_job_status_terminal(s.status)) {
                 if (s.closing || (s.draining && s.status == SVC_JOB_QUEUED)) {
                     svc_error e = s.error;
-                    if (e.code != SVC_EDRAINING)
-                        svc_error_set(&e, SVC_EDRAINING, NULL,
+                    if (svc_error_code(&e) != SVC_EDRAINING)
+                        svc_error_set(&e, SVC_P_DRAINING,
                                       "the daemon is shutting down; job %s runs again after the restart", s.id);
                     set_end(e);
                     return -1;
                 }
                 if (no_wait_) {
                     svc_error e;
-                    svc_error_set(&e, SVC_ENOTREADY, NULL, "job %s is %s: no result yet", s.id,
+                    svc_error_set(&e, SVC_P_NOT_READY, "job %s is %s: no result yet", s.id,
                                   svc_job_status_name(s.status));
                     set_end(e);
                     return -1;
@@ -1253,7 +1225,7 @@ class SmoothCall : public Follow,
         HB_RELEASE(ctx_);
         if (!grpc::SerializationTraits<pb::SmoothResponse>::Serialize(*m, &wbuf_, &own).ok()) {
             finished_ = true;
-            Finish(counted("Smooth", Status(StatusCode::INTERNAL, "cannot serialize a response")));
+            Finish(counted("Smooth", door_status(ctx_, SVC_P_INTERNAL, "cannot serialize a response")));
             return;
         }
         StartWrite(&wbuf_);
@@ -1284,11 +1256,10 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
         } else if (!slot_.take(ctx, &st)) {
             finish(st);
         } else if (!(j = svc_job_get(req->id().c_str()))) {
-            finish(door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
+            finish(door_status(ctx, SVC_P_NOT_FOUND,
                                "no job '" + req->id().substr(0, 64) + "' (or it expired)"));
         } else if ((here = svc_followers(j)) >= SVC_FOLLOWERS_PER_JOB) {
-            ctx->AddTrailingMetadata("retry-after-ms", "1000");
-            finish(door_status(ctx, StatusCode::RESOURCE_EXHAUSTED, "EBUSY",
+            finish(door_status(ctx, SVC_P_BUSY,
                                "job " + std::string(svc_job_id(j)) + " already has " +
                                    std::to_string(here) + " followers, the most one job "
                                    "may have; poll GetJob instead"));
@@ -1372,7 +1343,7 @@ class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>, public Expi
         bool own, ok2 = fill_job(j, &job) &&
                         grpc::SerializationTraits<pb::Job>::Serialize(job, resp_, &own).ok();
         svc_job_unref(j);
-        end(ok2 ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory"));
+        end(ok2 ? Status::OK : door_status(ctx_, SVC_P_NOMEM, "out of memory"));
     }
 
     void OnCancel() override
@@ -1472,7 +1443,7 @@ class Smoother final : public SmootherBase {
                 return not_found(ctx, req->id());
             bool ok = fill_job(j, resp);
             svc_job_unref(j);
-            return ok ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory");
+            return ok ? Status::OK : door_status(ctx, SVC_P_NOMEM, "out of memory");
         });
     }
 
@@ -1486,7 +1457,7 @@ class Smoother final : public SmootherBase {
                 return not_found(ctx, req->id());
             if (svc_cancel(j, SVC_CANCEL_USER) < 0) {
                 svc_error e;
-                svc_error_set(&e, SVC_ESTORAGE, "EIO",
+                svc_error_set(&e, SVC_P_STORAGE,
                               "the spool could not record the cancellation of job %s "
                               "(not canceled; retry): %s", svc_job_id(j), strerror(errno));
                 svc_job_unref(j);
@@ -1494,7 +1465,7 @@ class Smoother final : public SmootherBase {
             }
             bool ok = fill_job(j, resp);
             svc_job_unref(j);
-            return ok ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory");
+            return ok ? Status::OK : door_status(ctx, SVC_P_NOMEM, "out of memory");
         });
     }
 
@@ -1533,7 +1504,7 @@ class Smoother final : public SmootherBase {
 
     static Status not_found(CallbackServerContext *ctx, const std::string &id)
     {
-        return door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
+        return door_status(ctx, SVC_P_NOT_FOUND,
                            "no job '" + id.substr(0, 64) + "' (or it expired)");
     }
 };

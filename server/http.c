@@ -222,21 +222,21 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
                                   const char *url, const char *method)
 {
     const srv_config *cfg = srv_http_config();
-    srv_problem p;
+    svc_error p;
     const char *q = srv_query_of(r);
 
     snprintf(r->method, sizeof r->method, "%s", method);
     snprintf(r->path, sizeof r->path, "%s", url);
     if (parse_route(r, url) != 0)
-        return srv_send_problemf(r, c, 404, "ENOTFOUND", "no such resource: %s", url);
+        return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
     if (q && strlen(q) > SRV_MAX_QUERY)
-        return srv_send_problemf(r, c, 414, "ELIMIT", "the query string has %zu bytes, "
+        return srv_send_problemf(r, c, SVC_P_URI_LIMIT, "the query string has %zu bytes, "
                                  "more than %d: send the parameters as a multipart "
                                  "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
     /* The page is public too (ui.c): its API calls carry the token. */
     if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
         r->rt != RT_UI && !authorized(c))
-        return srv_send_problemf(r, c, 401, "EAUTH", "a valid 'Authorization: Bearer "
+        return srv_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
                                  "<token>' header is required");
     switch (r->rt) {
     case RT_HEALTHZ:
@@ -246,7 +246,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     case RT_SCHEMES:
     case RT_UI:
         if (!is_get(method)) {
-            srv_problem_set(&p, 405, "EMETHOD", "%s is not allowed on %s",
+            svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s",
                             method, url);
             return srv_send_problem(r, c, &p, NULL);
         }
@@ -254,7 +254,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     case RT_SMOOTH:
     case RT_JOBS:
         if (strcmp(method, "POST") != 0) {
-            srv_problem_set(&p, 405, "EMETHOD", "%s is not allowed on %s; "
+            svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s; "
                             "POST a mesh", method, url);
             return srv_send_problem(r, c, &p, NULL);
         }
@@ -268,7 +268,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     if (r->rt == RT_HEALTHZ || r->rt == RT_READYZ) {
         char why[300];
         if (g_health && g_health(why, sizeof why) != 0)
-            return srv_send_problemf(r, c, 503, "EUNHEALTHY", "%s", why);
+            return srv_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", why);
     }
     if (r->rt == RT_HEALTHZ) {
         cJSON *o = cJSON_CreateObject();
@@ -285,12 +285,12 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
          * load would turn those into connection errors. */
         char why[1500];
         if (g.draining)
-            return srv_send_problemf(r, c, 503, "EDRAINING", "the daemon is shutting "
+            return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting "
                                      "down");
         /* Every job goes through the spool: one that cannot be written
          * makes every job fail. */
         if (srv_spool_ready(cfg->spool, why, sizeof why) != 0)
-            return srv_send_problemf(r, c, 503, "ESPOOL", "%s", why);
+            return srv_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ready");
         cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);

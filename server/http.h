@@ -22,28 +22,10 @@
 
 /* ---------------------------------------------------------------- problems */
 
-/* An error as the client will see it: HTTP status, the symbolic code
- * ("EMESH", or a server code such as "ENOTFOUND") and a precise detail. */
-typedef struct {
-    unsigned http;
-    char code[24];
-    char detail[MCF_ERRMSG_SIZE + 128];
-} srv_problem;
-
-/* The HTTP status of a failure of the core or the codecs (table in
- * reply.c, from MCF_ERRORS): where it came from decides 400 against 422. */
-unsigned srv_http_status(mcf_status s, svc_stage stage);
-/* A service error as the client sees it (service.h's table). */
-void srv_problem_from_svc(srv_problem *p, const svc_error *e);
-void srv_problem_set(srv_problem *p, unsigned http, const char *code,
-                     const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 4, 5)))
-#endif
-    ;
-/* The problem as an RFC 9457 JSON object (type, title, status, detail,
- * instance, code, and job when given). NULL on allocation failure. */
-cJSON *srv_problem_json(const srv_problem *p, const char *instance,
+/* The problem (service.h's table: its HTTP status and name) as an RFC
+ * 9457 JSON object (type, title, status, detail, instance, code, and job
+ * when given). NULL on allocation failure. */
+cJSON *srv_problem_json(const svc_error *e, const char *instance,
                         const char *job_id);
 /* The reason phrase of an HTTP status ("Unprocessable Content"). */
 const char *srv_http_reason(unsigned status);
@@ -104,7 +86,7 @@ struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
 /* Whether one more follower of j may start (at most SVC_FOLLOWERS_PER_JOB
  * per job, counting gRPC's, and half of --max-connections in all); else 0
  * and a 503. */
-int srv_stream_admit(const svc_job *j, srv_problem *p);
+int srv_stream_admit(const svc_job *j, svc_error *e);
 
 typedef struct srv_asset srv_asset; /* ui_assets.h */
 
@@ -150,7 +132,7 @@ typedef struct {
     size_t fields_bytes;
     char filename[128];
     size_t bytes_in;
-    srv_problem perr;          /* found while reading; answered at the end */
+    svc_error perr;            /* found while reading; answered at the end */
     int has_perr;
     size_t perr_at;            /* bytes_in + 1 when perr was first seen */
     size_t mem_held;           /* its bytes' reservation in --max-memory
@@ -193,15 +175,15 @@ enum MHD_Result srv_send_json(srv_request *r, struct MHD_Connection *c,
 enum MHD_Result srv_send_text(srv_request *r, struct MHD_Connection *c,
                               unsigned status, const char *ctype, char *text,
                               size_t len);
-/* problem+json, with Retry-After on 503, WWW-Authenticate on 401, Allow
- * on 405 and X-Job-Id when job is given. */
+/* problem+json with the row's status, Retry-After on a transient
+ * refusal (e->retry_after), WWW-Authenticate on 401, Allow on 405 and
+ * X-Job-Id when job is given. */
 enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
-                                 const srv_problem *p, const char *job);
+                                 const svc_error *e, const char *job);
 enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
-                                  unsigned http, const char *code,
-                                  const char *fmt, ...)
+                                  svc_problem p, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 5, 6)))
+    __attribute__((format(printf, 4, 5)))
 #endif
     ;
 /* An empty response (204, HEAD). */

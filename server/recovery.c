@@ -138,7 +138,7 @@ static void recover_one(const char *id, void *arg)
         svc_cancel_reason why = j->cancel_reason;
         j->status = SVC_JOB_CANCELED;
         j->finished = srv_wall();
-        svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled %s while it "
+        svc_error_set(&j->err, SVC_P_CANCELED, "canceled %s while it "
                       "ran, before the daemon restarted; it did not run "
                       "again", why == SVC_CANCEL_USER
                       ? "by request" : "when its client hung up");

@@ -139,18 +139,18 @@ static int canceled_error(svc_job *j, int steps, svc_error *prob)
     else
         snprintf(when, sizeof when, "while its input was decoded");
     if (reason == SVC_CANCEL_SHUTDOWN)
-        svc_error_set(prob, SVC_EDRAINING, NULL, "the daemon shut down "
+        svc_error_set(prob, SVC_P_DRAINING, "the daemon shut down "
                       "while job %s ran; it runs again after the restart",
                       j->id);
     else if (reason == SVC_CANCEL_TIMEOUT)
-        svc_error_set(prob, SVC_ETIMEOUT, "ELIMIT", "the job ran longer than "
+        svc_error_set(prob, SVC_P_TIMEOUT, "the job ran longer than "
                       "--job-timeout %g s and was stopped %s",
                       cfg->job_timeout, when);
     else if (reason == SVC_CANCEL_CLIENT)
-        svc_error_set(prob, SVC_ECANCELED, NULL, "canceled %s: the client "
+        svc_error_set(prob, SVC_P_CANCELED, "canceled %s: the client "
                       "closed its connection before the answer", when);
     else
-        svc_error_set(prob, SVC_ECANCELED, NULL, "canceled by request %s",
+        svc_error_set(prob, SVC_P_CANCELED, "canceled by request %s",
                       when);
     prob->cancel = (svc_cancel_reason)reason;
     return reason == SVC_CANCEL_SHUTDOWN;
@@ -259,7 +259,7 @@ static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
 
     if (write_retry(j, name, out->data ? out->data : "", out->len, &c->tries) == 0)
         return MCF_OK;
-    svc_error_set(&c->prob, SVC_ESTORAGE, "EIO", "cannot write the result of "
+    svc_error_set(&c->prob, SVC_P_STORAGE, "cannot write the result of "
                   "job %s to the spool (%d tries): %s", j->id, c->tries + 1,
                   strerror(errno));
     c->has_prob = 1;
@@ -273,8 +273,6 @@ static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
  * run again after a restart. */
 static int job_error(run_ctx *c, const api_job_result *res, svc_error *prob)
 {
-    static const svc_stage stages[] = {SVC_STAGE_NONE, SVC_STAGE_PARAMS,
-                                       SVC_STAGE_DECODE, SVC_STAGE_RUN};
     const char *part = res->part ? res->part : "";
     int prefixed = strcmp(part, "params") != 0 && strcmp(part, "fields") != 0;
 
@@ -285,7 +283,7 @@ static int job_error(run_ctx *c, const api_job_result *res, svc_error *prob)
         *prob = c->prob;
         return c->job->cancel ? canceled_error(c->job, -1, prob) : 0;
     }
-    svc_error_from_mcf(prob, res->err.status, stages[res->stage],
+    svc_error_from_mcf(prob, res->err.status, res->stage,
                        prefixed ? part : NULL, &res->err);
     return 0;
 }
@@ -316,7 +314,7 @@ static int run(svc_job *j, api_job_result *res, svc_error *prob, int *requeue,
     if (read_retry(j, "input", &input, &c.input_len, &c.tries) != 0 ||
         (j->rec.has_target &&
          read_retry(j, "target", &target, &c.target_len, &c.tries) != 0)) {
-        svc_error_set(prob, SVC_ESTORAGE, "EIO", "cannot read the input of "
+        svc_error_set(prob, SVC_P_STORAGE, "cannot read the input of "
                       "job %s from the spool (%d tries): %s", j->id,
                       c.tries + 1, strerror(errno));
         *requeue = j->cancel && canceled_error(j, -1, prob);
@@ -324,7 +322,7 @@ static int run(svc_job *j, api_job_result *res, svc_error *prob, int *requeue,
     }
     rq.read_s = mcf_now() - t0;
     if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
-        svc_error_from_mcf(prob, rc, SVC_STAGE_PARAMS, NULL, &err);
+        svc_error_from_mcf(prob, rc, API_JOB_PARAMS, NULL, &err);
         goto out;
     }
     if (svc_record_fields(&j->rec, &c.keep_fields, prob) != 0) {
@@ -364,13 +362,13 @@ static int run(svc_job *j, api_job_result *res, svc_error *prob, int *requeue,
     }
     metrics = cJSON_PrintUnformatted(res->metrics);
     if (!metrics) {
-        svc_error_set(prob, SVC_ENOMEM, NULL, "out of memory writing metrics");
+        svc_error_set(prob, SVC_P_NOMEM, "out of memory writing metrics");
         goto out;
     }
     if (write_retry(j, "metrics.json", metrics, strlen(metrics), &c.tries) != 0 ||
         (c.keep_fields && write_retry(j, SVC_FIELDS_FILE, res->fields.data,
                                       res->fields.len, &c.tries) != 0)) {
-        svc_error_set(prob, SVC_ESTORAGE, "EIO", "cannot write the result of "
+        svc_error_set(prob, SVC_P_STORAGE, "cannot write the result of "
                       "job %s to the spool (%d tries): %s", j->id, c.tries + 1,
                       strerror(errno));
         *requeue = j->cancel && canceled_error(j, -1, prob);
@@ -415,7 +413,7 @@ static void park_locked(svc_job *j, svc_job_status final, int e)
     api_buf_free(&j->events);
     api_buf_init(&j->events, SVC_EVENTS_MAX);
     j->nevents = 0;
-    svc_error_set(&j->err, SVC_ESTORAGE, "EIO", "job %s %s, but the spool "
+    svc_error_set(&j->err, SVC_P_STORAGE, "job %s %s, but the spool "
                   "could not record it (%s); it runs again in %g s", j->id,
                   svc_job_status_name(final), strerror(e), delay);
     srv_logf(SRV_LOG_ERROR, "spool: %s", j->err.detail);

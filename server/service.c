@@ -321,12 +321,10 @@ static int steps_over_budget(const api_params *p, const api_limits *lim,
     steps = ceil(p->flow.time / p->flow.dt - 1e-9);
     if (steps <= lim->max_iterations)
         return 0;
-    svc_error_set(err, SVC_EPARAMS, "ELIMIT", "parameters 'time' and 'dt': "
+    svc_error_set(err, SVC_P_PARAM_LIMIT, "parameters 'time' and 'dt': "
                   "%g / %g = %.3g steps exceed max_iterations (%d); raise "
                   "'dt', lower 'time', or use 'adaptive'", p->flow.time,
                   p->flow.dt, steps, lim->max_iterations);
-    err->mcf = MCF_ELIMIT;
-    err->stage = SVC_STAGE_PARAMS;
     return 1;
 }
 
@@ -343,12 +341,12 @@ static int admit_locked(size_t bytes, svc_error *err)
     const svc_config *cfg = &svc__S.cfg;
 
     if (svc__S.draining) {
-        svc_error_set(err, SVC_EDRAINING, NULL, "the daemon is shutting "
+        svc_error_set(err, SVC_P_DRAINING, "the daemon is shutting "
                       "down and accepts no new jobs");
         return 0;
     }
     if (queue_full_locked()) {
-        svc_error_set(err, SVC_EBUSY, NULL, "the job queue is full (%d "
+        svc_error_set(err, SVC_P_BUSY, "the job queue is full (%d "
                       "queued, %d workers busy, --queue %d)", svc__S.qlen,
                       svc__S.nthreads, cfg->queue);
         return 0;
@@ -357,14 +355,14 @@ static int admit_locked(size_t bytes, svc_error *err)
      * tiny jobs kept 687 MB). */
     if (cfg->spool_max_jobs > 0 &&
         svc__S.njobs + svc__S.reserved >= cfg->spool_max_jobs) {
-        svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool holds %d "
+        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool holds %d "
                       "jobs, --spool-max-jobs %d; finished jobs leave after "
                       "--result-ttl %g s or a DELETE", svc__S.njobs,
                       cfg->spool_max_jobs, cfg->result_ttl);
         return 0;
     }
     if (svc__S.disk_bytes + bytes > cfg->spool_max_bytes) {
-        svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool holds %zu "
+        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool holds %zu "
                       "bytes of jobs; %zu more would pass --spool-max-bytes "
                       "%zu; finished jobs leave after --result-ttl %g s or a "
                       "DELETE", svc__S.disk_bytes, bytes, cfg->spool_max_bytes,
@@ -392,7 +390,7 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
 
     /* Parameters first: a misspelled key is refused even when busy. */
     if ((rc = svc_record_params(rec, &cfg->lim, &prm, &merr)) != MCF_OK) {
-        svc_error_from_mcf(err, rc, SVC_STAGE_PARAMS, NULL, &merr);
+        svc_error_from_mcf(err, rc, API_JOB_PARAMS, NULL, &merr);
         goto fail;
     }
     if (svc_record_fields(rec, &fields, err) != 0 ||
@@ -410,7 +408,7 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
     j = svc__job_new();
     if (!j) {
         api_params_free(&prm);
-        svc_error_set(err, SVC_ENOMEM, NULL, "out of memory accepting a job");
+        svc_error_set(err, SVC_P_NOMEM, "out of memory accepting a job");
         goto fail;
     }
     /* the scheme it will run (without one named, the runner may still
@@ -464,12 +462,12 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
         if (e == ENOSPC || e == EDQUOT) {
             /* A full disk is a full spool: transient, the client's to
              * retry, like the quota's (and /readyz says so meanwhile). */
-            svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool's "
+            svc_error_set(err, SVC_P_SPOOL_FULL, "the spool's "
                           "filesystem has no room for job %s (%zu bytes): "
                           "%s", j->id, input_len + target_len, strerror(e));
             err->retry_after = 5;
         } else {
-            svc_error_set(err, SVC_ESTORAGE, "EIO", "cannot write job %s to "
+            svc_error_set(err, SVC_P_STORAGE, "cannot write job %s to "
                           "the spool %s: %s", j->id, cfg->spool, strerror(e));
         }
         srv_spool_remove(cfg->spool, j->id);
@@ -531,7 +529,7 @@ int svc_upload_reserve(size_t *held, size_t want, svc_error *e)
     if (more < SVC_UPLOAD_STEP)
         more = SVC_UPLOAD_STEP;
     if (!svc_admit_more(cfg, &h, (double)more)) {
-        svc_error_set(e, SVC_EBUSY, NULL, "no memory for this upload now: the "
+        svc_error_set(e, SVC_P_BUSY, "no memory for this upload now: the "
                       "running jobs and the uploads in flight hold --max-memory "
                       "(%zu MiB); retry after the delay", cfg->max_memory >> 20);
         return -1;
@@ -619,10 +617,10 @@ static void cancel_apply(svc_job *j, void *arg)
     j->cancel_reason = c->reason;
     j->finished = srv_wall();
     if (c->reason == SVC_CANCEL_CLIENT)
-        svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled while queued: "
+        svc_error_set(&j->err, SVC_P_CANCELED, "canceled while queued: "
                       "the client closed its connection before the answer");
     else
-        svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled by request "
+        svc_error_set(&j->err, SVC_P_CANCELED, "canceled by request "
                       "while queued");
     j->err.cancel = c->reason;
 }
@@ -709,7 +707,7 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
     if (!j) {
         svc__unlock();
         pthread_mutex_unlock(&svc_state_mu);
-        svc_error_set(err, SVC_ENOTFOUND, NULL, "no job with ID %s (never "
+        svc_error_set(err, SVC_P_NOT_FOUND, "no job with ID %s (never "
                       "existed, deleted, or expired)", id);
         return -1;
     }
@@ -746,7 +744,7 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
         }
     }
     if (rc != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "job %s: the spool could not "
+        svc_error_set(err, SVC_P_STORAGE, "job %s: the spool could not "
                       "record the deletion (%s); %s", id, strerror(errno),
                       *res != SVC_DELETE_FORGOTTEN
                       ? "it was not canceled; retry"

@@ -46,40 +46,18 @@
  *   contents, also when it fails.
  *
  * Errors
- *   Failures are svc_error values: a transport-neutral code, the mcf
- *   status and stage they came from (when they came from the core or the
- *   codecs), a symbolic name (the REST "code": "EMESH", "EBUSY", ...), a
- *   precise detail in words, and a retry delay for transient refusals.
- *   The detail never names a URL, header or status code. Each door maps
- *   the code; both agree on this table:
- *
- *   code         meaning                           REST            gRPC
- *   EPARAMS      a parameter is wrong (named)      400 (mcf/stage) INVALID_ARGUMENT
- *   EINPUT       the mesh bytes are refused:       400, 413 limit, INVALID_ARGUMENT;
- *                unparsable, unknown format, over  415 format      ELIMIT:
- *                a limit                                           RESOURCE_EXHAUSTED
- *   EMESH        a well-formed mesh these          422             INVALID_ARGUMENT;
- *                parameters cannot smooth, or a                    ELIMIT:
- *                budget this mesh exceeds                          RESOURCE_EXHAUSTED
- *   ENOMEM       out of memory (transient)         503             RESOURCE_EXHAUSTED
- *   EBUSY        the queue is full (retry_after)   503             RESOURCE_EXHAUSTED
- *   EQUOTA       the spool's job or byte quota     503             RESOURCE_EXHAUSTED
- *   EDRAINING    shutting down (retry_after); also 503             UNAVAILABLE
- *                a job interrupted by the shutdown,
- *                which runs again after the restart
- *   ENOTFOUND    no job with that ID               404             NOT_FOUND
- *   ENOTREADY    queued or running, no result yet  409             FAILED_PRECONDITION
- *   ENORESULT    failed or canceled: no result     409             FAILED_PRECONDITION
- *   ECANCELED    canceled by a user or because its 409             CANCELLED
- *                only client left (cancel field)
- *   ETIMEOUT     ran longer than the job timeout   422 (ELIMIT)    DEADLINE_EXCEEDED
- *   ESTORAGE     the spool could not be read or    500 (EIO)       INTERNAL
- *                written
- *   EINTERNAL    anything else                     500             INTERNAL
- *
- *   For EPARAMS, EINPUT and EMESH the REST status comes from (mcf, stage)
- *   through the mcf_status map of reply.c, exactly as before the split.
- *   Codes are only ever appended.
+ *   Failures are svc_error values: a problem (a row of SVC_PROBLEMS, the
+ *   one table of client-visible errors), a precise detail in words, and a
+ *   retry delay for transient refusals. The detail never names a URL,
+ *   header or status code. Each row gives the symbolic name clients see
+ *   (REST's "code", gRPC's `mcf-code` trailer), the service code (svc_code:
+ *   what kind of failure, transport-neutral), the mcf_status it stands for
+ *   (when it came from the core or the codecs), the HTTP status and the
+ *   gRPC status; both doors map from it and nothing else. Failures of the
+ *   core and the codecs find their row from their mcf status and the
+ *   stage they came from (svc_error_from_mcf: parameters, the bytes, or
+ *   this mesh with these parameters). Rows and codes are only ever
+ *   appended.
  */
 #ifndef SVC_SERVICE_H
 #define SVC_SERVICE_H
@@ -90,6 +68,8 @@
 
 /* ------------------------------------------------------------------ errors */
 
+/* The kinds of failure (transport-neutral), persisted with a job's error
+ * as its "kind". */
 #define SVC_CODES(X)                                                   \
     X(OK,        "success")                                           \
     X(EPARAMS,   "invalid parameters")                                \
@@ -105,7 +85,10 @@
     X(ECANCELED, "the job was canceled")                              \
     X(ETIMEOUT,  "the job ran out of time")                           \
     X(ESTORAGE,  "the spool failed")                                  \
-    X(EINTERNAL, "internal error")
+    X(EINTERNAL, "internal error")                                    \
+    X(EAUTH,     "a valid token is required")                         \
+    X(EMETHOD,   "the method is not allowed on this resource")        \
+    X(EUNAVAILABLE, "the daemon cannot serve now")
 
 typedef enum {
 #define X(name, text) SVC_##name,
@@ -113,13 +96,112 @@ typedef enum {
 #undef X
 } svc_code;
 
-/* Where an mcf_status came from (it decides REST's 400 against 422). */
+/* gRPC's status codes (grpc/status.h's numbers, fixed by the protocol),
+ * for the table below; the gRPC door casts them to its StatusCode. */
 typedef enum {
-    SVC_STAGE_NONE = 0,    /* not from the core or the codecs */
-    SVC_STAGE_PARAMS,      /* parameter parsing and range checks */
-    SVC_STAGE_DECODE,      /* bytes -> mesh */
-    SVC_STAGE_RUN          /* the flow, encoding, comparison */
-} svc_stage;
+    SVC_GRPC_OK = 0, SVC_GRPC_CANCELLED = 1, SVC_GRPC_INVALID_ARGUMENT = 3,
+    SVC_GRPC_DEADLINE_EXCEEDED = 4, SVC_GRPC_NOT_FOUND = 5,
+    SVC_GRPC_RESOURCE_EXHAUSTED = 8, SVC_GRPC_FAILED_PRECONDITION = 9,
+    SVC_GRPC_UNIMPLEMENTED = 12, SVC_GRPC_INTERNAL = 13,
+    SVC_GRPC_UNAVAILABLE = 14, SVC_GRPC_UNAUTHENTICATED = 16
+} svc_grpc_status;
+
+/* Every client-visible error, one row each: its identifier, the name
+ * clients see, the service code, the mcf status it stands for (OK: none),
+ * the HTTP status, the gRPC status, and what it means. A failure of the
+ * core or a codec at a stage is the row of (the stage's code, its status):
+ * parameters EPARAMS, the bytes EINPUT, the run EMESH. Appended only. */
+#define SVC_PROBLEMS(X)                                                              \
+    X(OK,             "OK",         OK,        OK,         200, OK,                  \
+      "success")                                                                    \
+    /* the parameters: the request's fault */                                      \
+    X(PARAM_INVALID,  "EINVAL",     EPARAMS,   EINVAL,     400, INVALID_ARGUMENT,    \
+      "a parameter is invalid (named in the detail)")                               \
+    X(PARAM_LIMIT,    "ELIMIT",     EPARAMS,   ELIMIT,     400, INVALID_ARGUMENT,    \
+      "the parameters alone exceed a limit")                                        \
+    X(PARAM_DECODE,   "EDECODE",    EPARAMS,   EDECODE,    400, INVALID_ARGUMENT,    \
+      "the parameters do not parse")                                                \
+    /* the request's bytes */                                                       \
+    X(INPUT_INVALID,  "EINVAL",     EINPUT,    EINVAL,     400, INVALID_ARGUMENT,    \
+      "the request's body is not what it must be")                                  \
+    X(INPUT_DECODE,   "EDECODE",    EINPUT,    EDECODE,    400, INVALID_ARGUMENT,    \
+      "the bytes do not parse")                                                     \
+    X(INPUT_FORMAT,   "EFORMAT",    EINPUT,    EFORMAT,    415, INVALID_ARGUMENT,    \
+      "not a format the service reads")                                             \
+    X(INPUT_LIMIT,    "ELIMIT",     EINPUT,    ELIMIT,     413, RESOURCE_EXHAUSTED,  \
+      "the input is over a size limit")                                             \
+    X(INPUT_MESH,     "EMESH",      EINPUT,    EMESH,      422, INVALID_ARGUMENT,    \
+      "the bytes hold a malformed mesh")                                            \
+    /* this mesh with these parameters */                                           \
+    X(MESH_INVALID,   "EINVAL",     EMESH,     EINVAL,     422, INVALID_ARGUMENT,    \
+      "these parameters do not suit this mesh")                                     \
+    X(MESH_LIMIT,     "ELIMIT",     EMESH,     ELIMIT,     422, RESOURCE_EXHAUSTED,  \
+      "the job exceeds a budget (steps, work, memory, decode)")                     \
+    X(MESH,           "EMESH",      EMESH,     EMESH,      422, INVALID_ARGUMENT,    \
+      "the mesh is malformed")                                                      \
+    X(MESH_NOTPOSDEF, "ENOTPOSDEF", EMESH,     ENOTPOSDEF, 422, INVALID_ARGUMENT,    \
+      "the system matrix is not positive definite")                                 \
+    X(MESH_NUMERIC,   "ENUMERIC",   EMESH,     ENUMERIC,   422, INVALID_ARGUMENT,    \
+      "the flow failed numerically")                                                \
+    X(MESH_NOCONV,    "ENOCONV",    EMESH,     ENOCONV,    422, INVALID_ARGUMENT,    \
+      "an iteration did not converge")                                              \
+    X(MESH_DECODE,    "EDECODE",    EMESH,     EDECODE,    400, INVALID_ARGUMENT,    \
+      "the bytes do not parse")                                                     \
+    X(MESH_FORMAT,    "EFORMAT",    EMESH,     EFORMAT,    415, INVALID_ARGUMENT,    \
+      "not a format the service writes")                                            \
+    /* the service */                                                               \
+    X(NOMEM,          "ENOMEM",     ENOMEM,    ENOMEM,     503, RESOURCE_EXHAUSTED,  \
+      "out of memory: retry after the delay")                                       \
+    X(BUSY,           "EBUSY",      EBUSY,     OK,         503, RESOURCE_EXHAUSTED,  \
+      "no room now (queue, memory, streams): retry after the delay")                \
+    X(SPOOL_FULL,     "ESPOOLFULL", EQUOTA,    OK,         503, RESOURCE_EXHAUSTED,  \
+      "the spool's quota or disk is full: retry after the delay")                   \
+    X(DRAINING,       "EDRAINING",  EDRAINING, OK,         503, UNAVAILABLE,         \
+      "shutting down; a job it interrupted runs again after the restart")           \
+    X(NOT_FOUND,      "ENOTFOUND",  ENOTFOUND, OK,         404, NOT_FOUND,           \
+      "no such job or resource")                                                    \
+    X(NOT_READY,      "ENOTREADY",  ENOTREADY, OK,         409, FAILED_PRECONDITION, \
+      "the job is queued or running: no result yet")                                \
+    X(NO_RESULT,      "ENORESULT",  ENORESULT, OK,         409, FAILED_PRECONDITION, \
+      "the job failed or was canceled: no result")                                  \
+    X(CANCELED,       "ECANCELED",  ECANCELED, OK,         409, CANCELLED,           \
+      "canceled by a user, or because its only client left")                        \
+    X(TIMEOUT,        "ELIMIT",     ETIMEOUT,  OK,         422, DEADLINE_EXCEEDED,   \
+      "the job ran longer than --job-timeout")                                      \
+    X(STORAGE,        "EIO",        ESTORAGE,  OK,         500, INTERNAL,            \
+      "the spool could not be read or written")                                     \
+    X(INTERNAL_IO,    "EIO",        EINTERNAL, EIO,        500, INTERNAL,            \
+      "an input/output error")                                                      \
+    X(INTERNAL,       "EINTERNAL",  EINTERNAL, OK,         500, INTERNAL,            \
+      "internal error")                                                             \
+    /* the doors' own */                                                            \
+    X(AUTH,           "EAUTH",      EAUTH,     OK,         401, UNAUTHENTICATED,     \
+      "a valid bearer token is required")                                           \
+    X(METHOD,         "EMETHOD",    EMETHOD,   OK,         405, UNIMPLEMENTED,       \
+      "the method is not allowed on this resource")                                 \
+    X(URI_LIMIT,      "ELIMIT",     EPARAMS,   OK,         414, INVALID_ARGUMENT,    \
+      "the query string is too long")                                               \
+    X(UPLOAD_TIMEOUT, "ETIMEOUT",   ETIMEOUT,  OK,         408, DEADLINE_EXCEEDED,   \
+      "the upload did not arrive in time")                                          \
+    X(UNHEALTHY,      "EUNHEALTHY", EUNAVAILABLE, OK,      503, UNAVAILABLE,         \
+      "a door cannot take connections")                                             \
+    X(SPOOL_UNREADY,  "ESPOOL",     EUNAVAILABLE, OK,      503, UNAVAILABLE,         \
+      "the spool cannot be written")
+
+typedef enum {
+#define X(id, name, code, mcf, http, grpc, text) SVC_P_##id,
+    SVC_PROBLEMS(X)
+#undef X
+    SVC_P_COUNT
+} svc_problem;
+
+/* A row's columns (an unknown row reads as INTERNAL's). */
+const char *svc_problem_name(svc_problem p);     /* "EINVAL", "EBUSY" */
+svc_code svc_problem_code(svc_problem p);
+mcf_status svc_problem_mcf(svc_problem p);
+unsigned svc_problem_http(svc_problem p);
+svc_grpc_status svc_problem_grpc(svc_problem p);
+const char *svc_problem_text(svc_problem p);
 
 /* Why a job was (asked to be) stopped. */
 typedef enum {
@@ -131,26 +213,26 @@ typedef enum {
 } svc_cancel_reason;
 
 typedef struct {
-    svc_code code;
-    mcf_status mcf;            /* MCF_OK when not from the core/codecs */
-    svc_stage stage;
+    svc_problem problem;
     svc_cancel_reason cancel;  /* ECANCELED: why */
-    char name[24];             /* "EMESH", "EBUSY", "ESPOOLFULL", "EIO" */
     char detail[MCF_ERRMSG_SIZE + 128];
     double retry_after;        /* seconds, > 0 for transient refusals */
 } svc_error;
 
 /* "EPARAMS" for SVC_EPARAMS, "" when unknown. */
 const char *svc_code_name(svc_code c);
-/* A failure of the core or the codecs: code from (s, stage), name is
- * mcf_status_name(s), detail "prefix: message" (prefix may be NULL). */
-void svc_error_from_mcf(svc_error *e, mcf_status s, svc_stage stage,
+/* The error's service code (its row's). */
+svc_code svc_error_code(const svc_error *e);
+/* A failure of the core or the codecs at a stage: the row of (the
+ * stage's code, s), detail "prefix: message" (prefix may be NULL; err
+ * NULL: mcf_strerror(s)). */
+void svc_error_from_mcf(svc_error *e, mcf_status s, api_job_stage stage,
                         const char *prefix, const mcf_error *err);
-/* Any failure; name NULL: svc_code_name(code). Clears mcf and stage. */
-void svc_error_set(svc_error *e, svc_code code, const char *name,
-                   const char *fmt, ...)
+/* Any failure: problem p with the detail; retry_after from its code
+ * (EBUSY, EQUOTA, ENOMEM: 1 s; EDRAINING: 5 s). */
+void svc_error_set(svc_error *e, svc_problem p, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 4, 5)))
+    __attribute__((format(printf, 3, 4)))
 #endif
     ;
 

@@ -90,7 +90,7 @@ int svc_admit_refuse(const svc_config *cfg, double estimate, svc_error *e)
                   "MiB, exceeds --max-job-memory %.0f MiB: refused",
                   estimate / 1048576.0,
                   (double)cfg->max_job_memory / 1048576.0);
-    svc_error_from_mcf(e, MCF_ELIMIT, SVC_STAGE_RUN, NULL, &err);
+    svc_error_from_mcf(e, MCF_ELIMIT, API_JOB_RUN, NULL, &err);
     return 1;
 }
 

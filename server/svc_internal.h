@@ -127,6 +127,10 @@ int svc__write_state(svc_job *j, int durable);
 /* One log line and the metrics of a finished job. */
 void svc__log_job(const svc_job *j, int nv, int nf, double run_s);
 
+/* svc_error.c: the row of a service code and a name (a persisted error):
+ * 0 and *p, or -1. */
+int svc__problem_find(svc_code code, const char *name, svc_problem *p);
+
 /* runner.c: decode, smooth and encode one job (a worker, no lock). */
 void svc__run_job(svc_job *j);
 

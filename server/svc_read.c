@@ -157,10 +157,10 @@ static int has_result_locked(const svc_job *j, const char *what,
     if (j->status == SVC_JOB_SUCCEEDED)
         return 1;
     if (svc_job_status_terminal(j->status))
-        svc_error_set(err, SVC_ENORESULT, NULL, "job %s %s and has no %s",
+        svc_error_set(err, SVC_P_NO_RESULT, "job %s %s and has no %s",
                       j->id, svc_job_status_name(j->status), what);
     else
-        svc_error_set(err, SVC_ENOTREADY, NULL, "job %s is %s (step %d of "
+        svc_error_set(err, SVC_P_NOT_READY, "job %s is %s (step %d of "
                       "%d)", j->id, svc_job_status_name(j->status), j->step,
                       j->steps_planned);
     return 0;
@@ -176,7 +176,7 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
     }
     svc__unlock();
     if (srv_spool_read(svc__S.cfg.spool, j->id, "metrics.json", json, len) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "metrics of job %s are missing",
+        svc_error_set(err, SVC_P_STORAGE, "metrics of job %s are missing",
                       j->id);
         return -1;
     }
@@ -223,7 +223,7 @@ static int result_damaged(const svc_job *j, size_t got, size_t want,
 {
     if (want == 0 || got == want)
         return 0;
-    svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s on the "
+    svc_error_set(err, SVC_P_STORAGE, "the result of job %s on the "
                   "spool is damaged: %zu bytes, %zu recorded", j->id, got,
                   want);
     srv_logf(SRV_LOG_ERROR, "spool: %s", err->detail);
@@ -252,7 +252,7 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
     svc__unlock();
     if (!*data &&
         srv_spool_read(svc__S.cfg.spool, j->id, name, data, len) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s is "
+        svc_error_set(err, SVC_P_STORAGE, "the result of job %s is "
                       "missing from the spool", j->id);
         return -1;
     }
@@ -273,12 +273,12 @@ static int open_job_file(const svc_job *j, const char *name, const char *what,
 
     if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
         (*fd = open(path, O_RDONLY)) < 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s is "
+        svc_error_set(err, SVC_P_STORAGE, "the %s of job %s is "
                       "missing from the spool", what, j->id);
         return -1;
     }
     if (fstat(*fd, &sb) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s: %s",
+        svc_error_set(err, SVC_P_STORAGE, "the %s of job %s: %s",
                       what, j->id, strerror(errno));
         close(*fd);
         *fd = -1;
@@ -326,7 +326,7 @@ int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
     /* the record is constant once submitted; a bad value was refused */
     svc__unlock();
     if (svc_record_fields(&j->rec, &asked, &e) != 0 || !asked) {
-        svc_error_set(err, SVC_ENORESULT, NULL, "job %s was submitted without "
+        svc_error_set(err, SVC_P_NO_RESULT, "job %s was submitted without "
                       "fields=true and has no fields", j->id);
         return -1;
     }

@@ -112,7 +112,7 @@ int svc_record_fields(const svc_record *r, int *on, svc_error *err)
                 mcf_error_set(&me, MCF_EINVAL, "parameter 'fields' must be true "
                               "or false (or 1/0, yes/no), got \"%.*s\"",
                               (int)(v > 40 ? 40 : v), p + 7);
-                svc_error_from_mcf(err, MCF_EINVAL, SVC_STAGE_PARAMS, NULL, &me);
+                svc_error_from_mcf(err, MCF_EINVAL, API_JOB_PARAMS, NULL, &me);
                 return -1;
             }
         }
@@ -172,14 +172,25 @@ int svc__record_from_json(svc_record *r, const cJSON *o)
 
 /* -------------------------------------------------------------- state.json */
 
+/* The stage a job error's code stands for (params, decode, run), "" for
+ * the service's own codes. */
+static const char *stage_of(svc_code c)
+{
+    return c == SVC_EPARAMS ? stage_names[1] : c == SVC_EINPUT ? stage_names[2]
+           : c == SVC_EMESH ? stage_names[3] : "";
+}
+
 static void error_to_json(cJSON *o, const svc_error *e)
 {
-    cJSON_AddStringToObject(o, "kind", svc_code_name(e->code));
-    cJSON_AddStringToObject(o, "code", e->name);
-    if (e->mcf != MCF_OK)
-        cJSON_AddStringToObject(o, "mcf", mcf_status_name(e->mcf));
-    if (e->stage != SVC_STAGE_NONE)
-        cJSON_AddStringToObject(o, "stage", stage_names[e->stage]);
+    svc_code c = svc_error_code(e);
+    mcf_status s = svc_problem_mcf(e->problem);
+
+    cJSON_AddStringToObject(o, "kind", svc_code_name(c));
+    cJSON_AddStringToObject(o, "code", svc_problem_name(e->problem));
+    if (s != MCF_OK)
+        cJSON_AddStringToObject(o, "mcf", mcf_status_name(s));
+    if (*stage_of(c))
+        cJSON_AddStringToObject(o, "stage", stage_of(c));
     if (e->cancel != SVC_CANCEL_NONE)
         cJSON_AddStringToObject(o, "cancel", cancel_names[e->cancel]);
     cJSON_AddStringToObject(o, "detail", e->detail);
@@ -193,60 +204,70 @@ static mcf_status mcf_of_name(const char *s)
     return MCF_OK;
 }
 
+/* A failure of the core or the codecs with its detail as stored. */
+static void error_from_mcf_json(svc_error *e, mcf_status s, api_job_stage stage,
+                                const cJSON *o)
+{
+    svc_error_from_mcf(e, s, stage, NULL, NULL);
+    snprintf(e->detail, sizeof e->detail, "%s", str_of(o, "detail"));
+}
+
 /* The form written before the service split: {"http","code","detail"}.
- * The HTTP status tells the stage of an mcf code back (reply.c's map:
- * 400 parameters, 413 and 415 decoding, 422 the run). */
+ * The HTTP status tells the stage of an mcf code back (400 parameters,
+ * 413 and 415 decoding, 422 the run). */
 static void error_from_old_json(svc_error *e, const cJSON *o)
 {
     const char *code = str_of(o, "code");
     unsigned http = (unsigned)num_of(o, "http");
     mcf_status s = mcf_of_name(code);
-    static const struct { const char *name; svc_code code; } own[] = {
-        {"EDRAINING", SVC_EDRAINING}, {"EBUSY", SVC_EBUSY},
-        {"ESPOOLFULL", SVC_EQUOTA},   {"ENOTFOUND", SVC_ENOTFOUND},
-        {"ENOTREADY", SVC_ENOTREADY}, {"ENORESULT", SVC_ENORESULT}};
+    static const struct { const char *name; svc_problem p; } own[] = {
+        {"EDRAINING", SVC_P_DRAINING}, {"EBUSY", SVC_P_BUSY},
+        {"ESPOOLFULL", SVC_P_SPOOL_FULL}, {"ENOTFOUND", SVC_P_NOT_FOUND},
+        {"ENOTREADY", SVC_P_NOT_READY}, {"ENORESULT", SVC_P_NO_RESULT}};
     size_t i;
 
     for (i = 0; i < sizeof own / sizeof *own; i++)
         if (strcmp(code, own[i].name) == 0) {
-            svc_error_set(e, own[i].code, code, "%s", str_of(o, "detail"));
+            svc_error_set(e, own[i].p, "%s", str_of(o, "detail"));
             return;
         }
     if (strcmp(code, "ELIMIT") == 0 && http == 422 &&
         strstr(str_of(o, "detail"), "--job-timeout")) {
-        svc_error_set(e, SVC_ETIMEOUT, code, "%s", str_of(o, "detail"));
+        svc_error_set(e, SVC_P_TIMEOUT, "%s", str_of(o, "detail"));
         return;
     }
     if (strcmp(code, "EIO") == 0 && http == 500) {
-        svc_error_set(e, SVC_ESTORAGE, code, "%s", str_of(o, "detail"));
+        svc_error_set(e, SVC_P_STORAGE, "%s", str_of(o, "detail"));
         return;
     }
     if (s == MCF_OK && strcmp(code, "OK") != 0) {
-        svc_error_set(e, SVC_EINTERNAL, code, "%s", str_of(o, "detail"));
+        svc_error_set(e, SVC_P_INTERNAL, "%s", str_of(o, "detail"));
         return;
     }
-    svc_error_from_mcf(e, s, http == 400 ? SVC_STAGE_PARAMS
-                             : http == 413 || http == 415 ? SVC_STAGE_DECODE
-                                                          : SVC_STAGE_RUN,
-                       NULL, NULL);
-    snprintf(e->detail, sizeof e->detail, "%s", str_of(o, "detail"));
+    error_from_mcf_json(e, s, http == 400 ? API_JOB_PARAMS
+                              : http == 413 || http == 415 ? API_JOB_DECODE
+                                                           : API_JOB_RUN, o);
 }
 
 static void error_from_json(svc_error *e, const cJSON *o)
 {
     const char *kind = str_of(o, "kind");
+    svc_problem p;
     int i;
 
     if (!*kind) {
         error_from_old_json(e, o);
         return;
     }
-    for (i = 0; i < (int)SVC_EINTERNAL && strcmp(kind, svc_code_name(i)); i++)
+    for (i = 0; i < (int)SVC_EUNAVAILABLE && strcmp(kind, svc_code_name(i)); i++)
         ;
-    svc_error_set(e, (svc_code)i, str_of(o, "code"), "%s", str_of(o, "detail"));
-    e->mcf = mcf_of_name(str_of(o, "mcf"));
-    i = index_of(str_of(o, "stage"), stage_names, 4);
-    e->stage = i > 0 ? (svc_stage)i : SVC_STAGE_NONE;
+    if (svc__problem_find((svc_code)i, str_of(o, "code"), &p) == 0)
+        svc_error_set(e, p, "%s", str_of(o, "detail"));
+    else /* a row of a later version: its kind's failure of the stage */
+        error_from_mcf_json(e, mcf_of_name(str_of(o, "mcf")),
+                            (api_job_stage)(index_of(str_of(o, "stage"), stage_names, 4) > 0
+                                            ? index_of(str_of(o, "stage"), stage_names, 4)
+                                            : API_JOB_RUN), o);
     i = index_of(str_of(o, "cancel"), cancel_names, 5);
     e->cancel = i > 0 ? (svc_cancel_reason)i : SVC_CANCEL_NONE;
 }
@@ -371,13 +392,13 @@ void svc__log_job(const svc_job *j, int nv, int nf, double run_s)
     if (j->recovered)
         cJSON_AddBoolToObject(o, "recovered", 1);
     if (j->status == SVC_JOB_FAILED || j->status == SVC_JOB_CANCELED) {
-        cJSON_AddStringToObject(o, "kind", svc_code_name(j->err.code));
-        cJSON_AddStringToObject(o, "code", j->err.name);
+        cJSON_AddStringToObject(o, "kind", svc_code_name(svc_error_code(&j->err)));
+        cJSON_AddStringToObject(o, "code", svc_problem_name(j->err.problem));
         cJSON_AddStringToObject(o, "detail", j->err.detail);
     }
     srv_log_json(j->status == SVC_JOB_FAILED &&
-                         (j->err.code == SVC_ESTORAGE ||
-                          j->err.code == SVC_EINTERNAL ||
-                          j->err.code == SVC_ENOMEM)
+                         (svc_error_code(&j->err) == SVC_ESTORAGE ||
+                          svc_error_code(&j->err) == SVC_EINTERNAL ||
+                          svc_error_code(&j->err) == SVC_ENOMEM)
                      ? SRV_LOG_ERROR : SRV_LOG_INFO, o);
 }
