@@ -282,6 +282,8 @@ typedef struct {
     int flow_keys_set;            /* time, dt, adaptive, laplacian, mass or
                                      rescale given: without a scheme, the
                                      job is desbrun2's flow */
+    unsigned given;               /* a bit per parameter given (the table's
+                                     order): api_params_given_json */
 } api_params;
 
 /* The scheme of a request that names none, on a mesh of nv vertices: the
@@ -303,6 +305,9 @@ int api_params_auto_amount(const api_params *p);
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
 void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */
+/* dst (uninitialized) becomes a copy of src with its own fixed-vertex
+ * array. MCF_OK or MCF_ENOMEM (dst untouched). */
+mcf_status api_params_copy(api_params *dst, const api_params *src);
 
 /* One validation path for every source (JSON, query string, CLI flags):
  * sets key to the textual value, EINVAL naming the key and the accepted
@@ -313,6 +318,10 @@ mcf_status api_params_set(api_params *p, const char *key, const char *value,
  * numbers, strings, booleans and (for fixed_vertices) arrays of integers. */
 mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
                                  const api_limits *lim, mcf_error *err);
+/* A parsed JSON object of keys, as api_params_parse_json applies them
+ * (without its size and depth checks: obj is already a tree). */
+mcf_status api_params_set_json(api_params *p, const cJSON *obj,
+                               const api_limits *lim, mcf_error *err);
 /* A URL query string "scheme=desbrun2&dt=1e-3" (percent-decoded). Keys the
  * daemon handles itself (listed in `ignore`, NULL-terminated) are skipped. */
 mcf_status api_params_parse_query(api_params *p, const char *qs,
@@ -331,6 +340,10 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);
 /* The parameters as a JSON object (for job records and metrics). */
 cJSON *api_params_to_json(const api_params *p);
+/* Only the parameters that were given, with their values: a JSON object
+ * that api_params_set_json turns back into the same parameters (the
+ * record a job keeps of its request). NULL when out of memory. */
+cJSON *api_params_given_json(const api_params *p);
 /* Every parameter as the one table in api_params.c defines it, a JSON
  * array of {name, type (number, integer, boolean, string, array), auto
  * (accepts "auto"), format (uint64 for an unsigned 64-bit integer),

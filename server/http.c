@@ -42,23 +42,6 @@ const char *srv_route_name(srv_route rt)
     return route_names[rt];
 }
 
-static const srv_config *g_cfg;
-static int (*g_health)(char *why, size_t size);
-static void (*g_more_gauges)(srv_gauges *g);
-
-void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
-                   void (*more_gauges)(srv_gauges *g))
-{
-    g_cfg = cfg;
-    g_health = health;
-    g_more_gauges = more_gauges;
-}
-
-const srv_config *srv_http_config(void)
-{
-    return g_cfg;
-}
-
 /* The longest query string read (the request line and headers together
  * are bounded by MHD's per-connection pool, SRV_CONN_MEMORY in main.c). */
 #define SRV_MAX_QUERY 8192
@@ -66,18 +49,6 @@ const srv_config *srv_http_config(void)
 /* An upload still coming after --header-timeout must have averaged this
  * many bytes a second since its head (slow-body clients hold a slot). */
 #define SRV_MIN_BODY_RATE 4096.0
-
-static pthread_mutex_t g_active_mu = PTHREAD_MUTEX_INITIALIZER;
-static int g_active;
-
-int srv_http_active(void)
-{
-    int n;
-    pthread_mutex_lock(&g_active_mu);
-    n = g_active;
-    pthread_mutex_unlock(&g_active_mu);
-    return n;
-}
 
 const char *srv_query_of(const srv_request *r)
 {
@@ -186,9 +157,9 @@ static int parse_route(srv_request *r, const char *url)
 
 /* The bearer token, checked as the gRPC door checks it (srv_bearer_ok:
  * constant time in the token's length). */
-static int authorized(struct MHD_Connection *c)
+static int authorized(const srv_rest *d, struct MHD_Connection *c)
 {
-    return srv_bearer_ok(srv_http_config(),
+    return srv_bearer_ok(d->cfg,
                          MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                      MHD_HTTP_HEADER_AUTHORIZATION));
 }
@@ -198,10 +169,11 @@ static int is_get(const char *method)
     return strcmp(method, "GET") == 0 || strcmp(method, "HEAD") == 0;
 }
 
-/* The daemon's gauges: the service's and the door's event streams. */
-static srv_gauges gauges(void)
+/* The daemon's gauges: the service's, the door's event streams, the
+ * other door's. */
+static srv_gauges gauges(srv_rest *d)
 {
-    svc_gauges s = svc_get_gauges();
+    svc_gauges s = svc_get_gauges(d->svc);
     srv_gauges g;
 
     memset(&g, 0, sizeof g);
@@ -211,17 +183,17 @@ static srv_gauges gauges(void)
     g.workers_busy = s.workers_busy;
     g.jobs_in_memory = s.jobs_in_memory;
     g.draining = s.draining;
-    g.followers = srv_waiter_followers();
+    g.followers = srv_waiter_followers(d);
     g.spool_bytes = s.spool_bytes;
-    if (g_more_gauges)
-        g_more_gauges(&g);
+    if (d->dm.gauges)
+        d->dm.gauges(d->dm.ctx, &g);
     return g;
 }
 
 static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
                                   const char *url, const char *method)
 {
-    const srv_config *cfg = srv_http_config();
+    srv_rest *d = r->door;
     svc_error p;
     const char *q = srv_query_of(r);
 
@@ -235,7 +207,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
                                  "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
     /* The page is public too (ui.c): its API calls carry the token. */
     if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
-        r->rt != RT_UI && !authorized(c))
+        r->rt != RT_UI && !authorized(r->door, c))
         return srv_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
                                  "<token>' header is required");
     switch (r->rt) {
@@ -267,7 +239,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
      * the daemon unhealthy, so an orchestrator restarts it. */
     if (r->rt == RT_HEALTHZ || r->rt == RT_READYZ) {
         char why[300];
-        if (g_health && g_health(why, sizeof why) != 0)
+        if (d->dm.health && d->dm.health(d->dm.ctx, why, sizeof why) != 0)
             return srv_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", why);
     }
     if (r->rt == RT_HEALTHZ) {
@@ -276,7 +248,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_send_json(r, c, 200, o);
     }
     if (r->rt == RT_READYZ) {
-        srv_gauges g = gauges();
+        srv_gauges g = gauges(d);
         cJSON *o;
         /* Draining and a spool that cannot be written make the daemon
          * unready. A full queue does not:
@@ -284,12 +256,12 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
          * orchestrator flapping every replica out of its Service under
          * load would turn those into connection errors. */
         char why[1500];
-        if (g.draining)
+        if (g.draining || d->draining)
             return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting "
                                      "down");
         /* Every job goes through the spool: one that cannot be written
          * makes every job fail. */
-        if (srv_spool_ready(cfg->spool, why, sizeof why) != 0)
+        if (svc_ready(d->svc, why, sizeof why) != 0)
             return srv_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ready");
@@ -298,7 +270,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_send_json(r, c, 200, o);
     }
     if (r->rt == RT_METRICS) {
-        srv_gauges g = gauges();
+        srv_gauges g = gauges(d);
         size_t n = 0;
         char *s;
         /* This request is counted before rendering, so a scrape sees itself. */
@@ -345,47 +317,44 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
  * connection closes without one (MHD skips it when a request overflows
  * its pool after the URI callback, e.g. hundreds of headers); and, for
  * the header deadline, whether it is waiting for a request's headers and
- * since when. Every connection is on g_conns (g_conns_mu guards the
- * list, receiving and since). */
-typedef struct conn_state {
+ * since when. Every connection is on the door's list (conns_mu guards
+ * the list, receiving and since). */
+struct conn_state {
     srv_request *req;
     int fd;
     int receiving;             /* 1: no complete request head yet; 2: the
                                   head is in, the body is coming */
     size_t body;               /* body bytes so far (receiving 2) */
     double since;              /* srv_mono() when it began waiting */
+    srv_rest *door;
     struct conn_state *prev, *next;
-} conn_state;
-
-static pthread_mutex_t g_conns_mu = PTHREAD_MUTEX_INITIALIZER;
-static conn_state *g_conns;
-static int g_nconns;
+};
 
 static void request_free(srv_request *r, int toe);
 
 static void conn_waiting(conn_state *cs, int receiving)
 {
-    pthread_mutex_lock(&g_conns_mu);
+    pthread_mutex_lock(&cs->door->conns_mu);
     cs->receiving = receiving;
     cs->since = srv_mono();
     cs->body = 0;
-    pthread_mutex_unlock(&g_conns_mu);
+    pthread_mutex_unlock(&cs->door->conns_mu);
 }
 
 static void conn_body(conn_state *cs, size_t bytes)
 {
-    pthread_mutex_lock(&g_conns_mu);
+    pthread_mutex_lock(&cs->door->conns_mu);
     cs->body = bytes;
-    pthread_mutex_unlock(&g_conns_mu);
+    pthread_mutex_unlock(&cs->door->conns_mu);
 }
 
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
                          enum MHD_ConnectionNotificationCode code)
 {
+    srv_rest *d = cls;
     conn_state *cs = *socket_context;
 
-    (void)cls;
     if (code == MHD_CONNECTION_NOTIFY_STARTED) {
         const union MHD_ConnectionInfo *ci =
             MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
@@ -394,13 +363,14 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
             cs->fd = ci ? ci->connect_fd : -1;
             cs->receiving = 1;
             cs->since = srv_mono();
-            pthread_mutex_lock(&g_conns_mu);
-            cs->next = g_conns;
-            if (g_conns)
-                g_conns->prev = cs;
-            g_conns = cs;
-            g_nconns++;
-            pthread_mutex_unlock(&g_conns_mu);
+            cs->door = d;
+            pthread_mutex_lock(&d->conns_mu);
+            cs->next = d->conns;
+            if (d->conns)
+                d->conns->prev = cs;
+            d->conns = cs;
+            d->nconns++;
+            pthread_mutex_unlock(&d->conns_mu);
         }
         *socket_context = cs;
         return;
@@ -408,15 +378,15 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     if (cs) {
         /* Off the list before MHD closes the socket (it notifies first),
          * so srv_http_expire_heads never touches a reused descriptor. */
-        pthread_mutex_lock(&g_conns_mu);
+        pthread_mutex_lock(&d->conns_mu);
         if (cs->prev)
             cs->prev->next = cs->next;
         else
-            g_conns = cs->next;
+            d->conns = cs->next;
         if (cs->next)
             cs->next->prev = cs->prev;
-        g_nconns--;
-        pthread_mutex_unlock(&g_conns_mu);
+        d->nconns--;
+        pthread_mutex_unlock(&d->conns_mu);
         if (cs->req)
             request_free(cs->req, -1); /* never completed: abandoned */
     }
@@ -424,20 +394,20 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     *socket_context = NULL;
 }
 
-int srv_http_expire_heads(double timeout, int max_connections,
+int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
                           double body_timeout)
 {
     double now = srv_mono();
     conn_state *cs;
     int n = 0;
 
-    pthread_mutex_lock(&g_conns_mu);
+    pthread_mutex_lock(&d->conns_mu);
     /* Nine tenths of the slots taken: heads get 2 s, so that a flood of
      * slow clients from many addresses leaves room for the probes and
      * for clients that send their request at once. */
-    if (g_nconns * 10 >= max_connections * 9 && timeout > 2)
+    if (d->nconns * 10 >= max_connections * 9 && timeout > 2)
         timeout = 2;
-    for (cs = g_conns; cs; cs = cs->next)
+    for (cs = d->conns; cs; cs = cs->next)
         if (cs->fd >= 0 &&
             ((timeout > 0 && now - cs->since > timeout &&
               (cs->receiving == 1 ||
@@ -453,22 +423,23 @@ int srv_http_expire_heads(double timeout, int max_connections,
             cs->receiving = 0;
             n++;
         }
-    pthread_mutex_unlock(&g_conns_mu);
+    pthread_mutex_unlock(&d->conns_mu);
     return n;
 }
 
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
 {
+    srv_rest *d = cls;
     srv_request *r = calloc(1, sizeof *r);
-    const srv_config *cfg = srv_http_config();
+    const srv_config *cfg = d->cfg;
     const union MHD_ConnectionInfo *ci =
         MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
     conn_state *cs = ci ? ci->socket_context : NULL;
     char *q;
 
-    (void)cls;
     if (!r)
         return NULL;
+    r->door = d;
     r->uri = strdup(uri ? uri : "");
     /* MHD would next parse the query into its per-connection pool, a
      * record per parameter: a few hundred short ones exhaust it, and MHD
@@ -492,9 +463,9 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
     api_buf_init(&r->mesh, cfg->lim.max_input_bytes);
     api_buf_init(&r->target, cfg->lim.max_input_bytes);
     api_buf_init(&r->params, cfg->lim.max_json_bytes);
-    pthread_mutex_lock(&g_active_mu);
-    g_active++;
-    pthread_mutex_unlock(&g_active_mu);
+    pthread_mutex_lock(&d->active_mu);
+    d->active++;
+    pthread_mutex_unlock(&d->active_mu);
     return r;
 }
 
@@ -572,6 +543,7 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
  * termination code, -1 for a request MHD abandoned without completing. */
 static void request_free(srv_request *r, int toe)
 {
+    srv_rest *d = r->door;
     cJSON *o;
     int had_job;
 
@@ -605,12 +577,12 @@ static void request_free(srv_request *r, int toe)
     api_buf_free(&r->mesh);
     api_buf_free(&r->target);
     api_buf_free(&r->params);
-    svc_upload_release(&r->mem_held);
+    svc_upload_release(d->svc, &r->mem_held);
     cJSON_Delete(r->fields);
     free(r->uri);
     free(r);
-    pthread_mutex_lock(&g_active_mu);
-    g_active--;
-    pthread_mutex_unlock(&g_active_mu);
+    pthread_mutex_lock(&d->active_mu);
+    d->active--;
+    pthread_mutex_unlock(&d->active_mu);
 }
 

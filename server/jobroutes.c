@@ -162,7 +162,7 @@ enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c)
             srv_waiter_stop(&r->w);
             r->waiting = 0;
             return srv_respond(r, c, 200,
-                               srv_stream_response(r->job, SRV_STREAM_NDJSON,
+                               srv_stream_response(r->door, r->job, SRV_STREAM_NDJSON,
                                                    c, -1));
         }
         if (svc_job_status_terminal(s.status)) {
@@ -235,14 +235,21 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
         return srv_send_text(r, c, 200, "application/json", metrics, len);
     } else {
         struct MHD_Response *resp;
+        char *data;
         size_t size;
         int fd;
 
-        if ((r->rt == RT_JOB_FIELDS ? svc_job_fields_open(j, &fd, &size, &e)
-                                    : svc_job_result_open(j, &fd, &size, &e)) != 0)
+        if ((r->rt == RT_JOB_FIELDS ? svc_job_fields_open(j, &fd, &data, &size, &e)
+                                    : svc_job_result_open(j, &fd, &data, &size, &e)) != 0)
             return srv_send_problem(r, c, &e, s.id);
-        if (!(resp = MHD_create_response_from_fd(size, fd))) {
-            close(fd);
+        /* zero-copy from the store's descriptor, else its bytes */
+        resp = fd >= 0 ? MHD_create_response_from_fd(size, fd)
+                       : MHD_create_response_from_buffer(size, data,
+                                                         MHD_RESPMEM_MUST_FREE);
+        if (!resp) {
+            if (fd >= 0)
+                close(fd);
+            free(data);
             return MHD_NO;
         }
         if (r->rt == RT_JOB_FIELDS) {
@@ -264,11 +271,11 @@ static enum MHD_Result delete_job(srv_request *r, struct MHD_Connection *c)
     svc_job *j;
     enum MHD_Result ret;
 
-    if (svc_delete(r->id, &res, &before, &e) != 0)
+    if (svc_delete(r->door->svc, r->id, &res, &before, &e) != 0)
         return srv_send_problem(r, c, &e, NULL);
     if (res == SVC_DELETE_FORGOTTEN)
         return srv_respond(r, c, 204, srv_empty_response());
-    j = svc_job_get(r->id);
+    j = svc_job_get(r->door->svc, r->id);
     if (!j) /* forgotten in between: it is gone, as asked */
         return srv_respond(r, c, 204, srv_empty_response());
     ret = job_json_reply(r, c, j, res == SVC_DELETE_STOPPING ? 202 : 200);
@@ -290,7 +297,7 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
                         r->path);
         return srv_send_problem(r, c, &p, NULL);
     }
-    j = svc_job_get(r->id);
+    j = svc_job_get(r->door->svc, r->id);
     if (!j)
         return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no job with ID %s "
                                  "(never existed, deleted, or expired)", r->id);
@@ -312,11 +319,11 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
         const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                     "Last-Event-ID");
         long last = h ? strtol(h, NULL, 10) : -1;
-        if (!srv_stream_admit(j, &p))
+        if (!srv_stream_admit(r->door, j, &p))
             ret = srv_send_problem(r, c, &p, r->id);
         else
             ret = srv_respond(r, c, 200,
-                              srv_stream_response(j, SRV_STREAM_SSE, c, last));
+                              srv_stream_response(r->door, j, SRV_STREAM_SSE, c, last));
     } else {
         ret = get_job_part(r, c, j);
     }

@@ -186,33 +186,91 @@ struct MHD_Response *srv_empty_response(void)
 
 /* ------------------------------------------------------------ job document */
 
+static void add_time(cJSON *o, const char *key, double t)
+{
+    char buf[40];
+    if (t > 0) {
+        srv_time_rfc3339(t, buf, sizeof buf);
+        cJSON_AddStringToObject(o, key, buf);
+    } else {
+        cJSON_AddNullToObject(o, key);
+    }
+}
+
+static void add_num(cJSON *o, const char *key, double v)
+{
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, key, v);
+    else
+        cJSON_AddNullToObject(o, key);
+}
+
+/* The progress object: before the first step there is nothing to
+ * report. */
+static void add_progress(cJSON *o, const svc_snap *s)
+{
+    cJSON *p = cJSON_AddObjectToObject(o, "progress");
+
+    if (!p)
+        return;
+    cJSON_AddNumberToObject(p, "step", s->step);
+    if (s->steps_planned > 0)
+        cJSON_AddNumberToObject(p, "steps", s->steps_planned);
+    else
+        cJSON_AddNullToObject(p, "steps");
+    add_num(p, "t", s->step > 0 ? s->t : NAN);
+    add_num(p, "dt", s->step > 0 ? s->dt : NAN);
+    add_num(p, "energy", s->step > 0 ? s->energy : NAN);
+    add_num(p, "volume", s->step > 0 ? s->volume : NAN);
+    cJSON_AddNumberToObject(p, "fraction", s->fraction);
+}
+
+static void add_links(cJSON *o, const char *id)
+{
+    static const char *const rel[] = {"self", "", "result", "/result",
+                                      "metrics", "/metrics", "events", "/events"};
+    char link[96];
+    cJSON *l = cJSON_AddObjectToObject(o, "links");
+    size_t i;
+
+    for (i = 0; l && i < sizeof rel / sizeof *rel; i += 2) {
+        snprintf(link, sizeof link, "/v1/jobs/%s%s", id, rel[i + 1]);
+        cJSON_AddStringToObject(l, rel[i], link);
+    }
+}
+
 cJSON *srv_job_json(const svc_job *j, svc_snap *snap)
 {
     char link[96];
-    const char *id = svc_job_id(j);
     svc_snap s;
-    cJSON *o = svc_job_json(j, &s), *l;
+    cJSON *o = cJSON_CreateObject(), *x;
 
-    if (!o)
+    if (!o || svc_job_document(j, &s) != 0) {
+        cJSON_Delete(o);
         return NULL;
+    }
+    cJSON_AddStringToObject(o, "id", s.id);
+    cJSON_AddStringToObject(o, "status", svc_job_status_name(s.status));
+    add_time(o, "created", s.created);
+    add_time(o, "started", s.started);
+    add_time(o, "finished", s.finished);
+    add_progress(o, &s);
+    if (s.cancel_requested)
+        cJSON_AddBoolToObject(o, "cancel_requested", 1);
+    if (s.params && (x = cJSON_Parse(s.params)) != NULL)
+        cJSON_AddItemToObject(o, "params", x);
+    if (s.in_format[0])
+        cJSON_AddStringToObject(o, "input_format", s.in_format);
+    if (s.metrics && (x = cJSON_Parse(s.metrics)) != NULL)
+        cJSON_AddItemToObject(o, "metrics", x);
+    if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
+        snprintf(link, sizeof link, "/v1/jobs/%s", s.id);
+        if ((x = srv_problem_json(&s.error, link, s.id)) != NULL)
+            cJSON_AddItemToObject(o, "error", x);
+    }
+    add_links(o, s.id);
+    svc_snap_free(&s);
     if (snap)
         *snap = s;
-    if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
-        cJSON *e;
-        snprintf(link, sizeof link, "/v1/jobs/%s", id);
-        if ((e = srv_problem_json(&s.error, link, id)) != NULL)
-            cJSON_AddItemToObject(o, "error", e);
-    }
-    l = cJSON_AddObjectToObject(o, "links");
-    if (l) {
-        snprintf(link, sizeof link, "/v1/jobs/%s", id);
-        cJSON_AddStringToObject(l, "self", link);
-        snprintf(link, sizeof link, "/v1/jobs/%s/result", id);
-        cJSON_AddStringToObject(l, "result", link);
-        snprintf(link, sizeof link, "/v1/jobs/%s/metrics", id);
-        cJSON_AddStringToObject(l, "metrics", link);
-        snprintf(link, sizeof link, "/v1/jobs/%s/events", id);
-        cJSON_AddStringToObject(l, "events", link);
-    }
     return o;
 }

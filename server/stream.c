@@ -36,10 +36,10 @@ typedef struct {
     int started, finished;
 } stream;
 
-int srv_stream_admit(const svc_job *j, svc_error *p)
+int srv_stream_admit(srv_rest *d, const svc_job *j, svc_error *p)
 {
-    const srv_config *cfg = srv_http_config();
-    int here = svc_followers(j), total = srv_waiter_followers(),
+    const srv_config *cfg = d->cfg;
+    int here = svc_followers(j), total = srv_waiter_followers(d),
         max_total = cfg->max_connections / 2;
 
     if (here >= SVC_FOLLOWERS_PER_JOB) {
@@ -230,7 +230,8 @@ static void release(void *cls)
     free(s);
 }
 
-struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
+struct MHD_Response *srv_stream_response(srv_rest *d, svc_job *j,
+                                         srv_stream_kind kind,
                                          struct MHD_Connection *conn,
                                          long last_id)
 {
@@ -243,7 +244,7 @@ struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
     s->kind = kind;
     s->last_id = last_id;
     api_buf_init(&s->pend, 0);
-    if (srv_waiter_start(&s->w, j, conn, 1, 0) != 0) {
+    if (srv_waiter_start(&s->w, d, j, conn, 1, 0) != 0) {
         svc_job_unref(s->job);
         free(s);
         return NULL;

@@ -76,7 +76,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
                                uint64_t off, size_t size)
 {
     srv_request *r = cls;
-    const srv_config *cfg = srv_http_config();
+    const srv_config *cfg = r->door->cfg;
     api_buf *dst = NULL;
     const char *limit_name = "--max-upload";
     size_t limit = cfg->lim.max_input_bytes;
@@ -184,13 +184,13 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
 
 void srv_upload_consume(srv_request *r, const char *data, size_t size)
 {
-    const srv_config *cfg = srv_http_config();
+    const srv_config *cfg = r->door->cfg;
 
     r->bytes_in += size;
     if (r->has_perr)
         return; /* discard: the error is answered at the end */
     /* without a Content-Length, the memory is reserved as bytes come */
-    if (svc_upload_reserve(&r->mem_held, r->bytes_in, &r->perr) != 0) {
+    if (svc_upload_reserve(r->door->svc, &r->mem_held, r->bytes_in, &r->perr) != 0) {
         r->has_perr = 1;
         return;
     }
@@ -226,7 +226,7 @@ void srv_upload_consume(srv_request *r, const char *data, size_t size)
  * from the headers. */
 enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
 {
-    const srv_config *cfg = srv_http_config();
+    const srv_config *cfg = r->door->cfg;
     svc_error p;
     const char *h;
     char stream[32];
@@ -290,14 +290,14 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
      * reset by the close that follows an early answer, and lose the 503:
      * its body is read, discarded (never buffered) and answered. */
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND, MHD_HTTP_HEADER_EXPECT);
-    if (svc_draining())
+    if (svc_draining(r->door->svc))
         svc_error_set(&p, SVC_P_DRAINING, "the daemon is shutting down "
                         "and accepts no new jobs");
-    else if (!svc_can_accept())
+    else if (!svc_can_accept(r->door->svc))
         svc_error_set(&p, SVC_P_BUSY, "the job queue is full; retry "
                         "after the Retry-After delay");
     /* the memory the body will take, reserved by its declared size */
-    else if (n > 0 && svc_upload_reserve(&r->mem_held, (size_t)n, &p) != 0)
+    else if (n > 0 && svc_upload_reserve(r->door->svc, &r->mem_held, (size_t)n, &p) != 0)
         ;
     else
         return MHD_YES;
@@ -309,22 +309,31 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
 }
 
 
-static char *dup_or_null(const api_buf *b, int present)
+/* The job's parameters, parsed once here: the params field (JSON), then
+ * the plain form fields, then the query string (svc_params_parse), and
+ * the daemon's `fields` key. 0, or -1 and *e. */
+static int request_params(srv_request *r, svc_request *rq, svc_error *e)
 {
-    if (!present)
-        return NULL;
-    return strdup(b->data ? b->data : "");
+    const char *q = srv_query_of(r);
+    mcf_error err = {MCF_OK, ""};
+    mcf_status st;
+
+    st = svc_params_parse(&rq->params, r->has_params ? (r->params.data ? r->params.data : "")
+                                                     : NULL,
+                          r->fields, q, svc_limits(r->door->svc), &err);
+    if (st != MCF_OK) {
+        svc_error_from_mcf(e, st, API_JOB_PARAMS, NULL, &err);
+        return -1;
+    }
+    return svc_query_fields(q, &rq->fields, e);
 }
 
 /* The body is complete: hand the job over. */
 enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
 {
-    svc_record rec;
+    svc_request rq;
     svc_error e;
     svc_job *j = NULL;
-    const char *q = strchr(r->uri, '?');
-    char *mesh, *target = NULL;
-    size_t mesh_len, target_len = 0;
     char loc[96];
     int rc;
 
@@ -346,20 +355,19 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
                                  "it as the body or as multipart field 'mesh'");
     srv_metrics_upload(r->mesh.len);
 
-    memset(&rec, 0, sizeof rec);
-    rec.query = q && q[1] ? strdup(q + 1) : NULL;
-    rec.params_json = dup_or_null(&r->params, r->has_params);
-    rec.fields = r->fields;
-    r->fields = NULL;
-    snprintf(rec.filename, sizeof rec.filename, "%s",
+    svc_request_init(&rq);
+    if (request_params(r, &rq, &e) != 0) {
+        svc_request_free(&rq);
+        return srv_send_problem(r, c, &e, NULL);
+    }
+    snprintf(rq.filename, sizeof rq.filename, "%s",
              r->filename[0] ? r->filename : "mesh");
-    mesh = api_buf_detach(&r->mesh, &mesh_len);
+    rq.input = api_buf_detach(&r->mesh, &rq.input_len);
     if (r->has_target)
-        target = api_buf_detach(&r->target, &target_len);
-    rc = svc_submit(&rec, mesh, mesh_len, target, target_len,
-                    r->md == MODE_SYNC || r->md == MODE_MIXED ? SVC_KEEP_RESULT : 0,
-                    &j, &e);
-    svc_upload_release(&r->mem_held);  /* the bytes are on the spool, or gone */
+        rq.target = api_buf_detach(&r->target, &rq.target_len);
+    rq.keep_result = r->md == MODE_SYNC || r->md == MODE_MIXED;
+    rc = svc_submit(r->door->svc, &rq, &j, &e);
+    svc_upload_release(r->door->svc, &r->mem_held);  /* the bytes are in the store, or gone */
     if (rc != 0)
         return srv_send_problem(r, c, &e, NULL);
     r->job = j;
@@ -377,7 +385,7 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
     r->sync_owner = r->md != MODE_NDJSON;
     /* Nobody else knows this job's ID yet: when this client goes, so does
      * the reason to run it. */
-    if (srv_waiter_start(&r->w, j, c, 0, 1) != 0)
+    if (srv_waiter_start(&r->w, r->door, j, c, 0, 1) != 0)
         return srv_send_problemf(r, c, SVC_P_NOMEM, "out of memory waiting "
                                  "for job %s", r->id);
     r->waiting = 1;
