@@ -47,7 +47,19 @@ CXXFLAGS := $(CFLAGS)
 LDFLAGS  += -fsanitize=$(SAN)
 endif
 
-LIBS_CORE := -lcholmod -lsuitesparseconfig -lm
+# CHOLMOD without its OpenMP runtime: Debian's libcholmod 3.0.14 opens
+# about 150,000 OpenMP parallel regions per factorization of a 435k-vertex
+# scan (every supernode, even with one thread: 45% of the factorization).
+# $(B)/libcholmod_serial.a is Debian's own static libcholmod.a (from
+# libsuitesparse-dev) with its three calls into libgomp renamed by objcopy
+# to the serial stand-ins of core/cholmod_serial/omp_serial.c, which run a
+# region inline on the calling thread. Nothing is interposed process-wide:
+# libgomp is not loaded, other libraries keep their own runtime, and each
+# of mcfd's workers runs its regions on its own stack (README, "Speed").
+CHOLMOD_A := $(shell $(CC) -print-file-name=libcholmod.a)
+CHOLMOD_SERIAL := $(B)/libcholmod_serial.a
+LIBS_CORE := $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
+             -llapack -lblas -lsuitesparseconfig -lm
 LIBS_API  := -ldraco -lcjson
 LIBS_SRV  := -lmicrohttpd -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
@@ -94,20 +106,33 @@ endif
 .PHONY: all deps deps-build test unit bench run check-deps clean asan fuzz image image-check
 .DEFAULT_GOAL := all
 
-all: $(B)/libmcf.a $(B)/libmcfapi.a $(PROGS)
+all: $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL) $(PROGS)
 
 $(B)/libmcf.a: $(CORE_OBJ)
 	@mkdir -p $(@D)
 	rm -f $@ && ar rcs $@ $^
 
+# The OpenMP entry points CHOLMOD uses (GOMP_parallel, omp_get_num_threads,
+# omp_get_thread_num, nothing else: `nm -u`) become the stand-ins'; the
+# stand-ins join the archive so that any link order resolves them.
+$(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/omp_serial.c
+	@mkdir -p $(@D)/cholmod_serial
+	$(CC) $(WARN) $(CFLAGS) -c core/cholmod_serial/omp_serial.c -o $(@D)/cholmod_serial/omp_serial.o
+	objcopy --redefine-sym GOMP_parallel=mcf__omp_parallel \
+	  --redefine-sym omp_get_num_threads=mcf__omp_get_num_threads \
+	  --redefine-sym omp_get_thread_num=mcf__omp_get_thread_num $(CHOLMOD_A) $@.tmp
+	! nm -u $@.tmp | grep -E ' (GOMP_|omp_|GOACC_)' || \
+	  { echo "libcholmod_serial.a: $(CHOLMOD_A) calls more of OpenMP than the stand-ins cover"; rm -f $@.tmp; exit 1; }
+	ar rs $@.tmp $(@D)/cholmod_serial/omp_serial.o && mv $@.tmp $@
+
 $(B)/libmcfapi.a: $(API_OBJ)
 	@mkdir -p $(@D)
 	rm -f $@ && ar rcs $@ $^
 
-$(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+$(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
 
-$(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+$(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_GRPC) $(LIBS_API) $(LIBS_CORE)
 
 # ---- the gRPC contract: api/mcfd.proto -> $(B)/gen/mcfd{,.grpc}.pb.{cc,h}
@@ -152,7 +177,7 @@ $(B)/%.o: %.cc
 	@mkdir -p $(@D)
 	$(CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
 
-$(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+$(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
 -include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d)
@@ -256,7 +281,7 @@ bench: deps
 # ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
 #   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
 quality: deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
 	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
 
 .PHONY: quality
@@ -381,7 +406,7 @@ $(FZ)/tests/fuzz/%.o: tests/fuzz/%.c
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
 
-$(FZ)/fuzz_%: $(FZ)/tests/fuzz/fuzz_%.o $(FUZZ_LIBOBJ)
+$(FZ)/fuzz_%: $(FZ)/tests/fuzz/fuzz_%.o $(FUZZ_LIBOBJ) $(CHOLMOD_SERIAL)
 	$(FUZZ_CXX) -fsanitize=fuzzer $(FUZZ_SAN) -o $@ $< $(FUZZ_LIBOBJ) $(LIBS_API) $(LIBS_CORE)
 
 -include $(FUZZ_LIBOBJ:.o=.d) $(FUZZ_NAMES:%=$(FZ)/tests/fuzz/fuzz_%.d)
