@@ -672,10 +672,17 @@ public:
 private:
     static size_t hash(const int64_t k[3])
     {
-        uint64_t h = static_cast<uint64_t>(k[0]) * 0x9E3779B97F4A7C15ull;
-        h ^= static_cast<uint64_t>(k[1]) * 0xC2B2AE3D27D4EB4Full + (h >> 29);
-        h ^= static_cast<uint64_t>(k[2]) * 0x165667B19E3779F9ull + (h >> 32);
-        return static_cast<size_t>(h ^ (h >> 31));
+        /* the three coordinates spread by odd constants, then MurmurHash3's
+         * 64-bit finalizer: neighbouring cells land far apart */
+        uint64_t h = static_cast<uint64_t>(k[0]) * 0x9E3779B97F4A7C15ull ^
+                     static_cast<uint64_t>(k[1]) * 0xC2B2AE3D27D4EB4Full ^
+                     static_cast<uint64_t>(k[2]) * 0x165667B19E3779F9ull;
+        h ^= h >> 33;
+        h *= 0xff51afd7ed558ccdull;
+        h ^= h >> 33;
+        h *= 0xc4ceb9fe1a85ec53ull;
+        h ^= h >> 33;
+        return static_cast<size_t>(h);
     }
     bool same(uint32_t c, const int64_t k[3]) const
     {
@@ -747,8 +754,10 @@ bool measure(int nv, const double *X, int nf, const int32_t *F,
         ext = std::max(ext, Y[i] - lo[i % 3]);
     for (int i = 0; i < 3 * nv; i++)
         ext = std::max(ext, X[i] - lo[i % 3]);
-    /* Cells of at least 2 tol, and at most ~2^40 per axis so indices fit. */
-    double h = std::max(2.0 * tol, ext * 0x1p-40);
+    /* Cells of about a face's size (the extent over sqrt(faces): a few
+     * centroids per cell on a surface), at least 2 tol so that a search box
+     * mostly lies in one cell, and at most ~2^40 per axis so indices fit. */
+    double h = std::max({2.0 * tol, ext / std::sqrt(static_cast<double>(ng) + 1.0), ext * 0x1p-40});
     if (!(h > 0.0))
         h = 1.0;
     auto bin = [&](const double c[3], int64_t b[3]) {
