@@ -52,7 +52,7 @@ endif
 # scan (every supernode, even with one thread: 45% of the factorization).
 # $(B)/libcholmod_serial.a is Debian's own static libcholmod.a (from
 # libsuitesparse-dev) with its three calls into libgomp renamed by objcopy
-# to the serial stand-ins of core/cholmod_serial/omp_serial.c, which run a
+# to the serial stand-ins of core/cholmod_serial/stand_ins.c, which run a
 # region inline on the calling thread. Nothing is interposed process-wide:
 # libgomp is not loaded, other libraries keep their own runtime, and each
 # of mcfd's workers runs its regions on its own stack (README, "Speed").
@@ -113,17 +113,19 @@ $(B)/libmcf.a: $(CORE_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
 # The OpenMP entry points CHOLMOD uses (GOMP_parallel, omp_get_num_threads,
-# omp_get_thread_num, nothing else: `nm -u`) become the stand-ins'; the
-# stand-ins join the archive so that any link order resolves them.
-$(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/omp_serial.c
+# omp_get_thread_num, nothing else: `nm -u`) and the clock of its BLAS
+# timing statistics become the stand-ins'; the stand-ins join the archive
+# so that any link order resolves them.
+$(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/stand_ins.c
 	@mkdir -p $(@D)/cholmod_serial
-	$(CC) $(WARN) $(CFLAGS) -c core/cholmod_serial/omp_serial.c -o $(@D)/cholmod_serial/omp_serial.o
+	$(CC) $(WARN) $(CFLAGS) -c core/cholmod_serial/stand_ins.c -o $(@D)/cholmod_serial/stand_ins.o
 	objcopy --redefine-sym GOMP_parallel=mcf__omp_parallel \
 	  --redefine-sym omp_get_num_threads=mcf__omp_get_num_threads \
-	  --redefine-sym omp_get_thread_num=mcf__omp_get_thread_num $(CHOLMOD_A) $@.tmp
+	  --redefine-sym omp_get_thread_num=mcf__omp_get_thread_num \
+	  --redefine-sym SuiteSparse_time=mcf__suitesparse_time $(CHOLMOD_A) $@.tmp
 	! nm -u $@.tmp | grep -E ' (GOMP_|omp_|GOACC_)' || \
 	  { echo "libcholmod_serial.a: $(CHOLMOD_A) calls more of OpenMP than the stand-ins cover"; rm -f $@.tmp; exit 1; }
-	ar rs $@.tmp $(@D)/cholmod_serial/omp_serial.o && mv $@.tmp $@
+	ar rs $@.tmp $(@D)/cholmod_serial/stand_ins.o && mv $@.tmp $@
 
 $(B)/libmcfapi.a: $(API_OBJ)
 	@mkdir -p $(@D)

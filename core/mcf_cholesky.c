@@ -69,7 +69,8 @@ struct mcf__chol {
     cholmod_sparse *S;  /* tril(P A P'), stype -1, natural order */
     int *smap;          /* pat->nnz: entry of A's upper triangle -> S->x */
     double *y;          /* 3n: the permuted right-hand side / solution */
-    size_t bytes;       /* smap and y */
+    double *buf;        /* 3 maxesize: the solve's rows below a supernode */
+    size_t bytes;       /* smap, y and buf */
 };
 
 mcf__chol *mcf__chol_new(const mcf__pattern *pat, mcf_error *err)
@@ -105,12 +106,19 @@ void mcf__chol_free(mcf__chol *ch)
     cholmod_finish(&ch->cm);
     free(ch->smap);
     free(ch->y);
+    free(ch->buf);
     free(ch);
 }
 
 size_t mcf__chol_bytes(const mcf__chol *ch)
 {
     return ch ? ch->bytes + ch->cm.memory_usage : 0;
+}
+
+void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops)
+{
+    *nnz = ch ? ch->cm.lnz : 0.0;
+    *flops = ch ? ch->cm.fl : 0.0;
 }
 
 static mcf_status chol_status(mcf__chol *ch, const char *what, mcf_error *err)
@@ -151,12 +159,13 @@ mcf_status mcf__chol_analyze(mcf__chol *ch, mcf_error *err)
     int *pinv = mcf__malloc((size_t)n, sizeof(int));
     ch->smap = mcf__malloc((size_t)nnz, sizeof(int));
     ch->y = mcf__malloc(3 * (size_t)n, sizeof(double));
+    ch->buf = mcf__malloc(3 * (size_t)ch->L->maxesize + 3, sizeof(double));
     ch->S = cholmod_allocate_sparse((size_t)n, (size_t)n, (size_t)nnz, 0, 1, -1, CHOLMOD_REAL, &ch->cm);
-    if (!pinv || !ch->smap || !ch->y || !ch->S) {
+    if (!pinv || !ch->smap || !ch->y || !ch->buf || !ch->S) {
         free(pinv);
         return mcf__fail(err, MCF_ENOMEM, "solver: out of memory (%d unknowns)", n);
     }
-    ch->bytes = sizeof(int) * (size_t)nnz + 3 * sizeof(double) * (size_t)n;
+    ch->bytes = sizeof(int) * (size_t)nnz + 3 * sizeof(double) * ((size_t)n + ch->L->maxesize + 1);
     for (int k = 0; k < n; k++)
         pinv[perm[k]] = k;
     int *sp = ch->S->p, *si = ch->S->i;
@@ -209,41 +218,59 @@ mcf_status mcf__chol_factorize(mcf__chol *ch, const double *val, mcf_error *err)
 
 /* Y (3n, interleaved, permuted) = L^-T L^-1 Y with the supernodal factor:
  * supernode s holds columns super[s] .. super[s+1]-1, its rows
- * ls[pi[s] ..] (the first nscol are its own columns) and the values
- * column-major at lx[px[s]] with leading dimension nsrow. */
-static void supernodal_solve3(const cholmod_factor *L, double *y)
+ * ls[pi[s] ..] (the first nscol are its own columns, in order) and the
+ * values column-major at lx[px[s]] with leading dimension nsrow. The rows
+ * below the diagonal block are reached through ls once per supernode: in
+ * buf (3 x (nsrow - nscol), at least L->maxesize rows), where the columns'
+ * updates accumulate (forward) or which holds their gathered values
+ * (back), so the inner loops run over contiguous memory. */
+static void supernodal_solve3(const cholmod_factor *L, double *y, double *buf)
 {
     const int *super = L->super, *pi = L->pi, *px = L->px, *ls = L->s;
     const double *lx = L->x;
     int nsuper = (int)L->nsuper;
     for (int s = 0; s < nsuper; s++) {
         int k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
-        const int *rows = ls + pi[s];
-        const double *col = lx + px[s];
-        for (int jj = 0; jj < nscol; jj++, col += nsrow) {
-            double *yj = y + 3 * (size_t)(k1 + jj), d = col[jj];
-            double a = yj[0] / d, b = yj[1] / d, c = yj[2] / d;
-            yj[0] = a; yj[1] = b; yj[2] = c;
-            for (int ii = jj + 1; ii < nsrow; ii++) {
-                double *yi = y + 3 * (size_t)rows[ii], l = col[ii];
-                yi[0] -= l * a; yi[1] -= l * b; yi[2] -= l * c;
+        int nrect = nsrow - nscol;
+        const int *rows = ls + pi[s] + nscol;
+        double *yk = y + 3 * (size_t)k1;
+        memset(buf, 0, 3 * sizeof(double) * (size_t)nrect);
+        for (int jj = 0; jj < nscol; jj++) {
+            const double *col = lx + px[s] + (size_t)jj * nsrow;
+            double d = col[jj];
+            double a = yk[3 * jj] / d, b = yk[3 * jj + 1] / d, c = yk[3 * jj + 2] / d;
+            yk[3 * jj] = a; yk[3 * jj + 1] = b; yk[3 * jj + 2] = c;
+            for (int ii = jj + 1; ii < nscol; ii++) {
+                yk[3 * ii] -= col[ii] * a; yk[3 * ii + 1] -= col[ii] * b; yk[3 * ii + 2] -= col[ii] * c;
             }
+            const double *lr = col + nscol;
+            for (int ii = 0; ii < nrect; ii++) {
+                buf[3 * ii] += lr[ii] * a; buf[3 * ii + 1] += lr[ii] * b; buf[3 * ii + 2] += lr[ii] * c;
+            }
+        }
+        for (int ii = 0; ii < nrect; ii++) {
+            double *yi = y + 3 * (size_t)rows[ii];
+            yi[0] -= buf[3 * ii]; yi[1] -= buf[3 * ii + 1]; yi[2] -= buf[3 * ii + 2];
         }
     }
     for (int s = nsuper - 1; s >= 0; s--) {
         int k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
-        const int *rows = ls + pi[s];
+        int nrect = nsrow - nscol;
+        const int *rows = ls + pi[s] + nscol;
+        double *yk = y + 3 * (size_t)k1;
+        for (int ii = 0; ii < nrect; ii++)
+            memcpy(buf + 3 * ii, y + 3 * (size_t)rows[ii], 3 * sizeof(double));
         for (int jj = nscol - 1; jj >= 0; jj--) {
-            const double *col = lx + px[s] + (size_t)jj * nsrow;
-            double *yj = y + 3 * (size_t)(k1 + jj);
-            double a = yj[0], b = yj[1], c = yj[2];
-            for (int ii = jj + 1; ii < nsrow; ii++) {
-                const double *yi = y + 3 * (size_t)rows[ii];
-                double l = col[ii];
-                a -= l * yi[0]; b -= l * yi[1]; c -= l * yi[2];
+            const double *col = lx + px[s] + (size_t)jj * nsrow, *lr = col + nscol;
+            double a = yk[3 * jj], b = yk[3 * jj + 1], c = yk[3 * jj + 2];
+            for (int ii = jj + 1; ii < nscol; ii++) {
+                a -= col[ii] * yk[3 * ii]; b -= col[ii] * yk[3 * ii + 1]; c -= col[ii] * yk[3 * ii + 2];
+            }
+            for (int ii = 0; ii < nrect; ii++) {
+                a -= lr[ii] * buf[3 * ii]; b -= lr[ii] * buf[3 * ii + 1]; c -= lr[ii] * buf[3 * ii + 2];
             }
             double d = col[jj];
-            yj[0] = a / d; yj[1] = b / d; yj[2] = c / d;
+            yk[3 * jj] = a / d; yk[3 * jj + 1] = b / d; yk[3 * jj + 2] = c / d;
         }
     }
 }
@@ -256,7 +283,7 @@ void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X)
     for (int k = 0; k < n; k++)
         memcpy(y + 3 * (size_t)k, B + 3 * (size_t)perm[k], 3 * sizeof(double));
     unsigned fpu = subnormals_off();
-    supernodal_solve3(ch->L, y);
+    supernodal_solve3(ch->L, y, ch->buf);
     subnormals_restore(fpu);
     for (int k = 0; k < n; k++)
         memcpy(X + 3 * (size_t)perm[k], y + 3 * (size_t)k, 3 * sizeof(double));

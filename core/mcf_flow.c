@@ -296,6 +296,7 @@ static mcf_status factorize(flow_ctx *c, mcf_error *err)
         if (rc != MCF_OK)
             return rc;
         c->analyzed = 1;
+        mcf__chol_size(c->chol, &c->st->factor_nnz, &c->st->factor_flops);
     }
     double t0 = mcf_now();
     rc = mcf__chol_factorize(c->chol, a, err);

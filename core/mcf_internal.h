@@ -112,6 +112,8 @@ mcf_status mcf__chol_factorize(mcf__chol *ch, const double *val, mcf_error *err)
 void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X);
 /* Bytes the solver holds (CHOLMOD's count and its own arrays). */
 size_t mcf__chol_bytes(const mcf__chol *ch);
+/* After the analysis: entries of the factor, flops of a factorization. */
+void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops);
 
 /* ---- strength=auto (mcf_auto.c)
  * The time t_best that minimizes SURE for K frozen implicit steps from X
