@@ -308,12 +308,12 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
 
 /* ---------------------------------------------------------------- process */
 
-/* For programs, first thing in main: caps the OpenMP threads CHOLMOD opens
- * (OMP_THREAD_LIMIT=1) and, with blas_too, the BLAS and OpenMP thread
- * counts (=1, for a daemon whose workers already use every core), each
- * unless the environment sets it; then executes argv again once
- * (/proc/self/exe) so that libraries reading them at load time see them.
- * Returns (without effect) when that is impossible. */
+/* For programs, first thing in main: with blas_too, sets the BLAS thread
+ * counts to 1 (OPENBLAS_NUM_THREADS and its kin: one thread per job, the
+ * policy of api_threads.c), each unless the environment sets it; then
+ * executes argv again once (/proc/self/exe) so that the BLAS, which reads
+ * them when loaded, sees them. Returns (without effect) when that is
+ * impossible. */
 void api_bound_library_threads(char **argv, int blas_too);
 
 /* ------------------------------------------------------------------- JSON */

@@ -833,7 +833,7 @@ int main(int argc, char **argv)
 {
     const char *cmd = argc > 1 ? argv[1] : NULL;
 
-    api_bound_library_threads(argv, 0);
+    api_bound_library_threads(argv, 1);
     if (!cmd)
         return fail(EXIT_USAGE, "missing command: smooth, info, schemes, convert or experiment (try mcf --help)");
     if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {

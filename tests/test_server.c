@@ -853,10 +853,10 @@ static void test_smooth_draco_multipart(void **state)
 
 /* Threads stay bounded: main + 2 workers + 2 HTTP threads, after
  * test_smooth_draco_multipart (just before in main's list) has run a job
- * on the bunny. Without OMP_THREAD_LIMIT, CHOLMOD's num_threads(4) regions
- * would have added 3 OpenMP threads per worker by then (the bunny is big
- * enough for the supernodal factorization). Without /proc there is
- * nothing to count: skipped, saying so. */
+ * on the bunny. CHOLMOD opens no threads (the Makefile links a copy
+ * without OpenMP; Debian's own opened 3 more per worker there, with its
+ * num_threads(4) regions) and OpenBLAS has one per job. Without /proc
+ * there is nothing to count: skipped, saying so. */
 static void test_thread_count(void **state)
 {
     char st[64], *status = NULL, why[128];
