@@ -4,7 +4,7 @@
  * refactored every step, and solved for three columns at once.
  *
  * What it does differently from cholmod_factorize + cholmod_solve2, each
- * measured on the 435k-vertex dragon (bench/README.md):
+ * measured on the 435k-vertex dragon (README, Benchmarks):
  *  - The symbolic analysis (ordering, supernodes) runs once per job on the
  *    job's pattern, as before. From it, the lower triangle of P A P' is laid
  *    out once (S, natural order) with a map from each entry of the job's
@@ -23,11 +23,12 @@
  *    ~1e-2 of the diagonal and the fill of the factor decays geometrically
  *    along the elimination tree, far below 1e-308: every multiply with a
  *    subnormal operand is a microcode assist of ~100 cycles. It took the
- *    dragon's default request from 12.3 to 7.2 s of CPU (bench/README.md),
- *    with the same bytes out: a value below 2.2e-308 next to a diagonal of
+ *    dragon's default request from 12.3 to 7.2 s of CPU (README,
+ *    Benchmarks), with the same bytes out: a value below 2.2e-308 next to a diagonal of
  *    order 1e-6 or more is 300 orders of magnitude under the rounding.
  * The factor is CHOLMOD's (the serial build, see the Makefile), so its
- * values and their rounding are exactly those of cholmod_factorize.
+ * values and their rounding are those of cholmod_factorize, but for
+ * subnormal values, which are 0 here.
  */
 #include <stdlib.h>
 #include <string.h>
