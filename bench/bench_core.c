@@ -565,11 +565,13 @@ static int mem_child(const char *dir, const char *kind, const char *mesh, double
     return 0;
 }
 
-/* Runs one job in a fresh process (fork + exec of this program, so that
- * its peak RSS is the job's) and reports the growth of its ru_maxrss. */
-static mem_result mem_job(const char *dir, const char *kind, const char *mesh)
+/* Runs this program again with args in a child process (with
+ * OPENBLAS_NUM_THREADS=threads when threads > 0) and copies the line of
+ * its output that starts with prefix, without it, into line; exits on any
+ * failure. */
+static void child_line(char *const args[], int threads, const char *prefix, char *line,
+                       size_t size)
 {
-    mem_result res = {0};
     int fd[2];
     if (pipe(fd) != 0) {
         perror("pipe");
@@ -582,28 +584,47 @@ static mem_result mem_job(const char *dir, const char *kind, const char *mesh)
         exit(1);
     }
     if (pid == 0) {
+        char nt[16];
         close(fd[0]);
         if (dup2(fd[1], STDOUT_FILENO) < 0)
             _exit(127);
-        char *const args[] = {"bench_core", "--meshes", (char *)(uintptr_t)dir, "--mem-job",
-                              (char *)(uintptr_t)kind, (char *)(uintptr_t)mesh, NULL};
+        snprintf(nt, sizeof nt, "%d", threads);
+        if (threads > 0)
+            setenv("OPENBLAS_NUM_THREADS", nt, 1);
         execv("/proc/self/exe", args);
         _exit(127);
     }
     close(fd[1]);
-    char line[256] = "";
+    char buf[256];
+    int found = 0;
+    size_t np = strlen(prefix);
     FILE *f = fdopen(fd[0], "r");
-    int n = 0;
-    while (f && fgets(line, sizeof line, f))
-        if (!strncmp(line, "MEM ", 4))
-            n = sscanf(line + 4, "%lf %lf %lf %d", &res.base_kb, &res.max_kb,
-                       &res.peak_bytes, &res.reset);
+    while (f && fgets(buf, sizeof buf, f))
+        if (!strncmp(buf, prefix, np)) {
+            snprintf(line, size, "%s", buf + np);
+            found = 1;
+        }
     if (f)
         fclose(f);
     int status = 0;
     waitpid(pid, &status, 0);
-    if (n != 4 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-        fprintf(stderr, "bench_core: memory job %s %s failed\n", kind, mesh);
+    if (!found || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        fprintf(stderr, "bench_core: the child %s %s failed\n", args[3], args[4]);
+        exit(1);
+    }
+}
+
+/* Runs one job in a fresh process (so that its peak RSS is the job's) and
+ * reports the growth of its ru_maxrss. */
+static mem_result mem_job(const char *dir, const char *kind, const char *mesh)
+{
+    mem_result res = {0};
+    char line[256];
+    char *const args[] = {"bench_core", "--meshes", (char *)(uintptr_t)dir, "--mem-job",
+                          (char *)(uintptr_t)kind, (char *)(uintptr_t)mesh, NULL};
+    child_line(args, 0, "MEM ", line, sizeof line);
+    if (sscanf(line, "%lf %lf %lf %d", &res.base_kb, &res.max_kb, &res.peak_bytes, &res.reset) != 4) {
+        fprintf(stderr, "bench_core: memory job %s %s: no result\n", kind, mesh);
         exit(1);
     }
     return res;
@@ -629,42 +650,12 @@ static int step_child(const char *dir, const char *mesh, double dt)
  * marginal CPU and wall seconds per step into cpu, wall. */
 static void step_job(const char *dir, const char *mesh, int threads, double *cpu, double *wall)
 {
-    int fd[2];
-    char nt[16];
-    snprintf(nt, sizeof nt, "%d", threads);
-    if (pipe(fd) != 0) {
-        perror("pipe");
-        exit(1);
-    }
-    fflush(stdout);
-    pid_t pid = fork();
-    if (pid < 0) {
-        perror("fork");
-        exit(1);
-    }
-    if (pid == 0) {
-        close(fd[0]);
-        if (dup2(fd[1], STDOUT_FILENO) < 0)
-            _exit(127);
-        setenv("OPENBLAS_NUM_THREADS", nt, 1);
-        char *const args[] = {"bench_core", "--meshes", (char *)(uintptr_t)dir, "--step-job",
-                              (char *)(uintptr_t)mesh, NULL};
-        execv("/proc/self/exe", args);
-        _exit(127);
-    }
-    close(fd[1]);
     char line[256];
-    int n = 0;
-    FILE *f = fdopen(fd[0], "r");
-    while (f && fgets(line, sizeof line, f))
-        if (!strncmp(line, "STEP ", 5))
-            n = sscanf(line + 5, "%lf %lf", cpu, wall);
-    if (f)
-        fclose(f);
-    int status = 0;
-    waitpid(pid, &status, 0);
-    if (n != 2 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-        fprintf(stderr, "bench_core: step job %s (%d threads) failed\n", mesh, threads);
+    char *const args[] = {"bench_core", "--meshes", (char *)(uintptr_t)dir, "--step-job",
+                          (char *)(uintptr_t)mesh, NULL};
+    child_line(args, threads, "STEP ", line, sizeof line);
+    if (sscanf(line, "%lf %lf", cpu, wall) != 2) {
+        fprintf(stderr, "bench_core: step job %s (%d threads): no result\n", mesh, threads);
         exit(1);
     }
 }
