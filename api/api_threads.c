@@ -6,9 +6,9 @@
  * parallelism (one per core), and a factorization of a scanned surface is
  * ~50,000 small supernodes (8.7 columns on average on the dragon) where a
  * second OpenBLAS thread finds nothing to share: measured on a dragon
- * step, 2 threads cost 1.0-2.1x the CPU time of one and were never faster
- * in wall time, on the machine as it was (load 9-12 on 2 cores) and beside
- * two more busy processes (bench_core --threads, bench/README.md). So both
+ * step, 2 threads cost 1.34x the CPU time of one and 1.49x the wall time
+ * on the machine as it was (load 6 on 2 cores), 1.39x and 4.79x beside two
+ * more busy processes (bench_core --threads, bench/README.md). So both
  * programs set it to 1 unless the environment says otherwise
  * (OPENBLAS_NUM_THREADS, or the others below). CHOLMOD opens no threads
  * (the Makefile links a copy without OpenMP). OpenBLAS reads its variables
