@@ -56,9 +56,10 @@ endif
 # $(B)/libcholmod_serial.a is Debian's own static libcholmod.a (from
 # libsuitesparse-dev) with its three calls into libgomp renamed by objcopy
 # to the serial stand-ins of core/cholmod_serial/stand_ins.c, which run a
-# region inline on the calling thread. Nothing is interposed process-wide:
-# libgomp is not loaded, other libraries keep their own runtime, and each
-# of mcfd's workers runs its regions on its own stack (README, "Speed").
+# region inline on the calling thread (and its clock for BLAS timings to
+# one that reads 0). Nothing is interposed process-wide: libgomp is not
+# loaded, other libraries keep their own runtime, and each of mcfd's
+# workers runs its regions on its own stack (README, Benchmarks).
 CHOLMOD_A := $(shell $(CC) -print-file-name=libcholmod.a)
 CHOLMOD_SERIAL := $(B)/libcholmod_serial.a
 LIBS_CORE := $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
