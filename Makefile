@@ -80,7 +80,7 @@ DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
-            python3-setuptools python3-wheel curl
+            python3-setuptools python3-wheel curl assimp-utils
 DEB_BENCH := libeigen3-dev libcgal-dev
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
@@ -283,21 +283,31 @@ tsan: deps
 
 .PHONY: tsan
 
-# ---- the attacks of issue 9 on a real mcfd (loopback), one test_server test
+# ---- the attacks of issues 9 and 17 on a real mcfd (loopback), one test
 # each, with the figures they measure (worker release, floods, slowloris,
-# followers, queued memory); the README's reliability section quotes them.
+# followers, queued memory, uploads in flight; for the gRPC door:
+# connection floods, descriptors, header blocks, abandoned streams, rapid
+# reset, compressed messages); the README's reliability section quotes
+# them. ATTACKS are test_server's, ATTACKS_GRPC test_grpc.py's.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
   test_http_small_things test_query_flood test_spool_failures test_spool_quota test_spool_full \
   test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_spool_damage \
   test_followers_and_per_ip test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
-  test_memory_admission test_body_timeout test_clock_jumps
+  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight
+ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
+  test_no_descriptors_makes_the_daemon_unhealthy test_header_blocks_are_bounded \
+  test_abandoned_streams_are_bounded test_rapid_reset_is_paced \
+  test_compressed_messages_are_refused test_uploads_in_flight_fit_the_memory_budget \
+  test_open_and_cancel_thousands_of_calls test_unread_answer_is_cancelled
 attack: deps
 	$(MAKE) all $(B)/tests/test_server
-	@fail=0; for t in $(ATTACKS); do \
+	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC); do \
+	  case " $(ATTACKS_GRPC) " in *" $$t "*) run="/usr/bin/python3 tests/test_grpc.py";; \
+	    *) run=$(B)/tests/test_server;; esac; \
 	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=$(B) MCF_TEST_FILTER=$$t \
-	    $(B)/tests/test_server > $(B)/tests/attack.out 2>&1 || fail=1; \
+	    $$run > $(B)/tests/attack.out 2>&1 || fail=1; \
 	  grep -E '^\[ *(OK|FAILED|SKIP) *\]|^    ' $(B)/tests/attack.out | grep -v ' test(s)'; \
 	done; rm -f $(B)/tests/attack.out; exit $$fail
 
@@ -484,7 +494,7 @@ clean:
 # build-fuzz/corpus/<name>/, crashes to build-fuzz/artifacts/. A target
 # uses tests/fuzz/<name>.dict when present (params and query: json.dict).
 FUZZ_TIME ?= 30
-# Inputs that reach libdraco get 120 s, the others 10 s. libdraco 1.5.5's
+# Inputs that reach libdraco (Draco, glTF, the round trip) get 120 s, the others 10 s. libdraco 1.5.5's
 # portable texcoord predictor loops over an int32 orientation count read
 # from the stream (MeshPredictionSchemeTexCoordsPortableDecoder): a
 # 251-byte file costs 4.6 s of CPU (7 s under ASan), and the largest count
@@ -540,7 +550,7 @@ fuzz: $(FUZZ_BIN)
 	  case $$n in params|query) dict=tests/fuzz/json.dict;; esac; \
 	  [ -f $$dict ] && dopt=-dict=$$dict || dopt=; \
 	  seeds=tests/fuzz/corpus_$$n; [ -d $$seeds ] || seeds=; \
-	  case $$n in draco|roundtrip) to=$(FUZZ_DRACO_TIMEOUT);; *) to=10;; esac; \
+	  case $$n in draco|roundtrip|gltf) to=$(FUZZ_DRACO_TIMEOUT);; *) to=10;; esac; \
 	  echo "== fuzz_$$n for $(FUZZ_TIME) s"; \
 	  $(FZ)/fuzz_$$n -max_total_time=$(FUZZ_TIME) -timeout=$$to -rss_limit_mb=2048 \
 	    -print_final_stats=1 -artifact_prefix=$(FZ)/artifacts/$$n- $$dopt \

@@ -413,7 +413,9 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
         svc_error_set(err, SVC_ENOMEM, NULL, "out of memory accepting a job");
         goto fail;
     }
-    si = mcf_scheme_get(prm.flow.scheme);
+    /* the scheme it will run (without one named, the runner may still
+     * choose the explicit fairing once the mesh's size is known) */
+    si = mcf_scheme_get(api_params_scheme(&prm, 0));
     snprintf(j->scheme, sizeof j->scheme, "%s", si ? si->name : "unknown");
     j->time_planned = prm.flow.time > 0 ? prm.flow.time : 0;
     j->steps_planned = (prm.flow.time > 0 || prm.flow.adaptive)
@@ -515,6 +517,38 @@ int svc_can_accept(void)
     ok = !svc__S.draining && !queue_full_locked();
     svc__unlock();
     return ok;
+}
+
+int svc_upload_reserve(size_t *held, size_t want, svc_error *e)
+{
+    const svc_config *cfg = &svc__S.cfg;
+    double h = (double)*held;
+    size_t more;
+    want += SVC_UPLOAD_AROUND;
+    if (want <= *held)
+        return 0;
+    more = want - *held;
+    if (more < SVC_UPLOAD_STEP)
+        more = SVC_UPLOAD_STEP;
+    if (!svc_admit_more(cfg, &h, (double)more)) {
+        svc_error_set(e, SVC_EBUSY, NULL, "no memory for this upload now: the "
+                      "running jobs and the uploads in flight hold --max-memory "
+                      "(%zu MiB); retry after the delay", cfg->max_memory >> 20);
+        return -1;
+    }
+    *held += more;
+    return 0;
+}
+
+void svc_upload_release(size_t *held)
+{
+    if (*held == 0)
+        return;
+    svc_admit_release((double)*held);
+    *held = 0;
+    svc__lock();               /* a queued job may fit now */
+    pthread_cond_broadcast(&svc__S.work);
+    svc__unlock();
 }
 
 int svc_draining(void)

@@ -852,6 +852,61 @@ static void test_smooth_draco_multipart(void **state)
     resp_free(&r);
 }
 
+static long post_file(const daemon_t *d, const char *path, const char *name,
+                      resp_t *r);
+
+/* Issue 20: glTF through the REST door. A GLB of two primitives (uploaded
+ * as a form field) with no scheme named (whatever the default is), comes
+ * back as a GLB; a .gltf sent raw as model/gltf+json is asked for as GLB;
+ * a GLB+Draco scan stays Draco. Debian's assimp reads every answer. */
+static void test_smooth_gltf(void **state)
+{
+    char path[1024], buf[256], *raw = NULL;
+    static const char *const h[] = {"Content-Type: model/gltf+json", "Expect:", NULL};
+    upload_t up;
+    resp_t r;
+    api_format fmt;
+    mcf_mesh *out;
+    size_t len;
+
+    (void)state;
+    snprintf(path, sizeof path, "%s/gltf/sphere_2prims.glb", getenv("MCF_TESTDATA"));
+    memset(&up, 0, sizeof up);
+    up.mesh = path;
+    http(&g_main, "POST", "/v1/smooth", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "POST /v1/smooth glb");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/gltf-binary");
+    assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
+                        "attachment; filename=\"sphere_2prims-smoothed.glb\"");
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_GLB);
+    assert_int_equal(mcf_mesh_nvertices(out), 812); /* the two primitives, welded */
+    tl_assimp_reads(r.body.data, r.body.len, "rest.glb", 966, 1670); /* and the LINES primitive */
+    mcf_mesh_free(out);
+    resp_free(&r);
+
+    snprintf(path, sizeof path, "%s/gltf/sphere_2prims.gltf", getenv("MCF_TESTDATA"));
+    assert_int_equal(tl_read_file(path, &raw, &len), 0);
+    memset(&up, 0, sizeof up);
+    up.raw = raw;
+    up.raw_len = len;
+    http(&g_main, "POST", "/smooth?format=glb&iterations=2", h, &up, &r);
+    free(raw);
+    expect_status(&g_main, &r, 200, "POST /smooth gltf -> glb");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/gltf-binary");
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_GLB);
+    tl_assimp_reads(r.body.data, r.body.len, "rest2.glb", 866, 1620);
+    mcf_mesh_free(out);
+    resp_free(&r);
+
+    post_file(&g_main, "/smooth?iterations=2", "gltf/car_draco.glb", &r);
+    expect_status(&g_main, &r, 200, "POST /smooth glb+draco");
+    assert_non_null(strstr(r.body.data + 20, "\"KHR_draco_mesh_compression\":{")); /* the JSON chunk */
+    tl_assimp_reads(r.body.data, r.body.len, "rest3.glb", 0, 1744);
+    resp_free(&r);
+}
+
 /* Threads stay bounded: main + 2 workers + 2 HTTP threads, after
  * test_smooth_draco_multipart (just before in main's list) has run a job
  * on the bunny. CHOLMOD opens no threads (the Makefile links a copy
@@ -1003,6 +1058,53 @@ static void test_smooth_target(void **state)
                        "target of another mesh");
         resp_free(&r);
     }
+}
+
+/* A request that names no scheme runs the fairing filter (the default,
+ * issue 16): its metrics name it and carry its noise estimate, the SURE
+ * curve whose minimum is the step count, the guard's rounds; against the
+ * target the error falls. The schemes list has both variants. */
+static void test_smooth_default_fairing(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+    resp_t r;
+    char id[64];
+    cJSON *m, *sure, *e;
+    int found = 0, k = 0, kmin = 0;
+    double vmin = INFINITY;
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?noise=0.25&seed=1", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "default request");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    m = follow_metrics_link(&g_main, &r, id);
+    assert_string_equal(jstr(m, "scheme"), "fairing");
+    /* 0.25 clean mean edges, read in the noisy mesh's (10% longer) */
+    assert_true(jnum(m, "flow.noise") > 0.15 && jnum(m, "flow.noise") < 0.3);
+    sure = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(m, "flow"), "sure");
+    assert_true(cJSON_IsArray(sure));
+    cJSON_ArrayForEach(e, sure) {
+        if (e->valuedouble < vmin) {
+            vmin = e->valuedouble;
+            kmin = k;
+        }
+        k++;
+    }
+    assert_int_equal(kmin, (int)jnum(m, "flow.steps"));
+    assert_true(kmin >= 1);
+    assert_true(jnum(m, "flow.guard_rounds") >= 0 && jnum(m, "flow.guard_rounds") <= 5);
+    assert_true(jnum(m, "compare.after.rms_m") < 0.5 * jnum(m, "compare.before.rms_m"));
+    cJSON_Delete(m);
+    resp_free(&r);
+
+    http(&g_main, "GET", "/v1/schemes", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "schemes");
+    m = body_json(&r, "schemes");
+    cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(m, "schemes"))
+        found += !strcmp(jstr(e, "name"), "fairing") || !strcmp(jstr(e, "name"), "fairing_explicit");
+    assert_int_equal(found, 2);
+    cJSON_Delete(m);
+    resp_free(&r);
 }
 
 /* Accept: multipart/mixed: a JSON metrics part, then the mesh part. */
@@ -2086,20 +2188,28 @@ static void test_followers_and_per_ip(void **state)
     }
 }
 
-/* VmRSS of a process in KiB, -1 when /proc cannot say. */
-static long rss_kib(pid_t pid)
+/* A size field of a process's status ("VmRSS", "VmHWM": its peak) in
+ * KiB, -1 when /proc cannot say. */
+static long status_kib(pid_t pid, const char *field)
 {
     char path[64], line[256];
+    size_t n = strlen(field);
     long kib = -1;
     FILE *f;
     snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
     if (!(f = fopen(path, "r")))
         return -1;
     while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmRSS: %ld kB", &kib) == 1)
+        if (strncmp(line, field, n) == 0 && line[n] == ':' &&
+            sscanf(line + n + 1, "%ld", &kib) == 1)
             break;
     fclose(f);
     return kib;
+}
+
+static long rss_kib(pid_t pid)
+{
+    return status_kib(pid, "VmRSS");
 }
 
 /* Issue 9 item 4, in part: queued jobs held their whole input in memory
@@ -2913,7 +3023,23 @@ static void test_draco_sandbox(void **state)
     resp_free(&r);
     print_message("    210-byte orientation bomb, default limits: 422 in %.2f s "
                   "(8.8 s and 256 MiB in-process)\n", dt);
-    assert_true(dt < 4);
+    /* The 422's text names the limit that stopped it (that is the
+     * behaviour); the time is printed, and bounded only as a hang guard:
+     * a child under RLIMIT_CPU of 2 s stretches in wall time with the
+     * machine's load (CI saw 6-8.6 s under sanitizers at load 10), while
+     * the unbounded decode would spin for ever at 2^31 orientations. */
+    assert_true(dt < 30);
+    /* the same stream as a glTF's Draco primitive: the same sandbox */
+    t0 = mcf_now();
+    post_file(&d, "/smooth", "gltf/draco_bomb.glb", &r);
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    expect_problem(&d, &r, 422, "ELIMIT", "to decode: refused", "orientation bomb in a GLB");
+#else
+    expect_problem(&d, &r, 422, "ELIMIT", "needs more than 64 MiB to decode",
+                   "orientation bomb in a GLB");
+#endif
+    resp_free(&r);
+    print_message("    the bomb as a GLB's Draco primitive: 422 in %.2f s\n", mcf_now() - t0);
     post_file(&d, "/smooth", "meshes/car.drc", &r);
     expect_status(&d, &r, 200, "car.drc after the bomb");
     resp_free(&r);
@@ -2934,7 +3060,7 @@ static void test_draco_sandbox(void **state)
                    "orientation bomb, --decode-memory 1G");
     resp_free(&r);
     print_message("    the same with --decode-memory 1G: 422 (CPU) in %.2f s\n", dt);
-    assert_true(dt >= 1.9 && dt < 8);
+    assert_true(dt >= 1.9 && dt < 30); /* 2 s of CPU; hang guard as above */
     /* a DELETE while it decodes kills the child */
     post_file(&d, "/v1/jobs", bomb, &r);
     expect_status(&d, &r, 202, "async orientation bomb");
@@ -2953,7 +3079,9 @@ static void test_draco_sandbox(void **state)
     assert_string_equal(jstr(j, "status"), "canceled");
     cJSON_Delete(j);
     print_message("    DELETE during the decode: canceled after %.2f s\n", dt);
-    assert_true(dt < 1.0);
+    /* killed, not run to its CPU limit: well under the 2 s it would take,
+     * with room for a loaded machine's scheduling */
+    assert_true(dt < 1.9);
     assert_int_equal(count_children(d.pid), 0);
     stop_daemon(&d);
 }
@@ -2993,7 +3121,7 @@ static void test_memory_admission(void **state)
     rest = rss_kib(d.pid);
     for (i = 0; i < 3; i++) {
         cJSON *j;
-        post_file(&d, "/v1/jobs?strength=auto", "meshes/bunny.drc", &r);
+        post_file(&d, "/v1/jobs?scheme=desbrun2&strength=auto", "meshes/bunny.drc", &r);
         expect_status(&d, &r, 202, "bunny.drc job");
         j = body_json(&r, "POST /v1/jobs");
         snprintf(ids[i], sizeof ids[i], "%s", jstr(j, "id"));
@@ -3067,6 +3195,121 @@ static void test_memory_admission(void **state)
     if (hwm > rest + 100 * 1024)
         fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M",
                  hwm, rest);
+}
+
+/* Sends n bytes of an OBJ-looking body to fd; how many went before the
+ * daemon closed or answered (a refused upload is answered early). */
+static size_t send_body(int fd, size_t n)
+{
+    static char block[64 * 1024];
+    size_t sent = 0;
+    if (!block[0])
+        for (size_t i = 0; i < sizeof block; i += 8)
+            memcpy(block + i, "v 0 0 0\n", 8);
+    while (sent < n) {
+        size_t k = n - sent < sizeof block ? n - sent : sizeof block;
+        ssize_t w = send(fd, block, k, MSG_NOSIGNAL);
+        if (w <= 0)
+            break;
+        sent += (size_t)w;
+    }
+    return sent;
+}
+
+/* Issue 17 item 7: uploads held open were outside the memory budget: 16
+ * bodies of 40 MiB, each sent but for its last byte, took 665 MiB against
+ * a documented peak of rest + --max-memory 100M (the ceiling was
+ * connections x --max-upload). Now an upload's Content-Length is reserved
+ * in --max-memory beside the running jobs before its body is read
+ * (svc_upload_reserve): two fit, the others are answered 503 EBUSY with
+ * Retry-After before their body; a body without a length reserves as it
+ * comes, and is refused (read and discarded, never buffered) when the
+ * budget is full. */
+static void test_uploads_in_flight(void **state)
+{
+    static const char *const flags[] = {"--max-memory", "100M", "--max-upload", "64M",
+                                        "--max-connections-per-ip", "0", NULL};
+    const size_t body = (size_t)40 << 20;
+    daemon_t d;
+    char spool[600], head[256], buf[512] = "";
+    int fds[16], held = 0, busy = 0, i, fd;
+    long rest, hwm, hwm2 = 0;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/uploads", g_tmp);
+    assert_int_equal(start_daemon(&d, "uploads", spool, flags), 0);
+    rest = rss_kib(d.pid);
+    snprintf(head, sizeof head, "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+             "model/obj\r\nContent-Length: %zu\r\n\r\n", body);
+    for (i = 0; i < 16; i++) {
+        fds[i] = connect_from(&d, "127.0.0.1", head);
+        if (send_body(fds[i], body - 1) == body - 1)
+            held++;
+    }
+    sleep_ms(300);
+    hwm = status_kib(d.pid, "VmHWM");
+    for (i = 0; i < 16; i++) {
+        struct pollfd p = {fds[i], POLLIN, 0};
+        ssize_t k = poll(&p, 1, 0) > 0 ? read(fds[i], buf, sizeof buf - 1) : 0;
+        buf[k > 0 ? k : 0] = '\0';
+        busy += strstr(buf, " 503 ") && strstr(buf, "EBUSY") && strstr(buf, "Retry-After");
+        close(fds[i]);
+    }
+    /* without a Content-Length (chunked): the budget fills as bytes come */
+    sleep_ms(200);                     /* the closed uploads gave theirs back */
+    fd = connect_from(&d, "127.0.0.1", "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+                      "model/obj\r\nTransfer-Encoding: chunked\r\n\r\n");
+    {
+        int fd2 = connect_from(&d, "127.0.0.1", head);
+        size_t k = send_body(fd2, body - 1);   /* 40 MiB held, declared */
+        char chunk[32];
+        size_t sent = 0;
+        ssize_t n;
+        snprintf(chunk, sizeof chunk, "%x\r\n", 1 << 20);
+        /* 70 MiB: past the 60 the budget has left, and within the 16 MiB a
+         * refused body is still read for its answer */
+        while (sent < ((size_t)70 << 20)) {
+            if (send(fd, chunk, strlen(chunk), MSG_NOSIGNAL) <= 0 ||
+                send_body(fd, (size_t)1 << 20) != (size_t)1 << 20 ||
+                send(fd, "\r\n", 2, MSG_NOSIGNAL) != 2)
+                break;
+            sent += (size_t)1 << 20;
+        }
+        (void)!send(fd, "0\r\n\r\n", 5, MSG_NOSIGNAL);
+        n = read(fd, buf, sizeof buf - 1);
+        if (n > 0)
+            buf[n] = '\0';
+        else
+            snprintf(buf, sizeof buf, "(no answer)");
+        hwm2 = status_kib(d.pid, "VmHWM");
+        print_message("    16 uploads of 40 MiB held open (--max-memory 100M): %d taken, %d "
+                      "refused 503 EBUSY before their body; a chunked one beside a held "
+                      "40 MiB one: %zu MiB sent, answered %.12s; VmHWM %ld then %ld MiB "
+                      "(rest %ld MiB)\n", held, busy, sent >> 20, buf + 9, hwm >> 10,
+                      hwm2 >> 10, rest >> 10);
+        assert_true(k == body - 1);
+        assert_non_null(strstr(buf, " 503 "));
+        close(fd2);
+    }
+    close(fd);
+    assert_int_equal(held, 2);
+    assert_int_equal(busy, 14);
+    /* the budget is free again once the daemon has seen them go */
+    for (i = 0; i < 40; i++) {
+        if (post_file(&d, "/smooth", "meshes/sphere_cgal.obj", &r) != 503)
+            break;
+        resp_free(&r);
+        sleep_ms(50);
+    }
+    expect_status(&d, &r, 200, "an upload after the held ones left");
+    resp_free(&r);
+    stop_daemon(&d);
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;                            /* RSS means nothing there (test_memory_admission) */
+#endif
+    if (hwm > rest + 100 * 1024)
+        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M", hwm, rest);
 }
 
 /* Issue 9 item 3: the average-rate rule (4 KiB/s) let a client trickling
@@ -4616,9 +4859,11 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_obj_multipart, kill_strays),
         cmocka_unit_test_teardown(test_smooth_draco_multipart, kill_strays),
         cmocka_unit_test_teardown(test_thread_count, kill_strays),
+        cmocka_unit_test_teardown(test_smooth_gltf, kill_strays),
         cmocka_unit_test_teardown(test_smooth_attributes, kill_strays),
         cmocka_unit_test_teardown(test_smooth_raw_and_params, kill_strays),
         cmocka_unit_test_teardown(test_smooth_target, kill_strays),
+        cmocka_unit_test_teardown(test_smooth_default_fairing, kill_strays),
         cmocka_unit_test_teardown(test_smooth_multipart_mixed, kill_strays),
         cmocka_unit_test_teardown(test_smooth_ndjson, kill_strays),
         cmocka_unit_test_teardown(test_smooth_ndjson_live, kill_strays),
@@ -4646,6 +4891,7 @@ int main(void)
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
         cmocka_unit_test_teardown(test_body_timeout, kill_strays),
+        cmocka_unit_test_teardown(test_uploads_in_flight, kill_strays),
         cmocka_unit_test_teardown(test_clock_jumps, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
