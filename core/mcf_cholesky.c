@@ -18,13 +18,13 @@
  *    or fewer, where a call costs more than its flops), no column-major
  *    copies of the right-hand side.
  *  - Both run with subnormal numbers flushed to zero (x86: MXCSR's FTZ and
- *    DAZ, on the calling thread only, restored after). At the default
- *    amount a step is tiny (dt ~ 0.01 h^2), the off-diagonal entries are
+ *    DAZ, on the calling thread only, restored after). At strength 0.33
+ *    in 10 steps a step is tiny (dt ~ 0.01 h^2), the off-diagonal entries are
  *    ~1e-2 of the diagonal and the fill of the factor decays geometrically
  *    along the elimination tree, far below 1e-308: every multiply with a
  *    subnormal operand is a microcode assist of ~100 cycles. It took the
- *    dragon's default request from 12.3 to 7.2 s of CPU (README,
- *    Benchmarks), with the same bytes out: a value below 2.2e-308 next to a diagonal of
+ *    dragon's desbrun2 request at strength 0.33 from 12.3 to 7.2 s of CPU
+ *    (README, Benchmarks), with the same bytes out: a value below 2.2e-308 next to a diagonal of
  *    order 1e-6 or more is 300 orders of magnitude under the rounding.
  * The factor is CHOLMOD's (the serial build, see the Makefile), so its
  * values and their rounding are those of cholmod_factorize, but for
