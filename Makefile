@@ -82,6 +82,8 @@ DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
             python3-setuptools python3-wheel curl assimp-utils
 DEB_BENCH := libeigen3-dev libcgal-dev
+# make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
+DEB_QUALITY := python3-open3d python3-numpy
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
 NPM_CI_FLAGS ?=
@@ -326,9 +328,12 @@ bench-ui: deps
 
 .PHONY: bench-ui
 
-# ---- the scan-quality benchmark# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
-#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
+# ---- the scan-quality benchmark (issue 16: bench/bench_quality.c): every
+# shared mesh, normal and isotropic noise, the default request, each scheme's
+# automatic amount, Taubin's best, Open3D's filter_smooth_taubin:
+#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, tables, renders -> docs/quality/
 quality: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
 	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
 	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
 
