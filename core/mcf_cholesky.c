@@ -79,6 +79,7 @@ struct mcf__chol {
     v4d *y;             /* n: the permuted right-hand side / solution */
     v4d *buf;           /* maxesize: the solve's rows below a supernode */
     size_t bytes;       /* smap, y and buf */
+    cholmod_sparse lent; /* A's upper triangle on the caller's values, lent */
 };
 
 mcf__chol *mcf__chol_new(const mcf__pattern *pat, mcf_error *err)
@@ -123,6 +124,27 @@ size_t mcf__chol_bytes(const mcf__chol *ch)
     return ch ? ch->bytes + ch->cm.memory_usage : 0;
 }
 
+void mcf__chol_lend(mcf__chol *ch, double *val, mcf__solver *lend)
+{
+    cholmod_sparse *A = &ch->lent;
+    memset(A, 0, sizeof *A);
+    A->nrow = A->ncol = (size_t)ch->n;
+    A->nzmax = (size_t)ch->pat->nnz;
+    A->p = ch->pat->colptr;
+    A->i = ch->pat->rowind;
+    A->x = val;
+    A->stype = 1;
+    A->itype = CHOLMOD_INT;
+    A->xtype = CHOLMOD_REAL;
+    A->dtype = CHOLMOD_DOUBLE;
+    A->sorted = 1;
+    A->packed = 1;
+    lend->pat = ch->pat;
+    lend->cm = &ch->cm;
+    lend->A = A;
+    lend->L = &ch->L;
+}
+
 void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops)
 {
     *nnz = ch ? ch->cm.lnz : 0.0;
@@ -155,8 +177,8 @@ mcf_status mcf__chol_analyze(mcf__chol *ch, mcf_error *err)
     A.dtype = CHOLMOD_DOUBLE;
     A.sorted = 1;
     A.packed = 1;
-    ch->L = cholmod_analyze(&A, &ch->cm);
-    if (!ch->L)
+    /* a borrower (mcf__chol_lend) may have analysed already */
+    if (!ch->L && !(ch->L = cholmod_analyze(&A, &ch->cm)))
         return chol_status(ch, "cholmod_analyze", err);
     if (!ch->L->is_super)
         return mcf__fail(err, MCF_ENUMERIC, "cholmod_analyze: no supernodal factor");

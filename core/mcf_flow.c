@@ -1337,13 +1337,15 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
         double sigma;
-        /* an implicit scheme lends its solver: one symbolic analysis */
-        mcf__solver lend = {&c.pat, &c.cm, c.A, &c.L};
+        /* an implicit scheme lends its solver: one symbolic analysis
+         * (mcf__chol_analyze keeps the factor the borrower made) */
+        mcf__solver lend;
+        if (c.chol)
+            mcf__chol_lend(c.chol, c.Ax, &lend);
         if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass,
-                                 p->scheme != MCF_LINEAR, hbar, nsteps, c.have_solver ? &lend : NULL,
+                                 p->scheme != MCF_LINEAR, hbar, nsteps, c.chol ? &lend : NULL,
                                  &T, &sigma, err)) != MCF_OK)
             goto done;
-        c.analyzed = c.L != NULL;
         st->noise = sigma / hbar;
         if (!(T > 0.0))
             nsteps = 0; /* no noise to remove: the mesh comes back as it came */

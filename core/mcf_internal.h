@@ -171,6 +171,13 @@ typedef struct {
     struct cholmod_factor_struct **L;
 } mcf__solver;
 
+/* Lends the solver to a borrower that factors and solves with CHOLMOD
+ * itself (mcf__auto_time): the pattern, the cholmod_common, A's upper
+ * triangle on the values val (nnz; the borrower may overwrite them) and
+ * the factor, which the borrower may create by cholmod_analyze (then
+ * mcf__chol_analyze keeps it). */
+void mcf__chol_lend(mcf__chol *ch, double *val, mcf__solver *lend);
+
 /* The time t_best that minimizes SURE for K frozen implicit steps from X
  * (working units, mean edge hbar), and the noise level sigma along the
  * normals it estimated (working units). fixed (nv, may be NULL): the
