@@ -314,6 +314,91 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     return srv_upload_begin(r, c);
 }
 
+/* ----------------------------------------------------------- framing */
+
+/* The framing headers of a request, every line of them: libmicrohttpd
+ * 0.9.75 reads only the first Transfer-Encoding and the first
+ * Content-Length, reads a body of an unknown coding until the client
+ * closes, and frames by Transfer-Encoding when both are there. */
+typedef struct {
+    int te;                    /* Transfer-Encoding lines */
+    int chunked;               /* "chunked" codings among them */
+    char other[40];            /* the first other coding ("" when none) */
+    int cl;                    /* Content-Length lines */
+    int cl_differ;             /* two that differ */
+    char cl_first[40];
+} framing;
+
+static enum MHD_Result framing_header(void *cls, enum MHD_ValueKind kind,
+                                      const char *key, const char *value)
+{
+    framing *f = cls;
+    const char *p = value ? value : "";
+
+    (void)kind;
+    if (strcasecmp(key, MHD_HTTP_HEADER_CONTENT_LENGTH) == 0) {
+        if (f->cl++ == 0)
+            snprintf(f->cl_first, sizeof f->cl_first, "%s", p);
+        else if (strcmp(f->cl_first, p) != 0)
+            f->cl_differ = 1;
+    } else if (strcasecmp(key, MHD_HTTP_HEADER_TRANSFER_ENCODING) == 0) {
+        f->te++;
+        /* a comma-separated list of codings, each with optional
+         * parameters after ';' (RFC 9112 7) */
+        while (*p) {
+            size_t n;
+            p += strspn(p, " \t,");
+            n = strcspn(p, ",;");
+            while (n > 0 && (p[n - 1] == ' ' || p[n - 1] == '\t'))
+                n--;
+            if (n == 7 && strncasecmp(p, "chunked", 7) == 0)
+                f->chunked++;
+            else if (n > 0 && !f->other[0])
+                snprintf(f->other, sizeof f->other, "%.*s", (int)n, p);
+            p += strcspn(p, ",");
+        }
+        if (!f->chunked && !f->other[0]) /* an empty value */
+            snprintf(f->other, sizeof f->other, "(empty)");
+    }
+    return MHD_YES;
+}
+
+/* RFC 9112 6.1 and 6.3: a request whose body cannot be framed without
+ * doubt is answered from its head, and its connection closed
+ * (libmicrohttpd closes after an answer queued on the first call): 501
+ * for a transfer coding other than chunked (the only one MHD decodes),
+ * 400 for Content-Length beside Transfer-Encoding (a proxy framing by
+ * one and the daemon by the other is request smuggling), Transfer-Encoding
+ * in HTTP/1.0, chunked twice, or Content-Lengths that differ. 1 and p set,
+ * or 0. */
+static int framing_refused(struct MHD_Connection *c, const char *version,
+                           srv_problem *p)
+{
+    framing f;
+
+    memset(&f, 0, sizeof f);
+    MHD_get_connection_values(c, MHD_HEADER_KIND, framing_header, &f);
+    if (f.te && f.cl)
+        srv_problem_set(p, 400, "EFRAMING", "Content-Length and "
+                        "Transfer-Encoding together (RFC 9112 6.3): send one");
+    else if (f.te && strcmp(version, MHD_HTTP_VERSION_1_0) == 0)
+        srv_problem_set(p, 400, "EFRAMING", "Transfer-Encoding in an HTTP/1.0 "
+                        "request (RFC 9112 6.1): send Content-Length");
+    else if (f.other[0])
+        srv_problem_set(p, 501, "ENOTIMPLEMENTED", "Transfer-Encoding '%s' is "
+                        "not supported: send the body with Content-Length or "
+                        "Transfer-Encoding: chunked alone", f.other);
+    else if (f.chunked > 1)
+        srv_problem_set(p, 400, "EFRAMING", "Transfer-Encoding chunked %d "
+                        "times (RFC 9112 7: once)", f.chunked);
+    else if (f.cl_differ)
+        srv_problem_set(p, 400, "EFRAMING", "two Content-Length headers that "
+                        "differ");
+    else
+        return 0;
+    return 1;
+}
+
 /* ------------------------------------------------------------ MHD entry */
 
 /* What a connection holds between MHD's notifications: the request whose
@@ -482,11 +567,16 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     srv_request *r = *con_cls;
 
     (void)cls;
-    (void)version;
     if (!r || !r->uri)
         return MHD_NO; /* out of memory in the URI callback */
     if (!r->started) {
+        srv_problem p;
         r->started = 1;
+        if (framing_refused(c, version, &p)) {
+            snprintf(r->method, sizeof r->method, "%s", method);
+            snprintf(r->path, sizeof r->path, "%s", url);
+            return srv_send_problem(r, c, &p, NULL);
+        }
         if (r->conn) /* the head is in; an upload's body comes next */
             conn_waiting(r->conn, strcmp(method, "POST") == 0 ? 2 : 0);
         /* MHD takes an answer queued on this first call, before it knows
