@@ -16,11 +16,16 @@
  * Content-Length over the limit (413) and a full queue or a draining
  * daemon (503 + Retry-After) are answered on the first call, from the
  * headers alone, so a client using Expect: 100-continue never sends the
- * body.
+ * body. So is a request whose framing is in doubt (framing_refused), and
+ * one on a connection past --max-connections-per-ip (503 + Retry-After);
+ * both close their connection.
  */
+#define _XOPEN_SOURCE 700 /* tsearch */
 #include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <search.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -401,6 +406,18 @@ static int framing_refused(struct MHD_Connection *c, const char *version,
 
 /* ------------------------------------------------------------ MHD entry */
 
+/* A request on a connection opened past --max-connections-per-ip: 503,
+ * answered on the first call, so its connection closes. Always 1. */
+static int over_cap(srv_problem *p)
+{
+    int cap = srv_http_config()->max_connections_per_ip;
+    srv_problem_set(p, 503, "EBUSY", "this address has more than %d "
+                    "connections open, the most one address may have "
+                    "(--max-connections-per-ip %d): retry once one closes",
+                    cap, cap);
+    return 1;
+}
+
 /* What a connection holds between MHD's notifications: the request whose
  * completion callback is still due, so that it is released when the
  * connection closes without one (MHD skips it when a request overflows
@@ -408,9 +425,12 @@ static int framing_refused(struct MHD_Connection *c, const char *version,
  * the header deadline, whether it is waiting for a request's headers and
  * since when. Every connection is on g_conns (g_conns_mu guards the
  * list, receiving and since). */
+typedef struct ip_count ip_count;
 typedef struct conn_state {
     srv_request *req;
     int fd;
+    ip_count *ip;              /* its address's count, NULL: none kept */
+    int over;                  /* opened past --max-connections-per-ip */
     int receiving;             /* 1: no complete request head yet; 2: the
                                   head is in, the body is coming */
     size_t body;               /* body bytes so far (receiving 2) */
@@ -423,6 +443,71 @@ static conn_state *g_conns;
 static int g_nconns;
 
 static void request_free(srv_request *r, int toe);
+
+/* --max-connections-per-ip: the connections of each client address,
+ * counted here rather than by libmicrohttpd, which closes a connection
+ * past its limit at accept, so that its client hears a 503 with
+ * Retry-After instead of a reset. A tsearch tree under g_conns_mu, one
+ * node per address with connections open. */
+struct ip_count {
+    unsigned char key[17];     /* address length (4, 16), then its bytes */
+    int n;
+};
+static void *g_ips;
+
+static int ip_cmp(const void *a, const void *b)
+{
+    return memcmp(((const ip_count *)a)->key, ((const ip_count *)b)->key,
+                  sizeof ((const ip_count *)a)->key);
+}
+
+/* g_conns_mu held: one more connection from sa; its node, or NULL (an
+ * address of another family, or out of memory: not counted). */
+static ip_count *ip_take(const struct sockaddr *sa)
+{
+    ip_count probe, *ip;
+    void *found;
+
+    memset(&probe, 0, sizeof probe);
+    if (sa && sa->sa_family == AF_INET) {
+        probe.key[0] = 4;
+        memcpy(probe.key + 1, &((const struct sockaddr_in *)(const void *)sa)->sin_addr, 4);
+    } else if (sa && sa->sa_family == AF_INET6) {
+        probe.key[0] = 16;
+        memcpy(probe.key + 1, &((const struct sockaddr_in6 *)(const void *)sa)->sin6_addr, 16);
+    } else {
+        return NULL;
+    }
+    found = tfind(&probe, &g_ips, ip_cmp);
+    if (found) {
+        ip = *(ip_count **)found;
+    } else {
+        if (!(ip = malloc(sizeof *ip)))
+            return NULL;
+        *ip = probe;
+        if (!tsearch(ip, &g_ips, ip_cmp)) {
+            free(ip);
+            return NULL;
+        }
+    }
+    ip->n++;
+    return ip;
+}
+
+/* g_conns_mu held: a connection of ip closed. */
+static void ip_drop(ip_count *ip)
+{
+    if (ip && --ip->n == 0) {
+        tdelete(ip, &g_ips, ip_cmp);
+        free(ip);
+    }
+}
+
+unsigned srv_http_ip_backstop(const srv_config *cfg)
+{
+    unsigned cap = (unsigned)cfg->max_connections_per_ip;
+    return cap ? cap + (cap + 3) / 4 : 0;
+}
 
 static void conn_waiting(conn_state *cs, int receiving)
 {
@@ -450,12 +535,17 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     if (code == MHD_CONNECTION_NOTIFY_STARTED) {
         const union MHD_ConnectionInfo *ci =
             MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+        const union MHD_ConnectionInfo *ai =
+            MHD_get_connection_info(c, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+        int cap = srv_http_config()->max_connections_per_ip;
         cs = calloc(1, sizeof(conn_state));
         if (cs) {
             cs->fd = ci ? ci->connect_fd : -1;
             cs->receiving = 1;
             cs->since = srv_mono();
             pthread_mutex_lock(&g_conns_mu);
+            if (cap > 0 && (cs->ip = ip_take(ai ? ai->client_addr : NULL)))
+                cs->over = cs->ip->n > cap;
             cs->next = g_conns;
             if (g_conns)
                 g_conns->prev = cs;
@@ -477,6 +567,7 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
         if (cs->next)
             cs->next->prev = cs->prev;
         g_nconns--;
+        ip_drop(cs->ip);
         pthread_mutex_unlock(&g_conns_mu);
         if (cs->req)
             request_free(cs->req, -1); /* never completed: abandoned */
@@ -500,7 +591,10 @@ int srv_http_expire_heads(double timeout, int max_connections,
         timeout = 2;
     for (cs = g_conns; cs; cs = cs->next)
         if (cs->fd >= 0 &&
-            ((timeout > 0 && now - cs->since > timeout &&
+            /* past --max-connections-per-ip: 2 s for the head its 503
+             * answers, also with no --header-timeout */
+            ((cs->over && cs->receiving == 1 && now - cs->since > 2) ||
+             (timeout > 0 && now - cs->since > timeout &&
               (cs->receiving == 1 ||
                (cs->receiving == 2 &&
                 (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) ||
@@ -572,7 +666,9 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     if (!r->started) {
         srv_problem p;
         r->started = 1;
-        if (framing_refused(c, version, &p)) {
+        if (framing_refused(c, version, &p) ||
+            (r->conn && ((conn_state *)r->conn)->over &&
+             over_cap(&p))) {
             snprintf(r->method, sizeof r->method, "%s", method);
             snprintf(r->path, sizeof r->path, "%s", url);
             return srv_send_problem(r, c, &p, NULL);

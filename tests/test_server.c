@@ -2154,7 +2154,8 @@ static void test_followers_and_per_ip(void **state)
     stop_daemon(&d);
 
     /* 45 slowloris connections from 127.0.0.2 against 40 slots: at most
-     * 8 are held, /healthz from 127.0.0.1 answers at once */
+     * 8 are held (and 2 past the cap for 2 s: test_per_ip_busy),
+     * /healthz from 127.0.0.1 answers at once */
     {
         static const char *const flags[] = {"--max-connections", "40",
                                             "--max-connections-per-ip", "8",
@@ -2177,6 +2178,116 @@ static void test_followers_and_per_ip(void **state)
     }
 }
 
+
+/* Reads fd until the daemon closes it (or 5 s pass): the bytes, in out
+ * (NUL-terminated); seconds until the close, -1 when it stayed open. */
+static double read_to_close(int fd, api_buf *out)
+{
+    double t0 = mcf_now();
+    char b[4096];
+
+    api_buf_init(out, 0);
+    for (;;) {
+        struct pollfd p = {fd, POLLIN, 0};
+        ssize_t n;
+        if (mcf_now() - t0 > 5 || poll(&p, 1, 100) < 0) {
+            api_buf_append(out, "", 1);
+            return -1;
+        }
+        if (!(p.revents & (POLLIN | POLLHUP | POLLERR)))
+            continue;
+        if ((n = read(fd, b, sizeof b)) <= 0)
+            break;
+        api_buf_append(out, b, (size_t)n);
+    }
+    api_buf_append(out, "", 1);
+    return mcf_now() - t0;
+}
+
+/* Issue 17, sharp edge: past --max-connections-per-ip, libmicrohttpd
+ * closed each new connection at accept, so clients saw resets, never a
+ * 503 with Retry-After. Now the daemon counts the connections of each
+ * address itself: past the cap, a request is answered 503 EBUSY with
+ * Retry-After and the connection closed, and one that sends no head
+ * is closed after 2 s. libmicrohttpd's own limit stays as a backstop, a
+ * quarter above the cap (srv_http_ip_backstop): past that, a connection
+ * is still closed at accept without a word (pinned here), since a 503
+ * needs a request and a request needs a slot. */
+static void test_per_ip_busy(void **state)
+{
+    static const char *const flags[] = {"--max-connections", "40",
+                                        "--max-connections-per-ip", "4",
+                                        NULL};
+    static const char get[] = "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n";
+    daemon_t d;
+    char spool[600];
+    int held[4], over, beyond, i;
+    double t;
+    api_buf out;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/per-ip-busy", g_tmp);
+    assert_int_equal(start_daemon(&d, "per-ip-busy", spool, flags), 0);
+    for (i = 0; i < 4; i++)
+        held[i] = connect_from(&d, "127.0.0.2", "");
+    sleep_ms(300); /* accepted: the address is at its cap */
+    /* a fifth: answered 503 + Retry-After, then closed */
+    over = connect_from(&d, "127.0.0.2", get);
+    t = read_to_close(over, &out);
+    close(over);
+    print_message("    past --max-connections-per-ip 4: %.12s%s%s, closed "
+                  "after %.2f s (main: a reset, no answer)\n",
+                  out.len > 1 ? out.data : "(no answer)",
+                  strstr(out.data, "\r\nRetry-After: 1\r\n") ? " + Retry-After: 1"
+                                                             : "",
+                  strstr(out.data, "\r\nConnection: close\r\n")
+                      ? " + Connection: close" : "", t);
+    if (strncmp(out.data, "HTTP/1.1 503", 12) != 0 ||
+        !strstr(out.data, "\"EBUSY\"") ||
+        !strstr(out.data, "--max-connections-per-ip 4") ||
+        !strstr(out.data, "\r\nRetry-After: 1\r\n"))
+        fail_msg("a connection past the per-address cap: %.400s",
+                 out.len > 1 ? out.data : "(no answer: reset)");
+    if (t < 0 || !strstr(out.data, "\r\nConnection: close\r\n"))
+        fail_msg("the 503 past the per-address cap kept its connection");
+    api_buf_free(&out);
+    /* others are served meanwhile; a held connection is served too */
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthz from another address");
+    resp_free(&r);
+    assert_true(write(held[0], get, sizeof get - 1) == (ssize_t)sizeof get - 1);
+    {
+        char b[16] = "";
+        ssize_t n = read(held[0], b, 12);
+        if (n != 12 || strncmp(b, "HTTP/1.1 200", 12) != 0)
+            fail_msg("a connection within the cap: %.12s", b);
+    }
+    /* past the cap, a connection that sends nothing goes after 2 s; the
+     * backstop (4 + 1) is then full: the next is closed at accept */
+    over = connect_from(&d, "127.0.0.2", "");
+    sleep_ms(200);
+    beyond = connect_from(&d, "127.0.0.2", get);
+    t = read_to_close(beyond, &out);
+    close(beyond);
+    print_message("    past the backstop (4 + 1): %s after %.2f s\n",
+                  out.len > 1 ? "answered" : "closed at accept, no answer", t);
+    if (out.len > 1)
+        fail_msg("past libmicrohttpd's per-address limit the connection was "
+                 "answered (%.60s): then the 503 should cover it", out.data);
+    api_buf_free(&out);
+    t = read_to_close(over, &out);
+    close(over);
+    print_message("    past the cap, a connection with no request: closed "
+                  "after %.2f s\n", t);
+    if (t < 0 || out.len > 1)
+        fail_msg("a silent connection past the per-address cap: %s after "
+                 "%.2f s", out.len > 1 ? out.data : "no answer", t);
+    api_buf_free(&out);
+    for (i = 0; i < 4; i++)
+        close(held[i]);
+    stop_daemon(&d);
+}
 /* VmRSS of a process in KiB, -1 when /proc cannot say. */
 static long rss_kib(pid_t pid)
 {
@@ -4432,6 +4543,7 @@ int main(void)
         cmocka_unit_test_teardown(test_query_flood, kill_strays),
         cmocka_unit_test_teardown(test_spool_failures, kill_strays),
         cmocka_unit_test_teardown(test_followers_and_per_ip, kill_strays),
+        cmocka_unit_test_teardown(test_per_ip_busy, kill_strays),
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
