@@ -740,18 +740,8 @@ void svc_sweep(void)
                 svc__queue_push(j);
                 pthread_cond_signal(&svc__S.work);
             }
-            if (!svc_job_status_terminal(j->status))
-                continue;
-            /* Progress lines are only replayed to late followers: drop
-             * them once nobody holds a finished job. */
-            if (j->refs == 1 && j->events.data && now - j->finished > 10) {
-                api_buf_free(&j->events);
-                api_buf_init(&j->events, SVC_EVENTS_MAX);
-                free(j->event_end);
-                j->event_end = NULL;
-                j->nevents = j->event_cap = 0;
-            }
-            if (now - j->finished < svc__S.cfg.result_ttl)
+            if (!svc_job_status_terminal(j->status) ||
+                now - j->finished < svc__S.cfg.result_ttl)
                 continue;
             if (n == cap) {
                 int ncap = cap ? 2 * cap : 64;

@@ -2908,6 +2908,92 @@ static void test_step_log_memory(void **state)
     stop_daemon(&d);
 }
 
+
+/* Issue 17, memory outside admission: a finished job kept its progress
+ * events (an ndjson line a step, up to 16 MiB) in memory for 10 s after
+ * it finished, and for as long as anyone held it, while admission had
+ * let its memory go: 8 jobs of 100,000 steps of an octahedron, two at a
+ * time under --max-memory 64M, peaked at rest + 119 MiB. Now a finished
+ * job's events are on the spool (events.ndjson and its index), read back
+ * for late followers, so the peak holds (rest + --max-memory) and a late
+ * follower gets every step, for the job's whole TTL, also after a
+ * restart (before: none 10 s after the end). */
+static void test_events_memory(void **state)
+{
+    static const char *const flags[] = {"--workers", "2", "--max-memory",
+                                        "64M", NULL};
+    upload_t octa = {.raw = k_octa, .raw_len = sizeof k_octa - 1};
+    daemon_t d;
+    char spool[600], ids[8][SRV_ID_BUF], path[200];
+    long rest, hwm = -1;
+    resp_t r;
+    int i;
+
+    (void)state;
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    tl_skip("test_events_memory", "RSS is meaningless under a sanitizer "
+            "(its quarantine, shadow and allocator caches)");
+    return;
+#endif
+    snprintf(spool, sizeof spool, "%s/events-mem", g_tmp);
+    assert_int_equal(start_daemon(&d, "events-mem", spool, flags), 0);
+    rest = rss_kib(d.pid);
+    for (i = 0; i < 8; i++) {
+        cJSON *j;
+        http(&d, "POST", "/v1/jobs?iterations=100000&scheme=euler&dt=1e-6",
+             NULL, &octa, &r);
+        expect_status(&d, &r, 202, "100,000 steps of an octahedron");
+        j = body_json(&r, "POST");
+        snprintf(ids[i], sizeof ids[i], "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+        resp_free(&r);
+    }
+    for (i = 0; i < 8; i++)
+        cJSON_Delete(poll_job(&d, ids[i], "succeeded", 120));
+    {
+        char line[256];
+        FILE *f;
+        snprintf(path, sizeof path, "/proc/%d/status", (int)d.pid);
+        assert_non_null(f = fopen(path, "r"));
+        while (fgets(line, sizeof line, f))
+            if (sscanf(line, "VmHWM: %ld kB", &hwm) == 1)
+                break;
+        fclose(f);
+    }
+    print_message("    8 jobs of 100,000 steps, 2 at a time, --max-memory 64M: "
+                  "peak RSS rest + %ld MiB (main: + 119 MiB)\n",
+                  (hwm - rest) / 1024);
+    /* a late follower gets every step, from the spool; Last-Event-ID
+     * resumes in the middle of the index */
+    snprintf(path, sizeof path, "/v1/jobs/%s/events", ids[0]);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the events of a finished job");
+    if (count_of(r.body.data, "event: progress") != 100000 ||
+        !strstr(r.body.data, "id: 100000\nevent: progress\ndata: {\"step\":100000,"))
+        fail_msg("a late follower got %d progress events of 100000",
+                 count_of(r.body.data, "event: progress"));
+    resp_free(&r);
+    {
+        static const char *const h[] = {"Last-Event-ID: 99990", NULL};
+        http(&d, "GET", path, h, NULL, &r);
+        if (count_of(r.body.data, "event: progress") != 10 ||
+            !strstr(r.body.data, "id: 99991\nevent: progress\ndata: {\"step\":99991,"))
+            fail_msg("Last-Event-ID 99990: %.300s", r.body.data);
+        resp_free(&r);
+    }
+    stop_daemon(&d);
+    /* and after a restart */
+    assert_int_equal(start_daemon(&d, "events-mem2", spool, flags), 0);
+    http(&d, "GET", path, NULL, NULL, &r);
+    if (count_of(r.body.data, "event: progress") != 100000)
+        fail_msg("after a restart, a late follower got %d progress events "
+                 "of 100000", count_of(r.body.data, "event: progress"));
+    resp_free(&r);
+    stop_daemon(&d);
+    if (hwm > rest + 64 * 1024)
+        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 64M",
+                 hwm, rest);
+}
 /* Cuts a file to half its size. */
 static void truncate_half(const char *path)
 {
@@ -4551,6 +4637,7 @@ int main(void)
         cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
         cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
         cmocka_unit_test_teardown(test_step_log_memory, kill_strays),
+        cmocka_unit_test_teardown(test_events_memory, kill_strays),
         cmocka_unit_test_teardown(test_spool_damage, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
