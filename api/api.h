@@ -316,6 +316,34 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
  * Returns (without effect) when that is impossible. */
 void api_bound_library_threads(char **argv, int blas_too);
 
+/* The bounds a Draco decode runs under (api_bounds.c says why): the
+ * daemon's in a child process (server/sandbox.c, floors --decode-cpu and
+ * --decode-memory), the CLI's in its own (these defaults). */
+#define API_DECODE_CPU_S 2.0                  /* CPU seconds, floor */
+#define API_DECODE_MEMORY ((size_t)64 << 20)  /* address space, floor */
+/* For an input the estimator sized (api_estimate_memory): CPU seconds
+ * cpu_floor plus 1 us per declared face, and bytes of address space
+ * twice the estimated decode peak, at least mem_floor. */
+void api_decode_bounds(const api_mem_estimate *est, double cpu_floor,
+                       size_t mem_floor, double *cpu_s, size_t *mem_bytes);
+/* Bytes of address space this process maps now (VmSize), 0 when /proc
+ * cannot say: what an RLIMIT_AS adds a budget to. */
+size_t api_vm_size(void);
+/* 1 in a build under AddressSanitizer or ThreadSanitizer, whose shadow
+ * (terabytes reserved at start) cannot live under an RLIMIT_AS and which
+ * die rather than fail an allocation: no address-space bound there (the
+ * CPU bound still holds). */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define API_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define API_SANITIZED 1
+#endif
+#endif
+#ifndef API_SANITIZED
+#define API_SANITIZED 0
+#endif
+
 /* ------------------------------------------------------------------- JSON */
 
 /* Each returns a new cJSON object (caller cJSON_Delete's) or NULL on

@@ -3222,7 +3222,10 @@ static void test_draco_sandbox(void **state)
                    "orientation bomb, --decode-memory 1G");
     resp_free(&r);
     print_message("    the same with --decode-memory 1G: 422 (CPU) in %.2f s\n", dt);
-    assert_true(dt >= 1.9 && dt < 8);
+    /* its 2 s of CPU took at least as long; the detail says the CPU limit,
+     * not the wall clock (25 s), stopped it (no upper bound on wall time:
+     * on a loaded machine it took 20.7 s) */
+    assert_true(dt >= 1.9);
     /* a DELETE while it decodes kills the child */
     post_file(&d, "/v1/jobs", bomb, &r);
     expect_status(&d, &r, 202, "async orientation bomb");
