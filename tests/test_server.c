@@ -2288,17 +2288,21 @@ static void test_per_ip_busy(void **state)
         close(held[i]);
     stop_daemon(&d);
 }
-/* VmRSS of a process in KiB, -1 when /proc cannot say. */
-static long rss_kib(pid_t pid)
+
+/* A size of a process in KiB from /proc/PID/status (field "VmRSS", or
+ * "VmHWM": its peak RSS), -1 when /proc cannot say. */
+static long status_kib(pid_t pid, const char *field)
 {
     char path[64], line[256];
+    size_t n = strlen(field);
     long kib = -1;
     FILE *f;
     snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
     if (!(f = fopen(path, "r")))
         return -1;
     while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmRSS: %ld kB", &kib) == 1)
+        if (strncmp(line, field, n) == 0 && line[n] == ':' &&
+            sscanf(line + n + 1, "%ld", &kib) == 1)
             break;
     fclose(f);
     return kib;
@@ -2335,7 +2339,7 @@ static void test_queued_inputs_on_disk(void **state)
     assert_int_equal(start_daemon(&d, "queued-mem", spool, flags), 0);
     submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", a);
     wait_running(&d, a);
-    if ((before = rss_kib(d.pid)) < 0) {
+    if ((before = status_kib(d.pid, "VmRSS")) < 0) {
         free(blob);
         stop_daemon(&d);
         tl_skip("test_queued_inputs_on_disk", "/proc/PID/status unreadable");
@@ -2352,7 +2356,7 @@ static void test_queued_inputs_on_disk(void **state)
     free(blob);
     blob = NULL;
     wait_gauge_within(&d, "mcfd_queue_depth", 20, 5, "20 queued");
-    after = rss_kib(d.pid);
+    after = status_kib(d.pid, "VmRSS");
     print_message("    20 queued 3 MB uploads: RSS %ld -> %ld KiB\n", before, after);
     if (after - before > 20 * 1024)
         fail_msg("20 queued 3 MB uploads grew the daemon by %ld KiB", after - before);
@@ -2937,7 +2941,7 @@ static void test_events_memory(void **state)
 #endif
     snprintf(spool, sizeof spool, "%s/events-mem", g_tmp);
     assert_int_equal(start_daemon(&d, "events-mem", spool, flags), 0);
-    rest = rss_kib(d.pid);
+    rest = status_kib(d.pid, "VmRSS");
     for (i = 0; i < 8; i++) {
         cJSON *j;
         http(&d, "POST", "/v1/jobs?iterations=100000&scheme=euler&dt=1e-6",
@@ -2950,16 +2954,7 @@ static void test_events_memory(void **state)
     }
     for (i = 0; i < 8; i++)
         cJSON_Delete(poll_job(&d, ids[i], "succeeded", 120));
-    {
-        char line[256];
-        FILE *f;
-        snprintf(path, sizeof path, "/proc/%d/status", (int)d.pid);
-        assert_non_null(f = fopen(path, "r"));
-        while (fgets(line, sizeof line, f))
-            if (sscanf(line, "VmHWM: %ld kB", &hwm) == 1)
-                break;
-        fclose(f);
-    }
+    hwm = status_kib(d.pid, "VmHWM");
     print_message("    8 jobs of 100,000 steps, 2 at a time, --max-memory 64M: "
                   "peak RSS rest + %ld MiB (main: + 119 MiB)\n",
                   (hwm - rest) / 1024);
@@ -3261,11 +3256,10 @@ static void test_memory_admission(void **state)
     static const char *const one[] = {"--workers", "2", "--max-memory", "100M",
                                       NULL};
     daemon_t d;
-    char spool[600], ids[3][SRV_ID_BUF], path[160], line[256];
+    char spool[600], ids[3][SRV_ID_BUF], path[160];
     long rest = -1, hwm = -1;
     int i, both = 0, done;
     resp_t r;
-    FILE *f;
 
     (void)state;
     snprintf(spool, sizeof spool, "%s/admit-small", g_tmp);
@@ -3281,7 +3275,7 @@ static void test_memory_admission(void **state)
 
     snprintf(spool, sizeof spool, "%s/admit-budget", g_tmp);
     assert_int_equal(start_daemon(&d, "admit-budget", spool, one), 0);
-    rest = rss_kib(d.pid);
+    rest = status_kib(d.pid, "VmRSS");
     for (i = 0; i < 3; i++) {
         cJSON *j;
         post_file(&d, "/v1/jobs?strength=auto", "meshes/bunny.drc", &r);
@@ -3334,12 +3328,7 @@ static void test_memory_admission(void **state)
                     both = 1;
                 }
     }
-    snprintf(path, sizeof path, "/proc/%d/status", (int)d.pid);
-    if ((f = fopen(path, "r")) != NULL) {
-        while (fgets(line, sizeof line, f))
-            sscanf(line, "VmHWM: %ld kB", &hwm);
-        fclose(f);
-    }
+    hwm = status_kib(d.pid, "VmHWM");
     print_message("    3 bunny.drc strength=auto jobs, --max-memory 100M, 2 "
                   "workers: %s at once; RSS at rest %ld KiB, peak %ld KiB\n",
                   both ? "two" : "never two", rest, hwm);
