@@ -266,6 +266,14 @@ mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
 mcf_status api_params_parse_query(api_params *p, const char *qs,
                                   const char *const *ignore,
                                   const api_limits *lim, mcf_error *err);
+/* The steps a run takes as far as its parameters decide (mcf.h, "The
+ * amount of smoothing"): its iterations (MCF_DEFAULT_STEPS when 0; a
+ * filter's passes), or ceil(time / dt) (not capped: over max_iterations
+ * it is refused). *by_mesh (may be NULL) is set when the mesh decides
+ * instead (adaptive, dt=auto, a fixed dt with the amount from strength):
+ * then the most it may take, max_steps within lim's max_iterations. */
+double api_params_steps(const api_params *p, const api_limits *lim,
+                        int *by_mesh);
 /* Final checks once the mesh is known: mcf_flow_params_check, fixed
  * indices in range, iterations x vertices within max_work. */
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,

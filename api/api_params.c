@@ -741,13 +741,36 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
     return rc;
 }
 
+double api_params_steps(const api_params *p, const api_limits *lim,
+                        int *by_mesh)
+{
+    const mcf_flow_params *f = &p->flow;
+    int mesh = 0;
+    double n;
+
+    if (f->scheme == MCF_TAUBIN || (!f->adaptive && !f->dt_auto && !(f->dt > 0.0)))
+        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
+    else if (!f->adaptive && !f->dt_auto && f->time > 0.0)
+        n = ceil(f->time / f->dt - 1e-9);
+    else if (!f->adaptive && f->iterations > 0 && f->time <= 0.0)
+        n = f->iterations;
+    else {
+        mesh = 1;
+        n = f->max_steps > 0 && f->max_steps < lim->max_iterations
+                ? f->max_steps : lim->max_iterations;
+    }
+    if (by_mesh)
+        *by_mesh = mesh;
+    return n;
+}
+
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err)
 {
     api_limits def;
     double steps;
     mcf_status rc;
-    int i;
+    int i, by_mesh;
 
     if (!lim) {
         api_limits_default(&def);
@@ -767,21 +790,16 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         return api__fail(err, MCF_EINVAL, "mesh has no vertices");
 
     /* Work bound: steps x vertices. When the parameters alone give the
-     * step count (mcf.h, "The amount of smoothing"), it is checked here;
-     * when it depends on the mesh's edge lengths or lambda_max (dt set
-     * and the amount from strength, dt=auto, adaptive), the core's hard
-     * cap max_steps is lowered to what the limits allow instead. */
-    if (p->flow.scheme == MCF_TAUBIN || (!p->flow.adaptive && !p->flow.dt_auto && !(p->flow.dt > 0.0))) {
-        steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
-    } else if (!p->flow.adaptive && !p->flow.dt_auto && p->flow.time > 0.0) {
-        steps = ceil(p->flow.time / p->flow.dt - 1e-9);
-        if (steps > lim->max_iterations)
-            return api__fail(err, MCF_EINVAL,
-                             "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
-                             steps, lim->max_iterations);
-    } else if (!p->flow.adaptive && p->flow.iterations > 0 && p->flow.time <= 0.0) {
-        steps = p->flow.iterations;
-    } else {
+     * step count, it is checked here; when it depends on the mesh's edge
+     * lengths or lambda_max, the core's hard cap max_steps is lowered to
+     * what the limits allow instead. */
+    steps = api_params_steps(p, lim, &by_mesh);
+    if (!by_mesh && steps > lim->max_iterations) {
+        /* iterations are bounded when parsed: time / dt */
+        return api__fail(err, MCF_EINVAL,
+                         "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
+                         steps, lim->max_iterations);
+    } else if (by_mesh) {
         double cap = floor(lim->max_work / nv);
         if (cap < p->flow.max_steps)
             p->flow.max_steps = cap < 1 ? 1 : (int)cap;

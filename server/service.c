@@ -308,17 +308,15 @@ int svc_followers(const svc_job *j)
 /* ------------------------------------------------------------------ submit */
 
 /* A fixed-step run over a time has a step count the parameters alone
- * decide (the rule of api_params_finish): over max_iterations it is the
- * request's fault, refused at once rather than a failed job. */
+ * decide (api_params_steps, the rule of api_params_finish): over
+ * max_iterations it is the request's fault, refused at once rather than
+ * a failed job. (Iterations are bounded when parsed: only time / dt can
+ * exceed it.) */
 static int steps_over_budget(const api_params *p, const api_limits *lim,
                              svc_error *err)
 {
-    double steps;
+    double steps = api_params_steps(p, lim, NULL);
 
-    if (!(p->flow.time > 0) || p->flow.adaptive || p->flow.dt_auto ||
-        !(p->flow.dt > 0))
-        return 0;
-    steps = ceil(p->flow.time / p->flow.dt - 1e-9);
     if (steps <= lim->max_iterations)
         return 0;
     svc_error_set(err, SVC_EPARAMS, "ELIMIT", "parameters 'time' and 'dt': "
