@@ -187,6 +187,16 @@ svc_job *svc__queue_pop(void)
     return j;
 }
 
+/* Back at the head of the queue (a cancel the spool refused). */
+static void queue_push_front(svc_job *j)
+{
+    j->qnext = svc__S.qhead;
+    svc__S.qhead = j;
+    if (!svc__S.qtail)
+        svc__S.qtail = j;
+    svc__S.qlen++;
+}
+
 static int queue_remove(svc_job *j)
 {
     svc_job *prev = NULL, *q;
@@ -625,11 +635,7 @@ static int cancel_locked(svc_job *j, svc_cancel_reason reason)
     } else if (rc != 0) {
         j->parked = parked;
         if (inq) {
-            j->qnext = svc__S.qhead;
-            svc__S.qhead = j;
-            if (!svc__S.qtail)
-                svc__S.qtail = j;
-            svc__S.qlen++;
+            queue_push_front(j);
             pthread_cond_signal(&svc__S.work);
         }
     }
