@@ -62,8 +62,12 @@ LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
 # tests', fuzzers' and plots'.
 DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
-            libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto
+            libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
+            chromium
 DEB_BENCH := libeigen3-dev libcgal-dev
+# npm's packages (package.json, package-lock.json): `npm ci` below.
+NPM_STAMP := node_modules/.package-lock.json
+NPM_CI_FLAGS ?=
 
 CORE_SRC := $(wildcard core/*.c)
 API_SRC  := $(wildcard api/*.c)
@@ -81,10 +85,13 @@ SRV_OBJ  := $(SRV_SRC:%.c=$(B)/%.o) $(SRV_CXX:%.cc=$(B)/%.o)
 TESTLIB_OBJ := $(TESTLIB:%.c=$(B)/%.o)
 TEST_BIN := $(TEST_SRC:tests/%.c=$(B)/tests/%)
 # Python test runners (tests/test_*.py on Debian's /usr/bin/python3, whose
-# grpcio the gRPC tests use): each gets an executable wrapper in
+# grpcio the gRPC tests use) and node ones (tests/test_*.mjs, the page's
+# browser test with puppeteer-core): each gets an executable wrapper in
 # $(B)/tests, run and counted by `make test` like the cmocka binaries.
 TEST_PY  := $(wildcard tests/test_*.py)
 TEST_BIN += $(TEST_PY:tests/%.py=$(B)/tests/%)
+TEST_MJS := $(wildcard tests/test_*.mjs)
+TEST_BIN += $(TEST_MJS:tests/%.mjs=$(B)/tests/%)
 
 PROGS := $(B)/mcf
 ifneq ($(SRV_SRC),)
@@ -139,6 +146,11 @@ $(B)/tests/%: tests/%.py
 	@mkdir -p $(@D)
 	printf '#!/bin/sh\nexec /usr/bin/python3 %s "$$@"\n' '$(abspath $<)' > $@ && chmod +x $@
 
+# A node test: a wrapper that runs tests/NAME.mjs with the machine's node.
+$(B)/tests/%: tests/%.mjs $(NPM_STAMP)
+	@mkdir -p $(@D)
+	printf '#!/bin/sh\nexec node %s "$$@"\n' '$(abspath $<)' > $@ && chmod +x $@
+
 # core/ is strict C11 with no POSIX; api/, cli/, server/ and tests/ get POSIX.
 $(B)/core/%.o: core/%.c
 	@mkdir -p $(@D)
@@ -167,6 +179,17 @@ deps:
 	  $$SUDO apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
+	@$(MAKE) --no-print-directory $(NPM_STAMP)
+
+# ---- npm: package.json + package-lock.json (three for the page, and the
+# test tools), `npm ci` into node_modules/ when it is missing or older than
+# them. Debian's nodejs and npm are installed when there is no npm (a
+# machine's own node, e.g. NodeSource's, which bundles npm, is kept).
+# NPM_CI_FLAGS=--omit=dev: three only (the image's build).
+$(NPM_STAMP): package.json package-lock.json
+	@command -v npm >/dev/null 2>&1 || $(MAKE) --no-print-directory deps DEB_PKGS="nodejs npm"
+	npm ci --ignore-scripts --no-audit --no-fund $(NPM_CI_FLAGS)
+	@touch $@
 
 # Only what building mcf and mcfd needs (the container's build stage).
 deps-build:
@@ -253,7 +276,15 @@ bench: deps
 	$(MAKE) all
 	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
 
-# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
+# ---- the page on a large scan in headless chromium (bench/bench_ui.mjs):
+#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   load to first frame, frame time
+bench-ui: deps
+	$(MAKE) all
+	MCF_BUILD=$(B) MESHES=$(MESHES) UI_MESH=$(UI_MESH) UI_REPS=$(UI_REPS) node bench/bench_ui.mjs
+
+.PHONY: bench-ui
+
+# ---- the scan-quality benchmark# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
 #   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
 quality: deps
 	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
@@ -284,6 +315,29 @@ $(B)/server/openapi_yaml.c: api/openapi.yaml
 
 $(B)/server/openapi_yaml.o: $(B)/server/openapi_yaml.c
 	$(CC) $(WARN) $(CFLAGS) -c $< -o $@
+
+# The page (server/ui.c): web/'s files and three.js (node_modules, `npm ci`
+# above) embedded by web/embed.sh as build/server/ui_assets.c. The addon's
+# bare `from 'three'` becomes a relative import: the page needs no import
+# map (an inline script its Content-Security-Policy forbids).
+UI_WEB := $(filter-out web/index.html,$(wildcard web/*.js web/*.css web/*.svg))
+THREE := node_modules/three
+ifneq ($(SRV_SRC),)
+SRV_OBJ += $(B)/server/ui_assets.o
+$(B)/mcfd: $(B)/server/ui_assets.o
+endif
+
+$(B)/server/ui_assets.c: web/embed.sh web/index.html $(UI_WEB) $(NPM_STAMP)
+	@mkdir -p $(@D) $(B)/ui
+	sed "s#from 'three'#from './three.module.js'#" \
+	  $(THREE)/examples/jsm/controls/OrbitControls.js > $(B)/ui/OrbitControls.js
+	web/embed.sh $@ /=web/index.html $(foreach f,$(UI_WEB),/ui/$(notdir $f)=$f) \
+	  /ui/three.module.js=$(THREE)/build/three.module.js \
+	  /ui/three.core.js=$(THREE)/build/three.core.js \
+	  /ui/OrbitControls.js=$(B)/ui/OrbitControls.js
+
+$(B)/server/ui_assets.o: $(B)/server/ui_assets.c server/ui_assets.h
+	$(CC) $(WARN) -Iserver $(CFLAGS) -c $< -o $@
 
 # Builds (after deps) and runs the daemon in the foreground with its
 # embedded defaults: 127.0.0.1:8080, one worker per core, spool ./var/mcfd.

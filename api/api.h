@@ -436,6 +436,23 @@ void api_metrics_run_init(api_metrics_run *r);
 cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
                         const mcf_flow_stats *st, const api_metrics_run *r);
 
+/* ----------------------------------------------------------------- fields */
+
+/* The per-vertex fields of a run for viewers (api_fields.c): positions of
+ * before (the mesh as the flow received it) and after (as it returned it),
+ * their shared faces, mean and Gaussian curvature of each (mcf_curvature)
+ * and each vertex's displacement |after - before|. One binary document,
+ * appended to out: API_FIELDS_MAGIC, u32 API_FIELDS_VERSION, u32 header
+ * length, a JSON header (space-padded to a multiple of 4: vertices,
+ * faces, arrays [{name, type "uint32"|"float32", components, count,
+ * offset from the end of the header, stats {min, max, p02, p98} of the
+ * scalar ones}]), then the arrays, all little-endian. EINVAL when after
+ * does not share before's faces, ENOMEM (ELIMIT over out's maximum). */
+#define API_FIELDS_MAGIC "MCFF"
+#define API_FIELDS_VERSION 1
+mcf_status api_fields_encode(const mcf_mesh *before, const mcf_mesh *after,
+                             api_buf *out, mcf_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -148,6 +148,14 @@ check() {
     "$mcf" info "$out/smoothed.drc" | grep -Eq '"vertices":[[:space:]]*34834,' ||
         { echo "image-check: FAIL: the smoothed bunny.drc is not the bunny's 34834 vertices" >&2; exit 1; }
     echo "image-check: POST /smooth of bunny.drc (a sandboxed Draco decode) returned the bunny's 34834 vertices"
+    # the page (issue 21): embedded at build time, served without node in the image
+    code=$(curl -sS -o "$out/page.html" -w '%{http_code}' --max-time 10 "http://127.0.0.1:$port/")
+    [ "$code" = 200 ] && grep -q '/ui/app.js' "$out/page.html" ||
+        { echo "image-check: FAIL: GET /: HTTP $code" >&2; exit 1; }
+    code=$(curl -sS -o "$out/three.js" -w '%{http_code}' --max-time 10 "http://127.0.0.1:$port/ui/three.core.js")
+    [ "$code" = 200 ] && [ "$(wc -c < "$out/three.js")" -gt 100000 ] ||
+        { echo "image-check: FAIL: GET /ui/three.core.js: HTTP $code" >&2; exit 1; }
+    echo "image-check: GET / serves the page and /ui/three.core.js its three.js"
     # the gRPC door: Smooth through the published port with the example client
     gport=$(pm port "$name" 50051/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
     /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --iterations 5 \

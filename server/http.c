@@ -39,7 +39,8 @@
 
 static const char *const route_names[] = {
     "healthz", "readyz", "metrics", "openapi", "schemes", "smooth", "jobs",
-    "job", "job_result", "job_metrics", "job_events", "other"};
+    "job", "job_result", "job_metrics", "job_events", "job_fields", "ui",
+    "other"};
 
 const char *srv_route_name(srv_route rt)
 {
@@ -170,8 +171,12 @@ static int parse_route(srv_request *r, const char *url)
             r->rt = RT_JOB_METRICS;
         else if (strcmp(rest, "/events") == 0)
             r->rt = RT_JOB_EVENTS;
+        else if (strcmp(rest, "/fields") == 0)
+            r->rt = RT_JOB_FIELDS;
         else
             return -1;
+    } else if (srv_ui_find(url, &r->asset)) {
+        r->rt = RT_UI;
     } else {
         r->rt = RT_OTHER;
         return -1;
@@ -225,8 +230,9 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_send_problemf(r, c, 414, "ELIMIT", "the query string has %zu bytes, "
                                  "more than %d: send the parameters as a multipart "
                                  "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
+    /* The page is public too (ui.c): its API calls carry the token. */
     if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
-        !authorized(c))
+        r->rt != RT_UI && !authorized(c))
         return srv_send_problemf(r, c, 401, "EAUTH", "a valid 'Authorization: Bearer "
                                  "<token>' header is required");
     switch (r->rt) {
@@ -235,6 +241,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     case RT_METRICS:
     case RT_OPENAPI:
     case RT_SCHEMES:
+    case RT_UI:
         if (!is_get(method)) {
             srv_problem_set(&p, 405, "EMETHOD", "%s is not allowed on %s",
                             method, url);
@@ -315,6 +322,8 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     }
     if (r->rt == RT_SCHEMES)
         return srv_send_json(r, c, 200, api_json_schemes());
+    if (r->rt == RT_UI)
+        return srv_ui_send(r, c, r->asset);
 
     return srv_upload_begin(r, c);
 }

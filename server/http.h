@@ -106,6 +106,8 @@ struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
  * and a 503. */
 int srv_stream_admit(const svc_job *j, srv_problem *p);
 
+typedef struct srv_asset srv_asset; /* ui_assets.h */
+
 /* ---------------------------------------------------------------- requests */
 
 typedef enum {
@@ -120,6 +122,8 @@ typedef enum {
     RT_JOB_RESULT,
     RT_JOB_METRICS,
     RT_JOB_EVENTS,
+    RT_JOB_FIELDS,
+    RT_UI,
     RT_OTHER
 } srv_route;
 
@@ -132,6 +136,7 @@ typedef struct {
     char id[SVC_ID_LEN + 1];
     double t0;
     srv_route rt;
+    const srv_asset *asset;    /* RT_UI: the page's file */
     unsigned status;           /* of the queued response, 0 before */
     int started;
     int deferred;              /* answered once the (absent) body is read */
@@ -214,6 +219,9 @@ enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c);
 /* The request ends: drops its subscription, kept result and reference. */
 void srv_request_release_job(srv_request *r);
 
+/* The media type of GET /v1/jobs/ID/fields (api_fields_encode's document). */
+#define SRV_FIELDS_MIME "application/vnd.mcfd.fields"
+
 /* ------------------------------------------------------------ MHD entries */
 
 /* The request handler and its companions for MHD_start_daemon. */
@@ -253,6 +261,13 @@ unsigned srv_http_ip_backstop(const srv_config *cfg);
 int srv_http_active(void);
 /* The route's label in metrics and logs ("smooth", "job", ...). */
 const char *srv_route_name(srv_route rt);
+
+/* ui.c: the page (GET / and /ui/NAME), public, from the files embedded
+ * at build time, and /ui/config.json. 1 when path is one of them (*asset
+ * set; NULL for the config), else 0. */
+int srv_ui_find(const char *path, const srv_asset **asset);
+enum MHD_Result srv_ui_send(srv_request *r, struct MHD_Connection *c,
+                            const srv_asset *a);
 
 /* The API description embedded at build time (build/server/openapi_yaml.c). */
 extern const unsigned char srv_openapi_yaml[];

@@ -227,7 +227,9 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
         srv_problem_set(&p, 409, "ENORESULT", "job %s %s and has no %s; see "
                         "/v1/jobs/%s for the error", s.id,
                         svc_job_status_name(s.status),
-                        r->rt == RT_JOB_METRICS ? "metrics" : "result", s.id);
+                        r->rt == RT_JOB_METRICS   ? "metrics"
+                        : r->rt == RT_JOB_FIELDS ? "fields"
+                                                 : "result", s.id);
         return srv_send_problem(r, c, &p, s.id);
     }
     if (r->rt == RT_JOB_METRICS) {
@@ -243,7 +245,8 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
         size_t size;
         int fd;
 
-        if (svc_job_result_open(j, &fd, &size, &e) != 0) {
+        if ((r->rt == RT_JOB_FIELDS ? svc_job_fields_open(j, &fd, &size, &e)
+                                    : svc_job_result_open(j, &fd, &size, &e)) != 0) {
             srv_problem_from_svc(&p, &e);
             return srv_send_problem(r, c, &p, s.id);
         }
@@ -251,7 +254,13 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
             close(fd);
             return MHD_NO;
         }
-        add_result_headers(resp, j, &s);
+        if (r->rt == RT_JOB_FIELDS) {
+            MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
+                                    SRV_FIELDS_MIME);
+            MHD_add_response_header(resp, "X-Job-Id", s.id);
+        } else {
+            add_result_headers(resp, j, &s);
+        }
         return srv_respond(r, c, 200, resp);
     }
 }

@@ -267,10 +267,14 @@ static int canceled_error(svc_job *j, int steps, svc_error *prob)
  * or 1 (canceled by the shutdown: it runs again after the restart). */
 static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
                          size_t target_len, const api_params *p,
-                         svc_error *prob)
+                         int keep_fields, svc_error *prob)
 {
+    /* fields=true: the mesh kept from before the flow (48 bytes a vertex
+     * with its faces), five double fields (40) and the document (68, up
+     * to twice that while its buffer grows). */
     double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p,
-                                           &svc__S.cfg.lim);
+                                           &svc__S.cfg.lim) +
+                 (keep_fields ? 256.0 * nv : 0);
     if (svc_admit_refuse(&svc__S.cfg, est, prob))
         return -1;
     if (svc_admit_grow(&svc__S.cfg, &j->mem_held, est, &j->cancel) != 0)
@@ -321,18 +325,18 @@ void svc__run_job(svc_job *j)
     const svc_config *cfg = &svc__S.cfg;
     api_params prm;
     int have_prm = 0;
-    mcf_mesh *m = NULL, *tgt = NULL;
+    mcf_mesh *m = NULL, *tgt = NULL, *before = NULL;
     api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
     api_format fmt = API_FMT_UNKNOWN, tfmt;
     mcf_error err = {MCF_OK, ""};
     mcf_status rc;
     mcf_flow_stats st;
     api_metrics mt;
-    api_buf out;
+    api_buf out, fields;
     api_encode_opts eo;
     svc_error prob;
     int failed = 1, requeue = 0, nv = 0, nf = 0, tries = 0, written = 0,
-        e = 0;
+        e = 0, keep_fields = 0;
     char *input = NULL, *target = NULL, *metrics = NULL;
     size_t input_len = 0, target_len = 0;
     svc_job_status final;
@@ -345,6 +349,7 @@ void svc__run_job(svc_job *j)
     api_metrics_init(&mt);
     memset(&prob, 0, sizeof prob);
     api_buf_init(&out, SVC_RESULT_MAX);
+    api_buf_init(&fields, 0);
     svc__lock();
     input = j->input;
     input_len = j->input_len;
@@ -372,6 +377,8 @@ void svc__run_job(svc_job *j)
         svc_error_from_mcf(&prob, rc, SVC_STAGE_PARAMS, NULL, &err);
         goto done;
     }
+    if (svc_record_fields(&j->rec, &keep_fields, &prob) != 0)
+        goto done;
     have_prm = 1;
     /* sandbox.c: Draco decodes in a child process under limits. */
     while ((rc = svc_decode_upload(input, input_len, cfg, &j->cancel, "mesh",
@@ -387,7 +394,7 @@ void svc__run_job(svc_job *j)
     /* svc_admit.c: estimated again from the decoded counts (polygons
      * split, STL welded); a larger estimate is refused or waits. */
     if ((requeue = memory_regrow(j, nv, nf, input_len, target_len, &prm,
-                                 &prob)) != 0) {
+                                 keep_fields, &prob)) != 0) {
         requeue = requeue > 0;
         goto done;
     }
@@ -424,6 +431,12 @@ void svc__run_job(svc_job *j)
         goto done;
     }
     t_metrics = mcf_now() - t_metrics;
+    /* fields=true: the mesh as the flow receives it, for the per-vertex
+     * fields (api_fields_encode) written beside the result. */
+    if (keep_fields && !(before = mcf_mesh_dup(m, &err))) {
+        svc_error_from_mcf(&prob, err.status, SVC_STAGE_RUN, "fields", &err);
+        goto done;
+    }
 
     memset(&ctx, 0, sizeof ctx);
     ctx.job = j;
@@ -472,6 +485,10 @@ void svc__run_job(svc_job *j)
         goto done;
     }
     t_metrics += mcf_now() - t_after;
+    if (before && (rc = api_fields_encode(before, m, &fields, &err)) != MCF_OK) {
+        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, NULL, &err);
+        goto done;
+    }
     svc__lock();
     snprintf(j->out_format, sizeof j->out_format, "%s",
              api_format_name(eo.format));
@@ -488,7 +505,9 @@ void svc__run_job(svc_job *j)
     while (srv_spool_write(cfg->spool, j->id, j->result_name, out.data,
                            out.len, 1) != 0 ||
            srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
-                           strlen(metrics), 1) != 0)
+                           strlen(metrics), 1) != 0 ||
+           (before && srv_spool_write(cfg->spool, j->id, SVC_FIELDS_FILE,
+                                      fields.data, fields.len, 1) != 0))
         if (!retry(j, &tries, errno, "writing its result", 0)) {
             svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the "
                           "result of job %s to the spool (%d tries): %s",
@@ -563,7 +582,7 @@ done:
         j->status = final;
         if (final == SVC_JOB_SUCCEEDED) {
             /* its metrics stay on disk only (svc_read.c reads them) */
-            size_t add = j->result_len + strlen(metrics);
+            size_t add = j->result_len + strlen(metrics) + fields.len;
             if (j->keep_result) {
                 size_t len;
                 j->result = api_buf_detach(&out, &len);
@@ -591,8 +610,10 @@ done:
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(tgt);
+    mcf_mesh_free(before);
     api_attrs_free(attrs);
     api_buf_free(&out);
+    api_buf_free(&fields);
     free(input);
     free(target);
     free(metrics);

@@ -396,13 +396,15 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
     int reserved = 0;
     const mcf_scheme_info *si;
     double mem;
+    int fields;
 
     /* Parameters first: a misspelled key is refused even when busy. */
     if ((rc = svc_record_params(rec, &cfg->lim, &prm, &merr)) != MCF_OK) {
         svc_error_from_mcf(err, rc, SVC_STAGE_PARAMS, NULL, &merr);
         goto fail;
     }
-    if (steps_over_budget(&prm, &cfg->lim, err)) {
+    if (svc_record_fields(rec, &fields, err) != 0 ||
+        steps_over_budget(&prm, &cfg->lim, err)) {
         api_params_free(&prm);
         goto fail;
     }

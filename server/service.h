@@ -240,6 +240,10 @@ typedef struct {
     int has_target;            /* set by svc_submit */
 } svc_record;
 
+/* The query's `fields` (a daemon key, like `stream`: query only, the last
+ * one wins): whether the worker keeps the job's per-vertex fields for
+ * svc_job_fields_open. 0 and *on, or -1 and *err (EPARAMS). */
+int svc_record_fields(const svc_record *r, int *on, svc_error *err);
 /* Frees the record's contents and zeroes it (the struct is the caller's). */
 void svc_record_free(svc_record *r);
 /* api_params from a record (keys the doors handle, "stream", skipped). */
@@ -349,6 +353,12 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
 /* The result file opened read-only (for zero-copy sending) and its size.
  * 0, or -1 and *err. The caller closes *fd. */
 int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
+                        svc_error *err);
+/* The per-vertex fields of a succeeded job submitted with fields=true
+ * (svc_record_fields; api_fields_encode's document), opened read-only, and
+ * its size. 0, or -1 and *err: ENOTREADY, ENORESULT (failed, canceled, or
+ * submitted without fields=true), ESTORAGE. The caller closes *fd. */
+int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
                         svc_error *err);
 /* The submitter will not take the kept copy: it is freed (and none is
  * kept from now on). */

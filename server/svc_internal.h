@@ -26,6 +26,7 @@
  * in all (runner.c), long enough for connections to time out or be
  * closed, short enough that a full disk fails the job within a minute. */
 #define SVC_RETRY_TRIES 10
+#define SVC_FIELDS_FILE "fields.bin"        /* fields=true: api_fields_encode */
 
 struct svc_sub {
     svc_job *job;

@@ -307,11 +307,34 @@ int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
     return 0;
 }
 
+/* A file of a succeeded job's directory opened read-only, and its size. */
+static int open_job_file(const svc_job *j, const char *name, const char *what,
+                         int *fd, size_t *size, svc_error *err)
+{
+    char path[1400];
+    struct stat sb;
+
+    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
+        (*fd = open(path, O_RDONLY)) < 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s is "
+                      "missing from the spool", what, j->id);
+        return -1;
+    }
+    if (fstat(*fd, &sb) != 0) {
+        svc_error_set(err, SVC_ESTORAGE, "EIO", "the %s of job %s: %s",
+                      what, j->id, strerror(errno));
+        close(*fd);
+        *fd = -1;
+        return -1;
+    }
+    *size = (size_t)sb.st_size;
+    return 0;
+}
+
 int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
                         svc_error *err)
 {
-    char name[32], path[1400];
-    struct stat sb;
+    char name[32];
     size_t want;
 
     svc__lock();
@@ -322,26 +345,35 @@ int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
     snprintf(name, sizeof name, "%s", j->result_name);
     want = j->result_len;
     svc__unlock();
-    if (srv_spool_path(path, sizeof path, svc__S.cfg.spool, j->id, name) != 0 ||
-        (*fd = open(path, O_RDONLY)) < 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s is "
-                      "missing from the spool", j->id);
+    if (open_job_file(j, name, "result", fd, size, err) != 0)
         return -1;
-    }
-    if (fstat(*fd, &sb) != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "the result of job %s: %s",
-                      j->id, strerror(errno));
-        close(*fd);
-        *fd = -1;
-        return -1;
-    }
-    *size = (size_t)sb.st_size;
     if (result_damaged(j, *size, want, err)) {
         close(*fd);
         *fd = -1;
         return -1;
     }
     return 0;
+}
+
+int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
+                        svc_error *err)
+{
+    svc_error e;
+    int asked = 0;
+
+    svc__lock();
+    if (!has_result_locked(j, "fields", err)) {
+        svc__unlock();
+        return -1;
+    }
+    /* the record is constant once submitted; a bad value was refused */
+    svc__unlock();
+    if (svc_record_fields(&j->rec, &asked, &e) != 0 || !asked) {
+        svc_error_set(err, SVC_ENORESULT, NULL, "job %s was submitted without "
+                      "fields=true and has no fields", j->id);
+        return -1;
+    }
+    return open_job_file(j, SVC_FIELDS_FILE, "fields", fd, size, err);
 }
 
 void svc_job_release_result(svc_job *j)

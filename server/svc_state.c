@@ -66,7 +66,7 @@ void svc_record_free(svc_record *r)
 mcf_status svc_record_params(const svc_record *r, const api_limits *lim,
                              api_params *p, mcf_error *err)
 {
-    static const char *const ignore[] = {"stream", NULL};
+    static const char *const ignore[] = {"stream", "fields", NULL};
     mcf_status rc = MCF_OK;
     const cJSON *f;
 
@@ -88,6 +88,39 @@ mcf_status svc_record_params(const svc_record *r, const api_limits *lim,
 fail:
     api_params_free(p);
     return rc;
+}
+
+int svc_record_fields(const svc_record *r, int *on, svc_error *err)
+{
+    const char *p = r->query;
+
+    *on = 0;
+    while (p && *p) {
+        size_t n = strcspn(p, "&");
+        if (n >= 7 && strncmp(p, "fields=", 7) == 0) {
+            static const char *const yes[] = {"true", "1", "yes"}, *const no[] = {"false", "0", "no"};
+            size_t k, v = n - 7;
+            int found = 0;
+            for (k = 0; k < 3 && !found; k++) {
+                if (strlen(yes[k]) == v && strncmp(p + 7, yes[k], v) == 0)
+                    found = 1, *on = 1;
+                else if (strlen(no[k]) == v && strncmp(p + 7, no[k], v) == 0)
+                    found = 1, *on = 0;
+            }
+            if (!found) {
+                mcf_error me;
+                mcf_error_set(&me, MCF_EINVAL, "parameter 'fields' must be true "
+                              "or false (or 1/0, yes/no), got \"%.*s\"",
+                              (int)(v > 40 ? 40 : v), p + 7);
+                svc_error_from_mcf(err, MCF_EINVAL, SVC_STAGE_PARAMS, NULL, &me);
+                return -1;
+            }
+        }
+        p += n;
+        if (*p == '&')
+            p++;
+    }
+    return 0;
 }
 
 /* ------------------------------------------------------------ request.json */

@@ -304,6 +304,7 @@ static long http_watch(const daemon_t *d, const char *method, const char *path,
         return 0;
     snprintf(url, sizeof url, "http://127.0.0.1:%d%s", d->port, path);
     curl_easy_setopt(c, CURLOPT_URL, url);
+    curl_easy_setopt(c, CURLOPT_PATH_AS_IS, 1L); /* "/../" reaches the daemon */
     curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
     curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT, 5L);
     curl_easy_setopt(c, CURLOPT_TIMEOUT, 60L);
@@ -3607,6 +3608,283 @@ static void test_hangup_and_budgets(void **state)
     stop_daemon(&d);
 }
 
+/* The page (issue 21): GET / and its files under /ui/, embedded at build
+ * time, public, with their media type, ETag (304 on If-None-Match), the
+ * page's Content-Security-Policy; unknown files and other methods refused. */
+static void test_page(void **state)
+{
+    resp_t r;
+    char buf[512], etag[64];
+    cJSON *j;
+    static const char *const unknown[] = {
+        "/ui/", "/ui/nope.js", "/ui/../openapi.yaml", "/ui/app.js/", "/ui//app.js",
+        "/ui/APP.JS", "/index.htm", "//"};
+    size_t i;
+
+    (void)state;
+    http(&g_main, "GET", "/", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "GET /");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf),
+                        "text/html; charset=utf-8");
+    assert_non_null(strstr(r.body.data, "<script type=\"module\" src=\"/ui/app.js\">"));
+    assert_non_null(header(&r, "Content-Security-Policy", buf, sizeof buf));
+    assert_non_null(strstr(buf, "default-src 'none'"));
+    assert_non_null(strstr(buf, "script-src 'self';"));
+    assert_null(strstr(buf, "unsafe"));
+    assert_string_equal(header(&r, "X-Content-Type-Options", buf, sizeof buf), "nosniff");
+    assert_string_equal(header(&r, "Cache-Control", buf, sizeof buf), "no-cache");
+    assert_non_null(header(&r, "ETag", etag, sizeof etag));
+    assert_int_equal(strlen(etag), 18); /* "16 hex digits" */
+    resp_free(&r);
+    {
+        char inm[160];
+        const char *h[] = {inm, NULL};
+        snprintf(inm, sizeof inm, "If-None-Match: \"0000000000000000\", %s", etag);
+        http(&g_main, "GET", "/", h, NULL, &r);
+        expect_status(&g_main, &r, 304, "GET / revalidated");
+        assert_int_equal(r.body.len, 0);
+        assert_string_equal(header(&r, "ETag", buf, sizeof buf), etag);
+        resp_free(&r);
+        snprintf(inm, sizeof inm, "If-None-Match: \"0000000000000000\"");
+        http(&g_main, "GET", "/", h, NULL, &r);
+        expect_status(&g_main, &r, 200, "GET / with another ETag");
+        resp_free(&r);
+    }
+    /* three.js and the page's modules, as the Makefile embedded them */
+    http(&g_main, "GET", "/ui/three.module.js", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "three.module.js");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf),
+                        "text/javascript; charset=utf-8");
+    assert_true(r.body.len > 100000);
+    resp_free(&r);
+    http(&g_main, "GET", "/ui/OrbitControls.js", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "OrbitControls.js");
+    assert_null(strstr(r.body.data, "from 'three'")); /* no bare import left */
+    assert_non_null(strstr(r.body.data, "from './three.module.js'"));
+    resp_free(&r);
+    http(&g_main, "GET", "/ui/style.css", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "style.css");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "text/css; charset=utf-8");
+    resp_free(&r);
+    http(&g_main, "HEAD", "/ui/app.js", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "HEAD app.js");
+    resp_free(&r);
+    http(&g_main, "GET", "/ui/config.json", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "config.json");
+    j = body_json(&r, "config.json");
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(j, "token_required")));
+    cJSON_Delete(j);
+    resp_free(&r);
+
+    for (i = 0; i < sizeof unknown / sizeof unknown[0]; i++) {
+        http(&g_main, "GET", unknown[i], NULL, NULL, &r);
+        expect_problem(&g_main, &r, 404, "ENOTFOUND", NULL, unknown[i]);
+        resp_free(&r);
+    }
+    http(&g_main, "POST", "/", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "POST", "POST /");
+    resp_free(&r);
+    http(&g_main, "DELETE", "/ui/app.js", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "DELETE", "DELETE /ui/app.js");
+    resp_free(&r);
+}
+
+/* Reads the fields document's header: the JSON (caller deletes) and where
+ * the data begins. */
+static cJSON *fields_header(const resp_t *r, size_t *data)
+{
+    const unsigned char *b = (const unsigned char *)r->body.data;
+    uint32_t v, h;
+    char *text;
+    cJSON *j;
+
+    assert_true(r->body.len >= 12);
+    assert_memory_equal(b, "MCFF", 4);
+    v = b[4] | b[5] << 8 | b[6] << 16 | (uint32_t)b[7] << 24;
+    h = b[8] | b[9] << 8 | b[10] << 16 | (uint32_t)b[11] << 24;
+    assert_int_equal(v, 1);
+    assert_int_equal(h % 4, 0);
+    assert_true(12 + (size_t)h <= r->body.len);
+    text = strndup(r->body.data + 12, h);
+    j = cJSON_Parse(text);
+    free(text);
+    assert_non_null(j);
+    *data = 12 + h;
+    return j;
+}
+
+/* The float32 array `name` of a fields document, converted to doubles
+ * (malloc'ed; *n values). */
+static double *fields_array(const resp_t *r, const cJSON *hdr, size_t data,
+                            const char *name, int *n)
+{
+    const cJSON *a;
+    cJSON_ArrayForEach(a, cJSON_GetObjectItemCaseSensitive(hdr, "arrays"))
+        if (strcmp(jstr(a, "name"), name) == 0) {
+            int k, count = (int)(jnum(a, "count") * jnum(a, "components"));
+            size_t off = data + (size_t)jnum(a, "offset");
+            double *v = malloc((size_t)count * sizeof *v);
+            assert_string_equal(jstr(a, "type"), "float32");
+            assert_true(off + 4 * (size_t)count <= r->body.len);
+            for (k = 0; k < count; k++) {
+                float f;
+                memcpy(&f, r->body.data + off + 4 * (size_t)k, 4); /* x86: LE */
+                v[k] = f;
+            }
+            *n = count;
+            return v;
+        }
+    fail_msg("no array %s in the fields document", name);
+    return NULL;
+}
+
+/* GET /v1/jobs/ID/fields (issue 21): the per-vertex fields of a job
+ * submitted with fields=true, checked against the core on the same meshes
+ * (the input as uploaded, the result as downloaded); and its refusals:
+ * unknown, unfinished and field-less jobs, hostile IDs. */
+static void test_fields(void **state)
+{
+    char id[SRV_ID_BUF], plain[SRV_ID_BUF], run[SRV_ID_BUF], path[200];
+    resp_t r, res;
+    cJSON *hdr;
+    size_t data;
+    int n, i, nv;
+    double *X0, *H0, *X1, *H1, *K1, *D, *H, *K;
+    api_format fmt;
+    mcf_mesh *in = tl_load("sphere_cgal.obj"), *out;
+    mcf_error err;
+    static const char *const hostile[] = {
+        "/v1/jobs/../../etc/passwd/fields",
+        "/v1/jobs/0123456789ABCDEF0123456789abcdef/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcde/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcdef0/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcde%2e/fields",
+        "/v1/jobs/0123456789abcdef0123456789abcdef/fields/x",
+        "/v1/jobs/0123456789abcdef0123456789abcdef/field"};
+
+    (void)state;
+    submit(&g_main, "?fields=true&iterations=5", id);
+    submit(&g_main, "?iterations=5", plain);
+    cJSON_Delete(poll_job(&g_main, id, "succeeded", 30));
+    cJSON_Delete(poll_job(&g_main, plain, "succeeded", 30));
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "GET fields");
+    {
+        char ct[64], jid[64];
+        assert_string_equal(header(&r, "Content-Type", ct, sizeof ct),
+                            "application/vnd.mcfd.fields");
+        assert_string_equal(header(&r, "X-Job-Id", jid, sizeof jid), id);
+    }
+    hdr = fields_header(&r, &data);
+    nv = mcf_mesh_nvertices(in);
+    assert_int_equal((int)jnum(hdr, "vertices"), nv);
+    assert_int_equal((int)jnum(hdr, "faces"), mcf_mesh_nfaces(in));
+    /* 12 + header + faces (3 x 4 bytes) + 2 positions (3 x 4) + 5 fields */
+    assert_int_equal(r.body.len, data + 12 * (size_t)mcf_mesh_nfaces(in) +
+                                     (24 + 20) * (size_t)nv);
+    {   /* the faces are the input's, in order */
+        const cJSON *a = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(hdr, "arrays"), 0);
+        const int32_t *F = mcf_mesh_faces(in);
+        assert_string_equal(jstr(a, "name"), "faces");
+        assert_string_equal(jstr(a, "type"), "uint32");
+        for (i = 0; i < 3 * mcf_mesh_nfaces(in); i++) {
+            const unsigned char *b = (const unsigned char *)r.body.data + data + 4 * (size_t)i;
+            assert_int_equal((int32_t)(b[0] | b[1] << 8 | b[2] << 16 | (uint32_t)b[3] << 24), F[i]);
+        }
+    }
+    /* the result as GET /result serves it: the fields describe that mesh */
+    snprintf(path, sizeof path, "/v1/jobs/%s/result", id);
+    http(&g_main, "GET", path, NULL, NULL, &res);
+    expect_status(&g_main, &res, 200, "GET result");
+    out = decode_body(&res, &fmt);
+    resp_free(&res);
+    X0 = fields_array(&r, hdr, data, "input.positions", &n);
+    assert_int_equal(n, 3 * nv);
+    X1 = fields_array(&r, hdr, data, "result.positions", &n);
+    H0 = fields_array(&r, hdr, data, "input.mean_curvature", &n);
+    H1 = fields_array(&r, hdr, data, "result.mean_curvature", &n);
+    K1 = fields_array(&r, hdr, data, "result.gaussian_curvature", &n);
+    D = fields_array(&r, hdr, data, "displacement", &n);
+    assert_int_equal(n, nv);
+    H = malloc((size_t)nv * sizeof *H);
+    K = malloc((size_t)nv * sizeof *K);
+    assert_int_equal(mcf_curvature(in, NULL, H, NULL, NULL, &err), MCF_OK);
+    /* float32 of the core's doubles: a relative 2^-24, 1e-6 with margin */
+    for (i = 0; i < 3 * nv; i++) {
+        tl_assert_near(X0[i], mcf_mesh_positions(in)[i], 1e-6, "input position");
+        tl_assert_near(X1[i], mcf_mesh_positions(out)[i], 1e-6, "result position");
+    }
+    for (i = 0; i < nv; i++)
+        tl_assert_near(H0[i], H[i], 1e-6 * (1 + fabs(H[i])), "input H");
+    assert_int_equal(mcf_curvature(out, NULL, H, K, NULL, &err), MCF_OK);
+    for (i = 0; i < nv; i++) {
+        const double *a = mcf_mesh_positions(in) + 3 * i, *b = mcf_mesh_positions(out) + 3 * i;
+        double d = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) +
+                        (b[2] - a[2]) * (b[2] - a[2]));
+        /* the result's OBJ keeps every double (%.17g): the same curvature */
+        tl_assert_near(H1[i], H[i], 1e-6 * (1 + fabs(H[i])), "result H");
+        tl_assert_near(K1[i], K[i], 1e-6 * (1 + fabs(K[i])), "result K");
+        tl_assert_near(D[i], d, 1e-6 * (1 + d), "displacement");
+    }
+    /* a sphere of radius ~1 smoothed 5 steps: H about 1 (outward normals) */
+    {
+        const cJSON *a;
+        cJSON_ArrayForEach(a, cJSON_GetObjectItemCaseSensitive(hdr, "arrays"))
+            if (strcmp(jstr(a, "name"), "result.mean_curvature") == 0) {
+                assert_true(jnum(a, "stats.p02") > 0.8 && jnum(a, "stats.p98") < 1.3);
+                assert_true(jnum(a, "stats.min") <= jnum(a, "stats.p02"));
+            }
+    }
+    free(X0); free(X1); free(H0); free(H1); free(K1); free(D); free(H); free(K);
+    mcf_mesh_free(out);
+    cJSON_Delete(hdr);
+    resp_free(&r);
+    mcf_mesh_free(in);
+
+    /* refusals */
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", plain);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENORESULT", "without fields=true", "no fields asked");
+    resp_free(&r);
+    http(&g_main, "GET", "/v1/jobs/0123456789abcdef0123456789abcdef/fields", NULL, NULL, &r);
+    expect_problem(&g_main, &r, 404, "ENOTFOUND", "0123456789abcdef0123456789abcdef",
+                   "unknown job");
+    resp_free(&r);
+    for (i = 0; i < (int)(sizeof hostile / sizeof hostile[0]); i++) {
+        http(&g_main, "GET", hostile[i], NULL, NULL, &r);
+        expect_problem(&g_main, &r, 404, "ENOTFOUND", NULL, hostile[i]);
+        resp_free(&r);
+    }
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", id);
+    http(&g_main, "POST", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 405, "EMETHOD", "POST", "POST fields");
+    resp_free(&r);
+    {   /* a query key of the daemon, like stream; its value is checked */
+        upload_t up = {.mesh = "sphere_cgal.obj"};
+        http(&g_main, "POST", "/v1/jobs?fields=maybe", NULL, &up, &r);
+        expect_problem(&g_main, &r, 400, "EINVAL", "'fields' must be true or false",
+                       "fields=maybe");
+        resp_free(&r);
+    }
+    /* running: not yet; canceled: never */
+    submit(&g_main, "?fields=true&iterations=100000&dt=1e-7&max_steps=100000", run);
+    wait_running(&g_main, run);
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", run);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENOTREADY", "running", "fields too early");
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s", run);
+    http(&g_main, "DELETE", path, NULL, NULL, &r);
+    resp_free(&r);
+    cJSON_Delete(poll_job(&g_main, run, "canceled", 30));
+    snprintf(path, sizeof path, "/v1/jobs/%s/fields", run);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 409, "ENORESULT", "canceled", "fields of a canceled job");
+    resp_free(&r);
+}
+
 /* --token-file: 401 without or with a wrong token; probes stay open. */
 static void test_auth(void **state)
 {
@@ -3630,6 +3908,21 @@ static void test_auth(void **state)
     http(&d, "GET", "/v1/schemes", NULL, NULL, &r);
     expect_problem(&d, &r, 401, "EAUTH", "Bearer", "no token");
     assert_non_null(header(&r, "WWW-Authenticate", auth, sizeof auth));
+    resp_free(&r);
+    /* the page is public and says the API needs a token; its data is not */
+    http(&d, "GET", "/", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the page without a token");
+    resp_free(&r);
+    http(&d, "GET", "/ui/config.json", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "config.json without a token");
+    {
+        cJSON *c = body_json(&r, "config.json");
+        assert_true(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(c, "token_required")));
+        cJSON_Delete(c);
+    }
+    resp_free(&r);
+    http(&d, "GET", "/v1/jobs/0123456789abcdef0123456789abcdef/fields", NULL, NULL, &r);
+    expect_problem(&d, &r, 401, "EAUTH", NULL, "fields without a token");
     resp_free(&r);
     {
         static const char *const wrong[] = {"Authorization: Bearer s3cret-T0kem", NULL};
@@ -4617,6 +4910,8 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_ndjson_live, kill_strays),
         cmocka_unit_test_teardown(test_async_job, kill_strays),
         cmocka_unit_test_teardown(test_cancel, kill_strays),
+        cmocka_unit_test_teardown(test_page, kill_strays),
+        cmocka_unit_test_teardown(test_fields, kill_strays),
         cmocka_unit_test_teardown(test_errors, kill_strays),
         cmocka_unit_test_teardown(test_multipart_unnamed, kill_strays),
         cmocka_unit_test_teardown(test_multipart_duplicates, kill_strays),

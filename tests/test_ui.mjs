@@ -1,0 +1,267 @@
+// test_ui.mjs - the page mcfd serves, in a real browser: Debian's chromium
+// (headless, SwiftShader's software WebGL) driven by puppeteer-core, against
+// a daemon started here on a free loopback port with a token file.
+//
+// It opens /, types the token the page asks for, uploads a repository mesh
+// (tests/data/meshes/knot1.obj, with noise so that the clean upload is the
+// target), waits for the job to succeed, and checks what a person would
+// see: both canvases show the mesh (pixels unlike the background), the
+// colour-mode switch changes the pixels, the metrics table and the five
+// downloads are there, the job's own format downloads, a long job can be
+// canceled from the page, and no console error was logged. Screenshots are
+// kept in $MCF_BUILD/tests/ui/ (make test's artifacts).
+//
+// Output is cmocka's ([ RUN ], [ OK ], [  PASSED  ] N test(s)) for make
+// test's count; when chromium cannot start at all, the tests are SKIPPED
+// with the reason (and logged to $MCF_SKIP_LOG). MCF_TEST_FILTER=name runs
+// one test (the ones before it too: they share the page).
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { CHROMIUM, launch, startDaemon } from './browser.mjs';
+
+const ROOT = path.dirname(path.dirname(fileURLToPath(import.meta.url)));
+const BUILD = path.resolve(ROOT, process.env.MCF_BUILD || 'build');
+const DATA = process.env.MCF_TESTDATA || path.join(ROOT, 'tests', 'data');
+const SHOTS = path.join(BUILD, 'tests', 'ui');
+const TMP = fs.mkdtempSync(path.join(os.tmpdir(), 'mcfd-ui-test-'));
+const TOKEN = 'ui-test-token-3f9c';
+const BACKGROUND = [242, 244, 247]; // view.js BACKGROUND
+
+let daemon = null, browser = null, page = null;
+const consoleErrors = [];
+
+process.on('exit', () => fs.rmSync(TMP, { recursive: true, force: true }));
+for (const s of ['SIGINT', 'SIGTERM', 'SIGHUP'])
+  process.on(s, () => process.exit(128 + os.constants.signals[s]));
+
+function assert(cond, what) {
+  if (!cond) throw new Error(`assertion failed: ${what}`);
+}
+
+// Pixels of a view's canvas unlike the background (more than 24 levels in
+// a channel: antialiasing and dithering stay under it), as a fraction, and
+// the RGBA bytes for comparisons.
+async function canvasPixels(id) {
+  return page.evaluate(canvasId => {
+    const c = document.getElementById(canvasId);
+    const copy = Object.assign(document.createElement('canvas'), { width: c.width, height: c.height });
+    const g = copy.getContext('2d');
+    g.drawImage(c, 0, 0);
+    return Array.from(g.getImageData(0, 0, c.width, c.height).data);
+  }, id);
+}
+
+function unlikeBackground(px) {
+  let n = 0;
+  for (let i = 0; i < px.length; i += 4)
+    if (Math.abs(px[i] - BACKGROUND[0]) > 24 || Math.abs(px[i + 1] - BACKGROUND[1]) > 24 ||
+        Math.abs(px[i + 2] - BACKGROUND[2]) > 24) n++;
+  return n / (px.length / 4);
+}
+
+function changed(a, b) {
+  let n = 0;
+  for (let i = 0; i < a.length; i += 4)
+    if (Math.abs(a[i] - b[i]) + Math.abs(a[i + 1] - b[i + 1]) + Math.abs(a[i + 2] - b[i + 2]) > 30) n++;
+  return n / (a.length / 4);
+}
+
+async function shot(name) {
+  const file = path.join(SHOTS, name);
+  await page.screenshot({ path: file, fullPage: true });
+  return file;
+}
+
+async function nextFrames() {
+  await page.evaluate(() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r))));
+}
+
+const statusText = () => page.$eval('#status', e => e.textContent);
+
+// ------------------------------------------------------------ tests
+
+async function test_page_asks_for_token() {
+  const resp = await page.goto(daemon.url + '/', { waitUntil: 'load' });
+  assert(resp.status() === 200, 'GET / is 200 without a token');
+  assert(/script-src 'self'/.test(resp.headers()['content-security-policy'] || ''),
+         'the page has its Content-Security-Policy');
+  await page.waitForSelector('#token-box:not([hidden])', { timeout: 10000 });
+  assert(/token/.test(await statusText()), 'the status asks for the token');
+  await page.type('#token', TOKEN);
+  await page.keyboard.press('Enter');
+  await page.waitForFunction(() => document.getElementById('scheme').options.length > 3,
+                             { timeout: 10000 });
+  const schemes = await page.$$eval('#scheme option', o => o.map(x => x.value));
+  assert(schemes.includes('desbrun2'), 'the scheme list comes from GET /v1/schemes');
+  const d2 = await page.$eval('#scheme option[value=desbrun2]', o => o.textContent);
+  assert(/order 2/.test(d2) && /stable/.test(d2), `the scheme shows order and stability: ${d2}`);
+}
+
+async function test_smooth_and_compare() {
+  const input = await page.$('#mesh');
+  await input.uploadFile(path.join(DATA, 'meshes', 'knot1.obj'));
+  await page.select('#scheme', 'desbrun2');
+  await page.type('#noise', '0.3');
+  await page.waitForFunction(() => !document.getElementById('run').disabled);
+  await page.click('#run');
+  await page.waitForFunction(() => window.mcfd.perf.firstFrameMs > 0 ||
+                             document.getElementById('status').classList.contains('error'),
+                             { timeout: 120000 });
+  const st = await statusText();
+  assert(/^Done: job [0-9a-f]{32}/.test(st), `the job succeeded: "${st}"`);
+  assert(await page.$eval('#progress', p => p.value) === 1, 'the progress bar is full');
+  await nextFrames();
+  console.log(`    knot1.obj: load to first frame ${(await page.evaluate(() => window.mcfd.perf.firstFrameMs)).toFixed(0)} ms`);
+  const shotFile = await shot('compare-mean-curvature.png');
+  const before = unlikeBackground(await canvasPixels('before'));
+  const after = unlikeBackground(await canvasPixels('after'));
+  console.log(`    mesh pixels: before ${(100 * before).toFixed(1)} %, after ${(100 * after).toFixed(1)} % (${shotFile})`);
+  // the knot fills about a fifth of each view; an empty view has none
+  assert(before > 0.05 && after > 0.05, 'both views show the mesh');
+  const rows = await page.$$eval('#metrics tbody tr th', t => t.map(x => x.textContent));
+  assert(rows.some(r => /error vs target/.test(r)), 'the metrics compare with the target');
+  assert(rows.some(r => /volume drift/.test(r)) && rows.some(r => /time: flow/.test(r)),
+         'the metrics table has drift and timings');
+  const errs = await page.$$eval('#metrics tbody tr', t => t.filter(r => /RMS \(relative\)/.test(r.textContent))
+    .map(r => Array.from(r.querySelectorAll('td')).map(d => Number(d.textContent))));
+  assert(errs.length === 1 && errs[0][1] < errs[0][0],
+         `smoothing lowers the error against the clean mesh: ${JSON.stringify(errs)}`);
+  assert((await page.$$('#downloads button')).length === 5, 'a download per format');
+}
+
+async function test_colour_switch() {
+  const h = await canvasPixels('after');
+  await page.select('#colour', 'displacement');
+  await nextFrames();
+  const d = await canvasPixels('after');
+  await shot('compare-displacement.png');
+  const frac = changed(h, d);
+  console.log(`    mean curvature -> displacement changed ${(100 * frac).toFixed(1)} % of the pixels`);
+  assert(frac > 0.02, 'switching the colour mode changes the pixels');
+  await page.select('#colour', 'gaussian_curvature');
+  await nextFrames();
+  assert(changed(d, await canvasPixels('after')) > 0.02, 'Gaussian curvature differs too');
+  // an unshared scale recolours each view by its own range
+  await page.click('#shared-scale');
+  await nextFrames();
+  await shot('compare-gaussian-own-scales.png');
+  assert(await page.$eval('#scale-min', e => e.disabled), 'the scale inputs follow the checkbox');
+  await page.click('#shared-scale');
+}
+
+async function test_keyboard_orbit() {
+  const a = await canvasPixels('before');
+  await page.focus('#before');
+  for (let k = 0; k < 8; k++) await page.keyboard.press('ArrowLeft');
+  await nextFrames();
+  const b = await canvasPixels('before');
+  assert(changed(a, b) > 0.02, 'the arrow keys orbit the view');
+  assert(changed(await canvasPixels('after'), b) < changed(a, b),
+         'the other view follows the same camera');
+}
+
+async function test_download_own_format() {
+  const dir = path.join(TMP, 'downloads');
+  fs.mkdirSync(dir);
+  const cdp = await page.createCDPSession();
+  await cdp.send('Browser.setDownloadBehavior', { behavior: 'allow', downloadPath: dir });
+  const buttons = await page.$$('#downloads button');
+  await buttons[0].click(); // OBJ, the job's own format
+  const file = path.join(dir, 'knot1-smoothed.obj');
+  for (let i = 0; i < 100 && !fs.existsSync(file); i++) await new Promise(r => setTimeout(r, 100));
+  assert(fs.existsSync(file), 'the OBJ result downloads as knot1-smoothed.obj');
+  assert(/^# mcfd: \d+ vertices/.test(fs.readFileSync(file, 'utf8')), 'it is mcfd\'s OBJ');
+}
+
+async function test_cancel() {
+  const input = await page.$('#mesh');
+  await input.uploadFile(path.join(DATA, 'meshes', 'bunny.drc'));
+  await page.$eval('#noise', e => { e.value = ''; });
+  await page.type('#iterations', '100000');
+  await page.select('#scheme', 'euler');
+  await page.click('#run');
+  await page.waitForFunction(() => /running: step [1-9]/.test(document.getElementById('status').textContent),
+                             { timeout: 60000 });
+  assert(!(await page.$eval('#cancel', b => b.disabled)), 'Cancel is enabled while the job runs');
+  await page.click('#cancel');
+  await page.waitForFunction(() => /Job canceled/.test(document.getElementById('status').textContent),
+                             { timeout: 30000 });
+  await shot('canceled.png');
+  assert(!(await page.$eval('#run', b => b.disabled)), 'the form is usable again');
+}
+
+async function test_no_console_error() {
+  assert(consoleErrors.length === 0, `no console error: ${JSON.stringify(consoleErrors)}`);
+}
+
+const TESTS = [test_page_asks_for_token, test_smooth_and_compare, test_colour_switch,
+               test_keyboard_orbit, test_download_own_format, test_cancel, test_no_console_error];
+
+// ------------------------------------------------------------ main
+
+function skipAll(tests, why) {
+  for (const t of tests) console.log(`[ RUN      ] ${t.name}\n[  SKIPPED ] ${t.name}: ${why}`);
+  console.log(`[==========] ${tests.length} test(s) run.\n[  PASSED  ] 0 test(s).`);
+  console.log(`[  SKIPPED ] ${tests.length} test(s), listed below:`);
+  for (const t of tests) console.log(`[  SKIPPED ] ${t.name}`);
+  if (process.env.MCF_SKIP_LOG)
+    fs.appendFileSync(process.env.MCF_SKIP_LOG, `chromium\t${why}\n`);
+}
+
+async function main() {
+  const flt = process.env.MCF_TEST_FILTER;
+  const upto = flt ? TESTS.findIndex(t => t.name === flt) : TESTS.length - 1;
+  const tests = upto >= 0 ? TESTS.slice(0, upto + 1) : [];
+  console.log(`[==========] Running ${tests.length} test(s).`);
+  fs.mkdirSync(SHOTS, { recursive: true });
+  try {
+    browser = await launch(TMP);
+  } catch (e) {
+    skipAll(tests, `chromium (${CHROMIUM}) cannot start: ${String(e.message).split('\n')[0]}`);
+    return 0;
+  }
+  const failed = [];
+  let passed = 0;
+  try {
+    const tokenFile = path.join(TMP, 'token');
+    fs.writeFileSync(tokenFile, TOKEN + '\n', { mode: 0o600 });
+    daemon = await startDaemon(BUILD, TMP, ['--workers', '2', '--token-file', tokenFile]);
+    page = await browser.newPage();
+    await page.setViewport({ width: 1400, height: 1300 });
+    page.on('console', m => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+    page.on('pageerror', e => consoleErrors.push(`page error: ${e.message}`));
+    for (const t of tests) {
+      console.log(`[ RUN      ] ${t.name}`);
+      const t0 = Date.now();
+      try {
+        await t();
+        console.log(`[       OK ] ${t.name} (${Date.now() - t0} ms)`);
+        passed++;
+      } catch (e) {
+        console.log(e.stack);
+        try { await shot(`failed-${t.name}.png`); } catch (e2) { /* no page */ }
+        console.log(`[  FAILED  ] ${t.name}`);
+        failed.push(t.name);
+      }
+    }
+    const code = await daemon.stop();
+    assert(code === 0, `mcfd exits 0 after SIGTERM (got ${code})`);
+  } catch (e) {
+    console.log(`[  ERROR   ] ${e.stack}`);
+    failed.push('set-up');
+  } finally {
+    await browser.close();
+  }
+  console.log(`[==========] ${tests.length} test(s) run.`);
+  console.log(`[  PASSED  ] ${passed} test(s).`);
+  if (failed.length) {
+    console.log(`[  FAILED  ] ${failed.length} test(s), listed below:`);
+    for (const f of failed) console.log(`[  FAILED  ] ${f}`);
+  }
+  console.log(`screenshots: ${SHOTS}`);
+  return failed.length ? 1 : 0;
+}
+
+process.exitCode = await main();

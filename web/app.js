@@ -1,0 +1,375 @@
+// app.js - the page's controller: the parameter form (from GET /v1/schemes),
+// the job (submit, progress from its events, cancel), the before/after
+// views coloured by the job's per-vertex fields, the metrics table and the
+// downloads. Everything goes through the REST API (api.js).
+import * as api from './api.js';
+import { Compare, defaultScale } from './view.js';
+
+const $ = id => document.getElementById(id);
+const FORMATS = [['obj', 'OBJ', '.obj'], ['draco', 'Draco', '.drc'], ['ply', 'PLY', '.ply'],
+                 ['stl', 'STL', '.stl'], ['off', 'OFF', '.off']];
+const DEFAULT_ITERATIONS = 10; // Params.iterations' default (api/openapi.yaml)
+
+const state = { file: null, job: null, fields: null, busy: false };
+// What the browser test and the dragon measurement read.
+const perf = { succeededAt: 0, fieldsMs: 0, firstFrameMs: 0 };
+const compare = new Compare([$('before'), $('after')], [$('legend-before'), $('legend-after')]);
+window.mcfd = { state, perf, compare };
+
+function status(text, error = false) {
+  $('status').textContent = text;
+  $('status').classList.toggle('error', error);
+}
+
+function fail(e) {
+  console.warn(e);
+  if (e instanceof api.ApiError && e.status === 401) showToken('The token was refused.');
+  status(e.message || String(e), true);
+}
+
+// ------------------------------------------------------------ token
+
+function showToken(why) {
+  $('token-box').hidden = false;
+  $('token').focus();
+  status(why, true);
+}
+
+$('token-apply').addEventListener('click', () => {
+  api.setToken($('token').value);
+  sessionStorage.setItem('mcfd-token', $('token').value);
+  loadSchemes();
+});
+$('token').addEventListener('keydown', e => {
+  if (e.key === 'Enter') { e.preventDefault(); $('token-apply').click(); }
+});
+
+// ------------------------------------------------------------ form
+
+function schemeText(s) {
+  const stab = s.stability === 'unconditional' ? 'unconditionally stable'
+                                                : `stable for dt·λmax ≤ ${s.stability}`;
+  return `${s.name} - order ${s.order}, ${s.explicit ? 'explicit' : 'implicit'}, ${stab}`;
+}
+
+async function loadSchemes() {
+  let doc;
+  try {
+    doc = await api.getJSON('/v1/schemes');
+  } catch (e) {
+    if (e instanceof api.ApiError && e.status === 401)
+      return showToken('This daemon needs its bearer token: type it above.');
+    return fail(e);
+  }
+  const sel = $('scheme');
+  sel.length = 1;
+  state.schemes = doc.schemes;
+  for (const s of doc.schemes) sel.add(new Option(schemeText(s), s.name));
+  status('Choose a mesh.');
+  updateRun();
+}
+
+$('scheme').addEventListener('change', () => {
+  const s = (state.schemes || []).find(x => x.name === $('scheme').value);
+  $('scheme-info').textContent = s ? `${s.title}. Best for: ${s.best_use}.` : '';
+});
+$('strength-auto').addEventListener('change', () => {
+  $('strength').disabled = $('strength-auto').checked;
+});
+
+for (const [value, label] of FORMATS) $('format').add(new Option(label, value));
+
+function params() {
+  const p = {};
+  const num = id => $(id).value.trim() === '' ? undefined : Number($(id).value);
+  if ($('scheme').value) p.scheme = $('scheme').value;
+  if ($('strength-auto').checked) p.strength = 'auto';
+  else if (num('strength') !== undefined) p.strength = num('strength');
+  if (num('iterations') !== undefined) p.iterations = num('iterations');
+  if ($('boundary').value) p.boundary = $('boundary').value;
+  if ($('rescale').value) p.rescale = $('rescale').value;
+  if ($('adaptive').checked) p.adaptive = true;
+  if (num('noise')) p.noise = num('noise');
+  if ($('format').value) p.format = $('format').value;
+  return p;
+}
+
+function chooseFile(f) {
+  if (!f) return;
+  state.file = f;
+  $('mesh-name').textContent = `${f.name} (${(f.size / 1024).toFixed(0)} KiB)`;
+  status('Ready: press Smooth.');
+  updateRun();
+}
+
+function updateRun() {
+  $('run').disabled = state.busy || !state.file || !state.schemes;
+  $('cancel').disabled = !state.busy;
+}
+
+$('mesh').addEventListener('change', () => chooseFile($('mesh').files[0]));
+const drop = $('drop');
+drop.addEventListener('dragover', e => { e.preventDefault(); drop.classList.add('over'); });
+drop.addEventListener('dragleave', () => drop.classList.remove('over'));
+drop.addEventListener('drop', e => {
+  e.preventDefault();
+  drop.classList.remove('over');
+  chooseFile(e.dataTransfer.files[0]);
+});
+
+// ------------------------------------------------------------ the job
+
+// Submits the mesh with p and follows the job until it ends; resolves to
+// the final Job document. With noise, the clean upload is also the target,
+// so that the metrics measure the error before and after against it.
+// onProgress(fraction or null when unknown, step, status).
+async function runJob(file, p, onProgress, fields = false) {
+  let job = await api.submit(file, p, p.noise > 0 ? file : null, fields);
+  state.job = job;
+  const planned = j => j.progress.steps ||
+    (p.adaptive || p.time ? null : p.iterations || DEFAULT_ITERATIONS);
+  await api.follow(job.id, (type, data) => {
+    if (type === 'status' || type === 'done') {
+      job = data;
+      onProgress(data.status === 'succeeded' ? 1 : data.progress.fraction,
+                 data.progress.step, data.status);
+    } else if (type === 'progress') {
+      const n = planned(job);
+      onProgress(n ? Math.min(1, data.step / n) : null, data.step, 'running');
+    }
+  });
+  if (!['succeeded', 'failed', 'canceled'].includes(job.status))
+    job = await api.getJSON(`/v1/jobs/${job.id}`);
+  return job;
+}
+
+function showProgress(fraction, step, st) {
+  const bar = $('progress');
+  if (fraction === null) bar.removeAttribute('value');
+  else bar.value = fraction;
+  status(st === 'queued' ? 'Queued...' : `${st}: step ${step}`);
+}
+
+$('job-form').addEventListener('submit', async e => {
+  e.preventDefault();
+  if ($('run').disabled) return;
+  state.busy = true;
+  updateRun();
+  $('progress').value = 0;
+  status('Uploading...');
+  try {
+    state.jobFile = state.file;
+    const job = await runJob(state.file, params(), showProgress, true);
+    if (job.status !== 'succeeded') {
+      status(`Job ${job.status}: ${job.error ? job.error.detail : ''}`, job.status === 'failed');
+    } else {
+      perf.succeededAt = performance.now();
+      status('Done: loading the fields...');
+      await showJob(job);
+      status(`Done: job ${job.id}.`);
+    }
+  } catch (err) {
+    fail(err);
+  } finally {
+    state.busy = false;
+    updateRun();
+  }
+});
+
+$('cancel').addEventListener('click', async () => {
+  if (!state.job) return;
+  status('Canceling...'); // the job's last event says when it has stopped
+  try {
+    await api.cancel(state.job.id);
+  } catch (e) {
+    fail(e);
+  }
+});
+
+// ------------------------------------------------------------ results
+
+async function showJob(job) {
+  const t0 = performance.now();
+  const f = await api.fields(job.id);
+  perf.fieldsMs = performance.now() - t0;
+  state.fields = f;
+  compare.setMeshes([f.arrays['input.positions'], f.arrays['result.positions']],
+                    f.arrays.faces);
+  $('before-info').textContent = `${f.vertices.toLocaleString()} vertices, ${f.faces.toLocaleString()} faces`;
+  $('after-info').textContent = $('before-info').textContent;
+  resetScale();
+  await new Promise(resolve => { compare.onFrame = resolve; });
+  compare.onFrame = null;
+  perf.firstFrameMs = performance.now() - perf.succeededAt;
+  metricsTable(job.metrics);
+  downloads(job);
+}
+
+// The values view i shows for the chosen colour mode (null: plain).
+function values(i) {
+  const f = state.fields, mode = $('colour').value;
+  if (!f || mode === 'none') return null;
+  if (mode === 'displacement') return f.arrays.displacement;
+  return f.arrays[`${i ? 'result' : 'input'}.${mode}`];
+}
+
+function stats(i) {
+  const f = state.fields, mode = $('colour').value;
+  if (mode === 'displacement') return f.stats.displacement;
+  return f.stats[`${i ? 'result' : 'input'}.${mode}`];
+}
+
+function fmt(x) {
+  if (x === null || x === undefined || Number.isNaN(x)) return '-';
+  if (typeof x !== 'number') return String(x);
+  if (x === 0) return '0';
+  const a = Math.abs(x);
+  return a >= 1e4 || a < 1e-3 ? x.toExponential(3) : x.toPrecision(4);
+}
+
+// The scale of each view: shared (the inputs edit it) or each its own.
+function scales() {
+  const mode = $('colour').value;
+  if ($('shared-scale').checked) {
+    const lo = Number($('scale-min').value), hi = Number($('scale-max').value);
+    return [[lo, hi], [lo, hi]];
+  }
+  return [0, 1].map(i => defaultScale(mode, [stats(i)]));
+}
+
+function recolour() {
+  if (!state.fields) return;
+  const mode = $('colour').value;
+  const map = mode === 'displacement' ? 'sequential' : 'diverging';
+  scales().forEach(([lo, hi], i) => {
+    compare.colour(i, values(i), lo, hi, map);
+    const p = $(i ? 'scale-after' : 'scale-before');
+    p.replaceChildren(...(mode === 'none' ? [] :
+      [lo, (lo + hi) / 2, hi].map(x => Object.assign(document.createElement('span'),
+                                                     { textContent: fmt(x) }))));
+  });
+}
+
+function resetScale() {
+  if (!state.fields) return;
+  const [lo, hi] = defaultScale($('colour').value, [stats(0), stats(1)]);
+  $('scale-min').value = lo.toPrecision(4);
+  $('scale-max').value = hi.toPrecision(4);
+  recolour();
+}
+
+$('colour').addEventListener('change', resetScale);
+$('shared-scale').addEventListener('change', () => {
+  $('scale-min').disabled = $('scale-max').disabled = !$('shared-scale').checked;
+  recolour();
+});
+$('scale-min').addEventListener('change', recolour);
+$('scale-max').addEventListener('change', recolour);
+$('scale-reset').addEventListener('click', resetScale);
+$('view-reset').addEventListener('click', () => compare.resetView());
+
+function metricsTable(m) {
+  const rows = [];
+  const row = (name, before, after, warn = false) => rows.push([name, before, after, warn]);
+  const one = (name, value, warn = false) => rows.push([name, value, null, warn]);
+  const b = m.input.info, a = m.output.info, cb = m.curvature.before, ca = m.curvature.after;
+  row('vertices / faces', `${b.vertices} / ${b.faces}`, `${a.vertices} / ${a.faces}`);
+  if (m.compare) {
+    const x = m.compare.before, y = m.compare.after;
+    row('error vs target: RMS (relative)', fmt(x.rms_rel), fmt(y.rms_rel));
+    row('error vs target: max', fmt(x.max_err), fmt(y.max_err));
+    row('error vs target: normal angle (deg)', fmt(x.normal_angle_deg), fmt(y.normal_angle_deg));
+  }
+  row('mean curvature H: RMS', fmt(cb.H.rms), fmt(ca.H.rms));
+  row('H: 5% .. 95%', `${fmt(cb.H.p05)} .. ${fmt(cb.H.p95)}`, `${fmt(ca.H.p05)} .. ${fmt(ca.H.p95)}`);
+  row('Gaussian curvature K: RMS', fmt(cb.K.rms), fmt(ca.K.rms));
+  row('total K (Gauss-Bonnet)', fmt(cb.total_K), fmt(ca.total_K));
+  row('area', fmt(b.area), fmt(a.area));
+  row('volume', fmt(m.flow.volume0), fmt(m.flow.volume1));
+  const drift = (m.flow.volume1 - m.flow.volume0) / Math.abs(m.flow.volume0);
+  one('volume drift', Number.isFinite(drift) ? `${(100 * drift).toFixed(3)} %` : '-');
+  one('area ratio after/before', fmt(m.flow.area_ratio));
+  one('folded faces', fmt(m.flow.folded_faces), m.flow.folded_faces > 0);
+  one('warnings', m.warnings.length ? m.warnings.join(', ') : 'none', m.warnings.length > 0);
+  one('scheme, steps', `${m.scheme}, ${m.flow.steps} (${m.flow.rejected} rejected)`);
+  for (const k of ['queue_s', 'decode_s', 'flow_s', 'encode_s', 'metrics_s', 'total_s'])
+    one(`time: ${k.replace('_s', '')} (s)`, fmt(m.timings[k]));
+  const body = $('metrics').tBodies[0];
+  body.replaceChildren(...rows.map(([name, x, y, warn]) => {
+    const tr = document.createElement('tr');
+    const th = Object.assign(document.createElement('th'), { scope: 'row', textContent: name });
+    tr.append(th);
+    const td = Object.assign(document.createElement('td'), { textContent: x });
+    if (y === null) td.colSpan = 2;
+    if (warn) td.className = 'warn';
+    tr.append(td);
+    if (y !== null) tr.append(Object.assign(document.createElement('td'), { textContent: y }));
+    return tr;
+  }));
+}
+
+// ------------------------------------------------------------ downloads
+
+function save(blob, name) {
+  const a = Object.assign(document.createElement('a'),
+                          { href: URL.createObjectURL(blob), download: name });
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+}
+
+// The job's own format at once; another one by running the same job with
+// that format (a new job, deleted once its result is fetched).
+async function download(job, format) {
+  try {
+    if (format === job.metrics.params.format) {
+      const r = await api.result(job.id);
+      return save(r.blob, r.name);
+    }
+    state.busy = true;
+    updateRun();
+    const p = { ...job.params, format };
+    const again = await runJob(state.jobFile, p, (f, step) => {
+      $('progress').value = f ?? 0;
+      status(`Writing ${format}: step ${step}`);
+    });
+    if (again.status !== 'succeeded') throw new Error(`the ${format} job ${again.status}`);
+    const r = await api.result(again.id);
+    await api.cancel(again.id);
+    save(r.blob, r.name);
+    status(`Downloaded ${r.name}.`);
+  } catch (e) {
+    fail(e);
+  } finally {
+    state.busy = false;
+    updateRun();
+  }
+}
+
+function downloads(job) {
+  $('downloads').replaceChildren(...FORMATS.map(([value, label, ext]) => {
+    const b = Object.assign(document.createElement('button'),
+                            { type: 'button', textContent: `${label} (${ext})` });
+    b.addEventListener('click', () => download(job, value));
+    return b;
+  }));
+}
+
+// ------------------------------------------------------------ start
+
+// Asks for the token first when the daemon needs one (and none was typed
+// in this tab), rather than provoking a 401.
+async function start() {
+  const saved = sessionStorage.getItem('mcfd-token');
+  if (saved) {
+    $('token').value = saved;
+    api.setToken(saved);
+  }
+  const config = await api.getJSON('/ui/config.json');
+  if (config.token_required && !saved)
+    return showToken('This daemon needs its bearer token: type it above.');
+  if (config.token_required) $('token-box').hidden = false;
+  return loadSchemes();
+}
+start().catch(fail);
