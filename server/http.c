@@ -415,18 +415,6 @@ static int framing_refused(struct MHD_Connection *c, const char *version,
 
 /* ------------------------------------------------------------ MHD entry */
 
-/* A request on a connection opened past --max-connections-per-ip: 503,
- * answered on the first call, so its connection closes. Always 1. */
-static int over_cap(srv_problem *p)
-{
-    int cap = srv_http_config()->max_connections_per_ip;
-    srv_problem_set(p, 503, "EBUSY", "this address has more than %d "
-                    "connections open, the most one address may have "
-                    "(--max-connections-per-ip %d): retry once one closes",
-                    cap, cap);
-    return 1;
-}
-
 /* What a connection holds between MHD's notifications: the request whose
  * completion callback is still due, so that it is released when the
  * connection closes without one (MHD skips it when a request overflows
@@ -510,6 +498,22 @@ static void ip_drop(ip_count *ip)
         tdelete(ip, &g_ips, ip_cmp);
         free(ip);
     }
+}
+
+/* Whether r came on a connection opened past --max-connections-per-ip:
+ * then 1 and its 503 in p (answered on the first call, so the
+ * connection closes). */
+static int over_cap(const srv_request *r, srv_problem *p)
+{
+    int cap = srv_http_config()->max_connections_per_ip;
+
+    if (!r->conn || !((const conn_state *)r->conn)->over)
+        return 0;
+    srv_problem_set(p, 503, "EBUSY", "this address has more than %d "
+                    "connections open, the most one address may have "
+                    "(--max-connections-per-ip %d): retry once one closes",
+                    cap, cap);
+    return 1;
 }
 
 unsigned srv_http_ip_backstop(const srv_config *cfg)
@@ -675,9 +679,7 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     if (!r->started) {
         srv_problem p;
         r->started = 1;
-        if (framing_refused(c, version, &p) ||
-            (r->conn && ((conn_state *)r->conn)->over &&
-             over_cap(&p))) {
+        if (framing_refused(c, version, &p) || over_cap(r, &p)) {
             snprintf(r->method, sizeof r->method, "%s", method);
             snprintf(r->path, sizeof r->path, "%s", url);
             return srv_send_problem(r, c, &p, NULL);

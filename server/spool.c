@@ -2,11 +2,12 @@
  * spool.c - the on-disk record of every accepted job.
  *
  * Layout: <spool>/jobs/<id>/{input, target, request.json, state.json,
- * result.<ext>, metrics.json, events.ndjson, events.idx}. A job exists once state.json exists; every
- * file is written to a temporary name, fsync()ed when it must survive a
- * crash, and renamed into place, so after kill -9 a file is either absent
- * or complete. The directory entries themselves are made durable by
- * fsync()ing the directory. Nothing here knows about HTTP or JSON.
+ * result.<ext>, metrics.json, events.ndjson, events.idx}. A job exists
+ * once state.json exists; every file is written to a temporary name,
+ * fsync()ed when it must survive a crash, and renamed into place, so
+ * after kill -9 a file is either absent or complete. The directory
+ * entries themselves are made durable by fsync()ing the directory.
+ * Nothing here knows about HTTP or JSON.
  */
 #include <dirent.h>
 #include <errno.h>

@@ -183,6 +183,16 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
     return 0;
 }
 
+/* How many of the events ending at ends[0..m) (m >= 1) fit in max_bytes
+ * from byte a: at least one. */
+static int events_fit(const size_t *ends, int m, size_t a, size_t max_bytes)
+{
+    int k;
+    for (k = 1; k < m && ends[k] - a <= max_bytes; k++)
+        ;
+    return k;
+}
+
 /* Events of a finished job read back from the spool (svc_job_events):
  * the ends of events from - 1 to from + EVENTS_BATCH from events.idx,
  * then the lines they span from events.ndjson. size and count: the
@@ -201,8 +211,7 @@ static int events_from_spool(const char *id, int from, int count,
                           (size_t)(m + skip) * sizeof *ends) != 0)
         return -1;
     a = skip ? ends[0] : 0;
-    for (k = 1; k < m && ends[skip + k] - a <= max_bytes; k++)
-        ;
+    k = events_fit(ends + skip, m, a, max_bytes);
     b = ends[skip + k - 1];
     if (!(a < b && b <= size)) {
         errno = EIO;
@@ -236,16 +245,18 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
         from = 0;
     count = j->nevents;
     on_disk = j->events_disk;
-    if (from >= count || on_disk) {
+    if (from >= count) {
         svc__unlock();
-        return from < count ? events_from_spool(j->id, from, count, on_disk,
-                                                max_bytes, data, len, n)
-                            : 0;
+        return 0;
+    }
+    if (on_disk) {
+        svc__unlock();
+        return events_from_spool(j->id, from, count, on_disk, max_bytes, data,
+                                 len, n);
     }
     a = from > 0 ? j->event_end[from - 1] : 0;
-    for (k = from + 1; k < j->nevents && j->event_end[k] - a <= max_bytes; k++)
-        ;
-    b = j->event_end[k - 1];
+    k = events_fit(j->event_end + from, count - from, a, max_bytes);
+    b = j->event_end[from + k - 1];
     *data = malloc(b - a + 1);
     if (!*data) {
         svc__unlock();
@@ -255,7 +266,7 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
     (*data)[b - a] = '\0';
     svc__unlock();
     *len = b - a;
-    *n = k - from;
+    *n = k;
     return 0;
 }
 
