@@ -1769,39 +1769,42 @@ static void test_transfer_framing(void **state)
     static const struct {
         const char *what, *req;
         int status;
-        const char *code;
+        const char *code, *before; /* what main did */
     } cases[] = {
         {"POST with Transfer-Encoding: gzip",
          "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
-         "Transfer-Encoding: gzip\r\n\r\nv 0 0 0\n", 501, "ENOTIMPLEMENTED"},
+         "Transfer-Encoding: gzip\r\n\r\nv 0 0 0\n", 501, "ENOTIMPLEMENTED",
+         "no answer in 25 s"},
         {"GET with Transfer-Encoding: foo",
          "GET /healthz HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: foo\r\n\r\n",
-         501, "ENOTIMPLEMENTED"},
+         501, "ENOTIMPLEMENTED", "no answer in 25 s"},
         {"POST with Transfer-Encoding: gzip, chunked",
          "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
          "Transfer-Encoding: gzip, chunked\r\n\r\n0\r\n\r\n", 501,
-         "ENOTIMPLEMENTED"},
+         "ENOTIMPLEMENTED", "no answer in 25 s"},
         /* the smuggling pair: a proxy framing by Content-Length sees one
          * request of 45 bytes, chunked framing two */
         {"Content-Length and Transfer-Encoding: chunked",
          "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
          "Content-Length: 45\r\nTransfer-Encoding: chunked\r\n\r\n"
          "0\r\n\r\nGET /v1/schemes HTTP/1.1\r\nHost: x\r\n\r\n", 400,
-         "EFRAMING"},
+         "EFRAMING", "400, then 200 to the hidden GET, kept open"},
         {"GET with Content-Length: 0 and Transfer-Encoding: chunked",
          "GET /healthz HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n"
-         "Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n", 400, "EFRAMING"},
+         "Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n", 400, "EFRAMING",
+         "200, kept open"},
         {"HTTP/1.0 with Transfer-Encoding: chunked",
          "POST /smooth HTTP/1.0\r\nHost: x\r\nContent-Type: model/obj\r\n"
-         "Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n", 400, "EFRAMING"},
+         "Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n", 400, "EFRAMING",
+         "libmicrohttpd's 400, closed"},
         {"Transfer-Encoding: chunked twice",
          "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
          "Transfer-Encoding: chunked\r\nTransfer-Encoding: chunked\r\n\r\n"
-         "0\r\n\r\n", 400, "EFRAMING"},
+         "0\r\n\r\n", 400, "EFRAMING", "400, kept open"},
         {"two Content-Lengths that differ",
          "GET /healthz HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n"
          "Content-Length: 40\r\n\r\nGET /v1/schemes HTTP/1.1\r\nHost: x\r\n\r\n",
-         400, "EFRAMING"},
+         400, "EFRAMING", "200, then 200 to the hidden GET, kept open"},
     };
     size_t k;
 
@@ -1812,10 +1815,10 @@ static void test_transfer_framing(void **state)
         char want[48];
         raw_exchange(&g_main, cases[k].req, strlen(cases[k].req), &out);
         took = mcf_now() - t0;
-        print_message("    %s: %.12s%s, closed after %.2f s\n", cases[k].what,
-                      out.len > 1 ? out.data : "(no answer)",
+        print_message("    %s: %.12s%s, closed after %.2f s (main: %s)\n",
+                      cases[k].what, out.len > 1 ? out.data : "(no answer)",
                       strstr(out.data, "\r\nConnection: close\r\n")
-                          ? " + Connection: close" : "", took);
+                          ? " + Connection: close" : "", took, cases[k].before);
         snprintf(want, sizeof want, "HTTP/1.1 %d ", cases[k].status);
         if (strncmp(out.data, want, strlen(want)) != 0 ||
             !strstr(out.data, cases[k].code))
