@@ -1,7 +1,10 @@
 # mcfd - one top-level Makefile.
 #
 #   make            build/libmcf.a, build/libmcfapi.a, build/mcf (and build/mcfd once server/ exists)
-#   make deps       install missing Debian packages (dpkg -s, then apt-get install -y; sudo when not root)
+#   make deps       install missing Debian packages (dpkg -s, then apt-get install -y; sudo when not root),
+#                   then the npm packages of package-lock.json (npm ci, when node_modules is missing or stale)
+#   make install    mcf, mcfd and their man pages under $(DESTDIR)$(PREFIX) (PREFIX=/usr/local);
+#                   make uninstall removes them
 #   make test       deps, build, then every unit test binary (build/tests/test_*)
 #   make bench      benchmarks (bench/), ratios against a peer measured in the same run
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
@@ -63,7 +66,8 @@ LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
 DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
-            chromium
+            chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
+            python3-setuptools python3-wheel curl
 DEB_BENCH := libeigen3-dev libcgal-dev
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
@@ -205,7 +209,7 @@ test: deps
 	@rm -f $(B)/tests/skipped.log $(B)/tests/*.out; fail=0; for t in $(TEST_BIN); do \
 	  echo "== $$t"; { OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_SKIP_LOG=$(abspath $(B))/tests/skipped.log \
-	    MCF_IMAGE=$(IMAGE) MCF_BUILD=$(B) $$t 2>&1; echo $$? > $$t.rc; } | tee $$t.out; \
+	    MCF_IMAGE=$(IMAGE) MCF_BUILD=$(B) MCF_SAN=$(SAN) $$t 2>&1; echo $$? > $$t.rc; } | tee $$t.out; \
 	  rc=$$(cat $$t.rc); rm -f $$t.rc; \
 	  if [ "$$rc" != 0 ]; then fail=1; \
 	    grep -q '^\[  FAILED  \] [0-9]* test(s), listed below' $$t.out || \
@@ -338,6 +342,60 @@ $(B)/server/ui_assets.c: web/embed.sh web/index.html $(UI_WEB) $(NPM_STAMP)
 
 $(B)/server/ui_assets.o: $(B)/server/ui_assets.c server/ui_assets.h
 	$(CC) $(WARN) -Iserver $(CFLAGS) -c $< -o $@
+
+# ---- make install: the two programs, their man pages (made from their
+# --help, so they cannot drift), the licence and the API contracts.
+#   make install [PREFIX=/usr/local] [DESTDIR=]   make uninstall (the same variables)
+PREFIX ?= /usr/local
+BINDIR ?= $(PREFIX)/bin
+MANDIR ?= $(PREFIX)/share/man/man1
+DOCDIR ?= $(PREFIX)/share/doc/mcfd
+MANPAGES := $(B)/man/mcf.1 $(if $(SRV_SRC),$(B)/man/mcfd.1)
+
+# A man page from a program's --help output: NAME, SYNOPSIS and the help
+# text preformatted (roff's own escapes neutralised); mcf's has every
+# command's --help in turn. Coreutils and sed only.
+define manpage
+{ printf '.TH %s 1 "" "mcfd %s" "User Commands"\n.SH NAME\n%s \\- %s\n' \
+    $(1) "$$(sed -n 's/^#define API_VERSION "\(.*\)"/\1/p' api/api.h)" $(1) "$(2)"; \
+  for c in SYNOPSIS $(3); do \
+    printf '.SH "%s"\n.nf\n' "$$(echo "$(1) $$c" | sed 's/^.* SYNOPSIS$$/SYNOPSIS/')"; \
+    $(B)/$(1) $$(echo $$c | sed 's/^SYNOPSIS$$//') --help | \
+      sed -e 's/\\/\\e/g' -e "s/^[.']/\\\\\&&/"; \
+    printf '.fi\n'; \
+  done; \
+  printf '.SH "SEE ALSO"\nThe README of the mcfd repository; %s/openapi.yaml and %s/mcfd.proto.\n' \
+    $(DOCDIR) $(DOCDIR); } > $@.tmp && mv $@.tmp $@
+endef
+
+$(B)/man/mcf.1: $(B)/mcf api/api.h
+	@mkdir -p $(@D)
+	$(call manpage,mcf,smooth meshes by mean curvature flow,smooth info schemes params convert experiment)
+
+$(B)/man/mcfd.1: $(B)/mcfd api/api.h
+	@mkdir -p $(@D)
+	$(call manpage,mcfd,the mesh-smoothing daemon (REST and gRPC),)
+
+install: $(PROGS) $(MANPAGES)
+	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(MANDIR) $(DESTDIR)$(DOCDIR)
+	install -m 755 $(PROGS) $(DESTDIR)$(BINDIR)/
+	install -m 644 $(MANPAGES) $(DESTDIR)$(MANDIR)/
+	install -m 644 LICENSE api/openapi.yaml api/mcfd.proto $(DESTDIR)$(DOCDIR)/
+	install -m 644 $(THREE)/LICENSE $(DESTDIR)$(DOCDIR)/three.js-LICENSE
+
+uninstall:
+	rm -f $(DESTDIR)$(BINDIR)/mcf $(DESTDIR)$(BINDIR)/mcfd \
+	  $(DESTDIR)$(MANDIR)/mcf.1 $(DESTDIR)$(MANDIR)/mcfd.1 \
+	  $(DESTDIR)$(DOCDIR)/LICENSE $(DESTDIR)$(DOCDIR)/openapi.yaml $(DESTDIR)$(DOCDIR)/mcfd.proto \
+	  $(DESTDIR)$(DOCDIR)/three.js-LICENSE
+	-rmdir $(DESTDIR)$(DOCDIR)
+
+# ---- the Python client's gRPC stubs (committed: clients/python/gen_stubs.sh
+# says why); after a change to api/mcfd.proto: make python-stubs, and commit.
+python-stubs:
+	clients/python/gen_stubs.sh
+
+.PHONY: install uninstall python-stubs
 
 # Builds (after deps) and runs the daemon in the foreground with its
 # embedded defaults: 127.0.0.1:8080, one worker per core, spool ./var/mcfd.

@@ -235,6 +235,10 @@ mcf_status api_draco_encode(const mcf_mesh *m, const api_encode_opts *o,
                             api_buf *out, double *max_quant_err,
                             mcf_error *err);
 
+/* The version of mcf, mcfd and their API (openapi.yaml info.version, the
+ * Python client's; tests/test_contract.py holds them equal). */
+#define API_VERSION "1.0.0"
+
 /* ------------------------------------------------------------- parameters */
 
 /* Job parameters: the core flow parameters plus what the api layer needs.
@@ -275,11 +279,25 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
 double api_params_steps(const api_params *p, const api_limits *lim,
                         int *by_mesh);
 /* Final checks once the mesh is known: mcf_flow_params_check, fixed
- * indices in range, iterations x vertices within max_work. */
+ * indices in range, iterations x vertices within max_work; and amounts
+ * that contradict each other (EINVAL naming them): time, dt and
+ * iterations all given and ceil(time / dt) != iterations (or dt=auto), or
+ * a dt larger than the time. */
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);
 /* The parameters as a JSON object (for job records and metrics). */
 cJSON *api_params_to_json(const api_params *p);
+/* Every parameter as the one table in api_params.c defines it, a JSON
+ * array of {name, type (number, integer, boolean, string, array), auto
+ * (accepts "auto"), format (uint64 for an unsigned 64-bit integer),
+ * minimum or exclusiveMinimum, maximum (or
+ * maximum_limit: the name of the api_limits field that bounds it), enum,
+ * default (a value) or default_text (how it is derived), accepts (the
+ * range in the words of the errors), unit, help, output (an encoder option
+ * `mcf convert` takes too)}, under lim (NULL: the defaults). For `mcf
+ * smooth --help`, `mcf params` and the test that keeps api/openapi.yaml
+ * and api/mcfd.proto in step with the table. NULL when out of memory. */
+cJSON *api_params_describe(const api_limits *lim);
 
 /* ----------------------------------------------------------- memory estimate */
 

@@ -135,6 +135,49 @@ static const keydef keys[] = {
 
 static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", NULL};
 
+/* What each key means, for people: the unit and one line of help, the
+ * default in words where it is derived rather than a value, and whether it
+ * is an output (encoder) option, which `mcf convert` takes too. Every key
+ * of the table above needs its line here: without one, api_params_describe
+ * gives it a null help, and tests/test_contract.py fails naming it. */
+typedef struct {
+    const char *name, *unit, *help, *derived;
+    int output;
+} keydoc;
+
+static const keydoc docs[] = {
+    {"scheme", NULL, "the integrator or filter (`mcf schemes` describes each)", NULL, 0},
+    {"dt", "flow time", "the step (unit-area time when normalize is on); auto: from "
+     "lambda_max, explicit schemes only", "time / iterations", 0},
+    {"iterations", "steps", "number of steps over the time (taubin: passes)", NULL, 0},
+    {"time", "flow time", "total flow time (unit-area time when normalize is on); "
+     "replaces strength", "strength^2 h^2", 0},
+    {"strength", "mean edges", "the amount: diffuse over about this many mean edges "
+     "(time strength^2 h^2); auto: from the mesh's own noise", NULL, 0},
+    {"boundary", NULL, "fixed: boundary vertices stay; free: they move", NULL, 0},
+    {"fixed_vertices", "vertex indices", "0-based vertices held in place", NULL, 0},
+    {"rescale", NULL, "after the flow, restore the input's volume or area", NULL, 0},
+    {"normalize", NULL, "centre and scale to unit area before the flow, undone after",
+     NULL, 0},
+    {"laplacian", NULL, "the discrete Laplacian", NULL, 0},
+    {"mass", NULL, "the mass matrix", NULL, 0},
+    {"adaptive", NULL, "adaptive steps to the time, by the scheme's error estimate "
+     "(desbrun2, ros2, richardson, desbrun)", NULL, 0},
+    {"tol", "error per step", "tolerance of adaptive steps (needs adaptive)", NULL, 0},
+    {"max_steps", "steps", "cap on the steps of a run, rejected adaptive attempts "
+     "included", NULL, 0},
+    {"noise", "mean edges", "Gaussian noise added before the flow (experiments)", NULL, 0},
+    {"seed", NULL, "seed of that noise", NULL, 0},
+    {"format", NULL, "output format: obj, draco, ply, stl or off", "the input's", 1},
+    {"quantization_bits", "bits", "Draco output: position bits; auto keeps a Draco "
+     "input's, 16 from other formats; 0 lossless", NULL, 1},
+    {"compression_level", NULL, "Draco output: 0 fastest to 10 smallest", NULL, 1},
+    {"preserve_order", NULL, "Draco output: keep the vertex order", NULL, 1},
+    {"ply_curvature", NULL, "PLY output: mean and Gaussian curvature per vertex", NULL, 1},
+    {"ply_binary", NULL, "PLY output: binary (false: ASCII)", NULL, 1},
+};
+#define NDOCS (sizeof docs / sizeof docs[0])
+
 /* --------------------------------------------------------------- helpers */
 
 static const keydef *find_key(const char *name)
@@ -764,6 +807,39 @@ double api_params_steps(const api_params *p, const api_limits *lim,
     return n;
 }
 
+/* time, dt and iterations say the same thing twice (mcf.h: "The amount
+ * of smoothing"): with time and dt given, the steps are ceil(time / dt)
+ * and iterations would be dropped without a word, and a dt over the time
+ * would be cut to it. Refused, naming both, unless they agree. */
+static mcf_status amounts_agree(const api_params *p, mcf_error *err)
+{
+    const mcf_flow_params *f = &p->flow;
+    double steps;
+
+    if (!p->time_set || !(f->time > 0.0))
+        return MCF_OK;
+    if (f->dt_auto && p->iterations_set)
+        return api__fail(err, MCF_EINVAL,
+                         "parameters 'time' and 'iterations' contradict 'dt' = auto, which "
+                         "sets the steps itself: give dt=auto with time, or time with "
+                         "iterations");
+    if (!(f->dt > 0.0))
+        return MCF_OK;
+    if (f->dt > f->time * (1.0 + 1e-12))
+        return api__fail(err, MCF_EINVAL,
+                         "parameter 'dt' (%g) is larger than 'time' (%g): the run would be "
+                         "one step of the time; give a dt at most the time, or drop one",
+                         f->dt, f->time);
+    /* the core's own count (api_params_steps, the work bound's too) */
+    steps = ceil(f->time / f->dt - 1e-9);
+    if (p->iterations_set && steps != (double)f->iterations)
+        return api__fail(err, MCF_EINVAL,
+                         "parameters 'time' (%g) and 'dt' (%g) make %.0f steps, but "
+                         "'iterations' says %d: give two of the three",
+                         f->time, f->dt, steps, f->iterations);
+    return MCF_OK;
+}
+
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err)
 {
@@ -785,6 +861,8 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              "parameter 'fixed_vertices': index %ld out of range (0..%d)",
                              (long)p->flow.fixed[i], nv - 1);
     if ((rc = mcf_flow_params_check(&p->flow, nv, err)) != MCF_OK)
+        return rc;
+    if ((rc = amounts_agree(p, err)) != MCF_OK)
         return rc;
     if (nv < 1)
         return api__fail(err, MCF_EINVAL, "mesh has no vertices");
@@ -888,4 +966,128 @@ cJSON *api_params_to_json(const api_params *p)
         return NULL;
     }
     return j;
+}
+
+/* --------------------------------------------------------- description */
+
+static const keydoc *find_doc(const char *name)
+{
+    size_t i;
+    for (i = 0; i < NDOCS; i++)
+        if (strcmp(docs[i].name, name) == 0)
+            return &docs[i];
+    return NULL;
+}
+
+static cJSON *string_array(const char *const *names)
+{
+    cJSON *a = cJSON_CreateArray();
+    int i;
+    for (i = 0; a && names[i]; i++)
+        if (!cJSON_AddItemToArray(a, cJSON_CreateString(names[i]))) {
+            cJSON_Delete(a);
+            return NULL;
+        }
+    return a;
+}
+
+static cJSON *scheme_names(void)
+{
+    const char *names[MCF_NSCHEMES + 1];
+    int s, n = 0;
+    for (s = 0; s < MCF_NSCHEMES; s++) {
+        const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
+        if (si)
+            names[n++] = si->name;
+    }
+    names[n] = NULL;
+    return string_array(names);
+}
+
+/* The default of key k as JSON: the value of a fresh api_params, or NULL
+ * when it is derived (dt, time, format: keydoc.derived says how). */
+static cJSON *default_json(const keydef *k, const api_params *fresh, const cJSON *dj)
+{
+    if (strcmp(k->name, "iterations") == 0)
+        return cJSON_CreateNumber(MCF_DEFAULT_STEPS);
+    if (strcmp(k->name, "tol") == 0)
+        return cJSON_CreateNumber(fresh->flow.tol);
+    return cJSON_Duplicate(cJSON_GetObjectItemCaseSensitive(dj, k->name), 1);
+}
+
+cJSON *api_params_describe(const api_limits *lim)
+{
+    api_limits def;
+    api_params fresh;
+    cJSON *out = cJSON_CreateArray(), *dj;
+    size_t i;
+    int ok = out != NULL;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    api_params_init(&fresh);
+    dj = api_params_to_json(&fresh);
+    ok &= dj != NULL;
+    for (i = 0; ok && i < NKEYS; i++) {
+        const keydef *k = &keys[i];
+        const keydoc *d = find_doc(k->name);
+        cJSON *o = cJSON_CreateObject(), *dv;
+        char what[200];
+        const char *type = "string";
+
+        ok &= o != NULL && cJSON_AddItemToArray(out, o);
+        if (!ok)
+            break;
+        switch (k->kind) {
+        case K_NUM: type = "number"; break;
+        case K_INT: case K_U64: type = "integer"; break;
+        case K_BOOL: type = "boolean"; break;
+        case K_LIST: type = "array"; break;
+        default: break;
+        }
+        describe(k, lim, what, sizeof what);
+        ok &= cJSON_AddStringToObject(o, "name", k->name) != NULL;
+        ok &= cJSON_AddStringToObject(o, "type", type) != NULL;
+        ok &= cJSON_AddBoolToObject(o, "auto", (k->flags & AUTO) != 0) != NULL;
+        if (k->kind == K_NUM || k->kind == K_INT || k->kind == K_U64) {
+            ok &= cJSON_AddNumberToObject(o, (k->kind == K_NUM && !(k->flags & LO_INCL))
+                                          ? "exclusiveMinimum" : "minimum", k->lo) != NULL;
+            if (k->kind == K_U64)
+                ok &= cJSON_AddStringToObject(o, "format", "uint64") != NULL;
+            if (k->flags & HI_ITER)
+                ok &= cJSON_AddStringToObject(o, "maximum_limit", "max_iterations") != NULL;
+            else if (k->kind != K_U64 && !isinf(k->hi))
+                ok &= cJSON_AddNumberToObject(o, "maximum", k->hi) != NULL;
+        }
+        if (k->kind == K_ENUM)
+            ok &= cJSON_AddItemToObject(o, "enum", string_array(k->names));
+        else if (k->kind == K_FORMAT)
+            ok &= cJSON_AddItemToObject(o, "enum", string_array(format_names));
+        else if (k->kind == K_SCHEME)
+            ok &= cJSON_AddItemToObject(o, "enum", scheme_names());
+        dv = default_json(k, &fresh, dj);
+        if (dv)
+            ok &= cJSON_AddItemToObject(o, "default", dv);
+        else
+            ok &= cJSON_AddStringToObject(o, "default_text", d && d->derived ? d->derived
+                                          : "") != NULL;
+        ok &= cJSON_AddStringToObject(o, "accepts", what) != NULL;
+        if (!d) {   /* a key without its line in docs[] */
+            ok &= cJSON_AddNullToObject(o, "help") != NULL;
+            continue;
+        }
+        ok &= cJSON_AddStringToObject(o, "help", d->help) != NULL;
+        if (d->unit)
+            ok &= cJSON_AddStringToObject(o, "unit", d->unit) != NULL;
+        ok &= cJSON_AddBoolToObject(o, "output", d->output) != NULL;
+    }
+    cJSON_Delete(dj);
+    api_params_free(&fresh);
+    if (!ok) {
+        cJSON_Delete(out);
+        return NULL;
+    }
+    return out;
 }

@@ -4,21 +4,28 @@
  *   mcf smooth IN OUT [flags]   mean curvature flow, optional metrics file
  *   mcf info IN                 JSON: counts, topology, curvature summary
  *   mcf schemes                 JSON: every scheme and what it costs
+ *   mcf params                  JSON: every job parameter (api_params_describe)
  *   mcf convert IN OUT          any input format to OUT's (or --format)
  *   mcf experiment STUDY ...    dt sweeps, stability, order, sphere (CSV +
  *                               plots; cli/mcf_experiment.c)
  *
- * Like curl's tool, this is only a client of the libraries: every flag
- * that is a job parameter goes through api_params_set (dashes become
- * underscores), so the CLI and the daemon accept and refuse exactly the
- * same values with the same messages. The input format is detected from
- * the bytes, the output format comes from OUT's extension unless --format
- * says otherwise. "-" reads stdin / writes stdout.
+ * Like curl's tool, this is only a client of the libraries: every job
+ * parameter of the api table (api_params_describe) is an option, its name
+ * with dashes for underscores, set through api_params_set, so the CLI and
+ * the daemon accept and refuse exactly the same values with the same
+ * messages, and `mcf smooth --help` lists them from the same table. The
+ * input format is detected from the bytes, the output format comes from
+ * OUT's extension unless --format says otherwise. "-" reads stdin / writes
+ * stdout.
  *
  * Errors: exactly one line "mcf: <message>" on stderr; exit status 2 for
  * usage errors (unknown flag, missing argument, invalid parameter value),
- * 1 for everything else. Output files are written to a temporary name and
- * renamed, so a failed run never leaves a half-written OUT behind.
+ * 1 for everything else, 3 for `smooth --strict` with warnings. Output
+ * files are written to a temporary name and renamed, so a failed run never
+ * leaves a half-written OUT behind. `mcf smooth` also says what happened
+ * on stderr: the core's warnings about the result (always), a summary line
+ * (unless --quiet), and progress (a bar on a terminal; with --progress,
+ * one plain line per 10% elsewhere).
  */
 #include <errno.h>
 #include <math.h>
@@ -35,33 +42,84 @@
 #include "mcf_experiment.h"
 
 #define EXIT_USAGE 2
+#define EXIT_STRICT 3 /* --strict and the result has warnings */
 
+/* `mcf --help`: the commands; each command's own --help has its options. */
 static const char usage_text[] =
-    "usage:\n"
-    "  mcf smooth IN OUT [--scheme S] [--strength S] [--time T] [--iterations N] [--dt D|auto]\n"
-    "                    [--boundary fixed|free] [--fix-vertices FILE] [--rescale none|volume|area]\n"
-    "                    [--normalize | --no-normalize] [--laplacian cotan|uniform]\n"
-    "                    [--mass barycentric|voronoi] [--adaptive [--tol E] [--max-steps N]]\n"
-    "                    [--target FILE] [--noise RHO --seed K] [--metrics FILE.json] [--quiet]\n"
-    "                    [--format F] [--quantization-bits B|auto] [--compression-level C] [--preserve-order]\n"
-    "                    [--ply-curvature]\n"
-    "  mcf info IN          JSON on stdout: counts, topology, curvature summary\n"
-    "  mcf schemes          JSON on stdout: every scheme with order, stability, cost per step\n"
-    "  mcf convert IN OUT   [--format F] [--quantization-bits B|auto] [--compression-level C]\n"
-    "                       [--preserve-order] [--ply-curvature]: format by content in, by\n"
-    "                       OUT's extension out; texture coordinates, colours and normals\n"
-    "                       (recomputed) pass through; Draco keeps the input's quantization\n"
-    "                       (--quantization-bits auto; 16 bits from other formats; 0 lossless)\n"
-    "  mcf experiment STUDY --out DIR [flags]: dt-sweep, stability, order or sphere\n"
-    "                       studies as CSV files and plots (flags at the end)\n"
+    "usage: mcf COMMAND [ARGS] [OPTIONS]\n"
     "\n"
-    "Formats: obj, draco (.drc), ply, stl, off. IN or OUT may be '-' (stdin/stdout;\n"
-    "OUT '-' needs --format). Schemes: see `mcf schemes`. --fix-vertices FILE holds\n"
-    "0-based vertex indices separated by white space or commas.\n"
-    "Amount: by default the flow runs to time strength^2 h^2 (h: the mean edge\n"
-    "length; --strength is the diffusion length in mean edges, default 0.33) in 10\n"
-    "steps; --time (in unit-area units unless --no-normalize) or --iterations with\n"
-    "--dt override it; --iterations alone sets the step count.\n";
+    "  mcf smooth IN OUT [options]   smooth a mesh (mean curvature flow or a filter)\n"
+    "  mcf info IN                   JSON on stdout: counts, topology, curvature summary\n"
+    "  mcf schemes                   JSON on stdout: every scheme with order, stability, cost\n"
+    "  mcf params                    JSON on stdout: every job parameter with its type,\n"
+    "                                range, default and unit (the daemon's too)\n"
+    "  mcf convert IN OUT [options]  any mesh format to OUT's (texture coordinates, colours\n"
+    "                                pass through; normals recomputed)\n"
+    "  mcf experiment STUDY ...      dt sweeps, stability, order, sphere studies (CSV, plots)\n"
+    "  mcf --version                 the version\n"
+    "\n"
+    "`mcf COMMAND --help` lists that command's options with their defaults and units.\n"
+    "Formats: obj, draco (.drc), ply, stl, off, detected from the bytes on input and\n"
+    "taken from OUT's extension (or --format) on output; IN or OUT may be '-'\n"
+    "(stdin/stdout; OUT '-' needs --format).\n"
+    "Exit status: 0 done; 1 failed (one line 'mcf: ...' on stderr); 2 usage error;\n"
+    "3 `mcf smooth --strict` and the result has warnings.\n";
+
+static const char smooth_head[] =
+    "usage: mcf smooth IN OUT [options]\n"
+    "\n"
+    "Smooths the mesh IN into OUT: the flow runs to a total time set by --strength\n"
+    "(default), --time, or --iterations with --dt. The job parameters are the daemon's\n"
+    "(dashes here, underscores there); a boolean is --NAME or --no-NAME.\n"
+    "\n"
+    "Job parameters:\n";
+
+static const char smooth_tail[] =
+    "\n"
+    "Options of the tool:\n"
+    "  --fix-vertices FILE   vertices held in place: 0-based indices in FILE, separated\n"
+    "                        by white space or commas\n"
+    "  --target FILE         a clean mesh with the same connectivity: the metrics compare\n"
+    "                        the result (and the input) with it\n"
+    "  --metrics FILE.json   write the metrics document (the daemon's /v1/jobs/ID/metrics)\n"
+    "  --progress            progress on stderr when it is not a terminal: one line per\n"
+    "                        10% of the time (on a terminal the bar is always shown)\n"
+    "  --quiet               no progress bar and no summary line (warnings still print)\n"
+    "  --strict              a warning (folds, edge_collapse, area_loss,\n"
+    "                        little_smoothing) fails the run: exit status 3, OUT not\n"
+    "                        written (the metrics file is, when asked for)\n"
+    "\n"
+    "On stderr, unless --quiet: a summary line (vertices, steps, time, strength, seconds).\n"
+    "Always: one line per warning about the result, 'mcf: warning: NAME: ...'.\n";
+
+static const char convert_head[] =
+    "usage: mcf convert IN OUT [options]\n"
+    "\n"
+    "Reads any mesh format (detected from the bytes) and writes OUT's (its extension or\n"
+    "--format). Texture coordinates and colours pass through, normals are recomputed;\n"
+    "Draco keeps a Draco input's quantization.\n"
+    "\n"
+    "Options (the daemon's output parameters):\n";
+
+static const char info_usage[] =
+    "usage: mcf info IN\n"
+    "\n"
+    "Prints JSON on stdout: vertex and face counts, topology (boundary, components,\n"
+    "genus, manifoldness, degenerate and duplicate faces), area, volume, edge lengths,\n"
+    "bounding box, the curvature summary, the format and the size in bytes.\n";
+
+static const char schemes_usage[] =
+    "usage: mcf schemes\n"
+    "\n"
+    "Prints JSON on stdout: every scheme with its order, stability, cost per step and\n"
+    "best use (the daemon's GET /v1/schemes).\n";
+
+static const char params_usage[] =
+    "usage: mcf params\n"
+    "\n"
+    "Prints JSON on stdout: every job parameter (mcf smooth's options, the daemon's query\n"
+    "parameters, JSON keys and gRPC Params fields) with its type, range, default, unit\n"
+    "and meaning, from the one table that validates them.\n";
 
 /* Set by SIGINT/SIGTERM; the flow loads it before every step. A lock-free
  * C11 atomic (mcf_cancel_flag), which a signal handler may store to. */
@@ -295,40 +353,41 @@ typedef struct {
     const char *pos[3];
     int npos;
     const char *target, *metrics, *fix_file;
-    int quiet;
-    int format_given;
+    int quiet, progress, strict;
 } cli_opts;
 
-/* Flags that map to a parameter with a value, by command. */
-static const char *const smooth_valued[] = {
-    "scheme", "dt", "iterations", "time", "strength", "boundary", "rescale",
-    "laplacian", "mass", "tol", "max-steps", "noise", "seed", "format", "quantization-bits",
-    "compression-level", NULL};
-static const char *const convert_valued[] = {
-    "format", "quantization-bits", "compression-level", NULL};
-
-static int in_list(const char *const *list, const char *s)
+/* The parameter table (api_params_describe): every job parameter is an
+ * option of `mcf smooth`, the output ones of `mcf convert` too, so the
+ * tool, the daemon and the help cannot disagree on names or ranges. */
+static cJSON *param_table(void)
 {
-    int i;
-    for (i = 0; list[i]; i++)
-        if (strcmp(list[i], s) == 0)
-            return 1;
-    return 0;
+    cJSON *t = api_params_describe(NULL);
+    if (!t)
+        fail(1, "out of memory");
+    return t;
+}
+
+static const cJSON *find_param(const cJSON *table, const char *key, int smooth)
+{
+    const cJSON *e;
+    cJSON_ArrayForEach(e, table) {
+        if (strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(e, "name")), key) == 0)
+            return (smooth || cJSON_IsTrue(cJSON_GetObjectItem(e, "output"))) ? e : NULL;
+    }
+    return NULL;
+}
+
+static int is_type(const cJSON *e, const char *type)
+{
+    return strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(e, "type")), type) == 0;
 }
 
 /* Applies one parameter; a refusal is a usage error (exit 2), a limit 1. */
-static int set_param(api_params *p, const char *flag, const char *value,
+static int set_param(api_params *p, const char *key, const char *value,
                      const api_limits *lim)
 {
-    char key[64];
     mcf_error err = {MCF_OK, ""};
-    mcf_status st;
-    size_t i;
-
-    for (i = 0; flag[i] && i + 1 < sizeof key; i++)
-        key[i] = flag[i] == '-' ? '_' : flag[i];
-    key[i] = '\0';
-    st = api_params_set(p, key, value, lim, &err);
+    mcf_status st = api_params_set(p, key, value, lim, &err);
     if (st != MCF_OK)
         return fail(st == MCF_EINVAL ? EXIT_USAGE : 1, "%s", err.msg);
     return 0;
@@ -336,80 +395,139 @@ static int set_param(api_params *p, const char *flag, const char *value,
 
 /* Parses argv[first..] of command cmd ("smooth" or "convert"). */
 static int parse_args(const char *cmd, int argc, char **argv, int first,
-                      api_params *p, const api_limits *lim, cli_opts *o)
+                      api_params *p, const api_limits *lim, cli_opts *o,
+                      const cJSON *table)
 {
     int smooth = strcmp(cmd, "smooth") == 0, i, rc;
-    const char *const *valued = smooth ? smooth_valued : convert_valued;
-    int maxpos = 2;
 
     for (i = first; i < argc; i++) {
         const char *a = argv[i], *val = NULL, *eq;
-        char name[64];
-        size_t nl;
+        const cJSON *e;
+        char key[64];
+        size_t nl, k;
+        int off = 0;
 
         if (a[0] != '-' || strcmp(a, "-") == 0) {
-            if (o->npos >= maxpos)
-                return fail(EXIT_USAGE, "%s: unexpected argument '%s' (try mcf --help)",
-                            cmd, a);
+            if (o->npos >= 2)
+                return fail(EXIT_USAGE, "%s: unexpected argument '%s' (try mcf %s --help)",
+                            cmd, a, cmd);
             o->pos[o->npos++] = a;
             continue;
         }
         if (a[1] != '-')
-            return fail(EXIT_USAGE, "unknown option '%s' (try mcf --help)", a);
+            return fail(EXIT_USAGE, "%s: unknown option '%s' (try mcf %s --help)", cmd, a, cmd);
         a += 2;
         eq = strchr(a, '=');
         nl = eq ? (size_t)(eq - a) : strlen(a);
-        if (nl >= sizeof name)
-            return fail(EXIT_USAGE, "unknown option '--%.40s' (try mcf --help)", a);
-        memcpy(name, a, nl);
-        name[nl] = '\0';
+        if (nl >= sizeof key)
+            return fail(EXIT_USAGE, "%s: unknown option '--%.40s' (try mcf %s --help)",
+                        cmd, a, cmd);
+        for (k = 0; k < nl; k++)   /* the daemon's name: dashes become underscores */
+            key[k] = a[k] == '-' ? '_' : a[k];
+        key[nl] = '\0';
 
-        /* Switches. */
-        if ((smooth && (!strcmp(name, "normalize") || !strcmp(name, "no-normalize")
-                        || !strcmp(name, "adaptive") || !strcmp(name, "quiet")))
-            || !strcmp(name, "preserve-order") || !strcmp(name, "ply-curvature")) {
+        /* The tool's own switches and files. */
+        if (smooth && (!strcmp(key, "quiet") || !strcmp(key, "progress")
+                       || !strcmp(key, "strict"))) {
             if (eq)
-                return fail(EXIT_USAGE, "option '--%s' takes no value", name);
-            rc = 0;
-            if (!strcmp(name, "quiet"))
-                o->quiet = 1;
-            else if (!strcmp(name, "no-normalize"))
-                rc = set_param(p, "normalize", "false", lim);
-            else
-                rc = set_param(p, name, "true", lim);
-            if (rc)
-                return rc;
+                return fail(EXIT_USAGE, "option '--%s' takes no value", key);
+            *(key[0] == 'q' ? &o->quiet : key[0] == 'p' ? &o->progress : &o->strict) = 1;
             continue;
         }
-        /* Options with a value: --name VALUE or --name=VALUE. */
-        if (in_list(valued, name)
-            || (smooth && (!strcmp(name, "fix-vertices") || !strcmp(name, "target")
-                           || !strcmp(name, "metrics")))) {
+        if (smooth && (!strcmp(key, "fix_vertices") || !strcmp(key, "target")
+                       || !strcmp(key, "metrics"))) {
             if (eq)
                 val = eq + 1;
             else if (i + 1 < argc)
                 val = argv[++i];
             else
-                return fail(EXIT_USAGE, "option '--%s' needs a value", name);
-            if (!strcmp(name, "fix-vertices"))
-                o->fix_file = val;
-            else if (!strcmp(name, "target"))
-                o->target = val;
-            else if (!strcmp(name, "metrics"))
-                o->metrics = val;
-            else {
-                if (!strcmp(name, "format"))
-                    o->format_given = 1;
-                if ((rc = set_param(p, name, val, lim)) != 0)
-                    return rc;
-            }
+                return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
+            *(key[0] == 'f' ? &o->fix_file : key[0] == 't' ? &o->target : &o->metrics) = val;
             continue;
         }
-        return fail(EXIT_USAGE, "%s: unknown option '--%s' (try mcf --help)", cmd, name);
+        /* A job parameter: --NAME VALUE, --NAME=VALUE; a boolean --NAME or --no-NAME. */
+        e = find_param(table, key, smooth);
+        if (!e && strncmp(key, "no_", 3) == 0) {
+            e = find_param(table, key + 3, smooth);
+            off = 1;
+            if (e && !is_type(e, "boolean"))
+                e = NULL;
+        }
+        if (!e)
+            return fail(EXIT_USAGE, "%s: unknown option '--%.*s' (try mcf %s --help)",
+                        cmd, (int)nl, a, cmd);
+        if (is_type(e, "boolean")) {
+            if (eq)
+                return fail(EXIT_USAGE, "option '--%.*s' takes no value", (int)nl, a);
+            val = off ? "false" : "true";
+        } else if (eq) {
+            val = eq + 1;
+        } else if (i + 1 < argc) {
+            val = argv[++i];
+        } else {
+            return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
+        }
+        if ((rc = set_param(p, cJSON_GetStringValue(cJSON_GetObjectItem(e, "name")), val,
+                            lim)) != 0)
+            return rc;
     }
     if (o->npos < 2)
-        return fail(EXIT_USAGE, "%s: needs IN and OUT (try mcf --help)", cmd);
+        return fail(EXIT_USAGE, "%s: needs IN and OUT (try mcf %s --help)", cmd, cmd);
     return 0;
+}
+
+/* One command's help: head, then every parameter of the table it takes
+ * (with its placeholder, meaning, unit, range and default), then tail. */
+static int print_help(const char *head, int smooth, const char *tail)
+{
+    cJSON *table = param_table();
+    const cJSON *e;
+    int pass;
+
+    if (!table)
+        return 1;
+    fputs(head, stdout);
+    /* smooth: the flow's parameters first, then the output ones */
+    for (pass = smooth ? 0 : 1; pass < 2; pass++) {
+        if (smooth && pass == 1)
+            fputs("\nOutput (also `mcf convert`'s):\n", stdout);
+        cJSON_ArrayForEach(e, table) {
+            const char *name = cJSON_GetStringValue(cJSON_GetObjectItem(e, "name"));
+            const char *unit = cJSON_GetStringValue(cJSON_GetObjectItem(e, "unit"));
+            const cJSON *dv = cJSON_GetObjectItem(e, "default");
+            char flag[64], meta[24], *dtext = NULL;
+            size_t k;
+
+            if (cJSON_IsTrue(cJSON_GetObjectItem(e, "output")) != (pass == 1))
+                continue;
+            for (k = 0; name[k] && k + 1 < sizeof flag; k++)
+                flag[k] = name[k] == '_' ? '-' : name[k];
+            flag[k] = '\0';
+            if (is_type(e, "boolean"))
+                snprintf(meta, sizeof meta, "%s", "");
+            else
+                snprintf(meta, sizeof meta, " %s%s",
+                         is_type(e, "number") ? "X" : is_type(e, "integer") ? "N"
+                         : is_type(e, "array") ? "I,J,..." : "NAME",
+                         cJSON_IsTrue(cJSON_GetObjectItem(e, "auto")) ? "|auto" : "");
+            if (is_type(e, "boolean"))
+                printf("  --%s, --no-%s\n", flag, flag);
+            else
+                printf("  --%s%s\n", flag, meta);
+            printf("      %s%s%s\n", cJSON_GetStringValue(cJSON_GetObjectItem(e, "help")),
+                   unit ? "; unit: " : "", unit ? unit : "");
+            if (dv && !cJSON_IsString(dv))
+                dtext = cJSON_PrintUnformatted(dv);
+            printf("      %s; default %s\n",
+                   cJSON_GetStringValue(cJSON_GetObjectItem(e, "accepts")),
+                   dtext ? dtext : dv ? cJSON_GetStringValue(dv)
+                   : cJSON_GetStringValue(cJSON_GetObjectItem(e, "default_text")));
+            cJSON_free(dtext);
+        }
+    }
+    fputs(tail, stdout);
+    cJSON_Delete(table);
+    return fflush(stdout) == 0 ? 0 : 1;
 }
 
 /* The output format: --format, else OUT's extension. */
@@ -466,8 +584,10 @@ typedef struct {
     double total_time;    /* > 0: progress by t, else by steps */
     int total_steps;
     const mcf_flow_stats *st; /* t_target, set by the core before step 1 */
+    int bar;              /* 1: a bar redrawn in place (a terminal) */
     double last;          /* when the bar was last drawn */
     int drawn;
+    int next_tenth;       /* plain lines: the next 10% to report */
 } progress_state;
 
 static int on_progress(void *ctx, int step, double t, double dt, double energy)
@@ -480,9 +600,6 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     (void)dt;
     if (cancel_flag)
         return 1;
-    if (tn - ps->last < 0.1)
-        return 0;
-    ps->last = tn;
     if (ps->total_time <= 0 && ps->st && ps->st->t_target > 0)
         ps->total_time = ps->st->t_target; /* the amount came from strength */
     frac = ps->total_time > 0 ? t / ps->total_time
@@ -491,6 +608,20 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
         frac = 0;
     if (frac > 1)
         frac = 1;
+    if (!ps->bar) {
+        /* One plain line per 10% reached (a log or a pipe, not a terminal). */
+        if (frac * 10 + 1e-9 >= ps->next_tenth && ps->next_tenth <= 10) {
+            int tenth = (int)(frac * 10 + 1e-9);
+            fprintf(stderr, "mcf: %3d%%  step %d  t %.4g  energy %.6g\n", tenth * 10,
+                    step, t, energy);
+            fflush(stderr);
+            ps->next_tenth = tenth + 1;
+        }
+        return 0;
+    }
+    if (tn - ps->last < 0.1)
+        return 0;
+    ps->last = tn;
     fill = (int)(frac * 40 + 0.5);
     for (i = 0; i < 40; i++)
         bar[i] = i < fill ? '#' : '.';
@@ -507,6 +638,34 @@ static void progress_clear(progress_state *ps)
     if (ps->drawn)
         fprintf(stderr, "\r\033[K");
     ps->drawn = 0;
+}
+
+/* One line per warning of the core about the result, with the figure
+ * behind it (mcf_flow_stats); returns how many. */
+static int print_warnings(const mcf_flow_stats *st)
+{
+    unsigned bit;
+    int n = 0;
+
+    for (bit = 1; bit; bit <<= 1) {
+        char why[96];
+        if (!(st->warnings & bit) || !mcf_warning_name(bit))
+            continue;
+        if (bit == MCF_WARN_FOLDS)
+            snprintf(why, sizeof why, "%d faces folded", st->folded_faces);
+        else if (bit == MCF_WARN_EDGE_COLLAPSE)
+            snprintf(why, sizeof why, "shortest edge x %.3g", st->min_edge_ratio);
+        else if (bit == MCF_WARN_AREA_LOSS)
+            snprintf(why, sizeof why, "area x %.3g", st->area_ratio);
+        else if (bit == MCF_WARN_LITTLE_SMOOTHING)
+            snprintf(why, sizeof why, "strength %.3g mean edges", st->strength);
+        else
+            why[0] = '\0';
+        fprintf(stderr, "mcf: warning: %s: %s%s%s%s\n", mcf_warning_name(bit),
+                mcf_warning_text(bit), why[0] ? " (" : "", why, why[0] ? ")" : "");
+        n++;
+    }
+    return n;
 }
 
 /* ---------------------------------------------------------------- helpers */
@@ -561,9 +720,10 @@ static int cmd_smooth(int argc, char **argv)
     size_t in_bytes = 0, out_bytes = 0;
     double t_start = now(), read_s = 0, decode_s = 0, noise_s = 0, flow_s = 0,
            encode_s = 0, write_s = 0, metrics_s = 0, qerr = 0, t0;
-    int rc, show = 0;
+    int rc, show = 0, nwarn, withheld;
     mcf_status fs;
     struct sigaction sa;
+    cJSON *table = NULL;
 
     memset(&o, 0, sizeof o);
     memset(&st, 0, sizeof st);
@@ -571,7 +731,11 @@ static int cmd_smooth(int argc, char **argv)
     memset(&ps, 0, sizeof ps);
     api_limits_default(&lim);
     api_params_init(&p);
-    if ((rc = parse_args("smooth", argc, argv, 2, &p, &lim, &o)) != 0)
+    if (!(table = param_table())) {
+        rc = 1;
+        goto done;
+    }
+    if ((rc = parse_args("smooth", argc, argv, 2, &p, &lim, &o, table)) != 0)
         goto done;
     if ((rc = output_format(&p, o.pos[1])) != 0)
         goto done;
@@ -633,7 +797,8 @@ static int cmd_smooth(int argc, char **argv)
     }
     metrics_s = now() - t0;
 
-    /* The flow: progress on a terminal, cancel on SIGINT/SIGTERM. */
+    /* The flow: a bar on a terminal, plain lines with --progress
+     * elsewhere; cancel on SIGINT/SIGTERM. */
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     sigemptyset(&sa.sa_mask);
@@ -641,7 +806,8 @@ static int cmd_smooth(int argc, char **argv)
     sigaction(SIGTERM, &sa, NULL);
     p.flow.cancel = &cancel_flag;
     p.flow.log_steps = o.metrics != NULL;
-    show = !o.quiet && isatty(STDERR_FILENO);
+    ps.bar = isatty(STDERR_FILENO);
+    show = !o.quiet && (ps.bar || o.progress);
     if (show) {
         ps.total_time = p.time_set ? p.flow.time : 0;
         ps.total_steps = p.flow.iterations > 0 ? p.flow.iterations : MCF_DEFAULT_STEPS;
@@ -658,7 +824,12 @@ static int cmd_smooth(int argc, char **argv)
         rc = fail(1, "smooth: %s", err.msg);
         goto done;
     }
-    if ((rc = save_mesh(m, &p.encode, o.pos[1], &out_bytes, &encode_s, &write_s, &qerr)) != 0)
+    /* What the core says about the result, whatever --quiet says; under
+     * --strict a warning withholds OUT (a pipeline must not take it). */
+    nwarn = print_warnings(&st);
+    withheld = o.strict && nwarn > 0;
+    if (!withheld
+        && (rc = save_mesh(m, &p.encode, o.pos[1], &out_bytes, &encode_s, &write_s, &qerr)) != 0)
         goto done;
 
     if (o.metrics) {
@@ -673,7 +844,7 @@ static int cmd_smooth(int argc, char **argv)
         metrics_s += now() - t0;
         api_metrics_run_init(&run);
         run.input_name = o.pos[0];
-        run.output_name = o.pos[1];
+        run.output_name = withheld ? NULL : o.pos[1];
         run.target_name = o.target;
         run.input_format = in_fmt;
         run.output_format = p.encode.format;
@@ -702,11 +873,22 @@ static int cmd_smooth(int argc, char **argv)
         if (rc)
             goto done;
     }
-    if (show)
-        fprintf(stderr, "mcf: %d vertices, %d steps (t = %.4g) in %.2f s -> %s\n",
-                mcf_mesh_nvertices(m), st.steps, st.t_final, flow_s, o.pos[1]);
+    if (withheld) {
+        rc = fail(EXIT_STRICT, "--strict: the result has %d warning%s (above): '%s' not written",
+                  nwarn, nwarn > 1 ? "s" : "", o.pos[1]);
+        goto done;
+    }
+    if (!o.quiet) {
+        char strength[48] = "";
+        if (st.strength > 0)
+            snprintf(strength, sizeof strength, ", strength %.3g mean edges", st.strength);
+        fprintf(stderr, "mcf: %s -> %s: %d vertices, %d step%s to t = %.4g%s in %.2f s%s\n",
+                o.pos[0], o.pos[1], mcf_mesh_nvertices(m), st.steps, st.steps == 1 ? "" : "s",
+                st.t_final, strength, flow_s, nwarn ? " (with warnings)" : "");
+    }
     rc = 0;
 done:
+    cJSON_Delete(table);
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
     mcf_mesh_free(target);
@@ -757,21 +939,23 @@ done:
     return rc;
 }
 
-/* ---------------------------------------------------------------- schemes */
+/* ------------------------------------------------------- schemes, params */
 
-static int cmd_schemes(int argc)
+/* `mcf schemes` and `mcf params`: a document of the libraries, printed
+ * as JSON on stdout (j is taken and freed; NULL: out of memory). */
+static int print_document(const char *cmd, int argc, cJSON *j)
 {
-    cJSON *j;
     char *s;
     int rc = 0;
 
-    if (argc != 2)
-        return fail(EXIT_USAGE, "schemes: takes no arguments");
-    j = api_json_schemes();
-    s = api_json_print(j, 1);
+    if (argc != 2) {
+        cJSON_Delete(j);
+        return fail(EXIT_USAGE, "%s: takes no arguments", cmd);
+    }
+    s = j ? api_json_print(j, 1) : NULL;
     cJSON_Delete(j);
     if (!s)
-        return fail(1, "schemes: out of memory");
+        return fail(1, "%s: out of memory", cmd);
     if (printf("%s\n", s) < 0 || fflush(stdout) != 0)
         rc = fail(1, "cannot write to stdout: %s", strerror(errno));
     free(s);
@@ -787,12 +971,15 @@ static int cmd_convert(int argc, char **argv)
     cli_opts o;
     mcf_mesh *m = NULL;
     api_attrs *attrs = NULL;
+    cJSON *table = param_table();
     int rc;
 
+    if (!table)
+        return 1;
     memset(&o, 0, sizeof o);
     api_limits_default(&lim);
     api_params_init(&p);
-    if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o)) == 0
+    if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o, table)) == 0
         && (rc = output_format(&p, o.pos[1])) == 0
         && (rc = load_mesh_attrs(o.pos[0], &lim, &m, &attrs, NULL, NULL, NULL, NULL)) == 0) {
         p.encode.attrs = attrs;
@@ -801,38 +988,61 @@ static int cmd_convert(int argc, char **argv)
     mcf_mesh_free(m);
     api_attrs_free(attrs);
     api_params_free(&p);
+    cJSON_Delete(table);
     return rc;
+}
+
+/* A command's --help (argv[1] is the command; "help" and --help alone give
+ * the overview). */
+static int command_help(const char *cmd)
+{
+    if (!strcmp(cmd, "smooth"))
+        return print_help(smooth_head, 1, smooth_tail);
+    if (!strcmp(cmd, "convert"))
+        return print_help(convert_head, 0, "");
+    if (!strcmp(cmd, "experiment")) {
+        fputs("usage:\n", stdout);
+        fputs(mcf_experiment_usage, stdout);
+        return 0;
+    }
+    fputs(!strcmp(cmd, "info") ? info_usage : !strcmp(cmd, "schemes") ? schemes_usage
+          : !strcmp(cmd, "params") ? params_usage : usage_text, stdout);
+    return 0;
 }
 
 int main(int argc, char **argv)
 {
     const char *cmd = argc > 1 ? argv[1] : NULL;
+    static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert",
+                                           "experiment", NULL};
+    int i, known = 0;
 
     api_bound_library_threads(argv, 0);
     if (!cmd)
-        return fail(EXIT_USAGE, "missing command: smooth, info, schemes, convert or experiment (try mcf --help)");
-    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {
-        fputs(usage_text, stdout);
-        fputs("\nmcf experiment:\n", stdout);
-        fputs(mcf_experiment_usage, stdout);
-        return 0;
+        return fail(EXIT_USAGE, "missing command: smooth, info, schemes, params, convert or "
+                    "experiment (try mcf --help)");
+    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help"))
+        return command_help(argc > 2 && strcmp(cmd, "help") == 0 ? argv[2] : "");
+    if (!strcmp(cmd, "--version") || !strcmp(cmd, "-V")) {
+        printf("mcf %s\n", API_VERSION);
+        return fflush(stdout) == 0 ? 0 : 1;
     }
-    for (int i = 2; i < argc; i++)
-        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            fputs(usage_text, stdout);
-            fputs("\nmcf experiment:\n", stdout);
-            fputs(mcf_experiment_usage, stdout);
-            return 0;
-        }
+    for (i = 0; commands[i]; i++)
+        known |= !strcmp(cmd, commands[i]);
+    if (!known)
+        return fail(EXIT_USAGE, "unknown command '%s' (try mcf --help)", cmd);
+    for (i = 2; i < argc; i++)
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h"))
+            return command_help(cmd);
     if (!strcmp(cmd, "smooth"))
         return cmd_smooth(argc, argv);
     if (!strcmp(cmd, "info"))
         return cmd_info(argc, argv);
     if (!strcmp(cmd, "schemes"))
-        return cmd_schemes(argc);
+        return print_document(cmd, argc, api_json_schemes());
+    if (!strcmp(cmd, "params"))
+        return print_document(cmd, argc, api_params_describe(NULL));
     if (!strcmp(cmd, "convert"))
         return cmd_convert(argc, argv);
-    if (!strcmp(cmd, "experiment"))
-        return mcf_experiment_main(argc, argv);
-    return fail(EXIT_USAGE, "unknown command '%s' (try mcf --help)", cmd);
+    return mcf_experiment_main(argc, argv);
 }

@@ -4,20 +4,25 @@
 #   docker/image.sh build IMAGE [BASE]   build docker/Dockerfile as IMAGE (make image)
 #   docker/image.sh check IMAGE MCF      run IMAGE as CI does (make image-check); MCF is the
 #                                        mcf tool, used to decode what the container returns
-#   docker/image.sh podman ARGS...       podman with the settings below, for anything else
+#   docker/image.sh setup                the host settings below, when this machine needs them
+#   docker/image.sh podman ARGS...       podman, for anything else
 #
 # Run from the top of the repository, as root (CI and the development machines are root).
 #
 # Why the settings (seen on these machines, Debian bookworm, podman 4.3.1, cgroups v1, root
-# inside a sandbox; on an ordinary host they are harmless):
+# inside a sandbox whose hard limits are below what rootful podman asks for):
 #  - crun, podman's preferred OCI runtime, fails here: first "setrlimit RLIMIT_NOFILE:
-#    Operation not permitted", then "cgroups in hybrid mode". runc works, so the
-#    containers.conf below names it (and `make image` installs runc, not crun).
-#  - runc fails too ("error setting rlimit type 7: operation not permitted") while podman
-#    asks for its default ulimits, which are above the sandbox's hard limits. With the
-#    containers' default ulimits lowered to nofile 1024 and nproc 1000 it works.
-#  - Both settings go into one containers.conf written by this script, which it points
-#    CONTAINERS_CONF at: nothing is changed in /etc, and other podman users are unaffected.
+#    Operation not permitted", then "cgroups in hybrid mode". runc works (`make image`
+#    installs runc, not crun).
+#  - runc fails too ("error setting rlimit type 7: operation not permitted": `podman run`
+#    exits 126) while rootful podman asks for its default ulimits (nofile 1048576, nproc
+#    4194304), which are above the sandbox's hard limits. With the containers' default
+#    ulimits at nofile = the host's hard limit (20000 here) and nproc 4096 it works.
+#  - So that a plain `podman run` works as the README shows it, both settings go into a
+#    drop-in podman reads for root, /etc/containers/containers.conf.d/50-mcfd-sandbox.conf,
+#    written by `setup` (which build and check run first) only where the host cannot raise
+#    its own limits to podman's defaults; an ordinary host gets no file. It changes the
+#    defaults of root's podman on such a host, and says so when it writes it.
 #  - No container registry is reachable from these machines (only the Debian archive is), so
 #    `podman pull debian:bookworm-slim` fails. The base is then made here:
 #    `debootstrap --variant=minbase bookworm` from the Debian archive, trimmed like the slim
@@ -28,22 +33,38 @@
 #  - Publishing a loopback port (-p 127.0.0.1:PORT:8080) works with podman's default network.
 set -eu
 
-CONF_DIR=${TMPDIR:-/tmp}/mcfd-podman
 LOCAL_BASE=localhost/mcfd-base:bookworm
 MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
 
-mkdir -p "$CONF_DIR"
-cat > "$CONF_DIR/containers.conf" <<'EOF'
-# written by docker/image.sh: see there why
-[containers]
-default_ulimits = ["nofile=1024:1024", "nproc=1000:1000"]
-
-[engine]
-runtime = "runc"
-EOF
-export CONTAINERS_CONF="$CONF_DIR/containers.conf"
+DROPIN=/etc/containers/containers.conf.d/50-mcfd-sandbox.conf
 
 pm() { podman "$@"; }
+
+# The drop-in, where rootful podman's default ulimits are above what this host allows
+# (see above); nothing on a host that can raise its limits to them, or for a non-root user
+# (rootless podman asks only for the user's own limits).
+setup() {
+    [ "$(id -u)" = 0 ] || return 0
+    if bash -c 'ulimit -Hn 1048576 && ulimit -Hu 4194304' 2>/dev/null; then
+        return 0
+    fi
+    # nofile: the host's hard limit, at most 65536; nproc: 4096, plenty for mcfd's threads
+    # (at the host's hard nproc, 96365 here, runc still failed with "rlimit type 6")
+    nofile=$(bash -c 'n=$(ulimit -Hn); [ "$n" = unlimited ] || [ "$n" -gt 65536 ] && n=65536; echo $n')
+    nproc=4096
+    want=$(printf '%s\n' \
+        "# Written by mcfd's docker/image.sh (make image): this host's hard limits" \
+        "# (nofile $nofile, nproc $nproc) are below rootful podman's default ulimits, and" \
+        "# runc then fails every container with \"error setting rlimit type 7\"." \
+        "[containers]" \
+        "default_ulimits = [\"nofile=$nofile:$nofile\", \"nproc=$nproc:$nproc\"]" \
+        "" "[engine]" "runtime = \"runc\"")
+    if [ "$(cat "$DROPIN" 2>/dev/null)" != "$want" ]; then
+        mkdir -p "$(dirname "$DROPIN")"
+        printf '%s\n' "$want" > "$DROPIN.tmp" && mv "$DROPIN.tmp" "$DROPIN"
+        echo "image.sh: wrote $DROPIN (podman's default ulimits above this host's hard limits)" >&2
+    fi
+}
 
 now() { date +%s; }
 
@@ -84,6 +105,7 @@ EOF
 }
 
 build() {
+    setup
     image=$1
     t0=$(now)
     base=$(base_image "${2:-}")
@@ -94,6 +116,7 @@ build() {
 }
 
 check() {
+    setup
     image=$1 mcf=$2
     name=mcfd-check-$$
     out=$(mktemp -d "${TMPDIR:-/tmp}/mcfd-check.XXXXXX")
@@ -132,6 +155,15 @@ check() {
         cat "$out/procs" >&2; echo "image-check: FAIL: a process runs as root" >&2; exit 1
     fi
     echo "image-check: tini and mcfd run as uid $(awk 'NR == 1 { print $1 }' "$out/procs") ($(pm exec "$name" id -un)), not root"
+    # the licence and the third-party notice: every Debian package of the image listed
+    pm exec "$name" cat /usr/share/doc/mcfd/LICENSE /usr/share/doc/mcfd/THIRD-PARTY-NOTICES \
+        /usr/share/doc/mcfd/three.js-LICENSE \
+        > "$out/notices" || { echo "image-check: FAIL: no licence or notice in the image" >&2; exit 1; }
+    pm exec "$name" dpkg-query -W -f '${Package}\n' > "$out/packages"
+    missing=$(while read -r p; do grep -q "^$p " "$out/notices" || echo "$p"; done < "$out/packages")
+    [ -z "$missing" ] && grep -q '^MIT License$' "$out/notices" ||
+        { echo "image-check: FAIL: the notice misses: $missing" >&2; exit 1; }
+    echo "image-check: /usr/share/doc/mcfd has the MIT licence and a notice naming all $(wc -l < "$out/packages") Debian packages"
     code=$(curl -sS -o "$out/smoothed.obj" -w '%{http_code}' --max-time 60 \
         -F mesh=@tests/data/meshes/sphere_cgal.obj \
         "http://127.0.0.1:$port/smooth?scheme=desbrun2&iterations=5")
@@ -178,6 +210,7 @@ cmd=${1:-}
 case "$cmd" in
 build) [ $# -ge 1 ] || { echo "usage: $0 build IMAGE [BASE]" >&2; exit 2; }; build "$@" ;;
 check) [ $# -eq 2 ] || { echo "usage: $0 check IMAGE MCF" >&2; exit 2; }; check "$@" ;;
-podman) pm "$@" ;;
+setup) setup ;;
+podman) setup; pm "$@" ;;
 *) sed -n '2,9p' "$0" >&2; exit 2 ;;
 esac

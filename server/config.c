@@ -21,7 +21,6 @@
 
 #include "srv.h"
 
-#define MCFD_VERSION "1.0.0"
 
 typedef enum { T_STR, T_INT, T_SIZE, T_DUR, T_NUM, T_LEVEL, T_FLAG } type;
 
@@ -422,7 +421,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
                 return 1;
             }
             if (o == O_VERSION) {
-                printf("mcfd %s (libmicrohttpd %s)\n", MCFD_VERSION,
+                printf("mcfd %s (libmicrohttpd %s)\n", API_VERSION,
                        MHD_get_version());
                 return 1;
             }

@@ -527,6 +527,210 @@ static void test_metrics_warnings(void **state)
     cJSON_Delete(j);
 }
 
+/* ------------------------------------------------ what the tool says */
+
+/* Counts the lines of s that start with prefix. */
+static int lines_starting(const char *s, const char *prefix)
+{
+    int n = 0;
+    size_t pl = strlen(prefix);
+    while (s && *s) {
+        const char *nl = strchr(s, '\n');
+        if (strncmp(s, prefix, pl) == 0)
+            n++;
+        s = nl ? nl + 1 : NULL;
+    }
+    return n;
+}
+
+static void test_version(void **state)
+{
+    tl_run_result r = tl_run("--version", NULL);
+    char want[64];
+    (void)state;
+    assert_int_equal(r.status, 0);
+    snprintf(want, sizeof want, "mcf %s\n", API_VERSION);
+    assert_string_equal(r.out, want);
+    assert_int_equal(r.errlen, 0);
+    tl_run_free(&r);
+}
+
+/* Each command's --help: its own usage; smooth's lists every parameter of
+ * the table (api_params_describe) with its default, and its unit when it
+ * has one; convert's the output parameters only. */
+static void test_command_help(void **state)
+{
+    static const char *const cmds[] = {"smooth", "convert", "info", "schemes", "params",
+                                       "experiment"};
+    cJSON *table = api_params_describe(NULL);
+    const cJSON *e;
+    tl_run_result r, c;
+    size_t i;
+    (void)state;
+    for (i = 0; i < sizeof cmds / sizeof cmds[0]; i++) {
+        char want[64];
+        r = tl_run(cmds[i], "--help", NULL);
+        assert_int_equal(r.status, 0);
+        assert_int_equal(r.errlen, 0);
+        snprintf(want, sizeof want, "mcf %s", cmds[i]);
+        if (!strstr(r.out, "usage:") || !strstr(r.out, want))
+            fail_msg("mcf %s --help: no usage line for it:\n%s", cmds[i], r.out);
+        tl_run_free(&r);
+    }
+    r = tl_run("smooth", "--help", NULL);
+    c = tl_run("convert", "--help", NULL);
+    assert_non_null(table);
+    cJSON_ArrayForEach(e, table) {
+        const char *name = cJSON_GetStringValue(cJSON_GetObjectItem(e, "name"));
+        const char *unit = cJSON_GetStringValue(cJSON_GetObjectItem(e, "unit"));
+        const cJSON *dv = cJSON_GetObjectItem(e, "default");
+        char flag[80], line[160], *txt = NULL;
+        const char *at;
+        size_t k;
+        flag[0] = flag[1] = '-';
+        for (k = 0; name[k] && k + 3 < sizeof flag; k++)
+            flag[k + 2] = name[k] == '_' ? '-' : name[k];
+        flag[k + 2] = '\0';
+        at = strstr(r.out, flag);
+        if (!at)
+            fail_msg("mcf smooth --help does not list %s", flag);
+        /* its two lines of text: help (and unit), then range and default */
+        if (dv && !cJSON_IsString(dv))
+            txt = cJSON_PrintUnformatted(dv);
+        snprintf(line, sizeof line, "; default %s\n",
+                 txt ? txt : dv ? cJSON_GetStringValue(dv)
+                 : cJSON_GetStringValue(cJSON_GetObjectItem(e, "default_text")));
+        cJSON_free(txt);
+        if (!strstr(at, line))
+            fail_msg("mcf smooth --help: %s without '%s'", flag, line);
+        if (unit) {
+            snprintf(line, sizeof line, "unit: %s\n", unit);
+            if (!strstr(at, line))
+                fail_msg("mcf smooth --help: %s without its unit (%s)", flag, unit);
+        }
+        if ((strstr(c.out, flag) != NULL) != cJSON_IsTrue(cJSON_GetObjectItem(e, "output")))
+            fail_msg("mcf convert --help: %s %s", flag,
+                     strstr(c.out, flag) ? "listed, but not an output option" : "missing");
+    }
+    /* the tool's own options */
+    assert_non_null(strstr(r.out, "--strict"));
+    assert_non_null(strstr(r.out, "--progress"));
+    assert_non_null(strstr(r.out, "--metrics FILE.json"));
+    cJSON_Delete(table);
+    tl_run_free(&r);
+    tl_run_free(&c);
+    /* the overview names every command and the exit statuses */
+    r = tl_run("--help", NULL);
+    assert_non_null(strstr(r.out, "mcf params"));
+    assert_non_null(strstr(r.out, "3 `mcf smooth --strict`"));
+    tl_run_free(&r);
+}
+
+/* A sphere of unit area vanishes at t = 1/(16 pi) = 0.0199: run to 0.03
+ * (6 steps of the default desbrun2), it ends as a speck (area x 1e-3). The
+ * run succeeds, but says so on stderr; --strict fails it (3) and keeps OUT
+ * unwritten; --quiet keeps the warning and drops the summary. */
+static void test_warnings_on_stderr(void **state)
+{
+    struct stat sb;
+    tl_run_result r = tl_run("smooth", tl_sphere(), "speck.obj", "--time", "0.03",
+                             "--iterations", "6", NULL);
+    (void)state;
+    if (r.status != 0)
+        fail_msg("smooth: status %d: %s", r.status, r.err);
+    if (lines_starting(r.err, "mcf: warning: area_loss: ") != 1)
+        fail_msg("no area_loss warning on stderr:\n%s", r.err);
+    /* the summary line says the result has warnings */
+    assert_non_null(strstr(r.err, "-> speck.obj: 812 vertices, 6 steps to t = 0.03"));
+    assert_non_null(strstr(r.err, "(with warnings)\n"));
+    assert_int_equal(r.outlen, 0);
+    tl_run_free(&r);
+    assert_int_equal(stat(tl_in_scratch("speck.obj"), &sb), 0);
+
+    r = tl_run("smooth", tl_sphere(), "strict.obj", "--time", "0.03", "--iterations", "6",
+               "--strict", "--metrics", "strict.json", NULL);
+    assert_int_equal(r.status, 3);
+    assert_int_equal(lines_starting(r.err, "mcf: warning: area_loss: "), 1);
+    assert_non_null(strstr(r.err, "mcf: --strict: the result has"));
+    assert_non_null(strstr(r.err, "'strict.obj' not written\n"));
+    tl_run_free(&r);
+    assert_int_equal(stat(tl_in_scratch("strict.obj"), &sb), -1);
+    /* the metrics say why */
+    {
+        cJSON *j = load_json(tl_in_scratch("strict.json"));
+        const cJSON *w = member(j, "warnings");
+        assert_true(cJSON_GetArraySize(w) >= 1);
+        cJSON_Delete(j);
+    }
+    /* a clean run is not affected by --strict: exit 0, OUT written */
+    r = tl_run("smooth", tl_sphere(), "clean.obj", "--strict", "--quiet", NULL);
+    assert_int_equal(r.status, 0);
+    assert_int_equal(r.errlen, 0);
+    tl_run_free(&r);
+    assert_int_equal(stat(tl_in_scratch("clean.obj"), &sb), 0);
+
+    r = tl_run("smooth", tl_sphere(), "speck2.obj", "--time", "0.03", "--iterations", "6",
+               "--quiet", NULL);
+    assert_int_equal(r.status, 0);
+    assert_int_equal(lines_starting(r.err, "mcf: warning: "), (int)lines_starting(r.err, "mcf: "));
+    assert_int_equal(lines_starting(r.err, "mcf: warning: area_loss: "), 1);
+    tl_run_free(&r);
+}
+
+/* Off a terminal (the harness captures stderr in a file): no progress
+ * unless --progress, then one plain line per 10% (10 equal steps: 10
+ * lines, 10% to 100%), then the summary; --quiet: nothing. */
+static void test_progress_lines(void **state)
+{
+    tl_run_result r = tl_run("smooth", tl_sphere(), "p.obj", NULL);
+    char want[32];
+    int k;
+    (void)state;
+    assert_int_equal(r.status, 0);
+    assert_int_equal(lines_starting(r.err, "mcf: "), 1);
+    assert_non_null(strstr(r.err, "-> p.obj: 812 vertices, 10 steps to t = "));
+    assert_null(strchr(r.err, '\r'));
+    tl_run_free(&r);
+
+    r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", NULL);
+    assert_int_equal(r.status, 0);
+    assert_null(strchr(r.err, '\r'));     /* no bar redrawn in place */
+    for (k = 1; k <= 10; k++) {
+        snprintf(want, sizeof want, "mcf: %3d%%  step %d  t ", 10 * k, k);
+        if (lines_starting(r.err, want) != 1)
+            fail_msg("--progress: no line '%s':\n%s", want, r.err);
+    }
+    assert_int_equal(lines_starting(r.err, "mcf: "), 11);
+    assert_non_null(strstr(r.err, "-> p.obj: 812 vertices, 10 steps"));
+    tl_run_free(&r);
+
+    r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", "--quiet", NULL);
+    assert_int_equal(r.status, 0);
+    assert_int_equal(r.errlen, 0);
+    tl_run_free(&r);
+}
+
+/* Amounts that contradict each other are refused, naming both; amounts
+ * that agree are not. */
+static void test_contradictory_amounts(void **state)
+{
+    tl_run_result r;
+    (void)state;
+    r = tl_run("smooth", tl_sphere(), "c.obj", "--time", "1e-3", "--dt", "1e-4",
+               "--iterations", "5", NULL);
+    tl_expect_error(&r, 2, "parameters 'time' (0.001) and 'dt' (0.0001) make 10 steps, "
+                    "but 'iterations' says 5");
+    r = tl_run("smooth", tl_sphere(), "c.obj", "--time", "1e-3", "--dt", "1e-2", NULL);
+    tl_expect_error(&r, 2, "parameter 'dt' (0.01) is larger than 'time' (0.001)");
+    r = tl_run("smooth", tl_sphere(), "c.obj", "--scheme", "euler", "--time", "1e-3",
+               "--dt", "auto", "--iterations", "5", NULL);
+    tl_expect_error(&r, 2, "parameters 'time' and 'iterations' contradict 'dt' = auto");
+    r = tl_run("smooth", tl_sphere(), "c.obj", "--time", "1e-3", "--dt", "1e-4",
+               "--iterations", "10", "--quiet", NULL);
+    assert_int_equal(r.status, 0);
+    tl_run_free(&r);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -541,6 +745,11 @@ int main(void)
         cmocka_unit_test(test_metrics_document_layout),
         cmocka_unit_test(test_metrics_one_volume),
         cmocka_unit_test(test_metrics_warnings),
+        cmocka_unit_test(test_version),
+        cmocka_unit_test(test_command_help),
+        cmocka_unit_test(test_warnings_on_stderr),
+        cmocka_unit_test(test_progress_lines),
+        cmocka_unit_test(test_contradictory_amounts),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -246,11 +246,71 @@ static void test_kubernetes(void **state)
     yfree(&y);
 }
 
+/* The licence and the third-party notice travel in the image: the
+ * runtime stage copies LICENSE and docker/THIRD-PARTY-NOTICES to
+ * /usr/share/doc/mcfd and appends the package list (docker/notices.sh;
+ * `make image-check` checks that list against the image), every package
+ * the runtime stage installs is named in the notice's table, and three.js,
+ * which mcfd embeds for its page, is named with its licence shipped. */
+static void test_notices(void **state)
+{
+    char *df, *notice, *lic, *at, *end;
+    size_t len;
+    int named = 0;
+
+    (void)state;
+    if (tl_read_file("docker/Dockerfile", &df, &len) != 0 ||
+        tl_read_file("docker/THIRD-PARTY-NOTICES", &notice, &len) != 0 ||
+        tl_read_file("LICENSE", &lic, &len) != 0)
+        fail_msg("cannot read docker/Dockerfile, docker/THIRD-PARTY-NOTICES or LICENSE");
+    assert_int_equal(strncmp(lic, "MIT License\n", 12), 0);
+    assert_non_null(strstr(df, "COPY LICENSE docker/THIRD-PARTY-NOTICES /usr/share/doc/mcfd/"));
+    assert_non_null(strstr(df, "sh /tmp/notices.sh /usr/share/doc/mcfd/THIRD-PARTY-NOTICES"));
+    /* three.js is embedded in mcfd (the page): named, its licence shipped */
+    assert_non_null(strstr(notice, "three.js"));
+    assert_non_null(strstr(df, "COPY node_modules/three/LICENSE /usr/share/doc/mcfd/three.js-LICENSE"));
+    /* the runtime stage's package list: from its --no-install-recommends
+     * to the `&&` that ends it */
+    at = strstr(df, "AS runtime");
+    at = at ? strstr(at, "--no-install-recommends") : NULL;
+    end = at ? strstr(at, "&&") : NULL;
+    if (!at || !end)
+        fail_msg("docker/Dockerfile: no apt-get install in the runtime stage");
+    at += strlen("--no-install-recommends");
+    while (at < end) {
+        char pkg[64], word[70];
+        size_t n = strspn(at, " \t\\\n");
+        at += n;
+        n = strcspn(at, " \t\\\n");
+        if (at >= end || n == 0)
+            break;
+        if (n >= sizeof pkg)
+            fail_msg("docker/Dockerfile: '%.40s...' is not a package name", at);
+        memcpy(pkg, at, n);
+        pkg[n] = '\0';
+        at += n;
+        /* named as a word of the table: "(libmicrohttpd12)", "libgrpc29, " */
+        snprintf(word, sizeof word, "%s)", pkg);
+        if (!strstr(notice, word)) {
+            snprintf(word, sizeof word, "%s,", pkg);
+            if (!strstr(notice, word))
+                fail_msg("docker/THIRD-PARTY-NOTICES does not name %s, which the image installs",
+                         pkg);
+        }
+        named++;
+    }
+    assert_true(named >= 10);
+    free(df);
+    free(notice);
+    free(lic);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_compose),
         cmocka_unit_test(test_kubernetes),
+        cmocka_unit_test(test_notices),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

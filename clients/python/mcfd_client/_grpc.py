@@ -1,0 +1,111 @@
+"""mcfd_client._grpc - one smoothing job through the gRPC door (Smooth).
+
+The upload is a SmoothHeader with typed Params, then the mesh (and the
+optional target) in chunks of 64 KiB; the answer streams one Progress per
+step, the metrics, a ResultHeader and the result's chunks. The stubs are the
+package's own (_proto, generated from api/mcfd.proto and shipped). A failed
+call's status carries the daemon's code in the trailing metadata `mcf-code`
+and, when it is worth retrying, the delay in `retry-after-ms`.
+"""
+import json
+
+from . import errors
+from ._rest import Answer
+
+CHUNK = 64 * 1024
+# Params fields that take a number or "auto" (NumberOrAuto in mcfd.proto)
+_AUTO = ("dt", "strength", "quantization_bits")
+
+
+def _modules():
+    import grpc
+    from ._proto import mcfd_pb2, mcfd_pb2_grpc
+    return grpc, mcfd_pb2, mcfd_pb2_grpc
+
+
+def _params(pb, params):
+    """pb.Params from the keyword parameters; a name or value the message
+    cannot hold is InvalidParameter, as the daemon would say it."""
+    p = pb.Params()
+    fields = p.DESCRIPTOR.fields_by_name
+    for key, value in params.items():
+        if key not in fields:
+            raise errors.InvalidParameter("unknown parameter '%s' (accepted: %s)"
+                                          % (key, ",".join(fields)), code="EINVAL")
+        try:
+            if key in _AUTO:
+                if value == "auto":
+                    getattr(p, key).auto = True
+                else:
+                    getattr(p, key).number = float(value)
+            elif key == "fixed_vertices":
+                p.fixed_vertices.extend(int(i) for i in value)
+            else:
+                setattr(p, key, value)
+        except (TypeError, ValueError) as e:
+            raise errors.InvalidParameter("parameter '%s': %s" % (key, e), code="EINVAL") from None
+    return p
+
+
+def _requests(pb, data, filename, params, output_format, target):
+    h = pb.SmoothHeader(params=params, total_size=len(data), filename=filename or "mesh")
+    if output_format:
+        h.output_format = output_format
+    if target is not None:
+        h.target_size = len(target)
+    yield pb.SmoothRequest(header=h)
+    for i in range(0, len(data), CHUNK):
+        yield pb.SmoothRequest(chunk=data[i:i + CHUNK])
+    for i in range(0, len(target or b""), CHUNK):
+        yield pb.SmoothRequest(target_chunk=target[i:i + CHUNK])
+
+
+def _error(grpc, e):
+    """The typed error of a failed call."""
+    meta = dict(e.trailing_metadata() or ())
+    code = meta.get("mcf-code")
+    status = e.code().name if e.code() else None
+    if code is None:
+        code = {"UNAVAILABLE": None, "CANCELLED": "ECANCELED",
+                "DEADLINE_EXCEEDED": "ETIMEOUT", "UNAUTHENTICATED": "EAUTH",
+                "NOT_FOUND": "ENOTFOUND"}.get(status)
+    retry = meta.get("retry-after-ms")
+    if code is None and e.code() == grpc.StatusCode.UNAVAILABLE and retry is None:
+        return errors.Unreachable(e.details() or "the daemon is unreachable", status=status)
+    return errors.error_for(code, e.details() or status, status=status,
+                            retry_after=int(retry) / 1000.0 if retry and retry.isdigit() else None)
+
+
+def smooth(target_addr, secure, data, filename, params, target, progress, want_metrics,
+           timeout, metadata):
+    """One attempt; raises MCFDError (Busy carries retry_after)."""
+    grpc, pb, pb_grpc = _modules()
+    params = dict(params)
+    output_format = params.pop("format", None)
+    p = _params(pb, params)
+    channel = (grpc.secure_channel(target_addr, grpc.ssl_channel_credentials()) if secure
+               else grpc.insecure_channel(target_addr))
+    chunks, metrics, header = [], None, None
+    try:
+        stub = pb_grpc.SmootherStub(channel)
+        for r in stub.Smooth(_requests(pb, data, filename, p, output_format, target),
+                             timeout=timeout, metadata=metadata):
+            part = r.WhichOneof("part")
+            if part == "progress" and progress:
+                g = r.progress
+                progress({"step": g.step, "t": g.t, "dt": g.dt, "energy": g.energy,
+                          "volume": g.volume})
+            elif part == "metrics":
+                metrics = json.loads(r.metrics)
+            elif part == "result_header":
+                header = r.result_header
+            elif part == "result_chunk":
+                chunks.append(r.result_chunk)
+    except grpc.RpcError as e:
+        raise _error(grpc, e) from None
+    finally:
+        channel.close()
+    if header is None:
+        raise errors.ServerError("the call ended without a result", status="OK")
+    return Answer(b"".join(chunks), header.format, header.job_id,
+                  list((metrics or {}).get("warnings") or ()), metrics)

@@ -1,0 +1,118 @@
+"""mcfd_client._rest - one smoothing job through the REST door (urllib only).
+
+POST /v1/smooth with a multipart body: the mesh, the parameters as the JSON
+`params` field (types kept: booleans, numbers, the fixed_vertices array), the
+optional target. Without a progress callback the answer is the mesh; with
+one, `stream=ndjson` gives one line per step and a last line naming the
+result, fetched after. Warnings come from X-Warnings, metrics from the job's
+metrics link. Errors are problem+json documents (openapi.yaml, Problem).
+"""
+import json
+import urllib.error
+import urllib.parse
+import urllib.request
+import uuid
+
+from . import errors
+
+
+class Answer:
+    """What a job returned: the mesh bytes, its format, the job ID, the
+    warnings' names and (when asked) the metrics document."""
+
+    def __init__(self, data, fmt, job, warnings, metrics=None):
+        self.data, self.format, self.job = data, fmt, job
+        self.warnings, self.metrics = warnings, metrics
+
+
+def _multipart(fields):
+    """(body, content type) of multipart/form-data; fields: (name, filename
+    or None, bytes)."""
+    boundary = "mcfd-" + uuid.uuid4().hex
+    parts = []
+    for name, filename, data in fields:
+        disp = 'form-data; name="%s"' % name
+        if filename is not None:
+            disp += '; filename="%s"' % filename.replace('"', "_").replace("\r", "_").replace("\n", "_")
+        ctype = "application/octet-stream" if filename is not None else "application/json"
+        parts.append(("--%s\r\nContent-Disposition: %s\r\nContent-Type: %s\r\n\r\n"
+                      % (boundary, disp, ctype)).encode() + data + b"\r\n")
+    return b"".join(parts) + ("--%s--\r\n" % boundary).encode(), \
+        "multipart/form-data; boundary=" + boundary
+
+
+def _problem(e):
+    """The typed error of an HTTP error answer."""
+    body = e.read()
+    try:
+        doc = json.loads(body)
+    except ValueError:
+        doc = {}
+    retry = e.headers.get("Retry-After")
+    return errors.error_for(doc.get("code"), doc.get("detail") or body[:300].decode("utf-8", "replace")
+                            or e.reason, status=e.code, job=doc.get("job"),
+                            retry_after=float(retry) if retry and retry.isdigit() else None)
+
+
+def _open(req, timeout):
+    try:
+        return urllib.request.urlopen(req, timeout=timeout)
+    except urllib.error.HTTPError as e:
+        raise _problem(e) from None
+    except (urllib.error.URLError, OSError) as e:
+        raise errors.Unreachable("cannot reach %s: %s" % (req.full_url, getattr(e, "reason", e))) from None
+
+
+def _format_of(resp):
+    """The answer's format from its file name (Content-Disposition)."""
+    cd = resp.headers.get("Content-Disposition") or ""
+    name = cd.rsplit("filename=", 1)[-1].strip('"; ')
+    ext = name.rsplit(".", 1)[-1].lower() if "." in name else ""
+    return {"drc": "draco"}.get(ext, ext or None)
+
+
+def _warnings(resp):
+    w = resp.headers.get("X-Warnings")
+    return [x.strip() for x in w.split(",") if x.strip()] if w else []
+
+
+def smooth(base, data, filename, params, target, progress, want_metrics, timeout, headers):
+    """One attempt; raises MCFDError (Busy carries retry_after)."""
+    fields = [("mesh", filename, data), ("params", None, json.dumps(params).encode())]
+    if target is not None:
+        fields.append(("target", "target", target))
+    body, ctype = _multipart(fields)
+    query = "?stream=ndjson" if progress else ""
+    req = urllib.request.Request(base + "/v1/smooth" + query, data=body, method="POST",
+                                 headers=dict(headers, **{"Content-Type": ctype}))
+    with _open(req, timeout) as resp:
+        if not progress:
+            job = resp.headers.get("X-Job-Id")
+            answer = Answer(resp.read(), _format_of(resp), job, _warnings(resp))
+        else:
+            end = None
+            for line in resp:
+                if not line.strip():
+                    continue
+                ev = json.loads(line)
+                if "step" in ev and "done" not in ev:
+                    progress(ev)
+                else:
+                    end = ev
+            if not end:
+                raise errors.ServerError("the step stream ended without its last line "
+                                         "(the daemon stopped?)", status=resp.status)
+            if end.get("status") != "succeeded":   # failed, canceled, or not done: EDRAINING
+                err = end.get("error") or {}
+                raise errors.error_for(err.get("code") or "ECANCELED",
+                                       err.get("detail") or "the job %s" % end.get("status"),
+                                       status=err.get("status"), job=end.get("job"))
+            res = urllib.request.Request(base + end["result"], headers=headers)
+            with _open(res, timeout) as r2:
+                answer = Answer(r2.read(), _format_of(r2), end.get("job"), _warnings(r2),
+                                end.get("metrics"))
+    if want_metrics and answer.metrics is None and answer.job:
+        req = urllib.request.Request(base + "/v1/jobs/%s/metrics" % answer.job, headers=headers)
+        with _open(req, timeout) as resp:
+            answer.metrics = json.loads(resp.read())
+    return answer
