@@ -67,7 +67,7 @@ DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
-            python3-setuptools python3-wheel curl
+            python3-setuptools python3-wheel curl assimp-utils
 DEB_BENCH := libeigen3-dev libcgal-dev
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
@@ -456,7 +456,7 @@ clean:
 # build-fuzz/corpus/<name>/, crashes to build-fuzz/artifacts/. A target
 # uses tests/fuzz/<name>.dict when present (params and query: json.dict).
 FUZZ_TIME ?= 30
-# Inputs that reach libdraco get 120 s, the others 10 s. libdraco 1.5.5's
+# Inputs that reach libdraco (Draco, glTF, the round trip) get 120 s, the others 10 s. libdraco 1.5.5's
 # portable texcoord predictor loops over an int32 orientation count read
 # from the stream (MeshPredictionSchemeTexCoordsPortableDecoder): a
 # 251-byte file costs 4.6 s of CPU (7 s under ASan), and the largest count
@@ -512,7 +512,7 @@ fuzz: $(FUZZ_BIN)
 	  case $$n in params|query) dict=tests/fuzz/json.dict;; esac; \
 	  [ -f $$dict ] && dopt=-dict=$$dict || dopt=; \
 	  seeds=tests/fuzz/corpus_$$n; [ -d $$seeds ] || seeds=; \
-	  case $$n in draco|roundtrip) to=$(FUZZ_DRACO_TIMEOUT);; *) to=10;; esac; \
+	  case $$n in draco|roundtrip|gltf) to=$(FUZZ_DRACO_TIMEOUT);; *) to=10;; esac; \
 	  echo "== fuzz_$$n for $(FUZZ_TIME) s"; \
 	  $(FZ)/fuzz_$$n -max_total_time=$(FUZZ_TIME) -timeout=$$to -rss_limit_mb=2048 \
 	    -print_final_stats=1 -artifact_prefix=$(FZ)/artifacts/$$n- $$dopt \

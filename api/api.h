@@ -6,7 +6,8 @@
  * size_t len) in, an mcf_mesh out; an mcf_mesh in, an api_buf out. Every
  * decoder checks the api_limits before data reaches core/ and names the
  * offending line, element or key in the mcf_error message. The Draco codec
- * is the only C++ (api_draco.cc); it exports plain C through this header.
+ * and the glTF reader are C++ (api_draco.cc, api_gltf.cc over tinygltf);
+ * they export plain C through this header.
  *
  * Dependencies run one way: server -> api -> core. This header may include
  * mcf.h and cJSON, never microhttpd.h.
@@ -71,7 +72,9 @@ typedef enum {
     API_FMT_DRACO,
     API_FMT_PLY,
     API_FMT_STL,
-    API_FMT_OFF
+    API_FMT_OFF,
+    API_FMT_GLB,               /* glTF 2.0 binary (model/gltf-binary) */
+    API_FMT_GLTF               /* glTF 2.0 JSON, buffers embedded (model/gltf+json) */
 } api_format;
 
 /* From the bytes: "DRACO" magic, "ply\n", "OFF", binary STL size rule or
@@ -101,7 +104,10 @@ const char *api_format_mime(api_format f);       /* "model/obj", ... */
  * their quantization; OBJ vt and vn (per corner) and `v x y z r g b`; PLY
  * vertex nx ny nz, s t (also u v, texture_u texture_v), red green blue
  * [alpha], and the face `texcoord` list (6 floats) draco_decoder writes.
- * STL and OFF carry none. Colours are held in [0, 1] (8-bit sources
+ * STL and OFF carry none. The connectivity as it came: the polygons of
+ * an OBJ, PLY or OFF (smoothed as their fan triangles) are written back
+ * as those polygons by the same three formats, and OBJ's g, o, s, usemtl
+ * and mtllib statements in their place. Colours are held in [0, 1] (8-bit sources
  * divided by 255, and written back as bytes exactly). */
 typedef struct api_attrs api_attrs;
 
@@ -200,8 +206,9 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
 
 /* Per-format codecs, same contracts. The *_decode_attrs forms also
  * return the attributes (attrs may be NULL); encoders take them from
- * o->attrs (OBJ and OFF, which have no options, write none through these
- * two: use api_mesh_encode or api_obj_encode_opts). */
+ * o->attrs (OBJ and OFF, which have no options, write none through
+ * api_obj_encode and api_off_encode: use api_mesh_encode or the _opts
+ * forms). */
 mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **out, mcf_error *err);
 mcf_status api_obj_encode(const mcf_mesh *m, api_buf *out, mcf_error *err);
@@ -224,11 +231,27 @@ mcf_status api_stl_encode(const mcf_mesh *m, const api_encode_opts *o,
 mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **out, mcf_error *err);
 mcf_status api_off_encode(const mcf_mesh *m, api_buf *out, mcf_error *err);
+mcf_status api_off_decode_attrs(const void *buf, size_t len,
+                                const api_limits *lim, mcf_mesh **out,
+                                api_attrs **attrs, mcf_error *err);
+mcf_status api_off_encode_opts(const mcf_mesh *m, const api_encode_opts *o,
+                               api_buf *out, mcf_error *err);
 mcf_status api_draco_decode(const void *buf, size_t len, const api_limits *lim,
                             mcf_mesh **out, mcf_error *err);
 mcf_status api_draco_decode_attrs(const void *buf, size_t len,
                                   const api_limits *lim, mcf_mesh **out,
                                   api_attrs **attrs, mcf_error *err);
+/* glTF 2.0, GLB or .gltf with embedded buffers (api_gltf_decode.c says what is
+ * read, refused and welded). Encoding a mesh decoded from glTF (o->attrs
+ * holds its document) rewrites that document: positions and normals
+ * changed, everything else as it came, each primitive compressed as it
+ * was; o->format (GLB or GLTF) picks the container. Any other mesh is
+ * written as a new document of one mesh and one primitive. */
+mcf_status api_gltf_decode_attrs(const void *buf, size_t len,
+                                 const api_limits *lim, mcf_mesh **out,
+                                 api_attrs **attrs, mcf_error *err);
+mcf_status api_gltf_encode(const mcf_mesh *m, const api_encode_opts *o,
+                           api_buf *out, mcf_error *err);
 /* *max_quant_err (may be NULL): largest |decoded - input| coordinate error
  * of the encoded result (0 when lossless). */
 mcf_status api_draco_encode(const mcf_mesh *m, const api_encode_opts *o,
@@ -307,6 +330,8 @@ typedef struct {
     api_format format;         /* detected from the bytes */
     long long vertices, faces; /* declared or counted (faces: triangles) */
     double decode_bytes;       /* decoding it (sizes the Draco sandbox) */
+    int draco;                 /* decoding it runs libdraco (a Draco stream, or a
+                                * glTF with KHR_draco_mesh_compression) */
     double job_bytes;          /* the whole job, decode to encode */
 } api_mem_estimate;
 
@@ -327,6 +352,8 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
  * exact binary record (api_pack.c), for the decode sandbox's pipe. */
 mcf_status api_mesh_pack(const mcf_mesh *m, const api_attrs *attrs,
                          api_buf *out, mcf_error *err);
+/* The largest record api_mesh_pack writes for a mesh decoded within lim. */
+size_t api_mesh_pack_max(const api_limits *lim);
 /* The record back: a new mesh and attributes (attrs may be NULL), every
  * count checked against the bytes and lim. EDECODE for a bad record. */
 mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,

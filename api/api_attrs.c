@@ -51,6 +51,11 @@ void api_attrs_free(api_attrs *a)
         return;
     for (k = 0; k < API_ATTR_KINDS; k++)
         attr_clear(&a->a[k]);
+    free(a->gltf);
+    free(a->poly);
+    for (k = 0; k < a->nstmt; k++)
+        free(a->stmt[k].text);
+    free(a->stmt);
     free(a);
 }
 
@@ -329,4 +334,76 @@ mcf_status api__attr_dedupe(api__attr *at, size_t ncorners, mcf_error *err)
     free(k);
     free(map);
     return MCF_OK;
+}
+
+/* ------------------------------------------------ polygons and statements */
+
+mcf_status api__attrs_polys(api_attrs *a, const int32_t *sizes, int npoly,
+                            mcf_error *err)
+{
+    long long tri = 0;
+    int p, max = 3;
+    for (p = 0; p < npoly; p++) {
+        if (sizes[p] < 3)
+            return api__fail(err, MCF_EINVAL, "attributes: polygon %d of %d corners", p,
+                             (int)sizes[p]);
+        tri += sizes[p] - 2;
+        max = sizes[p] > max ? sizes[p] : max;
+    }
+    if (tri != a->nf)
+        return api__fail(err, MCF_EINVAL,
+                         "attributes: %d polygons make %lld triangles, the mesh has %d",
+                         npoly, tri, a->nf);
+    free(a->poly);
+    a->poly = NULL;
+    a->npoly = npoly;
+    a->maxpoly = max;
+    if (max == 3)
+        return MCF_OK; /* triangles: nothing to keep */
+    if (!(a->poly = malloc(sizeof *a->poly * (size_t)npoly)))
+        return api__fail(err, MCF_ENOMEM, "attributes: out of memory for %d polygons",
+                         npoly);
+    memcpy(a->poly, sizes, sizeof *a->poly * (size_t)npoly);
+    return MCF_OK;
+}
+
+mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
+                           mcf_error *err)
+{
+    char *t = malloc(n + 1);
+    api__stmt *st = realloc(a->stmt, sizeof *st * ((size_t)a->nstmt + 1));
+    if (st)
+        a->stmt = st;
+    if (!t || !st) {
+        free(t);
+        return api__fail(err, MCF_ENOMEM, "attributes: out of memory for statements");
+    }
+    memcpy(t, s, n);
+    t[n] = '\0';
+    a->stmt[a->nstmt].at = at;
+    a->stmt[a->nstmt++].text = t;
+    return MCF_OK;
+}
+
+int api__attrs_maxpoly(const api_attrs *a)
+{
+    return a && a->poly ? a->maxpoly : 3;
+}
+
+int api__poly_next(const api_attrs *a, int nf, api__poly_it *it, size_t *c, int *n)
+{
+    int k, f = it->face;
+    int size = a && a->poly ? (it->p < a->npoly ? a->poly[it->p] : 0) : 3;
+    if (size < 3 || f + size - 2 > nf)
+        return 0;
+    /* the fan (c0, ck, ck+1): its first face gives corners 0 and 1, every
+     * face its last */
+    c[0] = 3 * (size_t)f;
+    c[1] = 3 * (size_t)f + 1;
+    for (k = 0; k < size - 2; k++)
+        c[k + 2] = 3 * (size_t)(f + k) + 2;
+    *n = size;
+    it->face = f + size - 2;
+    it->p++;
+    return 1;
 }

@@ -1,6 +1,6 @@
 /*
- * api_draco.cc - Google Draco (.drc) decoder and encoder, the only C++ of
- * mcfd: a thin extern "C" bridge over Debian's libdraco 1.5.5.
+ * api_draco.cc - Google Draco (.drc) decoder and encoder: a thin extern "C"
+ * bridge over Debian's libdraco 1.5.5.
  *
  * Decoder: any Draco mesh bitstream the library reads (old v1.x such as
  * bunny.drc, current v2.2; edgebreaker and sequential). A point cloud is
@@ -40,6 +40,13 @@
  * otherwise edgebreaker, which renumbers vertices, reorders and rotates
  * faces, drops unreferenced vertices and splits non-manifold ones.
  *
+ * Primitives (api__draco_prim_decode / _encode, for glTF's
+ * KHR_draco_mesh_compression): every attribute as it came, by unique id,
+ * its points' values as raw bytes of their data type and its quantization
+ * (bits and grid, from the same second decode), and back: the same ids,
+ * types and quantization (a grid reused where the values still lie on
+ * it), edgebreaker, through the ExpertEncoder's per-attribute options.
+ *
  * *max_quant_err is measured, not predicted: the encoded bytes are decoded
  * again and every input face is compared with its decoded counterpart
  * corner by corner (faces are looked up by centroid in a grid, cyclic
@@ -63,6 +70,7 @@
 #include "draco/attributes/attribute_quantization_transform.h"
 #include "draco/compression/decode.h"
 #include "draco/compression/encode.h"
+#include "draco/compression/expert_encode.h"
 #include "draco/mesh/mesh.h"
 
 #include "api.h"
@@ -371,6 +379,29 @@ mcf_status read_attrs(const void *buf, size_t len, const draco::Mesh &dm,
                       const draco::PointAttribute *pos, const mcf_mesh *m,
                       api_attrs **attrs, mcf_error *err);
 
+/* The checks before libdraco decodes a stream: magic, a triangle mesh
+ * (not a point cloud), the header's counts within lim. */
+mcf_status check_stream(const void *buf, size_t len, const api_limits *lim,
+                        mcf_error *err)
+{
+    if (len < 5 || std::memcmp(buf, "DRACO", 5) != 0)
+        return api__fail(err, MCF_EDECODE,
+                         "draco: no \"DRACO\" magic at the start of the input");
+    draco::DecoderBuffer db;
+    db.Init(static_cast<const char *>(buf), len);
+    auto type = draco::Decoder::GetEncodedGeometryType(&db);
+    if (!type.ok())
+        return api__fail(err, MCF_EDECODE, "draco: bad header: %s",
+                         type.status().error_msg());
+    if (type.value() == draco::POINT_CLOUD)
+        return api__fail(err, MCF_EDECODE,
+                         "Draco point cloud, not a triangle mesh");
+    if (type.value() != draco::TRIANGULAR_MESH)
+        return api__fail(err, MCF_EDECODE, "draco: unknown geometry type %d",
+                         static_cast<int>(type.value()));
+    return check_counts(static_cast<const uint8_t *>(buf), len, lim, err);
+}
+
 mcf_status decode(const void *buf, size_t len, const api_limits *lim,
                   mcf_mesh **out, api_attrs **attrs, mcf_error *err)
 {
@@ -387,27 +418,12 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
                          len, lim->max_input_bytes);
     if (len == 0)
         return api__fail(err, MCF_EDECODE, "draco: empty input");
-    if (len < 5 || std::memcmp(buf, "DRACO", 5) != 0)
-        return api__fail(err, MCF_EDECODE,
-                         "draco: no \"DRACO\" magic at the start of the input");
-
-    draco::DecoderBuffer db;
-    db.Init(static_cast<const char *>(buf), len);
-    auto type = draco::Decoder::GetEncodedGeometryType(&db);
-    if (!type.ok())
-        return api__fail(err, MCF_EDECODE, "draco: bad header: %s",
-                         type.status().error_msg());
-    if (type.value() == draco::POINT_CLOUD)
-        return api__fail(err, MCF_EDECODE,
-                         "Draco point cloud, not a triangle mesh");
-    if (type.value() != draco::TRIANGULAR_MESH)
-        return api__fail(err, MCF_EDECODE, "draco: unknown geometry type %d",
-                         static_cast<int>(type.value()));
-
-    mcf_status rc = check_counts(static_cast<const uint8_t *>(buf), len, lim, err);
+    mcf_status rc = check_stream(buf, len, lim, err);
     if (rc != MCF_OK)
         return rc;
 
+    draco::DecoderBuffer db;
+    db.Init(static_cast<const char *>(buf), len);
     draco::Decoder dec;
     auto res = dec.DecodeMeshFromBuffer(&db);
     if (!res.ok())
@@ -1066,6 +1082,165 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
     return MCF_OK;
 }
 
+/* ------------------------------------------- primitives (glTF, all attributes) */
+
+static_assert(draco::GeometryAttribute::POSITION == API__DRACO_POSITION &&
+                  draco::GeometryAttribute::NORMAL == API__DRACO_NORMAL &&
+                  draco::DT_FLOAT32 == API__DRACO_FLOAT32,
+              "api_internal.h's Draco numbers");
+
+mcf_status prim_decode(const void *buf, size_t len, const api_limits *lim,
+                       api__draco_prim *out, mcf_error *err)
+{
+    mcf_status rc = buf ? check_stream(buf, len, lim, err)
+                        : api__fail(err, MCF_EDECODE, "draco: no stream");
+    if (rc != MCF_OK)
+        return rc;
+    std::unique_ptr<draco::Mesh> dm, raw;
+    for (int pass = 0; pass < 2; pass++) {
+        /* pass 1: transforms skipped, for each attribute's quantization */
+        draco::DecoderBuffer db;
+        db.Init(static_cast<const char *>(buf), len);
+        draco::Decoder dec;
+        if (pass == 1)
+            for (int t = draco::GeometryAttribute::POSITION;
+                 t < draco::GeometryAttribute::NAMED_ATTRIBUTES_COUNT; t++)
+                dec.SetSkipAttributeTransform(static_cast<draco::GeometryAttribute::Type>(t));
+        auto res = dec.DecodeMeshFromBuffer(&db);
+        if (!res.ok() || !res.value()) {
+            if (pass == 1)
+                break;
+            return api__fail(err, MCF_EDECODE, "draco: %s",
+                             res.ok() ? "no mesh" : res.status().error_msg());
+        }
+        (pass ? raw : dm) = std::move(res).value();
+    }
+    const size_t npts = dm->num_points(), nf = dm->num_faces();
+    if (npts > static_cast<size_t>(lim->max_vertices) ||
+        nf > static_cast<size_t>(lim->max_faces))
+        return api__fail(err, MCF_ELIMIT,
+                         "draco: %zu points and %zu faces exceed max_vertices (%d) "
+                         "or max_faces (%d)",
+                         npts, nf, lim->max_vertices, lim->max_faces);
+    if (nf == 0)
+        return api__fail(err, MCF_EDECODE, "draco: mesh has no faces");
+    out->npoints = static_cast<int>(npts);
+    out->nfaces = static_cast<int>(nf);
+    out->faces = static_cast<int32_t *>(std::malloc(3 * sizeof(int32_t) * nf));
+    const int na = dm->num_attributes();
+    out->attr = static_cast<api__draco_attr *>(
+        std::calloc(static_cast<size_t>(na > 0 ? na : 1), sizeof(api__draco_attr)));
+    if (!out->faces || !out->attr)
+        return api__fail(err, MCF_ENOMEM, "draco: out of memory for %zu faces", nf);
+    for (size_t f = 0; f < nf; f++) {
+        const draco::Mesh::Face &face = dm->face(draco::FaceIndex(static_cast<uint32_t>(f)));
+        for (int k = 0; k < 3; k++) {
+            if (face[k].value() >= npts)
+                return api__fail(err, MCF_EDECODE,
+                                 "draco: face %zu refers to point %u of %zu", f,
+                                 face[k].value(), npts);
+            out->faces[3 * f + k] = static_cast<int32_t>(face[k].value());
+        }
+    }
+    for (int i = 0; i < na; i++) {
+        const draco::PointAttribute *a = dm->attribute(i);
+        api__draco_attr &o = out->attr[out->nattr++];
+        const draco::DataType dt = a->data_type();
+        const int64_t sz = draco::DataTypeLength(dt);
+        const int nc = a->num_components();
+        const draco::DataBuffer *b = a->buffer();
+        if (dt < draco::DT_INT8 || dt > draco::DT_FLOAT64 || nc < 1 || nc > 4 ||
+            !b || a->byte_offset() < 0 || a->byte_stride() < nc * sz)
+            return api__fail(err, MCF_EDECODE,
+                             "draco: attribute %u has %d components of data type %d",
+                             a->unique_id(), nc, static_cast<int>(dt));
+        o.id = static_cast<int>(a->unique_id());
+        o.type = a->attribute_type();
+        o.dtype = dt;
+        o.ncomp = nc;
+        o.normalized = a->normalized();
+        o.vsize = static_cast<int>(nc * sz);
+        const draco::PointAttribute *ra = raw ? raw->GetAttributeByUniqueId(a->unique_id()) : nullptr;
+        o.bits = transform_bits(ra, o.qorigin, &o.qrange);
+        o.data = static_cast<unsigned char *>(std::malloc(npts * o.vsize + 1));
+        if (!o.data)
+            return api__fail(err, MCF_ENOMEM, "draco: out of memory for %zu points", npts);
+        for (size_t p = 0; p < npts; p++) {
+            const uint32_t v = a->mapped_index(draco::PointIndex(static_cast<uint32_t>(p))).value();
+            const int64_t at = a->byte_offset() + a->byte_stride() * static_cast<int64_t>(v);
+            if (v >= a->size() || at < 0 ||
+                static_cast<uint64_t>(at) + o.vsize > b->data_size())
+                return api__fail(err, MCF_EDECODE,
+                                 "draco: attribute %d of point %zu out of its buffer", o.id, p);
+            std::memcpy(o.data + p * o.vsize, b->data() + at, o.vsize);
+        }
+    }
+    return MCF_OK;
+}
+
+mcf_status prim_encode(const api__draco_prim *p, int level, api_buf *out,
+                       mcf_error *err)
+{
+    draco::Mesh dm;
+    dm.set_num_points(static_cast<uint32_t>(p->npoints));
+    const std::vector<int32_t> identity;
+    for (int i = 0; i < p->nattr; i++) {
+        const api__draco_attr &a = p->attr[i];
+        const int id = add_attribute(dm, static_cast<draco::GeometryAttribute::Type>(a.type),
+                                     a.ncomp, static_cast<draco::DataType>(a.dtype),
+                                     a.normalized != 0, static_cast<size_t>(p->npoints),
+                                     a.data, identity);
+        if (id < 0)
+            return api__fail(err, MCF_ENOMEM, "draco: cannot add attribute %d", a.id);
+        dm.attribute(id)->set_unique_id(static_cast<uint32_t>(a.id));
+    }
+    dm.SetNumFaces(static_cast<size_t>(p->nfaces));
+    for (int f = 0; f < p->nfaces; f++) {
+        draco::Mesh::Face face;
+        for (int k = 0; k < 3; k++) {
+            const int32_t v = p->faces[3 * static_cast<size_t>(f) + k];
+            if (v < 0 || v >= p->npoints)
+                return api__fail(err, MCF_EINVAL, "draco: face %d refers to point %d of %d",
+                                 f, static_cast<int>(v), p->npoints);
+            face[k] = draco::PointIndex(static_cast<uint32_t>(v));
+        }
+        dm.SetFace(draco::FaceIndex(static_cast<uint32_t>(f)), face);
+    }
+    draco::ExpertEncoder enc(dm);
+    for (int i = 0; i < p->nattr; i++) {
+        const api__draco_attr &a = p->attr[i];
+        const int bits = std::min(a.bits, API_DRACO_MAX_BITS);
+        if (bits <= 0 || a.dtype != draco::DT_FLOAT32)
+            continue;
+        /* The input's grid when every value still lies on it (an attribute
+         * nobody changed comes back exactly; see encode() on a hostile
+         * stream's values far off its grid), else a new one. */
+        bool on_grid = a.qrange > 0.0f && a.bits == bits && a.ncomp <= 4 &&
+                       a.type != draco::GeometryAttribute::NORMAL;
+        for (int q = 0; on_grid && q < p->npoints; q++)
+            for (int c = 0; c < a.ncomp; c++) {
+                float v;
+                std::memcpy(&v, a.data + static_cast<size_t>(q) * a.vsize + 4 * c, 4);
+                on_grid = on_grid && v >= a.qorigin[c] && v <= a.qorigin[c] + a.qrange;
+            }
+        if (on_grid)
+            enc.SetAttributeExplicitQuantization(i, bits, a.ncomp, a.qorigin, a.qrange);
+        else
+            enc.SetAttributeQuantization(i, bits);
+    }
+    enc.SetSpeedOptions(10 - level, 10 - level);
+    enc.SetEncodingMethod(draco::MESH_EDGEBREAKER_ENCODING);
+    draco::EncoderBuffer eb;
+    const draco::Status st = enc.EncodeToBuffer(&eb);
+    if (!st.ok())
+        return api__fail(err, MCF_EMESH, "draco: the encoder refused the primitive: %s",
+                         st.error_msg());
+    mcf_status rc = api_buf_append(out, eb.data(), eb.size());
+    if (rc != MCF_OK)
+        return api__fail(err, rc, "draco: no room for %zu bytes", eb.size());
+    return MCF_OK;
+}
+
 } /* namespace */
 
 extern "C" mcf_status api_draco_decode(const void *buf, size_t len,
@@ -1119,4 +1294,49 @@ extern "C" int api__draco_declared(const void *buf, size_t len, uint32_t *nv,
     *nv = d[0];
     *nf = d[1];
     return d[1] > 0;
+}
+
+extern "C" void api__draco_prim_free(api__draco_prim *p)
+{
+    if (!p)
+        return;
+    for (int i = 0; i < p->nattr; i++)
+        std::free(p->attr[i].data);
+    std::free(p->attr);
+    std::free(p->faces);
+    std::memset(p, 0, sizeof *p);
+}
+
+extern "C" mcf_status api__draco_prim_decode(const void *buf, size_t len,
+                                             const api_limits *lim,
+                                             api__draco_prim *out, mcf_error *err)
+{
+    api_limits def;
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    std::memset(out, 0, sizeof *out);
+    try {
+        return prim_decode(buf, len, lim, out, err);
+    } catch (const std::bad_alloc &) {
+        return api__fail(err, MCF_ENOMEM, "draco: out of memory while decoding");
+    } catch (...) {
+        return api__fail(err, MCF_EDECODE, "draco: the decoder failed (exception)");
+    }
+}
+
+extern "C" mcf_status api__draco_prim_encode(const api__draco_prim *p, int level,
+                                             api_buf *out, mcf_error *err)
+{
+    if (level < 0 || level > 10)
+        return api__fail(err, MCF_EINVAL,
+                         "draco: compression_level %d out of range (0..10)", level);
+    try {
+        return prim_encode(p, level, out, err);
+    } catch (const std::bad_alloc &) {
+        return api__fail(err, MCF_ENOMEM, "draco: out of memory while encoding");
+    } catch (...) {
+        return api__fail(err, MCF_EMESH, "draco: the encoder failed (exception)");
+    }
 }

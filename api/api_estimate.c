@@ -13,7 +13,10 @@
  * so they are counted: one pass over the lines (`v` lines; `f` lines give
  * tokens - 2 triangles; `endfacet` for STL), about 1 GB/s. PLY and OFF
  * faces may be polygons: a face counts as one triangle here, and the
- * daemon estimates again from the decoded mesh before the flow.
+ * daemon estimates again from the decoded mesh before the flow. A glTF
+ * declares its accessors' counts: the POSITION and indices counts of its
+ * triangle primitives (api__gltf_declared), and the copies of its
+ * buffers are charged per input byte (below).
  *
  * The model, fitted to the peak resident size of `mcf smooth` (which runs
  * the daemon's job: decode, metrics, flow, encode, the input and output
@@ -171,10 +174,15 @@ void api_estimate_memory(const void *buf, size_t len, const api_params *p,
     out->format = api_format_detect(buf, len);
     switch (out->format) {
     case API_FMT_DRACO:
+        out->draco = 1;
         if (api__draco_declared(buf, len, &dv, &df)) {
             nv = dv;
             nf = df;
         }
+        break;
+    case API_FMT_GLB:
+    case API_FMT_GLTF:
+        api__gltf_declared(buf, len, &nv, &nf, &out->draco);
         break;
     case API_FMT_PLY: {
         const char *end = find(s, len < 65536 ? len : 65536, "end_header");
@@ -209,4 +217,11 @@ void api_estimate_memory(const void *buf, size_t len, const api_params *p,
     out->decode_bytes = 170.0 * (double)nf + 64.0 * (double)nv +
                         2.0 * (double)len;
     out->job_bytes = api_estimate_job_bytes(nv, nf, len, p);
+    if (out->format == API_FMT_GLB || out->format == API_FMT_GLTF) {
+        /* A glTF's buffers (textures too) are copied by tinygltf, into the
+         * document and into its record, which the job keeps to the end:
+         * charged 4 and 2 more times the input (not measured yet). */
+        out->decode_bytes += 4.0 * (double)len;
+        out->job_bytes += 2.0 * (double)len;
+    }
 }

@@ -110,6 +110,21 @@ static inline void api__put_f32(unsigned char *p, float f)
     api__put_le32(p, v);
 }
 
+/* A cursor over a binary record (api_pack.c, api_gltf_plan.c). */
+typedef struct {
+    const unsigned char *p, *end;
+} api__reader;
+
+/* Copies n bytes out and moves on; 0 (nothing read) when fewer are left. */
+static inline int api__take(api__reader *r, void *dst, size_t n)
+{
+    if ((size_t)(r->end - r->p) < n)
+        return 0;
+    memcpy(dst, r->p, n);
+    r->p += n;
+    return 1;
+}
+
 /* ----------------------------------------------------- codecs (api_mesh.c) */
 
 /* The checks every text or binary decoder makes first, with messages
@@ -172,11 +187,29 @@ typedef struct {
     float qorigin[4], qrange;
 } api__attr;
 
+typedef struct {
+    int32_t at;
+    char *text;             /* the statement's line, NUL-terminated */
+} api__stmt;
+
 struct api_attrs {
     int nv, nf;
     int float32;            /* positions were single precision */
     int pos_bits;           /* Draco position bits (0 raw, -1 not Draco) */
     api__attr a[API_ATTR_KINDS];
+    /* A glTF input's plan record (api__gltf_plan): the document and where
+     * each welded vertex came from, which the glTF encoder rewrites. */
+    unsigned char *gltf;
+    size_t gltf_len;
+    /* The input's polygons (OBJ, PLY, OFF): polygon p has poly[p] >= 3
+     * corners and became the next poly[p] - 2 faces of the mesh, a fan
+     * (c0, ck, ck+1); NULL when every face was a triangle. */
+    int32_t *poly;
+    int npoly, maxpoly;
+    /* OBJ's g, o, s, usemtl and mtllib statements, in order, each written
+     * back before polygon stmt[i].at (npoly: after the last). */
+    api__stmt *stmt;
+    int nstmt;
 };
 
 /* Takes ownership of values and corners (malloc'ed, corners not NULL;
@@ -185,6 +218,26 @@ struct api_attrs {
 mcf_status api__attrs_take(api_attrs *a, api_attr_kind k, int ncomp,
                            int nvalues, double *values, int32_t *corners,
                            mcf_error *err);
+
+/* The input's polygon sizes (npoly of them, each >= 3, their triangles
+ * summing to the handle's face count; copied, and kept only when one has
+ * more than 3 corners). EINVAL, ENOMEM. */
+mcf_status api__attrs_polys(api_attrs *a, const int32_t *sizes, int npoly,
+                            mcf_error *err);
+/* Appends an OBJ statement line (n bytes at s) before polygon at. ENOMEM. */
+mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
+                           mcf_error *err);
+
+/* Walks the polygons a mesh of nf triangles came from (a NULL handle or
+ * one without polygons: each triangle its own): start with it zeroed; each
+ * call gives the next polygon's corner count *n and its corners as
+ * indices c[] (3 x face + slot) into the face and attribute corner
+ * arrays (room for api__attrs_maxpoly(a)), and returns 0 after the last. */
+typedef struct {
+    int p, face;
+} api__poly_it;
+int api__poly_next(const api_attrs *a, int nf, api__poly_it *it, size_t *c, int *n);
+int api__attrs_maxpoly(const api_attrs *a);
 
 /* EINVAL (named, prefixed by codec) unless a is NULL or was made for a
  * mesh with m's vertex and face counts. */
@@ -220,5 +273,142 @@ int api__attr_per_vertex(const api__attr *at, const mcf_mesh *m, double *out);
  * 0. For the memory estimate (api_estimate.c). */
 int api__draco_declared(const void *buf, size_t len, uint32_t *nv,
                         uint32_t *nf);
+
+/* ------------------------------------- Draco primitives (api_draco.cc) */
+
+/* A Draco mesh as it came, for glTF's KHR_draco_mesh_compression (every
+ * attribute kept, not only the first normal, texcoord and colour that
+ * api_draco_decode_attrs keeps): points, triangles of point indices, and
+ * per attribute its Draco unique id (what the glTF extension's attribute
+ * map names), type, data type and each point's value as the raw bytes of
+ * that data type (vsize = ncomp x the type's size). bits: the stream's
+ * quantization of the attribute (0 raw; octahedron bits for a normal);
+ * qrange > 0: the grid of a quantized one (origin qorigin), which the
+ * encoder reuses so an attribute nobody changed comes back exactly. */
+typedef struct {
+    int id, type, dtype, ncomp, normalized, bits;
+    int vsize;
+    float qorigin[4], qrange;
+    unsigned char *data;            /* npoints x vsize */
+} api__draco_attr;
+
+typedef struct {
+    int npoints, nfaces, nattr;
+    int32_t *faces;                 /* 3 x nfaces point indices */
+    api__draco_attr *attr;
+} api__draco_prim;
+
+/* Draco's type numbers the glTF code needs (draco::GeometryAttribute and
+ * draco::DataType). */
+#define API__DRACO_POSITION 0
+#define API__DRACO_NORMAL 1
+#define API__DRACO_FLOAT32 9
+
+/* Decodes a Draco mesh stream into *out (zeroed first; free with
+ * api__draco_prim_free, also after a failure). The header's counts are
+ * bounded by lim as api_draco_decode bounds them. EDECODE (a point
+ * cloud, an unreadable attribute), ELIMIT, ENOMEM. */
+mcf_status api__draco_prim_decode(const void *buf, size_t len,
+                                  const api_limits *lim, api__draco_prim *out,
+                                  mcf_error *err);
+/* Encodes p (ids kept, each attribute quantized as its bits and grid say,
+ * compression level 0..10, edgebreaker) and appends the stream to out. */
+mcf_status api__draco_prim_encode(const api__draco_prim *p, int level,
+                                  api_buf *out, mcf_error *err);
+void api__draco_prim_free(api__draco_prim *p);
+
+/* ------- glTF (api_gltf_check.c, api_gltf.cc, api_gltf_decode.c, api_gltf_plan.c,
+ * api_gltf_encode.c) */
+
+/* Where a primitive's POSITION or NORMAL values lie in a buffer (a dense
+ * float VEC3 accessor): buf -1 when they have no buffer view (a Draco
+ * primitive's accessors). */
+typedef struct {
+    int acc, buf, stride;       /* accessor index (-1: none) */
+    long long off;              /* first value's byte in the buffer */
+} api__gltf_at;
+
+/* One triangle primitive (mode 4, 5 or 6) of a glTF document. The bridge
+ * (api__gltf_parse) fills the read part; the decoder's weld (api_gltf_decode.c)
+ * the plan part, which is all the encoder needs besides the document. */
+typedef struct {
+    int mesh, index, mode;      /* meshes[mesh].primitives[index] */
+    int nvert;                  /* its vertices (accessor count, Draco points) */
+    api__gltf_at pos, nrm;
+    int draco_view;             /* KHR_draco_mesh_compression's view, else -1 */
+    int draco_pos, draco_nrm;   /* slots in draco.attr (-1: none) */
+    api__draco_prim draco;      /* the decoded stream (Draco primitives) */
+    /* read (the bridge): */
+    int ntri;
+    int32_t *tri;               /* 3 ntri vertex indices (strips, fans unrolled) */
+    double *xyz, *nxyz, *uv, *rgba; /* nvert x 3, 3, 2, 4 (NULL: absent) */
+    /* plan (the weld): */
+    int32_t *vmap;              /* vertex -> mesh vertex (-1: in no triangle) */
+    int32_t *ngroup;            /* vertex -> normal value (-1: none), or NULL */
+} api__gltf_prim;
+
+/* A glTF document: its container (GLB or .gltf), the JSON text as it came,
+ * every buffer's bytes (GLB's BIN chunk, data: URIs decoded), and its
+ * triangle primitives. */
+typedef struct {
+    api_format container;
+    char *json;
+    size_t json_len;
+    int nbuf;
+    unsigned char **buf;
+    size_t *buf_len;
+    int nprim;
+    api__gltf_prim *prim;
+} api__gltf_doc;
+
+/* The limits of a glTF document's structure, beyond api_limits. */
+#define API_GLTF_MAX_DEPTH 64            /* JSON nesting */
+#define API_GLTF_MAX_VALUES 1000000      /* JSON values (objects, numbers, ...) */
+#define API_GLTF_MAX_PRIMS 65536         /* triangle primitives */
+
+/* The largest plan record a decode within lim writes: the document (at
+ * most the input), the weld (8 bytes per vertex) and Draco primitives'
+ * decoded attributes (generously 256 bytes per vertex); ELIMIT beyond. */
+#define API_GLTF_RECORD_MAX(lim) \
+    (2 * (lim)->max_input_bytes + 264 * (size_t)(lim)->max_vertices + 4096)
+
+/* For the memory estimate: the vertices (POSITION counts) and triangles a
+ * glTF's triangle primitives declare, and whether one is Draco; 0 when
+ * the JSON cannot be read. */
+int api__gltf_declared(const void *buf, size_t len, long long *nv, long long *nf,
+                       int *draco);
+
+/* The JSON and BIN chunks of a GLB (strictly: header length = input
+ * length, chunks 4-aligned and inside it); the bin span is NULL/0 without
+ * a BIN chunk. EDECODE naming what is wrong. */
+mcf_status api__glb_split(const void *buf, size_t len, const char **json,
+                          size_t *json_len, const unsigned char **bin,
+                          size_t *bin_len, mcf_error *err);
+
+/* Every check before tinygltf (api_gltf_check.c) on the input (in,
+ * in_len) whose JSON text is (json, n); *tiny (NULL: the input as it is)
+ * the input tinygltf reads instead, malloc'ed, *tiny_len bytes: the JSON,
+ * or for a GLB the same GLB with that JSON. EDECODE, ELIMIT, ENOMEM. */
+mcf_status api__gltf_check_json(const void *in, size_t in_len, const char *json,
+                                size_t n, int glb, char **tiny, size_t *tiny_len,
+                                mcf_error *err);
+
+/* Parses a glTF or GLB (container set by the caller's detection) whose
+ * JSON passed api_gltf_decode.c's checks with tinygltf (no file is ever
+ * opened: built without file system access), checks every accessor it
+ * reads and fills doc's document (json: the input's JSON text, kept as
+ * it came) and each triangle primitive's read part, Draco primitives
+ * decoded. EDECODE, ELIMIT, ENOMEM; free doc either way. */
+mcf_status api__gltf_parse(const void *buf, size_t len, const char *json,
+                           size_t json_len, const api_limits *lim,
+                           api__gltf_doc *doc, mcf_error *err);
+void api__gltf_doc_free(api__gltf_doc *doc);
+
+/* The plan record the decoder leaves in api_attrs (api__gltf_plan) and
+ * what reads it for the encoder (api_gltf_plan.c). */
+mcf_status api__gltf_plan(const api__gltf_doc *doc, api_buf *out,
+                          mcf_error *err);
+mcf_status api__gltf_unplan(const void *buf, size_t len, api__gltf_doc *doc,
+                            mcf_error *err);
 
 #endif /* API_INTERNAL_H */

@@ -33,6 +33,8 @@ static const struct {
     {"ply", ".ply", "model/x-ply"},
     {"stl", ".stl", "model/stl"},
     {"off", ".off", "model/x-off"},
+    {"glb", ".glb", "model/gltf-binary"},
+    {"gltf", ".gltf", "model/gltf+json"},
 };
 #define NFORMATS (sizeof formats / sizeof formats[0])
 
@@ -121,6 +123,13 @@ static int looks_obj(const char *p, size_t n)
     return 0;
 }
 
+/* A JSON object whose window holds an "asset" member: a .gltf. */
+static int looks_gltf(const char *p, size_t n)
+{
+    return n > 0 && p[0] == '{' &&
+           contains(p, n < DETECT_WINDOW ? n : DETECT_WINDOW, "\"asset\"");
+}
+
 api_format api_format_detect(const void *buf, size_t len)
 {
     const char *p = buf;
@@ -131,6 +140,8 @@ api_format api_format_detect(const void *buf, size_t len)
         return API_FMT_UNKNOWN;
     if (len >= 5 && memcmp(p, "DRACO", 5) == 0)
         return API_FMT_DRACO;
+    if (len >= 4 && memcmp(p, "glTF", 4) == 0)
+        return API_FMT_GLB;
     if ((len >= 4 && memcmp(p, "ply\n", 4) == 0)
         || (len >= 5 && memcmp(p, "ply\r\n", 5) == 0))
         return API_FMT_PLY;
@@ -152,6 +163,8 @@ api_format api_format_detect(const void *buf, size_t len)
     }
     if (looks_obj(p, len))
         return API_FMT_OBJ;
+    if (looks_gltf(p + i, len - i))
+        return API_FMT_GLTF;
     return API_FMT_UNKNOWN;
 }
 
@@ -280,7 +293,7 @@ mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,
     return api_mesh_decode_attrs(buf, len, lim, out, NULL, fmt, err);
 }
 
-/* An empty attribute handle for the formats that carry none (STL, OFF);
+/* An empty attribute handle for the format that carries none (STL);
  * a binary STL's positions are single precision. */
 static mcf_status empty_attrs(mcf_mesh *m, int float32, api_attrs **attrs,
                               mcf_error *err)
@@ -323,13 +336,16 @@ mcf_status api_mesh_decode_attrs(const void *buf, size_t len,
         return api_draco_decode_attrs(buf, len, lim, out, attrs, err);
     case API_FMT_PLY:
         return api_ply_decode_attrs(buf, len, lim, out, attrs, err);
-    case API_FMT_STL:
+    case API_FMT_GLB:
+    case API_FMT_GLTF:
+        return api_gltf_decode_attrs(buf, len, lim, out, attrs, err);
     case API_FMT_OFF:
-        rc = f == API_FMT_STL ? api_stl_decode(buf, len, lim, &m, err)
-                              : api_off_decode(buf, len, lim, &m, err);
+        return api_off_decode_attrs(buf, len, lim, out, attrs, err);
+    case API_FMT_STL:
+        rc = api_stl_decode(buf, len, lim, &m, err);
         if (rc == MCF_OK && attrs) {
             /* The size rule of api_format_detect: a binary STL (float32). */
-            int bin = f == API_FMT_STL && len >= 84
+            int bin = len >= 84
                       && 84 + 50 * (uint64_t)api__get_le32(
                                   (const unsigned char *)buf + 80)
                              == (uint64_t)len;
@@ -345,7 +361,7 @@ mcf_status api_mesh_decode_attrs(const void *buf, size_t len,
         break;
     }
     return api__fail(err, MCF_EFORMAT,
-                     "unknown mesh format (accepted: obj, draco, ply, stl, off)");
+                     "unknown mesh format (accepted: obj, draco, ply, stl, off, glb, gltf)");
 }
 
 mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
@@ -363,7 +379,10 @@ mcf_status api_mesh_encode(const mcf_mesh *m, const api_encode_opts *o,
     case API_FMT_STL:
         return api_stl_encode(m, o, out, err);
     case API_FMT_OFF:
-        return api_off_encode(m, out, err);
+        return api_off_encode_opts(m, o, out, err);
+    case API_FMT_GLB:
+    case API_FMT_GLTF:
+        return api_gltf_encode(m, o, out, err);
     case API_FMT_UNKNOWN:
         break;
     }

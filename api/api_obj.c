@@ -71,11 +71,12 @@ static int binary_byte(const linecur *l)
 
 /* Pass 1: counts vertices and triangles, checking the limits as they grow. */
 static mcf_status count(const char *buf, size_t len, const api_limits *lim,
-                        int *nv, int *nf, long *nvt, long *nvn, mcf_error *err)
+                        int *nv, int *nf, long *nvt, long *nvn, long *npoly,
+                        mcf_error *err)
 {
     api__lines c = {buf, buf + len, 0};
     linecur l;
-    long v = 0, f = 0, vt = 0, vn = 0;
+    long v = 0, f = 0, vt = 0, vn = 0, np = 0;
 
     while (api__line_next(&c, &l.s, &l.e)) {
         const char *t;
@@ -102,11 +103,13 @@ static mcf_status count(const char *buf, size_t len, const api_limits *lim,
                                      "line %ld: more than max_faces (%d) triangles",
                                      c.line, lim->max_faces);
                 f += k - 2;
+                np++;
             }
         }
     }
     *nv = (int)v;
     *nf = (int)f;
+    *npoly = np;
     *nvt = vt;
     *nvn = vn;
     return MCF_OK;
@@ -120,7 +123,13 @@ typedef struct {
     int32_t *ct, *cn;               /* 3*nf corner indices */
     int col_ok;                     /* every `v` had r g b so far */
     int maxsig;                     /* most significant digits of a coordinate */
+    int32_t *psize;                 /* each `f` line's corner count */
+    long np;                        /* `f` lines so far */
+    api_attrs *st;                  /* the statements kept, until make_attrs */
 } objattr;
+
+/* The statements that pass through to the output, in order. */
+static const char *const kept[] = {"g", "o", "s", "usemtl", "mtllib", NULL};
 
 /* The significant digits of a number token: mantissa digits without the
  * leading zeros and, after a decimal point, the trailing ones. */
@@ -375,6 +384,8 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
                 return api__fail(err, MCF_EDECODE,
                                  "line %ld: face has %d vertices, at least 3 needed",
                                  c.line, k);
+            if (A)
+                A->psize[A->np++] = k;
         } else {
             int i;
             for (i = 0; skipped[i]; i++)
@@ -384,6 +395,18 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
                 return api__fail(err, MCF_EDECODE,
                                  "line %ld: unknown statement '%s'", c.line,
                                  api__show_utf8(t, n, shown));
+            for (i = 0; A && kept[i]; i++)
+                if (api__tok_is(t, n, kept[i])) {
+                    /* the line from its keyword, without trailing blanks */
+                    const char *e = l.e;
+                    mcf_status rc;
+                    while (e > t && api__is_space((unsigned char)e[-1]))
+                        e--;
+                    if ((rc = api__attrs_stmt(A->st, (int32_t)A->np, t, (size_t)(e - t),
+                                              err)) != MCF_OK)
+                        return rc;
+                    break;
+                }
         }
     }
     return MCF_OK;
@@ -429,10 +452,17 @@ static mcf_status make_attrs(objattr *A, const mcf_mesh *m, api_attrs **attrs,
             A->col = NULL;
         }
     }
+    if (rc == MCF_OK)
+        rc = api__attrs_polys(a, A->psize, (int)A->np, err);
     if (rc != MCF_OK) {
         api_attrs_free(a);
         return rc;
     }
+    /* the statements move over */
+    a->stmt = A->st->stmt;
+    a->nstmt = A->st->nstmt;
+    A->st->stmt = NULL;
+    A->st->nstmt = 0;
     *attrs = a;
     return MCF_OK;
 }
@@ -443,7 +473,7 @@ mcf_status api_obj_decode_attrs(const void *buf, size_t len,
 {
     api_limits def;
     int nv = 0, nf = 0;
-    long nvt = 0, nvn = 0;
+    long nvt = 0, nvn = 0, npoly = 0;
     double *X = NULL;
     int32_t *F = NULL;
     objattr A, *pa = NULL;
@@ -459,7 +489,7 @@ mcf_status api_obj_decode_attrs(const void *buf, size_t len,
         buf = (const char *)buf + 3;
         len -= 3;
     }
-    if ((rc = count(buf, len, lim, &nv, &nf, &nvt, &nvn, err)) != MCF_OK)
+    if ((rc = count(buf, len, lim, &nv, &nf, &nvt, &nvn, &npoly, err)) != MCF_OK)
         return rc;
     X = malloc(3 * sizeof *X * (size_t)(nv ? nv : 1));
     F = malloc(3 * sizeof *F * (size_t)(nf ? nf : 1));
@@ -479,7 +509,10 @@ mcf_status api_obj_decode_attrs(const void *buf, size_t len,
         A.col = malloc(3 * sizeof *A.col * (size_t)(nv + 1));
         A.ct = nvt ? malloc(sizeof *A.ct * nc) : NULL;
         A.cn = nvn ? malloc(sizeof *A.cn * nc) : NULL;
-        if (!A.vt || !A.vn || !A.col || (nvt && !A.ct) || (nvn && !A.cn)) {
+        A.psize = malloc(sizeof *A.psize * (size_t)(npoly + 1));
+        A.st = api_attrs_new(0, 0);
+        if (!A.vt || !A.vn || !A.col || (nvt && !A.ct) || (nvn && !A.cn) || !A.psize ||
+            !A.st) {
             rc = api__fail(err, MCF_ENOMEM,
                            "obj: no memory for the attributes of %d faces", nf);
             goto done;
@@ -511,6 +544,8 @@ done:
     free(A.col);
     free(A.ct);
     free(A.cn);
+    free(A.psize);
+    api_attrs_free(A.st);
     return rc;
 }
 
@@ -551,7 +586,8 @@ mcf_status api_obj_encode_opts(const mcf_mesh *m, const api_encode_opts *o,
         }
     }
 
-    rc = api_buf_printf(out, "# mcfd: %d vertices, %d triangles\n", nv, nf);
+    rc = api_buf_printf(out, "# mcfd: %d vertices, %d %s\n", nv,
+                        a && a->poly ? a->npoly : nf, a && a->poly ? "polygons" : "triangles");
     for (i = 0; i < nv && rc == MCF_OK; i++) {
         rc = api_buf_printf(out, "v %.17g %.17g %.17g", X[3 * i], X[3 * i + 1],
                             X[3 * i + 2]);
@@ -570,26 +606,37 @@ mcf_status api_obj_encode_opts(const mcf_mesh *m, const api_encode_opts *o,
     for (i = 0; nm && i < nm->nvalues && rc == MCF_OK; i++)
         rc = api_buf_printf(out, "vn %.9g %.9g %.9g\n", N[3 * i], N[3 * i + 1],
                             N[3 * i + 2]);
-    for (i = 0; i < nf && rc == MCF_OK; i++) {
-        if (!tc && !nm) {
-            rc = api_buf_printf(out, "f %ld %ld %ld\n", (long)F[3 * i] + 1,
-                                (long)F[3 * i + 1] + 1, (long)F[3 * i + 2] + 1);
-            continue;
+    {
+        /* polygons as they came, each statement before its polygon */
+        api__poly_it it = {0, 0};
+        size_t *cs = malloc(sizeof *cs * (size_t)api__attrs_maxpoly(a));
+        int n, s = 0;
+        if (!cs)
+            rc = MCF_ENOMEM;
+        while (rc == MCF_OK && api__poly_next(a, nf, &it, cs, &n)) {
+            for (; a && s < a->nstmt && a->stmt[s].at < it.p && rc == MCF_OK; s++)
+                rc = api_buf_printf(out, "%s\n", a->stmt[s].text);
+            if (rc == MCF_OK)
+                rc = api_buf_append(out, "f", 1);
+            for (k = 0; k < n && rc == MCF_OK; k++) {
+                size_t c = cs[k];
+                long v = (long)F[c] + 1;
+                if (tc && nm)
+                    rc = api_buf_printf(out, " %ld/%ld/%ld", v, (long)tc->corners[c] + 1,
+                                        (long)nm->corners[c] + 1);
+                else if (tc)
+                    rc = api_buf_printf(out, " %ld/%ld", v, (long)tc->corners[c] + 1);
+                else if (nm)
+                    rc = api_buf_printf(out, " %ld//%ld", v, (long)nm->corners[c] + 1);
+                else
+                    rc = api_buf_printf(out, " %ld", v);
+            }
+            if (rc == MCF_OK)
+                rc = api_buf_append(out, "\n", 1);
         }
-        rc = api_buf_append(out, "f", 1);
-        for (k = 0; k < 3 && rc == MCF_OK; k++) {
-            size_t c = 3 * (size_t)i + (size_t)k;
-            long v = (long)F[c] + 1;
-            if (tc && nm)
-                rc = api_buf_printf(out, " %ld/%ld/%ld", v, (long)tc->corners[c] + 1,
-                                    (long)nm->corners[c] + 1);
-            else if (tc)
-                rc = api_buf_printf(out, " %ld/%ld", v, (long)tc->corners[c] + 1);
-            else
-                rc = api_buf_printf(out, " %ld//%ld", v, (long)nm->corners[c] + 1);
-        }
-        if (rc == MCF_OK)
-            rc = api_buf_append(out, "\n", 1);
+        for (; a && s < a->nstmt && rc == MCF_OK; s++)
+            rc = api_buf_printf(out, "%s\n", a->stmt[s].text);
+        free(cs);
     }
     free(col);
     free(N);

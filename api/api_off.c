@@ -14,7 +14,11 @@
  * vertex line takes at least 6 bytes, a face line 8) and then the limits
  * before anything is allocated.
  *
- * Writer: "OFF", counts, %.17g positions (exact round trip), triangles.
+ * Attributes (api_off_decode_attrs): none but the polygons' sizes, so
+ * the writer gives quads and polygons back as they came.
+ *
+ * Writer: "OFF", counts, %.17g positions (exact round trip), triangles,
+ * or the input's polygons when the attributes hold them.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -72,8 +76,10 @@ static int off_keyword(const char *t, size_t n, int *other_dims)
     return i == n - 3;
 }
 
-mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
-                          mcf_mesh **out, mcf_error *err)
+/* The decoder; psize (NULL: not wanted) gets each face's corner count
+ * (cnt[1] of them, malloc'ed, the caller's). */
+static mcf_status decode(const void *buf, size_t len, const api_limits *lim,
+                         mcf_mesh **out, int32_t **psize, int *npoly, mcf_error *err)
 {
     api_limits def;
     reader r;
@@ -148,6 +154,12 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
                          cnt[0]);
 
     X = malloc(3 * sizeof *X * (size_t)cnt[0]);
+    if (psize && !(*psize = malloc(sizeof **psize * (size_t)cnt[1]))) {
+        rc = api__fail(err, MCF_ENOMEM, "off: no memory for %lld faces", cnt[1]);
+        goto done;
+    }
+    if (psize)
+        *npoly = (int)cnt[1];
     if (!X) {
         rc = api__fail(err, MCF_ENOMEM, "off: no memory for %lld vertices", cnt[0]);
         goto done;
@@ -238,6 +250,8 @@ mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
             }
             prev = (int32_t)v;
         }
+        if (psize)
+            (*psize)[i] = (int32_t)deg;
         /* Anything left on the line is the face's colour: ignored. */
     }
     if (next_line(&r)) {
@@ -251,20 +265,68 @@ done:
     return rc;
 }
 
+mcf_status api_off_decode(const void *buf, size_t len, const api_limits *lim,
+                          mcf_mesh **out, mcf_error *err)
+{
+    return decode(buf, len, lim, out, NULL, NULL, err);
+}
+
+mcf_status api_off_decode_attrs(const void *buf, size_t len, const api_limits *lim,
+                                mcf_mesh **out, api_attrs **attrs, mcf_error *err)
+{
+    int32_t *psize = NULL;
+    int np = 0;
+    mcf_mesh *m = NULL;
+    api_attrs *a;
+    mcf_status rc = decode(buf, len, lim, &m, attrs ? &psize : NULL, &np, err);
+    if (rc == MCF_OK && attrs) {
+        if (!(a = api_attrs_new(mcf_mesh_nvertices(m), mcf_mesh_nfaces(m))))
+            rc = api__fail(err, MCF_ENOMEM, "off: out of memory");
+        else if ((rc = api__attrs_polys(a, psize, np, err)) != MCF_OK)
+            api_attrs_free(a);
+        else
+            *attrs = a;
+    }
+    free(psize);
+    if (rc != MCF_OK) {
+        mcf_mesh_free(m);
+        return rc;
+    }
+    *out = m;
+    return MCF_OK;
+}
+
 mcf_status api_off_encode(const mcf_mesh *m, api_buf *out, mcf_error *err)
 {
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i;
+    return api_off_encode_opts(m, NULL, out, err);
+}
+
+mcf_status api_off_encode_opts(const mcf_mesh *m, const api_encode_opts *o,
+                               api_buf *out, mcf_error *err)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i, n, k;
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
-    size_t len0 = out->len;
+    const api_attrs *a = o ? o->attrs : NULL;
+    api__poly_it it = {0, 0};
+    size_t len0 = out->len, *cs;
     mcf_status rc;
 
-    rc = api_buf_printf(out, "OFF\n%d %d 0\n", nv, nf);
+    if ((rc = api__attrs_check(a, m, "off", err)) != MCF_OK)
+        return rc;
+    if (!(cs = malloc(sizeof *cs * (size_t)api__attrs_maxpoly(a))))
+        return api__fail(err, MCF_ENOMEM, "off: out of memory");
+    rc = api_buf_printf(out, "OFF\n%d %d 0\n", nv, a && a->poly ? a->npoly : nf);
     for (i = 0; i < nv && rc == MCF_OK; i++)
         rc = api_buf_printf(out, "%.17g %.17g %.17g\n", X[3 * i], X[3 * i + 1],
                             X[3 * i + 2]);
-    for (i = 0; i < nf && rc == MCF_OK; i++)
-        rc = api_buf_printf(out, "3 %ld %ld %ld\n", (long)F[3 * i],
-                            (long)F[3 * i + 1], (long)F[3 * i + 2]);
+    while (rc == MCF_OK && api__poly_next(a, nf, &it, cs, &n)) {
+        rc = api_buf_printf(out, "%d", n);
+        for (k = 0; k < n && rc == MCF_OK; k++)
+            rc = api_buf_printf(out, " %ld", (long)F[cs[k]]);
+        if (rc == MCF_OK)
+            rc = api_buf_append(out, "\n", 1);
+    }
+    free(cs);
     return api__encode_end(out, len0, rc, "off", nv, "vertices", err);
 }

@@ -17,6 +17,11 @@
  *     int32 present; when 1: int32 ncomp, nvalues, bits;
  *     float qorigin[4], qrange; double values[ncomp nvalues];
  *     int32 corners[3 nf]
+ *   uint64 bytes of a glTF input's document record (api__gltf_plan), the
+ *   record
+ *
+ * An OBJ's, PLY's or OFF's polygons and OBJ statements are not in it: those
+ * formats never decode in the sandbox.
  *
  * Unpacking trusts nothing: every count is checked against the bytes left
  * and the limits, the mesh goes through core's checks and every attribute
@@ -68,29 +73,22 @@ mcf_status api_mesh_pack(const mcf_mesh *m, const api_attrs *attrs,
                                  3 * sizeof(int32_t) * (size_t)nf)) != MCF_OK)
             goto fail;
     }
+    {
+        uint64_t gl = attrs && attrs->gltf ? attrs->gltf_len : 0;
+        if ((rc = api_buf_append(out, &gl, sizeof gl)) != MCF_OK ||
+            (rc = api_buf_append(out, attrs && attrs->gltf ? attrs->gltf : NULL,
+                                 (size_t)gl)) != MCF_OK)
+            goto fail;
+    }
     return MCF_OK;
 fail:
     return api__fail(err, rc, "pack: %d vertices, %d faces: %s", nv, nf,
                      mcf_strerror(rc));
 }
 
-typedef struct {
-    const unsigned char *p, *end;
-} reader;
-
-/* Copies n bytes out, or 0 when fewer are left. */
-static int take(reader *r, void *dst, size_t n)
-{
-    if ((size_t)(r->end - r->p) < n)
-        return 0;
-    memcpy(dst, r->p, n);
-    r->p += n;
-    return 1;
-}
-
 /* A malloc'ed copy of count items of size bytes, or NULL (short input,
  * overflow or no memory; *short_input says which). */
-static void *take_array(reader *r, size_t count, size_t size, int *short_input)
+static void *take_array(api__reader *r, size_t count, size_t size, int *short_input)
 {
     void *a;
     *short_input = 0;
@@ -109,7 +107,7 @@ static void *take_array(reader *r, size_t count, size_t size, int *short_input)
 mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
                            mcf_mesh **out, api_attrs **attrs, mcf_error *err)
 {
-    reader r = {buf, (const unsigned char *)buf + len};
+    api__reader r = {buf, (const unsigned char *)buf + len};
     char magic[8];
     int32_t nv, nf, f32, pbits;
     double *X = NULL;
@@ -119,9 +117,9 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
     mcf_status rc = MCF_EDECODE;
     int k, shrt;
 
-    if (!take(&r, magic, sizeof magic) || memcmp(magic, MAGIC, sizeof magic) ||
-        !take(&r, &nv, 4) || !take(&r, &nf, 4) || !take(&r, &f32, 4) ||
-        !take(&r, &pbits, 4))
+    if (!api__take(&r, magic, sizeof magic) || memcmp(magic, MAGIC, sizeof magic) ||
+        !api__take(&r, &nv, 4) || !api__take(&r, &nf, 4) || !api__take(&r, &f32, 4) ||
+        !api__take(&r, &pbits, 4))
         return api__fail(err, MCF_EDECODE, "unpack: no mesh record");
     if (nv <= 0 || nf <= 0 || nv > lim->max_vertices || nf > lim->max_faces)
         return api__fail(err, MCF_EDECODE, "unpack: %ld vertices, %ld faces",
@@ -146,15 +144,15 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
         float qo[4], qr;
         double *v;
         int32_t *c;
-        if (!take(&r, &present, 4)) {
+        if (!api__take(&r, &present, 4)) {
             rc = api__fail(err, MCF_EDECODE, "unpack: truncated attributes");
             goto fail;
         }
         if (!present)
             continue;
-        if (!take(&r, &ncomp, 4) || !take(&r, &nvalues, 4) ||
-            !take(&r, &bits, 4) || !take(&r, qo, sizeof qo) ||
-            !take(&r, &qr, sizeof qr) || ncomp < 2 || ncomp > 4 ||
+        if (!api__take(&r, &ncomp, 4) || !api__take(&r, &nvalues, 4) ||
+            !api__take(&r, &bits, 4) || !api__take(&r, qo, sizeof qo) ||
+            !api__take(&r, &qr, sizeof qr) || ncomp < 2 || ncomp > 4 ||
             nvalues < 0 || nvalues > 3 * nf) {
             rc = api__fail(err, MCF_EDECODE, "unpack: bad attribute %d", k);
             goto fail;
@@ -173,6 +171,19 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
         a->a[k].bits = bits;
         memcpy(a->a[k].qorigin, qo, sizeof qo);
         a->a[k].qrange = qr;
+    }
+    {
+        uint64_t gl = 0;
+        if (!api__take(&r, &gl, sizeof gl) || gl > api_mesh_pack_max(lim)) {
+            rc = api__fail(err, MCF_EDECODE, "unpack: bad glTF record");
+            goto fail;
+        }
+        if (gl && !(a->gltf = take_array(&r, (size_t)gl, 1, &shrt))) {
+            rc = shrt ? api__fail(err, MCF_EDECODE, "unpack: truncated glTF record")
+                      : api__fail(err, MCF_ENOMEM, "unpack: out of memory");
+            goto fail;
+        }
+        a->gltf_len = (size_t)gl;
     }
     if (r.p != r.end) {
         rc = api__fail(err, MCF_EDECODE, "unpack: %zu bytes after the record",
@@ -193,4 +204,13 @@ fail:
     mcf_mesh_free(m);
     api_attrs_free(a);
     return rc;
+}
+
+size_t api_mesh_pack_max(const api_limits *lim)
+{
+    size_t nv = (size_t)lim->max_vertices, nf = (size_t)lim->max_faces;
+    /* the mesh, every attribute at its largest (a value per corner, 4
+     * components), and a glTF record (API_GLTF_RECORD_MAX) */
+    return 64 + 24 * nv + 12 * nf + 3 * (48 + 3 * nf * 4 * sizeof(double) + 12 * nf) +
+           API_GLTF_RECORD_MAX(lim);
 }

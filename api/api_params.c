@@ -133,7 +133,7 @@ static const keydef keys[] = {
 };
 #define NKEYS (sizeof keys / sizeof keys[0])
 
-static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", NULL};
+static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", "glb", "gltf", NULL};
 
 /* What each key means, for people: the unit and one line of help, the
  * default in words where it is derived rather than a value, and whether it

@@ -17,7 +17,8 @@
  * Attributes (api_ply_decode_attrs): vertex nx ny nz, s t (or u v,
  * texture_u texture_v), red green blue [alpha] (integer types scaled to
  * [0, 1]) and the face `texcoord` list draco_decoder writes; one with a
- * missing component or a non-finite value is dropped, never an error.
+ * missing component or a non-finite value is dropped, never an error;
+ * and each face's corner count, so polygons can be written back.
  *
  * Writer: ascii or binary_little_endian (independent of the host's byte
  * order), x y z as float when the attributes say the input was single
@@ -26,7 +27,8 @@
  * `texcoord` list), uchar red green blue [alpha]; optional float
  * `mean_curvature` and `gaussian_curvature` vertex properties (given, or
  * computed with ply_curvature); `property list uchar int vertex_indices`
- * triangles. ASCII uses %.17g for doubles, %.9g for floats (exact round
+ * triangles, or the input's polygons when the attributes hold them (of at
+ * most 127 corners, so a face texcoord list's count fits its uchar). ASCII uses %.17g for doubles, %.9g for floats (exact round
  * trips).
  */
 #include <limits.h>
@@ -400,6 +402,8 @@ typedef struct {
     int ftc_bad;                   /* some face lacks a usable list */
     double *tmp;
     long long tmp_n, tmp_cap, poly_n, tri0;
+    int32_t *psize;                /* each face row's corner count */
+    long long np, np_cap;
 } body;
 
 /* The value of type t stored at b; swap: the file's byte order differs
@@ -519,7 +523,18 @@ static mcf_status put_ftc(body *b, long long k, double v, mcf_error *err)
 static mcf_status end_face(body *b, mcf_error *err)
 {
     long long t, ntri = b->T.n - b->tri0;
-    if (!b->want || b->ftc_bad)
+    if (!b->want)
+        return MCF_OK;
+    if (b->np == b->np_cap) {
+        long long nc = b->np_cap ? 2 * b->np_cap : 1024;
+        int32_t *q = realloc(b->psize, sizeof *q * (size_t)nc);
+        if (!q)
+            return api__fail(err, MCF_ENOMEM, "ply: out of memory for the faces");
+        b->psize = q;
+        b->np_cap = nc;
+    }
+    b->psize[b->np++] = (int32_t)b->poly_n;
+    if (b->ftc_bad)
         return MCF_OK;
     /* A list of another length drops the attribute; non-finite values
      * are caught once all are in (make_attrs). */
@@ -842,6 +857,8 @@ static mcf_status make_attrs(body *b, const mcf_mesh *m, int float32,
                 rc = api__attr_dedupe(&a->a[API_ATTR_TEXCOORD], nc, err);
         }
     }
+    if (rc == MCF_OK)
+        rc = api__attrs_polys(a, b->psize, (int)b->np, err);
     if (rc != MCF_OK) {
         api_attrs_free(a);
         return rc;
@@ -995,6 +1012,7 @@ done:
         free(b.va[i]);
     free(b.ftc);
     free(b.tmp);
+    free(b.psize);
     header_free(&h);
     return rc;
 }
@@ -1130,14 +1148,28 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
     int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i, k;
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
-    int binary = o ? o->ply_binary != 0 : 1;
-    size_t len0 = out->len;
+    int binary = o ? o->ply_binary != 0 : 1, pn;
+    size_t len0 = out->len, *cs;
+    unsigned char *fb;
+    const api_attrs *pa;
+    api__poly_it it = {0, 0};
     plyextra x;
     const char *real;
     mcf_status rc;
 
     if ((rc = extra_init(&x, m, o, err)) != MCF_OK)
         return rc;
+    /* The input's polygons, when their counts fit the uchar list count
+     * (and a texcoord list of 2 per corner fits too); else triangles. */
+    pa = o && o->attrs && api__attrs_maxpoly(o->attrs) <= 127 ? o->attrs : NULL;
+    cs = malloc(sizeof *cs * (size_t)api__attrs_maxpoly(pa));
+    fb = malloc((size_t)api__attrs_maxpoly(pa) * (4 + 2 * 8) + 2);
+    if (!cs || !fb) {
+        free(cs);
+        free(fb);
+        extra_free(&x);
+        return api__fail(err, MCF_ENOMEM, "ply: out of memory");
+    }
     real = x.f32 ? "float" : "double";
     rc = api_buf_printf(out,
                         "ply\nformat %s 1.0\ncomment mcfd\nelement vertex %d\n"
@@ -1160,7 +1192,7 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
     if (rc == MCF_OK)
         rc = api_buf_printf(out, "element face %d\nproperty list uchar int "
                                  "vertex_indices\n%s",
-                            nf, x.ftc ? "" : "end_header\n");
+                            pa && pa->poly ? pa->npoly : nf, x.ftc ? "" : "end_header\n");
     if (rc == MCF_OK && x.ftc)
         rc = api_buf_printf(out, "property list uchar %s texcoord\nend_header\n",
                             real);
@@ -1204,30 +1236,28 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
                 rc = api_buf_append(out, "\n", 1);
         }
     }
-    for (i = 0; i < nf && rc == MCF_OK; i++) {
+    while (rc == MCF_OK && api__poly_next(pa, nf, &it, cs, &pn)) {
         if (binary) {
-            unsigned char f[13 + 1 + 6 * 8];
-            size_t n = 13;
-            f[0] = 3;
-            api__put_le32(f + 1, (uint32_t)F[3 * i]);
-            api__put_le32(f + 5, (uint32_t)F[3 * i + 1]);
-            api__put_le32(f + 9, (uint32_t)F[3 * i + 2]);
+            size_t b = 1;
+            fb[0] = (unsigned char)pn;
+            for (k = 0; k < pn; k++, b += 4)
+                api__put_le32(fb + b, (uint32_t)F[cs[k]]);
             if (x.ftc) {
-                f[n++] = 6;
-                for (k = 0; k < 6; k++)
-                    put_real(f, &n,
-                             x.ftc->values[2 * (size_t)x.ftc->corners[3 * (size_t)i + k / 2]
-                                           + (size_t)(k % 2)],
+                fb[b++] = (unsigned char)(2 * pn);
+                for (k = 0; k < 2 * pn; k++)
+                    put_real(fb, &b,
+                             x.ftc->values[2 * (size_t)x.ftc->corners[cs[k / 2]] + (size_t)(k % 2)],
                              x.f32);
             }
-            rc = api_buf_append(out, f, n);
+            rc = api_buf_append(out, fb, b);
         } else {
-            rc = api_buf_printf(out, "3 %ld %ld %ld", (long)F[3 * i],
-                                (long)F[3 * i + 1], (long)F[3 * i + 2]);
+            rc = api_buf_printf(out, "%d", pn);
+            for (k = 0; k < pn && rc == MCF_OK; k++)
+                rc = api_buf_printf(out, " %ld", (long)F[cs[k]]);
             if (rc == MCF_OK && x.ftc) {
-                rc = api_buf_printf(out, " 6");
-                for (k = 0; k < 6 && rc == MCF_OK; k++) {
-                    double t = x.ftc->values[2 * (size_t)x.ftc->corners[3 * (size_t)i + k / 2]
+                rc = api_buf_printf(out, " %d", 2 * pn);
+                for (k = 0; k < 2 * pn && rc == MCF_OK; k++) {
+                    double t = x.ftc->values[2 * (size_t)x.ftc->corners[cs[k / 2]]
                                              + (size_t)(k % 2)];
                     rc = print_real(out, t, x.f32);
                 }
@@ -1236,6 +1266,8 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
                 rc = api_buf_append(out, "\n", 1);
         }
     }
+    free(cs);
+    free(fb);
     extra_free(&x);
     return api__encode_end(out, len0, rc, "ply", nv, "vertices", err);
 }

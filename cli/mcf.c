@@ -59,9 +59,9 @@ static const char usage_text[] =
     "  mcf --version                 the version\n"
     "\n"
     "`mcf COMMAND --help` lists that command's options with their defaults and units.\n"
-    "Formats: obj, draco (.drc), ply, stl, off, detected from the bytes on input and\n"
-    "taken from OUT's extension (or --format) on output; IN or OUT may be '-'\n"
-    "(stdin/stdout; OUT '-' needs --format).\n"
+    "Formats: obj, draco (.drc), ply, stl, off, glb and gltf (glTF 2.0), detected from\n"
+    "the bytes on input and taken from OUT's extension (or --format) on output; IN or\n"
+    "OUT may be '-' (stdin/stdout; OUT '-' needs --format).\n"
     "Exit status: 0 done; 1 failed (one line 'mcf: ...' on stderr); 2 usage error;\n"
     "3 `mcf smooth --strict` and the result has warnings.\n";
 

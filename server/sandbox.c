@@ -181,9 +181,9 @@ void srv_sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
     out->wall_s = 10.0 * out->cpu_s + 5.0;
 }
 
-int srv_sandbox_wanted(api_format fmt)
+int srv_sandbox_wanted(const api_mem_estimate *est)
 {
-    return fmt == API_FMT_DRACO;
+    return est->draco;
 }
 
 static double mono(void)
@@ -194,13 +194,10 @@ static double mono(void)
 }
 
 /* The largest record a decode within lim can send back: head, message,
- * and api_mesh_pack's layout with every attribute present at its largest
- * (a value per corner, 4 components). */
+ * and api_mesh_pack's record at its largest. */
 static size_t reply_max(const api_limits *lim)
 {
-    size_t nv = (size_t)lim->max_vertices, nf = (size_t)lim->max_faces;
-    return sizeof(child_head) + MCF_ERRMSG_SIZE + 64 + 24 * nv + 12 * nf +
-           3 * (48 + 3 * nf * 4 * sizeof(double) + 12 * nf);
+    return sizeof(child_head) + MCF_ERRMSG_SIZE + api_mesh_pack_max(lim);
 }
 
 mcf_status srv_sandbox_decode(const void *buf, size_t len,
@@ -415,13 +412,13 @@ mcf_status svc_decode_upload(const void *buf, size_t len,
     srv_sandbox_why why;
     mcf_status rc;
 
-    if (!srv_sandbox_wanted(api_format_detect(buf, len))) {
+    api_estimate_memory(buf, len, NULL, &est);
+    if (!srv_sandbox_wanted(&est)) {
         rc = api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, &err);
         if (rc != MCF_OK)
             svc_error_from_mcf(e, rc, SVC_STAGE_DECODE, what, &err);
         return rc;
     }
-    api_estimate_memory(buf, len, NULL, &est);
     srv_sandbox_limits_for(&est, cfg->decode_cpu, cfg->decode_memory, &sl);
     rc = srv_sandbox_decode(buf, len, &cfg->lim, &sl, cancel, out, attrs, fmt,
                             &why, &err);

@@ -37,9 +37,10 @@ typedef enum {
 void srv_sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
                             size_t mem_floor, srv_sandbox_limits *out);
 
-/* Whether inputs of this format decode in the sandbox (Draco: the only
- * decoder that is not ours and not bounded by our own checks). */
-int srv_sandbox_wanted(api_format fmt);
+/* Whether an input decodes in the sandbox: when decoding it runs libdraco
+ * (a Draco stream, a glTF with KHR_draco_mesh_compression), the only
+ * decoder that is not ours and not bounded by our own checks. */
+int srv_sandbox_wanted(const api_mem_estimate *est);
 
 /* api_mesh_decode_attrs in a child process under sl (attrs may be NULL).
  * ELIMIT (detail names the limit: "needs more than 2 s of CPU") when a

@@ -223,7 +223,9 @@ static void test_names(void **state)
     assert_int_equal(api_format_from_name("/tmp/a.b/MODEL.STL"), API_FMT_STL);
     assert_int_equal(api_format_from_name("x.off"), API_FMT_OFF);
     assert_int_equal(api_format_from_name("dir.obj/file"), API_FMT_UNKNOWN);
-    assert_int_equal(api_format_from_name("x.gltf"), API_FMT_UNKNOWN);
+    assert_int_equal(api_format_from_name("x.gltf"), API_FMT_GLTF);
+    assert_int_equal(api_format_from_name("scan.GLB"), API_FMT_GLB);
+    assert_int_equal(api_format_from_name("x.fbx"), API_FMT_UNKNOWN);
     assert_int_equal(api_format_from_name(""), API_FMT_UNKNOWN);
     assert_int_equal(api_format_from_name(NULL), API_FMT_UNKNOWN);
     assert_string_equal(api_format_name(API_FMT_DRACO), "draco");

@@ -533,7 +533,7 @@ static void test_obj_attrs_forms(void **state)
     assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
     assert_non_null(strstr(b.data, "\nv 0 1 0 0.5 0.5 0.5\n"));
     assert_non_null(strstr(b.data, "\nvt 0.90000000000000002 0\n"));
-    assert_non_null(strstr(b.data, "\nf 4/4/1 3/3/1 2/2/1\n"));
+    assert_non_null(strstr(b.data, "\nf 4/4/1 3/3/1 2/2/1 1/1/1\n")); /* the quad as it came */
     assert_int_equal(api_obj_decode_attrs(b.data, b.len, NULL, &d, &da, &err), MCF_OK);
     tl_assert_same_mesh(m, d);
     assert_true(api_attrs_get(da, API_ATTR_NORMAL, NULL, &n, &nv, &nc));
@@ -575,6 +575,68 @@ static void test_obj_attrs_dropped(void **state)
     mcf_mesh_free(m);
 }
 
+/* Issue 20: an OBJ's polygons and its g, o, s, usemtl and mtllib lines
+ * come back as they came, in order, with the smoothed positions; the
+ * same polygons go on to PLY and OFF. */
+static void test_obj_groups_and_polygons(void **state)
+{
+    double X[147];
+    int Q[144], i;
+    char in[16384], *p = in, want[16384], *w = want, *got, *g;
+    mcf_mesh *m = NULL, *d = NULL;
+    api_attrs *a = NULL;
+    api_encode_opts o;
+    api_buf b;
+    mcf_error err;
+    (void)state;
+    tl_quad_grid(X, Q);
+    p += sprintf(p, "# a grid\nmtllib grid.mtl\no grid\n");
+    w += sprintf(w, "mtllib grid.mtl\no grid\n");
+    for (i = 0; i < 49; i++)
+        p += sprintf(p, "v %.17g %.17g %.17g\n", X[3 * i], X[3 * i + 1], X[3 * i + 2]);
+    for (i = 0; i < 36; i++) {
+        const char *st = i == 0 ? "g left\nusemtl red\ns 1\n"
+                         : i == 18 ? "g right\nusemtl blue   \ns off\n" : "";
+        p += sprintf(p, "%sf %d %d %d %d\n", st, Q[4 * i] + 1, Q[4 * i + 1] + 1,
+                     Q[4 * i + 2] + 1, Q[4 * i + 3] + 1);
+        w += sprintf(w, "%sf %d %d %d %d\n", i == 18 ? "g right\nusemtl blue\ns off\n" : st,
+                     Q[4 * i] + 1, Q[4 * i + 1] + 1, Q[4 * i + 2] + 1, Q[4 * i + 3] + 1);
+    }
+    p += sprintf(p, "g cap\nf 1 2 3 10 9\nf 1 9 8\n");
+    w += sprintf(w, "g cap\nf 1 2 3 10 9\nf 1 9 8\n");
+    assert_int_equal(api_obj_decode_attrs(in, strlen(in), NULL, &m, &a, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 72 + 3 + 1);
+    tl_smooth_a_little(m);
+    api_encode_opts_init(&o);
+    o.format = API_FMT_OBJ;
+    o.attrs = a;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+    /* everything but the comment and the v lines, in order */
+    got = calloc(b.len + 1, 1);
+    assert_non_null(got);
+    for (g = got, p = b.data; *p; p = strchr(p, '\n') + 1)
+        if (*p != '#' && strncmp(p, "v ", 2) != 0) {
+            size_t n = (size_t)(strchr(p, '\n') + 1 - p);
+            memcpy(g, p, n);
+            g += n;
+        }
+    assert_string_equal(got, want);
+    assert_int_equal(api_obj_decode(b.data, b.len, NULL, &d, &err), MCF_OK);
+    tl_assert_same_mesh(m, d);
+    mcf_mesh_free(d);
+    /* to OFF: the same polygons */
+    b.len = 0;
+    o.format = API_FMT_OFF;
+    assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+    assert_non_null(strstr(b.data, "\n49 38 0\n"));
+    assert_non_null(strstr(b.data, "\n5 0 1 2 9 8\n3 0 8 7\n"));
+    free(got);
+    api_buf_free(&b);
+    mcf_mesh_free(m);
+    api_attrs_free(a);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -598,6 +660,7 @@ int main(void)
         cmocka_unit_test(test_huge_counts),
         cmocka_unit_test(test_obj_attrs_spot),
         cmocka_unit_test(test_obj_attrs_forms),
+        cmocka_unit_test(test_obj_groups_and_polygons),
         cmocka_unit_test(test_obj_attrs_dropped),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

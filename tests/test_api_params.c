@@ -213,8 +213,8 @@ static void test_bad_values(void **state)
     bad3("seed", "-1", MCF_EINVAL, "parameter 'seed' must be an integer from 0 to 18446744073709551615");
     bad3("seed", "18446744073709551616", MCF_EINVAL, "parameter 'seed'");
     bad3("seed", "0x10", MCF_EINVAL, "parameter 'seed'");
-    bad3("format", "gltf", MCF_EINVAL,
-         "parameter 'format' must be one of obj, draco, ply, stl, off, got \"gltf\"");
+    bad3("format", "fbx", MCF_EINVAL,
+         "parameter 'format' must be one of obj, draco, ply, stl, off, glb, gltf, got \"fbx\"");
     bad3("format", "drc", MCF_EINVAL, "parameter 'format'");
     bad3("quantization_bits", "25", MCF_EINVAL,
          "parameter 'quantization_bits' must be an integer from 0 to 24");

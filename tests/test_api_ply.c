@@ -21,6 +21,7 @@
 
 #include "testlib.h"
 #include "../api/api.h"
+#include "../api/api_internal.h"
 
 static mcf_status dec_lim(const void *buf, size_t len, const api_limits *lim,
                           mcf_mesh **m, mcf_error *err)
@@ -1071,6 +1072,64 @@ static void test_ply_attr_partial(void **state)
     mcf_mesh_free(other);
 }
 
+/* Issue 20: a PLY's quads and polygons (with a face texcoord list) come
+ * back as they came, ascii and binary. */
+static void test_ply_polygons(void **state)
+{
+    double X[147];
+    int Q[144], i, bin;
+    char in[16384], *p = in;
+    mcf_mesh *m = NULL, *d = NULL;
+    api_attrs *a = NULL, *da = NULL;
+    api_encode_opts o;
+    api_buf b;
+    mcf_error err;
+    (void)state;
+    tl_quad_grid(X, Q);
+    p += sprintf(p, "ply\nformat ascii 1.0\nelement vertex 49\nproperty double x\n"
+                    "property double y\nproperty double z\nelement face 37\n"
+                    "property list uchar int vertex_indices\n"
+                    "property list uchar float texcoord\nend_header\n");
+    for (i = 0; i < 49; i++)
+        p += sprintf(p, "%.17g %.17g %.17g\n", X[3 * i], X[3 * i + 1], X[3 * i + 2]);
+    for (i = 0; i < 36; i++)
+        p += sprintf(p, "4 %d %d %d %d 8 0 0 1 0 1 1 0 %d\n", Q[4 * i], Q[4 * i + 1],
+                     Q[4 * i + 2], Q[4 * i + 3], i % 2);
+    p += sprintf(p, "5 0 1 2 9 8 10 0 0 0.5 0 1 0 1 1 0.5 1\n");
+    assert_int_equal(api_ply_decode_attrs(in, strlen(in), NULL, &m, &a, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 75);
+    tl_smooth_a_little(m);
+    for (bin = 0; bin < 2; bin++) {
+        int n, j;
+        const double *tv, *dv;
+        const int32_t *tc, *dc;
+        api_encode_opts_init(&o);
+        o.format = API_FMT_PLY;
+        o.ply_binary = bin;
+        o.attrs = a;
+        api_buf_init(&b, 0);
+        assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+        assert_non_null(strstr(b.data, "element face 37\n"));
+        assert_int_equal(api_ply_decode_attrs(b.data, b.len, NULL, &d, &da, &err), MCF_OK);
+        tl_assert_same_mesh(m, d);
+        assert_non_null(da->poly);
+        assert_int_equal(da->npoly, 37);
+        assert_int_equal(da->poly[36], 5);
+        /* every corner's texcoord as it came (the list may be float32) */
+        assert_true(api_attrs_get(a, API_ATTR_TEXCOORD, NULL, &n, &tv, &tc));
+        assert_true(api_attrs_get(da, API_ATTR_TEXCOORD, NULL, &n, &dv, &dc));
+        for (j = 0; j < 3 * 75; j++) {
+            tl_assert_near(dv[2 * dc[j]], tv[2 * tc[j]], 0, "u");
+            tl_assert_near(dv[2 * dc[j] + 1], tv[2 * tc[j] + 1], 0, "v");
+        }
+        mcf_mesh_free(d);
+        api_attrs_free(da);
+        api_buf_free(&b);
+    }
+    mcf_mesh_free(m);
+    api_attrs_free(a);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1090,6 +1149,7 @@ int main(void)
         cmocka_unit_test(test_binary_errors),
         cmocka_unit_test(test_ascii_truncations),
         cmocka_unit_test(test_garbage),
+        cmocka_unit_test(test_ply_polygons),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

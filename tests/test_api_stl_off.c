@@ -610,6 +610,53 @@ static void test_attrs_stl_off(void **state)
     }
 }
 
+/* Issue 20: a 36-quad OFF comes back as 36 quads (it came back as 72
+ * triangles), a pentagon as a pentagon, at the smoothed positions. */
+static void test_off_polygons(void **state)
+{
+    double X[147];
+    int Q[144], i, k;
+    char in[8192], *p = in;
+    mcf_mesh *m = NULL, *d = NULL;
+    api_attrs *a = NULL;
+    api_encode_opts o;
+    api_buf b;
+    mcf_error err;
+    const char *line;
+    (void)state;
+    tl_quad_grid(X, Q);
+    p += sprintf(p, "OFF\n49 37 0\n");
+    for (i = 0; i < 49; i++)
+        p += sprintf(p, "%.17g %.17g %.17g\n", X[3 * i], X[3 * i + 1], X[3 * i + 2]);
+    for (i = 0; i < 36; i++)
+        p += sprintf(p, "4 %d %d %d %d\n", Q[4 * i], Q[4 * i + 1], Q[4 * i + 2], Q[4 * i + 3]);
+    p += sprintf(p, "5 0 1 2 9 7\n"); /* a pentagon (over the grid: any) */
+    assert_int_equal(api_mesh_decode_attrs(in, strlen(in), NULL, &m, &a, NULL, &err), MCF_OK);
+    assert_int_equal(mcf_mesh_nfaces(m), 72 + 3);
+    tl_smooth_a_little(m);
+    api_encode_opts_init(&o);
+    o.format = API_FMT_OFF;
+    o.attrs = a;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_mesh_encode(m, &o, &b, &err), MCF_OK);
+    assert_non_null(strstr(b.data, "OFF\n49 37 0\n"));
+    line = strstr(b.data, "\n4 ") + 1;
+    for (i = 0; i < 36; i++) {
+        int v[4];
+        assert_int_equal(sscanf(line, "4 %d %d %d %d", v, v + 1, v + 2, v + 3), 4);
+        for (k = 0; k < 4; k++)
+            assert_int_equal(v[k], Q[4 * i + k]);
+        line = strchr(line, '\n') + 1;
+    }
+    assert_true(strncmp(line, "5 0 1 2 9 7\n", 12) == 0);
+    assert_int_equal(api_off_decode(b.data, b.len, NULL, &d, &err), MCF_OK);
+    tl_assert_same_mesh(m, d);
+    api_buf_free(&b);
+    mcf_mesh_free(m);
+    mcf_mesh_free(d);
+    api_attrs_free(a);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -626,6 +673,7 @@ int main(void)
         cmocka_unit_test(test_off_errors),
         cmocka_unit_test(test_garbage),
         cmocka_unit_test(test_attrs_stl_off),
+        cmocka_unit_test(test_off_polygons),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -302,6 +302,58 @@ def test_smooth_obj_same_bytes_as_rest():
     assert g3.result == body and len(g3.progress) == 10
 
 
+def gltf_file(name):
+    with open(os.path.join(DATA, "gltf", name), "rb") as f:
+        return f.read()
+
+
+def assimp_counts(data, name):
+    """Debian's assimp (a third-party reader) on the bytes: (vertices, faces)."""
+    path = os.path.join(TMP, name)
+    with open(path, "wb") as f:
+        f.write(data)
+    out = subprocess.run(["assimp", "info", path], capture_output=True, text=True)
+    assert out.returncode == 0 and "ERROR" not in out.stdout, (name, out.stdout[-500:])
+    got = {}
+    for line in out.stdout.splitlines():
+        k, _, v = line.partition(":")
+        if k.strip() in ("Vertices", "Faces"):
+            got[k.strip()] = int(v)
+    return got["Vertices"], got["Faces"]
+
+
+def test_gltf_both_doors():
+    """GLB, .gltf and GLB+Draco through Smooth: the same bytes as REST, the
+    scheme left to the default, the format field named or detected; assimp
+    reads every answer."""
+    for name, fmt, out_fmt, counts in (("sphere_2prims.glb", "glb", None, (966, 1670)),
+                                       ("sphere_2prims.gltf", "gltf", "glb", (866, 1620)),
+                                       ("car_draco.glb", None, None, (None, 1744))):
+        data = gltf_file(name)
+        kw = dict(filename=name)
+        if fmt:
+            kw["format"] = fmt
+        if out_fmt:
+            kw["output_format"] = out_fmt
+        g = smooth(MAIN, data, dict(iterations=3), **kw)
+        st, hdr, body = MAIN.rest("POST", "/smooth?iterations=3" +
+                                  ("&format=" + out_fmt if out_fmt else ""), data)
+        assert st == 200, (name, st, body[:300])
+        assert g.result == body, "%s: gRPC and REST results differ" % name
+        want = out_fmt or fmt or "glb"
+        assert g.header.format == want and g.header.file_name == "result." + want, g.header
+        assert hdr["Content-Type"] == {"glb": "model/gltf-binary",
+                                       "gltf": "model/gltf+json"}[want], hdr
+        v, f = assimp_counts(g.result, "grpc-" + name.replace(".gltf", ".glb"))
+        assert f == counts[1] and (counts[0] is None or v == counts[0]), (name, v, f)
+        assert g.metrics["input"]["format"] == (fmt or "glb"), g.metrics["input"]
+    # Draco in, Draco out
+    assert b'"KHR_draco_mesh_compression":{' in g.result
+    # a named format must match the bytes
+    smooth_err(MAIN, gltf_file("sphere_2prims.glb"), None, grpc.StatusCode.INVALID_ARGUMENT,
+               "gltf", format="gltf")
+
+
 def big_obj():
     """A 330 x 330 bumpy grid as OBJ text: 108,900 vertices, over 4 MiB."""
     n, lines = 330, []

@@ -852,6 +852,61 @@ static void test_smooth_draco_multipart(void **state)
     resp_free(&r);
 }
 
+static long post_file(const daemon_t *d, const char *path, const char *name,
+                      resp_t *r);
+
+/* Issue 20: glTF through the REST door. A GLB of two primitives (uploaded
+ * as a form field) with no scheme named (whatever the default is), comes
+ * back as a GLB; a .gltf sent raw as model/gltf+json is asked for as GLB;
+ * a GLB+Draco scan stays Draco. Debian's assimp reads every answer. */
+static void test_smooth_gltf(void **state)
+{
+    char path[1024], buf[256], *raw = NULL;
+    static const char *const h[] = {"Content-Type: model/gltf+json", "Expect:", NULL};
+    upload_t up;
+    resp_t r;
+    api_format fmt;
+    mcf_mesh *out;
+    size_t len;
+
+    (void)state;
+    snprintf(path, sizeof path, "%s/gltf/sphere_2prims.glb", getenv("MCF_TESTDATA"));
+    memset(&up, 0, sizeof up);
+    up.mesh = path;
+    http(&g_main, "POST", "/v1/smooth", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "POST /v1/smooth glb");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/gltf-binary");
+    assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
+                        "attachment; filename=\"sphere_2prims-smoothed.glb\"");
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_GLB);
+    assert_int_equal(mcf_mesh_nvertices(out), 812); /* the two primitives, welded */
+    tl_assimp_reads(r.body.data, r.body.len, "rest.glb", 966, 1670); /* and the LINES primitive */
+    mcf_mesh_free(out);
+    resp_free(&r);
+
+    snprintf(path, sizeof path, "%s/gltf/sphere_2prims.gltf", getenv("MCF_TESTDATA"));
+    assert_int_equal(tl_read_file(path, &raw, &len), 0);
+    memset(&up, 0, sizeof up);
+    up.raw = raw;
+    up.raw_len = len;
+    http(&g_main, "POST", "/smooth?format=glb&iterations=2", h, &up, &r);
+    free(raw);
+    expect_status(&g_main, &r, 200, "POST /smooth gltf -> glb");
+    assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/gltf-binary");
+    out = decode_body(&r, &fmt);
+    assert_int_equal(fmt, API_FMT_GLB);
+    tl_assimp_reads(r.body.data, r.body.len, "rest2.glb", 866, 1620);
+    mcf_mesh_free(out);
+    resp_free(&r);
+
+    post_file(&g_main, "/smooth?iterations=2", "gltf/car_draco.glb", &r);
+    expect_status(&g_main, &r, 200, "POST /smooth glb+draco");
+    assert_non_null(strstr(r.body.data + 20, "\"KHR_draco_mesh_compression\":{")); /* the JSON chunk */
+    tl_assimp_reads(r.body.data, r.body.len, "rest3.glb", 0, 1744);
+    resp_free(&r);
+}
+
 /* Threads stay bounded: main + 2 workers + 2 HTTP threads, after
  * test_smooth_draco_multipart (just before in main's list) has run a job
  * on the bunny. Without OMP_THREAD_LIMIT, CHOLMOD's num_threads(4) regions
@@ -3202,6 +3257,17 @@ static void test_draco_sandbox(void **state)
      * 10.1 s under TSan on a loaded machine) */
     print_message("    210-byte orientation bomb, default limits: 422 in %.2f s "
                   "(8.8 s and 256 MiB in-process)\n", dt);
+    /* the same stream as a glTF's Draco primitive: the same sandbox */
+    t0 = mcf_now();
+    post_file(&d, "/smooth", "gltf/draco_bomb.glb", &r);
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    expect_problem(&d, &r, 422, "ELIMIT", "to decode: refused", "orientation bomb in a GLB");
+#else
+    expect_problem(&d, &r, 422, "ELIMIT", "needs more than 64 MiB to decode",
+                   "orientation bomb in a GLB");
+#endif
+    resp_free(&r);
+    print_message("    the bomb as a GLB's Draco primitive: 422 in %.2f s\n", mcf_now() - t0);
     post_file(&d, "/smooth", "meshes/car.drc", &r);
     expect_status(&d, &r, 200, "car.drc after the bomb");
     resp_free(&r);
@@ -4905,6 +4971,7 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_obj_multipart, kill_strays),
         cmocka_unit_test_teardown(test_smooth_draco_multipart, kill_strays),
         cmocka_unit_test_teardown(test_thread_count, kill_strays),
+        cmocka_unit_test_teardown(test_smooth_gltf, kill_strays),
         cmocka_unit_test_teardown(test_smooth_attributes, kill_strays),
         cmocka_unit_test_teardown(test_smooth_raw_and_params, kill_strays),
         cmocka_unit_test_teardown(test_smooth_target, kill_strays),

@@ -409,3 +409,61 @@ int tl_kill_children(pid_t keep)
 {
     return kill_tracked(keep, 1);
 }
+
+void tl_assimp_reads(const void *bytes, size_t len, const char *name, int nv, int nf)
+{
+    char path[4096], cmd[8400], line[512];
+    FILE *f, *p;
+    int got_v = -1, got_f = -1;
+    snprintf(path, sizeof path, "%s/%s", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp", name);
+    f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(bytes, 1, len, f), len);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "assimp info '%s' 2>&1", path);
+    p = popen(cmd, "r");
+    assert_non_null(p);
+    while (fgets(line, sizeof line, p)) {
+        sscanf(line, "Vertices: %d", &got_v);
+        sscanf(line, "Faces: %d", &got_f);
+        if (strstr(line, "ERROR"))
+            fail_msg("assimp on %s: %s", name, line);
+    }
+    if (pclose(p) != 0)
+        fail_msg("assimp info %s failed (is assimp-utils installed? make deps)", name);
+    remove(path);
+    if ((nv && got_v != nv) || (nf && got_f != nf))
+        fail_msg("assimp reads %s as %d vertices, %d faces; expected %d, %d", name, got_v,
+                 got_f, nv, nf);
+}
+
+void tl_quad_grid(double X[147], int Q[144])
+{
+    int i, j;
+    for (j = 0; j < 7; j++)
+        for (i = 0; i < 7; i++) {
+            X[3 * (7 * j + i)] = i / 6.0;
+            X[3 * (7 * j + i) + 1] = j / 6.0;
+            X[3 * (7 * j + i) + 2] = 0.05 * ((i * 3 + j * 5) % 4);
+        }
+    for (j = 0; j < 6; j++)
+        for (i = 0; i < 6; i++) {
+            int *q = Q + 4 * (6 * j + i);
+            q[0] = 7 * j + i;
+            q[1] = 7 * j + i + 1;
+            q[2] = 7 * (j + 1) + i + 1;
+            q[3] = 7 * (j + 1) + i;
+        }
+}
+
+void tl_smooth_a_little(mcf_mesh *m)
+{
+    mcf_flow_params p;
+    mcf_error err;
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_DESBRUN2;
+    p.dt = 1e-4;
+    p.iterations = 2;
+    if (mcf_flow_run(m, &p, NULL, &err) != MCF_OK)
+        fail_msg("flow: %s", err.msg);
+}

@@ -152,4 +152,20 @@ void tl_track_child(pid_t pid);
  * how many it killed. */
 int tl_kill_children(pid_t keep);
 
+/* ---- Polygons (issue 20): a 7 x 7 grid of bumpy vertices and its 6 x 6
+ * quads, in OBJ-like order (counter-clockwise seen from +z): fills
+ * X[147] and Q[144] (0-based indices). */
+void tl_quad_grid(double X[147], int Q[144]);
+
+/* Smooths m a little (2 implicit steps): every vertex moves, the
+ * connectivity stays. Fails the test when the flow fails. */
+void tl_smooth_a_little(mcf_mesh *m);
+
+/* ---- A third-party reader: Debian's assimp (assimp-utils, installed by
+ * make deps) runs `assimp info` on the bytes, written to $TMPDIR/name (the
+ * extension tells assimp the format). Fails the current test unless it
+ * loads them and, when nv or nf is not 0, counts that many vertices and
+ * faces (assimp's counts: Draco points, line segments as faces). */
+void tl_assimp_reads(const void *bytes, size_t len, const char *name, int nv, int nf);
+
 #endif /* TESTLIB_H */

@@ -13,7 +13,7 @@ MCF=${MCF:-build/mcf}
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
 
-for n in obj ply stl off draco roundtrip params query; do
+for n in obj ply stl off draco gltf roundtrip params query; do
   rm -rf "$F/corpus_$n"; mkdir -p "$F/corpus_$n"
 done
 
@@ -178,8 +178,29 @@ if [ -x "$MCF" ]; then
     --quantization-bits 10 --preserve-order >/dev/null
 fi
 
+# ---------------------------------------------------------------- glTF
+# A one-triangle .gltf by hand (buffer as a data: URI, a triangle and a
+# strip primitive), then GLB and .gltf written by `mcf convert` (new
+# documents: plain, and KHR_draco_mesh_compression from a Draco input).
+G=$F/corpus_gltf
+cat > $G/tri.gltf <<'EOF'
+{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"translation":[1,0,0]}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0,"NORMAL":2},"indices":1,"mode":4},{"attributes":{"POSITION":0},"indices":1,"mode":5}]}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]},
+{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"},
+{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}],
+"bufferViews":[{"buffer":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],
+"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}]}
+EOF
+if [ -x "$MCF" ]; then
+  "$MCF" convert $F/corpus_obj/tetra.obj $G/tetra.glb >/dev/null
+  "$MCF" convert $F/corpus_obj/cube_quads.obj $G/cube.gltf >/dev/null
+  "$MCF" convert $F/corpus_draco/oct_cl7_qp11.drc $G/oct_draco.glb >/dev/null
+  "$MCF" convert $F/corpus_draco/oct_cl7_qp11.drc $G/oct_draco.gltf >/dev/null
+fi
+
 # ----------------------------------------------------------- roundtrip
-for n in obj ply stl off draco; do
+for n in obj ply stl off draco gltf; do
   for f in $F/corpus_$n/*; do
     case $f in *pointcloud*) continue;; esac
     cp "$f" $F/corpus_roundtrip/
