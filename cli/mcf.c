@@ -281,9 +281,9 @@ static mcf_status decode_bounded(const char *buf, size_t len,
     mcf_status st;
     void (*old)(int);
 
-    if (api_format_detect(buf, len) != API_FMT_DRACO)
-        return api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
     api_estimate_memory(buf, len, NULL, &est);
+    if (!est.draco) /* libdraco is not reached (the daemon's rule too) */
+        return api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
     api_decode_bounds(&est, API_DECODE_CPU_S, API_DECODE_MEMORY, &cpu, &mem);
     if (!API_SANITIZED && getrlimit(RLIMIT_AS, &as0) == 0) {
         rl = as0;
