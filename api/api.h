@@ -274,7 +274,26 @@ typedef struct {
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
     int tol_set;                  /* tol given (needs adaptive) */
+    int scheme_set;               /* scheme given */
+    int scheme_chosen;            /* not given: api_params_finish chose it
+                                     (again at every call) */
+    int strength_set;             /* strength given (a number or auto) */
+    int flow_keys_set;            /* time, dt, adaptive, laplacian, mass or
+                                     rescale given: without a scheme, the
+                                     job is desbrun2's flow */
 } api_params;
+
+/* The scheme of a request that names none, on a mesh of nv vertices: the
+ * fairing filter, `fairing` (implicit, one CHOLMOD factorization of a
+ * 2-ring matrix: about 2 KB per vertex) up to API_FAIRING_IMPLICIT_MAX
+ * vertices, `fairing_explicit` (no factorization, a few hundred bytes per
+ * vertex) above: api_estimate.c has the measured memory and times. */
+#define API_FAIRING_IMPLICIT_MAX 200000
+mcf_scheme api_default_scheme(long long nv);
+/* The scheme a job with parameters p runs on a mesh of nv vertices: the
+ * one named, else api_default_scheme(nv), or desbrun2 when p sets a
+ * flow's keys (flow_keys_set). p may be NULL (no parameters). */
+mcf_scheme api_params_scheme(const api_params *p, long long nv);
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
 void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */
@@ -297,15 +316,19 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
  * amount of smoothing"): its iterations (MCF_DEFAULT_STEPS when 0; a
  * filter's passes), or ceil(time / dt) (not capped: over max_iterations
  * it is refused). *by_mesh (may be NULL) is set when the mesh decides
- * instead (adaptive, dt=auto, a fixed dt with the amount from strength):
- * then the most it may take, max_steps within lim's max_iterations. */
+ * instead (adaptive, dt=auto, a fixed dt with the amount from strength, a
+ * fairing filter's automatic amount): then the most it may take
+ * (max_steps within lim's max_iterations, or the filter's cap). */
 double api_params_steps(const api_params *p, const api_limits *lim,
                         int *by_mesh);
-/* Final checks once the mesh is known: mcf_flow_params_check, fixed
- * indices in range, iterations x vertices within max_work; and amounts
- * that contradict each other (EINVAL naming them): time, dt and
- * iterations all given and ceil(time / dt) != iterations (or dt=auto), or
- * a dt larger than the time. */
+/* Final checks once the mesh is known: the default scheme when none was
+ * named (api_default_scheme; desbrun2 when flow_keys_set), a fairing
+ * filter's strength as its noise level (mcf_flow_params.noise_sigma;
+ * unset or auto: estimated), mcf_flow_params_check, fixed indices in
+ * range, iterations x vertices within max_work; and amounts that
+ * contradict each other (EINVAL naming them): time, dt and iterations
+ * all given and ceil(time / dt) != iterations (or dt=auto), or a dt
+ * larger than the time. */
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);
 /* The parameters as a JSON object (for job records and metrics). */

@@ -191,8 +191,17 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && num(o, "mean_edge", st->mean_edge);
     ok = ok && num(o, "t_target", st->t_target);
     ok = ok && num(o, "strength", st->strength);
-    /* strength=auto: the noise it estimated, in mean edges (else 0) */
+    /* strength=auto and the fairing filters: the noise level the amount
+     * assumed, in mean edges (else 0) */
     ok = ok && num(o, "noise", st->noise);
+    /* fairing: the estimated mean squared error (squared mean edges) after
+     * K = 0, 1, ... steps, whose minimum gave `steps`; null without */
+    ok = ok && put(o, "sure", st->sure ? cJSON_CreateDoubleArray(st->sure, st->nsure) : cJSON_CreateNull());
+    ok = ok && num(o, "noise_tangential", st->noise_tangential);
+    ok = ok && num(o, "tangential_steps", st->tangential_steps);
+    ok = ok && num(o, "crease_vertices", st->crease_vertices);
+    ok = ok && num(o, "guard_rounds", st->guard_rounds);
+    ok = ok && num(o, "guard_vertices", st->guard_vertices);
     ok = ok && num(o, "folded_faces", st->folded_faces);
     ok = ok && num(o, "min_edge_ratio", st->min_edge_ratio);
     ok = ok && num(o, "area_ratio", st->area_ratio);

@@ -54,9 +54,14 @@ static const char *const rescale_names[] = {"none", "volume", "area", NULL};
 static const char *const laplacian_names[] = {"cotan", "uniform", NULL};
 static const char *const mass_names[] = {"barycentric", "voronoi", NULL};
 
-static void set_scheme(api_params *p, value v) { p->flow.scheme = (mcf_scheme)v.e; }
+static void set_scheme(api_params *p, value v)
+{
+    p->flow.scheme = (mcf_scheme)v.e;
+    p->scheme_set = 1;
+}
 static void set_dt(api_params *p, value v)
 {
+    p->flow_keys_set = 1;
     /* NaN stands for "auto" (see parse_value). */
     if (isnan(v.d)) {
         p->flow.dt_auto = 1;
@@ -72,15 +77,32 @@ static void set_iterations(api_params *p, value v)
 }
 static void set_time(api_params *p, value v)
 {
+    p->flow_keys_set = 1;
     p->flow.time = v.d;
     p->time_set = 1;
 }
 static void set_boundary(api_params *p, value v) { p->flow.boundary = (mcf_boundary)v.e; }
-static void set_rescale(api_params *p, value v) { p->flow.rescale = (mcf_rescale)v.e; }
+static void set_rescale(api_params *p, value v)
+{
+    p->flow.rescale = (mcf_rescale)v.e;
+    p->flow_keys_set = 1;
+}
 static void set_normalize(api_params *p, value v) { p->flow.normalize = v.e; }
-static void set_laplacian(api_params *p, value v) { p->flow.laplacian = (mcf_laplacian)v.e; }
-static void set_mass(api_params *p, value v) { p->flow.mass = (mcf_mass)v.e; }
-static void set_adaptive(api_params *p, value v) { p->flow.adaptive = v.e; }
+static void set_laplacian(api_params *p, value v)
+{
+    p->flow.laplacian = (mcf_laplacian)v.e;
+    p->flow_keys_set = 1;
+}
+static void set_mass(api_params *p, value v)
+{
+    p->flow.mass = (mcf_mass)v.e;
+    p->flow_keys_set = 1;
+}
+static void set_adaptive(api_params *p, value v)
+{
+    p->flow.adaptive = v.e;
+    p->flow_keys_set = 1;
+}
 static void set_tol(api_params *p, value v)
 {
     p->flow.tol = v.d;
@@ -92,6 +114,7 @@ static void set_strength(api_params *p, value v)
     p->flow.strength_auto = isnan(v.d);
     if (!isnan(v.d))
         p->flow.strength = v.d;
+    p->strength_set = 1;
 }
 static void set_max_steps(api_params *p, value v) { p->flow.max_steps = (int)v.i; }
 static void set_noise(api_params *p, value v) { p->noise_rho = v.d; }
@@ -146,14 +169,18 @@ typedef struct {
 } keydoc;
 
 static const keydoc docs[] = {
-    {"scheme", NULL, "the integrator or filter (`mcf schemes` describes each)", NULL, 0},
+    {"scheme", NULL, "the integrator or filter (`mcf schemes` describes each); unset: "
+     "fairing, fairing_explicit above 200,000 vertices, desbrun2 when time, dt, adaptive, "
+     "laplacian, mass or rescale is set", "fairing", 0},
     {"dt", "flow time", "the step (unit-area time when normalize is on); auto: from "
      "lambda_max, explicit schemes only", "time / iterations", 0},
-    {"iterations", "steps", "number of steps over the time (taubin: passes)", NULL, 0},
+    {"iterations", "steps", "number of steps over the time (taubin, fairing_explicit: passes; "
+     "fairing: its steps, automatic when unset)", NULL, 0},
     {"time", "flow time", "total flow time (unit-area time when normalize is on); "
      "replaces strength", "strength^2 h^2", 0},
     {"strength", "mean edges", "the amount: diffuse over about this many mean edges "
-     "(time strength^2 h^2); auto: from the mesh's own noise", NULL, 0},
+     "(time strength^2 h^2); auto: from the mesh's own noise; the fairing filters: the "
+     "noise level to remove (auto: estimated; the MCF schemes' default is 0.33)", NULL, 0},
     {"boundary", NULL, "fixed: boundary vertices stay; free: they move", NULL, 0},
     {"fixed_vertices", "vertex indices", "0-based vertices held in place", NULL, 0},
     {"rescale", NULL, "after the flow, restore the input's volume or area", NULL, 0},
@@ -496,6 +523,9 @@ void api_params_init(api_params *p)
 {
     memset(p, 0, sizeof *p);
     mcf_flow_params_init(&p->flow);
+    /* the request's default: the fairing filter (api_default_scheme picks
+     * the variant once the mesh is known, in api_params_finish) */
+    p->flow.scheme = MCF_FAIRING;
     api_encode_opts_init(&p->encode);
     p->noise_rho = 0.0;
     p->seed = 0;
@@ -503,6 +533,32 @@ void api_params_init(api_params *p)
     p->time_set = 0;
     p->iterations_set = 0;
     p->tol_set = 0;
+    p->scheme_set = 0;
+    p->strength_set = 0;
+    p->flow_keys_set = 0;
+    p->scheme_chosen = 0;
+}
+
+mcf_scheme api_default_scheme(long long nv)
+{
+    return nv > API_FAIRING_IMPLICIT_MAX ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
+}
+
+mcf_scheme api_params_scheme(const api_params *p, long long nv)
+{
+    if (!p)
+        return api_default_scheme(nv);
+    if (p->scheme_set || p->scheme_chosen)
+        return p->flow.scheme;
+    /* a request that sets a flow's parameters (time, dt, adaptive,
+     * laplacian, mass, rescale) and no scheme is a flow request, as
+     * before the fairing filter became the default: desbrun2 */
+    return p->flow_keys_set ? MCF_DESBRUN2 : api_default_scheme(nv);
+}
+
+static int is_fairing(mcf_scheme s)
+{
+    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
 }
 
 void api_params_free(api_params *p)
@@ -791,7 +847,15 @@ double api_params_steps(const api_params *p, const api_limits *lim,
     int mesh = 0;
     double n;
 
-    if (f->scheme == MCF_TAUBIN || (!f->adaptive && !f->dt_auto && !(f->dt > 0.0)))
+    if (is_fairing(f->scheme) && f->iterations <= 0) {
+        /* the fairing filters' automatic amount stops at its cap, or at
+         * max_steps (which the work limit may lower) */
+        double cap = f->scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS
+                                              : MCF_FAIRING_MAX_PASSES;
+        mesh = 1;
+        n = f->max_steps > 0 && f->max_steps < cap ? f->max_steps : cap;
+    } else if (f->scheme == MCF_TAUBIN || is_fairing(f->scheme) ||
+               (!f->adaptive && !f->dt_auto && !(f->dt > 0.0)))
         n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
     else if (!f->adaptive && !f->dt_auto && f->time > 0.0)
         n = ceil(f->time / f->dt - 1e-9);
@@ -855,6 +919,15 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
     if (p->tol_set && !p->flow.adaptive)
         return api__fail(err, MCF_EINVAL,
                          "parameter 'tol' applies to adaptive runs only: add adaptive=true or drop tol");
+    if (!p->scheme_set) {
+        p->scheme_chosen = 0;
+        p->flow.scheme = api_params_scheme(p, nv);
+        p->scheme_chosen = 1;
+    }
+    /* the fairing filters' strength: the noise level (mean edges) whose
+     * removal their amount optimizes; unset or auto: estimated */
+    if (is_fairing(p->flow.scheme))
+        p->flow.noise_sigma = p->strength_set && !p->flow.strength_auto ? p->flow.strength : 0.0;
     for (i = 0; i < p->flow.nfixed; i++)
         if (p->flow.fixed[i] < 0 || p->flow.fixed[i] >= nv)
             return api__fail(err, MCF_EINVAL,
@@ -868,15 +941,24 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         return api__fail(err, MCF_EINVAL, "mesh has no vertices");
 
     /* Work bound: steps x vertices. When the parameters alone give the
-     * step count, it is checked here; when it depends on the mesh's edge
-     * lengths or lambda_max, the core's hard cap max_steps is lowered to
-     * what the limits allow instead. */
+     * step count, it is checked here; when it depends on the mesh (its
+     * edge lengths, lambda_max, or a fairing filter's estimated noise),
+     * the core's hard cap max_steps is lowered to what the limits allow
+     * instead. */
     steps = api_params_steps(p, lim, &by_mesh);
     if (!by_mesh && steps > lim->max_iterations) {
         /* iterations are bounded when parsed: time / dt */
         return api__fail(err, MCF_EINVAL,
                          "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
                          steps, lim->max_iterations);
+    } else if (by_mesh && is_fairing(p->flow.scheme)) {
+        /* the automatic amount stops at its cap, max_steps or the work
+         * limit, whichever comes first */
+        double cap = p->flow.scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS : MCF_FAIRING_MAX_PASSES;
+        double room = floor(lim->max_work / nv);
+        if (room < cap && room < p->flow.max_steps)
+            p->flow.max_steps = room < 1 ? 1 : (int)room;
+        steps = fmin(cap, p->flow.max_steps);
     } else if (by_mesh) {
         double cap = floor(lim->max_work / nv);
         if (cap < p->flow.max_steps)
@@ -909,7 +991,10 @@ cJSON *api_params_to_json(const api_params *p)
 
     if (!ok)
         return NULL;
-    ok &= cJSON_AddStringToObject(j, "scheme", si ? si->name : "unknown") != NULL;
+    /* an unnamed scheme is the default, which depends on the mesh: named
+     * once api_params_finish has chosen it */
+    if (p->scheme_set || p->scheme_chosen)
+        ok &= cJSON_AddStringToObject(j, "scheme", si ? si->name : "unknown") != NULL;
     /* What was given, so the object parses back to the same job: an
      * unset dt, time or iterations is derived from strength by the core */
     if (p->flow.dt_auto)
@@ -920,10 +1005,14 @@ cJSON *api_params_to_json(const api_params *p)
         ok &= cJSON_AddNumberToObject(j, "time", p->flow.time) != NULL;
     if (p->iterations_set)
         ok &= cJSON_AddNumberToObject(j, "iterations", p->flow.iterations) != NULL;
+    /* a fairing filter's strength is the noise level, automatic unless
+     * given: the default MCF strength is no value for it */
     if (p->flow.strength_auto)
         ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
-    else
+    else if (p->strength_set || ((p->scheme_set || p->scheme_chosen) && !is_fairing(p->flow.scheme)))
         ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
+    else
+        ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
     ok &= cJSON_AddStringToObject(j, "boundary",
                                   enum_name(boundary_names, (int)p->flow.boundary)) != NULL;
     fx = cJSON_AddArrayToObject(j, "fixed_vertices");

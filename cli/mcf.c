@@ -68,9 +68,14 @@ static const char usage_text[] =
 static const char smooth_head[] =
     "usage: mcf smooth IN OUT [options]\n"
     "\n"
-    "Smooths the mesh IN into OUT: the flow runs to a total time set by --strength\n"
-    "(default), --time, or --iterations with --dt. The job parameters are the daemon's\n"
-    "(dashes here, underscores there); a boolean is --NAME or --no-NAME.\n"
+    "Smooths the mesh IN into OUT. Without --scheme: the fairing denoiser (fairing;\n"
+    "fairing_explicit above 200,000 vertices): as many steps as Stein's unbiased risk\n"
+    "estimate says for the noise it reads off the mesh, along the normals only;\n"
+    "--iterations sets its steps, --strength the noise level (mean edges). With\n"
+    "--time, --dt, --adaptive, --laplacian, --mass or --rescale and no --scheme:\n"
+    "desbrun2, as before. An MCF scheme's flow runs to a total time set by --strength\n"
+    "(default 0.33), --time, or --iterations with --dt. The job parameters are the\n"
+    "daemon's (dashes here, underscores there); a boolean is --NAME or --no-NAME.\n"
     "\n"
     "Job parameters:\n";
 
@@ -878,7 +883,12 @@ static int cmd_smooth(int argc, char **argv)
                   nwarn, nwarn > 1 ? "s" : "", o.pos[1]);
         goto done;
     }
-    if (!o.quiet) {
+    if (!o.quiet && (p.flow.scheme == MCF_FAIRING || p.flow.scheme == MCF_FAIRING_EXPLICIT)) {
+        /* a filter: its steps and the noise they were chosen for */
+        fprintf(stderr, "mcf: %s -> %s: %d vertices, %s %d step%s for noise %.3g mean edges in %.2f s%s\n",
+                o.pos[0], o.pos[1], mcf_mesh_nvertices(m), mcf_scheme_get(p.flow.scheme)->name, st.steps,
+                st.steps == 1 ? "" : "s", st.noise, flow_s, nwarn ? " (with warnings)" : "");
+    } else if (!o.quiet) {
         char strength[48] = "";
         if (st.strength > 0)
             snprintf(strength, sizeof strength, ", strength %.3g mean edges", st.strength);

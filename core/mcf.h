@@ -219,6 +219,8 @@ typedef enum {
     MCF_CMCF,
     MCF_LINEAR,
     MCF_TAUBIN,
+    MCF_FAIRING,
+    MCF_FAIRING_EXPLICIT,
     MCF_NSCHEMES
 } mcf_scheme;
 
@@ -288,6 +290,28 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
 #define MCF_DEFAULT_STRENGTH 0.33
 #define MCF_DEFAULT_STEPS 10
 
+/* The fairing filters (`fairing`, `fairing_explicit`; mcf_fairing.c) are
+ * no flows: they take no time, dt, dt_auto or adaptive (EINVAL), and
+ * ignore strength, strength_auto, laplacian, mass and rescale (they work
+ * on the uniform graph Laplacian, along the normals). The amount is a
+ * step count K: `fairing` runs K implicit bi-Laplacian steps
+ *     (D + L D^-1 L) x' = D x   (on the free vertices, L = D - A the
+ *                                 uniform graph Laplacian, one
+ *                                 factorization per run),
+ * `fairing_explicit` K Taubin passes (lambda 0.5, mu -0.53) on the same
+ * graph, no factorization. K is `iterations` when set; otherwise the K
+ * that minimizes Stein's unbiased risk estimate of the result's error for
+ * Gaussian noise of deviation noise_sigma mean edges along the normals
+ * (0: mcf_noise_estimate's), evaluated after every step until K > 2 K* +
+ * 10, at most MCF_FAIRING_MAX_STEPS steps (implicit) or
+ * MCF_FAIRING_MAX_PASSES passes (explicit) and max_steps. A mesh without
+ * noise gets K = 0: it is returned as it came. The result moves every
+ * free vertex along the normal of the filtered surface only, and a guard
+ * (up to 5 rounds) gives a face that would face against the filtered
+ * surface the filtered positions. */
+#define MCF_FAIRING_MAX_STEPS 200
+#define MCF_FAIRING_MAX_PASSES 2000
+
 typedef struct {
     mcf_scheme scheme;        /* default MCF_DESBRUN2 */
     double dt;                /* step (dimensionless if normalize); 0: not
@@ -298,6 +322,9 @@ typedef struct {
     double time;              /* total time; > 0 overrides everything */
     double strength;          /* diffusion length in mean edges, > 0
                                  (default MCF_DEFAULT_STRENGTH) */
+    double noise_sigma;       /* fairing: the noise (standard deviation
+                                 along the normals, in mean edges) whose
+                                 removal SURE optimizes; 0: estimated */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -347,6 +374,16 @@ mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv,
 mcf_status mcf_flow_add_noise(mcf_mesh *m, const mcf_flow_params *p,
                               double rho, uint64_t seed, mcf_error *err);
 
+/* The standard deviation of the noise along the normals of m, in m's
+ * units, estimated from m alone (mcf_auto.c: a second-order high-pass
+ * along the normals of 10 uniform Taubin passes of m, calibrated by its
+ * response to unit noise, as a median over the vertices a run with p
+ * would move, of degree >= 3: the fixed ones carry no noise). What
+ * strength=auto and the fairing filters use. EINVAL for parameters that
+ * do not check, ENOMEM. */
+mcf_status mcf_noise_estimate(const mcf_mesh *m, const mcf_flow_params *p, double *sigma,
+                              mcf_error *err);
+
 typedef struct {
     double t, dt;
     double area, volume;      /* input units; the volume is volume0/1's
@@ -379,7 +416,8 @@ const char *mcf_warning_name(unsigned bit);
 const char *mcf_warning_text(unsigned bit);
 
 typedef struct {
-    int steps;                /* accepted steps */
+    int steps;                /* accepted steps (fairing: K, the steps or
+                                 passes the result is made of) */
     int rejected;             /* adaptive rejections */
     int solves;               /* 3-column right-hand-side solves */
     int factorizations;       /* numeric factorizations */
@@ -397,8 +435,26 @@ typedef struct {
                                  progress call: a progress callback may
                                  read them to show a fraction) */
     double strength;          /* sqrt(t_final) / h: what the run did */
-    double noise;             /* strength_auto: the estimated noise along
-                                 the normals, in mean edges; else 0 */
+    double noise;             /* strength_auto and fairing: the noise
+                                 along the normals its amount assumed
+                                 (estimated or noise_sigma), in mean
+                                 edges of the input; else 0 */
+    double *sure;             /* fairing's automatic amount: SURE(K) for
+                                 K = 0 .. nsure-1 steps, the estimated
+                                 mean squared error per vertex (area
+                                 weighted) in squared mean edges; the
+                                 minimum is at K = steps. NULL otherwise */
+    int nsure;
+    double noise_tangential;  /* fairing: the tangential noise its
+                                 relaxation assumed, in mean edges */
+    int tangential_steps;     /* fairing: the steps whose tangential
+                                 displacement the result took (0: none) */
+    int crease_vertices;      /* fairing: vertices on the creases it kept
+                                 (smoothed along them, held for the
+                                 surface's filter) */
+    int guard_rounds;         /* fairing: fold-guard rounds that moved a
+                                 vertex (0-5) */
+    int guard_vertices;       /* fairing: vertex moves by the guard */
     unsigned warnings;        /* MCF_WARN_* bits */
     int folded_faces;         /* faces lying backwards in their
                                  neighbourhood, beyond the input's */

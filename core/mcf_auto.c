@@ -19,11 +19,17 @@
  * noise, the surface's own detail adds to it). Here s is measured by a
  * second-order high-pass that cancels a smooth surface to second order,
  * e_i = d_i - avg_j d_j with d_i = n_i . (Y_i - avg_j Y_j) over the
- * 1-ring, whose response to noise depends on the valences and shapes
- * around each vertex; it is calibrated on the same mesh by the response to
- * unit Gaussian noise along the normals (s = MAD(e_Y) / MAD(e_noise)), and
- * the median absolute deviation ignores the features (creases, ears)
- * where the surface itself does not cancel.
+ * 1-ring (the uniform graph Laplacian, mcf_graph.c), whose response to
+ * noise depends on the valences and shapes around each vertex; it is
+ * calibrated on the same mesh by the response to unit Gaussian noise along
+ * the normals (s = MAD(e_Y) / MAD(e_noise)), and the median absolute
+ * deviation ignores the features (creases, ears) where the surface itself
+ * does not cancel. The normals n are those of 10 uniform Taubin passes of
+ * Y, not Y's own: a noisy normal tilts with the noise and the projection
+ * then misses part of it (0.36-0.39 read for 0.5). Both medians run over
+ * the free vertices of degree >= 3 only: fixed and boundary vertices
+ * carry no noise, and counting them read 0.5 as 0.23 on a scan with many
+ * holes.
  *
  * Cost: one pattern, one noise calibration, then per candidate time one
  * factorization and K six-column solves (15 candidates). Pure C11 and
@@ -41,7 +47,6 @@ typedef struct {
     int nv;
     mcf__pattern pat;
     double *N;          /* 3*nv unit vertex normals of X */
-    int *deg;           /* nv: 1-ring size (distinct neighbours) */
     cholmod_common cm;
     int cm_started;
     cholmod_sparse *A;
@@ -54,7 +59,6 @@ typedef struct {
 static void auto_free(auto_ctx *a)
 {
     free(a->N);
-    free(a->deg);
     free(a->lval);
     free(a->mass);
     mcf__pattern_free(&a->pat);
@@ -69,40 +73,20 @@ static void auto_free(auto_ctx *a)
     }
 }
 
-/* out_i = avg over the 1-ring of v (per vertex scalar), from the
- * pattern's off-diagonal entries (upper triangle, both directions). */
-static void ring_average(const auto_ctx *a, const double *v, double *out)
+/* The second-order high-pass along the unit normals N (3*nv) of positions
+ * P (3*nv) into e (nv): d_i = n_i . (P_i - avg_j P_j) over the 1-ring,
+ * e_i = d_i - avg_j d_j. d (nv) and tmp (3*nv) are scratch. */
+static void high_pass(const mcf__graph *g, const double *N, const double *P, double *e,
+                      double *d, double *tmp)
 {
-    const mcf__pattern *p = &a->pat;
-    memset(out, 0, sizeof(double) * (size_t)a->nv);
-    for (int j = 0; j < a->nv; j++)
-        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++) {
-            int i = p->rowind[t];
-            if (i == j)
-                continue;
-            out[i] += v[j];
-            out[j] += v[i];
-        }
-    for (int i = 0; i < a->nv; i++)
-        out[i] = a->deg[i] > 0 ? out[i] / a->deg[i] : v[i];
-}
-
-/* The second-order high-pass of positions P (3*nv) into e (nv); d and
- * tmp are nv scratch. */
-static void high_pass(const auto_ctx *a, const double *P, double *e, double *d, double *tmp)
-{
-    /* d_i = n_i . (P_i - avg_j P_j): the ring average, coordinate-wise */
-    for (int i = 0; i < a->nv; i++)
-        d[i] = 0.0;
-    for (int c = 0; c < 3; c++) {
-        for (int i = 0; i < a->nv; i++)
-            e[i] = P[3 * (size_t)i + c];
-        ring_average(a, e, tmp);
-        for (int i = 0; i < a->nv; i++)
-            d[i] += a->N[3 * (size_t)i + c] * (e[i] - tmp[i]);
+    mcf__graph_average(g, P, 3, tmp);
+    for (int i = 0; i < g->n; i++) {
+        double r[3];
+        mcf__sub3(P + 3 * (size_t)i, tmp + 3 * (size_t)i, r);
+        d[i] = mcf__dot3(N + 3 * (size_t)i, r);
     }
-    ring_average(a, d, tmp);
-    for (int i = 0; i < a->nv; i++)
+    mcf__graph_average(g, d, 1, tmp);
+    for (int i = 0; i < g->n; i++)
         e[i] = d[i] - tmp[i];
 }
 
@@ -112,19 +96,113 @@ static int cmp_double(const void *x, const void *y)
     return (a > b) - (a < b);
 }
 
-/* Median of |v_i| over the vertices with a 1-ring of at least 3 (the
- * others, on slivers and boundaries' tips, say little); work (nv) is
- * scratch. */
-static double mad(const auto_ctx *a, double *v, double *work)
+/* Median of |v_i| over the free vertices with a 1-ring of at least 3 (the
+ * others, on slivers and boundaries' tips, say little; fixed vertices
+ * carry no noise); work (nv) is scratch. */
+static double mad(const mcf__graph *g, const unsigned char *fixed, const double *v,
+                  double *work)
 {
     size_t k = 0;
-    for (int i = 0; i < a->nv; i++)
-        if (a->deg[i] >= 3)
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]))
             work[k++] = fabs(v[i]);
     if (k == 0)
         return 0.0;
     qsort(work, k, sizeof *work, cmp_double);
     return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
+}
+
+/* The tangential second-order high-pass of P (3*nv) into e (nv): the
+ * length of the tangential part (normals N) of (I - Avg)^2 P; tmp and t2
+ * are 3*nv scratch. */
+static void tangential_high_pass(const mcf__graph *g, const double *N, const double *P, double *e,
+                                 double *tmp, double *t2)
+{
+    size_t n3 = 3 * (size_t)g->n;
+    mcf__graph_average(g, P, 3, tmp);
+    for (size_t q = 0; q < n3; q++)
+        tmp[q] = P[q] - tmp[q];
+    mcf__graph_average(g, tmp, 3, t2);
+    for (int i = 0; i < g->n; i++) {
+        double r[3];
+        const double *n = N + 3 * (size_t)i;
+        mcf__sub3(tmp + 3 * (size_t)i, t2 + 3 * (size_t)i, r);
+        double a = mcf__dot3(n, r);
+        for (int c = 0; c < 3; c++)
+            r[c] -= a * n[c];
+        e[i] = sqrt(mcf__dot3(r, r));
+    }
+}
+
+mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
+                            const unsigned char *fixed, double *sigma, mcf_error *err)
+{
+    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, err);
+}
+
+mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
+                             const unsigned char *fixed, double *sigma, double *sigma_t,
+                             mcf_error *err)
+{
+    mcf__graph g;
+    mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
+    if (rc != MCF_OK)
+        return rc;
+    double *N = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *e = mcf__malloc((size_t)nv, sizeof(double));
+    double *d = mcf__malloc((size_t)nv, sizeof(double));
+    if (!N || !P || !tmp || !e || !d) {
+        rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
+        goto done;
+    }
+    /* the normals of the surface without its noise: those of the noisy
+     * mesh itself tilt with the noise, and the high-pass along them then
+     * misses a part of it (0.36-0.39 read for 0.5 mean edges) */
+    memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
+    mcf__graph_taubin(&g, fixed, P, 3, 10, tmp);
+    mcf__vertex_normals(P, F, nf, nv, N);
+    high_pass(&g, N, X, e, d, tmp);
+    double mad_y = mad(&g, fixed, e, P);
+    /* the response to unit Gaussian noise along the same normals on the
+     * free vertices (mcf_mesh_add_noise's generator: reproducible) */
+    mcf__gauss_fill(0x5eed5eedULL, d, (size_t)nv);
+    for (int i = 0; i < nv; i++)
+        for (int c = 0; c < 3; c++)
+            P[3 * (size_t)i + c] = fixed && fixed[i] ? 0.0 : d[i] * N[3 * (size_t)i + c];
+    high_pass(&g, N, P, e, d, tmp);
+    double mad_n = mad(&g, fixed, e, P);
+    *sigma = mad_n > 0.0 ? mad_y / mad_n : 0.0;
+    if (sigma_t) {
+        /* the same for the tangential part, calibrated by unit Gaussian
+         * noise in the tangent planes (two independent components) */
+        double *t2 = mcf__malloc(3 * (size_t)nv, sizeof(double));
+        if (!t2) {
+            rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
+            goto done;
+        }
+        tangential_high_pass(&g, N, X, e, tmp, t2);
+        double mt_y = mad(&g, fixed, e, d);
+        mcf__gauss_fill(0x7a5eed5eULL, P, 3 * (size_t)nv);
+        for (int i = 0; i < nv; i++) {
+            double *z = P + 3 * (size_t)i, a = mcf__dot3(z, N + 3 * (size_t)i);
+            for (int c = 0; c < 3; c++)
+                z[c] = fixed && fixed[i] ? 0.0 : z[c] - a * N[3 * (size_t)i + c];
+        }
+        tangential_high_pass(&g, N, P, e, tmp, t2);
+        double mt_n = mad(&g, fixed, e, d);
+        *sigma_t = mt_n > 0.0 ? mt_y / mt_n : 0.0;
+        free(t2);
+    }
+done:
+    free(N);
+    free(P);
+    free(tmp);
+    free(e);
+    free(d);
+    mcf__graph_free(&g);
+    return rc;
 }
 
 /* Solves (M + h L) Y = M B, K times in place on the 6 columns of a->B's
@@ -146,8 +224,9 @@ static mcf_status apply_smoother(auto_ctx *a, int K, mcf_error *err)
 }
 
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
-                          mcf_laplacian lap, mcf_mass mk, double hbar, int K,
-                          double *t_best, double *sigma, mcf_error *err)
+                          const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
+                          double hbar, int K, double *t_best, double *sigma,
+                          mcf_error *err)
 {
     /* candidate times in units of h^2: strength 0.1 to 1.5 */
     static const double C[] = {0.01, 0.02, 0.035, 0.05, 0.07, 0.1, 0.14, 0.2,
@@ -156,53 +235,26 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
     double risk[NC];
     auto_ctx a;
     mcf_status rc = MCF_OK;
-    double *w = NULL, *area = NULL, *e = NULL, *d = NULL, *tmp = NULL, *P = NULL;
-    double *yn = NULL, *probe = NULL;
+    double *w = NULL, *area = NULL, *yn = NULL, *probe = NULL;
     memset(&a, 0, sizeof a);
     a.nv = nv;
     if ((rc = mcf__pattern_build(F, nf, nv, 1, &a.pat, err)) != MCF_OK)
         return rc;
     a.N = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    a.deg = mcf__calloc((size_t)nv, sizeof(int));
     a.lval = mcf__malloc((size_t)a.pat.nnz, sizeof(double));
     a.mass = mcf__malloc((size_t)nv, sizeof(double));
     w = mcf__malloc(3 * (size_t)nf, sizeof(double));
     area = mcf__malloc((size_t)nf, sizeof(double));
-    e = mcf__malloc((size_t)nv, sizeof(double));
-    d = mcf__malloc((size_t)nv, sizeof(double));
-    tmp = mcf__malloc((size_t)nv, sizeof(double));
-    P = mcf__malloc(3 * (size_t)nv, sizeof(double));
     yn = mcf__malloc((size_t)nv, sizeof(double));
     probe = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    if (!a.N || !a.deg || !a.lval || !a.mass || !w || !area || !e || !d || !tmp || !P || !yn || !probe) {
+    if (!a.N || !a.lval || !a.mass || !w || !area || !yn || !probe) {
         rc = mcf__fail(err, MCF_ENOMEM, "strength=auto: out of memory (%d vertices)", nv);
         goto done;
     }
-    for (int j = 0; j < nv; j++)
-        for (int t = a.pat.colptr[j]; t < a.pat.colptr[j + 1]; t++)
-            if (a.pat.rowind[t] != j) {
-                a.deg[j]++;
-                a.deg[a.pat.rowind[t]]++;
-            }
     mcf__vertex_normals(X, F, nf, nv, a.N);
-
-    /* the noise level: the high-pass of the mesh against that of unit
-     * Gaussian noise along the same normals (mcf_mesh_add_noise's
-     * generator, so the calibration is reproducible) */
-    high_pass(&a, X, e, d, tmp);
-    double mad_y = mad(&a, e, yn);
-    {
-        mcf_mesh tmpm = {nv, nf, P, (int32_t *)(uintptr_t)F};
-        double me = mcf__mean_edge(X, F, nf);
-        memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
-        if ((rc = mcf_mesh_add_noise(&tmpm, 1.0, 0x5eed5eedULL, err)) != MCF_OK)
-            goto done;
-        for (size_t i = 0; i < 3 * (size_t)nv; i++)
-            P[i] = (P[i] - X[i]) / me; /* unit Gaussian w_i n_i */
-    }
-    high_pass(&a, P, e, d, tmp);
-    double mad_n = mad(&a, e, yn);
-    double s = mad_n > 0.0 ? mad_y / mad_n : 0.0;
+    double s;
+    if ((rc = mcf__noise_level(X, F, nf, nv, fixed, &s, err)) != MCF_OK)
+        goto done;
     *sigma = s;
 
     /* the operators at X */
@@ -295,10 +347,6 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
 done:
     free(w);
     free(area);
-    free(e);
-    free(d);
-    free(tmp);
-    free(P);
     free(yn);
     free(probe);
     auto_free(&a);

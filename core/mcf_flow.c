@@ -62,7 +62,16 @@ static const mcf_scheme_info SCHEMES[MCF_NSCHEMES] = {
                     "fastest implicit smoothing; not geometric MCF"},
     [MCF_TAUBIN] = {"taubin", "Taubin lambda/mu filter, lambda 0.5, mu -0.53", 0, 1, 0.0, 0, 0, 0, "",
                     "volume-preserving-ish denoising baseline (MeshLab/Open3D)"},
+    [MCF_FAIRING] = {"fairing", "implicit bi-Laplacian fairing along the normals, amount by SURE", 0, 0, 0.0, 3, 0, 0, "",
+                     "default: denoising scans; one factorization per run"},
+    [MCF_FAIRING_EXPLICIT] = {"fairing_explicit", "Taubin passes along the normals, amount by SURE", 0, 1, 0.0, 0, 0, 0, "",
+                              "denoising meshes too large to factor; no linear solve"},
 };
+
+static int is_fairing(mcf_scheme s)
+{
+    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
+}
 
 const mcf_scheme_info *mcf_scheme_get(mcf_scheme s)
 {
@@ -116,6 +125,11 @@ mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv, mcf_error *er
         return mcf__fail(err, MCF_EINVAL, "strength: must be a finite number > 0, got %g", p->strength);
     if (p->scheme == MCF_TAUBIN && (p->time > 0.0 || p->adaptive || p->dt_auto))
         return mcf__fail(err, MCF_EINVAL, "taubin is a filter: it takes iterations (passes), not time, dt=auto or adaptive");
+    if (is_fairing(p->scheme) && (p->time > 0.0 || p->adaptive || p->dt_auto || p->dt > 0.0))
+        return mcf__fail(err, MCF_EINVAL, "%s is a filter: it takes iterations (steps) or the noise level, not time, dt or adaptive",
+                         si->name);
+    if (!(isfinite(p->noise_sigma) && p->noise_sigma >= 0.0))
+        return mcf__fail(err, MCF_EINVAL, "noise_sigma: must be a finite number >= 0, got %g", p->noise_sigma);
     if (p->adaptive && !si->has_estimate)
         return mcf__fail(err, MCF_EINVAL, "adaptive: scheme '%s' has no error estimate (use desbrun2, ros2, richardson or desbrun)", si->name);
     if (p->adaptive && !(p->tol > 0.0 && p->tol <= 1.0))
@@ -817,6 +831,8 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
     case MCF_TAUBIN:
         step_taubin(c);
         break;
+    case MCF_FAIRING:
+    case MCF_FAIRING_EXPLICIT: /* filters: run_fairing, never a step here */
     case MCF_NSCHEMES:
         rc = mcf__fail(err, MCF_EINVAL, "scheme out of range");
         break;
@@ -991,12 +1007,31 @@ done:
     return rc;
 }
 
+mcf_status mcf_noise_estimate(const mcf_mesh *m, const mcf_flow_params *p, double *sigma,
+                              mcf_error *err)
+{
+    mcf_status rc;
+    if (!m || !p || !sigma)
+        return mcf__fail(err, MCF_EINVAL, "mcf_noise_estimate: NULL argument");
+    if ((rc = mcf_flow_params_check(p, m->nv, err)) != MCF_OK)
+        return rc;
+    unsigned char *fixed = mcf__calloc((size_t)m->nv, 1);
+    if (!fixed)
+        return mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", m->nv);
+    double s = 0.0;
+    if ((rc = fixed_set(m, p, fixed, err)) == MCF_OK &&
+        (rc = mcf__noise_level(m->X, m->F, m->nf, m->nv, fixed, &s, err)) == MCF_OK)
+        *sigma = s;
+    free(fixed);
+    return rc;
+}
+
 /* The log's area and volume are in input units, and the volume is
  * volume0/volume1's (mcf_mesh_volume's): about the input's origin, from
  * the positions mapped back as the run's end maps them. (The working
  * positions are centred on the input's area centroid, and on an open
  * mesh the signed volume depends on that choice.) */
-static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
+static void log_step(flow_ctx *c, const double *X, int k, double t, double h, int rejected,
                      double scale, const double cen[3], double maxdisp)
 {
     mcf_flow_stats *st = c->st;
@@ -1010,7 +1045,7 @@ static void log_step(flow_ctx *c, int k, double t, double h, int rejected,
         double p[3][3], e1[3], e2[3], n[3], bd[3];
         for (int q = 0; q < 3; q++)
             for (int d = 0; d < 3; d++)
-                p[q][d] = c->X[3 * (size_t)c->F[3 * f + q] + d] / scale + cen[d];
+                p[q][d] = X[3 * (size_t)c->F[3 * f + q] + d] / scale + cen[d];
         mcf__sub3(p[1], p[0], e1);
         mcf__sub3(p[2], p[0], e2);
         mcf__cross3(e1, e2, n);
@@ -1095,15 +1130,79 @@ static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats 
     st->folded_faces = b0 < 0 || b1 < 0 || b1 < b0 ? 0 : b1 - b0;
     st->min_edge_ratio = me0 > 0.0 ? me1 / me0 : 1.0;
     st->area_ratio = st->area0 > 0.0 ? st->area1 / st->area0 : 1.0;
-    st->strength = st->mean_edge > 0.0 ? sqrt(st->t_final) / st->mean_edge : 0.0;
+    st->strength = st->mean_edge > 0.0 && !is_fairing(p->scheme) ? sqrt(st->t_final) / st->mean_edge : 0.0;
     if (st->folded_faces >= 3 && st->folded_faces > 1e-3 * c->nf)
         st->warnings |= MCF_WARN_FOLDS;
     if (st->min_edge_ratio < 1e-3)
         st->warnings |= MCF_WARN_EDGE_COLLAPSE;
     if (p->rescale == MCF_RESCALE_NONE && st->area_ratio < 0.6)
         st->warnings |= MCF_WARN_AREA_LOSS;
-    if (p->scheme != MCF_TAUBIN && st->strength < 0.1)
+    /* (a fairing filter's 0 steps is its finding: no noise to remove) */
+    if (!is_fairing(p->scheme) && p->scheme != MCF_TAUBIN && st->strength < 0.1)
         st->warnings |= MCF_WARN_LITTLE_SMOOTHING;
+}
+
+/* The fairing filter's view of the run (mcf__step_hook): the cancel flag
+ * before a step; the step log, the progress callback (t = the step
+ * count, dt = 1, energy the area) after it. */
+typedef struct {
+    flow_ctx *c;
+    double scale;
+    const double *cen;
+    double *prev;   /* 3*nv: the positions after the last step */
+} fair_hook;
+
+static int fairing_hook(void *ctx, int k, const double *X)
+{
+    fair_hook *h = ctx;
+    flow_ctx *c = h->c;
+    const mcf_flow_params *p = c->p;
+    if (!X)
+        return p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire);
+    if (p->log_steps && c->st->log && k <= c->st->t_target) {
+        double maxd = 0.0;
+        for (size_t i = 0; i < (size_t)c->nv; i++) {
+            double d[3];
+            mcf__sub3(X + 3 * i, h->prev + 3 * i, d);
+            maxd = fmax(maxd, mcf__dot3(d, d));
+        }
+        memcpy(h->prev, X, 3 * sizeof(double) * (size_t)c->nv);
+        log_step(c, X, k - 1, k, 1.0, 0, h->scale, h->cen, sqrt(maxd));
+    }
+    return p->progress &&
+           p->progress(p->progress_ctx, k, k, 1.0, mcf__area_volume(X, c->F, c->nf, NULL, NULL) / (h->scale * h->scale));
+}
+
+/* mcf_flow_run for the fairing filters, from the normalized positions on:
+ * the fixed set, the log, the filter. */
+static mcf_status run_fairing(flow_ctx *c, const mcf_mesh *m, double scale, const double cen[3],
+                              mcf_error *err)
+{
+    const mcf_flow_params *p = c->p;
+    mcf_flow_stats *st = c->st;
+    fair_hook h = {c, scale, cen, NULL};
+    mcf_status rc = fixed_set(m, p, c->fixed, err);
+    if (rc != MCF_OK)
+        return rc;
+    double hbar = mcf__mean_edge(c->X, c->F, c->nf);
+    st->mean_edge = hbar;
+    if (p->log_steps) {
+        int cap = p->iterations > 0 ? p->iterations
+                  : p->scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS : MCF_FAIRING_MAX_PASSES;
+        if (cap > p->max_steps && p->iterations <= 0)
+            cap = p->max_steps;
+        st->log = mcf__calloc((size_t)cap, sizeof *st->log);
+        h.prev = mcf__malloc(3 * (size_t)c->nv, sizeof(double));
+        if (!st->log || !h.prev) {
+            free(h.prev);
+            return mcf__fail(err, MCF_ENOMEM, "flow: out of memory for the step log");
+        }
+        memcpy(h.prev, c->X, 3 * sizeof(double) * (size_t)c->nv);
+    }
+    rc = mcf__fairing(c->X, c->F, c->nf, c->nv, c->fixed, p, hbar, st, fairing_hook, &h, err);
+    c->bytes += st->peak_bytes;
+    free(h.prev);
+    return rc;
 }
 
 mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
@@ -1157,6 +1256,11 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                 c.X[3 * i + d] = (c.X[3 * i + d] - cen[d]) * scale;
 
     c.fixed = mcf__calloc(nv, 1);
+    if (is_fairing(p->scheme)) {
+        rc = c.fixed ? run_fairing(&c, m, scale, cen, err)
+                     : mcf__fail(err, MCF_ENOMEM, "flow: out of memory (%d vertices)", c.nv);
+        goto done;
+    }
     c.w = ctx_alloc(&c, 3 * nf); c.area = ctx_alloc(&c, nf); c.mass = ctx_alloc(&c, nv);
     c.w2 = ctx_alloc(&c, 3 * nf); c.area2 = ctx_alloc(&c, nf); c.mass2 = ctx_alloc(&c, nv);
     c.V = ctx_alloc(&c, n3); c.V2 = ctx_alloc(&c, n3); c.B = ctx_alloc(&c, n3);
@@ -1265,8 +1369,8 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
         double sigma;
-        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, p->laplacian, p->mass, hbar, nsteps, &T, &sigma,
-                                 err)) != MCF_OK)
+        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass, hbar, nsteps, &T,
+                                 &sigma, err)) != MCF_OK)
             goto done;
         st->noise = sigma / hbar;
     } else if (T <= 0.0) {
@@ -1424,7 +1528,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
                 mcf__sub3(c.X + 3 * i, c.Xprev + 3 * i, d);
                 maxd = fmax(maxd, mcf__dot3(d, d));
             }
-            log_step(&c, k, t, hist.h1, rejected_here, scale, cen, sqrt(maxd));
+            log_step(&c, c.X, k, t, hist.h1, rejected_here, scale, cen, sqrt(maxd));
         }
         rejected_here = 0;
         in_step = 0;
@@ -1458,7 +1562,7 @@ done:
     /* the growth check of a fixed explicit run's last state (the loop
      * checked every state before it) */
     if (rc == MCF_OK && !p->adaptive && c.si->is_explicit && p->scheme != MCF_TAUBIN &&
-        st->steps > 0 && st->area1 > 1.5 * area_in)
+        !is_fairing(p->scheme) && st->steps > 0 && st->area1 > 1.5 * area_in)
         rc = unstable(&c, err, st->steps, st->dt_max, st->area1 / area_in);
     if (st->dt_min == INFINITY || st->steps == 0)
         st->dt_min = 0.0;
@@ -1478,5 +1582,6 @@ void mcf_flow_stats_free(mcf_flow_stats *s)
     if (!s)
         return;
     free(s->log);
+    free(s->sure);
     memset(s, 0, sizeof *s);
 }

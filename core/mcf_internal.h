@@ -93,13 +93,77 @@ void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
 void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
                          const double *X, double *Y);
 
+/* ---- the uniform graph Laplacian (mcf_graph.c)
+ * The vertex adjacency of a mesh, weight 1 per edge: row i of the full
+ * symmetric adjacency (distinct neighbours, sorted, no self) is
+ * adj[ptr[i] .. ptr[i+1]), so the degree is ptr[i+1] - ptr[i]. */
+typedef struct {
+    int n;
+    int *ptr;   /* n + 1 */
+    int *adj;   /* ptr[n] */
+} mcf__graph;
+
+#define MCF_TAUBIN_LAMBDA 0.5
+#define MCF_TAUBIN_MU (-0.53)
+
+/* ENOMEM only; g is zeroed on failure. */
+mcf_status mcf__graph_build(const int32_t *F, int nf, int nv, mcf__graph *g, mcf_error *err);
+void mcf__graph_free(mcf__graph *g); /* accepts zeroed */
+/* out (n x ncol, row-major) = the average of v over each vertex's
+ * neighbours; v itself where a vertex has none. out != v. */
+void mcf__graph_average(const mcf__graph *g, const double *v, int ncol, double *out);
+/* `passes` Taubin passes (x += lambda (avg - x), then x += mu (avg - x),
+ * lambda 0.5, mu -0.53) on X (n x ncol) in place; vertices with fixed[i]
+ * set (fixed may be NULL) stay. tmp: n x ncol scratch. */
+void mcf__graph_taubin(const mcf__graph *g, const unsigned char *fixed, double *X, int ncol,
+                       int passes, double *tmp);
+
+/* ---- the noise level (mcf_auto.c)
+ * The standard deviation sigma (X's units) of Gaussian noise along the
+ * normals of X: the second-order high-pass of X along the normals of 10
+ * uniform Taubin passes of X, calibrated by its response to unit noise,
+ * as the ratio of medians over the free vertices (fixed[i] == 0; fixed may
+ * be NULL: none) of degree >= 3; fixed vertices carry no noise. 0 when no
+ * vertex qualifies. ENOMEM only. */
+mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
+                            const unsigned char *fixed, double *sigma, mcf_error *err);
+/* The same, and (sigma_t not NULL) the deviation of the noise in the
+ * tangent planes, per direction: the same ratio of medians for the length
+ * of the tangential part of the second-order high-pass (I - Avg)^2 X. A
+ * clean scan's irregular triangles read as 0.02-0.12 mean edges of it. */
+mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
+                             const unsigned char *fixed, double *sigma, double *sigma_t,
+                             mcf_error *err);
+
 /* ---- strength=auto (mcf_auto.c)
  * The time t_best that minimizes SURE for K frozen implicit steps from X
  * (working units, mean edge hbar), and the noise level sigma along the
- * normals it estimated (working units). ENOMEM, ENUMERIC. */
+ * normals it estimated (working units, mcf__noise_level over the vertices
+ * fixed[] does not hold). ENOMEM, ENUMERIC. */
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
-                          mcf_laplacian lap, mcf_mass mk, double hbar, int K,
-                          double *t_best, double *sigma, mcf_error *err);
+                          const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
+                          double hbar, int K, double *t_best, double *sigma,
+                          mcf_error *err);
+
+/* ---- the fairing filter (mcf_fairing.c)
+ * The hook mcf_flow_run gives the filter: called with X NULL before step
+ * k + 1 (k steps done) and with the positions X (3*nv, working units)
+ * after step k; non-zero cancels the run (ECANCELED). */
+typedef int (*mcf__step_hook)(void *ctx, int k, const double *X);
+
+/* Runs `fairing` or `fairing_explicit` (p->scheme) on X (3*nv, working
+ * units, mean edge hbar) in place; fixed[i] (nv) holds vertex i. Fills
+ * st's steps, noise, sure/nsure, guard_rounds/guard_vertices,
+ * factorizations, solves, timings and peak_bytes. On failure X is
+ * unchanged. ENOMEM, ENUMERIC, ELIMIT (a factor too large for CHOLMOD),
+ * ECANCELED. */
+mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
+                        mcf__step_hook hook, void *hook_ctx, mcf_error *err);
+
+/* n standard normal draws from a 64-bit seed, mcf_mesh_add_noise's
+ * generator (the same draws in the same order). (mcf_mesh.c) */
+void mcf__gauss_fill(uint64_t seed, double *z, size_t n);
 
 /* ---- small helpers */
 #define MCF_PI 3.14159265358979323846

@@ -753,6 +753,13 @@ static double rng_gauss(rng *g)
     return u * s;
 }
 
+void mcf__gauss_fill(uint64_t seed, double *z, size_t n)
+{
+    rng g = {seed, 0.0, 0};
+    for (size_t i = 0; i < n; i++)
+        z[i] = rng_gauss(&g);
+}
+
 mcf_status mcf_mesh_add_noise(mcf_mesh *m, double rho, uint64_t seed,
                               mcf_error *err)
 {

@@ -406,6 +406,11 @@ void svc__run_job(svc_job *j)
                          NULL, &err);
         goto done;
     }
+    /* a request without a scheme runs the default the mesh's size
+     * chose (api_default_scheme): the job says which */
+    svc__lock();
+    snprintf(j->scheme, sizeof j->scheme, "%s", mcf_scheme_get(prm.flow.scheme)->name);
+    svc__unlock();
     if (target) {
         if ((rc = svc_decode_upload(target, target_len, cfg, &j->cancel,
                                     "target", &tgt, NULL, &tfmt, &prob)) != MCF_OK)

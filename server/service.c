@@ -421,7 +421,9 @@ int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
         svc_error_set(err, SVC_ENOMEM, NULL, "out of memory accepting a job");
         goto fail;
     }
-    si = mcf_scheme_get(prm.flow.scheme);
+    /* the scheme it will run (without one named, the runner may still
+     * choose the explicit fairing once the mesh's size is known) */
+    si = mcf_scheme_get(api_params_scheme(&prm, 0));
     snprintf(j->scheme, sizeof j->scheme, "%s", si ? si->name : "unknown");
     j->time_planned = prm.flow.time > 0 ? prm.flow.time : 0;
     j->steps_planned = (prm.flow.time > 0 || prm.flow.adaptive)

@@ -93,7 +93,9 @@ static void test_defaults(void **state)
     api_params p;
     (void)state;
     api_params_init(&p);
-    assert_int_equal(p.flow.scheme, MCF_DESBRUN2);
+    /* the fairing filter, its variant chosen by size in api_params_finish */
+    assert_int_equal(p.flow.scheme, MCF_FAIRING);
+    assert_int_equal(p.scheme_set, 0);
     assert_true(p.flow.dt == 0.0); /* derived from the amount */
     assert_int_equal(p.flow.iterations, 0);
     assert_true(p.flow.strength == MCF_DEFAULT_STRENGTH);

@@ -297,9 +297,27 @@ def test_smooth_obj_same_bytes_as_rest():
     g2 = smooth(MAIN, data, dict(scheme="euler", iterations=4, dt=pb.NumberOrAuto(auto=True)))
     st, _, body = MAIN.rest("POST", "/smooth?scheme=euler&iterations=4&dt=auto", data)
     assert g2.result == body and g2.metrics["params"]["dt"] == "auto"
-    g3 = smooth(MAIN, data, dict(strength=pb.NumberOrAuto(number=0.5)))
-    st, _, body = MAIN.rest("POST", "/smooth?strength=0.5", data)
+    g3 = smooth(MAIN, data, dict(scheme="desbrun2", strength=pb.NumberOrAuto(number=0.5)))
+    st, _, body = MAIN.rest("POST", "/smooth?scheme=desbrun2&strength=0.5", data)
     assert g3.result == body and len(g3.progress) == 10
+
+
+def test_default_is_fairing():
+    """Smooth without a scheme runs the fairing filter, as REST does: the
+    same bytes, its metrics (noise estimate, SURE curve, guard)."""
+    data = mesh("sphere_cgal.obj")
+    params = dict(noise=0.25, seed=1)
+    g = smooth(MAIN, data, params)
+    st, _, body = MAIN.rest("POST", "/smooth?noise=0.25&seed=1", data)
+    assert st == 200, (st, body[:300])
+    assert g.result == body, "gRPC and REST results differ"
+    m = g.metrics
+    assert m["scheme"] == "fairing" and m["params"]["scheme"] == "fairing", m["scheme"]
+    f = m["flow"]
+    assert 0.15 < f["noise"] < 0.3, f["noise"]
+    assert f["sure"] and min(range(len(f["sure"])), key=f["sure"].__getitem__) == f["steps"] >= 1, f
+    assert 0 <= f["guard_rounds"] <= 5
+    assert len(g.progress) == len(f["sure"]) - 1, (len(g.progress), len(f["sure"]))
 
 
 def gltf_file(name):

@@ -1060,6 +1060,53 @@ static void test_smooth_target(void **state)
     }
 }
 
+/* A request that names no scheme runs the fairing filter (the default,
+ * issue 16): its metrics name it and carry its noise estimate, the SURE
+ * curve whose minimum is the step count, the guard's rounds; against the
+ * target the error falls. The schemes list has both variants. */
+static void test_smooth_default_fairing(void **state)
+{
+    upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+    resp_t r;
+    char id[64];
+    cJSON *m, *sure, *e;
+    int found = 0, k = 0, kmin = 0;
+    double vmin = INFINITY;
+
+    (void)state;
+    http(&g_main, "POST", "/smooth?noise=0.25&seed=1", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "default request");
+    assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+    m = follow_metrics_link(&g_main, &r, id);
+    assert_string_equal(jstr(m, "scheme"), "fairing");
+    /* 0.25 clean mean edges, read in the noisy mesh's (10% longer) */
+    assert_true(jnum(m, "flow.noise") > 0.15 && jnum(m, "flow.noise") < 0.3);
+    sure = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(m, "flow"), "sure");
+    assert_true(cJSON_IsArray(sure));
+    cJSON_ArrayForEach(e, sure) {
+        if (e->valuedouble < vmin) {
+            vmin = e->valuedouble;
+            kmin = k;
+        }
+        k++;
+    }
+    assert_int_equal(kmin, (int)jnum(m, "flow.steps"));
+    assert_true(kmin >= 1);
+    assert_true(jnum(m, "flow.guard_rounds") >= 0 && jnum(m, "flow.guard_rounds") <= 5);
+    assert_true(jnum(m, "compare.after.rms_m") < 0.5 * jnum(m, "compare.before.rms_m"));
+    cJSON_Delete(m);
+    resp_free(&r);
+
+    http(&g_main, "GET", "/v1/schemes", NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "schemes");
+    m = body_json(&r, "schemes");
+    cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(m, "schemes"))
+        found += !strcmp(jstr(e, "name"), "fairing") || !strcmp(jstr(e, "name"), "fairing_explicit");
+    assert_int_equal(found, 2);
+    cJSON_Delete(m);
+    resp_free(&r);
+}
+
 /* Accept: multipart/mixed: a JSON metrics part, then the mesh part. */
 static void test_smooth_multipart_mixed(void **state)
 {
@@ -3349,7 +3396,7 @@ static void test_memory_admission(void **state)
     rest = status_kib(d.pid, "VmRSS");
     for (i = 0; i < 3; i++) {
         cJSON *j;
-        post_file(&d, "/v1/jobs?strength=auto", "meshes/bunny.drc", &r);
+        post_file(&d, "/v1/jobs?scheme=desbrun2&strength=auto", "meshes/bunny.drc", &r);
         expect_status(&d, &r, 202, "bunny.drc job");
         j = body_json(&r, "POST /v1/jobs");
         snprintf(ids[i], sizeof ids[i], "%s", jstr(j, "id"));
@@ -4975,6 +5022,7 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_attributes, kill_strays),
         cmocka_unit_test_teardown(test_smooth_raw_and_params, kill_strays),
         cmocka_unit_test_teardown(test_smooth_target, kill_strays),
+        cmocka_unit_test_teardown(test_smooth_default_fairing, kill_strays),
         cmocka_unit_test_teardown(test_smooth_multipart_mixed, kill_strays),
         cmocka_unit_test_teardown(test_smooth_ndjson, kill_strays),
         cmocka_unit_test_teardown(test_smooth_ndjson_live, kill_strays),

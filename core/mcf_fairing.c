@@ -1,0 +1,833 @@
+/*
+ * mcf_fairing.c - the fairing denoiser, the product's default filter:
+ * implicit bi-Laplacian steps on the uniform graph Laplacian (`fairing`)
+ * or uniform lambda|mu passes (`fairing_explicit`), as many as Stein's
+ * unbiased risk estimate (SURE) says, applied along the normals only and
+ * kept from folding faces.
+ *
+ * Notation: free vertices F, fixed B (mcf_flow_run's fixed set, plus
+ * vertices without an edge), A the adjacency with weight 1 per edge, D the
+ * degrees, L = D - A (mcf_graph.c). One implicit step is
+ *     (D_F + L_FF D_F^-1 L_FF) x_F' = D_F x_F - L_FF D_F^-1 L_FB X0_B,
+ * the minimizer of |x - x_F|^2_D + |(L x)_F|^2_D^-1: gain 1 / (1 + k^2)
+ * on an eigenvalue k in [0, 2] of D^-1 L, flat at the lowest frequencies
+ * (no shrinking, no pole). With N = D_F^-1/2 L_FF D_F^-1/2 and y =
+ * D_F^1/2 x the system is (I + N N') y' = y - N u, u = D_F^-1/2 L_FB X0_B:
+ * CHOLMOD factors I + N N' from N itself (cholmod_factorize_p with beta =
+ * 1), once per run; each step is one solve. One explicit pass is Taubin's
+ * pair x += 0.5 (avg - x), x += -0.53 (avg - x) on the free vertices.
+ *
+ * The amount: after K steps the displacement along the noisy mesh's
+ * normals n0 is r_i = n0_i . (Y_i - X0_i). For noise of deviation s along
+ * the normals (mcf__noise_level) and the smoother T (one step, acting on
+ * each coordinate), SURE(K) = sum w r^2 - s^2 sum w + 2 s^2 sum w_i
+ * (T^K)_ii estimates sum w (error)^2 without the clean mesh; w are the
+ * barycentric vertex areas over their mean. The weighted trace comes from
+ * six Rademacher probes carried through the same steps as extra columns
+ * (Hutchinson); for the implicit step T = D^-1/2 R D^1/2, R = (I + NN')^-1,
+ * so the probes run through R in y. The run stops once K > 2 K* + 10 (K*
+ * the best so far) or at the cap, and returns Y at K*.
+ *
+ * The output moves each free vertex along the normal n of Y only,
+ * X_i = X0_i + n_i <n_i, Y_i - X0_i>, so vertices stay where the scanner
+ * put them along the surface. Tangential noise (isotropic scanner noise)
+ * is removed by a second SURE over the same steps for the tangential part
+ * of the displacement, moved in the tangent planes and put back on the
+ * surface (tangential_output). Creases found on the smoothed input are
+ * smoothed along and held (creases). A guard then gives every face of X
+ * that faces against the same face of Y Y's positions at its free
+ * vertices, up to 5 rounds. docs/fairing.md has the math in words.
+ *
+ * Pure C11 and CHOLMOD; its own cholmod_common; no globals.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cholmod.h>
+
+#include "mcf_internal.h"
+
+enum { NPROBE = 6, NCOL = 3 + NPROBE, GUARD_ROUNDS = 5 };
+#define TANGENTIAL_FLOOR 0.12
+/* creases: measured on a box and a capped cylinder (90-degree edges,
+ * every one found up to noise 0.25 and 90% at 0.5) against the shared
+ * scans, whose sharpest ridges also pass 35 degrees: 40 degrees on the
+ * smoothed surface, chains of 12 edges, 3 passes along them */
+#define CREASE_ANGLE 40.0
+#define CREASE_PASSES 3
+#define CREASE_MIN_EDGES 12
+
+typedef struct {
+    const mcf_flow_params *p;
+    int nv, nf, nfree;
+    const int32_t *F;
+    double *X0;                /* a copy of the input, working units
+                                  (crease vertices smoothed along) */
+    double *Xin;               /* the input itself where X0 differs
+                                  (creases), else NULL */
+    unsigned char *crease;     /* nv: on a kept crease */
+    unsigned char *fx;         /* nv: fixed, or no edge */
+    mcf__graph g;
+    int *vert;                 /* nfree: free index -> vertex */
+    int *fid;                  /* nv: vertex -> free index, -1 fixed */
+    double *sq;                /* nfree: sqrt(D) */
+    double *w;                 /* nv: area weights (0 on fixed) */
+    double *n0;                /* 3*nv: normals of X0 */
+    double *probe;             /* NPROBE * nfree: the Rademacher probes */
+    int ncol;                  /* 3, or 9 with the probes */
+    int is_explicit;
+    /* explicit: Z (nv x ncol, row-major), tmp the same */
+    double *Z, *tmp;
+    /* implicit */
+    cholmod_common cm;
+    int cm_started;
+    cholmod_sparse *N;
+    cholmod_factor *L;
+    cholmod_dense *Yd, *Bd, *Xd, *Yw, *Ew;
+    double *b;                 /* 3 * nfree: N u, column-major */
+    size_t bytes;
+    mcf_flow_stats *st;
+} fair_ctx;
+
+static void fair_free(fair_ctx *c)
+{
+    mcf__graph_free(&c->g);
+    free(c->Xin);
+    free(c->crease);
+    free(c->fx);
+    free(c->vert);
+    free(c->fid);
+    free(c->sq);
+    free(c->w);
+    free(c->n0);
+    free(c->probe);
+    free(c->Z);
+    free(c->tmp);
+    free(c->b);
+    if (c->cm_started) {
+        cholmod_free_sparse(&c->N, &c->cm);
+        cholmod_free_factor(&c->L, &c->cm);
+        cholmod_free_dense(&c->Yd, &c->cm);
+        cholmod_free_dense(&c->Bd, &c->cm);
+        cholmod_free_dense(&c->Xd, &c->cm);
+        cholmod_free_dense(&c->Yw, &c->cm);
+        cholmod_free_dense(&c->Ew, &c->cm);
+        cholmod_finish(&c->cm);
+    }
+}
+
+static double *alloc_d(fair_ctx *c, size_t n)
+{
+    c->bytes += n * sizeof(double);
+    return mcf__malloc(n ? n : 1, sizeof(double));
+}
+
+static void face_normal(const double *X, const int32_t *t, double *n);
+
+/* The slot of edge (a, b) in a's row of the graph (rows are sorted). */
+static int edge_slot(const mcf__graph *g, int a, int b)
+{
+    int lo = g->ptr[a], hi = g->ptr[a + 1] - 1;
+    while (lo <= hi) {
+        int mid = (lo + hi) / 2;
+        if (g->adj[mid] == b)
+            return mid;
+        if (g->adj[mid] < b)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return -1;
+}
+
+static int uf_find(int *up, int x)
+{
+    while (up[x] != x)
+        x = up[x] = up[up[x]];
+    return x;
+}
+
+/* Creases: the edges between two faces of the surface smoothed by 10
+ * Taubin passes that meet at more than CREASE_ANGLE, kept where they form
+ * chains of at least CREASE_MIN_EDGES (noise and a scan's isolated sharp
+ * spots make short bits). The crease vertices are then held for the
+ * surface's filter (marked in crease[], nv), those inside a chain (two
+ * crease edges) first smoothed along it by CREASE_PASSES Taubin passes on the chain
+ * alone (c->X0 updated); corners and chain ends stay (fold_guard puts a
+ * crease vertex back where its smoothing turned a face). Returns the number
+ * of crease vertices, -1 when out of memory. */
+static int creases(fair_ctx *c, const unsigned char *fixed, unsigned char *crease)
+{
+    const mcf__graph *g = &c->g;
+    int nv = c->nv, ne = g->ptr[nv], ncrease = 0;
+    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double)), *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *fn = mcf__malloc(3 * (size_t)c->nf, sizeof(double));
+    int *f1 = mcf__malloc((size_t)ne + 1, sizeof(int)), *cnt = mcf__calloc((size_t)ne + 1, sizeof(int));
+    int *up = mcf__malloc((size_t)nv, sizeof(int)), *size = mcf__calloc((size_t)nv, sizeof(int));
+    unsigned char *ce = mcf__calloc((size_t)ne + 1, 1);
+    int *cdeg = mcf__calloc((size_t)nv, sizeof(int));
+    if (!P || !tmp || !fn || !f1 || !cnt || !up || !size || !ce || !cdeg) {
+        ncrease = -1;
+        goto done;
+    }
+    memcpy(P, c->X0, 3 * sizeof(double) * (size_t)nv);
+    mcf__graph_taubin(g, fixed, P, 3, 10, tmp);
+    for (int f = 0; f < c->nf; f++) {
+        double *n = fn + 3 * (size_t)f;
+        face_normal(P, c->F + 3 * (size_t)f, n);
+        double l = sqrt(mcf__dot3(n, n));
+        for (int e = 0; e < 3; e++)
+            n[e] = l > 0.0 ? n[e] / l : 0.0;
+    }
+    /* the faces of every edge, in the slot of its smaller end's row */
+    double cosmax = cos(CREASE_ANGLE * MCF_PI / 180.0);
+    for (int f = 0; f < c->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int a = c->F[3 * f + k], b = c->F[3 * f + (k + 1) % 3];
+            if (a == b)
+                continue;
+            int t = edge_slot(g, a < b ? a : b, a < b ? b : a);
+            if (t < 0)
+                continue;
+            if (cnt[t] == 1 && mcf__dot3(fn + 3 * (size_t)f1[t], fn + 3 * (size_t)f) < cosmax)
+                ce[t] = 1;
+            if (cnt[t] == 0)
+                f1[t] = f;
+            else if (cnt[t] >= 1 && cnt[t] != 1)
+                ce[t] = 0;
+            cnt[t]++;
+        }
+    /* chains: components of the crease edges, short ones dropped */
+    for (int i = 0; i < nv; i++)
+        up[i] = i;
+    for (int a = 0; a < nv; a++)
+        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
+            if (ce[t] && cnt[t] == 2)
+                up[uf_find(up, a)] = uf_find(up, g->adj[t]);
+            else
+                ce[t] = 0;
+    for (int a = 0; a < nv; a++)
+        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
+            if (ce[t])
+                size[uf_find(up, a)]++;
+    for (int a = 0; a < nv; a++)
+        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
+            if (ce[t] && size[uf_find(up, a)] < CREASE_MIN_EDGES)
+                ce[t] = 0;
+    /* both directions, the degrees along creases */
+    for (int a = 0; a < nv; a++)
+        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
+            if (ce[t] && g->adj[t] > a) {
+                int u = edge_slot(g, g->adj[t], a);
+                if (u >= 0)
+                    ce[u] = 1;
+                cdeg[a]++;
+                cdeg[g->adj[t]]++;
+            }
+    for (int i = 0; i < nv; i++) {
+        crease[i] = cdeg[i] > 0;
+        ncrease += crease[i];
+    }
+    /* the chains' vertices smoothed along them (Taubin on the chain) */
+    if (ncrease > 0) {
+        static const double coef[2] = {MCF_TAUBIN_LAMBDA, MCF_TAUBIN_MU};
+        memcpy(P, c->X0, 3 * sizeof(double) * (size_t)nv);
+        for (int pass = 0; pass < CREASE_PASSES; pass++)
+            for (int h = 0; h < 2; h++) {
+                memcpy(tmp, P, 3 * sizeof(double) * (size_t)nv);
+                for (int i = 0; i < nv; i++) {
+                    if (cdeg[i] != 2 || fixed[i])
+                        continue;
+                    double avg[3] = {0, 0, 0};
+                    for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
+                        if (ce[t])
+                            for (int e = 0; e < 3; e++)
+                                avg[e] += 0.5 * tmp[3 * (size_t)g->adj[t] + e];
+                    for (int e = 0; e < 3; e++)
+                        P[3 * (size_t)i + e] += coef[h] * (avg[e] - tmp[3 * (size_t)i + e]);
+                }
+            }
+        memcpy(c->X0, P, 3 * sizeof(double) * (size_t)nv);
+    }
+done:
+    free(P);
+    free(tmp);
+    free(fn);
+    free(f1);
+    free(cnt);
+    free(up);
+    free(size);
+    free(ce);
+    free(cdeg);
+    return ncrease;
+}
+
+/* The free set, degrees, weights, the input's normals and the probes. */
+static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
+{
+    int nv = c->nv;
+    mcf_status rc = mcf__graph_build(c->F, c->nf, nv, &c->g, err);
+    if (rc != MCF_OK)
+        return rc;
+    c->bytes += sizeof(int) * ((size_t)nv + 1 + (size_t)c->g.ptr[nv]);
+    c->fx = mcf__malloc((size_t)nv, 1);
+    c->fid = mcf__malloc((size_t)nv, sizeof(int));
+    c->vert = mcf__malloc((size_t)nv, sizeof(int));
+    c->w = alloc_d(c, (size_t)nv);
+    c->n0 = alloc_d(c, 3 * (size_t)nv);
+    c->sq = alloc_d(c, (size_t)nv);
+    if (!c->fx || !c->fid || !c->vert || !c->w || !c->n0 || !c->sq)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    /* the creases: held for the surface's filter, smoothed along */
+    unsigned char *crease = c->crease = mcf__calloc((size_t)nv, 1);
+    c->Xin = alloc_d(c, 3 * (size_t)nv);
+    if (c->Xin)
+        memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
+    int ncrease = crease && c->Xin ? creases(c, fixed, crease) : -1;
+    if (ncrease < 0)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    c->st->crease_vertices = ncrease;
+    c->nfree = 0;
+    for (int i = 0; i < nv; i++) {
+        int d = c->g.ptr[i + 1] - c->g.ptr[i];
+        c->fx[i] = fixed[i] || d == 0 || crease[i];
+        c->fid[i] = c->fx[i] ? -1 : c->nfree;
+        if (!c->fx[i]) {
+            c->sq[c->nfree] = sqrt((double)d);
+            c->vert[c->nfree++] = i;
+        }
+    }
+    mcf__vertex_normals(c->X0, c->F, c->nf, nv, c->n0);
+    /* barycentric areas over their mean on the free vertices */
+    memset(c->w, 0, sizeof(double) * (size_t)nv);
+    for (int f = 0; f < c->nf; f++) {
+        const int32_t *t = c->F + 3 * (size_t)f;
+        double e1[3], e2[3], cr[3];
+        mcf__sub3(c->X0 + 3 * (size_t)t[1], c->X0 + 3 * (size_t)t[0], e1);
+        mcf__sub3(c->X0 + 3 * (size_t)t[2], c->X0 + 3 * (size_t)t[0], e2);
+        mcf__cross3(e1, e2, cr);
+        double a = sqrt(mcf__dot3(cr, cr)) / 6.0;
+        for (int k = 0; k < 3; k++)
+            c->w[t[k]] += a;
+    }
+    double sum = 0.0;
+    for (int i = 0; i < nv; i++)
+        sum += c->fx[i] ? 0.0 : c->w[i];
+    for (int i = 0; i < nv; i++)
+        c->w[i] = c->fx[i] || !(sum > 0.0) ? (c->fx[i] ? 0.0 : 1.0) : c->w[i] * c->nfree / sum;
+    return MCF_OK;
+}
+
+static void init_probes(fair_ctx *c)
+{
+    for (int q = 0; q < NPROBE; q++)
+        for (int k = 0; k < c->nfree; k++)
+            c->probe[(size_t)q * c->nfree + k] =
+                (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)k + 1) >> 63) ? 1.0 : -1.0;
+}
+
+/* ----------------------------------------------------- implicit engine */
+
+static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
+{
+    int n = c->nfree;
+    cholmod_start(&c->cm);
+    c->cm_started = 1;
+    c->cm.error_handler = NULL;
+    c->cm.print = 0;
+    /* N = D^-1/2 L_FF D^-1/2, unsymmetric storage (stype 0): CHOLMOD then
+     * analyses and factors N N' + beta I */
+    size_t nnz = (size_t)n;
+    for (int k = 0; k < n; k++) {
+        int i = c->vert[k];
+        for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++)
+            nnz += c->fid[c->g.adj[t]] >= 0;
+    }
+    c->N = cholmod_allocate_sparse((size_t)n, (size_t)n, nnz, 1, 1, 0, CHOLMOD_REAL, &c->cm);
+    c->Yd = cholmod_allocate_dense((size_t)n, (size_t)c->ncol, (size_t)n, CHOLMOD_REAL, &c->cm);
+    c->Bd = cholmod_allocate_dense((size_t)n, (size_t)c->ncol, (size_t)n, CHOLMOD_REAL, &c->cm);
+    c->b = alloc_d(c, 3 * (size_t)n);
+    if (!c->N || !c->Yd || !c->Bd || !c->b)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: CHOLMOD allocation failed (%d free vertices)", n);
+    int *cp = c->N->p, *ri = c->N->i;
+    double *val = c->N->x;
+    size_t q = 0;
+    for (int k = 0; k < n; k++) {
+        int i = c->vert[k];
+        cp[k] = (int)q;
+        /* the row indices sorted: the diagonal among the (sorted)
+         * neighbours, which keep their order as free indices */
+        int placed = 0;
+        for (int t = c->g.ptr[i]; t <= c->g.ptr[i + 1]; t++) {
+            int j = t < c->g.ptr[i + 1] ? c->g.adj[t] : -1;
+            if (!placed && (j < 0 || j > i)) {
+                ri[q] = k;
+                val[q++] = 1.0;
+                placed = 1;
+            }
+            if (j >= 0 && c->fid[j] >= 0) {
+                ri[q] = c->fid[j];
+                val[q++] = -1.0 / (c->sq[k] * c->sq[c->fid[j]]);
+            }
+        }
+    }
+    cp[n] = (int)q;
+    double t0 = mcf_now();
+    c->L = cholmod_analyze(c->N, &c->cm);
+    c->st->time_analyze += mcf_now() - t0;
+    if (!c->L)
+        return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM
+                              : c->cm.status == CHOLMOD_TOO_LARGE ? MCF_ELIMIT : MCF_ENUMERIC,
+                         "fairing: cholmod_analyze failed (status %d)", c->cm.status);
+    double beta[2] = {1.0, 0.0};
+    t0 = mcf_now();
+    int ok = cholmod_factorize_p(c->N, beta, NULL, 0, c->L, &c->cm);
+    c->st->time_factorize += mcf_now() - t0;
+    c->st->factorizations++;
+    if (c->cm.status == CHOLMOD_OUT_OF_MEMORY)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: cholmod_factorize: out of memory");
+    if (!ok || c->cm.status != CHOLMOD_OK)
+        return mcf__fail(err, c->cm.status == CHOLMOD_TOO_LARGE ? MCF_ELIMIT : MCF_ENUMERIC,
+                         "fairing: cholmod_factorize failed (status %d)", c->cm.status);
+    /* b = N u, u_k = -D_k^-1/2 sum of the fixed neighbours' positions */
+    double *u = c->b, *y = c->Yd->x;
+    for (int k = 0; k < n; k++) {
+        int i = c->vert[k];
+        double s[3] = {0, 0, 0};
+        for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++)
+            if (c->fid[c->g.adj[t]] < 0)
+                for (int d = 0; d < 3; d++)
+                    s[d] += c->X0[3 * (size_t)c->g.adj[t] + d];
+        for (int d = 0; d < 3; d++)
+            y[(size_t)d * n + k] = -s[d] / c->sq[k]; /* u, in Yd for now */
+    }
+    for (int k = 0; k < n; k++) {
+        int i = c->vert[k];
+        for (int d = 0; d < 3; d++) {
+            double s = y[(size_t)d * n + k];
+            for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++) {
+                int l = c->fid[c->g.adj[t]];
+                if (l >= 0)
+                    s -= y[(size_t)d * n + l] / (c->sq[k] * c->sq[l]);
+            }
+            u[(size_t)d * n + k] = s;
+        }
+    }
+    /* y0 = D^1/2 x0, then the probes */
+    for (int k = 0; k < n; k++)
+        for (int d = 0; d < 3; d++)
+            y[(size_t)d * n + k] = c->sq[k] * c->X0[3 * (size_t)c->vert[k] + d];
+    if (c->ncol > 3)
+        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * NPROBE * (size_t)n);
+    return MCF_OK;
+}
+
+static mcf_status implicit_step(fair_ctx *c, mcf_error *err)
+{
+    int n = c->nfree;
+    double t0 = mcf_now();
+    double *bx = c->Bd->x;
+    const double *y = c->Yd->x;
+    for (size_t q = 0; q < 3 * (size_t)n; q++)
+        bx[q] = y[q] - c->b[q];
+    memcpy(bx + 3 * (size_t)n, y + 3 * (size_t)n, sizeof(double) * (size_t)(c->ncol - 3) * (size_t)n);
+    if (!cholmod_solve2(CHOLMOD_A, c->L, c->Bd, NULL, &c->Xd, NULL, &c->Yw, &c->Ew, &c->cm))
+        return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
+                         "fairing: cholmod_solve failed (status %d)", c->cm.status);
+    cholmod_dense *sw = c->Yd;
+    c->Yd = c->Xd;
+    c->Xd = sw;
+    c->st->time_solve += mcf_now() - t0;
+    c->st->solves += c->ncol / 3;
+    return MCF_OK;
+}
+
+/* ----------------------------------------------------- explicit engine */
+
+static mcf_status explicit_init(fair_ctx *c, mcf_error *err)
+{
+    size_t nv = (size_t)c->nv, nc = (size_t)c->ncol;
+    c->Z = alloc_d(c, nv * nc);
+    c->tmp = alloc_d(c, nv * nc);
+    if (!c->Z || !c->tmp)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    for (size_t i = 0; i < nv; i++) {
+        for (int d = 0; d < 3; d++)
+            c->Z[nc * i + d] = c->X0[3 * i + d];
+        for (size_t q = 3; q < nc; q++)
+            c->Z[nc * i + q] = c->fid[i] >= 0 ? c->probe[(q - 3) * (size_t)c->nfree + (size_t)c->fid[i]] : 0.0;
+    }
+    return MCF_OK;
+}
+
+/* ------------------------------------------------------------- driver */
+
+/* The positions after the steps so far (3*nv, fixed rows X0). */
+static void positions(const fair_ctx *c, double *Y)
+{
+    if (c->is_explicit) {
+        for (int i = 0; i < c->nv; i++)
+            for (int d = 0; d < 3; d++)
+                Y[3 * (size_t)i + d] = c->Z[(size_t)c->ncol * i + d];
+        return;
+    }
+    memcpy(Y, c->X0, 3 * sizeof(double) * (size_t)c->nv);
+    const double *y = c->Yd->x;
+    for (int k = 0; k < c->nfree; k++)
+        for (int d = 0; d < 3; d++)
+            Y[3 * (size_t)c->vert[k] + d] = y[(size_t)d * c->nfree + k] / c->sq[k];
+}
+
+/* sum_i w_i (T^K)_ii by the probes. */
+static double weighted_trace(const fair_ctx *c)
+{
+    double tr = 0.0;
+    for (int q = 0; q < NPROBE; q++)
+        for (int k = 0; k < c->nfree; k++) {
+            int i = c->vert[k];
+            double z = c->probe[(size_t)q * c->nfree + k];
+            double v = c->is_explicit ? c->Z[(size_t)c->ncol * i + 3 + q]
+                                      : ((const double *)c->Yd->x)[(size_t)(3 + q) * c->nfree + k];
+            tr += c->w[i] * z * v;
+        }
+    return tr / NPROBE;
+}
+
+/* The displacement's parts of SURE: sum_F w r^2, r along n0 (*rn), and
+ * sum_F w |t|^2, t its part in the tangent planes of n0 (*rt). */
+static void weighted_r2(const fair_ctx *c, const double *Y, double *rn, double *rt)
+{
+    double s = 0.0, t = 0.0;
+    for (int k = 0; k < c->nfree; k++) {
+        size_t i = (size_t)c->vert[k];
+        double d[3];
+        mcf__sub3(Y + 3 * i, c->X0 + 3 * i, d);
+        double r = mcf__dot3(c->n0 + 3 * i, d);
+        s += c->w[i] * r * r;
+        t += c->w[i] * (mcf__dot3(d, d) - r * r);
+    }
+    *rn = s;
+    *rt = t;
+}
+
+static void face_normal(const double *X, const int32_t *t, double *n)
+{
+    double e1[3], e2[3];
+    mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
+    mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
+    mcf__cross3(e1, e2, n);
+}
+
+/* The closest point to p on triangle (a, b, c) (Ericson, Real-Time
+ * Collision Detection, 5.1.5) into q. */
+static void closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
+                                double *q)
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3];
+    mcf__sub3(b, a, ab);
+    mcf__sub3(c, a, ac);
+    mcf__sub3(p, a, ap);
+    double d1 = mcf__dot3(ab, ap), d2 = mcf__dot3(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        memcpy(q, a, 3 * sizeof(double));
+        return;
+    }
+    mcf__sub3(p, b, bp);
+    double d3 = mcf__dot3(ab, bp), d4 = mcf__dot3(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        memcpy(q, b, 3 * sizeof(double));
+        return;
+    }
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        double v = d1 / (d1 - d3);
+        for (int e = 0; e < 3; e++)
+            q[e] = a[e] + v * ab[e];
+        return;
+    }
+    mcf__sub3(p, c, cp);
+    double d5 = mcf__dot3(ab, cp), d6 = mcf__dot3(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        memcpy(q, c, 3 * sizeof(double));
+        return;
+    }
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        double w = d2 / (d2 - d6);
+        for (int e = 0; e < 3; e++)
+            q[e] = a[e] + w * ac[e];
+        return;
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int e = 0; e < 3; e++)
+            q[e] = b[e] + w * (c[e] - b[e]);
+        return;
+    }
+    double den = va + vb + vc;
+    if (!(den > 0.0)) { /* degenerate triangle: its first corner */
+        memcpy(q, a, 3 * sizeof(double));
+        return;
+    }
+    double v = vb / den, w = vc / den;
+    for (int e = 0; e < 3; e++)
+        q[e] = a[e] + v * ab[e] + w * ac[e];
+}
+
+/* The tangential relaxation: every free vertex of X moves by the part of
+ * Yt - X0 in its tangent plane (normals N), then back onto the surface X
+ * had: to the closest point of the faces around it and its neighbours.
+ * ENOMEM only. */
+static mcf_status tangential_output(fair_ctx *c, const double *Yt, const double *N, double *X,
+                                    mcf_error *err)
+{
+    int nv = c->nv;
+    int *vp = mcf__calloc((size_t)nv + 1, sizeof(int)), *vf = mcf__malloc(3 * (size_t)c->nf + 1, sizeof(int));
+    double *S = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    c->bytes += sizeof(int) * (4 * (size_t)nv + 3 * (size_t)c->nf);
+    if (!vp || !vf || !S) {
+        free(vp);
+        free(vf);
+        free(S);
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d faces)", c->nf);
+    }
+    for (size_t q = 0; q < 3 * (size_t)c->nf; q++)
+        vp[c->F[q] + 1]++;
+    for (int i = 0; i < nv; i++)
+        vp[i + 1] += vp[i];
+    for (int f = 0; f < c->nf; f++)
+        for (int k = 0; k < 3; k++)
+            vf[vp[c->F[3 * f + k]]++] = f;
+    for (int i = nv; i > 0; i--)
+        vp[i] = vp[i - 1];
+    vp[0] = 0;
+    memcpy(S, X, 3 * sizeof(double) * (size_t)nv);
+    for (int k = 0; k < c->nfree; k++) {
+        int i = c->vert[k];
+        const double *n = N + 3 * (size_t)i;
+        double d[3], p[3], best = INFINITY, q[3], bq[3];
+        mcf__sub3(Yt + 3 * (size_t)i, c->X0 + 3 * (size_t)i, d);
+        double a = mcf__dot3(n, d);
+        for (int e = 0; e < 3; e++)
+            p[e] = S[3 * (size_t)i + e] + d[e] - a * n[e];
+        memcpy(bq, S + 3 * (size_t)i, 3 * sizeof(double));
+        for (int t = c->g.ptr[i] - 1; t < c->g.ptr[i + 1]; t++) {
+            int v = t < c->g.ptr[i] ? i : c->g.adj[t];
+            for (int r = vp[v]; r < vp[v + 1]; r++) {
+                const int32_t *tri = c->F + 3 * (size_t)vf[r];
+                closest_on_triangle(p, S + 3 * (size_t)tri[0], S + 3 * (size_t)tri[1], S + 3 * (size_t)tri[2], q);
+                double e3[3];
+                mcf__sub3(q, p, e3);
+                double dd = mcf__dot3(e3, e3);
+                if (dd < best) {
+                    best = dd;
+                    memcpy(bq, q, sizeof q);
+                }
+            }
+        }
+        memcpy(X + 3 * (size_t)i, bq, sizeof bq);
+    }
+    free(vp);
+    free(vf);
+    free(S);
+    return MCF_OK;
+}
+
+/* X = X0 + n <n, Y - X0> on the free vertices, n the normals of Y, into
+ * X; N (3*nv) gets those normals. */
+static void normal_output(fair_ctx *c, const double *Y, double *X, double *N)
+{
+    mcf__vertex_normals(Y, c->F, c->nf, c->nv, N);
+    memcpy(X, c->X0, 3 * sizeof(double) * (size_t)c->nv);
+    for (int k = 0; k < c->nfree; k++) {
+        size_t i = (size_t)c->vert[k];
+        double d[3];
+        mcf__sub3(Y + 3 * i, c->X0 + 3 * i, d);
+        double a = mcf__dot3(N + 3 * i, d);
+        for (int e = 0; e < 3; e++)
+            X[3 * i + e] += a * N[3 * i + e];
+    }
+}
+
+/* The guard: a face of X facing against the same face of Y takes Y's
+ * positions at its free vertices; a round can turn a neighbour, hence
+ * the rounds. A face facing against the input's at a crease vertex (the
+ * crease's smoothing turned it, which Y shares) takes the input's
+ * position there. */
+static void fold_guard(fair_ctx *c, const double *Y, double *X)
+{
+    for (int round = 0; round < GUARD_ROUNDS; round++) {
+        int moved = 0;
+        for (int f = 0; f < c->nf; f++) {
+            const int32_t *t = c->F + 3 * (size_t)f;
+            double a[3], b[3];
+            face_normal(X, t, a);
+            if (c->st->crease_vertices > 0 && (c->crease[t[0]] || c->crease[t[1]] || c->crease[t[2]])) {
+                face_normal(c->Xin, t, b);
+                if (mcf__dot3(a, b) < 0.0)
+                    for (int k = 0; k < 3; k++) {
+                        size_t i = (size_t)t[k];
+                        if (c->crease[i] && memcmp(X + 3 * i, c->Xin + 3 * i, 3 * sizeof(double)) != 0) {
+                            memcpy(X + 3 * i, c->Xin + 3 * i, 3 * sizeof(double));
+                            moved++;
+                        }
+                    }
+            }
+            face_normal(Y, t, b);
+            if (mcf__dot3(a, b) >= 0.0)
+                continue;
+            for (int k = 0; k < 3; k++) {
+                size_t i = (size_t)t[k];
+                if (!c->fx[i] && memcmp(X + 3 * i, Y + 3 * i, 3 * sizeof(double)) != 0) {
+                    memcpy(X + 3 * i, Y + 3 * i, 3 * sizeof(double));
+                    moved++;
+                }
+            }
+        }
+        if (!moved)
+            break;
+        c->st->guard_rounds++;
+        c->st->guard_vertices += moved;
+    }
+}
+
+mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
+                        mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+{
+    fair_ctx c;
+    mcf_status rc;
+    double *Y = NULL, *Ybest = NULL, *Yt = NULL;
+    memset(&c, 0, sizeof c);
+    c.p = p;
+    c.nv = nv;
+    c.nf = nf;
+    c.F = F;
+    c.st = st;
+    c.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
+    c.X0 = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    c.bytes += 3 * sizeof(double) * (size_t)nv;
+    if (!c.X0)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    memcpy(c.X0, X, 3 * sizeof(double) * (size_t)nv);
+    if ((rc = setup(&c, fixed, err)) != MCF_OK)
+        goto done;
+
+    /* the amount: iterations steps, or SURE with the noise level */
+    int sure = p->iterations <= 0;
+    int cap = p->iterations > 0 ? p->iterations
+              : (c.is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
+    if (cap > p->max_steps && !(p->iterations > 0))
+        cap = p->max_steps;
+    double s = 0.0, s_est = 0.0, s_t = 0.0;
+    if (sure) {
+        if ((rc = mcf__noise_levels(c.X0, F, nf, nv, c.fx, &s_est, &s_t, err)) != MCF_OK)
+            goto done;
+        s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
+        /* the tangential noise: what the tangential reading shows beyond
+         * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
+         * triangles read as (0.02-0.12 on the shared scans: noise below
+         * it cannot be told from the mesh), and at most the normal
+         * noise (scanners' noise is isotropic at most) */
+        s_t = fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
+        st->noise = hbar > 0.0 ? s / hbar : 0.0;
+        st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
+        /* no noise (or nothing free): nothing to remove */
+        if (!(s > 0.0) || c.nfree == 0)
+            cap = 0;
+    }
+    st->t_target = cap;
+    c.ncol = sure ? NCOL : 3;
+    Y = alloc_d(&c, 3 * (size_t)nv);
+    Ybest = alloc_d(&c, 3 * (size_t)nv);
+    Yt = alloc_d(&c, 3 * (size_t)nv);
+    c.probe = sure ? alloc_d(&c, NPROBE * (size_t)(c.nfree ? c.nfree : 1)) : NULL;
+    if (!Y || !Ybest || !Yt || (sure && !c.probe)) {
+        rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+        goto done;
+    }
+    memcpy(Ybest, c.X0, 3 * sizeof(double) * (size_t)nv);
+    memcpy(Yt, c.X0, 3 * sizeof(double) * (size_t)nv);
+    if (sure) {
+        init_probes(&c);
+        st->sure = mcf__malloc((size_t)cap + 1, sizeof(double));
+        if (!st->sure) {
+            rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
+            goto done;
+        }
+    }
+    if (cap > 0 && (rc = c.is_explicit ? explicit_init(&c, err) : implicit_init(&c, err)) != MCF_OK)
+        goto done;
+
+    double sumw = (double)c.nfree, best = 0.0, best_t = 0.0;
+    int kbest = 0, kbest_t = 0;
+    if (sure) {
+        best = s * s * sumw; /* SURE(0): the input, trace sum w */
+        best_t = 2.0 * s_t * s_t * sumw;
+        st->sure[0] = best / sumw / (hbar * hbar);
+        st->nsure = 1;
+    }
+    for (int k = 1; k <= cap; k++) {
+        if (hook && hook(hook_ctx, k - 1, NULL)) {
+            rc = mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
+            goto done;
+        }
+        if (c.is_explicit) {
+            double t0 = mcf_now();
+            mcf__graph_taubin(&c.g, c.fx, c.Z, c.ncol, 1, c.tmp);
+            st->time_solve += mcf_now() - t0;
+        } else if ((rc = implicit_step(&c, err)) != MCF_OK) {
+            goto done;
+        }
+        positions(&c, Y);
+        if (!sure) {
+            kbest = k;
+        } else {
+            double rn, rt, tr = weighted_trace(&c);
+            weighted_r2(&c, Y, &rn, &rt);
+            double risk = rn - s * s * sumw + 2.0 * s * s * tr;
+            /* the tangential part: two directions, the same smoother */
+            double risk_t = rt - 2.0 * s_t * s_t * sumw + 4.0 * s_t * s_t * tr;
+            st->sure[st->nsure++] = risk / sumw / (hbar * hbar);
+            if (risk < best) {
+                best = risk;
+                kbest = k;
+                memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
+            }
+            if (risk_t < best_t) {
+                best_t = risk_t;
+                kbest_t = k;
+                memcpy(Yt, Y, 3 * sizeof(double) * (size_t)nv);
+            }
+        }
+        if (hook && hook(hook_ctx, k, Y)) {
+            rc = mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
+            goto done;
+        }
+        if (sure && k > 2 * (kbest > kbest_t ? kbest : kbest_t) + 10)
+            break;
+    }
+    if (!sure && cap > 0)
+        memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
+    st->steps = kbest;
+    st->tangential_steps = kbest_t;
+    /* the output along the normals of the filtered surface, relaxed in
+     * its tangent planes, guarded */
+    normal_output(&c, Ybest, X, Y);
+    if (kbest_t > 0 && (rc = tangential_output(&c, Yt, Y, X, err)) != MCF_OK)
+        goto done;
+    fold_guard(&c, Ybest, X);
+    rc = MCF_OK;
+done:
+    if (c.cm_started)
+        c.bytes += c.cm.memory_usage;
+    st->peak_bytes = c.bytes;
+    free(c.X0);
+    free(Y);
+    free(Ybest);
+    free(Yt);
+    fair_free(&c);
+    return rc;
+}

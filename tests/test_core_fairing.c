@@ -1,0 +1,699 @@
+/*
+ * test_core_fairing.c - the fairing filters (core/mcf_fairing.c), the
+ * default of a request that names no scheme:
+ *  - both variants agree with their equations, written out here with
+ *    dense linear algebra on a 100-vertex height field with a fixed
+ *    boundary (steps, normal-only output, fold guard, the SURE curve);
+ *  - on real scans with injected noise the default request's error is at
+ *    most 0.75x that of Taubin's lambda|mu filter at its best pass count
+ *    (chosen knowing the clean mesh) on the median case, never above the
+ *    input's, and adds no folds: the repository's meshes here, the large
+ *    scans under MESHES.
+ * Errors are mcf_compare's area-weighted RMS against the clean mesh.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testlib.h"
+
+/* ------------------------------------------------ dense reference */
+
+enum { G = 10, NV = G * G, NF = 2 * (G - 1) * (G - 1) };
+
+/* A 10 x 10 height field over [0, 1]^2, z = 0.2 sin(3x) cos(2y) plus a
+ * deterministic bump per vertex (noise of about a tenth of an edge). */
+static mcf_mesh *height_field(void)
+{
+    double X[3 * NV];
+    int32_t F[3 * NF];
+    int f = 0;
+    for (int j = 0; j < G; j++)
+        for (int i = 0; i < G; i++) {
+            double x = i / (G - 1.0), y = j / (G - 1.0);
+            double b = sin(12.9898 * i + 78.233 * j) * 43758.5453;
+            b -= floor(b);
+            X[3 * (j * G + i)] = x;
+            X[3 * (j * G + i) + 1] = y;
+            X[3 * (j * G + i) + 2] = 0.2 * sin(3 * x) * cos(2 * y) + 0.02 * (b - 0.5);
+        }
+    for (int j = 0; j + 1 < G; j++)
+        for (int i = 0; i + 1 < G; i++) {
+            int a = j * G + i, b = a + 1, c = a + G, d = c + 1;
+            int32_t t[6] = {a, b, d, a, d, c};
+            memcpy(F + 3 * f, t, sizeof t);
+            f += 2;
+        }
+    mcf_mesh *m = mcf_mesh_new(NV, X, NF, F, NULL);
+    assert_non_null(m);
+    return m;
+}
+
+/* Solves the SPD system A x = b (n x n, row-major, A destroyed) by
+ * Cholesky; b becomes x. */
+static void dense_solve(double *A, double *b, int n)
+{
+    for (int j = 0; j < n; j++) {
+        double s = A[j * n + j];
+        for (int k = 0; k < j; k++)
+            s -= A[j * n + k] * A[j * n + k];
+        assert_true(s > 0.0);
+        A[j * n + j] = sqrt(s);
+        for (int i = j + 1; i < n; i++) {
+            double t = A[i * n + j];
+            for (int k = 0; k < j; k++)
+                t -= A[i * n + k] * A[j * n + k];
+            A[i * n + j] = t / A[j * n + j];
+        }
+    }
+    for (int i = 0; i < n; i++) {
+        for (int k = 0; k < i; k++)
+            b[i] -= A[i * n + k] * b[k];
+        b[i] /= A[i * n + i];
+    }
+    for (int i = n - 1; i >= 0; i--) {
+        for (int k = i + 1; k < n; k++)
+            b[i] -= A[k * n + i] * b[k];
+        b[i] /= A[i * n + i];
+    }
+}
+
+/* The graph of the height field: adjacency (weight 1 per edge), degrees,
+ * boundary (fixed) vertices. */
+typedef struct {
+    double A[NV * NV], D[NV];
+    int fixed[NV], free_idx[NV], nfree, vert[NV];
+} graph;
+
+static void make_graph(const int32_t *F, graph *g)
+{
+    memset(g, 0, sizeof *g);
+    for (int f = 0; f < NF; f++)
+        for (int k = 0; k < 3; k++) {
+            int a = F[3 * f + k], b = F[3 * f + (k + 1) % 3];
+            g->A[a * NV + b] = g->A[b * NV + a] = 1.0;
+        }
+    for (int i = 0; i < NV; i++) {
+        for (int j = 0; j < NV; j++)
+            g->D[i] += g->A[i * NV + j];
+        int x = i % G, y = i / G;
+        g->fixed[i] = x == 0 || y == 0 || x == G - 1 || y == G - 1;
+        g->free_idx[i] = g->fixed[i] ? -1 : g->nfree;
+        if (!g->fixed[i])
+            g->vert[g->nfree++] = i;
+    }
+}
+
+static void normals(const double *X, const int32_t *F, double *N, int unit)
+{
+    memset(N, 0, sizeof(double) * 3 * NV);
+    for (int f = 0; f < NF; f++) {
+        const double *a = X + 3 * F[3 * f], *b = X + 3 * F[3 * f + 1], *c = X + 3 * F[3 * f + 2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                N[3 * F[3 * f + k] + d] += n[d];
+    }
+    for (int i = 0; unit && i < NV; i++) {
+        double l = sqrt(N[3 * i] * N[3 * i] + N[3 * i + 1] * N[3 * i + 1] + N[3 * i + 2] * N[3 * i + 2]);
+        for (int d = 0; d < 3; d++)
+            N[3 * i + d] /= l;
+    }
+}
+
+static void face_n(const double *X, const int32_t *t, double *n)
+{
+    const double *a = X + 3 * t[0], *b = X + 3 * t[1], *c = X + 3 * t[2];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+}
+
+/* The output of the issue's equations from the filtered positions Y:
+ * X = X0 + n <n, Y - X0> with n the area-weighted normals of Y, then up
+ * to 5 guard rounds. */
+static void reference_output(const graph *g, const double *X0, const double *Y, const int32_t *F, double *X)
+{
+    double N[3 * NV];
+    normals(Y, F, N, 1);
+    for (int i = 0; i < NV; i++) {
+        double a = 0.0;
+        for (int d = 0; d < 3; d++)
+            a += N[3 * i + d] * (Y[3 * i + d] - X0[3 * i + d]);
+        for (int d = 0; d < 3; d++)
+            X[3 * i + d] = X0[3 * i + d] + (g->fixed[i] ? 0.0 : a * N[3 * i + d]);
+    }
+    for (int round = 0; round < 5; round++) {
+        int moved = 0;
+        for (int f = 0; f < NF; f++) {
+            double a[3], b[3];
+            face_n(X, F + 3 * f, a);
+            face_n(Y, F + 3 * f, b);
+            if (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] >= 0.0)
+                continue;
+            for (int k = 0; k < 3; k++) {
+                int v = F[3 * f + k];
+                if (!g->fixed[v] && memcmp(X + 3 * v, Y + 3 * v, 3 * sizeof(double))) {
+                    memcpy(X + 3 * v, Y + 3 * v, 3 * sizeof(double));
+                    moved = 1;
+                }
+            }
+        }
+        if (!moved)
+            break;
+    }
+}
+
+/* T (nfree x nfree): one implicit step's linear part S^-1 D_F (S = D_F +
+ * L_FF D_F^-1 L_FF) and its constant c (nfree x 3: -S^-1 L_FF D_F^-1
+ * L_FB X0_B); explicit: one Taubin pass's (I + mu U)(I + lambda U) on the
+ * free rows, U = D^-1 A - I, and its constant. */
+static void step_operator(const graph *g, const double *X0, int is_explicit, double *T, double *c)
+{
+    int n = g->nfree;
+    double *S = calloc((size_t)n * n, sizeof *S), *col = calloc((size_t)n, sizeof *col);
+    assert_non_null(S);
+    assert_non_null(col);
+    if (is_explicit) {
+        /* apply the pass to unit vectors (the linear part, fixed rows 0)
+         * and to X0 with zero free rows (the constant) */
+        for (int q = 0; q <= n; q++) {
+            double x[NV * 3];
+            memset(x, 0, sizeof x);
+            if (q < n)
+                x[3 * g->vert[q]] = 1.0;
+            else
+                for (int i = 0; i < NV; i++)
+                    for (int d = 0; d < 3; d++)
+                        x[3 * i + d] = g->fixed[i] ? X0[3 * i + d] : 0.0;
+            for (int h = 0; h < 2; h++) {
+                double co = h ? -0.53 : 0.5, y[NV * 3];
+                for (int i = 0; i < NV; i++)
+                    for (int d = 0; d < 3; d++) {
+                        double avg = 0.0;
+                        for (int j = 0; j < NV; j++)
+                            avg += g->A[i * NV + j] * x[3 * j + d];
+                        avg /= g->D[i];
+                        y[3 * i + d] = g->fixed[i] ? x[3 * i + d] : x[3 * i + d] + co * (avg - x[3 * i + d]);
+                    }
+                memcpy(x, y, sizeof x);
+            }
+            for (int k = 0; k < n; k++) {
+                if (q < n)
+                    T[k * n + q] = x[3 * g->vert[k]];
+                else
+                    for (int d = 0; d < 3; d++)
+                        c[3 * k + d] = x[3 * g->vert[k] + d];
+            }
+        }
+        free(S);
+        free(col);
+        return;
+    }
+    /* L_FF D_F^-1 L_FF: L = D - A */
+    for (int a = 0; a < n; a++)
+        for (int b = 0; b < n; b++) {
+            double s = 0.0;
+            for (int k = 0; k < n; k++) {
+                int i = g->vert[a], j = g->vert[b], v = g->vert[k];
+                double lik = (i == v ? g->D[i] : 0.0) - g->A[i * NV + v];
+                double lkj = (v == j ? g->D[v] : 0.0) - g->A[v * NV + j];
+                s += lik * lkj / g->D[v];
+            }
+            S[a * n + b] = s + (a == b ? g->D[g->vert[a]] : 0.0);
+        }
+    double *Sc = malloc(sizeof(double) * (size_t)n * n);
+    assert_non_null(Sc);
+    for (int q = 0; q < n; q++) { /* T e_q = S^-1 D e_q */
+        memcpy(Sc, S, sizeof(double) * (size_t)n * n);
+        memset(col, 0, sizeof(double) * (size_t)n);
+        col[q] = g->D[g->vert[q]];
+        dense_solve(Sc, col, n);
+        for (int k = 0; k < n; k++)
+            T[k * n + q] = col[k];
+    }
+    for (int d = 0; d < 3; d++) { /* c = -S^-1 L_FF D_F^-1 L_FB X0_B */
+        double *lb = calloc((size_t)n, sizeof *lb);
+        assert_non_null(lb);
+        for (int k = 0; k < n; k++) /* (L_FB X0_B)_k / D_k */
+            for (int j = 0; j < NV; j++)
+                if (g->fixed[j])
+                    lb[k] -= g->A[g->vert[k] * NV + j] * X0[3 * j + d] / g->D[g->vert[k]];
+        for (int a = 0; a < n; a++) {
+            double s = 0.0;
+            for (int k = 0; k < n; k++) {
+                int i = g->vert[a], v = g->vert[k];
+                s += ((i == v ? g->D[i] : 0.0) - g->A[i * NV + v]) * lb[k];
+            }
+            col[a] = -s;
+        }
+        memcpy(Sc, S, sizeof(double) * (size_t)n * n);
+        dense_solve(Sc, col, n);
+        for (int k = 0; k < n; k++)
+            c[3 * k + d] = col[k];
+        free(lb);
+    }
+    free(Sc);
+    free(S);
+    free(col);
+}
+
+/* Y after K steps of (T, c) from X0. */
+static void reference_steps(const graph *g, const double *T, const double *c, const double *X0, int K,
+                            double *Y)
+{
+    int n = g->nfree;
+    memcpy(Y, X0, sizeof(double) * 3 * NV);
+    for (int k = 0; k < K; k++) {
+        double y[3 * NV];
+        memcpy(y, Y, sizeof y);
+        for (int a = 0; a < n; a++)
+            for (int d = 0; d < 3; d++) {
+                double s = c[3 * a + d];
+                for (int b = 0; b < n; b++)
+                    s += T[a * n + b] * y[3 * g->vert[b] + d];
+                Y[3 * g->vert[a] + d] = s;
+            }
+    }
+}
+
+/* Runs variant var (0 implicit, 1 explicit) on m: K steps, or (K 0) the
+ * automatic amount for noise sigma mean edges. */
+static void run_variant(mcf_mesh *m, int var, int K, double sigma, mcf_flow_stats *st)
+{
+    mcf_flow_params p;
+    mcf_error err = {0};
+    mcf_flow_params_init(&p);
+    p.scheme = var ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
+    p.iterations = K;
+    p.noise_sigma = sigma;
+    if (mcf_flow_run(m, &p, st, &err) != MCF_OK)
+        fail_msg("%s: %s", var ? "fairing_explicit" : "fairing", err.msg);
+}
+
+/* Both variants at a fixed step count against the equations: the same
+ * positions to 1e-10 of the field's extent (dense Cholesky against
+ * CHOLMOD, and the run's normalization to unit area and back: rounding at
+ * 1e-15 relative, times a system whose condition number is below 100 and
+ * a few steps; 1e-10 leaves five orders for it). */
+static void test_equations_fixed_steps(void **state)
+{
+    static graph g;
+    (void)state;
+    for (int var = 0; var < 2; var++) {
+        int K = var ? 12 : 4;
+        mcf_mesh *m = height_field();
+        const int32_t *F = mcf_mesh_faces(m);
+        double X0[3 * NV], Y[3 * NV], Xref[3 * NV];
+        memcpy(X0, mcf_mesh_positions(m), sizeof X0);
+        make_graph(F, &g);
+        int n = g.nfree;
+        double *T = malloc(sizeof(double) * (size_t)n * n), *c = malloc(sizeof(double) * 3 * (size_t)n);
+        assert_non_null(T);
+        assert_non_null(c);
+        step_operator(&g, X0, var, T, c);
+        reference_steps(&g, T, c, X0, K, Y);
+        reference_output(&g, X0, Y, F, Xref);
+
+        mcf_flow_stats st;
+        run_variant(m, var, K, 0.0, &st);
+        const double *Xc = mcf_mesh_positions(m);
+        double worst = 0.0, moved = 0.0;
+        for (int q = 0; q < 3 * NV; q++) {
+            worst = fmax(worst, fabs(Xc[q] - Xref[q]));
+            moved = fmax(moved, fabs(Xref[q] - X0[q]));
+        }
+        print_message("%s, %d steps: largest difference from the equations %.2e (largest move %.3f)\n",
+                      var ? "fairing_explicit" : "fairing", K, worst, moved);
+        assert_true(worst <= 1e-10);
+        assert_true(moved > 1e-3); /* the filter did something */
+        assert_int_equal(st.steps, K);
+        assert_int_equal(st.factorizations, var ? 0 : 1);
+        mcf_flow_stats_free(&st);
+        free(T);
+        free(c);
+        mcf_mesh_free(m);
+    }
+}
+
+/* The automatic amount against SURE written out: with the noise level
+ * given (noise_sigma), the curve st.sure[K] equals sum w r^2 - s^2 sum w +
+ * 2 s^2 tr(W T^K), r along the input's normals, w the barycentric areas
+ * over their mean, up to the trace's Hutchinson estimate from six
+ * Rademacher probes: within 5 of its standard deviations, computed here
+ * from the dense matrix (Var z'Bz = 2 (|B_s|_F^2 - sum B_ii^2) for B_s the
+ * symmetric part; the implicit variant carries its probes through
+ * D^1/2 T D^-1/2, which has the same diagonal). The result is the
+ * curve's minimizer, and the run stopped at 2 K* + 11 or the cap. */
+static void test_equations_sure(void **state)
+{
+    static graph g;
+    (void)state;
+    for (int var = 0; var < 2; var++) {
+        mcf_mesh *m = height_field();
+        const int32_t *F = mcf_mesh_faces(m);
+        double X0[3 * NV], N0[3 * NV], w[NV];
+        memcpy(X0, mcf_mesh_positions(m), sizeof X0);
+        make_graph(F, &g);
+        int n = g.nfree;
+        mcf_mesh_info info;
+        assert_int_equal(mcf_mesh_inspect(m, &info, NULL), MCF_OK);
+        double h = info.mean_edge, sigma = 0.15, s = sigma * h;
+        normals(X0, F, N0, 1);
+        /* barycentric areas: |n_f| / 6 per corner, over their free mean */
+        double sumw = 0.0;
+        memset(w, 0, sizeof w);
+        for (int f = 0; f < NF; f++) {
+            double a[3];
+            face_n(X0, F + 3 * f, a);
+            for (int k = 0; k < 3; k++)
+                w[F[3 * f + k]] += sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) / 6.0;
+        }
+        for (int i = 0; i < NV; i++)
+            sumw += g.fixed[i] ? 0.0 : w[i];
+        for (int i = 0; i < NV; i++)
+            w[i] = g.fixed[i] ? 0.0 : w[i] * n / sumw;
+        double *T = malloc(sizeof(double) * (size_t)n * n), *c = malloc(sizeof(double) * 3 * (size_t)n);
+        double *TK = malloc(sizeof(double) * (size_t)n * n), *tmp = malloc(sizeof(double) * (size_t)n * n);
+        assert_non_null(T);
+        assert_non_null(c);
+        assert_non_null(TK);
+        assert_non_null(tmp);
+        step_operator(&g, X0, var, T, c);
+
+        mcf_flow_stats st;
+        run_variant(m, var, 0, sigma, &st);
+        assert_non_null(st.sure);
+        assert_true(st.nsure >= 2);
+        /* identity to start: T^0 */
+        for (int a = 0; a < n; a++)
+            for (int b = 0; b < n; b++)
+                TK[a * n + b] = a == b;
+        int kmin = 0;
+        for (int K = 0; K < st.nsure; K++) {
+            if (K > 0) { /* TK = T TK */
+                for (int a = 0; a < n; a++)
+                    for (int b = 0; b < n; b++) {
+                        double t = 0.0;
+                        for (int q = 0; q < n; q++)
+                            t += T[a * n + q] * TK[q * n + b];
+                        tmp[a * n + b] = t;
+                    }
+                memcpy(TK, tmp, sizeof(double) * (size_t)n * n);
+            }
+            double Y[3 * NV];
+            reference_steps(&g, T, c, X0, K, Y);
+            double r2 = 0.0, tr = 0.0, fro = 0.0, dia = 0.0;
+            for (int a = 0; a < n; a++) {
+                int i = g.vert[a];
+                double r = 0.0;
+                for (int d = 0; d < 3; d++)
+                    r += N0[3 * i + d] * (Y[3 * i + d] - X0[3 * i + d]);
+                r2 += w[i] * r * r;
+                tr += w[i] * TK[a * n + a];
+                /* B = W R^K, R^K = D^1/2 T^K D^-1/2 for the implicit probes */
+                for (int b = 0; b < n; b++) {
+                    double sc = var ? 1.0 : sqrt(g.D[i] / g.D[g.vert[b]]);
+                    double bab = w[i] * TK[a * n + b] * sc;
+                    double sc2 = var ? 1.0 : sqrt(g.D[g.vert[b]] / g.D[i]);
+                    double bba = w[g.vert[b]] * TK[b * n + a] * sc2;
+                    fro += 0.25 * (bab + bba) * (bab + bba);
+                }
+                dia += (w[i] * TK[a * n + a]) * (w[i] * TK[a * n + a]);
+            }
+            double sd = sqrt(2.0 * (fro - dia) / 6.0);
+            double ref = (r2 - s * s * n + 2.0 * s * s * tr) / n / (h * h);
+            double tol = 5.0 * 2.0 * s * s * sd / n / (h * h) + 1e-9;
+            if (!(fabs(st.sure[K] - ref) <= tol))
+                fail_msg("%s: SURE(%d) %.6f, equations %.6f (tolerance %.2e)", var ? "fairing_explicit" : "fairing", K,
+                         st.sure[K], ref, tol);
+            if (st.sure[K] < st.sure[kmin])
+                kmin = K;
+        }
+        print_message("%s: SURE over %d step counts agrees, minimum at %d (%d tangential)\n",
+                      var ? "fairing_explicit" : "fairing", st.nsure, st.steps, st.tangential_steps);
+        assert_int_equal(st.steps, kmin);
+        int kmax = st.steps > st.tangential_steps ? st.steps : st.tangential_steps;
+        assert_true(st.nsure - 1 == 2 * kmax + 11 ||
+                    st.nsure - 1 == (var ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS));
+        tl_assert_near(st.noise, sigma, 1e-12, "the noise level the amount used");
+        mcf_flow_stats_free(&st);
+        free(T);
+        free(c);
+        free(TK);
+        free(tmp);
+        mcf_mesh_free(m);
+    }
+}
+
+/* ------------------------------------------------ against Taubin */
+
+static double rms(const mcf_mesh *m, const mcf_mesh *clean)
+{
+    mcf_compare_result r;
+    assert_int_equal(mcf_compare(m, clean, &r, NULL), MCF_OK);
+    return r.rms_m;
+}
+
+/* Taubin's oracle: the product's scheme=taubin with the uniform
+ * Laplacian (lambda 0.5, mu -0.53, Open3D's filter_smooth_taubin's
+ * weights), one pass at a time, the best error over the pass counts
+ * (stopping 20 passes past the best once 5% worse, as bench_quality). */
+static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean, int *passes)
+{
+    mcf_mesh *x = mcf_mesh_dup(noisy, NULL);
+    mcf_flow_params p;
+    mcf_error err = {0};
+    double best = rms(x, clean);
+    int kbest = 0;
+    assert_non_null(x);
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_TAUBIN;
+    p.laplacian = MCF_LAPLACIAN_UNIFORM;
+    p.iterations = 1;
+    for (int k = 1; k <= 500; k++) {
+        if (mcf_flow_run(x, &p, NULL, &err) != MCF_OK)
+            fail_msg("taubin: %s", err.msg);
+        double e = rms(x, clean);
+        if (e < best) {
+            best = e;
+            kbest = k;
+        }
+        if (k > 2 * kbest + 20 && e > 1.05 * best)
+            break;
+    }
+    mcf_mesh_free(x);
+    *passes = kbest;
+    return best;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The default request (api_params_init, api_params_finish with nothing
+ * set: the fairing filter) on each mesh x noise 0.1, 0.25, 0.5 mean edges
+ * along the normals (seed 1): the median of its error over Taubin's
+ * oracle at most 0.75 (the issue's bound), every case below the input's
+ * error and with no more faces lying backwards than the input
+ * (flow.folded_faces, the FOLDS warning's count: the guard at work). */
+static void default_against_taubin(const char *const *names, int nmesh)
+{
+    static const double rho[3] = {0.1, 0.25, 0.5};
+    double ratio[64];
+    int nr = 0;
+    for (int q = 0; q < nmesh; q++)
+        tl_need_mesh(names[q]);
+    for (int q = 0; q < nmesh; q++) {
+        mcf_mesh *clean = tl_load(names[q]);
+        for (int k = 0; k < 3; k++) {
+            mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+            api_params ap;
+            mcf_flow_stats st;
+            mcf_error err = {0};
+            api_params_init(&ap);
+            assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 1, &err), MCF_OK);
+            double in = rms(m, clean);
+            int passes;
+            double tb = taubin_oracle(m, clean, &passes);
+            assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
+            if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
+                fail_msg("%s: %s", names[q], err.msg);
+            double e = rms(m, clean);
+            ratio[nr++] = e / tb;
+            print_message("%-20s rho %.2f: %s K=%d, noise %.3f, error/input %.3f, /Taubin(%d passes) %.3f, "
+                          "guard %d rounds, folds %d\n",
+                          names[q], rho[k], mcf_scheme_get(ap.flow.scheme)->name, st.steps, st.noise, e / in,
+                          passes, e / tb, st.guard_rounds, st.folded_faces);
+            assert_true(ap.flow.scheme == MCF_FAIRING || ap.flow.scheme == MCF_FAIRING_EXPLICIT);
+            if (!(e < in))
+                fail_msg("%s rho %.2f: error %.4g not below the input's %.4g", names[q], rho[k], e, in);
+            assert_int_equal(st.folded_faces, 0);
+            mcf_flow_stats_free(&st);
+            api_params_free(&ap);
+            mcf_mesh_free(m);
+        }
+        mcf_mesh_free(clean);
+    }
+    qsort(ratio, (size_t)nr, sizeof *ratio, cmp_double);
+    double med = nr % 2 ? ratio[nr / 2] : 0.5 * (ratio[nr / 2 - 1] + ratio[nr / 2]);
+    print_message("median error / Taubin's oracle over %d cases: %.3f (worst %.3f)\n", nr, med, ratio[nr - 1]);
+    assert_true(med <= 0.75);
+}
+
+/* The repository's meshes: closed coarse scan, genus 1, sphere, and the
+ * 35k-vertex Stanford bunny with its holes (fixed boundary). Measured
+ * before this test was written: median 0.71, worst 0.84 (bunny_npm at
+ * 0.5). */
+static void test_default_beats_taubin(void **state)
+{
+    static const char *const names[] = {"bunny_npm_closed.obj", "knot1.obj", "sphere_cgal.obj", "bunny.drc"};
+    (void)state;
+    default_against_taubin(names, 4);
+}
+
+/* The large scans (MESHES). */
+static void test_default_beats_taubin_scans(void **state)
+{
+    static const char *const names[] = {"spot.obj", "fertility.obj", "stanford-bunny.obj", "armadillo.obj"};
+    (void)state;
+    default_against_taubin(names, 4);
+}
+
+/* A closed box 2 x 1 x 1, each side a grid of squares of side 1/n split
+ * in two triangles, the edges shared: a CAD part with 12 creases of 90
+ * degrees and 8 corners. */
+static mcf_mesh *box_mesh(int n)
+{
+    static const double dims[3] = {2.0, 1.0, 1.0};
+    int cap = 6 * (2 * n + 1) * (2 * n + 1), nv = 0, nf = 0;
+    double *X = malloc(sizeof(double) * 3 * (size_t)cap);
+    int32_t *F = malloc(sizeof(int32_t) * 3 * 2 * (size_t)cap);
+    int *ids = malloc(sizeof(int) * (size_t)(2 * n + 1) * (size_t)(2 * n + 1));
+    assert_non_null(X);
+    assert_non_null(F);
+    assert_non_null(ids);
+    for (int axis = 0; axis < 3; axis++)
+        for (int side = 0; side < 2; side++) {
+            int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+            int nu = (int)(n * dims[a1] + 0.5), nw = (int)(n * dims[a2] + 0.5);
+            for (int i = 0; i <= nu; i++)
+                for (int j = 0; j <= nw; j++) {
+                    double p[3];
+                    p[axis] = side * dims[axis];
+                    p[a1] = dims[a1] * i / nu;
+                    p[a2] = dims[a2] * j / nw;
+                    int id = -1;
+                    for (int q = 0; q < nv && id < 0; q++) /* shared edges */
+                        if (fabs(X[3 * q] - p[0]) + fabs(X[3 * q + 1] - p[1]) + fabs(X[3 * q + 2] - p[2]) < 1e-12)
+                            id = q;
+                    if (id < 0) {
+                        memcpy(X + 3 * nv, p, sizeof p);
+                        id = nv++;
+                    }
+                    ids[i * (nw + 1) + j] = id;
+                }
+            for (int i = 0; i < nu; i++)
+                for (int j = 0; j < nw; j++) {
+                    int a = ids[i * (nw + 1) + j], b = ids[(i + 1) * (nw + 1) + j];
+                    int c = ids[(i + 1) * (nw + 1) + j + 1], d = ids[i * (nw + 1) + j + 1];
+                    /* outward: (a1, a2, axis) is right-handed */
+                    int32_t t[6] = {a, b, c, a, c, d};
+                    if (side == 0) {
+                        t[1] = c; t[2] = b; t[4] = d; t[5] = c;
+                    }
+                    memcpy(F + 3 * nf, t, sizeof t);
+                    nf += 2;
+                }
+        }
+    mcf_mesh *m = mcf_mesh_new(nv, X, nf, F, NULL);
+    assert_non_null(m);
+    free(X);
+    free(F);
+    free(ids);
+    return m;
+}
+
+/* Sharp features: on the box with noise along the normals the default
+ * request keeps the creases (it finds them: crease_vertices > 0) and its
+ * error is at most 0.75x Taubin's oracle at 0.1 and 0.25 (measured 0.38
+ * and 0.69 here; without the crease step the filter rounded the edges:
+ * 1.12 and 0.95 on another draw of the same noise). At 0.5 the smoothed
+ * surface no longer shows every crease (measured 0.91): below the input's
+ * error is all that is asserted there. */
+static void test_creases_kept(void **state)
+{
+    static const double rho[3] = {0.1, 0.25, 0.5};
+    mcf_mesh *clean = box_mesh(16);
+    mcf_mesh_info info;
+    (void)state;
+    assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
+    assert_int_equal(info.closed, 1);
+    assert_int_equal(info.manifold, 1);
+    for (int k = 0; k < 3; k++) {
+        mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+        api_params ap;
+        mcf_flow_stats st;
+        mcf_error err = {0};
+        int passes;
+        api_params_init(&ap);
+        assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 2, &err), MCF_OK);
+        double in = rms(m, clean), tb = taubin_oracle(m, clean, &passes);
+        assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
+        if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
+            fail_msg("box: %s", err.msg);
+        double e = rms(m, clean);
+        print_message("box rho %.2f: %d crease vertices, K=%d, error/input %.3f, /Taubin(%d passes) %.3f, folds %d\n",
+                      rho[k], st.crease_vertices, st.steps, e / in, passes, e / tb, st.folded_faces);
+        assert_true(st.crease_vertices > 0);
+        assert_true(e < in);
+        if (k < 2)
+            assert_true(e <= 0.75 * tb);
+        assert_int_equal(st.folded_faces, 0);
+        mcf_flow_stats_free(&st);
+        api_params_free(&ap);
+        mcf_mesh_free(m);
+    }
+    mcf_mesh_free(clean);
+}
+
+/* What the filters refuse: time, dt, adaptive (they are no flows). */
+static void test_refusals(void **state)
+{
+    mcf_mesh *m = height_field();
+    mcf_flow_params p;
+    mcf_error err = {0};
+    (void)state;
+    for (int var = 0; var < 2; var++) {
+        mcf_flow_params_init(&p);
+        p.scheme = var ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
+        p.time = 1e-3;
+        assert_int_equal(mcf_flow_run(m, &p, NULL, &err), MCF_EINVAL);
+        assert_non_null(strstr(err.msg, "is a filter"));
+        p.time = 0;
+        p.dt = 1e-4;
+        assert_int_equal(mcf_flow_run(m, &p, NULL, &err), MCF_EINVAL);
+        p.dt = 0;
+        p.noise_sigma = -1;
+        assert_int_equal(mcf_flow_run(m, &p, NULL, &err), MCF_EINVAL);
+    }
+    mcf_mesh_free(m);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_equations_fixed_steps),
+        cmocka_unit_test(test_equations_sure),
+        cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_creases_kept),
+        cmocka_unit_test(test_default_beats_taubin),
+        cmocka_unit_test(test_default_beats_taubin_scans),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
