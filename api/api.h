@@ -318,7 +318,9 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
  * it is refused). *by_mesh (may be NULL) is set when the mesh decides
  * instead (adaptive, dt=auto, a fixed dt with the amount from strength, a
  * fairing filter's automatic amount): then the most it may take
- * (max_steps within lim's max_iterations, or the filter's cap). */
+ * (max_steps within lim's max_iterations, or the filter's cap). Before
+ * the mesh, an unnamed scheme is api_params_scheme's (a fairing filter
+ * counted at the larger of the two caps). */
 double api_params_steps(const api_params *p, const api_limits *lim,
                         int *by_mesh);
 /* Final checks once the mesh is known: the default scheme when none was

@@ -844,17 +844,22 @@ double api_params_steps(const api_params *p, const api_limits *lim,
                         int *by_mesh)
 {
     const mcf_flow_params *f = &p->flow;
-    int mesh = 0;
+    /* unnamed and not chosen yet (before the mesh): desbrun2 for a flow
+     * request, else a fairing filter, which the mesh's size picks */
+    mcf_scheme s = api_params_scheme(p, 0);
+    int known = p->scheme_set || p->scheme_chosen || p->flow_keys_set,
+        mesh = 0;
     double n;
 
-    if (is_fairing(f->scheme) && f->iterations <= 0) {
-        /* the fairing filters' automatic amount stops at its cap, or at
-         * max_steps (which the work limit may lower) */
-        double cap = f->scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS
-                                              : MCF_FAIRING_MAX_PASSES;
+    if (is_fairing(s) && f->iterations <= 0) {
+        /* the fairing filters' automatic amount stops at its cap (the
+         * larger one while the filter is not known), or at max_steps
+         * (which the work limit may lower) */
+        double cap = known && s == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS
+                                               : MCF_FAIRING_MAX_PASSES;
         mesh = 1;
         n = f->max_steps > 0 && f->max_steps < cap ? f->max_steps : cap;
-    } else if (f->scheme == MCF_TAUBIN || is_fairing(f->scheme) ||
+    } else if (s == MCF_TAUBIN || is_fairing(s) ||
                (!f->adaptive && !f->dt_auto && !(f->dt > 0.0)))
         n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
     else if (!f->adaptive && !f->dt_auto && f->time > 0.0)
