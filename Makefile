@@ -69,6 +69,8 @@ DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
             python3-setuptools python3-wheel curl assimp-utils
 DEB_BENCH := libeigen3-dev libcgal-dev
+# make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
+DEB_QUALITY := python3-open3d python3-numpy
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
 NPM_CI_FLAGS ?=
@@ -255,21 +257,31 @@ tsan: deps
 
 .PHONY: tsan
 
-# ---- the attacks of issue 9 on a real mcfd (loopback), one test_server test
+# ---- the attacks of issues 9 and 17 on a real mcfd (loopback), one test
 # each, with the figures they measure (worker release, floods, slowloris,
-# followers, queued memory); the README's reliability section quotes them.
+# followers, queued memory, uploads in flight; for the gRPC door:
+# connection floods, descriptors, header blocks, abandoned streams, rapid
+# reset, compressed messages); the README's reliability section quotes
+# them. ATTACKS are test_server's, ATTACKS_GRPC test_grpc.py's.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
   test_http_small_things test_transfer_framing test_query_flood test_spool_failures test_spool_quota test_spool_full \
   test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
   test_followers_and_per_ip test_per_ip_busy test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
-  test_memory_admission test_body_timeout test_clock_jumps
+  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight
+ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
+  test_no_descriptors_makes_the_daemon_unhealthy test_header_blocks_are_bounded \
+  test_abandoned_streams_are_bounded test_rapid_reset_is_paced \
+  test_compressed_messages_are_refused test_uploads_in_flight_fit_the_memory_budget \
+  test_open_and_cancel_thousands_of_calls test_unread_answer_is_cancelled
 attack: deps
 	$(MAKE) all $(B)/tests/test_server
-	@fail=0; for t in $(ATTACKS); do \
+	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC); do \
+	  case " $(ATTACKS_GRPC) " in *" $$t "*) run="/usr/bin/python3 tests/test_grpc.py";; \
+	    *) run=$(B)/tests/test_server;; esac; \
 	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=$(B) MCF_TEST_FILTER=$$t \
-	    $(B)/tests/test_server > $(B)/tests/attack.out 2>&1 || fail=1; \
+	    $$run > $(B)/tests/attack.out 2>&1 || fail=1; \
 	  grep -E '^\[ *(OK|FAILED|SKIP) *\]|^    ' $(B)/tests/attack.out | grep -v ' test(s)'; \
 	done; rm -f $(B)/tests/attack.out; exit $$fail
 
@@ -288,9 +300,12 @@ bench-ui: deps
 
 .PHONY: bench-ui
 
-# ---- the scan-quality benchmark# ---- the scan-quality benchmark (issue 12, section 5: bench/bench_quality.c):
-#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, table, goals, figure -> docs/quality/
+# ---- the scan-quality benchmark (issue 16: bench/bench_quality.c): every
+# shared mesh, normal and isotropic noise, the default request, each scheme's
+# automatic amount, Taubin's best, Open3D's filter_smooth_taubin:
+#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, tables, renders -> docs/quality/
 quality: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
 	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
 	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
 

@@ -273,6 +273,7 @@ typedef struct {
     uint64_t seed;
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
+    int dt_set;                   /* dt given (a number or auto) */
     int tol_set;                  /* tol given (needs adaptive) */
     int scheme_set;               /* scheme given */
     int scheme_chosen;            /* not given: api_params_finish chose it
@@ -294,6 +295,11 @@ mcf_scheme api_default_scheme(long long nv);
  * one named, else api_default_scheme(nv), or desbrun2 when p sets a
  * flow's keys (flow_keys_set). p may be NULL (no parameters). */
 mcf_scheme api_params_scheme(const api_params *p, long long nv);
+/* 1 when the job's amount is automatic (mcf_auto.c): strength=auto, or
+ * a request that names no amount (none of time, iterations, dt and
+ * strength). api_params_finish then sets flow.strength_auto. Every
+ * scheme's default: an MCF scheme's time, Taubin's pass count. */
+int api_params_auto_amount(const api_params *p);
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
 void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */
@@ -330,7 +336,8 @@ double api_params_steps(const api_params *p, const api_limits *lim,
  * range, iterations x vertices within max_work; and amounts that
  * contradict each other (EINVAL naming them): time, dt and iterations
  * all given and ceil(time / dt) != iterations (or dt=auto), or a dt
- * larger than the time. */
+ * larger than the time. The automatic amount (api_params_auto_amount)
+ * becomes flow.strength_auto. */
 mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);
 /* The parameters as a JSON object (for job records and metrics). */

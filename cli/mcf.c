@@ -73,8 +73,9 @@ static const char smooth_head[] =
     "estimate says for the noise it reads off the mesh, along the normals only;\n"
     "--iterations sets its steps, --strength the noise level (mean edges). With\n"
     "--time, --dt, --adaptive, --laplacian, --mass or --rescale and no --scheme:\n"
-    "desbrun2, as before. An MCF scheme's flow runs to a total time set by --strength\n"
-    "(default 0.33), --time, or --iterations with --dt. The job parameters are the\n"
+    "desbrun2, as before. An MCF scheme's (and taubin's) amount is automatic too, by\n"
+    "the same risk estimate, unless --strength, --time, or --iterations with --dt set\n"
+    "it (--iterations or --dt alone: strength 0.33). The job parameters are the\n"
     "daemon's (dashes here, underscores there); a boolean is --NAME or --no-NAME.\n"
     "\n"
     "Job parameters:\n";

@@ -499,8 +499,12 @@ static double mnorm(const flow_ctx *c, const double *D, const double *mass)
  * errors add up to the global one, pass unchanged; stiff modes (slivers,
  * the noise), which the L-stable step damps anyway, are damped too. Raw,
  * those dominate every estimate on a scan and the controller crawls
- * (dt 1e-11 after 22k steps on an 11k-vertex head). One more back-solve
- * (3 columns) with the factor already at hand; D is overwritten. */
+ * (dt 1e-11 after 22k steps on an 11k-vertex head). Used by the
+ * step-doubling estimates (desbrun, desbrun2's first step, richardson),
+ * whose first-order companion overstates the error of stiff modes;
+ * desbrun2's Milne estimate goes unfiltered (do_step says why). One more
+ * back-solve (3 columns) with the factor already at hand; D is
+ * overwritten. */
 static mcf_status filtered_mnorm(flow_ctx *c, double cmass, const double *mass, double *D,
                                  double *out, mcf_error *err)
 {
@@ -723,7 +727,16 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
             if (est && hist->nhist >= 2) {
                 /* Milne device: X+ minus the quadratic through the last
                  * three points is DD3 * h (h+h1) (h+h1+h2); the BDF2 local
-                 * error is |DD3| h^2 (h+h1)^2 / (2h+h1) (see README). */
+                 * error is |DD3| h^2 (h+h1)^2 / (2h+h1) (see README).
+                 * Unfiltered: a mode's local error survives to T damped by
+                 * about exp(-lambda (T - t)), not by the step's resolvent
+                 * 1 / (1 + h lambda / c0), so filtering (as the start and
+                 * the first-order companions do) hid the modes near
+                 * h lambda ~ 1 that the last steps leave in the result:
+                 * filtered, tol 1e-5 ended 1.9-2.0x tol from a converged
+                 * run on spot and snowden at noise 0.25 (25-34 steps),
+                 * unfiltered 1.0-1.2x (37-65 steps), and the error now
+                 * falls with tol (tol 1e-6: 0.7-1.1x). */
                 double h1 = hist->h1, h2 = hist->h2;
                 double tk = 0, tm1 = -h1, tm2 = -h1 - h2, tp = h;
                 /* Lagrange weights of the quadratic through (tm2,tm1,tk) at tp */
@@ -732,10 +745,8 @@ static mcf_status do_step(flow_ctx *c, double h, const history *hist, double *es
                 double l2 = (tp - tm2) * (tp - tm1) / ((tk - tm2) * (tk - tm1));
                 for (size_t i = 0; i < n3; i++)
                     c->V[i] = X[i] - (l0 * c->Xprev2[i] + l1 * c->Xprev[i] + l2 * c->Xold[i]);
-                double fac = h * (h + h1) / ((2.0 * h + h1) * (h + h1 + h2)), e;
-                if ((rc = filtered_mnorm(c, c0, c->mass, c->V, &e, err)) != MCF_OK)
-                    break;
-                *est = fac * e;
+                double fac = h * (h + h1) / ((2.0 * h + h1) * (h + h1 + h2));
+                *est = fac * mnorm(c, c->V, c->mass);
             }
         }
         break;
@@ -1137,8 +1148,9 @@ static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats 
         st->warnings |= MCF_WARN_EDGE_COLLAPSE;
     if (p->rescale == MCF_RESCALE_NONE && st->area_ratio < 0.6)
         st->warnings |= MCF_WARN_AREA_LOSS;
-    /* (a fairing filter's 0 steps is its finding: no noise to remove) */
-    if (!is_fairing(p->scheme) && p->scheme != MCF_TAUBIN && st->strength < 0.1)
+    /* an automatic amount or a fairing filter that found little noise:
+     * the finding, not a warning */
+    if (!is_fairing(p->scheme) && p->scheme != MCF_TAUBIN && !p->strength_auto && st->strength < 0.1)
         st->warnings |= MCF_WARN_LITTLE_SMOOTHING;
 }
 
@@ -1365,20 +1377,35 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
     }
     if (p->scheme == MCF_TAUBIN) {
         h = T = 0.0; /* passes, no time */
+        if (p->strength_auto && p->iterations <= 0) {
+            double sigma;
+            if ((rc = mcf__auto_passes(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, hbar, &nsteps, &sigma,
+                                       err)) != MCF_OK)
+                goto done;
+            if (nsteps > p->max_steps)
+                nsteps = p->max_steps;
+            st->noise = sigma / hbar;
+        }
     } else if (T <= 0.0 && p->iterations > 0 && dt_set) {
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
         double sigma;
-        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass, hbar, nsteps, &T,
-                                 &sigma, err)) != MCF_OK)
+        /* an implicit scheme lends its solver: one symbolic analysis */
+        mcf__solver lend = {&c.pat, &c.cm, c.A, &c.L};
+        if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass,
+                                 p->scheme != MCF_LINEAR, hbar, nsteps, c.have_solver ? &lend : NULL,
+                                 &T, &sigma, err)) != MCF_OK)
             goto done;
+        c.analyzed = c.L != NULL;
         st->noise = sigma / hbar;
+        if (!(T > 0.0))
+            nsteps = 0; /* no noise to remove: the mesh comes back as it came */
     } else if (T <= 0.0) {
         T = p->strength * p->strength * hbar * hbar;
     }
     st->t_target = T;
     if (p->scheme != MCF_TAUBIN && !dt_set) {
-        h = T / nsteps;
+        h = nsteps > 0 ? T / nsteps : 0.0;
     } else if (p->scheme != MCF_TAUBIN && !p->adaptive) {
         double k = ceil(T / h * (1.0 - 1e-12));
         /* a step count the caller gave (iterations with dt) is the

@@ -135,15 +135,38 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
                              mcf_error *err);
 
-/* ---- strength=auto (mcf_auto.c)
- * The time t_best that minimizes SURE for K frozen implicit steps from X
+/* ---- the automatic amount (mcf_auto.c)
+ * A run's solver, lent to the automatic amount: its pattern (with the face
+ * map), its CHOLMOD workspace and matrix (values overwritten) and its
+ * factor, analysed there when *L is NULL and kept for the run. */
+struct cholmod_common_struct;
+struct cholmod_sparse_struct;
+struct cholmod_factor_struct;
+typedef struct {
+    const mcf__pattern *pat;
+    struct cholmod_common_struct *cm;
+    struct cholmod_sparse_struct *A;
+    struct cholmod_factor_struct **L;
+} mcf__solver;
+
+/* The time t_best that minimizes SURE for K frozen implicit steps from X
  * (working units, mean edge hbar), and the noise level sigma along the
- * normals it estimated (working units, mcf__noise_level over the vertices
- * fixed[] does not hold). ENOMEM, ENUMERIC. */
+ * normals it estimated (working units). fixed (nv, may be NULL): the
+ * vertices the run holds; moving_mass: the run's mass follows its area
+ * (every scheme but `linear`); lend: the run's solver, or NULL. ENOMEM,
+ * ENUMERIC. */
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
-                          const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
-                          double hbar, int K, double *t_best, double *sigma,
-                          mcf_error *err);
+                          const unsigned char *fixed, mcf_laplacian lap,
+                          mcf_mass mk, int moving_mass, double hbar, int K,
+                          const mcf__solver *lend, double *t_best,
+                          double *sigma, mcf_error *err);
+/* Taubin's pass count (0..MCF_AUTO_MAX_PASSES) that minimizes SURE for
+ * the passes frozen at X, and sigma as above. ENOMEM. */
+#define MCF_AUTO_MAX_PASSES 500
+mcf_status mcf__auto_passes(const double *X, const int32_t *F, int nf, int nv,
+                            const unsigned char *fixed, mcf_laplacian lap,
+                            double hbar, int *passes, double *sigma,
+                            mcf_error *err);
 
 /* ---- the fairing filter (mcf_fairing.c)
  * The hook mcf_flow_run gives the filter: called with X NULL before step

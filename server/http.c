@@ -48,10 +48,15 @@ const char *srv_route_name(srv_route rt)
 }
 
 static const srv_config *g_cfg;
+static int (*g_health)(char *why, size_t size);
+static void (*g_more_gauges)(srv_gauges *g);
 
-void srv_http_init(const srv_config *cfg)
+void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
+                   void (*more_gauges)(srv_gauges *g))
 {
     g_cfg = cfg;
+    g_health = health;
+    g_more_gauges = more_gauges;
 }
 
 const srv_config *srv_http_config(void)
@@ -204,6 +209,7 @@ static srv_gauges gauges(void)
     svc_gauges s = svc_get_gauges();
     srv_gauges g;
 
+    memset(&g, 0, sizeof g);
     g.queue_depth = s.queue_depth;
     g.queue_capacity = s.queue_capacity;
     g.workers = s.workers;
@@ -212,6 +218,8 @@ static srv_gauges gauges(void)
     g.draining = s.draining;
     g.followers = srv_waiter_followers();
     g.spool_bytes = s.spool_bytes;
+    if (g_more_gauges)
+        g_more_gauges(&g);
     return g;
 }
 
@@ -260,6 +268,13 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_route_job(r, c, method);
     }
 
+    /* A door that no longer accepts (the gRPC door: h2gate_health) makes
+     * the daemon unhealthy, so an orchestrator restarts it. */
+    if (r->rt == RT_HEALTHZ || r->rt == RT_READYZ) {
+        char why[300];
+        if (g_health && g_health(why, sizeof why) != 0)
+            return srv_send_problemf(r, c, 503, "EUNHEALTHY", "%s", why);
+    }
     if (r->rt == RT_HEALTHZ) {
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ok");
@@ -778,6 +793,7 @@ static void request_free(srv_request *r, int toe)
     api_buf_free(&r->mesh);
     api_buf_free(&r->target);
     api_buf_free(&r->params);
+    svc_upload_release(&r->mem_held);
     cJSON_Delete(r->fields);
     free(r->uri);
     free(r);

@@ -153,6 +153,8 @@ typedef struct {
     srv_problem perr;          /* found while reading; answered at the end */
     int has_perr;
     size_t perr_at;            /* bytes_in + 1 when perr was first seen */
+    size_t mem_held;           /* its bytes' reservation in --max-memory
+                                  (svc_upload_reserve) */
     /* waiting on a job */
     srv_mode md;
     svc_job *job;
@@ -161,8 +163,12 @@ typedef struct {
     int sync_owner;            /* this request takes the kept result */
 } srv_request;
 
-/* The configuration the door reads (token, limits); set once by main. */
-void srv_http_init(const srv_config *cfg);
+/* The configuration the door reads (token, limits), the health of the
+ * rest of the daemon /healthz and /readyz report (0, or -1 and why: the
+ * gRPC door's; NULL: none) and what /metrics adds about it (NULL: none);
+ * set once by main. */
+void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
+                   void (*more_gauges)(srv_gauges *g));
 const srv_config *srv_http_config(void);
 
 /* The query string of the request target, NULL when there is none. */

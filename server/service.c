@@ -527,6 +527,38 @@ int svc_can_accept(void)
     return ok;
 }
 
+int svc_upload_reserve(size_t *held, size_t want, svc_error *e)
+{
+    const svc_config *cfg = &svc__S.cfg;
+    double h = (double)*held;
+    size_t more;
+    want += SVC_UPLOAD_AROUND;
+    if (want <= *held)
+        return 0;
+    more = want - *held;
+    if (more < SVC_UPLOAD_STEP)
+        more = SVC_UPLOAD_STEP;
+    if (!svc_admit_more(cfg, &h, (double)more)) {
+        svc_error_set(e, SVC_EBUSY, NULL, "no memory for this upload now: the "
+                      "running jobs and the uploads in flight hold --max-memory "
+                      "(%zu MiB); retry after the delay", cfg->max_memory >> 20);
+        return -1;
+    }
+    *held += more;
+    return 0;
+}
+
+void svc_upload_release(size_t *held)
+{
+    if (*held == 0)
+        return;
+    svc_admit_release((double)*held);
+    *held = 0;
+    svc__lock();               /* a queued job may fit now */
+    pthread_cond_broadcast(&svc__S.work);
+    svc__unlock();
+}
+
 int svc_draining(void)
 {
     int d;

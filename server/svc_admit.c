@@ -10,6 +10,10 @@
  * always runs, so a grow can never deadlock. The estimate counts the
  * steps too (their log and progress events: step_bytes).
  *
+ * Uploads in flight (both doors) hold reservations in the same budget,
+ * of the bytes they buffer (svc_admit_more): a job waits while they fill
+ * it, and an upload that does not fit is refused (EBUSY).
+ *
  * So the daemon's memory stays within its resting size plus --max-memory
  * as far as the estimates hold (their margin: api_estimate.c; the tested
  * figure: README, reliability). One mutex of its own, taken inside the
@@ -27,7 +31,7 @@ static struct {
     pthread_mutex_t mu;
     pthread_cond_t freed;
     double used;               /* sum of the running jobs' reservations */
-    int holders;               /* jobs holding one */
+    int holders;               /* jobs and uploads holding one */
 } A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
 
 /* What a run's steps hold while it runs: the core's step log (56 B a
@@ -85,6 +89,21 @@ int svc_admit_try(const svc_config *cfg, double estimate)
     if (ok) {
         A.used += estimate;
         A.holders++;
+    }
+    pthread_mutex_unlock(&A.mu);
+    return ok;
+}
+
+int svc_admit_more(const svc_config *cfg, double *held, double more)
+{
+    int ok;
+    pthread_mutex_lock(&A.mu);
+    ok = A.holders == (*held > 0 ? 1 : 0) || A.used + more <= (double)cfg->max_memory;
+    if (ok) {
+        if (*held == 0)
+            A.holders++;
+        A.used += more;
+        *held += more;
     }
     pthread_mutex_unlock(&A.mu);
     return ok;

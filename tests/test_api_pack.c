@@ -191,6 +191,11 @@ static void test_estimate_counts(void **state)
     tl_assert_near(api_estimate_job_bytes(e.vertices, e.faces, len, &p) / 1048576.0, 57.5, 0.1,
                    "bunny.drc estimate, desbrun2");
     assert_int_equal(api_params_set(&p, "scheme", "euler", &lim, NULL), MCF_OK);
+    /* euler's automatic amount (no amount named) factorizes: desbrun2's
+     * charge; with an amount it factorizes nothing */
+    tl_assert_near(api_estimate_job_bytes(e.vertices, e.faces, len, &p), e.job_bytes, 1.0,
+                   "euler with the automatic amount");
+    assert_int_equal(api_params_set(&p, "strength", "0.33", &lim, NULL), MCF_OK);
     assert_true(api_estimate_job_bytes(e.vertices, e.faces, len, &p) <
                 e.job_bytes / 2);
     api_params_free(&p);

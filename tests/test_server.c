@@ -783,7 +783,9 @@ static cJSON *follow_metrics_link(const daemon_t *d, const resp_t *r,
     return j;
 }
 
-/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2' */
+/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2&strength=0.33' (an
+ * amount named: without one, the automatic amount finds no noise on this
+ * clean sphere and returns it unchanged) */
 static void test_smooth_obj_multipart(void **state)
 {
     upload_t up = {.mesh = "sphere_cgal.obj"};
@@ -794,7 +796,7 @@ static void test_smooth_obj_multipart(void **state)
     cJSON *m;
 
     (void)state;
-    http(&g_main, "POST", "/smooth?scheme=desbrun2", NULL, &up, &r);
+    http(&g_main, "POST", "/smooth?scheme=desbrun2&strength=0.33", NULL, &up, &r);
     expect_status(&g_main, &r, 200, "POST /smooth obj");
     assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/obj");
     assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
@@ -2395,8 +2397,8 @@ static void test_per_ip_busy(void **state)
     stop_daemon(&d);
 }
 
-/* A size of a process in KiB from /proc/PID/status (field "VmRSS", or
- * "VmHWM": its peak RSS), -1 when /proc cannot say. */
+/* A size field of a process's status ("VmRSS", "VmHWM": its peak) in
+ * KiB, -1 when /proc cannot say. */
 static long status_kib(pid_t pid, const char *field)
 {
     char path[64], line[256];
@@ -2412,6 +2414,11 @@ static long status_kib(pid_t pid, const char *field)
             break;
     fclose(f);
     return kib;
+}
+
+static long rss_kib(pid_t pid)
+{
+    return status_kib(pid, "VmRSS");
 }
 
 /* Issue 9 item 4, in part: queued jobs held their whole input in memory
@@ -3300,10 +3307,14 @@ static void test_draco_sandbox(void **state)
                    "orientation bomb");
 #endif
     resp_free(&r);
-    /* the detail names the limit that stopped it (no bound on wall time:
-     * 10.1 s under TSan on a loaded machine) */
     print_message("    210-byte orientation bomb, default limits: 422 in %.2f s "
                   "(8.8 s and 256 MiB in-process)\n", dt);
+    /* The 422's text names the limit that stopped it (that is the
+     * behaviour); the time is printed, and bounded only as a hang guard:
+     * a child under RLIMIT_CPU of 2 s stretches in wall time with the
+     * machine's load (CI saw 6-8.6 s under sanitizers at load 10), while
+     * the unbounded decode would spin for ever at 2^31 orientations. */
+    assert_true(dt < 30);
     /* the same stream as a glTF's Draco primitive: the same sandbox */
     t0 = mcf_now();
     post_file(&d, "/smooth", "gltf/draco_bomb.glb", &r);
@@ -3335,10 +3346,7 @@ static void test_draco_sandbox(void **state)
                    "orientation bomb, --decode-memory 1G");
     resp_free(&r);
     print_message("    the same with --decode-memory 1G: 422 (CPU) in %.2f s\n", dt);
-    /* its 2 s of CPU took at least as long; the detail says the CPU limit,
-     * not the wall clock (25 s), stopped it (no upper bound on wall time:
-     * on a loaded machine it took 20.7 s) */
-    assert_true(dt >= 1.9);
+    assert_true(dt >= 1.9 && dt < 30); /* 2 s of CPU; hang guard as above */
     /* a DELETE while it decodes kills the child */
     post_file(&d, "/v1/jobs", bomb, &r);
     expect_status(&d, &r, 202, "async orientation bomb");
@@ -3357,7 +3365,9 @@ static void test_draco_sandbox(void **state)
     assert_string_equal(jstr(j, "status"), "canceled");
     cJSON_Delete(j);
     print_message("    DELETE during the decode: canceled after %.2f s\n", dt);
-    assert_true(dt < 1.0);
+    /* killed, not run to its CPU limit: well under the 2 s it would take,
+     * with room for a loaded machine's scheduling */
+    assert_true(dt < 1.9);
     assert_int_equal(count_children(d.pid), 0);
     stop_daemon(&d);
 }
@@ -3465,6 +3475,121 @@ static void test_memory_admission(void **state)
     if (hwm > rest + 100 * 1024)
         fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M",
                  hwm, rest);
+}
+
+/* Sends n bytes of an OBJ-looking body to fd; how many went before the
+ * daemon closed or answered (a refused upload is answered early). */
+static size_t send_body(int fd, size_t n)
+{
+    static char block[64 * 1024];
+    size_t sent = 0;
+    if (!block[0])
+        for (size_t i = 0; i < sizeof block; i += 8)
+            memcpy(block + i, "v 0 0 0\n", 8);
+    while (sent < n) {
+        size_t k = n - sent < sizeof block ? n - sent : sizeof block;
+        ssize_t w = send(fd, block, k, MSG_NOSIGNAL);
+        if (w <= 0)
+            break;
+        sent += (size_t)w;
+    }
+    return sent;
+}
+
+/* Issue 17 item 7: uploads held open were outside the memory budget: 16
+ * bodies of 40 MiB, each sent but for its last byte, took 665 MiB against
+ * a documented peak of rest + --max-memory 100M (the ceiling was
+ * connections x --max-upload). Now an upload's Content-Length is reserved
+ * in --max-memory beside the running jobs before its body is read
+ * (svc_upload_reserve): two fit, the others are answered 503 EBUSY with
+ * Retry-After before their body; a body without a length reserves as it
+ * comes, and is refused (read and discarded, never buffered) when the
+ * budget is full. */
+static void test_uploads_in_flight(void **state)
+{
+    static const char *const flags[] = {"--max-memory", "100M", "--max-upload", "64M",
+                                        "--max-connections-per-ip", "0", NULL};
+    const size_t body = (size_t)40 << 20;
+    daemon_t d;
+    char spool[600], head[256], buf[512] = "";
+    int fds[16], held = 0, busy = 0, i, fd;
+    long rest, hwm, hwm2 = 0;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/uploads", g_tmp);
+    assert_int_equal(start_daemon(&d, "uploads", spool, flags), 0);
+    rest = rss_kib(d.pid);
+    snprintf(head, sizeof head, "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+             "model/obj\r\nContent-Length: %zu\r\n\r\n", body);
+    for (i = 0; i < 16; i++) {
+        fds[i] = connect_from(&d, "127.0.0.1", head);
+        if (send_body(fds[i], body - 1) == body - 1)
+            held++;
+    }
+    sleep_ms(300);
+    hwm = status_kib(d.pid, "VmHWM");
+    for (i = 0; i < 16; i++) {
+        struct pollfd p = {fds[i], POLLIN, 0};
+        ssize_t k = poll(&p, 1, 0) > 0 ? read(fds[i], buf, sizeof buf - 1) : 0;
+        buf[k > 0 ? k : 0] = '\0';
+        busy += strstr(buf, " 503 ") && strstr(buf, "EBUSY") && strstr(buf, "Retry-After");
+        close(fds[i]);
+    }
+    /* without a Content-Length (chunked): the budget fills as bytes come */
+    sleep_ms(200);                     /* the closed uploads gave theirs back */
+    fd = connect_from(&d, "127.0.0.1", "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+                      "model/obj\r\nTransfer-Encoding: chunked\r\n\r\n");
+    {
+        int fd2 = connect_from(&d, "127.0.0.1", head);
+        size_t k = send_body(fd2, body - 1);   /* 40 MiB held, declared */
+        char chunk[32];
+        size_t sent = 0;
+        ssize_t n;
+        snprintf(chunk, sizeof chunk, "%x\r\n", 1 << 20);
+        /* 70 MiB: past the 60 the budget has left, and within the 16 MiB a
+         * refused body is still read for its answer */
+        while (sent < ((size_t)70 << 20)) {
+            if (send(fd, chunk, strlen(chunk), MSG_NOSIGNAL) <= 0 ||
+                send_body(fd, (size_t)1 << 20) != (size_t)1 << 20 ||
+                send(fd, "\r\n", 2, MSG_NOSIGNAL) != 2)
+                break;
+            sent += (size_t)1 << 20;
+        }
+        (void)!send(fd, "0\r\n\r\n", 5, MSG_NOSIGNAL);
+        n = read(fd, buf, sizeof buf - 1);
+        if (n > 0)
+            buf[n] = '\0';
+        else
+            snprintf(buf, sizeof buf, "(no answer)");
+        hwm2 = status_kib(d.pid, "VmHWM");
+        print_message("    16 uploads of 40 MiB held open (--max-memory 100M): %d taken, %d "
+                      "refused 503 EBUSY before their body; a chunked one beside a held "
+                      "40 MiB one: %zu MiB sent, answered %.12s; VmHWM %ld then %ld MiB "
+                      "(rest %ld MiB)\n", held, busy, sent >> 20, buf + 9, hwm >> 10,
+                      hwm2 >> 10, rest >> 10);
+        assert_true(k == body - 1);
+        assert_non_null(strstr(buf, " 503 "));
+        close(fd2);
+    }
+    close(fd);
+    assert_int_equal(held, 2);
+    assert_int_equal(busy, 14);
+    /* the budget is free again once the daemon has seen them go */
+    for (i = 0; i < 40; i++) {
+        if (post_file(&d, "/smooth", "meshes/sphere_cgal.obj", &r) != 503)
+            break;
+        resp_free(&r);
+        sleep_ms(50);
+    }
+    expect_status(&d, &r, 200, "an upload after the held ones left");
+    resp_free(&r);
+    stop_daemon(&d);
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;                            /* RSS means nothing there (test_memory_admission) */
+#endif
+    if (hwm > rest + 100 * 1024)
+        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M", hwm, rest);
 }
 
 /* Issue 9 item 3: the average-rate rule (4 KiB/s) let a client trickling
@@ -5053,6 +5178,7 @@ int main(void)
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
         cmocka_unit_test_teardown(test_body_timeout, kill_strays),
+        cmocka_unit_test_teardown(test_uploads_in_flight, kill_strays),
         cmocka_unit_test_teardown(test_clock_jumps, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
