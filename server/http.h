@@ -42,6 +42,8 @@ typedef struct srv_rest {
     pthread_mutex_t conns_mu;
     conn_state *conns;
     int nconns;
+    void *ips;                 /* connections per client address (a tsearch
+                                  tree, http.c) */
     pthread_mutex_t wait_mu;
     srv_waiter *waiters;
     int followers;             /* event streams open */
@@ -247,7 +249,10 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c);
 void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                         enum MHD_RequestTerminationCode toe);
 /* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
- * deadline; releases a request MHD never completed. */
+ * deadline and counts them per client address: one opened past
+ * --max-connections-per-ip has its request answered 503 EBUSY with
+ * Retry-After and closed, or is closed after 2 s without one. Releases a
+ * request MHD never completed. */
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
                          enum MHD_ConnectionNotificationCode code);
@@ -257,9 +262,16 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
  * averaged under 4 KiB/s since their head: slowloris clients. With nine
  * tenths of max_connections open the timeout is 2 s at most (timeout 0:
  * none). Also uploads whose body is still arriving body_timeout seconds
- * after their head (--body-timeout; 0: none). Returns how many. */
+ * after their head (--body-timeout; 0: none). And, whatever the timeouts,
+ * connections past --max-connections-per-ip with no request head after
+ * 2 s. Returns how many. */
 int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
                           double body_timeout);
+/* libmicrohttpd's own per-address limit (MHD_OPTION_PER_IP_CONNECTION_LIMIT),
+ * a backstop a quarter above --max-connections-per-ip (0: none): the
+ * connections between the two are the ones answered 503; past it MHD
+ * closes a connection at accept, before any request, without a word. */
+unsigned srv_http_ip_backstop(const srv_config *cfg);
 
 /* The route's label in metrics and logs ("smooth", "job", ...). */
 const char *srv_route_name(srv_route rt);

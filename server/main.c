@@ -4,11 +4,11 @@
  * alike), the signal loop, graceful drain and exit; and `mcfd --probe`.
  *
  * Start-up order matters:
- *  1. BLAS/OpenMP threads are bounded to one per worker before any library
- *     starts its pool. OpenBLAS and libgomp read their variables in
- *     constructors that run before main(), so when the variables are not
- *     set yet, main sets them and re-executes itself once (same PID, same
- *     argv). An operator who sets them keeps their values.
+ *  1. BLAS threads are bounded to one per worker before the library
+ *     starts its pool. OpenBLAS reads its variables in a constructor that
+ *     runs before main(), so when the variables are not set yet, main sets
+ *     them and re-executes itself once (same PID, same argv). An operator
+ *     who sets them keeps their values.
  *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
  *     and taken synchronously by this thread with sigtimedwait, which also
  *     gives the tick for the TTL sweep and the doors' deadlines (clients

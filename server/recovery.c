@@ -7,7 +7,8 @@
  * a state.json (a crash before the job was acknowledged) are removed;
  * acknowledged ones whose state or request is damaged, or whose result is
  * not the size recorded, are quarantined (never deleted, never served).
- * Reading and parsing hold no lock: no worker runs yet.
+ * A finished job's progress events are read from the store, as before the
+ * restart. Reading and parsing hold no lock: no worker runs yet.
  */
 #include <errno.h>
 #include <stdio.h>
@@ -69,6 +70,25 @@ static int result_intact(svc_store *st, const svc_state_rec *r)
         (r->result_len > 0 && size != r->result_len))
         return 0;
     return st->ops->stat(st, r->id, "metrics.json", &size) == 0;
+}
+
+/* A finished job's progress events, when its run left them whole in the
+ * store (svc_job.c: events.idx's last end is events.ndjson's size); else
+ * it has none, as when they could not be written. */
+static void events_recover(svc_store *st, svc_job *j)
+{
+    size_t si, sd, last;
+
+    if (st->ops->stat(st, j->id, "events.idx", &si) != 0 || si == 0 ||
+        si % sizeof last != 0 ||
+        st->ops->stat(st, j->id, "events.ndjson", &sd) != 0 ||
+        sd > SVC_EVENTS_MAX || si / sizeof last > sd ||
+        st->ops->get_at(st, j->id, "events.idx", si - sizeof last, &last,
+                        sizeof last) != 0 ||
+        last != sd)
+        return;
+    j->nevents = (int)(si / sizeof last);
+    j->events_disk = last;
 }
 
 /* request.json and state.json of job id, parsed into a new job (*j) and
@@ -140,6 +160,8 @@ static void recover_one(const char *id, void *arg)
     } else {
         j->disk_bytes = st->ops->usage(st, id);
         if (!svc__recovered(j, &r)) { /* finished: served until its TTL */
+            if (svc_job_status_terminal(r.status))
+                events_recover(st, j);
             pthread_mutex_lock(&s->mu);
             svc__table_insert(s, j);
             pthread_mutex_unlock(&s->mu);

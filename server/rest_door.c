@@ -123,8 +123,7 @@ static int rest_start(const srv_config *cfg, svc_t *svc, const srv_daemon *dm,
         MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
         MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg->http_threads,
         MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg->max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT,
-        (unsigned int)cfg->max_connections_per_ip,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv_http_ip_backstop(cfg),
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)cfg->send_timeout,
         MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, d,
         MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, d,
@@ -166,13 +165,13 @@ static int rest_expire(void *door, const srv_config *cfg)
     int n = 0;
 
     srv_http_check_clients(d);
-    if (cfg->header_timeout > 0 || cfg->body_timeout > 0)
-        n = srv_http_expire_heads(d, cfg->header_timeout, cfg->max_connections,
-                                  cfg->body_timeout);
+    n = srv_http_expire_heads(d, cfg->header_timeout, cfg->max_connections,
+                              cfg->body_timeout);
     if (n > 0)
         srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no complete "
-                 "request head within --header-timeout %g s or no complete "
-                 "body within --body-timeout %g s", n, n == 1 ? "" : "s",
+                 "request head within --header-timeout %g s (2 s past "
+                 "--max-connections-per-ip) or no complete body within "
+                 "--body-timeout %g s", n, n == 1 ? "" : "s",
                  cfg->header_timeout, cfg->body_timeout);
     return n;
 }

@@ -142,17 +142,15 @@ void svc_request_free(svc_request *rq)
 }
 
 /* A fixed-step run over a time has a step count the parameters alone
- * decide (the rule of api_params_finish): over max_iterations it is the
- * request's fault, refused at once rather than a failed job. */
+ * decide (api_params_steps, the rule of api_params_finish): over
+ * max_iterations it is the request's fault, refused at once rather than
+ * a failed job. (Iterations are bounded when parsed: only time / dt can
+ * exceed it.) */
 static int steps_over_budget(const api_params *p, const api_limits *lim,
                              svc_error *err)
 {
-    double steps;
+    double steps = api_params_steps(p, lim, NULL);
 
-    if (!(p->flow.time > 0) || p->flow.adaptive || p->flow.dt_auto ||
-        !(p->flow.dt > 0))
-        return 0;
-    steps = ceil(p->flow.time / p->flow.dt - 1e-9);
     if (steps <= lim->max_iterations)
         return 0;
     svc_error_set(err, SVC_P_PARAM_LIMIT, "parameters 'time' and 'dt': "
@@ -494,16 +492,6 @@ static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone,
                 memcpy((*again)[(*nagain)++], j->id, SVC_ID_LEN + 1);
                 j->parked = 0;
                 s->queued++;
-            }
-            /* Progress lines are only replayed to late followers: drop
-             * them once nobody holds a finished job. */
-            if (svc_job_status_terminal(j->status) && j->refs == 1 &&
-                j->events.data && now - j->finished > 10) {
-                api_buf_free(&j->events);
-                api_buf_init(&j->events, SVC_EVENTS_MAX);
-                free(j->event_end);
-                j->event_end = NULL;
-                j->nevents = j->event_cap = 0;
             }
             if (!svc_job_status_terminal(j->status) ||
                 now - j->finished < s->cfg.result_ttl)

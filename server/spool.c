@@ -3,10 +3,11 @@
  * directory on disk, the queue in memory.
  *
  * Layout: <spool>/jobs/<id>/{input, target, request.json, state.json,
- * result.<ext>, metrics.json, fields.bin}. A job exists once state.json
- * exists (create writes it last); every file is written to a temporary
- * name, fsync()ed when it must survive a crash, and renamed into place,
- * so after kill -9 a file is either absent or complete. The directory
+ * result.<ext>, metrics.json, fields.bin, events.ndjson, events.idx}. A
+ * job exists once state.json exists (create writes it last); every file
+ * is written to a temporary name, fsync()ed when it must survive a
+ * crash, and renamed into place, so after kill -9 a file is either absent
+ * or complete. The directory
  * entries themselves are made durable by fsync()ing the directory. A
  * removal renames the directory to a tombstone first (one durable step);
  * a quarantined job moves to <spool>/quarantine. Nothing here knows
@@ -15,7 +16,8 @@
  * The queue is this process's: a list of IDs under its own lock. After a
  * restart the service pushes the queued jobs again from their records
  * (recovery.c), so the list itself needs no disk. Heartbeats and progress
- * are no-ops: the service keeps its running jobs' events in memory.
+ * are no-ops: the service keeps a running job's events in memory (and
+ * puts them here when it ends).
  */
 #include <dirent.h>
 #include <errno.h>

@@ -325,7 +325,15 @@ static void park_locked(svc_job *j, svc_job_status final, int e)
     j->step = 0;
     j->t = 0;
     j->result_len = 0;
-    /* its progress runs again from step 1 */
+    /* its progress runs again from step 1; the events it put in the
+     * store are put again at its end (uncounted till then) */
+    if (j->events_disk) {
+        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
+        j->disk_bytes -= sub;
+        if (j->in_table)
+            j->svc->disk_bytes -= sub;
+        j->events_disk = 0;
+    }
     api_buf_free(&j->events);
     api_buf_init(&j->events, SVC_EVENTS_MAX);
     j->nevents = 0;
@@ -379,6 +387,55 @@ static void apply_outcome_locked(svc_job *j, svc_outcome *o,
     }
 }
 
+/* When the run is over, before its outcome is published: its progress
+ * events go to the store (events.ndjson and events.idx, not durable:
+ * nothing depends on them after a crash) and out of memory, where
+ * admission no longer counts them; svc_job_events reads them back. A
+ * store that takes no write loses them (followers then see the outcome
+ * alone). Only the job's worker appends to or frees them, so they are
+ * written outside the lock. */
+static void events_to_store(svc_job *j)
+{
+    svc_t *s = j->svc;
+    svc_store *st = s->store;
+    const char *data;
+    const size_t *ends;
+    size_t len;
+    int n, ok;
+
+    pthread_mutex_lock(&s->mu);
+    data = j->events.data;
+    len = j->events.len;
+    ends = j->event_end;
+    n = j->nevents;
+    pthread_mutex_unlock(&s->mu);
+    if (n == 0)
+        return;
+    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
+         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
+                      0) == 0;
+    if (!ok)
+        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
+                 "written to the spool (%s); late followers get its outcome "
+                 "alone", j->id, n, strerror(errno));
+    pthread_mutex_lock(&s->mu);
+    api_buf_free(&j->events);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    free(j->event_end);
+    j->event_end = NULL;
+    j->event_cap = 0;
+    if (ok) {
+        size_t add = len + (size_t)n * sizeof *ends;
+        j->events_disk = len;
+        j->disk_bytes += add;
+        if (j->in_table)
+            s->disk_bytes += add;
+    } else {
+        j->nevents = 0;
+    }
+    pthread_mutex_unlock(&s->mu);
+}
+
 void svc__finish(svc_job *j, svc_outcome *o)
 {
     svc_t *s = j->svc;
@@ -386,6 +443,8 @@ void svc__finish(svc_job *j, svc_outcome *o)
     int tries = 0, written = 0, e = 0;
     double now = srv_wall();
 
+    if (o->status != SVC_JOB_QUEUED)
+        events_to_store(j);
     /* The outcome is in the store before anyone can see it (GET polls,
      * waiters, a restart): a client told "succeeded" can always find the
      * result again, and no terminal state a client saw changes after a

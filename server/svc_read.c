@@ -122,11 +122,58 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
     return 0;
 }
 
+/* How many of the events ending at ends[0..m) (m >= 1) fit in max_bytes
+ * from byte a: at least one. */
+static int events_fit(const size_t *ends, int m, size_t a, size_t max_bytes)
+{
+    int k;
+    for (k = 1; k < m && ends[k] - a <= max_bytes; k++)
+        ;
+    return k;
+}
+
+/* Events of a finished job read back from the store (svc_job_events):
+ * the ends of events from - 1 to from + EVENTS_BATCH from events.idx,
+ * then the lines they span from events.ndjson. size and count: the
+ * blobs' as the job recorded them; an index that disagrees is EIO. */
+#define EVENTS_BATCH 1024
+static int events_from_store(svc_store *st, const char *id, int from,
+                             int count, size_t size, size_t max_bytes,
+                             char **data, size_t *len, int *n)
+{
+    size_t ends[EVENTS_BATCH + 1], a, b;
+    int m = count - from < EVENTS_BATCH ? count - from : EVENTS_BATCH,
+        skip = from > 0, k;
+
+    if (st->ops->get_at(st, id, "events.idx",
+                        (size_t)(from - skip) * sizeof *ends, ends,
+                        (size_t)(m + skip) * sizeof *ends) != 0)
+        return -1;
+    a = skip ? ends[0] : 0;
+    k = events_fit(ends + skip, m, a, max_bytes);
+    b = ends[skip + k - 1];
+    if (!(a < b && b <= size)) {
+        errno = EIO;
+        return -1;
+    }
+    if (!(*data = malloc(b - a + 1)))
+        return -1;
+    if (st->ops->get_at(st, id, "events.ndjson", a, *data, b - a) != 0) {
+        free(*data);
+        *data = NULL;
+        return -1;
+    }
+    (*data)[b - a] = '\0';
+    *len = b - a;
+    *n = k;
+    return 0;
+}
+
 int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
                    size_t *len, int *n)
 {
-    size_t a, b;
-    int k;
+    size_t a, b, on_disk;
+    int k, count;
 
     *data = NULL;
     *len = 0;
@@ -134,14 +181,20 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
     pthread_mutex_lock(&j->svc->mu);
     if (from < 0)
         from = 0;
-    if (from >= j->nevents) {
+    count = j->nevents;
+    on_disk = j->events_disk;
+    if (from >= count) {
         pthread_mutex_unlock(&j->svc->mu);
         return 0;
     }
+    if (on_disk) {
+        pthread_mutex_unlock(&j->svc->mu);
+        return events_from_store(j->svc->store, j->id, from, count, on_disk,
+                                 max_bytes, data, len, n);
+    }
     a = from > 0 ? j->event_end[from - 1] : 0;
-    for (k = from + 1; k < j->nevents && j->event_end[k] - a <= max_bytes; k++)
-        ;
-    b = j->event_end[k - 1];
+    k = events_fit(j->event_end + from, count - from, a, max_bytes);
+    b = j->event_end[from + k - 1];
     *data = malloc(b - a + 1);
     if (!*data) {
         pthread_mutex_unlock(&j->svc->mu);
@@ -151,7 +204,7 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
     (*data)[b - a] = '\0';
     pthread_mutex_unlock(&j->svc->mu);
     *len = b - a;
-    *n = k - from;
+    *n = k;
     return 0;
 }
 
