@@ -261,8 +261,9 @@ test: deps
 asan:
 	$(MAKE) SAN=address,undefined test
 
-# ---- ThreadSanitizer on the daemon (build-tsan/): test_server against
-# TSan builds of mcfd (the job service, the REST door, the sandbox), with
+# ---- ThreadSanitizer on the daemon (build-tsan/): test_service (the job
+# service in-process) and test_server against TSan builds of mcfd (the job
+# service, the REST door, the sandbox), with
 # tests/tsan.supp. Fails on any report; they are kept in build-tsan/tsan/
 # (one file per process that had one). TSAN_GRPC=1 adds test_grpc: not
 # clean yet, gRPC's libraries are not instrumented and TSan cannot see the
@@ -270,11 +271,13 @@ asan:
 TSAN_OPTS = halt_on_error=0 second_deadlock_stack=1 \
   suppressions=$(CURDIR)/tests/tsan.supp log_path=$(CURDIR)/build-tsan/tsan/report
 tsan: deps
-	$(MAKE) SAN=thread B=build-tsan build-tsan/mcfd build-tsan/mcf build-tsan/tests/test_server
+	$(MAKE) SAN=thread B=build-tsan build-tsan/mcfd build-tsan/mcf build-tsan/tests/test_server \
+	  build-tsan/tests/test_service
 	@rm -rf build-tsan/tsan; mkdir -p build-tsan/tsan; fail=0; \
-	OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
+	for t in test_service test_server; do \
+	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	  MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=build-tsan TSAN_OPTIONS="$(TSAN_OPTS)" \
-	  build-tsan/tests/test_server || fail=1; \
+	  build-tsan/tests/$$t || fail=1; done; \
 	[ "$(TSAN_GRPC)" != 1 ] || OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	  MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=build-tsan TSAN_OPTIONS="$(TSAN_OPTS)" \
 	  /usr/bin/python3 tests/test_grpc.py || fail=1; \
@@ -469,8 +472,20 @@ image-check:
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 
-# The job service's files: they alone include svc_internal.h.
-SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch])
+# The job service's files: they alone include svc_internal.h (spool.c, its
+# local store, sees only store.h).
+SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h)
+# The doors: each reaches jobs through service.h alone and never includes
+# the other door's headers.
+REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])
+GRPC_DOOR := $(wildcard server/grpc.cc server/grpc_door.h server/h2gate.[ch])
+
+# test_service drives the job service in-process: its objects (the service,
+# its store and sandbox, the log and metrics it reports to), no door.
+SVC_TEST_OBJ := $(patsubst %.c,$(B)/%.o,$(filter %.c,$(SRV_SERVICE)) server/log.c server/metrics.c)
+$(B)/tests/test_service.o: CPPFLAGS += -Iserver
+$(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
@@ -487,7 +502,15 @@ check-deps:
 	  { echo "check-deps: the job service (service.h) must not know the REST door or libmicrohttpd"; exit 1; }
 	@! grep -nE '#include *[<"]svc_internal\.h' $(filter-out $(SRV_SERVICE),$(wildcard server/*.c server/*.h server/*.cc)) || \
 	  { echo "check-deps: outside the job service, use service.h, not svc_internal.h"; exit 1; }
-	@echo "check-deps: server -> api -> core holds; the doors -> service.h"
+	@! grep -nE '#include *[<"](svc_internal|svc_admit|store|sandbox)\.h' $(REST_DOOR) $(GRPC_DOOR) || \
+	  { echo "check-deps: a door includes service.h, never the service's own headers (svc_internal.h, svc_admit.h, store.h, sandbox.h)"; exit 1; }
+	@! grep -nE '#include *[<"](grpc_door|h2gate)\.h' $(REST_DOOR) || \
+	  { echo "check-deps: the REST door does not include the gRPC door's headers"; exit 1; }
+	@! grep -nE '#include *[<"](http|rest_door)\.h' $(GRPC_DOOR) || \
+	  { echo "check-deps: the gRPC door does not include the REST door's headers"; exit 1; }
+	@! grep -nE '#include *[<"][^>"]*lab/' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] server/*.[ch] server/*.cc tests/*.[ch]) || \
+	  { echo "check-deps: the product (core, api, cli, server, tests) includes nothing of lab/"; exit 1; }
+	@echo "check-deps: server -> api -> core holds; the doors -> service.h; nothing includes lab/"
 
 clean:
 	rm -rf build build-san build-tsan build-fuzz
