@@ -479,7 +479,7 @@ SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c 
 # The doors: each reaches jobs through service.h alone and never includes
 # the other door's headers.
 REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])
-GRPC_DOOR := $(wildcard server/grpc.cc server/grpc_door.h server/h2gate.[ch])
+GRPC_DOOR := $(wildcard server/grpc*.cc server/grpc_door.h server/h2gate*.[ch])
 
 # The daemon's integration tests (test_server*.c, one concern each) share
 # tests/srvlib.c.
