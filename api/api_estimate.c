@@ -31,8 +31,9 @@
  *   bytes = 3 x input bytes + per_vertex(scheme) x nv + 4 MiB
  *
  * per_vertex = 640 B for the explicit schemes that factorize nothing
- * (euler, taylor2, taubin: measured at most 354 B beyond the other terms,
- * dragon_vrip), 1,600 B for every other (measured at most 1,246 B:
+ * (euler, taylor2 with an amount given, taubin: measured at most 354 B
+ * beyond the other terms, dragon_vrip), 1,600 B for every other (the
+ * automatic amount factorizes) (measured at most 1,246 B:
  * strength=auto on stanford-bunny, whose six-column solve is the largest;
  * 1,215 B on the dragon; desbrun2 738-1,041 B, implicit 1,060 B, adaptive
  * 1,220 B). CHOLMOD's fill grows a little faster than nv on scans
@@ -161,9 +162,13 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
 {
     double per_vertex = 1600.0;
     /* the scheme the job will run (api_params_finish's choice when the
-     * request names none) */
+     * request names none); an automatic amount factorizes for every MCF
+     * scheme, taubin's frozen passes and probes add about 150 B
+     * (dragon_vrip_res2: 55 MB peak against 40 MB for 10 passes) */
     mcf_scheme s = api_params_scheme(p, nv);
-    if (s == MCF_EULER || s == MCF_TAYLOR2 || s == MCF_TAUBIN || s == MCF_FAIRING_EXPLICIT)
+    int auto_amount = p && api_params_auto_amount(p);
+    if (((s == MCF_EULER || s == MCF_TAYLOR2) && !auto_amount) || s == MCF_TAUBIN ||
+        s == MCF_FAIRING_EXPLICIT)
         per_vertex = 640.0;
     else if (s == MCF_FAIRING)
         per_vertex = FAIRING_PER_VERTEX;

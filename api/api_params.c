@@ -61,6 +61,7 @@ static void set_scheme(api_params *p, value v)
 }
 static void set_dt(api_params *p, value v)
 {
+    p->dt_set = 1;
     p->flow_keys_set = 1;
     /* NaN stands for "auto" (see parse_value). */
     if (isnan(v.d)) {
@@ -179,8 +180,9 @@ static const keydoc docs[] = {
     {"time", "flow time", "total flow time (unit-area time when normalize is on); "
      "replaces strength", "strength^2 h^2", 0},
     {"strength", "mean edges", "the amount: diffuse over about this many mean edges "
-     "(time strength^2 h^2); auto: from the mesh's own noise; the fairing filters: the "
-     "noise level to remove (auto: estimated; the MCF schemes' default is 0.33)", NULL, 0},
+     "(time strength^2 h^2); auto (the default when no amount is named): from the "
+     "mesh's own noise; the fairing filters: the noise level to remove (auto: "
+     "estimated)", NULL, 0},
     {"boundary", NULL, "fixed: boundary vertices stay; free: they move", NULL, 0},
     {"fixed_vertices", "vertex indices", "0-based vertices held in place", NULL, 0},
     {"rescale", NULL, "after the flow, restore the input's volume or area", NULL, 0},
@@ -532,6 +534,7 @@ void api_params_init(api_params *p)
     p->fixed_owned = NULL;
     p->time_set = 0;
     p->iterations_set = 0;
+    p->dt_set = 0;
     p->tol_set = 0;
     p->scheme_set = 0;
     p->strength_set = 0;
@@ -559,6 +562,12 @@ mcf_scheme api_params_scheme(const api_params *p, long long nv)
 static int is_fairing(mcf_scheme s)
 {
     return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
+}
+
+int api_params_auto_amount(const api_params *p)
+{
+    return p->flow.strength_auto ||
+           !(p->time_set || p->iterations_set || p->dt_set || p->strength_set);
 }
 
 void api_params_free(api_params *p)
@@ -840,6 +849,45 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
     return rc;
 }
 
+double api_params_steps(const api_params *p, const api_limits *lim,
+                        int *by_mesh)
+{
+    const mcf_flow_params *f = &p->flow;
+    /* unnamed and not chosen yet (before the mesh): desbrun2 for a flow
+     * request, else a fairing filter, which the mesh's size picks */
+    mcf_scheme s = api_params_scheme(p, 0);
+    int known = p->scheme_set || p->scheme_chosen || p->flow_keys_set,
+        mesh = 0;
+    /* Taubin's automatic pass count (api_params_auto_amount) */
+    int auto_passes = s == MCF_TAUBIN && f->iterations <= 0 &&
+                      api_params_auto_amount(p);
+    double n;
+
+    if (is_fairing(s) && f->iterations <= 0) {
+        /* the fairing filters' automatic amount stops at its cap (the
+         * larger one while the filter is not known), or at max_steps
+         * (which the work limit may lower) */
+        double cap = known && s == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS
+                                               : MCF_FAIRING_MAX_PASSES;
+        mesh = 1;
+        n = f->max_steps > 0 && f->max_steps < cap ? f->max_steps : cap;
+    } else if (!auto_passes && (s == MCF_TAUBIN || is_fairing(s) ||
+                                (!f->adaptive && !f->dt_auto && !(f->dt > 0.0))))
+        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
+    else if (!auto_passes && !f->adaptive && !f->dt_auto && f->time > 0.0)
+        n = ceil(f->time / f->dt - 1e-9);
+    else if (!auto_passes && !f->adaptive && f->iterations > 0 && f->time <= 0.0)
+        n = f->iterations;
+    else {
+        mesh = 1;
+        n = f->max_steps > 0 && f->max_steps < lim->max_iterations
+                ? f->max_steps : lim->max_iterations;
+    }
+    if (by_mesh)
+        *by_mesh = mesh;
+    return n;
+}
+
 /* time, dt and iterations say the same thing twice (mcf.h: "The amount
  * of smoothing"): with time and dt given, the steps are ceil(time / dt)
  * and iterations would be dropped without a word, and a dt over the time
@@ -863,7 +911,7 @@ static mcf_status amounts_agree(const api_params *p, mcf_error *err)
                          "parameter 'dt' (%g) is larger than 'time' (%g): the run would be "
                          "one step of the time; give a dt at most the time, or drop one",
                          f->dt, f->time);
-    /* the core's own count (api_params_finish's work bound uses it too) */
+    /* the core's own count (api_params_steps, the work bound's too) */
     steps = ceil(f->time / f->dt - 1e-9);
     if (p->iterations_set && steps != (double)f->iterations)
         return api__fail(err, MCF_EINVAL,
@@ -879,7 +927,7 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
     api_limits def;
     double steps;
     mcf_status rc;
-    int i;
+    int i, by_mesh;
 
     if (!lim) {
         api_limits_default(&def);
@@ -902,6 +950,10 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
             return api__fail(err, MCF_EINVAL,
                              "parameter 'fixed_vertices': index %ld out of range (0..%d)",
                              (long)p->flow.fixed[i], nv - 1);
+    /* the MCF schemes' and Taubin's automatic amount (the fairing filters
+     * choose their own: noise_sigma above) */
+    if (!is_fairing(p->flow.scheme))
+        p->flow.strength_auto = api_params_auto_amount(p);
     if ((rc = mcf_flow_params_check(&p->flow, nv, err)) != MCF_OK)
         return rc;
     if ((rc = amounts_agree(p, err)) != MCF_OK)
@@ -910,11 +962,17 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         return api__fail(err, MCF_EINVAL, "mesh has no vertices");
 
     /* Work bound: steps x vertices. When the parameters alone give the
-     * step count (mcf.h, "The amount of smoothing"), it is checked here;
-     * when it depends on the mesh's edge lengths or lambda_max (dt set
-     * and the amount from strength, dt=auto, adaptive), the core's hard
-     * cap max_steps is lowered to what the limits allow instead. */
-    if (is_fairing(p->flow.scheme) && p->flow.iterations <= 0) {
+     * step count, it is checked here; when it depends on the mesh (its
+     * edge lengths, lambda_max, a fairing filter's estimated noise, or
+     * Taubin's automatic pass count), the core's hard cap max_steps is
+     * lowered to what the limits allow instead. */
+    steps = api_params_steps(p, lim, &by_mesh);
+    if (!by_mesh && steps > lim->max_iterations) {
+        /* iterations are bounded when parsed: time / dt */
+        return api__fail(err, MCF_EINVAL,
+                         "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
+                         steps, lim->max_iterations);
+    } else if (by_mesh && is_fairing(p->flow.scheme)) {
         /* the automatic amount stops at its cap, max_steps or the work
          * limit, whichever comes first */
         double cap = p->flow.scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS : MCF_FAIRING_MAX_PASSES;
@@ -922,18 +980,7 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         if (room < cap && room < p->flow.max_steps)
             p->flow.max_steps = room < 1 ? 1 : (int)room;
         steps = fmin(cap, p->flow.max_steps);
-    } else if (p->flow.scheme == MCF_TAUBIN || is_fairing(p->flow.scheme) ||
-               (!p->flow.adaptive && !p->flow.dt_auto && !(p->flow.dt > 0.0))) {
-        steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
-    } else if (!p->flow.adaptive && !p->flow.dt_auto && p->flow.time > 0.0) {
-        steps = ceil(p->flow.time / p->flow.dt - 1e-9);
-        if (steps > lim->max_iterations)
-            return api__fail(err, MCF_EINVAL,
-                             "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
-                             steps, lim->max_iterations);
-    } else if (!p->flow.adaptive && p->flow.iterations > 0 && p->flow.time <= 0.0) {
-        steps = p->flow.iterations;
-    } else {
+    } else if (by_mesh) {
         double cap = floor(lim->max_work / nv);
         if (cap < p->flow.max_steps)
             p->flow.max_steps = cap < 1 ? 1 : (int)cap;
@@ -970,7 +1017,8 @@ cJSON *api_params_to_json(const api_params *p)
     if (p->scheme_set || p->scheme_chosen)
         ok &= cJSON_AddStringToObject(j, "scheme", si ? si->name : "unknown") != NULL;
     /* What was given, so the object parses back to the same job: an
-     * unset dt, time or iterations is derived from strength by the core */
+     * unset dt, time or iterations is derived from strength by the core,
+     * and with none of them nor strength the amount is automatic */
     if (p->flow.dt_auto)
         ok &= cJSON_AddStringToObject(j, "dt", "auto") != NULL;
     else if (p->flow.dt > 0.0)
@@ -983,7 +1031,8 @@ cJSON *api_params_to_json(const api_params *p)
      * given: the default MCF strength is no value for it */
     if (p->flow.strength_auto)
         ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
-    else if (p->strength_set || ((p->scheme_set || p->scheme_chosen) && !is_fairing(p->flow.scheme)))
+    else if (p->strength_set ||
+             ((p->scheme_set || p->scheme_chosen) && !is_fairing(p->flow.scheme) && !api_params_auto_amount(p)))
         ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
     else
         ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
@@ -1075,6 +1124,8 @@ static cJSON *default_json(const keydef *k, const api_params *fresh, const cJSON
         return cJSON_CreateNumber(MCF_DEFAULT_STEPS);
     if (strcmp(k->name, "tol") == 0)
         return cJSON_CreateNumber(fresh->flow.tol);
+    if (strcmp(k->name, "strength") == 0) /* no amount named: automatic */
+        return cJSON_CreateString("auto");
     return cJSON_Duplicate(cJSON_GetObjectItemCaseSensitive(dj, k->name), 1);
 }
 

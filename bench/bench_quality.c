@@ -1,57 +1,64 @@
 /*
- * bench_quality.c - `make quality` (issue 12, section 5): how much closer
- * to the clean surface a noisy scan comes back.
+ * bench_quality.c - `make quality` (issue 16): how close to the clean
+ * surface a noisy scan comes back, for the default request, every scheme
+ * at its automatic amount, Taubin at its best pass count and Open3D's
+ * filter_smooth_taubin, all in one run.
  *
- * For every mesh x noise level (rho = 0.1, 0.25, 0.5 mean edges, Gaussian
- * along the normals by mcf_mesh_add_noise) x seed (1, 2, 3), the error of
- * a result is the area-weighted RMS distance to the clean mesh (mcf_compare
- * rms_m, same connectivity), reported as a ratio against the noisy input's
- * error (< 1: better than the input). Four smoothers:
+ * Cases: every mesh of the list (default: the shared meshes) x noise kind
+ * (`normal`: Gaussian along the vertex normals, mcf_flow_add_noise;
+ * `iso`: isotropic Gaussian, each coordinate sigma = rho mean edges) x rho
+ * (0.1, 0.25, 0.5 mean edges of the clean mesh) x seed (1..3). The noise
+ * moves only what a run moves (the boundary and unreferenced vertices
+ * stay, as mcf_flow_add_noise does for the default parameters).
  *
- *   default  api_params_init + api_params_finish with nothing set, then
- *            mcf_flow_run: whatever the service's defaults are when this
- *            runs (the request `curl -F mesh=@scan /smooth` makes).
- *   auto     the same with api_params_set(p, "strength", "auto"); the
- *            column is skipped (said once) when the key is refused.
- *   oracle   desbrun2, 10 steps, at the best total time t = c h^2 (h: the
- *            noisy input's mean edge after normalization to unit area,
- *            i.e. mean_edge / sqrt(area)), c on the grid 0.02, 0.05, 0.1,
- *            0.2, 0.3, 0.5, 1, 2, 5: 0.1 .. 0.5 always (--oracle-grid
- *            full: 0.05 .. 1), then the neighbours of the minimum until it
- *            is bracketed, then one parabola step in log c. Each point is
- *            its own 10-step run (dt differs, so no factorization is
- *            shared between points).
- *   taubin   scheme taubin (lambda 0.5, mu -0.53) at its best pass count:
- *            passes are applied cumulatively (1, 2, ..., 500 on a growing
- *            schedule, stopped once the error is 5% past its minimum at
- *            twice the best count), then the best count is run again in
- *            one call for its metrics and wall time.
+ * Methods (one row each per case in quality.csv):
+ *   default      api_params_init + api_params_finish with nothing set:
+ *                whatever the service does with `curl -F mesh=@scan /smooth`
+ *   auto:S       the request `scheme=S` and no amount, for S in desbrun2,
+ *                desbrun, ros2, richardson, cmcf, linear, taubin and every
+ *                scheme whose name starts with "fairing" (the implicit MCF
+ *                schemes and the filters; the explicit MCF schemes are
+ *                unstable at 10 steps on scans, `implicit` too slow)
+ *   fixed        desbrun2, strength 0.33, 10 steps (the old default): the
+ *                peer of the CPU-time ratio of the automatic amounts
+ *   taubin_best  scheme taubin at its best pass count (an oracle that
+ *                knows the clean mesh: passes 1 .. 500 cumulatively on a
+ *                growing schedule, stopped 5% past the minimum at twice
+ *                the best count)
+ *   o3d_default  Open3D's mesh.filter_smooth_taubin() (1 iteration,
+ *                lambda 0.5, mu -0.53, uniform weights; Debian's
+ *                python3-open3d through bench/o3d_taubin.py, a coprocess)
+ *   o3d_best     the same at its best pass count (the same oracle)
  *
- * For each result: folds beyond the input's (mcf_compare inverted_faces
- * against the clean mesh, minus the noisy input's; also counted away from
- * the clean mesh's own creases, see crease_mask), drift (volume on
- * closed meshes, area on open ones, relative to the clean mesh's; the
- * noisy input's drift is in the CSV too), the largest vertex displacement
- * from the input in (clean) mean edges, and wall time of the one run.
+ * Metrics per result: the per-vertex error (mcf_compare's area-weighted
+ * RMS distance to the clean vertex) and the surface error (symmetric RMS
+ * point-to-surface distance: samples at the vertices and face centroids of
+ * one mesh, weighted by area, to the nearest point of the other's
+ * triangles, both ways), each as a ratio of the noisy input's; new folds
+ * (faces inverted against the clean mesh beyond the input's, and away
+ * from the clean mesh's own creases); drift (volume of closed meshes, area
+ * of open ones, vs clean); CPU time of the one run (this process's, or
+ * the coprocess's for Open3D) and wall time.
  *
- * Output: docs/quality/quality.csv (one row per case x method),
- * docs/quality/oracle-sweep.csv (every oracle point), a table of medians
- * over seeds on stdout, the issue's goals as PASS/FAIL lines (and the same
- * checks for the other methods as a reference), an oracle summary
- * (--oracle-out, rewritten after every mesh), and two figures (clean /
- * noisy / smoothed renders of one case, whole and zoomed: gnuplot `with
- * polygons` and pm3d lighting) in docs/quality/.
- *
- * Run single-threaded (bench/Makefile sets OPENBLAS_NUM_THREADS=1
- * OMP_THREAD_LIMIT=1). Exit status 1 on an error; a FAIL goal is a result.
+ * Output (QUALITY_OUT, docs/quality): quality.csv (every run), quality.md
+ * (the tables: per method the median and worst over all cases of its
+ * error against taubin_best, o3d_best and o3d_default, per-vertex and
+ * surface; runs worse than the input; CPU time against `fixed` per mesh;
+ * per mesh x noise the default's medians), worst.png (clean / noisy /
+ * default / taubin_best / o3d_best of the case where the default does
+ * worst against taubin_best, whole and zoomed). Single-threaded
+ * (bench/Makefile pins OpenBLAS and OpenMP to one thread). Exit status 1
+ * on an error.
  */
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "api.h"
@@ -59,47 +66,34 @@
 #include "mcf.h"
 
 #define PROG "bench_quality"
-#define MAXMESH 16
+#define MAXMESH 24
 #define MAXNOISE 4
 #define MAXSEED 5
-#define NGRID 9
+#define MAXMETHOD 16
 
-enum { M_DEFAULT, M_AUTO, M_ORACLE, M_TAUBIN, NMETHOD };
-static const char *const method_names[NMETHOD] = {"default", "auto", "oracle", "taubin"};
+typedef enum { K_DEFAULT, K_AUTO, K_FIXED, K_TAUBIN_BEST, K_O3D_DEFAULT, K_O3D_BEST } method_kind;
 
-/* The oracle grid in units of h^2; 0.1 .. 1 always evaluated. */
-static const double g_grid[NGRID] = {0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0, 2.0, 5.0};
-/* Columns of the oracle summary: ratio at these c. */
-static const double g_report_c[5] = {0.1, 0.2, 0.3, 0.5, 1.0};
+typedef struct {
+    char name[32];
+    method_kind kind;
+    char scheme[24];
+} method;
 
-/* Taubin pass counts evaluated (cumulative). */
+typedef struct {
+    int ok;
+    double ratio;        /* per-vertex error / the input's */
+    double sratio;       /* surface error / the input's */
+    int folds, folds_off;
+    double drift;
+    double cpu, wall;    /* seconds */
+    double param;        /* t/h^2 for MCF, passes for the filters, steps for fairing */
+    char note[200];
+} result;
+
+/* Taubin pass counts evaluated (cumulative) for the oracle. */
 static const int g_passes[] = {1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 20, 25, 30, 40, 50, 60,
                                80, 100, 120, 150, 200, 250, 300, 400, 500};
 #define NPASSES ((int)(sizeof g_passes / sizeof g_passes[0]))
-
-typedef struct {
-    int ok;              /* the run succeeded */
-    double ratio;        /* rms_m(result, clean) / rms_m(noisy, clean) */
-    int folds;           /* inverted vs clean, minus the input's */
-    int folds_off;       /* the same away from the clean mesh's creases */
-    double drift;        /* (V or A result - clean) / clean */
-    double maxdisp;      /* max |result - noisy| / clean mean edge */
-    double wall;         /* seconds, the one run */
-    double param;        /* oracle: c; taubin: passes; default/auto: t/h^2 */
-    char note[320];      /* failure text */
-} result;
-
-typedef struct {
-    const mcf_mesh *clean, *noisy;
-    double e0;           /* rms_m(noisy, clean) */
-    int fold0;
-    const unsigned char *crease; /* per face: at a crease of the clean mesh */
-    int fold0_off;       /* the input's inverted faces away from creases */
-    double ref_size;     /* clean volume (closed) or area (open) */
-    int closed;
-    double edge;         /* clean mean edge, input units */
-    double h;            /* noisy mean edge / sqrt(noisy area) */
-} case_ctx;
 
 /* ------------------------------------------------------------ helpers */
 
@@ -107,6 +101,13 @@ static void die(const char *what, const mcf_error *e)
 {
     fprintf(stderr, PROG ": %s: %s\n", what, e ? e->msg : "failed");
     exit(1);
+}
+
+static double cpu_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
 static int mkdir_p(const char *dir)
@@ -154,37 +155,74 @@ static int gnuplot(const char *dir, const char *script)
     return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
-/* v printed into b (16 bytes) with digits as %.*f, or %.*g when g; "-"
- * when NaN. */
-static const char *fmt(char b[16], int digits, int g, double v)
+static int cmp_d(const void *a, const void *b)
 {
-    if (isnan(v))
-        snprintf(b, 16, "-");
-    else if (g)
-        snprintf(b, 16, "%.*g", digits, v);
-    else
-        snprintf(b, 16, "%.*f", digits, v);
-    return b;
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
 }
 
-static double median_of(const double *v, int n)
+/* Median and maximum of the finite values of v (NaN when none); v is
+ * sorted in place. */
+static double median_max(double *v, int n, double *mx)
 {
-    double tmp[64];
     int k = 0;
-    for (int i = 0; i < n && k < 64; i++)
-        if (!isnan(v[i]))
-            tmp[k++] = v[i];
-    return k ? bench_median(tmp, k) : NAN;
-}
-
-static double max_of(const double *v, int n)
-{
-    double m = -INFINITY;
     for (int i = 0; i < n; i++)
-        m = isnan(v[i]) ? INFINITY : (v[i] > m ? v[i] : m);
-    return m;
+        if (isfinite(v[i]))
+            v[k++] = v[i];
+    qsort(v, (size_t)k, sizeof *v, cmp_d);
+    *mx = k ? v[k - 1] : NAN;
+    return k ? (k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2])) : NAN;
 }
 
+/* ------------------------------------------------------------ noise */
+
+static uint64_t g_rng;
+static double uniform01(void)
+{
+    uint64_t z = (g_rng += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return ((z >> 11) + 0.5) * (1.0 / 9007199254740992.0);
+}
+static double gauss(void)
+{
+    return sqrt(-2.0 * log(uniform01())) * cos(6.283185307179586 * uniform01());
+}
+
+/* The noisy input: normal (mcf_flow_add_noise with the default
+ * parameters) or isotropic noise of rho mean edges (sigma per coordinate)
+ * on the vertices that normal noise moves (the others, the run's fixed
+ * ones, stay). */
+static mcf_mesh *make_noisy(const mcf_mesh *clean, int iso, double rho, int seed)
+{
+    mcf_flow_params p;
+    mcf_error e = {0};
+    mcf_flow_params_init(&p);
+    mcf_mesh *m = bench_dup_mesh(PROG, clean);
+    if (mcf_flow_add_noise(m, &p, rho, (uint64_t)seed, &e) != MCF_OK)
+        die("mcf_flow_add_noise", &e);
+    if (!iso)
+        return m;
+    mcf_mesh_info ci;
+    if (mcf_mesh_inspect(clean, &ci, &e) != MCF_OK)
+        die("mcf_mesh_inspect", &e);
+    int nv = mcf_mesh_nvertices(m);
+    double *X = malloc(3 * sizeof(double) * (size_t)nv);
+    const double *N = mcf_mesh_positions(m), *C = mcf_mesh_positions(clean);
+    g_rng = 0x15015015ULL * (uint64_t)seed + (uint64_t)(rho * 1e6);
+    for (int i = 0; i < nv; i++) {
+        int moved = memcmp(N + 3 * i, C + 3 * i, 3 * sizeof(double)) != 0;
+        for (int d = 0; d < 3; d++)
+            X[3 * i + d] = C[3 * i + d] + (moved ? rho * ci.mean_edge * gauss() : 0.0);
+    }
+    mcf_mesh *out = mcf_mesh_new(nv, X, mcf_mesh_nfaces(clean), mcf_mesh_faces(clean), &e);
+    if (!out)
+        die("mcf_mesh_new", &e);
+    free(X);
+    mcf_mesh_free(m);
+    return out;
+}
 /* The clean mesh's own near-reversals: mask[f] = 1 when face f shares an
  * edge with a face whose normal is turned by more than 120 degrees from
  * its own, or has an edge with more than two faces. Models like snowden
@@ -270,66 +308,294 @@ static int inverted_off_crease(const mcf_mesh *x, const mcf_mesh *target, const 
     return n;
 }
 
+
+/* ------------------------------------------------- surface distance */
+
+/* A uniform grid over the triangles of a mesh: cell c holds the faces
+ * whose bounding boxes overlap it (CSR: start[c] .. start[c + 1] of idx). */
+typedef struct {
+    const double *X;
+    const int32_t *F;
+    double lo[3], cell;
+    int n[3];
+    int *start, *idx;
+} tri_grid;
+
+static int clampi(int v, int lo, int hi)
+{
+    return v < lo ? lo : v > hi ? hi : v;
+}
+
+static void grid_build(tri_grid *g, const mcf_mesh *m)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
+    double hi[3] = {-INFINITY, -INFINITY, -INFINITY}, edge = 0.0;
+    g->X = mcf_mesh_positions(m);
+    g->F = mcf_mesh_faces(m);
+    for (int d = 0; d < 3; d++)
+        g->lo[d] = INFINITY;
+    for (int i = 0; i < nv; i++)
+        for (int d = 0; d < 3; d++) {
+            g->lo[d] = fmin(g->lo[d], g->X[3 * i + d]);
+            hi[d] = fmax(hi[d], g->X[3 * i + d]);
+        }
+    for (int f = 0; f < nf; f++) {
+        const double *a = g->X + 3 * (size_t)g->F[3 * f], *b = g->X + 3 * (size_t)g->F[3 * f + 1];
+        edge += sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+    }
+    /* cells of about a mean edge (a few triangles each), at most 2^22 */
+    g->cell = fmax(edge / (nf > 0 ? nf : 1), 1e-12);
+    for (;;) {
+        double cells = 1;
+        for (int d = 0; d < 3; d++) {
+            g->n[d] = (int)((hi[d] - g->lo[d]) / g->cell) + 1;
+            cells *= g->n[d];
+        }
+        if (cells <= 4194304)
+            break;
+        g->cell *= 1.5;
+    }
+    size_t nc = (size_t)g->n[0] * g->n[1] * g->n[2];
+    g->start = calloc(nc + 1, sizeof(int));
+    int *cnt = NULL;
+    for (int pass = 0; pass < 2; pass++) {
+        for (int f = 0; f < nf; f++) {
+            int b0[3], b1[3];
+            for (int d = 0; d < 3; d++) {
+                double mn = INFINITY, mx = -INFINITY;
+                for (int k = 0; k < 3; k++) {
+                    double v = g->X[3 * (size_t)g->F[3 * f + k] + d];
+                    mn = fmin(mn, v);
+                    mx = fmax(mx, v);
+                }
+                b0[d] = clampi((int)((mn - g->lo[d]) / g->cell), 0, g->n[d] - 1);
+                b1[d] = clampi((int)((mx - g->lo[d]) / g->cell), 0, g->n[d] - 1);
+            }
+            for (int x = b0[0]; x <= b1[0]; x++)
+                for (int y = b0[1]; y <= b1[1]; y++)
+                    for (int z = b0[2]; z <= b1[2]; z++) {
+                        size_t c = ((size_t)x * g->n[1] + y) * g->n[2] + z;
+                        if (pass == 0)
+                            g->start[c + 1]++;
+                        else
+                            g->idx[cnt[c]++] = f;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < nc; c++)
+                g->start[c + 1] += g->start[c];
+            g->idx = malloc(sizeof(int) * (size_t)(g->start[nc] > 0 ? g->start[nc] : 1));
+            cnt = malloc(sizeof(int) * nc);
+            if (!g->idx || !cnt) {
+                fprintf(stderr, PROG ": out of memory (grid)\n");
+                exit(1);
+            }
+            memcpy(cnt, g->start, sizeof(int) * nc);
+        }
+    }
+    free(cnt);
+}
+
+static void grid_free(tri_grid *g)
+{
+    free(g->start);
+    free(g->idx);
+}
+
+/* |a + t e - p|^2 */
+static double along2(const double *a, const double *e, double t, const double *p)
+{
+    double q[3] = {a[0] + t * e[0] - p[0], a[1] + t * e[1] - p[1], a[2] + t * e[2] - p[2]};
+    return q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+}
+
+/* Squared distance from p to triangle abc (Ericson, Real-Time Collision
+ * Detection, 5.1.5: the closest point by Voronoi regions). */
+static double tri_dist2(const double *p, const double *a, const double *b, const double *c)
+{
+    double ab[3], ac[3], ap[3], q[3];
+    for (int d = 0; d < 3; d++) {
+        ab[d] = b[d] - a[d];
+        ac[d] = c[d] - a[d];
+        ap[d] = p[d] - a[d];
+    }
+#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
+    double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
+    if (d1 <= 0 && d2 <= 0)
+        return DOT(ap, ap);
+    double bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]};
+    double d3 = DOT(ab, bp), d4 = DOT(ac, bp);
+    if (d3 >= 0 && d4 <= d3)
+        return DOT(bp, bp);
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0)
+        return along2(a, ab, d1 / (d1 - d3), p);
+    double cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+    double d5 = DOT(ab, cp), d6 = DOT(ac, cp);
+    if (d6 >= 0 && d5 <= d6)
+        return DOT(cp, cp);
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0)
+        return along2(a, ac, d2 / (d2 - d6), p);
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        double bc[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
+        return along2(b, bc, (d4 - d3) / ((d4 - d3) + (d5 - d6)), p);
+    }
+    double den = 1.0 / (va + vb + vc), v = vb * den, w = vc * den;
+    for (int d = 0; d < 3; d++)
+        q[d] = a[d] + ab[d] * v + ac[d] * w - p[d];
+    return DOT(q, q);
+#undef DOT
+}
+
+/* Squared distance from p to the nearest triangle of g: shells of cells
+ * around p's cell until the shell lies farther than the best so far. */
+static double grid_dist2(const tri_grid *g, const double *p)
+{
+    int c0[3];
+    double margin = INFINITY; /* p's distance to its own cell's nearest face */
+    for (int d = 0; d < 3; d++) {
+        double u = (p[d] - g->lo[d]) / g->cell;
+        c0[d] = clampi((int)floor(u), 0, g->n[d] - 1);
+        double fr = u - c0[d];
+        margin = fmin(margin, fr < 0 || fr > 1 ? 0.0 : fmin(fr, 1.0 - fr));
+    }
+    double best = INFINITY;
+    int rmax = g->n[0] + g->n[1] + g->n[2];
+    for (int r = 0; r <= rmax; r++) {
+        /* every cell of shell r lies at least (r - 1 + margin) cells from p */
+        double near = (r - 1 + margin) * g->cell;
+        if (r > 0 && near > 0 && near * near >= best)
+            break;
+        for (int x = c0[0] - r; x <= c0[0] + r; x++)
+            for (int y = c0[1] - r; y <= c0[1] + r; y++)
+                for (int z = c0[2] - r; z <= c0[2] + r; z++) {
+                    int dx = abs(x - c0[0]), dy = abs(y - c0[1]), dz = abs(z - c0[2]);
+                    int cheb = dx > dy ? (dx > dz ? dx : dz) : (dy > dz ? dy : dz);
+                    if (cheb != r || x < 0 || y < 0 || z < 0 || x >= g->n[0] || y >= g->n[1] || z >= g->n[2])
+                        continue;
+                    size_t c = ((size_t)x * g->n[1] + y) * g->n[2] + z;
+                    for (int k = g->start[c]; k < g->start[c + 1]; k++) {
+                        const int32_t *t = g->F + 3 * (size_t)g->idx[k];
+                        double d2 = tri_dist2(p, g->X + 3 * (size_t)t[0], g->X + 3 * (size_t)t[1],
+                                              g->X + 3 * (size_t)t[2]);
+                        if (d2 < best)
+                            best = d2;
+                    }
+                }
+    }
+    return best;
+}
+
+/* Area-weighted mean squared distance from the samples of m (vertices,
+ * weight area/6 per face corner, and face centroids, area/2) to g's
+ * surface. */
+static double sampled_ms(const mcf_mesh *m, const tri_grid *g)
+{
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    int nf = mcf_mesh_nfaces(m), nv = mcf_mesh_nvertices(m);
+    double *w = calloc((size_t)nv, sizeof(double)), s = 0.0, ws = 0.0;
+    for (int f = 0; f < nf; f++) {
+        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1], *c = X + 3 * (size_t)F[3 * f + 2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        double A = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        double p[3] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3};
+        s += 0.5 * A * grid_dist2(g, p);
+        ws += 0.5 * A;
+        for (int k = 0; k < 3; k++)
+            w[F[3 * f + k]] += A / 6;
+    }
+    for (int i = 0; i < nv; i++)
+        if (w[i] > 0) {
+            s += w[i] * grid_dist2(g, X + 3 * (size_t)i);
+            ws += w[i];
+        }
+    free(w);
+    return ws > 0 ? s / ws : 0.0;
+}
+
+/* The symmetric RMS surface distance between m and the clean mesh (whose
+ * grid is given). */
+static double surface_error(const mcf_mesh *m, const mcf_mesh *clean, const tri_grid *gclean)
+{
+    tri_grid gm;
+    grid_build(&gm, m);
+    double a = sampled_ms(m, gclean), b = sampled_ms(clean, &gm);
+    grid_free(&gm);
+    return sqrt(0.5 * (a + b));
+}
+
+/* ------------------------------------------------------------ cases */
+
+typedef struct {
+    const mcf_mesh *clean, *noisy;
+    const tri_grid *gclean;
+    double e0, s0;       /* the noisy input's vertex and surface errors */
+    int fold0, fold0_off;
+    const unsigned char *crease;
+    double ref_size;     /* clean volume (closed) or area (open) */
+    int closed;
+    double h;            /* noisy mean edge / sqrt(noisy area): the t/h^2 unit */
+} case_ctx;
+
 /* Fills r's error metrics for result m (a smoothed copy of c->noisy). */
 static void measure(const case_ctx *c, const mcf_mesh *m, result *r)
 {
-    mcf_compare_result a, d;
+    mcf_compare_result a;
     mcf_error e = {0};
-    if (mcf_compare(m, c->clean, &a, &e) != MCF_OK || mcf_compare(m, c->noisy, &d, &e) != MCF_OK)
+    if (mcf_compare(m, c->clean, &a, &e) != MCF_OK)
         die("mcf_compare", &e);
     r->ratio = a.rms_m / c->e0;
+    r->sratio = surface_error(m, c->clean, c->gclean) / c->s0;
     r->folds = a.inverted_faces - c->fold0;
     r->folds_off = inverted_off_crease(m, c->clean, c->crease) - c->fold0_off;
     double s = c->closed ? mcf_mesh_volume(m) : mcf_mesh_area(m);
     r->drift = (s - c->ref_size) / fabs(c->ref_size);
-    r->maxdisp = d.max_err / c->edge;
 }
 
-static void failed(result *r, const char *what, const mcf_error *e)
+static void failed(result *r, const char *what, const char *msg)
 {
     r->ok = 0;
-    r->ratio = NAN;
-    r->drift = NAN;
-    r->maxdisp = NAN;
-    r->folds = -1;
-    r->folds_off = -1;
-    snprintf(r->note, sizeof r->note, "%s: %s", what, e->msg);
+    r->ratio = r->sratio = r->drift = NAN;
+    r->folds = r->folds_off = -1;
+    snprintf(r->note, sizeof r->note, "%s: %s", what, msg);
     for (char *q = r->note; *q; q++)
-        if (*q == '"')
-            *q = '\''; /* the CSV quotes the note */
+        if (*q == '"' || *q == '\n')
+            *q = '\'';
 }
 
-/* One request through the api layer's parameters: nothing set (default)
- * or strength=auto. *out (may be NULL) receives the result mesh. */
-static void run_request(const case_ctx *c, int with_auto, result *r, mcf_mesh **out)
+/* A request through the api layer's parameters: nothing set (default),
+ * scheme=S alone (auto) or desbrun2 strength 0.33 (fixed). */
+static void run_request(const case_ctx *c, const method *md, result *r, mcf_mesh **out)
 {
     api_limits lim;
     api_params p;
     mcf_error e = {0};
     mcf_flow_stats st;
     mcf_mesh *m = bench_dup_mesh(PROG, c->noisy);
-
-    memset(r, 0, sizeof *r);
     memset(&st, 0, sizeof st);
     api_limits_default(&lim);
     api_params_init(&p);
-    if (with_auto && api_params_set(&p, "strength", "auto", &lim, &e) != MCF_OK) {
-        failed(r, "strength=auto", &e);
+    if ((md->kind == K_AUTO && api_params_set(&p, "scheme", md->scheme, &lim, &e) != MCF_OK) ||
+        (md->kind == K_FIXED && (api_params_set(&p, "scheme", "desbrun2", &lim, &e) != MCF_OK ||
+                                 api_params_set(&p, "strength", "0.33", &lim, &e) != MCF_OK))) {
+        failed(r, md->name, e.msg);
         goto done;
     }
-    double t0 = mcf_now();
-    if (api_params_finish(&p, mcf_mesh_nvertices(m), &lim, &e) != MCF_OK) {
-        failed(r, "api_params_finish", &e);
+    double c0 = cpu_now(), w0 = mcf_now();
+    if (api_params_finish(&p, mcf_mesh_nvertices(m), &lim, &e) != MCF_OK ||
+        mcf_flow_run(m, &p.flow, &st, &e) != MCF_OK) {
+        failed(r, md->name, e.msg);
         goto done;
     }
-    if (mcf_flow_run(m, &p.flow, &st, &e) != MCF_OK) {
-        r->wall = mcf_now() - t0;
-        failed(r, "mcf_flow_run", &e);
-        goto done;
-    }
-    r->wall = mcf_now() - t0;
+    r->cpu = cpu_now() - c0;
+    r->wall = mcf_now() - w0;
     r->ok = 1;
-    r->param = st.t_final / (c->h * c->h);
+    const mcf_scheme_info *si = mcf_scheme_get(p.flow.scheme);
+    r->param = p.flow.scheme == MCF_TAUBIN || (si && si->order == 0) ? st.steps : st.t_final / (c->h * c->h);
     measure(c, m, r);
 done:
     mcf_flow_stats_free(&st);
@@ -340,111 +606,14 @@ done:
         mcf_mesh_free(m);
 }
 
-/* desbrun2, 10 steps to total time c h^2. */
-static void run_oracle_point(const case_ctx *c, double cc, result *r, mcf_mesh **out)
-{
-    mcf_flow_params p;
-    mcf_error e = {0};
-    mcf_mesh *m = bench_dup_mesh(PROG, c->noisy);
-
-    memset(r, 0, sizeof *r);
-    mcf_flow_params_init(&p);
-    p.scheme = MCF_DESBRUN2;
-    p.iterations = 10;
-    p.time = 0.0;
-    p.dt = cc * c->h * c->h / 10.0;
-    double t0 = mcf_now();
-    mcf_status s = mcf_flow_run(m, &p, NULL, &e);
-    r->wall = mcf_now() - t0;
-    r->param = cc;
-    if (s != MCF_OK)
-        failed(r, "desbrun2", &e);
-    else {
-        r->ok = 1;
-        measure(c, m, r);
-    }
-    if (out && r->ok)
-        *out = m;
-    else
-        mcf_mesh_free(m);
-}
-
-/* 1: every grid point from 0.05 to 1 (the oracle summary's columns);
- * 0: 0.1 .. 0.5 and what bracketing the minimum needs (--oracle-grid). */
-static int g_full_grid = 0;
-
-static int better(const result *a, const result *b)
-{
-    return a->ok && (!b->ok || a->ratio < b->ratio);
-}
-
-/* The oracle sweep; every point goes to sweep_csv. Returns the best. */
-static void run_oracle(const case_ctx *c, FILE *sweep_csv, const char *label, double rho,
-                       int seed, result *best, result at_report[5], mcf_mesh **out)
-{
-    result pts[NGRID + 1];
-    int done[NGRID] = {0}, ib = -1;
-    for (int i = 0; i < 5; i++)
-        at_report[i].ok = 0;
-    /* the required points first (g_full_grid: 0.05 .. 1, else 0.1 .. 0.5),
-     * then the neighbours of the minimum until it is bracketed */
-    for (int i = g_full_grid ? 1 : 2; i <= (g_full_grid ? 6 : 5); i++) {
-        run_oracle_point(c, g_grid[i], &pts[i], NULL);
-        done[i] = 1;
-        if (ib < 0 || better(&pts[i], &pts[ib]))
-            ib = i;
-    }
-    for (;;) {
-        int next = ib > 0 && !done[ib - 1] ? ib - 1 : ib < NGRID - 1 && !done[ib + 1] ? ib + 1 : -1;
-        if (next < 0)
-            break;
-        run_oracle_point(c, g_grid[next], &pts[next], NULL);
-        done[next] = 1;
-        if (better(&pts[next], &pts[ib]))
-            ib = next;
-    }
-    for (int i = 0; i < NGRID; i++) {
-        if (!done[i])
-            continue;
-        for (int k = 0; k < 5; k++)
-            if (g_grid[i] == g_report_c[k])
-                at_report[k] = pts[i];
-        fprintf(sweep_csv, "%s,%g,%d,%.6g,%d,%.6g,%d,%.6g,%.4g,%.4f\n", label, rho, seed, g_grid[i],
-                pts[i].ok, pts[i].ratio, pts[i].folds, pts[i].drift, pts[i].maxdisp, pts[i].wall);
-    }
-    *best = pts[ib];
-    /* one parabola step in log c through the best and its neighbours */
-    if (ib > 0 && ib < NGRID - 1 && done[ib - 1] && done[ib + 1] && pts[ib - 1].ok &&
-        pts[ib + 1].ok && pts[ib].ok) {
-        double x0 = log(g_grid[ib - 1]), x1 = log(g_grid[ib]), x2 = log(g_grid[ib + 1]);
-        double y0 = pts[ib - 1].ratio, y1 = pts[ib].ratio, y2 = pts[ib + 1].ratio;
-        double num = (x1 - x0) * (x1 - x0) * (y1 - y2) - (x1 - x2) * (x1 - x2) * (y1 - y0);
-        double den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0);
-        if (den != 0.0) {
-            double xv = x1 - 0.5 * num / den;
-            if (xv > x0 && xv < x2 && fabs(xv - x1) > 0.02) {
-                result r;
-                run_oracle_point(c, exp(xv), &r, NULL);
-                fprintf(sweep_csv, "%s,%g,%d,%.6g,%d,%.6g,%d,%.6g,%.4g,%.4f\n", label, rho, seed,
-                        exp(xv), r.ok, r.ratio, r.folds, r.drift, r.maxdisp, r.wall);
-                if (better(&r, best))
-                    *best = r;
-            }
-        }
-    }
-    if (out)
-        run_oracle_point(c, best->param, best, out);
-}
-
 /* Taubin at its best pass count (see the file comment). */
-static void run_taubin(const case_ctx *c, result *best, mcf_mesh **out)
+static void run_taubin_best(const case_ctx *c, result *best, mcf_mesh **out)
 {
     mcf_flow_params p;
     mcf_error e = {0};
     mcf_mesh *m = bench_dup_mesh(PROG, c->noisy);
     int have = 0, bestp = 0;
     double bestr = INFINITY;
-
     mcf_flow_params_init(&p);
     p.scheme = MCF_TAUBIN;
     for (int i = 0; i < NPASSES; i++) {
@@ -452,29 +621,30 @@ static void run_taubin(const case_ctx *c, result *best, mcf_mesh **out)
         if (mcf_flow_run(m, &p, NULL, &e) != MCF_OK)
             break;
         have = g_passes[i];
-        result r;
-        measure(c, m, &r);
-        if (r.ratio < bestr) {
-            bestr = r.ratio;
+        mcf_compare_result a;
+        if (mcf_compare(m, c->clean, &a, &e) != MCF_OK)
+            die("mcf_compare", &e);
+        if (a.rms_m < bestr) {
+            bestr = a.rms_m;
             bestp = have;
         }
-        if ((r.ratio > 1.05 * bestr && have >= 2 * bestp) || r.ratio > 1.5 * bestr)
+        if ((a.rms_m > 1.05 * bestr && have >= 2 * bestp) || a.rms_m > 1.5 * bestr)
             break;
     }
     mcf_mesh_free(m);
-    memset(best, 0, sizeof *best);
     if (bestp == 0) {
-        failed(best, "taubin", &e);
+        failed(best, "taubin_best", e.msg);
         return;
     }
     m = bench_dup_mesh(PROG, c->noisy);
     p.iterations = bestp;
-    double t0 = mcf_now();
+    double c0 = cpu_now(), w0 = mcf_now();
     mcf_status s = mcf_flow_run(m, &p, NULL, &e);
-    best->wall = mcf_now() - t0;
+    best->cpu = cpu_now() - c0;
+    best->wall = mcf_now() - w0;
     best->param = bestp;
     if (s != MCF_OK)
-        failed(best, "taubin", &e);
+        failed(best, "taubin_best", e.msg);
     else {
         best->ok = 1;
         measure(c, m, best);
@@ -485,6 +655,120 @@ static void run_taubin(const case_ctx *c, result *best, mcf_mesh **out)
         mcf_mesh_free(m);
 }
 
+/* ------------------------------------------------------------ Open3D */
+
+/* The coprocess (bench/o3d_taubin.py): pid, its stdin and stdout. */
+static struct {
+    pid_t pid;
+    FILE *to, *from;
+    char version[64];
+} g_o3d;
+static char g_tmp[256];
+
+static void o3d_start(const char *script)
+{
+    int in[2], outp[2];
+    if (pipe(in) != 0 || pipe(outp) != 0)
+        return;
+    pid_t pid = fork();
+    if (pid < 0)
+        return;
+    if (pid == 0) {
+        dup2(in[0], 0);
+        dup2(outp[1], 1);
+        close(in[1]);
+        close(outp[0]);
+        setenv("OMP_NUM_THREADS", "1", 1);
+        execl("/usr/bin/python3", "python3", script, (char *)NULL);
+        _exit(127);
+    }
+    close(in[0]);
+    close(outp[1]);
+    g_o3d.pid = pid;
+    g_o3d.to = fdopen(in[1], "w");
+    g_o3d.from = fdopen(outp[0], "r");
+    char line[256];
+    if (!g_o3d.from || !fgets(line, sizeof line, g_o3d.from) || strncmp(line, "ready ", 6) != 0) {
+        fprintf(stderr, PROG ": %s did not start (python3-open3d missing?): the Open3D columns are skipped\n", script);
+        if (g_o3d.to)
+            fclose(g_o3d.to);
+        if (g_o3d.from)
+            fclose(g_o3d.from);
+        waitpid(pid, NULL, 0);
+        memset(&g_o3d, 0, sizeof g_o3d);
+        return;
+    }
+    line[strcspn(line, "\n")] = 0;
+    snprintf(g_o3d.version, sizeof g_o3d.version, "%.60s", line + 6);
+}
+
+static void o3d_stop(void)
+{
+    if (!g_o3d.pid)
+        return;
+    fclose(g_o3d.to);
+    fclose(g_o3d.from);
+    waitpid(g_o3d.pid, NULL, 0);
+    g_o3d.pid = 0;
+}
+
+static void write_raw(const char *path, const mcf_mesh *m)
+{
+    FILE *f = fopen(path, "wb");
+    int32_t n[2] = {mcf_mesh_nvertices(m), mcf_mesh_nfaces(m)};
+    if (!f || fwrite(n, sizeof n, 1, f) != 1 ||
+        fwrite(mcf_mesh_positions(m), 3 * sizeof(double), (size_t)n[0], f) != (size_t)n[0] ||
+        fwrite(mcf_mesh_faces(m), 3 * sizeof(int32_t), (size_t)n[1], f) != (size_t)n[1] || fclose(f) != 0) {
+        fprintf(stderr, PROG ": cannot write %s\n", path);
+        exit(1);
+    }
+}
+
+/* Open3D's default and best on c->noisy into r[0] and r[1]. */
+static void run_o3d(const case_ctx *c, result r[2], mcf_mesh *out[2])
+{
+    char pn[300], pc[300], po[300], line[512];
+    if (!g_o3d.pid) {
+        failed(&r[0], "o3d_default", "python3-open3d not available");
+        failed(&r[1], "o3d_best", "python3-open3d not available");
+        return;
+    }
+    snprintf(pn, sizeof pn, "%s/noisy.bin", g_tmp);
+    snprintf(pc, sizeof pc, "%s/clean.bin", g_tmp);
+    snprintf(po, sizeof po, "%s/out.bin", g_tmp);
+    write_raw(pn, c->noisy);
+    write_raw(pc, c->clean);
+    fprintf(g_o3d.to, "%s %s %s\n", pn, pc, po);
+    fflush(g_o3d.to);
+    if (!fgets(line, sizeof line, g_o3d.from) || strncmp(line, "ok", 2) != 0) {
+        line[strcspn(line, "\n")] = 0;
+        failed(&r[0], "o3d_default", line);
+        failed(&r[1], "o3d_best", line);
+        return;
+    }
+    FILE *f = fopen(po, "rb");
+    int nv = mcf_mesh_nvertices(c->noisy);
+    int32_t passes = 0;
+    double cpu[2];
+    mcf_mesh *m[2] = {bench_dup_mesh(PROG, c->noisy), bench_dup_mesh(PROG, c->noisy)};
+    if (!f || fread(&passes, sizeof passes, 1, f) != 1 || fread(cpu, sizeof cpu, 1, f) != 1 ||
+        fread(mcf_mesh_positions_mut(m[0]), 3 * sizeof(double), (size_t)nv, f) != (size_t)nv ||
+        fread(mcf_mesh_positions_mut(m[1]), 3 * sizeof(double), (size_t)nv, f) != (size_t)nv) {
+        fprintf(stderr, PROG ": cannot read %s\n", po);
+        exit(1);
+    }
+    fclose(f);
+    for (int k = 0; k < 2; k++) {
+        r[k].ok = 1;
+        r[k].cpu = r[k].wall = cpu[k];
+        r[k].param = k ? passes : 1;
+        measure(c, m[k], &r[k]);
+        if (out)
+            out[k] = m[k];
+        else
+            mcf_mesh_free(m[k]);
+    }
+}
 /* ------------------------------------------------------------ figure */
 
 /* Writes the triangles of m (those whose centroid passes the crop box,
@@ -618,16 +902,6 @@ static void figure(const char *out, const char *stem, const figure_spec *fs,
 
 /* ------------------------------------------------------------ main */
 
-typedef struct {
-    char name[64];
-    int nv, dense, closed;
-    int ncrease;        /* faces at creases of the clean mesh (crease_mask) */
-    /* [noise][seed][method] */
-    result r[MAXNOISE][MAXSEED][NMETHOD];
-    result at_c[MAXNOISE][MAXSEED][5]; /* oracle points at g_report_c */
-    double wall;
-} mesh_rows;
-
 static void split(char *s, char **out, int max, int *n)
 {
     *n = 0;
@@ -635,155 +909,56 @@ static void split(char *s, char **out, int max, int *n)
         out[(*n)++] = t;
 }
 
-static void write_oracle_summary(const char *path, const mesh_rows *mr, int nm, const double *rho,
-                                 int nr, int ns)
-{
-    if (!path)
-        return;
-    char tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        fprintf(stderr, PROG ": cannot write %s: %s\n", tmp, strerror(errno));
-        return;
-    }
-    fprintf(f, "# bench_quality oracle: desbrun2, 10 steps, total time t = c h^2 (h = mean edge / sqrt(area)\n"
-               "# of the noisy input, i.e. after normalization to unit area); error = area-weighted RMS distance\n"
-               "# to the clean mesh as a ratio against the noisy input's (< 1 is better). Medians over %d seeds;\n"
-               "# best c is the median of the per-seed best, [min..max] (grid %s, bracketed, then one\n"
-               "# parabola step in log c); '-': a c the sweep did not need.\n",
-            ns, g_full_grid ? "0.05..1 always" : "0.1..0.5 always");
-    fprintf(f, "%-22s %7s %5s | %6s %13s %7s | %6s %6s %6s %6s %6s\n", "mesh", "nv", "noise", "best c",
-            "[min..max]", "ratio*", "c=0.1", "c=0.2", "c=0.3", "c=0.5", "c=1.0");
-    for (int m = 0; m < nm; m++)
-        for (int k = 0; k < nr; k++) {
-            double cb[MAXSEED], rb[MAXSEED], at[5][MAXSEED];
-            for (int s = 0; s < ns; s++) {
-                const result *o = &mr[m].r[k][s][M_ORACLE];
-                cb[s] = o->ok ? o->param : NAN;
-                rb[s] = o->ok ? o->ratio : NAN;
-                for (int j = 0; j < 5; j++)
-                    at[j][s] = mr[m].at_c[k][s][j].ok ? mr[m].at_c[k][s][j].ratio : NAN;
-            }
-            double mn = INFINITY, mx = -INFINITY;
-            for (int s = 0; s < ns; s++) {
-                mn = cb[s] < mn ? cb[s] : mn;
-                mx = cb[s] > mx ? cb[s] : mx;
-            }
-            char range[32];
-            snprintf(range, sizeof range, "[%.3g..%.3g]", mn, mx);
-            char b[6][16];
-            fprintf(f, "%-22s %7d %5g | %6.3g %13s %7.3f | %6s %6s %6s %6s %6s\n", mr[m].name, mr[m].nv,
-                    rho[k], median_of(cb, ns), range, median_of(rb, ns), fmt(b[0], 3, 0, median_of(at[0], ns)),
-                    fmt(b[1], 3, 0, median_of(at[1], ns)), fmt(b[2], 3, 0, median_of(at[2], ns)),
-                    fmt(b[3], 3, 0, median_of(at[3], ns)), fmt(b[4], 3, 0, median_of(at[4], ns)));
-        }
-    fprintf(f, "\n# worst seed at each c (what a fixed default would do): largest ratio, most negative drift\n"
-               "# in %% (volume closed, area open, vs clean), most new folds (0 when none added)\n");
-    fprintf(f, "%-22s %5s |", "mesh", "noise");
-    for (int j = 0; j < 5; j++)
-        fprintf(f, "  c=%-4g ratio drift%% fold |", g_report_c[j]);
-    fprintf(f, "\n");
-    for (int m = 0; m < nm; m++)
-        for (int k = 0; k < nr; k++) {
-            fprintf(f, "%-22s %5g |", mr[m].name, rho[k]);
-            for (int j = 0; j < 5; j++) {
-                double wr = -INFINITY, wd = INFINITY;
-                int wf = 0, any = 0;
-                for (int s = 0; s < ns; s++) {
-                    const result *r = &mr[m].at_c[k][s][j];
-                    if (!r->ok)
-                        continue;
-                    any = 1;
-                    wr = r->ratio > wr ? r->ratio : wr;
-                    wd = r->drift < wd ? r->drift : wd;
-                    wf = r->folds > wf ? r->folds : wf;
-                }
-                if (any)
-                    fprintf(f, "       %6.3f %6.2f %4d |", wr, 100 * wd, wf);
-                else
-                    fprintf(f, "       %6s %6s %4s |", "-", "-", "-");
-            }
-            fprintf(f, "\n");
-        }
-    fclose(f);
-    rename(tmp, path);
-}
-
-static void check_goals(const mesh_rows *mr, int nm, const double *rho, int nr, int nseeds, int j)
-{
-    double worst = -INFINITY, worst_dense = -INFINITY, worst_drift = 0;
-    int folds = 0, nf_runs = 0, folds_off = 0, nf_off_runs = 0;
-    char wname[160] = "", dname[160] = "", drname[160] = "";
-    for (int m = 0; m < nm; m++)
-        for (int k = 0; k < nr; k++) {
-            double v[MAXSEED];
-            for (int s = 0; s < nseeds; s++) {
-                const result *r = &mr[m].r[k][s][j];
-                v[s] = r->ok ? r->ratio : NAN;
-                if (!r->ok || r->ratio > worst) {
-                    worst = r->ok ? r->ratio : INFINITY;
-                    snprintf(wname, sizeof wname, "%s noise %g seed %d", mr[m].name, rho[k], s + 1);
-                }
-                if (!r->ok || r->folds > 0) {
-                    folds += r->ok ? r->folds : 0;
-                    nf_runs++;
-                }
-                if (!r->ok || r->folds_off > 0) {
-                    folds_off += r->ok ? r->folds_off : 0;
-                    nf_off_runs++;
-                }
-                /* open meshes: only a loss of area counts (noise adds area; what
-                 * is left of it above the clean area is roughness, which the
-                 * error ratio measures); closed: the volume either way */
-                double dv = !r->ok ? INFINITY : mr[m].closed ? r->drift : fmin(r->drift, 0.0);
-                if (fabs(dv) > fabs(worst_drift)) {
-                    worst_drift = dv;
-                    snprintf(drname, sizeof drname, "%s noise %g seed %d", mr[m].name, rho[k], s + 1);
-                }
-            }
-            double med = median_of(v, nseeds);
-            if (mr[m].dense && rho[k] >= 0.25 && (max_of(v, nseeds) == INFINITY || med > worst_dense)) {
-                worst_dense = max_of(v, nseeds) == INFINITY ? INFINITY : med;
-                snprintf(dname, sizeof dname, "%s noise %g", mr[m].name, rho[k]);
-            }
-        }
-    const char *w = method_names[j], *tag = j == M_DEFAULT ? "" : "(ref) ";
-    printf("%s  %s%s never worse than its input (ratio <= 1 in every run): worst %.3f (%s)\n",
-           worst <= 1.0 ? "PASS" : "FAIL", tag, w, worst, wname);
-    printf("%s  %s%s removes >= 1/5 of the error on dense scans at noise >= 0.25 (median ratio <= 0.8): worst %.3f (%s)\n",
-           !dname[0] ? "SKIP" : worst_dense <= 0.8 ? "PASS" : "FAIL", tag, w, worst_dense,
-           dname[0] ? dname : "no dense scan in the list");
-    printf("%s  %s%s folds no face beyond the input's: %d run(s) with new folds, %d new folds in all\n",
-           nf_runs == 0 ? "PASS" : "FAIL", tag, w, nf_runs, folds);
-    printf("      (away from the clean meshes' own creases, i.e. faces next to a face turned > 120 degrees or\n"
-           "       at a non-manifold edge: %d run(s) with new folds, %d new folds in all)\n", nf_off_runs, folds_off);
-    printf("%s  %s%s drifts <= 3%% (volume of closed meshes, loss of area of open ones, vs clean): worst %+.2f%% (%s)\n",
-           fabs(worst_drift) <= 0.03 ? "PASS" : "FAIL", tag, w, 100 * worst_drift, drname);
-}
-
 static void usage(void)
 {
     fprintf(stderr,
             "usage: bench_quality [--meshes DIR] [--out DIR] [--list a.obj,b.drc,...] [--noise 0.1,0.25,0.5]\n"
-            "                     [--seeds N] [--methods default,auto,oracle,taubin] [--oracle-out FILE]\n"
-            "                     [--no-figure | --figure MESH[,NOISE[,SEED]]] [--oracle-grid lean|full]\n");
+            "                     [--kinds normal,iso] [--seeds N] [--methods NAME,...] [--o3d SCRIPT]\n"
+            "                     [--no-figure]\n"
+            "  methods: default, auto:SCHEME, fixed, taubin_best, o3d_default, o3d_best (default: all)\n");
     exit(2);
+}
+
+static const char *const kind_names[2] = {"normal", "iso"};
+
+/* results[mesh][kind][noise][seed][method] */
+static result *g_res;
+static int g_nk, g_nr, g_ns, g_nmeth;
+static result *R(int m, int k, int j, int s, int q)
+{
+    return &g_res[((((size_t)m * g_nk + k) * g_nr + j) * g_ns + s) * g_nmeth + q];
+}
+
+/* Per method over the cases of kind k (-1: all): median and worst of the
+ * ratio of its error (surface error when surf) against method `peer`'s
+ * in the same case. */
+static void versus(int nm, int k, int q, int peer, int surf, double *med, double *worst)
+{
+    double *v = malloc(sizeof(double) * (size_t)(nm * g_nk * g_nr * g_ns) + 1);
+    int n = 0;
+    for (int m = 0; m < nm; m++)
+        for (int kk = 0; kk < g_nk; kk++)
+            for (int j = 0; j < g_nr; j++)
+                for (int s = 0; s < g_ns; s++) {
+                    if (k >= 0 && kk != k)
+                        continue;
+                    const result *a = R(m, kk, j, s, q), *b = peer >= 0 ? R(m, kk, j, s, peer) : NULL;
+                    double x = surf ? a->sratio : a->ratio, y = !b ? 1.0 : surf ? b->sratio : b->ratio;
+                    v[n++] = !a->ok ? INFINITY : b && !b->ok ? NAN : x / y;
+                }
+    *med = median_max(v, n, worst);
+    free(v);
 }
 
 int main(int argc, char **argv)
 {
-    const char *meshes = "../shared/meshes", *out = "docs/quality", *oracle_out = NULL;
-    char list_buf[1024] = "stanford-bunny.obj,bunny.drc,snowden.obj,dragon_vrip_res2.obj,armadillo.obj,"
-                          "spot.obj,fertility.obj,bunny_npm_closed.obj,knot1.obj";
-    char noise_buf[256] = "0.1,0.25,0.5", methods_buf[256] = "default,auto,oracle,taubin";
-    int nseeds = 3, do_figure = 1, fig_seed = 1;
-    const char *fig_mesh = "stanford-bunny.obj";
-    double fig_rho = 0.25;
-    /* the zoomed figure: the stanford bunny's head in the default view */
-    double fig_crop[4] = {0.0, 0.62, 0.38, 1.0};
+    const char *meshes = "../shared/meshes", *out = "docs/quality", *o3d_script = "o3d_taubin.py";
+    char list_buf[1024] = "sphere_cgal.obj,bunny_npm_closed.obj,spot.obj,knot1.obj,fertility.obj,"
+                          "stanford-bunny.obj,bunny.drc,armadillo.obj,snowden.obj,dragon_vrip_res2.obj";
+    char noise_buf[256] = "0.1,0.25,0.5", kinds_buf[64] = "normal,iso", methods_buf[512] = "";
+    int do_figure = 1;
     double t_start = mcf_now();
-
+    g_ns = 3;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--meshes") && v)
@@ -794,97 +969,113 @@ int main(int argc, char **argv)
             snprintf(list_buf, sizeof list_buf, "%s", v), i++;
         else if (!strcmp(a, "--noise") && v)
             snprintf(noise_buf, sizeof noise_buf, "%s", v), i++;
+        else if (!strcmp(a, "--kinds") && v)
+            snprintf(kinds_buf, sizeof kinds_buf, "%s", v), i++;
         else if (!strcmp(a, "--methods") && v)
             snprintf(methods_buf, sizeof methods_buf, "%s", v), i++;
         else if (!strcmp(a, "--seeds") && v)
-            nseeds = atoi(v), i++;
-        else if (!strcmp(a, "--oracle-out") && v)
-            oracle_out = v, i++;
+            g_ns = atoi(v), i++;
+        else if (!strcmp(a, "--o3d") && v)
+            o3d_script = v, i++;
         else if (!strcmp(a, "--no-figure"))
             do_figure = 0;
-        else if (!strcmp(a, "--oracle-grid") && v && (!strcmp(v, "full") || !strcmp(v, "lean")))
-            g_full_grid = !strcmp(v, "full"), i++;
-        else if (!strcmp(a, "--figure") && v) {
-            /* NAME[,NOISE[,SEED]] */
-            static char fbuf[256];
-            snprintf(fbuf, sizeof fbuf, "%s", v);
-            i++;
-            char *c1 = strchr(fbuf, ',');
-            if (c1) {
-                *c1++ = 0;
-                fig_rho = atof(c1);
-                char *c2 = strchr(c1, ',');
-                if (c2)
-                    fig_seed = atoi(c2 + 1);
-            }
-            fig_mesh = fbuf;
-        }
         else
             usage();
     }
-    if (nseeds < 1 || nseeds > MAXSEED)
+    if (g_ns < 1 || g_ns > MAXSEED)
         usage();
-    char *names[MAXMESH], *ntext[MAXNOISE], *mtext[NMETHOD];
-    int nm, nr, nmeth;
+
+    /* the methods: every one, or those named */
+    method meth[MAXMETHOD];
+    int nmeth = 0;
+    meth[nmeth++] = (method){"default", K_DEFAULT, ""};
+    static const char *const autos[] = {"desbrun2", "desbrun", "ros2", "richardson", "cmcf", "linear", "taubin"};
+    for (int s = 0; s < MCF_NSCHEMES + 8; s++) {
+        const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
+        if (si && !strncmp(si->name, "fairing", 7) && nmeth < MAXMETHOD) {
+            meth[nmeth] = (method){"", K_AUTO, ""};
+            snprintf(meth[nmeth].name, sizeof meth[nmeth].name, "auto:%s", si->name);
+            snprintf(meth[nmeth++].scheme, sizeof meth[0].scheme, "%s", si->name);
+        }
+    }
+    for (size_t s = 0; s < sizeof autos / sizeof autos[0]; s++) {
+        meth[nmeth] = (method){"", K_AUTO, ""};
+        snprintf(meth[nmeth].name, sizeof meth[nmeth].name, "auto:%s", autos[s]);
+        snprintf(meth[nmeth++].scheme, sizeof meth[0].scheme, "%s", autos[s]);
+    }
+    meth[nmeth++] = (method){"fixed", K_FIXED, ""};
+    meth[nmeth++] = (method){"taubin_best", K_TAUBIN_BEST, ""};
+    meth[nmeth++] = (method){"o3d_default", K_O3D_DEFAULT, ""};
+    meth[nmeth++] = (method){"o3d_best", K_O3D_BEST, ""};
+    if (methods_buf[0]) {
+        char *mt[MAXMETHOD];
+        int nmt, keep = 0;
+        split(methods_buf, mt, MAXMETHOD, &nmt);
+        for (int q = 0; q < nmeth; q++)
+            for (int k = 0; k < nmt; k++)
+                if (!strcmp(mt[k], meth[q].name))
+                    meth[keep++] = meth[q];
+        nmeth = keep;
+    }
+    int q_default = -1, q_fixed = -1, q_tb = -1, q_od = -1, q_ob = -1;
+    for (int q = 0; q < nmeth; q++)
+        switch (meth[q].kind) {
+        case K_DEFAULT: q_default = q; break;
+        case K_FIXED: q_fixed = q; break;
+        case K_TAUBIN_BEST: q_tb = q; break;
+        case K_O3D_DEFAULT: q_od = q; break;
+        case K_O3D_BEST: q_ob = q; break;
+        default: break;
+        }
+    g_nmeth = nmeth;
+
+    char *names[MAXMESH], *ntext[MAXNOISE], *ktext[2];
+    int nm, kinds[2];
     double rho[MAXNOISE];
-    int want[NMETHOD] = {0};
     split(list_buf, names, MAXMESH, &nm);
-    split(noise_buf, ntext, MAXNOISE, &nr);
-    split(methods_buf, mtext, NMETHOD, &nmeth);
-    for (int k = 0; k < nr; k++)
-        rho[k] = atof(ntext[k]);
-    for (int k = 0; k < nmeth; k++)
-        for (int j = 0; j < NMETHOD; j++)
-            if (!strcmp(mtext[k], method_names[j]))
-                want[j] = 1;
+    split(noise_buf, ntext, MAXNOISE, &g_nr);
+    split(kinds_buf, ktext, 2, &g_nk);
+    for (int j = 0; j < g_nr; j++)
+        rho[j] = atof(ntext[j]);
+    for (int k = 0; k < g_nk; k++) {
+        if (strcmp(ktext[k], "normal") && strcmp(ktext[k], "iso"))
+            usage();
+        kinds[k] = !strcmp(ktext[k], "iso");
+    }
 
     bench_print_machine();
     if (mkdir_p(out) != 0) {
         fprintf(stderr, PROG ": cannot create %s: %s\n", out, strerror(errno));
         return 1;
     }
-
-    /* Does the api know strength=auto? */
-    char auto_note[300] = "";
-    if (want[M_AUTO]) {
-        api_params p;
-        api_limits lim;
-        mcf_error e = {0};
-        api_limits_default(&lim);
-        api_params_init(&p);
-        if (api_params_set(&p, "strength", "auto", &lim, &e) != MCF_OK) {
-            want[M_AUTO] = 0;
-            snprintf(auto_note, sizeof auto_note, "strength=auto refused (%s: %s): column skipped",
-                     mcf_status_name(e.status), e.msg);
-            printf("%s\n", auto_note);
-        }
-        api_params_free(&p);
-    }
     {
         api_params p;
         api_params_init(&p);
-        cJSON *j = api_params_to_json(&p);
-        char *s = j ? api_json_print(j, 0) : NULL;
-        printf("default request: %s\n", s ? s : "?");
-        free(s);
-        cJSON_Delete(j);
+        api_params_finish(&p, 1000, NULL, NULL);
+        printf("default request: scheme %s, automatic amount %s\n", mcf_scheme_get(p.flow.scheme)->name,
+               p.flow.strength_auto ? "yes" : "no");
         api_params_free(&p);
     }
+    snprintf(g_tmp, sizeof g_tmp, "/tmp/bench_quality.%d", (int)getpid());
+    if (mkdir_p(g_tmp) != 0)
+        die("mkdir", NULL);
+    if (q_od >= 0 || q_ob >= 0) {
+        o3d_start(o3d_script);
+        if (g_o3d.pid)
+            printf("Open3D %s (coprocess %s)\n", g_o3d.version, o3d_script);
+    }
+    signal(SIGPIPE, SIG_IGN);
 
-    FILE *csv = open_out(out, "quality.csv");
-    FILE *sweep = open_out(out, "oracle-sweep.csv");
-    fprintf(csv, "mesh,nv,nf,closed,dense,noise,seed,h,e0,input_folds,input_drift,method,param,ok,ratio,"
-                 "new_folds,new_folds_off_crease,drift,max_disp_edges,wall_s,note\n");
-    fprintf(sweep, "mesh,noise,seed,c,ok,ratio,new_folds,drift,max_disp_edges,wall_s\n");
-
-    mesh_rows *mr = calloc((size_t)nm, sizeof *mr);
-    if (!mr)
+    g_res = calloc((size_t)nm * g_nk * g_nr * g_ns * nmeth, sizeof(result));
+    if (!g_res)
         die("calloc", NULL);
-    figure_spec fs = {fig_mesh, fig_rho, fig_seed, 0, {0.0, 1.0, 0.0, 1.0}};
-    const mcf_mesh *fig_ms[6] = {0};
-    const char *fig_titles[6];
-    char fig_title_buf[6][96];
-    int fig_n = 0;
+    FILE *csv = open_out(out, "quality.csv");
+    fprintf(csv, "mesh,nv,nf,closed,noise_kind,noise,seed,e0,s0,method,param,ok,ratio,surface_ratio,"
+                 "new_folds,new_folds_off_crease,drift,cpu_s,wall_s,note\n");
+    int mesh_nv[MAXMESH];
+    /* the worst case of the default against taubin_best, for the renders */
+    double worst_vs = -INFINITY;
+    int wm = -1, wk = 0, wj = 0, ws = 0;
 
     for (int mi = 0; mi < nm; mi++) {
         double tm0 = mcf_now();
@@ -893,184 +1084,295 @@ int main(int argc, char **argv)
         mcf_error e = {0};
         if (mcf_mesh_inspect(clean, &ci, &e) != MCF_OK)
             die("mcf_mesh_inspect", &e);
-        mesh_rows *row = &mr[mi];
-        snprintf(row->name, sizeof row->name, "%s", names[mi]);
-        row->nv = ci.nv;
-        row->closed = ci.boundary_edges == 0;
-        row->dense = ci.nv - ci.unreferenced >= 20000;
-        unsigned char *crease = crease_mask(clean, &row->ncrease);
-        printf("\n%s: %d vertices, %d faces, %s%s, mean edge %.4g, %s, %d faces at creases\n", names[mi],
-               ci.nv, ci.nf, row->closed ? "closed" : "open", ci.manifold ? "" : ", non-manifold", ci.mean_edge,
-               row->dense ? "dense scan" : "small mesh", row->ncrease);
+        int closed = ci.boundary_edges == 0, ncrease;
+        mesh_nv[mi] = ci.nv;
+        unsigned char *crease = crease_mask(clean, &ncrease);
+        tri_grid gclean;
+        grid_build(&gclean, clean);
+        printf("\n%s: %d vertices, %d faces, %s%s, %d faces at creases\n", names[mi], ci.nv, ci.nf,
+               closed ? "closed" : "open", ci.manifold ? "" : ", non-manifold", ncrease);
         fflush(stdout);
-        for (int k = 0; k < nr; k++)
-            for (int s = 0; s < nseeds; s++) {
-                mcf_mesh *noisy = bench_dup_mesh(PROG, clean);
-                mcf_mesh_info ni;
-                mcf_compare_result c0;
-                if (mcf_mesh_add_noise(noisy, rho[k], (uint64_t)(s + 1), &e) != MCF_OK)
-                    die("mcf_mesh_add_noise", &e);
-                if (mcf_mesh_inspect(noisy, &ni, &e) != MCF_OK || mcf_compare(noisy, clean, &c0, &e) != MCF_OK)
-                    die("noisy input", &e);
-                case_ctx c = {clean, noisy, c0.rms_m, c0.inverted_faces, crease,
-                              inverted_off_crease(noisy, clean, crease),
-                              row->closed ? ci.volume : ci.area, row->closed, ci.mean_edge,
-                              ni.mean_edge / sqrt(ni.area)};
-                double in_drift = ((row->closed ? ni.volume : ni.area) - c.ref_size) / fabs(c.ref_size);
-                int fig = do_figure && !strcmp(names[mi], fs.mesh) && rho[k] == fs.rho && s + 1 == fs.seed;
-                mcf_mesh *res[NMETHOD] = {0};
-                for (int j = 0; j < NMETHOD; j++) {
-                    result *r = &row->r[k][s][j];
-                    memset(r, 0, sizeof *r);
-                    r->ratio = NAN;
-                    if (!want[j])
-                        continue;
-                    mcf_mesh **o = fig ? &res[j] : NULL;
-                    if (j == M_DEFAULT || j == M_AUTO)
-                        run_request(&c, j == M_AUTO, r, o);
-                    else if (j == M_ORACLE)
-                        run_oracle(&c, sweep, names[mi], rho[k], s + 1, r, row->at_c[k][s], o);
-                    else
-                        run_taubin(&c, r, o);
-                    fprintf(csv, "%s,%d,%d,%d,%d,%g,%d,%.6g,%.6g,%d,%.6g,%s,%.6g,%d,%.6g,%d,%d,%.6g,%.4g,%.4f,\"%s\"\n",
-                            names[mi], ci.nv, ci.nf, row->closed, row->dense, rho[k], s + 1, c.h, c.e0,
-                            c.fold0, in_drift, method_names[j], r->param, r->ok, r->ratio, r->folds, r->folds_off,
-                            r->drift, r->maxdisp, r->wall, r->note);
-                    if (!r->ok)
-                        printf("  %s noise %g seed %d: %s\n", method_names[j], rho[k], s + 1, r->note);
-                }
-                fflush(csv);
-                fflush(sweep);
-                if (fig) {
-                    fig_ms[fig_n] = bench_dup_mesh(PROG, clean);
-                    fig_titles[fig_n++] = "clean";
-                    fig_ms[fig_n] = noisy;
-                    snprintf(fig_title_buf[1], 96, "noisy (%.3g mean edges)", rho[k]);
-                    fig_titles[fig_n++] = fig_title_buf[1];
-                    noisy = NULL;
-                    for (int j = 0; j < NMETHOD; j++)
-                        if (res[j]) {
-                            const result *r = &row->r[k][s][j];
-                            if (j == M_ORACLE)
-                                snprintf(fig_title_buf[fig_n], 96, "oracle desbrun2 t=%.2fh^2: %.2f", r->param, r->ratio);
-                            else if (j == M_TAUBIN)
-                                snprintf(fig_title_buf[fig_n], 96, "taubin %d passes: %.2f", (int)r->param, r->ratio);
-                            else
-                                snprintf(fig_title_buf[fig_n], 96, "%s (t=%.2fh^2): %.2f", method_names[j], r->param, r->ratio);
-                            fig_titles[fig_n] = fig_title_buf[fig_n];
-                            fig_ms[fig_n++] = res[j];
-                            res[j] = NULL;
+        for (int k = 0; k < g_nk; k++)
+            for (int j = 0; j < g_nr; j++)
+                for (int s = 0; s < g_ns; s++) {
+                    mcf_mesh *noisy = make_noisy(clean, kinds[k], rho[j], s + 1);
+                    mcf_mesh_info ni;
+                    mcf_compare_result c0;
+                    if (mcf_mesh_inspect(noisy, &ni, &e) != MCF_OK || mcf_compare(noisy, clean, &c0, &e) != MCF_OK)
+                        die("noisy input", &e);
+                    case_ctx c = {clean, noisy, &gclean, c0.rms_m, surface_error(noisy, clean, &gclean),
+                                  c0.inverted_faces, inverted_off_crease(noisy, clean, crease), crease,
+                                  closed ? ci.volume : ci.area, closed, ni.mean_edge / sqrt(ni.area)};
+                    int o3d_done = 0;
+                    for (int q = 0; q < nmeth; q++) {
+                        result *r = R(mi, k, j, s, q);
+                        if (meth[q].kind == K_DEFAULT || meth[q].kind == K_AUTO || meth[q].kind == K_FIXED)
+                            run_request(&c, &meth[q], r, NULL);
+                        else if (meth[q].kind == K_TAUBIN_BEST)
+                            run_taubin_best(&c, r, NULL);
+                        else if (!o3d_done) {
+                            result two[2];
+                            memset(two, 0, sizeof two);
+                            run_o3d(&c, two, NULL);
+                            if (q_od >= 0)
+                                *R(mi, k, j, s, q_od) = two[0];
+                            if (q_ob >= 0)
+                                *R(mi, k, j, s, q_ob) = two[1];
+                            o3d_done = 1;
                         }
+                    }
+                    for (int q = 0; q < nmeth; q++) {
+                        const result *r = R(mi, k, j, s, q);
+                        fprintf(csv, "%s,%d,%d,%d,%s,%g,%d,%.6g,%.6g,%s,%.6g,%d,%.6g,%.6g,%d,%d,%.6g,%.5f,%.5f,\"%s\"\n",
+                                names[mi], ci.nv, ci.nf, closed, kind_names[kinds[k]], rho[j], s + 1, c.e0, c.s0,
+                                meth[q].name, r->param, r->ok, r->ratio, r->sratio, r->folds, r->folds_off,
+                                r->drift, r->cpu, r->wall, r->note);
+                        if (!r->ok)
+                            printf("  %s %s %g seed %d: %s\n", meth[q].name, kind_names[kinds[k]], rho[j], s + 1,
+                                   r->note);
+                    }
+                    fflush(csv);
+                    if (q_default >= 0 && q_tb >= 0) {
+                        const result *d = R(mi, k, j, s, q_default), *t = R(mi, k, j, s, q_tb);
+                        double vs = d->ok && t->ok ? d->ratio / t->ratio : INFINITY;
+                        if (vs > worst_vs) {
+                            worst_vs = vs;
+                            wm = mi, wk = k, wj = j, ws = s;
+                        }
+                    }
+                    mcf_mesh_free(noisy);
                 }
-                for (int j = 0; j < NMETHOD; j++)
-                    mcf_mesh_free(res[j]);
-                mcf_mesh_free(noisy);
-            }
-        row->wall = mcf_now() - tm0;
-        printf("  %-5s | %-19s | %-19s | %-19s | %-19s\n", "noise", "default (t/h^2)", "auto (t/h^2)",
-               "oracle (c)", "taubin (passes)");
-        for (int k = 0; k < nr; k++) {
-            char b[NMETHOD][2][16];
-            printf("  %-5g |", rho[k]);
-            for (int j = 0; j < NMETHOD; j++) {
-                double v[MAXSEED], q[MAXSEED];
-                for (int s = 0; s < nseeds; s++) {
-                    const result *r = &row->r[k][s][j];
-                    v[s] = r->ok ? r->ratio : NAN;
-                    q[s] = r->ok ? r->param : NAN;
+        /* a line per noise kind and level: medians over seeds */
+        printf("  %-6s %5s |", "noise", "rho");
+        for (int q = 0; q < nmeth; q++)
+            printf(" %*s", (int)(strlen(meth[q].name) > 7 ? strlen(meth[q].name) : 7), meth[q].name);
+        printf("\n");
+        for (int k = 0; k < g_nk; k++)
+            for (int j = 0; j < g_nr; j++) {
+                printf("  %-6s %5g |", kind_names[kinds[k]], rho[j]);
+                for (int q = 0; q < nmeth; q++) {
+                    double v[MAXSEED], mx;
+                    for (int s = 0; s < g_ns; s++)
+                        v[s] = R(mi, k, j, s, q)->ok ? R(mi, k, j, s, q)->ratio : INFINITY;
+                    printf(" %*.3f", (int)(strlen(meth[q].name) > 7 ? strlen(meth[q].name) : 7),
+                           median_max(v, g_ns, &mx));
                 }
-                printf(" %7s (%7s)  |", fmt(b[j][0], 3, 0, median_of(v, nseeds)),
-                       fmt(b[j][1], 3, 1, median_of(q, nseeds)));
+                printf("\n");
             }
-            printf("\n");
-        }
-        printf("  (%.1f s)\n", row->wall);
+        printf("  (%.1f s)\n", mcf_now() - tm0);
         fflush(stdout);
-        if (want[M_ORACLE])
-            write_oracle_summary(oracle_out, mr, mi + 1, rho, nr, nseeds);
-        mcf_mesh_free(clean);
+        grid_free(&gclean);
         free(crease);
+        mcf_mesh_free(clean);
     }
     fclose(csv);
-    fclose(sweep);
 
-    /* ---- the table: medians over seeds */
-    printf("\n== scan quality: error / noisy input's error, median over %d seeds (folds: most new folds of a seed,\n"
-           "   all / away from the clean mesh's creases; drift: median, volume if closed else area, vs clean;\n"
-           "   disp: max displacement in mean edges; wall: seconds)\n",
-           nseeds);
-    printf("%-21s %5s | %6s %9s %6s %5s %6s %6s | %6s %6s %9s | %6s %6s | %6s %5s\n", "mesh", "noise",
-           "deflt", "folds", "drift%", "disp", "wall", "t/h^2", "auto", "t/h^2", "folds", "oracle", "c*",
-           "taubin", "pass");
-    for (int m = 0; m < nm; m++)
-        for (int k = 0; k < nr; k++) {
-            double v[NMETHOD][MAXSEED], d[MAXSEED], dp[MAXSEED], w[MAXSEED], pa[NMETHOD][MAXSEED];
-            int fm[NMETHOD] = {0}, fo[NMETHOD] = {0}, any[NMETHOD] = {0};
-            char b[14][16], fb[2][24];
-            for (int j = 0; j < NMETHOD; j++)
-                for (int s = 0; s < nseeds; s++) {
-                    const result *r = &mr[m].r[k][s][j];
-                    v[j][s] = r->ok ? r->ratio : NAN;
-                    pa[j][s] = r->ok ? r->param : NAN;
-                    any[j] |= r->ok;
-                    if (r->folds > fm[j])
-                        fm[j] = r->folds;
-                    if (r->folds_off > fo[j])
-                        fo[j] = r->folds_off;
-                    if (j == M_DEFAULT) {
-                        d[s] = r->ok ? 100 * r->drift : NAN;
-                        dp[s] = r->ok ? r->maxdisp : NAN;
-                        w[s] = r->ok ? r->wall : NAN;
-                    }
+    /* ---- the tables (stdout and quality.md) */
+    FILE *md = open_out(out, "quality.md");
+    fprintf(md, "# make quality (bench/bench_quality.c)\n\n"
+                "%d meshes x noise %s x rho %s mean edges x %d seeds; error = area-weighted RMS distance to the\n"
+                "clean vertex (vertex) and symmetric RMS point-to-surface distance (surface), each against the\n"
+                "same case's taubin_best (Taubin at its best pass count, an oracle), o3d_best (Open3D's\n"
+                "filter_smooth_taubin at its best count, the same oracle) and o3d_default (its default, one\n"
+                "iteration): median and worst over the cases. `> input`: runs whose vertex error exceeds the\n"
+                "noisy input's. CPU: median over the cases of the run's CPU time / `fixed` (desbrun2 strength\n"
+                "0.33, 10 steps, the old default) in the same case.%s\n",
+            nm, kinds_buf, noise_buf, g_ns, g_o3d.pid ? "" : " Open3D was not available: its columns are empty.");
+    for (int k = -1; k < g_nk; k++) {
+        char title[64];
+        snprintf(title, sizeof title, "%s", k < 0 ? "all noise kinds" : k == 0 && kinds[0] == 0 ? "normal noise"
+                                              : kinds[k] ? "isotropic noise" : "normal noise");
+        fprintf(md, "\n## %s\n\n| method | vs taubin_best: vertex median / worst | surface median / worst | "
+                    "vs o3d_best: vertex | surface | vs o3d_default: vertex | surface | vs input: vertex median / worst | > input | CPU / fixed |\n"
+                    "|---|---|---|---|---|---|---|---|---|---|\n", title);
+        printf("\n== %s: method error against ... (median / worst over the cases)\n", title);
+        printf("%-22s | %-17s %-17s | %-17s %-17s | %-17s %-17s | %-17s %7s | %8s\n", "method",
+               "taubin_best vert", "surface", "o3d_best vert", "surface", "o3d_default vert", "surface",
+               "input vert", ">input", "cpu/fix");
+        for (int q = 0; q < nmeth; q++) {
+            double a[8][2], cm = NAN, cw;
+            int peers[3] = {q_tb, q_ob, q_od};
+            for (int p = 0; p < 3; p++)
+                for (int sf = 0; sf < 2; sf++) {
+                    if (peers[p] >= 0)
+                        versus(nm, k, q, peers[p], sf, &a[2 * p + sf][0], &a[2 * p + sf][1]);
+                    else
+                        a[2 * p + sf][0] = a[2 * p + sf][1] = NAN;
                 }
-            snprintf(fb[0], sizeof fb[0], "%d/%d", fm[0], fo[0]);
-            snprintf(fb[1], sizeof fb[1], "%d/%d", fm[1], fo[1]);
-            printf("%-21s %5g | %6s %9s %6s %5s %6s %6s | %6s %6s %9s | %6s %6s | %6s %5s\n", mr[m].name, rho[k],
-                   fmt(b[0], 3, 0, median_of(v[0], nseeds)), any[0] ? fb[0] : "-",
-                   fmt(b[2], 2, 0, median_of(d, nseeds)), fmt(b[3], 2, 0, median_of(dp, nseeds)),
-                   fmt(b[4], 3, 0, median_of(w, nseeds)), fmt(b[5], 3, 1, median_of(pa[0], nseeds)),
-                   fmt(b[6], 3, 0, median_of(v[1], nseeds)), fmt(b[7], 3, 1, median_of(pa[1], nseeds)),
-                   any[1] ? fb[1] : "-", fmt(b[9], 3, 0, median_of(v[2], nseeds)),
-                   fmt(b[10], 3, 1, median_of(pa[2], nseeds)), fmt(b[11], 3, 0, median_of(v[3], nseeds)),
-                   fmt(b[12], 0, 0, median_of(pa[3], nseeds)));
+            versus(nm, k, q, -1, 0, &a[6][0], &a[6][1]);
+            int worse = 0, runs = 0;
+            double *cv = malloc(sizeof(double) * (size_t)(nm * g_nk * g_nr * g_ns) + 1);
+            int ncv = 0;
+            for (int m = 0; m < nm; m++)
+                for (int kk = 0; kk < g_nk; kk++)
+                    for (int j = 0; j < g_nr; j++)
+                        for (int s = 0; s < g_ns; s++) {
+                            if (k >= 0 && kk != k)
+                                continue;
+                            const result *r = R(m, kk, j, s, q);
+                            runs++;
+                            worse += !r->ok || r->ratio > 1.0;
+                            if (q_fixed >= 0 && r->ok && R(m, kk, j, s, q_fixed)->ok)
+                                cv[ncv++] = r->cpu / R(m, kk, j, s, q_fixed)->cpu;
+                        }
+            if (ncv)
+                cm = median_max(cv, ncv, &cw);
+            free(cv);
+            char b[8][2][16];
+            for (int x = 0; x < 7; x++)
+                for (int y = 0; y < 2; y++)
+                    snprintf(b[x][y], 16, isnan(a[x][y]) ? "-" : "%.3f", a[x][y]);
+            printf("%-22s | %6s / %-8s %6s / %-8s | %6s / %-8s %6s / %-8s | %6s / %-8s %6s / %-8s | %6s / %-8s %3d/%-3d | %8.2f\n",
+                   meth[q].name, b[0][0], b[0][1], b[1][0], b[1][1], b[2][0], b[2][1], b[3][0], b[3][1], b[4][0],
+                   b[4][1], b[5][0], b[5][1], b[6][0], b[6][1], worse, runs, cm);
+            fprintf(md, "| %s | %s / %s | %s / %s | %s / %s | %s / %s | %s / %s | %s / %s | %s / %s | %d of %d | %.2f |\n",
+                    meth[q].name, b[0][0], b[0][1], b[1][0], b[1][1], b[2][0], b[2][1], b[3][0], b[3][1], b[4][0],
+                    b[4][1], b[5][0], b[5][1], b[6][0], b[6][1], worse, runs, cm);
         }
-
-    /* ---- goals (issue 12, section 5) */
-    printf("\n== goals (issue 12, section 5): the default request; the same checks for the others as reference\n");
-    for (int j = 0; j < NMETHOD; j++)
-        if (want[j])
-            check_goals(mr, nm, rho, nr, nseeds, j);
-    if (want[M_AUTO] && want[M_TAUBIN]) {
-        /* per mesh: median over noise x seed of auto / taubin; then the median mesh */
-        double per[MAXMESH];
-        for (int m = 0; m < nm; m++) {
-            double q[MAXNOISE * MAXSEED];
-            int n = 0;
-            for (int k = 0; k < nr; k++)
-                for (int s = 0; s < nseeds; s++) {
-                    const result *a = &mr[m].r[k][s][M_AUTO], *t = &mr[m].r[k][s][M_TAUBIN];
-                    q[n++] = a->ok && t->ok ? a->ratio / t->ratio : INFINITY;
-                }
-            per[m] = bench_median(q, n);
-        }
-        double med = bench_median(per, nm);
-        printf("%s  moonshot: strength=auto at or below Taubin's best on the median mesh: auto/taubin %.3f\n",
-               med <= 1.0 ? "PASS" : "FAIL", med);
-    } else
-        printf("SKIP  moonshot (strength=auto vs Taubin's best): %s\n",
-               auto_note[0] ? auto_note : "auto or taubin not run");
-
-    if (do_figure && fig_n > 0) {
-        figure(out, "renders", &fs, fig_ms, fig_titles, fig_n);
-        figure_spec zoom = fs;
-        memcpy(zoom.crop, fig_crop, sizeof zoom.crop);
-        figure(out, "renders-zoom", &zoom, fig_ms, fig_titles, fig_n);
-        for (int i = 0; i < fig_n; i++)
-            mcf_mesh_free((mcf_mesh *)(uintptr_t)fig_ms[i]);
     }
-    if (want[M_ORACLE])
-        write_oracle_summary(oracle_out, mr, nm, rho, nr, nseeds);
-    printf("\nCSV: %s/quality.csv, %s/oracle-sweep.csv; run time %.0f s\n", out, out, mcf_now() - t_start);
-    free(mr);
+    /* CPU time against the fixed default, per mesh (the automatic amount's
+     * budget: at most 1.5x on every shared mesh) */
+    if (q_fixed >= 0) {
+        fprintf(md, "\n## CPU time / fixed (desbrun2 strength 0.33), median over the mesh's cases\n\n| mesh | nv |");
+        printf("\n== CPU time / fixed, median over each mesh's cases\n%-22s %7s", "mesh", "nv");
+        for (int q = 0; q < nmeth; q++)
+            if (meth[q].kind == K_AUTO || meth[q].kind == K_DEFAULT) {
+                fprintf(md, " %s |", meth[q].name);
+                printf(" %12s", meth[q].name);
+            }
+        fprintf(md, " fixed CPU s |\n|---|---|");
+        for (int q = 0; q < nmeth; q++)
+            if (meth[q].kind == K_AUTO || meth[q].kind == K_DEFAULT)
+                fprintf(md, "---|");
+        fprintf(md, "---|\n");
+        printf(" %12s\n", "fixed s");
+        for (int m = 0; m < nm; m++) {
+            fprintf(md, "| %s | %d |", names[m], mesh_nv[m]);
+            printf("%-22s %7d", names[m], mesh_nv[m]);
+            for (int q = 0; q <= nmeth; q++) {
+                if (q < nmeth && meth[q].kind != K_AUTO && meth[q].kind != K_DEFAULT)
+                    continue;
+                double v[MAXNOISE * MAXSEED * 2], mx;
+                int n = 0;
+                for (int k = 0; k < g_nk; k++)
+                    for (int j = 0; j < g_nr; j++)
+                        for (int s = 0; s < g_ns; s++) {
+                            const result *f = R(m, k, j, s, q_fixed);
+                            if (q == nmeth)
+                                v[n++] = f->ok ? f->cpu : NAN;
+                            else if (R(m, k, j, s, q)->ok && f->ok)
+                                v[n++] = R(m, k, j, s, q)->cpu / f->cpu;
+                        }
+                double med = median_max(v, n, &mx);
+                fprintf(md, q == nmeth ? " %.3f |" : " %.2f |", med);
+                printf(q == nmeth ? " %12.3f" : " %12.2f", med);
+            }
+            fprintf(md, "\n");
+            printf("\n");
+        }
+    }
+    /* the default per mesh x noise: medians over the seeds */
+    if (q_default >= 0) {
+        fprintf(md, "\n## The default request per mesh and noise (median over seeds; vertex error / input's, "
+                    "surface in brackets)\n\n| mesh | noise | rho | default | taubin_best | o3d_default | o3d_best | "
+                    "default param | new folds (max) | drift (median) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+        for (int m = 0; m < nm; m++)
+            for (int k = 0; k < g_nk; k++)
+                for (int j = 0; j < g_nr; j++) {
+                    int qs[4] = {q_default, q_tb, q_od, q_ob}, fmx = 0;
+                    fprintf(md, "| %s | %s | %g |", names[m], kind_names[kinds[k]], rho[j]);
+                    for (int x = 0; x < 4; x++) {
+                        double v[MAXSEED], w[MAXSEED], mx;
+                        for (int s = 0; s < g_ns; s++) {
+                            const result *r = qs[x] >= 0 ? R(m, k, j, s, qs[x]) : NULL;
+                            v[s] = r && r->ok ? r->ratio : NAN;
+                            w[s] = r && r->ok ? r->sratio : NAN;
+                        }
+                        double a = median_max(v, g_ns, &mx), b = median_max(w, g_ns, &mx);
+                        fprintf(md, isnan(a) ? " - |" : " %.3f (%.3f) |", a, b);
+                    }
+                    double p[MAXSEED], d[MAXSEED], mx;
+                    for (int s = 0; s < g_ns; s++) {
+                        const result *r = R(m, k, j, s, q_default);
+                        p[s] = r->ok ? r->param : NAN;
+                        d[s] = r->ok ? 100 * r->drift : NAN;
+                        fmx = r->folds > fmx ? r->folds : fmx;
+                    }
+                    fprintf(md, " %.3g | %d | %+.2f%% |\n", median_max(p, g_ns, &mx), fmx, median_max(d, g_ns, &mx));
+                }
+    }
+    fprintf(md, "\nRenders of the case where the default does worst against taubin_best: worst.png, worst-zoom.png.\n");
+    fclose(md);
+
+    /* ---- renders of the worst case */
+    if (do_figure && wm >= 0) {
+        mcf_mesh *clean = bench_load_mesh(PROG, meshes, names[wm]);
+        mcf_mesh_info ci;
+        mcf_error e = {0};
+        mcf_mesh_inspect(clean, &ci, &e);
+        int ncrease;
+        unsigned char *crease = crease_mask(clean, &ncrease);
+        tri_grid gclean;
+        grid_build(&gclean, clean);
+        mcf_mesh *noisy = make_noisy(clean, kinds[wk], rho[wj], ws + 1);
+        mcf_mesh_info ni;
+        mcf_compare_result c0;
+        mcf_mesh_inspect(noisy, &ni, &e);
+        mcf_compare(noisy, clean, &c0, &e);
+        case_ctx c = {clean, noisy, &gclean, c0.rms_m, surface_error(noisy, clean, &gclean), c0.inverted_faces,
+                      inverted_off_crease(noisy, clean, crease), crease,
+                      ci.boundary_edges == 0 ? ci.volume : ci.area, ci.boundary_edges == 0,
+                      ni.mean_edge / sqrt(ni.area)};
+        const mcf_mesh *ms[6] = {clean, noisy};
+        const char *titles[6] = {"clean", "noisy"};
+        char tb[4][96];
+        mcf_mesh *res[4] = {0};
+        result r[4];
+        memset(r, 0, sizeof r);
+        int n = 2;
+        run_request(&c, &meth[q_default], &r[0], &res[0]);
+        run_taubin_best(&c, &r[1], &res[1]);
+        mcf_mesh *o3[2] = {0};
+        if (g_o3d.pid) {
+            result two[2];
+            memset(two, 0, sizeof two);
+            run_o3d(&c, two, o3);
+            r[2] = two[1];
+            res[2] = o3[1];
+            mcf_mesh_free(o3[0]);
+        }
+        static const char *const lab[3] = {"default", "taubin best", "open3d best"};
+        for (int x = 0; x < 3; x++)
+            if (res[x]) {
+                snprintf(tb[x], sizeof tb[x], "%s (%.3g): %.2f, surface %.2f", lab[x], r[x].param, r[x].ratio, r[x].sratio);
+                titles[n] = tb[x];
+                ms[n++] = res[x];
+            }
+        char label[96];
+        snprintf(label, sizeof label, "%s, %s noise", names[wm], kind_names[kinds[wk]]);
+        figure_spec fs = {label, rho[wj], ws + 1, 0, {0.0, 1.0, 0.0, 1.0}};
+        figure(out, "worst", &fs, ms, titles, n);
+        figure_spec zoom = fs;
+        double zc[4] = {0.3, 0.7, 0.4, 0.8};
+        memcpy(zoom.crop, zc, sizeof zc);
+        figure(out, "worst-zoom", &zoom, ms, titles, n);
+        for (int x = 0; x < 3; x++)
+            mcf_mesh_free(res[x]);
+        grid_free(&gclean);
+        free(crease);
+        mcf_mesh_free(noisy);
+        mcf_mesh_free(clean);
+    }
+    o3d_stop();
+    char p1[300], p2[300], p3[300];
+    snprintf(p1, sizeof p1, "%s/noisy.bin", g_tmp);
+    snprintf(p2, sizeof p2, "%s/clean.bin", g_tmp);
+    snprintf(p3, sizeof p3, "%s/out.bin", g_tmp);
+    remove(p1);
+    remove(p2);
+    remove(p3);
+    rmdir(g_tmp);
+    printf("\nCSV: %s/quality.csv, tables: %s/quality.md; run time %.0f s\n", out, out, mcf_now() - t_start);
+    free(g_res);
     return 0;
 }

@@ -1,18 +1,26 @@
 /*
- * mcf_auto.c - strength=auto: the amount of smoothing chosen from the mesh
- * itself, by estimating its noise and minimizing Stein's unbiased risk
- * estimate (SURE) of the smoothed result.
+ * mcf_auto.c - the automatic amount of smoothing: the noise level of the
+ * mesh itself, then the amount (an MCF time, or Taubin's pass count) that
+ * minimizes Stein's unbiased risk estimate (SURE) of the result.
  *
  * Model: the input is a clean surface plus i.i.d. Gaussian noise of
- * standard deviation s along the vertex normals. The smoother is the
- * run's own linearization: K implicit steps of size t/K with the operator
- * frozen at the input, S_t = ((M + t/K L)^-1 M)^K. For the normal
- * component of the displacement r = n . (S_t Y - Y), per vertex,
- *     SURE(t) = |r|^2 - n s^2 + 2 s^2 tr(S_t)
+ * standard deviation s along the vertex normals. The smoother S is the
+ * run's own linearization, its operator frozen at the input and its fixed
+ * vertices (boundary, the caller's list, unreferenced) held. For the
+ * normal component of the displacement r_i = n_i . (S Y - Y)_i over the
+ * n_F free vertices,
+ *     SURE(S) = sum_F r^2 - n_F s^2 + 2 s^2 tr(S)
  * is an unbiased estimate of the squared error against the clean surface
- * (Stein 1981), so its minimizer is an estimate of the best time. The
- * trace comes from Hutchinson's estimator with three Rademacher probes
- * (relative error about sqrt(2/n): 0.5% at 100k vertices).
+ * (Stein 1981), so its minimizer over the amount estimates the best
+ * amount. (Weighted by the vertex areas, as the metrics weigh the error,
+ * it chose 10-30% longer times and errors up to 4% worse on armadillo,
+ * snowden, spot and fertility at noise 0.25: unweighted.) The trace
+ * comes from Hutchinson's estimator with one Rademacher probe carried as
+ * a fourth column of the same solves (three probes, a third fewer
+ * columns' worth of cost, changed the error of the result by under 0.3%
+ * on the sphere, the coarse bunny and spot at noise 0.1-0.5, 3 seeds:
+ * the probe's error is nearly the same at every amount, and the minimum
+ * moves little).
  *
  * The noise level s is the hard part: the residual after a small
  * smoothing underestimates it 1.5-2.3x (the smoothing removes part of the
@@ -31,9 +39,37 @@
  * carry no noise, and counting them read 0.5 as 0.23 on a scan with many
  * holes.
  *
- * Cost: one pattern, one noise calibration, then per candidate time one
- * factorization and K six-column solves (15 candidates). Pure C11 and
- * CHOLMOD, no globals; its own cholmod_common.
+ * MCF (mcf__auto_time): the run does K steps of size T/K; its smoother is
+ * modelled by K frozen implicit Euler steps, ((M + T/K L)^-1 M)^K. One
+ * factorization serves every candidate: M + h0 L with h0 = t0 / K' (K' =
+ * min(K, 6)), t0 the time a prior from the noise level expects (strength
+ * 0.8 rho + 0.25 mean edges, the fit of the oracle's best times in `make
+ * quality`), and candidate k is k steps of h0, one more four-column solve
+ * each; the search stops 3 steps past the minimum (cap 4 K'). k steps of
+ * h0 and K steps of T/K are different rational filters; candidate k is
+ * mapped to the run's time whose filter halves the same frequency (the
+ * gains (1 + h lambda)^-k = 1/2 at h lambda = 2^(1/k) - 1), 4% apart at
+ * k = 5 and K = 10 (K' = 10 instead of 6: the same errors, 4 more
+ * solves). The frozen model runs slower than the run: the noise
+ * inflates the area, the mass M follows it (L's weights are scale-free),
+ * and the run's diffusion M^-1 L speeds up as the noise goes, most of it
+ * early. So the time is scaled by the area of the frozen result at the
+ * minimum over the input's (0.97 / 0.88 / 0.70 at noise 0.1 / 0.25 /
+ * 0.5); given the true noise level, desbrun2 then came within 1% of the
+ * best time's error on spot, armadillo and the coarse bunny at noise 0.5
+ * (1.15x, 1.07x, 1.25x without it). moving_mass 0 (the `linear` scheme,
+ * whose operators are the frozen ones) skips it. Cost: one analysis, one
+ * factorization and k* + 3 solves (about 10), against the run's K
+ * factorizations: 1.2-1.45x the fixed amount's run in all, the noise
+ * estimate included.
+ *
+ * Taubin (mcf__auto_passes): the passes x += lambda U x, x += mu U x with
+ * U = -D^-1 L frozen at the input, on the positions and the probes; SURE
+ * after every pass, stopping at 2 k* + 10 passes (cap MCF_AUTO_MAX_PASSES).
+ *
+ * Pure C11 and CHOLMOD, no globals; the run's solver when it lends it (an
+ * implicit scheme: its pattern, matrix and symbolic analysis, which the
+ * run's own factorizations then reuse), else its own cholmod_common.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -43,33 +79,46 @@
 
 #include "mcf_internal.h"
 
+enum { NPROBE = 1, NCOL = 3 + NPROBE };
+
 typedef struct {
-    int nv;
-    mcf__pattern pat;
+    int nv, nf;
+    const int32_t *F;
+    mcf__pattern own_pat; /* built here unless the run lends its own */
+    const mcf__pattern *pat;
     double *N;          /* 3*nv unit vertex normals of X */
-    cholmod_common cm;
-    int cm_started;
-    cholmod_sparse *A;
-    cholmod_factor *L;
-    cholmod_dense *B, *Y, *Yw, *Ew;
-    double *lval;       /* nnz: L's upper values at X */
-    double *mass;       /* nv */
+    unsigned char *fix; /* nv: held by the run (or massless) */
+    int nfree;          /* vertices not held */
+    double *probe;      /* NPROBE*nv Rademacher probes, 0 on fixed */
+    double *yn;         /* nv: n_i . X_i */
+    double *mass;       /* nv: the lumped mass at X */
+    double *lval;       /* pattern nnz: L's upper values at X */
+    cholmod_common own_cm, *cm; /* cm: own_cm, or the run's */
+    int cm_started;             /* own_cm started */
+    cholmod_sparse *own_A, *A;
+    cholmod_factor *own_L, **L;
+    cholmod_dense *B, *Y, *Yw, *Ew; /* on *cm */
 } auto_ctx;
 
 static void auto_free(auto_ctx *a)
 {
     free(a->N);
-    free(a->lval);
+    free(a->fix);
+    free(a->probe);
+    free(a->yn);
     free(a->mass);
-    mcf__pattern_free(&a->pat);
+    free(a->lval);
+    mcf__pattern_free(&a->own_pat);
+    if (a->cm) {
+        cholmod_free_dense(&a->B, a->cm);
+        cholmod_free_dense(&a->Y, a->cm);
+        cholmod_free_dense(&a->Yw, a->cm);
+        cholmod_free_dense(&a->Ew, a->cm);
+    }
     if (a->cm_started) {
-        cholmod_free_factor(&a->L, &a->cm);
-        cholmod_free_sparse(&a->A, &a->cm);
-        cholmod_free_dense(&a->B, &a->cm);
-        cholmod_free_dense(&a->Y, &a->cm);
-        cholmod_free_dense(&a->Yw, &a->cm);
-        cholmod_free_dense(&a->Ew, &a->cm);
-        cholmod_finish(&a->cm);
+        cholmod_free_factor(&a->own_L, &a->own_cm);
+        cholmod_free_sparse(&a->own_A, &a->own_cm);
+        cholmod_finish(&a->own_cm);
     }
 }
 
@@ -205,150 +254,308 @@ done:
     return rc;
 }
 
-/* Solves (M + h L) Y = M B, K times in place on the 6 columns of a->B's
- * data (column-major, nv x 6: the positions, then the three probes; one
- * 6-column solve costs less than two of 3). */
-static mcf_status apply_smoother(auto_ctx *a, int K, mcf_error *err)
+/* What both amounts need: the pattern, the operators at X (the run's
+ * Laplacian lap and mass mk), the normals and valences, the noise level,
+ * the fixed set (fixed, or massless) and the probes. */
+static mcf_status auto_setup(auto_ctx *a, const double *X, const int32_t *F, int nf, int nv,
+                             const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
+                             double hbar, const mcf__pattern *lent, double *s, mcf_error *err)
 {
-    int n = a->nv;
-    for (int k = 0; k < K; k++) {
-        double *b = a->B->x;
-        for (int c = 0; c < 6; c++)
-            for (int i = 0; i < n; i++)
-                b[(size_t)c * n + i] *= a->mass[i];
-        if (!cholmod_solve2(CHOLMOD_A, a->L, a->B, NULL, &a->Y, NULL, &a->Yw, &a->Ew, &a->cm))
-            return mcf__fail(err, MCF_ENUMERIC, "strength=auto: cholmod_solve failed (status %d)", a->cm.status);
-        memcpy(a->B->x, a->Y->x, sizeof(double) * 6 * (size_t)n);
+    mcf_status rc;
+    memset(a, 0, sizeof *a);
+    a->nv = nv;
+    a->nf = nf;
+    a->F = F;
+    a->pat = lent;
+    if (!lent && (rc = mcf__pattern_build(F, nf, nv, 1, &a->own_pat, err)) != MCF_OK)
+        return rc;
+    if (!lent)
+        a->pat = &a->own_pat;
+    a->N = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    a->fix = mcf__calloc((size_t)nv, 1);
+    a->probe = mcf__malloc(NPROBE * (size_t)nv, sizeof(double));
+    a->yn = mcf__malloc((size_t)nv, sizeof(double));
+    a->mass = mcf__malloc((size_t)nv, sizeof(double));
+    a->lval = mcf__malloc((size_t)a->pat->nnz, sizeof(double));
+    double *w = mcf__malloc(3 * (size_t)nf, sizeof(double)), *area = mcf__malloc((size_t)nf, sizeof(double));
+    if (!a->N || !a->fix || !a->probe || !a->yn || !a->mass || !a->lval || !w || !area) {
+        free(w);
+        free(area);
+        return mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
     }
+    mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * hbar, w, area);
+    mcf__mass(X, F, nf, nv, mk, area, a->mass);
+    mcf__pattern_fill_L(a->pat, F, nf, w, a->lval);
+    free(w);
+    free(area);
+    mcf__vertex_normals(X, F, nf, nv, a->N);
+    for (int i = 0; i < nv; i++) {
+        a->fix[i] = (fixed && fixed[i]) || !(a->mass[i] > 0.0);
+        a->nfree += !a->fix[i];
+        a->yn[i] = mcf__dot3(a->N + 3 * (size_t)i, X + 3 * (size_t)i);
+    }
+    if ((rc = mcf__noise_level(X, F, nf, nv, a->fix, s, err)) != MCF_OK)
+        return rc;
+    /* Rademacher probes, deterministic, on the free vertices */
+    for (size_t i = 0; i < NPROBE * (size_t)nv; i++)
+        a->probe[i] = a->fix[i % (size_t)nv] ? 0.0
+                      : (mcf__mix64(i + 0x9e3779b97f4a7c15ULL) >> 63) ? 1.0 : -1.0;
     return MCF_OK;
 }
 
-mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
-                          const unsigned char *fixed, mcf_laplacian lap, mcf_mass mk,
-                          double hbar, int K, double *t_best, double *sigma,
-                          mcf_error *err)
+/* SURE of a smoothed state: P holds the positions (column-major nv x 3
+ * at stride ld, columns 0-2) and S applied to the probes (columns 3..). */
+static double sure(const auto_ctx *a, const double *P, size_t ld, double s)
 {
-    /* candidate times in units of h^2: strength 0.1 to 1.5 */
-    static const double C[] = {0.01, 0.02, 0.035, 0.05, 0.07, 0.1, 0.14, 0.2,
-                               0.28, 0.4, 0.56, 0.8, 1.1, 1.6, 2.25};
-    enum { NC = sizeof C / sizeof C[0] };
-    double risk[NC];
-    auto_ctx a;
-    mcf_status rc = MCF_OK;
-    double *w = NULL, *area = NULL, *yn = NULL, *probe = NULL;
-    memset(&a, 0, sizeof a);
-    a.nv = nv;
-    if ((rc = mcf__pattern_build(F, nf, nv, 1, &a.pat, err)) != MCF_OK)
-        return rc;
-    a.N = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    a.lval = mcf__malloc((size_t)a.pat.nnz, sizeof(double));
-    a.mass = mcf__malloc((size_t)nv, sizeof(double));
-    w = mcf__malloc(3 * (size_t)nf, sizeof(double));
-    area = mcf__malloc((size_t)nf, sizeof(double));
-    yn = mcf__malloc((size_t)nv, sizeof(double));
-    probe = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    if (!a.N || !a.lval || !a.mass || !w || !area || !yn || !probe) {
-        rc = mcf__fail(err, MCF_ENOMEM, "strength=auto: out of memory (%d vertices)", nv);
-        goto done;
-    }
-    mcf__vertex_normals(X, F, nf, nv, a.N);
-    double s;
-    if ((rc = mcf__noise_level(X, F, nf, nv, fixed, &s, err)) != MCF_OK)
-        goto done;
-    *sigma = s;
-
-    /* the operators at X */
-    mcf__cot_weights(X, F, nf, lap, MCF_MOLLIFY * hbar, w, area);
-    mcf__mass(X, F, nf, nv, mk, area, a.mass);
-    mcf__pattern_fill_L(&a.pat, F, nf, w, a.lval);
-    for (int i = 0; i < nv; i++)
-        if (!(a.mass[i] > 0.0))
-            a.mass[i] = 1e-300; /* unreferenced: decoupled, S = identity there */
-
-    cholmod_start(&a.cm);
-    a.cm_started = 1;
-    a.cm.error_handler = NULL;
-    a.cm.print = 0;
-    a.A = cholmod_allocate_sparse((size_t)nv, (size_t)nv, (size_t)a.pat.nnz, 1, 1, 1, CHOLMOD_REAL, &a.cm);
-    a.B = cholmod_allocate_dense((size_t)nv, 6, (size_t)nv, CHOLMOD_REAL, &a.cm);
-    if (!a.A || !a.B) {
-        rc = mcf__fail(err, MCF_ENOMEM, "strength=auto: CHOLMOD allocation failed");
-        goto done;
-    }
-    memcpy(a.A->p, a.pat.colptr, sizeof(int) * ((size_t)nv + 1));
-    memcpy(a.A->i, a.pat.rowind, sizeof(int) * (size_t)a.pat.nnz);
-    /* Rademacher probes, deterministic */
-    for (size_t i = 0; i < 3 * (size_t)nv; i++)
-        probe[i] = (mcf__mix64(i + 0x9e3779b97f4a7c15ULL) >> 63) ? 1.0 : -1.0;
-    for (int i = 0; i < nv; i++)
-        yn[i] = mcf__dot3(a.N + 3 * (size_t)i, X + 3 * (size_t)i);
-
-    for (int k = 0; k < NC; k++) {
-        double t = C[k] * hbar * hbar, h = t / K, *ax = a.A->x;
-        for (int q = 0; q < a.pat.nnz; q++)
-            ax[q] = h * a.lval[q];
-        for (int j = 0; j < nv; j++)
-            ax[a.pat.diag[j]] += a.mass[j];
-        if (!a.L && !(a.L = cholmod_analyze(a.A, &a.cm))) {
-            rc = mcf__fail(err, a.cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
-                           "strength=auto: cholmod_analyze failed (status %d)", a.cm.status);
-            goto done;
-        }
-        if (!cholmod_factorize(a.A, a.L, &a.cm) || a.cm.status != CHOLMOD_OK) {
-            rc = mcf__fail(err, a.cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
-                           "strength=auto: factorization failed (status %d)", a.cm.status);
-            goto done;
-        }
-        /* the positions (columns 0-2) and the probes (3-5) through S_t */
-        double *b = a.B->x, r2 = 0.0, tr = 0.0;
+    double r2 = 0.0, tr = 0.0;
+    for (int i = 0; i < a->nv; i++) {
+        if (a->fix[i])
+            continue;
+        double ri = -a->yn[i];
         for (int c = 0; c < 3; c++)
-            for (int i = 0; i < nv; i++) {
-                b[(size_t)c * nv + i] = X[3 * (size_t)i + c];
-                b[(size_t)(c + 3) * nv + i] = probe[3 * (size_t)i + c];
-            }
-        if ((rc = apply_smoother(&a, K, err)) != MCF_OK)
-            goto done;
-        b = a.B->x;
-        /* |r|^2: the normal component of the displacement */
-        for (int i = 0; i < nv; i++) {
-            double ri = 0.0;
-            for (int c = 0; c < 3; c++)
-                ri += a.N[3 * (size_t)i + c] * b[(size_t)c * nv + i];
-            ri -= yn[i];
-            r2 += ri * ri;
-        }
-        /* tr(S_t): three probes */
-        for (int c = 0; c < 3; c++)
-            for (int i = 0; i < nv; i++)
-                tr += probe[3 * (size_t)i + c] * b[(size_t)(c + 3) * nv + i];
-        tr /= 3.0;
-        risk[k] = r2 - nv * s * s + 2.0 * s * s * tr;
+            ri += a->N[3 * (size_t)i + c] * P[(size_t)c * ld + i];
+        r2 += ri * ri;
+        for (int q = 0; q < NPROBE; q++)
+            tr += a->probe[(size_t)q * a->nv + i] * P[(size_t)(3 + q) * ld + i];
     }
-    /* the grid's minimum, refined by the parabola through it and its
-     * neighbours in log t */
+    return r2 - s * s * a->nfree + 2.0 * s * s * tr / NPROBE;
+}
+
+/* The minimum of risk[0..n) and its position refined by the parabola
+ * through it and its neighbours (x = index). */
+static double argmin_refined(const double *risk, int n)
+{
     int kb = 0;
-    for (int k = 1; k < NC; k++)
+    for (int k = 1; k < n; k++)
         if (risk[k] < risk[kb])
             kb = k;
-    double lt = log(C[kb]);
-    if (kb > 0 && kb < NC - 1) {
-        double x0 = log(C[kb - 1]), x1 = lt, x2 = log(C[kb + 1]);
-        double y0 = risk[kb - 1], y1 = risk[kb], y2 = risk[kb + 1];
-        double den = (x0 - x1) * (x0 - x2) * (x1 - x2);
-        double A2 = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den;
-        double B2 = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den;
-        if (A2 > 0.0) {
-            double xv = -B2 / (2.0 * A2);
-            if (xv > x0 && xv < x2)
-                lt = xv;
+    if (kb == 0 || kb == n - 1)
+        return kb;
+    double y0 = risk[kb - 1], y1 = risk[kb], y2 = risk[kb + 1];
+    double curv = y0 - 2.0 * y1 + y2;
+    if (!(curv > 0.0))
+        return kb;
+    double x = kb + 0.5 * (y0 - y2) / curv;
+    return x > kb - 1 && x < kb + 1 ? x : kb;
+}
+
+/* h lambda where k implicit Euler steps of h halve a mode (x > 0 steps,
+ * real-valued for the refined minimum): x (2^(1/x) - 1). */
+static double half_gain(double x)
+{
+    return x * expm1(log(2.0) / x);
+}
+
+#define MAX_CANDIDATES 24 /* 4 x 6 */
+/* The area of the faces F over positions P held column-major (nv x 3). */
+static double positions_area(const double *P, int nv, const int32_t *F, int nf)
+{
+    double A = 0.0;
+    for (int f = 0; f < nf; f++) {
+        double p[3][3], e1[3], e2[3], c[3];
+        for (int q = 0; q < 3; q++)
+            for (int d = 0; d < 3; d++)
+                p[q][d] = P[(size_t)d * nv + F[3 * f + q]];
+        mcf__sub3(p[1], p[0], e1);
+        mcf__sub3(p[2], p[0], e2);
+        mcf__cross3(e1, e2, c);
+        A += 0.5 * sqrt(mcf__dot3(c, c));
+    }
+    return A;
+}
+
+mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                          mcf_laplacian lap, mcf_mass mk, int moving_mass, double hbar, int K,
+                          const mcf__solver *lend, double *t_best, double *sigma, mcf_error *err)
+{
+    auto_ctx a;
+    mcf_status rc = MCF_OK;
+    double risk[MAX_CANDIDATES + 1], aratio[MAX_CANDIDATES + 1]; /* area over the input's */
+    double *cpl = NULL, s;
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, mk, hbar, lend ? lend->pat : NULL, &s, err)) != MCF_OK)
+        goto done;
+    *sigma = s;
+    const double *mass = a.mass, *lval = a.lval;
+    if (!(cpl = mcf__calloc(3 * (size_t)nv, sizeof(double)))) {
+        rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
+        goto done;
+    }
+
+    /* the prior: strength 0.8 rho + 0.25 mean edges, in Kc steps */
+    int Kc = K < 6 ? K : 6;
+    double str0 = 0.8 * s / hbar + 0.25, h0 = str0 * str0 * hbar * hbar / Kc;
+
+    /* the run's matrix, analysis and factor when it lends them (its
+     * pattern is this one: one symbolic analysis serves both), else our
+     * own */
+    if (lend) {
+        a.cm = lend->cm;
+        a.A = lend->A;
+        a.L = lend->L;
+    } else {
+        cholmod_start(&a.own_cm);
+        a.cm_started = 1;
+        a.cm = &a.own_cm;
+        a.own_cm.error_handler = NULL;
+        a.own_cm.print = 0;
+        a.A = a.own_A = cholmod_allocate_sparse((size_t)nv, (size_t)nv, (size_t)a.pat->nnz, 1, 1, 1,
+                                                CHOLMOD_REAL, a.cm);
+        a.L = &a.own_L;
+        if (a.A) {
+            memcpy(a.A->p, a.pat->colptr, sizeof(int) * ((size_t)nv + 1));
+            memcpy(a.A->i, a.pat->rowind, sizeof(int) * (size_t)a.pat->nnz);
         }
     }
-    *t_best = exp(lt) * hbar * hbar;
+    a.B = cholmod_allocate_dense((size_t)nv, NCOL, (size_t)nv, CHOLMOD_REAL, a.cm);
+    if (!a.A || !a.B) {
+        rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: CHOLMOD allocation failed");
+        goto done;
+    }
+    /* M + h0 L; a fixed vertex's row and column become the identity and
+     * its couplings -h0 L_ij x_j move to the free rows' right-hand side
+     * (cpl), as the run's Dirichlet rows do */
+    double *ax = a.A->x;
+    for (int j = 0; j < nv; j++)
+        for (int t = a.pat->colptr[j]; t < a.pat->colptr[j + 1]; t++) {
+            int i = a.pat->rowind[t];
+            ax[t] = h0 * lval[t];
+            if (i == j) {
+                ax[t] = a.fix[j] ? 1.0 : ax[t] + mass[j];
+            } else if (a.fix[i] || a.fix[j]) {
+                int fr = a.fix[i] ? j : i, fx = a.fix[i] ? i : j;
+                if (!a.fix[fr])
+                    for (int c = 0; c < 3; c++)
+                        cpl[3 * (size_t)fr + c] -= ax[t] * X[3 * (size_t)fx + c];
+                ax[t] = 0.0;
+            }
+        }
+    if ((!*a.L && !(*a.L = cholmod_analyze(a.A, a.cm))) || !cholmod_factorize(a.A, *a.L, a.cm) ||
+        a.cm->status != CHOLMOD_OK) {
+        rc = mcf__fail(err, a.cm->status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
+                       "automatic amount: factorization failed (status %d)", a.cm->status);
+        goto done;
+    }
+    /* the state: positions (0-2) and probes (3..), column-major */
+    double *b = a.B->x;
+    for (int i = 0; i < nv; i++) {
+        for (int c = 0; c < 3; c++)
+            b[(size_t)c * nv + i] = X[3 * (size_t)i + c];
+        for (int q = 0; q < NPROBE; q++)
+            b[(size_t)(3 + q) * nv + i] = a.probe[(size_t)q * nv + i];
+    }
+    risk[0] = sure(&a, b, (size_t)nv, s); /* k = 0: S = I */
+    double A0 = positions_area(b, nv, F, nf);
+    aratio[0] = 1.0;
+    int n = 1, kb = 0;
+    int kmax = 4 * Kc;
+    for (int k = 1; k <= kmax; k++) {
+        b = a.B->x;
+        for (int i = 0; i < nv; i++) {
+            if (a.fix[i])
+                continue; /* positions keep X, probes 0 */
+            for (int c = 0; c < NCOL; c++)
+                b[(size_t)c * nv + i] *= mass[i];
+            for (int c = 0; c < 3; c++)
+                b[(size_t)c * nv + i] += cpl[3 * (size_t)i + c];
+        }
+        if (!cholmod_solve2(CHOLMOD_A, *a.L, a.B, NULL, &a.Y, NULL, &a.Yw, &a.Ew, a.cm)) {
+            rc = mcf__fail(err, MCF_ENUMERIC, "automatic amount: cholmod_solve failed (status %d)", a.cm->status);
+            goto done;
+        }
+        memcpy(a.B->x, a.Y->x, sizeof(double) * NCOL * (size_t)nv);
+        risk[n++] = sure(&a, a.B->x, (size_t)nv, s);
+        aratio[k] = positions_area(a.B->x, nv, F, nf) / A0;
+        if (risk[k] < risk[kb])
+            kb = k;
+        if (k >= kb + 3)
+            break;
+    }
+    /* candidate x (steps of h0) as the run's time: the K-step filter that
+     * halves the same frequency */
+    double x = argmin_refined(risk, n);
+    *t_best = x > 0.0 ? x * h0 * half_gain(K) / half_gain(x) : 0.0;
+    /* the run's mass follows the area (see above): its time is the frozen
+     * model's over the area ratio of the frozen result at x */
+    if (moving_mass) {
+        int k0 = (int)x;
+        double fr = x - k0, ar = k0 + 1 < n ? (1.0 - fr) * aratio[k0] + fr * aratio[k0 + 1] : aratio[k0];
+        *t_best *= ar;
+    }
 done:
-    free(w);
-    free(area);
-    free(yn);
-    free(probe);
+    free(cpl);
+    auto_free(&a);
+    return rc;
+}
+
+/* One frozen Taubin half pass on the NCOL columns of P (column-major nv x
+ * NCOL): P_i += coef / D_i sum_j w_ij (P_j - P_i) on the free vertices;
+ * U (nv x NCOL) is scratch. val: L's upper values, D its diagonal. */
+static void taubin_half(const auto_ctx *a, const double *val, const double *D, double coef,
+                        double *P, double *U)
+{
+    const mcf__pattern *p = a->pat;
+    int nv = a->nv;
+    memset(U, 0, sizeof(double) * NCOL * (size_t)nv);
+    for (int j = 0; j < nv; j++)
+        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++) {
+            int i = p->rowind[t];
+            if (i == j)
+                continue;
+            double wij = -val[t]; /* L_ij = -w_ij */
+            for (int c = 0; c < NCOL; c++) {
+                double d = P[(size_t)c * nv + j] - P[(size_t)c * nv + i];
+                U[(size_t)c * nv + i] += wij * d;
+                U[(size_t)c * nv + j] -= wij * d;
+            }
+        }
+    for (int i = 0; i < nv; i++)
+        if (!a->fix[i] && D[i] != 0.0)
+            for (int c = 0; c < NCOL; c++)
+                P[(size_t)c * nv + i] += coef / D[i] * U[(size_t)c * nv + i];
+}
+
+mcf_status mcf__auto_passes(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                            mcf_laplacian lap, double hbar, int *passes, double *sigma, mcf_error *err)
+{
+    static const double coef[2] = {0.5, -0.53}; /* step_taubin's */
+    auto_ctx a;
+    mcf_status rc = MCF_OK;
+    double *risk = mcf__malloc(MCF_AUTO_MAX_PASSES + 1, sizeof(double)), *D = NULL, s;
+    double *P = mcf__malloc(NCOL * (size_t)nv, sizeof(double)), *U = mcf__malloc(NCOL * (size_t)nv, sizeof(double));
+    memset(&a, 0, sizeof a);
+    if (!risk || !P || !U || !(D = mcf__calloc((size_t)nv, sizeof(double)))) {
+        rc = mcf__fail(err, MCF_ENOMEM, "automatic passes: out of memory (%d vertices)", nv);
+        goto done;
+    }
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, MCF_MASS_BARYCENTRIC, hbar, NULL, &s, err)) != MCF_OK)
+        goto done;
+    *sigma = s;
+    const double *val = a.lval;
+    for (int j = 0; j < nv; j++)
+        D[j] = val[a.pat->diag[j]];
+    for (int i = 0; i < nv; i++) {
+        for (int c = 0; c < 3; c++)
+            P[(size_t)c * nv + i] = X[3 * (size_t)i + c];
+        for (int q = 0; q < NPROBE; q++)
+            P[(size_t)(3 + q) * nv + i] = a.probe[(size_t)q * nv + i];
+    }
+    risk[0] = sure(&a, P, (size_t)nv, s);
+    int kb = 0, n = 1;
+    for (int k = 1; k <= MCF_AUTO_MAX_PASSES; k++) {
+        taubin_half(&a, val, D, coef[0], P, U);
+        taubin_half(&a, val, D, coef[1], P, U);
+        risk[n++] = sure(&a, P, (size_t)nv, s);
+        if (risk[k] < risk[kb])
+            kb = k;
+        if (k >= 2 * kb + 10)
+            break;
+    }
+    *passes = kb;
+done:
+    free(risk);
+    free(D);
+    free(P);
+    free(U);
     auto_free(&a);
     return rc;
 }

@@ -48,9 +48,14 @@
 #include <thread>
 #include <vector>
 
+#include <unistd.h>
+
+#include <grpc/compression.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/resource_quota.h>
+#include <grpcpp/server_posix.h>
 
 #include "mcfd.grpc.pb.h"
 
@@ -59,6 +64,7 @@ extern "C" {
 #include "service.h"
 }
 #include "grpc_door.h"
+#include "h2gate.h"
 
 /* ThreadSanitizer cannot see how gRPC orders the reactions of one call
  * (its completion queue hands them between its threads through absl's
@@ -97,6 +103,28 @@ namespace {
 
 const char kService[] = "mcfd.v1.Smoother";
 const size_t kChunk = 64 * 1024;   /* chunk size, both ways */
+
+/* The gate's bounds on streams (h2gate.h; measured: README, reliability).
+ * gRPC 1.51 holds about 12 KiB per stream it has accepted, so the door's
+ * streams cost at most about kMaxStreams x 12 KiB. */
+const int kStreamsPerConn = 100;   /* MAX_CONCURRENT_STREAMS, advertised */
+const int kMaxStreams = 1024;      /* in the door at once */
+const int kMaxStreamsPerIp = 256;  /* ... from one address */
+/* gRPC 1.51 disposed of about 15,000 client-reset streams a second on one
+ * core of the test machine; the gate assumes a fifteenth of that */
+const double kResetsPerS = 1000;
+/* a header block: twice gRPC's 8 KiB metadata limit, in at most 16
+ * frames; gRPC's HPACK parser then copies at most 16 x 16 KiB per block */
+const size_t kMaxHeaderBlock = 16 * 1024;
+const int kMaxHeaderFrames = 16;
+/* gRPC's resource quota, a backstop behind the gate: 1.51 charges each
+ * call's arena and the transports' buffers to it and, past it, cancels
+ * streams at random (chttp2_transport.cc, destructive_reclaimer_locked:
+ * RESOURCE_EXHAUSTED "Buffers full"). The gate's bounds keep the door far
+ * below it (about 15 MiB at its caps). Threads: those of gRPC's sync
+ * server (the health service); the callback calls run on gRPC's executor. */
+const size_t kQuotaBytes = 64 * 1024 * 1024;
+const int kQuotaThreads = 16;
 
 struct Door {
     std::unique_ptr<grpc::Server> server;
@@ -348,6 +376,17 @@ bool fill_job(svc_job *j, pb::Job *out)
     return true;
 }
 
+/* The client's address: gRPC knows each connection by the inner end of
+ * the gate's socketpair ("fd:12"), the gate knows whose it is. */
+std::string client_address(CallbackServerContext *ctx)
+{
+    std::string peer = ctx->peer();
+    char ip[64];
+    if (peer.compare(0, 3, "fd:") == 0 && h2gate_peer(atoi(peer.c_str() + 3), ip, sizeof ip) == 0)
+        return ip;
+    return peer;
+}
+
 /* ---------------------------------------------------------------- upload */
 
 /* The bytes of Smooth and SubmitJob as they stream in: the header first,
@@ -376,10 +415,7 @@ class Slot {
     bool take(CallbackServerContext *ctx, Status *st)
     {
         const srv_config *cfg = g.cfg;
-        std::string peer = ctx->peer();      /* "ipv4:127.0.0.1:port" */
-        size_t k = peer.rfind(':');
-        if (k != std::string::npos)
-            peer.resize(k);
+        std::string peer = client_address(ctx);
         std::lock_guard<std::mutex> l(g.smu);
         int here = g.per_peer.count(peer) ? g.per_peer[peer] : 0;
         char d[200];
@@ -453,6 +489,7 @@ class Upload {
         disarm();
         free(mesh_);
         free(target_);
+        svc_upload_release(&mem_held_);
         svc_record_free(&rec_);
     }
 
@@ -524,7 +561,9 @@ class Upload {
         srv_metrics_upload(mesh_len_);
         char *in = mesh_, *tg = target_;
         mesh_ = target_ = nullptr;
-        return svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
+        int rc = svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
+        svc_upload_release(&mem_held_);   /* the bytes are on the spool, or gone */
+        return rc;
     }
 
     /* The upload's deadlines start now: --header-timeout for the header,
@@ -588,6 +627,12 @@ class Upload {
                               gg.queue_depth, gg.workers_busy, gg.queue_capacity);
             return false;
         }
+        /* the memory the upload will take, reserved by its declared sizes
+         * (without them, as the bytes come: append) */
+        size_t declared = (size_t)(total_size_ > 0 ? total_size_ : 0) +
+                          (size_t)(target_size_ > 0 ? target_size_ : 0);
+        if (declared > 0 && svc_upload_reserve(&mem_held_, declared, e) != 0)
+            return false;
         if (h.has_output_format())
             of = h.output_format();
         std::string js = params_json(h.params(), h.has_output_format() ? &of : nullptr);
@@ -632,6 +677,8 @@ class Upload {
         if (declared >= 0 && (long long)(*len + b.size()) > declared)
             return fail(e, SVC_EINPUT, "EINVAL", "more bytes of the %s than its declared size %lld",
                         what, declared);
+        if (svc_upload_reserve(&mem_held_, mesh_len_ + target_len_ + b.size(), e) != 0)
+            return false;
         if (*len + b.size() > alloc_of(buf)) {
             /* geometric growth as bytes arrive, never ahead of them: a
              * declared size is only checked, so a header alone cannot
@@ -692,6 +739,7 @@ class Upload {
     long long total_size_ = -1, target_size_ = -1;
     char *mesh_ = nullptr, *target_ = nullptr;
     size_t mesh_len_ = 0, target_len_ = 0, mesh_alloc_ = 0, target_alloc_ = 0;
+    size_t mem_held_ = 0;           /* svc_upload_reserve */
     std::shared_ptr<Deadline> dl_;
 };
 
@@ -950,7 +998,11 @@ class Follow {
                 svc_job_snapshot(job_, &s);
                 if (svc_job_events(job_, next_event_, 64 * 1024, &data, &len, &n) != 0) {
                     svc_error e;
-                    svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
+                    if (errno == ENOMEM)
+                        svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
+                    else /* a finished job's, on the spool */
+                        svc_error_set(&e, SVC_ESTORAGE, "EIO", "cannot read the job's events from "
+                                      "the spool: %s", strerror(errno));
                     set_end(e);
                     return -1;
                 }
@@ -1501,6 +1553,17 @@ void set_serving(bool on)
     h->SetServingStatus(kService, on);
 }
 
+/* The gate hands each admitted connection's inner end to gRPC (on the
+ * gate's thread). */
+void adopt(int fd, void *)
+{
+    try {
+        grpc::AddInsecureChannelFromFd(g.server.get(), fd);
+    } catch (...) {
+        close(fd);
+    }
+}
+
 } // namespace
 
 /* ------------------------------------------------------------ C interface */
@@ -1508,19 +1571,31 @@ void set_serving(bool on)
 extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_t msgsize)
 {
     try {
-        std::string host = cfg->bind;
-        if (host.find(':') != std::string::npos && host[0] != '[')
-            host = "[" + host + "]";
-        std::string addr = host + ":" + std::to_string(cfg->grpc_port);
-        int selected = 0;
         grpc::EnableDefaultHealthCheckService(true);
         grpc::reflection::InitProtoReflectionServerBuilderPlugin();
         grpc::ServerBuilder b;
-        /* gRPC sets SO_REUSEPORT by default: a second mcfd on the same
-         * port would then share it silently instead of failing */
-        b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
-        b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &selected);
+        /* No listening port: the gate (h2gate.c) owns the socket and hands
+         * gRPC each admitted connection; h2gate.c says why. */
         b.RegisterService(&g_service);
+        /* The streams one connection may hold (the gate enforces it even
+         * for a client that never acknowledges the setting). */
+        b.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, kStreamsPerConn);
+        /* A connection without a call for --send-timeout is closed (REST's
+         * keep-alive connections are held as long) */
+        if (cfg->send_timeout > 0)
+            b.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS,
+                                 (int)(cfg->send_timeout * 1000));
+        /* Requests are not compressed: gRPC 1.51 inflates a whole message
+         * before any size limit (message_decompress_filter.cc: 132 KiB of
+         * gzip became 128 MiB), so only identity is enabled and a
+         * compressed message is refused (UNIMPLEMENTED) unread. Answers
+         * are not compressed either. */
+        b.AddChannelArgument(GRPC_COMPRESSION_CHANNEL_ENABLED_ALGORITHMS_BITSET,
+                             1 << GRPC_COMPRESS_NONE);
+        grpc::ResourceQuota quota("mcfd-grpc");
+        quota.Resize(kQuotaBytes);
+        quota.SetMaxThreads(kQuotaThreads);
+        b.SetResourceQuota(quota);
         /* one chunk or one header (its params at most --max-json), and a
          * little for the framing: anything larger is refused by gRPC with
          * RESOURCE_EXHAUSTED before it is buffered */
@@ -1529,14 +1604,36 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         g.cfg = cfg;
         g.quit = false;
         g.server = b.BuildAndStart();
-        if (!g.server || selected == 0) {
-            snprintf(msg, msgsize, "cannot listen for gRPC on %s", addr.c_str());
+        if (!g.server) {
+            snprintf(msg, msgsize, "gRPC: the server did not start");
+            return -1;
+        }
+        h2gate_config gc = {};
+        gc.bind = cfg->bind;
+        gc.port = cfg->grpc_port;
+        gc.max_conns = cfg->grpc_max_connections;
+        gc.max_conns_per_ip = cfg->max_connections_per_ip;
+        gc.fd_reserve = cfg->fd_reserve;
+        gc.streams_per_conn = kStreamsPerConn;
+        gc.max_streams = kMaxStreams;
+        gc.max_streams_per_ip = kMaxStreamsPerIp;
+        gc.resets_per_s = kResetsPerS;
+        gc.max_header_block = kMaxHeaderBlock;
+        gc.max_header_frames = kMaxHeaderFrames;
+        gc.header_timeout = cfg->header_timeout;
+        /* a second more than the door's own upload deadline (expire):
+         * an upload gets its DEADLINE_EXCEEDED from the door first */
+        gc.message_timeout = cfg->header_timeout > 0 ? cfg->header_timeout + 1 : 0;
+        gc.unhealthy_after = SRV_FDS_DEAD;
+        gc.adopt = adopt;
+        if (h2gate_start(&gc, port, msg, msgsize) != 0) {
+            g.server->Shutdown();
+            g.server->Wait();
             g.server.reset();
             return -1;
         }
         set_serving(true);
         g.pump = std::thread(pump_thread);
-        *port = selected;
         return 0;
     } catch (const std::exception &ex) {
         snprintf(msg, msgsize, "gRPC: %s", ex.what());
@@ -1556,11 +1653,13 @@ extern "C" void srv_grpc_stop(void)
 {
     if (!g.server)
         return;
+    h2gate_stop_accepting();
     try {
         g.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
         g.server->Wait();
     } catch (...) {
     }
+    h2gate_stop();
     {
         std::lock_guard<std::mutex> l(g.qmu);
         g.quit = true;
@@ -1622,4 +1721,22 @@ extern "C" int srv_grpc_expire(double header_timeout, double body_timeout,
 extern "C" int srv_grpc_active(void)
 {
     return g.active;
+}
+
+extern "C" int srv_grpc_health(char *why, size_t size)
+{
+    return g.server ? h2gate_health(why, size) : 0;
+}
+
+extern "C" void srv_grpc_gauges(srv_gauges *out)
+{
+    h2gate_stats st;
+    h2gate_get_stats(&st);
+    out->grpc_connections = st.conns;
+    out->grpc_streams = st.streams;
+    out->grpc_waiting = st.waiting;
+    out->grpc_refused = (double)st.refused;
+    out->grpc_closed = (double)st.closed;
+    out->grpc_reset = (double)st.streams_reset;
+    out->grpc_accept_errors = (double)st.accept_errors;
 }

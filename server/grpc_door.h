@@ -19,8 +19,10 @@
 extern "C" {
 #endif
 
-/* Listens on cfg->bind:cfg->grpc_port (0: a free port) and serves. 0 and
- * *port the port it listens on, or -1 with a one-line reason in msg. */
+/* Listens on cfg->bind:cfg->grpc_port (0: a free port) and serves: the
+ * gate (h2gate.c) accepts and admits connections (cfg->grpc_max_connections,
+ * cfg->max_connections_per_ip, cfg->fd_reserve) and relays them to gRPC.
+ * 0 and *port the port it listens on, or -1 with a one-line reason in msg. */
 int srv_grpc_start(const srv_config *cfg, int *port, char *msg,
                    size_t msgsize);
 /* Health NOT_SERVING ("" and "mcfd.v1.Smoother"); new jobs refused with
@@ -42,6 +44,11 @@ int srv_grpc_expire(double header_timeout, double body_timeout,
                     double send_timeout);
 /* Calls open now (a gauge for /metrics and the drain). */
 int srv_grpc_active(void);
+/* 0 when the door accepts connections and gRPC answers them (always, for
+ * a door that is off); else -1 and why (h2gate_health). */
+int srv_grpc_health(char *why, size_t size);
+/* The gate's connections, streams and refusals, into g (its grpc_ fields). */
+void srv_grpc_gauges(srv_gauges *g);
 
 #ifdef __cplusplus
 }

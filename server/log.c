@@ -101,20 +101,57 @@ void srv_log_json(srv_log_level lvl, cJSON *obj)
     free(line);
 }
 
+static void log_msg(srv_log_level lvl, const char *msg, long suppressed)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o)
+        return;
+    cJSON_AddStringToObject(o, "msg", msg);
+    if (suppressed > 0)
+        cJSON_AddNumberToObject(o, "suppressed", (double)suppressed);
+    srv_log_json(lvl, o);
+}
+
+void srv_logf_limited(srv_log_limit *l, srv_log_level lvl, const char *fmt, ...)
+{
+    char msg[1024];
+    va_list ap;
+    double now = srv_mono();
+    long suppressed = 0;
+    int say;
+
+    if (!srv_log_enabled(lvl))
+        return;
+    pthread_mutex_lock(&g_log_mu);
+    if (now - l->window > SRV_LOG_WINDOW) {
+        suppressed = l->suppressed;
+        l->window = now;
+        l->lines = 0;
+        l->suppressed = 0;
+    }
+    say = l->lines < SRV_LOG_BURST;
+    if (say)
+        l->lines++;
+    else
+        l->suppressed++;
+    pthread_mutex_unlock(&g_log_mu);
+    if (!say)
+        return;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    log_msg(lvl, msg, suppressed);
+}
+
 void srv_logf(srv_log_level lvl, const char *fmt, ...)
 {
     char msg[1024];
     va_list ap;
-    cJSON *o;
 
     if (!srv_log_enabled(lvl))
         return;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    o = cJSON_CreateObject();
-    if (!o)
-        return;
-    cJSON_AddStringToObject(o, "msg", msg);
-    srv_log_json(lvl, o);
+    log_msg(lvl, msg, 0);
 }

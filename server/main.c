@@ -3,11 +3,11 @@
  * signal loop, graceful drain and exit; and `mcfd --probe`.
  *
  * Start-up order matters:
- *  1. BLAS/OpenMP threads are bounded to one per worker before any library
- *     starts its pool. OpenBLAS and libgomp read their variables in
- *     constructors that run before main(), so when the variables are not
- *     set yet, main sets them and re-executes itself once (same PID, same
- *     argv). An operator who sets them keeps their values.
+ *  1. BLAS threads are bounded to one per worker before the library
+ *     starts its pool. OpenBLAS reads its variables in a constructor that
+ *     runs before main(), so when the variables are not set yet, main sets
+ *     them and re-executes itself once (same PID, same argv). An operator
+ *     who sets them keeps their values.
  *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
  *     and taken synchronously by this thread with sigtimedwait, which also
  *     gives the tick for the TTL sweep and the check for clients that
@@ -27,6 +27,7 @@
  * then MHD stops and the process exits 0.
  */
 #include <errno.h>
+#include <malloc.h>
 #include <netdb.h>
 #include <signal.h>
 #include <stdio.h>
@@ -50,8 +51,11 @@ static void mhd_log(void *cls, const char *fmt, va_list ap)
     __attribute__((format(printf, 2, 0)))
 #endif
     ;
+/* libmicrohttpd's messages, at a bounded rate: at EMFILE it retries
+ * accept() in a loop and says so every time (447 MB of log in 14 s). */
 static void mhd_log(void *cls, const char *fmt, va_list ap)
 {
+    static srv_log_limit lim;
     char msg[512];
     size_t n;
 
@@ -60,7 +64,33 @@ static void mhd_log(void *cls, const char *fmt, va_list ap)
     n = strlen(msg);
     while (n > 0 && (msg[n - 1] == '\n' || msg[n - 1] == '\r'))
         msg[--n] = '\0';
-    srv_logf(SRV_LOG_WARN, "libmicrohttpd: %s", msg);
+    srv_logf_limited(&lim, SRV_LOG_WARN, "libmicrohttpd: %s", msg);
+}
+
+/* A REST connection is refused (closed at once) when it would take the
+ * last half of the descriptors' reserve (fds.c). */
+static enum MHD_Result mhd_accept(void *cls, const struct sockaddr *addr,
+                                  socklen_t addrlen)
+{
+    static srv_log_limit lim;
+    const srv_config *cfg = cls;
+    (void)addr;
+    (void)addrlen;
+    if (srv_fds_headroom() > cfg->fd_reserve / 2)
+        return MHD_YES;
+    srv_logf_limited(&lim, SRV_LOG_WARN, "REST connection refused: the daemon is "
+                     "out of descriptors for connections");
+    return MHD_NO;
+}
+
+/* /healthz and /readyz: both doors must be able to take a connection (a
+ * door that accepts nothing makes the daemon unhealthy, so that an
+ * orchestrator restarts it). REST's own is the answer itself. */
+static int doors_health(char *why, size_t size)
+{
+    if (srv_fds_health(why, size) != 0)
+        return -1;
+    return srv_grpc_health(why, size);
 }
 
 /* The job service's part of the daemon's configuration. */
@@ -236,6 +266,13 @@ int main(int argc, char **argv)
     if (cfg.probe)
         return probe(&cfg);
     srv_log_set_level(cfg.log_level);
+    srv_fds_fit(&cfg);
+    /* Buffers of 256 KiB and more (uploads, results, meshes) are mapped on
+     * their own: freed, they go back to the system; grown, they are
+     * remapped, not copied. glibc's default threshold rises after the
+     * first large free (to 32 MiB), after which an upload's buffer grew in
+     * the heap by copying, the old and new copies both resident. */
+    mallopt(M_MMAP_THRESHOLD, 256 * 1024);
 
     signal(SIGPIPE, SIG_IGN);
     sigemptyset(&sigs);
@@ -249,7 +286,7 @@ int main(int argc, char **argv)
         return 1;
     }
     srv_metrics_init();
-    srv_http_init(&cfg);
+    srv_http_init(&cfg, doors_health, srv_grpc_gauges);
     service_config(&cfg, &scfg);
     if (svc_start(&scfg, msg, sizeof msg) != 0) {
         fprintf(stderr, "mcfd: %s\n", msg);
@@ -258,13 +295,12 @@ int main(int argc, char **argv)
     d = MHD_start_daemon(
         MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME |
             MHD_USE_ERROR_LOG | (ipv6 ? MHD_USE_IPv6 : 0),
-        (uint16_t)cfg.port, NULL, NULL, srv_http_handle, NULL,
+        (uint16_t)cfg.port, mhd_accept, &cfg, srv_http_handle, NULL,
         MHD_OPTION_EXTERNAL_LOGGER, mhd_log, NULL,
         MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
         MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg.http_threads,
         MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg.max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT,
-        (unsigned int)cfg.max_connections_per_ip,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv_http_ip_backstop(&cfg),
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)cfg.send_timeout,
         MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
         MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,
@@ -306,14 +342,16 @@ int main(int argc, char **argv)
         if (sig == SIGTERM || sig == SIGINT)
             break;
         srv_http_check_clients();
-        if (cfg.header_timeout > 0 || cfg.body_timeout > 0) {
+        srv_fds_watch(srv_mono());
+        {
             int n = srv_http_expire_heads(cfg.header_timeout,
                                           cfg.max_connections,
                                           cfg.body_timeout);
             if (n > 0)
                 srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no "
                          "complete request head within --header-timeout %g s "
-                         "or no complete body within --body-timeout %g s",
+                         "(2 s past --max-connections-per-ip) or no complete "
+                         "body within --body-timeout %g s",
                          n, n == 1 ? "" : "s", cfg.header_timeout,
                          cfg.body_timeout);
         }
@@ -330,6 +368,11 @@ int main(int argc, char **argv)
         }
         if (ticks % 4 == 0)
             svc_sweep();
+        /* Every 5 s, malloc's free pages go back to the system: a burst
+         * of calls or connections (each thread of gRPC's allocates in its
+         * own arena) otherwise stays in RSS after it ends. */
+        if (ticks % 20 == 0)
+            malloc_trim(0);
     }
 
     t_sigterm = srv_mono();

@@ -160,6 +160,12 @@ static void gauge(api_buf *b, const char *name, const char *help, double v)
                    name, name, v);
 }
 
+static void counter1(api_buf *b, const char *name, const char *help, double v)
+{
+    api_buf_printf(b, "# HELP %s %s\n# TYPE %s counter\n%s %.17g\n", name, help,
+                   name, name, v);
+}
+
 /* A counter family with two labels, la and lb (a and b of each series). */
 static void counter(api_buf *b, const char *name, const char *help,
                     const char *la, const char *lb, const series *s, int n)
@@ -209,5 +215,19 @@ char *srv_metrics_render(const srv_gauges *g, size_t *len)
           g->followers);
     gauge(&b, "mcfd_spool_bytes", "Bytes of the jobs kept on the spool.",
           g->spool_bytes);
+    gauge(&b, "mcfd_grpc_connections", "gRPC connections open.", g->grpc_connections);
+    gauge(&b, "mcfd_grpc_streams", "gRPC streams open in gRPC.", g->grpc_streams);
+    gauge(&b, "mcfd_grpc_connections_waiting",
+          "gRPC connections held at a stream bound (not read).", g->grpc_waiting);
+    counter1(&b, "mcfd_grpc_connections_refused_total",
+             "gRPC connections refused at a cap or the descriptor reserve.", g->grpc_refused);
+    counter1(&b, "mcfd_grpc_connections_closed_total",
+             "gRPC connections closed for a bound (preface, header block, protocol).",
+             g->grpc_closed);
+    counter1(&b, "mcfd_grpc_streams_reset_total",
+             "gRPC streams reset for sending no first message in time.", g->grpc_reset);
+    counter1(&b, "mcfd_grpc_accept_errors_total",
+             "accept() failures of the gRPC door (out of descriptors or memory).",
+             g->grpc_accept_errors);
     return api_buf_detach(&b, len);
 }

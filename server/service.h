@@ -206,6 +206,24 @@ svc_gauges svc_get_gauges(void);
 int svc_can_accept(void);
 int svc_draining(void);
 
+/* Memory for an upload in flight (both doors): its bytes are reserved in
+ * --max-memory beside the running jobs' estimates and the other uploads'
+ * (svc_admit.c) before they are buffered, so that uploads held open
+ * cannot take more than the budget (16 of 40 MiB took 665 MiB). *held is
+ * the upload's reservation; this grows it to want bytes (its declared
+ * size at once, else SVC_UPLOAD_STEP at a time as bytes come). 0, or -1
+ * and EBUSY in e (retry after 1 s) when they do not fit beside what the
+ * others hold (an upload alone always fits); then *held is unchanged.
+ * Each upload also holds SVC_UPLOAD_AROUND for the memory around its
+ * bytes: its connection's buffers, the transport's read slices, the
+ * daemon's allocator pools that grow with it (measured: four gRPC uploads
+ * at once grew the daemon's resting size by 2-5 MiB). */
+#define SVC_UPLOAD_STEP (1024 * 1024)
+#define SVC_UPLOAD_AROUND (2 * 1024 * 1024)
+int svc_upload_reserve(size_t *held, size_t want, svc_error *e);
+/* Gives it back (the bytes are on the spool or dropped): *held 0. */
+void svc_upload_release(size_t *held);
+
 /* --------------------------------------------------------------------- jobs */
 
 #define SVC_ID_LEN 32          /* 128 random bits in lowercase hex */
@@ -337,9 +355,9 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
 /* Progress events from index from (0-based) on: one JSON object per
  * line, {"step","t","dt","energy","volume"}, whole lines only, at most
  * max_bytes of them (but at least one line when there is one). *data is
- * malloc'ed (NULL when *n is 0); *n is how many events it holds. The
- * events of a finished job nobody holds are dropped after a while. 0 or
- * -1 (ENOMEM). */
+ * malloc'ed (NULL when *n is 0); *n is how many events it holds. A
+ * finished job's events are on the spool, read from there (kept as long
+ * as the job). 0 or -1 (errno: ENOMEM, or the spool's). */
 int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
                    size_t *len, int *n);
 

@@ -10,6 +10,9 @@
  *   log.c       one JSON line per event on stderr
  *   metrics.c   Prometheus counters and histograms
  *   spool.c     the crash-safe on-disk record of every accepted job
+ *   fds.c       descriptors: the limit raised, the doors' caps fitted to it
+ * the gRPC door (grpc_door.h): grpc.cc, the only C++ here, behind
+ *   h2gate.c    its socket: accepts, admits and relays connections to gRPC
  * the job service (service.h; its files share svc_internal.h):
  *   service.c   job table, references, queue, admission and submit,
  *               cancel/delete, subscriptions, drain, sweep, gauges
@@ -59,9 +62,13 @@ typedef struct {
     int workers;               /* mesh worker threads (default: online CPUs) */
     int queue;                 /* queued jobs beyond the running ones */
     int http_threads;          /* MHD thread pool size (default 2) */
-    int max_connections;       /* MHD connection limit */
+    int max_connections;       /* MHD connection limit (fitted to the
+                                  descriptors: srv_fds_fit) */
     int max_connections_per_ip; /* from one address, 0: none; keeps one
                                    client from taking every slot */
+    int grpc_max_connections;  /* the gRPC door's: --max-connections
+                                  fitted to the descriptors */
+    int fd_reserve;            /* descriptors no connection may take */
     char spool[1024];          /* job spool directory (default ./var/mcfd) */
     int spool_max_jobs;        /* jobs kept before 503, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
@@ -96,6 +103,29 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
  * token's length. Both doors check with it. */
 int srv_bearer_ok(const srv_config *cfg, const char *authorization);
 
+/* -------------------------------------------------------------- descriptors */
+
+/* Raises RLIMIT_NOFILE's soft limit to its hard limit, then fits the
+ * doors' connection caps in what is left after cfg->fd_reserve (set here:
+ * the spool, the sandbox's pipes, gRPC's own, the probes): a REST
+ * connection takes one descriptor, a gRPC one three (h2gate.c). Lowers
+ * cfg->max_connections and sets cfg->grpc_max_connections, with a warning
+ * when the limit does not hold what the flags ask. Before the doors start. */
+void srv_fds_fit(srv_config *cfg);
+/* RLIMIT_NOFILE's soft limit now, and how far the lowest free descriptor
+ * is below it (0: none free). A gRPC connection is admitted while the
+ * headroom is over cfg->fd_reserve + 2 (h2gate.c), a REST one while it
+ * is over half the reserve: the other half is for the daemon's files and
+ * the probes come over REST. */
+int srv_fds_limit(void);
+int srv_fds_headroom(void);
+/* Health: how long the headroom has been within the reserve (the main
+ * thread's tick calls srv_fds_watch); after SRV_FDS_DEAD seconds of that,
+ * srv_fds_health is -1 with why: the gRPC door takes nothing. */
+#define SRV_FDS_DEAD 5.0
+void srv_fds_watch(double now);
+int srv_fds_health(char *why, size_t size);
+
 /* ------------------------------------------------------------------ logging */
 
 void srv_log_set_level(srv_log_level lvl);
@@ -107,6 +137,24 @@ void srv_log_json(srv_log_level lvl, cJSON *obj);
 void srv_logf(srv_log_level lvl, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* srv_logf for what a client can make happen as often as it likes (accept
+ * errors, refused connections): at most SRV_LOG_BURST lines per
+ * SRV_LOG_WINDOW seconds per limiter; the first line after that says how
+ * many were left out ("suppressed"). A limiter is a static zeroed struct. */
+#define SRV_LOG_BURST 5
+#define SRV_LOG_WINDOW 10.0
+typedef struct {
+    double window;             /* srv_mono() the window opened */
+    int lines;                 /* lines written in it */
+    long suppressed;           /* lines left out in it */
+} srv_log_limit;
+void srv_logf_limited(srv_log_limit *l, srv_log_level lvl, const char *fmt,
+                      ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
 #endif
     ;
 
@@ -134,6 +182,10 @@ int srv_spool_mkjob(const char *spool, const char *id);
 /* Reads a whole job file (malloc'ed, NUL-terminated). 0 or -1. */
 int srv_spool_read(const char *spool, const char *id, const char *name,
                    char **data, size_t *len);
+/* Reads len bytes at offset off of a job file into buf: 0, or -1 (errno;
+ * EIO when the file is shorter). */
+int srv_spool_read_at(const char *spool, const char *id, const char *name,
+                      size_t off, void *buf, size_t len);
 /* Removes a job directory and everything in it: first renamed to a
  * tombstone and jobs/ fsynced (durable), then deleted. 0, or -1 with
  * errno and the job left whole. */
@@ -177,6 +229,9 @@ typedef struct {
     int draining;
     int followers;             /* event streams (SSE, ndjson) open */
     double spool_bytes;        /* bytes of the jobs kept */
+    /* the gRPC door's gate (h2gate.c): gauges, then counters */
+    int grpc_connections, grpc_streams, grpc_waiting;
+    double grpc_refused, grpc_closed, grpc_reset, grpc_accept_errors;
 } srv_gauges;
 
 /* The Prometheus text exposition (format 0.0.4), malloc'ed. */

@@ -10,6 +10,10 @@
  * always runs, so a grow can never deadlock. The estimate counts the
  * steps too (their log and progress events: step_bytes).
  *
+ * Uploads in flight (both doors) hold reservations in the same budget,
+ * of the bytes they buffer (svc_admit_more): a job waits while they fill
+ * it, and an upload that does not fit is refused (EBUSY).
+ *
  * So the daemon's memory stays within its resting size plus --max-memory
  * as far as the estimates hold (their margin: api_estimate.c; the tested
  * figure: README, reliability). One mutex of its own, taken inside the
@@ -27,24 +31,8 @@ static struct {
     pthread_mutex_t mu;
     pthread_cond_t freed;
     double used;               /* sum of the running jobs' reservations */
-    int holders;               /* jobs holding one */
+    int holders;               /* jobs and uploads holding one */
 } A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
-
-/* The steps a run may take, from the parameters alone (mcf.h's rules):
- * its iterations, time/dt, or, when the mesh decides (adaptive, dt_auto,
- * an amount with a fixed dt), the most it may take. */
-static double planned_steps(const mcf_flow_params *f, const api_limits *lim)
-{
-    double n;
-    if (f->adaptive || f->dt_auto)
-        n = f->max_steps > 0 ? f->max_steps : lim->max_iterations;
-    else if (f->dt > 0)
-        n = f->time > 0 ? ceil(f->time / f->dt - 1e-9)
-            : f->iterations > 0 ? f->iterations : lim->max_iterations;
-    else
-        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
-    return n < lim->max_iterations ? n : lim->max_iterations;
-}
 
 /* What a run's steps hold while it runs: the core's step log (56 B a
  * step) and the events' offsets (8 B, in an array that doubles), and the
@@ -52,7 +40,10 @@ static double planned_steps(const mcf_flow_params *f, const api_limits *lim)
  * doubles, SVC_EVENTS_MAX at most). 100,000 steps: 31 MB. */
 static double step_bytes(const api_params *p, const api_limits *lim)
 {
-    double n = planned_steps(&p->flow, lim), ev = 240.0 * n;
+    double n = api_params_steps(p, lim, NULL), ev;
+    if (n > lim->max_iterations) /* time / dt: refused at submission */
+        n = lim->max_iterations;
+    ev = 240.0 * n;
     if (ev > 2.0 * (double)SVC_EVENTS_MAX)
         ev = 2.0 * (double)SVC_EVENTS_MAX;
     return 72.0 * n + ev;
@@ -98,6 +89,21 @@ int svc_admit_try(const svc_config *cfg, double estimate)
     if (ok) {
         A.used += estimate;
         A.holders++;
+    }
+    pthread_mutex_unlock(&A.mu);
+    return ok;
+}
+
+int svc_admit_more(const svc_config *cfg, double *held, double more)
+{
+    int ok;
+    pthread_mutex_lock(&A.mu);
+    ok = A.holders == (*held > 0 ? 1 : 0) || A.used + more <= (double)cfg->max_memory;
+    if (ok) {
+        if (*held == 0)
+            A.holders++;
+        A.used += more;
+        *held += more;
     }
     pthread_mutex_unlock(&A.mu);
     return ok;

@@ -30,6 +30,10 @@ int svc_admit_try(const svc_config *cfg, double estimate);
  * set while waiting (*held unchanged). */
 int svc_admit_grow(const svc_config *cfg, double *held, double estimate,
                    const mcf_cancel_flag *cancel);
+/* Grows an upload's reservation *held (0: a new one) by more bytes when
+ * they fit in --max-memory beside the others' (or it is alone): 1; else
+ * 0 and *held unchanged. Uploads and jobs are the holders of one budget. */
+int svc_admit_more(const svc_config *cfg, double *held, double more);
 /* Gives a reservation back and wakes the waiting grows. */
 void svc_admit_release(double held);
 

@@ -185,10 +185,17 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
 void srv_upload_consume(srv_request *r, const char *data, size_t size)
 {
     const srv_config *cfg = srv_http_config();
+    svc_error e;
 
     r->bytes_in += size;
     if (r->has_perr)
         return; /* discard: the error is answered at the end */
+    /* without a Content-Length, the memory is reserved as bytes come */
+    if (svc_upload_reserve(&r->mem_held, r->bytes_in, &e) != 0) {
+        srv_problem_from_svc(&r->perr, &e);
+        r->has_perr = 1;
+        return;
+    }
     if (r->multipart && r->bytes_in > cfg->max_body) {
         srv_problem_set(&r->perr, 413, "ELIMIT", "the multipart body exceeds "
                         "%zu bytes, the most it may hold with --max-upload %zu "
@@ -223,8 +230,10 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
 {
     const srv_config *cfg = srv_http_config();
     srv_problem p;
+    svc_error e;
     const char *h;
     char stream[32];
+    unsigned long long n = 0;
 
     h = srv_query_value(r, "stream", stream, sizeof stream);
     if (r->rt == RT_SMOOTH) {
@@ -260,7 +269,6 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
                                     MHD_HTTP_HEADER_CONTENT_LENGTH);
     if (h) {
         char *end;
-        unsigned long long n;
         size_t lim = r->multipart ? cfg->max_body : cfg->lim.max_input_bytes;
         errno = 0;
         n = strtoull(h, &end, 10);
@@ -276,6 +284,8 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
                                 "the limit of %zu bytes (--max-upload)", n, lim);
             return srv_send_problem(r, c, &p, NULL);
         }
+        if (errno != 0 || end == h)
+            n = 0;
     }
     /* Busy or draining: say so before the body only when the client waits
      * for it (Expect: 100-continue) or the body is over SRV_DRAIN_MAX. A
@@ -289,6 +299,9 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
     else if (!svc_can_accept())
         srv_problem_set(&p, 503, "EBUSY", "the job queue is full; retry "
                         "after the Retry-After delay");
+    /* the memory the body will take, reserved by its declared size */
+    else if (n > 0 && svc_upload_reserve(&r->mem_held, (size_t)n, &e) != 0)
+        srv_problem_from_svc(&p, &e);
     else
         return MHD_YES;
     if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c))
@@ -317,6 +330,7 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
     char *mesh, *target = NULL;
     size_t mesh_len, target_len = 0;
     char loc[96];
+    int rc;
 
     if (r->pp) {
         if (MHD_destroy_post_processor(r->pp) != MHD_YES && !r->has_perr) {
@@ -346,10 +360,11 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
     mesh = api_buf_detach(&r->mesh, &mesh_len);
     if (r->has_target)
         target = api_buf_detach(&r->target, &target_len);
-    if (svc_submit(&rec, mesh, mesh_len, target, target_len,
-                   r->md == MODE_SYNC || r->md == MODE_MIXED ? SVC_KEEP_RESULT
-                                                             : 0,
-                   &j, &e) != 0) {
+    rc = svc_submit(&rec, mesh, mesh_len, target, target_len,
+                    r->md == MODE_SYNC || r->md == MODE_MIXED ? SVC_KEEP_RESULT : 0,
+                    &j, &e);
+    svc_upload_release(&r->mem_held);  /* the bytes are on the spool, or gone */
+    if (rc != 0) {
         srv_problem_from_svc(&p, &e);
         return srv_send_problem(r, c, &p, NULL);
     }

@@ -783,7 +783,9 @@ static cJSON *follow_metrics_link(const daemon_t *d, const resp_t *r,
     return j;
 }
 
-/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2' */
+/* curl -F mesh=@sphere_cgal.obj '/smooth?scheme=desbrun2&strength=0.33' (an
+ * amount named: without one, the automatic amount finds no noise on this
+ * clean sphere and returns it unchanged) */
 static void test_smooth_obj_multipart(void **state)
 {
     upload_t up = {.mesh = "sphere_cgal.obj"};
@@ -794,7 +796,7 @@ static void test_smooth_obj_multipart(void **state)
     cJSON *m;
 
     (void)state;
-    http(&g_main, "POST", "/smooth?scheme=desbrun2", NULL, &up, &r);
+    http(&g_main, "POST", "/smooth?scheme=desbrun2&strength=0.33", NULL, &up, &r);
     expect_status(&g_main, &r, 200, "POST /smooth obj");
     assert_string_equal(header(&r, "Content-Type", buf, sizeof buf), "model/obj");
     assert_string_equal(header(&r, "Content-Disposition", buf, sizeof buf),
@@ -909,10 +911,10 @@ static void test_smooth_gltf(void **state)
 
 /* Threads stay bounded: main + 2 workers + 2 HTTP threads, after
  * test_smooth_draco_multipart (just before in main's list) has run a job
- * on the bunny. Without OMP_THREAD_LIMIT, CHOLMOD's num_threads(4) regions
- * would have added 3 OpenMP threads per worker by then (the bunny is big
- * enough for the supernodal factorization). Without /proc there is
- * nothing to count: skipped, saying so. */
+ * on the bunny. CHOLMOD opens no threads (the Makefile links a copy
+ * without OpenMP; Debian's own opened 3 more per worker there, with its
+ * num_threads(4) regions) and OpenBLAS has one per job. Without /proc
+ * there is nothing to count: skipped, saying so. */
 static void test_thread_count(void **state)
 {
     char st[64], *status = NULL, why[128];
@@ -1855,6 +1857,101 @@ static void test_http_small_things(void **state)
     }
 }
 
+
+/* Issue 17, sharp edge: the request framing of RFC 9112 (6.1, 6.3). An
+ * unknown Transfer-Encoding got no answer for 17.8 s (libmicrohttpd 0.9.75
+ * then reads the body until the client closes); Content-Length beside
+ * Transfer-Encoding kept the connection open, and a proxy that frames by
+ * Content-Length would pass a second request hidden in the chunked body
+ * (request smuggling). Now each is answered at once from the head, and
+ * the connection closed: 501 ENOTIMPLEMENTED for a coding other than
+ * chunked, 400 EFRAMING for Content-Length with Transfer-Encoding,
+ * Transfer-Encoding in HTTP/1.0, chunked twice, or two Content-Lengths
+ * that differ. A plain chunked upload is still served. */
+static void test_transfer_framing(void **state)
+{
+    static const struct {
+        const char *what, *req;
+        int status;
+        const char *code, *before; /* what main did */
+    } cases[] = {
+        {"POST with Transfer-Encoding: gzip",
+         "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
+         "Transfer-Encoding: gzip\r\n\r\nv 0 0 0\n", 501, "ENOTIMPLEMENTED",
+         "no answer in 25 s"},
+        {"GET with Transfer-Encoding: foo",
+         "GET /healthz HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: foo\r\n\r\n",
+         501, "ENOTIMPLEMENTED", "no answer in 25 s"},
+        {"POST with Transfer-Encoding: gzip, chunked",
+         "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
+         "Transfer-Encoding: gzip, chunked\r\n\r\n0\r\n\r\n", 501,
+         "ENOTIMPLEMENTED", "no answer in 25 s"},
+        /* the smuggling pair: a proxy framing by Content-Length sees one
+         * request of 45 bytes, chunked framing two */
+        {"Content-Length and Transfer-Encoding: chunked",
+         "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
+         "Content-Length: 45\r\nTransfer-Encoding: chunked\r\n\r\n"
+         "0\r\n\r\nGET /v1/schemes HTTP/1.1\r\nHost: x\r\n\r\n", 400,
+         "EFRAMING", "400, then 200 to the hidden GET, kept open"},
+        {"GET with Content-Length: 0 and Transfer-Encoding: chunked",
+         "GET /healthz HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n"
+         "Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n", 400, "EFRAMING",
+         "200, kept open"},
+        {"HTTP/1.0 with Transfer-Encoding: chunked",
+         "POST /smooth HTTP/1.0\r\nHost: x\r\nContent-Type: model/obj\r\n"
+         "Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n", 400, "EFRAMING",
+         "libmicrohttpd's 400, closed"},
+        {"Transfer-Encoding: chunked twice",
+         "POST /smooth HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\n"
+         "Transfer-Encoding: chunked\r\nTransfer-Encoding: chunked\r\n\r\n"
+         "0\r\n\r\n", 400, "EFRAMING", "400, kept open"},
+        {"two Content-Lengths that differ",
+         "GET /healthz HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n"
+         "Content-Length: 40\r\n\r\nGET /v1/schemes HTTP/1.1\r\nHost: x\r\n\r\n",
+         400, "EFRAMING", "200, then 200 to the hidden GET, kept open"},
+    };
+    size_t k;
+
+    (void)state;
+    for (k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        api_buf out;
+        double t0 = mcf_now(), took;
+        char want[48];
+        raw_exchange(&g_main, cases[k].req, strlen(cases[k].req), &out);
+        took = mcf_now() - t0;
+        print_message("    %s: %.12s%s, closed after %.2f s (main: %s)\n",
+                      cases[k].what, out.len > 1 ? out.data : "(no answer)",
+                      strstr(out.data, "\r\nConnection: close\r\n")
+                          ? " + Connection: close" : "", took, cases[k].before);
+        snprintf(want, sizeof want, "HTTP/1.1 %d ", cases[k].status);
+        if (strncmp(out.data, want, strlen(want)) != 0 ||
+            !strstr(out.data, cases[k].code))
+            fail_msg("%s: not a %d %s: %.300s", cases[k].what,
+                     cases[k].status, cases[k].code,
+                     out.len > 1 ? out.data : "(no answer)");
+        /* one answer, then the connection closes: a second request
+         * hidden in the body is never read (raw_exchange reads until the
+         * close; a connection kept open holds it 10 s) */
+        if (count_of(out.data, "HTTP/1.1 ") != 1 || took > 5 ||
+            !strstr(out.data, "\r\nConnection: close\r\n"))
+            fail_msg("%s: the connection stayed open or answered twice "
+                     "(%.2f s):\n%.600s", cases[k].what, took, out.data);
+        api_buf_free(&out);
+    }
+    /* chunked alone, in any case, is served */
+    {
+        static const char ok[] =
+            "POST /smooth?iterations=1 HTTP/1.1\r\nHost: x\r\nContent-Type: "
+            "model/obj\r\nTransfer-Encoding: Chunked\r\nConnection: close\r\n\r\n"
+            "40\r\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n"
+            "f 2 3 4\n\r\n0\r\n\r\n";
+        api_buf out;
+        raw_exchange(&g_main, ok, sizeof ok - 1, &out);
+        if (strncmp(out.data, "HTTP/1.1 200", 12) != 0)
+            fail_msg("a chunked upload: %.300s", out.data);
+        api_buf_free(&out);
+    }
+}
 /* Issue 9 item 2: about 500 short query parameters overflowed MHD's
  * per-connection pool: no answer, the connection held, the request never
  * completed (leaked, and every SIGTERM waited for it). Now the query is
@@ -2165,7 +2262,8 @@ static void test_followers_and_per_ip(void **state)
     stop_daemon(&d);
 
     /* 45 slowloris connections from 127.0.0.2 against 40 slots: at most
-     * 8 are held, /healthz from 127.0.0.1 answers at once */
+     * 8 are held (and 2 past the cap for 2 s: test_per_ip_busy),
+     * /healthz from 127.0.0.1 answers at once */
     {
         static const char *const flags[] = {"--max-connections", "40",
                                             "--max-connections-per-ip", "8",
@@ -2188,20 +2286,139 @@ static void test_followers_and_per_ip(void **state)
     }
 }
 
-/* VmRSS of a process in KiB, -1 when /proc cannot say. */
-static long rss_kib(pid_t pid)
+
+/* Reads fd until the daemon closes it (or 5 s pass): the bytes, in out
+ * (NUL-terminated); seconds until the close, -1 when it stayed open. */
+static double read_to_close(int fd, api_buf *out)
+{
+    double t0 = mcf_now();
+    char b[4096];
+
+    api_buf_init(out, 0);
+    for (;;) {
+        struct pollfd p = {fd, POLLIN, 0};
+        ssize_t n;
+        if (mcf_now() - t0 > 5 || poll(&p, 1, 100) < 0) {
+            api_buf_append(out, "", 1);
+            return -1;
+        }
+        if (!(p.revents & (POLLIN | POLLHUP | POLLERR)))
+            continue;
+        if ((n = read(fd, b, sizeof b)) <= 0)
+            break;
+        api_buf_append(out, b, (size_t)n);
+    }
+    api_buf_append(out, "", 1);
+    return mcf_now() - t0;
+}
+
+/* Issue 17, sharp edge: past --max-connections-per-ip, libmicrohttpd
+ * closed each new connection at accept, so clients saw resets, never a
+ * 503 with Retry-After. Now the daemon counts the connections of each
+ * address itself: past the cap, a request is answered 503 EBUSY with
+ * Retry-After and the connection closed, and one that sends no head
+ * is closed after 2 s. libmicrohttpd's own limit stays as a backstop, a
+ * quarter above the cap (srv_http_ip_backstop): past that, a connection
+ * is still closed at accept without a word (pinned here), since a 503
+ * needs a request and a request needs a slot. */
+static void test_per_ip_busy(void **state)
+{
+    static const char *const flags[] = {"--max-connections", "40",
+                                        "--max-connections-per-ip", "4",
+                                        NULL};
+    static const char get[] = "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n";
+    daemon_t d;
+    char spool[600];
+    int held[4], over, beyond, i;
+    double t;
+    api_buf out;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/per-ip-busy", g_tmp);
+    assert_int_equal(start_daemon(&d, "per-ip-busy", spool, flags), 0);
+    for (i = 0; i < 4; i++)
+        held[i] = connect_from(&d, "127.0.0.2", "");
+    sleep_ms(300); /* accepted: the address is at its cap */
+    /* a fifth: answered 503 + Retry-After, then closed */
+    over = connect_from(&d, "127.0.0.2", get);
+    t = read_to_close(over, &out);
+    close(over);
+    print_message("    past --max-connections-per-ip 4: %.12s%s%s, closed "
+                  "after %.2f s (main: a reset, no answer)\n",
+                  out.len > 1 ? out.data : "(no answer)",
+                  strstr(out.data, "\r\nRetry-After: 1\r\n") ? " + Retry-After: 1"
+                                                             : "",
+                  strstr(out.data, "\r\nConnection: close\r\n")
+                      ? " + Connection: close" : "", t);
+    if (strncmp(out.data, "HTTP/1.1 503", 12) != 0 ||
+        !strstr(out.data, "\"EBUSY\"") ||
+        !strstr(out.data, "--max-connections-per-ip 4") ||
+        !strstr(out.data, "\r\nRetry-After: 1\r\n"))
+        fail_msg("a connection past the per-address cap: %.400s",
+                 out.len > 1 ? out.data : "(no answer: reset)");
+    if (t < 0 || !strstr(out.data, "\r\nConnection: close\r\n"))
+        fail_msg("the 503 past the per-address cap kept its connection");
+    api_buf_free(&out);
+    /* others are served meanwhile; a held connection is served too */
+    http(&d, "GET", "/healthz", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "healthz from another address");
+    resp_free(&r);
+    assert_true(write(held[0], get, sizeof get - 1) == (ssize_t)sizeof get - 1);
+    {
+        char b[16] = "";
+        ssize_t n = read(held[0], b, 12);
+        if (n != 12 || strncmp(b, "HTTP/1.1 200", 12) != 0)
+            fail_msg("a connection within the cap: %.12s", b);
+    }
+    /* past the cap, a connection that sends nothing goes after 2 s; the
+     * backstop (4 + 1) is then full: the next is closed at accept */
+    over = connect_from(&d, "127.0.0.2", "");
+    sleep_ms(200);
+    beyond = connect_from(&d, "127.0.0.2", get);
+    t = read_to_close(beyond, &out);
+    close(beyond);
+    print_message("    past the backstop (4 + 1): %s after %.2f s\n",
+                  out.len > 1 ? "answered" : "closed at accept, no answer", t);
+    if (out.len > 1)
+        fail_msg("past libmicrohttpd's per-address limit the connection was "
+                 "answered (%.60s): then the 503 should cover it", out.data);
+    api_buf_free(&out);
+    t = read_to_close(over, &out);
+    close(over);
+    print_message("    past the cap, a connection with no request: closed "
+                  "after %.2f s\n", t);
+    if (t < 0 || out.len > 1)
+        fail_msg("a silent connection past the per-address cap: %s after "
+                 "%.2f s", out.len > 1 ? out.data : "no answer", t);
+    api_buf_free(&out);
+    for (i = 0; i < 4; i++)
+        close(held[i]);
+    stop_daemon(&d);
+}
+
+/* A size field of a process's status ("VmRSS", "VmHWM": its peak) in
+ * KiB, -1 when /proc cannot say. */
+static long status_kib(pid_t pid, const char *field)
 {
     char path[64], line[256];
+    size_t n = strlen(field);
     long kib = -1;
     FILE *f;
     snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
     if (!(f = fopen(path, "r")))
         return -1;
     while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmRSS: %ld kB", &kib) == 1)
+        if (strncmp(line, field, n) == 0 && line[n] == ':' &&
+            sscanf(line + n + 1, "%ld", &kib) == 1)
             break;
     fclose(f);
     return kib;
+}
+
+static long rss_kib(pid_t pid)
+{
+    return status_kib(pid, "VmRSS");
 }
 
 /* Issue 9 item 4, in part: queued jobs held their whole input in memory
@@ -2235,7 +2452,7 @@ static void test_queued_inputs_on_disk(void **state)
     assert_int_equal(start_daemon(&d, "queued-mem", spool, flags), 0);
     submit(&d, "?iterations=100000&dt=1e-7&max_steps=100000", a);
     wait_running(&d, a);
-    if ((before = rss_kib(d.pid)) < 0) {
+    if ((before = status_kib(d.pid, "VmRSS")) < 0) {
         free(blob);
         stop_daemon(&d);
         tl_skip("test_queued_inputs_on_disk", "/proc/PID/status unreadable");
@@ -2252,7 +2469,7 @@ static void test_queued_inputs_on_disk(void **state)
     free(blob);
     blob = NULL;
     wait_gauge_within(&d, "mcfd_queue_depth", 20, 5, "20 queued");
-    after = rss_kib(d.pid);
+    after = status_kib(d.pid, "VmRSS");
     print_message("    20 queued 3 MB uploads: RSS %ld -> %ld KiB\n", before, after);
     if (after - before > 20 * 1024)
         fail_msg("20 queued 3 MB uploads grew the daemon by %ld KiB", after - before);
@@ -2808,6 +3025,83 @@ static void test_step_log_memory(void **state)
     stop_daemon(&d);
 }
 
+
+/* Issue 17, memory outside admission: a finished job kept its progress
+ * events (an ndjson line a step, up to 16 MiB) in memory for 10 s after
+ * it finished, and for as long as anyone held it, while admission had
+ * let its memory go: 8 jobs of 100,000 steps of an octahedron, two at a
+ * time under --max-memory 64M, peaked at rest + 119 MiB. Now a finished
+ * job's events are on the spool (events.ndjson and its index), read back
+ * for late followers, so the peak holds (rest + --max-memory) and a late
+ * follower gets every step, for the job's whole TTL, also after a
+ * restart (before: none 10 s after the end). */
+static void test_events_memory(void **state)
+{
+    static const char *const flags[] = {"--workers", "2", "--max-memory",
+                                        "64M", NULL};
+    upload_t octa = {.raw = k_octa, .raw_len = sizeof k_octa - 1};
+    daemon_t d;
+    char spool[600], ids[8][SRV_ID_BUF], path[200];
+    long rest, hwm = -1;
+    resp_t r;
+    int i;
+
+    (void)state;
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    tl_skip("test_events_memory", "RSS is meaningless under a sanitizer "
+            "(its quarantine, shadow and allocator caches)");
+    return;
+#endif
+    snprintf(spool, sizeof spool, "%s/events-mem", g_tmp);
+    assert_int_equal(start_daemon(&d, "events-mem", spool, flags), 0);
+    rest = status_kib(d.pid, "VmRSS");
+    for (i = 0; i < 8; i++) {
+        cJSON *j;
+        http(&d, "POST", "/v1/jobs?iterations=100000&scheme=euler&dt=1e-6",
+             NULL, &octa, &r);
+        expect_status(&d, &r, 202, "100,000 steps of an octahedron");
+        j = body_json(&r, "POST");
+        snprintf(ids[i], sizeof ids[i], "%s", jstr(j, "id"));
+        cJSON_Delete(j);
+        resp_free(&r);
+    }
+    for (i = 0; i < 8; i++)
+        cJSON_Delete(poll_job(&d, ids[i], "succeeded", 120));
+    hwm = status_kib(d.pid, "VmHWM");
+    print_message("    8 jobs of 100,000 steps, 2 at a time, --max-memory 64M: "
+                  "peak RSS rest + %ld MiB (main: + 119 MiB)\n",
+                  (hwm - rest) / 1024);
+    /* a late follower gets every step, from the spool; Last-Event-ID
+     * resumes in the middle of the index */
+    snprintf(path, sizeof path, "/v1/jobs/%s/events", ids[0]);
+    http(&d, "GET", path, NULL, NULL, &r);
+    expect_status(&d, &r, 200, "the events of a finished job");
+    if (count_of(r.body.data, "event: progress") != 100000 ||
+        !strstr(r.body.data, "id: 100000\nevent: progress\ndata: {\"step\":100000,"))
+        fail_msg("a late follower got %d progress events of 100000",
+                 count_of(r.body.data, "event: progress"));
+    resp_free(&r);
+    {
+        static const char *const h[] = {"Last-Event-ID: 99990", NULL};
+        http(&d, "GET", path, h, NULL, &r);
+        if (count_of(r.body.data, "event: progress") != 10 ||
+            !strstr(r.body.data, "id: 99991\nevent: progress\ndata: {\"step\":99991,"))
+            fail_msg("Last-Event-ID 99990: %.300s", r.body.data);
+        resp_free(&r);
+    }
+    stop_daemon(&d);
+    /* and after a restart */
+    assert_int_equal(start_daemon(&d, "events-mem2", spool, flags), 0);
+    http(&d, "GET", path, NULL, NULL, &r);
+    if (count_of(r.body.data, "event: progress") != 100000)
+        fail_msg("after a restart, a late follower got %d progress events "
+                 "of 100000", count_of(r.body.data, "event: progress"));
+    resp_free(&r);
+    stop_daemon(&d);
+    if (hwm > rest + 64 * 1024)
+        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 64M",
+                 hwm, rest);
+}
 /* Cuts a file to half its size. */
 static void truncate_half(const char *path)
 {
@@ -3015,7 +3309,12 @@ static void test_draco_sandbox(void **state)
     resp_free(&r);
     print_message("    210-byte orientation bomb, default limits: 422 in %.2f s "
                   "(8.8 s and 256 MiB in-process)\n", dt);
-    assert_true(dt < 4);
+    /* The 422's text names the limit that stopped it (that is the
+     * behaviour); the time is printed, and bounded only as a hang guard:
+     * a child under RLIMIT_CPU of 2 s stretches in wall time with the
+     * machine's load (CI saw 6-8.6 s under sanitizers at load 10), while
+     * the unbounded decode would spin for ever at 2^31 orientations. */
+    assert_true(dt < 30);
     /* the same stream as a glTF's Draco primitive: the same sandbox */
     t0 = mcf_now();
     post_file(&d, "/smooth", "gltf/draco_bomb.glb", &r);
@@ -3047,7 +3346,7 @@ static void test_draco_sandbox(void **state)
                    "orientation bomb, --decode-memory 1G");
     resp_free(&r);
     print_message("    the same with --decode-memory 1G: 422 (CPU) in %.2f s\n", dt);
-    assert_true(dt >= 1.9 && dt < 8);
+    assert_true(dt >= 1.9 && dt < 30); /* 2 s of CPU; hang guard as above */
     /* a DELETE while it decodes kills the child */
     post_file(&d, "/v1/jobs", bomb, &r);
     expect_status(&d, &r, 202, "async orientation bomb");
@@ -3066,7 +3365,9 @@ static void test_draco_sandbox(void **state)
     assert_string_equal(jstr(j, "status"), "canceled");
     cJSON_Delete(j);
     print_message("    DELETE during the decode: canceled after %.2f s\n", dt);
-    assert_true(dt < 1.0);
+    /* killed, not run to its CPU limit: well under the 2 s it would take,
+     * with room for a loaded machine's scheduling */
+    assert_true(dt < 1.9);
     assert_int_equal(count_children(d.pid), 0);
     stop_daemon(&d);
 }
@@ -3083,11 +3384,10 @@ static void test_memory_admission(void **state)
     static const char *const one[] = {"--workers", "2", "--max-memory", "100M",
                                       NULL};
     daemon_t d;
-    char spool[600], ids[3][SRV_ID_BUF], path[160], line[256];
+    char spool[600], ids[3][SRV_ID_BUF], path[160];
     long rest = -1, hwm = -1;
     int i, both = 0, done;
     resp_t r;
-    FILE *f;
 
     (void)state;
     snprintf(spool, sizeof spool, "%s/admit-small", g_tmp);
@@ -3103,7 +3403,7 @@ static void test_memory_admission(void **state)
 
     snprintf(spool, sizeof spool, "%s/admit-budget", g_tmp);
     assert_int_equal(start_daemon(&d, "admit-budget", spool, one), 0);
-    rest = rss_kib(d.pid);
+    rest = status_kib(d.pid, "VmRSS");
     for (i = 0; i < 3; i++) {
         cJSON *j;
         post_file(&d, "/v1/jobs?scheme=desbrun2&strength=auto", "meshes/bunny.drc", &r);
@@ -3156,12 +3456,7 @@ static void test_memory_admission(void **state)
                     both = 1;
                 }
     }
-    snprintf(path, sizeof path, "/proc/%d/status", (int)d.pid);
-    if ((f = fopen(path, "r")) != NULL) {
-        while (fgets(line, sizeof line, f))
-            sscanf(line, "VmHWM: %ld kB", &hwm);
-        fclose(f);
-    }
+    hwm = status_kib(d.pid, "VmHWM");
     print_message("    3 bunny.drc strength=auto jobs, --max-memory 100M, 2 "
                   "workers: %s at once; RSS at rest %ld KiB, peak %ld KiB\n",
                   both ? "two" : "never two", rest, hwm);
@@ -3180,6 +3475,121 @@ static void test_memory_admission(void **state)
     if (hwm > rest + 100 * 1024)
         fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M",
                  hwm, rest);
+}
+
+/* Sends n bytes of an OBJ-looking body to fd; how many went before the
+ * daemon closed or answered (a refused upload is answered early). */
+static size_t send_body(int fd, size_t n)
+{
+    static char block[64 * 1024];
+    size_t sent = 0;
+    if (!block[0])
+        for (size_t i = 0; i < sizeof block; i += 8)
+            memcpy(block + i, "v 0 0 0\n", 8);
+    while (sent < n) {
+        size_t k = n - sent < sizeof block ? n - sent : sizeof block;
+        ssize_t w = send(fd, block, k, MSG_NOSIGNAL);
+        if (w <= 0)
+            break;
+        sent += (size_t)w;
+    }
+    return sent;
+}
+
+/* Issue 17 item 7: uploads held open were outside the memory budget: 16
+ * bodies of 40 MiB, each sent but for its last byte, took 665 MiB against
+ * a documented peak of rest + --max-memory 100M (the ceiling was
+ * connections x --max-upload). Now an upload's Content-Length is reserved
+ * in --max-memory beside the running jobs before its body is read
+ * (svc_upload_reserve): two fit, the others are answered 503 EBUSY with
+ * Retry-After before their body; a body without a length reserves as it
+ * comes, and is refused (read and discarded, never buffered) when the
+ * budget is full. */
+static void test_uploads_in_flight(void **state)
+{
+    static const char *const flags[] = {"--max-memory", "100M", "--max-upload", "64M",
+                                        "--max-connections-per-ip", "0", NULL};
+    const size_t body = (size_t)40 << 20;
+    daemon_t d;
+    char spool[600], head[256], buf[512] = "";
+    int fds[16], held = 0, busy = 0, i, fd;
+    long rest, hwm, hwm2 = 0;
+    resp_t r;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/uploads", g_tmp);
+    assert_int_equal(start_daemon(&d, "uploads", spool, flags), 0);
+    rest = rss_kib(d.pid);
+    snprintf(head, sizeof head, "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+             "model/obj\r\nContent-Length: %zu\r\n\r\n", body);
+    for (i = 0; i < 16; i++) {
+        fds[i] = connect_from(&d, "127.0.0.1", head);
+        if (send_body(fds[i], body - 1) == body - 1)
+            held++;
+    }
+    sleep_ms(300);
+    hwm = status_kib(d.pid, "VmHWM");
+    for (i = 0; i < 16; i++) {
+        struct pollfd p = {fds[i], POLLIN, 0};
+        ssize_t k = poll(&p, 1, 0) > 0 ? read(fds[i], buf, sizeof buf - 1) : 0;
+        buf[k > 0 ? k : 0] = '\0';
+        busy += strstr(buf, " 503 ") && strstr(buf, "EBUSY") && strstr(buf, "Retry-After");
+        close(fds[i]);
+    }
+    /* without a Content-Length (chunked): the budget fills as bytes come */
+    sleep_ms(200);                     /* the closed uploads gave theirs back */
+    fd = connect_from(&d, "127.0.0.1", "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+                      "model/obj\r\nTransfer-Encoding: chunked\r\n\r\n");
+    {
+        int fd2 = connect_from(&d, "127.0.0.1", head);
+        size_t k = send_body(fd2, body - 1);   /* 40 MiB held, declared */
+        char chunk[32];
+        size_t sent = 0;
+        ssize_t n;
+        snprintf(chunk, sizeof chunk, "%x\r\n", 1 << 20);
+        /* 70 MiB: past the 60 the budget has left, and within the 16 MiB a
+         * refused body is still read for its answer */
+        while (sent < ((size_t)70 << 20)) {
+            if (send(fd, chunk, strlen(chunk), MSG_NOSIGNAL) <= 0 ||
+                send_body(fd, (size_t)1 << 20) != (size_t)1 << 20 ||
+                send(fd, "\r\n", 2, MSG_NOSIGNAL) != 2)
+                break;
+            sent += (size_t)1 << 20;
+        }
+        (void)!send(fd, "0\r\n\r\n", 5, MSG_NOSIGNAL);
+        n = read(fd, buf, sizeof buf - 1);
+        if (n > 0)
+            buf[n] = '\0';
+        else
+            snprintf(buf, sizeof buf, "(no answer)");
+        hwm2 = status_kib(d.pid, "VmHWM");
+        print_message("    16 uploads of 40 MiB held open (--max-memory 100M): %d taken, %d "
+                      "refused 503 EBUSY before their body; a chunked one beside a held "
+                      "40 MiB one: %zu MiB sent, answered %.12s; VmHWM %ld then %ld MiB "
+                      "(rest %ld MiB)\n", held, busy, sent >> 20, buf + 9, hwm >> 10,
+                      hwm2 >> 10, rest >> 10);
+        assert_true(k == body - 1);
+        assert_non_null(strstr(buf, " 503 "));
+        close(fd2);
+    }
+    close(fd);
+    assert_int_equal(held, 2);
+    assert_int_equal(busy, 14);
+    /* the budget is free again once the daemon has seen them go */
+    for (i = 0; i < 40; i++) {
+        if (post_file(&d, "/smooth", "meshes/sphere_cgal.obj", &r) != 503)
+            break;
+        resp_free(&r);
+        sleep_ms(50);
+    }
+    expect_status(&d, &r, 200, "an upload after the held ones left");
+    resp_free(&r);
+    stop_daemon(&d);
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;                            /* RSS means nothing there (test_memory_admission) */
+#endif
+    if (hwm > rest + 100 * 1024)
+        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M", hwm, rest);
 }
 
 /* Issue 9 item 3: the average-rate rule (4 KiB/s) let a client trickling
@@ -4149,8 +4559,12 @@ static void *short_client(void *arg)
 
 static void test_sigterm_drain(void **state)
 {
+    /* a drain timeout the running job meets also under TSan on a loaded
+     * machine (2500 steps took over 25 s there; about 1 s in a normal
+     * build): this test is about a drain that finishes the job */
     static const char *const flags[] = {"--workers", "1", "--log-level",
-                                        "debug", NULL};
+                                        "debug", "--drain-timeout", "120",
+                                        NULL};
     daemon_t d;
     char spool[600];
     sync_client_t sc, qc;
@@ -4205,7 +4619,7 @@ static void test_sigterm_drain(void **state)
         mcf_mesh_free(m);
     }
     resp_free(&sc.r);
-    assert_true(wait_exit(d.pid, 30, &st));
+    assert_true(wait_exit(d.pid, 150, &st));
     d.pid = 0;
     assert_true(WIFEXITED(st));
     assert_int_equal(WEXITSTATUS(st), 0);
@@ -4746,9 +5160,11 @@ int main(void)
         cmocka_unit_test_teardown(test_multipart_duplicates, kill_strays),
         cmocka_unit_test_teardown(test_hangup_and_budgets, kill_strays),
         cmocka_unit_test_teardown(test_http_small_things, kill_strays),
+        cmocka_unit_test_teardown(test_transfer_framing, kill_strays),
         cmocka_unit_test_teardown(test_query_flood, kill_strays),
         cmocka_unit_test_teardown(test_spool_failures, kill_strays),
         cmocka_unit_test_teardown(test_followers_and_per_ip, kill_strays),
+        cmocka_unit_test_teardown(test_per_ip_busy, kill_strays),
         cmocka_unit_test_teardown(test_queued_inputs_on_disk, kill_strays),
         cmocka_unit_test_teardown(test_header_deadline, kill_strays),
         cmocka_unit_test_teardown(test_spool_quota, kill_strays),
@@ -4756,11 +5172,13 @@ int main(void)
         cmocka_unit_test_teardown(test_descriptor_exhaustion, kill_strays),
         cmocka_unit_test_teardown(test_readonly_outcomes, kill_strays),
         cmocka_unit_test_teardown(test_step_log_memory, kill_strays),
+        cmocka_unit_test_teardown(test_events_memory, kill_strays),
         cmocka_unit_test_teardown(test_spool_damage, kill_strays),
         cmocka_unit_test_teardown(test_quantization_cap, kill_strays),
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
         cmocka_unit_test_teardown(test_body_timeout, kill_strays),
+        cmocka_unit_test_teardown(test_uploads_in_flight, kill_strays),
         cmocka_unit_test_teardown(test_clock_jumps, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
