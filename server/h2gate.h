@@ -1,9 +1,19 @@
 /*
- * h2gate.h - the gRPC door's socket (h2gate.c): the daemon listens,
- * accepts and admits HTTP/2 connections itself, and relays each admitted
- * one to the HTTP/2 server (gRPC) through a socketpair, reading the
- * client's frames on the way. Plain C; nothing here knows gRPC: the server
- * is a function that adopts the inner end of each socketpair.
+ * h2gate.h - the gRPC door's socket: the daemon listens, accepts and
+ * admits HTTP/2 connections itself, and relays each admitted one to the
+ * HTTP/2 server (gRPC) through a socketpair, reading the client's frames
+ * on the way. Plain C; nothing here knows gRPC: the server is a function
+ * that adopts the inner end of each socketpair.
+ *
+ * Three files, one concern each:
+ *  - h2gate.c: the door (the functions below up to h2gate_get_stats): its
+ *    thread, epoll loop, listening socket and the relay's sockets;
+ *  - h2gate_limits.c: the accounting of addresses, connections and
+ *    streams against the bounds ("The limits" below);
+ *  - h2gate_parser.c: one connection's frame parser ("The parser").
+ * The last two are pure (no sockets, threads, clock or globals: time
+ * comes in as `now`, seconds on a monotonic clock), so that
+ * tests/fuzz/fuzz_h2gate.c drives them exactly as the door does.
  *
  * What it bounds, beyond what gRPC 1.51 can (h2gate.c says why each):
  *  - connections, in all and per client address, and the descriptors
@@ -87,6 +97,102 @@ int h2gate_peer(int inner_fd, char *addr, size_t size);
  * handed to it, for unhealthy_after seconds. */
 int h2gate_health(char *why, size_t size);
 void h2gate_get_stats(h2gate_stats *out);
+
+/* ------------------------------------------------------------ The limits
+ * One object per gate: its bounds (a copy of the config's) and what
+ * counts against them. Not thread-safe: the gate's thread alone calls it. */
+typedef struct h2gate_limits h2gate_limits;
+typedef struct h2gate_addr h2gate_addr;   /* a client address */
+
+/* NULL when out of memory. now: where the reset backlog starts. */
+h2gate_limits *h2gate_limits_create(const h2gate_config *cfg, double now);
+/* Frees l and every address (NULL is fine). */
+void h2gate_limits_free(h2gate_limits *l);
+const h2gate_config *h2gate_limits_config(const h2gate_limits *l);
+/* A new connection from ip whose socket is fd, the lowest free descriptor,
+ * under RLIMIT_NOFILE fd_limit, while nconns are open: its address with
+ * the connection counted, or NULL and why in `why` (a sentence for the
+ * client's GOAWAY and the log): the descriptor reserve, a connection cap,
+ * or out of memory. */
+h2gate_addr *h2gate_limits_admit(h2gate_limits *l, const char *ip, int fd, int fd_limit,
+                                 int nconns, char *why, size_t size);
+/* A connection counted by h2gate_limits_admit has closed (its streams
+ * ended first: h2gate_parser_end); a may be freed. */
+void h2gate_limits_release(h2gate_limits *l, h2gate_addr *a);
+const char *h2gate_addr_ip(const h2gate_addr *a);
+/* Streams open in the server, in all (without the reset backlog). */
+int h2gate_limits_streams(const h2gate_limits *l);
+/* Whether a stream has ended since it was last cleared (clear: clear it),
+ * i.e. whether waiting connections may find room now. */
+int h2gate_limits_freed(h2gate_limits *l, int clear);
+/* For the parser: whether a connection holding conn_streams streams,
+ * from a, may open one more now; one opened; one ended (client_reset:
+ * by the client, before the server ended it: it joins the backlog). */
+int h2gate_limits_stream_room(h2gate_limits *l, h2gate_addr *a, int conn_streams, double now);
+void h2gate_limits_stream_opened(h2gate_limits *l, h2gate_addr *a);
+void h2gate_limits_stream_closed(h2gate_limits *l, h2gate_addr *a, int client_reset,
+                                 double now);
+
+/* ------------------------------------------------------------ The parser
+ * One per connection, fed the bytes of either way as they arrive, in
+ * chunks of any size; it answers what to do with a verdict and queues
+ * the bytes to write on. Not thread-safe. Way H2GATE_UP: the client's
+ * bytes in, the server's to write out; H2GATE_DOWN: the server's in, the
+ * client's out. What it writes is what it read, whole frames in the same
+ * order (the client preface first, up), plus RST_STREAM frames of its own
+ * (h2gate_parser_reset_silent) between frames and outside header blocks;
+ * bytes of a header block become writable only once the block is whole. */
+typedef struct h2gate_parser h2gate_parser;
+enum { H2GATE_UP = 0, H2GATE_DOWN = 1 };
+typedef enum {
+    H2GATE_MORE,   /* parsed what there is: read on */
+    H2GATE_ADOPT,  /* (up, once) the client preface is whole and queued for
+                      the server: hand the connection to it, parse again */
+    H2GATE_WAIT,   /* (up) a new stream past a bound: the rest stays
+                      unparsed; read no more from the client and parse
+                      again when a stream ends or time passes */
+    H2GATE_NOT_H2, /* (up) no client preface: close without a word */
+    H2GATE_CLOSE   /* a bound, the protocol (up) or out of memory: close
+                      with a GOAWAY saying *why (a static string) */
+} h2gate_verdict;
+
+/* NULL when out of memory. Its streams count against lim and a, which
+ * must outlive it. */
+h2gate_parser *h2gate_parser_create(h2gate_limits *lim, h2gate_addr *a);
+/* Frees p (NULL is fine); call h2gate_parser_end first. */
+void h2gate_parser_free(h2gate_parser *p);
+/* The connection closes: its streams leave the count. */
+void h2gate_parser_end(h2gate_parser *p, double now);
+/* Input: room for n bytes of way's input (NULL when out of memory), then
+ * how many were written there; or both at once from bytes (-1: memory). */
+void *h2gate_parser_in(h2gate_parser *p, int way, size_t n);
+void h2gate_parser_in_add(h2gate_parser *p, int way, size_t n);
+int h2gate_parser_feed(h2gate_parser *p, int way, const void *bytes, size_t n);
+/* Parses way's input as far as it may; *why is set for H2GATE_CLOSE. */
+h2gate_verdict h2gate_parser_parse(h2gate_parser *p, int way, double now, const char **why);
+/* Output: the bytes that may be written now (*n of them), then how many
+ * were; and all queued, writable or held (to stop reading past a mark). */
+const void *h2gate_parser_out(const h2gate_parser *p, int way, size_t *n);
+void h2gate_parser_out_drop(h2gate_parser *p, int way, size_t n);
+size_t h2gate_parser_out_size(const h2gate_parser *p, int way);
+/* Streams open now; streams opened in all. */
+int h2gate_parser_streams(const h2gate_parser *p);
+unsigned long h2gate_parser_opened(const h2gate_parser *p);
+/* 1 and *since (the `now` of its HEADERS) while the client is inside a
+ * header block, else 0. */
+int h2gate_parser_in_block(const h2gate_parser *p, double *since);
+/* Resets, both ways, the streams that sent no whole first message (nor
+ * ended their side) within timeout seconds: how many, or -1 when out of
+ * memory (close the connection). */
+int h2gate_parser_reset_silent(h2gate_parser *p, double now, double timeout);
+/* A GOAWAY (ENHANCE_YOUR_CALM, text truncated to fit) for the client in
+ * buf: its length, or 0 when the server's bytes are mid-frame or queued
+ * (the client's stream of frames must stay whole: then close without). */
+size_t h2gate_parser_goaway(const h2gate_parser *p, const char *text, unsigned char *buf,
+                            size_t size);
+/* A refused connection's answer, SETTINGS then GOAWAY (ENHANCE_YOUR_CALM,
+ * text): its length in buf (0 when size < 26). */
+size_t h2gate_refusal(const char *text, unsigned char *buf, size_t size);
 
 #ifdef __cplusplus
 }
