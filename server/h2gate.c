@@ -5,36 +5,9 @@
  * (grpc::AddInsecureChannelFromFd, the use gRPC's own fd tests make of it),
  * reading frame headers on the way.
  *
- * Why not gRPC's own listener with its options. In gRPC 1.51:
- *  - the listener gives up for good on any accept error but EAGAIN, EINTR
- *    and ECONNABORTED (tcp_server_posix.cc, on_read: `goto error`), so one
- *    EMFILE and the door never accepts again (CVE-2023-4785); a door that
- *    owns its socket retries, and logs at a bounded rate;
- *  - nothing caps connections, in all or per address:
- *    GRPC_ARG_MAX_CONNECTION_IDLE_MS (set too, grpc.cc) closes a connection
- *    without calls after a while, but a flood inside that while still takes
- *    every descriptor; the resource quota's "memory pressure" drops new
- *    connections only in that listener;
- *  - the HPACK parser copies the unparsed part of a header block again for
- *    every piece of it that arrives (hpack_parser.cc, HPackParser::Parse)
- *    and checks GRPC_ARG_MAX_METADATA_SIZE only when a field is complete:
- *    a block in many pieces costs quadratic CPU before any limit
- *    (CVE-2023-33953). Here a header block is held until it is whole and
- *    within max_header_block bytes and max_header_frames frames, then
- *    passed on at once;
- *  - MAX_CONCURRENT_STREAMS is enforced only once the client has
- *    acknowledged the setting (parsing.cc: ACKED settings), and a stream a
- *    client resets before the server answers it leaves work queued inside
- *    gRPC that no limit counts (the rapid reset class, CVE-2023-44487):
- *    40,000 HEADERS + RST_STREAM took 1.4 GiB. Here new streams wait while
- *    the connection, its address or the daemon is at its bound, a reset
- *    stream counting until gRPC could have disposed of it;
- *  - a unary call whose message never comes is held by gRPC before any
- *    handler sees it: here a stream must send its first whole message (or
- *    end its side) within message_timeout, else it is reset both ways.
- * The resource quota (grpc.cc) stays as gRPC's own backstop behind this.
- * The price: two more descriptors per connection (the socketpair) and one
- * copy of the bytes each way, on this one thread.
+ * Why not gRPC's own listener: h2gate.h. The price: two more descriptors
+ * per connection (the socketpair) and one copy of the bytes each way, on
+ * this one thread.
  *
  * The relay. Each connection has a parser (h2gate_parser.c) that holds,
  * each way, the bytes read and not yet parsed and the bytes to write. A
@@ -86,8 +59,6 @@ typedef struct {
     int server;                /* 0: the client's socket, 1: our end of the pair */
 } side;
 
-enum { S_PREFACE, S_OPEN };
-
 struct conn {
     conn *next, *prev;         /* G.conns (under G.mu) */
     conn *wprev, *wnext;       /* in *wl while waiting */
@@ -95,10 +66,10 @@ struct conn {
     side ends[2];
     int fd, pfd, inner;        /* client socket; our end; gRPC's end */
     unsigned ev[2];            /* epoll events registered (fd, pfd) */
-    int state, dead;
+    int dead;
     h2gate_addr *a;
     h2gate_parser *p;
-    double opened, adopted;
+    double adopted;
     int server_spoke;          /* gRPC has sent its preface */
 };
 
@@ -122,19 +93,12 @@ static struct {
 static int listen_tag, wake_tag;
 static srv_log_limit lim_accept, lim_refuse, lim_close, lim_reset;
 
-static void addr_string(const struct sockaddr_storage *ss, char *ip, size_t n)
+/* Adds n to one of G.stats' counters (other threads read them). */
+static void count(unsigned long *counter, unsigned long n)
 {
-    if (ss->ss_family == AF_INET6) {
-        const struct sockaddr_in6 *s6 = (const struct sockaddr_in6 *)ss;
-        if (IN6_IS_ADDR_V4MAPPED(&s6->sin6_addr))
-            inet_ntop(AF_INET, &s6->sin6_addr.s6_addr[12], ip, (socklen_t)n);
-        else
-            inet_ntop(AF_INET6, &s6->sin6_addr, ip, (socklen_t)n);
-    } else if (ss->ss_family == AF_INET) {
-        inet_ntop(AF_INET, &((const struct sockaddr_in *)ss)->sin_addr, ip, (socklen_t)n);
-    } else {
-        snprintf(ip, n, "local");
-    }
+    pthread_mutex_lock(&G.mu);
+    *counter += n;
+    pthread_mutex_unlock(&G.mu);
 }
 
 static void wl_push(wlist *l, conn *c)
@@ -306,7 +270,6 @@ static int adopt(conn *c, double now)
     pthread_mutex_lock(&G.mu);
     c->inner = sv[1];
     pthread_mutex_unlock(&G.mu);
-    c->state = S_OPEN;
     c->adopted = now;
     G.cfg.adopt(sv[1], G.cfg.adopt_arg);
     return 0;
@@ -333,9 +296,7 @@ static int relay_client(conn *c, double now)
         case H2GATE_NOT_H2:
             srv_logf_limited(&lim_close, SRV_LOG_WARN, "gRPC connection from %s closed: "
                              "not HTTP/2 (no client preface)", h2gate_addr_ip(c->a));
-            pthread_mutex_lock(&G.mu);
-            G.stats.closed++;
-            pthread_mutex_unlock(&G.mu);
+            count(&G.stats.closed, 1);
             conn_close(c, NULL);
             return -1;
         case H2GATE_CLOSE:
@@ -356,7 +317,7 @@ static void on_client(conn *c, double now)
     int i;
     for (i = 0; i < READS_PER_WAKE && !c->dead; i++) {
         ssize_t r;
-        if (c->state == S_OPEN && !may_read_client(c))
+        if (c->pfd >= 0 && !may_read_client(c))
             break;
         r = read_into(c->fd, c->p, H2GATE_UP);
         if (r == -1)
@@ -405,26 +366,24 @@ static void refuse(int fd, const char *ip, const char *why)
     snprintf(text, sizeof text, "mcfd: %s", why);
     (void)!send(fd, f, h2gate_refusal(text, f, sizeof f), MSG_NOSIGNAL | MSG_DONTWAIT);
     close(fd);
-    pthread_mutex_lock(&G.mu);
-    G.stats.refused++;
-    pthread_mutex_unlock(&G.mu);
+    count(&G.stats.refused, 1);
     srv_logf_limited(&lim_refuse, SRV_LOG_WARN, "gRPC connection from %s refused: %s", ip, why);
 }
 
-static void admit(int fd, const struct sockaddr_storage *ss, double now)
+static void admit(int fd, const struct sockaddr *sa, double now)
 {
     char ip[INET6_ADDRSTRLEN], why[160];
     h2gate_addr *a;
     conn *c;
     struct epoll_event ev;
 
-    addr_string(ss, ip, sizeof ip);
+    h2gate_addr_format(sa, ip, sizeof ip);
     if (!(a = h2gate_limits_admit(G.lim, ip, fd, srv_fds_limit(), G.nconns, why, sizeof why))) {
         refuse(fd, ip, why);
         return;
     }
     c = calloc(1, sizeof *c);
-    if (!c || !(c->p = h2gate_parser_create(G.lim, a))) {
+    if (!c || !(c->p = h2gate_parser_create(G.lim, a, now))) {
         free(c);
         h2gate_limits_release(G.lim, a);
         refuse(fd, ip, "out of memory");
@@ -434,7 +393,6 @@ static void admit(int fd, const struct sockaddr_storage *ss, double now)
     c->pfd = c->inner = -1;
     c->ends[0].c = c->ends[1].c = c;
     c->ends[1].server = 1;
-    c->opened = now;
     c->a = a;
     memset(&ev, 0, sizeof ev);
     ev.events = EPOLLIN | EPOLLRDHUP;
@@ -472,18 +430,14 @@ static void do_accept(double now)
         struct sockaddr_storage ss;
         socklen_t sl = sizeof ss;
         int fd = accept4(G.lfd, (struct sockaddr *)&ss, &sl, SOCK_NONBLOCK | SOCK_CLOEXEC);
-        if (fd >= 0) {
+        if (fd >= 0 || errno == EAGAIN || errno == EWOULDBLOCK) {
             pthread_mutex_lock(&G.mu);
-            G.fail_since = 0;
+            G.fail_since = 0;  /* accept works (nothing is waiting, perhaps) */
             pthread_mutex_unlock(&G.mu);
-            admit(fd, &ss, now);
+            if (fd < 0)
+                return;
+            admit(fd, (const struct sockaddr *)&ss, now);
             continue;
-        }
-        if (errno == EAGAIN || errno == EWOULDBLOCK) {
-            pthread_mutex_lock(&G.mu);
-            G.fail_since = 0;  /* accept works: nothing is waiting */
-            pthread_mutex_unlock(&G.mu);
-            return;
         }
         if (errno == EINTR || errno == ECONNABORTED || errno == EPROTO || errno == EPERM)
             continue;          /* that connection only */
@@ -550,19 +504,13 @@ static void resume_waiters(double now)
 static void expire(conn *c, double now)
 {
     const h2gate_config *k = &G.cfg;
-    double since;
+    const char *late;
     int reset;
-    if (c->state == S_PREFACE) {
-        if (k->header_timeout > 0 && now - c->opened > k->header_timeout)
-            conn_close(c, "no client preface within --header-timeout");
+    if (k->header_timeout > 0 && (late = h2gate_parser_late(c->p, now, k->header_timeout))) {
+        conn_close(c, late);
         return;
     }
-    if (k->header_timeout > 0 && h2gate_parser_in_block(c->p, &since) &&
-        now - since > k->header_timeout) {
-        conn_close(c, "a header block not whole within --header-timeout");
-        return;
-    }
-    if (k->message_timeout <= 0)
+    if (c->pfd < 0 || k->message_timeout <= 0)
         return;
     reset = h2gate_parser_reset_silent(c->p, now, k->message_timeout);
     if (reset < 0) {
@@ -571,9 +519,7 @@ static void expire(conn *c, double now)
     }
     if (reset == 0)
         return;
-    pthread_mutex_lock(&G.mu);
-    G.stats.streams_reset += (unsigned long)reset;
-    pthread_mutex_unlock(&G.mu);
+    count(&G.stats.streams_reset, (unsigned long)reset);
     srv_logf_limited(&lim_reset, SRV_LOG_WARN, "gRPC: reset %d stream%s from %s "
                      "that sent no whole first message within %g s",
                      reset, reset == 1 ? "" : "s", h2gate_addr_ip(c->a), k->message_timeout);
@@ -596,7 +542,7 @@ static void tick(double now)
     for (c = G.conns; c; c = next) {
         next = c->next;
         expire(c, now);
-        if (!c->dead && c->state == S_OPEN && !c->server_spoke && now - c->adopted > mute)
+        if (!c->dead && c->pfd >= 0 && !c->server_spoke && now - c->adopted > mute)
             mute = now - c->adopted;
     }
     pthread_mutex_lock(&G.mu);

@@ -15,7 +15,7 @@
  * comes in as `now`, seconds on a monotonic clock), so that
  * tests/fuzz/fuzz_h2gate.c drives them exactly as the door does.
  *
- * What it bounds, beyond what gRPC 1.51 can (h2gate.c says why each):
+ * What it bounds, beyond what gRPC 1.51 can (why each: below):
  *  - connections, in all and per client address, and the descriptors
  *    they take (a reserve is never touched); accept errors never stop the
  *    door and are logged at a bounded rate;
@@ -27,6 +27,35 @@
  *    client reset before gRPC answered them (gRPC disposes of those later,
  *    at its own pace): a client past a bound waits (its bytes are not
  *    read), it is not refused.
+ *
+ * Why not gRPC's own listener with its options. In gRPC 1.51:
+ *  - the listener gives up for good on any accept error but EAGAIN, EINTR
+ *    and ECONNABORTED (tcp_server_posix.cc, on_read: `goto error`), so one
+ *    EMFILE and the door never accepts again (CVE-2023-4785); a door that
+ *    owns its socket retries, and logs at a bounded rate;
+ *  - nothing caps connections, in all or per address:
+ *    GRPC_ARG_MAX_CONNECTION_IDLE_MS (set too, grpc.cc) closes a connection
+ *    without calls after a while, but a flood inside that while still takes
+ *    every descriptor; the resource quota's "memory pressure" drops new
+ *    connections only in that listener;
+ *  - the HPACK parser copies the unparsed part of a header block again for
+ *    every piece of it that arrives (hpack_parser.cc, HPackParser::Parse)
+ *    and checks GRPC_ARG_MAX_METADATA_SIZE only when a field is complete:
+ *    a block in many pieces costs quadratic CPU before any limit
+ *    (CVE-2023-33953). Here a header block is held until it is whole and
+ *    within max_header_block bytes and max_header_frames frames, then
+ *    passed on at once;
+ *  - MAX_CONCURRENT_STREAMS is enforced only once the client has
+ *    acknowledged the setting (parsing.cc: ACKED settings), and a stream a
+ *    client resets before the server answers it leaves work queued inside
+ *    gRPC that no limit counts (the rapid reset class, CVE-2023-44487):
+ *    40,000 HEADERS + RST_STREAM took 1.4 GiB. Here new streams wait while
+ *    the connection, its address or the daemon is at its bound, a reset
+ *    stream counting until gRPC could have disposed of it;
+ *  - a unary call whose message never comes is held by gRPC before any
+ *    handler sees it: here a stream must send its first whole message (or
+ *    end its side) within message_timeout, else it is reset both ways.
+ * The resource quota (grpc.cc) stays as gRPC's own backstop behind this.
  */
 #ifndef SRV_H2GATE_H
 #define SRV_H2GATE_H
@@ -120,6 +149,10 @@ h2gate_addr *h2gate_limits_admit(h2gate_limits *l, const char *ip, int fd, int f
  * ended first: h2gate_parser_end); a may be freed. */
 void h2gate_limits_release(h2gate_limits *l, h2gate_addr *a);
 const char *h2gate_addr_ip(const h2gate_addr *a);
+/* A socket address as the limits count it: "192.0.2.1" (also for an IPv4
+ * client of an IPv6 socket), "2001:db8::1", or "local". */
+struct sockaddr;
+void h2gate_addr_format(const struct sockaddr *sa, char *ip, size_t size);
 /* Streams open in the server, in all (without the reset backlog). */
 int h2gate_limits_streams(const h2gate_limits *l);
 /* Whether a stream has ended since it was last cleared (clear: clear it),
@@ -157,8 +190,8 @@ typedef enum {
 } h2gate_verdict;
 
 /* NULL when out of memory. Its streams count against lim and a, which
- * must outlive it. */
-h2gate_parser *h2gate_parser_create(h2gate_limits *lim, h2gate_addr *a);
+ * must outlive it; now: when the connection opened. */
+h2gate_parser *h2gate_parser_create(h2gate_limits *lim, h2gate_addr *a, double now);
 /* Frees p (NULL is fine); call h2gate_parser_end first. */
 void h2gate_parser_free(h2gate_parser *p);
 /* The connection closes: its streams leave the count. */
@@ -178,9 +211,10 @@ size_t h2gate_parser_out_size(const h2gate_parser *p, int way);
 /* Streams open now; streams opened in all. */
 int h2gate_parser_streams(const h2gate_parser *p);
 unsigned long h2gate_parser_opened(const h2gate_parser *p);
-/* 1 and *since (the `now` of its HEADERS) while the client is inside a
- * header block, else 0. */
-int h2gate_parser_in_block(const h2gate_parser *p, double *since);
+/* Why the connection is out of time at now (a static string: its client
+ * preface, or the header block it is inside, not whole within timeout
+ * seconds), or NULL. */
+const char *h2gate_parser_late(const h2gate_parser *p, double now, double timeout);
 /* Resets, both ways, the streams that sent no whole first message (nor
  * ended their side) within timeout seconds: how many, or -1 when out of
  * memory (close the connection). */

@@ -18,14 +18,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
 
 #include "h2gate.h"
 
-#define IP_SIZE 46             /* INET6_ADDRSTRLEN */
 
 struct h2gate_addr {
     h2gate_addr *next;
-    char ip[IP_SIZE];
+    char ip[INET6_ADDRSTRLEN];
     int conns, streams;
     double z, z_at;            /* reset backlog (see the top) */
 };
@@ -73,6 +75,22 @@ int h2gate_limits_freed(h2gate_limits *l, int clear)
 }
 
 /* ------------------------------------------------------------- addresses */
+
+void h2gate_addr_format(const struct sockaddr *sa, char *ip, size_t n)
+{
+    if (sa->sa_family == AF_INET6) {
+        const struct sockaddr_in6 *s6 = (const struct sockaddr_in6 *)(const void *)sa;
+        if (IN6_IS_ADDR_V4MAPPED(&s6->sin6_addr))
+            inet_ntop(AF_INET, &s6->sin6_addr.s6_addr[12], ip, (socklen_t)n);
+        else
+            inet_ntop(AF_INET6, &s6->sin6_addr, ip, (socklen_t)n);
+    } else if (sa->sa_family == AF_INET) {
+        inet_ntop(AF_INET, &((const struct sockaddr_in *)(const void *)sa)->sin_addr, ip,
+                  (socklen_t)n);
+    } else {
+        snprintf(ip, n, "local");
+    }
+}
 
 static h2gate_addr *addr_find(h2gate_limits *l, const char *ip)
 {

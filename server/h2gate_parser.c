@@ -133,6 +133,7 @@ struct h2gate_parser {
     h2gate_limits *lim;
     h2gate_addr *a;
     int open;                  /* the client preface has passed */
+    double opened;             /* `now` when the connection opened */
     dir way[2];                /* H2GATE_UP, H2GATE_DOWN */
     stream *st;
     int nst, capst;
@@ -140,12 +141,13 @@ struct h2gate_parser {
     unsigned long nopened;     /* streams it has opened */
 };
 
-h2gate_parser *h2gate_parser_create(h2gate_limits *lim, h2gate_addr *a)
+h2gate_parser *h2gate_parser_create(h2gate_limits *lim, h2gate_addr *a, double now)
 {
     h2gate_parser *p = calloc(1, sizeof *p);
     if (p) {
         p->lim = lim;
         p->a = a;
+        p->opened = now;
     }
     return p;
 }
@@ -221,12 +223,14 @@ void h2gate_parser_end(h2gate_parser *p, double now)
 int h2gate_parser_streams(const h2gate_parser *p) { return p->nst; }
 unsigned long h2gate_parser_opened(const h2gate_parser *p) { return p->nopened; }
 
-int h2gate_parser_in_block(const h2gate_parser *p, double *since)
+const char *h2gate_parser_late(const h2gate_parser *p, double now, double timeout)
 {
-    if (!p->way[H2GATE_UP].block)
-        return 0;
-    *since = p->way[H2GATE_UP].block_t0;
-    return 1;
+    const dir *d = &p->way[H2GATE_UP];
+    if (!p->open && now - p->opened > timeout)
+        return "no client preface within --header-timeout";
+    if (d->block && now - d->block_t0 > timeout)
+        return "a header block not whole within --header-timeout";
+    return NULL;
 }
 
 /* ------------------------------------------------------------------ bytes */

@@ -14,8 +14,9 @@
  *
  * Besides the sanitizers, it checks what h2gate.h promises:
  *  - the server gets the client preface, then whole frames, and never the
- *    beginning of a header block before its end (what the gate holds is at
- *    most max_header_block bytes in max_header_frames frames);
+ *    beginning of a header block before its end; each block it gets, and
+ *    what the gate holds, is within max_header_block bytes and
+ *    max_header_frames frames;
  *  - streams in the server never exceed the connection's bound, and the
  *    limits count what the parser counts (all return to 0 at the close);
  *  - WAIT only when a bound is met; the server's bytes reach the client
@@ -25,6 +26,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 
 #include "fuzz_common.h"
 #include "h2gate.h"
@@ -39,6 +42,7 @@
 
 static const char PREFACE[] = "PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n";
 #define TIMEOUT 2.0            /* message_timeout of the run, seconds */
+#define HEADER_TIMEOUT 5.0     /* header_timeout */
 #define MAX_SILENT 64
 
 typedef struct {
@@ -54,8 +58,9 @@ typedef struct {
     /* the stand-in server: what the gate passed it, frame by frame */
     unsigned char *acc;
     size_t acc_n, acc_cap, up_total;
-    int got_preface, in_block;
+    int got_preface, in_block, block_frames;
     uint32_t block_sid, last_sid;
+    size_t block_bytes;
     uint32_t silent[MAX_SILENT];
     int nsilent;
     /* the way back */
@@ -167,6 +172,11 @@ static void server_reads(run *r)
         if (r->in_block)       /* a block goes on in CONTINUATIONs of its stream */
             CHECK(type == 9 && sid == r->block_sid);
         if (type == 1 || type == 9) {
+            /* every block the server gets is within the bounds */
+            r->block_frames = type == 1 ? 1 : r->block_frames + 1;
+            r->block_bytes = (type == 1 ? 0 : r->block_bytes) + len;
+            CHECK(r->block_frames <= r->cfg.max_header_frames);
+            CHECK(r->block_bytes <= r->cfg.max_header_block);
             if (type == 1) {
                 r->block_sid = sid;
                 if ((sid & 1) && sid > r->last_sid) {
@@ -285,15 +295,23 @@ static void setup(run *r, const uint8_t *data, size_t size)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     run r;
-    char why[160];
+    char why[160], ip[INET6_ADDRSTRLEN];
+    struct sockaddr_in6 sa;
     size_t pos = 0;
     if (size < 2)
         return 0;
     setup(&r, data, size);
+    memset(&sa, 0, sizeof sa);         /* the client's address, v4 mapped or not */
+    sa.sin6_family = AF_INET6;
+    memcpy(&sa.sin6_addr, &r.rng, sizeof r.rng);
+    sa.sin6_addr.s6_addr[10] = sa.sin6_addr.s6_addr[11] = (r.rng & 1) ? 0xff : 0;
+    h2gate_addr_format((const struct sockaddr *)&sa, ip, sizeof ip);
+    CHECK(ip[0] != '\0');
     CHECK((r.lim = h2gate_limits_create(&r.cfg, 0)) != NULL);
-    CHECK((r.a = h2gate_limits_admit(r.lim, "192.0.2.1", 10, 1024, 0, why, sizeof why)));
-    CHECK((r.p = h2gate_parser_create(r.lim, r.a)) != NULL);
+    CHECK((r.a = h2gate_limits_admit(r.lim, ip, 10, 1024, 0, why, sizeof why)));
+    CHECK((r.p = h2gate_parser_create(r.lim, r.a, 0)) != NULL);
     while (pos < r.size) {
+        const char *late;
         size_t n = r.size - pos;
         switch (r.mode) {
         case 1: n = 1; break;
@@ -312,6 +330,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             server_sends(&r, r.data + at, k < r.size - at ? k : r.size - at);
         }
         r.now += 0.25 * (next(&r) % 4);
+        if ((late = h2gate_parser_late(r.p, r.now, HEADER_TIMEOUT))) {
+            /* the preface, or a block the gate holds (its HEADERS at least) */
+            CHECK(!r.got_preface || h2gate_parser_out_size(r.p, H2GATE_UP) >= 9);
+            break;
+        }
         if (r.cfg.message_timeout > 0 && r.got_preface) {
             int reset = h2gate_parser_reset_silent(r.p, r.now, r.cfg.message_timeout);
             CHECK(reset >= 0);

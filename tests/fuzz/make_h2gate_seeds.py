@@ -53,11 +53,14 @@ SEEDS = {
     "gzip_message": START + frame(HEADERS, END_HEADERS, 1, h2raw.request_headers(
         b"/mcfd.v1.Smoother/Smooth", [(b"grpc-encoding", b"gzip")])) +
     frame(DATA, END_STREAM, 1, h2raw.message(h2raw.gzip_bomb(1 << 16), compressed=True)),
+    "trickled_block": START + frame(HEADERS, 0, 1, GETJOB[:40]) +
+    b"".join(frame(CONTINUATION, 0, 1, GETJOB[i:i + 1]) for i in range(40, 70)) +
+    frame(CONTINUATION, END_HEADERS, 1, GETJOB[70:]),
     "preface_only": PREFACE,
     "not_http2": b"GET / HTTP/1.1\r\nHost: mcfd\r\n\r\n",
 }
 # control bytes: (bounds, pieces and server); see fuzz_h2gate.c's setup()
-CONTROLS = [b"\x86\x00", b"\x80\x10", b"\xa9\x25", b"\x55\xb3"]
+CONTROLS = [b"\x86\x00", b"\x80\x10", b"\xa9\x25", b"\x55\xb3", b"\x82\x2a"]
 
 
 def main():
