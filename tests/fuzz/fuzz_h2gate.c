@@ -3,8 +3,8 @@
  * h2gate_parser.c, h2gate_limits.c) on arbitrary client bytes, driven as
  * server/h2gate.c drives it, with a stand-in for gRPC behind it.
  *
- * Input: two control bytes, then what the client sends. The control bytes
- * choose the bounds (streams per connection, per address, in all; header
+ * Input: three control bytes, then what the client sends. They choose
+ * one or two connections (from one address or two), the bounds (streams per connection, per address, in all; header
  * block bytes and frames; the reset backlog's pace), how the bytes arrive
  * (all at once, byte by byte, in random pieces), and how the stand-in
  * server behaves: it reads the frames the gate passes it and answers each
@@ -23,6 +23,7 @@
  *    unchanged (plus the gate's RST_STREAMs); a GOAWAY is a whole frame.
  * Seeds: tests/fuzz/corpus_h2gate/ (tests/fuzz/make_h2gate_seeds.py).
  */
+#define _GNU_SOURCE 1        /* memmem */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -45,12 +46,14 @@ static const char PREFACE[] = "PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n";
 #define HEADER_TIMEOUT 5.0     /* header_timeout */
 #define MAX_SILENT 64
 
-typedef struct {
+typedef struct run {
     h2gate_config cfg;
     h2gate_limits *lim;
     h2gate_addr *a;
     h2gate_parser *p;
-    double now;
+    double *now;               /* the clock, shared */
+    const struct run *peer;    /* the other connection, or NULL */
+    size_t pos, end;           /* its part of the client's bytes */
     uint32_t rng;
     int mode, garbage, answer;
     const uint8_t *data;       /* the client's bytes, for the garbage server */
@@ -96,7 +99,7 @@ static void server_sends(run *r, const void *b, size_t n)
     size_t k;
     CHECK(h2gate_parser_feed(r->p, H2GATE_DOWN, b, n) == 0);
     r->down_fed += n;
-    CHECK(h2gate_parser_parse(r->p, H2GATE_DOWN, r->now, &why) == H2GATE_MORE);
+    CHECK(h2gate_parser_parse(r->p, H2GATE_DOWN, *r->now, &why) == H2GATE_MORE);
     h2gate_parser_out(r->p, H2GATE_DOWN, &k);
     CHECK(k == h2gate_parser_out_size(r->p, H2GATE_DOWN));   /* nothing held this way */
     h2gate_parser_out_drop(r->p, H2GATE_DOWN, k);
@@ -225,7 +228,8 @@ static void drain_up(run *r)
 static void check_counts(run *r)
 {
     int n = h2gate_parser_streams(r->p);
-    CHECK(h2gate_limits_streams(r->lim) == n);
+    int all = n + (r->peer && r->peer->p ? h2gate_parser_streams(r->peer->p) : 0);
+    CHECK(h2gate_limits_streams(r->lim) == all);
     if (r->cfg.streams_per_conn > 0)
         CHECK(n <= r->cfg.streams_per_conn);
 }
@@ -238,7 +242,7 @@ static int gate_parses(run *r)
         const char *why = NULL;
         unsigned char g[9 + 8 + 128];
         size_t n;
-        h2gate_verdict v = h2gate_parser_parse(r->p, H2GATE_UP, r->now, &why);
+        h2gate_verdict v = h2gate_parser_parse(r->p, H2GATE_UP, *r->now, &why);
         check_counts(r);
         switch (v) {
         case H2GATE_MORE:
@@ -259,12 +263,12 @@ static int gate_parses(run *r)
                              ((size_t)g[0] << 16 | (size_t)g[1] << 8 | g[2]) == n - 9));
             return 1;
         case H2GATE_WAIT:
-            CHECK(!h2gate_limits_stream_room(r->lim, r->a, h2gate_parser_streams(r->p), r->now));
+            CHECK(!h2gate_limits_stream_room(r->lim, r->a, h2gate_parser_streams(r->p), *r->now));
             drain_up(r);
             if (++tries > 8)
                 return 1;      /* a client the bounds hold for good */
             server_catches_up(r);
-            r->now += 1.0;     /* the reset backlog drains */
+            *r->now += 1.0;     /* the reset backlog drains */
             continue;
         }
     }
@@ -287,69 +291,119 @@ static void setup(run *r, const uint8_t *data, size_t size)
     r->cfg.resets_per_s = (c1 & 0x40) ? 1 : 1000;
     r->answer = !(c1 & 0x80);
     r->cfg.message_timeout = (c0 & 0x80) ? TIMEOUT : 0;
-    r->rng = 0x9e3779b9u ^ (uint32_t)(c0 << 8 | c1) ^ (uint32_t)size;
-    r->data = data + 2;
-    r->size = size - 2;
+    r->rng = 0x9e3779b9u ^ (uint32_t)(c0 << 8 | c1 | data[2] << 16) ^ (uint32_t)size;
+    r->data = data + 3;
+    r->size = size - 3;
 }
 
+/* A connection from ip opens, for the client's bytes [pos, end). */
+static void conn_open(run *r, const char *ip, size_t pos, size_t end)
+{
+    char why[160];
+    CHECK((r->a = h2gate_limits_admit(r->lim, ip, 10, 1024, 0, why, sizeof why)));
+    CHECK((r->p = h2gate_parser_create(r->lim, r->a, *r->now)) != NULL);
+    r->pos = pos;
+    r->end = end;
+}
+
+static void conn_close(run *r)
+{
+    if (!r->p)
+        return;
+    h2gate_parser_end(r->p, *r->now);
+    h2gate_parser_free(r->p);
+    r->p = NULL;
+    h2gate_limits_release(r->lim, r->a);
+    free(r->acc);
+    r->acc = NULL;
+}
+
+/* The next piece of r's bytes, then the server's and the clock's turn:
+ * 0, or 1 when the connection is over. */
+static int step(run *r)
+{
+    const char *late;
+    size_t n = r->end - r->pos;
+    int reset;
+    switch (r->mode) {
+    case 1: n = 1; break;
+    case 2: n = 1 + next(r) % 16; break;
+    case 3: n = 1 + next(r) % 512; break;
+    default: break;
+    }
+    if (n > r->end - r->pos)
+        n = r->end - r->pos;
+    CHECK(h2gate_parser_feed(r->p, H2GATE_UP, r->data + r->pos, n) == 0);
+    r->pos += n;
+    if (gate_parses(r))
+        return 1;
+    if (r->garbage && r->got_preface) {      /* a server that talks nonsense */
+        size_t at = next(r) % r->size, k = 1 + next(r) % 64;
+        server_sends(r, r->data + at, k < r->size - at ? k : r->size - at);
+    }
+    *r->now += 0.25 * (next(r) % 4);
+    if ((late = h2gate_parser_late(r->p, *r->now, HEADER_TIMEOUT))) {
+        /* the preface, or a block the gate holds (its HEADERS at least) */
+        CHECK(!r->got_preface || h2gate_parser_out_size(r->p, H2GATE_UP) >= 9);
+        return 1;
+    }
+    if (r->cfg.message_timeout > 0 && r->got_preface) {
+        CHECK((reset = h2gate_parser_reset_silent(r->p, *r->now, r->cfg.message_timeout)) >= 0);
+        r->resets += (size_t)reset;
+        check_counts(r);
+        drain_up(r);
+    }
+    return r->pos == r->end;
+}
+
+/* Input: three control bytes (setup: bounds, pieces, server; the third:
+ * bit 0 two connections, the second from the bytes after the first's
+ * (from a second client preface on, else the second half), bit 1 both from
+ * one address), then the client's bytes. */
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    run r;
-    char why[160], ip[INET6_ADDRSTRLEN];
+    run r[2];
+    char ip[2][INET6_ADDRSTRLEN];
     struct sockaddr_in6 sa;
-    size_t pos = 0;
-    if (size < 2)
+    double now = 0;
+    size_t split;
+    int two, i;
+    if (size < 3)
         return 0;
-    setup(&r, data, size);
+    setup(&r[0], data, size);
+    two = data[2] & 1;
     memset(&sa, 0, sizeof sa);         /* the client's address, v4 mapped or not */
     sa.sin6_family = AF_INET6;
-    memcpy(&sa.sin6_addr, &r.rng, sizeof r.rng);
-    sa.sin6_addr.s6_addr[10] = sa.sin6_addr.s6_addr[11] = (r.rng & 1) ? 0xff : 0;
-    h2gate_addr_format((const struct sockaddr *)&sa, ip, sizeof ip);
-    CHECK(ip[0] != '\0');
-    CHECK((r.lim = h2gate_limits_create(&r.cfg, 0)) != NULL);
-    CHECK((r.a = h2gate_limits_admit(r.lim, ip, 10, 1024, 0, why, sizeof why)));
-    CHECK((r.p = h2gate_parser_create(r.lim, r.a, 0)) != NULL);
-    while (pos < r.size) {
-        const char *late;
-        size_t n = r.size - pos;
-        switch (r.mode) {
-        case 1: n = 1; break;
-        case 2: n = 1 + next(&r) % 16; break;
-        case 3: n = 1 + next(&r) % 512; break;
-        default: break;
-        }
-        if (n > r.size - pos)
-            n = r.size - pos;
-        CHECK(h2gate_parser_feed(r.p, H2GATE_UP, r.data + pos, n) == 0);
-        pos += n;
-        if (gate_parses(&r))
-            break;
-        if (r.garbage && r.got_preface) {    /* a server that talks nonsense */
-            size_t at = next(&r) % r.size, k = 1 + next(&r) % 64;
-            server_sends(&r, r.data + at, k < r.size - at ? k : r.size - at);
-        }
-        r.now += 0.25 * (next(&r) % 4);
-        if ((late = h2gate_parser_late(r.p, r.now, HEADER_TIMEOUT))) {
-            /* the preface, or a block the gate holds (its HEADERS at least) */
-            CHECK(!r.got_preface || h2gate_parser_out_size(r.p, H2GATE_UP) >= 9);
-            break;
-        }
-        if (r.cfg.message_timeout > 0 && r.got_preface) {
-            int reset = h2gate_parser_reset_silent(r.p, r.now, r.cfg.message_timeout);
-            CHECK(reset >= 0);
-            r.resets += (size_t)reset;
-            check_counts(&r);
-            drain_up(&r);
+    memcpy(&sa.sin6_addr, &r[0].rng, sizeof r[0].rng);
+    sa.sin6_addr.s6_addr[10] = sa.sin6_addr.s6_addr[11] = (r[0].rng & 1) ? 0xff : 0;
+    h2gate_addr_format((const struct sockaddr *)&sa, ip[0], sizeof ip[0]);
+    CHECK(ip[0][0] != '\0');
+    snprintf(ip[1], sizeof ip[1], "%s", (data[2] & 2) ? ip[0] : "198.51.100.7");
+    split = r[0].size;
+    if (two && r[0].size > 24) {
+        const void *at = memmem(r[0].data + 1, r[0].size - 1, PREFACE, 24);
+        split = at ? (size_t)((const uint8_t *)at - r[0].data) : r[0].size / 2;
+    }
+    r[1] = r[0];
+    r[1].rng ^= 0x5bd1e995u;
+    CHECK((r[0].lim = r[1].lim = h2gate_limits_create(&r[0].cfg, now)) != NULL);
+    for (i = 0; i < 2; i++) {
+        r[i].now = &now;
+        r[i].peer = two ? &r[1 - i] : NULL;
+    }
+    conn_open(&r[0], ip[0], 0, split);
+    if (two)
+        conn_open(&r[1], ip[1], split, r[0].size);
+    while (r[0].p || r[1].p) {
+        /* the connections take turns at random */
+        i = !r[0].p || (r[1].p && (next(&r[0]) & 1));
+        if (r[i].pos == r[i].end || step(&r[i])) {
+            /* the server got at most what the client sent, the gate's resets added */
+            CHECK(r[i].up_total <= r[i].end - (i ? split : 0) + 13 * r[i].resets);
+            conn_close(&r[i]);
         }
     }
-    /* the server got at most what the client sent, the gate's resets added */
-    CHECK(r.up_total <= r.size + 13 * r.resets);
-    h2gate_parser_end(r.p, r.now);
-    CHECK(h2gate_limits_streams(r.lim) == 0);
-    h2gate_parser_free(r.p);
-    h2gate_limits_release(r.lim, r.a);
-    h2gate_limits_free(r.lim);
-    free(r.acc);
+    CHECK(h2gate_limits_streams(r[0].lim) == 0);
+    h2gate_limits_free(r[0].lim);
     return 0;
 }

@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """make_h2gate_seeds.py - regenerates tests/fuzz/corpus_h2gate/: what gRPC
 clients (and the attacks of tests/test_grpc.py) send to the gRPC door,
-written with tests/h2raw.py, each behind the two control bytes
-fuzz_h2gate.c reads (bounds, pieces, the stand-in server's manners).
+written with tests/h2raw.py, each behind the three control bytes
+fuzz_h2gate.c reads (bounds, pieces, the stand-in server's manners, one
+connection or two).
 Run from the top of the tree: /usr/bin/python3 tests/fuzz/make_h2gate_seeds.py
 """
 import os
@@ -59,18 +60,29 @@ SEEDS = {
     "preface_only": PREFACE,
     "not_http2": b"GET / HTTP/1.1\r\nHost: mcfd\r\n\r\n",
 }
-# control bytes: (bounds, pieces and server); see fuzz_h2gate.c's setup()
+# control bytes: bounds, pieces and server (fuzz_h2gate.c's setup()), then
+# one connection (0), two from two addresses (1) or from one (3)
 CONTROLS = [b"\x86\x00", b"\x80\x10", b"\xa9\x25", b"\x55\xb3", b"\x82\x2a"]
+PAIRS = {  # two clients at once: an attacker and a legitimate caller
+    "pair_rapid_reset_unary": (b"\x9a\x20\x03", "rapid_reset", "unary"),
+    "pair_abandoned_unary": (b"\xb9\x30\x03", "abandoned", "two_calls_settings_ack"),
+    "pair_flood_continuations": (b"\x82\x00\x01", "header_flood", "continuations"),
+}
 
 
 def main():
     shutil.rmtree(OUT, ignore_errors=True)
     os.makedirs(OUT)
-    for name, data in sorted(SEEDS.items()):
+    seeds = {}
+    for name, data in SEEDS.items():
         for i, c in enumerate(CONTROLS):
-            with open(os.path.join(OUT, "%s_%d" % (name, i)), "wb") as f:
-                f.write(c + data)
-    print("%d seeds in %s" % (len(SEEDS) * len(CONTROLS), OUT))
+            seeds["%s_%d" % (name, i)] = c + b"\0" + data
+    for name, (c, a, b) in PAIRS.items():
+        seeds[name] = c + SEEDS[a] + SEEDS[b]
+    for name, data in sorted(seeds.items()):
+        with open(os.path.join(OUT, name), "wb") as f:
+            f.write(data)
+    print("%d seeds in %s" % (len(seeds), OUT))
 
 
 if __name__ == "__main__":
