@@ -4,7 +4,8 @@
  * the classes of its streaming calls. The door is api/mcfd.proto's
  * mcfd.v1.Smoother on gRPC's C++ callback API, a bridge from the
  * transport to the job service (service.h) behind the plain C interface
- * of grpc_door.h; the only C++ in server/, as api_draco.cc is in api/.
+ * of grpc_door.h; the only C++ in server/, as api/'s bridges to C++
+ * libraries (api_draco*.cc, api_gltf.cc) are in api/.
  * Everything it decides about jobs it asks the service, everything about
  * parameters, formats and metrics it asks api/ through the service, so
  * both doors give the same answers.
