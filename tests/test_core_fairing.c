@@ -584,7 +584,7 @@ static void test_default_beats_taubin_scans(void **state)
  * needs the clean mesh, which the guard does not have: a face lying
  * backwards in the input may be the noise's fold or the clean model's own
  * folded sliver, and unfolding the first kind unfolds some of the second
- * (snowden, seed 1, 0.1: 723 -> 707 of 109,259 faces; 737 before the
+ * (snowden, seed 1, 0.1: 723 -> 703 of 109,259 faces; 737 before the
  * moves were bounded, 0.013% over; the earlier guard took it to 1,331). */
 static void guard_keeps_orientation(const char *const *names, int nmesh, const double *rho, int nrho)
 {
