@@ -681,10 +681,12 @@ static void normal_output(fair_ctx *c, const double *Y, double *X, double *N)
 
 /* Moves from the input longer than rmax shortened to rmax (the noise
  * does not move a vertex that far: what the filter takes beyond it is
- * the shape). */
-static void clamp_moves(const fair_ctx *c, double *X, double rmax)
+ * the shape), on the vertices marked in only (NULL: all). */
+static void clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigned char *only)
 {
     for (int i = 0; i < c->nv; i++) {
+        if (only && !only[i])
+            continue;
         double d[3], *x = X + 3 * (size_t)i;
         const double *x0 = c->Xin + 3 * (size_t)i;
         mcf__sub3(x, x0, d);
@@ -740,15 +742,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
          * CREASE_MAX_MOVE noise levels: more is the shape, not the noise
          * (a coarse mesh's zigzag "chains", car.drc: 0.27 units for noise
          * of 0.016) */
-        for (int i = 0; i < nv; i++)
-            if (c.crease[i]) {
-                double d[3];
-                mcf__sub3(c.X0 + 3 * (size_t)i, c.Xin + 3 * (size_t)i, d);
-                double l = sqrt(mcf__dot3(d, d)), m = CREASE_MAX_MOVE * s;
-                if (l > m)
-                    for (int e = 0; e < 3; e++)
-                        c.X0[3 * (size_t)i + e] = c.Xin[3 * (size_t)i + e] + d[e] * (m / l);
-            }
+        clamp_moves(&c, c.X0, CREASE_MAX_MOVE * s, c.crease);
         /* no noise (or nothing free): nothing to remove */
         if (!(s > 0.0) || c.nfree == 0)
             cap = 0;
@@ -844,8 +838,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
      * from the input, nor do the guard's Y positions */
     double rmax = MAX_MOVE * sqrt(s * s + (kbest_t > 0 ? 2.0 * s_t * s_t : 0.0));
     if (rmax > 0.0) {
-        clamp_moves(&c, X, rmax);
-        clamp_moves(&c, Ybest, rmax);
+        clamp_moves(&c, X, rmax, NULL);
+        clamp_moves(&c, Ybest, rmax, NULL);
     }
     int left;
     if ((rc = mcf__unfold(X, c.Xin, Ybest, F, nf, nv, &st->guard_rounds, &st->guard_vertices, &left, err)) != MCF_OK)
