@@ -65,7 +65,7 @@ CHOLMOD_SERIAL := $(B)/libcholmod_serial.a
 LIBS_CORE := $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
              -llapack -lblas -lsuitesparseconfig -lm
 LIBS_API  := -ldraco -lcjson
-LIBS_SRV  := -lmicrohttpd -lpthread
+LIBS_SRV  := -lmicrohttpd -lhiredis -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 # The gRPC door (server/grpc.cc): Debian's gRPC C++ 1.51 and protobuf.
 # Deferred (=): pkg-config runs once `make deps` has installed them.
@@ -80,7 +80,7 @@ DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
-            python3-setuptools python3-wheel curl assimp-utils
+            python3-setuptools python3-wheel curl assimp-utils redis-server
 DEB_BENCH := libeigen3-dev libcgal-dev
 # make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
 DEB_QUALITY := python3-open3d python3-numpy
@@ -200,6 +200,11 @@ $(B)/%.o: %.cc
 
 $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
+
+# test_redis: the daemon's Redis client (server/rds.c) against a real
+# redis-server (Debian's, DEB_PKGS) that the test starts and stops.
+$(B)/tests/test_redis: $(B)/tests/test_redis.o $(B)/server/rds.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(B)/server/rds.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
 -include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d)
 
