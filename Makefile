@@ -297,9 +297,9 @@ tsan: deps
 # reset, compressed messages); the README's reliability section quotes
 # them. ATTACKS are test_server's, ATTACKS_GRPC test_grpc.py's.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
-  test_http_small_things test_query_flood test_spool_failures test_spool_quota test_spool_full \
-  test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_spool_damage \
-  test_followers_and_per_ip test_header_deadline test_queued_inputs_on_disk \
+  test_http_small_things test_transfer_framing test_query_flood test_spool_failures test_spool_quota test_spool_full \
+  test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
+  test_followers_and_per_ip test_per_ip_busy test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
   test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight
 ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
