@@ -201,12 +201,15 @@ $(B)/%.o: %.cc
 $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
-# test_redis: the daemon's Redis client (server/rds.c) against a real
-# redis-server (Debian's, DEB_PKGS) that the test starts and stops.
-$(B)/tests/test_redis: $(B)/tests/test_redis.o $(B)/server/rds.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
-	$(CXX) $(LDFLAGS) -o $@ $< $(B)/server/rds.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
+# The Redis store's tests: its client (server/rds.c) and store
+# (server/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
+# tests/redisd.c starts and stops.
+REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
+REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rstore.o
+$(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
--include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d)
+-include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d) $(B)/tests/redisd.d
 
 # ---- set-up: install what is missing, nothing else
 deps:

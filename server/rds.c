@@ -55,7 +55,7 @@ struct rds {
     rds *pool_next;
 };
 
-static double mono(void)
+double rds_monotonic(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -237,7 +237,7 @@ static void drop(rds *c)
 
 static void backoff(rds *c)
 {
-    double now = mono(), jitter = 0.75 + 0.5 * (double)rand_r(&c->seed) /
+    double now = rds_monotonic(), jitter = 0.75 + 0.5 * (double)rand_r(&c->seed) /
                                                 (double)RAND_MAX;
 
     snprintf(c->down, sizeof c->down, "%s", c->err);
@@ -249,7 +249,7 @@ static int wait_fd(rds *c, short events, double deadline, const char *what)
 {
     for (;;) {
         struct pollfd pfd = {.fd = c->ctx->fd, .events = events};
-        double left = deadline - mono();
+        double left = deadline - rds_monotonic();
         int ms, n;
 
         if (left <= 0) {
@@ -324,7 +324,7 @@ static int read_reply(rds *c, double deadline, int quiet, const char *what,
         if (quiet && between_replies(rd)) {
             /* between replies: the deadline only ends the wait */
             struct pollfd pfd = {.fd = c->ctx->fd, .events = POLLIN};
-            double left = deadline - mono();
+            double left = deadline - rds_monotonic();
             int n = poll(&pfd, 1, left > 0 ? (int)(left * 1000) + 1 : 0);
             if (n == 0)
                 return 1;
@@ -337,7 +337,7 @@ static int read_reply(rds *c, double deadline, int quiet, const char *what,
         } else {
             if (quiet) {  /* a reply has begun: it gets a command's time */
                 quiet = 0;
-                deadline = mono() + c->cfg.command_timeout;
+                deadline = rds_monotonic() + c->cfg.command_timeout;
             }
             if (wait_fd(c, POLLIN, deadline, what) != 0)
                 return -1;
@@ -373,7 +373,7 @@ static redisReply *exchange(rds *c, double extra, int argc,
 {
     redisReply *r = NULL;
     char what[32];
-    double deadline = mono() + c->cfg.command_timeout + extra;
+    double deadline = rds_monotonic() + c->cfg.command_timeout + extra;
 
     c->call_timeout = c->cfg.command_timeout + extra;
     snprintf(what, sizeof what, "%.*s", (int)(lens ? lens[0] : strlen(argv[0])),
@@ -489,7 +489,7 @@ int rds_connect(rds *c)
 
     if (c->ctx)
         return 0;
-    now = mono();
+    now = rds_monotonic();
     if (now < c->next_try) {
         snprintf(c->err, sizeof c->err, "%.440s (next attempt in %.2f s)",
                  c->down, c->next_try - now);
@@ -533,7 +533,7 @@ int rds_connect(rds *c)
         if (c->status == RDS_EDOWN)
             backoff(c);
         else  /* a wrong password or file: not worth a fast retry */
-            c->next_try = mono() + BACKOFF_MAX;
+            c->next_try = rds_monotonic() + BACKOFF_MAX;
         return -1;
     }
     c->backoff = BACKOFF_MIN;
@@ -642,7 +642,7 @@ int rds_pipe_add(rds *c, int argc, const char **argv,
 redisReply *rds_pipe_read(rds *c)
 {
     redisReply *r = NULL;
-    double deadline = mono() + c->cfg.command_timeout;
+    double deadline = rds_monotonic() + c->cfg.command_timeout;
 
     c->call_timeout = c->cfg.command_timeout;
     if (!c->ctx || c->pending == 0) {
@@ -672,7 +672,7 @@ int rds_wait(rds *c, double timeout, redisReply **out)
     if (rds_connect(c) != 0)
         return -1;
     c->call_timeout = c->cfg.command_timeout;
-    rc = read_reply(c, mono() + timeout, 1, "waiting", out);
+    rc = read_reply(c, rds_monotonic() + timeout, 1, "waiting", out);
     if (rc < 0)
         drop(c);
     return rc;

@@ -144,6 +144,9 @@ redisReply *rds_eval(rds *c, rds_script *s, int numkeys, int argc,
 
 void rds_reply_free(redisReply *r);
 
+/* CLOCK_MONOTONIC in seconds (the deadlines' clock). */
+double rds_monotonic(void);
+
 /* ------------------------------------------------------- reply helpers */
 
 /* A reply of the expected type (NULL-safe); else 0 and, when c is given,

@@ -33,137 +33,36 @@
 #include <unistd.h>
 
 #include "testlib.h"
-#include "../server/rds.h"
+#include "redisd.h"
 
-/* ------------------------------------------------------ the redis-server */
+static redisd S;
 
-static struct {
-    char dir[64];              /* its directory: AOF, log */
-    int port;
-    pid_t pid;
-    char why[256];             /* why it could not start ("" when up) */
-} S;
+static double now_s(void) { return rds_monotonic(); }
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
+static void sleep_s(double s) { redisd_sleep(s); }
 
-static void sleep_s(double s)
-{
-    struct timespec ts = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};
-    nanosleep(&ts, NULL);
-}
-
-/* A loopback port nobody listens on now. */
-static int free_port(void)
-{
-    struct sockaddr_in a = {.sin_family = AF_INET,
-                            .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
-    socklen_t len = sizeof a;
-    int fd = socket(AF_INET, SOCK_STREAM, 0), port = -1;
-
-    if (fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0 &&
-        getsockname(fd, (struct sockaddr *)&a, &len) == 0)
-        port = ntohs(a.sin_port);
-    if (fd >= 0)
-        close(fd);
-    return port;
-}
-
+static int free_port(void) { return redisd_free_port(); }
 static rds_config cfg_of(int port)
 {
-    rds_config c;
-    rds_config_default(&c);
+    rds_config c = redisd_config(&S);
     c.port = port;
-    c.connect_timeout = 1;
-    c.command_timeout = 2;
     return c;
 }
-
-/* Starts redis-server on S.port (a new free one when 0); 0 once it
- * answers PING, else -1 with S.why. */
-static int server_start(void)
-{
-    char port[16], log[128];
-    double end;
-
-    if (!S.port)
-        S.port = free_port();
-    snprintf(port, sizeof port, "%d", S.port);
-    snprintf(log, sizeof log, "%s/redis.log", S.dir);
-    S.pid = fork();
-    if (S.pid < 0) {
-        snprintf(S.why, sizeof S.why, "fork: %s", strerror(errno));
-        return -1;
-    }
-    if (S.pid == 0) {
-        tl_child_own_group();
-        execlp("redis-server", "redis-server", "--port", port, "--bind",
-               "127.0.0.1", "--dir", S.dir, "--appendonly", "yes",
-               "--appendfsync", "always", "--save", "", "--logfile", log,
-               "--daemonize", "no", (char *)NULL);
-        _exit(127);
-    }
-    tl_track_child(S.pid);
-    end = now_s() + 20;
-    while (now_s() < end) {
-        rds_config cfg = cfg_of(S.port);
-        rds *c = rds_new(&cfg);
-        redisReply *r = rds_cmdl(c, "PING", NULL);
-        int st, up = r && r->type == REDIS_REPLY_STATUS;
-        rds_reply_free(r);
-        rds_free(c);
-        if (up) {
-            S.why[0] = 0;
-            return 0;
-        }
-        if (waitpid(S.pid, &st, WNOHANG) == S.pid) {
-            snprintf(S.why, sizeof S.why, "redis-server %s (see %s)",
-                     WIFEXITED(st) && WEXITSTATUS(st) == 127
-                         ? "is not installed (make deps installs it)"
-                         : "exited at start", log);
-            S.pid = 0;
-            return -1;
-        }
-        sleep_s(0.05);
-    }
-    snprintf(S.why, sizeof S.why, "redis-server did not answer within 20 s");
-    return -1;
-}
-
-/* sig: SIGTERM (a clean stop) or SIGKILL. */
-static void server_stop(int sig)
-{
-    if (S.pid > 0) {
-        kill(S.pid, sig);
-        waitpid(S.pid, NULL, 0);
-    }
-    S.pid = 0;
-}
+static int server_start(void) { return redisd_start(&S); }
+static void server_stop(int sig) { redisd_stop(&S, sig); }
 
 static int group_setup(void **state)
 {
     (void)state;
-    signal(SIGPIPE, SIG_IGN);
-    snprintf(S.dir, sizeof S.dir, "/tmp/mcfd-redis-test-XXXXXX");
-    if (!mkdtemp(S.dir)) {
-        snprintf(S.why, sizeof S.why, "mkdtemp: %s", strerror(errno));
-        return 0;
-    }
     (void)server_start();
     return 0;
 }
 
 static int group_teardown(void **state)
 {
-    char cmd[128];
     (void)state;
-    server_stop(SIGTERM);
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", S.dir);
-    return system(cmd) == 0 ? 0 : -1;
+    redisd_cleanup(&S);
+    return 0;
 }
 
 /* Fails the test when redis-server is not up; else a new connection. */
