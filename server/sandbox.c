@@ -402,32 +402,24 @@ out:
 
 mcf_status svc_decode_upload(const void *buf, size_t len,
                              const svc_config *cfg,
-                             const mcf_cancel_flag *cancel, const char *what,
-                             mcf_mesh **out, api_attrs **attrs,
-                             api_format *fmt, svc_error *e)
+                             const mcf_cancel_flag *cancel, mcf_mesh **out,
+                             api_attrs **attrs, api_format *fmt,
+                             api_job_stage *stage, mcf_error *err)
 {
-    mcf_error err = {MCF_OK, ""};
     api_mem_estimate est;
     srv_sandbox_limits sl;
     srv_sandbox_why why;
     mcf_status rc;
 
     api_estimate_memory(buf, len, NULL, &est);
-    if (!srv_sandbox_wanted(&est)) {
-        rc = api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, &err);
-        if (rc != MCF_OK)
-            svc_error_from_mcf(e, rc, SVC_STAGE_DECODE, what, &err);
-        return rc;
-    }
+    if (!srv_sandbox_wanted(&est))
+        return api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, err);
     srv_sandbox_limits_for(&est, cfg->decode_cpu, cfg->decode_memory, &sl);
     rc = srv_sandbox_decode(buf, len, &cfg->lim, &sl, cancel, out, attrs, fmt,
-                            &why, &err);
-    if (rc == MCF_OK || rc == MCF_ECANCELED)
-        return rc;
+                            &why, err);
     /* A limit met is the input's cost, not its size: 422, not 413. */
-    svc_error_from_mcf(e, rc, (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
-                               why == SRV_SANDBOX_WALL) ? SVC_STAGE_RUN
-                                                        : SVC_STAGE_DECODE,
-                       what, &err);
+    if (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
+        why == SRV_SANDBOX_WALL)
+        *stage = API_JOB_RUN;
     return rc;
 }
