@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #define GROUP "workers"
@@ -118,10 +119,14 @@ static rds_script lua_usage = {
     "end\n"
     "return n\n", ""};
 
-/* KEYS: stream, hash. ARGV: id, queue_max. */
+/* KEYS: stream, hash. ARGV: id, queue_max. A job already waiting keeps
+ * its entry. */
 static rds_script lua_push = {
     "if redis.call('EXISTS', KEYS[2]) == 0 then\n"
     "  return redis.error_reply('NOJOB no such job') end\n"
+    "local q = redis.call('HMGET', KEYS[2], 'queued', 'qstream')\n"
+    "if q[1] and #redis.call('XRANGE', q[2], q[1], q[1]) > 0 then\n"
+    "  return q[1] end\n"
     "if redis.call('XLEN', KEYS[1]) >= tonumber(ARGV[2]) then\n"
     "  return redis.error_reply('FULL the shared queue is full') end\n"
     "local e = redis.call('XADD', KEYS[1], '*', 'job', ARGV[1])\n"
@@ -129,7 +134,7 @@ static rds_script lua_push = {
     "return e\n", ""};
 
 /* KEYS: stream, hash, dead. ARGV: group, entry, consumer, max_runs,
- * dead_max, id. {0}: not ours (any more), {-1}: gone (acknowledged),
+ * dead_max, id, claim_idle in ms. {0}: not ours (any more), {-1}: gone (acknowledged),
  * {1, runs, retaken}, {2, runs}: dead. */
 static rds_script lua_take = {
     "local function done()\n"
@@ -141,6 +146,16 @@ static rds_script lua_take = {
     "if redis.call('EXISTS', KEYS[2]) == 0 or\n"
     "   #redis.call('XRANGE', KEYS[1], ARGV[2], ARGV[2]) == 0 then\n"
     "  done() return {-1} end\n"
+    /* another entry of the job is running and heartbeating: this one is
+     * a duplicate (a job queued again while its old entry was pending) */
+    "local cur = redis.call('HMGET', KEYS[2], 'entry', 'stream')\n"
+    "if cur[1] and cur[1] ~= ARGV[2] then\n"
+    "  local q = redis.call('XPENDING', cur[2], ARGV[1], cur[1], cur[1], 1)\n"
+    "  if #q > 0 and q[1][3] < tonumber(ARGV[7]) then done() return {-1} end\n"
+    "  if #q > 0 then\n"
+    "    redis.call('XACK', cur[2], ARGV[1], cur[1])\n"
+    "    redis.call('XDEL', cur[2], cur[1]) end\n"
+    "end\n"
     "local runs = redis.call('HINCRBY', KEYS[2], 'runs', 1)\n"
     "if runs > tonumber(ARGV[4]) then\n"
     "  redis.call('XADD', KEYS[3], 'MAXLEN', '~', ARGV[5], '*', 'job', "
@@ -185,6 +200,13 @@ static rds_script lua_heartbeat = {
     "end\n"
     "redis.call('XCLAIM', r[3], ARGV[1], ARGV[2], 0, r[2], 'JUSTID')\n"
     "touch(KEYS[1], ARGV[3], KEYS[2], ARGV[4])\n"
+    "return 1\n", ""};
+
+/* KEYS: lease. ARGV: consumer, ttl. 1 ours, else the holder. */
+static rds_script lua_lease = {
+    "local h = redis.call('GET', KEYS[1])\n"
+    "if h and h ~= ARGV[1] then return h end\n"
+    "redis.call('SET', KEYS[1], ARGV[1], 'PX', ARGV[2])\n"
     "return 1\n", ""};
 
 /* KEYS: events. ARGV: line, ev_max, ttl. */
@@ -300,13 +322,18 @@ static redisReply *cmd(rstore *s, double block, int argc, const char **argv)
 void rstore_config_default(rstore_config *cfg)
 {
     char host[64] = "mcfd";
+    struct timespec ts;
 
     memset(cfg, 0, sizeof *cfg);
     snprintf(cfg->prefix, sizeof cfg->prefix, "mcfd");
     (void)gethostname(host, sizeof host - 1);
     host[sizeof host - 1] = 0;
-    snprintf(cfg->consumer, sizeof cfg->consumer, "%s:%ld", host,
-             (long)getpid());
+    /* with a nonce: a restarted container has the same host name and,
+     * under tini, often the same pid */
+    clock_gettime(CLOCK_REALTIME, &ts);
+    snprintf(cfg->consumer, sizeof cfg->consumer, "%s:%ld:%08lx", host,
+             (long)getpid(), (unsigned long)(ts.tv_nsec ^ ts.tv_sec) &
+                                 0xffffffffUL);
     cfg->ttl = 86400;
     cfg->claim_idle = 30;
     cfg->block = 1;
@@ -862,13 +889,13 @@ static int hold_entries(rstore *s, const redisReply *list, int front)
 }
 
 /* XAUTOCLAIM of one stream, a few pages: entries taken over. */
-static int reap_stream(rstore *s, const char *stream, int front)
+static int reap_stream(rstore *s, const char *stream, int front,
+                       double min_idle)
 {
     char idle[24], start[RSTORE_ID_MAX] = "0-0";
     int pages, n = 0;
 
-    snprintf(idle, sizeof idle, "%lld",
-             (long long)(s->cfg.claim_idle * 1000));
+    snprintf(idle, sizeof idle, "%lld", (long long)(min_idle * 1000));
     for (pages = 0; pages < 8; pages++) {
         const char *argv[8] = {"XAUTOCLAIM", stream, GROUP,
                                s->cfg.consumer, idle, start, "COUNT", "32"};
@@ -898,14 +925,40 @@ static int reap_stream(rstore *s, const char *stream, int front)
     return n;
 }
 
-int rstore_reap(rstore *s)
+int rstore_reap(rstore *s, double min_idle)
 {
-    int a = reap_stream(s, s->k_front, 1), b;
+    int a, b;
 
-    if (a < 0)
+    if (min_idle < 0)
+        min_idle = s->cfg.claim_idle;
+    if ((a = reap_stream(s, s->k_front, 1, min_idle)) < 0)
         return -1;
-    b = reap_stream(s, s->k_queue, 0);
+    b = reap_stream(s, s->k_queue, 0, min_idle);
     return b < 0 ? -1 : a + b;
+}
+
+int rstore_lease(rstore *s, const char *name, double ttl, char *holder,
+                 size_t size)
+{
+    char key[KEY_MAX], ms[24];
+    const char *argv[3] = {key, s->cfg.consumer, ms};
+    redisReply *r;
+    int rc;
+
+    if (!name_ok(name)) {
+        errno = EINVAL;
+        return -1;
+    }
+    snprintf(key, sizeof key, "%s:lease:%s", s->cfg.prefix, name);
+    snprintf(ms, sizeof ms, "%lld", (long long)(ttl * 1000));
+    if (!(r = eval(s, &lua_lease, 1, 3, argv, NULL)))
+        return -1;
+    rc = r->type == REDIS_REPLY_INTEGER ? 1 : 0;
+    if (!rc)
+        snprintf(holder, size, "%.*s", r->type == REDIS_REPLY_STRING
+                                           ? (int)r->len : 0, r->str);
+    rds_reply_free(r);
+    return rc;
 }
 
 /* XREADGROUP of one entry from stream: 1 held, 0 none, -1. */
@@ -950,8 +1003,8 @@ static int take(rstore *s, const held_entry *h, char id[RSTORE_ID_MAX],
                 int *runs)
 {
     job_keys k;
-    char max[16], dmax[24];
-    const char *argv[9];
+    char max[16], dmax[24], idle[24];
+    const char *argv[10];
     redisReply *r;
     long long code = 0, n = 0, retaken = 0;
 
@@ -967,7 +1020,10 @@ static int take(rstore *s, const held_entry *h, char id[RSTORE_ID_MAX],
     argv[6] = max;
     argv[7] = dmax;
     argv[8] = h->id;
-    if (!(r = eval(s, &lua_take, 3, 9, argv, NULL)))
+    argv[9] = idle;
+    snprintf(idle, sizeof idle, "%lld",
+             (long long)(s->cfg.claim_idle * 1000));
+    if (!(r = eval(s, &lua_take, 3, 10, argv, NULL)))
         return -1;
     if (r->type != REDIS_REPLY_ARRAY || r->elements < 1 ||
         rds_reply_ll(r->element[0], &code) != 0 ||
@@ -1039,7 +1095,7 @@ int rstore_claim(rstore *s, int (*fits)(void *ctx, const char *id),
         pthread_mutex_unlock(&s->mu);
         if (nheld > 0)
             return RSTORE_EMPTY;       /* the head does not fit */
-        if (reap_due(s) && rstore_reap(s) > 0)
+        if (reap_due(s) && rstore_reap(s, -1) > 0)
             continue;
         if ((rc = read_new(s, s->k_front, 1, 0)) < 0)
             return -1;

@@ -40,6 +40,9 @@
  *   - Queue: at-least-once. push() XADDs to P:queue (front: P:front); a
  *     queue already holding queue_max entries refuses with EAGAIN (the
  *     service's 503) instead of trimming: MAXLEN would drop waiting jobs.
+ *     A job already waiting is not queued twice; an entry of a job whose
+ *     other entry runs with heartbeats is dropped when read (a job queued
+ *     again, by a restart's recovery, while its run goes on).
  *     claim() reads P:front, then P:queue with XREADGROUP BLOCK; a read
  *     entry is offered to fits(): not fitting, it is held by this replica
  *     (offered again first, in order) without heartbeats, so the reaper of
@@ -89,7 +92,7 @@ typedef struct rstore rstore;
 
 typedef struct {
     char prefix[64];           /* "mcfd" */
-    char consumer[128];        /* this replica: default host:pid */
+    char consumer[128];        /* this replica: default host:pid:nonce */
     double ttl;                /* seconds a job's keys outlive a write */
     double claim_idle;         /* seconds without heartbeat before the
                                   reaper takes a running job */
@@ -110,7 +113,7 @@ typedef struct {
 
 /* ttl 1 day, claim_idle 30 s, block 1 s, max_runs 3, queue_max 100000,
  * ev_max 10000, dead_max 10000, max_blob 512 MiB, pool 8, consumer
- * host:pid. */
+ * host:pid:nonce. */
 void rstore_config_default(rstore_config *cfg);
 
 /* Connects (once, to check the server and read proto-max-bulk-len) and
@@ -165,9 +168,15 @@ int rstore_ack(rstore *s, const char *id);
  * not queued). */
 int rstore_drop(rstore *s, const char *id);
 int rstore_heartbeat(rstore *s, const char *id);
-/* Runs the reaper now (claim runs it on its own): the number of entries
- * taken over, or -1. */
-int rstore_reap(rstore *s);
+/* Runs the reaper now (claim runs it on its own, min_idle < 0: with
+ * claim_idle): entries idle over min_idle seconds taken over, or -1. */
+int rstore_reap(rstore *s, double min_idle);
+
+/* A lease named name (P:lease:NAME) held by this consumer for ttl
+ * seconds: taken when free, renewed when ours. 1 ours, 0 another's (its
+ * consumer in holder), -1 and errno. */
+int rstore_lease(rstore *s, const char *name, double ttl, char *holder,
+                 size_t size);
 
 /* Progress. */
 int rstore_progress(rstore *s, const char *id, const char *line,

@@ -185,7 +185,7 @@ static void test_stream_group(void **state)
                          NULL));
     assert_true(rds_error_is(c, "BUSYGROUP"));
     for (i = 0; i < 3; i++) {
-        char job[8];
+        char job[16];
         snprintf(job, sizeof job, "j%d", i);
         r = must(c, rds_cmdl(c, "XADD", "q", "MAXLEN", "~", "1000", "*",
                              "job", job, NULL));

@@ -330,9 +330,11 @@ static void test_queue_full(void **state)
     if (!(s = rstore_open(&rc, &cfg, msg, sizeof msg)))
         fail_msg("%s", msg);
     make_job(s, "j1", 1);
+    make_job(s, "j2", 1);
+    make_job(s, "j3", 1);
     must_ok(rstore_push(s, "j1", 0), "push");
-    must_ok(rstore_push(s, "j1", 0), "push");
-    assert_int_equal(rstore_push(s, "j1", 0), -1);
+    must_ok(rstore_push(s, "j2", 0), "push");
+    assert_int_equal(rstore_push(s, "j3", 0), -1);
     assert_int_equal(errno, EAGAIN);      /* 503 + Retry-After, no trim */
     rstore_close(s);
 }
@@ -354,7 +356,7 @@ static void test_takeover_fences_the_old_runner(void **state)
                        1), "put while running");
     assert_int_equal(claim(b, id, &runs), RSTORE_EMPTY);  /* not idle yet */
     redisd_sleep(0.4);
-    assert_int_equal(rstore_reap(b), 1);
+    assert_int_equal(rstore_reap(b, -1), 1);
     assert_int_equal(claim(b, id, &runs), RSTORE_RETAKEN);
     assert_string_equal(id, "j");
     assert_int_equal(runs, 2);
@@ -391,11 +393,37 @@ static void test_held_job_goes_to_a_replica_with_room(void **state)
                      RSTORE_EMPTY);
     assert_int_equal(offers, 1);
     redisd_sleep(0.4);
-    assert_int_equal(rstore_reap(b), 1);
+    assert_int_equal(rstore_reap(b, -1), 1);
     assert_int_equal(claim(b, id, &runs), RSTORE_TAKEN);
     assert_int_equal(runs, 1);            /* held is not run */
     assert_int_equal(claim(a, id, &runs), RSTORE_EMPTY);
     must_ok(rstore_ack(b, "j"), "ack");
+    rstore_close(a);
+    rstore_close(b);
+}
+
+/* A job is queued once; queued again while it runs (a replica's restart
+ * recovering it), the second entry is dropped while the run heartbeats. */
+static void test_no_duplicate_runs(void **state)
+{
+    rstore *a = replica("a", 30, 3), *b = replica("b", 30, 3);
+    rds *c = peek();
+    char id[RSTORE_ID_MAX];
+    int runs;
+    (void)state;
+
+    make_job(a, "j", 10);
+    must_ok(rstore_push(a, "j", 0), "push");
+    must_ok(rstore_push(b, "j", 0), "push again");
+    assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 1);
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    must_ok(rstore_push(b, "j", 0), "push while running");
+    assert_int_equal(claim(b, id, &runs), RSTORE_EMPTY);
+    assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 1);
+    must_ok(rstore_put(a, "j", "result.drc", "R", 1, 1), "put");
+    must_ok(rstore_ack(a, "j"), "ack");
+    assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 0);
+    rds_free(c);
     rstore_close(a);
     rstore_close(b);
 }
@@ -414,7 +442,7 @@ static void test_heartbeat_keeps_a_long_job(void **state)
     for (i = 0; i < 10; i++) {          /* 1 s, three times claim_idle */
         redisd_sleep(0.1);
         must_ok(rstore_heartbeat(a, "j"), "heartbeat");
-        assert_int_equal(rstore_reap(b), 0);
+        assert_int_equal(rstore_reap(b, -1), 0);
     }
     assert_int_equal(claim(b, id, &runs), RSTORE_EMPTY);
     must_ok(rstore_ack(a, "j"), "ack");
@@ -436,11 +464,11 @@ static void test_dead_letter(void **state)
     must_ok(rstore_push(a, "j", 0), "push");
     assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);   /* dies */
     redisd_sleep(0.3);
-    assert_int_equal(rstore_reap(b), 1);
+    assert_int_equal(rstore_reap(b, -1), 1);
     assert_int_equal(claim(b, id, &runs), RSTORE_RETAKEN); /* dies */
     assert_int_equal(runs, 2);
     redisd_sleep(0.3);
-    assert_int_equal(rstore_reap(a), 1);
+    assert_int_equal(rstore_reap(a, -1), 1);
     assert_int_equal(claim(a, id, &runs), RSTORE_DEAD);
     assert_string_equal(id, "j");
     assert_int_equal(runs, 2);
@@ -455,6 +483,25 @@ static void test_dead_letter(void **state)
     assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 0);
     assert_int_equal(claim(b, id, &runs), RSTORE_EMPTY);
     rds_free(c);
+    rstore_close(a);
+    rstore_close(b);
+}
+
+/* A lease: one holder at a time; free again after its ttl. */
+static void test_lease(void **state)
+{
+    rstore *a = replica("a", 30, 3), *b = replica("b", 30, 3);
+    char holder[64] = "";
+    (void)state;
+
+    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
+    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
+    assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 0);
+    assert_string_equal(holder, "a");
+    redisd_sleep(0.4);
+    assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 1);
+    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 0);
+    assert_string_equal(holder, "b");
     rstore_close(a);
     rstore_close(b);
 }
@@ -643,8 +690,10 @@ int main(void)
         cmocka_unit_test_setup(test_takeover_fences_the_old_runner, setup),
         cmocka_unit_test_setup(test_held_job_goes_to_a_replica_with_room,
                                setup),
+        cmocka_unit_test_setup(test_no_duplicate_runs, setup),
         cmocka_unit_test_setup(test_heartbeat_keeps_a_long_job, setup),
         cmocka_unit_test_setup(test_dead_letter, setup),
+        cmocka_unit_test_setup(test_lease, setup),
         cmocka_unit_test_setup(test_progress_seen_from_another_replica,
                                setup),
         cmocka_unit_test_setup(test_redis_down_and_back, setup),
