@@ -202,11 +202,13 @@ static rds_script lua_heartbeat = {
     "touch(KEYS[1], ARGV[3], KEYS[2], ARGV[4])\n"
     "return 1\n", ""};
 
-/* KEYS: lease. ARGV: consumer, ttl. 1 ours, else the holder. */
+/* KEYS: lease. ARGV: consumer, ttl (0: give it up). 1 ours, else the
+ * holder. */
 static rds_script lua_lease = {
     "local h = redis.call('GET', KEYS[1])\n"
     "if h and h ~= ARGV[1] then return h end\n"
-    "redis.call('SET', KEYS[1], ARGV[1], 'PX', ARGV[2])\n"
+    "if tonumber(ARGV[2]) <= 0 then redis.call('DEL', KEYS[1])\n"
+    "else redis.call('SET', KEYS[1], ARGV[1], 'PX', ARGV[2]) end\n"
     "return 1\n", ""};
 
 /* KEYS: events. ARGV: line, ev_max, ttl. */

@@ -173,8 +173,8 @@ int rstore_heartbeat(rstore *s, const char *id);
 int rstore_reap(rstore *s, double min_idle);
 
 /* A lease named name (P:lease:NAME) held by this consumer for ttl
- * seconds: taken when free, renewed when ours. 1 ours, 0 another's (its
- * consumer in holder), -1 and errno. */
+ * seconds: taken when free, renewed when ours (ttl 0: given up). 1 ours,
+ * 0 another's (its consumer in holder), -1 and errno. */
 int rstore_lease(rstore *s, const char *name, double ttl, char *holder,
                  size_t size);
 

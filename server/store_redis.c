@@ -11,7 +11,8 @@
  * half of the jobs. Until the service reads jobs it does not hold from
  * the store (issue 22), this store holds a lease (P:lease:replica, LEASE
  * seconds, renewed at every beat): a second mcfd waits for it at start
- * and, while the first lives, refuses to start with the holder's name.
+ * and, while the first lives, refuses to start with the holder's name
+ * (a clean stop gives the lease up).
  * Taking the lease means the previous holder is gone: its pending jobs
  * are taken over at once (no claim_idle wait after a restart).
  */
@@ -120,6 +121,7 @@ static void *beat_main(void *arg)
 static void rd_close(svc_store *st)
 {
     rstore_st *r = of(st);
+    char holder[128];
 
     if (r->has_thread) {
         pthread_mutex_lock(&r->mu);
@@ -127,6 +129,8 @@ static void rd_close(svc_store *st)
         pthread_cond_signal(&r->wake);
         pthread_mutex_unlock(&r->mu);
         pthread_join(r->thread, NULL);
+        /* a clean stop: the next mcfd need not wait */
+        (void)rstore_lease(r->rs, "replica", 0, holder, sizeof holder);
     }
     rstore_close(r->rs);
     pthread_cond_destroy(&r->wake);

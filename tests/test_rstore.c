@@ -502,6 +502,9 @@ static void test_lease(void **state)
     assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 1);
     assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 0);
     assert_string_equal(holder, "b");
+    assert_int_equal(rstore_lease(a, "x", 0, holder, sizeof holder), 0);
+    assert_int_equal(rstore_lease(b, "x", 0, holder, sizeof holder), 1);
+    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
     rstore_close(a);
     rstore_close(b);
 }
