@@ -205,7 +205,7 @@ $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHO
 # (server/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
 # tests/redisd.c starts and stops.
 REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
-REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rstore.o
+REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rstore.o $(B)/server/rstore_queue.o
 $(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 

@@ -237,7 +237,8 @@ static void drop(rds *c)
 
 static void backoff(rds *c)
 {
-    double now = rds_monotonic(), jitter = 0.75 + 0.5 * (double)rand_r(&c->seed) /
+    double now = rds_monotonic(),
+           jitter = 0.75 + 0.5 * (double)rand_r(&c->seed) /
                                                 (double)RAND_MAX;
 
     snprintf(c->down, sizeof c->down, "%s", c->err);

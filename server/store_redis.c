@@ -247,7 +247,7 @@ static int rd_claim(svc_store *st, int (*fits)(void *ctx, const char *id),
         rstore_ack(r->rs, got);
         return 0;
     }
-    snprintf(id, SVC_ID_LEN + 1, "%s", got);
+    memcpy(id, got, strlen(got) + 1);
     set_running(r, id, 1);
     return 1;
 }

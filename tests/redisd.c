@@ -79,7 +79,8 @@ int redisd_start(redisd *d)
         _exit(127);
     }
     tl_track_child(d->pid);
-    for (end = rds_monotonic() + 20; rds_monotonic() < end; redisd_sleep(0.05)) {
+    for (end = rds_monotonic() + 20; rds_monotonic() < end;
+         redisd_sleep(0.05)) {
         rds_config cfg = redisd_config(d);
         rds *c = rds_new(&cfg);
         redisReply *r = rds_cmdl(c, "PING", NULL);
