@@ -7,7 +7,8 @@ and the real daemon, both stopped by the test whatever happens.
 Checks: an async job's records, queue entry and result live in Redis and
 the result is the bytes POST /smooth gives; Redis killed (-9): /readyz and
 submissions answer 503 (Retry-After), and once Redis is back from its AOF
-everything works again with what was acknowledged kept; mcfd killed (-9)
+everything works again with what was acknowledged kept; a job running
+while Redis is down succeeds once it is back; mcfd killed (-9)
 while a job runs: the restarted mcfd finishes it under the same ID; a
 second mcfd on the same store refuses to start (one replica per store
 until the service reads the jobs it does not hold from the store).
@@ -153,6 +154,25 @@ def test_redis_down_then_back():
         d.stop()
 
 
+def test_redis_down_while_a_job_runs():
+    """A running job keeps its result until Redis is back (its writes are
+    retried for about 37 s: svc__retry's backoff) and succeeds."""
+    d = daemon("during")
+    try:
+        jid = submit(d, "scheme=desbrun2&iterations=10")   # about 1.5 s
+        wait_status(d, jid, "running", 30)
+        redis_kill()
+        time.sleep(4)                        # it ends meanwhile: writes wait
+        redis_start()
+        wait_status(d, jid, "succeeded", 90)
+        st, _, res = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
+        assert st == 200 and len(res) > 1000
+        with open(d.logpath, "rb") as f:     # its writes waited for Redis
+            assert b"; try " in f.read()
+    finally:
+        d.stop()
+
+
 def test_kill9_then_restart_finishes_the_job():
     d = daemon("crash")
     jid = submit(d, "scheme=desbrun2&iterations=60")
@@ -191,6 +211,6 @@ def test_second_mcfd_on_one_store_refused():
 
 if __name__ == "__main__":
     raise SystemExit(run_tests(
-        [test_jobs_live_in_redis, test_redis_down_then_back,
+        [test_jobs_live_in_redis, test_redis_down_then_back, test_redis_down_while_a_job_runs,
          test_kill9_then_restart_finishes_the_job, test_second_mcfd_on_one_store_refused],
         setup=redis_start))
