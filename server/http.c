@@ -596,7 +596,7 @@ int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
               (cs->receiving == 1 ||
                (cs->receiving == 2 &&
                 (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) ||
-             /* issue 9 item 3: the ceiling on a whole body (--body-timeout),
+             /* the ceiling on a whole body (--body-timeout),
               * for clients just above the average rate */
              (body_timeout > 0 && cs->receiving == 2 &&
               now - cs->since > body_timeout))) {

@@ -39,6 +39,7 @@
 #include <sys/time.h>
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <pthread.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -48,10 +49,14 @@
 #include "srv.h"
 #include "sandbox.h"
 
-/* The doors, started in this order and stopped in the other. */
+/* The doors, started in this order and stopped in the other. Each door's
+ * threads read the others' (doors_health, doors_gauges) while the main
+ * thread publishes or withdraws them: doors_mu guards the array, and a
+ * door is withdrawn before it is stopped. */
 static const srv_door_ops *const door_ops[] = {&srv_rest_door, &srv_grpc_door};
 #define NDOORS (sizeof door_ops / sizeof door_ops[0])
 static void *doors[NDOORS];
+static pthread_mutex_t doors_mu = PTHREAD_MUTEX_INITIALIZER;
 
 /* /healthz and /readyz: every door must be able to take a connection (a
  * door that accepts nothing makes the daemon unhealthy, so that an
@@ -59,13 +64,16 @@ static void *doors[NDOORS];
 static int doors_health(void *ctx, char *why, size_t size)
 {
     size_t i;
+    int rc = 0;
     (void)ctx;
     if (srv_fds_health(why, size) != 0)
         return -1;
-    for (i = 0; i < NDOORS; i++)
+    pthread_mutex_lock(&doors_mu);
+    for (i = 0; i < NDOORS && rc == 0; i++)
         if (doors[i] && door_ops[i]->health(doors[i], why, size) != 0)
-            return -1;
-    return 0;
+            rc = -1;
+    pthread_mutex_unlock(&doors_mu);
+    return rc;
 }
 
 /* /metrics: every door's gauges. */
@@ -73,9 +81,11 @@ static void doors_gauges(void *ctx, srv_gauges *g)
 {
     size_t i;
     (void)ctx;
+    pthread_mutex_lock(&doors_mu);
     for (i = 0; i < NDOORS; i++)
         if (doors[i])
             door_ops[i]->gauges(doors[i], g);
+    pthread_mutex_unlock(&doors_mu);
 }
 
 /* Requests and calls in flight, through every door. */
@@ -83,9 +93,11 @@ static int doors_active(void)
 {
     size_t i;
     int n = 0;
+    pthread_mutex_lock(&doors_mu);
     for (i = 0; i < NDOORS; i++)
         if (doors[i])
             n += door_ops[i]->active(doors[i]);
+    pthread_mutex_unlock(&doors_mu);
     return n;
 }
 
@@ -94,9 +106,13 @@ static int doors_active(void)
 static void doors_stop(void)
 {
     size_t i;
+    void *d;
     for (i = NDOORS; i-- > 0;) {
-        door_ops[i]->stop(doors[i]);
+        pthread_mutex_lock(&doors_mu);
+        d = doors[i];
         doors[i] = NULL;
+        pthread_mutex_unlock(&doors_mu);
+        door_ops[i]->stop(d);
     }
 }
 
@@ -230,15 +246,19 @@ static int doors_start(const srv_config *cfg, svc_t *svc, char *url,
     const srv_daemon dm = {doors_health, doors_gauges, NULL};
     char where[300];
     size_t i;
+    void *d;
 
     for (i = 0; i < NDOORS; i++) {
         if (door_ops[i] == &srv_grpc_door && cfg->grpc_port < 0)
             continue;
-        if (door_ops[i]->start(cfg, svc, &dm, &doors[i], where, sizeof where,
-                               msg, msgsize) != 0) {
+        if (door_ops[i]->start(cfg, svc, &dm, &d, where, sizeof where, msg,
+                               msgsize) != 0) {
             doors_stop();
             return -1;
         }
+        pthread_mutex_lock(&doors_mu);
+        doors[i] = d;
+        pthread_mutex_unlock(&doors_mu);
         if (i == 0)
             snprintf(url, urlsize, "%s", where);
         printf("%s %s\n", said[i], where);

@@ -477,24 +477,44 @@ int svc_delete(svc_t *s, const char *id, svc_delete_result *res,
 /* Lock held: the jobs finished more than the TTL ago, out of the table
  * (held by a reference each, in *gone); parked jobs whose delay passed
  * back in the queue (their IDs in *again). */
-static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone,
-                        char (**again)[SVC_ID_LEN + 1], int *nagain)
+/* One more ID at the end of a growing array. 0, or -1 (ENOMEM). */
+typedef struct {
+    char (*id)[SVC_ID_LEN + 1];
+    int n, cap;
+} id_list;
+
+static int id_append(id_list *l, const char *id)
 {
-    int cap = 0, acap = 0, b;
+    if (l->n == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 16;
+        void *p = realloc(l->id, (size_t)cap * sizeof *l->id);
+        if (!p)
+            return -1;
+        l->id = p;
+        l->cap = cap;
+    }
+    memcpy(l->id[l->n++], id, SVC_ID_LEN + 1);
+    return 0;
+}
+
+/* Lock held: the jobs past their TTL (*gone, a reference each), the
+ * parked jobs whose retry time came (again: counted as queued) and the
+ * running ones (beat: their claim is alive). */
+static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone, id_list *again,
+                        id_list *beat)
+{
+    int cap = 0, b;
     double now = srv_wall();
     svc_job *j, *next;
 
     for (b = 0; b < SVC_NBUCKETS; b++)
         for (j = s->buckets[b]; j; j = next) {
             next = j->hnext;
+            if (j->status == SVC_JOB_RUNNING && id_append(beat, j->id) != 0)
+                return -1;
             if (j->parked && !s->draining && srv_mono() >= j->retry_at) {
-                void *p = *nagain == acap
-                              ? realloc(*again, (size_t)(acap = acap ? 2 * acap : 16) * sizeof **again)
-                              : *again;
-                if (!p)
+                if (id_append(again, j->id) != 0)
                     return -1;
-                *again = p;
-                memcpy((*again)[(*nagain)++], j->id, SVC_ID_LEN + 1);
                 j->parked = 0;
                 s->queued++;
             }
@@ -516,16 +536,19 @@ static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone,
 void svc_sweep(svc_t *s)
 {
     svc_job **gone = NULL;
-    char (*again)[SVC_ID_LEN + 1] = NULL;
-    int ngone = 0, nagain = 0, i;
+    id_list again = {NULL, 0, 0}, beat = {NULL, 0, 0};
+    int ngone = 0, i;
 
     pthread_mutex_lock(&s->mu);
-    sweep_locked(s, &gone, &ngone, &again, &nagain);
+    sweep_locked(s, &gone, &ngone, &again, &beat);
     pthread_mutex_unlock(&s->mu);
-    /* runner.c: their outcome could not be recorded; again */
-    for (i = 0; i < nagain; i++)
-        s->store->ops->push(s->store, again[i], 0);
-    if (nagain) {
+    /* a shared store hands the job of a silent claimer to another */
+    for (i = 0; i < beat.n; i++)
+        s->store->ops->heartbeat(s->store, beat.id[i]);
+    /* their outcome could not be recorded (svc__finish): again */
+    for (i = 0; i < again.n; i++)
+        s->store->ops->push(s->store, again.id[i], 0);
+    if (again.n) {
         pthread_mutex_lock(&s->mu);
         svc__wake_locked(s);
         pthread_mutex_unlock(&s->mu);
@@ -538,7 +561,8 @@ void svc_sweep(svc_t *s)
             srv_logf(SRV_LOG_DEBUG, "job %s expired after --result-ttl %g s",
                      gone[i]->id, s->cfg.result_ttl);
     free(gone);
-    free(again);
+    free(again.id);
+    free(beat.id);
 }
 
 /* --------------------------------------------------------------- lifecycle */

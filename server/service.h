@@ -285,8 +285,9 @@ void svc_checkpoint_running(svc_t *s);
 /* From now on every door must answer with what it has and never wait
  * again (snapshots say closing); every subscriber is notified. */
 void svc_close_waiters(svc_t *s);
-/* Joins the workers, frees every job (handles still held are freed when
- * released) and the service. Accepts NULL. */
+/* Joins the workers, frees every job and the service. Every handle and
+ * subscription must have been released before (the doors stop first): a
+ * handle's calls reach the service through it. Accepts NULL. */
 void svc_stop(svc_t *s);
 /* Forgets the jobs finished more than the TTL ago (memory and store), and
  * queues again the jobs whose outcome could not be recorded. Called now

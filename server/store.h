@@ -4,7 +4,7 @@
  * (a table of operations on an opaque store), so that where jobs live is
  * a choice the doors never see. The local spool (spool.c, a directory per
  * job) is the first implementation; a store shared by several replicas
- * (Redis: issue 22) is a second one behind the same operations. Only the
+ * (Redis) is a second one behind the same operations. Only the
  * job service's files include this header.
  *
  * Contract (what the service relies on; a backend must keep every line)
@@ -49,10 +49,22 @@
  *
  *   Progress. heartbeat() says the claimer of a running job is alive (a
  *   shared queue hands the job of a dead replica to another after a bound
- *   without heartbeats); progress() publishes one progress event (an
- *   ndjson line) for followers on other replicas. The local store needs
- *   neither (the service keeps a running job's events in memory): both
- *   are no-ops there.
+ *   without heartbeats): the service calls it for every job it runs at
+ *   each sweep (svc_sweep: once a second in mcfd), also while the job
+ *   decodes or encodes. progress() publishes one progress event (an
+ *   ndjson line, {"step","t","dt","energy","volume"}) for followers on
+ *   other replicas, after every step, from the worker. The local store
+ *   needs neither (the service keeps a running job's events in memory):
+ *   both are no-ops there. Once the job ends, its events are put as the
+ *   blobs "events.ndjson" (the lines) and "events.idx" (the byte offset
+ *   past each line, as size_t), not durable, before its outcome.
+ *
+ *   Who calls what, and where the lock is: the service calls every
+ *   operation without its own lock held (claim's fits() callback takes
+ *   it briefly); create/push from svc_submit (a door's thread), claim/
+ *   ack/put/get from the workers, get/get_at/open/stat from the readers
+ *   (any door thread), remove/quarantine/scan from svc_delete, the sweep
+ *   and recovery (svc_start, before the workers start).
  */
 #ifndef SVC_STORE_H
 #define SVC_STORE_H

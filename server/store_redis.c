@@ -1,9 +1,9 @@
 /*
  * store_redis.c - the job service's store (store.h) in Redis: the
  * operations of rstore.c behind the store's table, plus what the service
- * does not do itself for a shared queue: a heartbeat thread that keeps
- * the jobs this replica runs and the fence on their writes (a replica
- * whose run was taken over writes nothing more).
+ * does not do itself for a shared queue: the fence on the writes of the
+ * jobs this replica runs (a replica whose run was taken over writes
+ * nothing more) and a lease, renewed by a thread.
  *
  * One mcfd per store for now. The service keeps its jobs in a table of
  * its own, filled from the store at start: a job another replica submits
@@ -29,7 +29,7 @@
 
 #define RUNNING_MAX 256        /* jobs one replica runs at once */
 #define LEASE 10.0             /* seconds: a restart waits at most this */
-#define BEAT (LEASE / 4)       /* seconds between heartbeats */
+#define BEAT (LEASE / 4)       /* seconds between renewals */
 
 typedef struct {
     svc_store base;
@@ -78,38 +78,26 @@ static void set_running(rstore_st *r, const char *id, int on)
     pthread_mutex_unlock(&r->mu);
 }
 
-/* Every beat: the lease, and a heartbeat for each job this replica runs.
- * One that was taken over (ESTALE) leaves the set: its writes are refused
- * from now. */
+/* Every beat: the lease, renewed (the service sends the jobs'
+ * heartbeats: rd_heartbeat). */
 static void *beat_main(void *arg)
 {
     rstore_st *r = arg;
-    char ids[RUNNING_MAX][SVC_ID_LEN + 1];
-    int i, n;
+    char holder[128];
 
     pthread_mutex_lock(&r->mu);
     while (!r->stop) {
         struct timespec ts;
         double end = srv_mono() + BEAT;
-        char holder[128];
         ts.tv_sec = (time_t)end;
         ts.tv_nsec = (long)((end - (double)ts.tv_sec) * 1e9);
         pthread_cond_timedwait(&r->wake, &r->mu, &ts);
         if (r->stop)
             break;
-        n = r->nrunning;
-        memcpy(ids, r->running, sizeof ids[0] * (size_t)n);
         pthread_mutex_unlock(&r->mu);
         if (rstore_lease(r->rs, "replica", LEASE, holder, sizeof holder) == 0)
             srv_logf(SRV_LOG_ERROR, "the Redis store's lease is %s's now: "
                      "this mcfd stalled over %.0f s", holder, LEASE);
-        for (i = 0; i < n; i++)
-            if (rstore_heartbeat(r->rs, ids[i]) != 0 && errno == ESTALE) {
-                srv_logf(SRV_LOG_WARN, "job %s: another replica took it "
-                         "over (no heartbeat for too long); its writes "
-                         "from here are refused", ids[i]);
-                set_running(r, ids[i], 0);
-            }
         pthread_mutex_lock(&r->mu);
     }
     pthread_mutex_unlock(&r->mu);
@@ -266,9 +254,22 @@ static int rd_drop(svc_store *st, const char *id)
     return rstore_drop(of(st)->rs, id);
 }
 
+/* A job taken over (ESTALE) leaves the set: its writes are refused from
+ * now. */
 static int rd_heartbeat(svc_store *st, const char *id)
 {
-    return rstore_heartbeat(of(st)->rs, id);
+    rstore_st *r = of(st);
+
+    if (rstore_heartbeat(r->rs, id) == 0)
+        return 0;
+    if (errno == ESTALE && is_running(r, id)) {
+        srv_logf(SRV_LOG_WARN, "job %s: another replica took it over (no "
+                 "heartbeat for too long); its writes from here are refused",
+                 id);
+        set_running(r, id, 0);
+        errno = ESTALE;
+    }
+    return -1;
 }
 
 static int rd_progress(svc_store *st, const char *id, const char *line,

@@ -161,23 +161,25 @@ int svc_followers(const svc_job *j)
 
 /* ------------------------------------------------------------------ state */
 
+/* The fields a job and its recorded state (svc_state_rec) share, copied
+ * one way by svc__state_of and the other by apply_rec: one list. */
+#define SVC_RECORDED(X)                                                      \
+    X(status) X(created) X(started) X(finished) X(scheme) X(steps_planned)  \
+    X(time_planned) X(step) X(t) X(in_format) X(out_format) X(result_name)  \
+    X(result_len)
+#define SVC_COPY(to, from, f)                                                \
+    do {                                                                     \
+        _Static_assert(sizeof (to)->f == sizeof (from)->f, #f);              \
+        memcpy(&(to)->f, &(from)->f, sizeof (to)->f);                        \
+    } while (0);
+
 void svc__state_of(const svc_job *j, svc_state_rec *r)
 {
     memset(r, 0, sizeof *r);
     memcpy(r->id, j->id, sizeof r->id);
-    r->status = j->status;
-    r->created = j->created;
-    r->started = j->started;
-    r->finished = j->finished;
-    memcpy(r->scheme, j->scheme, sizeof r->scheme);
-    r->steps_planned = j->steps_planned;
-    r->time_planned = j->time_planned;
-    r->step = j->step;
-    r->t = j->t;
-    memcpy(r->in_format, j->in_format, sizeof r->in_format);
-    memcpy(r->out_format, j->out_format, sizeof r->out_format);
-    memcpy(r->result_name, j->result_name, sizeof r->result_name);
-    r->result_len = j->result_len;
+#define X(f) SVC_COPY(r, j, f)
+    SVC_RECORDED(X)
+#undef X
     /* a cancel asked of a running job holds across a restart */
     if (j->canceling)
         r->cancel_requested = j->canceling;
@@ -682,19 +684,9 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
 /* The recorded state applied to a job being loaded. */
 static void apply_rec(svc_job *j, const svc_state_rec *r)
 {
-    j->status = r->status;
-    j->created = r->created;
-    j->started = r->started;
-    j->finished = r->finished;
-    memcpy(j->scheme, r->scheme, sizeof j->scheme);
-    j->steps_planned = r->steps_planned;
-    j->time_planned = r->time_planned;
-    j->step = r->step;
-    j->t = r->t;
-    memcpy(j->in_format, r->in_format, sizeof j->in_format);
-    memcpy(j->out_format, r->out_format, sizeof j->out_format);
-    memcpy(j->result_name, r->result_name, sizeof j->result_name);
-    j->result_len = r->result_len;
+#define X(f) SVC_COPY(j, r, f)
+    SVC_RECORDED(X)
+#undef X
     if (r->cancel_requested) {
         j->cancel = 1;
         j->cancel_reason = r->cancel_requested;
