@@ -112,11 +112,16 @@ int rstore__name_ok(const char *s)
 }
 
 
-void rstore__keys(const rstore *s, const char *id, job_keys *k)
+int rstore__keys(const rstore *s, const char *id, job_keys *k)
 {
+    if (!rstore__name_ok(id)) {
+        errno = EINVAL;
+        return -1;
+    }
     snprintf(k->hash, sizeof k->hash, "%s:job:%s", s->cfg.prefix, id);
     snprintf(k->ev, sizeof k->ev, "%s:ev:%s", s->cfg.prefix, id);
     snprintf(k->blobs, sizeof k->blobs, "%s:blob:%s:", s->cfg.prefix, id);
+    return 0;
 }
 
 /* One script on a pooled connection: its reply, or NULL and errno. */
@@ -573,11 +578,8 @@ static int remove_as(rstore *s, const char *id, const char *to)
     job_keys k;
     const char *argv[6];
 
-    if (!rstore__name_ok(id)) {
-        errno = EINVAL;
+    if (rstore__keys(s, id, &k) != 0)
         return -1;
-    }
-    rstore__keys(s, id, &k);
     argv[0] = k.hash;
     argv[1] = s->k_jobs;
     argv[2] = k.ev;

@@ -67,7 +67,8 @@ typedef struct {
 int rstore__errno(rds *c);
 /* Ids and blob names become parts of keys: letters, digits, . _ - */
 int rstore__name_ok(const char *s);
-void rstore__keys(const rstore *s, const char *id, job_keys *k);
+/* The keys of job id: 0, or -1 and EINVAL when id cannot be a key. */
+int rstore__keys(const rstore *s, const char *id, job_keys *k);
 /* One script on a pooled connection: its reply, or NULL and errno. */
 redisReply *rstore__eval(rstore *s, rds_script *sc, int nkeys, int argc,
                          const char **argv, const size_t *lens);

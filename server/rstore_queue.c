@@ -121,11 +121,8 @@ int rstore_push(rstore *s, const char *id, int front)
     const char *argv[4];
     redisReply *r;
 
-    if (!rstore__name_ok(id)) {
-        errno = EINVAL;
+    if (rstore__keys(s, id, &k) != 0)
         return -1;
-    }
-    rstore__keys(s, id, &k);
     snprintf(max, sizeof max, "%ld", s->cfg.queue_max);
     argv[0] = front ? s->k_front : s->k_queue;
     argv[1] = k.hash;
@@ -409,11 +406,8 @@ static int job_script(rstore *s, rds_script *sc, const char *id)
     job_keys k;
     const char *argv[6];
 
-    if (!rstore__name_ok(id)) {
-        errno = EINVAL;
+    if (rstore__keys(s, id, &k) != 0)
         return -1;
-    }
-    rstore__keys(s, id, &k);
     argv[0] = k.hash;
     argv[1] = k.ev;
     argv[2] = GROUP;
@@ -449,11 +443,8 @@ int rstore_progress(rstore *s, const char *id, const char *line,
     size_t lens[4];
     redisReply *r;
 
-    if (!rstore__name_ok(id)) {
-        errno = EINVAL;
+    if (rstore__keys(s, id, &k) != 0)
         return -1;
-    }
-    rstore__keys(s, id, &k);
     snprintf(max, sizeof max, "%ld", s->cfg.ev_max);
     argv[0] = k.ev;
     argv[1] = line;
@@ -482,11 +473,8 @@ int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
     size_t i;
     int n = 0;
 
-    if (!rstore__name_ok(id)) {
-        errno = EINVAL;
+    if (rstore__keys(s, id, &k) != 0)
         return -1;
-    }
-    rstore__keys(s, id, &k);
     snprintf(ms, sizeof ms, "%lld", (long long)(block * 1000));
     if (!(r = rstore__cmd(s, block, 8, argv)))
         return -1;

@@ -103,6 +103,13 @@ def wait_status(d, jid, want, timeout):
     raise AssertionError("job %s: %s after %d s, not %s" % (jid, last, timeout, want))
 
 
+def result_of(d, jid):
+    """The job's result bytes (it succeeded: 200 and a mesh)."""
+    st, _, res = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
+    assert st == 200 and len(res) > 1000, (st, len(res))
+    return res
+
+
 def test_jobs_live_in_redis():
     d = daemon("one")
     try:
@@ -111,8 +118,7 @@ def test_jobs_live_in_redis():
         assert cli("EXISTS", "mcfd:job:" + jid) == "1"
         assert cli("SISMEMBER", "mcfd:jobs", jid) == "1"
         wait_status(d, jid, "succeeded", 60)
-        st, _, res = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
-        assert st == 200
+        res = result_of(d, jid)
         with open(BUNNY, "rb") as f:
             st, _, sync = http("POST", d.url + "/smooth?" + q, f.read(),
                                {"Content-Type": "application/octet-stream"})
@@ -133,7 +139,7 @@ def test_redis_down_then_back():
     try:
         jid = submit(d, "scheme=desbrun2&iterations=2")
         wait_status(d, jid, "succeeded", 60)
-        _, _, before = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
+        before = result_of(d, jid)
         redis_kill()
         st, _, body = http("GET", d.url + "/readyz")
         assert st == 503 and b"redis 127.0.0.1" in body, (st, body)
@@ -146,8 +152,7 @@ def test_redis_down_then_back():
         while http("GET", d.url + "/readyz")[0] != 200:
             assert time.time() < end, "/readyz stayed red with Redis back"
             time.sleep(0.1)
-        st, _, after = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
-        assert st == 200 and after == before
+        assert result_of(d, jid) == before
         jid2 = submit(d, "scheme=desbrun2&iterations=2")
         wait_status(d, jid2, "succeeded", 60)
     finally:
@@ -165,8 +170,7 @@ def test_redis_down_while_a_job_runs():
         time.sleep(4)                        # it ends meanwhile: writes wait
         redis_start()
         wait_status(d, jid, "succeeded", 90)
-        st, _, res = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
-        assert st == 200 and len(res) > 1000
+        result_of(d, jid)
         with open(d.logpath, "rb") as f:     # its writes waited for Redis
             assert b"; try " in f.read()
     finally:
@@ -181,8 +185,7 @@ def test_kill9_then_restart_finishes_the_job():
     d = daemon("crash")                      # waits for the lease (10 s)
     try:
         wait_status(d, jid, "succeeded", 90)
-        st, _, res = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
-        assert st == 200 and len(res) > 1000
+        result_of(d, jid)
         with open(d.logpath, "rb") as f:     # the restart took it over
             assert b"taken over" in f.read()
     finally:
