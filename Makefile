@@ -205,7 +205,8 @@ $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHO
 # (server/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
 # tests/redisd.c starts and stops.
 REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
-REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rstore.o $(B)/server/rstore_queue.o
+REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/server/rstore.o \
+             $(B)/server/rstore_queue.o
 $(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
@@ -484,7 +485,7 @@ image-check:
 # The job service's files: they alone include svc_internal.h (spool.c, its
 # local store, sees only store.h).
 SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h \
-  server/store_redis.c server/rstore*.[ch] server/rds.[ch])
+  server/store_redis.c server/rstore*.[ch] server/rds*.[ch])
 # The doors: each reaches jobs through service.h alone and never includes
 # the other door's headers.
 REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])

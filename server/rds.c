@@ -3,7 +3,7 @@
  * connect with a deadline, AUTH from a file, SELECT, commands and
  * pipelines on a non-blocking socket with poll() deadlines, replies
  * bounded in bytes, reconnection with jittered backoff, Lua scripts by
- * SHA, and a pool of connections for many threads.
+ * SHA (rds_pool.c: a pool of connections for many threads).
  *
  * hiredis is used for what it is good at, formatting commands and parsing
  * RESP, through its buffer functions (redisAppendCommandArgv,
@@ -52,7 +52,6 @@ struct rds {
     char down[512];            /* why the last connect failed */
     char code[32];             /* first word of the last error reply */
     char err[512];
-    rds *pool_next;
 };
 
 double rds_monotonic(void)
@@ -797,76 +796,4 @@ const redisReply *rds_reply_field(const redisReply *r, const char *name)
             return r->element[i + 1];
     }
     return NULL;
-}
-
-/* ------------------------------------------------------------ the pool */
-
-struct rds_pool {
-    pthread_mutex_t mu;
-    pthread_cond_t freed;
-    rds *free;                 /* connections not lent */
-    rds **all;
-    int n;
-};
-
-rds_pool *rds_pool_new(const rds_config *cfg, int n)
-{
-    rds_pool *p = calloc(1, sizeof *p);
-    int i;
-
-    if (!p || !(p->all = calloc((size_t)n, sizeof *p->all))) {
-        free(p);
-        return NULL;
-    }
-    pthread_mutex_init(&p->mu, NULL);
-    pthread_cond_init(&p->freed, NULL);
-    for (i = 0; i < n; i++) {
-        if (!(p->all[i] = rds_new(cfg))) {
-            p->n = i;
-            rds_pool_free(p);
-            return NULL;
-        }
-        p->all[i]->pool_next = p->free;
-        p->free = p->all[i];
-    }
-    p->n = n;
-    return p;
-}
-
-void rds_pool_free(rds_pool *p)
-{
-    int i;
-
-    if (!p)
-        return;
-    for (i = 0; i < p->n; i++)
-        rds_free(p->all[i]);
-    free(p->all);
-    pthread_mutex_destroy(&p->mu);
-    pthread_cond_destroy(&p->freed);
-    free(p);
-}
-
-rds *rds_pool_get(rds_pool *p)
-{
-    rds *c;
-
-    pthread_mutex_lock(&p->mu);
-    while (!p->free)
-        pthread_cond_wait(&p->freed, &p->mu);
-    c = p->free;
-    p->free = c->pool_next;
-    pthread_mutex_unlock(&p->mu);
-    return c;
-}
-
-void rds_pool_put(rds_pool *p, rds *c)
-{
-    if (!c)
-        return;
-    pthread_mutex_lock(&p->mu);
-    c->pool_next = p->free;
-    p->free = c;
-    pthread_cond_signal(&p->freed);
-    pthread_mutex_unlock(&p->mu);
 }

@@ -35,8 +35,8 @@
  *     AOF buffer and wrote it to the file (Redis flushes the AOF before it
  *     replies), so a restart of redis-server (even kill -9) loses nothing
  *     acknowledged; with appendfsync always neither does a machine crash
- *     (everysec: up to a second of writes). docker/kubernetes.yaml runs
- *     Redis with appendfsync always.
+ *     (everysec: up to a second of writes). docker/kubernetes-redis.yaml
+ *     and compose-redis.yaml run Redis with appendfsync always.
  *   - Queue: at-least-once. push() XADDs to P:queue (front: P:front); a
  *     queue already holding queue_max entries refuses with EAGAIN (the
  *     service's 503) instead of trimming: MAXLEN would drop waiting jobs.
