@@ -261,7 +261,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
          * orchestrator flapping every replica out of its Service under
          * load would turn those into connection errors. */
         char why[1500];
-        if (g.draining || d->draining)
+        if (g.draining || atomic_load(&d->draining))
             return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting "
                                      "down");
         /* Every job goes through the spool: one that cannot be written

@@ -16,6 +16,7 @@
 #define SRV_HTTP_H
 
 #include <pthread.h>
+#include <stdatomic.h>
 
 #include <microhttpd.h>
 
@@ -36,7 +37,7 @@ typedef struct srv_rest {
     svc_t *svc;
     srv_daemon dm;             /* the rest of the daemon: health, gauges */
     struct MHD_Daemon *mhd;
-    int draining;
+    atomic_int draining;       /* set by drain (main thread), read by MHD's */
     pthread_mutex_t active_mu;
     int active;                /* requests between URI callback and end */
     pthread_mutex_t conns_mu;

@@ -147,7 +147,7 @@ static void rest_drain(void *door)
 {
     srv_rest *d = door;
     if (d)
-        d->draining = 1;
+        atomic_store(&d->draining, 1);
 }
 
 static void rest_stop(void *door)

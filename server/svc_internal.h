@@ -20,15 +20,18 @@
  * Locking (the lock order, outermost first):
  *   s->state_mu   one writer of state.json at a time: a snapshot and its
  *                 write go together, so the last taken is the last
- *                 written (svc_job.c). Held across one small write.
+ *                 written (svc_job.c). Held across one small write to
+ *                 the store (its put: the store's own leaf locks only).
+ *   the store's queue lock (spool.c's q_mu)
+ *                 held by claim while it asks fits() (workers.c), which
+ *                 takes s->mu and then s->admit.mu for a moment.
  *   s->mu         the service lock: the table, the counters, every
  *                 mutable field of every job, the subscription lists.
  *                 Held for bookkeeping only, never across mesh work or
- *                 I/O; subscription callbacks run under it (service.h),
- *                 and take the doors' locks.
- *   the store's   its queue's lock; calls fits() (the admission below)
- *                 under it. The service never calls the store with s->mu
- *                 held.
+ *                 I/O, and never while calling the store; subscription
+ *                 callbacks run under it (service.h) and take the doors'
+ *                 locks (REST: wait_mu; gRPC: its call's), which are
+ *                 innermost there.
  *   s->admit.mu   the memory budget (svc_admit.c): innermost.
  */
 #ifndef SVC_INTERNAL_H
