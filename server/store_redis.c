@@ -27,7 +27,7 @@
 #include "srv.h"
 #include "store.h"
 
-#define RUNNING_MAX 256        /* jobs one replica runs at once */
+#define RUNNING_MAX 1024       /* jobs one mcfd runs at once: --workers' most */
 #define LEASE 10.0             /* seconds: a restart waits at most this */
 #define BEAT (LEASE / 4)       /* seconds between renewals */
 
