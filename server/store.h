@@ -65,6 +65,16 @@
  *   ack/put/get from the workers, get/get_at/open/stat from the readers
  *   (any door thread), remove/quarantine/scan from svc_delete, the sweep
  *   and recovery (svc_start, before the workers start).
+ *
+ *   What a shared backend must add in the service (not yet done: the
+ *   spool serves one process): a service knows the jobs of its own table
+ *   (svc_submit's, and recovery's at start). A worker that claims an id
+ *   its table does not hold acks it and skips it (workers.c, next_job);
+ *   with replicas sharing a queue it must load that job from its record
+ *   first (request.json and state.json, as recovery.c's load does), and
+ *   readers (svc_job_get) must fall back to the store for an id another
+ *   replica accepted. Both doors go through service.h only, so neither
+ *   changes.
  */
 #ifndef SVC_STORE_H
 #define SVC_STORE_H
