@@ -65,7 +65,7 @@ CHOLMOD_SERIAL := $(B)/libcholmod_serial.a
 LIBS_CORE := $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
              -llapack -lblas -lsuitesparseconfig -lm
 LIBS_API  := -ldraco -lcjson
-LIBS_SRV  := -lmicrohttpd -lpthread
+LIBS_SRV  := -lmicrohttpd -lhiredis -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 # The gRPC door (server/grpc*.cc): Debian's gRPC C++ 1.51 and protobuf.
 # Deferred (=): pkg-config runs once `make deps` has installed them.
@@ -80,7 +80,7 @@ DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
-            python3-setuptools python3-wheel curl assimp-utils
+            python3-setuptools python3-wheel curl assimp-utils redis-server
 DEB_BENCH := libeigen3-dev libcgal-dev
 # make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
 DEB_QUALITY := python3-open3d python3-numpy
@@ -201,7 +201,16 @@ $(B)/%.o: %.cc
 $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
--include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d) $(B)/tests/srvlib.d
+# The Redis store's tests: its client (server/rds.c) and store
+# (server/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
+# tests/redisd.c starts and stops.
+REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
+REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/server/rstore.o \
+             $(B)/server/rstore_queue.o
+$(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
+
+-include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d) $(B)/tests/srvlib.d $(B)/tests/redisd.d
 
 # ---- set-up: install what is missing, nothing else
 deps:
@@ -475,7 +484,8 @@ image-check:
 
 # The job service's files: they alone include svc_internal.h (spool.c, its
 # local store, sees only store.h).
-SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h)
+SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h \
+  server/store_redis.c server/rstore*.[ch] server/rds*.[ch])
 # The doors: each reaches jobs through service.h alone and never includes
 # the other door's headers.
 REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])
@@ -496,7 +506,7 @@ $(SERVER_TESTS): $(B)/tests/%: $(B)/tests/%.o $(SRVLIB_OBJ) $(TESTLIB_OBJ) $(B)/
 SVC_TEST_OBJ := $(patsubst %.c,$(B)/%.o,$(filter %.c,$(SRV_SERVICE)) server/log.c server/metrics.c)
 $(B)/tests/test_service.o: CPPFLAGS += -Iserver
 $(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
-	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
+	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \

@@ -123,6 +123,9 @@ static void service_config(const srv_config *cfg, svc_config *out)
     out->workers = cfg->workers;
     out->queue = cfg->queue;
     snprintf(out->spool, sizeof out->spool, "%s", cfg->spool);
+    snprintf(out->store, sizeof out->store, "%s", cfg->store);
+    snprintf(out->store_password_file, sizeof out->store_password_file, "%s",
+             cfg->store_password_file);
     out->spool_max_jobs = cfg->spool_max_jobs;
     out->spool_max_bytes = cfg->spool_max_bytes;
     out->lim = cfg->lim;
@@ -213,6 +216,7 @@ static void log_start(const srv_config *cfg, const char *url)
     cJSON_AddNumberToObject(o, "queue", cfg->queue);
     cJSON_AddNumberToObject(o, "http_threads", cfg->http_threads);
     cJSON_AddStringToObject(o, "spool", cfg->spool);
+    cJSON_AddStringToObject(o, "store", cfg->store[0] ? cfg->store : "spool");
     cJSON_AddNumberToObject(o, "max_upload", (double)cfg->lim.max_input_bytes);
     cJSON_AddNumberToObject(o, "max_memory", (double)cfg->max_memory);
     cJSON_AddNumberToObject(o, "result_ttl_s", cfg->result_ttl);

@@ -274,6 +274,11 @@ static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
                       "room for job %s (%zu bytes): %s", j->id,
                       rq->input_len + rq->target_len, strerror(e));
         err->retry_after = 5;
+    } else if (e == EAGAIN) {
+        /* a store that cannot answer now (Redis down or loading) */
+        svc_error_set(err, SVC_P_SPOOL_UNREADY, "cannot record job %s now: "
+                      "%s", j->id, strerror(e));
+        err->retry_after = 5;
     } else {
         svc_error_set(err, SVC_P_STORAGE, "cannot write job %s to the spool "
                       "%s: %s", j->id, s->cfg.spool, strerror(e));
@@ -584,7 +589,13 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
     pthread_cond_init(&s->idle, &ca);
     pthread_condattr_destroy(&ca);
     svc_admit_init(s);
-    if (!(s->store = svc_spool_open(cfg->spool, msg, msgsize)) ||
+    s->store = cfg->store[0]
+                   ? svc_redis_open(cfg->store, cfg->store_password_file,
+                                    cfg->workers,
+                                    cfg->result_ttl + cfg->job_timeout + 3600,
+                                    msg, msgsize)
+                   : svc_spool_open(cfg->spool, msg, msgsize);
+    if (!s->store ||
         svc__recover(s, msg, msgsize) != 0 ||
         svc__workers_start(s, msg, msgsize) != 0) {
         svc_stop(s);

@@ -254,6 +254,9 @@ typedef struct {
     int queue;                 /* queued jobs beyond the running ones */
     char spool[1024];          /* the local store's directory (made when
                                   missing) */
+    char store[1024];          /* redis://HOST[:PORT][/DB]: the jobs in
+                                  Redis (store_redis.c); "": the spool */
+    char store_password_file[1024]; /* its password's file, "": none */
     int spool_max_jobs;        /* jobs kept before EQUOTA, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before EQUOTA */
     api_limits lim;            /* limits on untrusted input */

@@ -685,6 +685,7 @@ static const svc_store_ops spool_ops = {
     sp_quarantine, sp_usage, sp_scan,
     sp_push, sp_claim, sp_ack, sp_drop,
     sp_heartbeat, sp_progress,
+    0,                             /* only this process pushes */
 };
 
 svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize)

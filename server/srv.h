@@ -64,6 +64,8 @@ typedef struct {
                                   fitted to the descriptors */
     int fd_reserve;            /* descriptors no connection may take */
     char spool[1024];          /* job spool directory (default ./var/mcfd) */
+    char store[1024];          /* redis://... (jobs in Redis), "": the spool */
+    char store_password_file[1024]; /* the Redis password's file, "": none */
     int spool_max_jobs;        /* jobs kept before 503, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
     api_limits lim;            /* limits on untrusted input */

@@ -132,6 +132,11 @@ typedef struct {
     int (*heartbeat)(svc_store *st, const char *id);
     int (*progress)(svc_store *st, const char *id, const char *line,
                     size_t len);
+
+    /* 0: only this process fills the queue (a push wakes the workers);
+     * else the seconds an idle worker waits before claiming again (a
+     * shared queue that other replicas fill) */
+    double poll;
 } svc_store_ops;
 
 struct svc_store {
@@ -141,5 +146,14 @@ struct svc_store {
 /* The local spool (spool.c): a directory per job under dir/jobs, made when
  * missing. NULL with a one-line reason in msg when dir cannot be used. */
 svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize);
+
+/* The store in Redis (store_redis.c, rstore.h says its keys and
+ * semantics): url redis://HOST[:PORT][/DB], the password read from
+ * password_file ("" or NULL: none) at every connect; connections for
+ * workers threads; a job's keys kept at least ttl seconds after its last
+ * write. NULL with a one-line reason in msg. */
+svc_store *svc_redis_open(const char *url, const char *password_file,
+                          int workers, double ttl, char *msg,
+                          size_t msgsize);
 
 #endif /* SVC_STORE_H */

@@ -39,6 +39,23 @@ static int fits(void *arg, const char *id)
     return 1;
 }
 
+/* Waits on s->work (s->mu held): until woken, or the store's poll. */
+static void wait_work_locked(svc_t *s)
+{
+    double poll = s->store->ops->poll;
+    struct timespec ts;
+
+    if (poll <= 0) {
+        pthread_cond_wait(&s->work, &s->mu);
+        return;
+    }
+    clock_gettime(CLOCK_REALTIME, &ts);   /* s->work's clock */
+    ts.tv_nsec += (long)(poll * 1e9);
+    ts.tv_sec += ts.tv_nsec / 1000000000L;
+    ts.tv_nsec %= 1000000000L;
+    pthread_cond_timedwait(&s->work, &s->mu, &ts);
+}
+
 /* The next job to run: claimed, reserved and started, or NULL when the
  * service stops. Waits (on s->work) while it is draining, the queue is
  * empty or its head does not fit. */
@@ -82,10 +99,11 @@ static svc_job *next_job(svc_t *s, double *held)
         }
         /* nothing claimable (or the head waits for its cancel): sleep
          * until something changes (a submit, a cancel, a job's or
-         * upload's memory freed, drain, stop) */
+         * upload's memory freed, drain, stop), or, for a queue other
+         * replicas fill, until the next poll */
         pthread_mutex_lock(&s->mu);
         if (!s->stopping && s->wakes == seen)
-            pthread_cond_wait(&s->work, &s->mu);
+            wait_work_locked(s);
         pthread_mutex_unlock(&s->mu);
     }
 }
