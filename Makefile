@@ -67,7 +67,7 @@ LIBS_CORE := $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
 LIBS_API  := -ldraco -lcjson
 LIBS_SRV  := -lmicrohttpd -lhiredis -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
-# The gRPC door (server/grpc.cc): Debian's gRPC C++ 1.51 and protobuf.
+# The gRPC door (server/grpc*.cc): Debian's gRPC C++ 1.51 and protobuf.
 # Deferred (=): pkg-config runs once `make deps` has installed them.
 GRPC_CFLAGS = $(shell pkg-config --cflags grpc++ protobuf)
 LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
@@ -489,7 +489,9 @@ SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c 
 # The doors: each reaches jobs through service.h alone and never includes
 # the other door's headers.
 REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])
-GRPC_DOOR := $(wildcard server/grpc*.cc server/grpc_door.h server/h2gate*.[ch])
+# The gRPC door's C++ (the only C++ in server/), sharing grpc_internal.h.
+GRPC_CXX := server/grpc.cc server/grpc_calls.cc server/grpc_follow.cc server/grpc_status.cc server/grpc_upload.cc
+GRPC_DOOR := $(wildcard server/grpc*.cc server/grpc_door.h server/grpc_internal.h server/h2gate*.[ch])
 
 # The daemon's integration tests (test_server*.c, one concern each) share
 # tests/srvlib.c.
@@ -511,10 +513,12 @@ check-deps:
 	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }
 	@! grep -nE '#include *[<"]microhttpd\.h' api/*.c api/*.cc api/*.h || \
 	  { echo "check-deps: api/ must not include microhttpd.h"; exit 1; }
-	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out server/grpc.cc,$(wildcard server/*.[ch] server/*.cc)) || \
-	  { echo "check-deps: only the server's gRPC bridge (server/grpc.cc) includes gRPC or protobuf"; exit 1; }
-	@[ -z "$(filter-out server/grpc.cc,$(wildcard server/*.cc server/*.cpp))" ] || \
-	  { echo "check-deps: server/grpc.cc is the only C++ in server/"; exit 1; }
+	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out $(GRPC_CXX) server/grpc_internal.h,$(wildcard server/*.[ch] server/*.cc)) || \
+	  { echo "check-deps: only the server's gRPC bridge ($(GRPC_CXX), server/grpc_internal.h) includes gRPC or protobuf"; exit 1; }
+	@[ -z "$(filter-out $(GRPC_CXX),$(wildcard server/*.cc server/*.cpp))" ] || \
+	  { echo "check-deps: $(GRPC_CXX) are the only C++ in server/"; exit 1; }
+	@! grep -nE '#include *[<"]grpc_internal\.h' $(filter-out $(GRPC_CXX),$(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[ch] server/*.cc tests/*.[ch])) || \
+	  { echo "check-deps: grpc_internal.h is the gRPC door's own ($(GRPC_CXX)); others use grpc_door.h"; exit 1; }
 	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] server/*.[ch] server/*.cc) || \
 	  { echo "check-deps: include a layer's header by name (\"api.h\"), not by a relative path: the -I flags say which layers a file may see"; exit 1; }
 	@! grep -nE '#include *[<"](microhttpd|http)\.h' $(SRV_SERVICE) || \

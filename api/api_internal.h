@@ -8,7 +8,7 @@
  * quoted in error messages) live in api_text.c, the decode prologue and
  * encode epilogue in api_mesh.c, and the byte-level ones below are inline
  * because the binary readers call them for every value. This header is
- * also included (as C) by api_draco.cc, so what is inline here is valid
+ * also included (as C) by api_draco*.cc, so what is inline here is valid
  * C++ too.
  */
 #ifndef API_INTERNAL_H

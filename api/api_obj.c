@@ -245,6 +245,168 @@ static mcf_status face_ref(const char *t, size_t n, long line, int seen,
     return MCF_OK;
 }
 
+/* A "v" line's x y z into x (and, while every vertex has them, its
+ * r g b into A->col for vertex i). */
+static mcf_status parse_vertex(linecur *l, long line, double *x, int i, objattr *A,
+                               mcf_error *err)
+{
+    char shown[API__SHOWN];
+    int k;
+    for (k = 0; k < 3; k++) {
+        const char *nt;
+        size_t nn = next_token(l, &nt);
+        if (nn == 0)
+            return api__fail(err, MCF_EDECODE,
+                             "line %ld: vertex has %d coordinates, 3 needed",
+                             line, k);
+        if (api__parse_double(nt, nn, &x[k]) != 0)
+            return api__fail(err, MCF_EDECODE,
+                             "line %ld: bad number '%s'", line,
+                             api__show_utf8(nt, nn, shown));
+        if (!isfinite(x[k]))
+            return api__fail(err, MCF_EDECODE,
+                             "line %ld: coordinate '%s' is not finite",
+                             line, api__show_utf8(nt, nn, shown));
+        if (A) {
+            int sd = sig_digits(nt, nn);
+            if (sd > A->maxsig)
+                A->maxsig = sd;
+        }
+    }
+    if (A && A->col_ok) {
+        /* Exactly r g b after x y z, each a finite number. */
+        double *col = A->col + 3 * (size_t)i;
+        for (k = 0; k < 3 && A->col_ok; k++) {
+            const char *nt;
+            size_t nn = next_token(l, &nt);
+            if (nn == 0 || api__parse_double(nt, nn, &col[k]) != 0
+                || !isfinite(col[k]))
+                A->col_ok = 0;
+        }
+        if (A->col_ok) {
+            const char *nt;
+            if (next_token(l, &nt) != 0)
+                A->col_ok = 0;
+        }
+    }
+    return MCF_OK;
+}
+
+/* A "vt" (vt) or "vn" line into A; an unreadable value drops the
+ * attribute, never an error. */
+static void parse_attr_value(linecur *l, int vt, objattr *A)
+{
+    int k, want = vt ? 2 : 3;
+    double *x = vt ? A->vt + 2 * A->seen_vt : A->vn + 3 * A->seen_vn;
+    for (k = 0; k < want; k++) {
+        const char *nt;
+        size_t nn = next_token(l, &nt);
+        x[k] = 0.0; /* "vt u" alone: v = 0, as the format says */
+        if (nn == 0 && vt && k == 1)
+            break;
+        if (nn == 0 || api__parse_double(nt, nn, &x[k]) != 0
+            || !isfinite(x[k])) {
+            /* An unreadable value drops the attribute. */
+            if (vt) {
+                free(A->ct);
+                A->ct = NULL;
+            } else {
+                free(A->cn);
+                A->cn = NULL;
+            }
+            break;
+        }
+    }
+    if (vt)
+        A->seen_vt++;
+    else
+        A->seen_vn++;
+}
+
+/* Triangle tri's corner attribute indices (a, b, c) into *cp, or the
+ * attribute dropped (*cp freed) when a corner has none. */
+static void put_corners(int32_t **cp, long tri, long a, long b, long c)
+{
+    if (!*cp)
+        return;
+    if (a < 0 || b < 0 || c < 0) {
+        free(*cp);
+        *cp = NULL;
+        return;
+    }
+    (*cp)[3 * tri] = (int32_t)a;
+    (*cp)[3 * tri + 1] = (int32_t)b;
+    (*cp)[3 * tri + 2] = (int32_t)c;
+}
+
+/* An "f" line, fan-triangulated into F from triangle *tri on (seen:
+ * the vertices so far, for relative indices). */
+static mcf_status parse_face(linecur *l, long line, int seen, int nv, int32_t *F,
+                             long *tri, objattr *A, mcf_error *err)
+{
+    int32_t first = 0, prev = 0, cur = 0;
+    long tf = -1, tp = -1, tc = -1, nfst = -1, np = -1, nc = -1;
+    int k = 0;
+    const char *nt;
+    size_t nn;
+    mcf_status rc;
+    while ((nn = next_token(l, &nt)) > 0) {
+        if ((rc = face_ref(nt, nn, line, seen, nv, &cur, A, &tc, &nc,
+                           err)) != MCF_OK)
+            return rc;
+        if (k == 0) {
+            first = cur;
+            tf = tc;
+            nfst = nc;
+        } else if (k >= 2) {
+            F[3 * *tri] = first;
+            F[3 * *tri + 1] = prev;
+            F[3 * *tri + 2] = cur;
+            if (A) {
+                put_corners(&A->ct, *tri, tf, tp, tc);
+                put_corners(&A->cn, *tri, nfst, np, nc);
+            }
+            (*tri)++;
+        }
+        prev = cur;
+        tp = tc;
+        np = nc;
+        k++;
+    }
+    if (k < 3)
+        return api__fail(err, MCF_EDECODE,
+                         "line %ld: face has %d vertices, at least 3 needed",
+                         line, k);
+    if (A)
+        A->psize[A->np++] = k;
+    return MCF_OK;
+}
+
+/* Any other statement (keyword t): one of those skipped (its text kept in
+ * A when it is one of the kept ones), else an error. */
+static mcf_status parse_other(const linecur *l, const char *t, size_t n, long line,
+                              objattr *A, mcf_error *err)
+{
+    char shown[API__SHOWN];
+    int i;
+    for (i = 0; skipped[i]; i++)
+        if (api__tok_is(t, n, skipped[i]))
+            break;
+    if (!skipped[i])
+        return api__fail(err, MCF_EDECODE,
+                         "line %ld: unknown statement '%s'", line,
+                         api__show_utf8(t, n, shown));
+    for (i = 0; A && kept[i]; i++)
+        if (api__tok_is(t, n, kept[i])) {
+            /* the line from its keyword, without trailing blanks */
+            const char *e = l->e;
+            while (e > t && api__is_space((unsigned char)e[-1]))
+                e--;
+            return api__attrs_stmt(A->st, (int32_t)A->np, t, (size_t)(e - t), err);
+        }
+    return MCF_OK;
+}
+
 /* Pass 2: parses into X (3*nv) and F (3*nf). */
 static mcf_status parse(const char *buf, size_t len, int nv, double *X,
                         int32_t *F, objattr *A, mcf_error *err)
@@ -253,9 +415,9 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
     linecur l;
     int seen = 0;
     long tri = 0;
-    char shown[API__SHOWN];
+    mcf_status rc = MCF_OK;
 
-    while (api__line_next(&c, &l.s, &l.e)) {
+    while (rc == MCF_OK && api__line_next(&c, &l.s, &l.e)) {
         const char *t;
         size_t n;
         int bad = binary_byte(&l);
@@ -268,148 +430,17 @@ static mcf_status parse(const char *buf, size_t len, int nv, double *X,
         if (n == 0)
             continue;
         if (n == 1 && t[0] == 'v') {
-            double *x = X + 3 * (size_t)seen;
-            int k;
-            for (k = 0; k < 3; k++) {
-                const char *nt;
-                size_t nn = next_token(&l, &nt);
-                if (nn == 0)
-                    return api__fail(err, MCF_EDECODE,
-                                     "line %ld: vertex has %d coordinates, 3 needed",
-                                     c.line, k);
-                if (api__parse_double(nt, nn, &x[k]) != 0)
-                    return api__fail(err, MCF_EDECODE,
-                                     "line %ld: bad number '%s'", c.line,
-                                     api__show_utf8(nt, nn, shown));
-                if (!isfinite(x[k]))
-                    return api__fail(err, MCF_EDECODE,
-                                     "line %ld: coordinate '%s' is not finite",
-                                     c.line, api__show_utf8(nt, nn, shown));
-                if (A) {
-                    int sd = sig_digits(nt, nn);
-                    if (sd > A->maxsig)
-                        A->maxsig = sd;
-                }
-            }
-            if (A && A->col_ok) {
-                /* Exactly r g b after x y z, each a finite number. */
-                double *col = A->col + 3 * (size_t)seen;
-                for (k = 0; k < 3 && A->col_ok; k++) {
-                    const char *nt;
-                    size_t nn = next_token(&l, &nt);
-                    if (nn == 0 || api__parse_double(nt, nn, &col[k]) != 0
-                        || !isfinite(col[k]))
-                        A->col_ok = 0;
-                }
-                if (A->col_ok) {
-                    const char *nt;
-                    if (next_token(&l, &nt) != 0)
-                        A->col_ok = 0;
-                }
-            }
+            rc = parse_vertex(&l, c.line, X + 3 * (size_t)seen, seen, A, err);
             seen++;
         } else if (A && n == 2 && t[0] == 'v' && (t[1] == 't' || t[1] == 'n')) {
-            int vt = t[1] == 't', k, want = vt ? 2 : 3;
-            double *x = vt ? A->vt + 2 * A->seen_vt : A->vn + 3 * A->seen_vn;
-            for (k = 0; k < want; k++) {
-                const char *nt;
-                size_t nn = next_token(&l, &nt);
-                x[k] = 0.0; /* "vt u" alone: v = 0, as the format says */
-                if (nn == 0 && vt && k == 1)
-                    break;
-                if (nn == 0 || api__parse_double(nt, nn, &x[k]) != 0
-                    || !isfinite(x[k])) {
-                    /* An unreadable value drops the attribute. */
-                    if (vt) {
-                        free(A->ct);
-                        A->ct = NULL;
-                    } else {
-                        free(A->cn);
-                        A->cn = NULL;
-                    }
-                    break;
-                }
-            }
-            if (vt)
-                A->seen_vt++;
-            else
-                A->seen_vn++;
+            parse_attr_value(&l, t[1] == 't', A);
         } else if (n == 1 && t[0] == 'f') {
-            int32_t first = 0, prev = 0, cur = 0;
-            long tf = -1, tp = -1, tc = -1, nfst = -1, np = -1, nc = -1;
-            int k = 0;
-            const char *nt;
-            size_t nn;
-            mcf_status rc;
-            while ((nn = next_token(&l, &nt)) > 0) {
-                if ((rc = face_ref(nt, nn, c.line, seen, nv, &cur, A, &tc, &nc,
-                                   err)) != MCF_OK)
-                    return rc;
-                if (k == 0) {
-                    first = cur;
-                    tf = tc;
-                    nfst = nc;
-                } else if (k >= 2) {
-                    F[3 * tri] = first;
-                    F[3 * tri + 1] = prev;
-                    F[3 * tri + 2] = cur;
-                    if (A && A->ct) {
-                        if (tf < 0 || tp < 0 || tc < 0) {
-                            free(A->ct);
-                            A->ct = NULL;
-                        } else {
-                            A->ct[3 * tri] = (int32_t)tf;
-                            A->ct[3 * tri + 1] = (int32_t)tp;
-                            A->ct[3 * tri + 2] = (int32_t)tc;
-                        }
-                    }
-                    if (A && A->cn) {
-                        if (nfst < 0 || np < 0 || nc < 0) {
-                            free(A->cn);
-                            A->cn = NULL;
-                        } else {
-                            A->cn[3 * tri] = (int32_t)nfst;
-                            A->cn[3 * tri + 1] = (int32_t)np;
-                            A->cn[3 * tri + 2] = (int32_t)nc;
-                        }
-                    }
-                    tri++;
-                }
-                prev = cur;
-                tp = tc;
-                np = nc;
-                k++;
-            }
-            if (k < 3)
-                return api__fail(err, MCF_EDECODE,
-                                 "line %ld: face has %d vertices, at least 3 needed",
-                                 c.line, k);
-            if (A)
-                A->psize[A->np++] = k;
+            rc = parse_face(&l, c.line, seen, nv, F, &tri, A, err);
         } else {
-            int i;
-            for (i = 0; skipped[i]; i++)
-                if (api__tok_is(t, n, skipped[i]))
-                    break;
-            if (!skipped[i])
-                return api__fail(err, MCF_EDECODE,
-                                 "line %ld: unknown statement '%s'", c.line,
-                                 api__show_utf8(t, n, shown));
-            for (i = 0; A && kept[i]; i++)
-                if (api__tok_is(t, n, kept[i])) {
-                    /* the line from its keyword, without trailing blanks */
-                    const char *e = l.e;
-                    mcf_status rc;
-                    while (e > t && api__is_space((unsigned char)e[-1]))
-                        e--;
-                    if ((rc = api__attrs_stmt(A->st, (int32_t)A->np, t, (size_t)(e - t),
-                                              err)) != MCF_OK)
-                        return rc;
-                    break;
-                }
+            rc = parse_other(&l, t, n, c.line, A, err);
         }
     }
-    return MCF_OK;
+    return rc;
 }
 
 mcf_status api_obj_decode(const void *buf, size_t len, const api_limits *lim,

@@ -76,71 +76,59 @@ static int off_keyword(const char *t, size_t n, int *other_dims)
     return i == n - 3;
 }
 
-/* The decoder; psize (NULL: not wanted) gets each face's corner count
- * (cnt[1] of them, malloc'ed, the caller's). */
-static mcf_status decode(const void *buf, size_t len, const api_limits *lim,
-                         mcf_mesh **out, int32_t **psize, int *npoly, mcf_error *err)
+/* The keyword line and the counts line ("nv nf [ne]", on the keyword's
+ * line or the next) into cnt, checked against the body's size, then the
+ * limits. */
+static mcf_status read_counts(reader *r, size_t len, const api_limits *lim,
+                              long long cnt[3], mcf_error *err)
 {
-    api_limits def;
-    reader r;
     const char *t;
     size_t n;
-    long long cnt[3] = {0, 0, 0};
-    int ncnt = 0, other, i;
+    int ncnt = 0, other;
     char shown[API__SHOWN];
-    double *X = NULL;
-    api__tris T = {NULL, 0, 0};
     unsigned long long need;
-    mcf_status rc;
 
-    if ((rc = api__decode_begin("off", buf, len, &lim, &def, err)) != MCF_OK)
-        return rc;
-    rc = MCF_EDECODE;
-    r.in.p = buf;
-    r.in.end = r.in.p + len;
-    r.in.line = 0;
-
-    if (!next_line(&r))
+    if (!next_line(r))
         return api__fail(err, MCF_EDECODE, "off: no OFF keyword (only comments)");
-    n = token(&r, &t);
+    n = token(r, &t);
     if (!off_keyword(t, n, &other))
         return api__fail(err, MCF_EDECODE, "off: line %ld: 'OFF' expected, found '%s'",
-                         r.in.line, api__show(t, n, shown));
+                         r->in.line, api__show(t, n, shown));
     if (other)
         return api__fail(err, MCF_EDECODE,
-                         "off: line %ld: '%s' (not 3-D) is not supported", r.in.line,
+                         "off: line %ld: '%s' (not 3-D) is not supported", r->in.line,
                          api__show(t, n, shown));
-    n = token(&r, &t);
+    n = token(r, &t);
     if (api__tok_is(t, n, "BINARY"))
         return api__fail(err, MCF_EDECODE, "off: line %ld: binary OFF is not supported",
-                         r.in.line);
+                         r->in.line);
     if (n == 0) {
-        if (!next_line(&r))
+        if (!next_line(r))
             return api__fail(err, MCF_EDECODE,
-                             "off: line %ld: input ends before the counts line", r.in.line);
-        n = token(&r, &t);
+                             "off: line %ld: input ends before the counts line", r->in.line);
+        n = token(r, &t);
     }
     /* "nv nf [ne]" */
     while (n > 0) {
         if (ncnt == 3 || api__parse_int(t, n, &cnt[ncnt]) != 0 || cnt[ncnt] < 0)
             return api__fail(err, MCF_EDECODE,
                              "off: line %ld: 'nv nf [ne]' counts expected, found '%s'",
-                             r.in.line, api__show(t, n, shown));
+                             r->in.line, api__show(t, n, shown));
         ncnt++;
-        n = token(&r, &t);
+        n = token(r, &t);
     }
     if (ncnt < 2)
         return api__fail(err, MCF_EDECODE,
-                         "off: line %ld: 'nv nf [ne]' counts expected", r.in.line);
+                         "off: line %ld: 'nv nf [ne]' counts expected", r->in.line);
 
     /* Counts against the body, then the limits. */
     need = (unsigned long long)cnt[0] * 6 + (unsigned long long)cnt[1] * 8;
     if (cnt[0] > (long long)len || cnt[1] > (long long)len
-        || need > (unsigned long long)(r.in.end - r.in.p) + 1)
+        || need > (unsigned long long)(r->in.end - r->in.p) + 1)
         return api__fail(err, MCF_EDECODE,
                          "off: line %ld: %lld vertices and %lld faces cannot fit in "
                          "the remaining %zu bytes",
-                         r.in.line, cnt[0], cnt[1], (size_t)(r.in.end - r.in.p));
+                         r->in.line, cnt[0], cnt[1], (size_t)(r->in.end - r->in.p));
     if (cnt[0] > lim->max_vertices)
         return api__fail(err, MCF_ELIMIT, "off: %lld vertices exceed max_vertices (%d)",
                          cnt[0], lim->max_vertices);
@@ -152,6 +140,119 @@ static mcf_status decode(const void *buf, size_t len, const api_limits *lim,
     if (cnt[1] == 0)
         return api__fail(err, MCF_EDECODE, "off: no faces: %lld vertices only",
                          cnt[0]);
+    return MCF_OK;
+}
+
+/* nv vertex lines (x y z, finite) into X. */
+static mcf_status read_vertices(reader *r, long long nv, double *X, mcf_error *err)
+{
+    const char *t;
+    size_t n;
+    char shown[API__SHOWN];
+    int i, k;
+
+    for (i = 0; i < (int)nv; i++) {
+        if (!next_line(r))
+            return api__fail(err, MCF_EDECODE,
+                             "off: line %ld: input ends at vertex %d of %lld",
+                             r->in.line, i, nv);
+        for (k = 0; k < 3; k++) {
+            n = token(r, &t);
+            if (n == 0)
+                return api__fail(err, MCF_EDECODE,
+                                 "off: line %ld: vertex %d has %d coordinates, 3 "
+                                 "needed",
+                                 r->in.line, i, k);
+            if (api__parse_double(t, n, &X[3 * i + k]) != 0)
+                return api__fail(err, MCF_EDECODE, "off: line %ld: bad number '%s'",
+                                 r->in.line, api__show(t, n, shown));
+            if (!isfinite(X[3 * i + k]))
+                return api__fail(err, MCF_EDECODE,
+                                 "off: line %ld: coordinate '%s' is not finite",
+                                 r->in.line, api__show(t, n, shown));
+        }
+    }
+    return MCF_OK;
+}
+
+/* Face i's line (its vertex count, then its indices into nv vertices),
+ * fan-triangulated into T (first sized from nf, the declared face count);
+ * *deg: its corner count. */
+static mcf_status read_face(reader *r, int i, long long nv, long long nf,
+                            const api_limits *lim, api__tris *T, long long *deg,
+                            mcf_error *err)
+{
+    const char *t;
+    size_t n;
+    char shown[API__SHOWN];
+    long long k;
+    int32_t first = 0, prev = 0;
+
+    if (!next_line(r))
+        return api__fail(err, MCF_EDECODE, "off: line %ld: input ends at face %d of %lld",
+                         r->in.line, i, nf);
+    n = token(r, &t);
+    if (api__parse_int(t, n, deg) != 0)
+        return api__fail(err, MCF_EDECODE, "off: line %ld: bad vertex count '%s'",
+                         r->in.line, api__show(t, n, shown));
+    if (*deg < 3)
+        return api__fail(err, MCF_EDECODE, "off: line %ld: face %d has %lld vertices, "
+                         "at least 3 needed",
+                         r->in.line, i, *deg);
+    for (k = 0; k < *deg; k++) {
+        long long v;
+        n = token(r, &t);
+        if (n == 0)
+            return api__fail(err, MCF_EDECODE,
+                             "off: line %ld: face %d lists %lld of %lld vertices",
+                             r->in.line, i, k, *deg);
+        if (api__parse_int(t, n, &v) != 0)
+            return api__fail(err, MCF_EDECODE, "off: line %ld: bad index '%s'",
+                             r->in.line, api__show(t, n, shown));
+        if (v < 0 || v >= nv)
+            return api__fail(err, MCF_EDECODE, "off: line %ld: face %d: index %lld out "
+                             "of range (0..%lld)",
+                             r->in.line, i, v, nv - 1);
+        if (k == 0) {
+            first = (int32_t)v;
+        } else if (k >= 2) {
+            /* First sized from the declared face count. */
+            long long want = 0;
+            mcf_status trc = api__tris_add(T, first, prev, (int32_t)v,
+                                           lim->max_faces, nf, &want);
+            if (trc == MCF_ELIMIT)
+                return api__fail(err, trc,
+                                 "off: line %ld: more than max_faces (%d) triangles",
+                                 r->in.line, lim->max_faces);
+            if (trc != MCF_OK)
+                return api__fail(err, trc, "off: no memory for %lld triangles", want);
+        }
+        prev = (int32_t)v;
+    }
+    /* Anything left on the line is the face's colour: ignored. */
+    return MCF_OK;
+}
+
+/* The decoder; psize (NULL: not wanted) gets each face's corner count
+ * (cnt[1] of them, malloc'ed, the caller's). */
+static mcf_status decode(const void *buf, size_t len, const api_limits *lim,
+                         mcf_mesh **out, int32_t **psize, int *npoly, mcf_error *err)
+{
+    api_limits def;
+    reader r;
+    long long cnt[3] = {0, 0, 0}, deg;
+    int i;
+    double *X = NULL;
+    api__tris T = {NULL, 0, 0};
+    mcf_status rc;
+
+    if ((rc = api__decode_begin("off", buf, len, &lim, &def, err)) != MCF_OK)
+        return rc;
+    r.in.p = buf;
+    r.in.end = r.in.p + len;
+    r.in.line = 0;
+    if ((rc = read_counts(&r, len, lim, cnt, err)) != MCF_OK)
+        return rc;
 
     X = malloc(3 * sizeof *X * (size_t)cnt[0]);
     if (psize && !(*psize = malloc(sizeof **psize * (size_t)cnt[1]))) {
@@ -164,98 +265,17 @@ static mcf_status decode(const void *buf, size_t len, const api_limits *lim,
         rc = api__fail(err, MCF_ENOMEM, "off: no memory for %lld vertices", cnt[0]);
         goto done;
     }
-    for (i = 0; i < (int)cnt[0]; i++) {
-        int k;
-        if (!next_line(&r)) {
-            api__fail(err, rc, "off: line %ld: input ends at vertex %d of %lld",
-                      r.in.line, i, cnt[0]);
-            goto done;
-        }
-        for (k = 0; k < 3; k++) {
-            n = token(&r, &t);
-            if (n == 0) {
-                api__fail(err, rc, "off: line %ld: vertex %d has %d coordinates, 3 "
-                                   "needed",
-                          r.in.line, i, k);
-                goto done;
-            }
-            if (api__parse_double(t, n, &X[3 * i + k]) != 0) {
-                api__fail(err, rc, "off: line %ld: bad number '%s'", r.in.line,
-                          api__show(t, n, shown));
-                goto done;
-            }
-            if (!isfinite(X[3 * i + k])) {
-                api__fail(err, rc, "off: line %ld: coordinate '%s' is not finite",
-                          r.in.line, api__show(t, n, shown));
-                goto done;
-            }
-        }
-    }
+    if ((rc = read_vertices(&r, cnt[0], X, err)) != MCF_OK)
+        goto done;
     for (i = 0; i < (int)cnt[1]; i++) {
-        long long k, deg;
-        int32_t first = 0, prev = 0;
-        if (!next_line(&r)) {
-            api__fail(err, rc, "off: line %ld: input ends at face %d of %lld", r.in.line,
-                      i, cnt[1]);
+        if ((rc = read_face(&r, i, cnt[0], cnt[1], lim, &T, &deg, err)) != MCF_OK)
             goto done;
-        }
-        n = token(&r, &t);
-        if (api__parse_int(t, n, &deg) != 0) {
-            api__fail(err, rc, "off: line %ld: bad vertex count '%s'", r.in.line,
-                      api__show(t, n, shown));
-            goto done;
-        }
-        if (deg < 3) {
-            api__fail(err, rc, "off: line %ld: face %d has %lld vertices, at least 3 "
-                               "needed",
-                      r.in.line, i, deg);
-            goto done;
-        }
-        for (k = 0; k < deg; k++) {
-            long long v;
-            n = token(&r, &t);
-            if (n == 0) {
-                api__fail(err, rc, "off: line %ld: face %d lists %lld of %lld vertices",
-                          r.in.line, i, k, deg);
-                goto done;
-            }
-            if (api__parse_int(t, n, &v) != 0) {
-                api__fail(err, rc, "off: line %ld: bad index '%s'", r.in.line,
-                          api__show(t, n, shown));
-                goto done;
-            }
-            if (v < 0 || v >= cnt[0]) {
-                api__fail(err, rc, "off: line %ld: face %d: index %lld out of range "
-                                   "(0..%lld)",
-                          r.in.line, i, v, cnt[0] - 1);
-                goto done;
-            }
-            if (k == 0) {
-                first = (int32_t)v;
-            } else if (k >= 2) {
-                /* First sized from the declared face count. */
-                long long want = 0;
-                mcf_status trc = api__tris_add(&T, first, prev, (int32_t)v,
-                                               lim->max_faces, cnt[1], &want);
-                if (trc == MCF_ELIMIT) {
-                    rc = api__fail(err, trc,
-                                   "off: line %ld: more than max_faces (%d) triangles",
-                                   r.in.line, lim->max_faces);
-                    goto done;
-                }
-                if (trc != MCF_OK) {
-                    rc = api__fail(err, trc, "off: no memory for %lld triangles", want);
-                    goto done;
-                }
-            }
-            prev = (int32_t)v;
-        }
         if (psize)
             (*psize)[i] = (int32_t)deg;
-        /* Anything left on the line is the face's colour: ignored. */
     }
     if (next_line(&r)) {
-        api__fail(err, rc, "off: line %ld: data after the last face", r.in.line);
+        rc = api__fail(err, MCF_EDECODE, "off: line %ld: data after the last face",
+                       r.in.line);
         goto done;
     }
     rc = api__mesh_new((int)cnt[0], X, (int)T.n, T.F, out, err);

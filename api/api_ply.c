@@ -1,5 +1,6 @@
 /*
- * api_ply.c - Stanford PLY reader and writer on memory buffers.
+ * api_ply.c - Stanford PLY reader on memory buffers (the header:
+ * api_ply_header.c; the writer: api_ply_write.c).
  *
  * Reader: ascii, binary_little_endian and binary_big_endian bodies. The
  * header is parsed into elements and their properties; any element other
@@ -19,366 +20,13 @@
  * [0, 1]) and the face `texcoord` list draco_decoder writes; one with a
  * missing component or a non-finite value is dropped, never an error;
  * and each face's corner count, so polygons can be written back.
- *
- * Writer: ascii or binary_little_endian (independent of the host's byte
- * order), x y z as float when the attributes say the input was single
- * precision, else double; with attributes, nx ny nz recomputed from the
- * surface (per vertex), texcoords as vertex s t (or, at UV seams, the face
- * `texcoord` list), uchar red green blue [alpha]; optional float
- * `mean_curvature` and `gaussian_curvature` vertex properties (given, or
- * computed with ply_curvature); `property list uchar int vertex_indices`
- * triangles, or the input's polygons when the attributes hold them (of at
- * most 127 corners, so a face texcoord list's count fits its uchar). ASCII uses %.17g for doubles, %.9g for floats (exact round
- * trips).
  */
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "api_internal.h"
-
-typedef enum { T_NONE = 0, T_I8, T_U8, T_I16, T_U16, T_I32, T_U32, T_F32, T_F64 } ptype;
-
-static const struct {
-    const char *name;
-    ptype t;
-} type_names[] = {
-    {"char", T_I8},    {"int8", T_I8},     {"uchar", T_U8},   {"uint8", T_U8},
-    {"short", T_I16},  {"int16", T_I16},   {"ushort", T_U16}, {"uint16", T_U16},
-    {"int", T_I32},    {"int32", T_I32},   {"uint", T_U32},   {"uint32", T_U32},
-    {"float", T_F32},  {"float32", T_F32}, {"double", T_F64}, {"float64", T_F64},
-};
-
-static const size_t type_size[] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
-
-enum {
-    ROLE_NONE = 0, ROLE_X, ROLE_Y, ROLE_Z, ROLE_INDICES,
-    /* vertex attributes (read only for api_ply_decode_attrs) */
-    ROLE_NX, ROLE_NY, ROLE_NZ, ROLE_S, ROLE_T, ROLE_R, ROLE_G, ROLE_B, ROLE_A,
-    ROLE_FTC,       /* the face's `texcoord` list (u v per corner) */
-    ROLE_COUNT
-};
-#define NVROLES (ROLE_A - ROLE_NX + 1)
-
-/* Vertex property names of the attribute roles, ROLE_NX on. */
-static const char *const vrole_names[NVROLES][3] = {
-    {"nx", NULL, NULL}, {"ny", NULL, NULL}, {"nz", NULL, NULL},
-    {"s", "u", "texture_u"}, {"t", "v", "texture_v"},
-    {"red", "r", NULL}, {"green", "g", NULL}, {"blue", "b", NULL},
-    {"alpha", "a", NULL},
-};
-enum { FMT_ASCII = 0, FMT_LE, FMT_BE };
-
-typedef struct {
-    const char *name;       /* into the input buffer */
-    size_t nlen;
-    int is_list;
-    ptype type;             /* scalar type, or the list's item type */
-    ptype count_type;       /* list only */
-    int role;
-} prop;
-
-typedef struct {
-    const char *name;
-    size_t nlen;
-    unsigned long long count;
-    prop *props;
-    int nprops, cap;
-    int is_vertex, is_face;
-} element;
-
-typedef struct {
-    int format;
-    element *el;
-    int nel, cap;
-    size_t body;            /* offset of the first body byte */
-    long body_line;         /* ASCII: number of the first body line */
-} header;
-
-static void header_free(header *h)
-{
-    int i;
-    for (i = 0; i < h->nel; i++)
-        free(h->el[i].props);
-    free(h->el);
-    h->el = NULL;
-    h->nel = h->cap = 0;
-}
-
-static ptype parse_type(const char *t, size_t n)
-{
-    size_t i;
-    for (i = 0; i < sizeof type_names / sizeof type_names[0]; i++)
-        if (api__tok_is(t, n, type_names[i].name))
-            return type_names[i].t;
-    return T_NONE;
-}
-
-static int is_int_type(ptype t)
-{
-    return t != T_NONE && t != T_F32 && t != T_F64;
-}
-
-/* An unsigned decimal integer token (no sign, no spaces), at most ULLONG_MAX. */
-static int parse_count(const char *t, size_t n, unsigned long long *out)
-{
-    unsigned long long v = 0;
-    size_t i;
-    if (n == 0)
-        return -1;
-    for (i = 0; i < n; i++) {
-        unsigned d;
-        if (t[i] < '0' || t[i] > '9')
-            return -1;
-        d = (unsigned)(t[i] - '0');
-        if (v > (ULLONG_MAX - d) / 10)
-            return -1;
-        v = v * 10 + d;
-    }
-    *out = v;
-    return 0;
-}
-
-static mcf_status add_element(header *h, const char *name, size_t nlen,
-                              unsigned long long count, mcf_error *err)
-{
-    element *e;
-    if (h->nel == h->cap) {
-        int ncap = h->cap ? 2 * h->cap : 4;
-        element *p = realloc(h->el, (size_t)ncap * sizeof *p);
-        if (!p)
-            return api__fail(err, MCF_ENOMEM, "ply: out of memory in the header");
-        h->el = p;
-        h->cap = ncap;
-    }
-    e = &h->el[h->nel++];
-    memset(e, 0, sizeof *e);
-    e->name = name;
-    e->nlen = nlen;
-    e->count = count;
-    e->is_vertex = api__tok_is(name, nlen, "vertex");
-    e->is_face = api__tok_is(name, nlen, "face");
-    return MCF_OK;
-}
-
-static mcf_status add_prop(element *e, const prop *p, mcf_error *err)
-{
-    if (e->nprops == e->cap) {
-        int ncap = e->cap ? 2 * e->cap : 8;
-        prop *q = realloc(e->props, (size_t)ncap * sizeof *q);
-        if (!q)
-            return api__fail(err, MCF_ENOMEM, "ply: out of memory in the header");
-        e->props = q;
-        e->cap = ncap;
-    }
-    e->props[e->nprops++] = *p;
-    return MCF_OK;
-}
-
-/* Parses the header up to and including the end_header line. */
-static mcf_status parse_header(const char *buf, size_t len, header *h,
-                               mcf_error *err)
-{
-    api__lines c = {buf, buf + len, 0};
-    const char *s, *le;
-    int have_format = 0;
-    char shown[API__SHOWN];
-    mcf_status rc;
-
-    while (api__line_next(&c, &s, &le)) {
-        const char *t;
-        long line = c.line;
-        size_t n = api__token(&s, le, &t);
-        if (line == 1) {
-            /* le == c.end: the line has no '\n' (le is one otherwise). */
-            if (!api__tok_is(t, n, "ply") || api__token(&s, le, &t) != 0
-                || le == c.end)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line 1 must be 'ply' alone");
-            continue;
-        }
-        if (n == 0)
-            return api__fail(err, MCF_EDECODE, "ply: line %ld: empty header line",
-                             line);
-        if (api__tok_is(t, n, "comment") || api__tok_is(t, n, "obj_info"))
-            continue;
-        if (api__tok_is(t, n, "end_header")) {
-            if (!have_format)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: end_header before any format line",
-                                 line);
-            if (api__token(&s, le, &t) != 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: text after end_header", line);
-            h->body = (size_t)(c.p - buf);
-            h->body_line = line + 1;
-            return MCF_OK;
-        }
-        if (api__tok_is(t, n, "format")) {
-            if (have_format)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: second format line", line);
-            if (h->nel)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: format line after an element", line);
-            n = api__token(&s, le, &t);
-            if (api__tok_is(t, n, "ascii"))
-                h->format = FMT_ASCII;
-            else if (api__tok_is(t, n, "binary_little_endian"))
-                h->format = FMT_LE;
-            else if (api__tok_is(t, n, "binary_big_endian"))
-                h->format = FMT_BE;
-            else
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: unknown format '%s' (ascii, "
-                                 "binary_little_endian, binary_big_endian)",
-                                 line, api__show(t, n, shown));
-            n = api__token(&s, le, &t);
-            if (!api__tok_is(t, n, "1.0") || api__token(&s, le, &t) != 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: format version must be 1.0", line);
-            have_format = 1;
-            continue;
-        }
-        if (api__tok_is(t, n, "element")) {
-            const char *name, *ct;
-            size_t nn, cn;
-            unsigned long long count;
-            int i;
-            nn = api__token(&s, le, &name);
-            cn = api__token(&s, le, &ct);
-            if (nn == 0 || cn == 0 || api__token(&s, le, &t) != 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: 'element <name> <count>' expected",
-                                 line);
-            if (parse_count(ct, cn, &count) != 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: bad element count '%s'", line,
-                                 api__show(ct, cn, shown));
-            for (i = 0; i < h->nel; i++)
-                if (h->el[i].nlen == nn && memcmp(h->el[i].name, name, nn) == 0)
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: element '%s' declared twice",
-                                     line, api__show(name, nn, shown));
-            if ((rc = add_element(h, name, nn, count, err)) != MCF_OK)
-                return rc;
-            continue;
-        }
-        if (api__tok_is(t, n, "property")) {
-            prop pr;
-            element *e;
-            const char *name;
-            size_t nn;
-            int i;
-            memset(&pr, 0, sizeof pr);
-            if (h->nel == 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: property before any element", line);
-            e = &h->el[h->nel - 1];
-            n = api__token(&s, le, &t);
-            if (api__tok_is(t, n, "list")) {
-                pr.is_list = 1;
-                n = api__token(&s, le, &t);
-                pr.count_type = parse_type(t, n);
-                if (pr.count_type == T_NONE)
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: unknown list count type '%s'",
-                                     line, api__show(t, n, shown));
-                if (!is_int_type(pr.count_type))
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: list count type '%s' is not an "
-                                     "integer type",
-                                     line, api__show(t, n, shown));
-                n = api__token(&s, le, &t);
-            }
-            pr.type = parse_type(t, n);
-            if (pr.type == T_NONE)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: unknown property type '%s'", line,
-                                 api__show(t, n, shown));
-            nn = api__token(&s, le, &name);
-            if (nn == 0 || api__token(&s, le, &t) != 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: 'property [list <count> <item>] "
-                                 "<type> <name>' expected",
-                                 line);
-            for (i = 0; i < e->nprops; i++)
-                if (e->props[i].nlen == nn && memcmp(e->props[i].name, name, nn) == 0)
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: property '%s' declared twice",
-                                     line, api__show(name, nn, shown));
-            pr.name = name;
-            pr.nlen = nn;
-            if (e->is_vertex && !pr.is_list) {
-                if (api__tok_is(name, nn, "x"))
-                    pr.role = ROLE_X;
-                else if (api__tok_is(name, nn, "y"))
-                    pr.role = ROLE_Y;
-                else if (api__tok_is(name, nn, "z"))
-                    pr.role = ROLE_Z;
-                for (i = 0; pr.role == ROLE_NONE && i < NVROLES; i++) {
-                    int j;
-                    for (j = 0; j < 3 && vrole_names[i][j]; j++)
-                        if (api__tok_is(name, nn, vrole_names[i][j]))
-                            pr.role = ROLE_NX + i;
-                }
-                /* A second name of a role taken (u after s) stays unread. */
-                for (i = 0; pr.role >= ROLE_NX && i < e->nprops; i++)
-                    if (e->props[i].role == pr.role)
-                        pr.role = ROLE_NONE;
-            }
-            if (e->is_face && pr.is_list && api__tok_is(name, nn, "texcoord"))
-                pr.role = ROLE_FTC;
-            if (e->is_face
-                && (api__tok_is(name, nn, "vertex_indices")
-                    || api__tok_is(name, nn, "vertex_index"))) {
-                for (i = 0; i < e->nprops; i++)
-                    if (e->props[i].role == ROLE_INDICES)
-                        return api__fail(err, MCF_EDECODE,
-                                         "ply: line %ld: both vertex_indices and "
-                                         "vertex_index",
-                                         line);
-                if (!pr.is_list)
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: face property '%s' must be a list",
-                                     line, api__show(name, nn, shown));
-                if (!is_int_type(pr.type))
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: face indices must have an "
-                                     "integer type",
-                                     line);
-                pr.role = ROLE_INDICES;
-            }
-            if ((rc = add_prop(e, &pr, err)) != MCF_OK)
-                return rc;
-            continue;
-        }
-        return api__fail(err, MCF_EDECODE, "ply: line %ld: unknown header keyword '%s'",
-                         line, api__show(t, n, shown));
-    }
-    return api__fail(err, MCF_EDECODE, "ply: no end_header line");
-}
-
-/* Smallest number of bytes one instance of e can take in the body. ASCII:
- * every value is at least one character plus a separator (the last one a
- * newline); the face list at least "3 a b c". Binary: the scalar sizes,
- * list counts, and three indices for the face list. */
-static unsigned long long min_size(const element *e, int format)
-{
-    unsigned long long s = 0;
-    int i;
-    for (i = 0; i < e->nprops; i++) {
-        const prop *p = &e->props[i];
-        unsigned items = p->role == ROLE_INDICES ? 3 : 0;
-        if (format == FMT_ASCII)
-            s += 2 * (p->is_list ? 1 + items : 1);
-        else
-            s += p->is_list ? type_size[p->count_type] + items * type_size[p->type]
-                            : type_size[p->type];
-    }
-    return s;
-}
+#include "api_ply_internal.h"
 
 /* ---------------------------------------------------------------- body */
 
@@ -411,7 +59,7 @@ typedef struct {
 static double get_scalar(const unsigned char *b, ptype t, int swap)
 {
     unsigned char u[8];
-    size_t n = type_size[t], i;
+    size_t n = api__ply_type_size[t], i;
     for (i = 0; i < n; i++)
         u[i] = swap ? b[n - 1 - i] : b[i];
     switch (t) {
@@ -583,7 +231,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                 const prop *p = &e->props[pi];
                 size_t left = b->len - b->pos;
                 if (!p->is_list) {
-                    size_t sz = type_size[p->type];
+                    size_t sz = api__ply_type_size[p->type];
                     if (left < sz)
                         goto truncated;
                     if (p->role >= ROLE_X && p->role <= ROLE_Z) {
@@ -599,7 +247,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                     }
                     b->pos += sz;
                 } else {
-                    size_t cs = type_size[p->count_type], is = type_size[p->type];
+                    size_t cs = api__ply_type_size[p->count_type], is = api__ply_type_size[p->type];
                     double cv;
                     long long count, k;
                     if (left < cs)
@@ -867,6 +515,101 @@ static mcf_status make_attrs(body *b, const mcf_mesh *m, int float32,
     return MCF_OK;
 }
 
+/* The vertex and face elements of h (*ve, *fe), with the properties the
+ * mesh needs, and every declared count checked against the body (its
+ * elements' smallest sizes) and then against the limits. */
+static mcf_status check_elements(const header *h, size_t len, const api_limits *lim,
+                                 const element **ve_out, mcf_error *err)
+{
+    const element *ve = NULL, *fe = NULL;
+    unsigned long long need = 0;
+    size_t blen;
+    int i, roles[ROLE_COUNT] = {0};
+    char shown[API__SHOWN];
+
+    for (i = 0; i < h->nel; i++) {
+        if (h->el[i].is_vertex)
+            ve = &h->el[i];
+        if (h->el[i].is_face)
+            fe = &h->el[i];
+    }
+    if (!ve)
+        return api__fail(err, MCF_EDECODE, "ply: no 'vertex' element");
+    for (i = 0; i < ve->nprops; i++)
+        roles[ve->props[i].role]++;
+    if (!roles[ROLE_X] || !roles[ROLE_Y] || !roles[ROLE_Z])
+        return api__fail(err, MCF_EDECODE, "ply: element 'vertex' lacks property '%s'",
+                         !roles[ROLE_X] ? "x" : !roles[ROLE_Y] ? "y" : "z");
+    if (!fe)
+        return api__fail(err, MCF_EDECODE,
+                         "ply: no 'face' element (a point cloud is not a mesh)");
+    for (i = 0; i < fe->nprops; i++)
+        roles[fe->props[i].role]++;
+    if (!roles[ROLE_INDICES])
+        return api__fail(err, MCF_EDECODE, "ply: element 'face' has no 'vertex_indices' list");
+
+    /* Declared counts against the body, then against the limits. */
+    blen = len - h->body;
+    for (i = 0; i < h->nel; i++) {
+        unsigned long long ms = api__ply_min_size(&h->el[i], h->format), c = h->el[i].count;
+        if (ms && c > (ULLONG_MAX - need) / ms) {
+            need = ULLONG_MAX;
+        } else {
+            need += c * ms;
+        }
+        /* ASCII: the last line may lack its newline. */
+        if (c && need > (unsigned long long)blen + (h->format == FMT_ASCII))
+            return api__fail(err, MCF_EDECODE,
+                             "ply: header declares %llu '%s' elements, more than the "
+                             "%zu-byte body can hold",
+                             c, api__show(h->el[i].name, h->el[i].nlen, shown), blen);
+    }
+    if (ve->count > (unsigned long long)lim->max_vertices)
+        return api__fail(err, MCF_ELIMIT, "ply: %llu vertices exceed max_vertices (%d)",
+                         ve->count, lim->max_vertices);
+    if (fe->count > (unsigned long long)lim->max_faces)
+        return api__fail(err, MCF_ELIMIT, "ply: %llu faces exceed max_faces (%d)",
+                         fe->count, lim->max_faces);
+    if (ve->count == 0)
+        return api__fail(err, MCF_EDECODE, "ply: no vertices");
+    if (fe->count == 0)
+        return api__fail(err, MCF_EDECODE, "ply: no faces: %llu vertices only", ve->count);
+    *ve_out = ve;
+    return MCF_OK;
+}
+
+/* The vertex attributes to read (api_ply_decode_attrs): an array per
+ * attribute role of ve, integer colours scaled to [0, 1]; *float32: the
+ * positions are all float. */
+static mcf_status want_attrs(body *b, const element *ve, int *float32, mcf_error *err)
+{
+    int i;
+
+    b->want = 1;
+    for (i = 0; i < ve->nprops; i++) {
+        const prop *p = &ve->props[i];
+        if (p->role >= ROLE_X && p->role <= ROLE_Z && p->type != T_F32)
+            *float32 = 0;
+        if (p->role >= ROLE_NX && p->role <= ROLE_A) {
+            int k = p->role - ROLE_NX;
+            /* Integer colours (uchar, ushort) scale to [0, 1]. */
+            b->vscale[k] = 1.0;
+            if (p->role >= ROLE_R && is_int_type(p->type))
+                b->vscale[k] = 1.0 / (p->type == T_U8 ? 255.0
+                                     : p->type == T_U16 ? 65535.0
+                                     : p->type == T_I8 ? 127.0
+                                     : p->type == T_I16 ? 32767.0
+                                                        : 4294967295.0);
+            b->va[k] = malloc(sizeof *b->va[k] * (size_t)b->nv);
+            if (!b->va[k])
+                return api__fail(err, MCF_ENOMEM,
+                               "ply: no memory for the attributes of %d vertices",
+                               b->nv);
+        }
+    }
+    return MCF_OK;
+}
+
 mcf_status api_ply_decode_attrs(const void *buf, size_t len,
                                 const api_limits *lim, mcf_mesh **out,
                                 api_attrs **attrs, mcf_error *err)
@@ -874,11 +617,9 @@ mcf_status api_ply_decode_attrs(const void *buf, size_t len,
     api_limits def;
     header h;
     body b;
-    const element *ve = NULL, *fe = NULL;
-    unsigned long long need = 0;
+    const element *ve = NULL;
     size_t blen;
-    int i, roles[ROLE_COUNT] = {0}, float32 = 1;
-    char shown[API__SHOWN];
+    int i, float32 = 1;
     mcf_mesh *m = NULL;
     mcf_status rc;
 
@@ -886,75 +627,12 @@ mcf_status api_ply_decode_attrs(const void *buf, size_t len,
     memset(&b, 0, sizeof b);
     if ((rc = api__decode_begin("ply", buf, len, &lim, &def, err)) != MCF_OK)
         return rc;
-    if ((rc = parse_header(buf, len, &h, err)) != MCF_OK)
+    if ((rc = api__ply_parse_header(buf, len, &h, err)) != MCF_OK)
         goto done;
 
-    for (i = 0; i < h.nel; i++) {
-        if (h.el[i].is_vertex)
-            ve = &h.el[i];
-        if (h.el[i].is_face)
-            fe = &h.el[i];
-    }
-    rc = MCF_EDECODE;
-    if (!ve) {
-        api__fail(err, rc, "ply: no 'vertex' element");
+    if ((rc = check_elements(&h, len, lim, &ve, err)) != MCF_OK)
         goto done;
-    }
-    for (i = 0; i < ve->nprops; i++)
-        roles[ve->props[i].role]++;
-    if (!roles[ROLE_X] || !roles[ROLE_Y] || !roles[ROLE_Z]) {
-        api__fail(err, rc, "ply: element 'vertex' lacks property '%s'",
-                  !roles[ROLE_X] ? "x" : !roles[ROLE_Y] ? "y" : "z");
-        goto done;
-    }
-    if (!fe) {
-        api__fail(err, rc, "ply: no 'face' element (a point cloud is not a mesh)");
-        goto done;
-    }
-    for (i = 0; i < fe->nprops; i++)
-        roles[fe->props[i].role]++;
-    if (!roles[ROLE_INDICES]) {
-        api__fail(err, rc, "ply: element 'face' has no 'vertex_indices' list");
-        goto done;
-    }
-
-    /* Declared counts against the body, then against the limits. */
     blen = len - h.body;
-    for (i = 0; i < h.nel; i++) {
-        unsigned long long ms = min_size(&h.el[i], h.format), c = h.el[i].count;
-        if (ms && c > (ULLONG_MAX - need) / ms) {
-            need = ULLONG_MAX;
-        } else {
-            need += c * ms;
-        }
-        /* ASCII: the last line may lack its newline. */
-        if (c && need > (unsigned long long)blen + (h.format == FMT_ASCII)) {
-            api__fail(err, MCF_EDECODE,
-                      "ply: header declares %llu '%s' elements, more than the "
-                      "%zu-byte body can hold",
-                      c, api__show(h.el[i].name, h.el[i].nlen, shown), blen);
-            goto done;
-        }
-    }
-    if (ve->count > (unsigned long long)lim->max_vertices) {
-        rc = api__fail(err, MCF_ELIMIT,
-                       "ply: %llu vertices exceed max_vertices (%d)", ve->count,
-                       lim->max_vertices);
-        goto done;
-    }
-    if (fe->count > (unsigned long long)lim->max_faces) {
-        rc = api__fail(err, MCF_ELIMIT, "ply: %llu faces exceed max_faces (%d)",
-                       fe->count, lim->max_faces);
-        goto done;
-    }
-    if (ve->count == 0) {
-        api__fail(err, rc, "ply: no vertices");
-        goto done;
-    }
-    if (fe->count == 0) {
-        api__fail(err, rc, "ply: no faces: %llu vertices only", ve->count);
-        goto done;
-    }
 
     b.buf = (const char *)buf + h.body;
     b.len = blen;
@@ -969,32 +647,8 @@ mcf_status api_ply_decode_attrs(const void *buf, size_t len,
         rc = api__fail(err, MCF_ENOMEM, "ply: no memory for %d vertices", b.nv);
         goto done;
     }
-    if (attrs) {
-        b.want = 1;
-        for (i = 0; i < ve->nprops; i++) {
-            const prop *p = &ve->props[i];
-            if (p->role >= ROLE_X && p->role <= ROLE_Z && p->type != T_F32)
-                float32 = 0;
-            if (p->role >= ROLE_NX && p->role <= ROLE_A) {
-                int k = p->role - ROLE_NX;
-                /* Integer colours (uchar, ushort) scale to [0, 1]. */
-                b.vscale[k] = 1.0;
-                if (p->role >= ROLE_R && is_int_type(p->type))
-                    b.vscale[k] = 1.0 / (p->type == T_U8 ? 255.0
-                                         : p->type == T_U16 ? 65535.0
-                                         : p->type == T_I8 ? 127.0
-                                         : p->type == T_I16 ? 32767.0
-                                                            : 4294967295.0);
-                b.va[k] = malloc(sizeof *b.va[k] * (size_t)b.nv);
-                if (!b.va[k]) {
-                    rc = api__fail(err, MCF_ENOMEM,
-                                   "ply: no memory for the attributes of %d vertices",
-                                   b.nv);
-                    goto done;
-                }
-            }
-        }
-    }
+    if (attrs && (rc = want_attrs(&b, ve, &float32, err)) != MCF_OK)
+        goto done;
     rc = h.format == FMT_ASCII ? read_ascii(&b, &h, err) : read_binary(&b, &h, err);
     if (rc != MCF_OK)
         goto done;
@@ -1013,261 +667,7 @@ done:
     free(b.ftc);
     free(b.tmp);
     free(b.psize);
-    header_free(&h);
+    api__ply_header_free(&h);
     return rc;
 }
 
-/* -------------------------------------------------------------- writer */
-
-static void put_le64(unsigned char *p, uint64_t v)
-{
-    api__put_le32(p, (uint32_t)v);
-    api__put_le32(p + 4, (uint32_t)(v >> 32));
-}
-
-static void put_double(unsigned char *p, double d)
-{
-    uint64_t v;
-    memcpy(&v, &d, 8);
-    put_le64(p, v);
-}
-
-/* What a PLY output carries besides x y z and the faces. */
-typedef struct {
-    int f32;                /* positions (and attributes) as float */
-    double *N;              /* 3*nv normals, or NULL */
-    double *T;              /* 2*nv vertex texcoords, or NULL */
-    const api__attr *ftc;   /* else texcoords per corner, or NULL */
-    double *C;              /* ccomp*nv colours in [0, 1], or NULL */
-    int ccomp;
-    const double *H, *K;    /* curvatures, or NULL */
-    double *Hown, *Kown;    /* computed here (ply_curvature) */
-} plyextra;
-
-static void extra_free(plyextra *x)
-{
-    free(x->N);
-    free(x->T);
-    free(x->C);
-    free(x->Hown);
-    free(x->Kown);
-}
-
-static mcf_status extra_init(plyextra *x, const mcf_mesh *m,
-                             const api_encode_opts *o, mcf_error *err)
-{
-    const api_attrs *a = o ? o->attrs : NULL;
-    size_t nv = (size_t)mcf_mesh_nvertices(m);
-    mcf_status rc;
-
-    memset(x, 0, sizeof *x);
-    if ((rc = api__attrs_check(a, m, "ply", err)) != MCF_OK)
-        return rc;
-    x->H = o ? o->ply_mean_curvature : NULL;
-    x->K = o ? o->ply_gaussian_curvature : NULL;
-    if (o && o->ply_curvature && !x->H && !x->K) {
-        x->Hown = malloc(sizeof *x->Hown * (nv + 1));
-        x->Kown = malloc(sizeof *x->Kown * (nv + 1));
-        if (!x->Hown || !x->Kown) {
-            extra_free(x);
-            return api__fail(err, MCF_ENOMEM, "ply: out of memory for curvatures");
-        }
-        if ((rc = mcf_curvature(m, NULL, x->Hown, x->Kown, NULL, err)) != MCF_OK) {
-            extra_free(x);
-            return rc;
-        }
-        x->H = x->Hown;
-        x->K = x->Kown;
-    }
-    if (!a)
-        return MCF_OK;
-    x->f32 = a->float32;
-    if (a->a[API_ATTR_NORMAL].corners) {
-        /* PLY normals are per vertex: creases cannot be kept here. */
-        x->N = malloc(3 * sizeof *x->N * (nv + 1));
-        if (!x->N)
-            goto nomem;
-        api__vertex_normals(m, x->N);
-    }
-    if (a->a[API_ATTR_TEXCOORD].corners) {
-        x->T = malloc(2 * sizeof *x->T * (nv + 1));
-        if (!x->T)
-            goto nomem;
-        if (!api__attr_per_vertex(&a->a[API_ATTR_TEXCOORD], m, x->T)) {
-            free(x->T); /* seams: the face `texcoord` list, as Draco writes */
-            x->T = NULL;
-            x->ftc = &a->a[API_ATTR_TEXCOORD];
-        }
-    }
-    if (a->a[API_ATTR_COLOR].corners) {
-        x->ccomp = a->a[API_ATTR_COLOR].ncomp;
-        x->C = malloc(sizeof *x->C * (size_t)x->ccomp * (nv + 1));
-        if (!x->C)
-            goto nomem;
-        if (!api__attr_per_vertex(&a->a[API_ATTR_COLOR], m, x->C)) {
-            free(x->C); /* colours differ at a vertex: not in PLY */
-            x->C = NULL;
-        }
-    }
-    return MCF_OK;
-nomem:
-    extra_free(x);
-    return api__fail(err, MCF_ENOMEM, "ply: out of memory for the attributes");
-}
-
-/* A colour component in [0, 1] as a byte (exact for 8-bit sources). */
-static unsigned char color_byte(double c)
-{
-    double v = floor(c * 255.0 + 0.5);
-    return (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v);
-}
-
-/* Appends value v as a float or a double (binary or ASCII). */
-static void put_real(unsigned char *p, size_t *n, double v, int f32)
-{
-    if (f32) {
-        api__put_f32(p + *n, (float)v);
-        *n += 4;
-    } else {
-        put_double(p + *n, v);
-        *n += 8;
-    }
-}
-
-/* ASCII: " v" with %.9g for a float (exact for floats), %.17g for a
- * double. */
-static mcf_status print_real(api_buf *out, double v, int f32)
-{
-    return f32 ? api_buf_printf(out, " %.9g", (double)(float)v)
-               : api_buf_printf(out, " %.17g", v);
-}
-
-mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
-                          api_buf *out, mcf_error *err)
-{
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i, k;
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    int binary = o ? o->ply_binary != 0 : 1, pn;
-    size_t len0 = out->len, *cs;
-    unsigned char *fb;
-    const api_attrs *pa;
-    api__poly_it it = {0, 0};
-    plyextra x;
-    const char *real;
-    mcf_status rc;
-
-    if ((rc = extra_init(&x, m, o, err)) != MCF_OK)
-        return rc;
-    /* The input's polygons, when their counts fit the uchar list count
-     * (and a texcoord list of 2 per corner fits too); else triangles. */
-    pa = o && o->attrs && api__attrs_maxpoly(o->attrs) <= 127 ? o->attrs : NULL;
-    cs = malloc(sizeof *cs * (size_t)api__attrs_maxpoly(pa));
-    fb = malloc((size_t)api__attrs_maxpoly(pa) * (4 + 2 * 8) + 2);
-    if (!cs || !fb) {
-        free(cs);
-        free(fb);
-        extra_free(&x);
-        return api__fail(err, MCF_ENOMEM, "ply: out of memory");
-    }
-    real = x.f32 ? "float" : "double";
-    rc = api_buf_printf(out,
-                        "ply\nformat %s 1.0\ncomment mcfd\nelement vertex %d\n"
-                        "property %s x\nproperty %s y\nproperty %s z\n",
-                        binary ? "binary_little_endian" : "ascii", nv, real, real,
-                        real);
-    if (rc == MCF_OK && x.N)
-        rc = api_buf_printf(out, "property %s nx\nproperty %s ny\nproperty %s nz\n",
-                            real, real, real);
-    if (rc == MCF_OK && x.T)
-        rc = api_buf_printf(out, "property %s s\nproperty %s t\n", real, real);
-    if (rc == MCF_OK && x.C)
-        rc = api_buf_printf(out, "property uchar red\nproperty uchar green\n"
-                                 "property uchar blue\n%s",
-                            x.ccomp == 4 ? "property uchar alpha\n" : "");
-    if (rc == MCF_OK && x.H)
-        rc = api_buf_printf(out, "property float mean_curvature\n");
-    if (rc == MCF_OK && x.K)
-        rc = api_buf_printf(out, "property float gaussian_curvature\n");
-    if (rc == MCF_OK)
-        rc = api_buf_printf(out, "element face %d\nproperty list uchar int "
-                                 "vertex_indices\n%s",
-                            pa && pa->poly ? pa->npoly : nf, x.ftc ? "" : "end_header\n");
-    if (rc == MCF_OK && x.ftc)
-        rc = api_buf_printf(out, "property list uchar %s texcoord\nend_header\n",
-                            real);
-    for (i = 0; i < nv && rc == MCF_OK; i++) {
-        if (binary) {
-            unsigned char v[128];
-            size_t n = 0;
-            for (k = 0; k < 3; k++)
-                put_real(v, &n, X[3 * i + k], x.f32);
-            for (k = 0; x.N && k < 3; k++)
-                put_real(v, &n, x.N[3 * i + k], x.f32);
-            for (k = 0; x.T && k < 2; k++)
-                put_real(v, &n, x.T[2 * i + k], x.f32);
-            for (k = 0; x.C && k < x.ccomp; k++)
-                v[n++] = color_byte(x.C[x.ccomp * i + k]);
-            if (x.H) {
-                api__put_f32(v + n, (float)x.H[i]);
-                n += 4;
-            }
-            if (x.K) {
-                api__put_f32(v + n, (float)x.K[i]);
-                n += 4;
-            }
-            rc = api_buf_append(out, v, n);
-        } else {
-            rc = api_buf_printf(out, x.f32 ? "%.9g %.9g %.9g" : "%.17g %.17g %.17g",
-                                x.f32 ? (double)(float)X[3 * i] : X[3 * i],
-                                x.f32 ? (double)(float)X[3 * i + 1] : X[3 * i + 1],
-                                x.f32 ? (double)(float)X[3 * i + 2] : X[3 * i + 2]);
-            for (k = 0; x.N && k < 3 && rc == MCF_OK; k++)
-                rc = print_real(out, x.N[3 * i + k], x.f32);
-            for (k = 0; x.T && k < 2 && rc == MCF_OK; k++)
-                rc = print_real(out, x.T[2 * i + k], x.f32);
-            for (k = 0; x.C && k < x.ccomp && rc == MCF_OK; k++)
-                rc = api_buf_printf(out, " %u", (unsigned)color_byte(x.C[x.ccomp * i + k]));
-            if (rc == MCF_OK && x.H)
-                rc = api_buf_printf(out, " %.9g", (double)(float)x.H[i]);
-            if (rc == MCF_OK && x.K)
-                rc = api_buf_printf(out, " %.9g", (double)(float)x.K[i]);
-            if (rc == MCF_OK)
-                rc = api_buf_append(out, "\n", 1);
-        }
-    }
-    while (rc == MCF_OK && api__poly_next(pa, nf, &it, cs, &pn)) {
-        if (binary) {
-            size_t b = 1;
-            fb[0] = (unsigned char)pn;
-            for (k = 0; k < pn; k++, b += 4)
-                api__put_le32(fb + b, (uint32_t)F[cs[k]]);
-            if (x.ftc) {
-                fb[b++] = (unsigned char)(2 * pn);
-                for (k = 0; k < 2 * pn; k++)
-                    put_real(fb, &b,
-                             x.ftc->values[2 * (size_t)x.ftc->corners[cs[k / 2]] + (size_t)(k % 2)],
-                             x.f32);
-            }
-            rc = api_buf_append(out, fb, b);
-        } else {
-            rc = api_buf_printf(out, "%d", pn);
-            for (k = 0; k < pn && rc == MCF_OK; k++)
-                rc = api_buf_printf(out, " %ld", (long)F[cs[k]]);
-            if (rc == MCF_OK && x.ftc) {
-                rc = api_buf_printf(out, " %d", 2 * pn);
-                for (k = 0; k < 2 * pn && rc == MCF_OK; k++) {
-                    double t = x.ftc->values[2 * (size_t)x.ftc->corners[cs[k / 2]]
-                                             + (size_t)(k % 2)];
-                    rc = print_real(out, t, x.f32);
-                }
-            }
-            if (rc == MCF_OK)
-                rc = api_buf_append(out, "\n", 1);
-        }
-    }
-    free(cs);
-    free(fb);
-    extra_free(&x);
-    return api__encode_end(out, len0, rc, "ply", nv, "vertices", err);
-}

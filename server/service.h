@@ -2,7 +2,7 @@
  * service.h - the job service of mcfd: the one module that owns jobs
  * (table, queue, workers, runner, store, recovery, drain), and the only
  * way a transport reaches them. Both doors use nothing else: the REST door
- * (http.c and its files, on libmicrohttpd) and the gRPC door (grpc.cc).
+ * (http.c and its files, on libmicrohttpd) and the gRPC door (grpc*.cc).
  * No HTTP, MHD or gRPC type appears here, and no message here names a URL.
  *
  * Objects

@@ -16,7 +16,7 @@
  * (Draco decodes in a child process; main.c's hidden decode mode is its
  * child side), and its store (store.h; spool.c, the local one);
  * the doors (door.h: one face for both):
- *   the gRPC door (grpc_door.h): grpc.cc, the only C++ here, behind
+ *   the gRPC door (grpc_door.h): grpc*.cc, the only C++ here, behind
  *   h2gate.c    its socket: accepts, admits and relays connections to gRPC
  *   the REST door on libmicrohttpd (rest_door.h; http.h for its files):
  *   rest_door.c its face: MHD started, the tick's deadlines, the gauges
