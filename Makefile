@@ -10,7 +10,8 @@
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
 #   make tsan       the daemon's tests under ThreadSanitizer (build-tsan/, tests/tsan.supp)
 #   make WERROR=1 ...                  warnings are errors (CI)
-#   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name
+#   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name,
+#                   nothing outside lab/ includes the lab
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
 # Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
@@ -22,36 +23,10 @@ SHARED ?= $(abspath ../shared)
 # tests/data/meshes; tests that need a large one are skipped without MESHES.
 MESHES ?= $(if $(wildcard $(SHARED)/meshes/.),$(SHARED)/meshes,)
 
-ifdef SAN
-B ?= build-san
-else
-B ?= build
-endif
-
-CC  ?= cc
-CXX ?= c++
-
-WARN := -std=c11 -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
-        -Wmissing-prototypes -Wformat=2 -Wcast-qual -Wundef
-CXXWARN := -std=c++17 -Wall -Wextra -Wshadow -Wformat=2 -Wundef
-ifeq ($(WERROR),1)
-WARN    += -Werror
-CXXWARN += -Werror
-endif
-
-OPT      ?= -O2 -g
-CFLAGS   ?= $(OPT)
-CXXFLAGS ?= $(OPT)
+include flags.mk
+B ?= $(BUILD_DIR)
 CPPFLAGS += -I/usr/include/suitesparse -Icore -Iapi
-LDFLAGS  ?=
-ifdef SAN
-CFLAGS   := -O1 -g -fsanitize=$(SAN) -fno-sanitize-recover=all -fno-omit-frame-pointer
-CXXFLAGS := $(CFLAGS)
-LDFLAGS  += -fsanitize=$(SAN)
-endif
 
-LIBS_CORE := -lcholmod -lsuitesparseconfig -lm
-LIBS_API  := -ldraco -lcjson
 LIBS_SRV  := -lmicrohttpd -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 # The gRPC door (server/grpc.cc): Debian's gRPC C++ 1.51 and protobuf.
@@ -98,6 +73,10 @@ TEST_PY  := $(wildcard tests/test_*.py)
 TEST_BIN += $(TEST_PY:tests/%.py=$(B)/tests/%)
 TEST_MJS := $(wildcard tests/test_*.mjs)
 TEST_BIN += $(TEST_MJS:tests/%.mjs=$(B)/tests/%)
+# The lab's tests (lab/tests/test_*.c, e.g. its flow studies end to end):
+# built by lab/Makefile, run and counted here.
+LAB_TEST_BIN := $(patsubst lab/tests/%.c,$(B)/lab/tests/%,$(wildcard lab/tests/test_*.c))
+TEST_BIN += $(LAB_TEST_BIN)
 
 PROGS := $(B)/mcf
 ifneq ($(SRV_SRC),)
@@ -146,6 +125,11 @@ $(GEN)/%.o: $(GEN)/%.cc
 $(SRV_CXX:%.cc=$(B)/%.o): $(B)/%.o: %.cc $(GEN_CC:.cc=.h)
 	@mkdir -p $(@D)
 	$(CXX) $(CXXWARN) -isystem $(GEN) $(GRPC_CFLAGS) $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
+
+$(LAB_TEST_BIN): $(B)/libmcf.a $(B)/libmcfapi.a $(TESTLIB_OBJ) FORCE
+	$(MAKE) -C lab B=$(abspath $(B)) $(abspath $@)
+
+FORCE:
 
 # A Python test: a wrapper that runs tests/NAME.py with Debian's python3.
 $(B)/tests/%: tests/%.py
@@ -385,7 +369,7 @@ endef
 
 $(B)/man/mcf.1: $(B)/mcf api/api.h
 	@mkdir -p $(@D)
-	$(call manpage,mcf,smooth meshes by mean curvature flow,smooth info schemes params convert experiment)
+	$(call manpage,mcf,smooth meshes by mean curvature flow,smooth info schemes params convert)
 
 $(B)/man/mcfd.1: $(B)/mcfd api/api.h
 	@mkdir -p $(@D)
@@ -441,6 +425,13 @@ image-check:
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 
+# Every source of the product and its tests (all but lab/), and the lab's
+# header names as one regular expression (lab.h|study.h|...).
+PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[ch] server/*.cc \
+                 tests/*.[ch] tests/fuzz/*.[ch])
+empty :=
+LAB_HEADERS_RE := $(subst $(empty) $(empty),|,$(subst .,\.,$(notdir $(wildcard lab/*.h lab/*/*.h))))
+
 # The job service's files: they alone include svc_internal.h.
 SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch])
 
@@ -459,7 +450,9 @@ check-deps:
 	  { echo "check-deps: the job service (service.h) must not know the REST door or libmicrohttpd"; exit 1; }
 	@! grep -nE '#include *[<"]svc_internal\.h' $(filter-out $(SRV_SERVICE),$(wildcard server/*.c server/*.h server/*.cc)) || \
 	  { echo "check-deps: outside the job service, use service.h, not svc_internal.h"; exit 1; }
-	@echo "check-deps: server -> api -> core holds; the doors -> service.h"
+	@! grep -nE '#include *[<"]([^>"]*/)?(lab/|$(LAB_HEADERS_RE))' $(PRODUCT_SRC) || \
+	  { echo "check-deps: nothing outside lab/ includes the lab's headers: the lab is a client of the product, never a part"; exit 1; }
+	@echo "check-deps: server -> api -> core holds; the doors -> service.h; nothing includes lab/"
 
 clean:
 	rm -rf build build-san build-tsan build-fuzz
@@ -540,60 +533,19 @@ fuzz: $(FUZZ_BIN)
 
 .PHONY: fuzz-build
 
-# ---- experiments (issue 5): the README's Results, regenerated into docs/experiments/
-#   make experiments            every study below, two at a time (EXP_JOBS), ~5 min on 2 cores
-#   make experiments EXP_DIR=/tmp/x   elsewhere
-# Each study is `mcf experiment ...` (cli/mcf_experiment.c): CSV files and gnuplot PNG/SVG plots.
-# The big scans (armadillo, stanford-bunny) leave out `implicit` (Picard: tens of
-# factorizations a step); their stability study is
-# for the explicit schemes (the implicit ones are measured on spot and the sphere). The sphere's
-# `implicit` is expected to stop with ENOCONV (Picard at dt * lambda_max ~ 10): a data point.
-# The fixed-time sweep on spot runs at the best total time of desbrun2 in the 10-step sweep.
-EXP_DIR  ?= docs/experiments
-EXP_JOBS ?= 2
-EXP_MCF   = OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 OMP_THREAD_LIMIT=1 $(B)/mcf experiment
-EXP_BIG_SCHEMES := euler,taylor2,desbrun,neumann2,desbrun2,ros2,richardson,huisken2,arc,cmcf,linear,taubin
-EXP_STUDIES := exp-sweep-armadillo exp-sweep-bunny exp-sweep-spot exp-sphere exp-order-sphere \
-               exp-order-spot exp-stability-sphere exp-stability-spot exp-stability-big
+# ---- the lab (lab/Makefile, lab/README.md): studies, benchmarks and the
+# quality study live there, never in `make`; these targets build the two
+# libraries and delegate.
+#   make experiments [EXP_DIR=DIR]   every flow study -> lab/results/experiments/
+#   make exp-sweep-spot ...           one of them (lab/Makefile lists them)
+LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR)))
 
 experiments: deps
-	@[ -n "$(MESHES)" ] || { echo "make experiments reads the large scans: make experiments MESHES=/path/to/meshes"; exit 2; }
-	$(MAKE) all
-	@mkdir -p $(EXP_DIR)
-	@start=$$(date +%s); $(MAKE) -j$(EXP_JOBS) $(EXP_STUDIES) || exit 1; \
-	echo "experiments: $(EXP_DIR) in $$(( $$(date +%s) - start )) s"
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(LAB) $@
 
-exp-sweep-armadillo:
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/armadillo.obj --schemes $(EXP_BIG_SCHEMES) --out $(EXP_DIR) --quiet
+exp-%: deps
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(LAB) $@
 
-exp-sweep-bunny:
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/stanford-bunny.obj --schemes $(EXP_BIG_SCHEMES) --out $(EXP_DIR) --quiet
-
-exp-sweep-spot:
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/spot.obj --picard-maxit 50 --out $(EXP_DIR) --quiet
-	T=$$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$$i] = i; next } \
-	      $$c["scheme"] == "desbrun2" { print $$c["best_time"] }' $(EXP_DIR)/spot-dt-sweep-summary.csv); \
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/spot.obj --name spot-fixed-time --time $$T --dt-min 0.25/lambda \
-	  --dt-max $$T --per-decade 3 --picard-maxit 50 --out $(EXP_DIR) --quiet
-
-exp-sphere:
-	$(EXP_MCF) sphere --sphere 4 --time 0.2 --steps 25 --out $(EXP_DIR) --quiet
-
-exp-order-sphere:
-	$(EXP_MCF) order --sphere 3 --time 0.01 --steps 32,64,128,256 --ref-scheme richardson --out $(EXP_DIR) --quiet
-
-exp-order-spot:
-	$(EXP_MCF) order --mesh $(MESHES)/spot.obj --presmooth 1e-6 --time 1e-5 --steps 16,32,64,128 \
-	  --ref-scheme desbrun2 --out $(EXP_DIR) --quiet
-
-exp-stability-sphere:
-	$(EXP_MCF) stability --sphere 3 --noise 0.05 --out $(EXP_DIR) --quiet
-
-exp-stability-spot:
-	$(EXP_MCF) stability --mesh $(MESHES)/spot.obj --noise 0.05 --picard-maxit 50 --out $(EXP_DIR) --quiet
-
-exp-stability-big:
-	$(EXP_MCF) stability --mesh $(MESHES)/armadillo.obj --schemes explicit --noise 0.05 --out $(EXP_DIR) --quiet
-	$(EXP_MCF) stability --mesh $(MESHES)/stanford-bunny.obj --schemes explicit --noise 0.05 --out $(EXP_DIR) --quiet
-
-.PHONY: experiments $(EXP_STUDIES)
+.PHONY: experiments

@@ -560,8 +560,7 @@ static void test_version(void **state)
  * has one; convert's the output parameters only. */
 static void test_command_help(void **state)
 {
-    static const char *const cmds[] = {"smooth", "convert", "info", "schemes", "params",
-                                       "experiment"};
+    static const char *const cmds[] = {"smooth", "convert", "info", "schemes", "params"};
     cJSON *table = api_params_describe(NULL);
     const cJSON *e;
     tl_run_result r, c;

@@ -71,7 +71,7 @@ def test_install_run_uninstall():
     with open(DEST + PREFIX + "/share/man/man1/mcf.1") as f:
         page = f.read()
     assert page.startswith(".TH mcf 1 ")
-    for cmd in ("smooth", "info", "schemes", "params", "convert", "experiment"):
+    for cmd in ("smooth", "info", "schemes", "params", "convert"):
         assert '.SH "mcf %s"' % cmd in page, cmd
     helptext = subprocess.run(["mcf", "smooth", "--help"], env=env, capture_output=True,
                               text=True).stdout

@@ -73,7 +73,8 @@ mcf_mesh *tl_load(const char *name);
  * equal infinities). `what` names the quantity in the failure message. */
 void tl_assert_near(double a, double b, double tol, const char *what);
 
-/* ---- Running the mcf tool as a child process (test_cli, test_experiment).
+/* ---- Running the mcf tool (or the lab's mcflab) as a child process (test_cli,
+ * lab/tests/test_experiment).
  * One scratch directory per test binary; the harness state is static in
  * testlib.c, set by tl_mcf_setup and removed by tl_mcf_teardown. */
 
@@ -90,6 +91,10 @@ typedef struct {
  * from tmpl (at most 63 characters, ending in XXXXXX). On failure prints
  * "who: no PATH (...)" to stderr and returns -1; else 0. */
 int tl_mcf_setup(const char *who, const char *tmpl);
+/* The same for another program of the build: prog is its path under
+ * $MCF_BUILD ("lab/mcflab"); tl_run then runs it, and tl_expect_error
+ * wants its name ("mcflab: ...") at the start of the line. */
+int tl_prog_setup(const char *who, const char *tmpl, const char *prog);
 
 /* For a cmocka group teardown: removes the scratch directory and all in
  * it. Returns 0, or -1 when that failed. */
@@ -115,7 +120,8 @@ tl_run_result tl_run_env(const char *path_env, const char *a0, ...);
 void tl_run_free(tl_run_result *r);
 
 /* An error run: fails the current test unless the status is code and
- * stderr is exactly one line "mcf: ..." containing want. Frees r. */
+ * stderr is exactly one line "mcf: ..." (the program's name) containing
+ * want. Frees r. */
 void tl_expect_error(tl_run_result *r, int code, const char *want);
 
 /* Fails the current test unless b has a's vertex and face counts and

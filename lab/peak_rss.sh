@@ -1,14 +1,14 @@
 #!/bin/sh
 # peak_rss.sh - the calibration of api/api_estimate.c: peak resident size of
 # `mcf smooth` (decode, metrics, flow, encode: the daemon's job) per mesh and
-# scheme, into docs/memory/peak_rss.csv. Run from anywhere after `make`, with
+# scheme, into lab/results/memory/peak_rss.csv. Run from anywhere after `make`, with
 # the team's meshes beside the checkout (../shared/meshes) or MESHES=DIR.
 # One run at a time (about 40 min on 2 shared cores; a run over 300 s is
 # stopped and left without a figure).
-cd "$(dirname "$0")/../.." || exit 1
+cd "$(dirname "$0")/.." || exit 1
 M=${MESHES:-../shared/meshes}
 T=$(mktemp -d) || exit 1
-OUT=docs/memory/peak_rss.csv
+OUT=lab/results/memory/peak_rss.csv
 echo "mesh,bytes,scheme,extra,nv,nf,maxrss_kb,wall_s" > $OUT
 for mesh in tests/data/meshes/test_nm.obj $M/sphere_cgal.obj $M/bunny.drc $M/knot1.obj $M/spot.obj \
             $M/fertility.obj $M/stanford-bunny.obj $M/armadillo.obj $M/dragon_vrip.drc $M/dragon_vrip_res2.obj; do

@@ -1,6 +1,6 @@
 /*
- * test_experiment.c - `mcf experiment` end to end: runs $MCF_BUILD/mcf
- * (default build/mcf) on small icospheres (and the 812-vertex
+ * test_experiment.c - the lab's flow studies end to end: runs
+ * $MCF_BUILD/lab/mcflab (default build/lab/mcflab) on small icospheres (and the 812-vertex
  * sphere_cgal.obj) and reads back the CSV files: rows, columns, the fitted
  * orders of desbrun2 and euler, euler's stability limit against
  * 2/lambda_max, the U shape of the dt sweep, the sphere law, usage
@@ -17,7 +17,7 @@
 #include <sys/stat.h>
 
 #include "testlib.h"
-#include "../api/api.h"
+#include "api.h"
 
 static int have_gnuplot;
 
@@ -25,7 +25,7 @@ static int have_gnuplot;
 static void expect_ok(tl_run_result *r)
 {
     if (r->status != 0)
-        fail_msg("mcf experiment: status %d: %s", r->status, r->err);
+        fail_msg("mcflab: status %d: %s", r->status, r->err);
     tl_run_free(r);
 }
 
@@ -167,7 +167,7 @@ static void expect_no_scripts(void)
 static void test_order(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run("experiment", "order", "--sphere", "2", "--steps", "32,64,128", "--ref-scheme", "desbrun2",
+    tl_run_result r = tl_run("order", "--sphere", "2", "--steps", "32,64,128", "--ref-scheme", "desbrun2",
                        "--schemes", "euler,desbrun2,cmcf", "--name", "ord", "--out", ".", "--quiet", NULL);
     expect_ok(&r);
     csv c;
@@ -208,7 +208,7 @@ static void test_order(void **state)
 static void test_stability(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run("experiment", "stability", "--sphere", "3", "--schemes", "euler,neumann2,desbrun",
+    tl_run_result r = tl_run("stability", "--sphere", "3", "--schemes", "euler,neumann2,desbrun",
                        "--dt-max", "100/lambda", "--name", "stab", "--out", ".", "--quiet", NULL);
     expect_ok(&r);
     csv c;
@@ -250,7 +250,7 @@ static void test_stability(void **state)
 static void test_dt_sweep(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run("experiment", "dt-sweep", "--sphere", "2", "--schemes", "euler,desbrun2,taubin", "--dt-min",
+    tl_run_result r = tl_run("dt-sweep", "--sphere", "2", "--schemes", "euler,desbrun2,taubin", "--dt-min",
                        "0.1/lambda", "--dt-max", "100/lambda", "--per-decade", "2", "--name", "sw", "--out", ".",
                        "--quiet", NULL);
     expect_ok(&r);
@@ -305,7 +305,7 @@ static void test_dt_sweep(void **state)
 static void test_fixed_time_file(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run("experiment", "dt-sweep", "--mesh", tl_sphere(), "--schemes", "desbrun,desbrun2", "--time",
+    tl_run_result r = tl_run("dt-sweep", "--mesh", tl_sphere(), "--schemes", "desbrun,desbrun2", "--time",
                        "1e-4", "--dt-min", "1e-6", "--dt-max", "5e-5", "--per-decade", "1", "--out", ".",
                        "--no-plots", "--quiet", NULL);
     expect_ok(&r);
@@ -339,7 +339,7 @@ static void test_fixed_time_file(void **state)
     assert_int_equal(fclose(f), 0);
     api_buf_free(&b);
     mcf_mesh_free(m);
-    r = tl_run("experiment", "dt-sweep", "--mesh", "big.obj", "--schemes", "desbrun,desbrun2", "--time", "1e-4",
+    r = tl_run("dt-sweep", "--mesh", "big.obj", "--schemes", "desbrun,desbrun2", "--time", "1e-4",
             "--dt-min", "1e-6", "--dt-max", "5e-5", "--per-decade", "1", "--out", ".", "--no-plots", "--quiet", NULL);
     expect_ok(&r);
     csv big;
@@ -359,7 +359,7 @@ static void test_fixed_time_file(void **state)
 static void test_sphere(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run("experiment", "sphere", "--sphere", "2", "--time", "0.1", "--steps", "50", "--schemes",
+    tl_run_result r = tl_run("sphere", "--sphere", "2", "--time", "0.1", "--steps", "50", "--schemes",
                        "desbrun2,euler,linear", "--name", "sph", "--out", ".", "--quiet", NULL);
     expect_ok(&r);
     csv c;
@@ -397,7 +397,7 @@ static void test_sphere(void **state)
 static void test_no_gnuplot(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run_env("/nonexistent", "experiment", "order", "--sphere", "1", "--steps", "8,16", "--schemes",
+    tl_run_result r = tl_run_env("/nonexistent", "order", "--sphere", "1", "--steps", "8,16", "--schemes",
                            "desbrun", "--ref-factor", "4", "--name", "nogp", "--out", ".", "--quiet", NULL);
     assert_int_equal(r.status, 0);
     assert_non_null(strstr(r.err, "gnuplot not found"));
@@ -411,32 +411,32 @@ static void test_no_gnuplot(void **state)
 static void test_usage(void **state)
 {
     (void)state;
-    tl_run_result r = tl_run("experiment", NULL);
+    tl_run_result r = tl_run(NULL);
     tl_expect_error(&r, 2, "missing study");
-    r = tl_run("experiment", "sweep", "--out", ".", NULL);
+    r = tl_run("sweep", "--out", ".", NULL);
     tl_expect_error(&r, 2, "unknown study");
-    r = tl_run("experiment", "order", "--sphere", "1", NULL);
+    r = tl_run("order", "--sphere", "1", NULL);
     tl_expect_error(&r, 2, "--out");
-    r = tl_run("experiment", "order", "--sphere", "1", "--schemes", "taubin", "--out", ".", NULL);
+    r = tl_run("order", "--sphere", "1", "--schemes", "taubin", "--out", ".", NULL);
     tl_expect_error(&r, 2, "taubin");
-    r = tl_run("experiment", "order", "--sphere", "1", "--mesh", tl_sphere(), "--out", ".", NULL);
+    r = tl_run("order", "--sphere", "1", "--mesh", tl_sphere(), "--out", ".", NULL);
     tl_expect_error(&r, 2, "exclude");
-    r = tl_run("experiment", "dt-sweep", "--schemes", "euler,nosuch", "--out", ".", NULL);
+    r = tl_run("dt-sweep", "--schemes", "euler,nosuch", "--out", ".", NULL);
     tl_expect_error(&r, 2, "nosuch");
-    r = tl_run("experiment", "dt-sweep", "--dt-min", "1e-3/lambdas", "--out", ".", NULL);
+    r = tl_run("dt-sweep", "--dt-min", "1e-3/lambdas", "--out", ".", NULL);
     tl_expect_error(&r, 2, "--dt-min");
-    r = tl_run("experiment", "order", "--steps", "64,32", "--out", ".", NULL);
+    r = tl_run("order", "--steps", "64,32", "--out", ".", NULL);
     tl_expect_error(&r, 2, "--steps");
-    r = tl_run("experiment", "sphere", "--time", "0.3", "--out", ".", NULL);
+    r = tl_run("sphere", "--time", "0.3", "--out", ".", NULL);
     tl_expect_error(&r, 2, "extinction");
-    r = tl_run("experiment", "dt-sweep", "--mesh", "no-such-file.obj", "--out", ".", NULL);
+    r = tl_run("dt-sweep", "--mesh", "no-such-file.obj", "--out", ".", NULL);
     tl_expect_error(&r, 1, "no-such-file.obj");
 }
 
 static int setup(void **state)
 {
     (void)state;
-    if (tl_mcf_setup("test_experiment", "/tmp/mcf-experiment-XXXXXX") != 0)
+    if (tl_prog_setup("test_experiment", "/tmp/mcf-experiment-XXXXXX", "lab/mcflab") != 0)
         return -1;
     /* the same lookup the tool does (execlp on the PATH) */
     have_gnuplot = system("command -v gnuplot >/dev/null 2>&1") == 0;
