@@ -27,6 +27,9 @@ include flags.mk
 B ?= $(BUILD_DIR)
 CPPFLAGS += -I/usr/include/suitesparse -Icore -Iapi
 
+# The serial CHOLMOD (flags.mk says why): Debian's static libcholmod.a,
+# its OpenMP calls renamed to core/cholmod_serial/stand_ins.c.
+CHOLMOD_A := $(shell $(CC) -print-file-name=libcholmod.a)
 LIBS_SRV  := -lmicrohttpd -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 # The gRPC door (server/grpc.cc): Debian's gRPC C++ 1.51 and protobuf.
@@ -86,20 +89,35 @@ endif
 .PHONY: all deps deps-build test unit bench run check-deps clean asan fuzz image image-check
 .DEFAULT_GOAL := all
 
-all: $(B)/libmcf.a $(B)/libmcfapi.a $(PROGS)
+all: $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL) $(PROGS)
 
 $(B)/libmcf.a: $(CORE_OBJ)
 	@mkdir -p $(@D)
 	rm -f $@ && ar rcs $@ $^
 
+# The OpenMP entry points CHOLMOD uses (GOMP_parallel, omp_get_num_threads,
+# omp_get_thread_num, nothing else: `nm -u`) and the clock of its BLAS
+# timing statistics become the stand-ins'; the stand-ins join the archive
+# so that any link order resolves them.
+$(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/stand_ins.c
+	@mkdir -p $(@D)/cholmod_serial
+	$(CC) $(WARN) $(CFLAGS) -c core/cholmod_serial/stand_ins.c -o $(@D)/cholmod_serial/stand_ins.o
+	objcopy --redefine-sym GOMP_parallel=mcf__omp_parallel \
+	  --redefine-sym omp_get_num_threads=mcf__omp_get_num_threads \
+	  --redefine-sym omp_get_thread_num=mcf__omp_get_thread_num \
+	  --redefine-sym SuiteSparse_time=mcf__suitesparse_time $(CHOLMOD_A) $@.tmp
+	! nm -u $@.tmp | grep -E ' (GOMP_|omp_|GOACC_)' || \
+	  { echo "libcholmod_serial.a: $(CHOLMOD_A) calls more of OpenMP than the stand-ins cover"; rm -f $@.tmp; exit 1; }
+	ar rs $@.tmp $(@D)/cholmod_serial/stand_ins.o && mv $@.tmp $@
+
 $(B)/libmcfapi.a: $(API_OBJ)
 	@mkdir -p $(@D)
 	rm -f $@ && ar rcs $@ $^
 
-$(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+$(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
 
-$(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+$(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_GRPC) $(LIBS_API) $(LIBS_CORE)
 
 # ---- the gRPC contract: api/mcfd.proto -> $(B)/gen/mcfd{,.grpc}.pb.{cc,h}
@@ -126,7 +144,7 @@ $(SRV_CXX:%.cc=$(B)/%.o): $(B)/%.o: %.cc $(GEN_CC:.cc=.h)
 	@mkdir -p $(@D)
 	$(CXX) $(CXXWARN) -isystem $(GEN) $(GRPC_CFLAGS) $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
 
-$(LAB_TEST_BIN): $(B)/libmcf.a $(B)/libmcfapi.a $(TESTLIB_OBJ) FORCE
+$(LAB_TEST_BIN): $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL) $(TESTLIB_OBJ) FORCE
 	$(MAKE) -C lab B=$(abspath $(B)) $(abspath $@)
 
 FORCE:
@@ -154,7 +172,7 @@ $(B)/%.o: %.cc
 	@mkdir -p $(@D)
 	$(CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
 
-$(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a
+$(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
 -include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d)
@@ -248,9 +266,9 @@ tsan: deps
 # reset, compressed messages); the README's reliability section quotes
 # them. ATTACKS are test_server's, ATTACKS_GRPC test_grpc.py's.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
-  test_http_small_things test_query_flood test_spool_failures test_spool_quota test_spool_full \
-  test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_spool_damage \
-  test_followers_and_per_ip test_header_deadline test_queued_inputs_on_disk \
+  test_http_small_things test_transfer_framing test_query_flood test_spool_failures test_spool_quota test_spool_full \
+  test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
+  test_followers_and_per_ip test_per_ip_busy test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
   test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight
 ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
@@ -290,7 +308,7 @@ bench-ui: deps
 #   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, tables, renders -> docs/quality/
 quality: deps
 	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
 	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
 
 .PHONY: quality
@@ -501,7 +519,7 @@ $(FZ)/tests/fuzz/%.o: tests/fuzz/%.c
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
 
-$(FZ)/fuzz_%: $(FZ)/tests/fuzz/fuzz_%.o $(FUZZ_LIBOBJ)
+$(FZ)/fuzz_%: $(FZ)/tests/fuzz/fuzz_%.o $(FUZZ_LIBOBJ) $(CHOLMOD_SERIAL)
 	$(FUZZ_CXX) -fsanitize=fuzzer $(FUZZ_SAN) -o $@ $< $(FUZZ_LIBOBJ) $(LIBS_API) $(LIBS_CORE)
 
 -include $(FUZZ_LIBOBJ:.o=.d) $(FUZZ_NAMES:%=$(FZ)/tests/fuzz/fuzz_%.d)
@@ -541,11 +559,11 @@ fuzz: $(FUZZ_BIN)
 LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR)))
 
 experiments: deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
 	$(LAB) $@
 
 exp-%: deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a
+	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
 	$(LAB) $@
 
 .PHONY: experiments

@@ -28,7 +28,21 @@ CXXFLAGS := $(CFLAGS)
 LDFLAGS  += -fsanitize=$(SAN)
 endif
 
-# What linking the two libraries needs: build/libmcf.a (core) and
-# build/libmcfapi.a (api).
-LIBS_CORE := -lcholmod -lsuitesparseconfig -lm
+# What linking the two libraries needs: $(B)/libmcf.a (core) and
+# $(B)/libmcfapi.a (api), in the includer's B (hence `=`, not `:=`).
+#
+# CHOLMOD without its OpenMP runtime: Debian's libcholmod 3.0.14 opens
+# about 150,000 OpenMP parallel regions per factorization of a 435k-vertex
+# scan (every supernode, even with one thread: 45% of the factorization).
+# $(B)/libcholmod_serial.a (built by the top-level Makefile) is Debian's
+# own static libcholmod.a (from libsuitesparse-dev) with its three calls
+# into libgomp renamed by objcopy to the serial stand-ins of
+# core/cholmod_serial/stand_ins.c, which run a region inline on the
+# calling thread (and its clock for BLAS timings to one that reads 0).
+# Nothing is interposed process-wide: libgomp is not loaded, other
+# libraries keep their own runtime, and each of mcfd's workers runs its
+# regions on its own stack (README, Benchmarks).
+CHOLMOD_SERIAL = $(B)/libcholmod_serial.a
+LIBS_CORE = $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
+            -llapack -lblas -lsuitesparseconfig -lm
 LIBS_API  := -ldraco -lcjson

@@ -318,6 +318,17 @@ mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
 mcf_status api_params_parse_query(api_params *p, const char *qs,
                                   const char *const *ignore,
                                   const api_limits *lim, mcf_error *err);
+/* The steps a run takes as far as its parameters decide (mcf.h, "The
+ * amount of smoothing"): its iterations (MCF_DEFAULT_STEPS when 0; a
+ * filter's passes), or ceil(time / dt) (not capped: over max_iterations
+ * it is refused). *by_mesh (may be NULL) is set when the mesh decides
+ * instead (adaptive, dt=auto, a fixed dt with the amount from strength, a
+ * fairing filter's automatic amount): then the most it may take
+ * (max_steps within lim's max_iterations, or the filter's cap). Before
+ * the mesh, an unnamed scheme is api_params_scheme's (a fairing filter
+ * counted at the larger of the two caps). */
+double api_params_steps(const api_params *p, const api_limits *lim,
+                        int *by_mesh);
 /* Final checks once the mesh is known: the default scheme when none was
  * named (api_default_scheme; desbrun2 when flow_keys_set), a fairing
  * filter's strength as its noise level (mcf_flow_params.noise_sigma;
@@ -382,13 +393,41 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
 
 /* ---------------------------------------------------------------- process */
 
-/* For programs, first thing in main: caps the OpenMP threads CHOLMOD opens
- * (OMP_THREAD_LIMIT=1) and, with blas_too, the BLAS and OpenMP thread
- * counts (=1, for a daemon whose workers already use every core), each
- * unless the environment sets it; then executes argv again once
- * (/proc/self/exe) so that libraries reading them at load time see them.
- * Returns (without effect) when that is impossible. */
+/* For programs, first thing in main: with blas_too, sets the BLAS thread
+ * counts to 1 (OPENBLAS_NUM_THREADS and its kin: one thread per job, the
+ * policy of api_threads.c), each unless the environment sets it; then
+ * executes argv again once (/proc/self/exe) so that the BLAS, which reads
+ * them when loaded, sees them. Returns (without effect) when that is
+ * impossible. */
 void api_bound_library_threads(char **argv, int blas_too);
+
+/* The bounds a Draco decode runs under (api_bounds.c says why): the
+ * daemon's in a child process (server/sandbox.c, floors --decode-cpu and
+ * --decode-memory), the CLI's in its own (these defaults). */
+#define API_DECODE_CPU_S 2.0                  /* CPU seconds, floor */
+#define API_DECODE_MEMORY ((size_t)64 << 20)  /* address space, floor */
+/* For an input the estimator sized (api_estimate_memory): CPU seconds
+ * cpu_floor plus 1 us per declared face, and bytes of address space
+ * twice the estimated decode peak, at least mem_floor. */
+void api_decode_bounds(const api_mem_estimate *est, double cpu_floor,
+                       size_t mem_floor, double *cpu_s, size_t *mem_bytes);
+/* Bytes of address space this process maps now (VmSize), 0 when /proc
+ * cannot say: what an RLIMIT_AS adds a budget to. */
+size_t api_vm_size(void);
+/* 1 in a build under AddressSanitizer or ThreadSanitizer, whose shadow
+ * (terabytes reserved at start) cannot live under an RLIMIT_AS and which
+ * die rather than fail an allocation: no address-space bound there (the
+ * CPU bound still holds). */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define API_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define API_SANITIZED 1
+#endif
+#endif
+#ifndef API_SANITIZED
+#define API_SANITIZED 0
+#endif
 
 /* ------------------------------------------------------------------- JSON */
 

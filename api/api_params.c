@@ -849,6 +849,45 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
     return rc;
 }
 
+double api_params_steps(const api_params *p, const api_limits *lim,
+                        int *by_mesh)
+{
+    const mcf_flow_params *f = &p->flow;
+    /* unnamed and not chosen yet (before the mesh): desbrun2 for a flow
+     * request, else a fairing filter, which the mesh's size picks */
+    mcf_scheme s = api_params_scheme(p, 0);
+    int known = p->scheme_set || p->scheme_chosen || p->flow_keys_set,
+        mesh = 0;
+    /* Taubin's automatic pass count (api_params_auto_amount) */
+    int auto_passes = s == MCF_TAUBIN && f->iterations <= 0 &&
+                      api_params_auto_amount(p);
+    double n;
+
+    if (is_fairing(s) && f->iterations <= 0) {
+        /* the fairing filters' automatic amount stops at its cap (the
+         * larger one while the filter is not known), or at max_steps
+         * (which the work limit may lower) */
+        double cap = known && s == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS
+                                               : MCF_FAIRING_MAX_PASSES;
+        mesh = 1;
+        n = f->max_steps > 0 && f->max_steps < cap ? f->max_steps : cap;
+    } else if (!auto_passes && (s == MCF_TAUBIN || is_fairing(s) ||
+                                (!f->adaptive && !f->dt_auto && !(f->dt > 0.0))))
+        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
+    else if (!auto_passes && !f->adaptive && !f->dt_auto && f->time > 0.0)
+        n = ceil(f->time / f->dt - 1e-9);
+    else if (!auto_passes && !f->adaptive && f->iterations > 0 && f->time <= 0.0)
+        n = f->iterations;
+    else {
+        mesh = 1;
+        n = f->max_steps > 0 && f->max_steps < lim->max_iterations
+                ? f->max_steps : lim->max_iterations;
+    }
+    if (by_mesh)
+        *by_mesh = mesh;
+    return n;
+}
+
 /* time, dt and iterations say the same thing twice (mcf.h: "The amount
  * of smoothing"): with time and dt given, the steps are ceil(time / dt)
  * and iterations would be dropped without a word, and a dt over the time
@@ -872,7 +911,7 @@ static mcf_status amounts_agree(const api_params *p, mcf_error *err)
                          "parameter 'dt' (%g) is larger than 'time' (%g): the run would be "
                          "one step of the time; give a dt at most the time, or drop one",
                          f->dt, f->time);
-    /* the core's own count (api_params_finish's work bound uses it too) */
+    /* the core's own count (api_params_steps, the work bound's too) */
     steps = ceil(f->time / f->dt - 1e-9);
     if (p->iterations_set && steps != (double)f->iterations)
         return api__fail(err, MCF_EINVAL,
@@ -888,7 +927,7 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
     api_limits def;
     double steps;
     mcf_status rc;
-    int i;
+    int i, by_mesh;
 
     if (!lim) {
         api_limits_default(&def);
@@ -923,13 +962,17 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         return api__fail(err, MCF_EINVAL, "mesh has no vertices");
 
     /* Work bound: steps x vertices. When the parameters alone give the
-     * step count (mcf.h, "The amount of smoothing"), it is checked here;
-     * when it depends on the mesh's edge lengths or lambda_max (dt set
-     * and the amount from strength, dt=auto, adaptive, Taubin's automatic
-     * pass count), the core's hard cap max_steps is lowered to what the
-     * limits allow instead. */
-    int auto_passes = p->flow.scheme == MCF_TAUBIN && p->flow.strength_auto && p->flow.iterations <= 0;
-    if (is_fairing(p->flow.scheme) && p->flow.iterations <= 0) {
+     * step count, it is checked here; when it depends on the mesh (its
+     * edge lengths, lambda_max, a fairing filter's estimated noise, or
+     * Taubin's automatic pass count), the core's hard cap max_steps is
+     * lowered to what the limits allow instead. */
+    steps = api_params_steps(p, lim, &by_mesh);
+    if (!by_mesh && steps > lim->max_iterations) {
+        /* iterations are bounded when parsed: time / dt */
+        return api__fail(err, MCF_EINVAL,
+                         "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
+                         steps, lim->max_iterations);
+    } else if (by_mesh && is_fairing(p->flow.scheme)) {
         /* the automatic amount stops at its cap, max_steps or the work
          * limit, whichever comes first */
         double cap = p->flow.scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS : MCF_FAIRING_MAX_PASSES;
@@ -937,18 +980,7 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         if (room < cap && room < p->flow.max_steps)
             p->flow.max_steps = room < 1 ? 1 : (int)room;
         steps = fmin(cap, p->flow.max_steps);
-    } else if (!auto_passes && (p->flow.scheme == MCF_TAUBIN || is_fairing(p->flow.scheme) ||
-               (!p->flow.adaptive && !p->flow.dt_auto && !(p->flow.dt > 0.0)))) {
-        steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
-    } else if (!auto_passes && !p->flow.adaptive && !p->flow.dt_auto && p->flow.time > 0.0) {
-        steps = ceil(p->flow.time / p->flow.dt - 1e-9);
-        if (steps > lim->max_iterations)
-            return api__fail(err, MCF_EINVAL,
-                             "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
-                             steps, lim->max_iterations);
-    } else if (!auto_passes && !p->flow.adaptive && p->flow.iterations > 0 && p->flow.time <= 0.0) {
-        steps = p->flow.iterations;
-    } else {
+    } else if (by_mesh) {
         double cap = floor(lim->max_work / nv);
         if (cap < p->flow.max_steps)
             p->flow.max_steps = cap < 1 ? 1 : (int)cap;

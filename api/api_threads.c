@@ -1,14 +1,19 @@
 /*
- * api_threads.c - the thread counts of the libraries under libmcf, set once
- * per process by the programs (mcf, mcfd) before any work.
+ * api_threads.c - the thread count of the BLAS under libmcf, set once per
+ * process by the programs (mcf, mcfd) before any work.
  *
- * CHOLMOD's supernodal factorization opens OpenMP regions with an explicit
- * num_threads(4), which OMP_NUM_THREADS does not cap: on a 2-core machine
- * those regions oversubscribe the cores and the dragon's factorization
- * took 0.84-0.88 s instead of 0.47 s (measured; the regions are small, so
- * 2 threads gain nothing either). OMP_THREAD_LIMIT caps them. libgomp and
- * OpenBLAS read their variables when they are loaded, before main, so
- * setting them means executing the program again, once.
+ * The policy: one BLAS thread per job. The daemon's workers are its
+ * parallelism (one per core), and a factorization of a scanned surface is
+ * ~50,000 small supernodes (8.7 columns on average on the dragon) where a
+ * second OpenBLAS thread finds nothing to share: measured on a dragon
+ * step, 2 threads cost 1.34x the CPU time of one and 1.49x the wall time
+ * on the machine as it was (load 6 on 2 cores), 1.39x and 4.79x beside two
+ * more busy processes (bench_core --threads, bench/README.md). So both
+ * programs set it to 1 unless the environment says otherwise
+ * (OPENBLAS_NUM_THREADS, or the others below). CHOLMOD opens no threads
+ * (the Makefile links a copy without OpenMP). OpenBLAS reads its variables
+ * when it is loaded, before main, so setting them means executing the
+ * program again, once.
  */
 #include <stdlib.h>
 #include <unistd.h>
@@ -21,10 +26,6 @@ void api_bound_library_threads(char **argv, int blas_too)
                                        "GOTO_NUM_THREADS", "MKL_NUM_THREADS"};
     int changed = 0;
 
-    if (!getenv("OMP_THREAD_LIMIT")) {
-        setenv("OMP_THREAD_LIMIT", "1", 1);
-        changed = 1;
-    }
     for (size_t i = 0; blas_too && i < sizeof blas / sizeof blas[0]; i++)
         if (!getenv(blas[i])) {
             setenv(blas[i], "1", 1);

@@ -248,27 +248,15 @@ static int write_all(const char *path, const void *buf, size_t len)
     return 0;
 }
 
-/* Draco decodes under the daemon's bound (server/sandbox.c, in process
- * here: the CLI's files are its user's): libdraco 1.5.5 trusts counts
+/* Draco decodes under the daemon's bound (api_decode_bounds with the
+ * daemon's default floors; the daemon's is a child process, here it is
+ * this one: the CLI's files are its user's): libdraco 1.5.5 trusts counts
  * inside a stream that no header check sees (210 bytes cost 256 MiB and
  * 8.8 s of CPU). While it decodes, the soft RLIMIT_AS is the process's
- * size plus twice the estimated decode peak, at least 64 MiB (a failed
- * allocation is an ENOMEM), and the soft RLIMIT_CPU 2 s plus 1 us per
- * declared face beyond what it used (SIGXCPU: the message below, exit
- * 1); both are put back after. Not under ASan/TSan, whose shadow memory
- * cannot live under RLIMIT_AS (the CPU limit still holds). */
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define CLI_SANITIZER 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define CLI_SANITIZER 1
-#endif
-#endif
-#ifndef CLI_SANITIZER
-#define CLI_SANITIZER 0
-#endif
-#define DECODE_CPU_S 2.0
-#define DECODE_MEMORY ((double)(64 << 20))
+ * size plus the memory bound (a failed allocation is an ENOMEM), and the
+ * soft RLIMIT_CPU the CPU bound beyond what it used (SIGXCPU: the message
+ * below, exit 1); both are put back after. No RLIMIT_AS under ASan/TSan
+ * (API_SANITIZED). */
 
 static void on_decode_cpu(int sig)
 {
@@ -281,18 +269,6 @@ static void on_decode_cpu(int sig)
     _exit(1);
 }
 
-static double vm_bytes(void)
-{
-    FILE *f = fopen("/proc/self/statm", "r");
-    unsigned long pages = 0;
-    if (!f)
-        return 0;
-    if (fscanf(f, "%lu", &pages) != 1)
-        pages = 0;
-    fclose(f);
-    return (double)pages * (double)sysconf(_SC_PAGESIZE);
-}
-
 static mcf_status decode_bounded(const char *buf, size_t len,
                                  const api_limits *lim, mcf_mesh **m,
                                  api_attrs **attrs, api_format *fmt,
@@ -301,20 +277,19 @@ static mcf_status decode_bounded(const char *buf, size_t len,
     struct rlimit as0, cpu0, rl;
     struct rusage ru;
     api_mem_estimate est;
-    double mem, cpu;
+    double cpu;
+    size_t mem;
     int bound_as = 0, bound_cpu = 0;
     mcf_status st;
     void (*old)(int);
 
-    if (len < 5 || memcmp(buf, "DRACO", 5) != 0)
-        return api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
     api_estimate_memory(buf, len, NULL, &est);
-    mem = 2.0 * est.decode_bytes > DECODE_MEMORY ? 2.0 * est.decode_bytes
-                                                 : DECODE_MEMORY;
-    cpu = DECODE_CPU_S + 1e-6 * (double)est.faces;
-    if (!CLI_SANITIZER && getrlimit(RLIMIT_AS, &as0) == 0) {
+    if (!est.draco) /* libdraco is not reached (the daemon's rule too) */
+        return api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
+    api_decode_bounds(&est, API_DECODE_CPU_S, API_DECODE_MEMORY, &cpu, &mem);
+    if (!API_SANITIZED && getrlimit(RLIMIT_AS, &as0) == 0) {
         rl = as0;
-        rl.rlim_cur = (rlim_t)(vm_bytes() + mem);
+        rl.rlim_cur = (rlim_t)(api_vm_size() + mem);
         bound_as = (as0.rlim_max == RLIM_INFINITY || rl.rlim_cur < as0.rlim_max) &&
                    setrlimit(RLIMIT_AS, &rl) == 0;
     }
@@ -333,7 +308,7 @@ static mcf_status decode_bounded(const char *buf, size_t len,
         setrlimit(RLIMIT_AS, &as0);
     if (st == MCF_ENOMEM && bound_as)
         mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more than %.0f "
-                      "MiB to decode: refused", mem / 1048576.0);
+                      "MiB to decode: refused", (double)mem / 1048576.0);
     return st;
 }
 
@@ -1043,7 +1018,7 @@ int main(int argc, char **argv)
     static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert", NULL};
     int i, known = 0;
 
-    api_bound_library_threads(argv, 0);
+    api_bound_library_threads(argv, 1);
     if (!cmd)
         return fail(EXIT_USAGE, "missing command: smooth, info, schemes, params or convert "
                     "(try mcf --help)");

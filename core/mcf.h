@@ -429,6 +429,8 @@ typedef struct {
     double time_assemble, time_analyze, time_factorize, time_solve,
            time_total;        /* seconds, monotonic clock */
     size_t peak_bytes;        /* peak heap held by the solver for this job */
+    double factor_nnz;        /* implicit schemes: entries of the Cholesky */
+    double factor_flops;      /* factor, flops of one factorization (0 else) */
     double mean_edge;         /* h, working units (unit area if normalize) */
     double t_target;          /* the total time the run was asked to cover
                                  (set, with mean_edge, before the first

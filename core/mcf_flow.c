@@ -25,8 +25,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <cholmod.h>
-
 #include "mcf_internal.h"
 
 /* ------------------------------------------------------- scheme table */
@@ -180,11 +178,9 @@ typedef struct {
     /* solver */
     mcf__pattern pat;
     int *zero_idx, *zero_col, nzero; /* off-diagonal entries touching a fixed vertex, their columns */
-    int have_solver, analyzed, factor_valid;
-    cholmod_common cm;
-    cholmod_sparse *A;
-    cholmod_factor *L;
-    cholmod_dense *Bd, *Xd, *Yw, *Ew;
+    int analyzed, factor_valid;
+    mcf__chol *chol;        /* the factorization (mcf_cholesky.c) */
+    double *Ax;             /* the system's values on pat (upper triangle) */
 
     mcf_flow_stats *st;
     double step_solve_s;
@@ -274,33 +270,20 @@ static mcf_status solver_init(flow_ctx *c, mcf_error *err)
                 c->zero_idx[c->nzero++] = t;
             }
         }
-    cholmod_start(&c->cm);
-    c->have_solver = 1;
-    /* Ordering: CHOLMOD's default, AMD, with METIS tried as well when
-     * AMD's fill is high (flops/lnz >= 500 and lnz/nnz(A) >= 5). Forcing
-     * METIS saves flops but not time on scanned meshes: on the 435k
-     * dragon METIS costs 2.6 s of analysis for 1.6 GFlop per
-     * factorization against AMD's 0.5 s and 2.2 GFlop, and both
-     * factorizations take 0.47-0.49 s (supernodes are small: overhead,
-     * not flops, dominates). On icosphere-7, whose AMD fill is poor, the
-     * default tries METIS (factorization 0.31 s against AMD's 0.55). */
-    c->cm.error_handler = NULL;
-    c->cm.print = 0;
-    c->A = cholmod_allocate_sparse((size_t)c->nv, (size_t)c->nv, (size_t)c->pat.nnz,
-                                   1, 1, 1, CHOLMOD_REAL, &c->cm);
-    c->Bd = cholmod_allocate_dense((size_t)c->nv, 3, (size_t)c->nv, CHOLMOD_REAL, &c->cm);
-    if (!c->A || !c->Bd)
-        return mcf__fail(err, MCF_ENOMEM, "solver: CHOLMOD allocation failed (status %d)", c->cm.status);
-    memcpy(c->A->p, c->pat.colptr, sizeof(int) * ((size_t)c->nv + 1));
-    memcpy(c->A->i, c->pat.rowind, sizeof(int) * (size_t)c->pat.nnz);
+    c->Ax = mcf__malloc((size_t)c->pat.nnz, sizeof(double));
+    if (!c->Ax)
+        return mcf__fail(err, MCF_ENOMEM, "solver: out of memory");
+    c->bytes += sizeof(double) * (size_t)c->pat.nnz;
+    if (!(c->chol = mcf__chol_new(&c->pat, err)))
+        return MCF_ENOMEM;
     return MCF_OK;
 }
 
-/* A = cm * M + cl * L(w), Dirichlet rows applied; values into c->A. */
+/* A = cm * M + cl * L(w), Dirichlet rows applied; values into c->Ax. */
 static void system_fill(flow_ctx *c, double cmass, double cl, const double *w, const double *mass)
 {
     double t0 = mcf_now();
-    double *a = c->A->x;
+    double *a = c->Ax;
     mcf__pattern_fill_L(&c->pat, c->F, c->nf, w, a);
     if (cl != 1.0)
         for (int t = 0; t < c->pat.nnz; t++)
@@ -310,53 +293,33 @@ static void system_fill(flow_ctx *c, double cmass, double cl, const double *w, c
     c->st->time_assemble += mcf_now() - t0;
 }
 
-/* Numeric factorization of c->A (symbolic analysis on first use). The
+/* Numeric factorization of c->Ax (symbolic analysis on first use). The
  * couplings to fixed vertices are zeroed here; the callers' right-hand
  * sides hold fixed values only where those are zero (velocities) or add
  * the coupling first (positions: see rhs_dirichlet). */
 static mcf_status factorize(flow_ctx *c, mcf_error *err)
 {
-    double *a = c->A->x;
+    double *a = c->Ax;
+    mcf_status rc;
     for (int k = 0; k < c->nzero; k++)
         a[c->zero_idx[k]] = 0.0;
     if (!c->analyzed) {
         double t0 = mcf_now();
-        c->L = cholmod_analyze(c->A, &c->cm);
+        rc = mcf__chol_analyze(c->chol, err);
         c->st->time_analyze += mcf_now() - t0;
-        if (!c->L)
-            return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM
-                                  : c->cm.status == CHOLMOD_TOO_LARGE ? MCF_ELIMIT
-                                                                      : MCF_ENUMERIC,
-                             "cholmod_analyze failed (status %d%s)", c->cm.status,
-                             c->cm.status == CHOLMOD_TOO_LARGE
-                                 ? ": the factor is too large for CHOLMOD's integers" : "");
+        if (rc != MCF_OK)
+            return rc;
         c->analyzed = 1;
+        mcf__chol_size(c->chol, &c->st->factor_nnz, &c->st->factor_flops);
     }
     double t0 = mcf_now();
-    int ok = cholmod_factorize(c->A, c->L, &c->cm);
+    rc = mcf__chol_factorize(c->chol, a, err);
     double dt = mcf_now() - t0;
     c->st->time_factorize += dt;
     c->step_solve_s += dt;
     c->st->factorizations++;
-    c->factor_valid = 0;
-    /* By Common->status, not by the return value (which is FALSE for every
-     * error): only out of memory is worth a retry (ENOMEM, HTTP 503). */
-    if (c->cm.status == CHOLMOD_OUT_OF_MEMORY)
-        return mcf__fail(err, MCF_ENOMEM, "cholmod_factorize: out of memory");
-    if (c->cm.status == CHOLMOD_TOO_LARGE)
-        return mcf__fail(err, MCF_ELIMIT, "cholmod_factorize: the factor of this "
-                         "mesh is too large for CHOLMOD's integers");
-    if (!ok && c->cm.status >= CHOLMOD_OK)
-        return mcf__fail(err, MCF_ENUMERIC, "cholmod_factorize failed (status %d)",
-                         c->cm.status);
-    if (c->cm.status == CHOLMOD_NOT_POSDEF)
-        return mcf__fail(err, MCF_ENOTPOSDEF,
-                         "system matrix not positive definite at column %d (degenerate or inverted geometry)",
-                         (int)c->L->minor);
-    if (c->cm.status < CHOLMOD_OK)
-        return mcf__fail(err, MCF_ENUMERIC, "cholmod_factorize failed (status %d)", c->cm.status);
-    c->factor_valid = 1;
-    return MCF_OK;
+    c->factor_valid = rc == MCF_OK;
+    return rc;
 }
 
 /* Dirichlet rows of a right-hand side. For unknowns that are positions:
@@ -365,7 +328,7 @@ static mcf_status factorize(flow_ctx *c, mcf_error *err)
  * are zero on fixed vertices (velocities) and nothing moves to B. */
 static void rhs_dirichlet(flow_ctx *c, const double *Xfix, double *B)
 {
-    const double *a = c->A->x;
+    const double *a = c->Ax;
     for (int k = 0; Xfix && k < c->nzero; k++) {
         int t = c->zero_idx[k], j = c->zero_col[k], i = c->pat.rowind[t];
         if (!c->fixed[i] && c->fixed[j])
@@ -385,18 +348,9 @@ static void rhs_dirichlet(flow_ctx *c, const double *Xfix, double *B)
  * Fixed rows of B must hold the Dirichlet values already. */
 static mcf_status solve(flow_ctx *c, const double *B, double *Y, mcf_error *err)
 {
+    (void)err;
     double t0 = mcf_now();
-    int n = c->nv;
-    double *bx = c->Bd->x;
-    for (int i = 0; i < n; i++)
-        for (int d = 0; d < 3; d++)
-            bx[i + (size_t)d * n] = B[3 * i + d];
-    if (!cholmod_solve2(CHOLMOD_A, c->L, c->Bd, NULL, &c->Xd, NULL, &c->Yw, &c->Ew, &c->cm))
-        return mcf__fail(err, MCF_ENUMERIC, "cholmod_solve failed (status %d)", c->cm.status);
-    const double *xx = c->Xd->x;
-    for (int i = 0; i < n; i++)
-        for (int d = 0; d < 3; d++)
-            Y[3 * i + d] = xx[i + (size_t)d * n];
+    mcf__chol_solve3(c->chol, B, Y);
     double dt = mcf_now() - t0;
     c->st->time_solve += dt;
     c->step_solve_s += dt;
@@ -914,15 +868,8 @@ static void ctx_free(flow_ctx *c)
     free(c->zero_idx);
     free(c->zero_col);
     mcf__pattern_free(&c->pat);
-    if (c->have_solver) {
-        cholmod_free_factor(&c->L, &c->cm);
-        cholmod_free_sparse(&c->A, &c->cm);
-        cholmod_free_dense(&c->Bd, &c->cm);
-        cholmod_free_dense(&c->Xd, &c->cm);
-        cholmod_free_dense(&c->Yw, &c->cm);
-        cholmod_free_dense(&c->Ew, &c->cm);
-        cholmod_finish(&c->cm);
-    }
+    free(c->Ax);
+    mcf__chol_free(c->chol);
 }
 
 /* 1 when some edge may lie on an odd number of faces (a boundary edge
@@ -1390,13 +1337,15 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
         double sigma;
-        /* an implicit scheme lends its solver: one symbolic analysis */
-        mcf__solver lend = {&c.pat, &c.cm, c.A, &c.L};
+        /* an implicit scheme lends its solver: one symbolic analysis
+         * (mcf__chol_analyze keeps the factor the borrower made) */
+        mcf__solver lend;
+        if (c.chol)
+            mcf__chol_lend(c.chol, c.Ax, &lend);
         if ((rc = mcf__auto_time(c.X, c.F, c.nf, c.nv, c.fixed, p->laplacian, p->mass,
-                                 p->scheme != MCF_LINEAR, hbar, nsteps, c.have_solver ? &lend : NULL,
+                                 p->scheme != MCF_LINEAR, hbar, nsteps, c.chol ? &lend : NULL,
                                  &T, &sigma, err)) != MCF_OK)
             goto done;
-        c.analyzed = c.L != NULL;
         st->noise = sigma / hbar;
         if (!(T > 0.0))
             nsteps = 0; /* no noise to remove: the mesh comes back as it came */
@@ -1595,7 +1544,7 @@ done:
         st->dt_min = 0.0;
     if (rc == MCF_OK)
         flow_warnings(&c, X_in, st);
-    st->peak_bytes = c.bytes + (c.have_solver ? c.cm.memory_usage : 0);
+    st->peak_bytes = c.bytes + mcf__chol_bytes(c.chol);
     st->time_total = mcf_now() - t_start;
     free(X_in);
     ctx_free(&c);

@@ -93,6 +93,28 @@ void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
 void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
                          const double *X, double *Y);
 
+/* ---- the implicit schemes' solver (mcf_cholesky.c): CHOLMOD's supernodal
+ * Cholesky of an SPD matrix on a pattern (kept by the caller, unchanged
+ * while the solver lives): analysis once, then any number of numeric
+ * factorizations of values on the pattern (pattern order, nnz) and
+ * three-column solves. */
+typedef struct mcf__chol mcf__chol;
+mcf__chol *mcf__chol_new(const mcf__pattern *pat, mcf_error *err);
+void mcf__chol_free(mcf__chol *ch);
+/* The symbolic analysis (fill-reducing ordering, supernodes) of the
+ * pattern. ENOMEM, ELIMIT (too large for CHOLMOD's integers), ENUMERIC. */
+mcf_status mcf__chol_analyze(mcf__chol *ch, mcf_error *err);
+/* The numeric factorization of val (analysed first). ENOTPOSDEF, ENOMEM,
+ * ELIMIT, ENUMERIC; after a failure the next call refactors as usual. */
+mcf_status mcf__chol_factorize(mcf__chol *ch, const double *val, mcf_error *err);
+/* X = A^-1 B for n x 3 row-major B and X (may alias) after a successful
+ * factorization. */
+void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X);
+/* Bytes the solver holds (CHOLMOD's count and its own arrays). */
+size_t mcf__chol_bytes(const mcf__chol *ch);
+/* After the analysis: entries of the factor, flops of a factorization. */
+void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops);
+
 /* ---- the uniform graph Laplacian (mcf_graph.c)
  * The vertex adjacency of a mesh, weight 1 per edge: row i of the full
  * symmetric adjacency (distinct neighbours, sorted, no self) is
@@ -148,6 +170,13 @@ typedef struct {
     struct cholmod_sparse_struct *A;
     struct cholmod_factor_struct **L;
 } mcf__solver;
+
+/* Lends the solver to a borrower that factors and solves with CHOLMOD
+ * itself (mcf__auto_time): the pattern, the cholmod_common, A's upper
+ * triangle on the values val (nnz; the borrower may overwrite them) and
+ * the factor, which the borrower may create by cholmod_analyze (then
+ * mcf__chol_analyze keeps it). */
+void mcf__chol_lend(mcf__chol *ch, double *val, mcf__solver *lend);
 
 /* The time t_best that minimizes SURE for K frozen implicit steps from X
  * (working units, mean edge hbar), and the noise level sigma along the

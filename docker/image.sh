@@ -190,7 +190,7 @@ check() {
     echo "image-check: GET / serves the page and /ui/three.core.js its three.js"
     # the gRPC door: Smooth through the published port with the example client
     gport=$(pm port "$name" 50051/tcp | sed -n 's/^127\.0\.0\.1:\([0-9]*\)$/\1/p')
-    /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --iterations 5 \
+    /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --scheme desbrun2 --iterations 5 \
         tests/data/meshes/sphere_cgal.obj "$out/grpc.obj" > "$out/grpc.log" 2>&1 ||
         { cat "$out/grpc.log" >&2; echo "image-check: FAIL: gRPC Smooth on port $gport" >&2; exit 1; }
     cmp -s "$out/grpc.obj" "$out/smoothed.obj" ||
@@ -207,7 +207,7 @@ check() {
     pm healthcheck run "$name" >/dev/null 2>&1 ||
         { pm logs "$name" 2>&1 | tail -20 >&2; echo "image-check: FAIL: the healthcheck failed during a flood of idle gRPC connections" >&2; exit 1; }
     wait $flood || { cat "$out/flood.log" >&2; echo "image-check: FAIL: the flood client" >&2; exit 1; }
-    /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --iterations 5 \
+    /usr/bin/python3 examples/grpc_client.py --addr "127.0.0.1:$gport" --scheme desbrun2 --iterations 5 \
         tests/data/meshes/sphere_cgal.obj "$out/grpc2.obj" > "$out/grpc.log" 2>&1 ||
         { cat "$out/grpc.log" >&2; echo "image-check: FAIL: gRPC Smooth after the flood" >&2; exit 1; }
     echo "image-check: 1010 idle gRPC connections ($(cat "$out/flood.log")): the healthcheck passed meanwhile, gRPC Smooth works after"

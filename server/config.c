@@ -391,8 +391,8 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->header_timeout = 30;
     cfg->body_timeout = -1;    /* derived from --max-upload below */
     cfg->send_timeout = 60;
-    cfg->decode_cpu = 2;
-    cfg->decode_memory = (size_t)64 << 20;
+    cfg->decode_cpu = API_DECODE_CPU_S;
+    cfg->decode_memory = API_DECODE_MEMORY;
     cfg->max_memory = memory_available() / 2;
     cfg->log_level = SRV_LOG_INFO;
 

@@ -998,7 +998,11 @@ class Follow {
                 svc_job_snapshot(job_, &s);
                 if (svc_job_events(job_, next_event_, 64 * 1024, &data, &len, &n) != 0) {
                     svc_error e;
-                    svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
+                    if (errno == ENOMEM)
+                        svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
+                    else /* a finished job's, on the spool */
+                        svc_error_set(&e, SVC_ESTORAGE, "EIO", "cannot read the job's events from "
+                                      "the spool: %s", strerror(errno));
                     set_end(e);
                     return -1;
                 }

@@ -16,11 +16,16 @@
  * Content-Length over the limit (413) and a full queue or a draining
  * daemon (503 + Retry-After) are answered on the first call, from the
  * headers alone, so a client using Expect: 100-continue never sends the
- * body.
+ * body. So is a request whose framing is in doubt (framing_refused), and
+ * one on a connection past --max-connections-per-ip (503 + Retry-After);
+ * both close their connection.
  */
+#define _XOPEN_SOURCE 700 /* tsearch */
 #include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <search.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -338,6 +343,91 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     return srv_upload_begin(r, c);
 }
 
+/* ----------------------------------------------------------- framing */
+
+/* The framing headers of a request, every line of them: libmicrohttpd
+ * 0.9.75 reads only the first Transfer-Encoding and the first
+ * Content-Length, reads a body of an unknown coding until the client
+ * closes, and frames by Transfer-Encoding when both are there. */
+typedef struct {
+    int te;                    /* Transfer-Encoding lines */
+    int chunked;               /* "chunked" codings among them */
+    char other[40];            /* the first other coding ("" when none) */
+    int cl;                    /* Content-Length lines */
+    int cl_differ;             /* two that differ */
+    char cl_first[40];
+} framing;
+
+static enum MHD_Result framing_header(void *cls, enum MHD_ValueKind kind,
+                                      const char *key, const char *value)
+{
+    framing *f = cls;
+    const char *p = value ? value : "";
+
+    (void)kind;
+    if (strcasecmp(key, MHD_HTTP_HEADER_CONTENT_LENGTH) == 0) {
+        if (f->cl++ == 0)
+            snprintf(f->cl_first, sizeof f->cl_first, "%s", p);
+        else if (strcmp(f->cl_first, p) != 0)
+            f->cl_differ = 1;
+    } else if (strcasecmp(key, MHD_HTTP_HEADER_TRANSFER_ENCODING) == 0) {
+        f->te++;
+        /* a comma-separated list of codings, each with optional
+         * parameters after ';' (RFC 9112 7) */
+        while (*p) {
+            size_t n;
+            p += strspn(p, " \t,");
+            n = strcspn(p, ",;");
+            while (n > 0 && (p[n - 1] == ' ' || p[n - 1] == '\t'))
+                n--;
+            if (n == 7 && strncasecmp(p, "chunked", 7) == 0)
+                f->chunked++;
+            else if (n > 0 && !f->other[0])
+                snprintf(f->other, sizeof f->other, "%.*s", (int)n, p);
+            p += strcspn(p, ",");
+        }
+        if (!f->chunked && !f->other[0]) /* an empty value */
+            snprintf(f->other, sizeof f->other, "(empty)");
+    }
+    return MHD_YES;
+}
+
+/* RFC 9112 6.1 and 6.3: a request whose body cannot be framed without
+ * doubt is answered from its head, and its connection closed
+ * (libmicrohttpd closes after an answer queued on the first call): 501
+ * for a transfer coding other than chunked (the only one MHD decodes),
+ * 400 for Content-Length beside Transfer-Encoding (a proxy framing by
+ * one and the daemon by the other is request smuggling), Transfer-Encoding
+ * in HTTP/1.0, chunked twice, or Content-Lengths that differ. 1 and p set,
+ * or 0. */
+static int framing_refused(struct MHD_Connection *c, const char *version,
+                           srv_problem *p)
+{
+    framing f;
+
+    memset(&f, 0, sizeof f);
+    MHD_get_connection_values(c, MHD_HEADER_KIND, framing_header, &f);
+    if (f.te && f.cl)
+        srv_problem_set(p, 400, "EFRAMING", "Content-Length and "
+                        "Transfer-Encoding together (RFC 9112 6.3): send one");
+    else if (f.te && strcmp(version, MHD_HTTP_VERSION_1_0) == 0)
+        srv_problem_set(p, 400, "EFRAMING", "Transfer-Encoding in an HTTP/1.0 "
+                        "request (RFC 9112 6.1): send Content-Length");
+    else if (f.other[0])
+        srv_problem_set(p, 501, "ENOTIMPLEMENTED", "Transfer-Encoding '%s' is "
+                        "not supported: send the body with Content-Length or "
+                        "Transfer-Encoding: chunked alone", f.other);
+    else if (f.chunked > 1)
+        srv_problem_set(p, 400, "EFRAMING", "Transfer-Encoding chunked %d "
+                        "times (RFC 9112 7: once)", f.chunked);
+    else if (f.cl_differ)
+        srv_problem_set(p, 400, "EFRAMING", "two Content-Length headers that "
+                        "differ");
+    else
+        return 0;
+    return 1;
+}
+
 /* ------------------------------------------------------------ MHD entry */
 
 /* What a connection holds between MHD's notifications: the request whose
@@ -347,9 +437,12 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
  * the header deadline, whether it is waiting for a request's headers and
  * since when. Every connection is on g_conns (g_conns_mu guards the
  * list, receiving and since). */
+typedef struct ip_count ip_count;
 typedef struct conn_state {
     srv_request *req;
     int fd;
+    ip_count *ip;              /* its address's count, NULL: none kept */
+    int over;                  /* opened past --max-connections-per-ip */
     int receiving;             /* 1: no complete request head yet; 2: the
                                   head is in, the body is coming */
     size_t body;               /* body bytes so far (receiving 2) */
@@ -362,6 +455,87 @@ static conn_state *g_conns;
 static int g_nconns;
 
 static void request_free(srv_request *r, int toe);
+
+/* --max-connections-per-ip: the connections of each client address,
+ * counted here rather than by libmicrohttpd, which closes a connection
+ * past its limit at accept, so that its client hears a 503 with
+ * Retry-After instead of a reset. A tsearch tree under g_conns_mu, one
+ * node per address with connections open. */
+struct ip_count {
+    unsigned char key[17];     /* address length (4, 16), then its bytes */
+    int n;
+};
+static void *g_ips;
+
+static int ip_cmp(const void *a, const void *b)
+{
+    return memcmp(((const ip_count *)a)->key, ((const ip_count *)b)->key,
+                  sizeof ((const ip_count *)a)->key);
+}
+
+/* g_conns_mu held: one more connection from sa; its node, or NULL (an
+ * address of another family, or out of memory: not counted). */
+static ip_count *ip_take(const struct sockaddr *sa)
+{
+    ip_count probe, *ip;
+    void *found;
+
+    memset(&probe, 0, sizeof probe);
+    if (sa && sa->sa_family == AF_INET) {
+        probe.key[0] = 4;
+        memcpy(probe.key + 1, &((const struct sockaddr_in *)(const void *)sa)->sin_addr, 4);
+    } else if (sa && sa->sa_family == AF_INET6) {
+        probe.key[0] = 16;
+        memcpy(probe.key + 1, &((const struct sockaddr_in6 *)(const void *)sa)->sin6_addr, 16);
+    } else {
+        return NULL;
+    }
+    found = tfind(&probe, &g_ips, ip_cmp);
+    if (found) {
+        ip = *(ip_count **)found;
+    } else {
+        if (!(ip = malloc(sizeof *ip)))
+            return NULL;
+        *ip = probe;
+        if (!tsearch(ip, &g_ips, ip_cmp)) {
+            free(ip);
+            return NULL;
+        }
+    }
+    ip->n++;
+    return ip;
+}
+
+/* g_conns_mu held: a connection of ip closed. */
+static void ip_drop(ip_count *ip)
+{
+    if (ip && --ip->n == 0) {
+        tdelete(ip, &g_ips, ip_cmp);
+        free(ip);
+    }
+}
+
+/* Whether r came on a connection opened past --max-connections-per-ip:
+ * then 1 and its 503 in p (answered on the first call, so the
+ * connection closes). */
+static int over_cap(const srv_request *r, srv_problem *p)
+{
+    int cap = srv_http_config()->max_connections_per_ip;
+
+    if (!r->conn || !((const conn_state *)r->conn)->over)
+        return 0;
+    srv_problem_set(p, 503, "EBUSY", "this address has more than %d "
+                    "connections open, the most one address may have "
+                    "(--max-connections-per-ip %d): retry once one closes",
+                    cap, cap);
+    return 1;
+}
+
+unsigned srv_http_ip_backstop(const srv_config *cfg)
+{
+    unsigned cap = (unsigned)cfg->max_connections_per_ip;
+    return cap ? cap + (cap + 3) / 4 : 0;
+}
 
 static void conn_waiting(conn_state *cs, int receiving)
 {
@@ -389,12 +563,17 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     if (code == MHD_CONNECTION_NOTIFY_STARTED) {
         const union MHD_ConnectionInfo *ci =
             MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+        const union MHD_ConnectionInfo *ai =
+            MHD_get_connection_info(c, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+        int cap = srv_http_config()->max_connections_per_ip;
         cs = calloc(1, sizeof(conn_state));
         if (cs) {
             cs->fd = ci ? ci->connect_fd : -1;
             cs->receiving = 1;
             cs->since = srv_mono();
             pthread_mutex_lock(&g_conns_mu);
+            if (cap > 0 && (cs->ip = ip_take(ai ? ai->client_addr : NULL)))
+                cs->over = cs->ip->n > cap;
             cs->next = g_conns;
             if (g_conns)
                 g_conns->prev = cs;
@@ -416,6 +595,7 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
         if (cs->next)
             cs->next->prev = cs->prev;
         g_nconns--;
+        ip_drop(cs->ip);
         pthread_mutex_unlock(&g_conns_mu);
         if (cs->req)
             request_free(cs->req, -1); /* never completed: abandoned */
@@ -439,7 +619,10 @@ int srv_http_expire_heads(double timeout, int max_connections,
         timeout = 2;
     for (cs = g_conns; cs; cs = cs->next)
         if (cs->fd >= 0 &&
-            ((timeout > 0 && now - cs->since > timeout &&
+            /* past --max-connections-per-ip: 2 s for the head its 503
+             * answers, also with no --header-timeout */
+            ((cs->over && cs->receiving == 1 && now - cs->since > 2) ||
+             (timeout > 0 && now - cs->since > timeout &&
               (cs->receiving == 1 ||
                (cs->receiving == 2 &&
                 (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) ||
@@ -506,11 +689,16 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     srv_request *r = *con_cls;
 
     (void)cls;
-    (void)version;
     if (!r || !r->uri)
         return MHD_NO; /* out of memory in the URI callback */
     if (!r->started) {
+        srv_problem p;
         r->started = 1;
+        if (framing_refused(c, version, &p) || over_cap(r, &p)) {
+            snprintf(r->method, sizeof r->method, "%s", method);
+            snprintf(r->path, sizeof r->path, "%s", url);
+            return srv_send_problem(r, c, &p, NULL);
+        }
         if (r->conn) /* the head is in; an upload's body comes next */
             conn_waiting(r->conn, strcmp(method, "POST") == 0 ? 2 : 0);
         /* MHD takes an answer queued on this first call, before it knows

@@ -244,15 +244,25 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
  * averaged under 4 KiB/s since their head: slowloris clients. With nine
  * tenths of max_connections open the timeout is 2 s at most (timeout 0:
  * none). Also uploads whose body is still arriving body_timeout seconds
- * after their head (--body-timeout; 0: none). The main loop calls it with
- * --header-timeout and --body-timeout. Returns how many. */
+ * after their head (--body-timeout; 0: none). And, whatever the timeouts,
+ * connections past --max-connections-per-ip with no request head after
+ * 2 s. The main loop calls it with --header-timeout and --body-timeout.
+ * Returns how many. */
 int srv_http_expire_heads(double timeout, int max_connections,
                           double body_timeout);
 /* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
- * deadline; releases a request MHD never completed. */
+ * deadline and counts them per client address: one opened past
+ * --max-connections-per-ip has its request answered 503 EBUSY with
+ * Retry-After and closed, or is closed after 2 s without one. Releases a
+ * request MHD never completed. */
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
                          enum MHD_ConnectionNotificationCode code);
+/* libmicrohttpd's own per-address limit (MHD_OPTION_PER_IP_CONNECTION_LIMIT),
+ * a backstop a quarter above --max-connections-per-ip (0: none): the
+ * connections between the two are the ones answered 503; past it MHD
+ * closes a connection at accept, before any request, without a word. */
+unsigned srv_http_ip_backstop(const srv_config *cfg);
 /* Requests between the URI callback and completion (drain waits on it). */
 int srv_http_active(void);
 /* The route's label in metrics and logs ("smooth", "job", ...). */

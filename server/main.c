@@ -3,11 +3,11 @@
  * signal loop, graceful drain and exit; and `mcfd --probe`.
  *
  * Start-up order matters:
- *  1. BLAS/OpenMP threads are bounded to one per worker before any library
- *     starts its pool. OpenBLAS and libgomp read their variables in
- *     constructors that run before main(), so when the variables are not
- *     set yet, main sets them and re-executes itself once (same PID, same
- *     argv). An operator who sets them keeps their values.
+ *  1. BLAS threads are bounded to one per worker before the library
+ *     starts its pool. OpenBLAS reads its variables in a constructor that
+ *     runs before main(), so when the variables are not set yet, main sets
+ *     them and re-executes itself once (same PID, same argv). An operator
+ *     who sets them keeps their values.
  *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
  *     and taken synchronously by this thread with sigtimedwait, which also
  *     gives the tick for the TTL sweep and the check for clients that
@@ -300,8 +300,7 @@ int main(int argc, char **argv)
         MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
         MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg.http_threads,
         MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg.max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT,
-        (unsigned int)cfg.max_connections_per_ip,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv_http_ip_backstop(&cfg),
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)cfg.send_timeout,
         MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
         MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,
@@ -344,14 +343,15 @@ int main(int argc, char **argv)
             break;
         srv_http_check_clients();
         srv_fds_watch(srv_mono());
-        if (cfg.header_timeout > 0 || cfg.body_timeout > 0) {
+        {
             int n = srv_http_expire_heads(cfg.header_timeout,
                                           cfg.max_connections,
                                           cfg.body_timeout);
             if (n > 0)
                 srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no "
                          "complete request head within --header-timeout %g s "
-                         "or no complete body within --body-timeout %g s",
+                         "(2 s past --max-connections-per-ip) or no complete "
+                         "body within --body-timeout %g s",
                          n, n == 1 ? "" : "s", cfg.header_timeout,
                          cfg.body_timeout);
         }

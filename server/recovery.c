@@ -8,7 +8,8 @@
  * acknowledged) are removed; acknowledged ones whose state or request is
  * damaged, or whose result is not the size recorded, are moved to
  * <spool>/quarantine (never deleted, never served); temporary files a
- * crash left are removed.
+ * crash left are removed. A finished job's progress events are read from
+ * the spool, as before the restart.
  */
 #include <errno.h>
 #include <stdio.h>
@@ -73,6 +74,31 @@ static int result_intact(const svc_job *j)
                           "metrics.json") == 0 && stat(path, &st) == 0;
 }
 
+/* A finished job's progress events, when its run left them whole on the
+ * spool (runner.c: events.idx's last end is events.ndjson's size); else
+ * it has none, as when they could not be written. */
+static void events_recover(svc_job *j)
+{
+    const char *spool = svc__S.cfg.spool;
+    char path[1400];
+    struct stat si, sd;
+    size_t last;
+
+    if (srv_spool_path(path, sizeof path, spool, j->id, "events.idx") != 0 ||
+        stat(path, &si) != 0 || si.st_size <= 0 ||
+        si.st_size % (off_t)sizeof last != 0 ||
+        srv_spool_path(path, sizeof path, spool, j->id, "events.ndjson") != 0 ||
+        stat(path, &sd) != 0 || (size_t)sd.st_size > SVC_EVENTS_MAX ||
+        si.st_size / (off_t)sizeof last > (off_t)sd.st_size ||
+        srv_spool_read_at(spool, j->id, "events.idx",
+                          (size_t)si.st_size - sizeof last, &last,
+                          sizeof last) != 0 ||
+        last != (size_t)sd.st_size)
+        return;
+    j->nevents = (int)(si.st_size / (off_t)sizeof last);
+    j->events_disk = last;
+}
+
 /* Lock held (start-up: no other thread yet). */
 static void recover_one(const char *id, void *arg)
 {
@@ -126,6 +152,7 @@ static void recover_one(const char *id, void *arg)
             srv_spool_remove(cfg->spool, id);
             goto out;
         }
+        events_recover(j);
         svc__table_insert(j);
         j = NULL;
         rc->restored++;

@@ -144,6 +144,54 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     return stop;
 }
 
+/* When the run is over, before its outcome is published: its progress
+ * events go to the spool (events.ndjson and events.idx, not fsynced:
+ * nothing depends on them after a crash) and out of memory, where
+ * admission no longer counts them; svc_job_events reads them back. A
+ * spool that takes no write loses them (followers then see the outcome
+ * alone). Only this worker appends to or frees them, so they are read
+ * outside the lock. */
+static void events_to_spool(svc_job *j)
+{
+    const char *spool = svc__S.cfg.spool;
+    const char *data;
+    const size_t *ends;
+    size_t len;
+    int n, ok;
+
+    svc__lock();
+    data = j->events.data;
+    len = j->events.len;
+    ends = j->event_end;
+    n = j->nevents;
+    svc__unlock();
+    if (n == 0)
+        return;
+    ok = srv_spool_write(spool, j->id, "events.ndjson", data, len, 0) == 0 &&
+         srv_spool_write(spool, j->id, "events.idx", ends,
+                         (size_t)n * sizeof *ends, 0) == 0;
+    if (!ok)
+        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
+                 "written to the spool (%s); late followers get its outcome "
+                 "alone", j->id, n, strerror(errno));
+    svc__lock();
+    api_buf_free(&j->events);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    free(j->event_end);
+    j->event_end = NULL;
+    j->event_cap = 0;
+    if (ok) {
+        size_t add = len + (size_t)n * sizeof *ends;
+        j->events_disk = len;
+        j->disk_bytes += add;
+        if (j->in_table)
+            svc__S.disk_bytes += add;
+    } else {
+        j->nevents = 0;
+    }
+    svc__unlock();
+}
+
 /* The metrics document of a finished job: api's, the CLI's too
  * (api_metrics_json), with the daemon's own facts. */
 static char *metrics_doc(const svc_job *j, const api_metrics *mt,
@@ -254,7 +302,15 @@ static void park_locked(svc_job *j, svc_job_status final, int e)
     j->step = 0;
     j->t = 0;
     j->result_len = 0;
-    /* its progress runs again from step 1 */
+    /* its progress runs again from step 1; the events it wrote to the
+     * spool are written again at its end (uncounted till then) */
+    if (j->events_disk) {
+        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
+        j->disk_bytes -= sub;
+        if (j->in_table)
+            svc__S.disk_bytes -= sub;
+        j->events_disk = 0;
+    }
     api_buf_free(&j->events);
     api_buf_init(&j->events, SVC_EVENTS_MAX);
     j->nevents = 0;
@@ -478,6 +534,8 @@ decode_failed:
     if (rc == MCF_ECANCELED)
         requeue = canceled_error(j, -1, &prob);
 done:
+    if (!requeue)
+        events_to_spool(j);
     /* The outcome is on disk before anyone can see it (GET polls,
      * waiters, a restart): a client told "succeeded" can always find the
      * result again, and no terminal state a client saw changes after a

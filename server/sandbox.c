@@ -25,12 +25,13 @@
  * wait4 (whose rusage tells which limit it met). Both pipes are O_CLOEXEC
  * in the parent, so no other child inherits them.
  *
- * Limits per decode (srv_sandbox_limits_for): CPU = --decode-cpu (2 s)
- * plus 1 us per declared face: libdraco decodes the 871k-face dragon in
- * 0.19 s (0.22 us/face), so a legitimate 10M-face stream needs about
- * 2.2 s, under half of its 2 + 10 s. Memory = the estimator's decode
- * peak for the declared counts (api_estimate_memory) times 2, at least
- * --decode-memory (64 MiB). Wall clock = 10 x CPU + 5 s (waiting for a
+ * Limits per decode (srv_sandbox_limits_for, the CLI's rule too:
+ * api_decode_bounds): CPU = --decode-cpu (2 s) plus 1 us per declared
+ * face: libdraco decodes the 871k-face dragon in 0.19 s (0.22 us/face), so
+ * a legitimate 10M-face stream needs about 2.2 s, under half of its
+ * 2 + 10 s. Memory = the estimator's decode peak for the declared counts
+ * (api_estimate_memory) times 2, at least --decode-memory (64 MiB). Wall
+ * clock = 10 x CPU + 5 s (waiting for a
  * core on a loaded machine is not the input's fault; a child that sleeps
  * is). A child stopped by a limit is a 422 ELIMIT naming the limit.
  *
@@ -59,20 +60,6 @@
 
 extern char **environ;
 
-/* ASan and TSan reserve terabytes of shadow address space and die rather
- * than return NULL from a failed operator new: no RLIMIT_AS under them
- * (the CPU limit still stops a bomb), and a signal says nothing of RSS. */
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define SANDBOX_SANITIZER 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define SANDBOX_SANITIZER 1
-#endif
-#endif
-#ifndef SANDBOX_SANITIZER
-#define SANDBOX_SANITIZER 0
-#endif
-
 #define MIB (1024.0 * 1024.0)
 
 /* The child's answer before the packed mesh. */
@@ -83,19 +70,6 @@ typedef struct {
 } child_head;
 
 /* ------------------------------------------------------------------ child */
-
-/* Bytes of address space mapped now (VmSize), 0 when unreadable. */
-static size_t vm_size(void)
-{
-    FILE *f = fopen("/proc/self/statm", "r");
-    unsigned long pages = 0;
-    if (!f)
-        return 0;
-    if (fscanf(f, "%lu", &pages) != 1)
-        pages = 0;
-    fclose(f);
-    return (size_t)pages * (size_t)sysconf(_SC_PAGESIZE);
-}
 
 static int write_all(int fd, const void *p, size_t n)
 {
@@ -142,8 +116,8 @@ int srv_sandbox_child(int argc, char **argv)
     rl.rlim_max = rl.rlim_cur + 1;
     if (setrlimit(RLIMIT_CPU, &rl) != 0)
         return 3;
-    if (!SANDBOX_SANITIZER) {
-        rl.rlim_cur = rl.rlim_max = vm_size() + mem;
+    if (!API_SANITIZED) { /* api.h: none under ASan or TSan */
+        rl.rlim_cur = rl.rlim_max = api_vm_size() + mem;
         if (setrlimit(RLIMIT_AS, &rl) != 0)
             return 3;
     }
@@ -203,9 +177,7 @@ int srv_sandbox_child(int argc, char **argv)
 void srv_sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
                             size_t mem_floor, srv_sandbox_limits *out)
 {
-    double mem = 2.0 * est->decode_bytes;
-    out->cpu_s = cpu_floor + 1e-6 * (double)est->faces;
-    out->mem_bytes = mem > (double)mem_floor ? (size_t)mem : mem_floor;
+    api_decode_bounds(est, cpu_floor, mem_floor, &out->cpu_s, &out->mem_bytes);
     out->wall_s = 10.0 * out->cpu_s + 5.0;
 }
 
@@ -389,7 +361,7 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
         }
         /* Died another way: an abort or a fault inside libdraco (a failed
          * allocation in code that cannot throw ends like this too). */
-        if (sig && !killed && !SANDBOX_SANITIZER &&
+        if (sig && !killed && !API_SANITIZED &&
             rss > 0.75 * (double)sl->mem_bytes) {
             *why = SRV_SANDBOX_MEMORY;
             rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "

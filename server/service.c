@@ -187,6 +187,16 @@ svc_job *svc__queue_pop(void)
     return j;
 }
 
+/* Back at the head of the queue (a cancel the spool refused). */
+static void queue_push_front(svc_job *j)
+{
+    j->qnext = svc__S.qhead;
+    svc__S.qhead = j;
+    if (!svc__S.qtail)
+        svc__S.qtail = j;
+    svc__S.qlen++;
+}
+
 static int queue_remove(svc_job *j)
 {
     svc_job *prev = NULL, *q;
@@ -308,17 +318,15 @@ int svc_followers(const svc_job *j)
 /* ------------------------------------------------------------------ submit */
 
 /* A fixed-step run over a time has a step count the parameters alone
- * decide (the rule of api_params_finish): over max_iterations it is the
- * request's fault, refused at once rather than a failed job. */
+ * decide (api_params_steps, the rule of api_params_finish): over
+ * max_iterations it is the request's fault, refused at once rather than
+ * a failed job. (Iterations are bounded when parsed: only time / dt can
+ * exceed it.) */
 static int steps_over_budget(const api_params *p, const api_limits *lim,
                              svc_error *err)
 {
-    double steps;
+    double steps = api_params_steps(p, lim, NULL);
 
-    if (!(p->flow.time > 0) || p->flow.adaptive || p->flow.dt_auto ||
-        !(p->flow.dt > 0))
-        return 0;
-    steps = ceil(p->flow.time / p->flow.dt - 1e-9);
     if (steps <= lim->max_iterations)
         return 0;
     svc_error_set(err, SVC_EPARAMS, "ELIMIT", "parameters 'time' and 'dt': "
@@ -663,11 +671,7 @@ static int cancel_locked(svc_job *j, svc_cancel_reason reason)
     } else if (rc != 0) {
         j->parked = parked;
         if (inq) {
-            j->qnext = svc__S.qhead;
-            svc__S.qhead = j;
-            if (!svc__S.qtail)
-                svc__S.qtail = j;
-            svc__S.qlen++;
+            queue_push_front(j);
             pthread_cond_signal(&svc__S.work);
         }
     }
@@ -776,18 +780,8 @@ void svc_sweep(void)
                 svc__queue_push(j);
                 pthread_cond_signal(&svc__S.work);
             }
-            if (!svc_job_status_terminal(j->status))
-                continue;
-            /* Progress lines are only replayed to late followers: drop
-             * them once nobody holds a finished job. */
-            if (j->refs == 1 && j->events.data && now - j->finished > 10) {
-                api_buf_free(&j->events);
-                api_buf_init(&j->events, SVC_EVENTS_MAX);
-                free(j->event_end);
-                j->event_end = NULL;
-                j->nevents = j->event_cap = 0;
-            }
-            if (now - j->finished < svc__S.cfg.result_ttl)
+            if (!svc_job_status_terminal(j->status) ||
+                now - j->finished < svc__S.cfg.result_ttl)
                 continue;
             if (n == cap) {
                 int ncap = cap ? 2 * cap : 64;

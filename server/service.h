@@ -355,9 +355,9 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
 /* Progress events from index from (0-based) on: one JSON object per
  * line, {"step","t","dt","energy","volume"}, whole lines only, at most
  * max_bytes of them (but at least one line when there is one). *data is
- * malloc'ed (NULL when *n is 0); *n is how many events it holds. The
- * events of a finished job nobody holds are dropped after a while. 0 or
- * -1 (ENOMEM). */
+ * malloc'ed (NULL when *n is 0); *n is how many events it holds. A
+ * finished job's events are on the spool, read from there (kept as long
+ * as the job). 0 or -1 (errno: ENOMEM, or the spool's). */
 int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
                    size_t *len, int *n);
 

@@ -2,11 +2,12 @@
  * spool.c - the on-disk record of every accepted job.
  *
  * Layout: <spool>/jobs/<id>/{input, target, request.json, state.json,
- * result.<ext>, metrics.json}. A job exists once state.json exists; every
- * file is written to a temporary name, fsync()ed when it must survive a
- * crash, and renamed into place, so after kill -9 a file is either absent
- * or complete. The directory entries themselves are made durable by
- * fsync()ing the directory. Nothing here knows about HTTP or JSON.
+ * result.<ext>, metrics.json, events.ndjson, events.idx}. A job exists
+ * once state.json exists; every file is written to a temporary name,
+ * fsync()ed when it must survive a crash, and renamed into place, so
+ * after kill -9 a file is either absent or complete. The directory
+ * entries themselves are made durable by fsync()ing the directory.
+ * Nothing here knows about HTTP or JSON.
  */
 #include <dirent.h>
 #include <errno.h>
@@ -301,6 +302,31 @@ fail:
     free(buf);
     close(fd);
     return -1;
+}
+
+int srv_spool_read_at(const char *spool, const char *id, const char *name,
+                      size_t off, void *buf, size_t len)
+{
+    char path[1400];
+    size_t done = 0;
+    int fd, e = 0;
+
+    if (srv_spool_path(path, sizeof path, spool, id, name) != 0 ||
+        (fd = open(path, O_RDONLY)) < 0)
+        return -1;
+    while (done < len && !e) {
+        ssize_t r = pread(fd, (char *)buf + done, len - done,
+                          (off_t)(off + done));
+        if (r < 0 && errno != EINTR)
+            e = errno;
+        else if (r == 0)
+            e = EIO; /* shorter than its index says */
+        else if (r > 0)
+            done += (size_t)r;
+    }
+    close(fd);
+    errno = e;
+    return e ? -1 : 0;
 }
 
 /* Removes a directory and the files in it (best effort). */

@@ -182,6 +182,10 @@ int srv_spool_mkjob(const char *spool, const char *id);
 /* Reads a whole job file (malloc'ed, NUL-terminated). 0 or -1. */
 int srv_spool_read(const char *spool, const char *id, const char *name,
                    char **data, size_t *len);
+/* Reads len bytes at offset off of a job file into buf: 0, or -1 (errno;
+ * EIO when the file is shorter). */
+int srv_spool_read_at(const char *spool, const char *id, const char *name,
+                      size_t off, void *buf, size_t len);
 /* Removes a job directory and everything in it: first renamed to a
  * tombstone and jobs/ fsynced (durable), then deleted. 0, or -1 with
  * errno and the job left whole. */

@@ -34,29 +34,16 @@ static struct {
     int holders;               /* jobs and uploads holding one */
 } A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
 
-/* The steps a run may take, from the parameters alone (mcf.h's rules):
- * its iterations, time/dt, or, when the mesh decides (adaptive, dt_auto,
- * an amount with a fixed dt), the most it may take. */
-static double planned_steps(const mcf_flow_params *f, const api_limits *lim)
-{
-    double n;
-    if (f->adaptive || f->dt_auto)
-        n = f->max_steps > 0 ? f->max_steps : lim->max_iterations;
-    else if (f->dt > 0)
-        n = f->time > 0 ? ceil(f->time / f->dt - 1e-9)
-            : f->iterations > 0 ? f->iterations : lim->max_iterations;
-    else
-        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
-    return n < lim->max_iterations ? n : lim->max_iterations;
-}
-
 /* What a run's steps hold while it runs: the core's step log (56 B a
  * step) and the events' offsets (8 B, in an array that doubles), and the
  * progress events (an ndjson line of about 110 B each, in a buffer that
  * doubles, SVC_EVENTS_MAX at most). 100,000 steps: 31 MB. */
 static double step_bytes(const api_params *p, const api_limits *lim)
 {
-    double n = planned_steps(&p->flow, lim), ev = 240.0 * n;
+    double n = api_params_steps(p, lim, NULL), ev;
+    if (n > lim->max_iterations) /* time / dt: refused at submission */
+        n = lim->max_iterations;
+    ev = 240.0 * n;
     if (ev > 2.0 * (double)SVC_EVENTS_MAX)
         ev = 2.0 * (double)SVC_EVENTS_MAX;
     return 72.0 * n + ev;

@@ -70,6 +70,10 @@ struct svc_job {
     api_buf events;            /* ndjson lines, one per step */
     size_t *event_end;         /* byte offset past each line */
     int nevents, event_cap;
+    size_t events_disk;        /* once the job ends, its events are on the
+                                  spool (events.ndjson, this many bytes, and
+                                  events.idx, event_end's values) and no
+                                  longer in memory; 0: in memory */
     /* outcome */
     svc_error err;             /* when failed or canceled */
     char in_format[16];

@@ -2,8 +2,8 @@
  * svc_read.c - the job service's readers (service.h): snapshots, the job
  * as JSON, the parameters, the metrics document, the progress events from
  * a given index on, and the result bytes. Every reader copies under the
- * service lock and does its disk I/O (the spool's metrics and result
- * files) outside it.
+ * service lock and does its disk I/O (the spool's metrics, result and, for
+ * a finished job, events files) outside it.
  */
 #include <errno.h>
 #include <fcntl.h>
@@ -183,11 +183,59 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
     return 0;
 }
 
+/* How many of the events ending at ends[0..m) (m >= 1) fit in max_bytes
+ * from byte a: at least one. */
+static int events_fit(const size_t *ends, int m, size_t a, size_t max_bytes)
+{
+    int k;
+    for (k = 1; k < m && ends[k] - a <= max_bytes; k++)
+        ;
+    return k;
+}
+
+/* Events of a finished job read back from the spool (svc_job_events):
+ * the ends of events from - 1 to from + EVENTS_BATCH from events.idx,
+ * then the lines they span from events.ndjson. size and count: the
+ * files' as the job recorded them; an index that disagrees is EIO. */
+#define EVENTS_BATCH 1024
+static int events_from_spool(const char *id, int from, int count,
+                             size_t size, size_t max_bytes, char **data,
+                             size_t *len, int *n)
+{
+    size_t ends[EVENTS_BATCH + 1], a, b;
+    int m = count - from < EVENTS_BATCH ? count - from : EVENTS_BATCH,
+        skip = from > 0, k;
+
+    if (srv_spool_read_at(svc__S.cfg.spool, id, "events.idx",
+                          (size_t)(from - skip) * sizeof *ends, ends,
+                          (size_t)(m + skip) * sizeof *ends) != 0)
+        return -1;
+    a = skip ? ends[0] : 0;
+    k = events_fit(ends + skip, m, a, max_bytes);
+    b = ends[skip + k - 1];
+    if (!(a < b && b <= size)) {
+        errno = EIO;
+        return -1;
+    }
+    if (!(*data = malloc(b - a + 1)))
+        return -1;
+    if (srv_spool_read_at(svc__S.cfg.spool, id, "events.ndjson", a, *data,
+                          b - a) != 0) {
+        free(*data);
+        *data = NULL;
+        return -1;
+    }
+    (*data)[b - a] = '\0';
+    *len = b - a;
+    *n = k;
+    return 0;
+}
+
 int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
                    size_t *len, int *n)
 {
-    size_t a, b;
-    int k;
+    size_t a, b, on_disk;
+    int k, count;
 
     *data = NULL;
     *len = 0;
@@ -195,14 +243,20 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
     svc__lock();
     if (from < 0)
         from = 0;
-    if (from >= j->nevents) {
+    count = j->nevents;
+    on_disk = j->events_disk;
+    if (from >= count) {
         svc__unlock();
         return 0;
     }
+    if (on_disk) {
+        svc__unlock();
+        return events_from_spool(j->id, from, count, on_disk, max_bytes, data,
+                                 len, n);
+    }
     a = from > 0 ? j->event_end[from - 1] : 0;
-    for (k = from + 1; k < j->nevents && j->event_end[k] - a <= max_bytes; k++)
-        ;
-    b = j->event_end[k - 1];
+    k = events_fit(j->event_end + from, count - from, a, max_bytes);
+    b = j->event_end[from + k - 1];
     *data = malloc(b - a + 1);
     if (!*data) {
         svc__unlock();
@@ -212,7 +266,7 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
     (*data)[b - a] = '\0';
     svc__unlock();
     *len = b - a;
-    *n = k - from;
+    *n = k;
     return 0;
 }
 
