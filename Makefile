@@ -6,7 +6,8 @@
 #   make install    mcf, mcfd and their man pages under $(DESTDIR)$(PREFIX) (PREFIX=/usr/local);
 #                   make uninstall removes them
 #   make test       deps, build, then every unit test binary (build/tests/test_*)
-#   make bench      benchmarks (bench/), ratios against a peer measured in the same run
+#   make bench      benchmarks (lab/bench/), ratios against a peer measured in the same run;
+#                   make experiments, make quality: the lab's studies (lab/README.md)
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
 #   make tsan       the daemon's tests under ThreadSanitizer (build-tsan/, tests/tsan.supp)
 #   make WERROR=1 ...                  warnings are errors (CI)
@@ -47,7 +48,7 @@ DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
             python3-setuptools python3-wheel curl assimp-utils
 DEB_BENCH := libeigen3-dev libcgal-dev
-# make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
+# make quality's peer: Open3D's filter_smooth_taubin (lab/bench/o3d_taubin.py)
 DEB_QUALITY := python3-open3d python3-numpy
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
@@ -289,30 +290,6 @@ attack: deps
 
 .PHONY: attack
 
-bench: deps
-	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
-	$(MAKE) all
-	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
-
-# ---- the page on a large scan in headless chromium (bench/bench_ui.mjs):
-#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   load to first frame, frame time
-bench-ui: deps
-	$(MAKE) all
-	MCF_BUILD=$(B) MESHES=$(MESHES) UI_MESH=$(UI_MESH) UI_REPS=$(UI_REPS) node bench/bench_ui.mjs
-
-.PHONY: bench-ui
-
-# ---- the scan-quality benchmark (issue 16: bench/bench_quality.c): every
-# shared mesh, normal and isotropic noise, the default request, each scheme's
-# automatic amount, Taubin's best, Open3D's filter_smooth_taubin:
-#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, tables, renders -> docs/quality/
-quality: deps
-	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
-	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
-
-.PHONY: quality
-
 # ---- the daemon: `make run`, and the OpenAPI document embedded in mcfd
 # api/openapi.yaml becomes a byte array (od + sed: coreutils only, so the
 # Docker build stage needs nothing extra) linked into build/mcfd, which
@@ -551,19 +528,40 @@ fuzz: $(FUZZ_BIN)
 
 .PHONY: fuzz-build
 
-# ---- the lab (lab/Makefile, lab/README.md): studies, benchmarks and the
-# quality study live there, never in `make`; these targets build the two
-# libraries and delegate.
+# ---- the lab (lab/Makefile, lab/README.md): flow studies, benchmarks
+# against peers and the scan-quality study live there, never in `make`;
+# these targets build what they need and delegate (variables given on the
+# command line, e.g. REPS=3 or QUALITY_ARGS=..., pass through).
 #   make experiments [EXP_DIR=DIR]   every flow study -> lab/results/experiments/
-#   make exp-sweep-spot ...           one of them (lab/Makefile lists them)
+#   make exp-sweep-spot ...          one of them (lab/Makefile lists them)
+#   make bench                       benchmarks, ratios against a peer measured in the same run
+#                                    (bench-core, bench-server, bench-grpc, bench-peers: one part)
+#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
+#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   the scan-quality study -> lab/results/quality/
 LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR)))
+LAB_LIBS := $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
+LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-peers bench-ui quality
 
 experiments: deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
+	$(MAKE) $(LAB_LIBS)
 	$(LAB) $@
 
 exp-%: deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
+	$(MAKE) $(LAB_LIBS)
 	$(LAB) $@
 
-.PHONY: experiments
+bench bench-core bench-server bench-grpc bench-peers: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
+	$(MAKE) all
+	$(LAB) $@
+
+bench-ui: deps
+	$(MAKE) all
+	$(LAB) $@
+
+quality: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
+	$(MAKE) $(LAB_LIBS)
+	$(LAB) $@
+
+.PHONY: $(LAB_TARGETS)

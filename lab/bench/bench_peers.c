@@ -38,9 +38,9 @@
  *      steady step (assemble + factorize + solve per step, from
  *      mcf_flow_stats), fitted exponent t ~ nv^p, CSV and a gnuplot plot
  *      (PNG + SVG).
- * CSV files and plots go to --out (docs/bench).
+ * CSV files and plots go to --out (lab/results/bench).
  *
- * Run with OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 (bench/Makefile does):
+ * Run with OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 (lab/Makefile does):
  * CGAL's BiCGSTAB and the Eigen peer are single-threaded. Exits 1 when the
  * mapping check fails (or on an error); a goal marked FAIL is a result,
  * not an error.
@@ -58,6 +58,7 @@
 
 #include "api.h"
 #include "bench_common.h"
+#include "lab.h"
 #include "cgal_peer.h"
 #include "eigen_peer.h"
 #include "mcf.h"
@@ -290,51 +291,6 @@ static double run_eigen(const mcf_mesh *m, double dt, int steps, double *X)
             exit(1);
         }
     return mcf_now() - t0;
-}
-
-static int mkdir_p(const char *dir)
-{
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s", dir);
-    for (char *s = tmp + 1; *s; s++)
-        if (*s == '/') {
-            *s = 0;
-            if (mkdir(tmp, 0777) != 0 && errno != EEXIST)
-                return -1;
-            *s = '/';
-        }
-    return mkdir(tmp, 0777) != 0 && errno != EEXIST ? -1 : 0;
-}
-
-static FILE *open_out(const char *dir, const char *name)
-{
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *f = fopen(path, "w");
-    if (!f) {
-        fprintf(stderr, "bench_peers: cannot write %s: %s\n", path, strerror(errno));
-        exit(1);
-    }
-    return f;
-}
-
-/* Runs gnuplot on dir/script (in dir). Returns 0 when it succeeded. */
-static int gnuplot(const char *dir, const char *script)
-{
-    fflush(stdout);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        if (chdir(dir) != 0)
-            _exit(127);
-        execlp("gnuplot", "gnuplot", script, (char *)NULL);
-        _exit(127);
-    }
-    int status = 0;
-    if (waitpid(pid, &status, 0) < 0)
-        return -1;
-    return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
 /* Least-squares slope and intercept of y on x (n >= 2). */
@@ -969,13 +925,13 @@ static void scaling_level(int level, scale_row *row)
 static void plot_scaling(const char *out, const scale_row *s, int n, double pe, double ae,
                          double pd, double ad)
 {
-    FILE *f = open_out(out, "scaling.csv");
+    FILE *f = bench_open_out(out, "scaling.csv");
     fprintf(f, "level,nv,euler_marginal_ms,euler_call_ms,desbrun2_steady_ms,desbrun2_call_ms,desbrun2_steps\n");
     for (int i = 0; i < n; i++)
         fprintf(f, "%d,%d,%.4f,%.4f,%.3f,%.3f,%d\n", s[i].level, s[i].nv, 1e3 * s[i].e_marg,
                 1e3 * s[i].e_call, 1e3 * s[i].d_steady, 1e3 * s[i].d_call, s[i].d_steps);
     fclose(f);
-    f = open_out(out, "scaling.gp");
+    f = bench_open_out(out, "scaling.gp");
     fprintf(f,
             "# bench_peers: per-step time against vertex count (icospheres); run in this folder: gnuplot scaling.gp\n"
             "set datafile separator ','\n"
@@ -999,7 +955,7 @@ static void plot_scaling(const char *out, const scale_row *s, int n, double pe, 
             "}\n",
             s[0].level, s[n - 1].level, pe, pd, ae, pe, ad, pd, pd, pe);
     fclose(f);
-    if (gnuplot(out, "scaling.gp") == 0)
+    if (lab_gnuplot(out, "scaling.gp") == 0)
         printf("  wrote %s/scaling.{csv,gp,png,svg}\n", out);
     else
         printf("  gnuplot failed or is missing: %s/scaling.csv and scaling.gp written, no plot\n", out);
@@ -1007,7 +963,7 @@ static void plot_scaling(const char *out, const scale_row *s, int n, double pe, 
 
 static void plot_work(const char *out, const work_row *w, int n)
 {
-    FILE *f = open_out(out, "peers-work.csv");
+    FILE *f = bench_open_out(out, "peers-work.csv");
     fprintf(f, "mesh,nv,dt,desbrun2_ms,desbrun_ms,cgal_ms,cgal_ilut_ms,cgal_bicgstab_ms,"
                "bicgstab_its_per_solve,bicgstab_its_max,cgal_steps,cgal_failed_at,eigen_ms,eigen_steps,"
                "disp_edges,area_change,cgal_vs_desbrun,cgal_vs_eigen,cgal_degenerate_triangles,"
@@ -1019,7 +975,7 @@ static void plot_work(const char *out, const work_row *w, int n)
                 w[i].cgal_steps, w[i].cgal_failed, 1e3 * w[i].eg, w[i].eigen_steps, w[i].disp,
                 w[i].darea, w[i].agree, w[i].agree_eigen, w[i].degen, w[i].t2, w[i].tc, w[i].te);
     fclose(f);
-    f = open_out(out, "peers-dt.gp");
+    f = bench_open_out(out, "peers-dt.gp");
     fprintf(f,
             "# bench_peers: per-step time against dt at equal work; run in this folder: gnuplot peers-dt.gp\n"
             "set datafile separator ','\n"
@@ -1064,7 +1020,7 @@ static void plot_work(const char *out, const work_row *w, int n)
         fprintf(f, "1/0 notitle");
     fprintf(f, "\n  unset output\n}\n");
     fclose(f);
-    if (gnuplot(out, "peers-dt.gp") == 0)
+    if (lab_gnuplot(out, "peers-dt.gp") == 0)
         printf("  wrote %s/peers-work.csv, peers-dt.{gp,png,svg}\n", out);
     else
         printf("  gnuplot failed or is missing: %s/peers-work.csv and peers-dt.gp written, no plot\n", out);
@@ -1072,14 +1028,14 @@ static void plot_work(const char *out, const work_row *w, int n)
 
 static void plot_accuracy(const char *out, const acc_row *a, int n)
 {
-    FILE *f = open_out(out, "peers-accuracy.csv");
+    FILE *f = bench_open_out(out, "peers-accuracy.csv");
     fprintf(f, "mesh,T,tol,steps,desbrun2_err,desbrun2_s,cgal_err,cgal_s\n");
     for (int i = 0; i < n; i++)
         for (int k = 0; k < a[i].ntab; k++)
             fprintf(f, "%s,%g,%g,%d,%.4e,%.4f,%.4e,%.4f\n", a[i].mesh, a[i].T, a[i].tol, a[i].ns[k],
                     a[i].e2[k], a[i].t2[k], a[i].ec[k], a[i].tc[k]);
     fclose(f);
-    f = open_out(out, "peers-accuracy.gp");
+    f = bench_open_out(out, "peers-accuracy.gp");
     fprintf(f,
             "# bench_peers: error against wall time (work-precision); run in this folder: gnuplot peers-accuracy.gp\n"
             "set datafile separator ','\n"
@@ -1105,7 +1061,7 @@ static void plot_accuracy(const char *out, const acc_row *a, int n)
                 colc[i], a[i].mesh, a[i].tol, colc[i], a[i].mesh);
     fprintf(f, "\n  unset output\n}\n");
     fclose(f);
-    if (gnuplot(out, "peers-accuracy.gp") == 0)
+    if (lab_gnuplot(out, "peers-accuracy.gp") == 0)
         printf("  wrote %s/peers-accuracy.csv, peers-accuracy.{gp,png,svg}\n", out);
     else
         printf("  gnuplot failed or is missing: %s/peers-accuracy.csv and .gp written, no plot\n", out);
@@ -1123,7 +1079,7 @@ static void usage(void)
 
 int main(int argc, char **argv)
 {
-    const char *dir = getenv("MCF_MESHES"), *out = "docs/bench", *only = "map,work,accuracy,scaling";
+    const char *dir = getenv("MCF_MESHES"), *out = "lab/results/bench", *only = "map,work,accuracy,scaling";
     int dragon = 1, max_level = 9;
     if (!dir || !*dir)
         dir = "../shared/meshes";
@@ -1148,10 +1104,9 @@ int main(int argc, char **argv)
     int do_map = strstr(only, "map") != NULL, do_work = strstr(only, "work") != NULL;
     int do_acc = strstr(only, "accuracy") != NULL, do_scale = strstr(only, "scaling") != NULL;
     setvbuf(stdout, NULL, _IOLBF, 0);
-    if ((do_work || do_acc || do_scale) && mkdir_p(out) != 0) {
-        fprintf(stderr, "bench_peers: cannot create %s: %s\n", out, strerror(errno));
+    lab_prog = "bench_peers";
+    if ((do_work || do_acc || do_scale) && lab_mkdir_p(out) != 0)
         return 1;
-    }
     double t_begin = mcf_now();
     const char *ob = getenv("OPENBLAS_NUM_THREADS"), *om = getenv("OMP_NUM_THREADS");
     printf("bench_peers: mcfd vs CGAL smooth_shape vs the Eigen peer\n");

@@ -29,7 +29,7 @@
  * Sanity lines first: one step of mcfd and of the peer on sphere_cgal.obj
  * with normalize off must agree to 1e-10 relative (same linear system).
  *
- * Run with OPENBLAS_NUM_THREADS=1 (bench/Makefile does) for a
+ * Run with OPENBLAS_NUM_THREADS=1 (lab/Makefile does) for a
  * single-thread comparison. --threads [--load N] measures the thread
  * policy instead: one dragon step with 1 and 2 OpenBLAS threads (a child
  * process each), beside N busy processes.

@@ -1,9 +1,9 @@
 /*
  * bench_common.c - the machine header, medians, percentiles, file reading
- * and mesh loading shared by the bench/ programs (contracts in
+ * and mesh loading shared by the lab/bench/ programs (contracts in
  * bench_common.h).
  * Linux only: /proc/cpuinfo, /proc/meminfo, /proc/loadavg and
- * sched_getaffinity (hence -D_GNU_SOURCE in bench/Makefile).
+ * sched_getaffinity (hence -D_GNU_SOURCE in lab/Makefile).
  */
 #include "bench_common.h"
 
@@ -17,6 +17,7 @@
 #include <time.h>
 
 #include "api.h"
+#include "lab.h"
 
 void bench_print_machine(void)
 {
@@ -146,4 +147,16 @@ mcf_mesh *bench_dup_mesh(const char *prog, const mcf_mesh *m)
         exit(1);
     }
     return d;
+}
+
+FILE *bench_open_out(const char *dir, const char *name)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        lab_fail(1, "cannot write %s: %s", path, strerror(errno));
+        exit(1);
+    }
+    return f;
 }

@@ -1,5 +1,5 @@
 /*
- * bench_common.h - helpers shared by the bench/ programs: the machine and
+ * bench_common.h - helpers shared by the lab/bench/ programs: the machine and
  * date header every benchmark prints first (so runs of different programs
  * can be told apart and compared), medians and percentiles, reading a
  * whole file, loading a mesh. Compiled with -D_GNU_SOURCE (sched_getaffinity).
@@ -8,6 +8,7 @@
 #define BENCH_COMMON_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "mcf.h"
 
@@ -34,5 +35,9 @@ int bench_read_file(const char *path, char **buf, size_t *len);
  * with status 1 and a line "<prog>: ..." on stderr on failure. */
 mcf_mesh *bench_load_mesh(const char *prog, const char *dir, const char *name);
 mcf_mesh *bench_dup_mesh(const char *prog, const mcf_mesh *m);
+
+/* Opens dir/name for writing; on failure exits with status 1 and a line
+ * "<lab_prog>: cannot write PATH: reason" on stderr. */
+FILE *bench_open_out(const char *dir, const char *name);
 
 #endif

@@ -27,7 +27,7 @@
  *                the best count)
  *   o3d_default  Open3D's mesh.filter_smooth_taubin() (1 iteration,
  *                lambda 0.5, mu -0.53, uniform weights; Debian's
- *                python3-open3d through bench/o3d_taubin.py, a coprocess)
+ *                python3-open3d through lab/bench/o3d_taubin.py, a coprocess)
  *   o3d_best     the same at its best pass count (the same oracle)
  *
  * Metrics per result: the per-vertex error (mcf_compare's area-weighted
@@ -40,14 +40,14 @@
  * of open ones, vs clean); CPU time of the one run (this process's, or
  * the coprocess's for Open3D) and wall time.
  *
- * Output (QUALITY_OUT, docs/quality): quality.csv (every run), quality.md
+ * Output (QUALITY_OUT, lab/results/quality): quality.csv (every run), quality.md
  * (the tables: per method the median and worst over all cases of its
  * error against taubin_best, o3d_best and o3d_default, per-vertex and
  * surface; runs worse than the input; CPU time against `fixed` per mesh;
  * per mesh x noise the default's medians), worst.png (clean / noisy /
  * default / taubin_best / o3d_best of the case where the default does
  * worst against taubin_best, whole and zoomed). Single-threaded
- * (bench/Makefile pins OpenBLAS and OpenMP to one thread). Exit status 1
+ * (lab/Makefile pins OpenBLAS and OpenMP to one thread). Exit status 1
  * on an error.
  */
 #include <errno.h>
@@ -63,6 +63,7 @@
 
 #include "api.h"
 #include "bench_common.h"
+#include "lab.h"
 #include "mcf.h"
 
 #define PROG "bench_quality"
@@ -108,51 +109,6 @@ static double cpu_now(void)
     struct timespec t;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
-static int mkdir_p(const char *dir)
-{
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s", dir);
-    for (char *p = tmp + 1; *p; p++)
-        if (*p == '/') {
-            *p = 0;
-            if (mkdir(tmp, 0777) != 0 && errno != EEXIST)
-                return -1;
-            *p = '/';
-        }
-    return mkdir(tmp, 0777) != 0 && errno != EEXIST ? -1 : 0;
-}
-
-static FILE *open_out(const char *dir, const char *name)
-{
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *f = fopen(path, "w");
-    if (!f) {
-        fprintf(stderr, PROG ": cannot write %s: %s\n", path, strerror(errno));
-        exit(1);
-    }
-    return f;
-}
-
-/* Runs gnuplot on dir/script (in dir). Returns 0 when it succeeded. */
-static int gnuplot(const char *dir, const char *script)
-{
-    fflush(stdout);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        if (chdir(dir) != 0)
-            _exit(127);
-        execlp("gnuplot", "gnuplot", script, (char *)NULL);
-        _exit(127);
-    }
-    int status = 0;
-    if (waitpid(pid, &status, 0) < 0)
-        return -1;
-    return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
 static int cmp_d(const void *a, const void *b)
@@ -657,7 +613,7 @@ static void run_taubin_best(const case_ctx *c, result *best, mcf_mesh **out)
 
 /* ------------------------------------------------------------ Open3D */
 
-/* The coprocess (bench/o3d_taubin.py): pid, its stdin and stdout. */
+/* The coprocess (lab/bench/o3d_taubin.py): pid, its stdin and stdout. */
 static struct {
     pid_t pid;
     FILE *to, *from;
@@ -777,7 +733,7 @@ static void run_o3d(const case_ctx *c, result r[2], mcf_mesh *out[2])
 static void write_tris(const char *dir, const char *name, const mcf_mesh *m, const double R[9],
                        const double *crop)
 {
-    FILE *f = open_out(dir, name);
+    FILE *f = bench_open_out(dir, name);
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
     int nf = mcf_mesh_nfaces(m);
@@ -866,7 +822,7 @@ static void figure(const char *out, const char *stem, const figure_spec *fs,
     double aspect = (crop[3] - crop[2]) / (crop[1] - crop[0]);
     snprintf(gp, sizeof gp, "%s.gp", stem);
     snprintf(png, sizeof png, "%s.png", stem);
-    FILE *g = open_out(out, gp);
+    FILE *g = bench_open_out(out, gp);
     fprintf(g, "# bench_quality: clean / noisy / smoothed renders of %s at noise %g (seed %d)\n"
                "# run in this folder: gnuplot %s (needs the render-*.dat files bench_quality\n"
                "# writes and removes; rerun bench_quality to regenerate)\n"
@@ -889,7 +845,7 @@ static void figure(const char *out, const char *stem, const figure_spec *fs,
     }
     fprintf(g, "unset multiplot\n");
     fclose(g);
-    if (gnuplot(out, gp) == 0)
+    if (lab_gnuplot(out, gp) == 0)
         printf("figure: %s/%s\n", out, png);
     else
         printf("figure: gnuplot failed or is missing (%s/%s written)\n", out, gp);
@@ -952,7 +908,7 @@ static void versus(int nm, int k, int q, int peer, int surf, double *med, double
 
 int main(int argc, char **argv)
 {
-    const char *meshes = "../shared/meshes", *out = "docs/quality", *o3d_script = "o3d_taubin.py";
+    const char *meshes = "../shared/meshes", *out = "lab/results/quality", *o3d_script = "o3d_taubin.py";
     char list_buf[1024] = "sphere_cgal.obj,bunny_npm_closed.obj,spot.obj,knot1.obj,fertility.obj,"
                           "stanford-bunny.obj,bunny.drc,armadillo.obj,snowden.obj,dragon_vrip_res2.obj";
     char noise_buf[256] = "0.1,0.25,0.5", kinds_buf[64] = "normal,iso", methods_buf[512] = "";
@@ -1044,10 +1000,9 @@ int main(int argc, char **argv)
     }
 
     bench_print_machine();
-    if (mkdir_p(out) != 0) {
-        fprintf(stderr, PROG ": cannot create %s: %s\n", out, strerror(errno));
+    lab_prog = PROG;
+    if (lab_mkdir_p(out) != 0)
         return 1;
-    }
     {
         api_params p;
         api_params_init(&p);
@@ -1057,8 +1012,8 @@ int main(int argc, char **argv)
         api_params_free(&p);
     }
     snprintf(g_tmp, sizeof g_tmp, "/tmp/bench_quality.%d", (int)getpid());
-    if (mkdir_p(g_tmp) != 0)
-        die("mkdir", NULL);
+    if (lab_mkdir_p(g_tmp) != 0)
+        return 1;
     if (q_od >= 0 || q_ob >= 0) {
         o3d_start(o3d_script);
         if (g_o3d.pid)
@@ -1069,7 +1024,7 @@ int main(int argc, char **argv)
     g_res = calloc((size_t)nm * g_nk * g_nr * g_ns * nmeth, sizeof(result));
     if (!g_res)
         die("calloc", NULL);
-    FILE *csv = open_out(out, "quality.csv");
+    FILE *csv = bench_open_out(out, "quality.csv");
     fprintf(csv, "mesh,nv,nf,closed,noise_kind,noise,seed,e0,s0,method,param,ok,ratio,surface_ratio,"
                  "new_folds,new_folds_off_crease,drift,cpu_s,wall_s,note\n");
     int mesh_nv[MAXMESH];
@@ -1168,7 +1123,7 @@ int main(int argc, char **argv)
     fclose(csv);
 
     /* ---- the tables (stdout and quality.md) */
-    FILE *md = open_out(out, "quality.md");
+    FILE *md = bench_open_out(out, "quality.md");
     fprintf(md, "# make quality (bench/bench_quality.c)\n\n"
                 "%d meshes x noise %s x rho %s mean edges x %d seeds; error = area-weighted RMS distance to the\n"
                 "clean vertex (vertex) and symmetric RMS point-to-surface distance (surface), each against the\n"

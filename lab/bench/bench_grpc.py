@@ -27,7 +27,7 @@ import time
 import urllib.request
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "examples"))
+sys.path.insert(0, os.path.join(HERE, "..", "..", "examples"))
 import grpc  # noqa: E402
 from grpc_client import smooth, stubs  # noqa: E402
 
