@@ -720,7 +720,7 @@ static int cmd_smooth(int argc, char **argv)
     progress_state ps;
     api_format in_fmt = API_FMT_UNKNOWN;
     size_t in_bytes = 0, out_bytes = 0;
-    double t_start = now(), read_s = 0, decode_s = 0, noise_s = 0, flow_s = 0,
+    double t_start = now(), read_s = 0, decode_s = 0, flow_s = 0,
            encode_s = 0, write_s = 0, metrics_s = 0, qerr = 0, t0;
     int rc, show = 0, nwarn, withheld;
     mcf_status fs;
@@ -781,14 +781,6 @@ static int cmd_smooth(int argc, char **argv)
                       mcf_mesh_nfaces(target), mcf_mesh_nfaces(m));
             goto done;
         }
-    }
-    if (p.noise_rho > 0) {
-        t0 = now();
-        if (mcf_flow_add_noise(m, &p.flow, p.noise_rho, p.seed, &err) != MCF_OK) {
-            rc = fail(1, "noise: %s", err.msg);
-            goto done;
-        }
-        noise_s = now() - t0;
     }
     /* The metrics document is api's (api_metrics_json), the daemon's too:
      * the same request gives the same keys through either door. */
@@ -856,7 +848,6 @@ static int cmd_smooth(int argc, char **argv)
             run.quantization_max_error = qerr;
         run.read_s = read_s;
         run.decode_s = decode_s;
-        run.noise_s = noise_s;
         run.flow_s = flow_s;
         run.encode_s = encode_s;
         run.write_s = write_s;

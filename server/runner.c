@@ -424,11 +424,6 @@ void svc__run_job(svc_job *j)
             goto done;
         }
     }
-    if (prm.noise_rho > 0 &&
-        (rc = mcf_flow_add_noise(m, &prm.flow, prm.noise_rho, prm.seed, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "noise", &err);
-        goto done;
-    }
     t_decode = mcf_now() - t0;
     t_metrics = mcf_now();
     if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {

@@ -1025,19 +1025,20 @@ static void test_smooth_raw_and_params(void **state)
     free(obj);
 }
 
-/* A target mesh adds the comparison to the metrics; noise first makes the
- * error measurable; a target of another connectivity is a 422. */
+/* A target mesh adds the comparison to the metrics; a noisy upload makes
+ * the error measurable; a target of another connectivity is a 422. */
 static void test_smooth_target(void **state)
 {
     resp_t r;
-    char id[64];
+    char id[64], noisy[512];
     cJSON *m, *cmp;
 
     (void)state;
+    snprintf(noisy, sizeof noisy, "%s/noisy-0.2-7.obj", g_tmp);
     {
-        upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
-        http(&g_main, "POST", "/smooth?noise=0.2&seed=7&iterations=3&dt=1e-5",
-             NULL, &up, &r);
+        upload_t up = {.mesh = tl_write_noisy("sphere_cgal.obj", 0.2, 7, noisy),
+                       .target = "sphere_cgal.obj"};
+        http(&g_main, "POST", "/smooth?iterations=3&dt=1e-5", NULL, &up, &r);
         expect_status(&g_main, &r, 200, "with target");
         assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
         m = follow_metrics_link(&g_main, &r, id);
@@ -1068,7 +1069,8 @@ static void test_smooth_target(void **state)
  * target the error falls. The schemes list has both variants. */
 static void test_smooth_default_fairing(void **state)
 {
-    upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+    char noisy[512];
+    upload_t up = {.mesh = noisy, .target = "sphere_cgal.obj"};
     resp_t r;
     char id[64];
     cJSON *m, *sure, *e;
@@ -1076,7 +1078,9 @@ static void test_smooth_default_fairing(void **state)
     double vmin = INFINITY;
 
     (void)state;
-    http(&g_main, "POST", "/smooth?noise=0.25&seed=1", NULL, &up, &r);
+    snprintf(noisy, sizeof noisy, "%s/noisy-0.25-1.obj", g_tmp);
+    tl_write_noisy("sphere_cgal.obj", 0.25, 1, noisy);
+    http(&g_main, "POST", "/smooth", NULL, &up, &r);
     expect_status(&g_main, &r, 200, "default request");
     assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
     m = follow_metrics_link(&g_main, &r, id);
@@ -4967,7 +4971,8 @@ static void test_metrics_same_as_cli(void **state)
         "curvature.before.H.mean", "curvature.after.K.p50", "curvature.after.A2.min",
         "compare.before.rms_m", "compare.after.rms_m", "compare.rms_m", "compare.max_err",
         NULL};
-    upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+    char noisy[512];
+    upload_t up = {.mesh = noisy, .target = "sphere_cgal.obj"};
     tl_run_result cr;
     resp_t r;
     char id[64];
@@ -4975,10 +4980,11 @@ static void test_metrics_same_as_cli(void **state)
     int i;
 
     (void)state;
+    snprintf(noisy, sizeof noisy, "%s/noisy-0.1-5.obj", g_tmp);
+    tl_write_noisy("sphere_cgal.obj", 0.1, 5, noisy);
     assert_int_equal(tl_mcf_setup("test_server", "/tmp/mcfd-cli-XXXXXX"), 0);
-    cr = tl_run("smooth", tl_sphere(), "out.obj", "--iterations", "3", "--noise", "0.1",
-                "--seed", "5", "--target", tl_sphere(), "--metrics", "m.json", "--quiet",
-                NULL);
+    cr = tl_run("smooth", noisy, "out.obj", "--iterations", "3", "--target", tl_sphere(),
+                "--metrics", "m.json", "--quiet", NULL);
     if (cr.status != 0)
         fail_msg("mcf smooth: status %d: %s", cr.status, cr.err);
     tl_run_free(&cr);
@@ -4992,7 +4998,7 @@ static void test_metrics_same_as_cli(void **state)
     }
     assert_int_equal(tl_mcf_teardown(), 0);
 
-    http(&g_main, "POST", "/smooth?iterations=3&noise=0.1&seed=5", NULL, &up, &r);
+    http(&g_main, "POST", "/smooth?iterations=3", NULL, &up, &r);
     expect_status(&g_main, &r, 200, "the CLI's request");
     assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
     srv = follow_metrics_link(&g_main, &r, id);

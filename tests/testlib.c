@@ -160,6 +160,26 @@ mcf_mesh *tl_load(const char *name)
     return m;
 }
 
+const char *tl_write_noisy(const char *name, double rho, uint64_t seed, const char *out_path)
+{
+    mcf_mesh *m = tl_load(name);
+    mcf_error err = {MCF_OK, ""};
+    api_encode_opts o;
+    api_buf b;
+    FILE *f;
+
+    api_buf_init(&b, SIZE_MAX);
+    api_encode_opts_init(&o);
+    o.format = API_FMT_OBJ;
+    if (mcf_mesh_add_noise(m, rho, seed, &err) != MCF_OK || api_mesh_encode(m, &o, &b, &err) != MCF_OK)
+        fail_msg("tl_write_noisy: %s: %s", name, err.msg);
+    mcf_mesh_free(m);
+    if (!(f = fopen(out_path, "wb")) || fwrite(b.data, 1, b.len, f) != b.len || fclose(f) != 0)
+        fail_msg("tl_write_noisy: cannot write %s: %s", out_path, strerror(errno));
+    api_buf_free(&b);
+    return out_path;
+}
+
 void tl_assert_near(double a, double b, double tol, const char *what)
 {
     if (a == b) /* also equal infinities */

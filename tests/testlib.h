@@ -69,6 +69,13 @@ int tl_read_file(const char *path, char **buf, size_t *len);
  * cmocka test fails with the file name and error message. */
 mcf_mesh *tl_load(const char *name);
 
+/* Writes a noisy copy of test mesh NAME (tl_load) to out_path as OBJ
+ * (every double exact): mcf_mesh_add_noise with rho (mean edges, along the
+ * normals) and seed, on every vertex. What a test sends the service or
+ * the tool to smooth, now that injecting noise is the lab's and not a
+ * job parameter. Returns out_path; fails the current test on error. */
+const char *tl_write_noisy(const char *name, double rho, uint64_t seed, const char *out_path);
+
 /* Fails the current test unless |a - b| <= tol (and both are finite, or
  * equal infinities). `what` names the quantity in the failure message. */
 void tl_assert_near(double a, double b, double tol, const char *what);
