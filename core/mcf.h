@@ -307,8 +307,9 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * MCF_FAIRING_MAX_PASSES passes (explicit) and max_steps. A mesh without
  * noise gets K = 0: it is returned as it came. The result moves every
  * free vertex along the normal of the filtered surface only, and a guard
- * (up to 5 rounds) gives a face that would face against the filtered
- * surface the filtered positions. */
+ * takes back every face it would fold (turned against the input's face
+ * and lying backwards in its neighbourhood): the filtered positions
+ * first, then halfway to the input, then the input's. */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
 
@@ -455,11 +456,13 @@ typedef struct {
                                  (smoothed along them, held for the
                                  surface's filter) */
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
-                                 vertex (0-5) */
+                                 vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
     unsigned warnings;        /* MCF_WARN_* bits */
-    int folded_faces;         /* faces lying backwards in their
-                                 neighbourhood, beyond the input's */
+    int folded_faces;         /* faces the run folded: turned by more
+                                 than 90 degrees against the input's same
+                                 face and lying backwards in their
+                                 neighbourhood of the result */
     double min_edge_ratio;    /* shortest edge after / before */
     double area_ratio;        /* area1 / area0 */
     mcf_step_log *log;        /* steps entries when log_steps, else NULL;

@@ -34,9 +34,11 @@
  * is removed by a second SURE over the same steps for the tangential part
  * of the displacement, moved in the tangent planes and put back on the
  * surface (tangential_output). Creases found on the smoothed input are
- * smoothed along and held (creases). A guard then gives every face of X
- * that faces against the same face of Y Y's positions at its free
- * vertices, up to 5 rounds. docs/fairing.md has the math in words.
+ * smoothed along and held (creases). A guard (mcf__unfold, mcf_folds.c)
+ * then takes back every face of X the run folded (turned against the
+ * input's same face and lying backwards in its neighbourhood): Y's
+ * positions first, then halfway to the input, then the input's.
+ * docs/fairing.md has the math in words.
  *
  * Pure C11 and CHOLMOD; its own cholmod_common; no globals.
  */
@@ -48,7 +50,7 @@
 
 #include "mcf_internal.h"
 
-enum { NPROBE = 6, NCOL = 3 + NPROBE, GUARD_ROUNDS = 5 };
+enum { NPROBE = 6, NCOL = 3 + NPROBE };
 #define TANGENTIAL_FLOOR 0.12
 /* creases: measured on a box and a capped cylinder (90-degree edges,
  * every one found up to noise 0.25 and 90% at 0.5) against the shared
@@ -154,8 +156,8 @@ static int uf_find(int *up, int x)
  * spots make short bits). The crease vertices are then held for the
  * surface's filter (marked in crease[], nv), those inside a chain (two
  * crease edges) first smoothed along it by CREASE_PASSES Taubin passes on the chain
- * alone (c->X0 updated); corners and chain ends stay (fold_guard puts a
- * crease vertex back where its smoothing turned a face). Returns the number
+ * alone (c->X0 updated); corners and chain ends stay (the guard puts a
+ * crease vertex back where its smoothing folded a face). Returns the number
  * of crease vertices, -1 when out of memory. */
 static int creases(fair_ctx *c, const unsigned char *fixed, unsigned char *crease)
 {
@@ -244,8 +246,24 @@ static int creases(fair_ctx *c, const unsigned char *fixed, unsigned char *creas
                         if (ce[t])
                             for (int e = 0; e < 3; e++)
                                 avg[e] += 0.5 * tmp[3 * (size_t)g->adj[t] + e];
+                    /* across the chain only: its tangent (the two
+                     * neighbours' difference) part is dropped, so a
+                     * vertex stays where the scanner put it along the
+                     * crease (on coarse meshes with uneven edges, e.g.
+                     * car.drc, Taubin along the chain slid vertices by
+                     * whole edges) */
+                    double tan[3] = {0, 0, 0}, d[3], sign = 1.0;
+                    for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
+                        if (ce[t]) {
+                            for (int e = 0; e < 3; e++)
+                                tan[e] += sign * tmp[3 * (size_t)g->adj[t] + e];
+                            sign = -1.0;
+                        }
                     for (int e = 0; e < 3; e++)
-                        P[3 * (size_t)i + e] += coef[h] * (avg[e] - tmp[3 * (size_t)i + e]);
+                        d[e] = coef[h] * (avg[e] - tmp[3 * (size_t)i + e]);
+                    double tt = mcf__dot3(tan, tan), a = tt > 0.0 ? mcf__dot3(d, tan) / tt : 0.0;
+                    for (int e = 0; e < 3; e++)
+                        P[3 * (size_t)i + e] += d[e] - a * tan[e];
                 }
             }
         memcpy(c->X0, P, 3 * sizeof(double) * (size_t)nv);
@@ -651,48 +669,6 @@ static void normal_output(fair_ctx *c, const double *Y, double *X, double *N)
     }
 }
 
-/* The guard: a face of X facing against the same face of Y takes Y's
- * positions at its free vertices; a round can turn a neighbour, hence
- * the rounds. A face facing against the input's at a crease vertex (the
- * crease's smoothing turned it, which Y shares) takes the input's
- * position there. */
-static void fold_guard(fair_ctx *c, const double *Y, double *X)
-{
-    for (int round = 0; round < GUARD_ROUNDS; round++) {
-        int moved = 0;
-        for (int f = 0; f < c->nf; f++) {
-            const int32_t *t = c->F + 3 * (size_t)f;
-            double a[3], b[3];
-            face_normal(X, t, a);
-            if (c->st->crease_vertices > 0 && (c->crease[t[0]] || c->crease[t[1]] || c->crease[t[2]])) {
-                face_normal(c->Xin, t, b);
-                if (mcf__dot3(a, b) < 0.0)
-                    for (int k = 0; k < 3; k++) {
-                        size_t i = (size_t)t[k];
-                        if (c->crease[i] && memcmp(X + 3 * i, c->Xin + 3 * i, 3 * sizeof(double)) != 0) {
-                            memcpy(X + 3 * i, c->Xin + 3 * i, 3 * sizeof(double));
-                            moved++;
-                        }
-                    }
-            }
-            face_normal(Y, t, b);
-            if (mcf__dot3(a, b) >= 0.0)
-                continue;
-            for (int k = 0; k < 3; k++) {
-                size_t i = (size_t)t[k];
-                if (!c->fx[i] && memcmp(X + 3 * i, Y + 3 * i, 3 * sizeof(double)) != 0) {
-                    memcpy(X + 3 * i, Y + 3 * i, 3 * sizeof(double));
-                    moved++;
-                }
-            }
-        }
-        if (!moved)
-            break;
-        c->st->guard_rounds++;
-        c->st->guard_vertices += moved;
-    }
-}
-
 mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err)
@@ -815,10 +791,19 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     st->tangential_steps = kbest_t;
     /* the output along the normals of the filtered surface, relaxed in
      * its tangent planes, guarded */
+    if (kbest == 0 && kbest_t == 0) {
+        /* nothing to remove: the input as it came (crease vertices too) */
+        memcpy(X, c.Xin, 3 * sizeof(double) * (size_t)nv);
+        rc = MCF_OK;
+        goto done;
+    }
     normal_output(&c, Ybest, X, Y);
     if (kbest_t > 0 && (rc = tangential_output(&c, Yt, Y, X, err)) != MCF_OK)
         goto done;
-    fold_guard(&c, Ybest, X);
+    int left;
+    if ((rc = mcf__unfold(X, c.Xin, Ybest, F, nf, nv, &st->guard_rounds, &st->guard_vertices, &left, err)) != MCF_OK)
+        goto done;
+    c.bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
     rc = MCF_OK;
 done:
     if (c.cm_started)

@@ -210,6 +210,27 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err);
 
+/* ---- folds (mcf_folds.c)
+ * A face a run folded: its normal turned against the same face's normal
+ * in a reference (fn_ref: the input's, or the step before's) and it lies
+ * backwards in its neighbourhood of X (its normal against the sum of its
+ * vertices' summed face normals). */
+void mcf__face_normals(const double *X, const int32_t *F, int nf, double *fn); /* unnormalized */
+/* The count; fn (3*nf) gets X's face normals, N (3*nv) is scratch, mask
+ * (nf, may be NULL) gets 1 on each folded face. */
+int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
+                      double *fn, double *N, unsigned char *mask);
+/* The faces of X folded against X_ref's; -1 when out of memory. */
+int mcf__folds_against(const double *X, const double *X_ref, const int32_t *F, int nf, int nv);
+/* The fairing filter's guard: while X has faces folded against X_in's,
+ * their vertices that the run moved (X != X_in) take Y's positions (2
+ * rounds), then halve their displacement from X_in (6 rounds), then take
+ * X_in's positions. rounds: rounds that moved a vertex; moves: vertex
+ * moves; left: folded faces left (0 unless the 64-round cap was hit).
+ * ENOMEM only. */
+mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int32_t *F, int nf, int nv,
+                       int *rounds, int *moves, int *left, mcf_error *err);
+
 /* n standard normal draws from a 64-bit seed, mcf_mesh_add_noise's
  * generator (the same draws in the same order). (mcf_mesh.c) */
 void mcf__gauss_fill(uint64_t seed, double *z, size_t n);

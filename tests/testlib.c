@@ -494,3 +494,50 @@ void tl_smooth_a_little(mcf_mesh *m)
     if (mcf_flow_run(m, &p, NULL, &err) != MCF_OK)
         fail_msg("flow: %s", err.msg);
 }
+
+static void tl_face_normal(const double *X, const int32_t *t, double *n)
+{
+    const double *a = X + 3 * (size_t)t[0], *b = X + 3 * (size_t)t[1], *c = X + 3 * (size_t)t[2];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+}
+
+int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf, int nv,
+                     unsigned char *mask)
+{
+    double *N = calloc(3 * (size_t)nv + 1, sizeof *N);
+    int bad = 0;
+    if (!N)
+        fail_msg("tl_folds_against: out of memory");
+    for (int f = 0; f < nf; f++) {
+        double a[3];
+        tl_face_normal(X, F + 3 * (size_t)f, a);
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                N[3 * (size_t)F[3 * f + k] + d] += a[d];
+    }
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        double a[3], b[3], s[3] = {0, 0, 0}, e = 0.0;
+        tl_face_normal(X, t, a);
+        tl_face_normal(X0, t, b);
+        for (int k = 1; k < 3; k++)
+            for (int d = 0; d < 3; d++) {
+                double q = X[3 * (size_t)t[k] + d] - X[3 * (size_t)t[0] + d];
+                e += q * q;
+            }
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                s[d] += N[3 * (size_t)t[k] + d];
+        double aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2], bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
+        int fold = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] < 0.0 && aa > 1e-20 * e * e && bb > 1e-20 * e * e &&
+                   a[0] * s[0] + a[1] * s[1] + a[2] * s[2] < 0.0;
+        if (mask)
+            mask[f] = (unsigned char)fold;
+        bad += fold;
+    }
+    free(N);
+    return bad;
+}

@@ -174,6 +174,17 @@ void tl_quad_grid(double X[147], int Q[144]);
  * connectivity stays. Fails the test when the flow fails. */
 void tl_smooth_a_little(mcf_mesh *m);
 
+/* ---- Folds: the faces of X (nf faces F over nv vertices) folded
+ * against X0, written out as docs/fairing.md defines them (what
+ * mcf_flow_stats.folded_faces counts): turned by more than 90 degrees
+ * against X0's same face and lying backwards in their neighbourhood of X
+ * (the normal against the sum of the three vertices' summed face
+ * normals); faces degenerate in X or X0 (a normal below 1e-10 of the
+ * squared edges) are not judged. mask (nf, may be NULL) gets 1 on each.
+ * Returns the count. */
+int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf, int nv,
+                     unsigned char *mask);
+
 /* ---- A third-party reader: Debian's assimp (assimp-utils, installed by
  * make deps) runs `assimp info` on the bytes, written to $TMPDIR/name (the
  * extension tells assimp the format). Fails the current test unless it
