@@ -477,8 +477,11 @@ FUZZ_CFLAGS := -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer-no-link $(FUZZ_S
 FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
 FUZZ_NAMES := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=%)
 FUZZ_BIN := $(FUZZ_NAMES:%=$(FZ)/fuzz_%)
+# The server's pure parts, for fuzz_h2gate: the gRPC door's frame parser
+# and its accounting (server/h2gate.h: no sockets, threads or clock).
+FUZZ_SRVOBJ := $(FZ)/server/h2gate_parser.o $(FZ)/server/h2gate_limits.o
 FUZZ_LIBOBJ := $(CORE_SRC:%.c=$(FZ)/%.o) $(API_SRC:%.c=$(FZ)/%.o) \
-               $(API_CXX:%.cc=$(FZ)/%.o)
+               $(API_CXX:%.cc=$(FZ)/%.o) $(FUZZ_SRVOBJ)
 
 $(FZ)/core/%.o: core/%.c
 	@mkdir -p $(@D)
@@ -492,6 +495,11 @@ $(FZ)/api/%.o: api/%.cc
 	@mkdir -p $(@D)
 	$(FUZZ_CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
 
+$(FZ)/server/%.o: server/%.c
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
+
+$(FZ)/tests/fuzz/fuzz_h2gate.o: CPPFLAGS += -Iserver
 $(FZ)/tests/fuzz/%.o: tests/fuzz/%.c
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@

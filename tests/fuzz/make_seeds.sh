@@ -6,7 +6,8 @@
 # Debian's draco_encoder (both methods, several levels and quantizations,
 # extra attributes, a point cloud) and from our own encoder through the
 # `mcf convert` CLI (float64 lossless, sequential). Run from the top of the
-# tree after `make build/mcf`:  sh tests/fuzz/make_seeds.sh
+# tree after `make build/mcf`:  sh tests/fuzz/make_seeds.sh (corpus_h2gate:
+# make_h2gate_seeds.py, run at the end)
 set -eu
 F=tests/fuzz
 MCF=${MCF:-build/mcf}
@@ -206,4 +207,7 @@ for n in obj ply stl off draco gltf; do
     cp "$f" $F/corpus_roundtrip/
   done
 done
+# ---------------------------------------------------------------- the gRPC door's gate
+/usr/bin/python3 $F/make_h2gate_seeds.py
+
 ls -l $F/corpus_* | awk '/^total/ {next} {s += $5} END {print "seed bytes:", s}'
