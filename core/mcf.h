@@ -285,7 +285,7 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * when 0) and ignores the amount. strength_auto estimates the noise and
  * picks the time that minimizes the expected error (mcf_auto.c), in place
  * of strength. The default strength was chosen on real
- * scans with injected noise (README, "Choosing the amount"): it reduces
+ * scans with injected noise (lab/results/amount.md): it reduces
  * the error at every noise level measured and harms none. */
 #define MCF_DEFAULT_STRENGTH 0.33
 #define MCF_DEFAULT_STEPS 10

@@ -198,7 +198,7 @@ static mcf_status unstable(const flow_ctx *c, mcf_error *err, int step, double h
 
 /* The warnings of a finished run (result X, input X_in, both in input
  * units). Thresholds, measured on the shared scans with 0.1-0.5 mean
- * edges of injected noise (README, "Choosing the amount"):
+ * edges of injected noise (lab/results/amount.md):
  *  - folds: faces the run folded (mcf__folds_against the input: turned
  *    by more than 90 degrees and lying backwards in their neighbourhood
  *    of the result), over 0.1% of the faces (and at least 3); at useful
@@ -212,8 +212,7 @@ static mcf_status unstable(const flow_ctx *c, mcf_error *err, int step, double h
  *    noise evens edges out, it never needs to collapse one.
  *  - area_loss: more than 40% of the area lost with rescale off. Noise
  *    inflates the area: removing noise of half a mean edge at the best
- *    amount loses 30-38% of it (snowden 0.62, stanford bunny 0.68),
- *    while the old default's needles lost 31-56%.
+ *    amount loses 30-38% of it (snowden 0.62, stanford bunny 0.68).
  *  - little_smoothing: less than 0.1 mean edges of diffusion (t < 0.01
  *    h^2): the result is indistinguishable from the input. */
 static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats *st)
