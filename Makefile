@@ -31,7 +31,7 @@ CPPFLAGS += -I/usr/include/suitesparse -Icore -Iapi
 # The serial CHOLMOD (flags.mk says why): Debian's static libcholmod.a,
 # its OpenMP calls renamed to core/cholmod_serial/stand_ins.c.
 CHOLMOD_A := $(shell $(CC) -print-file-name=libcholmod.a)
-LIBS_SRV  := -lmicrohttpd -lpthread
+LIBS_SRV  := -lmicrohttpd -lhiredis -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 # The gRPC door (server/grpc.cc): Debian's gRPC C++ 1.51 and protobuf.
 # Deferred (=): pkg-config runs once `make deps` has installed them.
@@ -46,7 +46,7 @@ DEB_BUILD := $(shell grep -v '^\#' docker/build-packages)
 DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             libcmocka-dev libyaml-dev gnuplot-nox faketime python3-grpcio grpc-proto \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
-            python3-setuptools python3-wheel curl assimp-utils
+            python3-setuptools python3-wheel curl assimp-utils redis-server
 DEB_BENCH := libeigen3-dev libcgal-dev
 # make quality's peer: Open3D's filter_smooth_taubin (lab/bench/o3d_taubin.py)
 DEB_QUALITY := python3-open3d python3-numpy
@@ -176,7 +176,16 @@ $(B)/%.o: %.cc
 $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
--include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d)
+# The Redis store's tests: its client (server/rds.c) and store
+# (server/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
+# tests/redisd.c starts and stops.
+REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
+REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/server/rstore.o \
+             $(B)/server/rstore_queue.o
+$(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
+
+-include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d) $(B)/tests/srvlib.d $(B)/tests/redisd.d
 
 # ---- set-up: install what is missing, nothing else
 deps:
@@ -236,8 +245,9 @@ test: deps
 asan:
 	$(MAKE) SAN=address,undefined test
 
-# ---- ThreadSanitizer on the daemon (build-tsan/): test_server against
-# TSan builds of mcfd (the job service, the REST door, the sandbox), with
+# ---- ThreadSanitizer on the daemon (build-tsan/): test_service (the job
+# service in-process) and test_server* against TSan builds of mcfd (the job
+# service, the REST door, the sandbox), with
 # tests/tsan.supp. Fails on any report; they are kept in build-tsan/tsan/
 # (one file per process that had one). TSAN_GRPC=1 adds test_grpc: not
 # clean yet, gRPC's libraries are not instrumented and TSan cannot see the
@@ -245,11 +255,13 @@ asan:
 TSAN_OPTS = halt_on_error=0 second_deadlock_stack=1 \
   suppressions=$(CURDIR)/tests/tsan.supp log_path=$(CURDIR)/build-tsan/tsan/report
 tsan: deps
-	$(MAKE) SAN=thread B=build-tsan build-tsan/mcfd build-tsan/mcf build-tsan/tests/test_server
+	$(MAKE) SAN=thread B=build-tsan build-tsan/mcfd build-tsan/mcf \
+	  $(SERVER_TEST_NAMES:%=build-tsan/tests/%) build-tsan/tests/test_service
 	@rm -rf build-tsan/tsan; mkdir -p build-tsan/tsan; fail=0; \
-	OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
+	for t in test_service $(SERVER_TEST_NAMES); do \
+	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	  MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=build-tsan TSAN_OPTIONS="$(TSAN_OPTS)" \
-	  build-tsan/tests/test_server || fail=1; \
+	  build-tsan/tests/$$t || fail=1; done; \
 	[ "$(TSAN_GRPC)" != 1 ] || OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	  MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=build-tsan TSAN_OPTIONS="$(TSAN_OPTS)" \
 	  /usr/bin/python3 tests/test_grpc.py || fail=1; \
@@ -265,7 +277,7 @@ tsan: deps
 # followers, queued memory, uploads in flight; for the gRPC door:
 # connection floods, descriptors, header blocks, abandoned streams, rapid
 # reset, compressed messages); the README's reliability section quotes
-# them. ATTACKS are test_server's, ATTACKS_GRPC test_grpc.py's.
+# them. ATTACKS are in test_server*.c, ATTACKS_GRPC in test_grpc.py.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
   test_http_small_things test_transfer_framing test_query_flood test_spool_failures test_spool_quota test_spool_full \
   test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
@@ -278,10 +290,11 @@ ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
   test_compressed_messages_are_refused test_uploads_in_flight_fit_the_memory_budget \
   test_open_and_cancel_thousands_of_calls test_unread_answer_is_cancelled
 attack: deps
-	$(MAKE) all $(B)/tests/test_server
+	$(MAKE) all $(SERVER_TESTS)
 	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC); do \
 	  case " $(ATTACKS_GRPC) " in *" $$t "*) run="/usr/bin/python3 tests/test_grpc.py";; \
-	    *) run=$(B)/tests/test_server;; esac; \
+	    *) run=$$(grep -l "^static void $$t(" $(SERVER_TEST_NAMES:%=tests/%.c) | \
+	          sed 's|^tests/|$(B)/tests/|; s|\.c$$||');; esac; \
 	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=$(B) MCF_TEST_FILTER=$$t \
 	    $$run > $(B)/tests/attack.out 2>&1 || fail=1; \
@@ -427,8 +440,29 @@ PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[c
 empty :=
 LAB_HEADERS_RE := $(subst $(empty) $(empty),|,$(subst .,\.,$(notdir $(wildcard lab/*.h lab/*/*.h))))
 
-# The job service's files: they alone include svc_internal.h.
-SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch])
+# The job service's files: they alone include svc_internal.h (spool.c, its
+# local store, sees only store.h).
+SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h \
+  server/store_redis.c server/rstore*.[ch] server/rds*.[ch])
+# The doors: each reaches jobs through service.h alone and never includes
+# the other door's headers.
+REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])
+GRPC_DOOR := $(wildcard server/grpc*.cc server/grpc_door.h server/h2gate*.[ch])
+
+# The daemon's integration tests (test_server*.c, one concern each) share
+# tests/srvlib.c.
+SRVLIB_OBJ := $(B)/tests/srvlib.o
+SERVER_TEST_NAMES := $(patsubst tests/%.c,%,$(wildcard tests/test_server*.c))
+SERVER_TESTS := $(SERVER_TEST_NAMES:%=$(B)/tests/%)
+$(SERVER_TESTS): $(B)/tests/%: $(B)/tests/%.o $(SRVLIB_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(SRVLIB_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
+
+# test_service drives the job service in-process: its objects (the service,
+# its store and sandbox, the log and metrics it reports to), no door.
+SVC_TEST_OBJ := $(patsubst %.c,$(B)/%.o,$(filter %.c,$(SRV_SERVICE)) server/log.c server/metrics.c)
+$(B)/tests/test_service.o: CPPFLAGS += -Iserver
+$(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
@@ -445,6 +479,12 @@ check-deps:
 	  { echo "check-deps: the job service (service.h) must not know the REST door or libmicrohttpd"; exit 1; }
 	@! grep -nE '#include *[<"]svc_internal\.h' $(filter-out $(SRV_SERVICE),$(wildcard server/*.c server/*.h server/*.cc)) || \
 	  { echo "check-deps: outside the job service, use service.h, not svc_internal.h"; exit 1; }
+	@! grep -nE '#include *[<"](svc_internal|svc_admit|store|sandbox)\.h' $(REST_DOOR) $(GRPC_DOOR) || \
+	  { echo "check-deps: a door includes service.h, never the service's own headers (svc_internal.h, svc_admit.h, store.h, sandbox.h)"; exit 1; }
+	@! grep -nE '#include *[<"](grpc_door|h2gate)\.h' $(REST_DOOR) || \
+	  { echo "check-deps: the REST door does not include the gRPC door's headers"; exit 1; }
+	@! grep -nE '#include *[<"](http|rest_door)\.h' $(GRPC_DOOR) || \
+	  { echo "check-deps: the gRPC door does not include the REST door's headers"; exit 1; }
 	@! grep -nE '#include *[<"]([^>"]*/)?(lab/|$(LAB_HEADERS_RE))' $(PRODUCT_SRC) || \
 	  { echo "check-deps: nothing outside lab/ includes the lab's headers: the lab is a client of the product, never a part"; exit 1; }
 	@echo "check-deps: server -> api -> core holds; the doors -> service.h; nothing includes lab/"
@@ -543,12 +583,12 @@ fuzz: $(FUZZ_BIN)
 #   make experiments [EXP_DIR=DIR]   every flow study -> lab/results/experiments/
 #   make exp-sweep-spot ...          one of them (lab/Makefile lists them)
 #   make bench                       benchmarks, ratios against a peer measured in the same run
-#                                    (bench-core, bench-server, bench-grpc, bench-peers: one part)
+#                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers: one part)
 #   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
 #   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   the scan-quality study -> lab/results/quality/
 LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR)))
 LAB_LIBS := $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
-LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-peers bench-ui quality
+LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-ui quality
 
 experiments: deps
 	$(MAKE) $(LAB_LIBS)
@@ -558,7 +598,7 @@ exp-%: deps
 	$(MAKE) $(LAB_LIBS)
 	$(LAB) $@
 
-bench bench-core bench-server bench-grpc bench-peers: deps
+bench bench-core bench-server bench-grpc bench-store bench-peers: deps
 	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
 	$(MAKE) all
 	$(LAB) $@

@@ -280,6 +280,8 @@ typedef struct {
     int flow_keys_set;            /* time, dt, adaptive, laplacian, mass or
                                      rescale given: without a scheme, the
                                      job is desbrun2's flow */
+    unsigned given;               /* a bit per parameter given (the table's
+                                     order): api_params_given_json */
 } api_params;
 
 /* The scheme of a request that names none, on a mesh of nv vertices: the
@@ -301,6 +303,9 @@ int api_params_auto_amount(const api_params *p);
 
 void api_params_init(api_params *p);   /* core defaults, format UNKNOWN */
 void api_params_free(api_params *p);   /* frees fixed_owned, keeps defaults */
+/* dst (uninitialized) becomes a copy of src with its own fixed-vertex
+ * array. MCF_OK or MCF_ENOMEM (dst untouched). */
+mcf_status api_params_copy(api_params *dst, const api_params *src);
 
 /* One validation path for every source (JSON, query string, CLI flags):
  * sets key to the textual value, EINVAL naming the key and the accepted
@@ -311,6 +316,10 @@ mcf_status api_params_set(api_params *p, const char *key, const char *value,
  * numbers, strings, booleans and (for fixed_vertices) arrays of integers. */
 mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
                                  const api_limits *lim, mcf_error *err);
+/* A parsed JSON object of keys, as api_params_parse_json applies them
+ * (without its size and depth checks: obj is already a tree). */
+mcf_status api_params_set_json(api_params *p, const cJSON *obj,
+                               const api_limits *lim, mcf_error *err);
 /* A URL query string "scheme=desbrun2&dt=1e-3" (percent-decoded). Keys the
  * daemon handles itself (listed in `ignore`, NULL-terminated) are skipped. */
 mcf_status api_params_parse_query(api_params *p, const char *qs,
@@ -340,6 +349,10 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
                              mcf_error *err);
 /* The parameters as a JSON object (for job records and metrics). */
 cJSON *api_params_to_json(const api_params *p);
+/* Only the parameters that were given, with their values: a JSON object
+ * that api_params_set_json turns back into the same parameters (the
+ * record a job keeps of its request). NULL when out of memory. */
+cJSON *api_params_given_json(const api_params *p);
 /* Every parameter as the one table in api_params.c defines it, a JSON
  * array of {name, type (number, integer, boolean, string, array), auto
  * (accepts "auto"), format (uint64 for an unsigned 64-bit integer),
@@ -527,6 +540,143 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
 #define API_FIELDS_VERSION 1
 mcf_status api_fields_encode(const mcf_mesh *before, const mcf_mesh *after,
                              api_buf *out, mcf_error *err);
+
+/* -------------------------------------------------------------------- jobs */
+
+/* One smoothing job from the input's bytes to the result's and the metrics
+ * document (api_job.c), for every door: `mcf smooth` and the daemon's
+ * workers both call api_job_run, so the same request runs the same steps
+ * and gives the same metrics keys and timings. Their own code is file I/O
+ * on one side, the spool, retries and locking on the other; what differs
+ * (the Draco sandbox, memory admission, progress, cancel, where the bytes
+ * go) comes in through hooks.
+ *
+ * The steps: decode the input (hook), finish the parameters for its
+ * vertex count (api_params_finish: the default scheme), decode the target
+ * and check it shares the mesh's connectivity, measure (api_metrics_before), run the flow (progress and cancel),
+ * encode (unless a hook withholds the output), store it (hook), measure
+ * again, and build the metrics document and the fields document.
+ *
+ * Timings in the document (seconds, the same keys through every door):
+ * read_s and queue_s are the door's (request); decode_s the input's and
+ * the target's decode; flow_s, encode_s; write_s the store hook (null without one); metrics_s both
+ * measures; total_s read_s plus everything api_job_run did. */
+
+/* Where a failure came from (it decides a door's status: a parameter, the
+ * request's bytes, or this mesh with these parameters). */
+typedef enum {
+    API_JOB_OK = 0,
+    API_JOB_PARAMS,            /* api_params_finish: the parameters */
+    API_JOB_DECODE,            /* the bytes: malformed, unknown format,
+                                  over a size limit */
+    API_JOB_RUN                /* the mesh with these parameters: target,
+                                  noise, flow, encode, measures, a budget
+                                  the input's cost exceeds */
+} api_job_stage;
+
+/* One step of the flow, as the progress hook sees it. */
+typedef struct {
+    int step;
+    double t, dt, energy;
+    double volume;             /* the step log's (mcf_mesh_volume, input
+                                  units); NaN without a log (no metrics) */
+    double t_target;           /* the run's total time once the core knows
+                                  it (0: the run counts steps) */
+} api_job_step;
+
+/* The door's hooks; any may be NULL. ctx is passed to each. */
+typedef struct {
+    void *ctx;
+    /* Decodes part ("mesh", or "target": then attrs is NULL). NULL:
+     * api_mesh_decode_attrs in this thread. A failure's stage is
+     * API_JOB_DECODE unless the hook sets *stage (API_JOB_RUN: a budget of
+     * the decoder, such as the daemon's sandbox limits). */
+    mcf_status (*decode)(void *ctx, const char *part, const void *buf,
+                         size_t len, const api_limits *lim, mcf_mesh **out,
+                         api_attrs **attrs, api_format *fmt,
+                         api_job_stage *stage, mcf_error *err);
+    /* The input decoded (nv vertices, nf triangles), before anything is
+     * sized by it (the daemon's memory admission). Not OK stops the job
+     * (stage API_JOB_RUN, part "mesh"). */
+    mcf_status (*decoded)(void *ctx, int nv, int nf, const api_params *p,
+                          mcf_error *err);
+    /* Checked and measured: the flow starts (p finished: its scheme is
+     * the one that runs). */
+    void (*ready)(void *ctx, const api_params *p, api_format in_fmt);
+    /* Every step of the flow; nonzero cancels the job (MCF_ECANCELED). */
+    int (*progress)(void *ctx, const api_job_step *s);
+    /* The flow is done: nonzero withholds the output (not encoded, not
+     * stored; output.path null in the document): the CLI's --strict. */
+    int (*flowed)(void *ctx, const mcf_flow_stats *st);
+    /* The encoded output (name: api_job_result.output_name): keep it
+     * (write the file, the spool). Not OK fails the job with err as the
+     * hook set it (part "output"). Timed as write_s. */
+    mcf_status (*store)(void *ctx, const api_buf *out, const char *name,
+                        mcf_error *err);
+    /* Loaded before every step, as mcf_flow_params.cancel (may be NULL). */
+    const mcf_cancel_flag *cancel;
+} api_job_hooks;
+
+typedef struct {
+    char *input;               /* the mesh's bytes */
+    size_t input_len;
+    char *target;              /* a clean mesh to compare with, or NULL */
+    size_t target_len;
+    int free_bytes;            /* input and target are malloc'ed: free()d
+                                  (and set NULL) as soon as decoded, so the
+                                  flow does not hold them */
+    const api_limits *lim;     /* NULL: the defaults */
+    int metrics;               /* build the metrics document (and keep the
+                                  flow's step log) */
+    int fields;                /* build the fields document
+                                  (api_fields_encode) */
+    size_t max_output;         /* the encoded output's cap (ELIMIT), 0:
+                                  none */
+    /* The door's facts in the document (borrowed; NULL: null). */
+    const char *job;           /* the daemon's job id */
+    const char *input_name, *target_name;
+    const char *output_name;   /* NULL: output_stem and the format's
+                                  extension ("result" -> "result.obj") */
+    const char *output_stem;
+    double queue_s, read_s;    /* NaN: the door has none */
+    int process_rss;           /* peak_rss_bytes: the process's peak
+                                  resident size (a process of one job) */
+} api_job_request;
+
+/* api_job_request_init: no input, no target, no document, NaN times. */
+void api_job_request_init(api_job_request *rq);
+
+typedef struct {
+    api_buf output;            /* the encoded mesh (empty when withheld) */
+    api_buf fields;            /* the fields document (request.fields) */
+    cJSON *metrics;            /* the metrics document (request.metrics) */
+    mcf_flow_stats stats;      /* the flow's (warnings, steps, strength) */
+    api_format input_format, output_format;
+    const char *output_name;   /* as named in the document: the request's,
+                                  or name_buf */
+    char name_buf[64];         /* output_stem and the extension */
+    int nv, nf;                /* the input's counts once decoded */
+    int withheld;              /* the flowed hook withheld the output */
+    double quantization_max_error;  /* Draco output; NaN otherwise */
+    double flow_s;
+    /* a failure: where, which part ("mesh", "target", "params",
+     * "flow", "encode", "output", "metrics", "fields") and the core's or
+     * codec's message, unprefixed (each door prefixes it its way) */
+    api_job_stage stage;
+    const char *part;
+    mcf_error err;
+} api_job_result;
+
+void api_job_result_init(api_job_result *r);
+void api_job_result_free(api_job_result *r);   /* keeps it reusable */
+
+/* Runs the job rq with parameters p (parsed by the door; finished here
+ * for the mesh: p->flow.scheme, p->encode.format, p->encode.attrs change)
+ * and hooks h (may be NULL); rq changes only by free_bytes. MCF_OK, or the failure's status with its
+ * stage, part and message in *res. *res holds what was done either way;
+ * api_job_result_free it. */
+mcf_status api_job_run(api_job_request *rq, api_params *p,
+                       const api_job_hooks *h, api_job_result *res);
 
 #ifdef __cplusplus
 }

@@ -151,6 +151,9 @@ static const keydef keys[] = {
 };
 #define NKEYS (sizeof keys / sizeof keys[0])
 
+/* given is a bit per key of the table */
+typedef char given_fits[NKEYS <= 32 ? 1 : -1];
+
 static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", "glb", "gltf", NULL};
 
 /* What each key means, for people: the unit and one line of help, the
@@ -489,14 +492,18 @@ static mcf_status set_shown(api_params *p, const char *key, const char *text,
         return api__fail(err, MCF_EINVAL, "parameter '%s' has an empty value",
                          k->name);
     if (k->kind == K_LIST) {
+        mcf_status rc;
         /* From JSON only an array ("[]" shown) or a string is a list. */
         if (shown && strcmp(shown, "[]") != 0)
             return bad_value(k, text, shown, lim, err);
-        return set_list(p, k, text, lim, err);
+        if ((rc = set_list(p, k, text, lim, err)) == MCF_OK)
+            p->given |= 1u << (k - keys);
+        return rc;
     }
     if (parse_value(k, text, lim, &v) != 0)
         return bad_value(k, text, shown, lim, err);
     k->apply(p, v);
+    p->given |= 1u << (k - keys);
     return MCF_OK;
 }
 
@@ -557,6 +564,23 @@ void api_params_free(api_params *p)
     p->fixed_owned = NULL;
     p->flow.fixed = NULL;
     p->flow.nfixed = 0;
+}
+
+mcf_status api_params_copy(api_params *dst, const api_params *src)
+{
+    int32_t *a = NULL;
+
+    if (src->fixed_owned && src->flow.nfixed > 0) {
+        a = malloc((size_t)src->flow.nfixed * sizeof *a);
+        if (!a)
+            return MCF_ENOMEM;
+        memcpy(a, src->fixed_owned, (size_t)src->flow.nfixed * sizeof *a);
+    }
+    *dst = *src;
+    dst->fixed_owned = a;
+    if (a)
+        dst->flow.fixed = a;
+    return MCF_OK;
 }
 
 mcf_status api_params_set(api_params *p, const char *key, const char *value_text,
@@ -654,6 +678,39 @@ done:
     return rc;
 }
 
+mcf_status api_params_set_json(api_params *p, const cJSON *obj,
+                               const api_limits *lim, mcf_error *err)
+{
+    api_limits def;
+    const cJSON *c;
+    mcf_status rc = MCF_OK;
+
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if (!cJSON_IsObject(obj))
+        return api__fail(err, MCF_EINVAL, "parameters: the top level must be a JSON object");
+    for (c = obj->child; c && rc == MCF_OK; c = c->next) {
+        char num[40];
+        const char *key = c->string ? c->string : "";
+        if (cJSON_IsString(c))
+            rc = set_shown(p, key, c->valuestring, NULL, lim, err);
+        else if (cJSON_IsNumber(c)) {
+            number_text(c->valuedouble, num, sizeof num);
+            rc = set_shown(p, key, num, NULL, lim, err);
+        } else if (cJSON_IsBool(c))
+            rc = set_shown(p, key, cJSON_IsTrue(c) ? "true" : "false",
+                           cJSON_IsTrue(c) ? "true" : "false", lim, err);
+        else if (cJSON_IsArray(c) && strcmp(key, "fixed_vertices") == 0)
+            rc = set_json_list(p, key, c, lim, err);
+        else
+            rc = set_shown(p, key, "", cJSON_IsNull(c) ? "null"
+                           : cJSON_IsArray(c) ? "an array" : "an object", lim, err);
+    }
+    return rc;
+}
+
 mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
                                  const api_limits *lim, mcf_error *err)
 {
@@ -661,7 +718,6 @@ mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
     char *copy = NULL;
     const char *end = NULL;
     cJSON *root = NULL;
-    const cJSON *c;
     mcf_status rc = MCF_OK;
 
     if (!lim) {
@@ -701,27 +757,7 @@ mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
                        lim->max_json_depth);
         goto done;
     }
-    if (!cJSON_IsObject(root)) {
-        rc = api__fail(err, MCF_EINVAL, "parameters: the top level must be a JSON object");
-        goto done;
-    }
-    for (c = root->child; c && rc == MCF_OK; c = c->next) {
-        char num[40];
-        const char *key = c->string ? c->string : "";
-        if (cJSON_IsString(c))
-            rc = set_shown(p, key, c->valuestring, NULL, lim, err);
-        else if (cJSON_IsNumber(c)) {
-            number_text(c->valuedouble, num, sizeof num);
-            rc = set_shown(p, key, num, NULL, lim, err);
-        } else if (cJSON_IsBool(c))
-            rc = set_shown(p, key, cJSON_IsTrue(c) ? "true" : "false",
-                           cJSON_IsTrue(c) ? "true" : "false", lim, err);
-        else if (cJSON_IsArray(c) && strcmp(key, "fixed_vertices") == 0)
-            rc = set_json_list(p, key, c, lim, err);
-        else
-            rc = set_shown(p, key, "", cJSON_IsNull(c) ? "null"
-                           : cJSON_IsArray(c) ? "an array" : "an object", lim, err);
-    }
+    rc = api_params_set_json(p, root, lim, err);
 done:
     cJSON_Delete(root);
     free(copy);
@@ -1048,6 +1084,22 @@ cJSON *api_params_to_json(const api_params *p)
         return NULL;
     }
     return j;
+}
+
+cJSON *api_params_given_json(const api_params *p)
+{
+    cJSON *all = api_params_to_json(p), *c, *next;
+    const keydef *k;
+
+    if (!all)
+        return NULL;
+    for (c = all->child; c; c = next) {
+        next = c->next;
+        k = find_key(c->string);
+        if (!k || !(p->given & (1u << (k - keys))))
+            cJSON_Delete(cJSON_DetachItemViaPointer(all, c));
+    }
+    return all;
 }
 
 /* --------------------------------------------------------- description */

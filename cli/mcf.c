@@ -214,38 +214,50 @@ done:
 }
 
 /* Writes len bytes to path ("-": stdout) through a temporary file renamed
- * over path, so readers never see a partial file. */
-static int write_all(const char *path, const void *buf, size_t len)
+ * over path, so readers never see a partial file. 0, or -1 with the
+ * error line's text in err. */
+static int write_file(const char *path, const void *buf, size_t len,
+                      mcf_error *err)
 {
     char *tmp;
     FILE *f;
     int ok;
 
     if (strcmp(path, "-") == 0) {
-        if (fwrite(buf, 1, len, stdout) != len || fflush(stdout) != 0)
-            return fail(1, "cannot write to stdout: %s", strerror(errno));
+        if (fwrite(buf, 1, len, stdout) != len || fflush(stdout) != 0) {
+            mcf_error_set(err, MCF_EIO, "cannot write to stdout: %s", strerror(errno));
+            return -1;
+        }
         return 0;
     }
     tmp = malloc(strlen(path) + 32);
-    if (!tmp)
-        return fail(1, "out of memory");
+    if (!tmp) {
+        mcf_error_set(err, MCF_ENOMEM, "out of memory");
+        return -1;
+    }
     sprintf(tmp, "%s.tmp%ld", path, (long)getpid());
     f = fopen(tmp, "wb");
-    if (!f) {
-        int e = errno;
-        free(tmp);
-        return fail(1, "cannot write '%s': %s", path, strerror(e));
+    ok = f != NULL;
+    if (f) {
+        ok = fwrite(buf, 1, len, f) == len;
+        ok = (fclose(f) == 0) && ok;
+        ok = ok && rename(tmp, path) == 0;
     }
-    ok = fwrite(buf, 1, len, f) == len;
-    ok = (fclose(f) == 0) && ok;
-    if (!ok || rename(tmp, path) != 0) {
+    if (!ok) {
         int e = errno;
-        remove(tmp);
-        free(tmp);
-        return fail(1, "cannot write '%s': %s", path, strerror(e));
+        if (f)
+            remove(tmp);
+        mcf_error_set(err, MCF_EIO, "cannot write '%s': %s", path, strerror(e));
     }
     free(tmp);
-    return 0;
+    return ok ? 0 : -1;
+}
+
+/* write_file, or the error line and exit status 1. */
+static int write_all(const char *path, const void *buf, size_t len)
+{
+    mcf_error err;
+    return write_file(path, buf, len, &err) == 0 ? 0 : fail(1, "%s", err.msg);
 }
 
 /* Draco decodes under the daemon's bound (api_decode_bounds with the
@@ -585,27 +597,22 @@ static int save_mesh(const mcf_mesh *m, const api_encode_opts *opts,
 typedef struct {
     double total_time;    /* > 0: progress by t, else by steps */
     int total_steps;
-    const mcf_flow_stats *st; /* t_target, set by the core before step 1 */
     int bar;              /* 1: a bar redrawn in place (a terminal) */
     double last;          /* when the bar was last drawn */
     int drawn;
     int next_tenth;       /* plain lines: the next 10% to report */
 } progress_state;
 
-static int on_progress(void *ctx, int step, double t, double dt, double energy)
+static void on_progress(progress_state *ps, const api_job_step *s)
 {
-    progress_state *ps = ctx;
     double frac, tn = now();
     int i, fill;
     char bar[41];
 
-    (void)dt;
-    if (cancel_flag)
-        return 1;
-    if (ps->total_time <= 0 && ps->st && ps->st->t_target > 0)
-        ps->total_time = ps->st->t_target; /* the amount came from strength */
-    frac = ps->total_time > 0 ? t / ps->total_time
-                              : (double)step / (ps->total_steps > 0 ? ps->total_steps : 1);
+    if (ps->total_time <= 0 && s->t_target > 0)
+        ps->total_time = s->t_target; /* the amount came from strength */
+    frac = ps->total_time > 0 ? s->t / ps->total_time
+                              : (double)s->step / (ps->total_steps > 0 ? ps->total_steps : 1);
     if (!(frac >= 0))
         frac = 0;
     if (frac > 1)
@@ -615,24 +622,23 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
         if (frac * 10 + 1e-9 >= ps->next_tenth && ps->next_tenth <= 10) {
             int tenth = (int)(frac * 10 + 1e-9);
             fprintf(stderr, "mcf: %3d%%  step %d  t %.4g  energy %.6g\n", tenth * 10,
-                    step, t, energy);
+                    s->step, s->t, s->energy);
             fflush(stderr);
             ps->next_tenth = tenth + 1;
         }
-        return 0;
+        return;
     }
     if (tn - ps->last < 0.1)
-        return 0;
+        return;
     ps->last = tn;
     fill = (int)(frac * 40 + 0.5);
     for (i = 0; i < 40; i++)
         bar[i] = i < fill ? '#' : '.';
     bar[40] = '\0';
     fprintf(stderr, "\r[%s] %3d%%  step %d  t %.4g  energy %.6g ", bar,
-            (int)(frac * 100 + 0.5), step, t, energy);
+            (int)(frac * 100 + 0.5), s->step, s->t, s->energy);
     fflush(stderr);
     ps->drawn = 1;
-    return 0;
 }
 
 static void progress_clear(progress_state *ps)
@@ -672,14 +678,6 @@ static int print_warnings(const mcf_flow_stats *st)
 
 /* ---------------------------------------------------------------- helpers */
 
-static double peak_rss_bytes(void)
-{
-    struct rusage ru;
-    if (getrusage(RUSAGE_SELF, &ru) != 0)
-        return 0;
-    return (double)ru.ru_maxrss * 1024.0; /* Linux: KiB */
-}
-
 /* Adds item to o under key; on allocation failure the document is simply
  * missing that member (the metrics file is best-effort detail). */
 static void add(cJSON *o, const char *key, cJSON *item)
@@ -697,200 +695,229 @@ static cJSON *info_json(const mcf_mesh *m, const mcf_curvature_summary *cs,
     return api_json_mesh_info(&info, cs);
 }
 
-static int same_connectivity(const mcf_mesh *a, const mcf_mesh *b)
+/* ----------------------------------------------------------------- smooth */
+
+/* The tool's side of the job (api_job_run's hooks): the bounded decode,
+ * the progress bar, the warnings and --strict, and OUT's file. */
+typedef struct {
+    const cli_opts *o;
+    progress_state ps;
+    int show;             /* progress shown */
+    int nwarn;            /* warnings printed */
+} smooth_ctx;
+
+static mcf_status hook_decode(void *ctx, const char *part, const void *buf, size_t len,
+                              const api_limits *lim, mcf_mesh **out, api_attrs **attrs,
+                              api_format *fmt, api_job_stage *stage, mcf_error *err)
 {
-    return mcf_mesh_nvertices(a) == mcf_mesh_nvertices(b)
-           && mcf_mesh_nfaces(a) == mcf_mesh_nfaces(b)
-           && memcmp(mcf_mesh_faces(a), mcf_mesh_faces(b),
-                     3 * sizeof(int32_t) * (size_t)mcf_mesh_nfaces(a)) == 0;
+    (void)ctx;
+    (void)part;
+    (void)stage;
+    return decode_bounded(buf, len, lim, out, attrs, fmt, err);
 }
 
-/* ----------------------------------------------------------------- smooth */
+static int hook_progress(void *ctx, const api_job_step *s)
+{
+    smooth_ctx *sc = ctx;
+    if (sc->show)
+        on_progress(&sc->ps, s);
+    return 0;
+}
+
+/* What the core says about the result, whatever --quiet says; under
+ * --strict a warning withholds OUT (a pipeline must not take it). */
+static int hook_flowed(void *ctx, const mcf_flow_stats *st)
+{
+    smooth_ctx *sc = ctx;
+    if (sc->show)
+        progress_clear(&sc->ps);
+    sc->nwarn = print_warnings(st);
+    return sc->o->strict && sc->nwarn > 0;
+}
+
+static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
+                             mcf_error *err)
+{
+    (void)ctx;
+    return write_file(name, out->data ? out->data : "", out->len, err) == 0
+               ? MCF_OK : err->status;
+}
+
+/* The job's failure as the tool's one error line and exit status: a
+ * parameter the mesh refuses is a usage error (2), anything else 1. */
+static int job_failed(const api_job_result *res, const cli_opts *o)
+{
+    const char *part = res->part ? res->part : "";
+    const char *msg = res->err.msg;
+
+    if (!strcmp(part, "mesh"))
+        return fail(1, "%s: %s", o->pos[0], msg);
+    if (!strcmp(part, "target"))
+        return res->stage == API_JOB_DECODE ? fail(1, "%s: %s", o->target, msg)
+                                            : fail(1, "--target '%s': %s", o->target, msg);
+    if (!strcmp(part, "params"))
+        return fail(res->err.status == MCF_EINVAL ? EXIT_USAGE : 1, "%s", msg);
+    if (!strcmp(part, "flow"))
+        return fail(1, "smooth: %s", msg);
+    if (!strcmp(part, "encode"))
+        return fail(1, "%s: %s", o->pos[1], msg);
+    if (!strcmp(part, "output"))
+        return fail(1, "%s", msg);
+    return fail(1, "%s: %s", part, msg);
+}
+
+/* --fix-vertices FILE: its indices as the fixed_vertices parameter. */
+static int fix_vertices(api_params *p, const char *path, const api_limits *lim)
+{
+    mcf_error err = {MCF_OK, ""};
+    char *txt = NULL;
+    size_t n = 0, k;
+    int rc;
+
+    if ((rc = read_all(path, lim->max_input_bytes, &txt, &n)) != 0)
+        return rc;
+    for (k = 0; k < n && strchr(" \t\r\n,", txt[k]); k++)
+        ;
+    if (k == n || memchr(txt, '\0', n)) {
+        free(txt);
+        return fail(EXIT_USAGE, "--fix-vertices '%s': %s", path,
+                    k == n ? "the file holds no vertex index" : "binary data");
+    }
+    rc = api_params_set(p, "fixed_vertices", txt, lim, &err);
+    free(txt);
+    if (rc != MCF_OK)
+        return fail(rc == MCF_EINVAL ? EXIT_USAGE : 1, "--fix-vertices '%s': %s", path,
+                    err.msg);
+    return 0;
+}
+
+/* The summary line: what ran, on how many vertices, how far, how long. */
+static void print_summary(const cli_opts *o, const api_params *p, const api_job_result *res,
+                          int nwarn)
+{
+    const mcf_flow_stats *st = &res->stats;
+
+    if (p->flow.scheme == MCF_FAIRING || p->flow.scheme == MCF_FAIRING_EXPLICIT) {
+        /* a filter: its steps and the noise they were chosen for */
+        fprintf(stderr, "mcf: %s -> %s: %d vertices, %s %d step%s for noise %.3g mean edges in %.2f s%s\n",
+                o->pos[0], o->pos[1], res->nv, mcf_scheme_get(p->flow.scheme)->name, st->steps,
+                st->steps == 1 ? "" : "s", st->noise, res->flow_s, nwarn ? " (with warnings)" : "");
+    } else {
+        char strength[48] = "";
+        if (st->strength > 0)
+            snprintf(strength, sizeof strength, ", strength %.3g mean edges", st->strength);
+        fprintf(stderr, "mcf: %s -> %s: %d vertices, %d step%s to t = %.4g%s in %.2f s%s\n",
+                o->pos[0], o->pos[1], res->nv, st->steps, st->steps == 1 ? "" : "s",
+                st->t_final, strength, res->flow_s, nwarn ? " (with warnings)" : "");
+    }
+}
+
+/* The job (api_job_run) on IN's bytes (and --target's), OUT and the
+ * metrics file written by the tool. */
+static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
+{
+    api_job_request rq;
+    api_job_hooks h;
+    api_job_result res;
+    smooth_ctx sc;
+    char *in = NULL, *tg = NULL, *s;
+    size_t in_len = 0, tg_len = 0;
+    double t0 = now();
+    struct sigaction sa;
+    int rc;
+
+    api_job_request_init(&rq);
+    api_job_result_init(&res);
+    if ((rc = read_all(o->pos[0], lim->max_input_bytes, &in, &in_len)) != 0 ||
+        (o->target && (rc = read_all(o->target, lim->max_input_bytes, &tg, &tg_len)) != 0))
+        goto done;
+    rq.read_s = now() - t0;
+    rq.input = in;
+    rq.input_len = in_len;
+    rq.target = tg;
+    rq.target_len = tg_len;
+    rq.free_bytes = 1;
+    in = tg = NULL;
+    rq.lim = lim;
+    rq.metrics = o->metrics != NULL;
+    rq.input_name = o->pos[0];
+    rq.output_name = o->pos[1];
+    rq.target_name = o->target;
+    rq.process_rss = 1;
+
+    /* progress: a bar on a terminal, plain lines with --progress
+     * elsewhere; cancel on SIGINT/SIGTERM */
+    memset(&sc, 0, sizeof sc);
+    sc.o = o;
+    sc.ps.bar = isatty(STDERR_FILENO);
+    sc.show = !o->quiet && (sc.ps.bar || o->progress);
+    sc.ps.total_time = p->time_set ? p->flow.time : 0;
+    sc.ps.total_steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    memset(&h, 0, sizeof h);
+    h.ctx = &sc;
+    h.decode = hook_decode;
+    h.progress = hook_progress;
+    h.flowed = hook_flowed;
+    h.store = hook_store;
+    h.cancel = &cancel_flag;
+
+    if (api_job_run(&rq, p, &h, &res) != MCF_OK) {
+        if (sc.show)
+            progress_clear(&sc.ps);
+        rc = job_failed(&res, o);
+        goto done;
+    }
+    if (o->metrics) {
+        s = api_json_print(res.metrics, 1);
+        if (!s) {
+            rc = fail(1, "metrics: out of memory");
+            goto done;
+        }
+        rc = write_all(o->metrics, s, strlen(s));
+        free(s);
+        if (rc)
+            goto done;
+    }
+    if (res.withheld) {
+        rc = fail(EXIT_STRICT, "--strict: the result has %d warning%s (above): '%s' not written",
+                  sc.nwarn, sc.nwarn > 1 ? "s" : "", o->pos[1]);
+        goto done;
+    }
+    if (!o->quiet)
+        print_summary(o, p, &res, sc.nwarn);
+    rc = 0;
+done:
+    api_job_result_free(&res);
+    free(rq.input);
+    free(rq.target);
+    free(in);
+    free(tg);
+    return rc;
+}
 
 static int cmd_smooth(int argc, char **argv)
 {
     api_limits lim;
     api_params p;
     cli_opts o;
-    mcf_mesh *m = NULL, *target = NULL;
-    api_attrs *attrs = NULL;
-    mcf_error err = {MCF_OK, ""};
-    mcf_flow_stats st;
-    api_metrics mt;
-    progress_state ps;
-    api_format in_fmt = API_FMT_UNKNOWN;
-    size_t in_bytes = 0, out_bytes = 0;
-    double t_start = now(), read_s = 0, decode_s = 0, flow_s = 0,
-           encode_s = 0, write_s = 0, metrics_s = 0, qerr = 0, t0;
-    int rc, show = 0, nwarn, withheld;
-    mcf_status fs;
-    struct sigaction sa;
-    cJSON *table = NULL;
+    cJSON *table;
+    int rc;
 
     memset(&o, 0, sizeof o);
-    memset(&st, 0, sizeof st);
-    api_metrics_init(&mt);
-    memset(&ps, 0, sizeof ps);
     api_limits_default(&lim);
     api_params_init(&p);
-    if (!(table = param_table())) {
-        rc = 1;
-        goto done;
-    }
-    if ((rc = parse_args("smooth", argc, argv, 2, &p, &lim, &o, table)) != 0)
-        goto done;
-    if ((rc = output_format(&p, o.pos[1])) != 0)
-        goto done;
-    if (o.fix_file) {
-        char *txt = NULL;
-        size_t n = 0, k;
-        if ((rc = read_all(o.fix_file, lim.max_input_bytes, &txt, &n)) != 0)
-            goto done;
-        for (k = 0; k < n && strchr(" \t\r\n,", txt[k]); k++)
-            ;
-        if (k == n || memchr(txt, '\0', n)) {
-            free(txt);
-            rc = fail(EXIT_USAGE, "--fix-vertices '%s': %s", o.fix_file,
-                      k == n ? "the file holds no vertex index" : "binary data");
-            goto done;
-        }
-        rc = api_params_set(&p, "fixed_vertices", txt, &lim, &err);
-        free(txt);
-        if (rc != MCF_OK) {
-            rc = fail(rc == MCF_EINVAL ? EXIT_USAGE : 1, "--fix-vertices '%s': %s",
-                      o.fix_file, err.msg);
-            goto done;
-        }
-    }
-
-    if ((rc = load_mesh_attrs(o.pos[0], &lim, &m, &attrs, &in_fmt, &in_bytes, &read_s,
-                              &decode_s)) != 0)
-        goto done;
-    p.encode.attrs = attrs;
-    if ((fs = api_params_finish(&p, mcf_mesh_nvertices(m), &lim, &err)) != MCF_OK) {
-        rc = fail(fs == MCF_EINVAL ? EXIT_USAGE : 1, "%s", err.msg);
-        goto done;
-    }
-    if (o.target) {
-        if ((rc = load_mesh(o.target, &lim, &target, NULL, NULL, NULL, NULL)) != 0)
-            goto done;
-        if (!same_connectivity(m, target)) {
-            rc = fail(1, "--target '%s': not the same connectivity as '%s' "
-                      "(%d/%d vertices, %d/%d faces)", o.target, o.pos[0],
-                      mcf_mesh_nvertices(target), mcf_mesh_nvertices(m),
-                      mcf_mesh_nfaces(target), mcf_mesh_nfaces(m));
-            goto done;
-        }
-    }
-    /* The metrics document is api's (api_metrics_json), the daemon's too:
-     * the same request gives the same keys through either door. */
-    t0 = now();
-    if (o.metrics && api_metrics_before(&mt, m, target, &err) != MCF_OK) {
-        rc = fail(1, "metrics before the flow: %s", err.msg);
-        goto done;
-    }
-    metrics_s = now() - t0;
-
-    /* The flow: a bar on a terminal, plain lines with --progress
-     * elsewhere; cancel on SIGINT/SIGTERM. */
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-    p.flow.cancel = &cancel_flag;
-    p.flow.log_steps = o.metrics != NULL;
-    ps.bar = isatty(STDERR_FILENO);
-    show = !o.quiet && (ps.bar || o.progress);
-    if (show) {
-        ps.total_time = p.time_set ? p.flow.time : 0;
-        ps.total_steps = p.flow.iterations > 0 ? p.flow.iterations : MCF_DEFAULT_STEPS;
-        ps.st = &st;
-        p.flow.progress = on_progress;
-        p.flow.progress_ctx = &ps;
-    }
-    t0 = now();
-    fs = mcf_flow_run(m, &p.flow, &st, &err);
-    flow_s = now() - t0;
-    if (show)
-        progress_clear(&ps);
-    if (fs != MCF_OK) {
-        rc = fail(1, "smooth: %s", err.msg);
-        goto done;
-    }
-    /* What the core says about the result, whatever --quiet says; under
-     * --strict a warning withholds OUT (a pipeline must not take it). */
-    nwarn = print_warnings(&st);
-    withheld = o.strict && nwarn > 0;
-    if (!withheld
-        && (rc = save_mesh(m, &p.encode, o.pos[1], &out_bytes, &encode_s, &write_s, &qerr)) != 0)
-        goto done;
-
-    if (o.metrics) {
-        api_metrics_run run;
-        cJSON *doc;
-        char *s;
-        t0 = now();
-        if (api_metrics_after(&mt, m, target, &err) != MCF_OK) {
-            rc = fail(1, "metrics after the flow: %s", err.msg);
-            goto done;
-        }
-        metrics_s += now() - t0;
-        api_metrics_run_init(&run);
-        run.input_name = o.pos[0];
-        run.output_name = withheld ? NULL : o.pos[1];
-        run.target_name = o.target;
-        run.input_format = in_fmt;
-        run.output_format = p.encode.format;
-        run.input_bytes = in_bytes;
-        run.output_bytes = out_bytes;
-        if (p.encode.format == API_FMT_DRACO)
-            run.quantization_max_error = qerr;
-        run.read_s = read_s;
-        run.decode_s = decode_s;
-        run.flow_s = flow_s;
-        run.encode_s = encode_s;
-        run.write_s = write_s;
-        run.metrics_s = metrics_s;
-        run.total_s = now() - t_start;
-        run.peak_rss_bytes = peak_rss_bytes();
-        doc = api_metrics_json(&mt, &p, &st, &run);
-        s = doc ? api_json_print(doc, 1) : NULL;
-        cJSON_Delete(doc);
-        if (!s) {
-            rc = fail(1, "metrics: out of memory");
-            goto done;
-        }
-        rc = write_all(o.metrics, s, strlen(s));
-        free(s);
-        if (rc)
-            goto done;
-    }
-    if (withheld) {
-        rc = fail(EXIT_STRICT, "--strict: the result has %d warning%s (above): '%s' not written",
-                  nwarn, nwarn > 1 ? "s" : "", o.pos[1]);
-        goto done;
-    }
-    if (!o.quiet && (p.flow.scheme == MCF_FAIRING || p.flow.scheme == MCF_FAIRING_EXPLICIT)) {
-        /* a filter: its steps and the noise they were chosen for */
-        fprintf(stderr, "mcf: %s -> %s: %d vertices, %s %d step%s for noise %.3g mean edges in %.2f s%s\n",
-                o.pos[0], o.pos[1], mcf_mesh_nvertices(m), mcf_scheme_get(p.flow.scheme)->name, st.steps,
-                st.steps == 1 ? "" : "s", st.noise, flow_s, nwarn ? " (with warnings)" : "");
-    } else if (!o.quiet) {
-        char strength[48] = "";
-        if (st.strength > 0)
-            snprintf(strength, sizeof strength, ", strength %.3g mean edges", st.strength);
-        fprintf(stderr, "mcf: %s -> %s: %d vertices, %d step%s to t = %.4g%s in %.2f s%s\n",
-                o.pos[0], o.pos[1], mcf_mesh_nvertices(m), st.steps, st.steps == 1 ? "" : "s",
-                st.t_final, strength, flow_s, nwarn ? " (with warnings)" : "");
-    }
-    rc = 0;
-done:
+    if (!(table = param_table()))
+        return 1;
+    if ((rc = parse_args("smooth", argc, argv, 2, &p, &lim, &o, table)) == 0 &&
+        (rc = output_format(&p, o.pos[1])) == 0 &&
+        (!o.fix_file || (rc = fix_vertices(&p, o.fix_file, &lim)) == 0))
+        rc = run_smooth(&o, &p, &lim);
     cJSON_Delete(table);
-    mcf_flow_stats_free(&st);
-    mcf_mesh_free(m);
-    mcf_mesh_free(target);
-    api_attrs_free(attrs);
     api_params_free(&p);
     return rc;
 }

@@ -34,7 +34,7 @@ typedef struct {
 
 enum {
     O_BIND, O_PORT, O_GRPC_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
-    O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES,
+    O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES, O_STORE, O_STORE_PW,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT,
     O_BODY_TIMEOUT, O_SEND_TIMEOUT, O_MAX_MEMORY, O_MAX_JOB_MEMORY, O_DECODE_CPU,
@@ -65,6 +65,11 @@ static const option opts[O_COUNT] = {
                        "(default 64)"},
     [O_SPOOL] = {"--spool", "MCFD_SPOOL", T_STR, 0, 0,
                  "job spool directory (default ./var/mcfd)"},
+    [O_STORE] = {"--store", "MCFD_STORE", T_STR, 0, 0,
+                 "redis://HOST[:PORT][/DB]: keep jobs in Redis, shared by "
+                 "replicas (default: the local spool)"},
+    [O_STORE_PW] = {"--store-password-file", "MCFD_STORE_PASSWORD_FILE", T_STR,
+                    0, 0, "file holding the Redis password (default: none)"},
     [O_SPOOL_JOBS] = {"--spool-max-jobs", "MCFD_SPOOL_MAX_JOBS", T_INT, 0,
                       1000000000, "jobs kept (queued to expired) before new "
                       "ones get 503, 0: no limit (default 10000)"},
@@ -277,6 +282,18 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
             return -1;
         }
         snprintf(cfg->spool, sizeof cfg->spool, "%s", v);
+        break;
+    case O_STORE:
+        if (strncmp(v, "redis://", 8) != 0 || strlen(v) >= sizeof cfg->store) {
+            snprintf(msg, msgsize, "%s: expected redis://HOST[:PORT][/DB], "
+                     "got \"%s\"", src, v);
+            return -1;
+        }
+        snprintf(cfg->store, sizeof cfg->store, "%s", v);
+        break;
+    case O_STORE_PW:
+        snprintf(cfg->store_password_file, sizeof cfg->store_password_file,
+                 "%s", v);
         break;
     case O_SPOOL_JOBS: cfg->spool_max_jobs = (int)i; break;
     case O_SPOOL_BYTES: cfg->spool_max_bytes = z; break;

@@ -129,16 +129,17 @@ const int kQuotaThreads = 16;
 struct Door {
     std::unique_ptr<grpc::Server> server;
     const srv_config *cfg = nullptr;
+    svc_t *svc = nullptr;
     std::atomic<bool> draining{false};
     std::atomic<int> active{0};
     /* streaming calls held now, in all and by client address (Slot) */
     std::mutex smu;
     int streams = 0;
     std::map<std::string, int> per_peer;
-    /* uploads still being received (srv_grpc_expire) */
+    /* uploads still being received (the door's expire) */
     std::mutex umu;
     std::set<std::shared_ptr<struct Deadline>> uploads;
-    /* answers being streamed (srv_grpc_expire: stalled writes) */
+    /* answers being streamed (the door's expire: stalled writes) */
     std::set<std::shared_ptr<struct Stall>> answers;
     /* the pump thread and its queue of followers to look at */
     std::mutex qmu;
@@ -172,49 +173,23 @@ const char *code_name(StatusCode c)
     return i < sizeof names / sizeof names[0] ? names[i] : "UNKNOWN";
 }
 
-/* service.h's table: the gRPC column. */
-StatusCode status_of(const svc_error &e)
-{
-    switch (e.code) {
-    case SVC_OK: return StatusCode::OK;
-    case SVC_EPARAMS: return StatusCode::INVALID_ARGUMENT;
-    case SVC_EINPUT:
-    case SVC_EMESH:
-        return e.mcf == MCF_ELIMIT ? StatusCode::RESOURCE_EXHAUSTED
-                                   : StatusCode::INVALID_ARGUMENT;
-    case SVC_ENOMEM:
-    case SVC_EBUSY:
-    case SVC_EQUOTA: return StatusCode::RESOURCE_EXHAUSTED;
-    case SVC_EDRAINING: return StatusCode::UNAVAILABLE;
-    case SVC_ENOTFOUND: return StatusCode::NOT_FOUND;
-    case SVC_ENOTREADY:
-    case SVC_ENORESULT: return StatusCode::FAILED_PRECONDITION;
-    case SVC_ECANCELED: return StatusCode::CANCELLED;
-    case SVC_ETIMEOUT: return StatusCode::DEADLINE_EXCEEDED;
-    case SVC_ESTORAGE:
-    case SVC_EINTERNAL: break;
-    }
-    return StatusCode::INTERNAL;
-}
-
-/* The status of e, with its name and retry delay in trailing metadata. */
+/* The status of e (service.h's table: its gRPC column), with its name
+ * and retry delay in trailing metadata. */
 Status status_from(CallbackServerContext *ctx, const svc_error &e)
 {
-    const char *name = e.name[0] ? e.name : svc_code_name(e.code);
-    if (*name)
-        ctx->AddTrailingMetadata("mcf-code", name);
+    ctx->AddTrailingMetadata("mcf-code", svc_problem_name(e.problem));
     if (e.retry_after > 0)
         ctx->AddTrailingMetadata(
             "retry-after-ms", std::to_string((long long)(e.retry_after * 1000 + 0.5)));
-    return Status(status_of(e), e.detail);
+    return Status((StatusCode)svc_problem_grpc(e.problem), e.detail);
 }
 
-/* A door-made error (no svc_error behind it). */
-Status door_status(CallbackServerContext *ctx, StatusCode c, const char *name,
-                   const std::string &detail)
+/* A door-made error: problem p with the detail. */
+Status door_status(CallbackServerContext *ctx, svc_problem p, const std::string &detail)
 {
-    ctx->AddTrailingMetadata("mcf-code", name);
-    return Status(c, detail);
+    svc_error e;
+    svc_error_set(&e, p, "%s", detail.c_str());
+    return status_from(ctx, e);
 }
 
 /* Counts the call in /metrics and returns st. */
@@ -239,14 +214,13 @@ bool authorized(CallbackServerContext *ctx)
 
 Status unauthenticated(CallbackServerContext *ctx)
 {
-    return door_status(ctx, StatusCode::UNAUTHENTICATED, "EAUTH",
+    return door_status(ctx, SVC_P_AUTH,
                        "metadata 'authorization: Bearer <token>' is required");
 }
 
 Status draining_status(CallbackServerContext *ctx)
 {
-    ctx->AddTrailingMetadata("retry-after-ms", "5000");
-    return door_status(ctx, StatusCode::UNAVAILABLE, "EDRAINING",
+    return door_status(ctx, SVC_P_DRAINING,
                        "the daemon is shutting down: no new jobs (retry on "
                        "another instance or after the restart)");
 }
@@ -258,23 +232,23 @@ Status late_status(CallbackServerContext *ctx, const char *what, const char *fla
     char d[200];
     snprintf(d, sizeof d, "%s did not arrive within %s %g s of the call's start", what,
              flag, limit);
-    return door_status(ctx, StatusCode::DEADLINE_EXCEEDED, "ETIMEOUT", d);
+    return door_status(ctx, SVC_P_UPLOAD_TIMEOUT, d);
 }
 
-/* The parameters as the JSON object REST's `params` field takes: every
- * set field under its own name (they are the REST names), NumberOrAuto
- * as the number or "auto", 64-bit integers as text (exact). Walks the
- * descriptor, so a new proto field needs no code here. */
-std::string params_json(const pb::Params &p, const std::string *out_format)
+/* The parameters as the JSON object REST's `params` field takes (a tree,
+ * never text): every set field under its own name (they are the REST
+ * names), NumberOrAuto as the number or "auto", 64-bit integers as text
+ * (exact). Walks the descriptor, so a new proto field needs no code here.
+ * NULL when out of memory. */
+cJSON *params_object(const pb::Params &p, const std::string *out_format)
 {
     using google::protobuf::FieldDescriptor;
     std::vector<const FieldDescriptor *> fields;
     const google::protobuf::Reflection *r = p.GetReflection();
     cJSON *o = cJSON_CreateObject();
-    std::string s;
 
     if (!o)
-        return s;
+        return nullptr;
     r->ListFields(p, &fields);
     for (const FieldDescriptor *f : fields) {
         const char *key = f->name().c_str();
@@ -313,66 +287,51 @@ std::string params_json(const pb::Params &p, const std::string *out_format)
     }
     if (out_format)
         cJSON_AddStringToObject(o, "format", out_format->c_str());
-    char *t = cJSON_PrintUnformatted(o);
-    cJSON_Delete(o);
-    if (t) {
-        s = t;
-        free(t);
-    }
-    return s;
+    return o;
 }
 
-/* Job from the service's own rendering (svc_job_json), so GetJob and REST
- * GET /v1/jobs/{id} read the same numbers; the error from the snapshot. */
+/* The Job message from the service's document of the job (svc_job_document:
+ * the same snapshot REST's job document is made of). */
 bool fill_job(svc_job *j, pb::Job *out)
 {
+    char t[40];
     svc_snap s;
-    cJSON *o = svc_job_json(j, &s), *p, *x;
-    if (!o)
+    if (svc_job_document(j, &s) != 0)
         return false;
     out->set_id(s.id);
     out->set_status((pb::Job::Status)(s.status + 1));
-    if ((p = cJSON_GetObjectItemCaseSensitive(o, "progress"))) {
-        pb::Job::JobProgress *g2 = out->mutable_progress();
-        g2->set_step(s.step);
-        if (cJSON_IsNumber(x = cJSON_GetObjectItemCaseSensitive(p, "steps")))
-            g2->set_steps(x->valueint);
-        if (s.step > 0) {
-            g2->set_t(s.t);
-            g2->set_dt(s.dt);
-            g2->set_energy(s.energy);
-            g2->set_volume(s.volume);
+    pb::Job::JobProgress *g2 = out->mutable_progress();
+    g2->set_step(s.step);
+    if (s.steps_planned > 0)
+        g2->set_steps(s.steps_planned);
+    if (s.step > 0) {
+        g2->set_t(s.t);
+        g2->set_dt(s.dt);
+        g2->set_energy(s.energy);
+        g2->set_volume(s.volume);
+    }
+    g2->set_fraction(s.fraction);
+    const double times[3] = {s.created, s.started, s.finished};
+    std::string *fields[3] = {out->mutable_created(), out->mutable_started(),
+                              out->mutable_finished()};
+    for (int i = 0; i < 3; i++)
+        if (times[i] > 0) {
+            srv_time_rfc3339(times[i], t, sizeof t);
+            *fields[i] = t;
         }
-        if (cJSON_IsNumber(x = cJSON_GetObjectItemCaseSensitive(p, "fraction")))
-            g2->set_fraction(x->valuedouble);
-    }
-    if (cJSON_IsString(x = cJSON_GetObjectItemCaseSensitive(o, "created")))
-        out->set_created(x->valuestring);
-    if (cJSON_IsString(x = cJSON_GetObjectItemCaseSensitive(o, "started")))
-        out->set_started(x->valuestring);
-    if (cJSON_IsString(x = cJSON_GetObjectItemCaseSensitive(o, "finished")))
-        out->set_finished(x->valuestring);
     out->set_cancel_requested(s.cancel_requested != 0);
-    if ((x = cJSON_GetObjectItemCaseSensitive(o, "params"))) {
-        char *t = cJSON_PrintUnformatted(x);
-        if (t)
-            out->set_params(t);
-        free(t);
-    }
+    if (s.params)
+        out->set_params(s.params);
     out->set_input_format(s.in_format);
-    if ((x = cJSON_GetObjectItemCaseSensitive(o, "metrics")) && !cJSON_IsNull(x)) {
-        char *t = cJSON_PrintUnformatted(x);
-        if (t)
-            out->set_metrics(t);
-        free(t);
-    }
+    if (s.metrics)
+        out->set_metrics(s.metrics);
     if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
         pb::Job::Error *e = out->mutable_error();
-        e->set_code(s.error.name[0] ? s.error.name : svc_code_name(s.error.code));
+        e->set_code(svc_problem_name(s.error.problem));
         e->set_detail(s.error.detail);
-        e->set_grpc_code((int)status_of(s.error));
+        e->set_grpc_code((int)svc_problem_grpc(s.error.problem));
     }
-    cJSON_Delete(o);
+    svc_snap_free(&s);
     return true;
 }
 
@@ -433,8 +392,7 @@ class Slot {
             held_ = true;
             return true;
         }
-        ctx->AddTrailingMetadata("retry-after-ms", "1000");
-        *st = door_status(ctx, StatusCode::RESOURCE_EXHAUSTED, "EBUSY", d);
+        *st = door_status(ctx, SVC_P_BUSY, d);
         return false;
     }
 
@@ -452,7 +410,7 @@ Status admit_upload(CallbackServerContext *ctx, Slot *slot)
         return unauthenticated(ctx);
     if (!slot->take(ctx, &st))
         return st;
-    if (g.draining || svc_draining())
+    if (g.draining || svc_draining(g.svc))
         return draining_status(ctx);
     return Status::OK;
 }
@@ -468,7 +426,7 @@ class Expirable {
     ~Expirable() = default;
 };
 
-/* An upload's deadlines, shared by its call and srv_grpc_expire on
+/* An upload's deadlines, shared by its call and the door's expire on
  * the main thread. The call may end, and be deleted, on a gRPC thread at
  * any time, so the main thread reaches it only through this record, under
  * mu and while alive; the call clears alive (disarm) at the latest in its
@@ -489,8 +447,8 @@ class Upload {
         disarm();
         free(mesh_);
         free(target_);
-        svc_upload_release(&mem_held_);
-        svc_record_free(&rec_);
+        svc_upload_release(g.svc, &mem_held_);
+        svc_request_free(&rq_);
     }
 
     /* One message as it came, parsed here: gRPC's own parse failure ends
@@ -504,7 +462,7 @@ class Upload {
         nmsg_++;
         Status ps = grpc::SerializationTraits<pb::SmoothRequest>::Deserialize(b, &req_);
         if (!ps.ok())
-            return fail(e, SVC_EPARAMS, "EINVAL", "message %ld of the upload is not a "
+            return fail(e, SVC_P_PARAM_INVALID, "message %ld of the upload is not a "
                         "SmoothRequest (its bytes do not parse as one): the upload is "
                         "refused, nothing is submitted", nmsg_);
         return feed(req_, e);
@@ -516,7 +474,7 @@ class Upload {
         switch (m.part_case()) {
         case pb::SmoothRequest::kHeader:
             if (have_header_)
-                return fail(e, SVC_EPARAMS, "EINVAL", "a second header: the header is sent once, first");
+                return fail(e, SVC_P_PARAM_INVALID, "a second header: the header is sent once, first");
             have_header_ = true;
             if (dl_)
                 dl_->have_header = true;
@@ -526,7 +484,7 @@ class Upload {
             bool t = m.part_case() == pb::SmoothRequest::kTargetChunk;
             const std::string &b = t ? m.target_chunk() : m.chunk();
             if (!have_header_)
-                return fail(e, SVC_EPARAMS, "EINVAL", "the first message must be the header");
+                return fail(e, SVC_P_PARAM_INVALID, "the first message must be the header");
             if (b.size() > kChunk)
                 return limit(e, "a %s of %zu bytes is over the %zu-byte chunk limit",
                              t ? "target_chunk" : "chunk", b.size(), kChunk);
@@ -534,40 +492,45 @@ class Upload {
                           t ? target_size_ : total_size_, b, t ? "target mesh" : "mesh", e);
         }
         default:
-            return fail(e, SVC_EPARAMS, "EINVAL", "an empty message (no part set)");
+            return fail(e, SVC_P_PARAM_INVALID, "an empty message (no part set)");
         }
     }
 
-    /* After the client's half-close: the upload is whole. Submits it. */
-    int submit(unsigned flags, svc_job **out, svc_error *e)
+    /* After the client's half-close: the upload is whole. Submits it
+     * (keep_result: the encoded result is kept for this call). */
+    int submit(bool keep_result, svc_job **out, svc_error *e)
     {
         if (!have_header_)
-            return fail(e, SVC_EPARAMS, "EINVAL", "no header: the first message must be the header") ? 0 : -1;
+            return fail(e, SVC_P_PARAM_INVALID, "no header: the first message must be the header") ? 0 : -1;
         if (mesh_len_ == 0)
-            return fail(e, SVC_EINPUT, "EDECODE", "no mesh: send its bytes in chunk messages") ? 0 : -1;
+            return fail(e, SVC_P_INPUT_DECODE, "no mesh: send its bytes in chunk messages") ? 0 : -1;
         if (total_size_ >= 0 && (long long)mesh_len_ != total_size_)
-            return fail(e, SVC_EINPUT, "EINVAL", "total_size is %lld but %zu bytes came",
+            return fail(e, SVC_P_INPUT_INVALID, "total_size is %lld but %zu bytes came",
                         total_size_, mesh_len_) ? 0 : -1;
         if (target_size_ >= 0 && (long long)target_len_ != target_size_)
-            return fail(e, SVC_EINPUT, "EINVAL", "target_size is %lld but %zu bytes came",
+            return fail(e, SVC_P_INPUT_INVALID, "target_size is %lld but %zu bytes came",
                         target_size_, target_len_) ? 0 : -1;
         if (in_format_ != API_FMT_UNKNOWN) {
             api_format got = api_format_detect(mesh_, mesh_len_);
             if (got != in_format_)
-                return fail(e, SVC_EINPUT, "EFORMAT", "format is %s but the bytes are %s",
+                return fail(e, SVC_P_INPUT_FORMAT, "format is %s but the bytes are %s",
                             api_format_name(in_format_),
                             got == API_FMT_UNKNOWN ? "of no known format" : api_format_name(got)) ? 0 : -1;
         }
         srv_metrics_upload(mesh_len_);
-        char *in = mesh_, *tg = target_;
+        rq_.input = mesh_;
+        rq_.input_len = mesh_len_;
+        rq_.target = target_;
+        rq_.target_len = target_ ? target_len_ : 0;
+        rq_.keep_result = keep_result;
         mesh_ = target_ = nullptr;
-        int rc = svc_submit(&rec_, in, mesh_len_, tg, tg ? target_len_ : 0, flags, out, e);
-        svc_upload_release(&mem_held_);   /* the bytes are on the spool, or gone */
+        int rc = svc_submit(g.svc, &rq_, out, e);
+        svc_upload_release(g.svc, &mem_held_);   /* the bytes are in the store, or gone */
         return rc;
     }
 
     /* The upload's deadlines start now: --header-timeout for the header,
-     * --body-timeout for the whole upload (srv_grpc_expire). */
+     * --body-timeout for the whole upload (the door's expire). */
     void arm(Expirable *call)
     {
         dl_ = std::make_shared<Deadline>();
@@ -595,14 +558,22 @@ class Upload {
     }
 
   private:
+    static svc_request request_init()
+    {
+        svc_request rq;
+        svc_request_init(&rq);
+        return rq;
+    }
+
     bool header(const pb::SmoothHeader &h, svc_error *e)
     {
         const api_limits *lim = &g.cfg->lim;
         std::string of;
+        cJSON *po;
         if (h.has_format()) {
             in_format_ = api_format_from_name(h.format().c_str());
             if (in_format_ == API_FMT_UNKNOWN || h.format().find('.') != std::string::npos)
-                return fail(e, SVC_EPARAMS, "EINVAL", "format must be one of obj, draco, ply, stl, off, got \"%.64s\"",
+                return fail(e, SVC_P_PARAM_INVALID, "format must be one of obj, draco, ply, stl, off, got \"%.64s\"",
                             h.format().c_str());
         }
         if (h.has_total_size()) {
@@ -618,12 +589,12 @@ class Upload {
             target_size_ = (long long)h.target_size();
         }
         /* REST's early 503: no room now, so no reason to take the bytes */
-        if (!svc_can_accept()) {
-            svc_gauges gg = svc_get_gauges();
+        if (!svc_can_accept(g.svc)) {
+            svc_gauges gg = svc_get_gauges(g.svc);
             if (gg.draining)
-                svc_error_set(e, SVC_EDRAINING, NULL, "the daemon is shutting down and accepts no new jobs");
+                svc_error_set(e, SVC_P_DRAINING, "the daemon is shutting down and accepts no new jobs");
             else
-                svc_error_set(e, SVC_EBUSY, NULL, "the job queue is full (%d queued, %d workers busy, --queue %d)",
+                svc_error_set(e, SVC_P_BUSY, "the job queue is full (%d queued, %d workers busy, --queue %d)",
                               gg.queue_depth, gg.workers_busy, gg.queue_capacity);
             return false;
         }
@@ -631,27 +602,22 @@ class Upload {
          * (without them, as the bytes come: append) */
         size_t declared = (size_t)(total_size_ > 0 ? total_size_ : 0) +
                           (size_t)(target_size_ > 0 ? target_size_ : 0);
-        if (declared > 0 && svc_upload_reserve(&mem_held_, declared, e) != 0)
+        if (declared > 0 && svc_upload_reserve(g.svc, &mem_held_, declared, e) != 0)
             return false;
         if (h.has_output_format())
             of = h.output_format();
-        std::string js = params_json(h.params(), h.has_output_format() ? &of : nullptr);
-        if (js.empty())
-            return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory");
-        rec_.params_json = strdup(js.c_str());
-        if (!rec_.params_json)
-            return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory");
+        if (!(po = params_object(h.params(), h.has_output_format() ? &of : nullptr)))
+            return fail(e, SVC_P_NOMEM, "out of memory");
         if (h.has_filename())
-            snprintf(rec_.filename, sizeof rec_.filename, "%s", basename_of(h.filename()).c_str());
-        /* The parameters now, before any byte of the mesh: the path REST's
-         * params field takes, so the same message names the field. */
-        api_params p;
+            snprintf(rq_.filename, sizeof rq_.filename, "%s", basename_of(h.filename()).c_str());
+        /* The parameters now, before any byte of the mesh, parsed once into
+         * the job's: the path REST's params field takes, so the same
+         * message names the field. */
         mcf_error err;
-        api_params_init(&p);
-        mcf_status rc = svc_record_params(&rec_, lim, &p, &err);
-        api_params_free(&p);
+        mcf_status rc = api_params_set_json(&rq_.params, po, lim, &err);
+        cJSON_Delete(po);
         if (rc != MCF_OK) {
-            svc_error_from_mcf(e, rc, SVC_STAGE_PARAMS, NULL, &err);
+            svc_error_from_mcf(e, rc, API_JOB_PARAMS, NULL, &err);
             return false;
         }
         return true;
@@ -675,9 +641,9 @@ class Upload {
         if (b.size() > max - *len)
             return limit(e, "the %s is over the upload limit of %zu bytes (--max-upload)", what, max);
         if (declared >= 0 && (long long)(*len + b.size()) > declared)
-            return fail(e, SVC_EINPUT, "EINVAL", "more bytes of the %s than its declared size %lld",
+            return fail(e, SVC_P_INPUT_INVALID, "more bytes of the %s than its declared size %lld",
                         what, declared);
-        if (svc_upload_reserve(&mem_held_, mesh_len_ + target_len_ + b.size(), e) != 0)
+        if (svc_upload_reserve(g.svc, &mem_held_, mesh_len_ + target_len_ + b.size(), e) != 0)
             return false;
         if (*len + b.size() > alloc_of(buf)) {
             /* geometric growth as bytes arrive, never ahead of them: a
@@ -690,7 +656,7 @@ class Upload {
                 want = max;
             char *nb = (char *)realloc(*buf, want);
             if (!nb)
-                return fail(e, SVC_ENOMEM, "ENOMEM", "out of memory for the %s", what);
+                return fail(e, SVC_P_NOMEM, "out of memory for the %s", what);
             *buf = nb;
             alloc_of(buf) = want;
         }
@@ -701,9 +667,9 @@ class Upload {
 
     size_t &alloc_of(char **buf) { return buf == &mesh_ ? mesh_alloc_ : target_alloc_; }
 
-    static bool fail(svc_error *e, svc_code c, const char *name, const char *fmt, ...)
+    static bool fail(svc_error *e, svc_problem p, const char *fmt, ...)
 #if defined(__GNUC__)
-        __attribute__((format(printf, 4, 5)))
+        __attribute__((format(printf, 3, 4)))
 #endif
     {
         va_list ap;
@@ -711,7 +677,7 @@ class Upload {
         va_start(ap, fmt);
         vsnprintf(d, sizeof d, fmt, ap);
         va_end(ap);
-        svc_error_set(e, c, name, "%s", d);
+        svc_error_set(e, p, "%s", d);
         return false;
     }
 
@@ -727,14 +693,14 @@ class Upload {
         vsnprintf(err.msg, sizeof err.msg, fmt, ap);
         va_end(ap);
         err.status = MCF_ELIMIT;
-        svc_error_from_mcf(e, MCF_ELIMIT, SVC_STAGE_DECODE, NULL, &err);
+        svc_error_from_mcf(e, MCF_ELIMIT, API_JOB_DECODE, NULL, &err);
         return false;
     }
 
     bool have_header_ = false;
     long nmsg_ = 0;                 /* messages received */
     pb::SmoothRequest req_;
-    svc_record rec_ = {};
+    svc_request rq_ = request_init();
     api_format in_format_ = API_FMT_UNKNOWN;
     long long total_size_ = -1, target_size_ = -1;
     char *mesh_ = nullptr, *target_ = nullptr;
@@ -747,7 +713,7 @@ class Upload {
 
 void post(Follow *f);
 
-/* A streamed answer's write in flight, shared by its call and srv_grpc_expire
+/* A streamed answer's write in flight, shared by its call and the door's expire
  * on the main thread, as Deadline is: reached under mu while alive (the
  * call clears it in OnDone); mu is recursive because cancelling may run the
  * call's reactions on the same thread. */
@@ -878,7 +844,7 @@ class Follow {
         }
         if (svc_subscribe(j, SVC_NOTIFY_STATE | SVC_NOTIFY_PROGRESS, notify, this, &sub_) != 0) {
             svc_error e;
-            svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory");
+            svc_error_set(&e, SVC_P_NOMEM, "out of memory");
             finish_error(e);
             return;
         }
@@ -999,9 +965,9 @@ class Follow {
                 if (svc_job_events(job_, next_event_, 64 * 1024, &data, &len, &n) != 0) {
                     svc_error e;
                     if (errno == ENOMEM)
-                        svc_error_set(&e, SVC_ENOMEM, NULL, "out of memory reading the job's events");
-                    else /* a finished job's, on the spool */
-                        svc_error_set(&e, SVC_ESTORAGE, "EIO", "cannot read the job's events from "
+                        svc_error_set(&e, SVC_P_NOMEM, "out of memory reading the job's events");
+                    else /* a finished job's, in the store */
+                        svc_error_set(&e, SVC_P_STORAGE, "cannot read the job's events from "
                                       "the spool: %s", strerror(errno));
                     set_end(e);
                     return -1;
@@ -1018,15 +984,15 @@ class Follow {
             if (!svc_job_status_terminal(s.status)) {
                 if (s.closing || (s.draining && s.status == SVC_JOB_QUEUED)) {
                     svc_error e = s.error;
-                    if (e.code != SVC_EDRAINING)
-                        svc_error_set(&e, SVC_EDRAINING, NULL,
+                    if (svc_error_code(&e) != SVC_EDRAINING)
+                        svc_error_set(&e, SVC_P_DRAINING,
                                       "the daemon is shutting down; job %s runs again after the restart", s.id);
                     set_end(e);
                     return -1;
                 }
                 if (no_wait_) {
                     svc_error e;
-                    svc_error_set(&e, SVC_ENOTREADY, NULL, "job %s is %s: no result yet", s.id,
+                    svc_error_set(&e, SVC_P_NOT_READY, "job %s is %s: no result yet", s.id,
                                   svc_job_status_name(s.status));
                     set_end(e);
                     return -1;
@@ -1132,7 +1098,7 @@ class Follow {
     bool keep_ = false, taken_ = false, skip_result_ = false, no_wait_ = false;
     int from_step_ = 0;
     /* under mu_ */
-    std::shared_ptr<Stall> stall_;  /* the write in flight, for srv_grpc_expire */
+    std::shared_ptr<Stall> stall_;  /* the write in flight, for the door's expire */
     bool writing_ = false, busy_ = false, dirty_ = false, gone_ = false;
     bool queued_ = false;           /* in the pump queue */
     /* touched only by the one pump() running (busy_) */
@@ -1210,7 +1176,7 @@ class SmoothCall : public Follow,
                 return;
         }
         svc_job *j = nullptr;
-        if (up_.submit(SVC_KEEP_RESULT, &j, &e) != 0) {
+        if (up_.submit(true, &j, &e) != 0) {
             finish_error(e);
             return;
         }
@@ -1257,7 +1223,7 @@ class SmoothCall : public Follow,
         HB_RELEASE(ctx_);
         if (!grpc::SerializationTraits<pb::SmoothResponse>::Serialize(*m, &wbuf_, &own).ok()) {
             finished_ = true;
-            Finish(counted("Smooth", Status(StatusCode::INTERNAL, "cannot serialize a response")));
+            Finish(counted("Smooth", door_status(ctx_, SVC_P_INTERNAL, "cannot serialize a response")));
             return;
         }
         StartWrite(&wbuf_);
@@ -1287,12 +1253,11 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
             finish(unauthenticated(ctx));
         } else if (!slot_.take(ctx, &st)) {
             finish(st);
-        } else if (!(j = svc_job_get(req->id().c_str()))) {
-            finish(door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
+        } else if (!(j = svc_job_get(g.svc, req->id().c_str()))) {
+            finish(door_status(ctx, SVC_P_NOT_FOUND,
                                "no job '" + req->id().substr(0, 64) + "' (or it expired)"));
         } else if ((here = svc_followers(j)) >= SVC_FOLLOWERS_PER_JOB) {
-            ctx->AddTrailingMetadata("retry-after-ms", "1000");
-            finish(door_status(ctx, StatusCode::RESOURCE_EXHAUSTED, "EBUSY",
+            finish(door_status(ctx, SVC_P_BUSY,
                                "job " + std::string(svc_job_id(j)) + " already has " +
                                    std::to_string(here) + " followers, the most one job "
                                    "may have; poll GetJob instead"));
@@ -1368,7 +1333,7 @@ class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>, public Expi
                 return;
         }
         svc_job *j = nullptr;
-        if (up_.submit(0, &j, &e) != 0) {
+        if (up_.submit(false, &j, &e) != 0) {
             end_error(e);
             return;
         }
@@ -1376,7 +1341,7 @@ class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>, public Expi
         bool own, ok2 = fill_job(j, &job) &&
                         grpc::SerializationTraits<pb::Job>::Serialize(job, resp_, &own).ok();
         svc_job_unref(j);
-        end(ok2 ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory"));
+        end(ok2 ? Status::OK : door_status(ctx_, SVC_P_NOMEM, "out of memory"));
     }
 
     void OnCancel() override
@@ -1471,12 +1436,12 @@ class Smoother final : public SmootherBase {
                                      pb::Job *resp) override
     {
         return unary(ctx, "GetJob", [&]() -> Status {
-            svc_job *j = svc_job_get(req->id().c_str());
+            svc_job *j = svc_job_get(g.svc, req->id().c_str());
             if (!j)
                 return not_found(ctx, req->id());
             bool ok = fill_job(j, resp);
             svc_job_unref(j);
-            return ok ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory");
+            return ok ? Status::OK : door_status(ctx, SVC_P_NOMEM, "out of memory");
         });
     }
 
@@ -1485,12 +1450,12 @@ class Smoother final : public SmootherBase {
                                         pb::Job *resp) override
     {
         return unary(ctx, "CancelJob", [&]() -> Status {
-            svc_job *j = svc_job_get(req->id().c_str());
+            svc_job *j = svc_job_get(g.svc, req->id().c_str());
             if (!j)
                 return not_found(ctx, req->id());
             if (svc_cancel(j, SVC_CANCEL_USER) < 0) {
                 svc_error e;
-                svc_error_set(&e, SVC_ESTORAGE, "EIO",
+                svc_error_set(&e, SVC_P_STORAGE,
                               "the spool could not record the cancellation of job %s "
                               "(not canceled; retry): %s", svc_job_id(j), strerror(errno));
                 svc_job_unref(j);
@@ -1498,7 +1463,7 @@ class Smoother final : public SmootherBase {
             }
             bool ok = fill_job(j, resp);
             svc_job_unref(j);
-            return ok ? Status::OK : Status(StatusCode::RESOURCE_EXHAUSTED, "out of memory");
+            return ok ? Status::OK : door_status(ctx, SVC_P_NOMEM, "out of memory");
         });
     }
 
@@ -1537,7 +1502,7 @@ class Smoother final : public SmootherBase {
 
     static Status not_found(CallbackServerContext *ctx, const std::string &id)
     {
-        return door_status(ctx, StatusCode::NOT_FOUND, "ENOTFOUND",
+        return door_status(ctx, SVC_P_NOT_FOUND,
                            "no job '" + id.substr(0, 64) + "' (or it expired)");
     }
 };
@@ -1568,8 +1533,13 @@ void adopt(int fd, void *)
 
 /* ------------------------------------------------------------ C interface */
 
-extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_t msgsize)
+namespace {
+
+int grpc_start(const srv_config *cfg, svc_t *svc, const srv_daemon *dm, void **door,
+               char *where, size_t wsize, char *msg, size_t msgsize)
 {
+    (void)dm;
+    *door = nullptr;
     try {
         grpc::EnableDefaultHealthCheckService(true);
         grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -1602,6 +1572,7 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         b.SetMaxReceiveMessageSize((int)(kChunk + cfg->lim.max_json_bytes + 4096));
         b.SetMaxSendMessageSize((int)(kChunk + 4096 + 16 * 1024 * 1024));
         g.cfg = cfg;
+        g.svc = svc;
         g.quit = false;
         g.server = b.BuildAndStart();
         if (!g.server) {
@@ -1626,7 +1597,8 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         gc.message_timeout = cfg->header_timeout > 0 ? cfg->header_timeout + 1 : 0;
         gc.unhealthy_after = SRV_FDS_DEAD;
         gc.adopt = adopt;
-        if (h2gate_start(&gc, port, msg, msgsize) != 0) {
+        int port = 0;
+        if (h2gate_start(&gc, &port, msg, msgsize) != 0) {
             g.server->Shutdown();
             g.server->Wait();
             g.server.reset();
@@ -1634,6 +1606,8 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
         }
         set_serving(true);
         g.pump = std::thread(pump_thread);
+        snprintf(where, wsize, strchr(cfg->bind, ':') ? "[%s]:%d" : "%s:%d", cfg->bind, port);
+        *door = &g;
         return 0;
     } catch (const std::exception &ex) {
         snprintf(msg, msgsize, "gRPC: %s", ex.what());
@@ -1643,15 +1617,17 @@ extern "C" int srv_grpc_start(const srv_config *cfg, int *port, char *msg, size_
     return -1;
 }
 
-extern "C" void srv_grpc_drain(void)
+void grpc_drain(void *door)
 {
+    if (!door)
+        return;
     g.draining = true;
     set_serving(false);
 }
 
-extern "C" void srv_grpc_stop(void)
+void grpc_stop(void *door)
 {
-    if (!g.server)
+    if (!door || !g.server)
         return;
     h2gate_stop_accepting();
     try {
@@ -1670,8 +1646,7 @@ extern "C" void srv_grpc_stop(void)
     g.server.reset();
 }
 
-extern "C" int srv_grpc_expire(double header_timeout, double body_timeout,
-                               double send_timeout)
+int expire(double header_timeout, double body_timeout, double send_timeout)
 {
     std::vector<std::shared_ptr<Deadline>> late;
     std::vector<std::shared_ptr<Stall>> stalled;
@@ -1718,19 +1693,32 @@ extern "C" int srv_grpc_expire(double header_timeout, double body_timeout,
     return n;
 }
 
-extern "C" int srv_grpc_active(void)
+int grpc_expire(void *door, const srv_config *cfg)
 {
-    return g.active;
+    int n = door ? expire(cfg->header_timeout, cfg->body_timeout, cfg->send_timeout) : 0;
+    if (n > 0)
+        srv_logf(SRV_LOG_WARN, "ended %d gRPC call%s that sent no header within "
+                 "--header-timeout %g s, no whole upload within --body-timeout %g s, "
+                 "or read nothing for --send-timeout %g s", n, n == 1 ? "" : "s",
+                 cfg->header_timeout, cfg->body_timeout, cfg->send_timeout);
+    return n;
 }
 
-extern "C" int srv_grpc_health(char *why, size_t size)
+int grpc_active(void *door)
 {
-    return g.server ? h2gate_health(why, size) : 0;
+    return door ? g.active.load() : 0;
 }
 
-extern "C" void srv_grpc_gauges(srv_gauges *out)
+int grpc_health(void *door, char *why, size_t size)
+{
+    return door && g.server ? h2gate_health(why, size) : 0;
+}
+
+void grpc_gauges(void *door, srv_gauges *out)
 {
     h2gate_stats st;
+    if (!door)
+        return;
     h2gate_get_stats(&st);
     out->grpc_connections = st.conns;
     out->grpc_streams = st.streams;
@@ -1740,3 +1728,10 @@ extern "C" void srv_grpc_gauges(srv_gauges *out)
     out->grpc_reset = (double)st.streams_reset;
     out->grpc_accept_errors = (double)st.accept_errors;
 }
+
+} // namespace
+
+extern "C" const srv_door_ops srv_grpc_door = {
+    "gRPC", grpc_start, grpc_drain, grpc_stop, grpc_expire, grpc_active,
+    grpc_health, grpc_gauges,
+};

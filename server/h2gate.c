@@ -275,9 +275,9 @@ static int adopt(conn *c, double now)
     return 0;
 }
 
-/* Parses what the client sent and passes it on: acts on the parser's
- * verdicts (adopts the connection once its preface is whole, makes it
- * wait for stream room, closes it). 0, or -1 when c closed. */
+/* Parses what the client sent: acts on the parser's verdicts (adopts the
+ * connection once its preface is whole, makes it wait for stream room,
+ * closes it). 0, or -1 when c closed. The caller writes the output on. */
 static int relay_client(conn *c, double now)
 {
     const char *why = "";
@@ -305,10 +305,6 @@ static int relay_client(conn *c, double now)
         }
         break;
     }
-    if (c->pfd >= 0 && flush(c, H2GATE_UP) != 0) {
-        conn_close(c, NULL);
-        return -1;
-    }
     return 0;
 }
 
@@ -328,6 +324,10 @@ static void on_client(conn *c, double now)
         }
         if (relay_client(c, now) != 0)
             return;
+        if (c->pfd >= 0 && flush(c, H2GATE_UP) != 0) {
+            conn_close(c, NULL);
+            return;
+        }
     }
 }
 
@@ -474,11 +474,16 @@ static void resume_waiters(double now)
         wl_remove(c);
         if (relay_client(c, now) != 0)
             continue;
-        if (c->wl) {           /* waits again, at G.wait's tail */
+        if (c->wl) {           /* waits again, at G.wait's tail; what it
+                                  passed goes at its next event */
             if (h2gate_parser_opened(c->p) == before) {
                 wl_remove(c);
                 wl_push(&stalled, c);
             }
+            continue;
+        }
+        if (flush(c, H2GATE_UP) != 0) {
+            conn_close(c, NULL);
             continue;
         }
         on_client(c, now);     /* its bytes parsed: read on */

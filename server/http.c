@@ -47,23 +47,6 @@ const char *srv_route_name(srv_route rt)
     return route_names[rt];
 }
 
-static const srv_config *g_cfg;
-static int (*g_health)(char *why, size_t size);
-static void (*g_more_gauges)(srv_gauges *g);
-
-void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
-                   void (*more_gauges)(srv_gauges *g))
-{
-    g_cfg = cfg;
-    g_health = health;
-    g_more_gauges = more_gauges;
-}
-
-const srv_config *srv_http_config(void)
-{
-    return g_cfg;
-}
-
 /* The longest query string read (the request line and headers together
  * are bounded by MHD's per-connection pool, SRV_CONN_MEMORY in main.c). */
 #define SRV_MAX_QUERY 8192
@@ -71,18 +54,6 @@ const srv_config *srv_http_config(void)
 /* An upload still coming after --header-timeout must have averaged this
  * many bytes a second since its head (slow-body clients hold a slot). */
 #define SRV_MIN_BODY_RATE 4096.0
-
-static pthread_mutex_t g_active_mu = PTHREAD_MUTEX_INITIALIZER;
-static int g_active;
-
-int srv_http_active(void)
-{
-    int n;
-    pthread_mutex_lock(&g_active_mu);
-    n = g_active;
-    pthread_mutex_unlock(&g_active_mu);
-    return n;
-}
 
 const char *srv_query_of(const srv_request *r)
 {
@@ -191,9 +162,9 @@ static int parse_route(srv_request *r, const char *url)
 
 /* The bearer token, checked as the gRPC door checks it (srv_bearer_ok:
  * constant time in the token's length). */
-static int authorized(struct MHD_Connection *c)
+static int authorized(const srv_rest *d, struct MHD_Connection *c)
 {
-    return srv_bearer_ok(srv_http_config(),
+    return srv_bearer_ok(d->cfg,
                          MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                      MHD_HTTP_HEADER_AUTHORIZATION));
 }
@@ -203,10 +174,11 @@ static int is_get(const char *method)
     return strcmp(method, "GET") == 0 || strcmp(method, "HEAD") == 0;
 }
 
-/* The daemon's gauges: the service's and the door's event streams. */
-static srv_gauges gauges(void)
+/* The daemon's gauges: the service's, the door's event streams, the
+ * other door's. */
+static srv_gauges gauges(srv_rest *d)
 {
-    svc_gauges s = svc_get_gauges();
+    svc_gauges s = svc_get_gauges(d->svc);
     srv_gauges g;
 
     memset(&g, 0, sizeof g);
@@ -216,32 +188,32 @@ static srv_gauges gauges(void)
     g.workers_busy = s.workers_busy;
     g.jobs_in_memory = s.jobs_in_memory;
     g.draining = s.draining;
-    g.followers = srv_waiter_followers();
+    g.followers = srv_waiter_followers(d);
     g.spool_bytes = s.spool_bytes;
-    if (g_more_gauges)
-        g_more_gauges(&g);
+    if (d->dm.gauges)
+        d->dm.gauges(d->dm.ctx, &g);
     return g;
 }
 
 static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
                                   const char *url, const char *method)
 {
-    const srv_config *cfg = srv_http_config();
-    srv_problem p;
+    srv_rest *d = r->door;
+    svc_error p;
     const char *q = srv_query_of(r);
 
     snprintf(r->method, sizeof r->method, "%s", method);
     snprintf(r->path, sizeof r->path, "%s", url);
     if (parse_route(r, url) != 0)
-        return srv_send_problemf(r, c, 404, "ENOTFOUND", "no such resource: %s", url);
+        return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
     if (q && strlen(q) > SRV_MAX_QUERY)
-        return srv_send_problemf(r, c, 414, "ELIMIT", "the query string has %zu bytes, "
+        return srv_send_problemf(r, c, SVC_P_URI_LIMIT, "the query string has %zu bytes, "
                                  "more than %d: send the parameters as a multipart "
                                  "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
     /* The page is public too (ui.c): its API calls carry the token. */
     if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
-        r->rt != RT_UI && !authorized(c))
-        return srv_send_problemf(r, c, 401, "EAUTH", "a valid 'Authorization: Bearer "
+        r->rt != RT_UI && !authorized(r->door, c))
+        return srv_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
                                  "<token>' header is required");
     switch (r->rt) {
     case RT_HEALTHZ:
@@ -251,7 +223,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     case RT_SCHEMES:
     case RT_UI:
         if (!is_get(method)) {
-            srv_problem_set(&p, 405, "EMETHOD", "%s is not allowed on %s",
+            svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s",
                             method, url);
             return srv_send_problem(r, c, &p, NULL);
         }
@@ -259,7 +231,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     case RT_SMOOTH:
     case RT_JOBS:
         if (strcmp(method, "POST") != 0) {
-            srv_problem_set(&p, 405, "EMETHOD", "%s is not allowed on %s; "
+            svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s; "
                             "POST a mesh", method, url);
             return srv_send_problem(r, c, &p, NULL);
         }
@@ -272,8 +244,8 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
      * the daemon unhealthy, so an orchestrator restarts it. */
     if (r->rt == RT_HEALTHZ || r->rt == RT_READYZ) {
         char why[300];
-        if (g_health && g_health(why, sizeof why) != 0)
-            return srv_send_problemf(r, c, 503, "EUNHEALTHY", "%s", why);
+        if (d->dm.health && d->dm.health(d->dm.ctx, why, sizeof why) != 0)
+            return srv_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", why);
     }
     if (r->rt == RT_HEALTHZ) {
         cJSON *o = cJSON_CreateObject();
@@ -281,7 +253,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_send_json(r, c, 200, o);
     }
     if (r->rt == RT_READYZ) {
-        srv_gauges g = gauges();
+        srv_gauges g = gauges(d);
         cJSON *o;
         /* Draining and a spool that cannot be written make the daemon
          * unready. A full queue does not:
@@ -289,13 +261,13 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
          * orchestrator flapping every replica out of its Service under
          * load would turn those into connection errors. */
         char why[1500];
-        if (g.draining)
-            return srv_send_problemf(r, c, 503, "EDRAINING", "the daemon is shutting "
+        if (g.draining || atomic_load(&d->draining))
+            return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting "
                                      "down");
         /* Every job goes through the spool: one that cannot be written
          * makes every job fail. */
-        if (srv_spool_ready(cfg->spool, why, sizeof why) != 0)
-            return srv_send_problemf(r, c, 503, "ESPOOL", "%s", why);
+        if (svc_ready(d->svc, why, sizeof why) != 0)
+            return srv_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ready");
         cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);
@@ -303,7 +275,7 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
         return srv_send_json(r, c, 200, o);
     }
     if (r->rt == RT_METRICS) {
-        srv_gauges g = gauges();
+        srv_gauges g = gauges(d);
         size_t n = 0;
         char *s;
         /* This request is counted before rendering, so a scrape sees itself. */
@@ -401,27 +373,27 @@ static enum MHD_Result framing_header(void *cls, enum MHD_ValueKind kind,
  * in HTTP/1.0, chunked twice, or Content-Lengths that differ. 1 and p set,
  * or 0. */
 static int framing_refused(struct MHD_Connection *c, const char *version,
-                           srv_problem *p)
+                           svc_error *p)
 {
     framing f;
 
     memset(&f, 0, sizeof f);
     MHD_get_connection_values(c, MHD_HEADER_KIND, framing_header, &f);
     if (f.te && f.cl)
-        srv_problem_set(p, 400, "EFRAMING", "Content-Length and "
+        svc_error_set(p, SVC_P_FRAMING, "Content-Length and "
                         "Transfer-Encoding together (RFC 9112 6.3): send one");
     else if (f.te && strcmp(version, MHD_HTTP_VERSION_1_0) == 0)
-        srv_problem_set(p, 400, "EFRAMING", "Transfer-Encoding in an HTTP/1.0 "
+        svc_error_set(p, SVC_P_FRAMING, "Transfer-Encoding in an HTTP/1.0 "
                         "request (RFC 9112 6.1): send Content-Length");
     else if (f.other[0])
-        srv_problem_set(p, 501, "ENOTIMPLEMENTED", "Transfer-Encoding '%s' is "
+        svc_error_set(p, SVC_P_NOT_IMPLEMENTED, "Transfer-Encoding '%s' is "
                         "not supported: send the body with Content-Length or "
                         "Transfer-Encoding: chunked alone", f.other);
     else if (f.chunked > 1)
-        srv_problem_set(p, 400, "EFRAMING", "Transfer-Encoding chunked %d "
+        svc_error_set(p, SVC_P_FRAMING, "Transfer-Encoding chunked %d "
                         "times (RFC 9112 7: once)", f.chunked);
     else if (f.cl_differ)
-        srv_problem_set(p, 400, "EFRAMING", "two Content-Length headers that "
+        svc_error_set(p, SVC_P_FRAMING, "two Content-Length headers that "
                         "differ");
     else
         return 0;
@@ -435,10 +407,10 @@ static int framing_refused(struct MHD_Connection *c, const char *version,
  * connection closes without one (MHD skips it when a request overflows
  * its pool after the URI callback, e.g. hundreds of headers); and, for
  * the header deadline, whether it is waiting for a request's headers and
- * since when. Every connection is on g_conns (g_conns_mu guards the
- * list, receiving and since). */
+ * since when. Every connection is on the door's list (conns_mu guards
+ * the list, receiving and since, and the per-address counts). */
 typedef struct ip_count ip_count;
-typedef struct conn_state {
+struct conn_state {
     srv_request *req;
     int fd;
     ip_count *ip;              /* its address's count, NULL: none kept */
@@ -447,25 +419,21 @@ typedef struct conn_state {
                                   head is in, the body is coming */
     size_t body;               /* body bytes so far (receiving 2) */
     double since;              /* srv_mono() when it began waiting */
+    srv_rest *door;
     struct conn_state *prev, *next;
-} conn_state;
-
-static pthread_mutex_t g_conns_mu = PTHREAD_MUTEX_INITIALIZER;
-static conn_state *g_conns;
-static int g_nconns;
+};
 
 static void request_free(srv_request *r, int toe);
 
 /* --max-connections-per-ip: the connections of each client address,
  * counted here rather than by libmicrohttpd, which closes a connection
  * past its limit at accept, so that its client hears a 503 with
- * Retry-After instead of a reset. A tsearch tree under g_conns_mu, one
- * node per address with connections open. */
+ * Retry-After instead of a reset. A tsearch tree (the door's ips) under
+ * conns_mu, one node per address with connections open. */
 struct ip_count {
     unsigned char key[17];     /* address length (4, 16), then its bytes */
     int n;
 };
-static void *g_ips;
 
 static int ip_cmp(const void *a, const void *b)
 {
@@ -473,9 +441,9 @@ static int ip_cmp(const void *a, const void *b)
                   sizeof ((const ip_count *)a)->key);
 }
 
-/* g_conns_mu held: one more connection from sa; its node, or NULL (an
+/* conns_mu held: one more connection from sa; its node, or NULL (an
  * address of another family, or out of memory: not counted). */
-static ip_count *ip_take(const struct sockaddr *sa)
+static ip_count *ip_take(srv_rest *d, const struct sockaddr *sa)
 {
     ip_count probe, *ip;
     void *found;
@@ -490,14 +458,14 @@ static ip_count *ip_take(const struct sockaddr *sa)
     } else {
         return NULL;
     }
-    found = tfind(&probe, &g_ips, ip_cmp);
+    found = tfind(&probe, &d->ips, ip_cmp);
     if (found) {
         ip = *(ip_count **)found;
     } else {
         if (!(ip = malloc(sizeof *ip)))
             return NULL;
         *ip = probe;
-        if (!tsearch(ip, &g_ips, ip_cmp)) {
+        if (!tsearch(ip, &d->ips, ip_cmp)) {
             free(ip);
             return NULL;
         }
@@ -506,11 +474,11 @@ static ip_count *ip_take(const struct sockaddr *sa)
     return ip;
 }
 
-/* g_conns_mu held: a connection of ip closed. */
-static void ip_drop(ip_count *ip)
+/* conns_mu held: a connection of ip closed. */
+static void ip_drop(srv_rest *d, ip_count *ip)
 {
     if (ip && --ip->n == 0) {
-        tdelete(ip, &g_ips, ip_cmp);
+        tdelete(ip, &d->ips, ip_cmp);
         free(ip);
     }
 }
@@ -518,13 +486,13 @@ static void ip_drop(ip_count *ip)
 /* Whether r came on a connection opened past --max-connections-per-ip:
  * then 1 and its 503 in p (answered on the first call, so the
  * connection closes). */
-static int over_cap(const srv_request *r, srv_problem *p)
+static int over_cap(const srv_request *r, svc_error *p)
 {
-    int cap = srv_http_config()->max_connections_per_ip;
+    int cap = r->door->cfg->max_connections_per_ip;
 
     if (!r->conn || !((const conn_state *)r->conn)->over)
         return 0;
-    srv_problem_set(p, 503, "EBUSY", "this address has more than %d "
+    svc_error_set(p, SVC_P_BUSY_ADDRESS, "this address has more than %d "
                     "connections open, the most one address may have "
                     "(--max-connections-per-ip %d): retry once one closes",
                     cap, cap);
@@ -539,47 +507,49 @@ unsigned srv_http_ip_backstop(const srv_config *cfg)
 
 static void conn_waiting(conn_state *cs, int receiving)
 {
-    pthread_mutex_lock(&g_conns_mu);
+    pthread_mutex_lock(&cs->door->conns_mu);
     cs->receiving = receiving;
     cs->since = srv_mono();
     cs->body = 0;
-    pthread_mutex_unlock(&g_conns_mu);
+    pthread_mutex_unlock(&cs->door->conns_mu);
 }
 
 static void conn_body(conn_state *cs, size_t bytes)
 {
-    pthread_mutex_lock(&g_conns_mu);
+    pthread_mutex_lock(&cs->door->conns_mu);
     cs->body = bytes;
-    pthread_mutex_unlock(&g_conns_mu);
+    pthread_mutex_unlock(&cs->door->conns_mu);
 }
 
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
                          enum MHD_ConnectionNotificationCode code)
 {
+    srv_rest *d = cls;
     conn_state *cs = *socket_context;
 
-    (void)cls;
     if (code == MHD_CONNECTION_NOTIFY_STARTED) {
         const union MHD_ConnectionInfo *ci =
             MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
         const union MHD_ConnectionInfo *ai =
             MHD_get_connection_info(c, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
-        int cap = srv_http_config()->max_connections_per_ip;
+        int cap = d->cfg->max_connections_per_ip;
         cs = calloc(1, sizeof(conn_state));
         if (cs) {
             cs->fd = ci ? ci->connect_fd : -1;
             cs->receiving = 1;
             cs->since = srv_mono();
-            pthread_mutex_lock(&g_conns_mu);
-            if (cap > 0 && (cs->ip = ip_take(ai ? ai->client_addr : NULL)))
+            cs->door = d;
+            pthread_mutex_lock(&d->conns_mu);
+            if (cap > 0 &&
+                (cs->ip = ip_take(d, ai ? ai->client_addr : NULL)))
                 cs->over = cs->ip->n > cap;
-            cs->next = g_conns;
-            if (g_conns)
-                g_conns->prev = cs;
-            g_conns = cs;
-            g_nconns++;
-            pthread_mutex_unlock(&g_conns_mu);
+            cs->next = d->conns;
+            if (d->conns)
+                d->conns->prev = cs;
+            d->conns = cs;
+            d->nconns++;
+            pthread_mutex_unlock(&d->conns_mu);
         }
         *socket_context = cs;
         return;
@@ -587,16 +557,16 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     if (cs) {
         /* Off the list before MHD closes the socket (it notifies first),
          * so srv_http_expire_heads never touches a reused descriptor. */
-        pthread_mutex_lock(&g_conns_mu);
+        pthread_mutex_lock(&d->conns_mu);
         if (cs->prev)
             cs->prev->next = cs->next;
         else
-            g_conns = cs->next;
+            d->conns = cs->next;
         if (cs->next)
             cs->next->prev = cs->prev;
-        g_nconns--;
-        ip_drop(cs->ip);
-        pthread_mutex_unlock(&g_conns_mu);
+        d->nconns--;
+        ip_drop(d, cs->ip);
+        pthread_mutex_unlock(&d->conns_mu);
         if (cs->req)
             request_free(cs->req, -1); /* never completed: abandoned */
     }
@@ -604,20 +574,20 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     *socket_context = NULL;
 }
 
-int srv_http_expire_heads(double timeout, int max_connections,
+int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
                           double body_timeout)
 {
     double now = srv_mono();
     conn_state *cs;
     int n = 0;
 
-    pthread_mutex_lock(&g_conns_mu);
+    pthread_mutex_lock(&d->conns_mu);
     /* Nine tenths of the slots taken: heads get 2 s, so that a flood of
      * slow clients from many addresses leaves room for the probes and
      * for clients that send their request at once. */
-    if (g_nconns * 10 >= max_connections * 9 && timeout > 2)
+    if (d->nconns * 10 >= max_connections * 9 && timeout > 2)
         timeout = 2;
-    for (cs = g_conns; cs; cs = cs->next)
+    for (cs = d->conns; cs; cs = cs->next)
         if (cs->fd >= 0 &&
             /* past --max-connections-per-ip: 2 s for the head its 503
              * answers, also with no --header-timeout */
@@ -626,7 +596,7 @@ int srv_http_expire_heads(double timeout, int max_connections,
               (cs->receiving == 1 ||
                (cs->receiving == 2 &&
                 (double)cs->body < SRV_MIN_BODY_RATE * (now - cs->since)))) ||
-             /* issue 9 item 3: the ceiling on a whole body (--body-timeout),
+             /* the ceiling on a whole body (--body-timeout),
               * for clients just above the average rate */
              (body_timeout > 0 && cs->receiving == 2 &&
               now - cs->since > body_timeout))) {
@@ -636,22 +606,23 @@ int srv_http_expire_heads(double timeout, int max_connections,
             cs->receiving = 0;
             n++;
         }
-    pthread_mutex_unlock(&g_conns_mu);
+    pthread_mutex_unlock(&d->conns_mu);
     return n;
 }
 
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
 {
+    srv_rest *d = cls;
     srv_request *r = calloc(1, sizeof *r);
-    const srv_config *cfg = srv_http_config();
+    const srv_config *cfg = d->cfg;
     const union MHD_ConnectionInfo *ci =
         MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
     conn_state *cs = ci ? ci->socket_context : NULL;
     char *q;
 
-    (void)cls;
     if (!r)
         return NULL;
+    r->door = d;
     r->uri = strdup(uri ? uri : "");
     /* MHD would next parse the query into its per-connection pool, a
      * record per parameter: a few hundred short ones exhaust it, and MHD
@@ -675,9 +646,9 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
     api_buf_init(&r->mesh, cfg->lim.max_input_bytes);
     api_buf_init(&r->target, cfg->lim.max_input_bytes);
     api_buf_init(&r->params, cfg->lim.max_json_bytes);
-    pthread_mutex_lock(&g_active_mu);
-    g_active++;
-    pthread_mutex_unlock(&g_active_mu);
+    pthread_mutex_lock(&d->active_mu);
+    d->active++;
+    pthread_mutex_unlock(&d->active_mu);
     return r;
 }
 
@@ -692,7 +663,7 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     if (!r || !r->uri)
         return MHD_NO; /* out of memory in the URI callback */
     if (!r->started) {
-        srv_problem p;
+        svc_error p;
         r->started = 1;
         if (framing_refused(c, version, &p) || over_cap(r, &p)) {
             snprintf(r->method, sizeof r->method, "%s", method);
@@ -760,6 +731,7 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
  * termination code, -1 for a request MHD abandoned without completing. */
 static void request_free(srv_request *r, int toe)
 {
+    srv_rest *d = r->door;
     cJSON *o;
     int had_job;
 
@@ -793,12 +765,12 @@ static void request_free(srv_request *r, int toe)
     api_buf_free(&r->mesh);
     api_buf_free(&r->target);
     api_buf_free(&r->params);
-    svc_upload_release(&r->mem_held);
+    svc_upload_release(d->svc, &r->mem_held);
     cJSON_Delete(r->fields);
     free(r->uri);
     free(r);
-    pthread_mutex_lock(&g_active_mu);
-    g_active--;
-    pthread_mutex_unlock(&g_active_mu);
+    pthread_mutex_lock(&d->active_mu);
+    d->active--;
+    pthread_mutex_unlock(&d->active_mu);
 }
 

@@ -1,7 +1,9 @@
 /*
  * http.h - the REST door of mcfd on libmicrohttpd, shared by its files
- * (http.c, upload.c, jobroutes.c, waiter.c, stream.c, reply.c). The door
- * reaches jobs only through service.h: no job internals, no service lock.
+ * (http.c, upload.c, jobroutes.c, waiter.c, stream.c, reply.c, ui.c); its
+ * face is rest_door.h. The door reaches jobs only through service.h: no
+ * job internals, no service lock. Its state is one struct (srv_rest),
+ * which every request, waiter and stream points to.
  *
  * A request object (srv_request) is made by the URI log callback, hangs
  * on con_cls, and is freed only in the completion callback (or when its
@@ -14,41 +16,54 @@
 #define SRV_HTTP_H
 
 #include <pthread.h>
+#include <stdatomic.h>
 
 #include <microhttpd.h>
 
+#include "door.h"
 #include "service.h"
 #include "srv.h"
 
+typedef struct conn_state conn_state;  /* http.c: a connection's bookkeeping */
+typedef struct srv_waiter srv_waiter;
+
+/* The REST door's state. Its locks (the door's): conns_mu guards the
+ * connection list, active_mu the request count, wait_mu every waiter's
+ * flags and the waiter list (waiter.c; taken inside the service's lock by
+ * its subscription callback, so the door never calls the service with it
+ * held). */
+typedef struct srv_rest {
+    const srv_config *cfg;
+    svc_t *svc;
+    srv_daemon dm;             /* the rest of the daemon: health, gauges */
+    struct MHD_Daemon *mhd;
+    atomic_int draining;       /* set by drain (main thread), read by MHD's */
+    pthread_mutex_t active_mu;
+    int active;                /* requests between URI callback and end */
+    pthread_mutex_t conns_mu;
+    conn_state *conns;
+    int nconns;
+    void *ips;                 /* connections per client address (a tsearch
+                                  tree, http.c) */
+    pthread_mutex_t wait_mu;
+    srv_waiter *waiters;
+    int followers;             /* event streams open */
+} srv_rest;
+
 /* ---------------------------------------------------------------- problems */
 
-/* An error as the client will see it: HTTP status, the symbolic code
- * ("EMESH", or a server code such as "ENOTFOUND") and a precise detail. */
-typedef struct {
-    unsigned http;
-    char code[24];
-    char detail[MCF_ERRMSG_SIZE + 128];
-} srv_problem;
-
-/* The HTTP status of a failure of the core or the codecs (table in
- * reply.c, from MCF_ERRORS): where it came from decides 400 against 422. */
-unsigned srv_http_status(mcf_status s, svc_stage stage);
-/* A service error as the client sees it (service.h's table). */
-void srv_problem_from_svc(srv_problem *p, const svc_error *e);
-void srv_problem_set(srv_problem *p, unsigned http, const char *code,
-                     const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 4, 5)))
-#endif
-    ;
-/* The problem as an RFC 9457 JSON object (type, title, status, detail,
- * instance, code, and job when given). NULL on allocation failure. */
-cJSON *srv_problem_json(const srv_problem *p, const char *instance,
+/* The problem (service.h's table: its HTTP status and name) as an RFC
+ * 9457 JSON object (type, title, status, detail, instance, code, and job
+ * when given). NULL on allocation failure. */
+cJSON *srv_problem_json(const svc_error *e, const char *instance,
                         const char *job_id);
 /* The reason phrase of an HTTP status ("Unprocessable Content"). */
 const char *srv_http_reason(unsigned status);
-/* The job document of the REST API: svc_job_json, and the error as a
- * problem and the links. *snap (may be NULL): the state it shows. */
+/* The job document of the REST API (id, status, created/started/finished
+ * as RFC 3339 or null, progress {step, steps, t, dt, energy, volume,
+ * fraction}, cancel_requested, params, input_format, metrics when
+ * succeeded, the error as a problem, the links). *snap (may be NULL):
+ * the state it shows. NULL on allocation failure. */
 cJSON *srv_job_json(const svc_job *j, svc_snap *snap);
 
 /* ----------------------------------------------------------------- waiters */
@@ -56,7 +71,8 @@ cJSON *srv_job_json(const svc_job *j, svc_snap *snap);
 /* A connection waiting on a job. Lives inside the request or stream that
  * owns it (which holds the job reference). The door's own lock guards
  * its flags; the service's subscription callback takes that lock. */
-typedef struct srv_waiter {
+struct srv_waiter {
+    srv_rest *door;
     struct MHD_Connection *conn;
     char id[SVC_ID_LEN + 1];   /* its job's */
     svc_sub *sub;
@@ -68,11 +84,12 @@ typedef struct srv_waiter {
     int gone;                  /* its client hung up: end the stream */
     int linked;
     struct srv_waiter *prev, *next;
-} srv_waiter;
+};
 
 /* Subscribes w to j (progress too when want_events). 0, or -1 (ENOMEM). */
-int srv_waiter_start(srv_waiter *w, svc_job *j, struct MHD_Connection *c,
-                     int want_events, int cancel_on_hangup);
+int srv_waiter_start(srv_waiter *w, srv_rest *d, svc_job *j,
+                     struct MHD_Connection *c, int want_events,
+                     int cancel_on_hangup);
 /* Ends the subscription (accepts a waiter never started). Call with no
  * lock held, before the connection goes. */
 void srv_waiter_stop(srv_waiter *w);
@@ -85,12 +102,12 @@ int srv_waiter_sleep(srv_waiter *w);
 /* Whether the client of a stream left while it slept. */
 int srv_waiter_gone(srv_waiter *w);
 /* Event streams open now (the mcfd_followers gauge). */
-int srv_waiter_followers(void);
+int srv_waiter_followers(srv_rest *d);
 /* Ends the event streams whose client has closed its connection, and
  * cancels (SVC_CANCEL_CLIENT) the jobs whose only client, a waiting
- * request, has. Called a few times a second from the main thread.
+ * request, has. Called a few times a second (the door's expire).
  * Returns how many jobs it canceled. */
-int srv_http_check_clients(void);
+int srv_http_check_clients(srv_rest *d);
 
 /* ------------------------------------------------------------------ stream */
 
@@ -98,13 +115,14 @@ typedef enum { SRV_STREAM_NDJSON = 0, SRV_STREAM_SSE } srv_stream_kind;
 
 /* A chunked response that follows the job's events until it finishes.
  * Holds its own job reference. last_id: SSE Last-Event-ID (-1: none). */
-struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
+struct MHD_Response *srv_stream_response(srv_rest *d, svc_job *j,
+                                         srv_stream_kind kind,
                                          struct MHD_Connection *conn,
                                          long last_id);
 /* Whether one more follower of j may start (at most SVC_FOLLOWERS_PER_JOB
  * per job, counting gRPC's, and half of --max-connections in all); else 0
  * and a 503. */
-int srv_stream_admit(const svc_job *j, srv_problem *p);
+int srv_stream_admit(srv_rest *d, const svc_job *j, svc_error *e);
 
 typedef struct srv_asset srv_asset; /* ui_assets.h */
 
@@ -130,6 +148,7 @@ typedef enum {
 typedef enum { MODE_SYNC = 0, MODE_MIXED, MODE_NDJSON, MODE_ASYNC } srv_mode;
 
 typedef struct {
+    srv_rest *door;
     char *uri;                 /* raw request target, query included */
     char path[256];
     char method[16];
@@ -150,7 +169,7 @@ typedef struct {
     size_t fields_bytes;
     char filename[128];
     size_t bytes_in;
-    srv_problem perr;          /* found while reading; answered at the end */
+    svc_error perr;            /* found while reading; answered at the end */
     int has_perr;
     size_t perr_at;            /* bytes_in + 1 when perr was first seen */
     size_t mem_held;           /* its bytes' reservation in --max-memory
@@ -162,14 +181,6 @@ typedef struct {
     int waiting;
     int sync_owner;            /* this request takes the kept result */
 } srv_request;
-
-/* The configuration the door reads (token, limits), the health of the
- * rest of the daemon /healthz and /readyz report (0, or -1 and why: the
- * gRPC door's; NULL: none) and what /metrics adds about it (NULL: none);
- * set once by main. */
-void srv_http_init(const srv_config *cfg, int (*health)(char *why, size_t size),
-                   void (*more_gauges)(srv_gauges *g));
-const srv_config *srv_http_config(void);
 
 /* The query string of the request target, NULL when there is none. */
 const char *srv_query_of(const srv_request *r);
@@ -193,15 +204,15 @@ enum MHD_Result srv_send_json(srv_request *r, struct MHD_Connection *c,
 enum MHD_Result srv_send_text(srv_request *r, struct MHD_Connection *c,
                               unsigned status, const char *ctype, char *text,
                               size_t len);
-/* problem+json, with Retry-After on 503, WWW-Authenticate on 401, Allow
- * on 405 and X-Job-Id when job is given. */
+/* problem+json with the row's status, Retry-After on a transient
+ * refusal (e->retry_after), WWW-Authenticate on 401, Allow on 405 and
+ * X-Job-Id when job is given. */
 enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
-                                 const srv_problem *p, const char *job);
+                                 const svc_error *e, const char *job);
 enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
-                                  unsigned http, const char *code,
-                                  const char *fmt, ...)
+                                  svc_problem p, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 5, 6)))
+    __attribute__((format(printf, 4, 5)))
 #endif
     ;
 /* An empty response (204, HEAD). */
@@ -230,7 +241,7 @@ void srv_request_release_job(srv_request *r);
 
 /* ------------------------------------------------------------ MHD entries */
 
-/* The request handler and its companions for MHD_start_daemon. */
+/* http.c's callbacks, which rest_door.c gives MHD (cls: the door). */
 enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
                                 const char *url, const char *method,
                                 const char *version, const char *upload_data,
@@ -238,18 +249,6 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
 void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c);
 void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                         enum MHD_RequestTerminationCode toe);
-/* Closes the connections that have waited longer than timeout seconds
- * for a complete request head (request line and headers), since they
- * opened or since their last answer, and uploads older than timeout that
- * averaged under 4 KiB/s since their head: slowloris clients. With nine
- * tenths of max_connections open the timeout is 2 s at most (timeout 0:
- * none). Also uploads whose body is still arriving body_timeout seconds
- * after their head (--body-timeout; 0: none). And, whatever the timeouts,
- * connections past --max-connections-per-ip with no request head after
- * 2 s. The main loop calls it with --header-timeout and --body-timeout.
- * Returns how many. */
-int srv_http_expire_heads(double timeout, int max_connections,
-                          double body_timeout);
 /* MHD_OPTION_NOTIFY_CONNECTION: tracks connections for the header
  * deadline and counts them per client address: one opened past
  * --max-connections-per-ip has its request answered 503 EBUSY with
@@ -258,13 +257,23 @@ int srv_http_expire_heads(double timeout, int max_connections,
 void srv_http_connection(void *cls, struct MHD_Connection *c,
                          void **socket_context,
                          enum MHD_ConnectionNotificationCode code);
+/* Closes the connections that have waited longer than timeout seconds
+ * for a complete request head (request line and headers), since they
+ * opened or since their last answer, and uploads older than timeout that
+ * averaged under 4 KiB/s since their head: slowloris clients. With nine
+ * tenths of max_connections open the timeout is 2 s at most (timeout 0:
+ * none). Also uploads whose body is still arriving body_timeout seconds
+ * after their head (--body-timeout; 0: none). And, whatever the timeouts,
+ * connections past --max-connections-per-ip with no request head after
+ * 2 s. Returns how many. */
+int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
+                          double body_timeout);
 /* libmicrohttpd's own per-address limit (MHD_OPTION_PER_IP_CONNECTION_LIMIT),
  * a backstop a quarter above --max-connections-per-ip (0: none): the
  * connections between the two are the ones answered 503; past it MHD
  * closes a connection at accept, before any request, without a word. */
 unsigned srv_http_ip_backstop(const srv_config *cfg);
-/* Requests between the URI callback and completion (drain waits on it). */
-int srv_http_active(void);
+
 /* The route's label in metrics and logs ("smooth", "job", ...). */
 const char *srv_route_name(srv_route rt);
 

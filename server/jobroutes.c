@@ -126,22 +126,17 @@ static enum MHD_Result send_mixed(srv_request *r, struct MHD_Connection *c,
 static enum MHD_Result send_outcome(srv_request *r, struct MHD_Connection *c,
                                     const svc_snap *s)
 {
-    srv_problem p;
     svc_error e;
     char *data;
     size_t len = 0;
     struct MHD_Response *resp;
 
-    if (s->status != SVC_JOB_SUCCEEDED) {
-        srv_problem_from_svc(&p, &s->error);
-        return srv_send_problem(r, c, &p, s->id);
-    }
+    if (s->status != SVC_JOB_SUCCEEDED)
+        return srv_send_problem(r, c, &s->error, s->id);
     /* The copy the worker kept for this request, else the spool. */
     if (svc_job_result(r->job, r->sync_owner ? SVC_RESULT_TAKE : 0, &data,
-                       &len, &e) != 0) {
-        srv_problem_from_svc(&p, &e);
-        return srv_send_problem(r, c, &p, s->id);
-    }
+                       &len, &e) != 0)
+        return srv_send_problem(r, c, &e, s->id);
     if (r->md == MODE_MIXED)
         return send_mixed(r, c, s, data, len);
     resp = MHD_create_response_from_buffer(len, data, MHD_RESPMEM_MUST_FREE);
@@ -156,7 +151,7 @@ static enum MHD_Result send_outcome(srv_request *r, struct MHD_Connection *c,
 enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c)
 {
     svc_snap s;
-    srv_problem p;
+    svc_error p;
 
     for (;;) {
         srv_waiter_arm(&r->w);
@@ -167,7 +162,7 @@ enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c)
             srv_waiter_stop(&r->w);
             r->waiting = 0;
             return srv_respond(r, c, 200,
-                               srv_stream_response(r->job, SRV_STREAM_NDJSON,
+                               srv_stream_response(r->door, r->job, SRV_STREAM_NDJSON,
                                                    c, -1));
         }
         if (svc_job_status_terminal(s.status)) {
@@ -178,7 +173,7 @@ enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c)
         if ((s.status == SVC_JOB_QUEUED && s.draining) || s.closing) {
             srv_waiter_stop(&r->w);
             r->waiting = 0;
-            srv_problem_set(&p, 503, "EDRAINING", "the daemon is shutting "
+            svc_error_set(&p, SVC_P_DRAINING, "the daemon is shutting "
                             "down; job %s stays %s on disk and runs after the "
                             "restart (GET /v1/jobs/%s)", s.id,
                             svc_job_status_name(s.status), s.id);
@@ -213,18 +208,18 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
 {
     svc_snap s;
     svc_error e;
-    srv_problem p;
+    svc_error p;
 
     svc_job_snapshot(j, &s);
     if (s.status == SVC_JOB_QUEUED || s.status == SVC_JOB_RUNNING) {
-        srv_problem_set(&p, 409, "ENOTREADY", "job %s is %s (step %d of %d); "
+        svc_error_set(&p, SVC_P_NOT_READY, "job %s is %s (step %d of %d); "
                         "poll /v1/jobs/%s until it has succeeded", s.id,
                         svc_job_status_name(s.status), s.step, s.steps_planned,
                         s.id);
         return srv_send_problem(r, c, &p, s.id);
     }
     if (s.status != SVC_JOB_SUCCEEDED) {
-        srv_problem_set(&p, 409, "ENORESULT", "job %s %s and has no %s; see "
+        svc_error_set(&p, SVC_P_NO_RESULT, "job %s %s and has no %s; see "
                         "/v1/jobs/%s for the error", s.id,
                         svc_job_status_name(s.status),
                         r->rt == RT_JOB_METRICS   ? "metrics"
@@ -235,23 +230,26 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
     if (r->rt == RT_JOB_METRICS) {
         char *metrics;
         size_t len;
-        if (svc_job_metrics(j, &metrics, &len, &e) != 0) {
-            srv_problem_from_svc(&p, &e);
-            return srv_send_problem(r, c, &p, s.id);
-        }
+        if (svc_job_metrics(j, &metrics, &len, &e) != 0)
+            return srv_send_problem(r, c, &e, s.id);
         return srv_send_text(r, c, 200, "application/json", metrics, len);
     } else {
         struct MHD_Response *resp;
+        char *data;
         size_t size;
         int fd;
 
-        if ((r->rt == RT_JOB_FIELDS ? svc_job_fields_open(j, &fd, &size, &e)
-                                    : svc_job_result_open(j, &fd, &size, &e)) != 0) {
-            srv_problem_from_svc(&p, &e);
-            return srv_send_problem(r, c, &p, s.id);
-        }
-        if (!(resp = MHD_create_response_from_fd(size, fd))) {
-            close(fd);
+        if ((r->rt == RT_JOB_FIELDS ? svc_job_fields_open(j, &fd, &data, &size, &e)
+                                    : svc_job_result_open(j, &fd, &data, &size, &e)) != 0)
+            return srv_send_problem(r, c, &e, s.id);
+        /* zero-copy from the store's descriptor, else its bytes */
+        resp = fd >= 0 ? MHD_create_response_from_fd(size, fd)
+                       : MHD_create_response_from_buffer(size, data,
+                                                         MHD_RESPMEM_MUST_FREE);
+        if (!resp) {
+            if (fd >= 0)
+                close(fd);
+            free(data);
             return MHD_NO;
         }
         if (r->rt == RT_JOB_FIELDS) {
@@ -270,17 +268,14 @@ static enum MHD_Result delete_job(srv_request *r, struct MHD_Connection *c)
     svc_delete_result res;
     svc_job_status before;
     svc_error e;
-    srv_problem p;
     svc_job *j;
     enum MHD_Result ret;
 
-    if (svc_delete(r->id, &res, &before, &e) != 0) {
-        srv_problem_from_svc(&p, &e);
-        return srv_send_problem(r, c, &p, NULL);
-    }
+    if (svc_delete(r->door->svc, r->id, &res, &before, &e) != 0)
+        return srv_send_problem(r, c, &e, NULL);
     if (res == SVC_DELETE_FORGOTTEN)
         return srv_respond(r, c, 204, srv_empty_response());
-    j = svc_job_get(r->id);
+    j = svc_job_get(r->door->svc, r->id);
     if (!j) /* forgotten in between: it is gone, as asked */
         return srv_respond(r, c, 204, srv_empty_response());
     ret = job_json_reply(r, c, j, res == SVC_DELETE_STOPPING ? 202 : 200);
@@ -292,19 +287,19 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
                               const char *method)
 {
     svc_job *j;
-    srv_problem p;
+    svc_error p;
     enum MHD_Result ret;
 
     if (r->rt == RT_JOB && strcmp(method, "DELETE") == 0)
         return delete_job(r, c);
     if (strcmp(method, "GET") != 0 && strcmp(method, "HEAD") != 0) {
-        srv_problem_set(&p, 405, "EMETHOD", "%s is not allowed on %s", method,
+        svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s", method,
                         r->path);
         return srv_send_problem(r, c, &p, NULL);
     }
-    j = svc_job_get(r->id);
+    j = svc_job_get(r->door->svc, r->id);
     if (!j)
-        return srv_send_problemf(r, c, 404, "ENOTFOUND", "no job with ID %s "
+        return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no job with ID %s "
                                  "(never existed, deleted, or expired)", r->id);
     if (r->rt == RT_JOB) {
         ret = job_json_reply(r, c, j, 200);
@@ -324,11 +319,11 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
         const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                     "Last-Event-ID");
         long last = h ? strtol(h, NULL, 10) : -1;
-        if (!srv_stream_admit(j, &p))
+        if (!srv_stream_admit(r->door, j, &p))
             ret = srv_send_problem(r, c, &p, r->id);
         else
             ret = srv_respond(r, c, 200,
-                              srv_stream_response(j, SRV_STREAM_SSE, c, last));
+                              srv_stream_response(r->door, j, SRV_STREAM_SSE, c, last));
     } else {
         ret = get_job_part(r, c, j);
     }

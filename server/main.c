@@ -1,6 +1,7 @@
 /*
- * main.c - mcfd's process: configuration, threads, the HTTP daemon, the
- * signal loop, graceful drain and exit; and `mcfd --probe`.
+ * main.c - mcfd's process: configuration, the job service and its two
+ * doors (door.h: REST and gRPC, started, ticked, drained and stopped
+ * alike), the signal loop, graceful drain and exit; and `mcfd --probe`.
  *
  * Start-up order matters:
  *  1. BLAS threads are bounded to one per worker before the library
@@ -10,10 +11,11 @@
  *     who sets them keeps their values.
  *  2. SIGTERM/SIGINT are blocked in every thread (the mask is inherited)
  *     and taken synchronously by this thread with sigtimedwait, which also
- *     gives the tick for the TTL sweep and the check for clients that
- *     hung up (srv_http_check_clients). SIGPIPE is ignored.
- *  3. The spool is recovered and the workers start before the socket
- *     opens, so the first request already sees recovered jobs.
+ *     gives the tick for the TTL sweep and the doors' deadlines (clients
+ *     that hung up, slow heads and bodies). SIGPIPE is ignored.
+ *  3. The service starts (its store recovered, its workers running)
+ *     before a door opens, so the first request already sees recovered
+ *     jobs.
  *  4. One line "mcfd listening on http://ADDRESS:PORT" goes to stdout
  *     (flushed) once the socket listens; --port 0 prints the real port.
  *     Then the gRPC door (grpc.cc) starts on --grpc-port unless it is off
@@ -24,7 +26,7 @@
  * while the socket stays open for probes and result downloads; running
  * jobs finish (or, after --drain-timeout, are checkpointed back to
  * `queued` on disk); every suspended connection is resumed and answered;
- * then MHD stops and the process exits 0.
+ * then the doors stop, then the service, and the process exits 0.
  */
 #include <errno.h>
 #include <malloc.h>
@@ -37,60 +39,81 @@
 #include <sys/time.h>
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <pthread.h>
 #include <time.h>
 #include <unistd.h>
 
 #include "grpc_door.h"
-#include "http.h"
+#include "rest_door.h"
 #include "service.h"
 #include "srv.h"
 #include "sandbox.h"
 
-static void mhd_log(void *cls, const char *fmt, va_list ap)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 0)))
-#endif
-    ;
-/* libmicrohttpd's messages, at a bounded rate: at EMFILE it retries
- * accept() in a loop and says so every time (447 MB of log in 14 s). */
-static void mhd_log(void *cls, const char *fmt, va_list ap)
-{
-    static srv_log_limit lim;
-    char msg[512];
-    size_t n;
+/* The doors, started in this order and stopped in the other. Each door's
+ * threads read the others' (doors_health, doors_gauges) while the main
+ * thread publishes or withdraws them: doors_mu guards the array, and a
+ * door is withdrawn before it is stopped. */
+static const srv_door_ops *const door_ops[] = {&srv_rest_door, &srv_grpc_door};
+#define NDOORS (sizeof door_ops / sizeof door_ops[0])
+static void *doors[NDOORS];
+static pthread_mutex_t doors_mu = PTHREAD_MUTEX_INITIALIZER;
 
-    (void)cls;
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    n = strlen(msg);
-    while (n > 0 && (msg[n - 1] == '\n' || msg[n - 1] == '\r'))
-        msg[--n] = '\0';
-    srv_logf_limited(&lim, SRV_LOG_WARN, "libmicrohttpd: %s", msg);
-}
-
-/* A REST connection is refused (closed at once) when it would take the
- * last half of the descriptors' reserve (fds.c). */
-static enum MHD_Result mhd_accept(void *cls, const struct sockaddr *addr,
-                                  socklen_t addrlen)
-{
-    static srv_log_limit lim;
-    const srv_config *cfg = cls;
-    (void)addr;
-    (void)addrlen;
-    if (srv_fds_headroom() > cfg->fd_reserve / 2)
-        return MHD_YES;
-    srv_logf_limited(&lim, SRV_LOG_WARN, "REST connection refused: the daemon is "
-                     "out of descriptors for connections");
-    return MHD_NO;
-}
-
-/* /healthz and /readyz: both doors must be able to take a connection (a
+/* /healthz and /readyz: every door must be able to take a connection (a
  * door that accepts nothing makes the daemon unhealthy, so that an
- * orchestrator restarts it). REST's own is the answer itself. */
-static int doors_health(char *why, size_t size)
+ * orchestrator restarts it), and the descriptors must not be gone. */
+static int doors_health(void *ctx, char *why, size_t size)
 {
+    size_t i;
+    int rc = 0;
+    (void)ctx;
     if (srv_fds_health(why, size) != 0)
         return -1;
-    return srv_grpc_health(why, size);
+    pthread_mutex_lock(&doors_mu);
+    for (i = 0; i < NDOORS && rc == 0; i++)
+        if (doors[i] && door_ops[i]->health(doors[i], why, size) != 0)
+            rc = -1;
+    pthread_mutex_unlock(&doors_mu);
+    return rc;
+}
+
+/* /metrics: every door's gauges. */
+static void doors_gauges(void *ctx, srv_gauges *g)
+{
+    size_t i;
+    (void)ctx;
+    pthread_mutex_lock(&doors_mu);
+    for (i = 0; i < NDOORS; i++)
+        if (doors[i])
+            door_ops[i]->gauges(doors[i], g);
+    pthread_mutex_unlock(&doors_mu);
+}
+
+/* Requests and calls in flight, through every door. */
+static int doors_active(void)
+{
+    size_t i;
+    int n = 0;
+    pthread_mutex_lock(&doors_mu);
+    for (i = 0; i < NDOORS; i++)
+        if (doors[i])
+            n += door_ops[i]->active(doors[i]);
+    pthread_mutex_unlock(&doors_mu);
+    return n;
+}
+
+/* Stops the doors, the last started first (gRPC before REST: its calls
+ * hold jobs and subscriptions too). */
+static void doors_stop(void)
+{
+    size_t i;
+    void *d;
+    for (i = NDOORS; i-- > 0;) {
+        pthread_mutex_lock(&doors_mu);
+        d = doors[i];
+        doors[i] = NULL;
+        pthread_mutex_unlock(&doors_mu);
+        door_ops[i]->stop(d);
+    }
 }
 
 /* The job service's part of the daemon's configuration. */
@@ -100,6 +123,9 @@ static void service_config(const srv_config *cfg, svc_config *out)
     out->workers = cfg->workers;
     out->queue = cfg->queue;
     snprintf(out->spool, sizeof out->spool, "%s", cfg->spool);
+    snprintf(out->store, sizeof out->store, "%s", cfg->store);
+    snprintf(out->store_password_file, sizeof out->store_password_file, "%s",
+             cfg->store_password_file);
     out->spool_max_jobs = cfg->spool_max_jobs;
     out->spool_max_bytes = cfg->spool_max_bytes;
     out->lim = cfg->lim;
@@ -179,31 +205,6 @@ static int probe(const srv_config *cfg)
     return ok ? 0 : 1;
 }
 
-/* Resolves the bind address (numeric or a host name) for MHD. */
-static int resolve_bind(const srv_config *cfg, struct sockaddr_storage *ss,
-                        int *ipv6, char *msg, size_t msgsize)
-{
-    struct addrinfo hints, *res = NULL;
-    char port[16];
-    int rc;
-
-    memset(&hints, 0, sizeof hints);
-    hints.ai_family = AF_UNSPEC;
-    hints.ai_socktype = SOCK_STREAM;
-    hints.ai_flags = AI_PASSIVE;
-    snprintf(port, sizeof port, "%d", cfg->port);
-    rc = getaddrinfo(cfg->bind, port, &hints, &res);
-    if (rc != 0 || !res) {
-        snprintf(msg, msgsize, "--bind %s: %s", cfg->bind, gai_strerror(rc));
-        return -1;
-    }
-    memset(ss, 0, sizeof *ss);
-    memcpy(ss, res->ai_addr, res->ai_addrlen);
-    *ipv6 = res->ai_family == AF_INET6;
-    freeaddrinfo(res);
-    return 0;
-}
-
 static void log_start(const srv_config *cfg, const char *url)
 {
     cJSON *o = cJSON_CreateObject();
@@ -215,6 +216,7 @@ static void log_start(const srv_config *cfg, const char *url)
     cJSON_AddNumberToObject(o, "queue", cfg->queue);
     cJSON_AddNumberToObject(o, "http_threads", cfg->http_threads);
     cJSON_AddStringToObject(o, "spool", cfg->spool);
+    cJSON_AddStringToObject(o, "store", cfg->store[0] ? cfg->store : "spool");
     cJSON_AddNumberToObject(o, "max_upload", (double)cfg->lim.max_input_bytes);
     cJSON_AddNumberToObject(o, "max_memory", (double)cfg->max_memory);
     cJSON_AddNumberToObject(o, "result_ttl_s", cfg->result_ttl);
@@ -223,32 +225,98 @@ static void log_start(const srv_config *cfg, const char *url)
     srv_log_json(SRV_LOG_INFO, o);
 }
 
-/* MHD's per-connection pool: the request line, every header and MHD's
- * own records. MHD's default of 32 KiB overflowed on a few hundred
- * headers (431); the query no longer counts (http.c keeps it). */
-#define SRV_CONN_MEMORY (64 * 1024)
-
 /* Waits (polling, bounded) until no request or gRPC call is in flight. */
 static void wait_requests(double seconds)
 {
     double end = srv_mono() + seconds;
     struct timespec ts = {0, 20 * 1000 * 1000};
 
-    while (srv_http_active() + srv_grpc_active() > 0 && srv_mono() < end)
+    while (doors_active() > 0 && srv_mono() < end)
         nanosleep(&ts, NULL);
+}
+
+/* Starts the doors (gRPC unless --grpc-port is off), each saying where it
+ * listens on stdout. 0, or -1 with a reason in msg (the started ones
+ * stopped). */
+static int doors_start(const srv_config *cfg, svc_t *svc, char *url,
+                       size_t urlsize, char *msg, size_t msgsize)
+{
+    static const char *const said[NDOORS] = {"mcfd listening on",
+                                             "mcfd grpc listening on"};
+    const srv_daemon dm = {doors_health, doors_gauges, NULL};
+    char where[300];
+    size_t i;
+    void *d;
+
+    for (i = 0; i < NDOORS; i++) {
+        if (door_ops[i] == &srv_grpc_door && cfg->grpc_port < 0)
+            continue;
+        if (door_ops[i]->start(cfg, svc, &dm, &d, where, sizeof where, msg,
+                               msgsize) != 0) {
+            doors_stop();
+            return -1;
+        }
+        pthread_mutex_lock(&doors_mu);
+        doors[i] = d;
+        pthread_mutex_unlock(&doors_mu);
+        if (i == 0)
+            snprintf(url, urlsize, "%s", where);
+        printf("%s %s\n", said[i], where);
+        fflush(stdout);
+    }
+    return 0;
+}
+
+/* The tick of the main thread: the doors' deadlines and hung-up clients,
+ * the descriptors' health, the TTL sweep once a second, and malloc's free
+ * pages back to the system every 5 s (a burst of calls or connections,
+ * each thread of gRPC's allocating in its own arena, otherwise stays in
+ * RSS after it ends). */
+static void tick(const srv_config *cfg, svc_t *svc, unsigned ticks)
+{
+    size_t i;
+
+    for (i = 0; i < NDOORS; i++)
+        if (doors[i])
+            door_ops[i]->expire(doors[i], cfg);
+    srv_fds_watch(srv_mono());
+    if (ticks % 4 == 0)
+        svc_sweep(svc);
+    if (ticks % 20 == 0)
+        malloc_trim(0);
+}
+
+/* SIGTERM: readiness 503 and no new jobs through every door, running jobs
+ * finish (or are checkpointed back to queued after --drain-timeout),
+ * answers in flight are delivered, then every waiter is woken. */
+static void drain(const srv_config *cfg, svc_t *svc)
+{
+    size_t i;
+
+    svc_drain(svc);
+    for (i = 0; i < NDOORS; i++)
+        door_ops[i]->drain(doors[i]);
+    if (!svc_wait_idle(svc, cfg->drain_timeout)) {
+        srv_logf(SRV_LOG_WARN, "drain timeout: checkpointing running jobs; "
+                 "they run again after the restart");
+        svc_checkpoint_running(svc);
+        svc_wait_idle(svc, 60);
+    }
+    /* Let finished waiters and streams deliver, then wake whoever is left. */
+    wait_requests(5);
+    svc_close_waiters(svc);
+    wait_requests(2);
 }
 
 int main(int argc, char **argv)
 {
     srv_config cfg;
     svc_config scfg;
+    svc_t *svc = NULL;
     char msg[512], url[300];
-    struct sockaddr_storage ss;
-    struct MHD_Daemon *d = NULL;
-    const union MHD_DaemonInfo *info;
     sigset_t sigs;
-    int rc, ipv6 = 0, sig;
-    unsigned port;
+    int rc, sig;
+    unsigned ticks;
     double t_sigterm;
 
     /* The hidden decode mode of the Draco sandbox (sandbox.c): a child
@@ -280,121 +348,35 @@ int main(int argc, char **argv)
     sigaddset(&sigs, SIGINT);
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
 
-    if (srv_spool_init(cfg.spool, msg, sizeof msg) != 0 ||
-        resolve_bind(&cfg, &ss, &ipv6, msg, sizeof msg) != 0) {
-        fprintf(stderr, "mcfd: %s\n", msg);
-        return 1;
-    }
     srv_metrics_init();
-    srv_http_init(&cfg, doors_health, srv_grpc_gauges);
     service_config(&cfg, &scfg);
-    if (svc_start(&scfg, msg, sizeof msg) != 0) {
+    if (svc_start(&scfg, &svc, msg, sizeof msg) != 0 ||
+        doors_start(&cfg, svc, url, sizeof url, msg, sizeof msg) != 0) {
         fprintf(stderr, "mcfd: %s\n", msg);
+        svc_stop(svc);
         return 1;
-    }
-    d = MHD_start_daemon(
-        MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME |
-            MHD_USE_ERROR_LOG | (ipv6 ? MHD_USE_IPv6 : 0),
-        (uint16_t)cfg.port, mhd_accept, &cfg, srv_http_handle, NULL,
-        MHD_OPTION_EXTERNAL_LOGGER, mhd_log, NULL,
-        MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
-        MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg.http_threads,
-        MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg.max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv_http_ip_backstop(&cfg),
-        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)cfg.send_timeout,
-        MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, NULL,
-        MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, NULL,
-        MHD_OPTION_NOTIFY_CONNECTION, srv_http_connection, NULL,
-        MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)SRV_CONN_MEMORY,
-        MHD_OPTION_END);
-    if (!d) {
-        fprintf(stderr, "mcfd: cannot listen on %s:%d (%s)\n", cfg.bind,
-                cfg.port, strerror(errno));
-        svc_stop();
-        return 1;
-    }
-    info = MHD_get_daemon_info(d, MHD_DAEMON_INFO_BIND_PORT);
-    port = info ? info->port : (unsigned)cfg.port;
-    snprintf(url, sizeof url, ipv6 ? "http://[%s]:%u" : "http://%s:%u",
-             cfg.bind, port);
-    printf("mcfd listening on %s\n", url);
-    fflush(stdout);
-    if (cfg.grpc_port >= 0) {
-        int gport = 0;
-        if (srv_grpc_start(&cfg, &gport, msg, sizeof msg) != 0) {
-            fprintf(stderr, "mcfd: %s\n", msg);
-            MHD_stop_daemon(d);
-            svc_stop();
-            return 1;
-        }
-        printf(ipv6 ? "mcfd grpc listening on [%s]:%d\n"
-                    : "mcfd grpc listening on %s:%d\n", cfg.bind, gport);
-        fflush(stdout);
     }
     log_start(&cfg, url);
 
-    for (unsigned ticks = 0;; ticks++) {
-        /* Four ticks a second: clients that hung up free their worker
-         * within about 0.25 s plus the current step; the TTL sweep runs
-         * once a second. */
-        struct timespec tick = {0, 250 * 1000 * 1000};
-        sig = sigtimedwait(&sigs, NULL, &tick);
+    /* Four ticks a second: clients that hung up free their worker within
+     * about 0.25 s plus the current step. */
+    for (ticks = 0;; ticks++) {
+        struct timespec t = {0, 250 * 1000 * 1000};
+        sig = sigtimedwait(&sigs, NULL, &t);
         if (sig == SIGTERM || sig == SIGINT)
             break;
-        srv_http_check_clients();
-        srv_fds_watch(srv_mono());
-        {
-            int n = srv_http_expire_heads(cfg.header_timeout,
-                                          cfg.max_connections,
-                                          cfg.body_timeout);
-            if (n > 0)
-                srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no "
-                         "complete request head within --header-timeout %g s "
-                         "(2 s past --max-connections-per-ip) or no complete "
-                         "body within --body-timeout %g s",
-                         n, n == 1 ? "" : "s", cfg.header_timeout,
-                         cfg.body_timeout);
-        }
-        if (cfg.grpc_port >= 0) {
-            int n = srv_grpc_expire(cfg.header_timeout, cfg.body_timeout,
-                                    cfg.send_timeout);
-            if (n > 0)
-                srv_logf(SRV_LOG_WARN, "ended %d gRPC call%s that sent no "
-                         "header within --header-timeout %g s, no whole "
-                         "upload within --body-timeout %g s, or read nothing "
-                         "for --send-timeout %g s", n, n == 1 ? "" : "s",
-                         cfg.header_timeout, cfg.body_timeout,
-                         cfg.send_timeout);
-        }
-        if (ticks % 4 == 0)
-            svc_sweep();
-        /* Every 5 s, malloc's free pages go back to the system: a burst
-         * of calls or connections (each thread of gRPC's allocates in its
-         * own arena) otherwise stays in RSS after it ends. */
-        if (ticks % 20 == 0)
-            malloc_trim(0);
+        tick(&cfg, svc, ticks);
     }
 
     t_sigterm = srv_mono();
     srv_logf(SRV_LOG_INFO, "%s: draining (readyz 503, no new jobs, running "
              "jobs finish within %g s)", sig == SIGTERM ? "SIGTERM" : "SIGINT",
              cfg.drain_timeout);
-    svc_drain();
-    srv_grpc_drain();
-    if (!svc_wait_idle(cfg.drain_timeout)) {
-        srv_logf(SRV_LOG_WARN, "drain timeout: checkpointing running jobs; "
-                 "they run again after the restart");
-        svc_checkpoint_running();
-        svc_wait_idle(60);
-    }
-    /* Let finished waiters and streams deliver, then wake whoever is left. */
-    wait_requests(5);
-    svc_close_waiters();
-    wait_requests(2);
-    /* gRPC before the job service: its calls hold jobs and subscriptions */
-    srv_grpc_stop();
-    MHD_stop_daemon(d);
-    svc_stop();
+    drain(&cfg, svc);
+    /* the doors before the job service: their calls hold jobs and
+     * subscriptions */
+    doors_stop();
+    svc_stop(svc);
     srv_logf(SRV_LOG_INFO, "stopped after %.3f s of drain", srv_mono() - t_sigterm);
     return 0;
 }

@@ -1,60 +1,16 @@
 /*
  * reply.c - what the REST client reads: responses (queued and counted),
- * errors as RFC 9457 problem+json documents with the service error ->
- * HTTP status map (service.h's table), and the job document with its
- * links.
- *
- * The map is a switch over every code of the MCF_ERRORS table with no
- * default branch, so -Wswitch flags a code appended to core/mcf.h that
- * this file has not mapped yet. Where a code came from (parameters,
- * decoding, the flow) decides between 400 and 422: a parameter the client
- * spelled wrong or a body that does not parse is the request's fault
- * (400); a well-formed mesh the flow cannot smooth is 422.
+ * errors as RFC 9457 problem+json documents (their status and code from
+ * service.h's table of problems), and the job document with its links.
  */
 #include <ctype.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "http.h"
-
-unsigned srv_http_status(mcf_status s, svc_stage stage)
-{
-    switch (s) {
-    case MCF_OK:
-        return 200;
-    case MCF_ENOMEM:
-        return 503;            /* transient: retry when memory frees up */
-    case MCF_EINVAL:
-        /* A parameter (named in the detail) is wrong; from the flow itself
-         * it means a combination only the mesh reveals. */
-        return stage == SVC_STAGE_RUN ? 422 : 400;
-    case MCF_EDECODE:
-        /* Bytes that do not parse as the detected format (or a params
-         * document that is not JSON): malformed request content. */
-        return 400;
-    case MCF_EFORMAT:
-        return 415;
-    case MCF_ELIMIT:
-        /* Only input over a size limit is "Content Too Large". A step or
-         * work budget is the parameters' fault when they alone exceed it
-         * (400), else a property of this mesh with these parameters (422);
-         * the detail names the parameter or limit. */
-        return stage == SVC_STAGE_DECODE ? 413
-               : stage == SVC_STAGE_PARAMS ? 400 : 422;
-    case MCF_EMESH:
-    case MCF_ENOTPOSDEF:
-    case MCF_ENUMERIC:
-    case MCF_ENOCONV:
-        return 422;
-    case MCF_ECANCELED:
-        return 409;            /* canceled through DELETE /v1/jobs/ID */
-    case MCF_EIO:
-        return 500;
-    }
-    return 500;
-}
 
 const char *srv_http_reason(unsigned status)
 {
@@ -78,75 +34,27 @@ const char *srv_http_reason(unsigned status)
     }
 }
 
-void srv_problem_set(srv_problem *p, unsigned http, const char *code,
-                     const char *fmt, ...)
-{
-    va_list ap;
-
-    p->http = http;
-    snprintf(p->code, sizeof p->code, "%s", code);
-    va_start(ap, fmt);
-    vsnprintf(p->detail, sizeof p->detail, fmt, ap);
-    va_end(ap);
-}
-
-void srv_problem_from_svc(srv_problem *p, const svc_error *e)
-{
-    unsigned http = 500;
-
-    switch (e->code) {
-    case SVC_OK:
-        http = 200;
-        break;
-    case SVC_EPARAMS:
-    case SVC_EINPUT:
-    case SVC_EMESH:
-        http = srv_http_status(e->mcf, e->stage);
-        break;
-    case SVC_ENOMEM:
-    case SVC_EBUSY:
-    case SVC_EQUOTA:
-    case SVC_EDRAINING:
-        http = 503;
-        break;
-    case SVC_ENOTFOUND:
-        http = 404;
-        break;
-    case SVC_ENOTREADY:
-    case SVC_ENORESULT:
-    case SVC_ECANCELED:
-        http = 409;
-        break;
-    case SVC_ETIMEOUT:
-        http = 422;
-        break;
-    case SVC_ESTORAGE:
-    case SVC_EINTERNAL:
-        http = 500;
-        break;
-    }
-    srv_problem_set(p, http, e->name, "%s", e->detail);
-}
-
-cJSON *srv_problem_json(const srv_problem *p, const char *instance,
+cJSON *srv_problem_json(const svc_error *e, const char *instance,
                         const char *job_id)
 {
     char type[64];
     size_t i, n;
+    unsigned http = svc_problem_http(e->problem);
     cJSON *o = cJSON_CreateObject();
 
     if (!o)
         return NULL;
     /* A stable, non-dereferenceable identifier per error code; the codes
      * are listed in /openapi.yaml (components.schemas.Problem). */
-    n = (size_t)snprintf(type, sizeof type, "urn:mcfd:problem:%s", p->code);
+    n = (size_t)snprintf(type, sizeof type, "urn:mcfd:problem:%s",
+                         svc_problem_name(e->problem));
     for (i = sizeof "urn:mcfd:problem:" - 1; i < n && i < sizeof type; i++)
         type[i] = (char)tolower((unsigned char)type[i]);
     if (!cJSON_AddStringToObject(o, "type", type) ||
-        !cJSON_AddStringToObject(o, "title", srv_http_reason(p->http)) ||
-        !cJSON_AddNumberToObject(o, "status", p->http) ||
-        !cJSON_AddStringToObject(o, "detail", p->detail) ||
-        !cJSON_AddStringToObject(o, "code", p->code) ||
+        !cJSON_AddStringToObject(o, "title", srv_http_reason(http)) ||
+        !cJSON_AddNumberToObject(o, "status", http) ||
+        !cJSON_AddStringToObject(o, "detail", e->detail) ||
+        !cJSON_AddStringToObject(o, "code", svc_problem_name(e->problem)) ||
         (instance && !cJSON_AddStringToObject(o, "instance", instance)) ||
         (job_id && !cJSON_AddStringToObject(o, "job", job_id))) {
         cJSON_Delete(o);
@@ -229,20 +137,25 @@ enum MHD_Result srv_send_json(srv_request *r, struct MHD_Connection *c,
 }
 
 enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
-                                    const srv_problem *p, const char *job)
+                                 const svc_error *e, const char *job)
 {
+    unsigned http = svc_problem_http(e->problem);
     struct MHD_Response *resp =
-        srv_json_response(srv_problem_json(p, r->path, job), "application/problem+json", 0);
+        srv_json_response(srv_problem_json(e, r->path, job), "application/problem+json", 0);
+    char retry[24];
 
     if (!resp)
         return MHD_NO;
-    if (p->http == 503)
-        MHD_add_response_header(resp, MHD_HTTP_HEADER_RETRY_AFTER,
-                                strcmp(p->code, "EDRAINING") == 0 ? "5" : "1");
-    if (p->http == 401)
+    /* the error's delay, the one gRPC sends too; any other 503 says 1 s */
+    if (e->retry_after > 0 || http == 503) {
+        snprintf(retry, sizeof retry, "%.0f",
+                 e->retry_after > 0 ? ceil(e->retry_after) : 1.0);
+        MHD_add_response_header(resp, MHD_HTTP_HEADER_RETRY_AFTER, retry);
+    }
+    if (http == 401)
         MHD_add_response_header(resp, MHD_HTTP_HEADER_WWW_AUTHENTICATE,
                                 "Bearer realm=\"mcfd\"");
-    if (p->http == 405)
+    if (http == 405)
         MHD_add_response_header(resp, MHD_HTTP_HEADER_ALLOW,
                                 r->rt == RT_SMOOTH ? "POST"
                                 : r->rt == RT_JOBS ? "POST"
@@ -250,22 +163,20 @@ enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
                                                    : "GET, HEAD");
     if (job)
         MHD_add_response_header(resp, "X-Job-Id", job);
-    return srv_respond(r, c, p->http, resp);
+    return srv_respond(r, c, http, resp);
 }
 
 enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
-                                  unsigned http, const char *code,
-                                  const char *fmt, ...)
+                                  svc_problem p, const char *fmt, ...)
 {
-    srv_problem p;
+    svc_error e;
     va_list ap;
 
-    p.http = http;
-    snprintf(p.code, sizeof p.code, "%s", code);
+    svc_error_set(&e, p, "%s", "");
     va_start(ap, fmt);
-    vsnprintf(p.detail, sizeof p.detail, fmt, ap);
+    vsnprintf(e.detail, sizeof e.detail, fmt, ap);
     va_end(ap);
-    return srv_send_problem(r, c, &p, NULL);
+    return srv_send_problem(r, c, &e, NULL);
 }
 
 
@@ -276,35 +187,91 @@ struct MHD_Response *srv_empty_response(void)
 
 /* ------------------------------------------------------------ job document */
 
+static void add_time(cJSON *o, const char *key, double t)
+{
+    char buf[40];
+    if (t > 0) {
+        srv_time_rfc3339(t, buf, sizeof buf);
+        cJSON_AddStringToObject(o, key, buf);
+    } else {
+        cJSON_AddNullToObject(o, key);
+    }
+}
+
+static void add_num(cJSON *o, const char *key, double v)
+{
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, key, v);
+    else
+        cJSON_AddNullToObject(o, key);
+}
+
+/* The progress object: before the first step there is nothing to
+ * report. */
+static void add_progress(cJSON *o, const svc_snap *s)
+{
+    cJSON *p = cJSON_AddObjectToObject(o, "progress");
+
+    if (!p)
+        return;
+    cJSON_AddNumberToObject(p, "step", s->step);
+    if (s->steps_planned > 0)
+        cJSON_AddNumberToObject(p, "steps", s->steps_planned);
+    else
+        cJSON_AddNullToObject(p, "steps");
+    add_num(p, "t", s->step > 0 ? s->t : NAN);
+    add_num(p, "dt", s->step > 0 ? s->dt : NAN);
+    add_num(p, "energy", s->step > 0 ? s->energy : NAN);
+    add_num(p, "volume", s->step > 0 ? s->volume : NAN);
+    cJSON_AddNumberToObject(p, "fraction", s->fraction);
+}
+
+static void add_links(cJSON *o, const char *id)
+{
+    static const char *const rel[] = {"self", "", "result", "/result",
+                                      "metrics", "/metrics", "events", "/events"};
+    char link[96];
+    cJSON *l = cJSON_AddObjectToObject(o, "links");
+    size_t i;
+
+    for (i = 0; l && i < sizeof rel / sizeof *rel; i += 2) {
+        snprintf(link, sizeof link, "/v1/jobs/%s%s", id, rel[i + 1]);
+        cJSON_AddStringToObject(l, rel[i], link);
+    }
+}
+
 cJSON *srv_job_json(const svc_job *j, svc_snap *snap)
 {
     char link[96];
-    const char *id = svc_job_id(j);
     svc_snap s;
-    cJSON *o = svc_job_json(j, &s), *l;
+    cJSON *o = cJSON_CreateObject(), *x;
 
-    if (!o)
+    if (!o || svc_job_document(j, &s) != 0) {
+        cJSON_Delete(o);
         return NULL;
+    }
+    cJSON_AddStringToObject(o, "id", s.id);
+    cJSON_AddStringToObject(o, "status", svc_job_status_name(s.status));
+    add_time(o, "created", s.created);
+    add_time(o, "started", s.started);
+    add_time(o, "finished", s.finished);
+    add_progress(o, &s);
+    if (s.cancel_requested)
+        cJSON_AddBoolToObject(o, "cancel_requested", 1);
+    if (s.params && (x = cJSON_Parse(s.params)) != NULL)
+        cJSON_AddItemToObject(o, "params", x);
+    if (s.in_format[0])
+        cJSON_AddStringToObject(o, "input_format", s.in_format);
+    if (s.metrics && (x = cJSON_Parse(s.metrics)) != NULL)
+        cJSON_AddItemToObject(o, "metrics", x);
+    if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
+        snprintf(link, sizeof link, "/v1/jobs/%s", s.id);
+        if ((x = srv_problem_json(&s.error, link, s.id)) != NULL)
+            cJSON_AddItemToObject(o, "error", x);
+    }
+    add_links(o, s.id);
+    svc_snap_free(&s);
     if (snap)
         *snap = s;
-    if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
-        srv_problem p;
-        cJSON *e;
-        srv_problem_from_svc(&p, &s.error);
-        snprintf(link, sizeof link, "/v1/jobs/%s", id);
-        if ((e = srv_problem_json(&p, link, id)) != NULL)
-            cJSON_AddItemToObject(o, "error", e);
-    }
-    l = cJSON_AddObjectToObject(o, "links");
-    if (l) {
-        snprintf(link, sizeof link, "/v1/jobs/%s", id);
-        cJSON_AddStringToObject(l, "self", link);
-        snprintf(link, sizeof link, "/v1/jobs/%s/result", id);
-        cJSON_AddStringToObject(l, "result", link);
-        snprintf(link, sizeof link, "/v1/jobs/%s/metrics", id);
-        cJSON_AddStringToObject(l, "metrics", link);
-        snprintf(link, sizeof link, "/v1/jobs/%s/events", id);
-        cJSON_AddStringToObject(l, "events", link);
-    }
     return o;
 }

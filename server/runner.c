@@ -1,21 +1,20 @@
 /*
  * runner.c - one job, start to end, on a worker thread: reads the input
- * back from the spool, rebuilds the parameters from the record, decodes,
- * checks, smooths with progress events, encodes, computes the metrics
- * document, writes result and metrics to the spool, and publishes the
- * outcome (state.json first, then memory, then the subscribers).
+ * back from the store, runs the job (api_job_run: decode, check, smooth
+ * with progress events, encode, the metrics document), writes result,
+ * metrics and fields to the store, and returns the outcome; the worker
+ * records and publishes it (svc__finish).
  *
- * No lock is held across mesh work or disk I/O: the job's fields are
- * read and written in short sections under the service lock. The
- * progress callback appends one ndjson event per step, notifies the
- * progress subscribers and turns a passed job timeout into a cancel.
+ * What is the daemon's comes in through api_job_run's hooks: the Draco
+ * sandbox (sandbox.c), memory admission once the counts are known
+ * (svc_admit.c), progress events and the job timeout (svc__progress), the
+ * result written to the store. This file takes no lock: what it changes
+ * of the job goes through svc_job.c.
  */
 #include <errno.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "svc_internal.h"
 #include "svc_admit.h"
@@ -23,599 +22,253 @@
 
 typedef struct {
     svc_job *job;
-    const mcf_flow_stats *st; /* the run's statistics: its step log */
-    double deadline;          /* srv_mono() seconds, 0: none */
+    svc_t *svc;
+    int tries;                /* retries spent (svc__retry) */
+    size_t input_len, target_len;
+    svc_error prob;           /* a hook's own error (memory, the store) */
+    int has_prob;
 } run_ctx;
 
-static void fmt_num(char *buf, size_t size, double v)
+/* A blob read back, tried again on a transient error. */
+static int read_retry(run_ctx *c, const char *name, char **data, size_t *len)
 {
-    if (isfinite(v))
-        snprintf(buf, size, "%.17g", v);
-    else
-        snprintf(buf, size, "null");
-}
-
-/* Errors of a resource a client can exhaust (descriptors, disk space,
- * memory) are worth trying again; any other is final at once. */
-static int transient(int e)
-{
-    return e == EMFILE || e == ENFILE || e == ENOSPC || e == EDQUOT ||
-           e == ENOMEM || e == EAGAIN || e == ENOBUFS;
-}
-
-/* Before attempt *tries + 2 of a step that failed with errno e: waits
- * 0.1 s doubling to at most 8 s (SVC_RETRY_TRIES retries: 37 s in all),
- * watching the cancel flag (any cancel, or with only_shutdown the
- * shutdown's alone). 1 to try again; 0 to give up: e is not transient,
- * the tries are spent, or the job is being stopped. errno is kept. */
-static int retry(svc_job *j, int *tries, int e, const char *what,
-                 int only_shutdown)
-{
-    double delay, end;
-
-    if (!transient(e) || *tries >= SVC_RETRY_TRIES)
-        goto give_up;
-    delay = 0.1 * (double)(1 << *tries);
-    if (delay > 8)
-        delay = 8;
-    (*tries)++;
-    srv_logf(SRV_LOG_WARN, "job %s: %s: %s; try %d of %d in %.1f s", j->id,
-             what, strerror(e), *tries + 1, SVC_RETRY_TRIES + 1, delay);
-    for (end = srv_mono() + delay; srv_mono() < end;) {
-        struct timespec ts = {0, 20 * 1000 * 1000};
-        int stop;
-        svc__lock();
-        stop = j->cancel && (!only_shutdown ||
-                             j->cancel_reason == SVC_CANCEL_SHUTDOWN);
-        svc__unlock();
-        if (stop)
-            goto give_up;
-        nanosleep(&ts, NULL);
-    }
-    errno = e;
-    return 1;
-give_up:
-    errno = e;
-    return 0;
-}
-
-/* srv_spool_read, tried again on a transient error (retry). */
-static int read_retry(svc_job *j, const char *name, char **data, size_t *len,
-                      int *tries)
-{
+    svc_store *st = c->svc->store;
     char what[64];
+
     snprintf(what, sizeof what, "reading its %s", name);
-    while (srv_spool_read(svc__S.cfg.spool, j->id, name, data, len) != 0)
-        if (!retry(j, tries, errno, what, 0))
+    while (st->ops->get(st, c->job->id, name, data, len) != 0)
+        if (!svc__retry(c->job, &c->tries, errno, what, 0))
             return -1;
     return 0;
 }
 
-/* Lock held: one more ndjson line in the job's event log (dropped when
- * the log is full or memory is short: the stream then skips it). */
-static void add_event(svc_job *j, const char *line, size_t n)
+/* A blob written durably, tried again on a transient error. */
+static int write_retry(run_ctx *c, const char *name, const void *data,
+                       size_t len)
 {
-    if (j->nevents == j->event_cap) {
-        int cap = j->event_cap ? 2 * j->event_cap : 256;
-        size_t *p = realloc(j->event_end, (size_t)cap * sizeof *p);
-        if (!p)
-            return;
-        j->event_end = p;
-        j->event_cap = cap;
-    }
-    if (api_buf_append(&j->events, line, n) == MCF_OK)
-        j->event_end[j->nevents++] = j->events.len;
+    svc_store *st = c->svc->store;
+
+    while (st->ops->put(st, c->job->id, name, data, len, 1) != 0)
+        if (!svc__retry(c->job, &c->tries, errno, "writing its result", 0))
+            return -1;
+    return 0;
 }
 
-static int on_progress(void *ctx, int step, double t, double dt, double energy)
+/* ------------------------------------------------------------------ hooks */
+
+/* sandbox.c: Draco decodes in a child process under limits; a decode out
+ * of memory is tried again. */
+static mcf_status hook_decode(void *ctx, const char *part, const void *buf,
+                              size_t len, const api_limits *lim,
+                              mcf_mesh **out, api_attrs **attrs,
+                              api_format *fmt, api_job_stage *stage,
+                              mcf_error *err)
 {
     run_ctx *c = ctx;
-    svc_job *j = c->job;
-    /* The step's volume is the step log's (the core fills entry step - 1
-     * before this call): the quantity of flow.volume0/volume1 and
-     * mcf_mesh_volume, in input units (api_metrics.c). */
-    double vol = c->st->log && step >= 1 && step <= c->st->nlog
-                     ? c->st->log[step - 1].volume : NAN;
-    char line[320], a[32], b[32], e[32], v[32];
-    int stop, n;
+    mcf_status rc;
 
-    fmt_num(a, sizeof a, t);
-    fmt_num(b, sizeof b, dt);
-    fmt_num(e, sizeof e, energy);
-    fmt_num(v, sizeof v, vol);
-    n = snprintf(line, sizeof line,
-                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
-                 step, a, b, e, v);
-    svc__lock();
-    j->step = step;
-    j->t = t;
-    j->dt = dt;
-    j->energy = energy;
-    j->volume = vol;
-    if (n > 0)
-        add_event(j, line, (size_t)n);
-    svc__notify(j, SVC_NOTIFY_PROGRESS);
-    if (!j->cancel && c->deadline > 0 && srv_mono() > c->deadline) {
-        j->cancel = 1;
-        j->cancel_reason = SVC_CANCEL_TIMEOUT;
-    }
-    stop = j->cancel;
-    svc__unlock();
-    return stop;
-}
-
-/* When the run is over, before its outcome is published: its progress
- * events go to the spool (events.ndjson and events.idx, not fsynced:
- * nothing depends on them after a crash) and out of memory, where
- * admission no longer counts them; svc_job_events reads them back. A
- * spool that takes no write loses them (followers then see the outcome
- * alone). Only this worker appends to or frees them, so they are read
- * outside the lock. */
-static void events_to_spool(svc_job *j)
-{
-    const char *spool = svc__S.cfg.spool;
-    const char *data;
-    const size_t *ends;
-    size_t len;
-    int n, ok;
-
-    svc__lock();
-    data = j->events.data;
-    len = j->events.len;
-    ends = j->event_end;
-    n = j->nevents;
-    svc__unlock();
-    if (n == 0)
-        return;
-    ok = srv_spool_write(spool, j->id, "events.ndjson", data, len, 0) == 0 &&
-         srv_spool_write(spool, j->id, "events.idx", ends,
-                         (size_t)n * sizeof *ends, 0) == 0;
-    if (!ok)
-        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
-                 "written to the spool (%s); late followers get its outcome "
-                 "alone", j->id, n, strerror(errno));
-    svc__lock();
-    api_buf_free(&j->events);
-    api_buf_init(&j->events, SVC_EVENTS_MAX);
-    free(j->event_end);
-    j->event_end = NULL;
-    j->event_cap = 0;
-    if (ok) {
-        size_t add = len + (size_t)n * sizeof *ends;
-        j->events_disk = len;
-        j->disk_bytes += add;
-        if (j->in_table)
-            svc__S.disk_bytes += add;
-    } else {
-        j->nevents = 0;
-    }
-    svc__unlock();
-}
-
-/* The metrics document of a finished job: api's, the CLI's too
- * (api_metrics_json), with the daemon's own facts. */
-static char *metrics_doc(const svc_job *j, const api_metrics *mt,
-                         const api_params *prm, const mcf_flow_stats *st,
-                         api_format in_fmt, api_format out_fmt, double qerr,
-                         size_t in_bytes, size_t out_bytes, double t_queue,
-                         double t_decode, double t_flow, double t_encode,
-                         double t_metrics)
-{
-    api_metrics_run run;
-    cJSON *o;
-    char *s;
-
-    api_metrics_run_init(&run);
-    run.job = j->id;
-    run.input_name = j->rec.filename[0] ? j->rec.filename : NULL;
-    run.output_name = j->result_name;
-    run.target_name = j->rec.has_target ? "target" : NULL;
-    run.input_format = in_fmt;
-    run.output_format = out_fmt;
-    run.input_bytes = in_bytes;
-    run.output_bytes = out_bytes;
-    run.quantization_max_error = qerr;
-    run.queue_s = t_queue;
-    run.decode_s = t_decode;
-    run.flow_s = t_flow;
-    run.encode_s = t_encode;
-    run.metrics_s = t_metrics;
-    run.total_s = t_decode + t_flow + t_encode + t_metrics;
-    o = api_metrics_json(mt, prm, st, &run);
-    s = o ? cJSON_PrintUnformatted(o) : NULL;
-    cJSON_Delete(o);
-    return s;
-}
-
-/* The error of a job stopped by its cancel flag after `steps` steps
- * (-1: while its input was decoded); 1 when it must run again after a
- * restart. */
-static int canceled_error(svc_job *j, int steps, svc_error *prob)
-{
-    const svc_config *cfg = &svc__S.cfg;
-    char when[48];
-    int reason;
-
-    svc__lock();
-    reason = j->cancel_reason;
-    svc__unlock();
-    if (steps >= 0)
-        snprintf(when, sizeof when, "after step %d", steps);
-    else
-        snprintf(when, sizeof when, "while its input was decoded");
-    if (reason == SVC_CANCEL_SHUTDOWN)
-        svc_error_set(prob, SVC_EDRAINING, NULL, "the daemon shut down "
-                      "while job %s ran; it runs again after the restart",
-                      j->id);
-    else if (reason == SVC_CANCEL_TIMEOUT)
-        svc_error_set(prob, SVC_ETIMEOUT, "ELIMIT", "the job ran longer than "
-                      "--job-timeout %g s and was stopped %s",
-                      cfg->job_timeout, when);
-    else if (reason == SVC_CANCEL_CLIENT)
-        svc_error_set(prob, SVC_ECANCELED, NULL, "canceled %s: the client "
-                      "closed its connection before the answer", when);
-    else
-        svc_error_set(prob, SVC_ECANCELED, NULL, "canceled by request %s",
-                      when);
-    prob->cancel = (svc_cancel_reason)reason;
-    return reason == SVC_CANCEL_SHUTDOWN;
+    (void)lim;
+    while ((rc = svc_decode_upload(buf, len, &c->svc->cfg, &c->job->cancel,
+                                   out, attrs, fmt, stage, err)) == MCF_ENOMEM &&
+           strcmp(part, "mesh") == 0 &&
+           svc__retry(c->job, &c->tries, ENOMEM, "decoding", 0))
+        ;
+    return rc;
 }
 
 /* After decoding: the estimate from the real counts (svc_admit.c); over
  * --max-job-memory an ELIMIT, else the reservation grows (waiting for
- * memory). 0 when the job may go on, else prob is set and -1 (it failed)
- * or 1 (canceled by the shutdown: it runs again after the restart). */
-static int memory_regrow(svc_job *j, int nv, int nf, size_t input_len,
-                         size_t target_len, const api_params *p,
-                         int keep_fields, svc_error *prob)
+ * memory; ECANCELED when the job is stopped meanwhile). */
+static mcf_status hook_decoded(void *ctx, int nv, int nf, const api_params *p,
+                               mcf_error *err)
 {
-    /* fields=true: the mesh kept from before the flow (48 bytes a vertex
-     * with its faces), five double fields (40) and the document (68, up
-     * to twice that while its buffer grows). */
-    double est = svc_admit_estimate_counts(nv, nf, input_len, target_len, p,
-                                           &svc__S.cfg.lim) +
-                 (keep_fields ? 256.0 * nv : 0);
-    if (svc_admit_refuse(&svc__S.cfg, est, prob))
-        return -1;
-    if (svc_admit_grow(&svc__S.cfg, &j->mem_held, est, &j->cancel) != 0)
-        return canceled_error(j, -1, prob) ? 1 : -1;
+    run_ctx *c = ctx;
+    svc_t *s = c->svc;
+    /* fields: the mesh kept from before the flow (48 bytes a vertex with
+     * its faces), five double fields (40) and the document (68, up to
+     * twice that while its buffer grows). */
+    double est = svc_admit_estimate_counts(nv, nf, c->input_len, c->target_len,
+                                           p, &s->cfg.lim) +
+                 (c->job->keep_fields ? 256.0 * nv : 0);
+
+    if (svc_admit_refuse(&s->cfg, est, &c->prob)) {
+        c->has_prob = 1;
+        return mcf_error_set(err, MCF_ELIMIT, "%s", c->prob.detail);
+    }
+    if (svc_admit_grow(s, &c->job->mem_held, est, &c->job->cancel) != 0)
+        return mcf_error_set(err, MCF_ECANCELED, "canceled");
+    return MCF_OK;
+}
+
+static void hook_ready(void *ctx, const api_params *p, api_format in_fmt)
+{
+    run_ctx *c = ctx;
+    svc__ready(c->job, mcf_scheme_get(p->flow.scheme)->name,
+               api_format_name(in_fmt));
+}
+
+static int hook_progress(void *ctx, const api_job_step *st)
+{
+    return svc__progress(((run_ctx *)ctx)->job, st);
+}
+
+/* The result in the store (durable, retried). */
+static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
+                             mcf_error *err)
+{
+    run_ctx *c = ctx;
+
+    if (write_retry(c, name, out->data ? out->data : "", out->len) == 0)
+        return MCF_OK;
+    svc_error_set(&c->prob, SVC_P_STORAGE, "cannot write the result of job "
+                  "%s to the spool (%d tries): %s", c->job->id, c->tries + 1,
+                  strerror(errno));
+    c->has_prob = 1;
+    return mcf_error_set(err, MCF_EIO, "%s", c->prob.detail);
+}
+
+/* ---------------------------------------------------------------- the run */
+
+/* The service error of a failed api_job_run: a cancel, a hook's own, or
+ * the core's or a codec's with its stage and part. 1 when the job must
+ * run again after a restart. */
+static int job_error(run_ctx *c, const api_job_result *res, svc_error *e)
+{
+    const char *part = res->part ? res->part : "";
+    int prefixed = strcmp(part, "params") != 0 && strcmp(part, "fields") != 0;
+
+    if (res->err.status == MCF_ECANCELED && svc__canceled(c->job))
+        return svc__canceled_error(c->job, strcmp(part, "flow") == 0
+                                               ? res->stats.steps : -1, e);
+    if (c->has_prob) {
+        *e = c->prob;
+        return svc__canceled(c->job) ? svc__canceled_error(c->job, -1, e) : 0;
+    }
+    svc_error_from_mcf(e, res->err.status, res->stage, prefixed ? part : NULL,
+                       &res->err);
     return 0;
 }
 
-/* Lock held: a job whose outcome (final) the spool would not take goes
- * back to queued, where its state.json still has it, and runs again
- * after a delay (svc_sweep puts it back in the queue): 2, 4, ... 60 s.
- * A client never sees an outcome a restart could change. */
-static void park_locked(svc_job *j, svc_job_status final, int e)
+/* A retry given up because the job was stopped is its cancel's error. */
+static int store_failed(run_ctx *c, const char *what, svc_error *e)
 {
-    int k = j->parks < 5 ? j->parks : 5;
-    double delay = (double)(2 << k);
-
-    if (delay > 60)
-        delay = 60;
-    j->parks++;
-    j->parked = 1;
-    j->retry_at = srv_mono() + delay;
-    j->status = SVC_JOB_QUEUED;
-    j->ready = 0;
-    j->started = j->finished = 0;
-    j->step = 0;
-    j->t = 0;
-    j->result_len = 0;
-    /* its progress runs again from step 1; the events it wrote to the
-     * spool are written again at its end (uncounted till then) */
-    if (j->events_disk) {
-        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
-        j->disk_bytes -= sub;
-        if (j->in_table)
-            svc__S.disk_bytes -= sub;
-        j->events_disk = 0;
-    }
-    api_buf_free(&j->events);
-    api_buf_init(&j->events, SVC_EVENTS_MAX);
-    j->nevents = 0;
-    svc_error_set(&j->err, SVC_ESTORAGE, "EIO", "job %s %s, but the spool "
-                  "could not record it (%s); it runs again in %g s", j->id,
-                  svc_job_status_name(final), strerror(e), delay);
-    srv_logf(SRV_LOG_ERROR, "spool: %s", j->err.detail);
+    svc_error_set(e, SVC_P_STORAGE, "cannot %s of job %s %s the spool (%d "
+                  "tries): %s", what, c->job->id,
+                  strncmp(what, "read", 4) == 0 ? "from" : "to", c->tries + 1,
+                  strerror(errno));
+    return svc__canceled(c->job) && svc__canceled_error(c->job, -1, e);
 }
 
-void svc__run_job(svc_job *j)
+/* The job's request for api_job_run, its hooks bound to c. */
+static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
 {
-    const svc_config *cfg = &svc__S.cfg;
+    svc_job *j = c->job;
+
+    rq->lim = &c->svc->cfg.lim;
+    rq->metrics = 1;
+    rq->fields = j->keep_fields;
+    rq->max_output = SVC_RESULT_MAX;
+    rq->job = j->id;
+    rq->input_name = j->filename[0] ? j->filename : NULL;
+    rq->target_name = "target";
+    rq->output_stem = "result";
+    rq->free_bytes = 1;
+    rq->queue_s = j->started - j->created; /* this worker's (svc__start) */
+    memset(h, 0, sizeof *h);
+    h->ctx = c;
+    h->decode = hook_decode;
+    h->decoded = hook_decoded;
+    h->ready = hook_ready;
+    h->progress = hook_progress;
+    h->store = hook_store;
+    h->cancel = &j->cancel;
+}
+
+/* Reads the input back, runs the job, writes metrics and fields. 0, or -1
+ * with o->err (and o->status QUEUED when the job must run again after a
+ * restart). */
+static int run(run_ctx *c, api_job_result *res, svc_outcome *o)
+{
+    svc_job *j = c->job;
+    api_job_request rq;
+    api_job_hooks h;
     api_params prm;
-    int have_prm = 0;
-    mcf_mesh *m = NULL, *tgt = NULL, *before = NULL;
-    api_attrs *attrs = NULL;   /* the input's texcoords, colours, normals */
-    api_format fmt = API_FMT_UNKNOWN, tfmt;
-    mcf_error err = {MCF_OK, ""};
-    mcf_status rc;
-    mcf_flow_stats st;
-    api_metrics mt;
-    api_buf out, fields;
-    api_encode_opts eo;
-    svc_error prob;
-    int failed = 1, requeue = 0, nv = 0, nf = 0, tries = 0, written = 0,
-        e = 0, keep_fields = 0;
-    char *input = NULL, *target = NULL, *metrics = NULL;
-    size_t input_len = 0, target_len = 0;
-    svc_job_status final;
-    char *state = NULL;
-    double t0 = mcf_now(), t_decode = 0, t_flow = 0, t_encode = 0, t_queue,
-           t_metrics = 0, t_after, qerr = NAN;
-    run_ctx ctx;
+    char *metrics = NULL;
+    double t0 = mcf_now();
+    int rc = -1;
 
-    memset(&st, 0, sizeof st);
-    api_metrics_init(&mt);
-    memset(&prob, 0, sizeof prob);
-    api_buf_init(&out, SVC_RESULT_MAX);
-    api_buf_init(&fields, 0);
-    svc__lock();
-    input = j->input;
-    input_len = j->input_len;
-    target = j->target;
-    target_len = j->target_len;
-    j->input = j->target = NULL;
-    t_queue = j->started - j->created;
-    svc__unlock();
-    svc__write_state(j, 0);
-
-    if (!input && read_retry(j, "input", &input, &input_len, &tries) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the input of "
-                      "job %s from the spool (%d tries): %s", j->id, tries + 1,
-                      strerror(errno));
-        goto stopped_or_done;
+    api_job_request_init(&rq);
+    if (read_retry(c, "input", &rq.input, &c->input_len) != 0 ||
+        (j->has_target && read_retry(c, "target", &rq.target, &c->target_len) != 0)) {
+        if (store_failed(c, rq.input ? "read the target" : "read the input", &o->err))
+            o->status = SVC_JOB_QUEUED;
+        goto out;
     }
-    if (j->rec.has_target && !target &&
-        read_retry(j, "target", &target, &target_len, &tries) != 0) {
-        svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot read the target of "
-                      "job %s from the spool (%d tries): %s", j->id, tries + 1,
-                      strerror(errno));
-        goto stopped_or_done;
+    rq.read_s = mcf_now() - t0;
+    rq.input_len = c->input_len;
+    rq.target_len = c->target_len;
+    request_of(c, &rq, &h);
+    /* a copy: a job that runs again starts from the parameters asked */
+    if (api_params_copy(&prm, &j->params) != MCF_OK) {
+        svc_error_set(&o->err, SVC_P_NOMEM, "out of memory for the parameters");
+        goto out;
     }
-    if ((rc = svc_record_params(&j->rec, &cfg->lim, &prm, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_PARAMS, NULL, &err);
-        goto done;
+    rc = api_job_run(&rq, &prm, &h, res) == MCF_OK ? 0 : -1;
+    api_params_free(&prm);
+    if (rc != 0) {
+        if (job_error(c, res, &o->err))
+            o->status = SVC_JOB_QUEUED;
+        goto out;
     }
-    if (svc_record_fields(&j->rec, &keep_fields, &prob) != 0)
-        goto done;
-    have_prm = 1;
-    /* sandbox.c: Draco decodes in a child process under limits. */
-    while ((rc = svc_decode_upload(input, input_len, cfg, &j->cancel, "mesh",
-                                   &m, &attrs, &fmt, &prob)) == MCF_ENOMEM &&
-           retry(j, &tries, ENOMEM, "decoding", 0))
-        ;
-    if (rc != MCF_OK)
-        goto decode_failed;
-    free(input);
-    input = NULL;
-    nv = mcf_mesh_nvertices(m);
-    nf = mcf_mesh_nfaces(m);
-    /* svc_admit.c: estimated again from the decoded counts (polygons
-     * split, STL welded); a larger estimate is refused or waits. */
-    if ((requeue = memory_regrow(j, nv, nf, input_len, target_len, &prm,
-                                 keep_fields, &prob)) != 0) {
-        requeue = requeue > 0;
-        goto done;
+    rc = -1;
+    if (!(metrics = cJSON_PrintUnformatted(res->metrics))) {
+        svc_error_set(&o->err, SVC_P_NOMEM, "out of memory writing metrics");
+        goto out;
     }
-    if ((rc = api_params_finish(&prm, nv, &cfg->lim, &err)) != MCF_OK) {
-        /* A budget exceeded here (steps x vertices) depends on the mesh:
-         * 422. What the parameters alone exceed was refused at submit. */
-        svc_error_from_mcf(&prob, rc, rc == MCF_ELIMIT ? SVC_STAGE_RUN
-                                                     : SVC_STAGE_PARAMS,
-                         NULL, &err);
-        goto done;
+    if (write_retry(c, "metrics.json", metrics, strlen(metrics)) != 0 ||
+        (j->keep_fields &&
+         write_retry(c, SVC_FIELDS_FILE, res->fields.data, res->fields.len) != 0)) {
+        if (store_failed(c, "write the result", &o->err))
+            o->status = SVC_JOB_QUEUED;
+        goto out;
     }
-    /* a request without a scheme runs the default the mesh's size
-     * chose (api_default_scheme): the job says which */
-    svc__lock();
-    snprintf(j->scheme, sizeof j->scheme, "%s", mcf_scheme_get(prm.flow.scheme)->name);
-    svc__unlock();
-    if (target) {
-        if ((rc = svc_decode_upload(target, target_len, cfg, &j->cancel,
-                                    "target", &tgt, NULL, &tfmt, &prob)) != MCF_OK)
-            goto decode_failed;
-        if (mcf_mesh_nvertices(tgt) != nv || mcf_mesh_nfaces(tgt) != nf) {
-            mcf_error_set(&err, MCF_EINVAL, "target: %d vertices and %d "
-                          "faces, the mesh has %d and %d; the target must "
-                          "share the mesh's connectivity",
-                          mcf_mesh_nvertices(tgt), mcf_mesh_nfaces(tgt), nv, nf);
-            svc_error_from_mcf(&prob, MCF_EINVAL, SVC_STAGE_RUN, NULL, &err);
-            goto done;
-        }
-    }
-    t_decode = mcf_now() - t0;
-    t_metrics = mcf_now();
-    if ((rc = api_metrics_before(&mt, m, tgt, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "metrics", &err);
-        goto done;
-    }
-    t_metrics = mcf_now() - t_metrics;
-    /* fields=true: the mesh as the flow receives it, for the per-vertex
-     * fields (api_fields_encode) written beside the result. */
-    if (keep_fields && !(before = mcf_mesh_dup(m, &err))) {
-        svc_error_from_mcf(&prob, err.status, SVC_STAGE_RUN, "fields", &err);
-        goto done;
-    }
-
-    memset(&ctx, 0, sizeof ctx);
-    ctx.job = j;
-    ctx.st = &st;
-    ctx.deadline = cfg->job_timeout > 0 ? srv_mono() + cfg->job_timeout : 0;
-    prm.flow.progress = on_progress;
-    prm.flow.progress_ctx = &ctx;
-    prm.flow.cancel = &j->cancel;
-    /* The step log: the metrics' flow.log (as the CLI's) and the volume of
-     * each streamed step. */
-    prm.flow.log_steps = 1;
-
-    svc__lock();
-    j->ready = 1;
-    snprintf(j->in_format, sizeof j->in_format, "%s", api_format_name(fmt));
-    svc__notify(j, SVC_NOTIFY_STATE);
-    svc__unlock();
-
-    t_flow = mcf_now();
-    rc = mcf_flow_run(m, &prm.flow, &st, &err);
-    t_flow = mcf_now() - t_flow;
-    if (rc == MCF_ECANCELED) {
-        requeue = canceled_error(j, st.steps, &prob);
-        goto done;
-    }
-    if (rc != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "flow", &err);
-        goto done;
-    }
-
-    t_encode = mcf_now();
-    if (prm.encode.format == API_FMT_UNKNOWN)
-        prm.encode.format = fmt; /* the metrics' params say what was written */
-    eo = prm.encode;
-    eo.attrs = attrs;
-    rc = eo.format == API_FMT_DRACO ? api_draco_encode(m, &eo, &out, &qerr, &err)
-                                    : api_mesh_encode(m, &eo, &out, &err);
-    if (rc != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "encode", &err);
-        goto done;
-    }
-    t_encode = mcf_now() - t_encode;
-    t_after = mcf_now();
-    if ((rc = api_metrics_after(&mt, m, tgt, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, "metrics", &err);
-        goto done;
-    }
-    t_metrics += mcf_now() - t_after;
-    if (before && (rc = api_fields_encode(before, m, &fields, &err)) != MCF_OK) {
-        svc_error_from_mcf(&prob, rc, SVC_STAGE_RUN, NULL, &err);
-        goto done;
-    }
-    svc__lock();
-    snprintf(j->out_format, sizeof j->out_format, "%s",
-             api_format_name(eo.format));
-    snprintf(j->result_name, sizeof j->result_name, "result%s",
-             api_format_ext(eo.format));
-    svc__unlock();
-    metrics = metrics_doc(j, &mt, &prm, &st, fmt, eo.format, qerr, input_len,
-                          out.len, t_queue, t_decode, t_flow, t_encode,
-                          t_metrics);
-    if (!metrics) {
-        svc_error_set(&prob, SVC_ENOMEM, NULL, "out of memory writing metrics");
-        goto done;
-    }
-    while (srv_spool_write(cfg->spool, j->id, j->result_name, out.data,
-                           out.len, 1) != 0 ||
-           srv_spool_write(cfg->spool, j->id, "metrics.json", metrics,
-                           strlen(metrics), 1) != 0 ||
-           (before && srv_spool_write(cfg->spool, j->id, SVC_FIELDS_FILE,
-                                      fields.data, fields.len, 1) != 0))
-        if (!retry(j, &tries, errno, "writing its result", 0)) {
-            svc_error_set(&prob, SVC_ESTORAGE, "EIO", "cannot write the "
-                          "result of job %s to the spool (%d tries): %s",
-                          j->id, tries + 1, strerror(errno));
-            goto stopped_or_done;
-        }
-    failed = 0;
-    goto done;
-
-stopped_or_done:
-    /* A retry given up because the job was stopped: canceled, or put
-     * back for the restart, as a stop during the flow. */
-    if (j->cancel)
-        requeue = canceled_error(j, -1, &prob);
-    goto done;
-
-decode_failed:
-    /* svc_decode_upload filled prob, except for a cancel. */
-    if (rc == MCF_ECANCELED)
-        requeue = canceled_error(j, -1, &prob);
-done:
-    if (!requeue)
-        events_to_spool(j);
-    /* The outcome is on disk before anyone can see it (GET polls,
-     * waiters, a restart): a client told "succeeded" can always find the
-     * result again, and no terminal state a client saw changes after a
-     * restart. From each snapshot to its publication no other state.json
-     * write (a DELETE's would be stale): svc_state_mu, let go between
-     * tries. */
-    svc__lock();
-    if (requeue) {
-        /* Back to queued on disk; the process is exiting. */
-        final = SVC_JOB_QUEUED;
-        j->ready = 0;
-        j->err = prob;
-    } else {
-        final = !failed ? SVC_JOB_SUCCEEDED
-                : j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
-                                j->cancel_reason == SVC_CANCEL_CLIENT)
-                    ? SVC_JOB_CANCELED : SVC_JOB_FAILED;
-        j->err = prob;
-        j->finished = srv_wall();
-        j->result_len = failed ? 0 : out.len;
-    }
-    svc__unlock();
-    for (tries = 0;;) {
-        pthread_mutex_lock(&svc_state_mu);
-        svc__lock();
-        j->status = final;
-        state = svc__state_json(j);
-        j->status = SVC_JOB_RUNNING;
-        svc__unlock();
-        if (state && srv_spool_write(cfg->spool, j->id, "state.json", state,
-                                     strlen(state), 1) == 0) {
-            written = 1;
-            break; /* svc_state_mu held until published */
-        }
-        e = state ? errno : ENOMEM;
-        free(state);
-        state = NULL;
-        pthread_mutex_unlock(&svc_state_mu);
-        /* A shutdown alone stops these tries: a cancel asked now changes
-         * nothing of an outcome already reached. */
-        if (requeue || !retry(j, &tries, e, "recording its outcome", 1))
-            break;
-    }
-    free(state);
-    svc__lock();
-    if (!written && !requeue) {
-        park_locked(j, final, e);
-    } else {
-        j->status = final;
-        if (final == SVC_JOB_SUCCEEDED) {
-            /* its metrics stay on disk only (svc_read.c reads them) */
-            size_t add = j->result_len + strlen(metrics) + fields.len;
-            if (j->keep_result) {
-                size_t len;
-                j->result = api_buf_detach(&out, &len);
-            }
-            j->disk_bytes += add;
-            if (j->in_table)
-                svc__S.disk_bytes += add;
-        }
-    }
-    svc__unlock();
-    if (written)
-        pthread_mutex_unlock(&svc_state_mu);
-    /* Counted before anyone hears, so /metrics agrees with what clients
-     * have seen. */
-    if (written && !requeue) {
-        srv_metrics_job(j->scheme, svc_job_status_name(j->status),
-                        mcf_now() - t0);
-        svc__log_job(j, nv, nf, mcf_now() - t0);
-    }
-    svc__lock();
-    svc__notify(j, SVC_NOTIFY_STATE);
-    svc__unlock();
-    if (have_prm)
-        api_params_free(&prm);
-    mcf_flow_stats_free(&st);
-    mcf_mesh_free(m);
-    mcf_mesh_free(tgt);
-    mcf_mesh_free(before);
-    api_attrs_free(attrs);
-    api_buf_free(&out);
-    api_buf_free(&fields);
-    free(input);
-    free(target);
+    /* its metrics stay in the store only (svc_read.c reads them) */
+    o->disk_add = res->output.len + strlen(metrics) + res->fields.len;
+    rc = 0;
+out:
+    free(rq.input);
+    free(rq.target);
     free(metrics);
+    return rc;
 }
 
+void svc__run(svc_job *j, svc_outcome *o)
+{
+    run_ctx c;
+    api_job_result res;
+    double t0 = mcf_now();
+    size_t len;
+
+    memset(&c, 0, sizeof c);
+    memset(o, 0, sizeof *o);
+    c.job = j;
+    c.svc = j->svc;
+    api_job_result_init(&res);
+    o->status = SVC_JOB_FAILED;
+    if (run(&c, &res, o) == 0) {
+        o->status = SVC_JOB_SUCCEEDED;
+        o->result_len = res.output.len;
+        snprintf(o->out_format, sizeof o->out_format, "%s",
+                 api_format_name(res.output_format));
+        snprintf(o->result_name, sizeof o->result_name, "%s", res.output_name);
+        o->result = api_buf_detach(&res.output, &len);
+    } else if (o->status == SVC_JOB_FAILED) {
+        svc_cancel_reason why = svc__cancel_reason(j);
+        if (why == SVC_CANCEL_USER || why == SVC_CANCEL_CLIENT)
+            o->status = SVC_JOB_CANCELED;
+    }
+    o->nv = res.nv;
+    o->nf = res.nf;
+    o->run_s = mcf_now() - t0;
+    api_job_result_free(&res);
+}

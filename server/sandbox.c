@@ -200,38 +200,17 @@ static size_t reply_max(const api_limits *lim)
     return sizeof(child_head) + MCF_ERRMSG_SIZE + api_mesh_pack_max(lim);
 }
 
-mcf_status srv_sandbox_decode(const void *buf, size_t len,
-                              const api_limits *lim,
-                              const srv_sandbox_limits *sl,
-                              const mcf_cancel_flag *cancel, mcf_mesh **out,
-                              api_attrs **attrs, api_format *fmt,
-                              srv_sandbox_why *why, mcf_error *err)
+/* The decoder process: this program again in its hidden mode, with its
+ * stdin from in[0] and its stdout to res[1], signals as a fresh process
+ * has them. 0 and *pid, or -1 (err set). */
+static int spawn_child(char *const argv[], const int in[2], const int res[2],
+                       pid_t *pid, mcf_error *err)
 {
-    int in[2] = {-1, -1}, res[2] = {-1, -1}, status = 0, killed = 0;
-    char a_cpu[32], a_mem[32], a_in[32], a_v[16], a_f[16];
-    char *argv[] = {"mcfd", SRV_SANDBOX_ARG, a_cpu, a_mem, a_in, a_v, a_f, NULL};
     posix_spawn_file_actions_t fa;
     posix_spawnattr_t at;
     sigset_t none, deflt;
-    pid_t pid = -1;
-    size_t sent = 0;
-    api_buf rep;
-    struct rusage ru;
-    double deadline;
-    child_head h;
-    mcf_status rc;
+    int e;
 
-    *why = SRV_SANDBOX_OK;
-    api_buf_init(&rep, reply_max(lim));
-    snprintf(a_cpu, sizeof a_cpu, "%.3f", sl->cpu_s);
-    snprintf(a_mem, sizeof a_mem, "%zu", sl->mem_bytes);
-    snprintf(a_in, sizeof a_in, "%zu", lim->max_input_bytes);
-    snprintf(a_v, sizeof a_v, "%d", lim->max_vertices);
-    snprintf(a_f, sizeof a_f, "%d", lim->max_faces);
-    if (pipe2(in, O_CLOEXEC) != 0 || pipe2(res, O_CLOEXEC) != 0) {
-        rc = mcf_error_set(err, MCF_ENOMEM, "sandbox: pipe: %s", strerror(errno));
-        goto out;
-    }
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_adddup2(&fa, in[0], 0);
     posix_spawn_file_actions_adddup2(&fa, res[1], 1);
@@ -245,66 +224,171 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
     posix_spawnattr_setsigmask(&at, &none);
     posix_spawnattr_setsigdefault(&at, &deflt);
     posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
-    status = posix_spawn(&pid, "/proc/self/exe", &fa, &at, argv, environ);
+    e = posix_spawn(pid, "/proc/self/exe", &fa, &at, argv, environ);
     posix_spawn_file_actions_destroy(&fa);
     posix_spawnattr_destroy(&at);
-    close(in[0]);
-    close(res[1]);
-    in[0] = res[1] = -1;
-    if (status != 0) {
-        pid = -1;
-        rc = mcf_error_set(err, MCF_ENOMEM, "sandbox: cannot start a decoder "
-                           "process: %s", strerror(status));
-        goto out;
-    }
-    fcntl(in[1], F_SETFL, O_NONBLOCK);
-    fcntl(res[0], F_SETFL, O_NONBLOCK);
-    deadline = mono() + sl->wall_s;
+    if (e == 0)
+        return 0;
+    *pid = -1;
+    mcf_error_set(err, MCF_ENOMEM, "sandbox: cannot start a decoder process: %s",
+                  strerror(e));
+    return -1;
+}
 
-    while (res[0] >= 0) {
+/* Feeds buf to the child (fd_in, closed at the end: its EOF) while its
+ * answer comes into rep (fd_res, closed at its EOF), until it is all in,
+ * the job is canceled or the wall-clock deadline passes. Returns why it
+ * stopped early (SRV_SANDBOX_OK: it did not); the descriptors still open
+ * are the caller's. */
+static srv_sandbox_why exchange(int *fd_in, int *fd_res, const void *buf,
+                                size_t len, const mcf_cancel_flag *cancel,
+                                double deadline, api_buf *rep)
+{
+    size_t sent = 0;
+
+    fcntl(*fd_in, F_SETFL, O_NONBLOCK);
+    fcntl(*fd_res, F_SETFL, O_NONBLOCK);
+    while (*fd_res >= 0) {
         struct pollfd p[2];
         int n = 0, r;
-        p[n].fd = res[0];
+        p[n].fd = *fd_res;
         p[n++].events = POLLIN;
-        if (in[1] >= 0) {
-            p[n].fd = in[1];
+        if (*fd_in >= 0) {
+            p[n].fd = *fd_in;
             p[n++].events = POLLOUT;
         }
         r = poll(p, (nfds_t)n, 50);
         if (r < 0 && errno != EINTR)
-            break;
-        if (cancel && atomic_load_explicit(cancel, memory_order_acquire)) {
-            *why = SRV_SANDBOX_CANCELED;
-            break;
-        }
-        if (mono() > deadline) {
-            *why = SRV_SANDBOX_WALL;
-            break;
-        }
+            return SRV_SANDBOX_PROTOCOL;
+        if (cancel && atomic_load_explicit(cancel, memory_order_acquire))
+            return SRV_SANDBOX_CANCELED;
+        if (mono() > deadline)
+            return SRV_SANDBOX_WALL;
         if (r <= 0)
             continue;
         if (n == 2 && (p[1].revents & (POLLOUT | POLLERR | POLLHUP))) {
-            ssize_t w = write(in[1], (const char *)buf + sent, len - sent);
+            ssize_t w = write(*fd_in, (const char *)buf + sent, len - sent);
             if (w > 0)
                 sent += (size_t)w;
             if ((w < 0 && errno != EAGAIN && errno != EINTR) || sent == len) {
-                close(in[1]); /* EOF: the child decodes now (or it died) */
-                in[1] = -1;
+                close(*fd_in); /* EOF: the child decodes now (or it died) */
+                *fd_in = -1;
             }
         }
         if (p[0].revents & (POLLIN | POLLERR | POLLHUP)) {
             char chunk[1 << 16];
-            ssize_t got = read(res[0], chunk, sizeof chunk);
-            if (got > 0 && api_buf_append(&rep, chunk, (size_t)got) != MCF_OK) {
-                *why = SRV_SANDBOX_PROTOCOL; /* more than any mesh needs */
-                break;
-            }
+            ssize_t got = read(*fd_res, chunk, sizeof chunk);
+            if (got > 0 && api_buf_append(rep, chunk, (size_t)got) != MCF_OK)
+                return SRV_SANDBOX_PROTOCOL; /* more than any mesh needs */
             if (got == 0 || (got < 0 && errno != EAGAIN && errno != EINTR)) {
-                close(res[0]);
-                res[0] = -1;
+                close(*fd_res);
+                *fd_res = -1;
             }
         }
     }
+    return SRV_SANDBOX_OK;
+}
+
+/* What the child's end says, once it was reaped (status, ru; killed: by
+ * us, after it stopped early): the mesh from its answer (rep), or why
+ * not. */
+static mcf_status verdict(int status, const struct rusage *ru, int killed,
+                          const api_buf *rep, const api_limits *lim,
+                          const srv_sandbox_limits *sl, mcf_mesh **out,
+                          api_attrs **attrs, api_format *fmt,
+                          srv_sandbox_why *why, mcf_error *err)
+{
+    double cpu = (double)ru->ru_utime.tv_sec + 1e-6 * ru->ru_utime.tv_usec +
+                 (double)ru->ru_stime.tv_sec + 1e-6 * ru->ru_stime.tv_usec;
+    double rss = (double)ru->ru_maxrss * 1024.0;
+    int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+    child_head h;
+
+    if (!killed && (sig == SIGXCPU || (sig == SIGKILL && cpu >= sl->cpu_s))) {
+        *why = SRV_SANDBOX_CPU;
+        return mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
+                             "than %.3g s of CPU to decode: refused", sl->cpu_s);
+    }
+    if (rep->len >= sizeof h && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+        memcpy(&h, rep->data, sizeof h);
+        if (h.msglen >= 0 && h.msglen < MCF_ERRMSG_SIZE &&
+            rep->len >= sizeof h + (size_t)h.msglen) {
+            if (fmt)
+                *fmt = (api_format)h.format;
+            if (h.status == MCF_ENOMEM) {
+                *why = SRV_SANDBOX_MEMORY;
+                return mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs "
+                                     "more than %.0f MiB to decode: refused",
+                                     sl->mem_bytes / MIB);
+            }
+            if (h.status != MCF_OK)
+                return mcf_error_set(err, (mcf_status)h.status, "%.*s",
+                                     (int)h.msglen, rep->data + sizeof h);
+            return api_mesh_unpack(rep->data + sizeof h + h.msglen,
+                                   rep->len - sizeof h - (size_t)h.msglen, lim,
+                                   out, attrs, err);
+        }
+    }
+    /* Died another way: an abort or a fault inside libdraco (a failed
+     * allocation in code that cannot throw ends like this too). */
+    if (sig && !killed && !API_SANITIZED && rss > 0.75 * (double)sl->mem_bytes) {
+        *why = SRV_SANDBOX_MEMORY;
+        return mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
+                             "than %.0f MiB to decode: refused",
+                             sl->mem_bytes / MIB);
+    }
+    *why = SRV_SANDBOX_PROTOCOL;
+    if (sig)
+        return mcf_error_set(err, MCF_EDECODE, "draco: the decoder process "
+                             "died of signal %d (%s): refused", sig,
+                             strsignal(sig));
+    return mcf_error_set(err, MCF_EDECODE, "draco: the decoder process exited "
+                         "with status %d and %zu bytes of answer",
+                         WIFEXITED(status) ? WEXITSTATUS(status) : -1, rep->len);
+}
+
+static void close_fd(int *fd)
+{
+    if (*fd >= 0)
+        close(*fd);
+    *fd = -1;
+}
+
+mcf_status srv_sandbox_decode(const void *buf, size_t len,
+                              const api_limits *lim,
+                              const srv_sandbox_limits *sl,
+                              const mcf_cancel_flag *cancel, mcf_mesh **out,
+                              api_attrs **attrs, api_format *fmt,
+                              srv_sandbox_why *why, mcf_error *err)
+{
+    int in[2] = {-1, -1}, res[2] = {-1, -1}, status = 0, killed = 0;
+    char a_cpu[32], a_mem[32], a_in[32], a_v[16], a_f[16];
+    char *argv[] = {"mcfd", SRV_SANDBOX_ARG, a_cpu, a_mem, a_in, a_v, a_f, NULL};
+    pid_t pid = -1;
+    api_buf rep;
+    struct rusage ru;
+    mcf_status rc;
+
+    *why = SRV_SANDBOX_OK;
+    api_buf_init(&rep, reply_max(lim));
+    snprintf(a_cpu, sizeof a_cpu, "%.3f", sl->cpu_s);
+    snprintf(a_mem, sizeof a_mem, "%zu", sl->mem_bytes);
+    snprintf(a_in, sizeof a_in, "%zu", lim->max_input_bytes);
+    snprintf(a_v, sizeof a_v, "%d", lim->max_vertices);
+    snprintf(a_f, sizeof a_f, "%d", lim->max_faces);
+    if (pipe2(in, O_CLOEXEC) != 0 || pipe2(res, O_CLOEXEC) != 0) {
+        rc = mcf_error_set(err, MCF_ENOMEM, "sandbox: pipe: %s", strerror(errno));
+        goto out;
+    }
+    status = spawn_child(argv, in, res, &pid, err);
+    close_fd(&in[0]);
+    close_fd(&res[1]);
+    if (status != 0) {
+        rc = err->status;
+        goto out;
+    }
+    *why = exchange(&in[1], &res[0], buf, len, cancel, mono() + sl->wall_s,
+                    &rep);
     if (res[0] >= 0) {         /* left early: the child dies now */
         kill(pid, SIGKILL);
         killed = 1;
@@ -312,88 +396,25 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
     while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR)
         ;
     pid = -1;
-
-    if (*why == SRV_SANDBOX_CANCELED) {
+    if (*why == SRV_SANDBOX_CANCELED)
         rc = mcf_error_set(err, MCF_ECANCELED, "canceled while decoding");
-        goto out;
-    }
-    if (*why == SRV_SANDBOX_WALL) {
+    else if (*why == SRV_SANDBOX_WALL)
         rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream took more than "
                            "%.3g s of wall-clock time to decode: refused",
                            sl->wall_s);
-        goto out;
-    }
-    {
-        double cpu = (double)ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec +
-                     (double)ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec;
-        double rss = (double)ru.ru_maxrss * 1024.0;
-        int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-        if (!killed && (sig == SIGXCPU || (sig == SIGKILL && cpu >= sl->cpu_s))) {
-            *why = SRV_SANDBOX_CPU;
-            rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
-                               "than %.3g s of CPU to decode: refused",
-                               sl->cpu_s);
-            goto out;
-        }
-        if (rep.len >= sizeof h && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
-            memcpy(&h, rep.data, sizeof h);
-            if (h.msglen >= 0 && h.msglen < MCF_ERRMSG_SIZE &&
-                rep.len >= sizeof h + (size_t)h.msglen) {
-                if (fmt)
-                    *fmt = (api_format)h.format;
-                if (h.status == MCF_ENOMEM) {
-                    *why = SRV_SANDBOX_MEMORY;
-                    rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream "
-                                       "needs more than %.0f MiB to decode: "
-                                       "refused", sl->mem_bytes / MIB);
-                    goto out;
-                }
-                if (h.status != MCF_OK) {
-                    rc = mcf_error_set(err, (mcf_status)h.status, "%.*s",
-                                       (int)h.msglen, rep.data + sizeof h);
-                    goto out;
-                }
-                rc = api_mesh_unpack(rep.data + sizeof h + h.msglen,
-                                     rep.len - sizeof h - (size_t)h.msglen,
-                                     lim, out, attrs, err);
-                goto out;
-            }
-        }
-        /* Died another way: an abort or a fault inside libdraco (a failed
-         * allocation in code that cannot throw ends like this too). */
-        if (sig && !killed && !API_SANITIZED &&
-            rss > 0.75 * (double)sl->mem_bytes) {
-            *why = SRV_SANDBOX_MEMORY;
-            rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
-                               "than %.0f MiB to decode: refused",
-                               sl->mem_bytes / MIB);
-            goto out;
-        }
-        *why = SRV_SANDBOX_PROTOCOL;
-        if (sig)
-            rc = mcf_error_set(err, MCF_EDECODE, "draco: the decoder process "
-                               "died of signal %d (%s): refused", sig,
-                               strsignal(sig));
-        else
-            rc = mcf_error_set(err, MCF_EDECODE, "draco: the decoder process "
-                               "exited with status %d and %zu bytes of answer",
-                               WIFEXITED(status) ? WEXITSTATUS(status) : -1,
-                               rep.len);
-    }
+    else
+        rc = verdict(status, &ru, killed, &rep, lim, sl, out, attrs, fmt, why,
+                     err);
 out:
     if (pid > 0) {
         kill(pid, SIGKILL);
         while (waitpid(pid, NULL, 0) < 0 && errno == EINTR)
             ;
     }
-    if (in[0] >= 0)
-        close(in[0]);
-    if (in[1] >= 0)
-        close(in[1]);
-    if (res[0] >= 0)
-        close(res[0]);
-    if (res[1] >= 0)
-        close(res[1]);
+    close_fd(&in[0]);
+    close_fd(&in[1]);
+    close_fd(&res[0]);
+    close_fd(&res[1]);
     api_buf_free(&rep);
     return rc;
 }
@@ -402,32 +423,24 @@ out:
 
 mcf_status svc_decode_upload(const void *buf, size_t len,
                              const svc_config *cfg,
-                             const mcf_cancel_flag *cancel, const char *what,
-                             mcf_mesh **out, api_attrs **attrs,
-                             api_format *fmt, svc_error *e)
+                             const mcf_cancel_flag *cancel, mcf_mesh **out,
+                             api_attrs **attrs, api_format *fmt,
+                             api_job_stage *stage, mcf_error *err)
 {
-    mcf_error err = {MCF_OK, ""};
     api_mem_estimate est;
     srv_sandbox_limits sl;
     srv_sandbox_why why;
     mcf_status rc;
 
     api_estimate_memory(buf, len, NULL, &est);
-    if (!srv_sandbox_wanted(&est)) {
-        rc = api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, &err);
-        if (rc != MCF_OK)
-            svc_error_from_mcf(e, rc, SVC_STAGE_DECODE, what, &err);
-        return rc;
-    }
+    if (!srv_sandbox_wanted(&est))
+        return api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, err);
     srv_sandbox_limits_for(&est, cfg->decode_cpu, cfg->decode_memory, &sl);
     rc = srv_sandbox_decode(buf, len, &cfg->lim, &sl, cancel, out, attrs, fmt,
-                            &why, &err);
-    if (rc == MCF_OK || rc == MCF_ECANCELED)
-        return rc;
+                            &why, err);
     /* A limit met is the input's cost, not its size: 422, not 413. */
-    svc_error_from_mcf(e, rc, (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
-                               why == SRV_SANDBOX_WALL) ? SVC_STAGE_RUN
-                                                        : SVC_STAGE_DECODE,
-                       what, &err);
+    if (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
+        why == SRV_SANDBOX_WALL)
+        *stage = API_JOB_RUN;
     return rc;
 }

@@ -53,16 +53,15 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
                               api_attrs **attrs, api_format *fmt,
                               srv_sandbox_why *why, mcf_error *err);
 
-/* The job runner's decode of an upload (what: "mesh" or "target"):
- * Draco in the sandbox with limits from the input's declared counts and
- * cfg (decode_cpu, decode_memory), other formats in this thread. On
- * failure fills e (a sandbox limit: ELIMIT, REST 422; a malformed input:
- * the decode stage's error) and returns the status; ECANCELED leaves e
- * to the caller. */
+/* The job runner's decode of an upload (api_job_hooks.decode): Draco in
+ * the sandbox with limits from the input's declared counts and cfg
+ * (decode_cpu, decode_memory), other formats in this thread. A sandbox
+ * limit met sets *stage to API_JOB_RUN (the input's cost: REST 422, not
+ * 413); ECANCELED when *cancel became set. */
 mcf_status svc_decode_upload(const void *buf, size_t len,
                              const svc_config *cfg,
-                             const mcf_cancel_flag *cancel, const char *what,
-                             mcf_mesh **out, api_attrs **attrs,
-                             api_format *fmt, svc_error *e);
+                             const mcf_cancel_flag *cancel, mcf_mesh **out,
+                             api_attrs **attrs, api_format *fmt,
+                             api_job_stage *stage, mcf_error *err);
 
 #endif /* SANDBOX_H */

@@ -1,20 +1,15 @@
 /*
- * service.c - the job service's table and lifecycle (service.h): jobs and
- * their references, the ID table and the bounded queue, admission and
- * submit, cancel and delete, subscriptions, drain, close, sweep, stop and
- * the gauges.
+ * service.c - the job service's life and table (service.h): the service
+ * object and its lifecycle (start, drain, close, checkpoint, stop), the
+ * ID table, admission and submit, delete, the TTL sweep and the gauges.
  *
- * A job is accepted only after its input, request and state are on disk
- * (spool.c), so an accepted job survives kill -9: recovery.c queues it
- * again at the next start. Capacity: a submission is accepted while the
- * jobs waiting for a worker stay within --queue plus the idle workers;
- * beyond that it is refused with EBUSY (REST: 503 and Retry-After).
- *
- * One mutex (svc__S.mu) guards the table, the queue and every mutable job
- * field; see svc_internal.h. The other service files: svc_read.c (the
- * readers), svc_state.c (the record and the persisted forms), svc_error.c
- * (errors), runner.c (one job), workers.c (the pool), recovery.c (the
- * spool at start).
+ * A job is accepted only after its input, request and state are in the
+ * store (svc_store create), so an accepted job survives kill -9:
+ * recovery.c queues it again at the next start. Capacity: a submission is
+ * accepted while the jobs waiting for a worker stay within --queue plus
+ * the idle workers; beyond that it is refused with EBUSY (REST: 503 and
+ * Retry-After). The other files of the service: svc_internal.h says
+ * which does what, and the lock order.
  */
 #include <errno.h>
 #include <fcntl.h>
@@ -28,88 +23,7 @@
 #include "svc_internal.h"
 #include "svc_admit.h"
 
-struct svc_state svc__S = {.mu = PTHREAD_MUTEX_INITIALIZER,
-                           .work = PTHREAD_COND_INITIALIZER,
-                           .idle = PTHREAD_COND_INITIALIZER,
-                           .urandom = -1};
-
-void svc__lock(void)
-{
-    pthread_mutex_lock(&svc__S.mu);
-}
-
-void svc__unlock(void)
-{
-    pthread_mutex_unlock(&svc__S.mu);
-}
-
-/* -------------------------------------------------------------------- jobs */
-
-static const char *const status_names[] = {"queued", "running", "succeeded",
-                                           "failed", "canceled"};
-
-const char *svc_job_status_name(svc_job_status s)
-{
-    return (unsigned)s < 5 ? status_names[s] : "unknown";
-}
-
-int svc_job_status_terminal(svc_job_status s)
-{
-    return s == SVC_JOB_SUCCEEDED || s == SVC_JOB_FAILED ||
-           s == SVC_JOB_CANCELED;
-}
-
-svc_job *svc__job_new(void)
-{
-    svc_job *j = calloc(1, sizeof *j);
-    if (!j)
-        return NULL;
-    j->refs = 1;
-    api_buf_init(&j->events, SVC_EVENTS_MAX);
-    snprintf(j->scheme, sizeof j->scheme, "unknown");
-    return j;
-}
-
-void svc__job_free(svc_job *j)
-{
-    svc_record_free(&j->rec);
-    free(j->input);
-    free(j->target);
-    free(j->params_json);
-    free(j->result);
-    api_buf_free(&j->events);
-    free(j->event_end);
-    free(j);
-}
-
-/* Lock held. Frees the job when the last reference goes. */
-void svc__unref_locked(svc_job *j)
-{
-    if (--j->refs == 0)
-        svc__job_free(j);
-}
-
-void svc_job_unref(svc_job *j)
-{
-    if (!j)
-        return;
-    svc__lock();
-    svc__unref_locked(j);
-    svc__unlock();
-}
-
-svc_job *svc_job_ref(svc_job *j)
-{
-    svc__lock();
-    j->refs++;
-    svc__unlock();
-    return j;
-}
-
-const char *svc_job_id(const svc_job *j)
-{
-    return j->id;
-}
+/* ------------------------------------------------------------------- table */
 
 static unsigned bucket_of(const char *id)
 {
@@ -119,123 +33,78 @@ static unsigned bucket_of(const char *id)
     return h % SVC_NBUCKETS;
 }
 
-svc_job *svc__find_locked(const char *id)
+svc_job *svc__find_locked(svc_t *s, const char *id)
 {
     svc_job *j;
-    for (j = svc__S.buckets[bucket_of(id)]; j; j = j->hnext)
+    for (j = s->buckets[bucket_of(id)]; j; j = j->hnext)
         if (strcmp(j->id, id) == 0)
             return j;
     return NULL;
 }
 
-void svc__table_insert(svc_job *j)
+void svc__table_insert(svc_t *s, svc_job *j)
 {
     unsigned b = bucket_of(j->id);
-    j->hnext = svc__S.buckets[b];
-    svc__S.buckets[b] = j;
+    j->hnext = s->buckets[b];
+    s->buckets[b] = j;
     j->in_table = 1;
-    svc__S.njobs++;
-    svc__S.disk_bytes += j->disk_bytes;
+    s->njobs++;
+    s->disk_bytes += j->disk_bytes;
 }
 
 /* Removes j from the table and drops the table's reference. */
-static void table_remove(svc_job *j)
+static void table_remove(svc_t *s, svc_job *j)
 {
-    svc_job **pp = &svc__S.buckets[bucket_of(j->id)];
+    svc_job **pp = &s->buckets[bucket_of(j->id)];
     while (*pp && *pp != j)
         pp = &(*pp)->hnext;
     if (*pp) {
         *pp = j->hnext;
         j->in_table = 0;
-        svc__S.njobs--;
-        svc__S.disk_bytes -= j->disk_bytes;
+        s->njobs--;
+        s->disk_bytes -= j->disk_bytes;
         svc__unref_locked(j);
     }
 }
 
-/* Lock held: puts back a job whose spool removal failed (the caller's
- * reference becomes the table's), unless its ID came back meanwhile. */
-static void table_restore(svc_job *j)
+/* Lock held: puts back a job whose removal from the store failed (the
+ * caller's reference becomes the table's), unless its ID came back
+ * meanwhile. */
+static void table_restore(svc_t *s, svc_job *j)
 {
-    if (!j->in_table && !svc__find_locked(j->id))
-        svc__table_insert(j);
+    if (!j->in_table && !svc__find_locked(s, j->id))
+        svc__table_insert(s, j);
     else
         svc__unref_locked(j);
 }
 
-void svc__queue_push(svc_job *j)
+void svc__wake_locked(svc_t *s)
 {
-    j->qnext = NULL;
-    if (svc__S.qtail)
-        svc__S.qtail->qnext = j;
-    else
-        svc__S.qhead = j;
-    svc__S.qtail = j;
-    svc__S.qlen++;
+    s->wakes++;
+    pthread_cond_broadcast(&s->work);
 }
 
-svc_job *svc__queue_pop(void)
-{
-    svc_job *j = svc__S.qhead;
-    if (j) {
-        svc__S.qhead = j->qnext;
-        if (!svc__S.qhead)
-            svc__S.qtail = NULL;
-        j->qnext = NULL;
-        svc__S.qlen--;
-    }
-    return j;
-}
-
-/* Back at the head of the queue (a cancel the spool refused). */
-static void queue_push_front(svc_job *j)
-{
-    j->qnext = svc__S.qhead;
-    svc__S.qhead = j;
-    if (!svc__S.qtail)
-        svc__S.qtail = j;
-    svc__S.qlen++;
-}
-
-static int queue_remove(svc_job *j)
-{
-    svc_job *prev = NULL, *q;
-    for (q = svc__S.qhead; q; prev = q, q = q->qnext)
-        if (q == j) {
-            if (prev)
-                prev->qnext = j->qnext;
-            else
-                svc__S.qhead = j->qnext;
-            if (svc__S.qtail == j)
-                svc__S.qtail = prev;
-            j->qnext = NULL;
-            svc__S.qlen--;
-            return 1;
-        }
-    return 0;
-}
-
-svc_job *svc_job_get(const char *id)
+svc_job *svc_job_get(svc_t *s, const char *id)
 {
     svc_job *j;
-    svc__lock();
-    j = svc__find_locked(id);
+    pthread_mutex_lock(&s->mu);
+    j = svc__find_locked(s, id);
     if (j)
         j->refs++;
-    svc__unlock();
+    pthread_mutex_unlock(&s->mu);
     return j;
 }
 
 /* 128 bits from /dev/urandom; if that ever fails, a splitmix64 of the
- * clock, pid and a counter (unique, merely not unguessable). */
-static void new_id(char *out)
+ * clock, pid and a counter (unique, merely not unguessable). Lock held. */
+static void new_id(svc_t *s, char *out)
 {
     unsigned char b[16];
     size_t got = 0;
     int i;
 
-    while (svc__S.urandom >= 0 && got < sizeof b) {
-        ssize_t r = read(svc__S.urandom, b + got, sizeof b - got);
+    while (s->urandom >= 0 && got < sizeof b) {
+        ssize_t r = read(s->urandom, b + got, sizeof b - got);
         if (r < 0 && errno == EINTR)
             continue;
         if (r <= 0)
@@ -245,7 +114,7 @@ static void new_id(char *out)
     if (got < sizeof b) {
         uint64_t x = (uint64_t)(srv_wall() * 1e9) ^ ((uint64_t)getpid() << 32);
         for (i = 0; i < 16; i += 8) {
-            uint64_t z = x + (++svc__S.counter) * 0x9e3779b97f4a7c15ull;
+            uint64_t z = x + (++s->counter) * 0x9e3779b97f4a7c15ull;
             z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
             z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
             z ^= z >> 31;
@@ -256,66 +125,21 @@ static void new_id(char *out)
         snprintf(out + 2 * i, 3, "%02x", b[i]);
 }
 
-/* ----------------------------------------------------------- subscriptions */
-
-void svc__notify(svc_job *j, unsigned what)
-{
-    svc_sub *s;
-    for (s = j->subs; s; s = s->next)
-        if (s->flags & what)
-            s->fn(s->ctx, what);
-}
-
-int svc_subscribe(svc_job *j, unsigned flags, svc_notify_fn fn, void *ctx,
-                  svc_sub **sub)
-{
-    svc_sub *s = calloc(1, sizeof *s);
-
-    *sub = NULL;
-    if (!s)
-        return -1;
-    s->job = j;
-    s->flags = flags | SVC_NOTIFY_STATE;
-    s->fn = fn;
-    s->ctx = ctx;
-    svc__lock();
-    s->next = j->subs;
-    if (j->subs)
-        j->subs->prev = s;
-    j->subs = s;
-    svc__unlock();
-    *sub = s;
-    return 0;
-}
-
-void svc_unsubscribe(svc_sub *s)
-{
-    if (!s)
-        return;
-    svc__lock();
-    if (s->prev)
-        s->prev->next = s->next;
-    else
-        s->job->subs = s->next;
-    if (s->next)
-        s->next->prev = s->prev;
-    svc__unlock();
-    free(s);
-}
-
-int svc_followers(const svc_job *j)
-{
-    const svc_sub *s;
-    int n = 0;
-
-    svc__lock();
-    for (s = j->subs; s; s = s->next)
-        n += (s->flags & SVC_NOTIFY_PROGRESS) != 0;
-    svc__unlock();
-    return n;
-}
-
 /* ------------------------------------------------------------------ submit */
+
+void svc_request_init(svc_request *rq)
+{
+    memset(rq, 0, sizeof *rq);
+    api_params_init(&rq->params);
+}
+
+void svc_request_free(svc_request *rq)
+{
+    api_params_free(&rq->params);
+    free(rq->input);
+    free(rq->target);
+    svc_request_init(rq);
+}
 
 /* A fixed-step run over a time has a step count the parameters alone
  * decide (api_params_steps, the rule of api_params_finish): over
@@ -329,207 +153,216 @@ static int steps_over_budget(const api_params *p, const api_limits *lim,
 
     if (steps <= lim->max_iterations)
         return 0;
-    svc_error_set(err, SVC_EPARAMS, "ELIMIT", "parameters 'time' and 'dt': "
+    svc_error_set(err, SVC_P_PARAM_LIMIT, "parameters 'time' and 'dt': "
                   "%g / %g = %.3g steps exceed max_iterations (%d); raise "
                   "'dt', lower 'time', or use 'adaptive'", p->flow.time,
                   p->flow.dt, steps, lim->max_iterations);
-    err->mcf = MCF_ELIMIT;
-    err->stage = SVC_STAGE_PARAMS;
     return 1;
 }
 
 /* Lock held: no worker or queue place free for one more job. */
-static int queue_full_locked(void)
+static int queue_full_locked(const svc_t *s)
 {
-    return svc__S.qlen + svc__S.reserved >=
-           svc__S.cfg.queue + (svc__S.nthreads - svc__S.busy);
+    return s->queued + s->reserved >= s->cfg.queue + (s->nthreads - s->busy);
 }
 
 /* Admission, lock held: whether one more job of bytes fits now. */
-static int admit_locked(size_t bytes, svc_error *err)
+static int admit_locked(const svc_t *s, size_t bytes, svc_error *err)
 {
-    const svc_config *cfg = &svc__S.cfg;
+    const svc_config *cfg = &s->cfg;
 
-    if (svc__S.draining) {
-        svc_error_set(err, SVC_EDRAINING, NULL, "the daemon is shutting "
-                      "down and accepts no new jobs");
+    if (s->draining) {
+        svc_error_set(err, SVC_P_DRAINING, "the daemon is shutting down and "
+                      "accepts no new jobs");
         return 0;
     }
-    if (queue_full_locked()) {
-        svc_error_set(err, SVC_EBUSY, NULL, "the job queue is full (%d "
-                      "queued, %d workers busy, --queue %d)", svc__S.qlen,
-                      svc__S.nthreads, cfg->queue);
+    if (queue_full_locked(s)) {
+        svc_error_set(err, SVC_P_BUSY, "the job queue is full (%d queued, %d "
+                      "workers busy, --queue %d)", s->queued, s->nthreads,
+                      cfg->queue);
         return 0;
     }
     /* The spool's quota: every job stays there until its TTL (a flood of
      * tiny jobs kept 687 MB). */
     if (cfg->spool_max_jobs > 0 &&
-        svc__S.njobs + svc__S.reserved >= cfg->spool_max_jobs) {
-        svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool holds %d "
-                      "jobs, --spool-max-jobs %d; finished jobs leave after "
-                      "--result-ttl %g s or a DELETE", svc__S.njobs,
+        s->njobs + s->reserved >= cfg->spool_max_jobs) {
+        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool holds %d jobs, "
+                      "--spool-max-jobs %d; finished jobs leave after "
+                      "--result-ttl %g s or a DELETE", s->njobs,
                       cfg->spool_max_jobs, cfg->result_ttl);
         return 0;
     }
-    if (svc__S.disk_bytes + bytes > cfg->spool_max_bytes) {
-        svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool holds %zu "
-                      "bytes of jobs; %zu more would pass --spool-max-bytes "
-                      "%zu; finished jobs leave after --result-ttl %g s or a "
-                      "DELETE", svc__S.disk_bytes, bytes, cfg->spool_max_bytes,
+    if (s->disk_bytes + bytes > cfg->spool_max_bytes) {
+        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool holds %zu bytes of "
+                      "jobs; %zu more would pass --spool-max-bytes %zu; "
+                      "finished jobs leave after --result-ttl %g s or a "
+                      "DELETE", s->disk_bytes, bytes, cfg->spool_max_bytes,
                       cfg->result_ttl);
         return 0;
     }
     return 1;
 }
 
-int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
-               size_t target_len, unsigned flags, svc_job **out,
-               svc_error *err)
+/* The job from the request: its parameters (taken), their texts, what it
+ * plans and the scheme it will run (without one named, the runner may
+ * still choose the explicit fairing once the mesh's size is known). */
+static svc_job *job_from_request(svc_t *s, svc_request *rq, double mem)
 {
-    const svc_config *cfg = &svc__S.cfg;
-    svc_job *j = NULL;
-    api_params prm;
-    mcf_error merr = {MCF_OK, ""};
-    mcf_status rc;
-    cJSON *pj;
-    char *rs = NULL;
-    int reserved = 0;
+    svc_job *j = svc__job_new(s);
     const mcf_scheme_info *si;
-    double mem;
-    int fields;
+    cJSON *shown, *given;
+    const api_params *p;
 
-    /* Parameters first: a misspelled key is refused even when busy. */
-    if ((rc = svc_record_params(rec, &cfg->lim, &prm, &merr)) != MCF_OK) {
-        svc_error_from_mcf(err, rc, SVC_STAGE_PARAMS, NULL, &merr);
-        goto fail;
-    }
-    if (svc_record_fields(rec, &fields, err) != 0 ||
-        steps_over_budget(&prm, &cfg->lim, err)) {
-        api_params_free(&prm);
-        goto fail;
-    }
-    /* Memory admission (svc_admit.c): the estimate from what the input
-     * declares; over --max-job-memory it is refused now. */
-    mem = svc_admit_estimate(input, input_len, target_len, &prm, &cfg->lim);
-    if (svc_admit_refuse(cfg, mem, err)) {
-        api_params_free(&prm);
-        goto fail;
-    }
-    j = svc__job_new();
-    if (!j) {
-        api_params_free(&prm);
-        svc_error_set(err, SVC_ENOMEM, NULL, "out of memory accepting a job");
-        goto fail;
-    }
-    /* the scheme it will run (without one named, the runner may still
-     * choose the explicit fairing once the mesh's size is known) */
-    si = mcf_scheme_get(api_params_scheme(&prm, 0));
+    if (!j)
+        return NULL;
+    j->params = rq->params;
+    api_params_init(&rq->params);
+    p = &j->params;
+    si = mcf_scheme_get(api_params_scheme(p, 0));
     snprintf(j->scheme, sizeof j->scheme, "%s", si ? si->name : "unknown");
-    j->time_planned = prm.flow.time > 0 ? prm.flow.time : 0;
-    j->steps_planned = (prm.flow.time > 0 || prm.flow.adaptive)
-                           ? 0 : prm.flow.iterations;
-    pj = api_params_to_json(&prm);
-    j->params_json = pj ? cJSON_PrintUnformatted(pj) : NULL;
-    cJSON_Delete(pj);
-    api_params_free(&prm);
-
-    /* Admission: the one place that decides whether a job fits now. */
-    svc__lock();
-    if (!admit_locked(input_len + target_len, err)) {
-        svc__unlock();
-        goto fail;
-    }
-    svc__S.reserved++;
-    reserved = 1;
-    new_id(j->id);
-    svc__unlock();
-
-    j->rec = *rec;
-    memset(rec, 0, sizeof *rec);
-    j->rec.has_target = target != NULL;
-    j->input = input;
-    j->input_len = input_len;
-    j->target = target;
-    j->target_len = target_len;
-    input = target = NULL;
-    j->keep_result = (flags & SVC_KEEP_RESULT) != 0;
+    j->time_planned = p->flow.time > 0 ? p->flow.time : 0;
+    j->steps_planned = (p->flow.time > 0 || p->flow.adaptive)
+                           ? 0 : p->flow.iterations;
+    shown = api_params_to_json(p);
+    given = api_params_given_json(p);
+    j->params_json = shown ? cJSON_PrintUnformatted(shown) : NULL;
+    j->params_given = given ? cJSON_PrintUnformatted(given) : NULL;
+    cJSON_Delete(shown);
+    cJSON_Delete(given);
+    snprintf(j->filename, sizeof j->filename, "%s",
+             rq->filename[0] ? rq->filename : "mesh");
+    j->has_target = rq->target != NULL;
+    j->keep_fields = rq->fields;
+    j->keep_result = rq->keep_result;
     j->mem_estimate = mem;
-    j->disk_bytes = input_len + target_len;
+    j->disk_bytes = rq->input_len + rq->target_len;
     j->created = srv_wall();
-    j->status = SVC_JOB_QUEUED;
+    if (!j->params_json || !j->params_given) {
+        svc__job_free(j);
+        return NULL;
+    }
+    return j;
+}
 
-    /* Durable before anyone hears of the ID: input, request, state. */
-    rs = svc__request_json(j);
-    if (!rs || srv_spool_mkjob(cfg->spool, j->id) != 0 ||
-        srv_spool_write(cfg->spool, j->id, "input", j->input, j->input_len,
-                        1) != 0 ||
-        (j->target && srv_spool_write(cfg->spool, j->id, "target", j->target,
-                                      j->target_len, 1) != 0) ||
-        srv_spool_write(cfg->spool, j->id, "request.json", rs, strlen(rs),
-                        1) != 0 ||
-        svc__write_state(j, 1) != 0) {
-        int e = errno;
-        if (e == ENOSPC || e == EDQUOT) {
-            /* A full disk is a full spool: transient, the client's to
-             * retry, like the quota's (and /readyz says so meanwhile). */
-            svc_error_set(err, SVC_EQUOTA, "ESPOOLFULL", "the spool's "
-                          "filesystem has no room for job %s (%zu bytes): "
-                          "%s", j->id, input_len + target_len, strerror(e));
-            err->retry_after = 5;
-        } else {
-            svc_error_set(err, SVC_ESTORAGE, "EIO", "cannot write job %s to "
-                          "the spool %s: %s", j->id, cfg->spool, strerror(e));
-        }
-        srv_spool_remove(cfg->spool, j->id);
+/* Input, target, request and state, durably: the job exists. */
+static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
+                        svc_error *err)
+{
+    svc_blob b[4];
+    svc_state_rec r;
+    char *req = svc__request_json(j), *state;
+    int n = 0, rc, e;
+
+    svc__state_of(j, &r); /* no other thread knows j yet */
+    state = svc__state_json(&r);
+    b[n++] = (svc_blob){"input", rq->input, rq->input_len};
+    if (rq->target)
+        b[n++] = (svc_blob){"target", rq->target, rq->target_len};
+    b[n++] = (svc_blob){"request.json", req, req ? strlen(req) : 0};
+    b[n++] = (svc_blob){"state.json", state, state ? strlen(state) : 0};
+    errno = ENOMEM;
+    rc = req && state ? s->store->ops->create(s->store, j->id, b, n) : -1;
+    e = errno;
+    free(req);
+    free(state);
+    if (rc == 0)
+        return 0;
+    if (e == ENOSPC || e == EDQUOT) {
+        /* A full disk is a full spool: transient, the client's to retry,
+         * like the quota's (and /readyz says so meanwhile). */
+        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool's filesystem has no "
+                      "room for job %s (%zu bytes): %s", j->id,
+                      rq->input_len + rq->target_len, strerror(e));
+        err->retry_after = 5;
+    } else if (e == EAGAIN) {
+        /* a store that cannot answer now (Redis down or loading) */
+        svc_error_set(err, SVC_P_SPOOL_UNREADY, "cannot record job %s now: "
+                      "%s", j->id, strerror(e));
+        err->retry_after = 5;
+    } else {
+        svc_error_set(err, SVC_P_STORAGE, "cannot write job %s to the spool "
+                      "%s: %s", j->id, s->cfg.spool, strerror(e));
+    }
+    return -1;
+}
+
+int svc_submit(svc_t *s, svc_request *rq, svc_job **out, svc_error *err)
+{
+    const svc_config *cfg = &s->cfg;
+    svc_job *j = NULL;
+    int reserved = 0;
+    double mem;
+
+    /* Budgets first: refused even when busy. The estimate (svc_admit.c)
+     * from what the input declares; over --max-job-memory it is refused
+     * now. */
+    if (steps_over_budget(&rq->params, &cfg->lim, err))
+        goto fail;
+    mem = svc_admit_estimate(rq->input, rq->input_len, rq->target_len,
+                             &rq->params, &cfg->lim);
+    if (svc_admit_refuse(cfg, mem, err))
+        goto fail;
+    if (!(j = job_from_request(s, rq, mem))) {
+        svc_error_set(err, SVC_P_NOMEM, "out of memory accepting a job");
         goto fail;
     }
-    free(rs);
-    rs = NULL;
-    /* On disk now: a queued job holds no copy in memory (80 queued
-     * uploads of 7 MB held 735 MB); the worker reads it back. */
-    free(j->input);
-    j->input = NULL;
-    free(j->target);
-    j->target = NULL;
+    /* Admission: the one place that decides whether a job fits now. */
+    pthread_mutex_lock(&s->mu);
+    if (!admit_locked(s, rq->input_len + rq->target_len, err)) {
+        pthread_mutex_unlock(&s->mu);
+        goto fail;
+    }
+    s->reserved++;
+    reserved = 1;
+    new_id(s, j->id);
+    pthread_mutex_unlock(&s->mu);
 
-    svc__lock();
-    svc__S.reserved--;
+    /* Durable before anyone hears of the ID. A queued job holds no copy
+     * of its bytes in memory (80 queued uploads of 7 MB held 735 MB): the
+     * worker reads them back. */
+    if (store_create(s, j, rq, err) != 0)
+        goto fail;
+    svc_request_free(rq);
+
+    pthread_mutex_lock(&s->mu);
+    s->reserved--;
     reserved = 0;
-    svc__table_insert(j);
-    svc__queue_push(j);
+    svc__table_insert(s, j);
+    s->queued++;
     j->refs++; /* the caller's */
-    pthread_cond_signal(&svc__S.work);
-    svc__unlock();
+    pthread_mutex_unlock(&s->mu);
+    if (s->store->ops->push(s->store, j->id, 0) != 0)
+        srv_logf(SRV_LOG_ERROR, "job %s: cannot queue it (%s); it runs after "
+                 "the next start", j->id, strerror(errno));
+    pthread_mutex_lock(&s->mu);
+    svc__wake_locked(s);
+    pthread_mutex_unlock(&s->mu);
     *out = j;
     return 0;
 
 fail:
     if (reserved) {
-        svc__lock();
-        svc__S.reserved--;
-        svc__unlock();
+        pthread_mutex_lock(&s->mu);
+        s->reserved--;
+        pthread_mutex_unlock(&s->mu);
     }
-    free(rs);
-    free(input);
-    free(target);
-    svc_record_free(rec);
+    svc_request_free(rq);
     if (j)
         svc__job_free(j);
     return -1;
 }
 
-int svc_can_accept(void)
+int svc_can_accept(svc_t *s)
 {
     int ok;
-    svc__lock();
-    ok = !svc__S.draining && !queue_full_locked();
-    svc__unlock();
+    pthread_mutex_lock(&s->mu);
+    ok = !s->draining && !queue_full_locked(s);
+    pthread_mutex_unlock(&s->mu);
     return ok;
 }
 
-int svc_upload_reserve(size_t *held, size_t want, svc_error *e)
+int svc_upload_reserve(svc_t *s, size_t *held, size_t want, svc_error *e)
 {
-    const svc_config *cfg = &svc__S.cfg;
     double h = (double)*held;
     size_t more;
     want += SVC_UPLOAD_AROUND;
@@ -538,220 +371,99 @@ int svc_upload_reserve(size_t *held, size_t want, svc_error *e)
     more = want - *held;
     if (more < SVC_UPLOAD_STEP)
         more = SVC_UPLOAD_STEP;
-    if (!svc_admit_more(cfg, &h, (double)more)) {
-        svc_error_set(e, SVC_EBUSY, NULL, "no memory for this upload now: the "
+    if (!svc_admit_more(s, &h, (double)more)) {
+        svc_error_set(e, SVC_P_BUSY, "no memory for this upload now: the "
                       "running jobs and the uploads in flight hold --max-memory "
-                      "(%zu MiB); retry after the delay", cfg->max_memory >> 20);
+                      "(%zu MiB); retry after the delay", s->cfg.max_memory >> 20);
         return -1;
     }
     *held += more;
     return 0;
 }
 
-void svc_upload_release(size_t *held)
+void svc_upload_release(svc_t *s, size_t *held)
 {
     if (*held == 0)
         return;
-    svc_admit_release((double)*held);
+    svc_admit_release(s, (double)*held);
     *held = 0;
-    svc__lock();               /* a queued job may fit now */
-    pthread_cond_broadcast(&svc__S.work);
-    svc__unlock();
+    pthread_mutex_lock(&s->mu);  /* a queued job may fit now */
+    svc__wake_locked(s);
+    pthread_mutex_unlock(&s->mu);
 }
 
-int svc_draining(void)
+int svc_draining(svc_t *s)
 {
     int d;
-    svc__lock();
-    d = svc__S.draining;
-    svc__unlock();
+    pthread_mutex_lock(&s->mu);
+    d = s->draining;
+    pthread_mutex_unlock(&s->mu);
     return d;
 }
 
-/* ------------------------------------------------------------------ cancel */
-
-/* A cancel is on disk before anyone sees it, and a refused one changes
- * nothing: a client told 500 finds the job as it was, and no state a
- * client saw changes after a restart. Both helpers are called with
- * svc_state_mu and the service lock held (in that order; the state.json
- * snapshot and its write go together, see svc__write_state) and return
- * with both let go: 0, or -1 with errno when the spool refused. */
-
-/* Writes j's state as it would be after apply(j) (snapshot taken with
- * the change made, then undone by undo(j)); a job's fields change only
- * when the write succeeded. Lock held on entry and on return; svc_state_mu
- * held throughout. */
-static int write_state_as(svc_job *j, void (*apply)(svc_job *, void *),
-                          void (*undo)(svc_job *, void *), void *ctx)
+int svc_ready(svc_t *s, char *why, size_t size)
 {
-    char *s;
-    int rc, e;
-
-    apply(j, ctx);
-    s = svc__state_json(j);
-    undo(j, ctx);
-    j->refs++;
-    svc__unlock();
-    rc = s ? srv_spool_write(svc__S.cfg.spool, j->id, "state.json", s,
-                             strlen(s), 1) : -1;
-    e = s ? errno : ENOMEM;
-    free(s);
-    svc__lock();
-    svc__unref_locked(j);
-    errno = e;
-    return rc;
+    return s->store->ops->ready(s->store, why, size);
 }
 
-typedef struct {
-    svc_cancel_reason reason;
-    svc_job_status status;
-    double finished;
-    svc_error err;
-} cancel_change;
-
-/* The change of a cancel: a queued job becomes canceled; a running one
- * is asked (cancel_asked: cancel_requested in its state.json; its cancel
- * flag, which the flow reads without the lock, is set only for real). */
-static void cancel_apply(svc_job *j, void *arg)
+const api_limits *svc_limits(const svc_t *s)
 {
-    cancel_change *c = arg;
-    c->status = j->status;
-    c->finished = j->finished;
-    c->err = j->err;
-    if (j->status != SVC_JOB_QUEUED) {
-        j->cancel_asked = c->reason;
-        return;
-    }
-    j->status = SVC_JOB_CANCELED;
-    j->cancel = 1;
-    j->cancel_reason = c->reason;
-    j->finished = srv_wall();
-    if (c->reason == SVC_CANCEL_CLIENT)
-        svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled while queued: "
-                      "the client closed its connection before the answer");
-    else
-        svc_error_set(&j->err, SVC_ECANCELED, NULL, "canceled by request "
-                      "while queued");
-    j->err.cancel = c->reason;
+    return &s->cfg.lim;
 }
 
-static void cancel_undo(svc_job *j, void *arg)
-{
-    cancel_change *c = arg;
-    if (c->status == SVC_JOB_QUEUED) {
-        j->cancel = 0;
-        j->cancel_reason = SVC_CANCEL_NONE;
-    }
-    j->cancel_asked = SVC_CANCEL_NONE;
-    j->status = c->status;
-    j->finished = c->finished;
-    j->err = c->err;
-}
+/* ------------------------------------------------------------------ delete */
 
-/* Cancels a queued or running job (see above). A queued one leaves the
- * queue while its state is written (no worker takes it, nor svc_sweep
- * when it was parked) and comes back to the head of the queue when the
- * write fails; a running one gets its cancel flag only once
- * cancel_requested is on disk. */
-static int cancel_locked(svc_job *j, svc_cancel_reason reason)
+/* Forgets a finished job: out of the table first (a visible job always
+ * has its blobs), then out of the store; a job that cannot be removed is
+ * put back, rather than coming back after a restart. Takes the caller's
+ * reference. 0 or -1 (errno). */
+static int forget(svc_t *s, svc_job *j, const char *why)
 {
-    cancel_change c = {.reason = reason};
-    int was = j->status, parked = j->parked;
-    int inq = was == SVC_JOB_QUEUED && queue_remove(j), rc, e;
+    int e;
 
-    j->parked = 0;
-    rc = write_state_as(j, cancel_apply, cancel_undo, &c);
-    e = errno;
-    if (rc == 0 && j->status == SVC_JOB_QUEUED) {
-        cancel_apply(j, &c);
-        svc__notify(j, SVC_NOTIFY_STATE);
-    } else if (rc == 0 && j->status == SVC_JOB_RUNNING) {
-        j->cancel_reason = reason;
-        j->cancel = 1;
-    } else if (rc != 0) {
-        j->parked = parked;
-        if (inq) {
-            queue_push_front(j);
-            pthread_cond_signal(&svc__S.work);
-        }
-    }
-    was = was == SVC_JOB_QUEUED && j->status == SVC_JOB_CANCELED;
-    j->refs++;
-    svc__unlock();
-    pthread_mutex_unlock(&svc_state_mu);
-    if (was) {
-        srv_metrics_job(j->scheme, "canceled", 0);
-        svc__log_job(j, 0, 0, 0);
-    }
-    svc_job_unref(j);
-    errno = e;
-    return rc;
-}
-
-int svc_cancel(svc_job *j, svc_cancel_reason reason)
-{
-    pthread_mutex_lock(&svc_state_mu);
-    svc__lock();
-    if ((j->cancel && j->status == SVC_JOB_RUNNING) ||
-        (j->status != SVC_JOB_QUEUED && j->status != SVC_JOB_RUNNING)) {
-        svc__unlock();
-        pthread_mutex_unlock(&svc_state_mu);
+    pthread_mutex_lock(&s->mu);
+    table_remove(s, j);
+    pthread_mutex_unlock(&s->mu);
+    if (s->store->ops->remove(s->store, j->id) == 0) {
+        svc_job_unref(j);
         return 0;
     }
-    return cancel_locked(j, reason) == 0 ? 1 : -1;
+    e = errno;
+    srv_logf(SRV_LOG_ERROR, "spool: cannot remove %s job %s: %s", why, j->id,
+             strerror(e));
+    pthread_mutex_lock(&s->mu);
+    table_restore(s, j);
+    pthread_mutex_unlock(&s->mu);
+    errno = e;
+    return -1;
 }
 
-int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
-               svc_error *err)
+int svc_delete(svc_t *s, const char *id, svc_delete_result *res,
+               svc_job_status *before, svc_error *err)
 {
-    svc_job *j;
+    svc_job *j = svc_job_get(s, id);
+    svc_snap sn;
     int rc;
 
-    pthread_mutex_lock(&svc_state_mu);
-    svc__lock();
-    j = svc__find_locked(id);
     if (!j) {
-        svc__unlock();
-        pthread_mutex_unlock(&svc_state_mu);
-        svc_error_set(err, SVC_ENOTFOUND, NULL, "no job with ID %s (never "
+        svc_error_set(err, SVC_P_NOT_FOUND, "no job with ID %s (never "
                       "existed, deleted, or expired)", id);
         return -1;
     }
-    *before = j->status;
-    if (j->status == SVC_JOB_QUEUED || j->status == SVC_JOB_RUNNING) {
-        *res = j->status == SVC_JOB_QUEUED ? SVC_DELETE_CANCELED
+    svc_job_snapshot(j, &sn);
+    *before = sn.status;
+    if (!svc_job_status_terminal(sn.status)) {
+        *res = sn.status == SVC_JOB_QUEUED ? SVC_DELETE_CANCELED
                                            : SVC_DELETE_STOPPING;
-        if (j->cancel && j->status == SVC_JOB_RUNNING) { /* asked already */
-            svc__unlock();
-            pthread_mutex_unlock(&svc_state_mu);
-            return 0;
-        }
-        rc = cancel_locked(j, SVC_CANCEL_USER);
+        rc = svc_cancel(j, SVC_CANCEL_USER) < 0 ? -1 : 0;
+        svc_job_unref(j);
     } else {
-        pthread_mutex_unlock(&svc_state_mu);
-        /* Finished: forget it, out of the table first (a visible job
-         * always has its files), then off the disk; a job that cannot be
-         * removed is put back, rather than coming back after a restart. */
-        j->refs++;
-        table_remove(j);
-        svc__unlock();
         *res = SVC_DELETE_FORGOTTEN;
-        rc = srv_spool_remove(svc__S.cfg.spool, id);
-        if (rc != 0) {
-            int e = errno;
-            srv_logf(SRV_LOG_ERROR, "spool: cannot remove job %s: %s", id,
-                     strerror(e));
-            svc__lock();
-            table_restore(j);
-            svc__unlock();
-            errno = e;
-        } else {
-            svc_job_unref(j);
-        }
+        rc = forget(s, j, "deleted");
     }
     if (rc != 0) {
-        svc_error_set(err, SVC_ESTORAGE, "EIO", "job %s: the spool could not "
-                      "record the deletion (%s); %s", id, strerror(errno),
+        svc_error_set(err, SVC_P_STORAGE, "job %s: the spool could not record "
+                      "the deletion (%s); %s", id, strerror(errno),
                       *res != SVC_DELETE_FORGOTTEN
                       ? "it was not canceled; retry"
                       : "the job is kept; retry");
@@ -762,142 +474,223 @@ int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
 
 /* ------------------------------------------------------------------- sweep */
 
-void svc_sweep(void)
+/* Lock held: the jobs finished more than the TTL ago, out of the table
+ * (held by a reference each, in *gone); parked jobs whose delay passed
+ * back in the queue (their IDs in *again). */
+/* One more ID at the end of a growing array. 0, or -1 (ENOMEM). */
+typedef struct {
+    char (*id)[SVC_ID_LEN + 1];
+    int n, cap;
+} id_list;
+
+static int id_append(id_list *l, const char *id)
 {
-    svc_job **gone = NULL;
-    int n = 0, cap = 0, b, i;
+    if (l->n == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 16;
+        void *p = realloc(l->id, (size_t)cap * sizeof *l->id);
+        if (!p)
+            return -1;
+        l->id = p;
+        l->cap = cap;
+    }
+    memcpy(l->id[l->n++], id, SVC_ID_LEN + 1);
+    return 0;
+}
+
+/* Lock held: the jobs past their TTL (*gone, a reference each), the
+ * parked jobs whose retry time came (again: counted as queued) and the
+ * running ones (beat: their claim is alive). */
+static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone, id_list *again,
+                        id_list *beat)
+{
+    int cap = 0, b;
     double now = srv_wall();
     svc_job *j, *next;
 
-    svc__lock();
     for (b = 0; b < SVC_NBUCKETS; b++)
-        for (j = svc__S.buckets[b]; j; j = next) {
+        for (j = s->buckets[b]; j; j = next) {
             next = j->hnext;
-            if (j->parked && !svc__S.draining &&
-                srv_mono() >= j->retry_at) {
-                /* runner.c: its outcome could not be recorded; again */
+            if (j->status == SVC_JOB_RUNNING && id_append(beat, j->id) != 0)
+                return -1;
+            if (j->parked && !s->draining && srv_mono() >= j->retry_at) {
+                if (id_append(again, j->id) != 0)
+                    return -1;
                 j->parked = 0;
-                svc__queue_push(j);
-                pthread_cond_signal(&svc__S.work);
+                s->queued++;
             }
             if (!svc_job_status_terminal(j->status) ||
-                now - j->finished < svc__S.cfg.result_ttl)
+                now - j->finished < s->cfg.result_ttl)
                 continue;
-            if (n == cap) {
-                int ncap = cap ? 2 * cap : 64;
-                void *p = realloc(gone, (size_t)ncap * sizeof *gone);
+            if (*ngone == cap) {
+                void *p = realloc(*gone, (size_t)(cap = cap ? 2 * cap : 64) * sizeof **gone);
                 if (!p)
-                    break;
-                gone = p;
-                cap = ncap;
+                    return -1;
+                *gone = p;
             }
-            /* Out of the table before its files go (a visible job always
-             * has its files), held by a reference of ours. */
             j->refs++;
-            table_remove(j);
-            gone[n++] = j;
+            (*gone)[(*ngone)++] = j;
         }
-    svc__unlock();
+    return 0;
+}
+
+void svc_sweep(svc_t *s)
+{
+    svc_job **gone = NULL;
+    id_list again = {NULL, 0, 0}, beat = {NULL, 0, 0};
+    int ngone = 0, i;
+
+    pthread_mutex_lock(&s->mu);
+    sweep_locked(s, &gone, &ngone, &again, &beat);
+    pthread_mutex_unlock(&s->mu);
+    /* a shared store hands the job of a silent claimer to another */
+    for (i = 0; i < beat.n; i++)
+        s->store->ops->heartbeat(s->store, beat.id[i]);
+    /* their outcome could not be recorded (svc__finish): again */
+    for (i = 0; i < again.n; i++)
+        s->store->ops->push(s->store, again.id[i], 0);
+    if (again.n) {
+        pthread_mutex_lock(&s->mu);
+        svc__wake_locked(s);
+        pthread_mutex_unlock(&s->mu);
+    }
     /* A removal that fails puts the job back (tried again at the next
      * sweep) instead of leaving files that bring it back after a
      * restart. */
-    for (i = 0; i < n; i++) {
-        j = gone[i];
-        if (srv_spool_remove(svc__S.cfg.spool, j->id) != 0) {
-            srv_logf(SRV_LOG_WARN, "spool: cannot remove expired job %s: %s",
-                     j->id, strerror(errno));
-            svc__lock();
-            table_restore(j);
-            svc__unlock();
-            continue;
-        }
-        srv_logf(SRV_LOG_DEBUG, "job %s expired after --result-ttl %g s",
-                 j->id, svc__S.cfg.result_ttl);
-        svc_job_unref(j);
-    }
+    for (i = 0; i < ngone; i++)
+        if (forget(s, gone[i], "expired") == 0)
+            srv_logf(SRV_LOG_DEBUG, "job %s expired after --result-ttl %g s",
+                     gone[i]->id, s->cfg.result_ttl);
     free(gone);
+    free(again.id);
+    free(beat.id);
 }
 
 /* --------------------------------------------------------------- lifecycle */
 
-int svc_start(const svc_config *cfg, char *msg, size_t msgsize)
+int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
 {
-    svc__S.cfg = *cfg;
-    svc__S.urandom = open("/dev/urandom", O_RDONLY);
-    {
-        /* The drain's timed wait on the monotonic clock, like every
-         * deadline of the daemon. */
-        pthread_condattr_t ca;
-        if (pthread_condattr_init(&ca) == 0) {
-            if (pthread_condattr_setclock(&ca, CLOCK_MONOTONIC) == 0) {
-                pthread_cond_destroy(&svc__S.idle);
-                pthread_cond_init(&svc__S.idle, &ca);
-            }
-            pthread_condattr_destroy(&ca);
-        }
-    }
-    if (svc__recover(msg, msgsize) != 0)
+    svc_t *s = calloc(1, sizeof *s);
+    pthread_condattr_t ca;
+
+    *out = NULL;
+    if (!s) {
+        snprintf(msg, msgsize, "out of memory");
         return -1;
-    return svc__workers_start(msg, msgsize);
+    }
+    s->cfg = *cfg;
+    s->urandom = open("/dev/urandom", O_RDONLY | O_CLOEXEC);
+    pthread_mutex_init(&s->mu, NULL);
+    pthread_mutex_init(&s->state_mu, NULL);
+    pthread_cond_init(&s->work, NULL);
+    /* The drain's timed wait on the monotonic clock, like every deadline
+     * of the daemon. */
+    pthread_condattr_init(&ca);
+    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    pthread_cond_init(&s->idle, &ca);
+    pthread_condattr_destroy(&ca);
+    svc_admit_init(s);
+    s->store = cfg->store[0]
+                   ? svc_redis_open(cfg->store, cfg->store_password_file,
+                                    cfg->workers,
+                                    cfg->result_ttl + cfg->job_timeout + 3600,
+                                    msg, msgsize)
+                   : svc_spool_open(cfg->spool, msg, msgsize);
+    if (!s->store ||
+        svc__recover(s, msg, msgsize) != 0 ||
+        svc__workers_start(s, msg, msgsize) != 0) {
+        svc_stop(s);
+        return -1;
+    }
+    *out = s;
+    return 0;
 }
 
-void svc_drain(void)
-{
-    svc_job *j;
-
-    svc__lock();
-    svc__S.draining = 1;
-    /* Clients waiting on queued jobs hear now: those run after restart. */
-    for (j = svc__S.qhead; j; j = j->qnext)
-        svc__notify(j, SVC_NOTIFY_STATE);
-    pthread_cond_broadcast(&svc__S.work);
-    svc__unlock();
-}
-
-void svc_close_waiters(void)
+void svc_drain(svc_t *s)
 {
     int b;
     svc_job *j;
 
-    svc__lock();
-    svc__S.closing = 1;
+    pthread_mutex_lock(&s->mu);
+    s->draining = 1;
+    /* Clients waiting on queued jobs hear now: those run after restart. */
     for (b = 0; b < SVC_NBUCKETS; b++)
-        for (j = svc__S.buckets[b]; j; j = j->hnext)
-            svc__notify(j, SVC_NOTIFY_STATE);
-    svc__unlock();
+        for (j = s->buckets[b]; j; j = j->hnext)
+            if (j->status == SVC_JOB_QUEUED)
+                svc__notify(j, SVC_NOTIFY_STATE);
+    svc__wake_locked(s);
+    pthread_mutex_unlock(&s->mu);
 }
 
-void svc_stop(void)
+void svc_close_waiters(svc_t *s)
+{
+    int b;
+    svc_job *j;
+
+    pthread_mutex_lock(&s->mu);
+    s->closing = 1;
+    for (b = 0; b < SVC_NBUCKETS; b++)
+        for (j = s->buckets[b]; j; j = j->hnext)
+            svc__notify(j, SVC_NOTIFY_STATE);
+    pthread_mutex_unlock(&s->mu);
+}
+
+void svc_checkpoint_running(svc_t *s)
+{
+    int b;
+    svc_job *j;
+
+    pthread_mutex_lock(&s->mu);
+    for (b = 0; b < SVC_NBUCKETS; b++)
+        for (j = s->buckets[b]; j; j = j->hnext)
+            /* A job its user (or its hung-up client) canceled stays
+             * canceled: it is not put back in the queue. */
+            if (j->status == SVC_JOB_RUNNING &&
+                !(j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
+                                j->cancel_reason == SVC_CANCEL_CLIENT))) {
+                j->cancel = 1;
+                j->cancel_reason = SVC_CANCEL_SHUTDOWN;
+            }
+    pthread_mutex_unlock(&s->mu);
+}
+
+void svc_stop(svc_t *s)
 {
     int b;
     svc_job *j, *next;
 
-    svc__workers_stop();
-    svc__lock();
-    while (svc__queue_pop())
-        ;
+    if (!s)
+        return;
+    svc__workers_stop(s);
+    pthread_mutex_lock(&s->mu);
     for (b = 0; b < SVC_NBUCKETS; b++)
-        for (j = svc__S.buckets[b]; j; j = next) {
+        for (j = s->buckets[b]; j; j = next) {
             next = j->hnext;
-            table_remove(j);
+            table_remove(s, j);
         }
-    svc__unlock();
-    if (svc__S.urandom >= 0)
-        close(svc__S.urandom);
-    svc__S.urandom = -1;
+    pthread_mutex_unlock(&s->mu);
+    if (s->store)
+        s->store->ops->close(s->store);
+    if (s->urandom >= 0)
+        close(s->urandom);
+    svc_admit_destroy(s);
+    pthread_cond_destroy(&s->work);
+    pthread_cond_destroy(&s->idle);
+    pthread_mutex_destroy(&s->state_mu);
+    pthread_mutex_destroy(&s->mu);
+    free(s);
 }
 
-svc_gauges svc_get_gauges(void)
+svc_gauges svc_get_gauges(svc_t *s)
 {
     svc_gauges g;
-    svc__lock();
-    g.queue_depth = svc__S.qlen;
-    g.queue_capacity = svc__S.cfg.queue;
-    g.workers = svc__S.nthreads;
-    g.workers_busy = svc__S.busy;
-    g.jobs_in_memory = svc__S.njobs;
-    g.draining = svc__S.draining;
-    g.spool_bytes = (double)svc__S.disk_bytes;
-    svc__unlock();
+    pthread_mutex_lock(&s->mu);
+    g.queue_depth = s->queued;
+    g.queue_capacity = s->cfg.queue;
+    g.workers = s->nthreads;
+    g.workers_busy = s->busy;
+    g.jobs_in_memory = s->njobs;
+    g.draining = s->draining;
+    g.spool_bytes = (double)s->disk_bytes;
+    pthread_mutex_unlock(&s->mu);
     return g;
 }

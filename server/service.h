@@ -1,28 +1,32 @@
 /*
  * service.h - the job service of mcfd: the one module that owns jobs
- * (table, queue, workers, runner, spool, recovery, drain), and the only
+ * (table, queue, workers, runner, store, recovery, drain), and the only
  * way a transport reaches them. Both doors use nothing else: the REST door
- * (http.c, stream.c, reply.c on libmicrohttpd) and the gRPC door. No
- * HTTP, MHD or gRPC type appears here, and no message here names a URL.
+ * (http.c and its files, on libmicrohttpd) and the gRPC door (grpc.cc).
+ * No HTTP, MHD or gRPC type appears here, and no message here names a URL.
  *
  * Objects
- *   svc_job   an opaque, reference-counted handle. svc_submit and
- *             svc_job_get hand out a reference; svc_job_unref drops it.
- *             A handle stays valid (readable, never freed) while held,
- *             also after the job was deleted or expired: it then reads as
- *             it was last.
- *   svc_snap  a copy of a job's state taken at one instant, for readers.
+ *   svc_t     the service: made by svc_start, passed to every call that
+ *             is not about one job, ended by svc_stop. Any number may
+ *             live in one process, each with its own store and workers.
+ *   svc_job   an opaque, reference-counted handle of one job of one
+ *             service (the calls on a handle reach its service through
+ *             it). svc_submit and svc_job_get hand out a reference;
+ *             svc_job_unref drops it. A handle stays valid (readable,
+ *             never freed) while held, also after the job was deleted or
+ *             expired: it then reads as it was last.
+ *   svc_snap  a copy of a job's state taken at one instant: everything a
+ *             door shows of a job.
  *   svc_sub   a subscription: "call fn(ctx, what) when this job moves".
  *
  * Threads and locking
- *   Every job function may be called from any thread (MHD's pool,
- *   gRPC's, the main thread) after svc_start and before svc_stop; the
- *   lifecycle functions from the main thread; svc_error_* and
- *   svc_record_* at any time. The service has
- *   one internal lock; it is held only for short bookkeeping, never
- *   across mesh work or disk I/O, and never while calling out, except for
- *   subscription callbacks (below). Callers hold no lock of the service:
- *   what they get back are copies.
+ *   Every call may be made from any thread (MHD's pool, gRPC's, the main
+ *   thread) between svc_start and svc_stop; the lifecycle calls from one
+ *   thread; svc_error_* and svc_problem_* at any time. Each service has
+ *   one lock; it is held only for short bookkeeping, never across mesh
+ *   work or I/O (disk, the store), and never while calling out, except
+ *   for subscription callbacks (below). Callers hold no lock of the
+ *   service: what they get back are copies.
  *
  * Subscriptions
  *   fn is called with the service lock held, from the thread that changed
@@ -41,45 +45,22 @@
  *
  * Ownership
  *   Strings and buffers returned through char ** are malloc'ed copies the
- *   caller frees; cJSON objects are the caller's to cJSON_Delete.
- *   svc_submit takes the input and target buffers and the record's
- *   contents, also when it fails.
+ *   caller frees. svc_submit takes the request's buffers and parameters,
+ *   also when it fails.
  *
  * Errors
- *   Failures are svc_error values: a transport-neutral code, the mcf
- *   status and stage they came from (when they came from the core or the
- *   codecs), a symbolic name (the REST "code": "EMESH", "EBUSY", ...), a
- *   precise detail in words, and a retry delay for transient refusals.
- *   The detail never names a URL, header or status code. Each door maps
- *   the code; both agree on this table:
- *
- *   code         meaning                           REST            gRPC
- *   EPARAMS      a parameter is wrong (named)      400 (mcf/stage) INVALID_ARGUMENT
- *   EINPUT       the mesh bytes are refused:       400, 413 limit, INVALID_ARGUMENT;
- *                unparsable, unknown format, over  415 format      ELIMIT:
- *                a limit                                           RESOURCE_EXHAUSTED
- *   EMESH        a well-formed mesh these          422             INVALID_ARGUMENT;
- *                parameters cannot smooth, or a                    ELIMIT:
- *                budget this mesh exceeds                          RESOURCE_EXHAUSTED
- *   ENOMEM       out of memory (transient)         503             RESOURCE_EXHAUSTED
- *   EBUSY        the queue is full (retry_after)   503             RESOURCE_EXHAUSTED
- *   EQUOTA       the spool's job or byte quota     503             RESOURCE_EXHAUSTED
- *   EDRAINING    shutting down (retry_after); also 503             UNAVAILABLE
- *                a job interrupted by the shutdown,
- *                which runs again after the restart
- *   ENOTFOUND    no job with that ID               404             NOT_FOUND
- *   ENOTREADY    queued or running, no result yet  409             FAILED_PRECONDITION
- *   ENORESULT    failed or canceled: no result     409             FAILED_PRECONDITION
- *   ECANCELED    canceled by a user or because its 409             CANCELLED
- *                only client left (cancel field)
- *   ETIMEOUT     ran longer than the job timeout   422 (ELIMIT)    DEADLINE_EXCEEDED
- *   ESTORAGE     the spool could not be read or    500 (EIO)       INTERNAL
- *                written
- *   EINTERNAL    anything else                     500             INTERNAL
- *
- *   For EPARAMS, EINPUT and EMESH the REST status comes from (mcf, stage)
- *   through the mcf_status map of reply.c, exactly as before the split.
- *   Codes are only ever appended.
+ *   Failures are svc_error values: a problem (a row of SVC_PROBLEMS, the
+ *   one table of client-visible errors), a precise detail in words, and a
+ *   retry delay for transient refusals. The detail never names a URL,
+ *   header or status code. Each row gives the symbolic name clients see
+ *   (REST's "code", gRPC's `mcf-code` trailer), the service code (svc_code:
+ *   what kind of failure, transport-neutral), the mcf_status it stands for
+ *   (when it came from the core or the codecs), the HTTP status and the
+ *   gRPC status; both doors map from it and nothing else. Failures of the
+ *   core and the codecs find their row from their mcf status and the
+ *   stage they came from (svc_error_from_mcf: parameters, the bytes, or
+ *   this mesh with these parameters). Rows and codes are only ever
+ *   appended.
  */
 #ifndef SVC_SERVICE_H
 #define SVC_SERVICE_H
@@ -90,6 +71,8 @@
 
 /* ------------------------------------------------------------------ errors */
 
+/* The kinds of failure (transport-neutral), persisted with a job's error
+ * as its "kind". */
 #define SVC_CODES(X)                                                   \
     X(OK,        "success")                                           \
     X(EPARAMS,   "invalid parameters")                                \
@@ -105,7 +88,10 @@
     X(ECANCELED, "the job was canceled")                              \
     X(ETIMEOUT,  "the job ran out of time")                           \
     X(ESTORAGE,  "the spool failed")                                  \
-    X(EINTERNAL, "internal error")
+    X(EINTERNAL, "internal error")                                    \
+    X(EAUTH,     "a valid token is required")                         \
+    X(EMETHOD,   "the method is not allowed on this resource")        \
+    X(EUNAVAILABLE, "the daemon cannot serve now")
 
 typedef enum {
 #define X(name, text) SVC_##name,
@@ -113,13 +99,118 @@ typedef enum {
 #undef X
 } svc_code;
 
-/* Where an mcf_status came from (it decides REST's 400 against 422). */
+/* gRPC's status codes (grpc/status.h's numbers, fixed by the protocol),
+ * for the table below; the gRPC door casts them to its StatusCode. */
 typedef enum {
-    SVC_STAGE_NONE = 0,    /* not from the core or the codecs */
-    SVC_STAGE_PARAMS,      /* parameter parsing and range checks */
-    SVC_STAGE_DECODE,      /* bytes -> mesh */
-    SVC_STAGE_RUN          /* the flow, encoding, comparison */
-} svc_stage;
+    SVC_GRPC_OK = 0, SVC_GRPC_CANCELLED = 1, SVC_GRPC_INVALID_ARGUMENT = 3,
+    SVC_GRPC_DEADLINE_EXCEEDED = 4, SVC_GRPC_NOT_FOUND = 5,
+    SVC_GRPC_RESOURCE_EXHAUSTED = 8, SVC_GRPC_FAILED_PRECONDITION = 9,
+    SVC_GRPC_UNIMPLEMENTED = 12, SVC_GRPC_INTERNAL = 13,
+    SVC_GRPC_UNAVAILABLE = 14, SVC_GRPC_UNAUTHENTICATED = 16
+} svc_grpc_status;
+
+/* Every client-visible error, one row each: its identifier, the name
+ * clients see, the service code, the mcf status it stands for (OK: none),
+ * the HTTP status, the gRPC status, and what it means. A failure of the
+ * core or a codec at a stage is the row of (the stage's code, its status):
+ * parameters EPARAMS, the bytes EINPUT, the run EMESH. Appended only. */
+#define SVC_PROBLEMS(X)                                                              \
+    X(OK,             "OK",         OK,        OK,         200, OK,                  \
+      "success")                                                                    \
+    /* the parameters: the request's fault */                                      \
+    X(PARAM_INVALID,  "EINVAL",     EPARAMS,   EINVAL,     400, INVALID_ARGUMENT,    \
+      "a parameter is invalid (named in the detail)")                               \
+    X(PARAM_LIMIT,    "ELIMIT",     EPARAMS,   ELIMIT,     400, INVALID_ARGUMENT,    \
+      "the parameters alone exceed a limit")                                        \
+    X(PARAM_DECODE,   "EDECODE",    EPARAMS,   EDECODE,    400, INVALID_ARGUMENT,    \
+      "the parameters do not parse")                                                \
+    /* the request's bytes */                                                       \
+    X(INPUT_INVALID,  "EINVAL",     EINPUT,    EINVAL,     400, INVALID_ARGUMENT,    \
+      "the request's body is not what it must be")                                  \
+    X(INPUT_DECODE,   "EDECODE",    EINPUT,    EDECODE,    400, INVALID_ARGUMENT,    \
+      "the bytes do not parse")                                                     \
+    X(INPUT_FORMAT,   "EFORMAT",    EINPUT,    EFORMAT,    415, INVALID_ARGUMENT,    \
+      "not a format the service reads")                                             \
+    X(INPUT_LIMIT,    "ELIMIT",     EINPUT,    ELIMIT,     413, RESOURCE_EXHAUSTED,  \
+      "the input is over a size limit")                                             \
+    X(INPUT_MESH,     "EMESH",      EINPUT,    EMESH,      422, INVALID_ARGUMENT,    \
+      "the bytes hold a malformed mesh")                                            \
+    /* this mesh with these parameters */                                           \
+    X(MESH_INVALID,   "EINVAL",     EMESH,     EINVAL,     422, INVALID_ARGUMENT,    \
+      "these parameters do not suit this mesh")                                     \
+    X(MESH_LIMIT,     "ELIMIT",     EMESH,     ELIMIT,     422, RESOURCE_EXHAUSTED,  \
+      "the job exceeds a budget (steps, work, memory, decode)")                     \
+    X(MESH,           "EMESH",      EMESH,     EMESH,      422, INVALID_ARGUMENT,    \
+      "the mesh is malformed")                                                      \
+    X(MESH_NOTPOSDEF, "ENOTPOSDEF", EMESH,     ENOTPOSDEF, 422, INVALID_ARGUMENT,    \
+      "the system matrix is not positive definite")                                 \
+    X(MESH_NUMERIC,   "ENUMERIC",   EMESH,     ENUMERIC,   422, INVALID_ARGUMENT,    \
+      "the flow failed numerically")                                                \
+    X(MESH_NOCONV,    "ENOCONV",    EMESH,     ENOCONV,    422, INVALID_ARGUMENT,    \
+      "an iteration did not converge")                                              \
+    X(MESH_DECODE,    "EDECODE",    EMESH,     EDECODE,    400, INVALID_ARGUMENT,    \
+      "the bytes do not parse")                                                     \
+    X(MESH_FORMAT,    "EFORMAT",    EMESH,     EFORMAT,    415, INVALID_ARGUMENT,    \
+      "not a format the service writes")                                            \
+    /* the service */                                                               \
+    X(NOMEM,          "ENOMEM",     ENOMEM,    ENOMEM,     503, RESOURCE_EXHAUSTED,  \
+      "out of memory: retry after the delay")                                       \
+    X(BUSY,           "EBUSY",      EBUSY,     OK,         503, RESOURCE_EXHAUSTED,  \
+      "no room now (queue, memory, streams): retry after the delay")                \
+    X(SPOOL_FULL,     "ESPOOLFULL", EQUOTA,    OK,         503, RESOURCE_EXHAUSTED,  \
+      "the spool's quota or disk is full: retry after the delay")                   \
+    X(DRAINING,       "EDRAINING",  EDRAINING, OK,         503, UNAVAILABLE,         \
+      "shutting down; a job it interrupted runs again after the restart")           \
+    X(NOT_FOUND,      "ENOTFOUND",  ENOTFOUND, OK,         404, NOT_FOUND,           \
+      "no such job or resource")                                                    \
+    X(NOT_READY,      "ENOTREADY",  ENOTREADY, OK,         409, FAILED_PRECONDITION, \
+      "the job is queued or running: no result yet")                                \
+    X(NO_RESULT,      "ENORESULT",  ENORESULT, OK,         409, FAILED_PRECONDITION, \
+      "the job failed or was canceled: no result")                                  \
+    X(CANCELED,       "ECANCELED",  ECANCELED, OK,         409, CANCELLED,           \
+      "canceled by a user, or because its only client left")                        \
+    X(TIMEOUT,        "ELIMIT",     ETIMEOUT,  OK,         422, DEADLINE_EXCEEDED,   \
+      "the job ran longer than --job-timeout")                                      \
+    X(STORAGE,        "EIO",        ESTORAGE,  OK,         500, INTERNAL,            \
+      "the spool could not be read or written")                                     \
+    X(INTERNAL_IO,    "EIO",        EINTERNAL, EIO,        500, INTERNAL,            \
+      "an input/output error")                                                      \
+    X(INTERNAL,       "EINTERNAL",  EINTERNAL, OK,         500, INTERNAL,            \
+      "internal error")                                                             \
+    /* the doors' own */                                                            \
+    X(AUTH,           "EAUTH",      EAUTH,     OK,         401, UNAUTHENTICATED,     \
+      "a valid bearer token is required")                                           \
+    X(METHOD,         "EMETHOD",    EMETHOD,   OK,         405, UNIMPLEMENTED,       \
+      "the method is not allowed on this resource")                                 \
+    X(URI_LIMIT,      "ELIMIT",     EPARAMS,   OK,         414, INVALID_ARGUMENT,    \
+      "the query string is too long")                                               \
+    X(UPLOAD_TIMEOUT, "ETIMEOUT",   ETIMEOUT,  OK,         408, DEADLINE_EXCEEDED,   \
+      "the upload did not arrive in time")                                          \
+    X(UNHEALTHY,      "EUNHEALTHY", EUNAVAILABLE, OK,      503, UNAVAILABLE,         \
+      "a door cannot take connections")                                             \
+    X(SPOOL_UNREADY,  "ESPOOL",     EUNAVAILABLE, OK,      503, UNAVAILABLE,         \
+      "the spool cannot be written")                                                \
+    X(FRAMING,        "EFRAMING",   EPARAMS,   OK,         400, INVALID_ARGUMENT,    \
+      "the request's body cannot be framed without doubt")                          \
+    X(NOT_IMPLEMENTED, "ENOTIMPLEMENTED", EPARAMS, OK,     501, UNIMPLEMENTED,       \
+      "the request uses a feature the daemon does not implement")                   \
+    X(BUSY_ADDRESS,   "EBUSY",      EBUSY,     OK,         503, RESOURCE_EXHAUSTED,  \
+      "this address has too many connections open")
+
+typedef enum {
+#define X(id, name, code, mcf, http, grpc, text) SVC_P_##id,
+    SVC_PROBLEMS(X)
+#undef X
+    SVC_P_COUNT
+} svc_problem;
+
+/* A row's columns (an unknown row reads as INTERNAL's). */
+const char *svc_problem_name(svc_problem p);     /* "EINVAL", "EBUSY" */
+svc_code svc_problem_code(svc_problem p);
+mcf_status svc_problem_mcf(svc_problem p);
+unsigned svc_problem_http(svc_problem p);
+svc_grpc_status svc_problem_grpc(svc_problem p);
+const char *svc_problem_text(svc_problem p);
 
 /* Why a job was (asked to be) stopped. */
 typedef enum {
@@ -131,35 +222,41 @@ typedef enum {
 } svc_cancel_reason;
 
 typedef struct {
-    svc_code code;
-    mcf_status mcf;            /* MCF_OK when not from the core/codecs */
-    svc_stage stage;
+    svc_problem problem;
     svc_cancel_reason cancel;  /* ECANCELED: why */
-    char name[24];             /* "EMESH", "EBUSY", "ESPOOLFULL", "EIO" */
     char detail[MCF_ERRMSG_SIZE + 128];
     double retry_after;        /* seconds, > 0 for transient refusals */
 } svc_error;
 
 /* "EPARAMS" for SVC_EPARAMS, "" when unknown. */
 const char *svc_code_name(svc_code c);
-/* A failure of the core or the codecs: code from (s, stage), name is
- * mcf_status_name(s), detail "prefix: message" (prefix may be NULL). */
-void svc_error_from_mcf(svc_error *e, mcf_status s, svc_stage stage,
+/* The error's service code (its row's). */
+svc_code svc_error_code(const svc_error *e);
+/* A failure of the core or the codecs at a stage: the row of (the
+ * stage's code, s), detail "prefix: message" (prefix may be NULL; err
+ * NULL: mcf_strerror(s)). */
+void svc_error_from_mcf(svc_error *e, mcf_status s, api_job_stage stage,
                         const char *prefix, const mcf_error *err);
-/* Any failure; name NULL: svc_code_name(code). Clears mcf and stage. */
-void svc_error_set(svc_error *e, svc_code code, const char *name,
-                   const char *fmt, ...)
+/* Any failure: problem p with the detail; retry_after from its code
+ * (EBUSY, EQUOTA, ENOMEM: 1 s; EDRAINING: 5 s). */
+void svc_error_set(svc_error *e, svc_problem p, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 4, 5)))
+    __attribute__((format(printf, 3, 4)))
 #endif
     ;
 
 /* ------------------------------------------------------------------ set-up */
 
+typedef struct svc svc_t;
+
 typedef struct {
     int workers;               /* worker threads */
     int queue;                 /* queued jobs beyond the running ones */
-    char spool[1024];          /* spool directory (exists) */
+    char spool[1024];          /* the local store's directory (made when
+                                  missing) */
+    char store[1024];          /* redis://HOST[:PORT][/DB]: the jobs in
+                                  Redis (store_redis.c); "": the spool */
+    char store_password_file[1024]; /* its password's file, "": none */
     int spool_max_jobs;        /* jobs kept before EQUOTA, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before EQUOTA */
     api_limits lim;            /* limits on untrusted input */
@@ -171,27 +268,31 @@ typedef struct {
     size_t decode_memory;      /* its memory limit, floor (sandbox.c) */
 } svc_config;
 
-/* Recovers the spool (queued and interrupted jobs queued again in their
- * order with their IDs, finished ones reloaded until their TTL), then
- * starts the workers. cfg is copied. 0, or -1 with a reason in msg. */
-int svc_start(const svc_config *cfg, char *msg, size_t msgsize);
+/* Opens the store, recovers it (queued and interrupted jobs queued again
+ * in their order with their IDs, finished ones reloaded until their TTL),
+ * then starts the workers. cfg is copied. 0 and *out, or -1 with a reason
+ * in msg. */
+int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize);
 /* Stops accepting jobs (EDRAINING); running jobs continue, queued ones
- * stay spooled for the next start. Subscribers of queued jobs hear. */
-void svc_drain(void);
+ * stay in the store for the next start. Subscribers of queued jobs hear. */
+void svc_drain(svc_t *s);
 /* Waits until no job runs or timeout seconds pass. 1 when idle. */
-int svc_wait_idle(double timeout);
-/* Stops the running jobs for a restart: they stay `queued` on disk and
- * run again on the next start (unless a user or client canceled them). */
-void svc_checkpoint_running(void);
+int svc_wait_idle(svc_t *s, double timeout);
+/* Stops the running jobs for a restart: they stay `queued` in the store
+ * and run again on the next start (unless a user or client canceled
+ * them). */
+void svc_checkpoint_running(svc_t *s);
 /* From now on every door must answer with what it has and never wait
  * again (snapshots say closing); every subscriber is notified. */
-void svc_close_waiters(void);
-/* Joins the workers and frees every job. Handles still held are freed
- * when released. */
-void svc_stop(void);
-/* Forgets the jobs finished more than the TTL ago (memory and spool).
- * Called now and then from one thread. */
-void svc_sweep(void);
+void svc_close_waiters(svc_t *s);
+/* Joins the workers, frees every job and the service. Every handle and
+ * subscription must have been released before (the doors stop first): a
+ * handle's calls reach the service through it. Accepts NULL. */
+void svc_stop(svc_t *s);
+/* Forgets the jobs finished more than the TTL ago (memory and store), and
+ * queues again the jobs whose outcome could not be recorded. Called now
+ * and then from one thread. */
+void svc_sweep(svc_t *s);
 
 typedef struct {
     int queue_depth, queue_capacity;
@@ -201,10 +302,15 @@ typedef struct {
     double spool_bytes;        /* bytes of the jobs kept */
 } svc_gauges;
 
-svc_gauges svc_get_gauges(void);
+svc_gauges svc_get_gauges(svc_t *s);
 /* Whether a submission now would find room (a hint before the body). */
-int svc_can_accept(void);
-int svc_draining(void);
+int svc_can_accept(svc_t *s);
+int svc_draining(svc_t *s);
+/* Readiness of the store: 0, or -1 and why (a job could not be written
+ * now: /readyz). */
+int svc_ready(svc_t *s, char *why, size_t size);
+/* The limits on untrusted input the service applies (its config's). */
+const api_limits *svc_limits(const svc_t *s);
 
 /* Memory for an upload in flight (both doors): its bytes are reserved in
  * --max-memory beside the running jobs' estimates and the other uploads'
@@ -220,9 +326,9 @@ int svc_draining(void);
  * at once grew the daemon's resting size by 2-5 MiB). */
 #define SVC_UPLOAD_STEP (1024 * 1024)
 #define SVC_UPLOAD_AROUND (2 * 1024 * 1024)
-int svc_upload_reserve(size_t *held, size_t want, svc_error *e);
-/* Gives it back (the bytes are on the spool or dropped): *held 0. */
-void svc_upload_release(size_t *held);
+int svc_upload_reserve(svc_t *s, size_t *held, size_t want, svc_error *e);
+/* Gives it back (the bytes are in the store or dropped): *held 0. */
+void svc_upload_release(svc_t *s, size_t *held);
 
 /* --------------------------------------------------------------------- jobs */
 
@@ -244,46 +350,49 @@ const char *svc_job_status_name(svc_job_status s);
 /* succeeded, failed or canceled. */
 int svc_job_status_terminal(svc_job_status s);
 
-/* What the client sent, enough to rebuild the parameters at any time
- * (also after a restart: it is persisted as the job's request). The
- * parameters are applied as: params JSON, then the fields in order, then
- * the query string, later sources overriding earlier ones; every source
- * goes through api/ and its messages name the parameter. A door with
- * typed parameters builds a params JSON object. */
+/* A job as a door hands it over: the parameters it parsed (typed, once),
+ * the upload's bytes and what the door wants kept. */
 typedef struct {
-    char *query;               /* raw query string, NULL if none */
-    char *params_json;         /* a JSON object of parameters, or NULL */
-    cJSON *fields;             /* [[key, value], ...] or NULL */
+    api_params params;         /* parsed and checked by the door */
+    char *input;               /* the mesh's bytes (malloc'ed, len > 0) */
+    size_t input_len;
+    char *target;              /* a clean mesh to compare with, or NULL */
+    size_t target_len;
     char filename[128];        /* sanitized base name of the upload */
-    int has_target;            /* set by svc_submit */
-} svc_record;
+    int fields;                /* keep the per-vertex fields document
+                                  (svc_job_fields_open) */
+    int keep_result;           /* keep the encoded result in memory for
+                                  the submitter (svc_job_result, TAKE) */
+} svc_request;
 
-/* The query's `fields` (a daemon key, like `stream`: query only, the last
- * one wins): whether the worker keeps the job's per-vertex fields for
- * svc_job_fields_open. 0 and *on, or -1 and *err (EPARAMS). */
-int svc_record_fields(const svc_record *r, int *on, svc_error *err);
-/* Frees the record's contents and zeroes it (the struct is the caller's). */
-void svc_record_free(svc_record *r);
-/* api_params from a record (keys the doors handle, "stream", skipped). */
-mcf_status svc_record_params(const svc_record *r, const api_limits *lim,
-                             api_params *p, mcf_error *err);
+/* The parameters of a request in the form the REST door receives them
+ * (and older request.json files hold them): a params JSON object, then
+ * form fields [[key, value], ...] in order, then a query string, later
+ * sources overriding earlier ones; the daemon's own query keys (stream,
+ * fields) are skipped. Each may be NULL. p is initialized by the caller;
+ * messages name the parameter. */
+mcf_status svc_params_parse(api_params *p, const char *params_json,
+                            const cJSON *fields, const char *query,
+                            const api_limits *lim, mcf_error *err);
+/* The query's `fields` (a daemon key: the last one wins): whether the
+ * per-vertex fields document is kept. 0 and *on, or -1 and *err. */
+int svc_query_fields(const char *query, int *on, svc_error *err);
 
-enum {
-    SVC_KEEP_RESULT = 1        /* keep the encoded result in memory for the
-                                  submitter (svc_job_result with TAKE) */
-};
+/* An empty request (default parameters, no bytes). */
+void svc_request_init(svc_request *rq);
+/* Frees what it holds and empties it. */
+void svc_request_free(svc_request *rq);
 
-/* Accepts a job: checks the parameters (EPARAMS), admission (EDRAINING,
+/* Accepts a job: checks its budgets (EPARAMS: the parameters alone
+ * exceed a limit; ELIMIT: its estimated memory), admission (EDRAINING,
  * EBUSY, EQUOTA), assigns the ID, writes input, request and state
- * durably to the spool (ESTORAGE), then queues it. Takes input (len > 0),
- * target (NULL: none) and rec's contents in every case. 0 and *out holds
- * a reference for the caller, or -1 and *err. */
-int svc_submit(svc_record *rec, char *input, size_t input_len, char *target,
-               size_t target_len, unsigned flags, svc_job **out,
-               svc_error *err);
+ * durably to the store (ESTORAGE), then queues it. Takes rq's contents in
+ * every case. 0 and *out holds a reference for the caller, or -1 and
+ * *err. */
+int svc_submit(svc_t *s, svc_request *rq, svc_job **out, svc_error *err);
 /* A new reference to the job with that ID (a NUL-terminated string of
  * any content), or NULL. */
-svc_job *svc_job_get(const char *id);
+svc_job *svc_job_get(svc_t *s, const char *id);
 /* One more reference to a handle the caller holds; returns j. */
 svc_job *svc_job_ref(svc_job *j);
 /* Drops a reference (accepts NULL). */
@@ -294,22 +403,22 @@ const char *svc_job_id(const svc_job *j);
 /* Cancels a queued job at once, or asks a running one to stop at its
  * next step (reason USER or CLIENT), durably first. 1 when this call
  * changed the job, 0 when it had finished or was already canceled, -1
- * when the spool could not record it (errno): then nothing changed. */
+ * when the store could not record it (errno): then nothing changed. */
 int svc_cancel(svc_job *j, svc_cancel_reason reason);
 
 typedef enum {
     SVC_DELETE_CANCELED = 0,   /* was queued, now canceled */
     SVC_DELETE_STOPPING,       /* runs, stops at its next step */
-    SVC_DELETE_FORGOTTEN       /* had finished: gone (memory and spool) */
+    SVC_DELETE_FORGOTTEN       /* had finished: gone (memory and store) */
 } svc_delete_result;
 
 /* DELETE semantics: cancels a queued or running job (reason USER) and
  * forgets a finished one. 0 and *res, or -1 and *err: ENOTFOUND, or
- * ESTORAGE when the spool could not record it (then nothing changed:
- * the job goes on, or is kept). *before:
- * the status it had (also on ESTORAGE). */
-int svc_delete(const char *id, svc_delete_result *res, svc_job_status *before,
-               svc_error *err);
+ * ESTORAGE when the store could not record it (then nothing changed:
+ * the job goes on, or is kept). *before: the status it had (also on
+ * ESTORAGE). */
+int svc_delete(svc_t *s, const char *id, svc_delete_result *res,
+               svc_job_status *before, svc_error *err);
 
 /* ---------------------------------------------------------------- readers */
 
@@ -318,11 +427,12 @@ typedef struct {
     svc_job_status status;
     int ready;                 /* decoded and checked: streams may start */
     int cancel_requested;      /* by a user, while it still runs */
-    int recovered;             /* reloaded from the spool at start */
+    int recovered;             /* reloaded from the store at start */
     int step;                  /* steps done */
     double t, dt, energy, volume;  /* the last step's (step > 0) */
     int steps_planned;         /* iterations when time is not set, else 0 */
     double time_planned;       /* total flow time when set, else 0 */
+    double fraction;           /* of the run done, 0..1 (1: succeeded) */
     double created, started, finished;  /* epoch seconds, 0: not yet */
     char scheme[24];
     char in_format[16], out_format[16];  /* api_format names, "" unknown */
@@ -334,21 +444,21 @@ typedef struct {
                                   job a shutdown interrupted: it runs
                                   again after the restart) */
     int draining, closing;     /* the service's, at the same instant */
+    /* svc_job_document only (else NULL; svc_snap_free frees them): */
+    char *params;              /* the normalized parameters, JSON text */
+    char *metrics;             /* a succeeded job's metrics document */
 } svc_snap;
 
-/* A copy of the job's state. */
+/* A copy of the job's state (params and metrics NULL: nothing to free). */
 void svc_job_snapshot(const svc_job *j, svc_snap *s);
-/* The job as JSON: id, status, created/started/finished (RFC 3339 or
- * null), progress {step, steps, t, dt, energy, volume, fraction},
- * cancel_requested, params, input_format, metrics when succeeded. No
- * error and no links: a door adds them its way (the snapshot, taken at
- * the same instant, has the error). NULL on allocation failure. */
-cJSON *svc_job_json(const svc_job *j, svc_snap *s);
-/* The normalized parameters as JSON text (malloc'ed), or NULL. */
-char *svc_job_params(const svc_job *j);
+/* The same, with the parameters and, once it has succeeded, the metrics
+ * document (read from the store; NULL when they cannot be): everything a
+ * door shows of a job. 0, or -1 (ENOMEM). svc_snap_free it. */
+int svc_job_document(const svc_job *j, svc_snap *s);
+void svc_snap_free(svc_snap *s);
 /* The metrics document (JSON text, malloc'ed) of a succeeded job, from
- * memory or the spool. 0, or -1 and *err (ENOTREADY, ENORESULT,
- * ESTORAGE, ENOMEM). */
+ * the store. 0, or -1 and *err (ENOTREADY, ENORESULT, ESTORAGE,
+ * ENOMEM). */
 int svc_job_metrics(const svc_job *j, char **json, size_t *len,
                     svc_error *err);
 
@@ -363,20 +473,22 @@ int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
 
 enum { SVC_RESULT_TAKE = 1 };
 /* The encoded result of a succeeded job. With SVC_RESULT_TAKE the kept
- * in-memory copy (SVC_KEEP_RESULT) is handed over when there is one
- * (only its submitter should ask); otherwise, or when none is kept, the
- * spool file is read. 0, or -1 and *err. */
+ * in-memory copy (keep_result) is handed over when there is one (only
+ * its submitter should ask); otherwise, or when none is kept, the store's
+ * is read. 0, or -1 and *err. */
 int svc_job_result(svc_job *j, unsigned flags, char **data, size_t *len,
                    svc_error *err);
-/* The result file opened read-only (for zero-copy sending) and its size.
- * 0, or -1 and *err. The caller closes *fd. */
-int svc_job_result_open(const svc_job *j, int *fd, size_t *size,
+/* The result as a read-only descriptor (for zero-copy sending) and its
+ * size; *fd -1 with *data and *size holding the bytes when the store has
+ * no descriptors. 0, or -1 and *err. The caller closes *fd or frees
+ * *data. */
+int svc_job_result_open(const svc_job *j, int *fd, char **data, size_t *size,
                         svc_error *err);
-/* The per-vertex fields of a succeeded job submitted with fields=true
- * (svc_record_fields; api_fields_encode's document), opened read-only, and
- * its size. 0, or -1 and *err: ENOTREADY, ENORESULT (failed, canceled, or
- * submitted without fields=true), ESTORAGE. The caller closes *fd. */
-int svc_job_fields_open(const svc_job *j, int *fd, size_t *size,
+/* The per-vertex fields of a succeeded job submitted with fields
+ * (api_fields_encode's document), as svc_job_result_open. 0, or -1 and
+ * *err: ENOTREADY, ENORESULT (failed, canceled, or submitted without
+ * fields), ESTORAGE. */
+int svc_job_fields_open(const svc_job *j, int *fd, char **data, size_t *size,
                         svc_error *err);
 /* The submitter will not take the kept copy: it is freed (and none is
  * kept from now on). */

@@ -1,6 +1,6 @@
 /*
  * srv.h - the daemon's own declarations, shared by the files of mcfd:
- * configuration, logging and clocks, the spool's files, the Prometheus
+ * configuration, logging and clocks, descriptors, the Prometheus
  * metrics. No transport type appears here.
  *
  * server/ is the only layer that knows about HTTP, configuration, signals,
@@ -9,30 +9,24 @@
  *   config.c    flags and MCFD_* environment variables -> srv_config
  *   log.c       one JSON line per event on stderr
  *   metrics.c   Prometheus counters and histograms
- *   spool.c     the crash-safe on-disk record of every accepted job
  *   fds.c       descriptors: the limit raised, the doors' caps fitted to it
- * the gRPC door (grpc_door.h): grpc.cc, the only C++ here, behind
+ * the job service (service.h; its files share svc_internal.h, which says
+ * which does what): service.c, svc_job.c, svc_read.c, svc_state.c,
+ * svc_error.c, runner.c, workers.c, recovery.c, svc_admit.c, sandbox.c
+ * (Draco decodes in a child process; main.c's hidden decode mode is its
+ * child side), and its store (store.h; spool.c, the local one);
+ * the doors (door.h: one face for both):
+ *   the gRPC door (grpc_door.h): grpc.cc, the only C++ here, behind
  *   h2gate.c    its socket: accepts, admits and relays connections to gRPC
- * the job service (service.h; its files share svc_internal.h):
- *   service.c   job table, references, queue, admission and submit,
- *               cancel/delete, subscriptions, drain, sweep, gauges
- *   svc_read.c  snapshots, job JSON, events, metrics and result copies
- *   svc_state.c the record, request.json and state.json, the log line
- *   svc_error.c service errors: names, from mcf statuses
- *   runner.c    one job: decode, smooth with progress, encode, publish
- *   workers.c   the worker pool, drain waits, checkpoint
- *   recovery.c  the spool back into the table at start
- *   svc_admit.c memory admission: jobs start while their estimates fit
- *   sandbox.c   Draco decodes in a child process with CPU/memory limits
- *               (and main.c's hidden decode mode, its child side)
- * and the REST door on libmicrohttpd (http.h; it uses only service.h):
+ *   the REST door on libmicrohttpd (rest_door.h; http.h for its files):
+ *   rest_door.c its face: MHD started, the tick's deadlines, the gauges
  *   http.c      MHD entry points, connections, routing, plain routes
  *   upload.c    request bodies: raw and multipart uploads, submit
  *   jobroutes.c waiting on a job and the /v1/jobs/ID routes
  *   waiter.c    suspended connections: subscriptions, hang-up polling
  *   stream.c    streamed bodies: ndjson progress and Server-Sent Events
- *   reply.c     RFC 9457 problem+json, the service error -> HTTP map,
- *               the job document with its links
+ *   reply.c     RFC 9457 problem+json from the table of problems, the
+ *               job document with its links
  *
  * Threads: MHD's small pool runs the REST door and never touches a mesh;
  * the service's worker pool decodes, smooths and encodes.
@@ -70,6 +64,8 @@ typedef struct {
                                   fitted to the descriptors */
     int fd_reserve;            /* descriptors no connection may take */
     char spool[1024];          /* job spool directory (default ./var/mcfd) */
+    char store[1024];          /* redis://... (jobs in Redis), "": the spool */
+    char store_password_file[1024]; /* the Redis password's file, "": none */
     int spool_max_jobs;        /* jobs kept before 503, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
     api_limits lim;            /* limits on untrusted input */
@@ -165,48 +161,6 @@ double srv_wall(void);
  * back or forward would stretch or cut them). */
 double srv_mono(void);
 void srv_time_rfc3339(double t, char *buf, size_t size);
-
-/* -------------------------------------------------------------------- spool */
-
-/* Creates dir and its jobs/ subfolder (mkdir -p). 0 or -1 with errno. */
-int srv_spool_init(const char *dir, char *msg, size_t msgsize);
-/* The path of a job file: <spool>/jobs/<id>/<name> (name may be ""). */
-int srv_spool_path(char *buf, size_t size, const char *spool, const char *id,
-                   const char *name);
-/* Writes data to <dir>/<name> through a temporary file, fsync()s it when
- * durable, and renames it into place. 0 or -1 with errno. */
-int srv_spool_write(const char *spool, const char *id, const char *name,
-                    const void *data, size_t len, int durable);
-/* Makes the job directory (and fsyncs jobs/ so it survives a crash). */
-int srv_spool_mkjob(const char *spool, const char *id);
-/* Reads a whole job file (malloc'ed, NUL-terminated). 0 or -1. */
-int srv_spool_read(const char *spool, const char *id, const char *name,
-                   char **data, size_t *len);
-/* Reads len bytes at offset off of a job file into buf: 0, or -1 (errno;
- * EIO when the file is shorter). */
-int srv_spool_read_at(const char *spool, const char *id, const char *name,
-                      size_t off, void *buf, size_t len);
-/* Removes a job directory and everything in it: first renamed to a
- * tombstone and jobs/ fsynced (durable), then deleted. 0, or -1 with
- * errno and the job left whole. */
-int srv_spool_remove(const char *spool, const char *id);
-/* Readiness: 0 when a file can be made in the spool and no write failed
- * without a write at least as large succeeding since (this call probes
- * one, of at most SRV_SPOOL_PROBE_MAX bytes, twice a second at most);
- * removals and smaller writes do not count. Else -1 and why. */
-#define SRV_SPOOL_PROBE_MAX ((size_t)4 << 20)
-int srv_spool_ready(const char *spool, char *why, size_t size);
-/* Moves a damaged job directory out of the spool, to
- * <spool>/quarantine/<id> (with a suffix when taken), durably, and counts
- * it (mcfd_spool_quarantined_total). 0 or -1 (errno). */
-int srv_spool_quarantine(const char *spool, const char *id);
-/* Removes the temporary files a crash left in a job directory. */
-void srv_spool_clean_tmp(const char *spool, const char *id);
-/* Bytes of the files of a job directory (0 when unreadable). */
-size_t srv_spool_du(const char *spool, const char *id);
-/* Calls fn for every job directory name in the spool. */
-int srv_spool_list(const char *spool, void (*fn)(const char *id, void *ctx),
-                   void *ctx);
 
 /* ------------------------------------------------------------------ metrics */
 

@@ -36,20 +36,20 @@ typedef struct {
     int started, finished;
 } stream;
 
-int srv_stream_admit(const svc_job *j, srv_problem *p)
+int srv_stream_admit(srv_rest *d, const svc_job *j, svc_error *p)
 {
-    const srv_config *cfg = srv_http_config();
-    int here = svc_followers(j), total = srv_waiter_followers(),
+    const srv_config *cfg = d->cfg;
+    int here = svc_followers(j), total = srv_waiter_followers(d),
         max_total = cfg->max_connections / 2;
 
     if (here >= SVC_FOLLOWERS_PER_JOB) {
-        srv_problem_set(p, 503, "EBUSY", "job %s already has %d followers, "
+        svc_error_set(p, SVC_P_BUSY, "job %s already has %d followers, "
                         "the most one job may have; poll GET /v1/jobs/%s "
                         "instead", svc_job_id(j), here, svc_job_id(j));
         return 0;
     }
     if (total >= max_total) {
-        srv_problem_set(p, 503, "EBUSY", "%d event streams are open, the most "
+        svc_error_set(p, SVC_P_BUSY, "%d event streams are open, the most "
                         "this daemon keeps (half of --max-connections %d)",
                         total, cfg->max_connections);
         return 0;
@@ -86,14 +86,12 @@ static cJSON *final_json(const svc_job *j)
             free(doc);
         }
     } else {
-        srv_problem p;
+        svc_error p = s.error;
         cJSON *e;
         if (!svc_job_status_terminal(s.status))
-            srv_problem_set(&p, 503, "EDRAINING", "the daemon is shutting "
+            svc_error_set(&p, SVC_P_DRAINING, "the daemon is shutting "
                             "down; job %s stays %s and runs after the "
                             "restart", s.id, svc_job_status_name(s.status));
-        else
-            srv_problem_from_svc(&p, &s.error);
         snprintf(url, sizeof url, "/v1/jobs/%s", s.id);
         e = srv_problem_json(&p, url, s.id);
         if (e)
@@ -232,7 +230,8 @@ static void release(void *cls)
     free(s);
 }
 
-struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
+struct MHD_Response *srv_stream_response(srv_rest *d, svc_job *j,
+                                         srv_stream_kind kind,
                                          struct MHD_Connection *conn,
                                          long last_id)
 {
@@ -245,7 +244,7 @@ struct MHD_Response *srv_stream_response(svc_job *j, srv_stream_kind kind,
     s->kind = kind;
     s->last_id = last_id;
     api_buf_init(&s->pend, 0);
-    if (srv_waiter_start(&s->w, j, conn, 1, 0) != 0) {
+    if (srv_waiter_start(&s->w, d, j, conn, 1, 0) != 0) {
         svc_job_unref(s->job);
         free(s);
         return NULL;

@@ -16,9 +16,9 @@
  *
  * So the daemon's memory stays within its resting size plus --max-memory
  * as far as the estimates hold (their margin: api_estimate.c; the tested
- * figure: README, reliability). One mutex of its own, taken inside the
- * service lock when a worker pops the queue (workers.c), never the other
- * way round. The estimates: api/api_estimate.c.
+ * figure: README, reliability). One budget per service, under a mutex of
+ * its own, taken last (svc_internal.h's lock order). The estimates:
+ * api/api_estimate.c.
  */
 #include <math.h>
 #include <pthread.h>
@@ -27,12 +27,20 @@
 #include "svc_admit.h"
 #include "svc_internal.h"
 
-static struct {
-    pthread_mutex_t mu;
-    pthread_cond_t freed;
-    double used;               /* sum of the running jobs' reservations */
-    int holders;               /* jobs and uploads holding one */
-} A = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0};
+void svc_admit_init(svc_t *s)
+{
+    svc_admit_budget *a = &s->admit;
+    pthread_mutex_init(&a->mu, NULL);
+    pthread_cond_init(&a->freed, NULL);
+    a->used = 0;
+    a->holders = 0;
+}
+
+void svc_admit_destroy(svc_t *s)
+{
+    pthread_mutex_destroy(&s->admit.mu);
+    pthread_cond_destroy(&s->admit.freed);
+}
 
 /* What a run's steps hold while it runs: the core's step log (56 B a
  * step) and the events' offsets (8 B, in an array that doubles), and the
@@ -77,50 +85,54 @@ int svc_admit_refuse(const svc_config *cfg, double estimate, svc_error *e)
                   "MiB, exceeds --max-job-memory %.0f MiB: refused",
                   estimate / 1048576.0,
                   (double)cfg->max_job_memory / 1048576.0);
-    svc_error_from_mcf(e, MCF_ELIMIT, SVC_STAGE_RUN, NULL, &err);
+    svc_error_from_mcf(e, MCF_ELIMIT, API_JOB_RUN, NULL, &err);
     return 1;
 }
 
-int svc_admit_try(const svc_config *cfg, double estimate)
+int svc_admit_try(svc_t *s, double estimate)
 {
+    svc_admit_budget *a = &s->admit;
     int ok;
-    pthread_mutex_lock(&A.mu);
-    ok = A.holders == 0 || A.used + estimate <= (double)cfg->max_memory;
+    pthread_mutex_lock(&a->mu);
+    ok = a->holders == 0 || a->used + estimate <= (double)s->cfg.max_memory;
     if (ok) {
-        A.used += estimate;
-        A.holders++;
+        a->used += estimate;
+        a->holders++;
     }
-    pthread_mutex_unlock(&A.mu);
+    pthread_mutex_unlock(&a->mu);
     return ok;
 }
 
-int svc_admit_more(const svc_config *cfg, double *held, double more)
+int svc_admit_more(svc_t *s, double *held, double more)
 {
+    svc_admit_budget *a = &s->admit;
     int ok;
-    pthread_mutex_lock(&A.mu);
-    ok = A.holders == (*held > 0 ? 1 : 0) || A.used + more <= (double)cfg->max_memory;
+    pthread_mutex_lock(&a->mu);
+    ok = a->holders == (*held > 0 ? 1 : 0) ||
+         a->used + more <= (double)s->cfg.max_memory;
     if (ok) {
         if (*held == 0)
-            A.holders++;
-        A.used += more;
+            a->holders++;
+        a->used += more;
         *held += more;
     }
-    pthread_mutex_unlock(&A.mu);
+    pthread_mutex_unlock(&a->mu);
     return ok;
 }
 
-int svc_admit_grow(const svc_config *cfg, double *held, double estimate,
+int svc_admit_grow(svc_t *s, double *held, double estimate,
                    const mcf_cancel_flag *cancel)
 {
+    svc_admit_budget *a = &s->admit;
     int rc = 0;
     if (!(estimate > *held))
         return 0;
-    pthread_mutex_lock(&A.mu);
+    pthread_mutex_lock(&a->mu);
     for (;;) {
-        double others = A.used - *held;
+        double others = a->used - *held;
         struct timespec ts;
-        if (A.holders == 1 || others + estimate <= (double)cfg->max_memory) {
-            A.used += estimate - *held;
+        if (a->holders == 1 || others + estimate <= (double)s->cfg.max_memory) {
+            a->used += estimate - *held;
             *held = estimate;
             break;
         }
@@ -134,20 +146,21 @@ int svc_admit_grow(const svc_config *cfg, double *held, double estimate,
             ts.tv_sec++;
             ts.tv_nsec -= 1000000000L;
         }
-        pthread_cond_timedwait(&A.freed, &A.mu, &ts);
+        pthread_cond_timedwait(&a->freed, &a->mu, &ts);
     }
-    pthread_mutex_unlock(&A.mu);
+    pthread_mutex_unlock(&a->mu);
     return rc;
 }
 
-void svc_admit_release(double held)
+void svc_admit_release(svc_t *s, double held)
 {
-    pthread_mutex_lock(&A.mu);
-    A.used -= held;
-    if (--A.holders <= 0) {
-        A.holders = 0;
-        A.used = 0;
+    svc_admit_budget *a = &s->admit;
+    pthread_mutex_lock(&a->mu);
+    a->used -= held;
+    if (--a->holders <= 0) {
+        a->holders = 0;
+        a->used = 0;
     }
-    pthread_cond_broadcast(&A.freed);
-    pthread_mutex_unlock(&A.mu);
+    pthread_cond_broadcast(&a->freed);
+    pthread_mutex_unlock(&a->mu);
 }

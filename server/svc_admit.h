@@ -22,19 +22,22 @@ double svc_admit_estimate_counts(int nv, int nf, size_t input_len,
 /* 1 and an ELIMIT error (REST 422) in e when one job's estimate exceeds
  * --max-job-memory; else 0. */
 int svc_admit_refuse(const svc_config *cfg, double estimate, svc_error *e);
+/* The service's budget (svc_internal.h), made empty; and destroyed. */
+void svc_admit_init(svc_t *s);
+void svc_admit_destroy(svc_t *s);
 /* Reserves estimate bytes when they fit in --max-memory beside the
  * running jobs' (or no job holds any): 1; else 0 and nothing held. */
-int svc_admit_try(const svc_config *cfg, double estimate);
+int svc_admit_try(svc_t *s, double estimate);
 /* Grows a reservation *held to estimate (no-op when not larger), waiting
  * for others to release when it does not fit. 0, or -1 when *cancel was
  * set while waiting (*held unchanged). */
-int svc_admit_grow(const svc_config *cfg, double *held, double estimate,
+int svc_admit_grow(svc_t *s, double *held, double estimate,
                    const mcf_cancel_flag *cancel);
 /* Grows an upload's reservation *held (0: a new one) by more bytes when
  * they fit in --max-memory beside the others' (or it is alone): 1; else
  * 0 and *held unchanged. Uploads and jobs are the holders of one budget. */
-int svc_admit_more(const svc_config *cfg, double *held, double more);
+int svc_admit_more(svc_t *s, double *held, double more);
 /* Gives a reservation back and wakes the waiting grows. */
-void svc_admit_release(double held);
+void svc_admit_release(svc_t *s, double held);
 
 #endif /* SVC_ADMIT_H */

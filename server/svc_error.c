@@ -1,8 +1,9 @@
 /*
- * svc_error.c - the job service's errors (service.h): code names, and
+ * svc_error.c - the job service's errors (service.h): the columns of the
+ * one table of client-visible errors (SVC_PROBLEMS), code names, and
  * svc_error values from a message or from a failure of the core or the
- * codecs, whose code follows from the mcf status and the stage it came
- * from. Each door maps the code to its transport (service.h's table).
+ * codecs, whose row follows from the mcf status and the stage it came
+ * from. Each door maps a row's columns to its transport.
  */
 #include <stdarg.h>
 #include <stdio.h>
@@ -16,18 +17,52 @@ static const char *const code_names[] = {
 #undef X
 };
 
+static const struct {
+    const char *name;
+    svc_code code;
+    mcf_status mcf;
+    unsigned http;
+    svc_grpc_status grpc;
+    const char *text;
+} rows[] = {
+#define X(id, name, code, mcf, http, grpc, text)                               \
+    {name, SVC_##code, MCF_##mcf, http, SVC_GRPC_##grpc, text},
+    SVC_PROBLEMS(X)
+#undef X
+};
+
+#define NROWS (sizeof rows / sizeof rows[0])
+
 const char *svc_code_name(svc_code c)
 {
     return (unsigned)c < sizeof code_names / sizeof *code_names
                ? code_names[c] : "";
 }
 
-static void error_vset(svc_error *e, svc_code code, const char *name,
-                       const char *fmt, va_list ap)
+static unsigned row(svc_problem p)
 {
+    return (unsigned)p < NROWS ? (unsigned)p : (unsigned)SVC_P_INTERNAL;
+}
+
+const char *svc_problem_name(svc_problem p) { return rows[row(p)].name; }
+svc_code svc_problem_code(svc_problem p) { return rows[row(p)].code; }
+mcf_status svc_problem_mcf(svc_problem p) { return rows[row(p)].mcf; }
+unsigned svc_problem_http(svc_problem p) { return rows[row(p)].http; }
+svc_grpc_status svc_problem_grpc(svc_problem p) { return rows[row(p)].grpc; }
+const char *svc_problem_text(svc_problem p) { return rows[row(p)].text; }
+
+svc_code svc_error_code(const svc_error *e)
+{
+    return svc_problem_code(e->problem);
+}
+
+static void error_vset(svc_error *e, svc_problem p, const char *fmt,
+                       va_list ap)
+{
+    svc_code code = svc_problem_code(p);
+
     memset(e, 0, sizeof *e);
-    e->code = code;
-    snprintf(e->name, sizeof e->name, "%s", name ? name : svc_code_name(code));
+    e->problem = p;
     vsnprintf(e->detail, sizeof e->detail, fmt, ap);
     if (code == SVC_EBUSY || code == SVC_EQUOTA || code == SVC_ENOMEM)
         e->retry_after = 1;
@@ -35,42 +70,63 @@ static void error_vset(svc_error *e, svc_code code, const char *name,
         e->retry_after = 5;
 }
 
-void svc_error_set(svc_error *e, svc_code code, const char *name,
-                   const char *fmt, ...)
+void svc_error_set(svc_error *e, svc_problem p, const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    error_vset(e, code, name, fmt, ap);
+    error_vset(e, p, fmt, ap);
     va_end(ap);
 }
 
-/* The service code of a failure of the core or the codecs. */
-static svc_code code_of_mcf(mcf_status s, svc_stage stage)
+/* The service code of a failure of the core or the codecs: out of
+ * memory, canceled, an I/O error, or the stage's. */
+static svc_code code_of_mcf(mcf_status s, api_job_stage stage)
 {
-    switch (s) {
-    case MCF_OK:
+    if (s == MCF_OK)
         return SVC_OK;
-    case MCF_ENOMEM:
+    if (s == MCF_ENOMEM)
         return SVC_ENOMEM;
-    case MCF_ECANCELED:
+    if (s == MCF_ECANCELED)
         return SVC_ECANCELED;
-    case MCF_EIO:
+    if (s == MCF_EIO)
         return SVC_EINTERNAL;
-    default:
-        break;
-    }
-    return stage == SVC_STAGE_PARAMS ? SVC_EPARAMS
-           : stage == SVC_STAGE_DECODE ? SVC_EINPUT : SVC_EMESH;
+    return stage == API_JOB_PARAMS ? SVC_EPARAMS
+           : stage == API_JOB_DECODE ? SVC_EINPUT : SVC_EMESH;
 }
 
-void svc_error_from_mcf(svc_error *e, mcf_status s, svc_stage stage,
+/* The row of (code, s); a pair without one (no path produces it) is
+ * INTERNAL, its detail naming the status. */
+static svc_problem find_row(svc_code code, mcf_status s)
+{
+    unsigned i;
+    for (i = 0; i < NROWS; i++)
+        if (rows[i].code == code && rows[i].mcf == s)
+            return (svc_problem)i;
+    if (code == SVC_ECANCELED)
+        return SVC_P_CANCELED;
+    return SVC_P_INTERNAL;
+}
+
+void svc_error_from_mcf(svc_error *e, mcf_status s, api_job_stage stage,
                         const char *prefix, const mcf_error *err)
 {
     const char *msg = (err && err->msg[0]) ? err->msg : mcf_strerror(s);
+    svc_problem p = find_row(code_of_mcf(s, stage), s);
 
-    svc_error_set(e, code_of_mcf(s, stage), mcf_status_name(s), "%s%s%s",
-                  prefix ? prefix : "", prefix ? ": " : "", msg);
-    e->mcf = s;
-    e->stage = stage;
+    svc_error_set(e, p, "%s%s%s%s%s", p == SVC_P_INTERNAL ? mcf_status_name(s) : "",
+                  p == SVC_P_INTERNAL ? ": " : "", prefix ? prefix : "",
+                  prefix ? ": " : "", msg);
 }
 
+/* The row of a service code and a name (a persisted error): 0 and *p, or
+ * -1 when no row has both. */
+int svc__problem_find(svc_code code, const char *name, svc_problem *p)
+{
+    unsigned i;
+    for (i = 0; i < NROWS; i++)
+        if (rows[i].code == code && strcmp(rows[i].name, name) == 0) {
+            *p = (svc_problem)i;
+            return 0;
+        }
+    return -1;
+}

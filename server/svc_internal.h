@@ -1,14 +1,38 @@
 /*
  * svc_internal.h - what the files of the job service share, and only
- * they (service.c, svc_read.c, svc_state.c, svc_error.c, runner.c,
- * workers.c, recovery.c, svc_admit.c): the job struct, the service's
- * state and its one lock. The doors include service.h, never this.
+ * they: the service object, the job struct, and each file's part.
  *
- * Locking: svc__S.mu guards the table, the queue, the counters and every
- * mutable field of every job, and the subscription lists. It is held for
- * bookkeeping only, never across mesh work or disk I/O; subscription
- * callbacks run under it (service.h). svc_state_mu serializes the writers
- * of state.json and is taken before svc__S.mu.
+ *   service.c   the service's life, the table, admission and submit,
+ *               delete, sweep, gauges
+ *   svc_job.c   a job's life: references, subscriptions, every status
+ *               transition (start, finish, park, cancel, recovery's),
+ *               progress and events; the only writer of a job's status
+ *   svc_read.c  the readers: snapshots, metrics, events, result bytes
+ *   svc_state.c the persisted forms (request.json, state.json) from plain
+ *               copies, without a lock; the job's log line
+ *   runner.c    one job on a worker (api_job_run): returns its outcome
+ *   workers.c   the worker pool: claim, run, finish
+ *   recovery.c  the store back into the table at start
+ *   svc_admit.c memory admission
+ *   svc_error.c the table of problems
+ *   spool.c     the local store (store.h)
+ *
+ * Locking (the lock order, outermost first):
+ *   s->state_mu   one writer of state.json at a time: a snapshot and its
+ *                 write go together, so the last taken is the last
+ *                 written (svc_job.c). Held across one small write to
+ *                 the store (its put: the store's own leaf locks only).
+ *   the store's queue lock (spool.c's q_mu)
+ *                 held by claim while it asks fits() (workers.c), which
+ *                 takes s->mu and then s->admit.mu for a moment.
+ *   s->mu         the service lock: the table, the counters, every
+ *                 mutable field of every job, the subscription lists.
+ *                 Held for bookkeeping only, never across mesh work or
+ *                 I/O, and never while calling the store; subscription
+ *                 callbacks run under it (service.h) and take the doors'
+ *                 locks (REST: wait_mu; gRPC: its call's), which are
+ *                 innermost there.
+ *   s->admit.mu   the memory budget (svc_admit.c): innermost.
  */
 #ifndef SVC_INTERNAL_H
 #define SVC_INTERNAL_H
@@ -17,16 +41,49 @@
 
 #include "service.h"
 #include "srv.h"
+#include "store.h"
 
 #define SVC_NBUCKETS 4096
 #define SVC_EVENTS_MAX ((size_t)16 << 20)   /* ndjson progress kept per job */
 #define SVC_RESULT_MAX ((size_t)4 << 30)    /* an encoded result */
 /* Retries of a job's step that met a resource a client can exhaust
  * (EMFILE, ENFILE, ENOSPC, EDQUOT, ENOMEM): 0.1 s doubling to 8 s, 37 s
- * in all (runner.c), long enough for connections to time out or be
+ * in all (svc__retry), long enough for connections to time out or be
  * closed, short enough that a full disk fails the job within a minute. */
 #define SVC_RETRY_TRIES 10
-#define SVC_FIELDS_FILE "fields.bin"        /* fields=true: api_fields_encode */
+#define SVC_FIELDS_FILE "fields.bin"        /* fields: api_fields_encode */
+
+/* The memory budget of the running jobs and the uploads (svc_admit.c). */
+typedef struct {
+    pthread_mutex_t mu;
+    pthread_cond_t freed;
+    double used;               /* the holders' reservations */
+    int holders;               /* jobs and uploads holding one */
+} svc_admit_budget;
+
+struct svc {
+    pthread_mutex_t mu;        /* the service lock */
+    pthread_cond_t work;       /* workers: a job may be claimable, or stop */
+    pthread_cond_t idle;       /* drain: a worker finished its job */
+    unsigned wakes;            /* signals of work so far (a worker waits
+                                  only when none came since it looked) */
+    pthread_mutex_t state_mu;  /* writers of state.json (above) */
+    svc_config cfg;
+    svc_store *store;
+    svc_admit_budget admit;
+    svc_job *buckets[SVC_NBUCKETS];
+    int njobs;
+    int queued;                /* jobs in the store's queue (not parked) */
+    int reserved;              /* submissions admitted, not yet queued */
+    int busy;                  /* workers running a job */
+    size_t disk_bytes;         /* sum of disk_bytes of the jobs in the table */
+    int draining, stopping;
+    int closing;               /* doors must answer now, never wait */
+    pthread_t *threads;
+    int nthreads;
+    int urandom;
+    uint64_t counter;
+};
 
 struct svc_sub {
     svc_job *job;
@@ -37,36 +94,41 @@ struct svc_sub {
 };
 
 struct svc_job {
+    svc_t *svc;                /* its service (constant) */
     char id[SVC_ID_LEN + 1];
     int refs;                  /* table + every holder of a handle */
     int in_table;
     svc_job_status status;
-    svc_record rec;
-    size_t disk_bytes;         /* its files on the spool (quota) */
-    char *input;               /* upload bytes until the worker takes them */
-    size_t input_len;
-    char *target;
-    size_t target_len;
-    char scheme[24];           /* parsed scheme name (metrics label) */
-    char *params_json;         /* api_params_to_json, printed */
+    /* the request: constant once the job is in the table */
+    char filename[128];
+    int has_target;
+    int keep_fields;           /* fields: the fields document is kept */
+    char *params_json;         /* api_params_to_json, printed (shown) */
+    char *params_given;        /* api_params_given_json, printed (its
+                                  request.json: parses back to the job) */
+    api_params params;         /* typed, as the door parsed them (a
+                                  recovered job: from request.json) */
+    double mem_estimate;       /* estimated peak bytes (svc_admit.c) */
+    size_t disk_bytes;         /* its blobs in the store (quota) */
+    char scheme[24];           /* scheme name (metrics label) */
     int steps_planned;         /* iterations when time is not set, else 0 */
     double time_planned;       /* total flow time when set, else 0 */
     double created, started, finished;   /* epoch seconds, 0: not yet */
-    int recovered;             /* loaded from the spool at start */
+    int recovered;             /* loaded from the store at start */
     int parked;                /* queued, out of the queue until retry_at:
                                   its outcome could not be recorded */
     int parks;                 /* times it was */
     double retry_at;           /* srv_mono() seconds */
-    double mem_estimate;       /* estimated peak bytes (svc_admit.c) */
     double mem_held;           /* reserved while it runs */
-    /* progress, written by the runner's progress callback */
+    /* progress, written by the runner's progress hook (svc__progress) */
     int step;
     double t, dt, energy, volume;
     int ready;                 /* decoded and checked: streams may start */
     mcf_cancel_flag cancel;    /* written under the lock, loaded without
-                                  it by mcf_flow_run (params.cancel) */
+                                  it by the flow and the decode sandbox */
     svc_cancel_reason cancel_reason;
-    svc_cancel_reason cancel_asked; /* service.c: a cancel being written */
+    svc_cancel_reason canceling;  /* a cancel being written (svc_cancel) */
+    double deadline;           /* srv_mono() the job timeout passes, 0 */
     api_buf events;            /* ndjson lines, one per step */
     size_t *event_end;         /* byte offset past each line */
     int nevents, event_cap;
@@ -78,67 +140,118 @@ struct svc_job {
     svc_error err;             /* when failed or canceled */
     char in_format[16];
     char out_format[16];
-    char result_name[32];      /* "result.obj" in the job directory */
+    char result_name[32];      /* "result.obj" in the store */
     size_t result_len;
     char *result;              /* encoded mesh kept for its submitter */
     int keep_result;
     svc_sub *subs;
-    svc_job *hnext, *qnext;
+    svc_job *hnext;
 };
 
-extern struct svc_state {
-    pthread_mutex_t mu;
-    pthread_cond_t work;      /* workers: a job was queued, or stop */
-    pthread_cond_t idle;      /* drain: a worker finished its job */
-    svc_config cfg;
-    svc_job *buckets[SVC_NBUCKETS];
-    int njobs;
-    svc_job *qhead, *qtail;
-    int qlen, reserved, busy;
-    size_t disk_bytes;        /* sum of disk_bytes of the jobs in the table */
-    int draining, stopping;
-    int closing;              /* doors must answer now, never wait */
-    pthread_t *threads;
-    int nthreads;
-    int urandom;
-    uint64_t counter;
-} svc__S;
+/* What state.json holds of a job: a plain copy, taken under the lock
+ * (svc__state_of) and written outside it (svc__state_json). */
+typedef struct {
+    char id[SVC_ID_LEN + 1];
+    svc_job_status status;
+    double created, started, finished;
+    char scheme[24];
+    int steps_planned;
+    double time_planned;
+    int step;
+    double t;
+    char in_format[16], out_format[16], result_name[32];
+    size_t result_len;
+    svc_cancel_reason cancel_requested;  /* of a job still running */
+    const char *params_json;   /* the job's (constant: read without lock) */
+    svc_error err;             /* failed or canceled */
+} svc_state_rec;
 
-extern pthread_mutex_t svc_state_mu;
+/* How a run ended (runner.c), for svc__finish. */
+typedef struct {
+    svc_job_status status;     /* SUCCEEDED, FAILED, CANCELED; QUEUED: it
+                                  runs again after the restart */
+    svc_error err;
+    char out_format[16], result_name[32];
+    size_t result_len;
+    size_t disk_add;           /* bytes it wrote to the store */
+    char *result;              /* the encoded result (kept for the
+                                  submitter when it asked), or NULL */
+    int nv, nf;
+    double run_s;
+} svc_outcome;
 
-void svc__lock(void);
-void svc__unlock(void);
+/* service.c: the table (lock held) */
+svc_job *svc__find_locked(svc_t *s, const char *id);
+void svc__table_insert(svc_t *s, svc_job *j);
+/* Wakes the workers (lock held): something may be claimable. */
+void svc__wake_locked(svc_t *s);
 
-/* service.c: jobs, table and queue (lock held unless said) */
-svc_job *svc__job_new(void);
+/* svc_job.c: a job's life */
+svc_job *svc__job_new(svc_t *s);
 void svc__job_free(svc_job *j);
 void svc__unref_locked(svc_job *j);
-svc_job *svc__find_locked(const char *id);
-void svc__table_insert(svc_job *j);
-void svc__queue_push(svc_job *j);
-svc_job *svc__queue_pop(void);
-/* Calls the subscribers of j whose flags match what. */
+/* Calls the subscribers of j whose flags match what (lock held). */
 void svc__notify(svc_job *j, unsigned what);
-
-/* svc_state.c: the persisted forms */
-char *svc__request_json(const svc_job *j);               /* request.json */
-int svc__record_from_json(svc_record *r, const cJSON *o);
-char *svc__state_json(const svc_job *j);                 /* lock held */
-/* state.json parsed into j (status, times, formats, error...). */
-int svc__state_load(svc_job *j, const cJSON *so);
-/* Snapshot under the lock, write outside it (svc_state_mu around). */
+/* The snapshot of j that state.json records (lock held). */
+void svc__state_of(const svc_job *j, svc_state_rec *r);
+/* Writes j's state as it is now (durable or not). 0 or -1 (errno). */
 int svc__write_state(svc_job *j, int durable);
-/* One log line and the metrics of a finished job. */
+/* queued -> running (a worker's claim): 0 and the worker holds a
+ * reference; -1 when the job is no longer queued (skip it); 1 when it
+ * must wait (its cancel is being written, or the service drains: put it
+ * back at the head of the queue). */
+int svc__start(svc_job *j);
+/* running -> its outcome, recorded first (with retries), then published;
+ * a job whose outcome the store refuses is parked (queued again later). */
+void svc__finish(svc_job *j, svc_outcome *o);
+/* A transient error of the store or of memory (EMFILE, ENOSPC, ENOMEM,
+ * ...): waits before try *tries + 2 (0.1 s doubling, SVC_RETRY_TRIES
+ * times), watching the job's cancel (any, or with only_shutdown the
+ * shutdown's). 1 to try again, 0 to give up; errno is kept. */
+int svc__retry(svc_job *j, int *tries, int e, const char *what,
+               int only_shutdown);
+/* The error of a job stopped by its cancel flag after `steps` steps
+ * (-1: before its flow); 1 when it must run again after a restart. */
+int svc__canceled_error(svc_job *j, int steps, svc_error *e);
+/* Whether j's cancel flag is set (the flow's, loaded without the lock),
+ * and why. */
+int svc__canceled(const svc_job *j);
+svc_cancel_reason svc__cancel_reason(const svc_job *j);
+/* The runner's hooks: ready (the scheme that runs and the input format),
+ * one progress event (returns nonzero to stop: canceled or past the job
+ * timeout). */
+void svc__ready(svc_job *j, const char *scheme, const char *in_format);
+int svc__progress(svc_job *j, const api_job_step *st);
+/* A job loaded from the store (recovery.c, before the workers start):
+ * its recorded state r applied; a job that was running when the process
+ * died runs again, one canceled while it ran stays canceled (recorded).
+ * 1 when it must be queued. */
+int svc__recovered(svc_job *j, const svc_state_rec *r);
+
+/* svc_state.c: the persisted forms, pure (no lock) */
+char *svc__request_json(const svc_job *j);            /* request.json */
+/* request.json back: params (typed and both texts), filename, target,
+ * fields, created, memory estimate. 0, or -1 (damaged). */
+int svc__request_load(svc_job *j, const cJSON *o, const api_limits *lim);
+char *svc__state_json(const svc_state_rec *r);        /* state.json */
+/* state.json back into a copy; *params_json the shown parameters
+ * (malloc'ed, NULL when absent). 0, or -1 (damaged). */
+int svc__state_parse(const cJSON *so, svc_state_rec *r, char **params_json);
+/* One log line of a finished job. */
 void svc__log_job(const svc_job *j, int nv, int nf, double run_s);
 
-/* runner.c: decode, smooth and encode one job (a worker, no lock). */
-void svc__run_job(svc_job *j);
+/* svc_error.c: the row of a service code and a name (a persisted error):
+ * 0 and *p, or -1. */
+int svc__problem_find(svc_code code, const char *name, svc_problem *p);
+
+/* runner.c: one job on a worker, no lock: its outcome in *o. */
+void svc__run(svc_job *j, svc_outcome *o);
 
 /* workers.c */
-int svc__workers_start(char *msg, size_t msgsize);
-void svc__workers_stop(void);
+int svc__workers_start(svc_t *s, char *msg, size_t msgsize);
+void svc__workers_stop(svc_t *s);
 
-/* recovery.c: reloads the spool into the table and queue. */
-int svc__recover(char *msg, size_t msgsize);
+/* recovery.c: reloads the store into the table and queue. */
+int svc__recover(svc_t *s, char *msg, size_t msgsize);
 
 #endif /* SVC_INTERNAL_H */

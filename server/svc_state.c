@@ -1,9 +1,16 @@
 /*
- * svc_state.c - what the job service keeps of a job: the record of what
- * the client sent (and the parameters rebuilt from it) persisted as
- * request.json, and state.json (everything needed to serve the job after
- * a restart), written through spool.c and read back by recovery.c; and
- * the one log line of a finished job.
+ * svc_state.c - what the job service keeps of a job in its store, to
+ * text and back, from plain copies and without a lock: request.json (what
+ * the client asked: the parameters it gave, the upload's name, whether a
+ * target and the fields document came with it), state.json (everything
+ * needed to serve the job after a restart); the parameters of a request
+ * in the form the REST door receives them and older request.json files
+ * hold them; and the one log line of a finished job.
+ *
+ * request.json: {"id", "params" (api_params_given_json: parses back to
+ * the same parameters), "fields": [] (form fields, older spools),
+ * "filename", "target", "created", "memory_estimate", and "query":
+ * "fields=true" when the fields document was asked for}.
  *
  * A failure is stored as {"kind","code","mcf","stage","cancel","detail"}
  * (svc_error). Spools written before the service split stored
@@ -17,8 +24,6 @@
 #include <string.h>
 
 #include "svc_internal.h"
-
-pthread_mutex_t svc_state_mu = PTHREAD_MUTEX_INITIALIZER;
 
 static const char *const stage_names[] = {"", "params", "decode", "run"};
 static const char *const cancel_names[] = {"", "user", "shutdown", "timeout",
@@ -53,52 +58,40 @@ static void add_num(cJSON *o, const char *key, double v)
         cJSON_AddNullToObject(o, key);
 }
 
-/* ----------------------------------------------------------------- records */
+/* -------------------------------------------------- a request's parameters */
 
-void svc_record_free(svc_record *r)
-{
-    free(r->query);
-    free(r->params_json);
-    cJSON_Delete(r->fields);
-    memset(r, 0, sizeof *r);
-}
-
-mcf_status svc_record_params(const svc_record *r, const api_limits *lim,
-                             api_params *p, mcf_error *err)
+mcf_status svc_params_parse(api_params *p, const char *params_json,
+                            const cJSON *fields, const char *query,
+                            const api_limits *lim, mcf_error *err)
 {
     static const char *const ignore[] = {"stream", "fields", NULL};
     mcf_status rc = MCF_OK;
     const cJSON *f;
 
-    api_params_init(p);
-    if (r->params_json &&
-        (rc = api_params_parse_json(p, r->params_json, strlen(r->params_json),
-                                    lim, err)) != MCF_OK)
-        goto fail;
-    cJSON_ArrayForEach(f, r->fields) {
+    if (params_json &&
+        (rc = api_params_parse_json(p, params_json, strlen(params_json), lim,
+                                    err)) != MCF_OK)
+        return rc;
+    cJSON_ArrayForEach(f, fields) {
         const char *k = cJSON_GetStringValue(cJSON_GetArrayItem(f, 0));
         const char *v = cJSON_GetStringValue(cJSON_GetArrayItem(f, 1));
         if (k && v && (rc = api_params_set(p, k, v, lim, err)) != MCF_OK)
-            goto fail;
+            return rc;
     }
-    if (r->query && r->query[0] &&
-        (rc = api_params_parse_query(p, r->query, ignore, lim, err)) != MCF_OK)
-        goto fail;
-    return MCF_OK;
-fail:
-    api_params_free(p);
+    if (query && query[0])
+        rc = api_params_parse_query(p, query, ignore, lim, err);
     return rc;
 }
 
-int svc_record_fields(const svc_record *r, int *on, svc_error *err)
+int svc_query_fields(const char *query, int *on, svc_error *err)
 {
-    const char *p = r->query;
+    static const char *const yes[] = {"true", "1", "yes"}, *const no[] = {"false", "0", "no"};
+    const char *p = query;
 
     *on = 0;
     while (p && *p) {
         size_t n = strcspn(p, "&");
         if (n >= 7 && strncmp(p, "fields=", 7) == 0) {
-            static const char *const yes[] = {"true", "1", "yes"}, *const no[] = {"false", "0", "no"};
             size_t k, v = n - 7;
             int found = 0;
             for (k = 0; k < 3 && !found; k++) {
@@ -108,11 +101,9 @@ int svc_record_fields(const svc_record *r, int *on, svc_error *err)
                     found = 1, *on = 0;
             }
             if (!found) {
-                mcf_error me;
-                mcf_error_set(&me, MCF_EINVAL, "parameter 'fields' must be true "
-                              "or false (or 1/0, yes/no), got \"%.*s\"",
-                              (int)(v > 40 ? 40 : v), p + 7);
-                svc_error_from_mcf(err, MCF_EINVAL, SVC_STAGE_PARAMS, NULL, &me);
+                svc_error_set(err, SVC_P_PARAM_INVALID, "parameter 'fields' "
+                              "must be true or false (or 1/0, yes/no), got "
+                              "\"%.*s\"", (int)(v > 40 ? 40 : v), p + 7);
                 return -1;
             }
         }
@@ -127,59 +118,82 @@ int svc_record_fields(const svc_record *r, int *on, svc_error *err)
 
 char *svc__request_json(const svc_job *j)
 {
-    cJSON *o = cJSON_CreateObject(), *fields;
-    char *s;
+    cJSON *o = cJSON_CreateObject();
+    char *s = NULL;
+    int ok = o != NULL;
 
-    if (!o)
-        return NULL;
-    cJSON_AddStringToObject(o, "id", j->id);
-    if (j->rec.query)
-        cJSON_AddStringToObject(o, "query", j->rec.query);
-    if (j->rec.params_json)
-        cJSON_AddStringToObject(o, "params", j->rec.params_json);
-    fields = j->rec.fields ? cJSON_Duplicate(j->rec.fields, 1)
-                           : cJSON_CreateArray();
-    if (fields)
-        cJSON_AddItemToObject(o, "fields", fields);
-    cJSON_AddStringToObject(o, "filename", j->rec.filename);
-    cJSON_AddBoolToObject(o, "target", j->rec.has_target);
-    cJSON_AddNumberToObject(o, "created", j->created);
-    cJSON_AddNumberToObject(o, "memory_estimate", j->mem_estimate);
-    s = cJSON_PrintUnformatted(o);
+    ok = ok && cJSON_AddStringToObject(o, "id", j->id);
+    ok = ok && (!j->keep_fields || cJSON_AddStringToObject(o, "query", "fields=true"));
+    ok = ok && cJSON_AddStringToObject(o, "params", j->params_given ? j->params_given : "{}");
+    ok = ok && cJSON_AddArrayToObject(o, "fields");
+    ok = ok && cJSON_AddStringToObject(o, "filename", j->filename);
+    ok = ok && cJSON_AddBoolToObject(o, "target", j->has_target);
+    ok = ok && cJSON_AddNumberToObject(o, "created", j->created);
+    ok = ok && cJSON_AddNumberToObject(o, "memory_estimate", j->mem_estimate);
+    if (ok)
+        s = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     return s;
 }
 
-int svc__record_from_json(svc_record *r, const cJSON *o)
+/* The texts of params: the given ones (request.json's) and the shown. */
+static int params_texts(svc_job *j)
 {
-    const cJSON *q = cJSON_GetObjectItemCaseSensitive(o, "query");
-    const cJSON *p = cJSON_GetObjectItemCaseSensitive(o, "params");
-    const cJSON *f = cJSON_GetObjectItemCaseSensitive(o, "fields");
-    const char *fn = cJSON_GetStringValue(
-        cJSON_GetObjectItemCaseSensitive(o, "filename"));
+    cJSON *g = api_params_given_json(&j->params), *a = api_params_to_json(&j->params);
 
-    memset(r, 0, sizeof *r);
-    if ((cJSON_IsString(q) && !(r->query = strdup(q->valuestring))) ||
-        (cJSON_IsString(p) && !(r->params_json = strdup(p->valuestring))) ||
-        (cJSON_IsArray(f) && !(r->fields = cJSON_Duplicate(f, 1)))) {
-        svc_record_free(r);
+    free(j->params_given);
+    j->params_given = g ? cJSON_PrintUnformatted(g) : NULL;
+    if (!j->params_json)
+        j->params_json = a ? cJSON_PrintUnformatted(a) : NULL;
+    cJSON_Delete(g);
+    cJSON_Delete(a);
+    return j->params_given && j->params_json ? 0 : -1;
+}
+
+int svc__request_load(svc_job *j, const cJSON *o, const api_limits *lim)
+{
+    const char *query = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(o, "query"));
+    const char *params = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(o, "params"));
+    const char *fn = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(o, "filename"));
+    const cJSON *fields = cJSON_GetObjectItemCaseSensitive(o, "fields");
+    mcf_error err;
+    svc_error e;
+    double mem = num_of(o, "memory_estimate");
+
+    if (!cJSON_IsObject(o) ||
+        svc_params_parse(&j->params, params, cJSON_IsArray(fields) ? fields : NULL,
+                         query, lim, &err) != MCF_OK ||
+        svc_query_fields(query, &j->keep_fields, &e) != 0)
         return -1;
-    }
-    snprintf(r->filename, sizeof r->filename, "%s", fn ? fn : "mesh");
-    r->has_target = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "target"));
-    return 0;
+    snprintf(j->filename, sizeof j->filename, "%s", fn ? fn : "mesh");
+    j->has_target = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "target"));
+    j->created = num_of(o, "created");
+    /* svc_admit.c; 0 (re-estimated after decoding) when absent */
+    j->mem_estimate = mem > 0 ? mem : 0;
+    return params_texts(j);
 }
 
 /* -------------------------------------------------------------- state.json */
 
+/* The stage a job error's code stands for (params, decode, run), "" for
+ * the service's own codes. */
+static const char *stage_of(svc_code c)
+{
+    return c == SVC_EPARAMS ? stage_names[1] : c == SVC_EINPUT ? stage_names[2]
+           : c == SVC_EMESH ? stage_names[3] : "";
+}
+
 static void error_to_json(cJSON *o, const svc_error *e)
 {
-    cJSON_AddStringToObject(o, "kind", svc_code_name(e->code));
-    cJSON_AddStringToObject(o, "code", e->name);
-    if (e->mcf != MCF_OK)
-        cJSON_AddStringToObject(o, "mcf", mcf_status_name(e->mcf));
-    if (e->stage != SVC_STAGE_NONE)
-        cJSON_AddStringToObject(o, "stage", stage_names[e->stage]);
+    svc_code c = svc_error_code(e);
+    mcf_status s = svc_problem_mcf(e->problem);
+
+    cJSON_AddStringToObject(o, "kind", svc_code_name(c));
+    cJSON_AddStringToObject(o, "code", svc_problem_name(e->problem));
+    if (s != MCF_OK)
+        cJSON_AddStringToObject(o, "mcf", mcf_status_name(s));
+    if (*stage_of(c))
+        cJSON_AddStringToObject(o, "stage", stage_of(c));
     if (e->cancel != SVC_CANCEL_NONE)
         cJSON_AddStringToObject(o, "cancel", cancel_names[e->cancel]);
     cJSON_AddStringToObject(o, "detail", e->detail);
@@ -193,162 +207,143 @@ static mcf_status mcf_of_name(const char *s)
     return MCF_OK;
 }
 
+/* A failure of the core or the codecs with its detail as stored. */
+static void error_from_mcf_json(svc_error *e, mcf_status s, api_job_stage stage,
+                                const cJSON *o)
+{
+    svc_error_from_mcf(e, s, stage, NULL, NULL);
+    snprintf(e->detail, sizeof e->detail, "%s", str_of(o, "detail"));
+}
+
 /* The form written before the service split: {"http","code","detail"}.
- * The HTTP status tells the stage of an mcf code back (reply.c's map:
- * 400 parameters, 413 and 415 decoding, 422 the run). */
+ * The HTTP status tells the stage of an mcf code back (400 parameters,
+ * 413 and 415 decoding, 422 the run). */
 static void error_from_old_json(svc_error *e, const cJSON *o)
 {
     const char *code = str_of(o, "code");
     unsigned http = (unsigned)num_of(o, "http");
     mcf_status s = mcf_of_name(code);
-    static const struct { const char *name; svc_code code; } own[] = {
-        {"EDRAINING", SVC_EDRAINING}, {"EBUSY", SVC_EBUSY},
-        {"ESPOOLFULL", SVC_EQUOTA},   {"ENOTFOUND", SVC_ENOTFOUND},
-        {"ENOTREADY", SVC_ENOTREADY}, {"ENORESULT", SVC_ENORESULT}};
+    static const struct { const char *name; svc_problem p; } own[] = {
+        {"EDRAINING", SVC_P_DRAINING}, {"EBUSY", SVC_P_BUSY},
+        {"ESPOOLFULL", SVC_P_SPOOL_FULL}, {"ENOTFOUND", SVC_P_NOT_FOUND},
+        {"ENOTREADY", SVC_P_NOT_READY}, {"ENORESULT", SVC_P_NO_RESULT}};
     size_t i;
 
     for (i = 0; i < sizeof own / sizeof *own; i++)
         if (strcmp(code, own[i].name) == 0) {
-            svc_error_set(e, own[i].code, code, "%s", str_of(o, "detail"));
+            svc_error_set(e, own[i].p, "%s", str_of(o, "detail"));
             return;
         }
     if (strcmp(code, "ELIMIT") == 0 && http == 422 &&
         strstr(str_of(o, "detail"), "--job-timeout")) {
-        svc_error_set(e, SVC_ETIMEOUT, code, "%s", str_of(o, "detail"));
+        svc_error_set(e, SVC_P_TIMEOUT, "%s", str_of(o, "detail"));
         return;
     }
     if (strcmp(code, "EIO") == 0 && http == 500) {
-        svc_error_set(e, SVC_ESTORAGE, code, "%s", str_of(o, "detail"));
+        svc_error_set(e, SVC_P_STORAGE, "%s", str_of(o, "detail"));
         return;
     }
     if (s == MCF_OK && strcmp(code, "OK") != 0) {
-        svc_error_set(e, SVC_EINTERNAL, code, "%s", str_of(o, "detail"));
+        svc_error_set(e, SVC_P_INTERNAL, "%s", str_of(o, "detail"));
         return;
     }
-    svc_error_from_mcf(e, s, http == 400 ? SVC_STAGE_PARAMS
-                             : http == 413 || http == 415 ? SVC_STAGE_DECODE
-                                                          : SVC_STAGE_RUN,
-                       NULL, NULL);
-    snprintf(e->detail, sizeof e->detail, "%s", str_of(o, "detail"));
+    error_from_mcf_json(e, s, http == 400 ? API_JOB_PARAMS
+                              : http == 413 || http == 415 ? API_JOB_DECODE
+                                                           : API_JOB_RUN, o);
 }
 
 static void error_from_json(svc_error *e, const cJSON *o)
 {
     const char *kind = str_of(o, "kind");
+    svc_problem p;
     int i;
 
     if (!*kind) {
         error_from_old_json(e, o);
         return;
     }
-    for (i = 0; i < (int)SVC_EINTERNAL && strcmp(kind, svc_code_name(i)); i++)
+    for (i = 0; i < (int)SVC_EUNAVAILABLE && strcmp(kind, svc_code_name(i)); i++)
         ;
-    svc_error_set(e, (svc_code)i, str_of(o, "code"), "%s", str_of(o, "detail"));
-    e->mcf = mcf_of_name(str_of(o, "mcf"));
-    i = index_of(str_of(o, "stage"), stage_names, 4);
-    e->stage = i > 0 ? (svc_stage)i : SVC_STAGE_NONE;
+    if (svc__problem_find((svc_code)i, str_of(o, "code"), &p) == 0)
+        svc_error_set(e, p, "%s", str_of(o, "detail"));
+    else /* a row of a later version: its kind's failure of the stage */
+        error_from_mcf_json(e, mcf_of_name(str_of(o, "mcf")),
+                            (api_job_stage)(index_of(str_of(o, "stage"), stage_names, 4) > 0
+                                            ? index_of(str_of(o, "stage"), stage_names, 4)
+                                            : API_JOB_RUN), o);
     i = index_of(str_of(o, "cancel"), cancel_names, 5);
     e->cancel = i > 0 ? (svc_cancel_reason)i : SVC_CANCEL_NONE;
 }
 
-char *svc__state_json(const svc_job *j)
+char *svc__state_json(const svc_state_rec *r)
 {
     char *s;
     cJSON *o = cJSON_CreateObject();
 
     if (!o)
         return NULL;
-    cJSON_AddStringToObject(o, "id", j->id);
-    cJSON_AddStringToObject(o, "status", svc_job_status_name(j->status));
-    cJSON_AddNumberToObject(o, "created", j->created);
-    cJSON_AddNumberToObject(o, "started", j->started);
-    cJSON_AddNumberToObject(o, "finished", j->finished);
-    cJSON_AddStringToObject(o, "scheme", j->scheme);
-    cJSON_AddNumberToObject(o, "steps_planned", j->steps_planned);
-    cJSON_AddNumberToObject(o, "time_planned", j->time_planned);
-    cJSON_AddNumberToObject(o, "step", j->step);
-    add_num(o, "t", j->t);
-    cJSON_AddStringToObject(o, "in_format", j->in_format);
-    cJSON_AddStringToObject(o, "out_format", j->out_format);
-    cJSON_AddStringToObject(o, "result", j->result_name);
+    cJSON_AddStringToObject(o, "id", r->id);
+    cJSON_AddStringToObject(o, "status", svc_job_status_name(r->status));
+    cJSON_AddNumberToObject(o, "created", r->created);
+    cJSON_AddNumberToObject(o, "started", r->started);
+    cJSON_AddNumberToObject(o, "finished", r->finished);
+    cJSON_AddStringToObject(o, "scheme", r->scheme);
+    cJSON_AddNumberToObject(o, "steps_planned", r->steps_planned);
+    cJSON_AddNumberToObject(o, "time_planned", r->time_planned);
+    cJSON_AddNumberToObject(o, "step", r->step);
+    add_num(o, "t", r->t);
+    cJSON_AddStringToObject(o, "in_format", r->in_format);
+    cJSON_AddStringToObject(o, "out_format", r->out_format);
+    cJSON_AddStringToObject(o, "result", r->result_name);
     /* A cancel asked of a running job holds across a restart. */
-    if (!svc_job_status_terminal(j->status) && j->cancel_asked)
+    if (!svc_job_status_terminal(r->status) && r->cancel_requested)
         cJSON_AddStringToObject(o, "cancel_requested",
-                                cancel_names[j->cancel_asked]);
-    else if (!svc_job_status_terminal(j->status) && j->cancel &&
-             (j->cancel_reason == SVC_CANCEL_USER ||
-              j->cancel_reason == SVC_CANCEL_CLIENT))
-        cJSON_AddStringToObject(o, "cancel_requested",
-                                cancel_names[j->cancel_reason]);
-    cJSON_AddNumberToObject(o, "result_bytes", (double)j->result_len);
-    if (j->params_json)
-        cJSON_AddStringToObject(o, "params", j->params_json);
-    if (j->status == SVC_JOB_FAILED || j->status == SVC_JOB_CANCELED) {
+                                cancel_names[r->cancel_requested]);
+    cJSON_AddNumberToObject(o, "result_bytes", (double)r->result_len);
+    if (r->params_json)
+        cJSON_AddStringToObject(o, "params", r->params_json);
+    if (r->status == SVC_JOB_FAILED || r->status == SVC_JOB_CANCELED) {
         cJSON *e = cJSON_AddObjectToObject(o, "error");
         if (e)
-            error_to_json(e, &j->err);
+            error_to_json(e, &r->err);
     }
     s = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     return s;
 }
 
-int svc__state_load(svc_job *j, const cJSON *so)
+int svc__state_parse(const cJSON *so, svc_state_rec *r, char **params_json)
 {
     const cJSON *e;
     int i = index_of(str_of(so, "status"), (const char *const[]){
                          "queued", "running", "succeeded", "failed",
                          "canceled"}, 5);
 
+    memset(r, 0, sizeof *r);
+    *params_json = NULL;
     if (i < 0)
         return -1;
-    j->status = (svc_job_status)i;
-    j->created = num_of(so, "created");
-    j->started = num_of(so, "started");
-    j->finished = num_of(so, "finished");
-    snprintf(j->scheme, sizeof j->scheme, "%s", str_of(so, "scheme"));
-    j->steps_planned = (int)num_of(so, "steps_planned");
-    j->time_planned = num_of(so, "time_planned");
-    j->step = (int)num_of(so, "step");
-    j->t = num_of(so, "t");
-    snprintf(j->in_format, sizeof j->in_format, "%s", str_of(so, "in_format"));
-    snprintf(j->out_format, sizeof j->out_format, "%s", str_of(so, "out_format"));
-    snprintf(j->result_name, sizeof j->result_name, "%s", str_of(so, "result"));
-    j->result_len = (size_t)num_of(so, "result_bytes");
+    r->status = (svc_job_status)i;
+    snprintf(r->id, sizeof r->id, "%s", str_of(so, "id"));
+    r->created = num_of(so, "created");
+    r->started = num_of(so, "started");
+    r->finished = num_of(so, "finished");
+    snprintf(r->scheme, sizeof r->scheme, "%s", str_of(so, "scheme"));
+    r->steps_planned = (int)num_of(so, "steps_planned");
+    r->time_planned = num_of(so, "time_planned");
+    r->step = (int)num_of(so, "step");
+    r->t = num_of(so, "t");
+    snprintf(r->in_format, sizeof r->in_format, "%s", str_of(so, "in_format"));
+    snprintf(r->out_format, sizeof r->out_format, "%s", str_of(so, "out_format"));
+    snprintf(r->result_name, sizeof r->result_name, "%s", str_of(so, "result"));
+    r->result_len = (size_t)num_of(so, "result_bytes");
     i = index_of(str_of(so, "cancel_requested"), cancel_names, 5);
-    if (i > 0) {
-        j->cancel = 1;
-        j->cancel_reason = (svc_cancel_reason)i;
-    }
-    if (*str_of(so, "params") && !(j->params_json = strdup(str_of(so, "params"))))
+    r->cancel_requested = i > 0 ? (svc_cancel_reason)i : SVC_CANCEL_NONE;
+    if (*str_of(so, "params") && !(*params_json = strdup(str_of(so, "params"))))
         return -1;
     if ((e = cJSON_GetObjectItemCaseSensitive(so, "error")) != NULL)
-        error_from_json(&j->err, e);
+        error_from_json(&r->err, e);
     return 0;
-}
-
-/* Writers of state.json, one at a time: a snapshot and its write go
- * together, so the last snapshot taken is the last written (a DELETE and
- * the worker's outcome raced, and the older one could land last). Taken
- * before the job lock; held across the write (one small file). */
-int svc__write_state(svc_job *j, int durable)
-{
-    char *s;
-    int rc;
-
-    pthread_mutex_lock(&svc_state_mu);
-    svc__lock();
-    s = svc__state_json(j);
-    svc__unlock();
-    if (!s) {
-        pthread_mutex_unlock(&svc_state_mu);
-        return -1;
-    }
-    rc = srv_spool_write(svc__S.cfg.spool, j->id, "state.json", s, strlen(s),
-                         durable);
-    pthread_mutex_unlock(&svc_state_mu);
-    free(s);
-    return rc;
 }
 
 /* --------------------------------------------------------------------- log */
@@ -371,13 +366,13 @@ void svc__log_job(const svc_job *j, int nv, int nf, double run_s)
     if (j->recovered)
         cJSON_AddBoolToObject(o, "recovered", 1);
     if (j->status == SVC_JOB_FAILED || j->status == SVC_JOB_CANCELED) {
-        cJSON_AddStringToObject(o, "kind", svc_code_name(j->err.code));
-        cJSON_AddStringToObject(o, "code", j->err.name);
+        cJSON_AddStringToObject(o, "kind", svc_code_name(svc_error_code(&j->err)));
+        cJSON_AddStringToObject(o, "code", svc_problem_name(j->err.problem));
         cJSON_AddStringToObject(o, "detail", j->err.detail);
     }
     srv_log_json(j->status == SVC_JOB_FAILED &&
-                         (j->err.code == SVC_ESTORAGE ||
-                          j->err.code == SVC_EINTERNAL ||
-                          j->err.code == SVC_ENOMEM)
+                         (svc_error_code(&j->err) == SVC_ESTORAGE ||
+                          svc_error_code(&j->err) == SVC_EINTERNAL ||
+                          svc_error_code(&j->err) == SVC_ENOMEM)
                      ? SRV_LOG_ERROR : SRV_LOG_INFO, o);
 }

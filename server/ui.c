@@ -74,7 +74,7 @@ static enum MHD_Result send_config(srv_request *r, struct MHD_Connection *c)
     struct MHD_Response *resp;
 
     if (!o || !cJSON_AddBoolToObject(o, "token_required",
-                                     srv_http_config()->token_len > 0)) {
+                                     r->door->cfg->token_len > 0)) {
         cJSON_Delete(o);
         return MHD_NO;
     }

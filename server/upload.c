@@ -76,7 +76,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
                                uint64_t off, size_t size)
 {
     srv_request *r = cls;
-    const srv_config *cfg = srv_http_config();
+    const srv_config *cfg = r->door->cfg;
     api_buf *dst = NULL;
     const char *limit_name = "--max-upload";
     size_t limit = cfg->lim.max_input_bytes;
@@ -90,7 +90,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
         /* MHD passes a part without Content-Disposition name as NULL:
          * no headers at all, only a filename or a Content-Type, or a mesh
          * whose bytes contain the boundary line. */
-        srv_problem_set(&r->perr, 400, "EINVAL", "a multipart part has no "
+        svc_error_set(&r->perr, SVC_P_INPUT_INVALID, "a multipart part has no "
                         "name: every part needs 'Content-Disposition: "
                         "form-data; name=\"...\"' (mesh, target, params, or a "
                         "parameter); does the mesh contain the boundary line?");
@@ -111,7 +111,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
         limit = cfg->lim.max_json_bytes;
         limit_name = "the JSON size limit";
     } else if (filename) {
-        srv_problem_set(&r->perr, 400, "EINVAL", "unknown multipart file field "
+        svc_error_set(&r->perr, SVC_P_INPUT_INVALID, "unknown multipart file field "
                         "'%s' (accepted: mesh, target, params, or a parameter "
                         "as a plain field)", key);
         r->has_perr = 1;
@@ -121,7 +121,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
         cJSON *last = cJSON_GetArrayItem(r->fields, cJSON_GetArraySize(r->fields) - 1);
         r->fields_bytes += size + strlen(key);
         if (r->fields_bytes > cfg->lim.max_json_bytes) {
-            srv_problem_set(&r->perr, 413, "ELIMIT", "multipart parameter fields "
+            svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "multipart parameter fields "
                             "exceed %zu bytes", cfg->lim.max_json_bytes);
             r->has_perr = 1;
             return MHD_NO;
@@ -162,19 +162,19 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
      * non-manifold mesh). An empty first part is indistinguishable from
      * the start of the next one and harmless. */
     if (off == 0 && dst->len > 0) {
-        srv_problem_set(&r->perr, 400, "EINVAL", "multipart field '%s' is "
+        svc_error_set(&r->perr, SVC_P_INPUT_INVALID, "multipart field '%s' is "
                         "given twice: send exactly one '%s' part", key, key);
         r->has_perr = 1;
         return MHD_NO;
     }
     if (dst->len + size > limit) {
-        srv_problem_set(&r->perr, 413, "ELIMIT", "multipart field '%s' is "
+        svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "multipart field '%s' is "
                         "larger than %zu bytes (%s)", key, limit, limit_name);
         r->has_perr = 1;
         return MHD_NO;
     }
     if (api_buf_append(dst, data, size) != MCF_OK) {
-        srv_problem_set(&r->perr, 503, "ENOMEM", "out of memory reading "
+        svc_error_set(&r->perr, SVC_P_NOMEM, "out of memory reading "
                         "multipart field '%s'", key);
         r->has_perr = 1;
         return MHD_NO;
@@ -184,20 +184,18 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
 
 void srv_upload_consume(srv_request *r, const char *data, size_t size)
 {
-    const srv_config *cfg = srv_http_config();
-    svc_error e;
+    const srv_config *cfg = r->door->cfg;
 
     r->bytes_in += size;
     if (r->has_perr)
         return; /* discard: the error is answered at the end */
     /* without a Content-Length, the memory is reserved as bytes come */
-    if (svc_upload_reserve(&r->mem_held, r->bytes_in, &e) != 0) {
-        srv_problem_from_svc(&r->perr, &e);
+    if (svc_upload_reserve(r->door->svc, &r->mem_held, r->bytes_in, &r->perr) != 0) {
         r->has_perr = 1;
         return;
     }
     if (r->multipart && r->bytes_in > cfg->max_body) {
-        srv_problem_set(&r->perr, 413, "ELIMIT", "the multipart body exceeds "
+        svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "the multipart body exceeds "
                         "%zu bytes, the most it may hold with --max-upload %zu "
                         "(a mesh and a target of up to --max-upload each, and "
                         "the parameters)", cfg->max_body,
@@ -206,19 +204,19 @@ void srv_upload_consume(srv_request *r, const char *data, size_t size)
         return;
     }
     if (!r->multipart && r->bytes_in > cfg->lim.max_input_bytes) {
-        srv_problem_set(&r->perr, 413, "ELIMIT", "the request body exceeds "
+        svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "the request body exceeds "
                         "%zu bytes (--max-upload)", cfg->lim.max_input_bytes);
         r->has_perr = 1;
         return;
     }
     if (r->multipart) {
         if (MHD_post_process(r->pp, data, size) != MHD_YES && !r->has_perr) {
-            srv_problem_set(&r->perr, 400, "EDECODE", "malformed "
+            svc_error_set(&r->perr, SVC_P_INPUT_DECODE, "malformed "
                             "multipart/form-data body");
             r->has_perr = 1;
         }
     } else if (api_buf_append(&r->mesh, data, size) != MCF_OK) {
-        srv_problem_set(&r->perr, 503, "ENOMEM", "out of memory reading "
+        svc_error_set(&r->perr, SVC_P_NOMEM, "out of memory reading "
                         "the body");
         r->has_perr = 1;
     }
@@ -228,9 +226,8 @@ void srv_upload_consume(srv_request *r, const char *data, size_t size)
  * from the headers. */
 enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
 {
-    const srv_config *cfg = srv_http_config();
-    srv_problem p;
-    svc_error e;
+    const srv_config *cfg = r->door->cfg;
+    svc_error p;
     const char *h;
     char stream[32];
     unsigned long long n = 0;
@@ -240,14 +237,14 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
         const char *acc = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                       MHD_HTTP_HEADER_ACCEPT);
         if (h && strcmp(h, "ndjson") != 0)
-            return srv_send_problemf(r, c, 400, "EINVAL", "parameter 'stream' must be "
+            return srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'stream' must be "
                                      "\"ndjson\", got \"%s\"", h);
         r->md = h ? MODE_NDJSON
                   : (acc && strstr(acc, "multipart/mixed")) ? MODE_MIXED
                                                             : MODE_SYNC;
     } else {
         if (h)
-            return srv_send_problemf(r, c, 400, "EINVAL", "parameter 'stream' is only "
+            return srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'stream' is only "
                                      "for /smooth; follow /v1/jobs/ID/events instead");
         r->md = MODE_ASYNC;
     }
@@ -258,10 +255,10 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
         r->fields = cJSON_CreateArray();
         r->pp = MHD_create_post_processor(c, 64 * 1024, on_part, r);
         if (!r->pp || !r->fields)
-            return srv_send_problemf(r, c, 400, "EDECODE", "cannot parse the "
+            return srv_send_problemf(r, c, SVC_P_INPUT_DECODE, "cannot parse the "
                                      "multipart/form-data header '%s' (boundary?)", h);
     } else if (h && !raw_mesh_type(h)) {
-        return srv_send_problemf(r, c, 415, "EFORMAT", "Content-Type '%s' is not a mesh: "
+        return srv_send_problemf(r, c, SVC_P_INPUT_FORMAT, "Content-Type '%s' is not a mesh: "
                                  "send multipart/form-data with a 'mesh' field, or the "
                                  "mesh bytes as application/octet-stream or model/*", h);
     }
@@ -274,13 +271,13 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
         n = strtoull(h, &end, 10);
         if (errno == 0 && end != h && n > lim) {
             if (r->multipart)
-                srv_problem_set(&p, 413, "ELIMIT", "Content-Length %llu "
+                svc_error_set(&p, SVC_P_INPUT_LIMIT, "Content-Length %llu "
                                 "exceeds %zu bytes, the most a multipart body "
                                 "may hold with --max-upload %zu (a mesh and a "
                                 "target of up to --max-upload each, and the "
                                 "parameters)", n, lim, cfg->lim.max_input_bytes);
             else
-                srv_problem_set(&p, 413, "ELIMIT", "Content-Length %llu exceeds "
+                svc_error_set(&p, SVC_P_INPUT_LIMIT, "Content-Length %llu exceeds "
                                 "the limit of %zu bytes (--max-upload)", n, lim);
             return srv_send_problem(r, c, &p, NULL);
         }
@@ -293,15 +290,15 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
      * reset by the close that follows an early answer, and lose the 503:
      * its body is read, discarded (never buffered) and answered. */
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND, MHD_HTTP_HEADER_EXPECT);
-    if (svc_draining())
-        srv_problem_set(&p, 503, "EDRAINING", "the daemon is shutting down "
+    if (svc_draining(r->door->svc))
+        svc_error_set(&p, SVC_P_DRAINING, "the daemon is shutting down "
                         "and accepts no new jobs");
-    else if (!svc_can_accept())
-        srv_problem_set(&p, 503, "EBUSY", "the job queue is full; retry "
+    else if (!svc_can_accept(r->door->svc))
+        svc_error_set(&p, SVC_P_BUSY, "the job queue is full; retry "
                         "after the Retry-After delay");
     /* the memory the body will take, reserved by its declared size */
-    else if (n > 0 && svc_upload_reserve(&r->mem_held, (size_t)n, &e) != 0)
-        srv_problem_from_svc(&p, &e);
+    else if (n > 0 && svc_upload_reserve(r->door->svc, &r->mem_held, (size_t)n, &p) != 0)
+        ;
     else
         return MHD_YES;
     if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c))
@@ -312,29 +309,37 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
 }
 
 
-static char *dup_or_null(const api_buf *b, int present)
+/* The job's parameters, parsed once here: the params field (JSON), then
+ * the plain form fields, then the query string (svc_params_parse), and
+ * the daemon's `fields` key. 0, or -1 and *e. */
+static int request_params(srv_request *r, svc_request *rq, svc_error *e)
 {
-    if (!present)
-        return NULL;
-    return strdup(b->data ? b->data : "");
+    const char *q = srv_query_of(r);
+    mcf_error err = {MCF_OK, ""};
+    mcf_status st;
+
+    st = svc_params_parse(&rq->params, r->has_params ? (r->params.data ? r->params.data : "")
+                                                     : NULL,
+                          r->fields, q, svc_limits(r->door->svc), &err);
+    if (st != MCF_OK) {
+        svc_error_from_mcf(e, st, API_JOB_PARAMS, NULL, &err);
+        return -1;
+    }
+    return svc_query_fields(q, &rq->fields, e);
 }
 
 /* The body is complete: hand the job over. */
 enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
 {
-    svc_record rec;
+    svc_request rq;
     svc_error e;
-    srv_problem p;
     svc_job *j = NULL;
-    const char *q = strchr(r->uri, '?');
-    char *mesh, *target = NULL;
-    size_t mesh_len, target_len = 0;
     char loc[96];
     int rc;
 
     if (r->pp) {
         if (MHD_destroy_post_processor(r->pp) != MHD_YES && !r->has_perr) {
-            srv_problem_set(&r->perr, 400, "EDECODE", "malformed or truncated "
+            svc_error_set(&r->perr, SVC_P_INPUT_DECODE, "malformed or truncated "
                             "multipart/form-data body");
             r->has_perr = 1;
         }
@@ -343,31 +348,28 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
     if (r->has_perr)
         return srv_send_problem(r, c, &r->perr, NULL);
     if (r->multipart && !r->has_mesh)
-        return srv_send_problemf(r, c, 400, "EINVAL", "multipart field 'mesh' "
+        return srv_send_problemf(r, c, SVC_P_INPUT_INVALID, "multipart field 'mesh' "
                                  "is missing: send the mesh as -F mesh=@file");
     if (r->mesh.len == 0)
-        return srv_send_problemf(r, c, 400, "EINVAL", "the mesh is empty: send "
+        return srv_send_problemf(r, c, SVC_P_INPUT_INVALID, "the mesh is empty: send "
                                  "it as the body or as multipart field 'mesh'");
     srv_metrics_upload(r->mesh.len);
 
-    memset(&rec, 0, sizeof rec);
-    rec.query = q && q[1] ? strdup(q + 1) : NULL;
-    rec.params_json = dup_or_null(&r->params, r->has_params);
-    rec.fields = r->fields;
-    r->fields = NULL;
-    snprintf(rec.filename, sizeof rec.filename, "%s",
-             r->filename[0] ? r->filename : "mesh");
-    mesh = api_buf_detach(&r->mesh, &mesh_len);
-    if (r->has_target)
-        target = api_buf_detach(&r->target, &target_len);
-    rc = svc_submit(&rec, mesh, mesh_len, target, target_len,
-                    r->md == MODE_SYNC || r->md == MODE_MIXED ? SVC_KEEP_RESULT : 0,
-                    &j, &e);
-    svc_upload_release(&r->mem_held);  /* the bytes are on the spool, or gone */
-    if (rc != 0) {
-        srv_problem_from_svc(&p, &e);
-        return srv_send_problem(r, c, &p, NULL);
+    svc_request_init(&rq);
+    if (request_params(r, &rq, &e) != 0) {
+        svc_request_free(&rq);
+        return srv_send_problem(r, c, &e, NULL);
     }
+    snprintf(rq.filename, sizeof rq.filename, "%s",
+             r->filename[0] ? r->filename : "mesh");
+    rq.input = api_buf_detach(&r->mesh, &rq.input_len);
+    if (r->has_target)
+        rq.target = api_buf_detach(&r->target, &rq.target_len);
+    rq.keep_result = r->md == MODE_SYNC || r->md == MODE_MIXED;
+    rc = svc_submit(r->door->svc, &rq, &j, &e);
+    svc_upload_release(r->door->svc, &r->mem_held);  /* the bytes are in the store, or gone */
+    if (rc != 0)
+        return srv_send_problem(r, c, &e, NULL);
     r->job = j;
     snprintf(r->id, sizeof r->id, "%s", svc_job_id(j));
     if (r->md == MODE_ASYNC) {
@@ -383,8 +385,8 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
     r->sync_owner = r->md != MODE_NDJSON;
     /* Nobody else knows this job's ID yet: when this client goes, so does
      * the reason to run it. */
-    if (srv_waiter_start(&r->w, j, c, 0, 1) != 0)
-        return srv_send_problemf(r, c, 503, "ENOMEM", "out of memory waiting "
+    if (srv_waiter_start(&r->w, r->door, j, c, 0, 1) != 0)
+        return srv_send_problemf(r, c, SVC_P_NOMEM, "out of memory waiting "
                                  "for job %s", r->id);
     r->waiting = 1;
     return srv_wait_or_answer(r, c);

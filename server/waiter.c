@@ -5,10 +5,10 @@
  *
  * A waiting request or stream suspends its MHD connection; the service
  * calls on_notify (under its lock) when the job moves, which resumes it.
- * g_mu, the door's lock, guards every waiter's flags and the list of all
+ * wait_mu, the door's lock, guards every waiter's flags and the list of all
  * of them; it is taken inside the service's lock (the callback), so the
  * door never calls the service while holding it. A suspended connection
- * is left alone by MHD until it is resumed, which needs g_mu: under g_mu
+ * is left alone by MHD until it is resumed, which needs wait_mu: under it
  * a suspended waiter's socket is valid, and may be peeked at.
  *
  * No notification is lost: srv_waiter_arm clears `pending` before the
@@ -23,41 +23,39 @@
 
 #include "http.h"
 
-static pthread_mutex_t g_mu = PTHREAD_MUTEX_INITIALIZER;
-static srv_waiter *g_waiters;
-static int g_followers;
-
 /* The service's callback: service lock held. */
 static void on_notify(void *ctx, unsigned what)
 {
     srv_waiter *w = ctx;
 
     (void)what;
-    pthread_mutex_lock(&g_mu);
+    pthread_mutex_lock(&w->door->wait_mu);
     w->pending = 1;
     if (w->suspended) {
         w->suspended = 0;
         MHD_resume_connection(w->conn);
     }
-    pthread_mutex_unlock(&g_mu);
+    pthread_mutex_unlock(&w->door->wait_mu);
 }
 
-int srv_waiter_start(srv_waiter *w, svc_job *j, struct MHD_Connection *c,
-                     int want_events, int cancel_on_hangup)
+int srv_waiter_start(srv_waiter *w, srv_rest *d, svc_job *j,
+                     struct MHD_Connection *c, int want_events,
+                     int cancel_on_hangup)
 {
     memset(w, 0, sizeof *w);
+    w->door = d;
     w->conn = c;
     snprintf(w->id, sizeof w->id, "%s", svc_job_id(j));
     w->want_events = want_events;
     w->cancel_on_hangup = cancel_on_hangup;
-    pthread_mutex_lock(&g_mu);
-    w->next = g_waiters;
-    if (g_waiters)
-        g_waiters->prev = w;
-    g_waiters = w;
+    pthread_mutex_lock(&d->wait_mu);
+    w->next = d->waiters;
+    if (d->waiters)
+        d->waiters->prev = w;
+    d->waiters = w;
     w->linked = 1;
-    g_followers += want_events != 0;
-    pthread_mutex_unlock(&g_mu);
+    d->followers += want_events != 0;
+    pthread_mutex_unlock(&d->wait_mu);
     if (svc_subscribe(j, want_events ? SVC_NOTIFY_PROGRESS : SVC_NOTIFY_STATE,
                       on_notify, w, &w->sub) != 0) {
         srv_waiter_stop(w);
@@ -68,60 +66,64 @@ int srv_waiter_start(srv_waiter *w, svc_job *j, struct MHD_Connection *c,
 
 void srv_waiter_stop(srv_waiter *w)
 {
+    srv_rest *d = w->door;
+
     /* First the subscription: on_notify is not running on return. */
     svc_unsubscribe(w->sub);
     w->sub = NULL;
-    pthread_mutex_lock(&g_mu);
+    if (!d)
+        return; /* never started */
+    pthread_mutex_lock(&d->wait_mu);
     if (w->linked) {
         if (w->prev)
             w->prev->next = w->next;
         else
-            g_waiters = w->next;
+            d->waiters = w->next;
         if (w->next)
             w->next->prev = w->prev;
         w->prev = w->next = NULL;
         w->linked = 0;
-        g_followers -= w->want_events != 0;
+        d->followers -= w->want_events != 0;
     }
-    pthread_mutex_unlock(&g_mu);
+    pthread_mutex_unlock(&d->wait_mu);
 }
 
 void srv_waiter_arm(srv_waiter *w)
 {
-    pthread_mutex_lock(&g_mu);
+    pthread_mutex_lock(&w->door->wait_mu);
     w->pending = 0;
-    pthread_mutex_unlock(&g_mu);
+    pthread_mutex_unlock(&w->door->wait_mu);
 }
 
 int srv_waiter_sleep(srv_waiter *w)
 {
     int slept = 0;
 
-    pthread_mutex_lock(&g_mu);
+    pthread_mutex_lock(&w->door->wait_mu);
     if (!w->pending && !w->gone) {
         w->suspended = 1;
         MHD_suspend_connection(w->conn);
         slept = 1;
     }
-    pthread_mutex_unlock(&g_mu);
+    pthread_mutex_unlock(&w->door->wait_mu);
     return slept;
 }
 
 int srv_waiter_gone(srv_waiter *w)
 {
     int gone;
-    pthread_mutex_lock(&g_mu);
+    pthread_mutex_lock(&w->door->wait_mu);
     gone = w->gone;
-    pthread_mutex_unlock(&g_mu);
+    pthread_mutex_unlock(&w->door->wait_mu);
     return gone;
 }
 
-int srv_waiter_followers(void)
+int srv_waiter_followers(srv_rest *d)
 {
     int n;
-    pthread_mutex_lock(&g_mu);
-    n = g_followers;
-    pthread_mutex_unlock(&g_mu);
+    pthread_mutex_lock(&d->wait_mu);
+    n = d->followers;
+    pthread_mutex_unlock(&d->wait_mu);
     return n;
 }
 
@@ -143,14 +145,14 @@ static int client_gone(struct MHD_Connection *c)
                       errno != EINTR);
 }
 
-int srv_http_check_clients(void)
+int srv_http_check_clients(srv_rest *d)
 {
     char (*ids)[SVC_ID_LEN + 1] = NULL;
     int n = 0, cap = 0, i, canceled = 0;
     srv_waiter *w;
 
-    pthread_mutex_lock(&g_mu);
-    for (w = g_waiters; w; w = w->next) {
+    pthread_mutex_lock(&d->wait_mu);
+    for (w = d->waiters; w; w = w->next) {
         if (!w->suspended)
             continue;
         if (w->want_events) {
@@ -176,11 +178,11 @@ int srv_http_check_clients(void)
         }
         memcpy(ids[n++], w->id, sizeof *ids);
     }
-    pthread_mutex_unlock(&g_mu);
-    /* Outside g_mu: the service calls back into it. A job already
+    pthread_mutex_unlock(&d->wait_mu);
+    /* Outside wait_mu: the service calls back into it. A job already
      * canceled or finished is left as it is. */
     for (i = 0; i < n; i++) {
-        svc_job *j = svc_job_get(ids[i]);
+        svc_job *j = svc_job_get(d->svc, ids[i]);
         if (j && svc_cancel(j, SVC_CANCEL_CLIENT) != 0)
             canceled++;
         svc_job_unref(j);

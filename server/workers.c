@@ -1,8 +1,8 @@
 /*
- * workers.c - the job service's worker pool: plain pthreads that take
- * jobs off the queue in order and run them (runner.c); the waits of a
- * drain (svc_wait_idle) and the checkpoint of running jobs for a restart.
- * Only workers decode, smooth and encode; no other thread touches a mesh.
+ * workers.c - the job service's worker pool: plain pthreads that claim
+ * jobs from the store's queue in order, start them, run them (runner.c)
+ * and record their outcome (svc_job.c); and the drain's wait. Only workers
+ * decode, smooth and encode; no other thread touches a mesh.
  */
 #include <errno.h>
 #include <stdio.h>
@@ -13,118 +13,179 @@
 #include "svc_internal.h"
 #include "svc_admit.h"
 
+/* The store's claim asks whether the head of the queue fits: its memory
+ * estimate beside the running jobs' (svc_admit.c). Reserved when it
+ * does; a job this service does not hold (removed meanwhile) fits with
+ * nothing (the claim is skipped below). */
+typedef struct {
+    svc_t *s;
+    double held;
+} claim_ctx;
+
+static int fits(void *arg, const char *id)
+{
+    claim_ctx *c = arg;
+    svc_job *j;
+    double est = 0;
+
+    pthread_mutex_lock(&c->s->mu);
+    j = svc__find_locked(c->s, id);
+    if (j)
+        est = j->mem_estimate;
+    pthread_mutex_unlock(&c->s->mu);
+    if (!svc_admit_try(c->s, est))
+        return 0;
+    c->held = est;
+    return 1;
+}
+
+/* Waits on s->work (s->mu held): until woken, or the store's poll. */
+static void wait_work_locked(svc_t *s)
+{
+    double poll = s->store->ops->poll;
+    struct timespec ts;
+
+    if (poll <= 0) {
+        pthread_cond_wait(&s->work, &s->mu);
+        return;
+    }
+    clock_gettime(CLOCK_REALTIME, &ts);   /* s->work's clock */
+    ts.tv_nsec += (long)(poll * 1e9);
+    ts.tv_sec += ts.tv_nsec / 1000000000L;
+    ts.tv_nsec %= 1000000000L;
+    pthread_cond_timedwait(&s->work, &s->mu, &ts);
+}
+
+/* The next job to run: claimed, reserved and started, or NULL when the
+ * service stops. Waits (on s->work) while it is draining, the queue is
+ * empty or its head does not fit. */
+static svc_job *next_job(svc_t *s, double *held)
+{
+    char id[SVC_ID_LEN + 1];
+    claim_ctx c = {s, 0};
+    unsigned seen;
+    svc_job *j;
+    int stop, rc;
+
+    for (;;) {
+        pthread_mutex_lock(&s->mu);
+        while (!s->stopping && s->draining)
+            pthread_cond_wait(&s->work, &s->mu);
+        seen = s->wakes;
+        stop = s->stopping;
+        pthread_mutex_unlock(&s->mu);
+        if (stop)
+            return NULL;
+        c.held = 0;
+        if (s->store->ops->claim(s->store, fits, &c, id) == 1) {
+            j = svc_job_get(s, id);
+            rc = j ? svc__start(j) : -1;
+            if (rc == 0) {
+                svc_job_unref(j); /* svc__start took the worker's */
+                *held = c.held;
+                return j;
+            }
+            /* no longer queued (canceled, removed): done with; its cancel
+             * being written, or a drain: back at the head, to run should
+             * the cancel fail, or after the restart */
+            svc_admit_release(s, c.held);
+            if (rc < 0)
+                s->store->ops->ack(s->store, id);
+            else
+                s->store->ops->push(s->store, id, 1);
+            svc_job_unref(j);
+            if (rc < 0)
+                continue;
+        }
+        /* nothing claimable (or the head waits for its cancel): sleep
+         * until something changes (a submit, a cancel, a job's or
+         * upload's memory freed, drain, stop), or, for a queue other
+         * replicas fill, until the next poll */
+        pthread_mutex_lock(&s->mu);
+        if (!s->stopping && s->wakes == seen)
+            wait_work_locked(s);
+        pthread_mutex_unlock(&s->mu);
+    }
+}
+
 static void *worker_main(void *arg)
 {
-    (void)arg;
-    svc__lock();
-    for (;;) {
-        svc_job *j;
-        /* The head of the queue starts when its memory estimate fits
-         * (svc_admit.c); else it waits for a running job to end. */
-        while (!svc__S.stopping &&
-               (svc__S.draining || !svc__S.qhead ||
-                !svc_admit_try(&svc__S.cfg, svc__S.qhead->mem_estimate)))
-            pthread_cond_wait(&svc__S.work, &svc__S.mu);
-        if (svc__S.stopping)
-            break;
-        j = svc__queue_pop();
-        j->mem_held = j->mem_estimate;
-        j->refs++;
-        j->status = SVC_JOB_RUNNING;
-        j->started = srv_wall();
-        svc__S.busy++;
-        svc__notify(j, SVC_NOTIFY_STATE);
-        svc__unlock();
-        svc__run_job(j);
-        svc_admit_release(j->mem_held); /* svc_admit.c: its memory is free */
-        svc__lock();
-        pthread_cond_broadcast(&svc__S.work);
-        svc__S.busy--;
+    svc_t *s = arg;
+    svc_outcome o;
+    svc_job *j;
+    double held;
+
+    while ((j = next_job(s, &held)) != NULL) {
+        pthread_mutex_lock(&s->mu);
+        j->mem_held = held;
+        pthread_mutex_unlock(&s->mu);
+        svc__run(j, &o);
+        svc__finish(j, &o);
+        free(o.result);
+        svc_admit_release(s, j->mem_held); /* its memory is free */
+        pthread_mutex_lock(&s->mu);
+        s->busy--;
+        svc__wake_locked(s);
+        pthread_cond_broadcast(&s->idle);
         svc__unref_locked(j);
-        pthread_cond_broadcast(&svc__S.idle);
+        pthread_mutex_unlock(&s->mu);
     }
-    svc__unlock();
     return NULL;
 }
 
-int svc__workers_start(char *msg, size_t msgsize)
+int svc__workers_start(svc_t *s, char *msg, size_t msgsize)
 {
-    int i, n = svc__S.cfg.workers;
+    int i, n = s->cfg.workers;
 
-    svc__S.threads = calloc((size_t)n, sizeof *svc__S.threads);
-    if (!svc__S.threads) {
+    s->threads = calloc((size_t)n, sizeof *s->threads);
+    if (!s->threads) {
         snprintf(msg, msgsize, "out of memory");
         return -1;
     }
     for (i = 0; i < n; i++) {
-        if (pthread_create(&svc__S.threads[i], NULL, worker_main, NULL) != 0) {
+        if (pthread_create(&s->threads[i], NULL, worker_main, s) != 0) {
             snprintf(msg, msgsize, "cannot start worker %d: %s", i,
                      strerror(errno));
-            svc__lock();
-            svc__S.stopping = 1;
-            pthread_cond_broadcast(&svc__S.work);
-            svc__unlock();
-            while (i-- > 0)
-                pthread_join(svc__S.threads[i], NULL);
-            return -1;
+            return -1; /* svc_stop joins the ones started */
         }
-        svc__lock();
-        svc__S.nthreads = i + 1;
-        svc__unlock();
+        pthread_mutex_lock(&s->mu);
+        s->nthreads = i + 1;
+        pthread_mutex_unlock(&s->mu);
     }
     return 0;
 }
 
-void svc__workers_stop(void)
+void svc__workers_stop(svc_t *s)
 {
     int i;
 
-    svc__lock();
-    svc__S.stopping = 1;
-    pthread_cond_broadcast(&svc__S.work);
-    svc__unlock();
-    for (i = 0; i < svc__S.nthreads; i++)
-        pthread_join(svc__S.threads[i], NULL);
-    free(svc__S.threads);
-    svc__S.threads = NULL;
-    svc__S.nthreads = 0;
+    pthread_mutex_lock(&s->mu);
+    s->stopping = 1;
+    svc__wake_locked(s);
+    pthread_mutex_unlock(&s->mu);
+    for (i = 0; i < s->nthreads; i++)
+        pthread_join(s->threads[i], NULL);
+    free(s->threads);
+    s->threads = NULL;
+    s->nthreads = 0;
 }
 
-int svc_wait_idle(double timeout)
+int svc_wait_idle(svc_t *s, double timeout)
 {
     struct timespec ts;
     double end = srv_mono() + timeout;
     int idle;
 
-    svc__lock();
-    while (svc__S.busy > 0) {
+    pthread_mutex_lock(&s->mu);
+    while (s->busy > 0) {
         double now = srv_mono(); /* idle waits on CLOCK_MONOTONIC */
         if (now >= end)
             break;
         ts.tv_sec = (time_t)end;
         ts.tv_nsec = (long)((end - (double)ts.tv_sec) * 1e9);
-        pthread_cond_timedwait(&svc__S.idle, &svc__S.mu, &ts);
+        pthread_cond_timedwait(&s->idle, &s->mu, &ts);
     }
-    idle = svc__S.busy == 0;
-    svc__unlock();
+    idle = s->busy == 0;
+    pthread_mutex_unlock(&s->mu);
     return idle;
-}
-
-void svc_checkpoint_running(void)
-{
-    int b;
-    svc_job *j;
-
-    svc__lock();
-    for (b = 0; b < SVC_NBUCKETS; b++)
-        for (j = svc__S.buckets[b]; j; j = j->hnext)
-            /* A job its user (or its hung-up client) canceled stays
-             * canceled: it is not put back in the queue. */
-            if (j->status == SVC_JOB_RUNNING &&
-                !(j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
-                                j->cancel_reason == SVC_CANCEL_CLIENT))) {
-                j->cancel = 1;
-                j->cancel_reason = SVC_CANCEL_SHUTDOWN;
-            }
-    svc__unlock();
 }

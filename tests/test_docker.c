@@ -1,5 +1,6 @@
 /*
- * test_docker.c - docker/compose.yaml and docker/kubernetes.yaml parse
+ * test_docker.c - docker/compose.yaml and docker/kubernetes.yaml (and
+ * their Redis-store variants, compose-redis.yaml, kubernetes-redis.yaml) parse
  * (libyaml) and agree with docker/Dockerfile and with the image `make image`
  * builds: the image name ($MCF_IMAGE, which the Makefile passes; default
  * mcfd:latest), the port, the health probe, the non-root user and the spool
@@ -246,6 +247,80 @@ static void test_kubernetes(void **state)
     yfree(&y);
 }
 
+/* The Redis deployments (issue 22): the store URL names the Redis service,
+ * Redis keeps its append-only file with appendfsync always on a volume,
+ * the password reaches mcfd as a file (never an argument), one mcfd. */
+static void check_redis_command(const char *cmd, const char *file)
+{
+    if (!strstr(cmd, "--appendonly yes") || !strstr(cmd, "--appendfsync always") ||
+        !strstr(cmd, "--dir /data") || !strstr(cmd, "--requirepass \"$"))
+        fail_msg("%s: redis-server is not run with its AOF (appendfsync always) in /data "
+                 "and the password from the secret: %s", file, cmd);
+}
+
+static void test_redis_deploy(void **state)
+{
+    static const char *const cf = "docker/compose-redis.yaml",
+                             *const kf = "docker/kubernetes-redis.yaml";
+    yfile y;
+    yaml_document_t *d;
+    yaml_node_t *root, *svc, *redis;
+    int i, seen = 0;
+
+    (void)state;
+    yload(cf, &y);
+    d = &y.doc[0];
+    root = yaml_document_get_root_node(d);
+    svc = yget(d, root, "services.mcfd");
+    redis = yget(d, root, "services.redis");
+    if (!svc || !redis)
+        fail_msg("%s: no services.mcfd and services.redis", cf);
+    assert_string_equal(ystr(d, svc, "image", cf), image_name());
+    assert_string_equal(ystr(d, svc, "environment.MCFD_STORE", cf), "redis://redis:6379");
+    assert_string_equal(ystr(d, svc, "environment.MCFD_STORE_PASSWORD_FILE", cf),
+                        "/run/secrets/redis_password");
+    if (!yhas(d, svc, "secrets", "redis_password") || !yhas(d, redis, "secrets", "redis_password"))
+        fail_msg("%s: the password secret is not given to both", cf);
+    check_redis_command(ystr(d, redis, "command.[2]", cf), cf);
+    if (!yhas(d, redis, "volumes", "redis:/data"))
+        fail_msg("%s: redis keeps /data on no volume", cf);
+    assert_null(yget(d, svc, "deploy.replicas"));   /* one mcfd per store */
+    yfree(&y);
+
+    yload(kf, &y);
+    for (i = 0; i < y.ndoc; i++) {
+        yaml_node_t *pod, *c;
+        const char *kind;
+        d = &y.doc[i];
+        root = yaml_document_get_root_node(d);
+        kind = ystr(d, root, "kind", kf);
+        pod = yget(d, root, "spec.template.spec");
+        c = yget(d, pod, "containers.[0]");
+        if (strcmp(kind, "StatefulSet") == 0) {
+            seen |= 1;
+            assert_string_equal(ystr(d, root, "metadata.name", kf), "mcfd-redis");
+            check_redis_command(ystr(d, c, "args.[0]", kf), kf);
+            assert_string_equal(ystr(d, c, "volumeMounts.[0].mountPath", kf), "/data");
+            assert_string_equal(ystr(d, root, "spec.volumeClaimTemplates.[0].metadata.name", kf),
+                                ystr(d, c, "volumeMounts.[0].name", kf));
+        } else if (strcmp(kind, "Deployment") == 0) {
+            seen |= 2;
+            assert_string_equal(ystr(d, c, "image", kf), image_name());
+            assert_string_equal(ystr(d, root, "spec.replicas", kf), "1");
+            assert_string_equal(ystr(d, root, "spec.strategy.type", kf), "Recreate");
+            assert_string_equal(ystr(d, c, "env.[3].name", kf), "MCFD_STORE");
+            assert_string_equal(ystr(d, c, "env.[3].value", kf), "redis://mcfd-redis:6379");
+            assert_string_equal(ystr(d, c, "env.[4].name", kf), "MCFD_STORE_PASSWORD_FILE");
+            assert_string_equal(ystr(d, c, "readinessProbe.httpGet.path", kf), "/readyz");
+            assert_string_equal(ystr(d, c, "livenessProbe.httpGet.path", kf), "/healthz");
+        } else if (strcmp(kind, "HorizontalPodAutoscaler") == 0) {
+            fail_msg("%s: an autoscaler, but one mcfd per store", kf);
+        }
+    }
+    assert_int_equal(seen, 3);
+    yfree(&y);
+}
+
 /* The licence and the third-party notice travel in the image: the
  * runtime stage copies LICENSE and docker/THIRD-PARTY-NOTICES to
  * /usr/share/doc/mcfd and appends the package list (docker/notices.sh;
@@ -310,6 +385,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_compose),
         cmocka_unit_test(test_kubernetes),
+        cmocka_unit_test(test_redis_deploy),
         cmocka_unit_test(test_notices),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

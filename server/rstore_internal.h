@@ -1,0 +1,84 @@
+/*
+ * rstore_internal.h - what rstore.c and rstore_queue.c share: the store's
+ * state, the keys of a job, the Lua helpers of the scripts, and the calls
+ * on a pooled connection. Only those two files include it.
+ */
+#ifndef RSTORE_INTERNAL_H
+#define RSTORE_INTERNAL_H
+
+#include <pthread.h>
+
+#include "rstore.h"
+
+#define GROUP "workers"
+#define HELD_MAX 64               /* entries read but not taken yet */
+#define KEY_MAX 320
+
+typedef struct {
+    char id[RSTORE_ID_MAX];
+    char entry[RSTORE_ID_MAX];
+    int front;                 /* from P:front */
+} held_entry;
+
+struct rstore {
+    rstore_config cfg;
+    rds_pool *pool;
+    size_t max_blob;           /* cfg's, bounded by proto-max-bulk-len */
+    char ttl_ms[24];
+    char k_jobs[KEY_MAX], k_queue[KEY_MAX], k_front[KEY_MAX],
+        k_dead[KEY_MAX];
+    pthread_mutex_t mu;        /* held, next_reap */
+    held_entry held[HELD_MAX];
+    int nheld;
+    double next_reap;
+};
+
+/* The keys of job id: its hash, its events, its blobs' prefix. */
+typedef struct {
+    char hash[KEY_MAX], ev[KEY_MAX], blobs[KEY_MAX];
+} job_keys;
+
+/* touch(hash, blob prefix, events key, ttl): every key of a job expires
+ * ttl after now. */
+#define LUA_TOUCH                                                         \
+    "local function touch(h, bp, ev, ttl)\n"                              \
+    "  local f = redis.call('HKEYS', h)\n"                                \
+    "  for i = 1, #f do\n"                                                \
+    "    if string.sub(f[i], 1, 2) == 's:' then\n"                        \
+    "      redis.call('PEXPIRE', bp .. string.sub(f[i], 3), ttl) end\n"   \
+    "  end\n"                                                             \
+    "  redis.call('PEXPIRE', h, ttl)\n"                                   \
+    "  redis.call('PEXPIRE', ev, ttl)\n"                                  \
+    "end\n"
+/* write(h, bp, name, data): one blob, in the hash or its own key */
+#define LUA_WRITE                                                         \
+    "local function write(h, bp, name, data)\n"                           \
+    "  if string.sub(name, -5) == '.json' then\n"                         \
+    "    redis.call('HSET', h, 'b:' .. name, data)\n"                     \
+    "  else\n"                                                            \
+    "    redis.call('SET', bp .. name, data)\n"                           \
+    "    redis.call('HSET', h, 's:' .. name, #data)\n"                    \
+    "    redis.call('HINCRBY', h, 'v:' .. name, 1)\n"                     \
+    "  end\n"                                                             \
+    "end\n"
+
+
+/* errno for the failure c reports. */
+int rstore__errno(rds *c);
+/* Ids and blob names become parts of keys: letters, digits, . _ - */
+int rstore__name_ok(const char *s);
+/* The keys of job id: 0, or -1 and EINVAL when id cannot be a key. */
+int rstore__keys(const rstore *s, const char *id, job_keys *k);
+/* One script on a pooled connection: its reply, or NULL and errno. */
+redisReply *rstore__eval(rstore *s, rds_script *sc, int nkeys, int argc,
+                         const char **argv, const size_t *lens);
+/* A script whose reply is an integer: 0 and *v, or -1 and errno. */
+int rstore__eval_int(rstore *s, rds_script *sc, int nkeys, int argc,
+                     const char **argv, const size_t *lens, long long *v);
+/* A command of C strings on a pooled connection. */
+redisReply *rstore__cmd(rstore *s, double block, int argc,
+                        const char **argv);
+/* The consumer group on stream, made when missing: 0 or -1. */
+int rstore__make_group(rds *c, const char *stream);
+
+#endif /* RSTORE_INTERNAL_H */

@@ -1,0 +1,159 @@
+/*
+ * store.h - where the job service keeps its jobs: the records, the queue,
+ * the result blobs, and the progress of running jobs. One small interface
+ * (a table of operations on an opaque store), so that where jobs live is
+ * a choice the doors never see. The local spool (spool.c, a directory per
+ * job) is the first implementation; a store shared by several replicas
+ * (Redis) is a second one behind the same operations. Only the
+ * job service's files include this header.
+ *
+ * Contract (what the service relies on; a backend must keep every line)
+ *
+ *   Threads. Every operation may be called from any thread at any time
+ *   between open and close, concurrently. The service never calls one
+ *   with its own lock held: an operation may block on I/O (a disk, the
+ *   network). Operations return 0, or -1 with errno (ENOENT: no such job
+ *   or blob; ENOSPC, EDQUOT: no room, transient; EMFILE, ENOMEM, EAGAIN:
+ *   transient; anything else: failed).
+ *
+ *   Records. A job is a set of named blobs: "input", "target" (when
+ *   given), "request.json" (what the client asked, written once),
+ *   "state.json" (its state, rewritten at every change of status), the
+ *   result ("result.<ext>"), "metrics.json", "fields.bin" (fields=true),
+ *   and, once it has ended, its progress events ("events.ndjson",
+ *   "events.idx"). create() makes them durable before it returns: the job
+ *   exists from then on (a crash after create keeps it; a crash during
+ *   create leaves nothing a scan reports). put() replaces one blob whole:
+ *   a reader sees the old bytes or the new, never a mix; durable puts
+ *   survive a crash once they return. remove() forgets every blob of a
+ *   job, durably, or leaves the job whole when it fails. quarantine()
+ *   moves a damaged job out of sight of scan and get, keeping its bytes
+ *   for a person. scan() reports every job id the store holds (a crash's
+ *   unfinished writes already cleaned); the service reads each one's
+ *   request and state to rebuild its table at start. usage() is the bytes
+ *   a job holds (the service's quotas). ready() says whether a job could
+ *   be written now (readiness probes).
+ *
+ *   The queue. Job ids waiting for a worker, in order. push() appends an
+ *   id (front: puts it back at the head), after create() or when a job
+ *   must run again; a pushed id may be claimed at once by any worker of
+ *   any replica sharing the store. claim() offers the head to fits() and
+ *   takes it only when fits() says yes (the service's memory admission):
+ *   1 and the id, or 0 when the queue is empty or the head does not fit
+ *   (it stays the head: order is kept). A claimed id belongs to its
+ *   claimer until ack(): the job's outcome is recorded. drop() takes an id
+ *   out of the queue (a job canceled while queued); a backend that cannot
+ *   may leave it: a worker skips a claimed job whose state is no longer
+ *   queued, and acks it. An id may be claimed twice (at-least-once): the
+ *   service runs only a job whose state is queued.
+ *
+ *   Progress. heartbeat() says the claimer of a running job is alive (a
+ *   shared queue hands the job of a dead replica to another after a bound
+ *   without heartbeats): the service calls it for every job it runs at
+ *   each sweep (svc_sweep: once a second in mcfd), also while the job
+ *   decodes or encodes. progress() publishes one progress event (an
+ *   ndjson line, {"step","t","dt","energy","volume"}) for followers on
+ *   other replicas, after every step, from the worker. The local store
+ *   needs neither (the service keeps a running job's events in memory):
+ *   both are no-ops there. Once the job ends, its events are put as the
+ *   blobs "events.ndjson" (the lines) and "events.idx" (the byte offset
+ *   past each line, as size_t), not durable, before its outcome.
+ *
+ *   Who calls what, and where the lock is: the service calls every
+ *   operation without its own lock held (claim's fits() callback takes
+ *   it briefly); create/push from svc_submit (a door's thread), claim/
+ *   ack/put/get from the workers, get/get_at/open/stat from the readers
+ *   (any door thread), remove/quarantine/scan from svc_delete, the sweep
+ *   and recovery (svc_start, before the workers start).
+ *
+ *   What a shared backend must add in the service (not yet done: the
+ *   spool serves one process): a service knows the jobs of its own table
+ *   (svc_submit's, and recovery's at start). A worker that claims an id
+ *   its table does not hold acks it and skips it (workers.c, next_job);
+ *   with replicas sharing a queue it must load that job from its record
+ *   first (request.json and state.json, as recovery.c's load does), and
+ *   readers (svc_job_get) must fall back to the store for an id another
+ *   replica accepted. Both doors go through service.h only, so neither
+ *   changes.
+ */
+#ifndef SVC_STORE_H
+#define SVC_STORE_H
+
+#include <stddef.h>
+
+#include "service.h"
+
+typedef struct svc_store svc_store;
+
+/* One blob of a job: its name and bytes (create). */
+typedef struct {
+    const char *name;
+    const void *data;
+    size_t len;
+} svc_blob;
+
+typedef struct {
+    const char *name;          /* "spool" */
+    void (*close)(svc_store *st);
+    int (*ready)(svc_store *st, char *why, size_t size);
+
+    /* records and blobs */
+    int (*create)(svc_store *st, const char *id, const svc_blob *blobs,
+                  int n);
+    int (*put)(svc_store *st, const char *id, const char *name,
+               const void *data, size_t len, int durable);
+    /* the whole blob, malloc'ed and NUL-terminated */
+    int (*get)(svc_store *st, const char *id, const char *name, char **data,
+               size_t *len);
+    /* len bytes at offset off (all of them, else -1 EIO) */
+    int (*get_at)(svc_store *st, const char *id, const char *name,
+                  size_t off, void *buf, size_t len);
+    /* the blob's size (ENOENT when absent) */
+    int (*stat)(svc_store *st, const char *id, const char *name,
+                size_t *size);
+    /* the blob as a read-only descriptor for zero-copy sending; ENOTSUP
+     * when the store has none (the caller then uses get) */
+    int (*open)(svc_store *st, const char *id, const char *name, int *fd,
+                size_t *size);
+    int (*remove)(svc_store *st, const char *id);
+    int (*quarantine)(svc_store *st, const char *id);
+    size_t (*usage)(svc_store *st, const char *id);
+    int (*scan)(svc_store *st, void (*fn)(const char *id, void *ctx),
+                void *ctx);
+
+    /* the queue */
+    int (*push)(svc_store *st, const char *id, int front);
+    int (*claim)(svc_store *st, int (*fits)(void *ctx, const char *id),
+                 void *ctx, char id[SVC_ID_LEN + 1]);
+    int (*ack)(svc_store *st, const char *id);
+    int (*drop)(svc_store *st, const char *id);
+
+    /* progress of a running job */
+    int (*heartbeat)(svc_store *st, const char *id);
+    int (*progress)(svc_store *st, const char *id, const char *line,
+                    size_t len);
+
+    /* 0: only this process fills the queue (a push wakes the workers);
+     * else the seconds an idle worker waits before claiming again (a
+     * shared queue that other replicas fill) */
+    double poll;
+} svc_store_ops;
+
+struct svc_store {
+    const svc_store_ops *ops;
+};
+
+/* The local spool (spool.c): a directory per job under dir/jobs, made when
+ * missing. NULL with a one-line reason in msg when dir cannot be used. */
+svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize);
+
+/* The store in Redis (store_redis.c, rstore.h says its keys and
+ * semantics): url redis://HOST[:PORT][/DB], the password read from
+ * password_file ("" or NULL: none) at every connect; connections for
+ * workers threads; a job's keys kept at least ttl seconds after its last
+ * write. NULL with a one-line reason in msg. */
+svc_store *svc_redis_open(const char *url, const char *password_file,
+                          int workers, double ttl, char *msg,
+                          size_t msgsize);
+
+#endif /* SVC_STORE_H */

@@ -1,0 +1,369 @@
+/*
+ * store_redis.c - the job service's store (store.h) in Redis: the
+ * operations of rstore.c behind the store's table, plus what the service
+ * does not do itself for a shared queue: the fence on the writes of the
+ * jobs this replica runs (a replica whose run was taken over writes
+ * nothing more) and a lease, renewed by a thread.
+ *
+ * One mcfd per store for now. The service keeps its jobs in a table of
+ * its own, filled from the store at start: a job another replica submits
+ * or finishes is not in it, so two replicas on one store would each see
+ * half of the jobs. Until the service reads jobs it does not hold from
+ * the store (issue 22), this store holds a lease (P:lease:replica, LEASE
+ * seconds, renewed at every beat): a second mcfd waits for it at start
+ * and, while the first lives, refuses to start with the holder's name
+ * (a clean stop gives the lease up).
+ * Taking the lease means the previous holder is gone: its pending jobs
+ * are taken over at once (no claim_idle wait after a restart).
+ */
+#include <errno.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "rstore.h"
+#include "srv.h"
+#include "store.h"
+
+#define RUNNING_MAX 1024       /* jobs one mcfd runs at once: --workers' most */
+#define LEASE 10.0             /* seconds: a restart waits at most this */
+#define BEAT (LEASE / 4)       /* seconds between renewals */
+
+typedef struct {
+    svc_store base;
+    rstore *rs;
+    pthread_mutex_t mu;        /* running, stop */
+    pthread_cond_t wake;
+    char running[RUNNING_MAX][SVC_ID_LEN + 1];
+    int nrunning;
+    int stop;
+    pthread_t thread;
+    int has_thread;
+} rstore_st;
+
+static rstore_st *of(svc_store *st) { return (rstore_st *)st; }
+
+/* ------------------------------------------------- the jobs it runs */
+
+static int running_index_locked(const rstore_st *r, const char *id)
+{
+    int i;
+    for (i = 0; i < r->nrunning; i++)
+        if (strcmp(r->running[i], id) == 0)
+            return i;
+    return -1;
+}
+
+static int is_running(rstore_st *r, const char *id)
+{
+    int i;
+    pthread_mutex_lock(&r->mu);
+    i = running_index_locked(r, id);
+    pthread_mutex_unlock(&r->mu);
+    return i >= 0;
+}
+
+static void set_running(rstore_st *r, const char *id, int on)
+{
+    int i;
+
+    pthread_mutex_lock(&r->mu);
+    i = running_index_locked(r, id);
+    if (on && i < 0 && r->nrunning < RUNNING_MAX)
+        snprintf(r->running[r->nrunning++], SVC_ID_LEN + 1, "%s", id);
+    else if (!on && i >= 0)
+        memcpy(r->running[i], r->running[--r->nrunning], SVC_ID_LEN + 1);
+    pthread_mutex_unlock(&r->mu);
+}
+
+/* Every beat: the lease, renewed (the service sends the jobs'
+ * heartbeats: rd_heartbeat). */
+static void *beat_main(void *arg)
+{
+    rstore_st *r = arg;
+    char holder[128];
+
+    pthread_mutex_lock(&r->mu);
+    while (!r->stop) {
+        struct timespec ts;
+        double end = srv_mono() + BEAT;
+        ts.tv_sec = (time_t)end;
+        ts.tv_nsec = (long)((end - (double)ts.tv_sec) * 1e9);
+        pthread_cond_timedwait(&r->wake, &r->mu, &ts);
+        if (r->stop)
+            break;
+        pthread_mutex_unlock(&r->mu);
+        if (rstore_lease(r->rs, "replica", LEASE, holder, sizeof holder) == 0)
+            srv_logf(SRV_LOG_ERROR, "the Redis store's lease is %s's now: "
+                     "this mcfd stalled over %.0f s", holder, LEASE);
+        pthread_mutex_lock(&r->mu);
+    }
+    pthread_mutex_unlock(&r->mu);
+    return NULL;
+}
+
+/* ------------------------------------------------------- the table */
+
+static void rd_close(svc_store *st)
+{
+    rstore_st *r = of(st);
+    char holder[128];
+
+    if (r->has_thread) {
+        pthread_mutex_lock(&r->mu);
+        r->stop = 1;
+        pthread_cond_signal(&r->wake);
+        pthread_mutex_unlock(&r->mu);
+        pthread_join(r->thread, NULL);
+        /* a clean stop: the next mcfd need not wait */
+        (void)rstore_lease(r->rs, "replica", 0, holder, sizeof holder);
+    }
+    rstore_close(r->rs);
+    pthread_cond_destroy(&r->wake);
+    pthread_mutex_destroy(&r->mu);
+    free(r);
+}
+
+static int rd_ready(svc_store *st, char *why, size_t size)
+{
+    return rstore_ready(of(st)->rs, why, size);
+}
+
+static int rd_create(svc_store *st, const char *id, const svc_blob *blobs,
+                     int n)
+{
+    rstore_blob b[12];
+    int i;
+
+    if (n < 0 || n > 12) {
+        errno = EINVAL;
+        return -1;
+    }
+    for (i = 0; i < n; i++)
+        b[i] = (rstore_blob){blobs[i].name, blobs[i].data, blobs[i].len};
+    return rstore_create(of(st)->rs, id, b, n);
+}
+
+static int rd_put(svc_store *st, const char *id, const char *name,
+                  const void *data, size_t len, int durable)
+{
+    rstore_st *r = of(st);
+    int fence = is_running(r, id);
+
+    /* every acknowledged write is in Redis's append-only file */
+    (void)durable;
+    if (rstore_put(r->rs, id, name, data, len, fence) == 0)
+        return 0;
+    if (errno == ESTALE)
+        set_running(r, id, 0);
+    return -1;
+}
+
+static int rd_get(svc_store *st, const char *id, const char *name,
+                  char **data, size_t *len)
+{
+    return rstore_get(of(st)->rs, id, name, data, len);
+}
+
+static int rd_get_at(svc_store *st, const char *id, const char *name,
+                     size_t off, void *buf, size_t len)
+{
+    return rstore_get_at(of(st)->rs, id, name, off, buf, len);
+}
+
+static int rd_stat(svc_store *st, const char *id, const char *name,
+                   size_t *size)
+{
+    return rstore_stat(of(st)->rs, id, name, size);
+}
+
+static int rd_open(svc_store *st, const char *id, const char *name, int *fd,
+                   size_t *size)
+{
+    (void)st;
+    (void)id;
+    (void)name;
+    (void)fd;
+    (void)size;
+    errno = ENOTSUP;
+    return -1;
+}
+
+static int rd_remove(svc_store *st, const char *id)
+{
+    return rstore_remove(of(st)->rs, id);
+}
+
+static int rd_quarantine(svc_store *st, const char *id)
+{
+    return rstore_quarantine(of(st)->rs, id);
+}
+
+static size_t rd_usage(svc_store *st, const char *id)
+{
+    return rstore_usage(of(st)->rs, id);
+}
+
+static int rd_scan(svc_store *st, void (*fn)(const char *id, void *ctx),
+                   void *ctx)
+{
+    return rstore_scan(of(st)->rs, fn, ctx);
+}
+
+static int rd_push(svc_store *st, const char *id, int front)
+{
+    return rstore_push(of(st)->rs, id, front);
+}
+
+static int rd_claim(svc_store *st, int (*fits)(void *ctx, const char *id),
+                    void *ctx, char id[SVC_ID_LEN + 1])
+{
+    rstore_st *r = of(st);
+    char got[RSTORE_ID_MAX];
+    int runs = 0, rc = rstore_claim(r->rs, fits, ctx, got, &runs);
+
+    if (rc == RSTORE_DEAD) {
+        srv_logf(SRV_LOG_ERROR, "job %s: dead-lettered after %d runs whose "
+                 "replica stopped each time", got, runs);
+        return 0;
+    }
+    if (rc != RSTORE_TAKEN && rc != RSTORE_RETAKEN)
+        return 0;
+    if (strlen(got) > SVC_ID_LEN) {      /* not an id this service made */
+        rstore_ack(r->rs, got);
+        return 0;
+    }
+    memcpy(id, got, strlen(got) + 1);
+    set_running(r, id, 1);
+    return 1;
+}
+
+static int rd_ack(svc_store *st, const char *id)
+{
+    rstore_st *r = of(st);
+    int rc = rstore_ack(r->rs, id);
+
+    set_running(r, id, 0);
+    return rc;
+}
+
+static int rd_drop(svc_store *st, const char *id)
+{
+    return rstore_drop(of(st)->rs, id);
+}
+
+/* A job taken over (ESTALE) leaves the set: its writes are refused from
+ * now. */
+static int rd_heartbeat(svc_store *st, const char *id)
+{
+    rstore_st *r = of(st);
+
+    if (rstore_heartbeat(r->rs, id) == 0)
+        return 0;
+    if (errno == ESTALE && is_running(r, id)) {
+        srv_logf(SRV_LOG_WARN, "job %s: another replica took it over (no "
+                 "heartbeat for too long); its writes from here are refused",
+                 id);
+        set_running(r, id, 0);
+        errno = ESTALE;
+    }
+    return -1;
+}
+
+static int rd_progress(svc_store *st, const char *id, const char *line,
+                       size_t len)
+{
+    return rstore_progress(of(st)->rs, id, line, len);
+}
+
+static const svc_store_ops redis_ops = {
+    "redis", rd_close, rd_ready,
+    rd_create, rd_put, rd_get, rd_get_at, rd_stat, rd_open, rd_remove,
+    rd_quarantine, rd_usage, rd_scan,
+    rd_push, rd_claim, rd_ack, rd_drop,
+    rd_heartbeat, rd_progress,
+    0.25,                          /* claim blocks 1 s in XREADGROUP too */
+};
+
+/* Waits up to LEASE + 2 s for the lease; then takes over what the
+ * previous holder left pending. 0, or -1 with the reason in msg. */
+static int take_lease(rstore_st *r, const char *url, char *msg,
+                      size_t msgsize)
+{
+    char holder[128] = "";
+    double end = srv_mono() + LEASE + 2;
+    int rc;
+
+    while ((rc = rstore_lease(r->rs, "replica", LEASE, holder,
+                              sizeof holder)) == 0 && srv_mono() < end) {
+        struct timespec ts = {0, 250 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    if (rc < 0) {
+        snprintf(msg, msgsize, "%s: cannot take the store's lease: %s", url,
+                 strerror(errno));
+        return -1;
+    }
+    if (rc == 0) {
+        snprintf(msg, msgsize, "%s is in use by another mcfd (%s): replicas "
+                 "sharing one Redis store are not supported yet; give each "
+                 "its own database (redis://HOST:PORT/DB)", url, holder);
+        return -1;
+    }
+    if ((rc = rstore_reap(r->rs, 0)) < 0) {
+        snprintf(msg, msgsize, "%s: taking over the previous mcfd's jobs: %s",
+                 url, strerror(errno));
+        return -1;
+    }
+    if (rc > 0)
+        srv_logf(SRV_LOG_INFO, "the Redis store: %d jobs left running or "
+                 "claimed by the previous mcfd taken over", rc);
+    return 0;
+}
+
+svc_store *svc_redis_open(const char *url, const char *password_file,
+                          int workers, double ttl, char *msg, size_t msgsize)
+{
+    rds_config rc;
+    rstore_config cfg;
+    pthread_condattr_t ca;
+    rstore_st *r;
+
+    rds_config_default(&rc);
+    if (rds_url_parse(url, &rc, msg, msgsize) != 0)
+        return NULL;
+    if (password_file && password_file[0])
+        snprintf(rc.password_file, sizeof rc.password_file, "%s",
+                 password_file);
+    rstore_config_default(&cfg);
+    cfg.pool = workers + 4;        /* a claim holds one while it blocks */
+    if (ttl > cfg.ttl)
+        cfg.ttl = ttl;
+    if (!(r = calloc(1, sizeof *r))) {
+        snprintf(msg, msgsize, "out of memory");
+        return NULL;
+    }
+    r->base.ops = &redis_ops;
+    pthread_mutex_init(&r->mu, NULL);
+    pthread_condattr_init(&ca);        /* beats on the monotonic clock */
+    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    pthread_cond_init(&r->wake, &ca);
+    pthread_condattr_destroy(&ca);
+    if (!(r->rs = rstore_open(&rc, &cfg, msg, msgsize))) {
+        rd_close(&r->base);
+        return NULL;
+    }
+    if (take_lease(r, url, msg, msgsize) != 0) {
+        rd_close(&r->base);
+        return NULL;
+    }
+    if (pthread_create(&r->thread, NULL, beat_main, r) != 0) {
+        snprintf(msg, msgsize, "cannot start the heartbeat thread");
+        rd_close(&r->base);
+        return NULL;
+    }
+    r->has_thread = 1;
+    return &r->base;
+}

@@ -1,0 +1,728 @@
+/*
+ * svc_job.c - a job's life in the job service: references,
+ * subscriptions, progress events, and every change of its status, each
+ * one recorded in the store before anyone can see it:
+ *
+ *   queued   -> running     a worker starts it (svc__start)
+ *   running  -> succeeded, failed, canceled; or queued again: stopped by
+ *               the shutdown, or its outcome could not be recorded
+ *               (parked, svc__finish)
+ *   queued   -> canceled    a user or its client (svc_cancel)
+ *   loaded   -> queued, canceled   recovery (svc__recovered)
+ *
+ * A change is computed on a copy of what state.json records
+ * (svc_state_rec, taken under the service lock), written from the copy
+ * outside it, and applied to the job (and its subscribers told) only once
+ * written: a client never sees a state a restart could change. state_mu
+ * keeps a snapshot and its write together, so the last taken is the last
+ * written. No other file writes a job's status.
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "svc_internal.h"
+#include "svc_admit.h"
+
+/* ------------------------------------------------------------ references */
+
+static const char *const status_names[] = {"queued", "running", "succeeded",
+                                           "failed", "canceled"};
+
+const char *svc_job_status_name(svc_job_status s)
+{
+    return (unsigned)s < 5 ? status_names[s] : "unknown";
+}
+
+int svc_job_status_terminal(svc_job_status s)
+{
+    return s == SVC_JOB_SUCCEEDED || s == SVC_JOB_FAILED ||
+           s == SVC_JOB_CANCELED;
+}
+
+svc_job *svc__job_new(svc_t *s)
+{
+    svc_job *j = calloc(1, sizeof *j);
+    if (!j)
+        return NULL;
+    j->svc = s;
+    j->refs = 1;
+    j->status = SVC_JOB_QUEUED;
+    api_params_init(&j->params);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    snprintf(j->scheme, sizeof j->scheme, "unknown");
+    return j;
+}
+
+void svc__job_free(svc_job *j)
+{
+    api_params_free(&j->params);
+    free(j->params_json);
+    free(j->params_given);
+    free(j->result);
+    api_buf_free(&j->events);
+    free(j->event_end);
+    free(j);
+}
+
+void svc__unref_locked(svc_job *j)
+{
+    if (--j->refs == 0)
+        svc__job_free(j);
+}
+
+void svc_job_unref(svc_job *j)
+{
+    svc_t *s;
+    if (!j)
+        return;
+    s = j->svc;
+    pthread_mutex_lock(&s->mu);
+    svc__unref_locked(j);
+    pthread_mutex_unlock(&s->mu);
+}
+
+svc_job *svc_job_ref(svc_job *j)
+{
+    pthread_mutex_lock(&j->svc->mu);
+    j->refs++;
+    pthread_mutex_unlock(&j->svc->mu);
+    return j;
+}
+
+const char *svc_job_id(const svc_job *j)
+{
+    return j->id;
+}
+
+/* ----------------------------------------------------------- subscriptions */
+
+void svc__notify(svc_job *j, unsigned what)
+{
+    svc_sub *sb;
+    for (sb = j->subs; sb; sb = sb->next)
+        if (sb->flags & what)
+            sb->fn(sb->ctx, what);
+}
+
+int svc_subscribe(svc_job *j, unsigned flags, svc_notify_fn fn, void *ctx,
+                  svc_sub **sub)
+{
+    svc_sub *sb = calloc(1, sizeof *sb);
+
+    *sub = NULL;
+    if (!sb)
+        return -1;
+    sb->job = j;
+    sb->flags = flags | SVC_NOTIFY_STATE;
+    sb->fn = fn;
+    sb->ctx = ctx;
+    pthread_mutex_lock(&j->svc->mu);
+    sb->next = j->subs;
+    if (j->subs)
+        j->subs->prev = sb;
+    j->subs = sb;
+    pthread_mutex_unlock(&j->svc->mu);
+    *sub = sb;
+    return 0;
+}
+
+void svc_unsubscribe(svc_sub *sb)
+{
+    svc_t *s;
+    if (!sb)
+        return;
+    s = sb->job->svc;
+    pthread_mutex_lock(&s->mu);
+    if (sb->prev)
+        sb->prev->next = sb->next;
+    else
+        sb->job->subs = sb->next;
+    if (sb->next)
+        sb->next->prev = sb->prev;
+    pthread_mutex_unlock(&s->mu);
+    free(sb);
+}
+
+int svc_followers(const svc_job *j)
+{
+    const svc_sub *sb;
+    int n = 0;
+
+    pthread_mutex_lock(&j->svc->mu);
+    for (sb = j->subs; sb; sb = sb->next)
+        n += (sb->flags & SVC_NOTIFY_PROGRESS) != 0;
+    pthread_mutex_unlock(&j->svc->mu);
+    return n;
+}
+
+/* ------------------------------------------------------------------ state */
+
+/* The fields a job and its recorded state (svc_state_rec) share, copied
+ * one way by svc__state_of and the other by apply_rec: one list. */
+#define SVC_RECORDED(X)                                                      \
+    X(status) X(created) X(started) X(finished) X(scheme) X(steps_planned)  \
+    X(time_planned) X(step) X(t) X(in_format) X(out_format) X(result_name)  \
+    X(result_len)
+#define SVC_COPY(to, from, f)                                                \
+    do {                                                                     \
+        _Static_assert(sizeof (to)->f == sizeof (from)->f, #f);              \
+        memcpy(&(to)->f, &(from)->f, sizeof (to)->f);                        \
+    } while (0);
+
+void svc__state_of(const svc_job *j, svc_state_rec *r)
+{
+    memset(r, 0, sizeof *r);
+    memcpy(r->id, j->id, sizeof r->id);
+#define X(f) SVC_COPY(r, j, f)
+    SVC_RECORDED(X)
+#undef X
+    /* a cancel asked of a running job holds across a restart */
+    if (j->canceling)
+        r->cancel_requested = j->canceling;
+    else if (j->cancel && (j->cancel_reason == SVC_CANCEL_USER ||
+                           j->cancel_reason == SVC_CANCEL_CLIENT))
+        r->cancel_requested = j->cancel_reason;
+    r->params_json = j->params_json;
+    r->err = j->err;
+}
+
+/* Writes r (state_mu held by the caller). 0 or -1 (errno). */
+static int write_rec(svc_t *s, const svc_state_rec *r, int durable)
+{
+    char *text = svc__state_json(r);
+    int rc, e;
+
+    if (!text) {
+        errno = ENOMEM;
+        return -1;
+    }
+    rc = s->store->ops->put(s->store, r->id, "state.json", text, strlen(text),
+                            durable);
+    e = errno;
+    free(text);
+    errno = e;
+    return rc;
+}
+
+int svc__write_state(svc_job *j, int durable)
+{
+    svc_t *s = j->svc;
+    svc_state_rec r;
+    int rc;
+
+    pthread_mutex_lock(&s->state_mu);
+    pthread_mutex_lock(&s->mu);
+    svc__state_of(j, &r);
+    pthread_mutex_unlock(&s->mu);
+    rc = write_rec(s, &r, durable);
+    pthread_mutex_unlock(&s->state_mu);
+    return rc;
+}
+
+/* ----------------------------------------------------------------- retries */
+
+/* Errors of a resource a client can exhaust (descriptors, disk space,
+ * memory) are worth trying again; any other is final at once. */
+static int transient(int e)
+{
+    return e == EMFILE || e == ENFILE || e == ENOSPC || e == EDQUOT ||
+           e == ENOMEM || e == EAGAIN || e == ENOBUFS;
+}
+
+int svc__canceled(const svc_job *j)
+{
+    return atomic_load_explicit(&j->cancel, memory_order_acquire) != 0;
+}
+
+svc_cancel_reason svc__cancel_reason(const svc_job *j)
+{
+    svc_cancel_reason r;
+    pthread_mutex_lock(&j->svc->mu);
+    r = j->cancel ? j->cancel_reason : SVC_CANCEL_NONE;
+    pthread_mutex_unlock(&j->svc->mu);
+    return r;
+}
+
+int svc__retry(svc_job *j, int *tries, int e, const char *what,
+               int only_shutdown)
+{
+    svc_t *s = j->svc;
+    double delay, end;
+
+    if (!transient(e) || *tries >= SVC_RETRY_TRIES)
+        goto give_up;
+    delay = 0.1 * (double)(1 << *tries);
+    if (delay > 8)
+        delay = 8;
+    (*tries)++;
+    srv_logf(SRV_LOG_WARN, "job %s: %s: %s; try %d of %d in %.1f s", j->id,
+             what, strerror(e), *tries + 1, SVC_RETRY_TRIES + 1, delay);
+    for (end = srv_mono() + delay; srv_mono() < end;) {
+        struct timespec ts = {0, 20 * 1000 * 1000};
+        int stop;
+        pthread_mutex_lock(&s->mu);
+        stop = j->cancel && (!only_shutdown ||
+                             j->cancel_reason == SVC_CANCEL_SHUTDOWN);
+        pthread_mutex_unlock(&s->mu);
+        if (stop)
+            goto give_up;
+        nanosleep(&ts, NULL);
+    }
+    errno = e;
+    return 1;
+give_up:
+    errno = e;
+    return 0;
+}
+
+/* -------------------------------------------------------- start and finish */
+
+int svc__start(svc_job *j)
+{
+    svc_t *s = j->svc;
+    int rc;
+
+    pthread_mutex_lock(&s->mu);
+    if (j->status != SVC_JOB_QUEUED)
+        rc = -1;
+    else if (j->canceling || s->draining)
+        rc = 1;
+    else {
+        rc = 0;
+        j->refs++;             /* the worker's */
+        j->status = SVC_JOB_RUNNING;
+        j->started = srv_wall();
+        j->deadline = s->cfg.job_timeout > 0 ? srv_mono() + s->cfg.job_timeout
+                                             : 0;
+        s->queued--;
+        s->busy++;
+        svc__notify(j, SVC_NOTIFY_STATE);
+    }
+    pthread_mutex_unlock(&s->mu);
+    if (rc == 0)
+        svc__write_state(j, 0);
+    return rc;
+}
+
+/* Lock held: a job whose outcome (final) the store would not take goes
+ * back to queued, where its state.json still has it, and runs again
+ * after a delay (svc_sweep puts it back in the queue): 2, 4, ... 60 s. */
+static void park_locked(svc_job *j, svc_job_status final, int e)
+{
+    int k = j->parks < 5 ? j->parks : 5;
+    double delay = (double)(2 << k);
+
+    if (delay > 60)
+        delay = 60;
+    j->parks++;
+    j->parked = 1;
+    j->retry_at = srv_mono() + delay;
+    j->status = SVC_JOB_QUEUED;
+    j->ready = 0;
+    j->started = j->finished = 0;
+    j->step = 0;
+    j->t = 0;
+    j->result_len = 0;
+    /* its progress runs again from step 1; the events it put in the
+     * store are put again at its end (uncounted till then) */
+    if (j->events_disk) {
+        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
+        j->disk_bytes -= sub;
+        if (j->in_table)
+            j->svc->disk_bytes -= sub;
+        j->events_disk = 0;
+    }
+    api_buf_free(&j->events);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    j->nevents = 0;
+    svc_error_set(&j->err, SVC_P_STORAGE, "job %s %s, but the spool "
+                  "could not record it (%s); it runs again in %g s", j->id,
+                  svc_job_status_name(final), strerror(e), delay);
+    srv_logf(SRV_LOG_ERROR, "spool: %s", j->err.detail);
+}
+
+/* The outcome as state.json will record it. */
+static void outcome_rec(const svc_job *j, const svc_outcome *o, double now,
+                        svc_state_rec *r)
+{
+    svc__state_of(j, r);
+    r->status = o->status;
+    r->err = o->err;
+    if (o->status == SVC_JOB_QUEUED)
+        return;
+    r->finished = now;
+    r->result_len = o->result_len;
+    if (o->status == SVC_JOB_SUCCEEDED) {
+        memcpy(r->out_format, o->out_format, sizeof r->out_format);
+        memcpy(r->result_name, o->result_name, sizeof r->result_name);
+    }
+}
+
+/* The outcome recorded in *r applied to the job (lock held). */
+static void apply_outcome_locked(svc_job *j, svc_outcome *o,
+                                 const svc_state_rec *r)
+{
+    svc_t *s = j->svc;
+
+    j->status = o->status;
+    j->err = o->err;
+    if (o->status == SVC_JOB_QUEUED) {
+        j->ready = 0;
+        return;
+    }
+    j->finished = r->finished;
+    j->result_len = r->result_len;
+    memcpy(j->out_format, r->out_format, sizeof j->out_format);
+    memcpy(j->result_name, r->result_name, sizeof j->result_name);
+    if (o->status == SVC_JOB_SUCCEEDED) {
+        if (j->keep_result) {
+            j->result = o->result;
+            o->result = NULL;
+        }
+        j->disk_bytes += o->disk_add;
+        if (j->in_table)
+            s->disk_bytes += o->disk_add;
+    }
+}
+
+/* When the run is over, before its outcome is published: its progress
+ * events go to the store (events.ndjson and events.idx, not durable:
+ * nothing depends on them after a crash) and out of memory, where
+ * admission no longer counts them; svc_job_events reads them back. A
+ * store that takes no write loses them (followers then see the outcome
+ * alone). Only the job's worker appends to or frees them, so they are
+ * written outside the lock. */
+static void events_to_store(svc_job *j)
+{
+    svc_t *s = j->svc;
+    svc_store *st = s->store;
+    const char *data;
+    const size_t *ends;
+    size_t len;
+    int n, ok;
+
+    pthread_mutex_lock(&s->mu);
+    data = j->events.data;
+    len = j->events.len;
+    ends = j->event_end;
+    n = j->nevents;
+    pthread_mutex_unlock(&s->mu);
+    if (n == 0)
+        return;
+    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
+         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
+                      0) == 0;
+    if (!ok)
+        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
+                 "written to the spool (%s); late followers get its outcome "
+                 "alone", j->id, n, strerror(errno));
+    pthread_mutex_lock(&s->mu);
+    api_buf_free(&j->events);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    free(j->event_end);
+    j->event_end = NULL;
+    j->event_cap = 0;
+    if (ok) {
+        size_t add = len + (size_t)n * sizeof *ends;
+        j->events_disk = len;
+        j->disk_bytes += add;
+        if (j->in_table)
+            s->disk_bytes += add;
+    } else {
+        j->nevents = 0;
+    }
+    pthread_mutex_unlock(&s->mu);
+}
+
+void svc__finish(svc_job *j, svc_outcome *o)
+{
+    svc_t *s = j->svc;
+    svc_state_rec r;
+    int tries = 0, written = 0, e = 0;
+    double now = srv_wall();
+
+    if (o->status != SVC_JOB_QUEUED)
+        events_to_store(j);
+    /* The outcome is in the store before anyone can see it (GET polls,
+     * waiters, a restart): a client told "succeeded" can always find the
+     * result again, and no terminal state a client saw changes after a
+     * restart. From each snapshot to its publication no other state.json
+     * write (a DELETE's would be stale): state_mu, let go between tries. */
+    for (;;) {
+        pthread_mutex_lock(&s->state_mu);
+        pthread_mutex_lock(&s->mu);
+        outcome_rec(j, o, now, &r);
+        pthread_mutex_unlock(&s->mu);
+        if (write_rec(s, &r, 1) == 0) {
+            written = 1;
+            break;             /* state_mu held until published */
+        }
+        e = errno;
+        pthread_mutex_unlock(&s->state_mu);
+        /* A shutdown alone stops these tries: a cancel asked now changes
+         * nothing of an outcome already reached. */
+        if (o->status == SVC_JOB_QUEUED ||
+            !svc__retry(j, &tries, e, "recording its outcome", 1))
+            break;
+    }
+    pthread_mutex_lock(&s->mu);
+    if (!written && o->status != SVC_JOB_QUEUED)
+        park_locked(j, o->status, e);
+    else
+        apply_outcome_locked(j, o, &r);
+    pthread_mutex_unlock(&s->mu);
+    if (written)
+        pthread_mutex_unlock(&s->state_mu);
+    s->store->ops->ack(s->store, j->id);
+    /* Counted before anyone hears, so /metrics agrees with what clients
+     * have seen. */
+    if (written && o->status != SVC_JOB_QUEUED) {
+        srv_metrics_job(j->scheme, svc_job_status_name(o->status), o->run_s);
+        svc__log_job(j, o->nv, o->nf, o->run_s);
+    }
+    pthread_mutex_lock(&s->mu);
+    svc__notify(j, SVC_NOTIFY_STATE);
+    pthread_mutex_unlock(&s->mu);
+}
+
+/* ---------------------------------------------------------------- progress */
+
+int svc__canceled_error(svc_job *j, int steps, svc_error *e)
+{
+    svc_t *s = j->svc;
+    char when[48];
+    svc_cancel_reason reason;
+
+    pthread_mutex_lock(&s->mu);
+    reason = j->cancel_reason;
+    pthread_mutex_unlock(&s->mu);
+    if (steps >= 0)
+        snprintf(when, sizeof when, "after step %d", steps);
+    else
+        snprintf(when, sizeof when, "while its input was decoded");
+    if (reason == SVC_CANCEL_SHUTDOWN)
+        svc_error_set(e, SVC_P_DRAINING, "the daemon shut down while job %s "
+                      "ran; it runs again after the restart", j->id);
+    else if (reason == SVC_CANCEL_TIMEOUT)
+        svc_error_set(e, SVC_P_TIMEOUT, "the job ran longer than "
+                      "--job-timeout %g s and was stopped %s",
+                      s->cfg.job_timeout, when);
+    else if (reason == SVC_CANCEL_CLIENT)
+        svc_error_set(e, SVC_P_CANCELED, "canceled %s: the client closed "
+                      "its connection before the answer", when);
+    else
+        svc_error_set(e, SVC_P_CANCELED, "canceled by request %s", when);
+    e->cancel = reason;
+    return reason == SVC_CANCEL_SHUTDOWN;
+}
+
+void svc__ready(svc_job *j, const char *scheme, const char *in_format)
+{
+    svc_t *s = j->svc;
+
+    pthread_mutex_lock(&s->mu);
+    snprintf(j->scheme, sizeof j->scheme, "%s", scheme);
+    snprintf(j->in_format, sizeof j->in_format, "%s", in_format);
+    j->ready = 1;
+    svc__notify(j, SVC_NOTIFY_STATE);
+    pthread_mutex_unlock(&s->mu);
+}
+
+static void fmt_num(char *buf, size_t size, double v)
+{
+    if (isfinite(v))
+        snprintf(buf, size, "%.17g", v);
+    else
+        snprintf(buf, size, "null");
+}
+
+/* Lock held: one more ndjson line in the job's event log (dropped when
+ * the log is full or memory is short: the stream then skips it). */
+static void add_event(svc_job *j, const char *line, size_t n)
+{
+    if (j->nevents == j->event_cap) {
+        int cap = j->event_cap ? 2 * j->event_cap : 256;
+        size_t *p = realloc(j->event_end, (size_t)cap * sizeof *p);
+        if (!p)
+            return;
+        j->event_end = p;
+        j->event_cap = cap;
+    }
+    if (api_buf_append(&j->events, line, n) == MCF_OK)
+        j->event_end[j->nevents++] = j->events.len;
+}
+
+int svc__progress(svc_job *j, const api_job_step *st)
+{
+    svc_t *s = j->svc;
+    char line[320], a[32], b[32], e[32], v[32];
+    int stop, n;
+
+    fmt_num(a, sizeof a, st->t);
+    fmt_num(b, sizeof b, st->dt);
+    fmt_num(e, sizeof e, st->energy);
+    fmt_num(v, sizeof v, st->volume);
+    n = snprintf(line, sizeof line,
+                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
+                 st->step, a, b, e, v);
+    pthread_mutex_lock(&s->mu);
+    j->step = st->step;
+    j->t = st->t;
+    j->dt = st->dt;
+    j->energy = st->energy;
+    j->volume = st->volume;
+    if (n > 0)
+        add_event(j, line, (size_t)n);
+    svc__notify(j, SVC_NOTIFY_PROGRESS);
+    if (!j->cancel && j->deadline > 0 && srv_mono() > j->deadline) {
+        j->cancel = 1;
+        j->cancel_reason = SVC_CANCEL_TIMEOUT;
+    }
+    stop = j->cancel;
+    pthread_mutex_unlock(&s->mu);
+    if (n > 0)
+        s->store->ops->progress(s->store, j->id, line, (size_t)n);
+    return stop;
+}
+
+/* ------------------------------------------------------------------ cancel */
+
+/* A queued job canceled: its state (lock held). */
+static void cancel_queued_locked(svc_job *j, svc_cancel_reason reason,
+                                 double now)
+{
+    j->status = SVC_JOB_CANCELED;
+    j->cancel = 1;
+    j->cancel_reason = reason;
+    j->finished = now;
+    if (reason == SVC_CANCEL_CLIENT)
+        svc_error_set(&j->err, SVC_P_CANCELED, "canceled while queued: the "
+                      "client closed its connection before the answer");
+    else
+        svc_error_set(&j->err, SVC_P_CANCELED, "canceled by request while "
+                      "queued");
+    j->err.cancel = reason;
+}
+
+/* The state a cancel records: a queued job canceled; a running one with
+ * cancel_requested (its cancel flag, which the flow reads without the
+ * lock, is set only once that is written). */
+static void cancel_rec(const svc_job *j, svc_cancel_reason reason, double now,
+                       svc_state_rec *r)
+{
+    svc__state_of(j, r);
+    if (j->status != SVC_JOB_QUEUED) {
+        r->cancel_requested = reason;
+        return;
+    }
+    r->status = SVC_JOB_CANCELED;
+    r->finished = now;
+    r->cancel_requested = SVC_CANCEL_NONE;
+    svc_error_set(&r->err, SVC_P_CANCELED, "%s", reason == SVC_CANCEL_CLIENT
+                  ? "canceled while queued: the client closed its connection "
+                    "before the answer"
+                  : "canceled by request while queued");
+    r->err.cancel = reason;
+}
+
+int svc_cancel(svc_job *j, svc_cancel_reason reason)
+{
+    svc_t *s = j->svc;
+    svc_state_rec r;
+    int rc, e, was_queued, changed = 0;
+    double now = srv_wall();
+
+    pthread_mutex_lock(&s->state_mu);
+    pthread_mutex_lock(&s->mu);
+    if ((j->cancel && j->status == SVC_JOB_RUNNING) || j->canceling ||
+        (j->status != SVC_JOB_QUEUED && j->status != SVC_JOB_RUNNING)) {
+        pthread_mutex_unlock(&s->mu);
+        pthread_mutex_unlock(&s->state_mu);
+        return 0;
+    }
+    /* No worker starts it while its cancel is written (svc__start). */
+    j->canceling = reason;
+    j->refs++;
+    cancel_rec(j, reason, now, &r);
+    pthread_mutex_unlock(&s->mu);
+    rc = write_rec(s, &r, 1);
+    e = errno;
+    pthread_mutex_lock(&s->mu);
+    j->canceling = SVC_CANCEL_NONE;
+    was_queued = j->status == SVC_JOB_QUEUED;
+    if (rc == 0 && was_queued) {
+        if (!j->parked)
+            s->queued--;
+        j->parked = 0;
+        cancel_queued_locked(j, reason, now);
+        svc__notify(j, SVC_NOTIFY_STATE);
+        changed = 1;
+    } else if (rc == 0 && j->status == SVC_JOB_RUNNING) {
+        j->cancel_reason = reason;
+        j->cancel = 1;
+    }
+    if (was_queued)
+        svc__wake_locked(s); /* a worker may have put it back meanwhile */
+    pthread_mutex_unlock(&s->mu);
+    pthread_mutex_unlock(&s->state_mu);
+    if (changed) {
+        s->store->ops->drop(s->store, j->id);
+        srv_metrics_job(j->scheme, "canceled", 0);
+        svc__log_job(j, 0, 0, 0);
+    }
+    svc_job_unref(j);
+    errno = e;
+    return rc == 0 ? 1 : -1;
+}
+
+/* ---------------------------------------------------------------- recovery */
+
+/* The recorded state applied to a job being loaded. */
+static void apply_rec(svc_job *j, const svc_state_rec *r)
+{
+#define X(f) SVC_COPY(j, r, f)
+    SVC_RECORDED(X)
+#undef X
+    if (r->cancel_requested) {
+        j->cancel = 1;
+        j->cancel_reason = r->cancel_requested;
+    }
+    j->err = r->err;
+}
+
+int svc__recovered(svc_job *j, const svc_state_rec *loaded)
+{
+    svc_state_rec r;
+
+    apply_rec(j, loaded);
+    j->recovered = 1;
+    if (svc_job_status_terminal(j->status))
+        return 0;
+    if (j->cancel) {
+        /* Canceled while it ran, and the process ended before the step
+         * did: it stays canceled. */
+        svc_cancel_reason why = j->cancel_reason;
+        j->status = SVC_JOB_CANCELED;
+        j->finished = srv_wall();
+        svc_error_set(&j->err, SVC_P_CANCELED, "canceled %s while it ran, "
+                      "before the daemon restarted; it did not run again",
+                      why == SVC_CANCEL_USER ? "by request"
+                                             : "when its client hung up");
+        j->err.cancel = why;
+        svc__state_of(j, &r);
+        if (write_rec(j->svc, &r, 1) != 0)
+            srv_logf(SRV_LOG_WARN, "spool: cannot record job %s as "
+                     "canceled: %s", j->id, strerror(errno));
+        return 0;
+    }
+    /* queued, or running when the process died: run it again */
+    j->status = SVC_JOB_QUEUED;
+    j->started = 0;
+    j->step = 0;
+    j->t = 0;
+    return 1;
+}

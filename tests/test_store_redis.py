@@ -1,0 +1,219 @@
+#!/usr/bin/python3
+"""test_store_redis.py - mcfd with its jobs in Redis (--store redis://...),
+end to end: a real redis-server (Debian's, installed by `make deps`) on a
+free loopback port with its append-only file on, in a folder of its own,
+and the real daemon, both stopped by the test whatever happens.
+
+Checks: an async job's records, queue entry and result live in Redis and
+the result is the bytes POST /smooth gives; Redis killed (-9): /readyz and
+submissions answer 503 (Retry-After), and once Redis is back from its AOF
+everything works again with what was acknowledged kept; a job running
+while Redis is down succeeds once it is back; mcfd killed (-9)
+while a job runs: the restarted mcfd finishes it under the same ID; a
+second mcfd on the same store refuses to start (one replica per store
+until the service reads the jobs it does not hold from the store).
+"""
+import json
+import os
+import signal
+import socket
+import subprocess
+import time
+import urllib.error
+import urllib.request
+
+import testlib
+from testlib import DATA, TMP, Daemon, run_tests, track
+
+BUNNY = os.path.join(DATA, "meshes", "bunny.drc")
+REDIS = {}
+
+
+def free_port():
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def redis_start():
+    d = os.path.join(TMP, "redis")
+    os.makedirs(d, exist_ok=True)
+    REDIS.setdefault("port", free_port())
+    REDIS["p"] = track(subprocess.Popen(
+        ["redis-server", "--port", str(REDIS["port"]), "--bind", "127.0.0.1", "--dir", d,
+         "--appendonly", "yes", "--appendfsync", "always", "--save", "",
+         "--logfile", os.path.join(d, "log"), "--daemonize", "no"],
+        start_new_session=True))
+    end = time.time() + 20
+    while time.time() < end:
+        if cli("PING") == "PONG":
+            return
+        time.sleep(0.05)
+    raise AssertionError("redis-server did not answer within 20 s")
+
+
+def redis_kill():
+    os.killpg(REDIS["p"].pid, signal.SIGKILL)
+    REDIS["p"].wait()
+
+
+def cli(*args):
+    r = subprocess.run(["redis-cli", "-p", str(REDIS["port"]), *args],
+                       capture_output=True, text=True, timeout=10)
+    return r.stdout.strip()
+
+
+def store_url():
+    return "redis://127.0.0.1:%d" % REDIS["port"]
+
+
+def daemon(name):
+    return Daemon(name, "--store", store_url(), "--workers", "1")
+
+
+def http(method, url, body=None, headers=None):
+    req = urllib.request.Request(url, data=body, method=method, headers=headers or {})
+    try:
+        with urllib.request.urlopen(req, timeout=30) as r:
+            return r.status, dict(r.headers), r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, dict(e.headers), e.read()
+
+
+def submit(d, query):
+    with open(BUNNY, "rb") as f:
+        mesh = f.read()
+    st, _, body = http("POST", d.url + "/v1/jobs?" + query, mesh,
+                       {"Content-Type": "application/octet-stream"})
+    assert st == 202, (st, body[:300])
+    return json.loads(body)["id"]
+
+
+def wait_status(d, jid, want, timeout):
+    end, last = time.time() + timeout, None
+    while time.time() < end:
+        st, _, body = http("GET", "%s/v1/jobs/%s" % (d.url, jid))
+        if st == 200:
+            last = json.loads(body)["status"]
+            if last == want:
+                return
+        time.sleep(0.1)
+    raise AssertionError("job %s: %s after %d s, not %s" % (jid, last, timeout, want))
+
+
+def result_of(d, jid):
+    """The job's result bytes (it succeeded: 200 and a mesh)."""
+    st, _, res = http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))
+    assert st == 200 and len(res) > 1000, (st, len(res))
+    return res
+
+
+def test_jobs_live_in_redis():
+    d = daemon("one")
+    try:
+        q = "scheme=desbrun2&iterations=5"
+        jid = submit(d, q)
+        assert cli("EXISTS", "mcfd:job:" + jid) == "1"
+        assert cli("SISMEMBER", "mcfd:jobs", jid) == "1"
+        wait_status(d, jid, "succeeded", 60)
+        res = result_of(d, jid)
+        with open(BUNNY, "rb") as f:
+            st, _, sync = http("POST", d.url + "/smooth?" + q, f.read(),
+                               {"Content-Type": "application/octet-stream"})
+        assert st == 200 and res == sync, (st, len(res), len(sync))
+        names = cli("KEYS", "mcfd:blob:%s:*" % jid).split()
+        assert any(n.endswith(":input") for n in names), names
+        assert any(":result." in n for n in names), names
+        # acknowledged: the queue holds nothing of it
+        assert cli("XLEN", "mcfd:queue") == "0"
+        ttl = int(cli("PTTL", "mcfd:job:" + jid))
+        assert ttl > 3600 * 1000, ttl            # above --result-ttl (1 h)
+    finally:
+        d.stop()
+
+
+def test_redis_down_then_back():
+    d = daemon("down")
+    try:
+        jid = submit(d, "scheme=desbrun2&iterations=2")
+        wait_status(d, jid, "succeeded", 60)
+        before = result_of(d, jid)
+        redis_kill()
+        st, _, body = http("GET", d.url + "/readyz")
+        assert st == 503 and b"redis 127.0.0.1" in body, (st, body)
+        with open(BUNNY, "rb") as f:
+            st, hdr, body = http("POST", d.url + "/v1/jobs?scheme=desbrun2", f.read(),
+                                 {"Content-Type": "application/octet-stream"})
+        assert st == 503 and hdr.get("Retry-After"), (st, hdr, body[:300])
+        redis_start()                        # the same folder: its AOF
+        end = time.time() + 15               # rds's backoff is at most 2 s
+        while http("GET", d.url + "/readyz")[0] != 200:
+            assert time.time() < end, "/readyz stayed red with Redis back"
+            time.sleep(0.1)
+        assert result_of(d, jid) == before
+        jid2 = submit(d, "scheme=desbrun2&iterations=2")
+        wait_status(d, jid2, "succeeded", 60)
+    finally:
+        d.stop()
+
+
+def test_redis_down_while_a_job_runs():
+    """A running job keeps its result until Redis is back (its writes are
+    retried for about 37 s: svc__retry's backoff) and succeeds."""
+    d = daemon("during")
+    try:
+        jid = submit(d, "scheme=desbrun2&iterations=10")   # about 1.5 s
+        wait_status(d, jid, "running", 30)
+        redis_kill()
+        time.sleep(4)                        # it ends meanwhile: writes wait
+        redis_start()
+        wait_status(d, jid, "succeeded", 90)
+        result_of(d, jid)
+        with open(d.logpath, "rb") as f:     # its writes waited for Redis
+            assert b"; try " in f.read()
+    finally:
+        d.stop()
+
+
+def test_kill9_then_restart_finishes_the_job():
+    d = daemon("crash")
+    jid = submit(d, "scheme=desbrun2&iterations=60")
+    wait_status(d, jid, "running", 30)
+    d.kill()
+    d = daemon("crash")                      # waits for the lease (10 s)
+    try:
+        wait_status(d, jid, "succeeded", 90)
+        result_of(d, jid)
+        with open(d.logpath, "rb") as f:     # the restart took it over
+            assert b"taken over" in f.read()
+    finally:
+        d.stop()
+
+
+def test_second_mcfd_on_one_store_refused():
+    d = daemon("first")
+    try:
+        t0 = time.time()
+        p = track(subprocess.Popen(
+            [os.path.join(testlib.BUILD, "mcfd"), "--bind", "127.0.0.1", "--port", "0",
+             "--grpc-port", "off", "--spool", os.path.join(TMP, "second"),
+             "--store", store_url()],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True))
+        _, err = p.communicate(timeout=40)
+        assert p.returncode != 0
+        assert b"in use by another mcfd" in err, err[-500:]
+        assert time.time() - t0 < 30
+        # the first one is unharmed
+        jid = submit(d, "scheme=desbrun2&iterations=2")
+        wait_status(d, jid, "succeeded", 60)
+    finally:
+        d.stop()
+
+
+if __name__ == "__main__":
+    raise SystemExit(run_tests(
+        [test_jobs_live_in_redis, test_redis_down_then_back, test_redis_down_while_a_job_runs,
+         test_kill9_then_restart_finishes_the_job, test_second_mcfd_on_one_store_refused],
+        setup=redis_start))
