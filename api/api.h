@@ -288,8 +288,15 @@ typedef struct {
  * fairing filter, `fairing` (implicit, one CHOLMOD factorization of a
  * 2-ring matrix: about 2 KB per vertex) up to API_FAIRING_IMPLICIT_MAX
  * vertices, `fairing_explicit` (no factorization, a few hundred bytes per
- * vertex) above: api_estimate.c has the measured memory and times. */
-#define API_FAIRING_IMPLICIT_MAX 200000
+ * vertex) above: api_estimate.c has the measured memory and times. The
+ * bound keeps the default's charge (2,900 B per vertex, 415 MiB at
+ * 150,000, plus 3x the input: an OBJ of that size is about 11 MB) within
+ * the image's job budget (--max-memory, half its 1 GiB: 512 MiB), where
+ * 200,000 (566 MiB) had the default request refused (422 ELIMIT) on
+ * meshes the explicit filter runs in 130 MiB, at nearly the same quality
+ * (make quality, 2026-11-25: its error 1.03x the implicit's on the median
+ * case, worst 1.88x on the regular sphere_cgal). */
+#define API_FAIRING_IMPLICIT_MAX 150000
 mcf_scheme api_default_scheme(long long nv);
 /* The scheme a job with parameters p runs on a mesh of nv vertices: the
  * one named, else api_default_scheme(nv), or desbrun2 when p sets a

@@ -168,7 +168,7 @@ typedef struct {
 
 static const keydoc docs[] = {
     {"scheme", NULL, "the integrator or filter (`mcf schemes` describes each); unset: "
-     "fairing, fairing_explicit above 200,000 vertices, desbrun2 when time, dt, adaptive, "
+     "fairing, fairing_explicit above 150,000 vertices, desbrun2 when time, dt, adaptive, "
      "laplacian, mass or rescale is set", "fairing", 0},
     {"dt", "flow time", "the step (unit-area time when normalize is on); auto: from "
      "lambda_max, explicit schemes only", "time / iterations", 0},

@@ -65,7 +65,7 @@ static const char smooth_head[] =
     "usage: mcf smooth IN OUT [options]\n"
     "\n"
     "Smooths the mesh IN into OUT. Without --scheme: the fairing denoiser (fairing;\n"
-    "fairing_explicit above 200,000 vertices): as many steps as Stein's unbiased risk\n"
+    "fairing_explicit above 150,000 vertices): as many steps as Stein's unbiased risk\n"
     "estimate says for the noise it reads off the mesh, along the normals only;\n"
     "--iterations sets its steps, --strength the noise level (mean edges). With\n"
     "--time, --dt, --adaptive, --laplacian, --mass or --rescale and no --scheme:\n"

@@ -205,6 +205,16 @@ static void test_estimate_counts(void **state)
     assert_int_equal(e.vertices, 3200);
     assert_int_equal(e.faces, 6400);
     free(buf);
+    /* a binary STL of a closed scan declares a vertex per facet: 300,000
+     * facets weld to about 150,000 vertices, where the default request
+     * runs the implicit filter (api_default_scheme): charged for it, not
+     * for the explicit one on 300,000 (183 MiB before) */
+    assert_int_equal(api_default_scheme(150000), MCF_FAIRING);
+    assert_int_equal(api_default_scheme(300000), MCF_FAIRING_EXPLICIT);
+    assert_true(api_estimate_job_bytes(300000, 300000, 0, NULL) >= 2900.0 * 150000);
+    /* declared vertices that are the mesh's own (nf ~ 2 nv): unchanged */
+    tl_assert_near(api_estimate_job_bytes(300000, 600000, 0, NULL), 640.0 * 300000 + 4.0 * 1048576, 1.0,
+                   "explicit default on 300,000 vertices");
     /* nothing declared: the size term only */
     api_estimate_memory("garbage", 7, NULL, &e);
     assert_int_equal(e.faces, 0);

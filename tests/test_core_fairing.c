@@ -584,8 +584,8 @@ static void test_default_beats_taubin_scans(void **state)
  * needs the clean mesh, which the guard does not have: a face lying
  * backwards in the input may be the noise's fold or the clean model's own
  * folded sliver, and unfolding the first kind unfolds some of the second
- * (snowden, seed 1, 0.1: 723 -> 737 of 109,259 faces, 0.013%; seed 2
- * 750 -> 692; the earlier guard took it to 1,331). */
+ * (snowden, seed 1, 0.1: 723 -> 703 of 109,259 faces; 737 before the
+ * moves were bounded, 0.013% over; the earlier guard took it to 1,331). */
 static void guard_keeps_orientation(const char *const *names, int nmesh, const double *rho, int nrho)
 {
     for (int q = 0; q < nmesh; q++)

@@ -988,6 +988,10 @@ int main(int argc, char **argv)
     char *names[MAXMESH], *ntext[MAXNOISE], *ktext[2];
     int nm, kinds[2];
     double rho[MAXNOISE];
+    /* the lists as given, for quality.md (split cuts them up) */
+    char noise_given[sizeof noise_buf], kinds_given[sizeof kinds_buf];
+    memcpy(noise_given, noise_buf, sizeof noise_buf);
+    memcpy(kinds_given, kinds_buf, sizeof kinds_buf);
     split(list_buf, names, MAXMESH, &nm);
     split(noise_buf, ntext, MAXNOISE, &g_nr);
     split(kinds_buf, ktext, 2, &g_nk);
@@ -1132,7 +1136,7 @@ int main(int argc, char **argv)
                 "iteration): median and worst over the cases. `> input`: runs whose vertex error exceeds the\n"
                 "noisy input's. CPU: median over the cases of the run's CPU time / `fixed` (desbrun2 strength\n"
                 "0.33, 10 steps, the old default) in the same case.%s\n",
-            nm, kinds_buf, noise_buf, g_ns, g_o3d.pid ? "" : " Open3D was not available: its columns are empty.");
+            nm, kinds_given, noise_given, g_ns, g_o3d.pid ? "" : " Open3D was not available: its columns are empty.");
     for (int k = -1; k < g_nk; k++) {
         char title[64];
         snprintf(title, sizeof title, "%s", k < 0 ? "all noise kinds" : k == 0 && kinds[0] == 0 ? "normal noise"
