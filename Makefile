@@ -6,11 +6,13 @@
 #   make install    mcf, mcfd and their man pages under $(DESTDIR)$(PREFIX) (PREFIX=/usr/local);
 #                   make uninstall removes them
 #   make test       deps, build, then every unit test binary (build/tests/test_*)
-#   make bench      benchmarks (bench/), ratios against a peer measured in the same run
+#   make bench      benchmarks (lab/bench/), ratios against a peer measured in the same run;
+#                   make experiments, make quality: the lab's studies (lab/README.md)
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
 #   make tsan       the daemon's tests under ThreadSanitizer (build-tsan/, tests/tsan.supp)
 #   make WERROR=1 ...                  warnings are errors (CI)
-#   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name
+#   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name,
+#                   nothing outside lab/ includes the lab
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
 # Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
@@ -22,49 +24,13 @@ SHARED ?= $(abspath ../shared)
 # tests/data/meshes; tests that need a large one are skipped without MESHES.
 MESHES ?= $(if $(wildcard $(SHARED)/meshes/.),$(SHARED)/meshes,)
 
-ifdef SAN
-B ?= build-san
-else
-B ?= build
-endif
-
-CC  ?= cc
-CXX ?= c++
-
-WARN := -std=c11 -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
-        -Wmissing-prototypes -Wformat=2 -Wcast-qual -Wundef
-CXXWARN := -std=c++17 -Wall -Wextra -Wshadow -Wformat=2 -Wundef
-ifeq ($(WERROR),1)
-WARN    += -Werror
-CXXWARN += -Werror
-endif
-
-OPT      ?= -O2 -g
-CFLAGS   ?= $(OPT)
-CXXFLAGS ?= $(OPT)
+include flags.mk
+B ?= $(BUILD_DIR)
 CPPFLAGS += -I/usr/include/suitesparse -Icore -Iapi
-LDFLAGS  ?=
-ifdef SAN
-CFLAGS   := -O1 -g -fsanitize=$(SAN) -fno-sanitize-recover=all -fno-omit-frame-pointer
-CXXFLAGS := $(CFLAGS)
-LDFLAGS  += -fsanitize=$(SAN)
-endif
 
-# CHOLMOD without its OpenMP runtime: Debian's libcholmod 3.0.14 opens
-# about 150,000 OpenMP parallel regions per factorization of a 435k-vertex
-# scan (every supernode, even with one thread: 45% of the factorization).
-# $(B)/libcholmod_serial.a is Debian's own static libcholmod.a (from
-# libsuitesparse-dev) with its three calls into libgomp renamed by objcopy
-# to the serial stand-ins of core/cholmod_serial/stand_ins.c, which run a
-# region inline on the calling thread (and its clock for BLAS timings to
-# one that reads 0). Nothing is interposed process-wide: libgomp is not
-# loaded, other libraries keep their own runtime, and each of mcfd's
-# workers runs its regions on its own stack (README, Benchmarks).
+# The serial CHOLMOD (flags.mk says why): Debian's static libcholmod.a,
+# its OpenMP calls renamed to core/cholmod_serial/stand_ins.c.
 CHOLMOD_A := $(shell $(CC) -print-file-name=libcholmod.a)
-CHOLMOD_SERIAL := $(B)/libcholmod_serial.a
-LIBS_CORE := $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
-             -llapack -lblas -lsuitesparseconfig -lm
-LIBS_API  := -ldraco -lcjson
 LIBS_SRV  := -lmicrohttpd -lhiredis -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
 # The gRPC door (server/grpc*.cc): Debian's gRPC C++ 1.51 and protobuf.
@@ -82,7 +48,7 @@ DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
             python3-setuptools python3-wheel curl assimp-utils redis-server
 DEB_BENCH := libeigen3-dev libcgal-dev
-# make quality's peer: Open3D's filter_smooth_taubin (bench/o3d_taubin.py)
+# make quality's peer: Open3D's filter_smooth_taubin (lab/bench/o3d_taubin.py)
 DEB_QUALITY := python3-open3d python3-numpy
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
@@ -111,6 +77,10 @@ TEST_PY  := $(wildcard tests/test_*.py)
 TEST_BIN += $(TEST_PY:tests/%.py=$(B)/tests/%)
 TEST_MJS := $(wildcard tests/test_*.mjs)
 TEST_BIN += $(TEST_MJS:tests/%.mjs=$(B)/tests/%)
+# The lab's tests (lab/tests/test_*.c, e.g. its flow studies end to end):
+# built by lab/Makefile, run and counted here.
+LAB_TEST_BIN := $(patsubst lab/tests/%.c,$(B)/lab/tests/%,$(wildcard lab/tests/test_*.c))
+TEST_BIN += $(LAB_TEST_BIN)
 
 PROGS := $(B)/mcf
 ifneq ($(SRV_SRC),)
@@ -174,6 +144,11 @@ $(GEN)/%.o: $(GEN)/%.cc
 $(SRV_CXX:%.cc=$(B)/%.o): $(B)/%.o: %.cc $(GEN_CC:.cc=.h)
 	@mkdir -p $(@D)
 	$(CXX) $(CXXWARN) -isystem $(GEN) $(GRPC_CFLAGS) $(CPPFLAGS) $(CXXFLAGS) -MMD -MP -c $< -o $@
+
+$(LAB_TEST_BIN): $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL) $(TESTLIB_OBJ) FORCE
+	$(MAKE) -C lab B=$(abspath $(B)) $(abspath $@)
+
+FORCE:
 
 # A Python test: a wrapper that runs tests/NAME.py with Debian's python3.
 $(B)/tests/%: tests/%.py
@@ -328,30 +303,6 @@ attack: deps
 
 .PHONY: attack
 
-bench: deps
-	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
-	$(MAKE) all
-	$(MAKE) -C bench B=$(abspath $(B)) MESHES=$(MESHES)
-
-# ---- the page on a large scan in headless chromium (bench/bench_ui.mjs):
-#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   load to first frame, frame time
-bench-ui: deps
-	$(MAKE) all
-	MCF_BUILD=$(B) MESHES=$(MESHES) UI_MESH=$(UI_MESH) UI_REPS=$(UI_REPS) node bench/bench_ui.mjs
-
-.PHONY: bench-ui
-
-# ---- the scan-quality benchmark (issue 16: bench/bench_quality.c): every
-# shared mesh, normal and isotropic noise, the default request, each scheme's
-# automatic amount, Taubin's best, Open3D's filter_smooth_taubin:
-#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   CSV, tables, renders -> docs/quality/
-quality: deps
-	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
-	$(MAKE) $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
-	$(MAKE) -C bench quality B=$(abspath $(B)) MESHES=$(MESHES)
-
-.PHONY: quality
-
 # ---- the daemon: `make run`, and the OpenAPI document embedded in mcfd
 # api/openapi.yaml becomes a byte array (od + sed: coreutils only, so the
 # Docker build stage needs nothing extra) linked into build/mcfd, which
@@ -426,7 +377,7 @@ endef
 
 $(B)/man/mcf.1: $(B)/mcf api/api.h
 	@mkdir -p $(@D)
-	$(call manpage,mcf,smooth meshes by mean curvature flow,smooth info schemes params convert experiment)
+	$(call manpage,mcf,smooth meshes by mean curvature flow,smooth info schemes params convert)
 
 $(B)/man/mcfd.1: $(B)/mcfd api/api.h
 	@mkdir -p $(@D)
@@ -482,6 +433,13 @@ image-check:
 	$(MAKE) $(B)/mcf
 	docker/image.sh check $(IMAGE) $(B)/mcf
 
+# Every source of the product and its tests (all but lab/), and the lab's
+# header names as one regular expression (lab.h|study.h|...).
+PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[ch] server/*.cc \
+                 tests/*.[ch] tests/fuzz/*.[ch])
+empty :=
+LAB_HEADERS_RE := $(subst $(empty) $(empty),|,$(subst .,\.,$(notdir $(wildcard lab/*.h lab/*/*.h))))
+
 # The job service's files: they alone include svc_internal.h (spool.c, its
 # local store, sees only store.h).
 SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h \
@@ -531,8 +489,8 @@ check-deps:
 	  { echo "check-deps: the REST door does not include the gRPC door's headers"; exit 1; }
 	@! grep -nE '#include *[<"](http|rest_door)\.h' $(GRPC_DOOR) || \
 	  { echo "check-deps: the gRPC door does not include the REST door's headers"; exit 1; }
-	@! grep -nE '#include *[<"][^>"]*lab/' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] server/*.[ch] server/*.cc tests/*.[ch]) || \
-	  { echo "check-deps: the product (core, api, cli, server, tests) includes nothing of lab/"; exit 1; }
+	@! grep -nE '#include *[<"]([^>"]*/)?(lab/|$(LAB_HEADERS_RE))' $(PRODUCT_SRC) || \
+	  { echo "check-deps: nothing outside lab/ includes the lab's headers: the lab is a client of the product, never a part"; exit 1; }
 	@echo "check-deps: server -> api -> core holds; the doors -> service.h; nothing includes lab/"
 
 clean:
@@ -622,60 +580,40 @@ fuzz: $(FUZZ_BIN)
 
 .PHONY: fuzz-build
 
-# ---- experiments (issue 5): the README's Results, regenerated into docs/experiments/
-#   make experiments            every study below, two at a time (EXP_JOBS), ~5 min on 2 cores
-#   make experiments EXP_DIR=/tmp/x   elsewhere
-# Each study is `mcf experiment ...` (cli/mcf_experiment.c): CSV files and gnuplot PNG/SVG plots.
-# The big scans (armadillo, stanford-bunny) leave out `implicit` (Picard: tens of
-# factorizations a step); their stability study is
-# for the explicit schemes (the implicit ones are measured on spot and the sphere). The sphere's
-# `implicit` is expected to stop with ENOCONV (Picard at dt * lambda_max ~ 10): a data point.
-# The fixed-time sweep on spot runs at the best total time of desbrun2 in the 10-step sweep.
-EXP_DIR  ?= docs/experiments
-EXP_JOBS ?= 2
-EXP_MCF   = OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 OMP_THREAD_LIMIT=1 $(B)/mcf experiment
-EXP_BIG_SCHEMES := euler,taylor2,desbrun,neumann2,desbrun2,ros2,richardson,huisken2,arc,cmcf,linear,taubin
-EXP_STUDIES := exp-sweep-armadillo exp-sweep-bunny exp-sweep-spot exp-sphere exp-order-sphere \
-               exp-order-spot exp-stability-sphere exp-stability-spot exp-stability-big
+# ---- the lab (lab/Makefile, lab/README.md): flow studies, benchmarks
+# against peers and the scan-quality study live there, never in `make`;
+# these targets build what they need and delegate (variables given on the
+# command line, e.g. REPS=3 or QUALITY_ARGS=..., pass through).
+#   make experiments [EXP_DIR=DIR]   every flow study -> lab/results/experiments/
+#   make exp-sweep-spot ...          one of them (lab/Makefile lists them)
+#   make bench                       benchmarks, ratios against a peer measured in the same run
+#                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers: one part)
+#   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
+#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   the scan-quality study -> lab/results/quality/
+LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR)))
+LAB_LIBS := $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
+LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-ui quality
 
 experiments: deps
-	@[ -n "$(MESHES)" ] || { echo "make experiments reads the large scans: make experiments MESHES=/path/to/meshes"; exit 2; }
+	$(MAKE) $(LAB_LIBS)
+	$(LAB) $@
+
+exp-%: deps
+	$(MAKE) $(LAB_LIBS)
+	$(LAB) $@
+
+bench bench-core bench-server bench-grpc bench-store bench-peers: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
 	$(MAKE) all
-	@mkdir -p $(EXP_DIR)
-	@start=$$(date +%s); $(MAKE) -j$(EXP_JOBS) $(EXP_STUDIES) || exit 1; \
-	echo "experiments: $(EXP_DIR) in $$(( $$(date +%s) - start )) s"
+	$(LAB) $@
 
-exp-sweep-armadillo:
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/armadillo.obj --schemes $(EXP_BIG_SCHEMES) --out $(EXP_DIR) --quiet
+bench-ui: deps
+	$(MAKE) all
+	$(LAB) $@
 
-exp-sweep-bunny:
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/stanford-bunny.obj --schemes $(EXP_BIG_SCHEMES) --out $(EXP_DIR) --quiet
+quality: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_QUALITY)" deps
+	$(MAKE) $(LAB_LIBS)
+	$(LAB) $@
 
-exp-sweep-spot:
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/spot.obj --picard-maxit 50 --out $(EXP_DIR) --quiet
-	T=$$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$$i] = i; next } \
-	      $$c["scheme"] == "desbrun2" { print $$c["best_time"] }' $(EXP_DIR)/spot-dt-sweep-summary.csv); \
-	$(EXP_MCF) dt-sweep --mesh $(MESHES)/spot.obj --name spot-fixed-time --time $$T --dt-min 0.25/lambda \
-	  --dt-max $$T --per-decade 3 --picard-maxit 50 --out $(EXP_DIR) --quiet
-
-exp-sphere:
-	$(EXP_MCF) sphere --sphere 4 --time 0.2 --steps 25 --out $(EXP_DIR) --quiet
-
-exp-order-sphere:
-	$(EXP_MCF) order --sphere 3 --time 0.01 --steps 32,64,128,256 --ref-scheme richardson --out $(EXP_DIR) --quiet
-
-exp-order-spot:
-	$(EXP_MCF) order --mesh $(MESHES)/spot.obj --presmooth 1e-6 --time 1e-5 --steps 16,32,64,128 \
-	  --ref-scheme desbrun2 --out $(EXP_DIR) --quiet
-
-exp-stability-sphere:
-	$(EXP_MCF) stability --sphere 3 --noise 0.05 --out $(EXP_DIR) --quiet
-
-exp-stability-spot:
-	$(EXP_MCF) stability --mesh $(MESHES)/spot.obj --noise 0.05 --picard-maxit 50 --out $(EXP_DIR) --quiet
-
-exp-stability-big:
-	$(EXP_MCF) stability --mesh $(MESHES)/armadillo.obj --schemes explicit --noise 0.05 --out $(EXP_DIR) --quiet
-	$(EXP_MCF) stability --mesh $(MESHES)/stanford-bunny.obj --schemes explicit --noise 0.05 --out $(EXP_DIR) --quiet
-
-.PHONY: experiments $(EXP_STUDIES)
+.PHONY: $(LAB_TARGETS)

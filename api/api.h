@@ -269,8 +269,6 @@ mcf_status api_draco_encode(const mcf_mesh *m, const api_encode_opts *o,
 typedef struct {
     mcf_flow_params flow;
     api_encode_opts encode;       /* output format and encoder options */
-    double noise_rho;             /* > 0: inject noise before the flow */
-    uint64_t seed;
     int32_t *fixed_owned;         /* backing store of flow.fixed */
     int time_set, iterations_set; /* which of the two was given */
     int dt_set;                   /* dt given (a number or auto) */
@@ -473,12 +471,12 @@ char *api_json_print(const cJSON *j, int pretty);
  * null, never a missing key. Members: command ("smooth"), job (the
  * daemon's id, else null), scheme, params, warnings (the names of the
  * core's warnings: folds, edge_collapse, area_loss, little_smoothing; []
- * when none), input {path, format, bytes, noise, info, mesh (= info)}, output
+ * when none), input {path, format, bytes, info, mesh (= info)}, output
  * {path, format, bytes, vertices, faces, area, volume,
  * quantization_max_error, info}, curvature {before, after}, flow (the
  * flow statistics, with the step log when one was kept), compare (only
  * with a target: the after members, target, before, after), timings and
- * timing (the same: queue_s, read_s, decode_s, noise_s, flow_s,
+ * timing (the same: queue_s, read_s, decode_s, flow_s,
  * encode_s, write_s, metrics_s, total_s), peak_rss_bytes.
  * api/openapi.yaml (Metrics) describes each member. Every volume in it is
  * mcf_mesh_volume's: signed, about the input's coordinate origin, in
@@ -495,7 +493,7 @@ typedef struct {
 } api_metrics;
 
 void api_metrics_init(api_metrics *mt);
-/* Measures m as the flow receives it (after any injected noise), resp. as
+/* Measures m as the flow receives it, resp. as
  * the flow returned it: validation, curvature summary and, when target is
  * not NULL, the comparison with it (same connectivity, else EINVAL).
  * ENOMEM; mt is unchanged on failure. Linear in the mesh (radix sorts):
@@ -516,7 +514,7 @@ typedef struct {
     api_format input_format, output_format;
     size_t input_bytes, output_bytes;
     double quantization_max_error; /* Draco output (api_draco_encode) */
-    double queue_s, read_s, decode_s, noise_s, flow_s, encode_s, write_s,
+    double queue_s, read_s, decode_s, flow_s, encode_s, write_s,
            total_s;                /* seconds per phase */
     double metrics_s;              /* in api_metrics_before and _after */
     double peak_rss_bytes;         /* the process's peak resident size */
@@ -562,15 +560,13 @@ mcf_status api_fields_encode(const mcf_mesh *before, const mcf_mesh *after,
  *
  * The steps: decode the input (hook), finish the parameters for its
  * vertex count (api_params_finish: the default scheme), decode the target
- * and check it shares the mesh's connectivity, add the requested noise,
- * measure (api_metrics_before), run the flow (progress and cancel),
+ * and check it shares the mesh's connectivity, measure (api_metrics_before), run the flow (progress and cancel),
  * encode (unless a hook withholds the output), store it (hook), measure
  * again, and build the metrics document and the fields document.
  *
  * Timings in the document (seconds, the same keys through every door):
  * read_s and queue_s are the door's (request); decode_s the input's and
- * the target's decode; noise_s the injected noise (0 without); flow_s,
- * encode_s; write_s the store hook (null without one); metrics_s both
+ * the target's decode; flow_s, encode_s; write_s the store hook (null without one); metrics_s both
  * measures; total_s read_s plus everything api_job_run did. */
 
 /* Where a failure came from (it decides a door's status: a parameter, the
@@ -670,7 +666,7 @@ typedef struct {
     int withheld;              /* the flowed hook withheld the output */
     double quantization_max_error;  /* Draco output; NaN otherwise */
     double flow_s;
-    /* a failure: where, which part ("mesh", "target", "params", "noise",
+    /* a failure: where, which part ("mesh", "target", "params",
      * "flow", "encode", "output", "metrics", "fields") and the core's or
      * codec's message, unprefixed (each door prefixes it its way) */
     api_job_stage stage;

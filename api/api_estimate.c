@@ -26,7 +26,7 @@
  * and the settings desbrun2, euler, ros2, richardson, implicit, cmcf,
  * taubin, strength=auto and adaptive: 88 runs (implicit on the two
  * dragons did not end within 300 s), 2026-11-23, /usr/bin/time's maxrss;
- * docs/memory/peak_rss.csv and the script that made it, peak_rss.sh:
+ * lab/results/memory/peak_rss.csv and the script that made it, lab/peak_rss.sh:
  *
  *   bytes = 3 x input bytes + per_vertex(scheme) x nv + 4 MiB
  *

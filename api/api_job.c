@@ -99,7 +99,7 @@ static mcf_status check_target(job *jb)
 }
 
 /* Decodes the input and the target, finishes the parameters for the
- * mesh, adds the noise asked for. */
+ * mesh. */
 static mcf_status prepare(job *jb, api_params *p, const api_limits *lim)
 {
     api_job_request *rq = jb->rq;
@@ -143,12 +143,6 @@ static mcf_status prepare(job *jb, api_params *p, const api_limits *lim)
         if ((rc = check_target(jb)) != MCF_OK)
             return rc;
     }
-    t0 = mcf_now();
-    if (p->noise_rho > 0 &&
-        (rc = mcf_flow_add_noise(jb->m, &p->flow, p->noise_rho, p->seed,
-                                 &res->err)) != MCF_OK)
-        return failed(jb, API_JOB_RUN, "noise", rc);
-    jb->run.noise_s = elapsed(t0);
     return MCF_OK;
 }
 
@@ -337,7 +331,6 @@ mcf_status api_job_run(api_job_request *rq, api_params *p,
     jb.res = res;
     api_metrics_init(&jb.mt);
     api_metrics_run_init(&jb.run);
-    jb.run.noise_s = 0;
     rc = run_steps(&jb, p, rq->lim ? rq->lim : &def, t_start);
     p->encode.attrs = NULL; /* freed below */
     mcf_mesh_free(jb.m);

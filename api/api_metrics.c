@@ -8,7 +8,7 @@
  *
  * The measurements happen in two calls around the flow, because the flow
  * changes the mesh in place: api_metrics_before on the mesh as the flow
- * receives it (after any injected noise), api_metrics_after on the result.
+ * receives it, api_metrics_after on the result.
  * Each is one mcf_mesh_inspect, one mcf_curvature_summarize and, with a
  * target, one mcf_compare: linear in the mesh (radix sorts), a small
  * fraction of a flow step (about 0.06 s per call on the 35k-vertex bunny).
@@ -105,7 +105,7 @@ void api_metrics_run_init(api_metrics_run *r)
     memset(r, 0, sizeof *r);
     r->input_format = r->output_format = API_FMT_UNKNOWN;
     r->quantization_max_error = NAN;
-    r->queue_s = r->read_s = r->decode_s = r->noise_s = NAN;
+    r->queue_s = r->read_s = r->decode_s = NAN;
     r->flow_s = r->encode_s = r->write_s = r->total_s = r->metrics_s = NAN;
     r->peak_rss_bytes = NAN;
 }
@@ -148,7 +148,6 @@ static int timings(cJSON *t, const api_metrics_run *r)
     ok = ok && num(t, "queue_s", r->queue_s);
     ok = ok && num(t, "read_s", r->read_s);
     ok = ok && num(t, "decode_s", r->decode_s);
-    ok = ok && num(t, "noise_s", r->noise_s);
     ok = ok && num(t, "flow_s", r->flow_s);
     ok = ok && num(t, "encode_s", r->encode_s);
     ok = ok && num(t, "write_s", r->write_s);
@@ -198,7 +197,6 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
     ok = ok && str(x, "path", r->input_name);
     ok = ok && str(x, "format", format_name(r->input_format));
     ok = ok && num(x, "bytes", (double)r->input_bytes);
-    ok = ok && num(x, "noise", p->noise_rho);
     ok = ok && put(x, "info", api_json_mesh_info(&mt->info[0], NULL));
     /* "mesh": the daemon's first name for "info", kept for its clients */
     ok = ok && put(x, "mesh", api_json_mesh_info(&mt->info[0], NULL));

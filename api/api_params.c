@@ -23,7 +23,6 @@
 typedef enum {
     K_NUM,      /* finite double, lo < x <= hi (or lo <= x with LO_INCL) */
     K_INT,      /* integer lo..hi (hi from the limits with HI_ITER) */
-    K_U64,      /* unsigned 64-bit integer */
     K_BOOL,     /* true/false/1/0/yes/no */
     K_ENUM,     /* one of names[] (value = index) */
     K_SCHEME,   /* a scheme name (mcf_scheme_from_name) */
@@ -36,7 +35,6 @@ enum { LO_INCL = 1, AUTO = 2, HI_ITER = 4 };
 typedef union {
     double d;
     long long i;
-    uint64_t u;
     int e;              /* bool, enum index, scheme, format */
 } value;
 
@@ -118,8 +116,6 @@ static void set_strength(api_params *p, value v)
     p->strength_set = 1;
 }
 static void set_max_steps(api_params *p, value v) { p->flow.max_steps = (int)v.i; }
-static void set_noise(api_params *p, value v) { p->noise_rho = v.d; }
-static void set_seed(api_params *p, value v) { p->seed = v.u; }
 static void set_format(api_params *p, value v) { p->encode.format = (api_format)v.e; }
 static void set_qbits(api_params *p, value v) { p->encode.quantization_bits = (int)v.i; }
 static void set_clevel(api_params *p, value v) { p->encode.compression_level = (int)v.i; }
@@ -144,8 +140,6 @@ static const keydef keys[] = {
     {"adaptive", K_BOOL, 0, 0, 0, NULL, set_adaptive},
     {"tol", K_NUM, 1e-12, 1, LO_INCL, NULL, set_tol},
     {"max_steps", K_INT, 1, 0, HI_ITER, NULL, set_max_steps},
-    {"noise", K_NUM, 0, 10, LO_INCL, NULL, set_noise},
-    {"seed", K_U64, 0, 0, 0, NULL, set_seed},
     {"format", K_FORMAT, 0, 0, 0, NULL, set_format},
     /* at most 24: Draco's encoder memory doubles per bit (26: 200 MB,
      * 30: about 3 GB, whatever the mesh) */
@@ -198,8 +192,6 @@ static const keydoc docs[] = {
     {"tol", "error per step", "tolerance of adaptive steps (needs adaptive)", NULL, 0},
     {"max_steps", "steps", "cap on the steps of a run, rejected adaptive attempts "
      "included", NULL, 0},
-    {"noise", "mean edges", "Gaussian noise added before the flow (experiments)", NULL, 0},
-    {"seed", NULL, "seed of that noise", NULL, 0},
     {"format", NULL, "output format: obj, draco, ply, stl or off", "the input's", 1},
     {"quantization_bits", "bits", "Draco output: position bits; auto keeps a Draco "
      "input's, 16 from other formats; 0 lossless", NULL, 1},
@@ -272,9 +264,6 @@ static void describe(const keydef *k, const api_limits *lim, char *out,
         snprintf(out, size, "an integer from %.0f to %d%s", k->lo,
                  (k->flags & HI_ITER) ? lim->max_iterations : (int)k->hi,
                  (k->flags & AUTO) ? " or \"auto\"" : "");
-        break;
-    case K_U64:
-        snprintf(out, size, "an integer from 0 to %llu", (unsigned long long)UINT64_MAX);
         break;
     case K_BOOL:
         snprintf(out, size, "true or false (or 1/0, yes/no)");
@@ -374,14 +363,6 @@ static int parse_value(const keydef *k, const char *t, const api_limits *lim,
         if (parse_ll(t, &v->i) != 0 || v->i < (long long)k->lo || v->i > hi)
             return -1;
         return 0;
-    }
-    case K_U64: {
-        char *end;
-        if (!(t[0] >= '0' && t[0] <= '9'))
-            return -1;
-        errno = 0;
-        v->u = (uint64_t)strtoull(t, &end, 10);
-        return (*end || errno == ERANGE) ? -1 : 0;
     }
     case K_BOOL:
         return parse_bool(t, &v->e);
@@ -536,8 +517,6 @@ void api_params_init(api_params *p)
      * the variant once the mesh is known, in api_params_finish) */
     p->flow.scheme = MCF_FAIRING;
     api_encode_opts_init(&p->encode);
-    p->noise_rho = 0.0;
-    p->seed = 0;
     p->fixed_owned = NULL;
     p->time_set = 0;
     p->iterations_set = 0;
@@ -1090,15 +1069,6 @@ cJSON *api_params_to_json(const api_params *p)
     if (p->tol_set)
         ok &= cJSON_AddNumberToObject(j, "tol", p->flow.tol) != NULL;
     ok &= cJSON_AddNumberToObject(j, "max_steps", p->flow.max_steps) != NULL;
-    ok &= cJSON_AddNumberToObject(j, "noise", p->noise_rho) != NULL;
-    /* Above 2^53 a JSON number would lose bits: the seed goes as text. */
-    if (p->seed < ((uint64_t)1 << 53)) {
-        ok &= cJSON_AddNumberToObject(j, "seed", (double)p->seed) != NULL;
-    } else {
-        char s[24];
-        snprintf(s, sizeof s, "%llu", (unsigned long long)p->seed);
-        ok &= cJSON_AddStringToObject(j, "seed", s) != NULL;
-    }
     if (p->encode.format != API_FMT_UNKNOWN)
         ok &= cJSON_AddStringToObject(j, "format", api_format_name(p->encode.format)) != NULL;
     if (p->encode.quantization_bits < 0)
@@ -1208,7 +1178,7 @@ cJSON *api_params_describe(const api_limits *lim)
             break;
         switch (k->kind) {
         case K_NUM: type = "number"; break;
-        case K_INT: case K_U64: type = "integer"; break;
+        case K_INT: type = "integer"; break;
         case K_BOOL: type = "boolean"; break;
         case K_LIST: type = "array"; break;
         default: break;
@@ -1217,14 +1187,12 @@ cJSON *api_params_describe(const api_limits *lim)
         ok &= cJSON_AddStringToObject(o, "name", k->name) != NULL;
         ok &= cJSON_AddStringToObject(o, "type", type) != NULL;
         ok &= cJSON_AddBoolToObject(o, "auto", (k->flags & AUTO) != 0) != NULL;
-        if (k->kind == K_NUM || k->kind == K_INT || k->kind == K_U64) {
+        if (k->kind == K_NUM || k->kind == K_INT) {
             ok &= cJSON_AddNumberToObject(o, (k->kind == K_NUM && !(k->flags & LO_INCL))
                                           ? "exclusiveMinimum" : "minimum", k->lo) != NULL;
-            if (k->kind == K_U64)
-                ok &= cJSON_AddStringToObject(o, "format", "uint64") != NULL;
             if (k->flags & HI_ITER)
                 ok &= cJSON_AddStringToObject(o, "maximum_limit", "max_iterations") != NULL;
-            else if (k->kind != K_U64 && !isinf(k->hi))
+            else if (!isinf(k->hi))
                 ok &= cJSON_AddNumberToObject(o, "maximum", k->hi) != NULL;
         }
         if (k->kind == K_ENUM)

@@ -6,8 +6,6 @@
  *   mcf schemes                 JSON: every scheme and what it costs
  *   mcf params                  JSON: every job parameter (api_params_describe)
  *   mcf convert IN OUT          any input format to OUT's (or --format)
- *   mcf experiment STUDY ...    dt sweeps, stability, order, sphere (CSV +
- *                               plots; cli/mcf_experiment.c)
  *
  * Like curl's tool, this is only a client of the libraries: every job
  * parameter of the api table (api_params_describe) is an option, its name
@@ -39,7 +37,6 @@
 #include <unistd.h>
 
 #include "api.h"
-#include "mcf_experiment.h"
 
 #define EXIT_USAGE 2
 #define EXIT_STRICT 3 /* --strict and the result has warnings */
@@ -55,7 +52,6 @@ static const char usage_text[] =
     "                                range, default and unit (the daemon's too)\n"
     "  mcf convert IN OUT [options]  any mesh format to OUT's (texture coordinates, colours\n"
     "                                pass through; normals recomputed)\n"
-    "  mcf experiment STUDY ...      dt sweeps, stability, order, sphere studies (CSV, plots)\n"
     "  mcf --version                 the version\n"
     "\n"
     "`mcf COMMAND --help` lists that command's options with their defaults and units.\n"
@@ -1029,11 +1025,6 @@ static int command_help(const char *cmd)
         return print_help(smooth_head, 1, smooth_tail);
     if (!strcmp(cmd, "convert"))
         return print_help(convert_head, 0, "");
-    if (!strcmp(cmd, "experiment")) {
-        fputs("usage:\n", stdout);
-        fputs(mcf_experiment_usage, stdout);
-        return 0;
-    }
     fputs(!strcmp(cmd, "info") ? info_usage : !strcmp(cmd, "schemes") ? schemes_usage
           : !strcmp(cmd, "params") ? params_usage : usage_text, stdout);
     return 0;
@@ -1042,14 +1033,13 @@ static int command_help(const char *cmd)
 int main(int argc, char **argv)
 {
     const char *cmd = argc > 1 ? argv[1] : NULL;
-    static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert",
-                                           "experiment", NULL};
+    static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert", NULL};
     int i, known = 0;
 
     api_bound_library_threads(argv, 1);
     if (!cmd)
-        return fail(EXIT_USAGE, "missing command: smooth, info, schemes, params, convert or "
-                    "experiment (try mcf --help)");
+        return fail(EXIT_USAGE, "missing command: smooth, info, schemes, params or convert "
+                    "(try mcf --help)");
     if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help"))
         return command_help(argc > 2 && strcmp(cmd, "help") == 0 ? argv[2] : "");
     if (!strcmp(cmd, "--version") || !strcmp(cmd, "-V")) {
@@ -1071,7 +1061,5 @@ int main(int argc, char **argv)
         return print_document(cmd, argc, api_json_schemes());
     if (!strcmp(cmd, "params"))
         return print_document(cmd, argc, api_params_describe(NULL));
-    if (!strcmp(cmd, "convert"))
-        return cmd_convert(argc, argv);
-    return mcf_experiment_main(argc, argv);
+    return cmd_convert(argc, argv);
 }

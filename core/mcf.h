@@ -5,7 +5,7 @@
  * C11 library: it depends on libc, libm and CHOLMOD only, does no I/O, keeps
  * no mutable globals and is reentrant. Arrays come in, arrays go out.
  *
- * Conventions (../shared/MATH.md): positions X are n x 3 doubles stored
+ * Conventions (docs/MATH.md): positions X are n x 3 doubles stored
  * row-major (x0 y0 z0 x1 ...); faces are m x 3 int32 vertex indices. The
  * cotan stiffness L is positive semi-definite, the lumped mass M diagonal,
  * the MCF velocity is F(X) = -M^-1 L X, the mean curvature H = (k1+k2)/2 is
@@ -285,7 +285,7 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * when 0) and ignores the amount. strength_auto estimates the noise and
  * picks the time that minimizes the expected error (mcf_auto.c), in place
  * of strength. The default strength was chosen on real
- * scans with injected noise (README, "Choosing the amount"): it reduces
+ * scans with injected noise (lab/results/amount.md): it reduces
  * the error at every noise level measured and harms none. */
 #define MCF_DEFAULT_STRENGTH 0.33
 #define MCF_DEFAULT_STEPS 10

@@ -4,7 +4,7 @@
  * refactored every step, and solved for three columns at once.
  *
  * What it does differently from cholmod_factorize + cholmod_solve2, each
- * measured on the 435k-vertex dragon (README, Benchmarks):
+ * measured on the 435k-vertex dragon (lab/README.md, Benchmarks):
  *  - The symbolic analysis (ordering, supernodes) runs once per job on the
  *    job's pattern, as before. From it, the lower triangle of P A P' is laid
  *    out once (S, natural order) with a map from each entry of the job's
@@ -24,7 +24,7 @@
  *    along the elimination tree, far below 1e-308: every multiply with a
  *    subnormal operand is a microcode assist of ~100 cycles. It took the
  *    dragon's desbrun2 request at strength 0.33 from 12.3 to 7.2 s of CPU
- *    (README, Benchmarks), with the same bytes out: a value below 2.2e-308 next to a diagonal of
+ *    (lab/README.md, Benchmarks), with the same bytes out: a value below 2.2e-308 next to a diagonal of
  *    order 1e-6 or more is 300 orders of magnitude under the rounding.
  * The factor is CHOLMOD's (the serial build, see the Makefile), so its
  * values and their rounding are those of cholmod_factorize, but for

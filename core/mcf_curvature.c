@@ -5,7 +5,7 @@
  * H^2 - K clamped at 0, so never negative), and the discrete Gauss-Bonnet
  * check.
  *
- * Signs and conventions (../shared/MATH.md): L is the PSD cotan stiffness,
+ * Signs and conventions (docs/MATH.md): L is the PSD cotan stiffness,
  * M the barycentric lumped mass, Delta X = -M^-1 L X = -2 H n, so
  * H_i = <(M^-1 L X)_i, n_i> / 2 is positive on a sphere with outward
  * normals (1/R on a sphere of radius R). K_i = (2 pi - sum of the corner

@@ -89,9 +89,6 @@ void mcf__pattern_free(mcf__pattern *p);
 /* val[nnz] = L's upper values from per-face weights (zeroed first). */
 void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
                          const double *w, double *val);
-/* Y = A X (n x 3) for a symmetric matrix stored in the pattern. */
-void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
-                         const double *X, double *Y);
 
 /* ---- the implicit schemes' solver (mcf_cholesky.c): CHOLMOD's supernodal
  * Cholesky of an SPD matrix on a pattern (kept by the caller, unchanged

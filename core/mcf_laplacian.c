@@ -559,27 +559,6 @@ void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
         }
 }
 
-void mcf__pattern_matvec(const mcf__pattern *p, const double *val,
-                         const double *X, double *Y)
-{
-    memset(Y, 0, sizeof(double) * 3 * (size_t)p->n);
-    for (int j = 0; j < p->n; j++) {
-        const double *xj = X + 3 * (size_t)j;
-        double y0 = 0.0, y1 = 0.0, y2 = 0.0;
-        for (int t = p->colptr[j]; t < p->colptr[j + 1]; t++) {
-            int i = p->rowind[t];
-            double a = val[t];
-            const double *xi = X + 3 * (size_t)i;
-            y0 += a * xi[0]; y1 += a * xi[1]; y2 += a * xi[2];
-            if (i != j) {
-                double *yi = Y + 3 * (size_t)i;
-                yi[0] += a * xj[0]; yi[1] += a * xj[1]; yi[2] += a * xj[2];
-            }
-        }
-        Y[3 * (size_t)j] += y0; Y[3 * (size_t)j + 1] += y1; Y[3 * (size_t)j + 2] += y2;
-    }
-}
-
 /* ---------------------------------------------------- public operators */
 
 mcf_status mcf_operator_build(const mcf_mesh *m, mcf_laplacian lap,

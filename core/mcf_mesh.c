@@ -1,8 +1,8 @@
 /*
  * mcf_mesh.c - the mesh object of libmcf: construction with validation of
  * what would make arithmetic unsafe (indices, non-finite coordinates),
- * icospheres, an exact topological/geometric inspection, area, volume and
- * deterministic normal noise.
+ * an exact topological/geometric inspection, area, volume and
+ * deterministic normal noise (icospheres: mcf_icosphere.c).
  *
  * A mesh owns two flat arrays: 3*nv doubles and 3*nf int32 indices. Only
  * what would corrupt memory or poison every later computation is refused;
@@ -103,137 +103,6 @@ int mcf_mesh_nfaces(const mcf_mesh *m) { return m->nf; }
 const double *mcf_mesh_positions(const mcf_mesh *m) { return m->X; }
 double *mcf_mesh_positions_mut(mcf_mesh *m) { return m->X; }
 const int32_t *mcf_mesh_faces(const mcf_mesh *m) { return m->F; }
-
-/* ------------------------------------------------------------ icosphere */
-
-/* Open-addressing map from an undirected edge (a < b) to its midpoint's
- * vertex index; capacity a power of two at least twice the edge count. */
-typedef struct {
-    uint64_t *key; /* 0 = empty; stored as key + 1 */
-    int32_t *val;
-    size_t mask;
-} edge_map;
-
-/* Returns the midpoint vertex of edge (a, b), creating it (projected to
- * the sphere) when first seen. */
-static int32_t midpoint(edge_map *h, double *X, int32_t *nv, int32_t a,
-                        int32_t b, double radius)
-{
-    int32_t lo = a < b ? a : b, hi = a < b ? b : a;
-    uint64_t k = (((uint64_t)(uint32_t)lo << 32) | (uint32_t)hi) + 1;
-    size_t i = (size_t)mcf__mix64(k) & h->mask;
-    double *p, r;
-    int32_t v;
-
-    while (h->key[i] != 0) {
-        if (h->key[i] == k)
-            return h->val[i];
-        i = (i + 1) & h->mask;
-    }
-    v = (*nv)++;
-    p = X + 3 * (size_t)v;
-    p[0] = 0.5 * (X[3 * (size_t)lo] + X[3 * (size_t)hi]);
-    p[1] = 0.5 * (X[3 * (size_t)lo + 1] + X[3 * (size_t)hi + 1]);
-    p[2] = 0.5 * (X[3 * (size_t)lo + 2] + X[3 * (size_t)hi + 2]);
-    r = sqrt(mcf__dot3(p, p));
-    p[0] *= radius / r;
-    p[1] *= radius / r;
-    p[2] *= radius / r;
-    h->key[i] = k;
-    h->val[i] = v;
-    return v;
-}
-
-mcf_mesh *mcf_mesh_new_icosphere(int level, double radius, mcf_error *err)
-{
-    /* The icosahedron on the cyclic permutations of (+-1, +-phi, 0), with
-     * counter-clockwise faces seen from outside (normals point outward). */
-#define PHI 1.6180339887498948482
-    static const double V0[12][3] = {
-        {-1, PHI, 0}, {1, PHI, 0}, {-1, -PHI, 0}, {1, -PHI, 0},
-        {0, -1, PHI}, {0, 1, PHI}, {0, -1, -PHI}, {0, 1, -PHI},
-        {PHI, 0, -1}, {PHI, 0, 1}, {-PHI, 0, -1}, {-PHI, 0, 1}};
-#undef PHI
-    static const int32_t F0[20][3] = {
-        {0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11},
-        {1, 5, 9}, {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-        {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8}, {3, 8, 9},
-        {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
-    mcf_mesh *m = NULL;
-    double *X = NULL;
-    int32_t *F = NULL, *G = NULL;
-    edge_map h = {NULL, NULL, 0};
-    int32_t nv, nf, nvmax, nfmax;
-    int l, i, k;
-
-    if (level < 0 || level > 10) {
-        mcf__fail(err, MCF_EINVAL, "icosphere level %d not in [0, 10]", level);
-        return NULL;
-    }
-    if (!(radius > 0) || !isfinite(radius)) {
-        mcf__fail(err, MCF_EINVAL, "icosphere radius %g not positive", radius);
-        return NULL;
-    }
-    nvmax = 10 * (1 << (2 * level)) + 2;
-    nfmax = 20 * (1 << (2 * level));
-    X = mcf__malloc(3 * (size_t)nvmax, sizeof *X);
-    F = mcf__malloc(3 * (size_t)nfmax, sizeof *F);
-    G = mcf__malloc(3 * (size_t)nfmax, sizeof *G);
-    if (!X || !F || !G) {
-        mcf__fail(err, MCF_ENOMEM, "icosphere level %d", level);
-        goto done;
-    }
-    for (i = 0; i < 12; i++) {
-        double s = radius / sqrt(mcf__dot3(V0[i], V0[i]));
-        for (k = 0; k < 3; k++)
-            X[3 * i + k] = V0[i][k] * s;
-    }
-    for (i = 0; i < 20; i++)
-        for (k = 0; k < 3; k++)
-            F[3 * i + k] = F0[i][k];
-    nv = 12;
-    nf = 20;
-    if (level > 0) {
-        size_t cap = 1;
-        /* Edges of the finest level before the last split: 3/2 nf. */
-        while (cap < 3 * (size_t)nfmax / 4)
-            cap <<= 1;
-        h.key = mcf__calloc(cap, sizeof *h.key);
-        h.val = mcf__malloc(cap, sizeof *h.val);
-        h.mask = cap - 1;
-        if (!h.key || !h.val) {
-            mcf__fail(err, MCF_ENOMEM, "icosphere level %d", level);
-            goto done;
-        }
-    }
-    for (l = 0; l < level; l++) {
-        int32_t *t;
-        memset(h.key, 0, (h.mask + 1) * sizeof *h.key);
-        for (i = 0; i < nf; i++) {
-            int32_t a = F[3 * i], b = F[3 * i + 1], c = F[3 * i + 2];
-            int32_t ab = midpoint(&h, X, &nv, a, b, radius);
-            int32_t bc = midpoint(&h, X, &nv, b, c, radius);
-            int32_t ca = midpoint(&h, X, &nv, c, a, radius);
-            int32_t *g = G + 12 * (size_t)i;
-            g[0] = a;  g[1] = ab;  g[2] = ca;
-            g[3] = ab; g[4] = b;   g[5] = bc;
-            g[6] = ca; g[7] = bc;  g[8] = c;
-            g[9] = ab; g[10] = bc; g[11] = ca;
-        }
-        nf *= 4;
-        t = F;
-        F = G;
-        G = t;
-    }
-    m = mcf_mesh_new(nv, X, nf, F, err);
-done:
-    free(h.key);
-    free(h.val);
-    free(X);
-    free(F);
-    free(G);
-    return m;
-}
 
 /* ----------------------------------------------------------- inspection */
 
@@ -398,52 +267,37 @@ static double face_edge_mean(const double *X, const int32_t *F, int nf)
  * hit it) is kept. */
 #define MCF_DEGENERATE_REL 1e-14
 
-mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
-                            mcf_error *err)
+/* mcf_mesh_inspect's scratch: the half-edges (sorted by edge), the sorted
+ * vertex triple of every face, union-finds over the corners and the
+ * vertices, a mark per vertex. */
+typedef struct {
+    half_edge *he;
+    size_t nh;
+    face_key *fk;
+    int32_t *cuf, *vuf;
+    unsigned char *used;
+} inspect_scratch;
+
+/* Bounding box, area, volume, degenerate, unreferenced and duplicate
+ * faces; fills the half-edges and face keys. */
+static void inspect_faces(const mcf_mesh *m, inspect_scratch *s, mcf_mesh_info *r)
 {
-    mcf_status rc = MCF_OK;
-    mcf_mesh_info r;
-    half_edge *he = NULL;
-    face_key *fk = NULL;
-    int32_t *cuf = NULL, *vuf = NULL;
-    unsigned char *used = NULL;
-    const double *X;
-    const int32_t *F;
-    size_t nv, nf, nh = 0, i, j, q, f;
-    double esum = 0;
+    const double *X = m->X;
+    const int32_t *F = m->F;
+    size_t nv = (size_t)m->nv, nf = (size_t)m->nf, i, f;
     int k;
-
-    if (!m || !info)
-        return mcf__fail(err, MCF_EINVAL, "mcf_mesh_inspect: NULL argument");
-    X = m->X;
-    F = m->F;
-    nv = (size_t)m->nv;
-    nf = (size_t)m->nf;
-    memset(&r, 0, sizeof r);
-    r.nv = m->nv;
-    r.nf = m->nf;
-
-    he = mcf__malloc(3 * nf, sizeof *he);
-    fk = mcf__malloc(nf, sizeof *fk);
-    cuf = mcf__malloc(3 * nf, sizeof *cuf);
-    vuf = mcf__malloc(nv, sizeof *vuf);
-    used = mcf__calloc(nv, 1);
-    if (!he || !fk || !cuf || !vuf || !used) {
-        rc = mcf__fail(err, MCF_ENOMEM, "inspecting %zu faces", nf);
-        goto done;
-    }
 
     /* Bounding box over all vertices (unreferenced included: they are part
      * of the data and would be written back out). */
     for (k = 0; k < 3; k++) {
-        r.bbox_min[k] = X[k];
-        r.bbox_max[k] = X[k];
+        r->bbox_min[k] = X[k];
+        r->bbox_max[k] = X[k];
     }
     for (i = 0; i < nv; i++)
         for (k = 0; k < 3; k++) {
             double x = X[3 * i + k];
-            if (x < r.bbox_min[k]) r.bbox_min[k] = x;
-            if (x > r.bbox_max[k]) r.bbox_max[k] = x;
+            if (x < r->bbox_min[k]) r->bbox_min[k] = x;
+            if (x > r->bbox_max[k]) r->bbox_max[k] = x;
         }
 
     /* Per face: area, volume, degeneracy, the sorted key, half-edges. */
@@ -461,22 +315,22 @@ mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
         area = 0.5 * sqrt(mcf__dot3(cr, cr));
         lmax = fmax(mcf__dot3(e1, e1), fmax(mcf__dot3(e2, e2),
                                             mcf__dot3(e3, e3)));
-        r.area += area;
+        r->area += area;
         mcf__cross3(b, c, cr);
-        r.volume += mcf__dot3(a, cr) / 6.0;
+        r->volume += mcf__dot3(a, cr) / 6.0;
         if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2] ||
             area <= MCF_DEGENERATE_REL * lmax)
-            r.degenerate_faces++;
+            r->degenerate_faces++;
         for (k = 0; k < 3; k++)
-            used[t[k]] = 1;
+            s->used[t[k]] = 1;
 
         if (s0 > s1) { tmp = s0; s0 = s1; s1 = tmp; }
         if (s1 > s2) { tmp = s1; s1 = s2; s2 = tmp; }
         if (s0 > s1) { tmp = s0; s0 = s1; s1 = tmp; }
-        fk[f].v[0] = s0;
-        fk[f].v[1] = s1;
-        fk[f].v[2] = s2;
-        fk[f].face = (int32_t)f;
+        s->fk[f].v[0] = s0;
+        s->fk[f].v[1] = s1;
+        s->fk[f].v[2] = s2;
+        s->fk[f].face = (int32_t)f;
 
         /* A side joining a vertex to itself (repeated index) is no edge. */
         for (k = 0; k < 3; k++) {
@@ -484,21 +338,33 @@ mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
             if (u == v)
                 continue;
             if (u > v) { tmp = u; u = v; v = tmp; }
-            he[nh].key = ((uint64_t)(uint32_t)u << 32) | (uint32_t)v;
-            he[nh].face = (int32_t)f;
-            he[nh].k = k;
-            nh++;
+            s->he[s->nh].key = ((uint64_t)(uint32_t)u << 32) | (uint32_t)v;
+            s->he[s->nh].face = (int32_t)f;
+            s->he[s->nh].k = k;
+            s->nh++;
         }
     }
     for (i = 0; i < nv; i++)
-        if (!used[i])
-            r.unreferenced++;
+        if (!s->used[i])
+            r->unreferenced++;
 
     /* Duplicate faces: same sorted vertex triple as an earlier face. */
-    sort_face_keys(fk, nf, nv);
+    sort_face_keys(s->fk, nf, nv);
     for (f = 1; f < nf; f++)
-        if (memcmp(fk[f].v, fk[f - 1].v, sizeof fk[f].v) == 0)
-            r.duplicate_faces++;
+        if (memcmp(s->fk[f].v, s->fk[f - 1].v, sizeof s->fk[f].v) == 0)
+            r->duplicate_faces++;
+}
+
+/* Edges: counts, lengths, boundary, non-manifold and inconsistently
+ * oriented ones; joins the corners of a vertex across shared edges (cuf)
+ * and the endpoints of boundary edges (vuf). */
+static void inspect_edges(const mcf_mesh *m, inspect_scratch *s, mcf_mesh_info *r)
+{
+    const double *X = m->X;
+    const int32_t *F = m->F;
+    size_t nv = (size_t)m->nv, nf = (size_t)m->nf, nh = s->nh, i, j, q, f;
+    double esum = 0;
+    int k;
 
     /* Edges. The corners of one vertex are joined through every edge two
      * of their faces share (and within a face that repeats the vertex); a
@@ -511,108 +377,145 @@ mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
      * face; this is the definition ../shared/meshes/SOURCES.md counts
      * with: 16 vertices on dragon_vrip_res2, 2 on test_nm.) */
     for (i = 0; i < 3 * nf; i++)
-        cuf[i] = (int32_t)i;
+        s->cuf[i] = (int32_t)i;
     for (f = 0; f < nf; f++)
         for (k = 0; k < 3; k++)
             for (j = (size_t)k + 1; j < 3; j++)
                 if (F[3 * f + k] == F[3 * f + j])
-                    uf_union(cuf, (int32_t)(3 * f + k), (int32_t)(3 * f + j));
+                    uf_union(s->cuf, (int32_t)(3 * f + k), (int32_t)(3 * f + j));
     for (i = 0; i < nv; i++)
-        vuf[i] = (int32_t)i;
-    sort_half_edges(he, nh);
-    r.min_edge = HUGE_VAL;
-    r.max_edge = 0;
+        s->vuf[i] = (int32_t)i;
+    sort_half_edges(s->he, nh);
+    r->min_edge = HUGE_VAL;
+    r->max_edge = 0;
     for (i = 0; i < nh; i = j) {
-        int32_t u = (int32_t)(he[i].key >> 32), v = (int32_t)(he[i].key & 0xffffffffu);
+        int32_t u = (int32_t)(s->he[i].key >> 32), v = (int32_t)(s->he[i].key & 0xffffffffu);
         double d[3], len;
         size_t cnt;
-        for (j = i + 1; j < nh && he[j].key == he[i].key; j++)
+        for (j = i + 1; j < nh && s->he[j].key == s->he[i].key; j++)
             ;
         cnt = j - i;
-        r.ne++;
+        r->ne++;
         mcf__sub3(X + 3 * (size_t)u, X + 3 * (size_t)v, d);
         len = sqrt(mcf__dot3(d, d));
         esum += len;
-        if (len < r.min_edge) r.min_edge = len;
-        if (len > r.max_edge) r.max_edge = len;
+        if (len < r->min_edge) r->min_edge = len;
+        if (len > r->max_edge) r->max_edge = len;
         if (cnt == 1) {
-            r.boundary_edges++;
-            uf_union(vuf, u, v);
+            r->boundary_edges++;
+            uf_union(s->vuf, u, v);
         } else if (cnt > 2) {
-            r.nonmanifold_edges++;
+            r->nonmanifold_edges++;
         } else {
-            int fwd_a = F[3 * he[i].face + he[i].k] == u;
-            int fwd_b = F[3 * he[i + 1].face + he[i + 1].k] == u;
+            int fwd_a = F[3 * s->he[i].face + s->he[i].k] == u;
+            int fwd_b = F[3 * s->he[i + 1].face + s->he[i + 1].k] == u;
             if (fwd_a == fwd_b)
-                r.inconsistent_orientation++;
+                r->inconsistent_orientation++;
         }
         for (q = i + 1; q < j; q++) {
-            uf_union(cuf, corner_of(F, he + i, u), corner_of(F, he + q, u));
-            uf_union(cuf, corner_of(F, he + i, v), corner_of(F, he + q, v));
+            uf_union(s->cuf, corner_of(F, s->he + i, u), corner_of(F, s->he + q, u));
+            uf_union(s->cuf, corner_of(F, s->he + i, v), corner_of(F, s->he + q, v));
         }
     }
-    if (r.ne > 0)
-        r.mean_edge = esum / r.ne;
+    if (r->ne > 0)
+        r->mean_edge = esum / r->ne;
     else
-        r.min_edge = 0;
+        r->min_edge = 0;
+}
+
+/* Boundary loops, non-manifold vertices, components, Euler
+ * characteristic and genus, from the union-finds inspect_edges built. */
+static void inspect_topology(const mcf_mesh *m, inspect_scratch *s, mcf_mesh_info *r)
+{
+    const int32_t *F = m->F;
+    size_t nv = (size_t)m->nv, nf = (size_t)m->nf, nh = s->nh, i, j, f;
 
     /* Boundary loops: components of the boundary-edge graph. A vertex is
      * on it when it is an endpoint of a boundary edge; count the roots. */
-    memset(used, 0, nv);
+    memset(s->used, 0, nv);
     for (i = 0; i < nh; i = j) {
-        for (j = i + 1; j < nh && he[j].key == he[i].key; j++)
+        for (j = i + 1; j < nh && s->he[j].key == s->he[i].key; j++)
             ;
         if (j - i == 1) {
-            used[he[i].key >> 32] = 1;
-            used[he[i].key & 0xffffffffu] = 1;
+            s->used[s->he[i].key >> 32] = 1;
+            s->used[s->he[i].key & 0xffffffffu] = 1;
         }
     }
     for (i = 0; i < nv; i++)
-        if (used[i] && uf_find(vuf, (int32_t)i) == (int32_t)i)
-            r.boundary_loops++;
+        if (s->used[i] && uf_find(s->vuf, (int32_t)i) == (int32_t)i)
+            r->boundary_loops++;
 
     /* Non-manifold vertices: more than one root corner at a vertex. The
-     * counter per vertex reuses vuf (loops are counted already). */
-    memset(vuf, 0, nv * sizeof *vuf);
+     * counter per vertex reuses s->vuf (loops are counted already). */
+    memset(s->vuf, 0, nv * sizeof *s->vuf);
     for (i = 0; i < 3 * nf; i++)
-        if (uf_find(cuf, (int32_t)i) == (int32_t)i)
-            vuf[F[i]]++;
+        if (uf_find(s->cuf, (int32_t)i) == (int32_t)i)
+            s->vuf[F[i]]++;
     for (i = 0; i < nv; i++)
-        if (vuf[i] > 1)
-            r.nonmanifold_vertices++;
+        if (s->vuf[i] > 1)
+            r->nonmanifold_vertices++;
 
     /* Components: vertices joined through faces, referenced ones counted. */
-    memset(used, 0, nv);
+    memset(s->used, 0, nv);
     for (i = 0; i < nv; i++)
-        vuf[i] = (int32_t)i;
+        s->vuf[i] = (int32_t)i;
     for (f = 0; f < nf; f++) {
-        uf_union(vuf, F[3 * f], F[3 * f + 1]);
-        uf_union(vuf, F[3 * f], F[3 * f + 2]);
-        used[F[3 * f]] = 1;
-        used[F[3 * f + 1]] = 1;
-        used[F[3 * f + 2]] = 1;
+        uf_union(s->vuf, F[3 * f], F[3 * f + 1]);
+        uf_union(s->vuf, F[3 * f], F[3 * f + 2]);
+        s->used[F[3 * f]] = 1;
+        s->used[F[3 * f + 1]] = 1;
+        s->used[F[3 * f + 2]] = 1;
     }
     for (i = 0; i < nv; i++)
-        if (used[i] && uf_find(vuf, (int32_t)i) == (int32_t)i)
-            r.components++;
+        if (s->used[i] && uf_find(s->vuf, (int32_t)i) == (int32_t)i)
+            r->components++;
 
-    r.euler = (r.nv - r.unreferenced) - r.ne + r.nf;
-    r.manifold = r.nonmanifold_edges == 0 && r.nonmanifold_vertices == 0;
-    r.closed = r.boundary_edges == 0;
-    r.genus = -1;
-    if (r.manifold && r.components == 1) {
-        int twice = 2 - r.euler - r.boundary_loops;
+    r->euler = (r->nv - r->unreferenced) - r->ne + r->nf;
+    r->manifold = r->nonmanifold_edges == 0 && r->nonmanifold_vertices == 0;
+    r->closed = r->boundary_edges == 0;
+    r->genus = -1;
+    if (r->manifold && r->components == 1) {
+        int twice = 2 - r->euler - r->boundary_loops;
         /* An odd or negative value means a non-orientable surface. */
         if (twice >= 0 && twice % 2 == 0)
-            r.genus = twice / 2;
+            r->genus = twice / 2;
     }
-    *info = r;
-done:
-    free(he);
-    free(fk);
-    free(cuf);
-    free(vuf);
-    free(used);
+}
+
+mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
+                            mcf_error *err)
+{
+    mcf_status rc = MCF_OK;
+    mcf_mesh_info r;
+    inspect_scratch s;
+    size_t nv, nf;
+
+    if (!m || !info)
+        return mcf__fail(err, MCF_EINVAL, "mcf_mesh_inspect: NULL argument");
+    nv = (size_t)m->nv;
+    nf = (size_t)m->nf;
+    memset(&r, 0, sizeof r);
+    r.nv = m->nv;
+    r.nf = m->nf;
+    memset(&s, 0, sizeof s);
+    s.he = mcf__malloc(3 * nf, sizeof *s.he);
+    s.fk = mcf__malloc(nf, sizeof *s.fk);
+    s.cuf = mcf__malloc(3 * nf, sizeof *s.cuf);
+    s.vuf = mcf__malloc(nv, sizeof *s.vuf);
+    s.used = mcf__calloc(nv, 1);
+    if (!s.he || !s.fk || !s.cuf || !s.vuf || !s.used) {
+        rc = mcf__fail(err, MCF_ENOMEM, "inspecting %zu faces", nf);
+    } else {
+        inspect_faces(m, &s, &r);
+        inspect_edges(m, &s, &r);
+        inspect_topology(m, &s, &r);
+        *info = r;
+    }
+    free(s.he);
+    free(s.fk);
+    free(s.cuf);
+    free(s.vuf);
+    free(s.used);
     return rc;
 }
 

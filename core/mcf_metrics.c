@@ -1,6 +1,6 @@
 /*
  * mcf_metrics.c - distances between two embeddings of one connectivity:
- * the error of a smoothed mesh against a clean target (../shared/MATH.md,
+ * the error of a smoothed mesh against a clean target (docs/MATH.md,
  * "Error against a clean target").
  *
  * The mass-weighted RMS uses the target's barycentric lumped mass

@@ -51,8 +51,7 @@ static void ok3(const char *key, const char *val, api_params *out)
     }
     assert_true(a.flow.dt == b.flow.dt && a.flow.dt == c.flow.dt);
     assert_true(a.flow.time == b.flow.time && a.flow.time == c.flow.time);
-    assert_true(a.flow.tol == b.flow.tol && a.noise_rho == c.noise_rho);
-    assert_true(a.seed == b.seed && a.seed == c.seed);
+    assert_true(a.flow.tol == b.flow.tol && a.flow.tol == c.flow.tol);
     api_params_free(&b);
     api_params_free(&c);
     if (out) {
@@ -158,12 +157,6 @@ static void test_scalar_keys(void **state)
     assert_true(p.flow.tol == 1.0);
     ok3("max_steps", "500", &p);
     assert_int_equal(p.flow.max_steps, 500);
-    ok3("noise", "0", &p);
-    assert_true(p.noise_rho == 0.0);
-    ok3("noise", "10", &p);
-    assert_true(p.noise_rho == 10.0);
-    ok3("seed", "18446744073709551615", &p);
-    assert_true(p.seed == UINT64_MAX);
     ok3("format", "draco", &p);
     assert_int_equal(p.encode.format, API_FMT_DRACO);
     ok3("format", "off", &p);
@@ -210,11 +203,9 @@ static void test_bad_values(void **state)
     bad3("tol", "1e-13", MCF_EINVAL, "parameter 'tol' must be a number from 1e-12 to 1");
     bad3("tol", "1.5", MCF_EINVAL, "parameter 'tol'");
     bad3("max_steps", "0", MCF_EINVAL, "parameter 'max_steps'");
-    bad3("noise", "-0.1", MCF_EINVAL, "parameter 'noise' must be a number from 0 to 10");
-    bad3("noise", "10.5", MCF_EINVAL, "parameter 'noise'");
-    bad3("seed", "-1", MCF_EINVAL, "parameter 'seed' must be an integer from 0 to 18446744073709551615");
-    bad3("seed", "18446744073709551616", MCF_EINVAL, "parameter 'seed'");
-    bad3("seed", "0x10", MCF_EINVAL, "parameter 'seed'");
+    /* Injecting noise is the lab's (lab/README.md), not a job parameter. */
+    bad3("noise", "0.1", MCF_EINVAL, "unknown parameter 'noise'");
+    bad3("seed", "1", MCF_EINVAL, "unknown parameter 'seed'");
     bad3("format", "fbx", MCF_EINVAL,
          "parameter 'format' must be one of obj, draco, ply, stl, off, glb, gltf, got \"fbx\"");
     bad3("format", "drc", MCF_EINVAL, "parameter 'format'");
@@ -232,7 +223,7 @@ static void test_bad_values(void **state)
     bad3("iterationz", "5", MCF_EINVAL,
          "unknown parameter 'iterationz' (accepted: scheme,dt,iterations,time,"
          "strength,boundary,fixed_vertices,rescale,normalize,laplacian,mass,adaptive,tol,"
-         "max_steps,noise,seed,format,quantization_bits,compression_level,"
+         "max_steps,format,quantization_bits,compression_level,"
          "preserve_order,ply_curvature,ply_binary)");
 }
 
@@ -314,8 +305,8 @@ static void test_json_types(void **state)
     api_params p;
     mcf_error err;
     const char *j = "{\"scheme\":\"euler\",\"dt\":0.001,\"iterations\":20,"
-                    "\"normalize\":false,\"adaptive\":true,\"seed\":12345,"
-                    "\"noise\":0.5,\"format\":\"ply\",\"compression_level\":3}";
+                    "\"normalize\":false,\"adaptive\":true,"
+                    "\"format\":\"ply\",\"compression_level\":3}";
     (void)state;
     api_params_init(&p);
     assert_int_equal(api_params_parse_json(&p, j, strlen(j), &L, &err), MCF_OK);
@@ -324,8 +315,6 @@ static void test_json_types(void **state)
     assert_int_equal(p.flow.iterations, 20);
     assert_int_equal(p.flow.normalize, 0);
     assert_int_equal(p.flow.adaptive, 1);
-    assert_true(p.seed == 12345);
-    assert_true(p.noise_rho == 0.5);
     assert_int_equal(p.encode.format, API_FMT_PLY);
     assert_int_equal(p.encode.compression_level, 3);
     /* Numbers and booleans of the wrong kind. */
@@ -544,7 +533,7 @@ static void test_to_json_roundtrip(void **state)
     assert_int_equal(api_params_parse_query(&a,
         "scheme=ros2&time=0.03&boundary=free&fixed_vertices=5,6,7&rescale=volume"
         "&normalize=false&laplacian=uniform&mass=voronoi&adaptive=1&tol=1e-5"
-        "&max_steps=77&noise=0.125&seed=18446744073709551000&format=draco"
+        "&max_steps=77&format=draco"
         "&quantization_bits=14&compression_level=9&preserve_order=yes&ply_binary=no",
         NULL, &L, &err), MCF_OK);
     j = api_params_to_json(&a);
@@ -569,9 +558,6 @@ static void test_to_json_roundtrip(void **state)
     assert_int_equal(a.flow.adaptive, b.flow.adaptive);
     assert_true(a.flow.tol == b.flow.tol);
     assert_int_equal(a.flow.max_steps, b.flow.max_steps);
-    assert_true(a.noise_rho == b.noise_rho);
-    assert_true(a.seed == b.seed); /* above 2^53: carried as a string */
-    assert_non_null(strstr(s, "\"seed\":\"18446744073709551000\""));
     cJSON_free(s);
     cJSON_Delete(j);
     /* dt=auto travels as the string. */

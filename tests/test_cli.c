@@ -187,38 +187,34 @@ static void test_smooth_metrics(void **state)
     mcf_mesh_free(out);
 }
 
-/* Noise, a target, fixed vertices and an output format by flag. */
+/* A noisy input, the clean target, fixed vertices and an output format by
+ * flag. */
 static void test_smooth_noise_target_fixed(void **state)
 {
     FILE *f = fopen(tl_in_scratch("fix.txt"), "w");
     tl_run_result r;
     mcf_mesh *ref, *out;
-    mcf_error err;
     cJSON *j, *cmp;
     const int fixed[] = {0, 17, 400};
     (void)state;
     assert_non_null(f);
     fprintf(f, "0, 17\n400\n");
     fclose(f);
-    r = tl_run("smooth", tl_sphere(), "out.mesh", "--format", "obj", "--noise", "0.05",
-               "--seed", "3", "--target", tl_sphere(), "--fix-vertices", "fix.txt",
+    tl_write_noisy("sphere_cgal.obj", 0.05, 3, tl_in_scratch("noisy.obj"));
+    r = tl_run("smooth", "noisy.obj", "out.mesh", "--format", "obj",
+               "--target", tl_sphere(), "--fix-vertices", "fix.txt",
                "--iterations", "4", "--scheme", "desbrun", "--metrics", "m2.json", NULL);
     if (r.status != 0)
         fail_msg("smooth: status %d: %s", r.status, r.err);
     tl_run_free(&r);
-    /* The same noise, made here from the same seed (it is deterministic);
-     * the noise leaves the fixed vertices where the input has them. */
-    mcf_mesh *clean = load_path(tl_sphere());
-    ref = load_path(tl_sphere());
-    assert_int_equal(mcf_mesh_add_noise(ref, 0.05, 3, &err), MCF_OK);
+    ref = load_path(tl_in_scratch("noisy.obj"));
     out = load_path(tl_in_scratch("out.mesh"));
     for (int k = 0; k < 3; k++)
         for (int c = 0; c < 3; c++)
-            /* Fixed vertices do not move, under the noise nor the flow;
-             * writing OBJ keeps full precision. */
+            /* Fixed vertices do not move under the flow; writing OBJ keeps
+             * full precision. */
             tl_assert_near(mcf_mesh_positions(out)[3 * fixed[k] + c],
-                           mcf_mesh_positions(clean)[3 * fixed[k] + c], 1e-12, "fixed vertex");
-    mcf_mesh_free(clean);
+                           mcf_mesh_positions(ref)[3 * fixed[k] + c], 1e-12, "fixed vertex");
     /* A free vertex did move (by far more than roundoff). */
     assert_true(fabs(mcf_mesh_positions(out)[3 * 1] - mcf_mesh_positions(ref)[3 * 1])
                 + fabs(mcf_mesh_positions(out)[3 * 1 + 1] - mcf_mesh_positions(ref)[3 * 1 + 1])
@@ -414,22 +410,22 @@ static void test_metrics_document_layout(void **state)
     static const char *const top[] = {"command", "job", "scheme", "params", "warnings",
                                       "input", "output", "curvature", "flow", "compare",
                                       "timings", "timing", "peak_rss_bytes", NULL};
-    static const char *const input[] = {"path", "format", "bytes", "noise", "info",
-                                        "mesh", NULL};
+    static const char *const input[] = {"path", "format", "bytes", "info", "mesh", NULL};
     static const char *const output[] = {"path", "format", "bytes", "vertices", "faces",
                                          "area", "volume", "quantization_max_error",
                                          "info", NULL};
-    static const char *const timings[] = {"queue_s", "read_s", "decode_s", "noise_s",
-                                          "flow_s", "encode_s", "write_s", "metrics_s",
-                                          "total_s", NULL};
+    static const char *const timings[] = {"queue_s", "read_s", "decode_s", "flow_s",
+                                          "encode_s", "write_s", "metrics_s", "total_s",
+                                          NULL};
     static const char *const compare[] = {"rms_m", "rms_rel", "frobenius", "max_err",
                                           "normal_angle_deg", "inverted_faces", "target",
                                           "before", "after", NULL};
-    tl_run_result r = tl_run("smooth", tl_sphere(), "lay.drc", "--iterations", "2",
-                             "--noise", "0.1", "--seed", "5", "--target", tl_sphere(),
-                             "--metrics", "lay.json", NULL);
+    tl_run_result r;
     cJSON *j;
     (void)state;
+    tl_write_noisy("sphere_cgal.obj", 0.1, 5, tl_in_scratch("noisy.obj"));
+    r = tl_run("smooth", "noisy.obj", "lay.drc", "--iterations", "2", "--target", tl_sphere(),
+               "--metrics", "lay.json", NULL);
     if (r.status != 0)
         fail_msg("smooth: status %d: %s", r.status, r.err);
     tl_run_free(&r);
@@ -570,8 +566,7 @@ static void test_version(void **state)
  * has one; convert's the output parameters only. */
 static void test_command_help(void **state)
 {
-    static const char *const cmds[] = {"smooth", "convert", "info", "schemes", "params",
-                                       "experiment"};
+    static const char *const cmds[] = {"smooth", "convert", "info", "schemes", "params"};
     cJSON *table = api_params_describe(NULL);
     const cJSON *e;
     tl_run_result r, c;

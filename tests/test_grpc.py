@@ -34,6 +34,7 @@ import urllib.request
 import grpc
 
 import h2raw  # tests/h2raw.py: a raw HTTP/2 client for the attacks
+from noisy import noisy_obj  # tests/noisy.py: a noisy copy of a test mesh
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BUILD = os.path.abspath(os.environ.get("MCF_BUILD") or os.path.join(ROOT, "build"))
@@ -324,10 +325,9 @@ def test_smooth_obj_same_bytes_as_rest():
 def test_default_is_fairing():
     """Smooth without a scheme runs the fairing filter, as REST does: the
     same bytes, its metrics (noise estimate, SURE curve, guard)."""
-    data = mesh("sphere_cgal.obj")
-    params = dict(noise=0.25, seed=1)
-    g = smooth(MAIN, data, params)
-    st, _, body = MAIN.rest("POST", "/smooth?noise=0.25&seed=1", data)
+    data = noisy_obj(os.path.join(DATA, "meshes", "sphere_cgal.obj"), 0.25, 1)
+    g = smooth(MAIN, data, {})
+    st, _, body = MAIN.rest("POST", "/smooth", data)
     assert st == 200, (st, body[:300])
     assert g.result == body, "gRPC and REST results differ"
     m = g.metrics

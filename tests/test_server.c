@@ -336,19 +336,20 @@ static void test_smooth_raw_and_params(void **state)
     free(obj);
 }
 
-/* A target mesh adds the comparison to the metrics; noise first makes the
- * error measurable; a target of another connectivity is a 422. */
+/* A target mesh adds the comparison to the metrics; a noisy upload makes
+ * the error measurable; a target of another connectivity is a 422. */
 static void test_smooth_target(void **state)
 {
     resp_t r;
-    char id[64];
+    char id[64], noisy[512];
     cJSON *m, *cmp;
 
     (void)state;
+    snprintf(noisy, sizeof noisy, "%s/noisy-0.2-7.obj", g_tmp);
     {
-        upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
-        http(&g_main, "POST", "/smooth?noise=0.2&seed=7&iterations=3&dt=1e-5",
-             NULL, &up, &r);
+        upload_t up = {.mesh = tl_write_noisy("sphere_cgal.obj", 0.2, 7, noisy),
+                       .target = "sphere_cgal.obj"};
+        http(&g_main, "POST", "/smooth?iterations=3&dt=1e-5", NULL, &up, &r);
         expect_status(&g_main, &r, 200, "with target");
         assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
         m = follow_metrics_link(&g_main, &r, id);
@@ -379,7 +380,8 @@ static void test_smooth_target(void **state)
  * target the error falls. The schemes list has both variants. */
 static void test_smooth_default_fairing(void **state)
 {
-    upload_t up = {.mesh = "sphere_cgal.obj", .target = "sphere_cgal.obj"};
+    char noisy[512];
+    upload_t up = {.mesh = noisy, .target = "sphere_cgal.obj"};
     resp_t r;
     char id[64];
     cJSON *m, *sure, *e;
@@ -387,7 +389,9 @@ static void test_smooth_default_fairing(void **state)
     double vmin = INFINITY;
 
     (void)state;
-    http(&g_main, "POST", "/smooth?noise=0.25&seed=1", NULL, &up, &r);
+    snprintf(noisy, sizeof noisy, "%s/noisy-0.25-1.obj", g_tmp);
+    tl_write_noisy("sphere_cgal.obj", 0.25, 1, noisy);
+    http(&g_main, "POST", "/smooth", NULL, &up, &r);
     expect_status(&g_main, &r, 200, "default request");
     assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
     m = follow_metrics_link(&g_main, &r, id);

@@ -3,8 +3,9 @@
 // a daemon started here on a free loopback port with a token file.
 //
 // It opens /, types the token the page asks for, uploads a repository mesh
-// (tests/data/meshes/knot1.obj, with noise so that the clean upload is the
-// target), waits for the job to succeed, and checks what a person would
+// (tests/data/meshes/knot1.obj with noise added by tests/noisy.py, and the
+// clean knot as the target to compare with), waits for the job to succeed,
+// and checks what a person would
 // see: both canvases show the mesh (pixels unlike the background), the
 // colour-mode switch changes the pixels, the metrics table and the five
 // downloads are there, the job's own format downloads, a long job can be
@@ -15,6 +16,7 @@
 // test's count; when chromium cannot start at all, the tests are SKIPPED
 // with the reason (and logged to $MCF_SKIP_LOG). MCF_TEST_FILTER=name runs
 // one test (the ones before it too: they share the page).
+import { execFileSync } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -101,9 +103,12 @@ async function test_page_asks_for_token() {
 
 async function test_smooth_and_compare() {
   const input = await page.$('#mesh');
-  await input.uploadFile(path.join(DATA, 'meshes', 'knot1.obj'));
+  const noisy = path.join(TMP, 'knot1.obj');
+  execFileSync('/usr/bin/python3', [path.join(ROOT, 'tests', 'noisy.py'),
+                                    path.join(DATA, 'meshes', 'knot1.obj'), '0.3', '1', noisy]);
+  await input.uploadFile(noisy);
   await page.select('#scheme', 'desbrun2');
-  await page.type('#noise', '0.3');
+  await (await page.$('#target')).uploadFile(path.join(DATA, 'meshes', 'knot1.obj'));
   await page.waitForFunction(() => !document.getElementById('run').disabled);
   await page.click('#run');
   await page.waitForFunction(() => window.mcfd.perf.firstFrameMs > 0 ||
@@ -178,7 +183,7 @@ async function test_download_own_format() {
 async function test_cancel() {
   const input = await page.$('#mesh');
   await input.uploadFile(path.join(DATA, 'meshes', 'bunny.drc'));
-  await page.$eval('#noise', e => { e.value = ''; });
+  await page.$eval('#target', e => { e.value = ''; });
   await page.type('#iterations', '100000');
   await page.select('#scheme', 'euler');
   await page.click('#run');

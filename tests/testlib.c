@@ -160,6 +160,26 @@ mcf_mesh *tl_load(const char *name)
     return m;
 }
 
+const char *tl_write_noisy(const char *name, double rho, uint64_t seed, const char *out_path)
+{
+    mcf_mesh *m = tl_load(name);
+    mcf_error err = {MCF_OK, ""};
+    api_encode_opts o;
+    api_buf b;
+    FILE *f;
+
+    api_buf_init(&b, SIZE_MAX);
+    api_encode_opts_init(&o);
+    o.format = API_FMT_OBJ;
+    if (mcf_mesh_add_noise(m, rho, seed, &err) != MCF_OK || api_mesh_encode(m, &o, &b, &err) != MCF_OK)
+        fail_msg("tl_write_noisy: %s: %s", name, err.msg);
+    mcf_mesh_free(m);
+    if (!(f = fopen(out_path, "wb")) || fwrite(b.data, 1, b.len, f) != b.len || fclose(f) != 0)
+        fail_msg("tl_write_noisy: cannot write %s: %s", out_path, strerror(errno));
+    api_buf_free(&b);
+    return out_path;
+}
+
 void tl_assert_near(double a, double b, double tol, const char *what)
 {
     if (a == b) /* also equal infinities */
@@ -173,14 +193,21 @@ void tl_assert_near(double a, double b, double tol, const char *what)
 
 static char scratch[64];      /* scratch directory of this test binary */
 static char mcf_path[4096];
+static char prog_prefix[64];  /* "mcf: ", the error lines' start */
 static char sphere[4096];
 
 int tl_mcf_setup(const char *who, const char *tmpl)
 {
-    const char *b = getenv("MCF_BUILD");
+    return tl_prog_setup(who, tmpl, "mcf");
+}
+
+int tl_prog_setup(const char *who, const char *tmpl, const char *prog)
+{
+    const char *b = getenv("MCF_BUILD"), *base = strrchr(prog, '/');
     char rel[4096];
+    snprintf(prog_prefix, sizeof prog_prefix, "%s: ", base ? base + 1 : prog);
     /* Absolute paths: the children run inside the scratch directory. */
-    snprintf(rel, sizeof rel, "%s/mcf", b && *b ? b : "build");
+    snprintf(rel, sizeof rel, "%s/%s", b && *b ? b : "build", prog);
     if (!realpath(rel, mcf_path)) {
         fprintf(stderr, "%s: no %s (build it, or set MCF_BUILD)\n", who, rel);
         return -1;
@@ -273,7 +300,7 @@ void tl_run_free(tl_run_result *r)
 void tl_expect_error(tl_run_result *r, int code, const char *want)
 {
     const char *nl = strchr(r->err, '\n');
-    if (r->status != code || strncmp(r->err, "mcf: ", 5) != 0 || !nl
+    if (r->status != code || strncmp(r->err, prog_prefix, strlen(prog_prefix)) != 0 || !nl
         || nl[1] != '\0' || !strstr(r->err, want))
         fail_msg("status %d, stderr \"%s\"; want status %d and one line with \"%s\"",
                  r->status, r->err, code, want);

@@ -69,11 +69,19 @@ int tl_read_file(const char *path, char **buf, size_t *len);
  * cmocka test fails with the file name and error message. */
 mcf_mesh *tl_load(const char *name);
 
+/* Writes a noisy copy of test mesh NAME (tl_load) to out_path as OBJ
+ * (every double exact): mcf_mesh_add_noise with rho (mean edges, along the
+ * normals) and seed, on every vertex. What a test sends the service or
+ * the tool to smooth, now that injecting noise is the lab's and not a
+ * job parameter. Returns out_path; fails the current test on error. */
+const char *tl_write_noisy(const char *name, double rho, uint64_t seed, const char *out_path);
+
 /* Fails the current test unless |a - b| <= tol (and both are finite, or
  * equal infinities). `what` names the quantity in the failure message. */
 void tl_assert_near(double a, double b, double tol, const char *what);
 
-/* ---- Running the mcf tool as a child process (test_cli, test_experiment).
+/* ---- Running the mcf tool (or the lab's mcflab) as a child process (test_cli,
+ * lab/tests/test_experiment).
  * One scratch directory per test binary; the harness state is static in
  * testlib.c, set by tl_mcf_setup and removed by tl_mcf_teardown. */
 
@@ -90,6 +98,10 @@ typedef struct {
  * from tmpl (at most 63 characters, ending in XXXXXX). On failure prints
  * "who: no PATH (...)" to stderr and returns -1; else 0. */
 int tl_mcf_setup(const char *who, const char *tmpl);
+/* The same for another program of the build: prog is its path under
+ * $MCF_BUILD ("lab/mcflab"); tl_run then runs it, and tl_expect_error
+ * wants its name ("mcflab: ...") at the start of the line. */
+int tl_prog_setup(const char *who, const char *tmpl, const char *prog);
 
 /* For a cmocka group teardown: removes the scratch directory and all in
  * it. Returns 0, or -1 when that failed. */
@@ -115,7 +127,8 @@ tl_run_result tl_run_env(const char *path_env, const char *a0, ...);
 void tl_run_free(tl_run_result *r);
 
 /* An error run: fails the current test unless the status is code and
- * stderr is exactly one line "mcf: ..." containing want. Frees r. */
+ * stderr is exactly one line "mcf: ..." (the program's name) containing
+ * want. Frees r. */
 void tl_expect_error(tl_run_result *r, int code, const char *want);
 
 /* Fails the current test unless b has a's vertex and face counts and

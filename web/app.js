@@ -89,7 +89,6 @@ function params() {
   if ($('boundary').value) p.boundary = $('boundary').value;
   if ($('rescale').value) p.rescale = $('rescale').value;
   if ($('adaptive').checked) p.adaptive = true;
-  if (num('noise')) p.noise = num('noise');
   if ($('format').value) p.format = $('format').value;
   return p;
 }
@@ -120,11 +119,11 @@ drop.addEventListener('drop', e => {
 // ------------------------------------------------------------ the job
 
 // Submits the mesh with p and follows the job until it ends; resolves to
-// the final Job document. With noise, the clean upload is also the target,
-// so that the metrics measure the error before and after against it.
+// the final Job document. With a target (a clean mesh of the same
+// connectivity), the metrics measure the error before and after against it.
 // onProgress(fraction or null when unknown, step, status).
-async function runJob(file, p, onProgress, fields = false) {
-  let job = await api.submit(file, p, p.noise > 0 ? file : null, fields);
+async function runJob(file, target, p, onProgress, fields = false) {
+  let job = await api.submit(file, p, target, fields);
   state.job = job;
   const planned = j => j.progress.steps ||
     (p.adaptive || p.time ? null : p.iterations || DEFAULT_ITERATIONS);
@@ -159,7 +158,7 @@ $('job-form').addEventListener('submit', async e => {
   status('Uploading...');
   try {
     state.jobFile = state.file;
-    const job = await runJob(state.file, params(), showProgress, true);
+    const job = await runJob(state.file, $('target').files[0] || null, params(), showProgress, true);
     if (job.status !== 'succeeded') {
       status(`Job ${job.status}: ${job.error ? job.error.detail : ''}`, job.status === 'failed');
     } else {
@@ -330,7 +329,7 @@ async function download(job, format) {
     state.busy = true;
     updateRun();
     const p = { ...job.params, format };
-    const again = await runJob(state.jobFile, p, (f, step) => {
+    const again = await runJob(state.jobFile, null, p, (f, step) => {
       $('progress').value = f ?? 0;
       status(`Writing ${format}: step ${step}`);
     });

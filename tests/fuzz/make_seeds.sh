@@ -127,7 +127,7 @@ for i, j in enumerate([
         '{"scheme":"euler","dt":"auto","time":0.01,"boundary":"free"}',
         '{"fixed_vertices":[0,1,2,3],"rescale":"volume","normalize":false}',
         '{"laplacian":"uniform","mass":"voronoi","adaptive":true,"tol":1e-4,"max_steps":50}',
-        '{"noise":0.1,"seed":18446744073709551615,"format":"draco","quantization_bits":14,'
+        '{"format":"draco","quantization_bits":14,'
         '"compression_level":10,"preserve_order":true,"ply_binary":false}',
         '{"scheme":"ros2","dt":0.5,"iterations":3,"scheme":"taubin"}',
         '{"a":{"b":[1,[2,[3]]]},"dt":-1}']):
@@ -137,7 +137,7 @@ for i, q in enumerate([
         'scheme=desbrun2&dt=1e-3&iterations=10',
         'dt=auto&scheme=euler&async=1&callback=http%3A%2F%2Fx',
         'fixed_vertices=0,1,2&boundary=free&normalize=0',
-        'format=ply&ply_binary=false&noise=0.05&seed=42',
+        'format=ply&ply_binary=false',
         'scheme=%64esbrun&time=1e-2&&=&x',
         'quantization_bits=30&compression_level=0&preserve_order=true']):
     open(Q + 'q%d.txt' % i, 'w').write(q)
