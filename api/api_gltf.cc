@@ -288,9 +288,13 @@ mcf_status read_draco_prim(const tinygltf::Model &m, const tinygltf::Primitive &
      * (whose vertex order need not be the stream's). */
     for (const auto &kv : p.attributes) {
         const tinygltf::Value &id = map.Get(kv.first);
-        const bool has_view = kv.second >= 0 &&
-                              static_cast<size_t>(kv.second) < m.accessors.size() &&
-                              m.accessors[static_cast<size_t>(kv.second)].bufferView >= 0;
+        /* glTF: a Draco primitive's attributes still name accessors (their
+         * counts and types; the encoder rewrites them) */
+        if (kv.second < 0 || static_cast<size_t>(kv.second) >= m.accessors.size())
+            return api__fail(err, MCF_EDECODE,
+                             "gltf: mesh %d primitive %d: attribute %s names accessor %d, "
+                             "which does not exist", w.mesh, w.prim, kv.first.c_str(), kv.second);
+        const bool has_view = m.accessors[static_cast<size_t>(kv.second)].bufferView >= 0;
         if (!id.IsInt() || has_view)
             return api__fail(err, MCF_EDECODE,
                              "gltf: mesh %d primitive %d: attribute %s %s",
