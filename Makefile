@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # mcfd - one top-level Makefile.
 #
 #   make            build/libmcf.a, build/libmcfapi.a, build/mcf (and build/mcfd once server/ exists)
@@ -12,7 +13,7 @@
 #   make tsan       the daemon's tests under ThreadSanitizer (build-tsan/, tests/tsan.supp)
 #   make WERROR=1 ...                  warnings are errors (CI)
 #   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name,
-#                   nothing outside lab/ includes the lab
+#                   nothing outside lab/ includes the lab, an SPDX line atop every source file
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
 # Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
@@ -466,6 +467,11 @@ $(B)/tests/test_service.o: CPPFLAGS += -Iserver
 $(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
+# the files that carry an SPDX line (LICENSE is MIT; issue 20)
+SPDX_FILES := '*.c' '*.h' '*.cc' '*.cpp' '*.proto' '*.py' '*.mjs' '*.js' '*.sh' '*.gp' \
+  '*.css' '*.html' '*.yaml' '*.toml' '*.mk' Makefile '*/Makefile' .ci/run docker/Dockerfile \
+  docker/build-packages
+
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
 	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }
@@ -491,7 +497,10 @@ check-deps:
 	  { echo "check-deps: the gRPC door does not include the REST door's headers"; exit 1; }
 	@! grep -nE '#include *[<"]([^>"]*/)?(lab/|$(LAB_HEADERS_RE))' $(PRODUCT_SRC) || \
 	  { echo "check-deps: nothing outside lab/ includes the lab's headers: the lab is a client of the product, never a part"; exit 1; }
-	@echo "check-deps: server -> api -> core holds; the doors -> service.h; nothing includes lab/"
+	@missing=$$(git ls-files -- $(SPDX_FILES) 2>/dev/null | grep -v -e '^tests/fuzz/corpus' -e '^tests/data/' | \
+	  while read -r f; do head -5 "$$f" | grep -q 'SPDX-License-Identifier: MIT' || echo "$$f"; done); \
+	  [ -z "$$missing" ] || { echo "check-deps: no 'SPDX-License-Identifier: MIT' in the first 5 lines of:" $$missing; exit 1; }
+	@echo "check-deps: server -> api -> core holds; the doors -> service.h; nothing includes lab/; every source file carries its SPDX line"
 
 clean:
 	rm -rf build build-san build-tsan build-fuzz

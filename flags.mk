@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # flags.mk - how every C and C++ file of the project is compiled and
 # linked: the top-level Makefile and lab/Makefile both include it, so the
 # lab's programs build exactly as the product does (WERROR=1, SAN=...,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api.h - the public interface of mcfd's api layer: bytes <-> meshes and
  * JSON parameters/metrics.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_attrs.c - the attribute side channel (api.h, "attributes"): texture
  * coordinates, colours and normals that travel from a decoder to an

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_bounds.c - the CPU and memory a Draco decode may take, one rule for
  * the daemon (which decodes in a child process under them:

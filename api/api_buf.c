@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_buf.c - the api layer's growable byte buffer with a hard maximum
  * (curl's dynbuf).

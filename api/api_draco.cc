@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_draco.cc - Google Draco (.drc) decoder and encoder: a thin extern "C"
  * bridge over Debian's libdraco 1.5.5 (api.h's api_draco_*, and

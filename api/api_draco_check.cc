@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_draco_check.cc - the count pre-check of a Draco stream (libdraco
  * allocates by the counts a stream declares before it reads their data;

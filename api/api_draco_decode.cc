@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_draco_decode.cc - the Draco decoder: a stream checked
  * (api_draco_check.cc), decoded by libdraco into an mcf_mesh, its

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_draco_encode.cc - the Draco encoder: an mcf_mesh (and its
  * attributes) into a draco::Mesh and a stream, measured on the way back

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_draco_internal.h - what the Draco bridge's files share (C++ only,
  * never included outside api_draco*.cc): the count pre-check before

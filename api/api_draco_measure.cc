@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_draco_measure.cc - the encoder's *max_quant_err, measured.
  *

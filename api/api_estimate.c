@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_estimate.c - a job's peak memory, estimated from what its input
  * declares before a byte of it is decoded: the daemon refuses a job whose

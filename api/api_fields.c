@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_fields.c - the per-vertex fields of a smoothing run, for viewers
  * (the daemon's GET /v1/jobs/{id}/fields, the page it serves): both meshes'

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_gltf.cc - the glTF 2.0 reader's C++ side: a thin extern "C" bridge
  * over Debian's tinygltf 2.7 (api__gltf_parse, api_internal.h), compiled

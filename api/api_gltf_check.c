@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_gltf_check.c - what a glTF document must pass before any parser
  * builds it (api__gltf_check_json), and the counts it declares for the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_gltf_decode.c - glTF 2.0 (GLB and .gltf) decoding: the weld that
  * turns a document's triangle primitives into the one surface core

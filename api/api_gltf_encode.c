@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_gltf_encode.c - glTF 2.0 encoding (api_gltf_encode): a glTF input's
  * document rewritten with the smoothed surface, or a new document for a

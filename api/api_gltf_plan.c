@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_gltf_plan.c - the plan record: a decoded glTF document as bytes, from
  * the decoder (possibly in the decode sandbox's child process, through

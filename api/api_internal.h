@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_internal.h - helpers shared by the files of the api layer, not
  * public (the server and the CLI use api.h only).

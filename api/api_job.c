@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_job.c - one smoothing job, bytes to bytes and a metrics document
  * (api.h, "jobs"): the pipeline `mcf smooth` and the daemon's workers

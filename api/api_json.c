@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_json.c - JSON views of the core's results: mesh information and
  * curvature summaries, flow statistics (with the per-step log when one

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_limits.c - the default limits on untrusted input (api_limits).
  *

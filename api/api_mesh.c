@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_mesh.c - format detection and naming, encoder options, and the
  * decode/encode dispatchers over the per-format codecs.

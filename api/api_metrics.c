@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_metrics.c - the one metrics document of a smoothing run, for every
  * door: `mcf smooth --metrics FILE` and the daemon's job metrics

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_obj.c - Wavefront OBJ reader and writer on memory buffers.
  *

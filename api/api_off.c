@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_off.c - Object File Format (OFF, Geomview) reader and writer on
  * memory buffers.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_pack.c - a decoded mesh and its attributes as one exact binary
  * record, and back: what the daemon's decode sandbox (server/sandbox.c)

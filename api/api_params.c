@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_params.c - job parameters from JSON, URL query strings and CLI
  * flags, through one table and one validation path.
@@ -192,7 +193,7 @@ static const keydoc docs[] = {
     {"tol", "error per step", "tolerance of adaptive steps (needs adaptive)", NULL, 0},
     {"max_steps", "steps", "cap on the steps of a run, rejected adaptive attempts "
      "included", NULL, 0},
-    {"format", NULL, "output format: obj, draco, ply, stl or off", "the input's", 1},
+    {"format", NULL, "output format: obj, draco, ply, stl, off, glb or gltf", "the input's", 1},
     {"quantization_bits", "bits", "Draco output: position bits; auto keeps a Draco "
      "input's, 16 from other formats; 0 lossless", NULL, 1},
     {"compression_level", NULL, "Draco output: 0 fastest to 10 smallest", NULL, 1},

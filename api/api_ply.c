@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_ply.c - Stanford PLY reader on memory buffers (the header:
  * api_ply_header.c; the writer: api_ply_write.c).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_ply_header.c - the PLY header (api_ply_internal.h): the format line,
  * elements and their properties, each property given the role the reader

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_ply_internal.h - what the PLY reader's files share (api_ply_header.c
  * parses the header, api_ply.c reads the body): the property types, the

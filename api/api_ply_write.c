@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_ply_write.c - the Stanford PLY writer (api_ply_encode; the reader:
  * api_ply.c).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_stl.c - STL (stereolithography) reader and writer on memory buffers.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_text.c - the text helpers of api_internal.h, shared by the line- and
  * token-based mesh readers (OBJ, OFF, ASCII PLY, ASCII STL).

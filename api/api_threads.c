@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * api_threads.c - the thread count of the BLAS under libmcf, set once per
  * process by the programs (mcf, mcfd) before any work.

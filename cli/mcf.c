@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf.c - the `mcf` command-line tool: smooth, inspect and convert meshes.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf.h - the public interface of libmcf, the numeric core of mcfd.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_auto.c - the automatic amount of smoothing: the noise level of the
  * mesh itself, then the amount (an MCF time, or Taubin's pass count) that

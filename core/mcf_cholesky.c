@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_cholesky.c - the implicit schemes' linear solver: a supernodal
  * Cholesky factorization (CHOLMOD) of the job's SPD matrix, analysed once,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_curvature.c - discrete curvatures per vertex and their summary:
  * area-weighted vertex normals, mean curvature from the cotan Laplacian,

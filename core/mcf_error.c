@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_error.c - status codes and warnings, their texts, the error-buffer
  * helper and the overflow-checked allocators every file of libmcf uses.

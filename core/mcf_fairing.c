@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_fairing.c - the fairing denoiser, the product's default filter:
  * implicit bi-Laplacian steps on the uniform graph Laplacian (`fairing`)

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_flow.c - the driver of a mean curvature flow run (mcf_flow_run):
  * working units, the fixed set, the amount and the step plan, the step

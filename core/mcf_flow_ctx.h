@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_flow_ctx.h - private to the files of one MCF run (mcf_flow.c, the
  * driver; mcf_flow_ops.c, its operators, linear solves and step checks;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_flow_ops.c - the operators and linear solves of one MCF run, and the
  * checks a step is judged by.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_folds.c - faces a run folded, and the fairing filter's guard that
  * takes them back.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_graph.c - the uniform graph Laplacian of a mesh: the vertex
  * adjacency (weight 1 per edge, however many faces share it), umbrella

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_icosphere.c - mcf_mesh_new_icosphere: the subdivided icosahedron on a
  * sphere that tests, the lab's studies and the benchmarks build their

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_internal.h - declarations shared by the files of libmcf, not public.
  *

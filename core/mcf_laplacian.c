@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_laplacian.c - cotan stiffness and lumped mass: per-triangle weights,
  * matrix-free products, the job's fixed sparse pattern, lambda_max.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_mesh.c - the mesh object of libmcf: construction with validation of
  * what would make arithmetic unsafe (indices, non-finite coordinates),

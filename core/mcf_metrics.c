@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_metrics.c - distances between two embeddings of one connectivity:
  * the error of a smoothed mesh against a clean target (docs/MATH.md,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_schemes.c - the scheme table (what `mcf schemes` and GET /v1/schemes
  * print: name, order, stability, cost) and the checks of a run's

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_sort.c - the radix sort behind mesh inspection and the curvature
  * summary: 64-bit keys (edge keys u << 32 | v, packed face keys, doubles

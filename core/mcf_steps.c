@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcf_steps.c - one step of every MCF scheme, exactly as docs/MATH.md
  * ("The schemes: exact updates") writes it, with each scheme's local

@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # docker/image.sh - build and check the mcfd container image with Debian's podman.
 #
 #   docker/image.sh build IMAGE [BASE]   build docker/Dockerfile as IMAGE (make image)

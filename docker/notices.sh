@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # docker/notices.sh HEADER - the image's third-party notice on stdout: HEADER
 # (docker/THIRD-PARTY-NOTICES: mcfd's licence, what it links and under which
 # licence), then one line per Debian package installed where it runs: name,

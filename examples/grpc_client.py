@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """grpc_client.py - a short client of mcfd's gRPC door (api/mcfd.proto).
 
 Smooths a mesh file through mcfd.v1.Smoother/Smooth: sends the header with

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * lab.c - the lab's shared helpers (lab.h): messages, folders, CSV files,
  * mesh files and gnuplot figures.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * lab.h - what every program of the lab shares: the one error line and
  * progress notes, folders and CSV files, reading a mesh, and gnuplot

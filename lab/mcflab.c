@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * mcflab.c - the lab's program: studies of the flow on meshes (study.h),
  * as CSV files and gnuplot figures. Built by lab/Makefile, never by the

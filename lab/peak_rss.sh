@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # peak_rss.sh - the calibration of api/api_estimate.c: peak resident size of
 # `mcf smooth` (decode, metrics, flow, encode: the daemon's job) per mesh and
 # scheme, into lab/results/memory/peak_rss.csv. Run from anywhere after `make`, with

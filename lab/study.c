@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * study.c - what the flow studies of mcflab share (study.h): options, one
  * run of the flow watched step by step, CSV rows, the study meshes and the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * study.h - the flow studies of `mcflab` (the article's experiments done
  * properly, docs/MATH.md "Measuring order and error"): their options, one

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * study_dt_sweep.c - `mcflab dt-sweep`: the article's experiment done
  * properly. A clean target, a noisy copy, every chosen scheme over a

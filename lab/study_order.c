@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * study_order.c - `mcflab order`: the temporal order of each scheme by the
  * protocol of docs/MATH.md: the error at a fixed final time against a fine

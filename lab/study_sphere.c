@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * study_sphere.c - `mcflab sphere`: each scheme on an icosphere against the
  * sphere law R(t) = sqrt(R0^2 - 4t) (and its volume), the implicit schemes

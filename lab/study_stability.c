@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * study_stability.c - `mcflab stability`: per scheme, the largest dt whose
  * run of a few steps ends acceptably (no failure, NaN or face folded in a

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * config.c - mcfd's configuration: embedded defaults, then MCFD_*
  * environment variables, then command-line flags (the last word wins).

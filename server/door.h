@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * door.h - what main.c knows of a door of mcfd (the REST door, rest_door.h;
  * the gRPC door, grpc_door.h): one face for both, so the process starts,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fds.c - the daemon's descriptors. Clients must never take the last
  * ones: without a descriptor the spool cannot write a job's state, the

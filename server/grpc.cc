@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc.cc - the gRPC door of mcfd behind grpc_door.h: its state, start
  * (gRPC's server without a listening port, fed by the gate, h2gate.c),

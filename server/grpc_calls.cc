@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc_calls.cc - the gRPC door's calls (grpc_internal.h): Smooth
  * (upload, then follow its job), SubmitJob (upload, answer the Job),

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc_door.h - the gRPC door of mcfd (server/grpc*.cc, the only C++ in
  * server/, sharing grpc_internal.h): api/mcfd.proto's mcfd.v1.Smoother served on --grpc-port with

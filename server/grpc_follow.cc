@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc_follow.cc - the gRPC door's answers (grpc_internal.h): Follow, a
  * job followed to its end and written one message at a time (progress,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc_internal.h - what the gRPC door's files share (never included
  * outside them): the door's state, its status and message helpers, and

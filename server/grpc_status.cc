@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc_status.cc - the gRPC door's helpers (grpc_internal.h): statuses
  * from the service's errors (service.h's table, with `mcf-code` and

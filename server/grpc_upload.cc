@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * grpc_upload.cc - the uploads of the gRPC door's Smooth and SubmitJob
  * (grpc_internal.h): a streaming call's place among the door's (Slot:

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * h2gate.c - the gRPC door's socket, in front of gRPC (h2gate.h): the
  * daemon listens, accepts and admits HTTP/2 connections, and relays each

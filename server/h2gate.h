@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * h2gate.h - the gRPC door's socket: the daemon listens, accepts and
  * admits HTTP/2 connections itself, and relays each admitted one to the

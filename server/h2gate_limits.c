@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * h2gate_limits.c - the gate's accounting (h2gate.h, "The limits"): the
  * client addresses with their connections and streams, which new

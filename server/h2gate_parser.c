@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * h2gate_parser.c - the gate's HTTP/2 frame parser, one per connection
  * (h2gate.h, "The parser"). It checks the client preface, then moves the

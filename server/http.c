@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * http.c - the REST door's entry points on libmicrohttpd: the URI, request,
  * completion and connection callbacks, connection bookkeeping (the header

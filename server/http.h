@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * http.h - the REST door of mcfd on libmicrohttpd, shared by its files
  * (http.c, upload.c, jobroutes.c, waiter.c, stream.c, reply.c, ui.c); its

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * jobroutes.c - the REST door's answers about jobs: a /smooth request
  * waiting on its job (the result, multipart/mixed, or an ndjson stream

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * log.c - structured logging: one JSON object per line on stderr.
  *

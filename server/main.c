@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * main.c - mcfd's process: configuration, the job service and its two
  * doors (door.h: REST and gRPC, started, ticked, drained and stopped

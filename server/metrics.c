@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * metrics.c - Prometheus counters, histograms and gauges of mcfd.
  *

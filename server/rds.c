@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rds.c - mcfd's Redis client on hiredis 0.14 (rds.h says what it adds):
  * connect with a deadline, AUTH from a file, SELECT, commands and

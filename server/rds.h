@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rds.h - mcfd's Redis client: connections to one Redis server on Debian's
  * hiredis 0.14, for the job store that replicas share (issue 22). hiredis

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rds_pool.c - connections to one Redis server for many threads (rds.h):
  * n connections made up front (each connects at its first command), lent

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * recovery.c - the job service at start: every job of the store back
  * into the table. Queued jobs, and jobs that were running when the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * reply.c - what the REST client reads: responses (queued and counted),
  * errors as RFC 9457 problem+json documents (their status and code from

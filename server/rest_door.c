@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rest_door.c - the REST door's face (rest_door.h, door.h): its state
  * made and freed, libmicrohttpd started on the bound address with the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rest_door.h - the REST door of mcfd (http.c and the files of http.h, on
  * libmicrohttpd): the HTTP API of api/openapi.yaml, the page, the probes

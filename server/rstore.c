@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rstore.c - the job store in Redis (rstore.h says the keys and the
  * semantics): opening it, the helpers both files use, and the records and

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rstore.h - the job store in Redis that any number of mcfd replicas
  * share (issue 22): job records, the queue, result blobs, progress and

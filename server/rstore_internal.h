@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rstore_internal.h - what rstore.c and rstore_queue.c share: the store's
  * state, the keys of a job, the Lua helpers of the scripts, and the calls

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * rstore_queue.c - the job store in Redis, its queue (rstore.h says the
  * semantics): pushing, claiming and taking a job, acknowledging, dropping,

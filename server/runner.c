@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * runner.c - one job, start to end, on a worker thread: reads the input
  * back from the store, runs the job (api_job_run: decode, check, smooth

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * sandbox.c - untrusted Draco streams are decoded in a child process with
  * a CPU limit, an address-space limit and a wall-clock deadline.

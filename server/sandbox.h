@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * sandbox.h - decoding untrusted meshes in a child process with CPU,
  * memory and wall-clock limits (sandbox.c says why and how).

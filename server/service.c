@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * service.c - the job service's life and table (service.h): the service
  * object and its lifecycle (start, drain, close, checkpoint, stop), the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * service.h - the job service of mcfd: the one module that owns jobs
  * (table, queue, workers, runner, store, recovery, drain), and the only

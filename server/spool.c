@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * spool.c - the local store of the job service (store.h): every job a
  * directory on disk, the queue in memory.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * srv.h - the daemon's own declarations, shared by the files of mcfd:
  * configuration, logging and clocks, descriptors, the Prometheus

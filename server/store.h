@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * store.h - where the job service keeps its jobs: the records, the queue,
  * the result blobs, and the progress of running jobs. One small interface

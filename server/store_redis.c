@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * store_redis.c - the job service's store (store.h) in Redis: the
  * operations of rstore.c behind the store's table, plus what the service

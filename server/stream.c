@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * stream.c - response bodies that follow a job while it runs: ndjson for
  * POST /smooth?stream=ndjson and Server-Sent Events for

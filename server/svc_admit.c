@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_admit.c - memory admission of the job service's jobs: each job carries an estimate of its
  * peak memory (api_estimate_memory, made from what its input declares);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_admit.h - memory admission of the job service's jobs (svc_admit.c
  * says how).

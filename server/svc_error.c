@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_error.c - the job service's errors (service.h): the columns of the
  * one table of client-visible errors (SVC_PROBLEMS), code names, and

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_internal.h - what the files of the job service share, and only
  * they: the service object, the job struct, and each file's part.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_job.c - a job's life in the job service: references,
  * subscriptions, progress events, and every change of its status, each

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_read.c - the job service's readers (service.h): snapshots (with the
  * parameters and the metrics document: everything a door shows), the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * svc_state.c - what the job service keeps of a job in its store, to
  * text and back, from plain copies and without a lock: request.json (what

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * ui.c - the page mcfd serves to try it in a browser: GET / and
  * /ui/NAME, the files of web/ and three.js embedded at build time

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * upload.c - request bodies of the REST door: the checks of an upload's
  * head (415, 413, and 503 when busy or draining, answered before the body

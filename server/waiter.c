@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * waiter.c - connections of the REST door that wait on a job: the
  * service's subscription callback resumes them, and the main thread's

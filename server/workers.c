@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * workers.c - the job service's worker pool: plain pthreads that claim
  * jobs from the store's queue in order, start them, run them (runner.c)

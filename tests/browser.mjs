@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // browser.mjs - what the page's browser test (tests/test_ui.mjs) and its
 // measurement on a large scan (bench/bench_ui.mjs) share: Debian's chromium
 // as the team runs it here, and an mcfd on a free loopback port.

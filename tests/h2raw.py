@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """h2raw.py - a raw HTTP/2 client for the attack tests of mcfd's gRPC door.
 
 Frames are written by hand (RFC 9113) and header blocks are HPACK literals

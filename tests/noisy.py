@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """noisy.py - a noisy copy of a test mesh, for the Python tests (the C
 tests have testlib's tl_write_noisy). Debian's /usr/bin/python3 and numpy."""
 import numpy as np

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * redisd.c - a real redis-server for the Redis store's tests (redisd.h).
  */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * redisd.h - a real redis-server for the tests of the Redis store
  * (test_redis, test_rstore): Debian's 7.0, which `make deps` installs,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * srvlib.c - the helpers of the daemon's integration tests (srvlib.h).
  */

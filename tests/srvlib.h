@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * srvlib.h - what the daemon's integration tests share (test_server*.c):
  * starting and stopping real mcfd processes on loopback, HTTP exchanges

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_draco.c - the Draco bridge (api_draco.cc).
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_fields.c - the fields document (api_fields.c) on meshes whose
  * fields are known in closed form: an icosphere of radius 1 and the same

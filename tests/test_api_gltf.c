@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_gltf.c - glTF 2.0 and GLB (api_gltf_decode.c, api_gltf.cc,
  * api_gltf_encode.c).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_json.c - the JSON builders of api_json.c: every field carries
  * the value of the struct it came from (checked after printing and

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_mesh.c - the byte buffer (api_buf.c), the default limits
  * (api_limits.c), format detection and naming and the decode/encode

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_obj.c - the OBJ reader and writer (api_obj.c).
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_pack.c - the decode sandbox's record (api_pack.c) and the
  * memory estimate (api_estimate.c).

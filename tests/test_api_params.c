@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_params.c - job parameters (api_params.c): every key accepted
  * and refused, the three sources (api_params_set, JSON, query string)

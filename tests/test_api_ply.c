@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_ply.c - the PLY reader and writer (api_ply.c).
  *

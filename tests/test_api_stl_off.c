@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_stl_off.c - the STL (api_stl.c) and OFF (api_off.c) codecs.
  *

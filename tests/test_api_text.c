@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_api_text.c - the helpers the mesh codecs share (api_internal.h):
  * the text helpers of api_text.c, the inline byte helpers, and the

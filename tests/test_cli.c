@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_cli.c - the `mcf` tool end to end: runs $MCF_BUILD/mcf (default
  * build/mcf) as a child process on the real meshes and checks exit codes,

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_client.py - the Python client (clients/python, mcfd_client) against
 real daemons, through both doors: installed with pip from the repository
 (no protoc: the stubs travel in the package), every kind of mesh in and

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_contract.py - the three descriptions of the API agree, and hold.
 
 The job parameters are described three times: the table in api/api_params.c

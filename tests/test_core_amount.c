@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_amount.c - the amount of smoothing on real scans: the default
  * (strength, in mean edges) reduces the error of injected noise, the rules

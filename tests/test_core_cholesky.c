@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_cholesky.c - the implicit schemes' solver (core/mcf_cholesky.c:
  * CHOLMOD's supernodal factor of the pre-permuted lower triangle, our own

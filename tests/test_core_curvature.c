@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_curvature.c - discrete curvatures of libmcf: vertex normals,
  * mean curvature (cotan), Gaussian curvature (angle deficit), |A|^2, the

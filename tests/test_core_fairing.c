@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_fairing.c - the fairing filters (core/mcf_fairing.c), the
  * default of a request that names no scheme:

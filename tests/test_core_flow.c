@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_flow.c - the integrators: measured temporal order by the
  * MATH.md protocol, the sphere radius law, the neumann2 erratum, fixed

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_laplacian.c - the operators against trivially correct
  * references: symmetry, zero row sums and PSD of L on noisy and degenerate

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_core_mesh.c - the mesh object of libmcf: construction and its
  * refusals, icospheres, mcf_mesh_inspect on hand-made cases and on the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_docker.c - docker/compose.yaml and docker/kubernetes.yaml (and
  * their Redis-store variants, compose-redis.yaml, kubernetes-redis.yaml) parse

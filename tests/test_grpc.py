@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_grpc.py - the gRPC door of mcfd, end to end: the real daemon, a real
 gRPC client (Debian's python3-grpcio on /usr/bin/python3).
 

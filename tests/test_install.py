@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_install.py - `make install` and `make uninstall` into a DESTDIR: mcf
 and mcfd land in PREFIX/bin with their man pages (made from their --help)
 and the licence and API contracts in PREFIX/share/doc/mcfd; the installed

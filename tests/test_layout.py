@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_layout.py - the README's "Layout" section stays true.
 
 The section is one indented block: an entry starts at the block's left

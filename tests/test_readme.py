@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_readme.py - the README's examples run as shown.
 
 The README marks each code block: `<!-- example -->` (a shell script that

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_redis.c - mcfd's Redis client (server/rds.c) against a real
  * redis-server: Debian's 7.0, which `make deps` installs, started by this

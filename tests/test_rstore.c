@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_rstore.c - the job store in Redis (server/rstore.c) against a real
  * redis-server (tests/redisd.c: AOF on, its own directory, a free loopback

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_server.c - integration tests of mcfd: the real daemon, started as
  * a child process on a loopback port, driven with libcurl.

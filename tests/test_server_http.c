@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_server_http.c - integration tests of mcfd's REST door against
  * hostile or careless clients: multipart edge cases, request framing,

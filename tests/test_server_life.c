@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_server_life.c - integration tests of mcfd's life: the SIGTERM
  * drain, the checkpoint of running jobs, cancels that survive a shutdown,

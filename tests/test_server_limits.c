@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_server_limits.c - integration tests of mcfd's memory and CPU
  * bounds: the step log and the events of long runs, the quantization cap,

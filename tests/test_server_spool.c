@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_server_spool.c - integration tests of mcfd's spool under failure:
  * write errors, quotas, a full or read-only filesystem, descriptor

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_service.c - the job service (server/service.h) driven in-process,
  * with no door: two service objects at once, each with its own temporary

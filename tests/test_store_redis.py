@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """test_store_redis.py - mcfd with its jobs in Redis (--store redis://...),
 end to end: a real redis-server (Debian's, installed by `make deps`) on a
 free loopback port with its append-only file on, in a folder of its own,

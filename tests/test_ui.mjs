@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // test_ui.mjs - the page mcfd serves, in a real browser: Debian's chromium
 // (headless, SwiftShader's software WebGL) driven by puppeteer-core, against
 // a daemon started here on a free loopback port with a token file.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * testlib.c - the helpers of testlib.h: locating the test meshes (in the
  * repository, else in $MCF_MESHES, else skipping the test), reading files,

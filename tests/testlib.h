@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * testlib.h - helpers shared by every cmocka test binary of mcfd.
  *

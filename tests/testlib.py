@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """testlib.py - what the Python tests of mcfd share (testlib.c's counterpart).
 
 - paths: ROOT (the top of the tree), BUILD ($MCF_BUILD, default build/),

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // api.js - the page's client of the mcfd REST API: JSON calls with the
 // bearer token the user typed, job submission, the job's Server-Sent Events
 // read through fetch (EventSource cannot send an Authorization header), and

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // app.js - the page's controller: the parameter form (from GET /v1/schemes),
 // the job (submit, progress from its events, cancel), the before/after
 // views coloured by the job's per-vertex fields, the metrics table and the

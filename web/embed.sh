@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # web/embed.sh - the page's files as C (build/server/ui_assets.c; server/ui.c
 # serves them): embed.sh OUT PATH=FILE...  Each PATH (the URL path, "/" or
 # /ui/NAME) gets FILE's bytes, a media type from FILE's extension and an

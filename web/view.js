@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // view.js - the before/after viewers: two WebGL canvases sharing one orbit
 // camera (so they always show the same side), each mesh one indexed
 // BufferGeometry made from the fields document's typed arrays (one draw

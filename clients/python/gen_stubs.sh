@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # clients/python/gen_stubs.sh [OUTDIR] - the Python stubs of api/mcfd.proto
 # (mcfd_pb2.py, mcfd_pb2_grpc.py) into OUTDIR (default: the package's
 # mcfd_client/_proto, where they are committed: `make python-stubs`).

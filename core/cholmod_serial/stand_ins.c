@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * stand_ins.c - what the private copy of CHOLMOD calls instead of libgomp
  * and of SuiteSparse's clock. The Makefile renames these references in

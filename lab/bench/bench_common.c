@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * bench_common.c - the machine header, medians, percentiles, file reading
  * and mesh loading shared by the lab/bench/ programs (contracts in

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * bench_common.h - helpers shared by the lab/bench/ programs: the machine and
  * date header every benchmark prints first (so runs of different programs

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * bench_core.c - `make bench`: libmcf against the Eigen peer, measured in
  * the same run, as ratios.

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """bench_grpc.py - `make bench`, the gRPC door's part (issue 10): gRPC Smooth
 against REST POST /smooth and `mcf smooth` on the same meshes, measured in
 the same run on one mcfd (--workers 1, loopback).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * bench_peers.c - `make bench` (peers section): mcfd against CGAL's
  * smooth_shape and the Eigen peer at equal work and at equal accuracy, and

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * bench_quality.c - `make quality` (issue 16): how close to the clean
  * surface a noisy scan comes back, for the default request, every scheme

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * bench_server.c - `make bench`, the daemon's part (issue 4, Performance):
  * mcfd over HTTP on loopback, driven with libcurl, against `mcf smooth`,

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """bench_store.py - what keeping jobs in Redis (mcfd --store redis://) costs
 per async job against the local spool (issue 22), one mcfd of each on this
 machine, measured in the same run, interleaved and repeated.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // bench_ui.mjs - the page on a large scan in headless chromium (software
 // WebGL, SwiftShader, on the CPU): load to first frame and frame time.
 //

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * cgal_peer.cpp - the CGAL peer of the benchmark: smooth_shape on a
  * CGAL::Surface_mesh<Simple_cartesian<double>::Point_3>, called the way the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * cgal_peer.h - the benchmark's CGAL peer: CGAL 5.5's
  * Polygon_mesh_processing::smooth_shape on a Surface_mesh, exactly as a

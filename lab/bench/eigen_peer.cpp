@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * eigen_peer.cpp - the Eigen peer of `make bench`: a straightforward mean
  * curvature flow step as libigl's tutorial (cotmatrix + massmatrix +

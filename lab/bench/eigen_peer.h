@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * eigen_peer.h - the benchmark's peer: one mean curvature flow step done
  * the way libigl's tutorial and pmp-library do it, with Eigen.

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """o3d_taubin.py - Open3D's filter_smooth_taubin for bench_quality (make quality).
 
 A coprocess: bench_quality starts it once and writes one line per case on

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * peer_selftest.cpp - checks the Eigen peer (eigen_peer.cpp) against a
  * trivially correct dense reference before `make bench` trusts its times.

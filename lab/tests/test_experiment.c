@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * test_experiment.c - the lab's flow studies end to end: runs
  * $MCF_BUILD/lab/mcflab (default build/lab/mcflab) on small icospheres (and the 812-vertex

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_common.h - what the libFuzzer targets of tests/fuzz/ share: the
  * entry point's prototype (-Wmissing-prototypes) and the harness of the

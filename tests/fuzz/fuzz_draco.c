@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_draco.c - libFuzzer target: api_draco_decode_attrs on arbitrary bytes, a
  * decoded mesh inspected too (the harness: fuzz_common.h).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_gltf.c - libFuzzer target: api_gltf_decode_attrs on arbitrary bytes
  * (GLB or .gltf: the checks, tinygltf, the accessor reads, Draco

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_h2gate.c - libFuzzer target: the gRPC door's gate (server/
  * h2gate_parser.c, h2gate_limits.c) on arbitrary client bytes, driven as

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_off.c - libFuzzer target: api_off_decode on arbitrary bytes, a
  * decoded mesh inspected too (the harness: fuzz_common.h).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_params.c - libFuzzer target: api_params_parse_json on arbitrary
  * bytes (default limits: size and depth bounded as in production). Parsed

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_ply.c - libFuzzer target: api_ply_decode_attrs on arbitrary bytes, a
  * decoded mesh inspected too (the harness: fuzz_common.h).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_query.c - libFuzzer target: api_params_parse_query on an arbitrary
  * NUL-terminated string (the bytes up to the first NUL), with the keys a

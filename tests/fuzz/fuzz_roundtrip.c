@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_roundtrip.c - libFuzzer target: api_mesh_decode (format detected
  * from the bytes) -> api_mesh_encode in the same format -> decode again.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * fuzz_stl.c - libFuzzer target: api_stl_decode on arbitrary bytes, a
  * decoded mesh inspected too (the harness: fuzz_common.h).

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """make_h2gate_seeds.py - regenerates tests/fuzz/corpus_h2gate/: what gRPC
 clients (and the attacks of tests/test_grpc.py) send to the gRPC door,
 written with tests/h2raw.py, each behind the three control bytes

@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # make_seeds.sh - regenerates the seed corpora tests/fuzz/corpus_<name>/.
 #
 # Every seed is a small file written here (a tetrahedron, a cube of quads,

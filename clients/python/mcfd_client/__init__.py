@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """mcfd_client - smooth meshes with an mcfd daemon, over REST or gRPC.
 
     import mcfd_client

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """mcfd_client._grpc - one smoothing job through the gRPC door (Smooth).
 
 The upload is a SmoothHeader with typed Params, then the mesh (and the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """mcfd_client._mesh - (vertices, faces) numpy arrays to and from PLY bytes.
 
 Arrays travel as binary little-endian PLY: float or double positions as the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """mcfd_client._rest - one smoothing job through the REST door (urllib only).
 
 POST /v1/smooth with a multipart body: the mesh, the parameters as the JSON

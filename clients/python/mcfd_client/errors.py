@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """mcfd_client.errors - the typed errors and warnings of the client.
 
 Every failure the daemon reports becomes an MCFDError subclass chosen by the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # bench_peers: error against wall time (work-precision); run in this folder: gnuplot peers-accuracy.gp
 set datafile separator ','
 set logscale xy

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # bench_peers: per-step time against dt at equal work; run in this folder: gnuplot peers-dt.gp
 set datafile separator ','
 set logscale xy

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # bench_peers: per-step time against vertex count (icospheres); run in this folder: gnuplot scaling.gp
 set datafile separator ','
 set logscale xy

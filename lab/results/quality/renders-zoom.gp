@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # bench_quality: clean / noisy / smoothed renders of stanford-bunny.obj at noise 0.25 (seed 1)
 # run in this folder: gnuplot renders-zoom.gp (needs the render-*.dat files bench_quality
 # writes and removes; rerun bench_quality to regenerate)
