@@ -8,8 +8,9 @@
 # (protobuf-compiler-grpc), the tools the C++ build already uses, and
 # committed, so that installing or running the client needs no protoc:
 # python3-grpc-tools would be the other way, but it bundles protoc 3.5.1,
-# which predates proto3 `optional` (mcfd.proto's Params need it). The one
-# edit: the gRPC module imports its messages relative to the package.
+# which predates proto3 `optional` (mcfd.proto's Params need it). The
+# edits: the gRPC module imports its messages relative to the package; both
+# start with the SPDX line.
 # tests/test_contract.py regenerates them and fails when the committed
 # copies differ from what the proto gives.
 set -eu
@@ -21,6 +22,8 @@ trap 'rm -rf "$tmp"' EXIT
 protoc -I"$top/api" --python_out="$tmp" --grpc_python_out="$tmp" \
     --plugin=protoc-gen-grpc_python="$(command -v grpc_python_plugin)" mcfd.proto
 mkdir -p "$out"
-cp "$tmp/mcfd_pb2.py" "$out/mcfd_pb2.py"
-sed 's/^import mcfd_pb2 as mcfd__pb2$/from . import mcfd_pb2 as mcfd__pb2/' \
-    "$tmp/mcfd_pb2_grpc.py" > "$out/mcfd_pb2_grpc.py"
+# the stubs carry the proto's licence line, as every source file does
+{ echo '# SPDX-License-Identifier: MIT'; cat "$tmp/mcfd_pb2.py"; } > "$out/mcfd_pb2.py"
+{ echo '# SPDX-License-Identifier: MIT'
+  sed 's/^import mcfd_pb2 as mcfd__pb2$/from . import mcfd_pb2 as mcfd__pb2/' "$tmp/mcfd_pb2_grpc.py"; } \
+    > "$out/mcfd_pb2_grpc.py"
