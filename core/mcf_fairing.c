@@ -35,7 +35,7 @@
  * is removed by a second SURE over the same steps for the tangential part
  * of the displacement, moved in the tangent planes and put back on the
  * surface (tangential_output). Creases found on the smoothed input are
- * smoothed along and held (creases). A guard (mcf__unfold, mcf_folds.c)
+ * smoothed along and held (mcf__creases, mcf_creases.c). A guard (mcf__unfold, mcf_folds.c)
  * then takes back every face of X the run folded (turned against the
  * input's same face and lying backwards in its neighbourhood): Y's
  * positions first, then halfway to the input, then the input's.
@@ -53,14 +53,7 @@
 
 enum { NPROBE = 6, NCOL = 3 + NPROBE };
 #define TANGENTIAL_FLOOR 0.12
-/* creases: measured on a box and a capped cylinder (90-degree edges,
- * every one found up to noise 0.25 and 90% at 0.5) against the shared
- * scans, whose sharpest ridges also pass 35 degrees: 40 degrees on the
- * smoothed surface, chains of 12 edges, 3 passes along them */
-#define CREASE_ANGLE 40.0
-#define CREASE_PASSES 3
-#define CREASE_MIN_EDGES 12
-#define CREASE_MAX_MOVE 2.0
+#define CREASE_MAX_MOVE 2.0 /* in noise levels: see mcf__fairing */
 /* the largest move of a vertex from the input, in noise levels: Gaussian
  * noise moves a vertex further than 3 of its deviations along the normal
  * once in 370; a filter that moves it further takes away shape (the
@@ -136,162 +129,6 @@ static double *alloc_d(fair_ctx *c, size_t n)
     return mcf__malloc(n ? n : 1, sizeof(double));
 }
 
-static void face_normal(const double *X, const int32_t *t, double *n);
-
-/* The slot of edge (a, b) in a's row of the graph (rows are sorted). */
-static int edge_slot(const mcf__graph *g, int a, int b)
-{
-    int lo = g->ptr[a], hi = g->ptr[a + 1] - 1;
-    while (lo <= hi) {
-        int mid = (lo + hi) / 2;
-        if (g->adj[mid] == b)
-            return mid;
-        if (g->adj[mid] < b)
-            lo = mid + 1;
-        else
-            hi = mid - 1;
-    }
-    return -1;
-}
-
-static int uf_find(int *up, int x)
-{
-    while (up[x] != x)
-        x = up[x] = up[up[x]];
-    return x;
-}
-
-/* Creases: the edges between two faces of the surface smoothed by 10
- * Taubin passes that meet at more than CREASE_ANGLE, kept where they form
- * chains of at least CREASE_MIN_EDGES (noise and a scan's isolated sharp
- * spots make short bits). The crease vertices are then held for the
- * surface's filter (marked in crease[], nv), those inside a chain (two
- * crease edges) first smoothed along it by CREASE_PASSES Taubin passes on the chain
- * alone (c->X0 updated); corners and chain ends stay (the guard puts a
- * crease vertex back where its smoothing folded a face). Returns the number
- * of crease vertices, -1 when out of memory. */
-static int creases(fair_ctx *c, const unsigned char *fixed, unsigned char *crease)
-{
-    const mcf__graph *g = &c->g;
-    int nv = c->nv, ne = g->ptr[nv], ncrease = 0;
-    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double)), *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    double *fn = mcf__malloc(3 * (size_t)c->nf, sizeof(double));
-    int *f1 = mcf__malloc((size_t)ne + 1, sizeof(int)), *cnt = mcf__calloc((size_t)ne + 1, sizeof(int));
-    int *up = mcf__malloc((size_t)nv, sizeof(int)), *size = mcf__calloc((size_t)nv, sizeof(int));
-    unsigned char *ce = mcf__calloc((size_t)ne + 1, 1);
-    int *cdeg = mcf__calloc((size_t)nv, sizeof(int));
-    if (!P || !tmp || !fn || !f1 || !cnt || !up || !size || !ce || !cdeg) {
-        ncrease = -1;
-        goto done;
-    }
-    memcpy(P, c->X0, 3 * sizeof(double) * (size_t)nv);
-    mcf__graph_taubin(g, fixed, P, 3, 10, tmp);
-    for (int f = 0; f < c->nf; f++) {
-        double *n = fn + 3 * (size_t)f;
-        face_normal(P, c->F + 3 * (size_t)f, n);
-        double l = sqrt(mcf__dot3(n, n));
-        for (int e = 0; e < 3; e++)
-            n[e] = l > 0.0 ? n[e] / l : 0.0;
-    }
-    /* the faces of every edge, in the slot of its smaller end's row */
-    double cosmax = cos(CREASE_ANGLE * MCF_PI / 180.0);
-    for (int f = 0; f < c->nf; f++)
-        for (int k = 0; k < 3; k++) {
-            int a = c->F[3 * f + k], b = c->F[3 * f + (k + 1) % 3];
-            if (a == b)
-                continue;
-            int t = edge_slot(g, a < b ? a : b, a < b ? b : a);
-            if (t < 0)
-                continue;
-            if (cnt[t] == 1 && mcf__dot3(fn + 3 * (size_t)f1[t], fn + 3 * (size_t)f) < cosmax)
-                ce[t] = 1;
-            if (cnt[t] == 0)
-                f1[t] = f;
-            else if (cnt[t] >= 1 && cnt[t] != 1)
-                ce[t] = 0;
-            cnt[t]++;
-        }
-    /* chains: components of the crease edges, short ones dropped */
-    for (int i = 0; i < nv; i++)
-        up[i] = i;
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t] && cnt[t] == 2)
-                up[uf_find(up, a)] = uf_find(up, g->adj[t]);
-            else
-                ce[t] = 0;
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t])
-                size[uf_find(up, a)]++;
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t] && size[uf_find(up, a)] < CREASE_MIN_EDGES)
-                ce[t] = 0;
-    /* both directions, the degrees along creases */
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t] && g->adj[t] > a) {
-                int u = edge_slot(g, g->adj[t], a);
-                if (u >= 0)
-                    ce[u] = 1;
-                cdeg[a]++;
-                cdeg[g->adj[t]]++;
-            }
-    for (int i = 0; i < nv; i++) {
-        crease[i] = cdeg[i] > 0;
-        ncrease += crease[i];
-    }
-    /* the chains' vertices smoothed along them (Taubin on the chain) */
-    if (ncrease > 0) {
-        static const double coef[2] = {MCF_TAUBIN_LAMBDA, MCF_TAUBIN_MU};
-        memcpy(P, c->X0, 3 * sizeof(double) * (size_t)nv);
-        for (int pass = 0; pass < CREASE_PASSES; pass++)
-            for (int h = 0; h < 2; h++) {
-                memcpy(tmp, P, 3 * sizeof(double) * (size_t)nv);
-                for (int i = 0; i < nv; i++) {
-                    if (cdeg[i] != 2 || fixed[i])
-                        continue;
-                    double avg[3] = {0, 0, 0};
-                    for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
-                        if (ce[t])
-                            for (int e = 0; e < 3; e++)
-                                avg[e] += 0.5 * tmp[3 * (size_t)g->adj[t] + e];
-                    /* across the chain only: its tangent (the two
-                     * neighbours' difference) part is dropped, so a
-                     * vertex stays where the scanner put it along the
-                     * crease (on coarse meshes with uneven edges, e.g.
-                     * car.drc, Taubin along the chain slid vertices by
-                     * whole edges) */
-                    double tan[3] = {0, 0, 0}, d[3], sign = 1.0;
-                    for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
-                        if (ce[t]) {
-                            for (int e = 0; e < 3; e++)
-                                tan[e] += sign * tmp[3 * (size_t)g->adj[t] + e];
-                            sign = -1.0;
-                        }
-                    for (int e = 0; e < 3; e++)
-                        d[e] = coef[h] * (avg[e] - tmp[3 * (size_t)i + e]);
-                    double tt = mcf__dot3(tan, tan), a = tt > 0.0 ? mcf__dot3(d, tan) / tt : 0.0;
-                    for (int e = 0; e < 3; e++)
-                        P[3 * (size_t)i + e] += d[e] - a * tan[e];
-                }
-            }
-        memcpy(c->X0, P, 3 * sizeof(double) * (size_t)nv);
-    }
-done:
-    free(P);
-    free(tmp);
-    free(fn);
-    free(f1);
-    free(cnt);
-    free(up);
-    free(size);
-    free(ce);
-    free(cdeg);
-    return ncrease;
-}
-
 /* The free set, degrees, weights, the input's normals and the probes. */
 static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
 {
@@ -313,7 +150,7 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     c->Xin = alloc_d(c, 3 * (size_t)nv);
     if (c->Xin)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
-    int ncrease = crease && c->Xin ? creases(c, fixed, crease) : -1;
+    int ncrease = crease && c->Xin ? mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease) : -1;
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;
@@ -538,14 +375,6 @@ static void weighted_r2(const fair_ctx *c, const double *Y, double *rn, double *
     }
     *rn = s;
     *rt = t;
-}
-
-static void face_normal(const double *X, const int32_t *t, double *n)
-{
-    double e1[3], e2[3];
-    mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
-    mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
-    mcf__cross3(e1, e2, n);
 }
 
 /* The closest point to p on triangle (a, b, c) (Ericson, Real-Time
