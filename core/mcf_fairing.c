@@ -94,11 +94,23 @@ typedef struct {
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
+    /* the run (mcf__fairing's phases) */
+    double hbar;               /* the mean edge */
+    int sure;                  /* the amount by SURE (else iterations) */
+    int cap;                   /* the most steps */
+    double s, s_t;             /* the noise levels, normal and tangential */
+    double *Y, *Ybest, *Yt;    /* 3*nv: the last step, SURE's best (normal,
+                                  tangential) */
+    int kbest, kbest_t;        /* their steps */
 } fair_ctx;
 
 static void fair_free(fair_ctx *c)
 {
     mcf__graph_free(&c->g);
+    free(c->X0);
+    free(c->Y);
+    free(c->Ybest);
+    free(c->Yt);
     free(c->Xin);
     free(c->crease);
     free(c->fx);
@@ -527,38 +539,24 @@ static void clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigne
     }
 }
 
-mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
-                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
-                        mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+/* The amount: iterations steps, or SURE with the noise level (c->s,
+ * c->s_t) read off the mesh or given; c->sure, c->cap. */
+static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
 {
-    fair_ctx c;
+    const mcf_flow_params *p = c->p;
+    mcf_flow_stats *st = c->st;
+    double hbar = c->hbar;
     mcf_status rc;
-    double *Y = NULL, *Ybest = NULL, *Yt = NULL;
-    memset(&c, 0, sizeof c);
-    c.p = p;
-    c.nv = nv;
-    c.nf = nf;
-    c.F = F;
-    c.st = st;
-    c.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
-    c.X0 = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    c.bytes += 3 * sizeof(double) * (size_t)nv;
-    if (!c.X0)
-        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-    memcpy(c.X0, X, 3 * sizeof(double) * (size_t)nv);
-    if ((rc = setup(&c, fixed, err)) != MCF_OK)
-        goto done;
-
-    /* the amount: iterations steps, or SURE with the noise level */
-    int sure = p->iterations <= 0;
-    int cap = p->iterations > 0 ? p->iterations
-              : (c.is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
-    if (cap > p->max_steps && !(p->iterations > 0))
-        cap = p->max_steps;
-    double s = 0.0, s_est = 0.0, s_t = 0.0;
-    if (sure) {
-        if ((rc = mcf__noise_levels(c.X0, F, nf, nv, c.fx, &s_est, &s_t, err)) != MCF_OK)
-            goto done;
+    c->sure = p->iterations <= 0;
+    c->cap = p->iterations > 0 ? p->iterations
+             : (c->is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
+    if (c->cap > p->max_steps && !(p->iterations > 0))
+        c->cap = p->max_steps;
+    c->s = c->s_t = 0.0;
+    if (c->sure) {
+        double s_est = 0.0, s_t = 0.0, s;
+        if ((rc = mcf__noise_levels(c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, err)) != MCF_OK)
+            return rc;
         s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
@@ -572,118 +570,155 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
          * CREASE_MAX_MOVE noise levels: more is the shape, not the noise
          * (a coarse mesh's zigzag "chains", car.drc: 0.27 units for noise
          * of 0.016) */
-        clamp_moves(&c, c.X0, CREASE_MAX_MOVE * s, c.crease);
+        clamp_moves(c, c->X0, CREASE_MAX_MOVE * s, c->crease);
         /* no noise (or nothing free): nothing to remove */
-        if (!(s > 0.0) || c.nfree == 0)
-            cap = 0;
+        if (!(s > 0.0) || c->nfree == 0)
+            c->cap = 0;
+        c->s = s;
+        c->s_t = s_t;
     }
-    st->t_target = cap;
-    c.ncol = sure ? NCOL : 3;
-    Y = alloc_d(&c, 3 * (size_t)nv);
-    Ybest = alloc_d(&c, 3 * (size_t)nv);
-    Yt = alloc_d(&c, 3 * (size_t)nv);
-    c.probe = sure ? alloc_d(&c, NPROBE * (size_t)(c.nfree ? c.nfree : 1)) : NULL;
-    if (!Y || !Ybest || !Yt || (sure && !c.probe)) {
-        rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-        goto done;
-    }
-    memcpy(Ybest, c.X0, 3 * sizeof(double) * (size_t)nv);
-    memcpy(Yt, c.X0, 3 * sizeof(double) * (size_t)nv);
-    if (sure) {
-        init_probes(&c);
-        st->sure = mcf__malloc((size_t)cap + 1, sizeof(double));
-        if (!st->sure) {
-            rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
-            goto done;
-        }
-    }
-    if (cap > 0 && (rc = c.is_explicit ? explicit_init(&c, err) : implicit_init(&c, err)) != MCF_OK)
-        goto done;
+    st->t_target = c->cap;
+    return MCF_OK;
+}
 
-    double sumw = (double)c.nfree, best = 0.0, best_t = 0.0;
-    int kbest = 0, kbest_t = 0;
-    if (sure) {
+/* The run's arrays, the probes, the SURE curve and the engine. */
+static mcf_status run_init(fair_ctx *c, mcf_error *err)
+{
+    int nv = c->nv;
+    c->ncol = c->sure ? NCOL : 3;
+    c->Y = alloc_d(c, 3 * (size_t)nv);
+    c->Ybest = alloc_d(c, 3 * (size_t)nv);
+    c->Yt = alloc_d(c, 3 * (size_t)nv);
+    c->probe = c->sure ? alloc_d(c, NPROBE * (size_t)(c->nfree ? c->nfree : 1)) : NULL;
+    if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
+    memcpy(c->Yt, c->X0, 3 * sizeof(double) * (size_t)nv);
+    if (c->sure) {
+        init_probes(c);
+        c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
+        if (!c->st->sure)
+            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
+    }
+    if (c->cap > 0)
+        return c->is_explicit ? explicit_init(c, err) : implicit_init(c, err);
+    return MCF_OK;
+}
+
+/* The steps, SURE after each (the normal and the tangential part), until
+ * K > 2 K* + 10 or the cap: c->Ybest, c->Yt at c->kbest, c->kbest_t. */
+static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+{
+    mcf_flow_stats *st = c->st;
+    double s = c->s, s_t = c->s_t, hbar = c->hbar, *Y = c->Y;
+    double sumw = (double)c->nfree, best = 0.0, best_t = 0.0;
+    mcf_status rc;
+    if (c->sure) {
         best = s * s * sumw; /* SURE(0): the input, trace sum w */
         best_t = 2.0 * s_t * s_t * sumw;
         st->sure[0] = best / sumw / (hbar * hbar);
         st->nsure = 1;
     }
-    for (int k = 1; k <= cap; k++) {
-        if (hook && hook(hook_ctx, k - 1, NULL)) {
-            rc = mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
-            goto done;
-        }
-        if (c.is_explicit) {
+    for (int k = 1; k <= c->cap; k++) {
+        if (hook && hook(hook_ctx, k - 1, NULL))
+            return mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
+        if (c->is_explicit) {
             double t0 = mcf_now();
-            mcf__graph_taubin(&c.g, c.fx, c.Z, c.ncol, 1, c.tmp);
+            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp);
             st->time_solve += mcf_now() - t0;
-        } else if ((rc = implicit_step(&c, err)) != MCF_OK) {
-            goto done;
+        } else if ((rc = implicit_step(c, err)) != MCF_OK) {
+            return rc;
         }
-        positions(&c, Y);
-        if (!sure) {
-            kbest = k;
+        positions(c, Y);
+        if (!c->sure) {
+            c->kbest = k;
         } else {
-            double rn, rt, tr = weighted_trace(&c);
-            weighted_r2(&c, Y, &rn, &rt);
+            double rn, rt, tr = weighted_trace(c);
+            weighted_r2(c, Y, &rn, &rt);
             double risk = rn - s * s * sumw + 2.0 * s * s * tr;
             /* the tangential part: two directions, the same smoother */
             double risk_t = rt - 2.0 * s_t * s_t * sumw + 4.0 * s_t * s_t * tr;
             st->sure[st->nsure++] = risk / sumw / (hbar * hbar);
             if (risk < best) {
                 best = risk;
-                kbest = k;
-                memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
+                c->kbest = k;
+                memcpy(c->Ybest, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
             if (risk_t < best_t) {
                 best_t = risk_t;
-                kbest_t = k;
-                memcpy(Yt, Y, 3 * sizeof(double) * (size_t)nv);
+                c->kbest_t = k;
+                memcpy(c->Yt, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
         }
-        if (hook && hook(hook_ctx, k, Y)) {
-            rc = mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
-            goto done;
-        }
-        if (sure && k > 2 * (kbest > kbest_t ? kbest : kbest_t) + 10)
+        if (hook && hook(hook_ctx, k, Y))
+            return mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
+        if (c->sure && k > 2 * (c->kbest > c->kbest_t ? c->kbest : c->kbest_t) + 10)
             break;
     }
-    if (!sure && cap > 0)
-        memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
-    st->steps = kbest;
-    st->tangential_steps = kbest_t;
-    /* the output along the normals of the filtered surface, relaxed in
-     * its tangent planes, guarded */
-    if (kbest == 0 && kbest_t == 0) {
+    if (!c->sure && c->cap > 0)
+        memcpy(c->Ybest, Y, 3 * sizeof(double) * (size_t)c->nv);
+    return MCF_OK;
+}
+
+/* The output into X: along the normals of the filtered surface, relaxed
+ * in its tangent planes, clamped, guarded. */
+static mcf_status output(fair_ctx *c, double *X, mcf_error *err)
+{
+    int nv = c->nv, nf = c->nf, left;
+    double s = c->s, s_t = c->s_t;
+    mcf_flow_stats *st = c->st;
+    mcf_status rc;
+    if (c->kbest == 0 && c->kbest_t == 0) {
         /* nothing to remove: the input as it came (crease vertices too) */
-        memcpy(X, c.Xin, 3 * sizeof(double) * (size_t)nv);
-        rc = MCF_OK;
-        goto done;
+        memcpy(X, c->Xin, 3 * sizeof(double) * (size_t)nv);
+        return MCF_OK;
     }
-    normal_output(&c, Ybest, X, Y);
-    if (kbest_t > 0 && (rc = tangential_output(&c, Yt, Y, X, err)) != MCF_OK)
-        goto done;
+    normal_output(c, c->Ybest, X, c->Y);
+    if (c->kbest_t > 0 && (rc = tangential_output(c, c->Yt, c->Y, X, err)) != MCF_OK)
+        return rc;
     /* no vertex moves further than MAX_MOVE noise levels (normal, and
      * both tangential parts when the result takes a tangential step)
      * from the input, nor do the guard's Y positions */
-    double rmax = MAX_MOVE * sqrt(s * s + (kbest_t > 0 ? 2.0 * s_t * s_t : 0.0));
+    double rmax = MAX_MOVE * sqrt(s * s + (c->kbest_t > 0 ? 2.0 * s_t * s_t : 0.0));
     if (rmax > 0.0) {
-        clamp_moves(&c, X, rmax, NULL);
-        clamp_moves(&c, Ybest, rmax, NULL);
+        clamp_moves(c, X, rmax, NULL);
+        clamp_moves(c, c->Ybest, rmax, NULL);
     }
-    int left;
-    if ((rc = mcf__unfold(X, c.Xin, Ybest, F, nf, nv, &st->guard_rounds, &st->guard_vertices, &left, err)) != MCF_OK)
-        goto done;
-    c.bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
-    rc = MCF_OK;
-done:
+    if ((rc = mcf__unfold(X, c->Xin, c->Ybest, c->F, nf, nv, &st->guard_rounds, &st->guard_vertices,
+                          &left, err)) != MCF_OK)
+        return rc;
+    c->bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
+    return MCF_OK;
+}
+
+mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
+                        mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+{
+    fair_ctx c;
+    mcf_status rc;
+    memset(&c, 0, sizeof c);
+    c.p = p;
+    c.nv = nv;
+    c.nf = nf;
+    c.F = F;
+    c.st = st;
+    c.hbar = hbar;
+    c.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
+    c.X0 = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    c.bytes += 3 * sizeof(double) * (size_t)nv;
+    if (!c.X0)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    memcpy(c.X0, X, 3 * sizeof(double) * (size_t)nv);
+    if ((rc = setup(&c, fixed, err)) == MCF_OK && (rc = plan_amount(&c, err)) == MCF_OK &&
+        (rc = run_init(&c, err)) == MCF_OK && (rc = run_steps(&c, hook, hook_ctx, err)) == MCF_OK) {
+        st->steps = c.kbest;
+        st->tangential_steps = c.kbest_t;
+        rc = output(&c, X, err);
+    }
     if (c.cm_started)
         c.bytes += c.cm.memory_usage;
     st->peak_bytes = c.bytes;
-    free(c.X0);
-    free(Y);
-    free(Ybest);
-    free(Yt);
     fair_free(&c);
     return rc;
 }
