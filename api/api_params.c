@@ -1,52 +1,24 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * api_params.c - job parameters from JSON, URL query strings and CLI
- * flags, through one table and one validation path.
+ * api_params.c - the job parameters' one table: per key its type, its
+ * range and the setter that stores the value, what each key means for
+ * people (api_params_describe, which the contract test holds against
+ * openapi.yaml and mcfd.proto), and the parameters as JSON.
  *
- * Every source ends in api_params_set(key, text): JSON numbers and
- * booleans are turned into text first, so "dt": "abc" in a JSON body and
- * dt=abc in a query string fail with the very same message. The table
- * below holds, per key, its type, its range and the setter that stores
- * the value; the "accepted" list of the unknown-key error and the range
- * text of every other error are generated from it, so they cannot drift.
- * A failing set leaves the parameters unchanged.
+ * Every source of a value ends in api_params_set(key, text)
+ * (api_params_parse.c): JSON numbers and booleans are turned into text
+ * first, so "dt": "abc" in a JSON body and dt=abc in a query string fail
+ * with the very same message. The "accepted" list of the unknown-key
+ * error and the range text of every other error are generated from the
+ * table, so they cannot drift. The rules that need the mesh are in
+ * api_params_finish.c.
  */
-#include <errno.h>
-#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-#include "api_internal.h"
-
-typedef enum {
-    K_NUM,      /* finite double, lo < x <= hi (or lo <= x with LO_INCL) */
-    K_INT,      /* integer lo..hi (hi from the limits with HI_ITER) */
-    K_BOOL,     /* true/false/1/0/yes/no */
-    K_ENUM,     /* one of names[] (value = index) */
-    K_SCHEME,   /* a scheme name (mcf_scheme_from_name) */
-    K_FORMAT,   /* obj|draco|ply|stl|off */
-    K_LIST      /* vertex indices: JSON array or comma/space separated */
-} kind;
-
-enum { LO_INCL = 1, AUTO = 2, HI_ITER = 4 };
-
-typedef union {
-    double d;
-    long long i;
-    int e;              /* bool, enum index, scheme, format */
-} value;
-
-typedef struct {
-    const char *name;
-    kind kind;
-    double lo, hi;
-    int flags;
-    const char *const *names;
-    void (*apply)(api_params *p, value v);
-} keydef;
+#include "api_params_internal.h"
 
 static const char *const boundary_names[] = {"fixed", "free", NULL};
 static const char *const rescale_names[] = {"none", "volume", "area", NULL};
@@ -126,7 +98,7 @@ static void set_ply_curvature(api_params *p, value v) { p->encode.ply_curvature 
 
 /* The one table. fixed_vertices has no apply: lists are stored by
  * set_list, which owns the array. */
-static const keydef keys[] = {
+const keydef api__param_keys[] = {
     {"scheme", K_SCHEME, 0, 0, 0, NULL, set_scheme},
     {"dt", K_NUM, 0, 1e3, AUTO, NULL, set_dt},
     {"iterations", K_INT, 1, 0, HI_ITER, NULL, set_iterations},
@@ -150,12 +122,13 @@ static const keydef keys[] = {
     {"ply_curvature", K_BOOL, 0, 0, 0, NULL, set_ply_curvature},
     {"ply_binary", K_BOOL, 0, 0, 0, NULL, set_ply_binary},
 };
-#define NKEYS (sizeof keys / sizeof keys[0])
+#define NKEYS (sizeof api__param_keys / sizeof api__param_keys[0])
+const size_t api__param_nkeys = NKEYS;
 
 /* given is a bit per key of the table */
 typedef char given_fits[NKEYS <= 32 ? 1 : -1];
 
-static const char *const format_names[] = {"obj", "draco", "ply", "stl", "off", "glb", "gltf", NULL};
+const char *const api__format_names[] = {"obj", "draco", "ply", "stl", "off", "glb", "gltf", NULL};
 
 /* What each key means, for people: the unit and one line of help, the
  * default in words where it is derived rather than a value, and whether it
@@ -205,29 +178,13 @@ static const keydoc docs[] = {
 
 /* --------------------------------------------------------------- helpers */
 
-static const keydef *find_key(const char *name)
+const keydef *api__param_find(const char *name)
 {
     size_t i;
     for (i = 0; i < NKEYS; i++)
-        if (strcmp(keys[i].name, name) == 0)
-            return &keys[i];
+        if (strcmp(api__param_keys[i].name, name) == 0)
+            return &api__param_keys[i];
     return NULL;
-}
-
-/* s shortened to fit an error message, control bytes as '?'. */
-static const char *shorten(const char *s, size_t max, char *out)
-{
-    size_t i, n = strlen(s), k = n > max ? max : n;
-    for (i = 0; i < k; i++) {
-        unsigned char c = (unsigned char)s[i];
-        out[i] = (c < 0x20 || c == 0x7f) ? '?' : (char)c;
-    }
-    if (n > k) {
-        memcpy(out + k, "...", 3);
-        k += 3;
-    }
-    out[k] = '\0';
-    return out;
 }
 
 static void join_names(char *out, size_t size, const char *const *names)
@@ -245,8 +202,8 @@ static void join_names(char *out, size_t size, const char *const *names)
 }
 
 /* What a key accepts, in words ("a number > 0 and <= 1000 or \"auto\""). */
-static void describe(const keydef *k, const api_limits *lim, char *out,
-                     size_t size)
+void api__param_accepts(const keydef *k, const api_limits *lim, char *out,
+                        size_t size)
 {
     char list[160];
     switch (k->kind) {
@@ -271,7 +228,7 @@ static void describe(const keydef *k, const api_limits *lim, char *out,
         break;
     case K_ENUM:
     case K_FORMAT:
-        join_names(list, sizeof list, k->kind == K_ENUM ? k->names : format_names);
+        join_names(list, sizeof list, k->kind == K_ENUM ? k->names : api__format_names);
         snprintf(out, size, "one of %s", list);
         break;
     case K_SCHEME: {
@@ -299,215 +256,6 @@ static void describe(const keydef *k, const api_limits *lim, char *out,
     }
 }
 
-/* The EINVAL of a bad value. shown: how to print the value (NULL: the
- * text in quotes). */
-static mcf_status bad_value(const keydef *k, const char *text,
-                            const char *shown, const api_limits *lim,
-                            mcf_error *err)
-{
-    char what[200], s[48];
-    describe(k, lim, what, sizeof what);
-    if (shown)
-        return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got %s",
-                         k->name, what, shown);
-    return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got \"%s\"",
-                     k->name, what, shorten(text, 40, s));
-}
-
-static int parse_ll(const char *t, long long *out)
-{
-    char *end;
-    long long v;
-    if (!*t || !(t[0] == '-' || (t[0] >= '0' && t[0] <= '9')))
-        return -1;
-    errno = 0;
-    v = strtoll(t, &end, 10);
-    if (*end || errno == ERANGE)
-        return -1;
-    *out = v;
-    return 0;
-}
-
-static int parse_bool(const char *t, int *out)
-{
-    if (!strcasecmp(t, "true") || !strcmp(t, "1") || !strcasecmp(t, "yes"))
-        *out = 1;
-    else if (!strcasecmp(t, "false") || !strcmp(t, "0") || !strcasecmp(t, "no"))
-        *out = 0;
-    else
-        return -1;
-    return 0;
-}
-
-/* Parses text for a scalar key: 0 and *v, or -1 (wrong type or range). */
-static int parse_value(const keydef *k, const char *t, const api_limits *lim,
-                       value *v)
-{
-    int i;
-    switch (k->kind) {
-    case K_NUM:
-        if ((k->flags & AUTO) && strcmp(t, "auto") == 0) {
-            v->d = NAN;
-            return 0;
-        }
-        if (api__parse_double(t, strlen(t), &v->d) != 0 || !isfinite(v->d))
-            return -1;
-        if (v->d > k->hi || ((k->flags & LO_INCL) ? v->d < k->lo : v->d <= k->lo))
-            return -1;
-        return 0;
-    case K_INT: {
-        long long hi = (k->flags & HI_ITER) ? lim->max_iterations : (long long)k->hi;
-        if ((k->flags & AUTO) && strcmp(t, "auto") == 0) {
-            v->i = -1; /* an integer key's "auto" (quantization_bits) */
-            return 0;
-        }
-        if (parse_ll(t, &v->i) != 0 || v->i < (long long)k->lo || v->i > hi)
-            return -1;
-        return 0;
-    }
-    case K_BOOL:
-        return parse_bool(t, &v->e);
-    case K_ENUM:
-        for (i = 0; k->names[i]; i++)
-            if (strcmp(t, k->names[i]) == 0) {
-                v->e = i;
-                return 0;
-            }
-        return -1;
-    case K_SCHEME: {
-        mcf_scheme s;
-        if (mcf_scheme_from_name(t, &s) != MCF_OK)
-            return -1;
-        v->e = (int)s;
-        return 0;
-    }
-    case K_FORMAT:
-        for (i = 0; format_names[i]; i++)
-            if (strcmp(t, format_names[i]) == 0) {
-                v->e = (int)api_format_from_name(t);
-                return 0;
-            }
-        return -1;
-    case K_LIST:
-        break;
-    }
-    return -1;
-}
-
-static int is_sep(char c)
-{
-    return c == ',' || c == ' ' || c == '\t' || c == '\n' || c == '\r';
-}
-
-/* A list of vertex indices separated by commas and/or white space. */
-static mcf_status set_list(api_params *p, const keydef *k, const char *t,
-                           const api_limits *lim, mcf_error *err)
-{
-    const char *s;
-    size_t n = 0, i = 0, item = 0;
-    int32_t *a;
-
-    for (s = t; *s;) {
-        while (*s && is_sep(*s))
-            s++;
-        if (!*s)
-            break;
-        if (n >= (size_t)lim->max_fixed)
-            return api__fail(err, MCF_ELIMIT,
-                             "parameter '%s' has more than max_fixed (%d) indices",
-                             k->name, lim->max_fixed);
-        n++;
-        while (*s && !is_sep(*s))
-            s++;
-    }
-    a = malloc((n ? n : 1) * sizeof *a);
-    if (!a)
-        return api__fail(err, MCF_ENOMEM, "parameter '%s': no memory for %zu indices",
-                         k->name, n);
-    for (s = t; *s;) {
-        char tok[32], sh[48];
-        size_t len = 0;
-        long long v;
-        while (*s && is_sep(*s))
-            s++;
-        if (!*s)
-            break;
-        item++;
-        while (s[len] && !is_sep(s[len]))
-            len++;
-        if (len < sizeof tok) {
-            memcpy(tok, s, len);
-            tok[len] = '\0';
-        }
-        if (len >= sizeof tok || parse_ll(tok, &v) != 0 || v < 0 || v > INT32_MAX) {
-            char what[200], raw[40];
-            size_t rl = len < 33 ? len : 33;  /* shorten() marks the cut */
-            memcpy(raw, s, rl);
-            raw[rl] = '\0';
-            free(a);
-            describe(k, lim, what, sizeof what);
-            return api__fail(err, MCF_EINVAL,
-                             "parameter '%s' must be %s, got \"%s\" (item %zu)",
-                             k->name, what, shorten(raw, 32, sh), item);
-        }
-        a[i++] = (int32_t)v;
-        s += len;
-    }
-    free(p->fixed_owned);
-    p->fixed_owned = a;
-    p->flow.fixed = a;
-    p->flow.nfixed = (int)n;
-    return MCF_OK;
-}
-
-/* set with an optional display form of the value (JSON non-strings). */
-static mcf_status set_shown(api_params *p, const char *key, const char *text,
-                            const char *shown, const api_limits *lim,
-                            mcf_error *err)
-{
-    const keydef *k;
-    value v;
-
-    if (!key || !text)
-        return api__fail(err, MCF_EINVAL, "parameter: NULL key or value");
-    k = find_key(key);
-    if (!k) {
-        char list[256], s[48];
-        size_t used = 0, i, room;
-        list[0] = '\0';
-        for (i = 0; i < NKEYS; i++) {
-            int n = snprintf(list + used, sizeof list - used, "%s%s",
-                             i ? "," : "", keys[i].name);
-            if (n < 0 || (size_t)n >= sizeof list - used)
-                break;
-            used += (size_t)n;
-        }
-        /* The whole list fits in the message; the unknown name gets the
-         * room left (8 to 32 characters, then "..."). */
-        room = MCF_ERRMSG_SIZE - 1 - strlen("unknown parameter '...' (accepted: )");
-        room = room > used + 8 ? room - used : 8;
-        return api__fail(err, MCF_EINVAL, "unknown parameter '%s' (accepted: %s)",
-                         shorten(key, room < 32 ? room : 32, s), list);
-    }
-    if (!shown && text[0] == '\0')
-        return api__fail(err, MCF_EINVAL, "parameter '%s' has an empty value",
-                         k->name);
-    if (k->kind == K_LIST) {
-        mcf_status rc;
-        /* From JSON only an array ("[]" shown) or a string is a list. */
-        if (shown && strcmp(shown, "[]") != 0)
-            return bad_value(k, text, shown, lim, err);
-        if ((rc = set_list(p, k, text, lim, err)) == MCF_OK)
-            p->given |= 1u << (k - keys);
-        return rc;
-    }
-    if (parse_value(k, text, lim, &v) != 0)
-        return bad_value(k, text, shown, lim, err);
-    k->apply(p, v);
-    p->given |= 1u << (k - keys);
-    return MCF_OK;
-}
-
 /* ------------------------------------------------------------------ API */
 
 void api_params_init(api_params *p)
@@ -527,34 +275,6 @@ void api_params_init(api_params *p)
     p->strength_set = 0;
     p->flow_keys_set = 0;
     p->scheme_chosen = 0;
-}
-
-mcf_scheme api_default_scheme(long long nv)
-{
-    return nv > API_FAIRING_IMPLICIT_MAX ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
-}
-
-mcf_scheme api_params_scheme(const api_params *p, long long nv)
-{
-    if (!p)
-        return api_default_scheme(nv);
-    if (p->scheme_set || p->scheme_chosen)
-        return p->flow.scheme;
-    /* a request that sets a flow's parameters (time, dt, adaptive,
-     * laplacian, mass, rescale) and no scheme is a flow request, as
-     * before the fairing filter became the default: desbrun2 */
-    return p->flow_keys_set ? MCF_DESBRUN2 : api_default_scheme(nv);
-}
-
-static int is_fairing(mcf_scheme s)
-{
-    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
-}
-
-int api_params_auto_amount(const api_params *p)
-{
-    return p->flow.strength_auto ||
-           !(p->time_set || p->iterations_set || p->dt_set || p->strength_set);
 }
 
 void api_params_free(api_params *p)
@@ -581,433 +301,6 @@ mcf_status api_params_copy(api_params *dst, const api_params *src)
     dst->fixed_owned = a;
     if (a)
         dst->flow.fixed = a;
-    return MCF_OK;
-}
-
-mcf_status api_params_set(api_params *p, const char *key, const char *value_text,
-                          const api_limits *lim, mcf_error *err)
-{
-    api_limits def;
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    return set_shown(p, key, value_text, NULL, lim, err);
-}
-
-/* Depth of a parsed tree: a scalar is 0, {} or [] is 1. */
-static int json_depth(const cJSON *j)
-{
-    int best = 0;
-    const cJSON *c;
-    if (!cJSON_IsObject(j) && !cJSON_IsArray(j))
-        return 0;
-    for (c = j->child; c; c = c->next) {
-        int d = json_depth(c);
-        if (d > best)
-            best = d;
-    }
-    return best + 1;
-}
-
-/* Bracket depth of raw text (strings skipped), for a document cJSON
- * refused: nested past cJSON's own limit it is still an ELIMIT. */
-static int text_depth(const char *s, size_t n)
-{
-    int d = 0, best = 0, in_str = 0;
-    size_t i;
-    for (i = 0; i < n; i++) {
-        char c = s[i];
-        if (in_str) {
-            if (c == '\\')
-                i++;
-            else if (c == '"')
-                in_str = 0;
-        } else if (c == '"') {
-            in_str = 1;
-        } else if (c == '{' || c == '[') {
-            if (++d > best)
-                best = d;
-        } else if (c == '}' || c == ']') {
-            d--;
-        }
-    }
-    return best;
-}
-
-/* JSON number as the text the query string would carry. */
-static void number_text(double d, char *out, size_t size)
-{
-    if (d == floor(d) && fabs(d) < 1e15)
-        snprintf(out, size, "%.0f", d);
-    else
-        snprintf(out, size, "%.17g", d);
-}
-
-static mcf_status set_json_list(api_params *p, const char *key, const cJSON *arr,
-                                 const api_limits *lim, mcf_error *err)
-{
-    api_buf b;
-    const cJSON *c;
-    size_t item = 0;
-    mcf_status rc = MCF_OK;
-
-    api_buf_init(&b, 0);
-    for (c = arr->child; c; c = c->next) {
-        char num[40];
-        item++;
-        if (!cJSON_IsNumber(c)) {
-            const keydef *k = find_key(key);
-            char what[200];
-            describe(k, lim, what, sizeof what);
-            rc = api__fail(err, MCF_EINVAL,
-                           "parameter '%s' must be %s, got %s (item %zu)", key, what,
-                           cJSON_IsString(c) ? "a string" : cJSON_IsBool(c) ? "a boolean"
-                           : cJSON_IsNull(c) ? "null" : "a nested value", item);
-            goto done;
-        }
-        number_text(c->valuedouble, num, sizeof num);
-        if (api_buf_printf(&b, "%s%s", item > 1 ? "," : "", num) != MCF_OK) {
-            rc = api__fail(err, MCF_ENOMEM, "parameter '%s': no memory", key);
-            goto done;
-        }
-    }
-    /* An empty array is an empty list: nothing extra is fixed. */
-    rc = set_shown(p, key, b.data ? b.data : "", "[]", lim, err);
-done:
-    api_buf_free(&b);
-    return rc;
-}
-
-mcf_status api_params_set_json(api_params *p, const cJSON *obj,
-                               const api_limits *lim, mcf_error *err)
-{
-    api_limits def;
-    const cJSON *c;
-    mcf_status rc = MCF_OK;
-
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (!cJSON_IsObject(obj))
-        return api__fail(err, MCF_EINVAL, "parameters: the top level must be a JSON object");
-    for (c = obj->child; c && rc == MCF_OK; c = c->next) {
-        char num[40];
-        const char *key = c->string ? c->string : "";
-        if (cJSON_IsString(c))
-            rc = set_shown(p, key, c->valuestring, NULL, lim, err);
-        else if (cJSON_IsNumber(c)) {
-            number_text(c->valuedouble, num, sizeof num);
-            rc = set_shown(p, key, num, NULL, lim, err);
-        } else if (cJSON_IsBool(c))
-            rc = set_shown(p, key, cJSON_IsTrue(c) ? "true" : "false",
-                           cJSON_IsTrue(c) ? "true" : "false", lim, err);
-        else if (cJSON_IsArray(c) && strcmp(key, "fixed_vertices") == 0)
-            rc = set_json_list(p, key, c, lim, err);
-        else
-            rc = set_shown(p, key, "", cJSON_IsNull(c) ? "null"
-                           : cJSON_IsArray(c) ? "an array" : "an object", lim, err);
-    }
-    return rc;
-}
-
-mcf_status api_params_parse_json(api_params *p, const char *buf, size_t len,
-                                 const api_limits *lim, mcf_error *err)
-{
-    api_limits def;
-    char *copy = NULL;
-    const char *end = NULL;
-    cJSON *root = NULL;
-    mcf_status rc = MCF_OK;
-
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (len > lim->max_json_bytes)
-        return api__fail(err, MCF_ELIMIT,
-                         "parameters: %zu bytes of JSON exceed max_json_bytes (%zu)",
-                         len, lim->max_json_bytes);
-    /* cJSON wants the terminating NUL inside the length it is given. */
-    copy = malloc(len + 1);
-    if (!copy)
-        return api__fail(err, MCF_ENOMEM, "parameters: no memory");
-    if (len)
-        memcpy(copy, buf, len);
-    copy[len] = '\0';
-    root = cJSON_ParseWithLengthOpts(copy, len + 1, &end, 1);
-    if (!root) {
-        if (text_depth(copy, len) > lim->max_json_depth)
-            rc = api__fail(err, MCF_ELIMIT,
-                           "parameters: JSON nested deeper than max_json_depth (%d)",
-                           lim->max_json_depth);
-        else
-            rc = api__fail(err, MCF_EINVAL, "parameters: invalid JSON near byte %zu",
-                           end ? (size_t)(end - copy) : (size_t)0);
-        goto done;
-    }
-    if (end != copy + len) {
-        rc = api__fail(err, MCF_EINVAL, "parameters: NUL byte inside JSON at byte %zu",
-                       (size_t)(end - copy));
-        goto done;
-    }
-    if (json_depth(root) > lim->max_json_depth) {
-        rc = api__fail(err, MCF_ELIMIT,
-                       "parameters: JSON nested deeper than max_json_depth (%d)",
-                       lim->max_json_depth);
-        goto done;
-    }
-    rc = api_params_set_json(p, root, lim, err);
-done:
-    cJSON_Delete(root);
-    free(copy);
-    return rc;
-}
-
-static int hexval(char c)
-{
-    if (c >= '0' && c <= '9')
-        return c - '0';
-    if (c >= 'a' && c <= 'f')
-        return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F')
-        return c - 'A' + 10;
-    return -1;
-}
-
-/* Percent-decodes n bytes of s into out (n + 1 bytes); '+' is a space. */
-static int url_decode(const char *s, size_t n, char *out)
-{
-    size_t i, k = 0;
-    for (i = 0; i < n; i++) {
-        if (s[i] == '%') {
-            int hi, lo;
-            if (i + 2 >= n)
-                return -1;
-            hi = hexval(s[i + 1]);
-            lo = hexval(s[i + 2]);
-            if (hi < 0 || lo < 0 || (hi == 0 && lo == 0))
-                return -1;
-            out[k++] = (char)(hi * 16 + lo);
-            i += 2;
-        } else if (s[i] == '+') {
-            out[k++] = ' ';
-        } else {
-            out[k++] = s[i];
-        }
-    }
-    out[k] = '\0';
-    return 0;
-}
-
-mcf_status api_params_parse_query(api_params *p, const char *qs,
-                                  const char *const *ignore,
-                                  const api_limits *lim, mcf_error *err)
-{
-    api_limits def;
-    const char *s = qs;
-    char *key = NULL, *val = NULL;
-    mcf_status rc = MCF_OK;
-
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (!qs)
-        return MCF_OK;
-    while (*s && rc == MCF_OK) {
-        const char *amp = strchr(s, '&');
-        size_t seg = amp ? (size_t)(amp - s) : strlen(s);
-        const char *eq = memchr(s, '=', seg);
-        size_t klen = eq ? (size_t)(eq - s) : seg;
-        size_t vlen = eq ? seg - klen - 1 : 0;
-        int skip = 0, i;
-        char sh[48];
-
-        if (seg == 0) {     /* "a=1&&b=2", trailing '&' */
-            s += amp ? 1 : 0;
-            continue;
-        }
-        key = malloc(klen + 1);
-        val = malloc(vlen + 1);
-        if (!key || !val) {
-            rc = api__fail(err, MCF_ENOMEM, "query: no memory");
-            break;
-        }
-        if (url_decode(s, klen, key) != 0 || (eq && url_decode(eq + 1, vlen, val) != 0)) {
-            char raw[48];
-            size_t rl = seg < 40 ? seg : 40;
-            memcpy(raw, s, rl);
-            raw[rl] = '\0';
-            rc = api__fail(err, MCF_EINVAL, "query: bad percent-encoding in '%s'",
-                           shorten(raw, 40, sh));
-            break;
-        }
-        if (!eq)
-            val[0] = '\0';
-        if (key[0] == '\0') {
-            rc = api__fail(err, MCF_EINVAL, "query: a parameter without a name");
-            break;
-        }
-        for (i = 0; ignore && ignore[i]; i++)
-            if (strcmp(key, ignore[i]) == 0)
-                skip = 1;
-        if (!skip)
-            rc = set_shown(p, key, val, NULL, lim, err);
-        free(key);
-        free(val);
-        key = val = NULL;
-        s += seg + (amp ? 1 : 0);
-    }
-    free(key);
-    free(val);
-    return rc;
-}
-
-double api_params_steps(const api_params *p, const api_limits *lim,
-                        int *by_mesh)
-{
-    const mcf_flow_params *f = &p->flow;
-    /* unnamed and not chosen yet (before the mesh): desbrun2 for a flow
-     * request, else a fairing filter, which the mesh's size picks */
-    mcf_scheme s = api_params_scheme(p, 0);
-    int known = p->scheme_set || p->scheme_chosen || p->flow_keys_set,
-        mesh = 0;
-    /* Taubin's automatic pass count (api_params_auto_amount) */
-    int auto_passes = s == MCF_TAUBIN && f->iterations <= 0 &&
-                      api_params_auto_amount(p);
-    double n;
-
-    if (is_fairing(s) && f->iterations <= 0) {
-        /* the fairing filters' automatic amount stops at its cap (the
-         * larger one while the filter is not known), or at max_steps
-         * (which the work limit may lower) */
-        double cap = known && s == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS
-                                               : MCF_FAIRING_MAX_PASSES;
-        mesh = 1;
-        n = f->max_steps > 0 && f->max_steps < cap ? f->max_steps : cap;
-    } else if (!auto_passes && (s == MCF_TAUBIN || is_fairing(s) ||
-                                (!f->adaptive && !f->dt_auto && !(f->dt > 0.0))))
-        n = f->iterations > 0 ? f->iterations : MCF_DEFAULT_STEPS;
-    else if (!auto_passes && !f->adaptive && !f->dt_auto && f->time > 0.0)
-        n = ceil(f->time / f->dt - 1e-9);
-    else if (!auto_passes && !f->adaptive && f->iterations > 0 && f->time <= 0.0)
-        n = f->iterations;
-    else {
-        mesh = 1;
-        n = f->max_steps > 0 && f->max_steps < lim->max_iterations
-                ? f->max_steps : lim->max_iterations;
-    }
-    if (by_mesh)
-        *by_mesh = mesh;
-    return n;
-}
-
-/* time, dt and iterations say the same thing twice (mcf.h: "The amount
- * of smoothing"): with time and dt given, the steps are ceil(time / dt)
- * and iterations would be dropped without a word, and a dt over the time
- * would be cut to it. Refused, naming both, unless they agree. */
-static mcf_status amounts_agree(const api_params *p, mcf_error *err)
-{
-    const mcf_flow_params *f = &p->flow;
-    double steps;
-
-    if (!p->time_set || !(f->time > 0.0))
-        return MCF_OK;
-    if (f->dt_auto && p->iterations_set)
-        return api__fail(err, MCF_EINVAL,
-                         "parameters 'time' and 'iterations' contradict 'dt' = auto, which "
-                         "sets the steps itself: give dt=auto with time, or time with "
-                         "iterations");
-    if (!(f->dt > 0.0))
-        return MCF_OK;
-    if (f->dt > f->time * (1.0 + 1e-12))
-        return api__fail(err, MCF_EINVAL,
-                         "parameter 'dt' (%g) is larger than 'time' (%g): the run would be "
-                         "one step of the time; give a dt at most the time, or drop one",
-                         f->dt, f->time);
-    /* the core's own count (api_params_steps, the work bound's too) */
-    steps = ceil(f->time / f->dt - 1e-9);
-    if (p->iterations_set && steps != (double)f->iterations)
-        return api__fail(err, MCF_EINVAL,
-                         "parameters 'time' (%g) and 'dt' (%g) make %.0f steps, but "
-                         "'iterations' says %d: give two of the three",
-                         f->time, f->dt, steps, f->iterations);
-    return MCF_OK;
-}
-
-mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
-                             mcf_error *err)
-{
-    api_limits def;
-    double steps;
-    mcf_status rc;
-    int i, by_mesh;
-
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
-    if (p->tol_set && !p->flow.adaptive)
-        return api__fail(err, MCF_EINVAL,
-                         "parameter 'tol' applies to adaptive runs only: add adaptive=true or drop tol");
-    if (!p->scheme_set) {
-        p->scheme_chosen = 0;
-        p->flow.scheme = api_params_scheme(p, nv);
-        p->scheme_chosen = 1;
-    }
-    /* the fairing filters' strength: the noise level (mean edges) whose
-     * removal their amount optimizes; unset or auto: estimated */
-    if (is_fairing(p->flow.scheme))
-        p->flow.noise_sigma = p->strength_set && !p->flow.strength_auto ? p->flow.strength : 0.0;
-    for (i = 0; i < p->flow.nfixed; i++)
-        if (p->flow.fixed[i] < 0 || p->flow.fixed[i] >= nv)
-            return api__fail(err, MCF_EINVAL,
-                             "parameter 'fixed_vertices': index %ld out of range (0..%d)",
-                             (long)p->flow.fixed[i], nv - 1);
-    /* the MCF schemes' and Taubin's automatic amount (the fairing filters
-     * choose their own: noise_sigma above) */
-    if (!is_fairing(p->flow.scheme))
-        p->flow.strength_auto = api_params_auto_amount(p);
-    if ((rc = mcf_flow_params_check(&p->flow, nv, err)) != MCF_OK)
-        return rc;
-    if ((rc = amounts_agree(p, err)) != MCF_OK)
-        return rc;
-    if (nv < 1)
-        return api__fail(err, MCF_EINVAL, "mesh has no vertices");
-
-    /* Work bound: steps x vertices. When the parameters alone give the
-     * step count, it is checked here; when it depends on the mesh (its
-     * edge lengths, lambda_max, a fairing filter's estimated noise, or
-     * Taubin's automatic pass count), the core's hard cap max_steps is
-     * lowered to what the limits allow instead. */
-    steps = api_params_steps(p, lim, &by_mesh);
-    if (!by_mesh && steps > lim->max_iterations) {
-        /* iterations are bounded when parsed: time / dt */
-        return api__fail(err, MCF_EINVAL,
-                         "parameters 'time'/'dt' = %.3g steps exceeds max_iterations (%d)",
-                         steps, lim->max_iterations);
-    } else if (by_mesh && is_fairing(p->flow.scheme)) {
-        /* the automatic amount stops at its cap, max_steps or the work
-         * limit, whichever comes first */
-        double cap = p->flow.scheme == MCF_FAIRING ? MCF_FAIRING_MAX_STEPS : MCF_FAIRING_MAX_PASSES;
-        double room = floor(lim->max_work / nv);
-        if (room < cap && room < p->flow.max_steps)
-            p->flow.max_steps = room < 1 ? 1 : (int)room;
-        steps = fmin(cap, p->flow.max_steps);
-    } else if (by_mesh) {
-        double cap = floor(lim->max_work / nv);
-        if (cap < p->flow.max_steps)
-            p->flow.max_steps = cap < 1 ? 1 : (int)cap;
-        if (p->flow.max_steps > lim->max_iterations)
-            p->flow.max_steps = lim->max_iterations;
-        steps = p->flow.max_steps;
-    }
-    if (steps * (double)nv > lim->max_work)
-        return api__fail(err, MCF_ELIMIT,
-                         "work of %.0f steps x %d vertices = %.3g exceeds max_work (%.3g)",
-                         steps, nv, steps * (double)nv, lim->max_work);
     return MCF_OK;
 }
 
@@ -1048,7 +341,7 @@ cJSON *api_params_to_json(const api_params *p)
     if (p->flow.strength_auto)
         ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
     else if (p->strength_set ||
-             ((p->scheme_set || p->scheme_chosen) && !is_fairing(p->flow.scheme) && !api_params_auto_amount(p)))
+             ((p->scheme_set || p->scheme_chosen) && !api__is_fairing(p->flow.scheme) && !api_params_auto_amount(p)))
         ok &= cJSON_AddNumberToObject(j, "strength", p->flow.strength) != NULL;
     else
         ok &= cJSON_AddStringToObject(j, "strength", "auto") != NULL;
@@ -1096,8 +389,8 @@ cJSON *api_params_given_json(const api_params *p)
         return NULL;
     for (c = all->child; c; c = next) {
         next = c->next;
-        k = find_key(c->string);
-        if (!k || !(p->given & (1u << (k - keys))))
+        k = api__param_find(c->string);
+        if (!k || !(p->given & (1u << (k - api__param_keys))))
             cJSON_Delete(cJSON_DetachItemViaPointer(all, c));
     }
     return all;
@@ -1168,7 +461,7 @@ cJSON *api_params_describe(const api_limits *lim)
     dj = api_params_to_json(&fresh);
     ok &= dj != NULL;
     for (i = 0; ok && i < NKEYS; i++) {
-        const keydef *k = &keys[i];
+        const keydef *k = &api__param_keys[i];
         const keydoc *d = find_doc(k->name);
         cJSON *o = cJSON_CreateObject(), *dv;
         char what[200];
@@ -1184,7 +477,7 @@ cJSON *api_params_describe(const api_limits *lim)
         case K_LIST: type = "array"; break;
         default: break;
         }
-        describe(k, lim, what, sizeof what);
+        api__param_accepts(k, lim, what, sizeof what);
         ok &= cJSON_AddStringToObject(o, "name", k->name) != NULL;
         ok &= cJSON_AddStringToObject(o, "type", type) != NULL;
         ok &= cJSON_AddBoolToObject(o, "auto", (k->flags & AUTO) != 0) != NULL;
@@ -1199,7 +492,7 @@ cJSON *api_params_describe(const api_limits *lim)
         if (k->kind == K_ENUM)
             ok &= cJSON_AddItemToObject(o, "enum", string_array(k->names));
         else if (k->kind == K_FORMAT)
-            ok &= cJSON_AddItemToObject(o, "enum", string_array(format_names));
+            ok &= cJSON_AddItemToObject(o, "enum", string_array(api__format_names));
         else if (k->kind == K_SCHEME)
             ok &= cJSON_AddItemToObject(o, "enum", scheme_names());
         dv = default_json(k, &fresh, dj);

@@ -35,7 +35,7 @@
  * is removed by a second SURE over the same steps for the tangential part
  * of the displacement, moved in the tangent planes and put back on the
  * surface (tangential_output). Creases found on the smoothed input are
- * smoothed along and held (creases). A guard (mcf__unfold, mcf_folds.c)
+ * smoothed along and held (mcf__creases, mcf_creases.c). A guard (mcf__unfold, mcf_folds.c)
  * then takes back every face of X the run folded (turned against the
  * input's same face and lying backwards in its neighbourhood): Y's
  * positions first, then halfway to the input, then the input's.
@@ -53,14 +53,7 @@
 
 enum { NPROBE = 6, NCOL = 3 + NPROBE };
 #define TANGENTIAL_FLOOR 0.12
-/* creases: measured on a box and a capped cylinder (90-degree edges,
- * every one found up to noise 0.25 and 90% at 0.5) against the shared
- * scans, whose sharpest ridges also pass 35 degrees: 40 degrees on the
- * smoothed surface, chains of 12 edges, 3 passes along them */
-#define CREASE_ANGLE 40.0
-#define CREASE_PASSES 3
-#define CREASE_MIN_EDGES 12
-#define CREASE_MAX_MOVE 2.0
+#define CREASE_MAX_MOVE 2.0 /* in noise levels: see mcf__fairing */
 /* the largest move of a vertex from the input, in noise levels: Gaussian
  * noise moves a vertex further than 3 of its deviations along the normal
  * once in 370; a filter that moves it further takes away shape (the
@@ -101,11 +94,23 @@ typedef struct {
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
+    /* the run (mcf__fairing's phases) */
+    double hbar;               /* the mean edge */
+    int sure;                  /* the amount by SURE (else iterations) */
+    int cap;                   /* the most steps */
+    double s, s_t;             /* the noise levels, normal and tangential */
+    double *Y, *Ybest, *Yt;    /* 3*nv: the last step, SURE's best (normal,
+                                  tangential) */
+    int kbest, kbest_t;        /* their steps */
 } fair_ctx;
 
 static void fair_free(fair_ctx *c)
 {
     mcf__graph_free(&c->g);
+    free(c->X0);
+    free(c->Y);
+    free(c->Ybest);
+    free(c->Yt);
     free(c->Xin);
     free(c->crease);
     free(c->fx);
@@ -136,162 +141,6 @@ static double *alloc_d(fair_ctx *c, size_t n)
     return mcf__malloc(n ? n : 1, sizeof(double));
 }
 
-static void face_normal(const double *X, const int32_t *t, double *n);
-
-/* The slot of edge (a, b) in a's row of the graph (rows are sorted). */
-static int edge_slot(const mcf__graph *g, int a, int b)
-{
-    int lo = g->ptr[a], hi = g->ptr[a + 1] - 1;
-    while (lo <= hi) {
-        int mid = (lo + hi) / 2;
-        if (g->adj[mid] == b)
-            return mid;
-        if (g->adj[mid] < b)
-            lo = mid + 1;
-        else
-            hi = mid - 1;
-    }
-    return -1;
-}
-
-static int uf_find(int *up, int x)
-{
-    while (up[x] != x)
-        x = up[x] = up[up[x]];
-    return x;
-}
-
-/* Creases: the edges between two faces of the surface smoothed by 10
- * Taubin passes that meet at more than CREASE_ANGLE, kept where they form
- * chains of at least CREASE_MIN_EDGES (noise and a scan's isolated sharp
- * spots make short bits). The crease vertices are then held for the
- * surface's filter (marked in crease[], nv), those inside a chain (two
- * crease edges) first smoothed along it by CREASE_PASSES Taubin passes on the chain
- * alone (c->X0 updated); corners and chain ends stay (the guard puts a
- * crease vertex back where its smoothing folded a face). Returns the number
- * of crease vertices, -1 when out of memory. */
-static int creases(fair_ctx *c, const unsigned char *fixed, unsigned char *crease)
-{
-    const mcf__graph *g = &c->g;
-    int nv = c->nv, ne = g->ptr[nv], ncrease = 0;
-    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double)), *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    double *fn = mcf__malloc(3 * (size_t)c->nf, sizeof(double));
-    int *f1 = mcf__malloc((size_t)ne + 1, sizeof(int)), *cnt = mcf__calloc((size_t)ne + 1, sizeof(int));
-    int *up = mcf__malloc((size_t)nv, sizeof(int)), *size = mcf__calloc((size_t)nv, sizeof(int));
-    unsigned char *ce = mcf__calloc((size_t)ne + 1, 1);
-    int *cdeg = mcf__calloc((size_t)nv, sizeof(int));
-    if (!P || !tmp || !fn || !f1 || !cnt || !up || !size || !ce || !cdeg) {
-        ncrease = -1;
-        goto done;
-    }
-    memcpy(P, c->X0, 3 * sizeof(double) * (size_t)nv);
-    mcf__graph_taubin(g, fixed, P, 3, 10, tmp);
-    for (int f = 0; f < c->nf; f++) {
-        double *n = fn + 3 * (size_t)f;
-        face_normal(P, c->F + 3 * (size_t)f, n);
-        double l = sqrt(mcf__dot3(n, n));
-        for (int e = 0; e < 3; e++)
-            n[e] = l > 0.0 ? n[e] / l : 0.0;
-    }
-    /* the faces of every edge, in the slot of its smaller end's row */
-    double cosmax = cos(CREASE_ANGLE * MCF_PI / 180.0);
-    for (int f = 0; f < c->nf; f++)
-        for (int k = 0; k < 3; k++) {
-            int a = c->F[3 * f + k], b = c->F[3 * f + (k + 1) % 3];
-            if (a == b)
-                continue;
-            int t = edge_slot(g, a < b ? a : b, a < b ? b : a);
-            if (t < 0)
-                continue;
-            if (cnt[t] == 1 && mcf__dot3(fn + 3 * (size_t)f1[t], fn + 3 * (size_t)f) < cosmax)
-                ce[t] = 1;
-            if (cnt[t] == 0)
-                f1[t] = f;
-            else if (cnt[t] >= 1 && cnt[t] != 1)
-                ce[t] = 0;
-            cnt[t]++;
-        }
-    /* chains: components of the crease edges, short ones dropped */
-    for (int i = 0; i < nv; i++)
-        up[i] = i;
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t] && cnt[t] == 2)
-                up[uf_find(up, a)] = uf_find(up, g->adj[t]);
-            else
-                ce[t] = 0;
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t])
-                size[uf_find(up, a)]++;
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t] && size[uf_find(up, a)] < CREASE_MIN_EDGES)
-                ce[t] = 0;
-    /* both directions, the degrees along creases */
-    for (int a = 0; a < nv; a++)
-        for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
-            if (ce[t] && g->adj[t] > a) {
-                int u = edge_slot(g, g->adj[t], a);
-                if (u >= 0)
-                    ce[u] = 1;
-                cdeg[a]++;
-                cdeg[g->adj[t]]++;
-            }
-    for (int i = 0; i < nv; i++) {
-        crease[i] = cdeg[i] > 0;
-        ncrease += crease[i];
-    }
-    /* the chains' vertices smoothed along them (Taubin on the chain) */
-    if (ncrease > 0) {
-        static const double coef[2] = {MCF_TAUBIN_LAMBDA, MCF_TAUBIN_MU};
-        memcpy(P, c->X0, 3 * sizeof(double) * (size_t)nv);
-        for (int pass = 0; pass < CREASE_PASSES; pass++)
-            for (int h = 0; h < 2; h++) {
-                memcpy(tmp, P, 3 * sizeof(double) * (size_t)nv);
-                for (int i = 0; i < nv; i++) {
-                    if (cdeg[i] != 2 || fixed[i])
-                        continue;
-                    double avg[3] = {0, 0, 0};
-                    for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
-                        if (ce[t])
-                            for (int e = 0; e < 3; e++)
-                                avg[e] += 0.5 * tmp[3 * (size_t)g->adj[t] + e];
-                    /* across the chain only: its tangent (the two
-                     * neighbours' difference) part is dropped, so a
-                     * vertex stays where the scanner put it along the
-                     * crease (on coarse meshes with uneven edges, e.g.
-                     * car.drc, Taubin along the chain slid vertices by
-                     * whole edges) */
-                    double tan[3] = {0, 0, 0}, d[3], sign = 1.0;
-                    for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
-                        if (ce[t]) {
-                            for (int e = 0; e < 3; e++)
-                                tan[e] += sign * tmp[3 * (size_t)g->adj[t] + e];
-                            sign = -1.0;
-                        }
-                    for (int e = 0; e < 3; e++)
-                        d[e] = coef[h] * (avg[e] - tmp[3 * (size_t)i + e]);
-                    double tt = mcf__dot3(tan, tan), a = tt > 0.0 ? mcf__dot3(d, tan) / tt : 0.0;
-                    for (int e = 0; e < 3; e++)
-                        P[3 * (size_t)i + e] += d[e] - a * tan[e];
-                }
-            }
-        memcpy(c->X0, P, 3 * sizeof(double) * (size_t)nv);
-    }
-done:
-    free(P);
-    free(tmp);
-    free(fn);
-    free(f1);
-    free(cnt);
-    free(up);
-    free(size);
-    free(ce);
-    free(cdeg);
-    return ncrease;
-}
-
 /* The free set, degrees, weights, the input's normals and the probes. */
 static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
 {
@@ -313,7 +162,7 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     c->Xin = alloc_d(c, 3 * (size_t)nv);
     if (c->Xin)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
-    int ncrease = crease && c->Xin ? creases(c, fixed, crease) : -1;
+    int ncrease = crease && c->Xin ? mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease) : -1;
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;
@@ -540,14 +389,6 @@ static void weighted_r2(const fair_ctx *c, const double *Y, double *rn, double *
     *rt = t;
 }
 
-static void face_normal(const double *X, const int32_t *t, double *n)
-{
-    double e1[3], e2[3];
-    mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
-    mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
-    mcf__cross3(e1, e2, n);
-}
-
 /* The closest point to p on triangle (a, b, c) (Ericson, Real-Time
  * Collision Detection, 5.1.5) into q. */
 static void closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
@@ -698,38 +539,24 @@ static void clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigne
     }
 }
 
-mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
-                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
-                        mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+/* The amount: iterations steps, or SURE with the noise level (c->s,
+ * c->s_t) read off the mesh or given; c->sure, c->cap. */
+static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
 {
-    fair_ctx c;
+    const mcf_flow_params *p = c->p;
+    mcf_flow_stats *st = c->st;
+    double hbar = c->hbar;
     mcf_status rc;
-    double *Y = NULL, *Ybest = NULL, *Yt = NULL;
-    memset(&c, 0, sizeof c);
-    c.p = p;
-    c.nv = nv;
-    c.nf = nf;
-    c.F = F;
-    c.st = st;
-    c.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
-    c.X0 = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    c.bytes += 3 * sizeof(double) * (size_t)nv;
-    if (!c.X0)
-        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-    memcpy(c.X0, X, 3 * sizeof(double) * (size_t)nv);
-    if ((rc = setup(&c, fixed, err)) != MCF_OK)
-        goto done;
-
-    /* the amount: iterations steps, or SURE with the noise level */
-    int sure = p->iterations <= 0;
-    int cap = p->iterations > 0 ? p->iterations
-              : (c.is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
-    if (cap > p->max_steps && !(p->iterations > 0))
-        cap = p->max_steps;
-    double s = 0.0, s_est = 0.0, s_t = 0.0;
-    if (sure) {
-        if ((rc = mcf__noise_levels(c.X0, F, nf, nv, c.fx, &s_est, &s_t, err)) != MCF_OK)
-            goto done;
+    c->sure = p->iterations <= 0;
+    c->cap = p->iterations > 0 ? p->iterations
+             : (c->is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
+    if (c->cap > p->max_steps && !(p->iterations > 0))
+        c->cap = p->max_steps;
+    c->s = c->s_t = 0.0;
+    if (c->sure) {
+        double s_est = 0.0, s_t = 0.0, s;
+        if ((rc = mcf__noise_levels(c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, err)) != MCF_OK)
+            return rc;
         s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
@@ -743,118 +570,155 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
          * CREASE_MAX_MOVE noise levels: more is the shape, not the noise
          * (a coarse mesh's zigzag "chains", car.drc: 0.27 units for noise
          * of 0.016) */
-        clamp_moves(&c, c.X0, CREASE_MAX_MOVE * s, c.crease);
+        clamp_moves(c, c->X0, CREASE_MAX_MOVE * s, c->crease);
         /* no noise (or nothing free): nothing to remove */
-        if (!(s > 0.0) || c.nfree == 0)
-            cap = 0;
+        if (!(s > 0.0) || c->nfree == 0)
+            c->cap = 0;
+        c->s = s;
+        c->s_t = s_t;
     }
-    st->t_target = cap;
-    c.ncol = sure ? NCOL : 3;
-    Y = alloc_d(&c, 3 * (size_t)nv);
-    Ybest = alloc_d(&c, 3 * (size_t)nv);
-    Yt = alloc_d(&c, 3 * (size_t)nv);
-    c.probe = sure ? alloc_d(&c, NPROBE * (size_t)(c.nfree ? c.nfree : 1)) : NULL;
-    if (!Y || !Ybest || !Yt || (sure && !c.probe)) {
-        rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-        goto done;
-    }
-    memcpy(Ybest, c.X0, 3 * sizeof(double) * (size_t)nv);
-    memcpy(Yt, c.X0, 3 * sizeof(double) * (size_t)nv);
-    if (sure) {
-        init_probes(&c);
-        st->sure = mcf__malloc((size_t)cap + 1, sizeof(double));
-        if (!st->sure) {
-            rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
-            goto done;
-        }
-    }
-    if (cap > 0 && (rc = c.is_explicit ? explicit_init(&c, err) : implicit_init(&c, err)) != MCF_OK)
-        goto done;
+    st->t_target = c->cap;
+    return MCF_OK;
+}
 
-    double sumw = (double)c.nfree, best = 0.0, best_t = 0.0;
-    int kbest = 0, kbest_t = 0;
-    if (sure) {
+/* The run's arrays, the probes, the SURE curve and the engine. */
+static mcf_status run_init(fair_ctx *c, mcf_error *err)
+{
+    int nv = c->nv;
+    c->ncol = c->sure ? NCOL : 3;
+    c->Y = alloc_d(c, 3 * (size_t)nv);
+    c->Ybest = alloc_d(c, 3 * (size_t)nv);
+    c->Yt = alloc_d(c, 3 * (size_t)nv);
+    c->probe = c->sure ? alloc_d(c, NPROBE * (size_t)(c->nfree ? c->nfree : 1)) : NULL;
+    if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
+    memcpy(c->Yt, c->X0, 3 * sizeof(double) * (size_t)nv);
+    if (c->sure) {
+        init_probes(c);
+        c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
+        if (!c->st->sure)
+            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
+    }
+    if (c->cap > 0)
+        return c->is_explicit ? explicit_init(c, err) : implicit_init(c, err);
+    return MCF_OK;
+}
+
+/* The steps, SURE after each (the normal and the tangential part), until
+ * K > 2 K* + 10 or the cap: c->Ybest, c->Yt at c->kbest, c->kbest_t. */
+static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+{
+    mcf_flow_stats *st = c->st;
+    double s = c->s, s_t = c->s_t, hbar = c->hbar, *Y = c->Y;
+    double sumw = (double)c->nfree, best = 0.0, best_t = 0.0;
+    mcf_status rc;
+    if (c->sure) {
         best = s * s * sumw; /* SURE(0): the input, trace sum w */
         best_t = 2.0 * s_t * s_t * sumw;
         st->sure[0] = best / sumw / (hbar * hbar);
         st->nsure = 1;
     }
-    for (int k = 1; k <= cap; k++) {
-        if (hook && hook(hook_ctx, k - 1, NULL)) {
-            rc = mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
-            goto done;
-        }
-        if (c.is_explicit) {
+    for (int k = 1; k <= c->cap; k++) {
+        if (hook && hook(hook_ctx, k - 1, NULL))
+            return mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
+        if (c->is_explicit) {
             double t0 = mcf_now();
-            mcf__graph_taubin(&c.g, c.fx, c.Z, c.ncol, 1, c.tmp);
+            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp);
             st->time_solve += mcf_now() - t0;
-        } else if ((rc = implicit_step(&c, err)) != MCF_OK) {
-            goto done;
+        } else if ((rc = implicit_step(c, err)) != MCF_OK) {
+            return rc;
         }
-        positions(&c, Y);
-        if (!sure) {
-            kbest = k;
+        positions(c, Y);
+        if (!c->sure) {
+            c->kbest = k;
         } else {
-            double rn, rt, tr = weighted_trace(&c);
-            weighted_r2(&c, Y, &rn, &rt);
+            double rn, rt, tr = weighted_trace(c);
+            weighted_r2(c, Y, &rn, &rt);
             double risk = rn - s * s * sumw + 2.0 * s * s * tr;
             /* the tangential part: two directions, the same smoother */
             double risk_t = rt - 2.0 * s_t * s_t * sumw + 4.0 * s_t * s_t * tr;
             st->sure[st->nsure++] = risk / sumw / (hbar * hbar);
             if (risk < best) {
                 best = risk;
-                kbest = k;
-                memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
+                c->kbest = k;
+                memcpy(c->Ybest, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
             if (risk_t < best_t) {
                 best_t = risk_t;
-                kbest_t = k;
-                memcpy(Yt, Y, 3 * sizeof(double) * (size_t)nv);
+                c->kbest_t = k;
+                memcpy(c->Yt, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
         }
-        if (hook && hook(hook_ctx, k, Y)) {
-            rc = mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
-            goto done;
-        }
-        if (sure && k > 2 * (kbest > kbest_t ? kbest : kbest_t) + 10)
+        if (hook && hook(hook_ctx, k, Y))
+            return mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
+        if (c->sure && k > 2 * (c->kbest > c->kbest_t ? c->kbest : c->kbest_t) + 10)
             break;
     }
-    if (!sure && cap > 0)
-        memcpy(Ybest, Y, 3 * sizeof(double) * (size_t)nv);
-    st->steps = kbest;
-    st->tangential_steps = kbest_t;
-    /* the output along the normals of the filtered surface, relaxed in
-     * its tangent planes, guarded */
-    if (kbest == 0 && kbest_t == 0) {
+    if (!c->sure && c->cap > 0)
+        memcpy(c->Ybest, Y, 3 * sizeof(double) * (size_t)c->nv);
+    return MCF_OK;
+}
+
+/* The output into X: along the normals of the filtered surface, relaxed
+ * in its tangent planes, clamped, guarded. */
+static mcf_status output(fair_ctx *c, double *X, mcf_error *err)
+{
+    int nv = c->nv, nf = c->nf, left;
+    double s = c->s, s_t = c->s_t;
+    mcf_flow_stats *st = c->st;
+    mcf_status rc;
+    if (c->kbest == 0 && c->kbest_t == 0) {
         /* nothing to remove: the input as it came (crease vertices too) */
-        memcpy(X, c.Xin, 3 * sizeof(double) * (size_t)nv);
-        rc = MCF_OK;
-        goto done;
+        memcpy(X, c->Xin, 3 * sizeof(double) * (size_t)nv);
+        return MCF_OK;
     }
-    normal_output(&c, Ybest, X, Y);
-    if (kbest_t > 0 && (rc = tangential_output(&c, Yt, Y, X, err)) != MCF_OK)
-        goto done;
+    normal_output(c, c->Ybest, X, c->Y);
+    if (c->kbest_t > 0 && (rc = tangential_output(c, c->Yt, c->Y, X, err)) != MCF_OK)
+        return rc;
     /* no vertex moves further than MAX_MOVE noise levels (normal, and
      * both tangential parts when the result takes a tangential step)
      * from the input, nor do the guard's Y positions */
-    double rmax = MAX_MOVE * sqrt(s * s + (kbest_t > 0 ? 2.0 * s_t * s_t : 0.0));
+    double rmax = MAX_MOVE * sqrt(s * s + (c->kbest_t > 0 ? 2.0 * s_t * s_t : 0.0));
     if (rmax > 0.0) {
-        clamp_moves(&c, X, rmax, NULL);
-        clamp_moves(&c, Ybest, rmax, NULL);
+        clamp_moves(c, X, rmax, NULL);
+        clamp_moves(c, c->Ybest, rmax, NULL);
     }
-    int left;
-    if ((rc = mcf__unfold(X, c.Xin, Ybest, F, nf, nv, &st->guard_rounds, &st->guard_vertices, &left, err)) != MCF_OK)
-        goto done;
-    c.bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
-    rc = MCF_OK;
-done:
+    if ((rc = mcf__unfold(X, c->Xin, c->Ybest, c->F, nf, nv, &st->guard_rounds, &st->guard_vertices,
+                          &left, err)) != MCF_OK)
+        return rc;
+    c->bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
+    return MCF_OK;
+}
+
+mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
+                        mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+{
+    fair_ctx c;
+    mcf_status rc;
+    memset(&c, 0, sizeof c);
+    c.p = p;
+    c.nv = nv;
+    c.nf = nf;
+    c.F = F;
+    c.st = st;
+    c.hbar = hbar;
+    c.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
+    c.X0 = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    c.bytes += 3 * sizeof(double) * (size_t)nv;
+    if (!c.X0)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    memcpy(c.X0, X, 3 * sizeof(double) * (size_t)nv);
+    if ((rc = setup(&c, fixed, err)) == MCF_OK && (rc = plan_amount(&c, err)) == MCF_OK &&
+        (rc = run_init(&c, err)) == MCF_OK && (rc = run_steps(&c, hook, hook_ctx, err)) == MCF_OK) {
+        st->steps = c.kbest;
+        st->tangential_steps = c.kbest_t;
+        rc = output(&c, X, err);
+    }
     if (c.cm_started)
         c.bytes += c.cm.memory_usage;
     st->peak_bytes = c.bytes;
-    free(c.X0);
-    free(Y);
-    free(Ybest);
-    free(Yt);
     fair_free(&c);
     return rc;
 }

@@ -211,6 +211,19 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err);
 
+/* ---- creases (mcf_creases.c)
+ * The creases of the mesh (X, F; graph g): the edges between two faces of
+ * X smoothed by 10 Taubin passes that meet at more than 40 degrees, kept
+ * where they form chains of at least 12 edges (noise and a scan's isolated
+ * sharp spots make short bits). crease[i] (nv) gets 1 on their vertices;
+ * those inside a chain (two crease edges, not fixed) are smoothed along it
+ * in X by 3 Taubin passes on the chain alone, across it only; corners and
+ * chain ends stay (the fairing's guard puts a crease vertex back where its
+ * smoothing folded a face). Returns the number of crease vertices, -1 when out of
+ * memory. */
+int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
+                 const unsigned char *fixed, double *X, unsigned char *crease);
+
 /* ---- folds (mcf_folds.c)
  * A face a run folded: its normal turned against the same face's normal
  * in a reference (fn_ref: the input's, or the step before's) and it lies
