@@ -289,9 +289,19 @@ static inline void solve_body(const cholmod_factor *L, v4d *y, v4d *buf)
             v4d a = yk[jj];
             for (int ii = jj + 1; ii < nscol; ii++)
                 a -= col[ii] * yk[ii];
-            for (int ii = 0; ii < nrect; ii++)
-                a -= lr[ii] * buf[ii];
-            yk[jj] = a / col[jj];
+            /* the long dot product in four chains: one chain waits an
+             * add's latency per row */
+            v4d s0 = zero, s1 = zero, s2 = zero, s3 = zero;
+            int ii = 0;
+            for (; ii + 4 <= nrect; ii += 4) {
+                s0 += lr[ii] * buf[ii];
+                s1 += lr[ii + 1] * buf[ii + 1];
+                s2 += lr[ii + 2] * buf[ii + 2];
+                s3 += lr[ii + 3] * buf[ii + 3];
+            }
+            for (; ii < nrect; ii++)
+                s0 += lr[ii] * buf[ii];
+            yk[jj] = (a - ((s0 + s1) + (s2 + s3))) / col[jj];
         }
     }
 }
@@ -354,12 +364,19 @@ mcf_status mcf__chol_solve(mcf__chol *ch, int ncol, const double *B, size_t rs, 
     }
     const int *perm = ch->L->Perm;
     v4d *y = ch->y;
-    for (int k = 0; k < n; k++) {
-        const double *b = B + rs * (size_t)perm[k];
-        v4d v = {0.0, 0.0, 0.0, 0.0};
-        for (int c = 0; c < ncol; c++)
-            v[c] = b[cs * c];
-        y[k] = v;
+    if (ncol == 3 && rs == 3 && cs == 1) { /* the flow's: the loads unrolled */
+        for (int k = 0; k < n; k++) {
+            const double *b = B + 3 * (size_t)perm[k];
+            y[k] = (v4d){b[0], b[1], b[2], 0.0};
+        }
+    } else {
+        for (int k = 0; k < n; k++) {
+            const double *b = B + rs * (size_t)perm[k];
+            v4d v = {0.0, 0.0, 0.0, 0.0};
+            for (int c = 0; c < ncol; c++)
+                v[c] = b[cs * c];
+            y[k] = v;
+        }
     }
     unsigned fpu = subnormals_off();
 #if defined(SOLVE_AVX2)
@@ -369,10 +386,19 @@ mcf_status mcf__chol_solve(mcf__chol *ch, int ncol, const double *B, size_t rs, 
 #endif
         solve_generic(ch->L, y, ch->buf);
     subnormals_restore(fpu);
-    for (int k = 0; k < n; k++) {
-        double *x = X + rs * (size_t)perm[k];
-        for (int c = 0; c < ncol; c++)
-            x[cs * c] = y[k][c];
+    if (ncol == 3 && rs == 3 && cs == 1) {
+        for (int k = 0; k < n; k++) {
+            double *x = X + 3 * (size_t)perm[k];
+            x[0] = y[k][0];
+            x[1] = y[k][1];
+            x[2] = y[k][2];
+        }
+    } else {
+        for (int k = 0; k < n; k++) {
+            double *x = X + rs * (size_t)perm[k];
+            for (int c = 0; c < ncol; c++)
+                x[cs * c] = y[k][c];
+        }
     }
     return MCF_OK;
 }

@@ -707,7 +707,7 @@ static void usage(void)
 {
     fprintf(stderr,
             "usage: bench_core [--meshes DIR] [--reps N] [--ico-level L] [--no-dragon]\n"
-            "                  [--no-accuracy] [--threads [--load N]]\n");
+            "                  [--no-accuracy] [--threads [--load N]] [--step-mesh FILE]\n");
     exit(2);
 }
 
@@ -715,6 +715,7 @@ int main(int argc, char **argv)
 {
     const char *dir = getenv("MCF_MESHES");
     int level = 7, dragon = 1, threads_only = 0, do_acc = 1, load = 0;
+    const char *step_mesh = NULL; /* only the desbrun step on this mesh */
     if (!dir || !*dir)
         dir = "../shared/meshes";
     for (int i = 1; i < argc; i++) {
@@ -730,6 +731,8 @@ int main(int argc, char **argv)
             do_acc = 0;
         else if (!strcmp(argv[i], "--threads"))
             threads_only = 1;
+        else if (!strcmp(argv[i], "--step-mesh") && i + 1 < argc)
+            step_mesh = argv[++i];
         else if (!strcmp(argv[i], "--load") && i + 1 < argc)
             load = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--step-job") && i + 1 < argc)
@@ -743,6 +746,16 @@ int main(int argc, char **argv)
         usage();
     setvbuf(stdout, NULL, _IOLBF, 0);
     double t_begin = mcf_now();
+    if (step_mesh) { /* a quick look: the step table's row of one mesh */
+        print_machine();
+        machine_floor fl = measure_floor();
+        step_row row;
+        mcf_mesh *m = load_mesh(dir, step_mesh);
+        time_implicit(step_mesh, m, 1e-3, 0.0, &row);
+        print_implicit(&row, 1, fl);
+        mcf_mesh_free(m);
+        return 0;
+    }
 
     mcf_error e = {0};
     mcf_mesh *meshes[2] = {NULL, NULL};
