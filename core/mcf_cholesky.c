@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * mcf_cholesky.c - the implicit schemes' linear solver: a supernodal
- * Cholesky factorization (CHOLMOD) of the job's SPD matrix, analysed once,
- * refactored every step, and solved for three columns at once.
+ * mcf_cholesky.c - core's SPD solver (the implicit schemes, the automatic
+ * amount, the fairing filter): a supernodal Cholesky factorization
+ * (CHOLMOD) of a job's SPD matrix, analysed once, refactored as often as
+ * the caller needs, and solved for all its columns at once.
  *
  * What it does differently from cholmod_factorize + cholmod_solve2, each
  * measured on the 435k-vertex dragon (lab/README.md, Benchmarks):
@@ -13,11 +14,15 @@
  *    through the map and calls cholmod_super_numeric on S directly:
  *    cholmod_factorize would allocate and fill a permuted transpose of A at
  *    every step (about 25 ms and fresh pages each time).
- *  - The solve runs over the supernodal factor itself with the three
- *    columns (x, y, z) interleaved: one pass forward, one back, no BLAS call
- *    per supernode (99.7% of the dragon's 50k supernodes have 16 columns
- *    or fewer, where a call costs more than its flops), no column-major
- *    copies of the right-hand side.
+ *  - The solve of up to four columns runs over the supernodal factor
+ *    itself with the columns (x, y, z, a probe) interleaved: one pass
+ *    forward, one back, no BLAS call per supernode (99.7% of the dragon's
+ *    50k supernodes have 16 columns or fewer, where a call costs more than
+ *    its flops), no column-major copies of the right-hand side. More
+ *    columns (the fairing filter's nine) go to CHOLMOD's own supernodal
+ *    solve on the same factor, where the BLAS calls pay (measured on
+ *    armadillo's fairing: this kernel with three vectors a row took 37% of
+ *    the run's CPU, CHOLMOD's 31%).
  *  - Both run with subnormal numbers flushed to zero (x86: MXCSR's FTZ and
  *    DAZ, on the calling thread only, restored after). At strength 0.33
  *    in 10 steps a step is tiny (dt ~ 0.01 h^2), the off-diagonal entries are
