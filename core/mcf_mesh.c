@@ -171,65 +171,55 @@ static void uf_union(int32_t *p, int32_t a, int32_t b)
  * an inspection. Both arrays are made in face order, so the stable sort by
  * key gives the order of the comparators above (key, then face), and
  * those serve as the fallback when the scratch cannot be had (or a face
- * key does not fit in 64 bits: more than 2^21 vertices). */
-static void sort_half_edges(half_edge *he, size_t n)
+ * key does not fit in 64 bits: more than 2^21 vertices).
+ *
+ * sort_by_key sorts the n records of sz bytes at base so: k holds their
+ * keys and as many again of scratch (NULL: qsort by cmp), and is freed. */
+static void sort_by_key(void *base, size_t n, size_t sz, uint64_t *k,
+                        int (*cmp)(const void *, const void *))
 {
-    uint64_t *k = n <= UINT32_MAX ? mcf__malloc(2 * n, sizeof *k) : NULL;
     uint32_t *p = k ? mcf__malloc(2 * n, sizeof *p) : NULL;
-    half_edge *out = NULL;
+    unsigned char *out = NULL, *b = base;
     size_t i;
 
     if (p) {
-        for (i = 0; i < n; i++) {
-            k[i] = he[i].key;
+        for (i = 0; i < n; i++)
             p[i] = (uint32_t)i;
-        }
         mcf__radix_sort_u64(k, p, n, k + n, p + n);
         free(k); /* before the gather's copy: peak about qsort's */
         k = NULL;
-        out = mcf__malloc(n, sizeof *out);
+        out = mcf__malloc(n, sz);
     }
     if (out) {
         for (i = 0; i < n; i++)
-            out[i] = he[p[i]];
-        memcpy(he, out, n * sizeof *he);
+            memcpy(out + i * sz, b + (size_t)p[i] * sz, sz);
+        memcpy(b, out, n * sz);
     } else {
-        qsort(he, n, sizeof *he, half_edge_cmp);
+        qsort(b, n, sz, cmp);
     }
     free(k);
     free(p);
     free(out);
 }
 
+static void sort_half_edges(half_edge *he, size_t n)
+{
+    uint64_t *k = n <= UINT32_MAX ? mcf__malloc(2 * n, sizeof *k) : NULL;
+
+    for (size_t i = 0; k && i < n; i++)
+        k[i] = he[i].key;
+    sort_by_key(he, n, sizeof *he, k, half_edge_cmp);
+}
+
 static void sort_face_keys(face_key *fk, size_t n, size_t nv)
 {
     uint64_t *k = nv <= (size_t)1 << 21 && n <= UINT32_MAX
                       ? mcf__malloc(2 * n, sizeof *k) : NULL;
-    uint32_t *p = k ? mcf__malloc(2 * n, sizeof *p) : NULL;
-    face_key *out = NULL;
-    size_t i;
 
-    if (p) {
-        for (i = 0; i < n; i++) {
-            k[i] = (uint64_t)fk[i].v[0] << 42 | (uint64_t)fk[i].v[1] << 21 |
-                   (uint64_t)fk[i].v[2];
-            p[i] = (uint32_t)i;
-        }
-        mcf__radix_sort_u64(k, p, n, k + n, p + n);
-        free(k);
-        k = NULL;
-        out = mcf__malloc(n, sizeof *out);
-    }
-    if (out) {
-        for (i = 0; i < n; i++)
-            out[i] = fk[p[i]];
-        memcpy(fk, out, n * sizeof *fk);
-    } else {
-        qsort(fk, n, sizeof *fk, face_key_cmp);
-    }
-    free(k);
-    free(p);
-    free(out);
+    for (size_t i = 0; k && i < n; i++)
+        k[i] = (uint64_t)fk[i].v[0] << 42 | (uint64_t)fk[i].v[1] << 21 |
+               (uint64_t)fk[i].v[2];
+    sort_by_key(fk, n, sizeof *fk, k, face_key_cmp);
 }
 
 /* Corner index (3f + j) of vertex v in the face of half-edge e. */
