@@ -606,30 +606,138 @@ plain:
     return rc;
 }
 
+/* A new document's plain primitive: its glTF vertices (one per distinct
+ * corner_key) and where each attribute lies in buffer 0. */
+typedef struct {
+    const api__attr *tc, *nm, *co;  /* texcoords, normals, colours (NULL: none) */
+    int ncol;                       /* colour components */
+    size_t nc, np;                  /* corners, glTF vertices */
+    size_t off[5];                  /* positions, normals, texcoords, colours, indices */
+    size_t blen;                    /* buffer 0's bytes */
+    double lo[3], hi[3];            /* the positions' bounds, as float32 */
+} fresh_plan;
+
+/* The glTF vertex of each corner (point) and the buffer's layout. */
+static void weld(const mcf_mesh *m, fresh_plan *L, corner_key *keys, int32_t *point)
+{
+    const int32_t *F = mcf_mesh_faces(m);
+    size_t i, np = 0;
+
+    for (i = 0; i < L->nc; i++) {
+        keys[i].k[0] = F[i];
+        keys[i].k[1] = L->tc ? L->tc->corners[i] : -1;
+        keys[i].k[2] = L->nm ? L->nm->corners[i] : -1;
+        keys[i].k[3] = L->co ? L->co->corners[i] : -1;
+        keys[i].corner = (int32_t)i;
+    }
+    qsort(keys, L->nc, sizeof *keys, cmp_corner);
+    for (i = 0; i < L->nc; i++) {
+        if (i > 0 && memcmp(keys[i].k, keys[i - 1].k, sizeof keys[i].k) != 0)
+            np++;
+        point[keys[i].corner] = (int32_t)np;
+    }
+    L->np = ++np;
+    /* positions, normals, texcoords, colours, indices: 4-aligned each */
+    L->off[0] = 0;
+    L->off[1] = 12 * np;
+    L->off[2] = L->off[1] + (L->nm ? 12 * np : 0);
+    L->off[3] = L->off[2] + (L->tc ? 8 * np : 0);
+    L->off[4] = L->off[3] + 4 * (size_t)L->ncol * np;
+    L->blen = L->off[4] + 4 * L->nc;
+}
+
+/* Buffer 0's values (texcoords' v flipped to glTF's top-down convention)
+ * and the positions' bounds. */
+static void fill(const mcf_mesh *m, const double *N, fresh_plan *L, const corner_key *keys,
+                 const int32_t *point, unsigned char *bin)
+{
+    const double *X = mcf_mesh_positions(m);
+    const size_t *off = L->off;
+    const int ncol = L->ncol;
+    size_t i;
+    int c;
+
+    for (c = 0; c < 3; c++) {
+        L->lo[c] = HUGE_VAL;
+        L->hi[c] = -HUGE_VAL;
+    }
+    for (i = 0; i < L->nc; i++) {
+        const corner_key *k = &keys[i];
+        size_t pt = (size_t)point[k->corner];
+        for (c = 0; c < 3; c++) {
+            double x = X[3 * (size_t)k->k[0] + c];
+            api__put_f32(bin + off[0] + 12 * pt + 4 * (size_t)c, (float)x);
+            L->lo[c] = (float)x < L->lo[c] ? (float)x : L->lo[c];
+            L->hi[c] = (float)x > L->hi[c] ? (float)x : L->hi[c];
+            if (L->nm)
+                api__put_f32(bin + off[1] + 12 * pt + 4 * (size_t)c,
+                             (float)N[3 * (size_t)k->k[2] + c]);
+        }
+        if (L->tc) {
+            api__put_f32(bin + off[2] + 8 * pt, (float)L->tc->values[2 * (size_t)k->k[1]]);
+            api__put_f32(bin + off[2] + 8 * pt + 4,
+                         (float)(1.0 - L->tc->values[2 * (size_t)k->k[1] + 1]));
+        }
+        for (c = 0; c < ncol; c++)
+            api__put_f32(bin + off[3] + 4 * (size_t)ncol * pt + 4 * (size_t)c,
+                         (float)L->co->values[(size_t)ncol * (size_t)k->k[3] + c]);
+        api__put_le32(bin + off[4] + 4 * (size_t)k->corner, (uint32_t)pt);
+    }
+}
+
+/* The primitive's accessors and views over buffer 0; 0 when out of memory. */
+static int add_accessors(cJSON *root, cJSON *prim, const fresh_plan *L)
+{
+    cJSON *attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes");
+    cJSON *accs = cJSON_GetObjectItemCaseSensitive(root, "accessors");
+    const size_t np = L->np;
+    int a = add_accessor(root, L->off[0], 12 * np, (int)np, "VEC3", GL_FLOAT, GL_ARRAY);
+    int ok = a >= 0 && cJSON_AddNumberToObject(attrs, "POSITION", a) &&
+             set_vec3(cJSON_GetArrayItem(accs, a), "min", L->lo) &&
+             set_vec3(cJSON_GetArrayItem(accs, a), "max", L->hi);
+
+    if (ok && L->nm)
+        ok = (a = add_accessor(root, L->off[1], 12 * np, (int)np, "VEC3", GL_FLOAT, GL_ARRAY)) >= 0 &&
+             cJSON_AddNumberToObject(attrs, "NORMAL", a);
+    if (ok && L->tc)
+        ok = (a = add_accessor(root, L->off[2], 8 * np, (int)np, "VEC2", GL_FLOAT, GL_ARRAY)) >= 0 &&
+             cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
+    if (ok && L->co)
+        ok = (a = add_accessor(root, L->off[3], 4 * (size_t)L->ncol * np, (int)np,
+                               L->ncol == 4 ? "VEC4" : "VEC3", GL_FLOAT, GL_ARRAY)) >= 0 &&
+             cJSON_AddNumberToObject(attrs, "COLOR_0", a);
+    if (ok)
+        ok = (a = add_accessor(root, L->off[4], 4 * L->nc, (int)L->nc, "SCALAR", GL_UINT,
+                               GL_ELEMENTS)) >= 0 &&
+             cJSON_AddNumberToObject(prim, "indices", a);
+    return ok;
+}
+
 static mcf_status fresh(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                         mcf_error *err)
 {
     const api_attrs *at = o->attrs;
-    const api__attr *tc = at && at->a[API_ATTR_TEXCOORD].corners ? &at->a[API_ATTR_TEXCOORD] : NULL;
-    const api__attr *nm = at && at->a[API_ATTR_NORMAL].corners ? &at->a[API_ATTR_NORMAL] : NULL;
-    const api__attr *co = at && at->a[API_ATTR_COLOR].corners ? &at->a[API_ATTR_COLOR] : NULL;
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    const size_t nc = 3 * (size_t)mcf_mesh_nfaces(m);
-    const int ncol = co ? co->ncomp : 0;
-    corner_key *keys = malloc(sizeof *keys * nc);
-    int32_t *point = malloc(sizeof *point * nc);
-    double *N = NULL, lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    fresh_plan L = {0};
+    corner_key *keys = NULL;
+    int32_t *point = NULL;
+    double *N = NULL;
     unsigned char *bin = NULL;
-    size_t np = 0, i, stride, off[5], blen;
+    size_t blen;
     cJSON *root = cJSON_Parse("{\"asset\":{\"version\":\"2.0\",\"generator\":\"mcfd\"},"
                               "\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
                               "\"meshes\":[{\"primitives\":[{\"attributes\":{},\"mode\":4}]}],"
                               "\"accessors\":[],\"bufferViews\":[],\"buffers\":[{}]}");
-    cJSON *prim, *attrs;
-    int ok, dirty = 1, a;
+    cJSON *prim;
+    int dirty = 1;
     mcf_status rc = MCF_OK;
 
+    L.tc = at && at->a[API_ATTR_TEXCOORD].corners ? &at->a[API_ATTR_TEXCOORD] : NULL;
+    L.nm = at && at->a[API_ATTR_NORMAL].corners ? &at->a[API_ATTR_NORMAL] : NULL;
+    L.co = at && at->a[API_ATTR_COLOR].corners ? &at->a[API_ATTR_COLOR] : NULL;
+    L.ncol = L.co ? L.co->ncomp : 0;
+    L.nc = 3 * (size_t)mcf_mesh_nfaces(m);
+    keys = malloc(sizeof *keys * L.nc);
+    point = malloc(sizeof *point * L.nc);
     if (!keys || !point || !root) {
         rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
         goto done;
@@ -637,7 +745,6 @@ static mcf_status fresh(const mcf_mesh *m, const api_encode_opts *o, api_buf *ou
     prim = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(
                                   cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "meshes"), 0),
                                   "primitives"), 0);
-    attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes");
     if (at && at->pos_bits >= 0) {
         /* it came from Draco: it leaves as Draco */
         int done = 0;
@@ -648,78 +755,16 @@ static mcf_status fresh(const mcf_mesh *m, const api_encode_opts *o, api_buf *ou
             goto done;
         }
     }
-    if (nm && (rc = api__attrs_normals(at, m, &N, err)) != MCF_OK)
+    if (L.nm && (rc = api__attrs_normals(at, m, &N, err)) != MCF_OK)
         goto done;
-    for (i = 0; i < nc; i++) {
-        keys[i].k[0] = F[i];
-        keys[i].k[1] = tc ? tc->corners[i] : -1;
-        keys[i].k[2] = nm ? nm->corners[i] : -1;
-        keys[i].k[3] = co ? co->corners[i] : -1;
-        keys[i].corner = (int32_t)i;
-    }
-    qsort(keys, nc, sizeof *keys, cmp_corner);
-    for (i = 0; i < nc; i++) {
-        if (i > 0 && memcmp(keys[i].k, keys[i - 1].k, sizeof keys[i].k) != 0)
-            np++;
-        point[keys[i].corner] = (int32_t)np;
-    }
-    np++;
-    /* positions, normals, texcoords, colours, indices: 4-aligned each */
-    stride = 12 + (nm ? 12 : 0) + (tc ? 8 : 0) + 4 * (size_t)ncol;
-    off[0] = 0;
-    off[1] = 12 * np;
-    off[2] = off[1] + (nm ? 12 * np : 0);
-    off[3] = off[2] + (tc ? 8 * np : 0);
-    off[4] = off[3] + 4 * (size_t)ncol * np;
-    blen = off[4] + 4 * nc;
-    (void)stride;
+    weld(m, &L, keys, point);
+    blen = L.blen;
     if (!(bin = calloc(blen + 1, 1))) {
         rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory for %zu bytes", blen);
         goto done;
     }
-    for (i = 0; i < nc; i++) {
-        const corner_key *k = &keys[i];
-        size_t pt = (size_t)point[k->corner];
-        int c;
-        for (c = 0; c < 3; c++) {
-            double x = X[3 * (size_t)k->k[0] + c];
-            api__put_f32(bin + off[0] + 12 * pt + 4 * (size_t)c, (float)x);
-            lo[c] = (float)x < lo[c] ? (float)x : lo[c];
-            hi[c] = (float)x > hi[c] ? (float)x : hi[c];
-            if (nm)
-                api__put_f32(bin + off[1] + 12 * pt + 4 * (size_t)c,
-                             (float)N[3 * (size_t)k->k[2] + c]);
-        }
-        if (tc) {
-            api__put_f32(bin + off[2] + 8 * pt, (float)tc->values[2 * (size_t)k->k[1]]);
-            api__put_f32(bin + off[2] + 8 * pt + 4,
-                         (float)(1.0 - tc->values[2 * (size_t)k->k[1] + 1]));
-        }
-        for (c = 0; c < ncol; c++)
-            api__put_f32(bin + off[3] + 4 * (size_t)ncol * pt + 4 * (size_t)c,
-                         (float)co->values[(size_t)ncol * (size_t)k->k[3] + c]);
-        api__put_le32(bin + off[4] + 4 * (size_t)k->corner, (uint32_t)pt);
-    }
-    a = add_accessor(root, off[0], 12 * np, (int)np, "VEC3", GL_FLOAT, GL_ARRAY);
-    ok = a >= 0 && cJSON_AddNumberToObject(attrs, "POSITION", a) &&
-         set_vec3(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a),
-                  "min", lo) &&
-         set_vec3(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a),
-                  "max", hi);
-    if (ok && nm)
-        ok = (a = add_accessor(root, off[1], 12 * np, (int)np, "VEC3", GL_FLOAT, GL_ARRAY)) >= 0 &&
-             cJSON_AddNumberToObject(attrs, "NORMAL", a);
-    if (ok && tc)
-        ok = (a = add_accessor(root, off[2], 8 * np, (int)np, "VEC2", GL_FLOAT, GL_ARRAY)) >= 0 &&
-             cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
-    if (ok && co)
-        ok = (a = add_accessor(root, off[3], 4 * (size_t)ncol * np, (int)np,
-                               ncol == 4 ? "VEC4" : "VEC3", GL_FLOAT, GL_ARRAY)) >= 0 &&
-             cJSON_AddNumberToObject(attrs, "COLOR_0", a);
-    if (ok)
-        ok = (a = add_accessor(root, off[4], 4 * nc, (int)nc, "SCALAR", GL_UINT, GL_ELEMENTS)) >= 0 &&
-             cJSON_AddNumberToObject(prim, "indices", a);
-    if (!ok) {
+    fill(m, N, &L, keys, point, bin);
+    if (!add_accessors(root, prim, &L)) {
         rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
         goto done;
     }
