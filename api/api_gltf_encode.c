@@ -491,108 +491,131 @@ static int add_accessor(cJSON *root, size_t off, size_t n, int count, const char
 }
 
 
-/* A mesh that came from Draco, as a KHR_draco_mesh_compression
- * primitive: api_draco_encode's stream (its quantization kept, texture
- * coordinates flipped to glTF's convention first) in *bin, accessors
- * without data whose counts and bounds are what the stream decodes to.
- * Returns 0 (nothing added) when the stream's positions are not float32
- * (lossless doubles), which glTF cannot carry: the caller writes plain. */
-static mcf_status fresh_draco(const mcf_mesh *m, const api_encode_opts *o, cJSON *root,
-                              cJSON *prim, unsigned char **bin, size_t *blen,
-                              int *done, mcf_error *err)
+/* The attributes as the Draco stream of a glTF carries them: a copy of
+ * o's, quantization kept, texture coordinates flipped to glTF's top-down
+ * convention (their quantization grid's origin too), in *out. */
+static mcf_status flipped_attrs(const mcf_mesh *m, const api_attrs *at, api_attrs **out,
+                                mcf_error *err)
+{
+    api_attrs *flip = api_attrs_new(mcf_mesh_nvertices(m), mcf_mesh_nfaces(m));
+    mcf_status rc;
+    int i, k;
+
+    if (!(*out = flip))
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    flip->float32 = at->float32;
+    flip->pos_bits = at->pos_bits;
+    for (k = 0; k < API_ATTR_KINDS; k++) {
+        const api__attr *a = &at->a[k];
+        api__attr *f = &flip->a[k];
+        if (!a->corners)
+            continue;
+        if ((rc = api_attrs_set(flip, (api_attr_kind)k, a->ncomp, a->nvalues, a->values,
+                                a->corners, err)) != MCF_OK) {
+            api_attrs_free(flip);
+            *out = NULL;
+            return rc;
+        }
+        f->bits = a->bits;
+        memcpy(f->qorigin, a->qorigin, sizeof f->qorigin);
+        f->qrange = a->qrange;
+        for (i = 0; k == API_ATTR_TEXCOORD && i < f->nvalues; i++)
+            f->values[2 * (size_t)i + 1] = 1.0 - f->values[2 * (size_t)i + 1];
+        if (k == API_ATTR_TEXCOORD)
+            f->qorigin[1] = 1.0f - f->qorigin[1] - f->qrange;
+    }
+    return MCF_OK;
+}
+
+/* The KHR_draco_mesh_compression primitive's JSON for the stream of
+ * slen bytes that decoded to back: the extension, accessors without data
+ * whose counts and bounds are the stream's, buffer view 0 over it. 0 when
+ * out of memory. */
+static int draco_json(cJSON *root, cJSON *prim, const api__draco_prim *back, size_t slen)
 {
     static const struct {
         int type;
         const char *name, *gtype;
     } names[] = {{0, "POSITION", "VEC3"}, {1, "NORMAL", "VEC3"}, {3, "TEXCOORD_0", "VEC2"},
                  {2, "COLOR_0", NULL}};
-    api_attrs *flip = api_attrs_new(mcf_mesh_nvertices(m), mcf_mesh_nfaces(m));
-    api_encode_opts eo = *o;
-    api_buf stream;
-    api__draco_prim back;
-    cJSON *attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes"), *ext, *accs;
-    int i, k, ok = 1;
-    mcf_status rc = MCF_OK;
-
-    *done = 0;
-    memset(&back, 0, sizeof back);
-    api_buf_init(&stream, (size_t)-1);
-    if (!flip)
-        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-    flip->float32 = o->attrs->float32;
-    flip->pos_bits = o->attrs->pos_bits;
-    for (k = 0; k < API_ATTR_KINDS && rc == MCF_OK; k++) {
-        const api__attr *a = &o->attrs->a[k];
-        if (!a->corners)
-            continue;
-        rc = api_attrs_set(flip, (api_attr_kind)k, a->ncomp, a->nvalues, a->values,
-                           a->corners, err);
-        if (rc == MCF_OK) {
-            api__attr *f = &flip->a[k];
-            f->bits = a->bits;
-            memcpy(f->qorigin, a->qorigin, sizeof f->qorigin);
-            f->qrange = a->qrange;
-            for (i = 0; k == API_ATTR_TEXCOORD && i < f->nvalues; i++)
-                f->values[2 * (size_t)i + 1] = 1.0 - f->values[2 * (size_t)i + 1];
-            if (k == API_ATTR_TEXCOORD)
-                f->qorigin[1] = 1.0f - f->qorigin[1] - f->qrange;
-        }
-    }
-    eo.format = API_FMT_DRACO;
-    eo.attrs = flip;
-    if (rc == MCF_OK && (rc = api_draco_encode(m, &eo, &stream, NULL, err)) == MCF_OK &&
-        (rc = api__draco_prim_decode(stream.data, stream.len, NULL, &back, err)) == MCF_OK) {
-        double lo[3], hi[3];
-        int id = -1;
-        for (i = 0; i < back.nattr; i++)
-            if (back.attr[i].type == 0 &&
-                (back.attr[i].dtype != API__DRACO_FLOAT32 || back.attr[i].ncomp != 3))
-                goto plain;
-        accs = cJSON_GetObjectItemCaseSensitive(root, "accessors");
-        ext = cJSON_CreateObject();
-        ok = ext && set_num(ext, "bufferView", 0) &&
+    static const char *const used[] = {"KHR_draco_mesh_compression"};
+    cJSON *attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes");
+    cJSON *accs = cJSON_GetObjectItemCaseSensitive(root, "accessors");
+    cJSON *views = cJSON_GetObjectItemCaseSensitive(root, "bufferViews");
+    cJSON *ext = cJSON_CreateObject();
+    double lo[3], hi[3];
+    int i, k, id;
+    int ok = ext && set_num(ext, "bufferView", 0) &&
              set_item(ext, "attributes", cJSON_CreateObject()) &&
              set_item(prim, "extensions", cJSON_CreateObject()) &&
              set_item(cJSON_GetObjectItemCaseSensitive(prim, "extensions"),
                       "KHR_draco_mesh_compression", ext);
-        for (i = 0; ok && i < back.nattr; i++) {
-            const api__draco_attr *a = &back.attr[i];
-            cJSON *acc;
-            for (k = 0; k < 4 && names[k].type != a->type; k++)
-                ;
-            if (k == 4)
-                continue;
-            if (a->type == 0)
-                bounds(a->data, back.npoints, 12, lo, hi);
-            id = cJSON_GetArraySize(accs);
-            ok = (acc = cJSON_CreateObject()) != NULL && cJSON_AddItemToArray(accs, acc) &&
-                 set_num(acc, "componentType", a->dtype == API__DRACO_FLOAT32 ? GL_FLOAT : 5121) &&
-                 set_num(acc, "count", back.npoints) &&
-                 set_item(acc, "type", cJSON_CreateString(
-                                           names[k].gtype ? names[k].gtype
-                                                          : a->ncomp == 4 ? "VEC4" : "VEC3")) &&
-                 (a->dtype == API__DRACO_FLOAT32 || cJSON_AddTrueToObject(acc, "normalized")) &&
-                 (a->type != 0 || (set_vec3(acc, "min", lo) && set_vec3(acc, "max", hi))) &&
-                 set_num(attrs, names[k].name, id) &&
-                 set_num(cJSON_GetObjectItemCaseSensitive(ext, "attributes"), names[k].name,
-                         a->id);
-        }
+
+    for (i = 0; ok && i < back->nattr; i++) {
+        const api__draco_attr *a = &back->attr[i];
+        cJSON *acc;
+        for (k = 0; k < 4 && names[k].type != a->type; k++)
+            ;
+        if (k == 4)
+            continue;
+        if (a->type == 0)
+            bounds(a->data, back->npoints, 12, lo, hi);
         id = cJSON_GetArraySize(accs);
-        ok = ok && (ext = cJSON_CreateObject()) != NULL && cJSON_AddItemToArray(accs, ext) &&
-             set_num(ext, "componentType", back.npoints <= 65535 ? GL_USHORT : GL_UINT) &&
-             set_num(ext, "count", 3.0 * back.nfaces) &&
-             set_item(ext, "type", cJSON_CreateString("SCALAR")) && set_num(prim, "indices", id) &&
-             set_item(root, "extensionsUsed", cJSON_CreateStringArray(
-                                                  (const char *const[]){"KHR_draco_mesh_compression"}, 1)) &&
-             set_item(root, "extensionsRequired", cJSON_CreateStringArray(
-                                                      (const char *const[]){"KHR_draco_mesh_compression"}, 1)) &&
-             cJSON_AddItemToArray(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"),
-                                  cJSON_CreateObject()) &&
-             set_num(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), 0),
-                     "buffer", 0) &&
-             set_num(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), 0),
-                     "byteLength", (double)stream.len);
-        if (!ok)
+        ok = (acc = cJSON_CreateObject()) != NULL && cJSON_AddItemToArray(accs, acc) &&
+             set_num(acc, "componentType", a->dtype == API__DRACO_FLOAT32 ? GL_FLOAT : 5121) &&
+             set_num(acc, "count", back->npoints) &&
+             set_item(acc, "type", cJSON_CreateString(
+                                       names[k].gtype ? names[k].gtype
+                                                      : a->ncomp == 4 ? "VEC4" : "VEC3")) &&
+             (a->dtype == API__DRACO_FLOAT32 || cJSON_AddTrueToObject(acc, "normalized")) &&
+             (a->type != 0 || (set_vec3(acc, "min", lo) && set_vec3(acc, "max", hi))) &&
+             set_num(attrs, names[k].name, id) &&
+             set_num(cJSON_GetObjectItemCaseSensitive(ext, "attributes"), names[k].name,
+                     a->id);
+    }
+    id = cJSON_GetArraySize(accs);
+    return ok && (ext = cJSON_CreateObject()) != NULL && cJSON_AddItemToArray(accs, ext) &&
+           set_num(ext, "componentType", back->npoints <= 65535 ? GL_USHORT : GL_UINT) &&
+           set_num(ext, "count", 3.0 * back->nfaces) &&
+           set_item(ext, "type", cJSON_CreateString("SCALAR")) && set_num(prim, "indices", id) &&
+           set_item(root, "extensionsUsed", cJSON_CreateStringArray(used, 1)) &&
+           set_item(root, "extensionsRequired", cJSON_CreateStringArray(used, 1)) &&
+           cJSON_AddItemToArray(views, cJSON_CreateObject()) &&
+           set_num(cJSON_GetArrayItem(views, 0), "buffer", 0) &&
+           set_num(cJSON_GetArrayItem(views, 0), "byteLength", (double)slen);
+}
+
+/* A mesh that came from Draco, as a KHR_draco_mesh_compression
+ * primitive: api_draco_encode's stream (its quantization kept, texture
+ * coordinates flipped to glTF's convention first) in *bin, its JSON in
+ * root and prim (draco_json). Returns 0 (nothing added) when the
+ * stream's positions are not float32 (lossless doubles), which glTF
+ * cannot carry: the caller writes plain. */
+static mcf_status fresh_draco(const mcf_mesh *m, const api_encode_opts *o, cJSON *root,
+                              cJSON *prim, unsigned char **bin, size_t *blen,
+                              int *done, mcf_error *err)
+{
+    api_attrs *flip;
+    api_encode_opts eo = *o;
+    api_buf stream;
+    api__draco_prim back;
+    mcf_status rc = flipped_attrs(m, o->attrs, &flip, err);
+    int i;
+
+    *done = 0;
+    if (rc != MCF_OK)
+        return rc;
+    memset(&back, 0, sizeof back);
+    api_buf_init(&stream, (size_t)-1);
+    eo.format = API_FMT_DRACO;
+    eo.attrs = flip;
+    if ((rc = api_draco_encode(m, &eo, &stream, NULL, err)) == MCF_OK &&
+        (rc = api__draco_prim_decode(stream.data, stream.len, NULL, &back, err)) == MCF_OK) {
+        for (i = 0; i < back.nattr; i++)
+            if (back.attr[i].type == 0 &&
+                (back.attr[i].dtype != API__DRACO_FLOAT32 || back.attr[i].ncomp != 3))
+                goto plain;
+        if (!draco_json(root, prim, &back, stream.len))
             rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
         else {
             *bin = (unsigned char *)api_buf_detach(&stream, blen);
