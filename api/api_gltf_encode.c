@@ -331,6 +331,78 @@ static mcf_status relayout(api__gltf_doc *d, int b, cJSON **view, int nview,
     return MCF_OK;
 }
 
+/* The JSON primitive of g, checked: its record names this mesh's
+ * vertices (nv) and normal groups (nn), its POSITION accessor is one of
+ * nacc. */
+static mcf_status prim_of(const api__gltf_prim *g, int nv, int nn, cJSON **mesh, int nmesh,
+                          int nacc, cJSON **prim, mcf_error *err)
+{
+    int v;
+
+    *prim = g->mesh < nmesh
+                ? cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(mesh[g->mesh], "primitives"),
+                                     g->index)
+                : NULL;
+    for (v = 0; v < g->nvert; v++)
+        if (g->vmap[v] >= nv || (g->ngroup && g->ngroup[v] >= nn && nn))
+            return api__fail(err, MCF_EINVAL, "gltf: the document's record does not "
+                             "belong to this mesh");
+    if (!*prim || g->pos.acc < 0 || g->pos.acc >= nacc)
+        return api__fail(err, MCF_EDECODE, "gltf: mesh %d primitive %d is not in the "
+                         "document", g->mesh, g->index);
+    return MCF_OK;
+}
+
+/* A plain primitive: its POSITION (and NORMAL) values overwritten in
+ * place, their buffers marked dirty, then POSITION's bounds over the
+ * whole accessor (pos). */
+static mcf_status rewrite_plain(api__gltf_doc *d, const api__gltf_prim *g, const double *X,
+                                const double *N, cJSON *pos, int *dirty, mcf_error *err)
+{
+    double lo[3], hi[3];
+    int v, k;
+
+    for (v = 0; v < g->nvert; v++)
+        for (k = 0; k < 3; k++) {
+            if (g->vmap[v] >= 0)
+                api__put_f32(d->buf[g->pos.buf] + g->pos.off +
+                                 (size_t)g->pos.stride * (size_t)v + 4 * (size_t)k,
+                             (float)X[3 * (size_t)g->vmap[v] + k]);
+            if (N && g->ngroup && g->ngroup[v] >= 0 && g->nrm.buf >= 0)
+                api__put_f32(d->buf[g->nrm.buf] + g->nrm.off +
+                                 (size_t)g->nrm.stride * (size_t)v + 4 * (size_t)k,
+                             (float)N[3 * (size_t)g->ngroup[v] + k]);
+        }
+    dirty[g->pos.buf] = 1;
+    if (g->nrm.buf >= 0)
+        dirty[g->nrm.buf] = 1;
+    bounds(d->buf[g->pos.buf] + g->pos.off, g->nvert, (size_t)g->pos.stride, lo, hi);
+    if (!set_vec3(pos, "min", lo) || !set_vec3(pos, "max", hi))
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    return MCF_OK;
+}
+
+/* The buffers holding the ns new Draco streams (streams[i] for view
+ * sv[i]), each laid out again once (dirty 2). */
+static mcf_status relayout_streams(api__gltf_doc *d, cJSON **view, int nview, const int *sv,
+                                   api_buf *streams, int ns, int *dirty, mcf_error *err)
+{
+    mcf_status rc;
+    int p;
+
+    for (p = 0; p < ns; p++) {
+        long long b = int_of(view[sv[p]], "buffer");
+        if (b < 0 || b >= d->nbuf)
+            return api__fail(err, MCF_EDECODE, "gltf: buffer view %d has no buffer", sv[p]);
+        if (dirty[b] != 2) {
+            if ((rc = relayout(d, (int)b, view, nview, sv, streams, ns, err)) != MCF_OK)
+                return rc;
+            dirty[b] = 2;
+        }
+    }
+    return MCF_OK;
+}
+
 static mcf_status rewrite(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                           mcf_error *err)
 {
@@ -339,9 +411,9 @@ static mcf_status rewrite(const mcf_mesh *m, const api_encode_opts *o, api_buf *
     const int nv = mcf_mesh_nvertices(m);
     const int nn = at->a[API_ATTR_NORMAL].corners ? at->a[API_ATTR_NORMAL].nvalues : 0;
     api__gltf_doc d;
-    cJSON *root = NULL, **acc = NULL, **view = NULL, **mesh = NULL;
+    cJSON *root = NULL, **acc = NULL, **view = NULL, **mesh = NULL, *prim;
     double *N = NULL;
-    int *dirty = NULL, *sv = NULL, nacc, nview, nmesh, p, v, k, ns = 0;
+    int *dirty = NULL, *sv = NULL, nacc, nview, nmesh, p, ns = 0;
     api_buf *streams = NULL;
     mcf_status rc = api__gltf_unplan(at->gltf, at->gltf_len, &d, err);
 
@@ -363,70 +435,22 @@ static mcf_status rewrite(const mcf_mesh *m, const api_encode_opts *o, api_buf *
     }
     for (p = 0; p < d.nprim; p++) {
         api__gltf_prim *g = &d.prim[p];
-        cJSON *prim = g->mesh < nmesh
-                          ? cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(
-                                                   mesh[g->mesh], "primitives"),
-                                               g->index)
-                          : NULL;
-        for (v = 0; v < g->nvert; v++)
-            if (g->vmap[v] >= nv || (g->ngroup && g->ngroup[v] >= nn && nn)) {
-                rc = api__fail(err, MCF_EINVAL, "gltf: the document's record does not "
-                               "belong to this mesh");
-                goto done;
-            }
-        if (!prim || g->pos.acc < 0 || g->pos.acc >= nacc) {
-            rc = api__fail(err, MCF_EDECODE, "gltf: mesh %d primitive %d is not in the "
-                           "document", g->mesh, g->index);
+        if ((rc = prim_of(g, nv, nn, mesh, nmesh, nacc, &prim, err)) != MCF_OK)
             goto done;
-        }
-        if (g->draco_view >= 0) {
-            if (g->draco_view >= nview) {
-                rc = api__fail(err, MCF_EDECODE, "gltf: no buffer view %d", g->draco_view);
-                goto done;
-            }
+        if (g->draco_view < 0)
+            rc = rewrite_plain(&d, g, X, N, acc[g->pos.acc], dirty, err);
+        else if (g->draco_view >= nview)
+            rc = api__fail(err, MCF_EDECODE, "gltf: no buffer view %d", g->draco_view);
+        else {
             api_buf_init(&streams[ns], (size_t)-1);
             sv[ns] = g->draco_view;
-            if ((rc = redraco(g, X, N, o, prim, acc, nacc, &streams[ns++], err)) != MCF_OK)
-                goto done;
-            continue;
+            rc = redraco(g, X, N, o, prim, acc, nacc, &streams[ns++], err);
         }
-        /* plain: in place, then POSITION's bounds over the whole accessor */
-        for (v = 0; v < g->nvert; v++)
-            for (k = 0; k < 3; k++) {
-                if (g->vmap[v] >= 0)
-                    api__put_f32(d.buf[g->pos.buf] + g->pos.off +
-                                     (size_t)g->pos.stride * (size_t)v + 4 * (size_t)k,
-                                 (float)X[3 * (size_t)g->vmap[v] + k]);
-                if (N && g->ngroup && g->ngroup[v] >= 0 && g->nrm.buf >= 0)
-                    api__put_f32(d.buf[g->nrm.buf] + g->nrm.off +
-                                     (size_t)g->nrm.stride * (size_t)v + 4 * (size_t)k,
-                                 (float)N[3 * (size_t)g->ngroup[v] + k]);
-            }
-        dirty[g->pos.buf] = 1;
-        if (g->nrm.buf >= 0)
-            dirty[g->nrm.buf] = 1;
-        {
-            double lo[3], hi[3];
-            bounds(d.buf[g->pos.buf] + g->pos.off, g->nvert, (size_t)g->pos.stride, lo, hi);
-            if (!set_vec3(acc[g->pos.acc], "min", lo) || !set_vec3(acc[g->pos.acc], "max", hi)) {
-                rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-                goto done;
-            }
-        }
-    }
-    /* buffers holding a new Draco stream: laid out again */
-    for (p = 0; p < ns; p++) {
-        long long b = int_of(view[sv[p]], "buffer");
-        if (b < 0 || b >= d.nbuf) {
-            rc = api__fail(err, MCF_EDECODE, "gltf: buffer view %d has no buffer", sv[p]);
+        if (rc != MCF_OK)
             goto done;
-        }
-        if (dirty[b] != 2) {
-            if ((rc = relayout(&d, (int)b, view, nview, sv, streams, ns, err)) != MCF_OK)
-                goto done;
-            dirty[b] = 2;
-        }
     }
+    if ((rc = relayout_streams(&d, view, nview, sv, streams, ns, dirty, err)) != MCF_OK)
+        goto done;
     rc = serialize(root, d.buf, d.buf_len, dirty, d.nbuf,
                    o->format == API_FMT_GLB || o->format == API_FMT_GLTF ? o->format
                                                                           : d.container,
