@@ -2,7 +2,7 @@
 /*
  * rstore.c - the job store in Redis (rstore.h says the keys and the
  * semantics): opening it, the helpers both files use, and the records and
- * blobs (rstore_queue.c: the queue, the reaper, leases and progress).
+ * blobs (rstore_queue.c: the queue, the reaper and progress).
  * Every step that reads and then writes is one Lua script, so replicas
  * racing for a job see one order.
  */

@@ -173,18 +173,13 @@ int rstore_heartbeat(rstore *s, const char *id);
  * claim_idle): entries idle over min_idle seconds taken over, or -1. */
 int rstore_reap(rstore *s, double min_idle);
 
-/* A lease named name (P:lease:NAME) held by this consumer for ttl
- * seconds: taken when free, renewed when ours (ttl 0: given up). 1 ours,
- * 0 another's (its consumer in holder), -1 and errno. */
-int rstore_lease(rstore *s, const char *name, double ttl, char *holder,
-                 size_t size);
-
 /* Progress. */
 int rstore_progress(rstore *s, const char *id, const char *line,
                     size_t len);
 /* Calls fn for each line after entry `after` ("0": from the first),
- * waiting up to block seconds for the first one; after is advanced to
- * the last line given (size RSTORE_ID_MAX). The number of lines, or -1. */
+ * waiting up to block seconds for the first one (0: not at all); after
+ * is advanced to the last line given (size RSTORE_ID_MAX). The number of
+ * lines, or -1. */
 int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
                   double block,
                   void (*fn)(const char *line, size_t len, void *ctx),

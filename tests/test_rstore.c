@@ -488,28 +488,6 @@ static void test_dead_letter(void **state)
     rstore_close(b);
 }
 
-/* A lease: one holder at a time; free again after its ttl. */
-static void test_lease(void **state)
-{
-    rstore *a = replica("a", 30, 3), *b = replica("b", 30, 3);
-    char holder[64] = "";
-    (void)state;
-
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 0);
-    assert_string_equal(holder, "a");
-    redisd_sleep(0.4);
-    assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 0);
-    assert_string_equal(holder, "b");
-    assert_int_equal(rstore_lease(a, "x", 0, holder, sizeof holder), 0);
-    assert_int_equal(rstore_lease(b, "x", 0, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
-    rstore_close(a);
-    rstore_close(b);
-}
-
 /* ----------------------------------------------------------- progress */
 
 typedef struct {
@@ -697,7 +675,6 @@ int main(void)
         cmocka_unit_test_setup(test_no_duplicate_runs, setup),
         cmocka_unit_test_setup(test_heartbeat_keeps_a_long_job, setup),
         cmocka_unit_test_setup(test_dead_letter, setup),
-        cmocka_unit_test_setup(test_lease, setup),
         cmocka_unit_test_setup(test_progress_seen_from_another_replica,
                                setup),
         cmocka_unit_test_setup(test_redis_down_and_back, setup),
