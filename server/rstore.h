@@ -165,6 +165,10 @@ int rstore_claim(rstore *s, int (*fits)(void *ctx, const char *id),
 /* The outcome is recorded: the entry leaves the queue (ESTALE when
  * another replica took the job over). */
 int rstore_ack(rstore *s, const char *id);
+/* The end of a run in one round trip: the n blobs written (as put()
+ * with fence) and the entry acknowledged (as ack()), all or nothing;
+ * ESTALE when another replica took the job over. */
+int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n);
 /* A queued job canceled: its entry leaves the queue (0 also when it was
  * not queued). */
 int rstore_drop(rstore *s, const char *id);

@@ -78,6 +78,26 @@ static rds_script lua_ack = {
     "redis.call('HDEL', KEYS[1], 'runner', 'entry', 'stream')\n"
     "return 1\n", ""};
 
+/* KEYS: hash, events. ARGV: group, consumer, blob prefix, ttl, then
+ * name, data pairs. The end of a run in one step: its blobs written and
+ * its entry acknowledged, only by its runner (else STALE, nothing
+ * written). */
+static rds_script lua_finish = {
+    LUA_TOUCH LUA_WRITE
+    "local r = redis.call('HMGET', KEYS[1], 'runner', 'entry', 'stream')\n"
+    "if redis.call('EXISTS', KEYS[1]) == 0 then\n"
+    "  return redis.error_reply('NOJOB no such job') end\n"
+    "if r[1] ~= ARGV[2] then\n"
+    "  return redis.error_reply('STALE another replica took the job over') "
+    "end\n"
+    "for i = 5, #ARGV, 2 do write(KEYS[1], ARGV[3], ARGV[i], ARGV[i + 1]) "
+    "end\n"
+    "redis.call('XACK', r[3], ARGV[1], r[2])\n"
+    "redis.call('XDEL', r[3], r[2])\n"
+    "redis.call('HDEL', KEYS[1], 'runner', 'entry', 'stream')\n"
+    "touch(KEYS[1], ARGV[3], KEYS[2], ARGV[4])\n"
+    "return 1\n", ""};
+
 /* KEYS: hash, events. 1 dropped, 0 not queued. */
 static rds_script lua_drop = {
     "local r = redis.call('HMGET', KEYS[1], 'queued', 'qstream')\n"
@@ -388,6 +408,43 @@ static int job_script(rstore *s, rds_script *sc, const char *id)
 int rstore_ack(rstore *s, const char *id)
 {
     return job_script(s, &lua_ack, id);
+}
+
+int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n)
+{
+    const char *argv[32];
+    size_t lens[32];
+    job_keys k;
+    int i, argc = 0;
+
+    if (rstore__keys(s, id, &k) != 0 || n < 0 || 6 + 2 * n > 32) {
+        errno = EINVAL;
+        return -1;
+    }
+    argv[argc++] = k.hash;
+    argv[argc++] = k.ev;
+    argv[argc++] = GROUP;
+    argv[argc++] = s->cfg.consumer;
+    argv[argc++] = k.blobs;
+    argv[argc++] = s->ttl_ms;
+    for (i = 0; i < argc; i++)
+        lens[i] = strlen(argv[i]);
+    for (i = 0; i < n; i++) {
+        if (!rstore__name_ok(b[i].name)) {
+            errno = EINVAL;
+            return -1;
+        }
+        if (b[i].len > s->max_blob) {
+            errno = EFBIG;
+            return -1;
+        }
+        argv[argc] = b[i].name;
+        lens[argc++] = strlen(b[i].name);
+        argv[argc] = b[i].data ? b[i].data : "";
+        lens[argc++] = b[i].len;
+    }
+    return rstore__eval_int(s, &lua_finish, 2, argc, argv, lens, NULL) < 0
+               ? -1 : 0;
 }
 
 int rstore_drop(rstore *s, const char *id)

@@ -146,6 +146,13 @@ typedef struct {
     /* 0: only this process fills the queue (a push wakes the workers);
      * else the seconds an idle worker waits before claiming again (a
      * shared queue that other replicas fill) */
+    /* the end of a run in one step, where the store can: the n blobs
+     * put (durable, state.json among them) and the id acknowledged, all
+     * or nothing (ESTALE: another replica took the job over). NULL: the
+     * service puts each blob, then acks. */
+    int (*finish)(svc_store *st, const char *id, const svc_blob *blobs,
+                  int n);
+
     double poll;
     int shared;                /* other replicas share it (above) */
 } svc_store_ops;

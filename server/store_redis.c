@@ -83,18 +83,29 @@ static int rd_ready(svc_store *st, char *why, size_t size)
     return rstore_ready(of(st)->rs, why, size);
 }
 
-static int rd_create(svc_store *st, const char *id, const svc_blob *blobs,
-                     int n)
+#define BLOBS_MAX 12            /* blobs of one create or finish */
+
+/* The store's blobs as rstore's: 0, or -1 (EINVAL: too many). */
+static int to_rstore(const svc_blob *blobs, int n, rstore_blob *b)
 {
-    rstore_blob b[12];
     int i;
 
-    if (n < 0 || n > 12) {
+    if (n < 0 || n > BLOBS_MAX) {
         errno = EINVAL;
         return -1;
     }
     for (i = 0; i < n; i++)
         b[i] = (rstore_blob){blobs[i].name, blobs[i].data, blobs[i].len};
+    return 0;
+}
+
+static int rd_create(svc_store *st, const char *id, const svc_blob *blobs,
+                     int n)
+{
+    rstore_blob b[BLOBS_MAX];
+
+    if (to_rstore(blobs, n, b) != 0)
+        return -1;
     return rstore_create(of(st)->rs, id, b, n);
 }
 
@@ -239,12 +250,30 @@ static int rd_follow(svc_store *st, const char *id, char *after,
     return rstore_events(of(st)->rs, id, after, 0, fn, ctx);
 }
 
+/* The run's end: its blobs and the ack in one script (rstore_finish). */
+static int rd_finish(svc_store *st, const char *id, const svc_blob *blobs,
+                     int n)
+{
+    rstore_st *r = of(st);
+    rstore_blob b[BLOBS_MAX];
+    int rc, e;
+
+    if (to_rstore(blobs, n, b) != 0)
+        return -1;
+    rc = rstore_finish(r->rs, id, b, n);
+    e = errno;
+    if (rc == 0 || e == ESTALE)
+        set_running(r, id, 0);
+    errno = e;
+    return rc;
+}
+
 static const svc_store_ops redis_ops = {
     "redis", rd_close, rd_ready,
     rd_create, rd_put, rd_get, rd_get_at, rd_stat, rd_open, rd_remove,
     rd_quarantine, rd_usage, rd_scan,
     rd_push, rd_claim, rd_ack, rd_drop,
-    rd_heartbeat, rd_progress, rd_follow,
+    rd_heartbeat, rd_progress, rd_follow, rd_finish,
     0.25,                          /* claim blocks 1 s in XREADGROUP too */
     1,                             /* shared by replicas */
 };

@@ -184,6 +184,9 @@ typedef struct {
     size_t disk_add;           /* bytes it wrote to the store */
     char *result;              /* the encoded result (kept for the
                                   submitter when it asked), or NULL */
+    char *metrics;             /* a store with finish: its metrics.json */
+    char *fields;              /* and its fields.bin (fields=true) */
+    size_t fields_len;
     int nv, nf;
     double run_s;
 } svc_outcome;

@@ -400,45 +400,35 @@ static void apply_outcome_locked(svc_job *j, svc_outcome *o,
     }
 }
 
-/* When the run is over, before its outcome is published: its progress
- * events go to the store (events.ndjson and events.idx, not durable:
- * nothing depends on them after a crash) and out of memory, where
- * admission no longer counts them; svc_job_events reads them back. A
- * store that takes no write loses them (followers then see the outcome
- * alone). Only the job's worker appends to or frees them, so they are
- * written outside the lock. */
-static void events_to_store(svc_job *j)
+/* The job's events as they are now (only its worker appends). */
+static int events_now(svc_job *j, const char **data, size_t *len,
+                      const size_t **ends)
+{
+    int n;
+
+    pthread_mutex_lock(&j->svc->mu);
+    *data = j->events.data;
+    *len = j->events.len;
+    *ends = j->event_end;
+    n = j->nevents;
+    pthread_mutex_unlock(&j->svc->mu);
+    return n;
+}
+
+/* The events written (ok: their len bytes and n ends) or lost: out of
+ * memory either way. */
+static void events_done(svc_job *j, int ok, size_t len, int n)
 {
     svc_t *s = j->svc;
-    svc_store *st = s->store;
-    const char *data;
-    const size_t *ends;
-    size_t len;
-    int n, ok;
 
-    pthread_mutex_lock(&s->mu);
-    data = j->events.data;
-    len = j->events.len;
-    ends = j->event_end;
-    n = j->nevents;
-    pthread_mutex_unlock(&s->mu);
-    if (n == 0)
-        return;
-    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
-         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
-                      0) == 0;
-    if (!ok)
-        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
-                 "written to the spool (%s); late followers get its outcome "
-                 "alone", j->id, n, strerror(errno));
     pthread_mutex_lock(&s->mu);
     api_buf_free(&j->events);
     api_buf_init(&j->events, SVC_EVENTS_MAX);
     free(j->event_end);
     j->event_end = NULL;
     j->event_cap = 0;
-    if (ok) {
-        size_t add = len + (size_t)n * sizeof *ends;
+    if (ok && n > 0) {
+        size_t add = len + (size_t)n * sizeof *j->event_end;
         j->events_disk = len;
         j->disk_bytes += add;
         if (j->in_table)
@@ -449,14 +439,97 @@ static void events_to_store(svc_job *j)
     pthread_mutex_unlock(&s->mu);
 }
 
+/* When the run is over, before its outcome is published: its progress
+ * events go to the store (events.ndjson and events.idx, not durable:
+ * nothing depends on them after a crash) and out of memory, where
+ * admission no longer counts them; svc_job_events reads them back. A
+ * store that takes no write loses them (followers then see the outcome
+ * alone). Only the job's worker appends to or frees them, so they are
+ * written outside the lock. */
+static void events_to_store(svc_job *j)
+{
+    svc_store *st = j->svc->store;
+    const char *data;
+    const size_t *ends;
+    size_t len;
+    int n = events_now(j, &data, &len, &ends), ok;
+
+    if (n == 0)
+        return;
+    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
+         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
+                      0) == 0;
+    if (!ok)
+        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
+                 "written to the spool (%s); late followers get its outcome "
+                 "alone", j->id, n, strerror(errno));
+    events_done(j, ok, len, n);
+}
+
+/* A store with finish (store.h): what the run leaves, written with its
+ * state and its ack in one step. */
+typedef struct {
+    svc_blob b[6];             /* result, metrics, fields, events x2, state */
+    int n;
+    size_t ev_len;             /* its events: bytes and lines */
+    int ev_n;
+} end_blobs;
+
+static void end_add(end_blobs *eb, const char *name, const void *data,
+                    size_t len)
+{
+    eb->b[eb->n++] = (svc_blob){name, data ? data : "", len};
+}
+
+static void end_blobs_of(svc_job *j, const svc_outcome *o, end_blobs *eb)
+{
+    const char *data;
+    const size_t *ends;
+
+    memset(eb, 0, sizeof *eb);
+    if (o->status == SVC_JOB_SUCCEEDED) {
+        end_add(eb, o->result_name, o->result, o->result_len);
+        end_add(eb, "metrics.json", o->metrics,
+                o->metrics ? strlen(o->metrics) : 0);
+        if (o->fields)
+            end_add(eb, SVC_FIELDS_FILE, o->fields, o->fields_len);
+    }
+    if ((eb->ev_n = events_now(j, &data, &eb->ev_len, &ends)) > 0) {
+        end_add(eb, "events.ndjson", data, eb->ev_len);
+        end_add(eb, "events.idx", ends, (size_t)eb->ev_n * sizeof *ends);
+    }
+}
+
+/* The blobs, state r and the ack in one step (state_mu held). */
+static int finish_rec(svc_t *s, const svc_state_rec *r, end_blobs *eb)
+{
+    char *text = svc__state_json(r);
+    int rc, e;
+
+    if (!text) {
+        errno = ENOMEM;
+        return -1;
+    }
+    eb->b[eb->n] = (svc_blob){"state.json", text, strlen(text)};
+    rc = s->store->ops->finish(s->store, r->id, eb->b, eb->n + 1);
+    e = errno;
+    free(text);
+    errno = e;
+    return rc;
+}
+
 void svc__finish(svc_job *j, svc_outcome *o)
 {
     svc_t *s = j->svc;
     svc_state_rec r;
-    int tries = 0, written = 0, e = 0;
+    end_blobs eb;
+    int tries = 0, written = 0, e = 0,
+        fin = s->store->ops->finish && o->status != SVC_JOB_QUEUED;
     double now = srv_wall();
 
-    if (o->status != SVC_JOB_QUEUED)
+    if (fin)
+        end_blobs_of(j, o, &eb);
+    else if (o->status != SVC_JOB_QUEUED)
         events_to_store(j);
     /* The outcome is in the store before anyone can see it (GET polls,
      * waiters, a restart): a client told "succeeded" can always find the
@@ -468,7 +541,7 @@ void svc__finish(svc_job *j, svc_outcome *o)
         pthread_mutex_lock(&s->mu);
         outcome_rec(j, o, now, &r);
         pthread_mutex_unlock(&s->mu);
-        if (write_rec(s, &r, 1) == 0) {
+        if ((fin ? finish_rec(s, &r, &eb) : write_rec(s, &r, 1)) == 0) {
             written = 1;
             break;             /* state_mu held until published */
         }
@@ -481,6 +554,8 @@ void svc__finish(svc_job *j, svc_outcome *o)
             !svc__retry(j, &tries, e, "recording its outcome", 1))
             break;
     }
+    if (fin)
+        events_done(j, written, eb.ev_len, eb.ev_n);
     pthread_mutex_lock(&s->mu);
     j->run_here = 0;
     if (!written && e == ESTALE) {
@@ -500,7 +575,8 @@ void svc__finish(svc_job *j, svc_outcome *o)
     /* a shared queue: a job stopped by the shutdown goes back to its head
      * for another replica (else its entry stays pending and the reaper
      * hands it over) */
-    if (!(s->store->ops->shared && o->status == SVC_JOB_QUEUED &&
+    if (!(fin && written) &&
+        !(s->store->ops->shared && o->status == SVC_JOB_QUEUED &&
           (!written || s->store->ops->push(s->store, j->id, 1) != 0)))
         s->store->ops->ack(s->store, j->id);
     /* Counted before anyone hears, so /metrics agrees with what clients

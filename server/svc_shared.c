@@ -120,8 +120,14 @@ svc_job *svc__shared_get(svc_t *s, const char *id)
      * more (but a deletion elsewhere is seen at its next read) */
     local = j && j->run_here;
     pthread_mutex_unlock(&s->mu);
-    if (local)
+    if (local) {
+        /* its outcome may be in the store (other replicas see it) and
+         * not yet published here: svc__finish holds state_mu from the
+         * one to the other */
+        pthread_mutex_lock(&s->state_mu);
+        pthread_mutex_unlock(&s->state_mu);
         return j;
+    }
     if (!j)
         return load_new(s, id);
     if (refresh(s, j) != 0) {

@@ -140,6 +140,8 @@ static void *worker_main(void *arg)
         svc__run(j, &o);
         svc__finish(j, &o);
         free(o.result);
+        free(o.metrics);
+        free(o.fields);
         svc_admit_release(s, j->mem_held); /* its memory is free */
         pthread_mutex_lock(&s->mu);
         s->busy--;
