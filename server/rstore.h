@@ -69,6 +69,8 @@
  *     state the old one left (the service runs only queued jobs; a
  *     takeover is reported by claim() as RSTORE_RETAKEN, so the service
  *     re-queues a job whose state says running).
+ *   - One step at the end. finish() writes a run's blobs and acks its
+ *     entry in one script, fenced like put() and ack().
  *   - Progress. progress() XADDs a line to P:ev:{id} (MAXLEN ~ ev_max);
  *     events() reads them after a given entry id, blocking up to a bound:
  *     a follower on any replica sees every line, in order, late or not.

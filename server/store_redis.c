@@ -10,7 +10,8 @@
  * svc_shared.c). A replica that dies leaves its running jobs pending on
  * its consumer: the reaper of another replica takes them after
  * claim_idle seconds without heartbeat (MCFD_REDIS_CLAIM_IDLE, 30 s by
- * default; tests set it short).
+ * default; tests set it short); a job whose replica stopped during each
+ * of max_runs runs (MCFD_REDIS_MAX_RUNS, 3) is failed, not run again.
  */
 #include <errno.h>
 #include <pthread.h>
@@ -283,7 +284,8 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
 {
     rds_config rc;
     rstore_config cfg;
-    const char *idle = getenv("MCFD_REDIS_CLAIM_IDLE");
+    const char *idle = getenv("MCFD_REDIS_CLAIM_IDLE"),
+               *runs = getenv("MCFD_REDIS_MAX_RUNS");
     rstore_st *r;
 
     rds_config_default(&rc);
@@ -301,6 +303,10 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
      * that never steals a live replica's job */
     if (idle && atof(idle) >= 3)
         cfg.claim_idle = atof(idle);
+    /* runs of a job whose replica stops each time before it is failed
+     * (dead letter; 3 by default) */
+    if (runs && atoi(runs) >= 1)
+        cfg.max_runs = atoi(runs);
     if (!(r = calloc(1, sizeof *r))) {
         snprintf(msg, msgsize, "out of memory");
         return NULL;

@@ -8,7 +8,8 @@ stopped by the test whatever happens.
 Checks: a job submitted to A is watched from B (SSE and gRPC WatchJob,
 every step) and fetched from C, the bytes POST /smooth gives; a cancel
 asked on B stops the run on A; kill -9 of the replica running a job:
-another finishes it under the same ID; Redis restarted mid-run: the job
+another finishes it under the same ID, and a job whose replica stops in
+each of its runs is failed with the reason; Redis restarted mid-run: the job
 ends with one result; 32 clients spread over three replicas: every job
 succeeds once (counted in Redis and in the replicas' /metrics), and the
 same load on the local-spool default (one replica) too; Redis down: every
@@ -167,6 +168,28 @@ def test_kill9_of_the_runner():
         stop(ds)
 
 
+def test_dead_letter_is_failed():
+    """A job whose replica stops during each of its runs (here one:
+    MCFD_REDIS_MAX_RUNS=1) is written failed with the reason, not run."""
+    os.environ["MCFD_REDIS_MAX_RUNS"] = "1"
+    try:
+        ds = replicas(2, "dead")
+    finally:
+        del os.environ["MCFD_REDIS_MAX_RUNS"]
+    try:
+        jid = submit(ds[0], "scheme=desbrun2&iterations=50000")
+        wait_status(ds[1], jid, "running", 30)
+        dead = runner_of(ds, jid)
+        dead.kill()
+        alive = [d for d in ds if d is not dead][0]
+        wait_status(alive, jid, "failed", 30)
+        st, _, body = http("GET", "%s/v1/jobs/%s" % (alive.url, jid))
+        assert b"replica running it stopped" in body, body[:500]
+        assert cli("XLEN", "mcfd:dead") == "1"
+    finally:
+        stop(ds)
+
+
 def test_redis_restart_mid_run():
     ds = replicas(2, "rr")
     try:
@@ -261,7 +284,7 @@ def test_redis_down_every_replica_503():
 if __name__ == "__main__":
     raise SystemExit(run_tests(
         [test_submit_a_watch_b_fetch_c, test_cancel_on_b_stops_the_run_on_a,
-         test_kill9_of_the_runner, test_redis_restart_mid_run,
+         test_kill9_of_the_runner, test_dead_letter_is_failed, test_redis_restart_mid_run,
          test_32_clients_over_three_replicas, test_32_clients_on_the_local_spool,
          test_redis_down_every_replica_503],
         setup=redis_start))
