@@ -415,7 +415,7 @@ int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n)
     const char *argv[32];
     size_t lens[32];
     job_keys k;
-    int i, argc = 0;
+    int argc = 0;
 
     if (rstore__keys(s, id, &k) != 0 || n < 0 || 6 + 2 * n > 32) {
         errno = EINVAL;
@@ -427,22 +427,8 @@ int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n)
     argv[argc++] = s->cfg.consumer;
     argv[argc++] = k.blobs;
     argv[argc++] = s->ttl_ms;
-    for (i = 0; i < argc; i++)
-        lens[i] = strlen(argv[i]);
-    for (i = 0; i < n; i++) {
-        if (!rstore__name_ok(b[i].name)) {
-            errno = EINVAL;
-            return -1;
-        }
-        if (b[i].len > s->max_blob) {
-            errno = EFBIG;
-            return -1;
-        }
-        argv[argc] = b[i].name;
-        lens[argc++] = strlen(b[i].name);
-        argv[argc] = b[i].data ? b[i].data : "";
-        lens[argc++] = b[i].len;
-    }
+    if (rstore__blob_args(s, b, n, argv, lens, &argc) != 0)
+        return -1;
     return rstore__eval_int(s, &lua_finish, 2, argc, argv, lens, NULL) < 0
                ? -1 : 0;
 }

@@ -142,23 +142,23 @@ def test_cancel_on_b_stops_the_run_on_a():
         stop(ds)
 
 
-def runner_of(ds, jid):
-    """The replica whose consumer runs jid (host:pid:nonce in its record)."""
+def kill_runner(ds, query):
+    """A job submitted with query, killed (-9) with the replica whose
+    consumer runs it (host:pid:nonce in its record): (its id, the replica
+    left)."""
+    jid = submit(ds[0], query)
+    wait_status(ds[1], jid, "running", 30)
     who = cli("HGET", "mcfd:job:" + jid, "runner")
-    for d in ds:
-        if ":%d:" % d.p.pid in who:
-            return d
-    raise AssertionError("no replica runs %s (runner %r)" % (jid, who))
+    dead = [d for d in ds if ":%d:" % d.p.pid in who]
+    assert len(dead) == 1, "no replica runs %s (runner %r)" % (jid, who)
+    dead[0].kill()
+    return jid, [d for d in ds if d is not dead[0]][0]
 
 
 def test_kill9_of_the_runner():
     ds = replicas(2, "kill")
     try:
-        jid = submit(ds[0], "scheme=desbrun2&iterations=60")
-        wait_status(ds[1], jid, "running", 30)
-        dead = runner_of(ds, jid)
-        dead.kill()
-        alive = [d for d in ds if d is not dead][0]
+        jid, alive = kill_runner(ds, "scheme=desbrun2&iterations=60")
         wait_status(alive, jid, "succeeded", 90)
         result_of(alive, jid)
         assert cli("HGET", "mcfd:job:" + jid, "runs") == "2"
@@ -177,11 +177,7 @@ def test_dead_letter_is_failed():
     finally:
         del os.environ["MCFD_REDIS_MAX_RUNS"]
     try:
-        jid = submit(ds[0], "scheme=desbrun2&iterations=50000")
-        wait_status(ds[1], jid, "running", 30)
-        dead = runner_of(ds, jid)
-        dead.kill()
-        alive = [d for d in ds if d is not dead][0]
+        jid, alive = kill_runner(ds, "scheme=desbrun2&iterations=50000")
         wait_status(alive, jid, "failed", 30)
         st, _, body = http("GET", "%s/v1/jobs/%s" % (alive.url, jid))
         assert b"replica running it stopped" in body, body[:500]
