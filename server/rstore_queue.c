@@ -81,12 +81,15 @@ static rds_script lua_ack = {
 /* KEYS: hash, events. ARGV: group, consumer, blob prefix, ttl, then
  * name, data pairs. The end of a run in one step: its blobs written and
  * its entry acknowledged, only by its runner (else STALE, nothing
- * written). */
+ * written). A retry of a finish whose reply was lost (nothing running,
+ * the last blob, a small one, already these bytes) succeeds. */
 static rds_script lua_finish = {
     LUA_TOUCH LUA_WRITE
     "local r = redis.call('HMGET', KEYS[1], 'runner', 'entry', 'stream')\n"
     "if redis.call('EXISTS', KEYS[1]) == 0 then\n"
     "  return redis.error_reply('NOJOB no such job') end\n"
+    "if not r[1] and #ARGV >= 6 and redis.call('HGET', KEYS[1], 'b:' .. "
+    "ARGV[#ARGV - 1]) == ARGV[#ARGV] then return 1 end\n"
     "if r[1] ~= ARGV[2] then\n"
     "  return redis.error_reply('STALE another replica took the job over') "
     "end\n"

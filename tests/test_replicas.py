@@ -148,8 +148,13 @@ def kill_runner(ds, query):
     left)."""
     jid = submit(ds[0], query)
     wait_status(ds[1], jid, "running", 30)
-    who = cli("HGET", "mcfd:job:" + jid, "runner")
-    dead = [d for d in ds if ":%d:" % d.p.pid in who]
+    end = time.time() + 30
+    while True:
+        who = cli("HGET", "mcfd:job:" + jid, "runner")
+        dead = [d for d in ds if ":%d:" % d.p.pid in who]
+        if dead or time.time() > end:
+            break
+        time.sleep(0.1)
     assert len(dead) == 1, "no replica runs %s (runner %r)" % (jid, who)
     dead[0].kill()
     return jid, [d for d in ds if d is not dead[0]][0]

@@ -408,6 +408,8 @@ static void test_finish_is_one_step(void **state)
     assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 1);
     /* b: all of it, and the queue is empty */
     must_ok(rstore_finish(b, "j", end, 3), "finish");
+    /* its reply lost, b tries again: done already, not STALE */
+    must_ok(rstore_finish(b, "j", end, 3), "finish again");
     must_ok(rstore_get(a, "j", "result.obj", &data, &n), "get result");
     assert_int_equal(n, 8);
     free(data);
