@@ -111,7 +111,8 @@ $(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/stand_ins.c
 	objcopy --redefine-sym GOMP_parallel=mcf__omp_parallel \
 	  --redefine-sym omp_get_num_threads=mcf__omp_get_num_threads \
 	  --redefine-sym omp_get_thread_num=mcf__omp_get_thread_num \
-	  --redefine-sym SuiteSparse_time=mcf__suitesparse_time $(CHOLMOD_A) $@.tmp
+	  --redefine-sym SuiteSparse_time=mcf__suitesparse_time \
+	  --redefine-sym dtrsm_=mcf__dtrsm --redefine-sym dpotrf_=mcf__dpotrf $(CHOLMOD_A) $@.tmp
 	! nm -u $@.tmp | grep -E ' (GOMP_|omp_|GOACC_)' || \
 	  { echo "libcholmod_serial.a: $(CHOLMOD_A) calls more of OpenMP than the stand-ins cover"; rm -f $@.tmp; exit 1; }
 	ar rs $@.tmp $(@D)/cholmod_serial/stand_ins.o && mv $@.tmp $@
