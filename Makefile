@@ -102,8 +102,9 @@ $(B)/libmcf.a: $(CORE_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
 # The OpenMP entry points CHOLMOD uses (GOMP_parallel, omp_get_num_threads,
-# omp_get_thread_num, nothing else: `nm -u`) and the clock of its BLAS
-# timing statistics become the stand-ins'; the stand-ins join the archive
+# omp_get_thread_num, nothing else: `nm -u`), the clock of its BLAS
+# timing statistics and its dpotrf/dtrsm calls (small ones as loops, the
+# rest to the BLAS) become the stand-ins'; the stand-ins join the archive
 # so that any link order resolves them.
 $(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/stand_ins.c
 	@mkdir -p $(@D)/cholmod_serial
