@@ -26,12 +26,12 @@
  * supernodes of a scan are tiny (the armadillo: 5,006 of 8.6 columns),
  * where OpenBLAS's dpotrf (an unblocked dpotf2 of one dgemv and one dscal
  * per column) and dtrsm (packing, then its kernel) spend more on calls
- * and copies than on flops: the armadillo's numeric factorization 12.4 ->
- * 11.0 ms (minimum of 30; lab/bench/README.md). The update calls (dsyrk,
- * dgemm) stay OpenBLAS's: as loops they were slower. The loops round
- * differently from OpenBLAS (another order of the same operations); the
- * AVX2 clone gives the same bits as the generic one (no fused
- * multiply-add).
+ * and copies than on flops: the armadillo's numeric factorization 12.1 ->
+ * 10.6 ms (minimum of 30, interleaved; lab/bench/README.md). The update
+ * calls (dsyrk, dgemm) stay OpenBLAS's: as loops they were not faster. The
+ * loops round differently from OpenBLAS (another order of the same
+ * operations); the AVX2 clone does each element's operations in the
+ * generic one's order (no fused multiply-add).
  *
  * Thread safety: no state at all. A region runs on the thread that opens
  * it, so the workers of mcfd, each factoring its own matrix, run their
