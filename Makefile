@@ -102,8 +102,9 @@ $(B)/libmcf.a: $(CORE_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
 # The OpenMP entry points CHOLMOD uses (GOMP_parallel, omp_get_num_threads,
-# omp_get_thread_num, nothing else: `nm -u`) and the clock of its BLAS
-# timing statistics become the stand-ins'; the stand-ins join the archive
+# omp_get_thread_num, nothing else: `nm -u`), the clock of its BLAS
+# timing statistics and its dpotrf/dtrsm calls (small ones as loops, the
+# rest to the BLAS) become the stand-ins'; the stand-ins join the archive
 # so that any link order resolves them.
 $(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/stand_ins.c
 	@mkdir -p $(@D)/cholmod_serial
@@ -111,7 +112,8 @@ $(B)/libcholmod_serial.a: $(CHOLMOD_A) core/cholmod_serial/stand_ins.c
 	objcopy --redefine-sym GOMP_parallel=mcf__omp_parallel \
 	  --redefine-sym omp_get_num_threads=mcf__omp_get_num_threads \
 	  --redefine-sym omp_get_thread_num=mcf__omp_get_thread_num \
-	  --redefine-sym SuiteSparse_time=mcf__suitesparse_time $(CHOLMOD_A) $@.tmp
+	  --redefine-sym SuiteSparse_time=mcf__suitesparse_time \
+	  --redefine-sym dtrsm_=mcf__dtrsm --redefine-sym dpotrf_=mcf__dpotrf $(CHOLMOD_A) $@.tmp
 	! nm -u $@.tmp | grep -E ' (GOMP_|omp_|GOACC_)' || \
 	  { echo "libcholmod_serial.a: $(CHOLMOD_A) calls more of OpenMP than the stand-ins cover"; rm -f $@.tmp; exit 1; }
 	ar rs $@.tmp $(@D)/cholmod_serial/stand_ins.o && mv $@.tmp $@
