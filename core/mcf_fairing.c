@@ -75,8 +75,8 @@ enum { NPROBE = 6, NCOL = 3 + NPROBE };
 #define MOVE_TAPER 2.0
 /* the least gain of SURE over the input, in its standard errors
  * (sure_of), for a step to count: one-sided, 2 leaves about 2% of the
- * steps that gain nothing; the gain's error is small on a scan (no step
- * count of the 180 `make quality` cases changed), of the gain's size on
+ * steps that gain nothing; the gain's error is small on a scan (one step
+ * count of the 180 `make quality` cases changed, by one), of the gain's size on
  * a coarse mesh (car.drc: 300 free vertices, a few 15x the mean area) */
 #define SURE_MIN_GAIN 2.0
 /* the relative standard error of the noise level's square, times
