@@ -12,7 +12,7 @@
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
 #   make tsan       the daemon's tests under ThreadSanitizer (build-tsan/, tests/tsan.supp)
 #   make WERROR=1 ...                  warnings are errors (CI)
-#   make check-deps the one-way dependency server -> api -> core, the doors -> service.h, includes by name,
+#   make check-deps the one-way dependency server -> api -> core, no exec/setenv in the libraries, the doors -> service.h, includes by name,
 #                   nothing outside lab/ includes the lab, an SPDX line atop every source file
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
@@ -59,6 +59,9 @@ CORE_SRC := $(wildcard core/*.c)
 API_SRC  := $(wildcard api/*.c)
 API_CXX  := $(wildcard api/*.cc)
 CLI_SRC  := $(wildcard cli/*.c)
+# What the programs (mcf, mcfd) do first in main (prog/prog.h): theirs,
+# not the libraries'.
+PROG_SRC := $(wildcard prog/*.c)
 SRV_SRC  := $(wildcard server/*.c)
 SRV_CXX  := $(wildcard server/*.cc)
 TEST_SRC := $(wildcard tests/test_*.c)
@@ -67,6 +70,7 @@ TESTLIB  := $(wildcard tests/testlib.c)
 CORE_OBJ := $(CORE_SRC:%.c=$(B)/%.o)
 API_OBJ  := $(API_SRC:%.c=$(B)/%.o) $(API_CXX:%.cc=$(B)/%.o)
 CLI_OBJ  := $(CLI_SRC:%.c=$(B)/%.o)
+PROG_OBJ := $(PROG_SRC:%.c=$(B)/%.o)
 SRV_OBJ  := $(SRV_SRC:%.c=$(B)/%.o) $(SRV_CXX:%.cc=$(B)/%.o)
 TESTLIB_OBJ := $(TESTLIB:%.c=$(B)/%.o)
 TEST_BIN := $(TEST_SRC:tests/%.c=$(B)/tests/%)
@@ -116,11 +120,13 @@ $(B)/libmcfapi.a: $(API_OBJ)
 	@mkdir -p $(@D)
 	rm -f $@ && ar rcs $@ $^
 
-$(B)/mcf: $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
-	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
+$(PROG_OBJ) $(CLI_OBJ) $(B)/server/main.o: CPPFLAGS += -Iprog
 
-$(B)/mcfd: $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
-	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_GRPC) $(LIBS_API) $(LIBS_CORE)
+$(B)/mcf: $(CLI_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
+
+$(B)/mcfd: $(SRV_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
+	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_GRPC) $(LIBS_API) $(LIBS_CORE)
 
 # ---- the gRPC contract: api/mcfd.proto -> $(B)/gen/mcfd{,.grpc}.pb.{cc,h}
 # (protoc + grpc_cpp_plugin, Debian's protobuf-compiler-grpc). Generated
@@ -186,7 +192,7 @@ REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/s
 $(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
--include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d) $(B)/tests/srvlib.d $(B)/tests/redisd.d
+-include $(CORE_OBJ:.o=.d) $(API_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(PROG_OBJ:.o=.d) $(SRV_OBJ:.o=.d) $(TEST_SRC:tests/%.c=$(B)/tests/%.d) $(TESTLIB_OBJ:.o=.d) $(B)/tests/srvlib.d $(B)/tests/redisd.d
 
 # ---- set-up: install what is missing, nothing else
 deps:
@@ -436,7 +442,7 @@ image-check:
 
 # Every source of the product and its tests (all but lab/), and the lab's
 # header names as one regular expression (lab.h|study.h|...).
-PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[ch] server/*.cc \
+PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] prog/*.[ch] server/*.[ch] server/*.cc \
                  tests/*.[ch] tests/fuzz/*.[ch])
 empty :=
 LAB_HEADERS_RE := $(subst $(empty) $(empty),|,$(subst .,\.,$(notdir $(wildcard lab/*.h lab/*/*.h))))
@@ -477,13 +483,15 @@ check-deps:
 	  { echo "check-deps: core/ must not include api, JSON or HTTP headers"; exit 1; }
 	@! grep -nE '#include *[<"]microhttpd\.h' api/*.c api/*.cc api/*.h || \
 	  { echo "check-deps: api/ must not include microhttpd.h"; exit 1; }
+	@! grep -nE '\b(exec[lv]p?e?|setenv|putenv|fork)[[:space:]]*\(' core/*.[ch] api/*.[ch] api/*.cc || \
+	  { echo "check-deps: the libraries leave the process to the programs: no exec, fork or setenv in core/ or api/ (prog/ has what mcf and mcfd do first)"; exit 1; }
 	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out $(GRPC_CXX) server/grpc_internal.h,$(wildcard server/*.[ch] server/*.cc)) || \
 	  { echo "check-deps: only the server's gRPC bridge ($(GRPC_CXX), server/grpc_internal.h) includes gRPC or protobuf"; exit 1; }
 	@[ -z "$(filter-out $(GRPC_CXX),$(wildcard server/*.cc server/*.cpp))" ] || \
 	  { echo "check-deps: $(GRPC_CXX) are the only C++ in server/"; exit 1; }
 	@! grep -nE '#include *[<"]grpc_internal\.h' $(filter-out $(GRPC_CXX),$(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[ch] server/*.cc tests/*.[ch])) || \
 	  { echo "check-deps: grpc_internal.h is the gRPC door's own ($(GRPC_CXX)); others use grpc_door.h"; exit 1; }
-	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] server/*.[ch] server/*.cc) || \
+	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] prog/*.[ch] server/*.[ch] server/*.cc) || \
 	  { echo "check-deps: include a layer's header by name (\"api.h\"), not by a relative path: the -I flags say which layers a file may see"; exit 1; }
 	@! grep -nE '#include *[<"](microhttpd|http)\.h' $(SRV_SERVICE) || \
 	  { echo "check-deps: the job service (service.h) must not know the REST door or libmicrohttpd"; exit 1; }

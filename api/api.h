@@ -412,14 +412,6 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
 
 /* ---------------------------------------------------------------- process */
 
-/* For programs, first thing in main: with blas_too, sets the BLAS thread
- * counts to 1 (OPENBLAS_NUM_THREADS and its kin: one thread per job, the
- * policy of api_threads.c), each unless the environment sets it; then
- * executes argv again once (/proc/self/exe) so that the BLAS, which reads
- * them when loaded, sees them. Returns (without effect) when that is
- * impossible. */
-void api_bound_library_threads(char **argv, int blas_too);
-
 /* The bounds a Draco decode runs under (api_bounds.c says why): the
  * daemon's in a child process (server/sandbox.c, floors --decode-cpu and
  * --decode-memory), the CLI's in its own (these defaults). */

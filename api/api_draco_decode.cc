@@ -157,14 +157,10 @@ mcf_status check_stream(const void *buf, size_t len, const api_limits *lim,
     return check_counts(static_cast<const uint8_t *>(buf), len, lim, err);
 }
 
-mcf_status decode(const void *buf, size_t len, const api_limits *lim,
-                  mcf_mesh **out, api_attrs **attrs, mcf_error *err)
+/* The input's size against lim, then check_stream. */
+static mcf_status check_input(const void *buf, size_t len, const api_limits *lim,
+                              mcf_error *err)
 {
-    api_limits def;
-    if (!lim) {
-        api_limits_default(&def);
-        lim = &def;
-    }
     if (!buf && len)
         return api__fail(err, MCF_EINVAL, "draco: NULL buffer");
     if (len > lim->max_input_bytes)
@@ -173,10 +169,13 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
                          len, lim->max_input_bytes);
     if (len == 0)
         return api__fail(err, MCF_EDECODE, "draco: empty input");
-    mcf_status rc = check_stream(buf, len, lim, err);
-    if (rc != MCF_OK)
-        return rc;
+    return check_stream(buf, len, lim, err);
+}
 
+/* libdraco's decode of the stream into *dm. */
+static mcf_status decode_stream(const void *buf, size_t len, std::unique_ptr<draco::Mesh> *dm,
+                                mcf_error *err)
+{
     draco::DecoderBuffer db;
     db.Init(static_cast<const char *>(buf), len);
     draco::Decoder dec;
@@ -184,22 +183,26 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
     if (!res.ok())
         return api__fail(err, MCF_EDECODE, "draco: %s",
                          res.status().error_msg());
-    std::unique_ptr<draco::Mesh> dm = std::move(res).value();
-    if (!dm)
+    *dm = std::move(res).value();
+    if (!*dm)
         return api__fail(err, MCF_EDECODE, "draco: decoder returned no mesh");
+    return MCF_OK;
+}
 
-    const draco::PointAttribute *pos =
-        dm->GetNamedAttribute(draco::GeometryAttribute::POSITION);
-    if (!pos)
+/* The decoded mesh's POSITION (3 components) in *pos, and its counts of
+ * values and faces: within lim, neither zero. */
+static mcf_status check_geometry(const draco::Mesh &dm, const api_limits *lim,
+                                 const draco::PointAttribute **pos, mcf_error *err)
+{
+    const draco::PointAttribute *p = dm.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+    if (!p)
         return api__fail(err, MCF_EDECODE, "draco: mesh has no POSITION attribute");
-    if (pos->num_components() != 3)
+    if (p->num_components() != 3)
         return api__fail(err, MCF_EDECODE,
                          "draco: POSITION has %d components, 3 needed",
-                         static_cast<int>(pos->num_components()));
-
-    const size_t nvals = pos->size();
-    const size_t npts = dm->num_points();
-    const size_t nfaces = dm->num_faces();
+                         static_cast<int>(p->num_components()));
+    const size_t nvals = p->size();
+    const size_t nfaces = dm.num_faces();
     if (nvals > static_cast<size_t>(lim->max_vertices))
         return api__fail(err, MCF_ELIMIT,
                          "draco: %zu vertices exceed max_vertices (%d)", nvals,
@@ -213,9 +216,18 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
     if (nfaces == 0)
         return api__fail(err, MCF_EDECODE,
                          "draco: mesh has no faces (%zu vertices only)", nvals);
+    *pos = p;
+    return MCF_OK;
+}
 
-    std::vector<double> X(3 * nvals);
-    std::vector<int32_t> F(3 * nfaces);
+/* The positions (finite) into X and the faces, as position values
+ * (mapped_index), into F; both already sized. */
+static mcf_status read_geometry(const draco::Mesh &dm, const draco::PointAttribute *pos,
+                                std::vector<double> &X, std::vector<int32_t> &F,
+                                mcf_error *err)
+{
+    const size_t nvals = X.size() / 3, nfaces = F.size() / 3;
+    const size_t npts = dm.num_points();
     for (size_t v = 0; v < nvals; v++) {
         double *x = &X[3 * v];
         if (!read_position(pos, static_cast<uint32_t>(v), x))
@@ -228,7 +240,7 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
     }
     for (size_t f = 0; f < nfaces; f++) {
         const draco::Mesh::Face &face =
-            dm->face(draco::FaceIndex(static_cast<uint32_t>(f)));
+            dm.face(draco::FaceIndex(static_cast<uint32_t>(f)));
         for (int k = 0; k < 3; k++) {
             const uint32_t p = face[k].value();
             if (p >= npts)
@@ -243,9 +255,31 @@ mcf_status decode(const void *buf, size_t len, const api_limits *lim,
             F[3 * f + k] = static_cast<int32_t>(a);
         }
     }
+    return MCF_OK;
+}
+
+mcf_status decode(const void *buf, size_t len, const api_limits *lim,
+                  mcf_mesh **out, api_attrs **attrs, mcf_error *err)
+{
+    api_limits def;
+    std::unique_ptr<draco::Mesh> dm;
+    const draco::PointAttribute *pos = nullptr;
+    mcf_status rc;
+    if (!lim) {
+        api_limits_default(&def);
+        lim = &def;
+    }
+    if ((rc = check_input(buf, len, lim, err)) != MCF_OK ||
+        (rc = decode_stream(buf, len, &dm, err)) != MCF_OK ||
+        (rc = check_geometry(*dm, lim, &pos, err)) != MCF_OK)
+        return rc;
+    std::vector<double> X(3 * pos->size());
+    std::vector<int32_t> F(3 * dm->num_faces());
+    if ((rc = read_geometry(*dm, pos, X, F, err)) != MCF_OK)
+        return rc;
     const size_t nv = weld_split_points(*dm, pos, X, F);
     mcf_mesh *m = mcf_mesh_new(static_cast<int>(nv), X.data(),
-                               static_cast<int>(nfaces), F.data(), err);
+                               static_cast<int>(F.size() / 3), F.data(), err);
     if (!m)
         return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
     if (attrs) {

@@ -98,6 +98,107 @@ private:
     std::vector<uint32_t> face_;   /* faces grouped by cell */
 };
 
+/* The decoded mesh's positions (3 per value) in Y and its faces in G as
+ * position indices (mapped_index: by value, as the encoder's input had
+ * them); false when it has no 3-component position or a face points
+ * outside. */
+static bool decoded_geometry(const draco::Mesh &dm, std::vector<double> *Y,
+                             std::vector<uint32_t> *G)
+{
+    const draco::PointAttribute *pos =
+        dm.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+    if (!pos || pos->num_components() != 3)
+        return false;
+    const size_t ny = pos->size();
+    const size_t ng = dm.num_faces();
+    Y->resize(3 * ny);
+    for (size_t v = 0; v < ny; v++)
+        if (!read_position(pos, static_cast<uint32_t>(v), &(*Y)[3 * v]))
+            return false;
+    G->resize(3 * ng);
+    for (size_t f = 0; f < ng; f++) {
+        const draco::Mesh::Face &face =
+            dm.face(draco::FaceIndex(static_cast<uint32_t>(f)));
+        for (int k = 0; k < 3; k++) {
+            if (face[k].value() >= dm.num_points())
+                return false;
+            uint32_t a = pos->mapped_index(face[k]).value();
+            if (a >= ny)
+                return false;
+            (*G)[3 * f + k] = a;
+        }
+    }
+    return true;
+}
+
+/* The grid of centroid cells: side h from the low corner lo of the box
+ * around both meshes, whose largest extent is ext. */
+struct grid {
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, ext = 0.0, h = 1.0;
+
+    grid(const std::vector<double> &Y, int nv, const double *X, size_t ng, double tol)
+    {
+        for (size_t i = 0; i < Y.size(); i++)
+            lo[i % 3] = std::min(lo[i % 3], Y[i]);
+        for (int i = 0; i < 3 * nv; i++)
+            lo[i % 3] = std::min(lo[i % 3], X[i]);
+        for (size_t i = 0; i < Y.size(); i++)
+            ext = std::max(ext, Y[i] - lo[i % 3]);
+        for (int i = 0; i < 3 * nv; i++)
+            ext = std::max(ext, X[i] - lo[i % 3]);
+        /* Cells of about a face's size (the extent over sqrt(faces): a few
+         * centroids per cell on a surface), at least 2 tol so that a search
+         * box mostly lies in one cell, and at most ~2^40 per axis so indices
+         * fit. */
+        h = std::max({2.0 * tol, ext / std::sqrt(static_cast<double>(ng) + 1.0), ext * 0x1p-40});
+        if (!(h > 0.0))
+            h = 1.0;
+    }
+    void bin(const double c[3], int64_t b[3]) const
+    {
+        for (int a = 0; a < 3; a++)
+            b[a] = static_cast<int64_t>(std::floor((c[a] - lo[a]) / h));
+    }
+};
+
+static void centroid(const double *P, const double *Q, const double *R, double c[3])
+{
+    for (int a = 0; a < 3; a++)
+        c[a] = (P[a] + Q[a] + R[a]) / 3.0;
+}
+
+/* The smallest distance (the largest coordinate difference over the
+ * corners, each of the three rotations tried) from input face t to a
+ * decoded face binned in the cells [b0, b1]; HUGE_VAL when there is none. */
+static double nearest_face(const int32_t *t, const double *X, const std::vector<double> &Y,
+                           const std::vector<uint32_t> &G, const cell_index &cells,
+                           const int64_t b0[3], const int64_t b1[3])
+{
+    double best = HUGE_VAL;
+    int64_t key[3];
+    for (key[0] = b0[0]; key[0] <= b1[0]; key[0]++)
+        for (key[1] = b0[1]; key[1] <= b1[1]; key[1]++)
+            for (key[2] = b0[2]; key[2] <= b1[2]; key[2]++) {
+                const uint32_t *it, *end;
+                if (!cells.find(key, &it, &end))
+                    continue;
+                for (; it != end; ++it) {
+                    const uint32_t *g = &G[3 * (size_t)*it];
+                    for (int r3 = 0; r3 < 3; r3++) {
+                        double d = 0.0;
+                        for (int q = 0; q < 3; q++) {
+                            const double *x = &X[3 * t[q]];
+                            const double *y = &Y[3 * g[(q + r3) % 3]];
+                            for (int a = 0; a < 3; a++)
+                                d = std::max(d, std::fabs(y[a] - x[a]));
+                        }
+                        best = std::min(best, d);
+                    }
+                }
+            }
+    return best;
+}
+
 /* Largest coordinate error between the input (X, F) and the decoded mesh
  * dm, through face corners. Every input face whose three indices differ
  * must have a decoded face, up to a cyclic rotation, whose corners lie
@@ -111,29 +212,11 @@ bool measure(int nv, const double *X, int nf, const int32_t *F,
              const draco::Mesh &dm, double tol, double *maxerr,
              int *worst_face)
 {
-    const draco::PointAttribute *pos =
-        dm.GetNamedAttribute(draco::GeometryAttribute::POSITION);
-    if (!pos || pos->num_components() != 3)
+    std::vector<double> Y;
+    std::vector<uint32_t> G;
+    if (!decoded_geometry(dm, &Y, &G))
         return false;
-    const size_t ny = pos->size();
-    const size_t ng = dm.num_faces();
-    std::vector<double> Y(3 * ny);
-    for (size_t v = 0; v < ny; v++)
-        if (!read_position(pos, static_cast<uint32_t>(v), &Y[3 * v]))
-            return false;
-    std::vector<uint32_t> G(3 * ng);
-    for (size_t f = 0; f < ng; f++) {
-        const draco::Mesh::Face &face =
-            dm.face(draco::FaceIndex(static_cast<uint32_t>(f)));
-        for (int k = 0; k < 3; k++) {
-            if (face[k].value() >= dm.num_points())
-                return false;
-            uint32_t a = pos->mapped_index(face[k]).value();
-            if (a >= ny)
-                return false;
-            G[3 * f + k] = a;
-        }
-    }
+    const size_t ny = Y.size() / 3, ng = G.size() / 3;
 
     /* Sequential streams keep everything in place: compare all vertices
      * (unreferenced ones included) index by index. */
@@ -147,41 +230,17 @@ bool measure(int nv, const double *X, int nf, const int32_t *F,
         return true;
     }
 
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, ext = 0.0;
-    for (size_t i = 0; i < 3 * ny; i++)
-        lo[i % 3] = std::min(lo[i % 3], Y[i]);
-    for (int i = 0; i < 3 * nv; i++)
-        lo[i % 3] = std::min(lo[i % 3], X[i]);
-    for (size_t i = 0; i < 3 * ny; i++)
-        ext = std::max(ext, Y[i] - lo[i % 3]);
-    for (int i = 0; i < 3 * nv; i++)
-        ext = std::max(ext, X[i] - lo[i % 3]);
-    /* Cells of about a face's size (the extent over sqrt(faces): a few
-     * centroids per cell on a surface), at least 2 tol so that a search box
-     * mostly lies in one cell, and at most ~2^40 per axis so indices fit. */
-    double h = std::max({2.0 * tol, ext / std::sqrt(static_cast<double>(ng) + 1.0), ext * 0x1p-40});
-    if (!(h > 0.0))
-        h = 1.0;
-    auto bin = [&](const double c[3], int64_t b[3]) {
-        for (int a = 0; a < 3; a++)
-            b[a] = static_cast<int64_t>(std::floor((c[a] - lo[a]) / h));
-    };
-    auto centroid = [](const double *P, const double *Q, const double *R,
-                       double c[3]) {
-        for (int a = 0; a < 3; a++)
-            c[a] = (P[a] + Q[a] + R[a]) / 3.0;
-    };
-
+    const grid cg(Y, nv, X, ng, tol);
     std::vector<int64_t> fb(3 * ng);
     for (size_t f = 0; f < ng; f++) {
         double c[3];
         centroid(&Y[3 * G[3 * f]], &Y[3 * G[3 * f + 1]], &Y[3 * G[3 * f + 2]], c);
-        bin(c, &fb[3 * f]);
+        cg.bin(c, &fb[3 * f]);
     }
     const cell_index cells(fb);
     /* the search box's half-side: tol, plus the centroids' rounding (a few
      * ulps of the extent), generously */
-    const double r = tol + ext * 0x1p-40;
+    const double r = tol + cg.ext * 0x1p-40;
 
     double e = 0.0;
     for (int f = 0; f < nf; f++) {
@@ -195,30 +254,9 @@ bool measure(int nv, const double *X, int nf, const int32_t *F,
             clo[a] = c[a] - r;
             chi[a] = c[a] + r;
         }
-        bin(clo, b0);
-        bin(chi, b1);
-        double best = HUGE_VAL;
-        int64_t key[3];
-        for (key[0] = b0[0]; key[0] <= b1[0]; key[0]++)
-            for (key[1] = b0[1]; key[1] <= b1[1]; key[1]++)
-                for (key[2] = b0[2]; key[2] <= b1[2]; key[2]++) {
-                    const uint32_t *it, *end;
-                    if (!cells.find(key, &it, &end))
-                        continue;
-                    for (; it != end; ++it) {
-                        const uint32_t *g = &G[3 * (size_t)*it];
-                        for (int r3 = 0; r3 < 3; r3++) {
-                            double d = 0.0;
-                            for (int q = 0; q < 3; q++) {
-                                const double *x = &X[3 * t[q]];
-                                const double *y = &Y[3 * g[(q + r3) % 3]];
-                                for (int a = 0; a < 3; a++)
-                                    d = std::max(d, std::fabs(y[a] - x[a]));
-                            }
-                            best = std::min(best, d);
-                        }
-                    }
-                }
+        cg.bin(clo, b0);
+        cg.bin(chi, b1);
+        const double best = nearest_face(t, X, Y, G, cells, b0, b1);
         if (!(best <= tol)) {
             *worst_face = f;
             return false;

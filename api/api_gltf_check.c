@@ -75,19 +75,10 @@ mcf_status api__glb_split(const void *buf, size_t len, const char **json,
  * here: the parser names it. */
 static mcf_status json_scan(const char *s, size_t n, mcf_error *err)
 {
-    size_t i, values = 0;
-    int depth = 0, in_str = 0;
-    for (i = 0; i < n; i++) {
-        char c = s[i];
-        if (in_str) {
-            if (c == '\\')
-                i++;
-            else if (c == '"')
-                in_str = 0;
-            continue;
-        }
+    size_t i = 0, values = 0;
+    int depth = 0, c;
+    while ((c = api__json_next(s, n, &i)) >= 0) {
         if (c == '"') {
-            in_str = 1;
             values++;
         } else if (c == '{' || c == '[') {
             if (++depth > API_GLTF_MAX_DEPTH)

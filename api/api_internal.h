@@ -25,6 +25,23 @@
  * the core's public mcf_error_set, so both layers format errors alike. */
 #define api__fail mcf_error_set
 
+/* ------------------------------------------------------- JSON (api_json.c) */
+
+/* Adds item under key of object o and returns 1; deletes item when it
+ * cannot be attached and returns 0, as for a NULL item (an allocation
+ * that failed), so a builder checks once. */
+int api__json_put(cJSON *o, const char *key, cJSON *item);
+/* A number under key, or null when v is not finite (NaN: "not known
+ * here"). 1, or 0 as api__json_put. */
+int api__json_num(cJSON *o, const char *key, double v);
+
+/* The next byte of JSON text s (n bytes) at or after *i that lies outside
+ * strings, moving *i past it; a string counts as its opening '"', and *i
+ * then moves past its closing one (escapes skipped) or to the end. -1 at
+ * the end. For scans that must not parse (nesting, value counts): no byte
+ * at or past s + n is read (api_text.c). */
+int api__json_next(const char *s, size_t n, size_t *i);
+
 /* ------------------------------------------------------- text (api_text.c) */
 
 /* White space within a line: ' ', '\t', '\r', '\f', '\v'. Not '\n', which

@@ -14,8 +14,7 @@
 
 #include "api_internal.h"
 
-/* Adds item under key, deleting it when it cannot be attached. */
-static int put(cJSON *o, const char *key, cJSON *item)
+int api__json_put(cJSON *o, const char *key, cJSON *item)
 {
     if (!item)
         return 0;
@@ -26,19 +25,19 @@ static int put(cJSON *o, const char *key, cJSON *item)
     return 1;
 }
 
-static int num(cJSON *o, const char *key, double v)
+int api__json_num(cJSON *o, const char *key, double v)
 {
-    return put(o, key, isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull());
+    return api__json_put(o, key, isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull());
 }
 
 static int boolean(cJSON *o, const char *key, int v)
 {
-    return put(o, key, cJSON_CreateBool(v != 0));
+    return api__json_put(o, key, cJSON_CreateBool(v != 0));
 }
 
 static int str(cJSON *o, const char *key, const char *s)
 {
-    return put(o, key, s ? cJSON_CreateString(s) : cJSON_CreateNull());
+    return api__json_put(o, key, s ? cJSON_CreateString(s) : cJSON_CreateNull());
 }
 
 static cJSON *vec3(const double *v)
@@ -72,13 +71,13 @@ static cJSON *stats(const mcf_stats *s)
     int ok = o != NULL;
     if (!ok)
         return NULL;
-    ok = ok && num(o, "min", s->min);
-    ok = ok && num(o, "max", s->max);
-    ok = ok && num(o, "mean", s->mean);
-    ok = ok && num(o, "rms", s->rms);
-    ok = ok && num(o, "p05", s->p05);
-    ok = ok && num(o, "p50", s->p50);
-    ok = ok && num(o, "p95", s->p95);
+    ok = ok && api__json_num(o, "min", s->min);
+    ok = ok && api__json_num(o, "max", s->max);
+    ok = ok && api__json_num(o, "mean", s->mean);
+    ok = ok && api__json_num(o, "rms", s->rms);
+    ok = ok && api__json_num(o, "p05", s->p05);
+    ok = ok && api__json_num(o, "p50", s->p50);
+    ok = ok && api__json_num(o, "p95", s->p95);
     return finish(o, ok);
 }
 
@@ -88,12 +87,12 @@ cJSON *api_json_curvature(const mcf_curvature_summary *c)
     int ok = o != NULL;
     if (!ok)
         return NULL;
-    ok = ok && put(o, "H", stats(&c->H));
-    ok = ok && put(o, "K", stats(&c->K));
-    ok = ok && put(o, "A2", stats(&c->A2));
-    ok = ok && num(o, "total_K", c->total_K);
-    ok = ok && num(o, "gauss_bonnet", c->gauss_bonnet);
-    ok = ok && num(o, "euler", c->euler);
+    ok = ok && api__json_put(o, "H", stats(&c->H));
+    ok = ok && api__json_put(o, "K", stats(&c->K));
+    ok = ok && api__json_put(o, "A2", stats(&c->A2));
+    ok = ok && api__json_num(o, "total_K", c->total_K);
+    ok = ok && api__json_num(o, "gauss_bonnet", c->gauss_bonnet);
+    ok = ok && api__json_num(o, "euler", c->euler);
     return finish(o, ok);
 }
 
@@ -103,40 +102,40 @@ cJSON *api_json_mesh_info(const mcf_mesh_info *i, const mcf_curvature_summary *c
     int ok = o != NULL;
     if (!ok)
         return NULL;
-    ok = ok && num(o, "vertices", i->nv);
-    ok = ok && num(o, "faces", i->nf);
-    ok = ok && num(o, "edges", i->ne);
-    ok = ok && num(o, "unreferenced_vertices", i->unreferenced);
-    ok = ok && num(o, "degenerate_faces", i->degenerate_faces);
-    ok = ok && num(o, "duplicate_faces", i->duplicate_faces);
-    ok = ok && num(o, "boundary_edges", i->boundary_edges);
-    ok = ok && num(o, "boundary_loops", i->boundary_loops);
-    ok = ok && num(o, "nonmanifold_edges", i->nonmanifold_edges);
-    ok = ok && num(o, "nonmanifold_vertices", i->nonmanifold_vertices);
-    ok = ok && num(o, "components", i->components);
-    ok = ok && num(o, "euler", i->euler);
-    ok = ok && (i->genus >= 0 ? num(o, "genus", i->genus)
-                              : put(o, "genus", cJSON_CreateNull()));
+    ok = ok && api__json_num(o, "vertices", i->nv);
+    ok = ok && api__json_num(o, "faces", i->nf);
+    ok = ok && api__json_num(o, "edges", i->ne);
+    ok = ok && api__json_num(o, "unreferenced_vertices", i->unreferenced);
+    ok = ok && api__json_num(o, "degenerate_faces", i->degenerate_faces);
+    ok = ok && api__json_num(o, "duplicate_faces", i->duplicate_faces);
+    ok = ok && api__json_num(o, "boundary_edges", i->boundary_edges);
+    ok = ok && api__json_num(o, "boundary_loops", i->boundary_loops);
+    ok = ok && api__json_num(o, "nonmanifold_edges", i->nonmanifold_edges);
+    ok = ok && api__json_num(o, "nonmanifold_vertices", i->nonmanifold_vertices);
+    ok = ok && api__json_num(o, "components", i->components);
+    ok = ok && api__json_num(o, "euler", i->euler);
+    ok = ok && (i->genus >= 0 ? api__json_num(o, "genus", i->genus)
+                              : api__json_put(o, "genus", cJSON_CreateNull()));
     ok = ok && boolean(o, "manifold", i->manifold);
     ok = ok && boolean(o, "closed", i->closed);
-    ok = ok && num(o, "inconsistent_orientation", i->inconsistent_orientation);
-    ok = ok && num(o, "area", i->area);
-    ok = ok && num(o, "volume", i->volume);
+    ok = ok && api__json_num(o, "inconsistent_orientation", i->inconsistent_orientation);
+    ok = ok && api__json_num(o, "area", i->area);
+    ok = ok && api__json_num(o, "volume", i->volume);
     if (ok) {
         e = cJSON_CreateObject();
-        ok = put(o, "edge_length", e);
-        ok = ok && num(e, "mean", i->mean_edge);
-        ok = ok && num(e, "min", i->min_edge);
-        ok = ok && num(e, "max", i->max_edge);
+        ok = api__json_put(o, "edge_length", e);
+        ok = ok && api__json_num(e, "mean", i->mean_edge);
+        ok = ok && api__json_num(e, "min", i->min_edge);
+        ok = ok && api__json_num(e, "max", i->max_edge);
     }
     if (ok) {
         bb = cJSON_CreateObject();
-        ok = put(o, "bbox", bb);
-        ok = ok && put(bb, "min", vec3(i->bbox_min));
-        ok = ok && put(bb, "max", vec3(i->bbox_max));
+        ok = api__json_put(o, "bbox", bb);
+        ok = ok && api__json_put(bb, "min", vec3(i->bbox_min));
+        ok = ok && api__json_put(bb, "max", vec3(i->bbox_max));
     }
     if (ok && curv)
-        ok = put(o, "curvature", api_json_curvature(curv));
+        ok = api__json_put(o, "curvature", api_json_curvature(curv));
     return finish(o, ok);
 }
 
@@ -155,14 +154,14 @@ static cJSON *step_log(const mcf_step_log *s, int n)
             ok = 0;
             break;
         }
-        ok = ok && num(e, "step", k + 1);
-        ok = ok && num(e, "t", s[k].t);
-        ok = ok && num(e, "dt", s[k].dt);
-        ok = ok && num(e, "area", s[k].area);
-        ok = ok && num(e, "volume", s[k].volume);
-        ok = ok && num(e, "max_disp", s[k].max_disp);
-        ok = ok && num(e, "solve_s", s[k].solve_s);
-        ok = ok && num(e, "rejected", s[k].rejected);
+        ok = ok && api__json_num(e, "step", k + 1);
+        ok = ok && api__json_num(e, "t", s[k].t);
+        ok = ok && api__json_num(e, "dt", s[k].dt);
+        ok = ok && api__json_num(e, "area", s[k].area);
+        ok = ok && api__json_num(e, "volume", s[k].volume);
+        ok = ok && api__json_num(e, "max_disp", s[k].max_disp);
+        ok = ok && api__json_num(e, "solve_s", s[k].solve_s);
+        ok = ok && api__json_num(e, "rejected", s[k].rejected);
     }
     return finish(a, ok);
 }
@@ -173,50 +172,51 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     int ok = o != NULL;
     if (!ok)
         return NULL;
-    ok = ok && num(o, "steps", st->steps);
-    ok = ok && num(o, "rejected", st->rejected);
-    ok = ok && num(o, "solves", st->solves);
-    ok = ok && num(o, "factorizations", st->factorizations);
-    ok = ok && num(o, "picard_iterations", st->picard_iterations);
-    ok = ok && num(o, "t_final", st->t_final);
-    ok = ok && num(o, "dt_first", st->dt_first);
-    ok = ok && num(o, "dt_min", st->dt_min);
-    ok = ok && num(o, "dt_max", st->dt_max);
-    ok = ok && num(o, "lambda_max", st->lambda_max);
-    ok = ok && num(o, "area0", st->area0);
-    ok = ok && num(o, "area1", st->area1);
-    ok = ok && num(o, "volume0", st->volume0);
-    ok = ok && num(o, "volume1", st->volume1);
-    ok = ok && num(o, "peak_bytes", (double)st->peak_bytes);
+    ok = ok && api__json_num(o, "steps", st->steps);
+    ok = ok && api__json_num(o, "rejected", st->rejected);
+    ok = ok && api__json_num(o, "solves", st->solves);
+    ok = ok && api__json_num(o, "factorizations", st->factorizations);
+    ok = ok && api__json_num(o, "picard_iterations", st->picard_iterations);
+    ok = ok && api__json_num(o, "t_final", st->t_final);
+    ok = ok && api__json_num(o, "dt_first", st->dt_first);
+    ok = ok && api__json_num(o, "dt_min", st->dt_min);
+    ok = ok && api__json_num(o, "dt_max", st->dt_max);
+    ok = ok && api__json_num(o, "lambda_max", st->lambda_max);
+    ok = ok && api__json_num(o, "area0", st->area0);
+    ok = ok && api__json_num(o, "area1", st->area1);
+    ok = ok && api__json_num(o, "volume0", st->volume0);
+    ok = ok && api__json_num(o, "volume1", st->volume1);
+    ok = ok && api__json_num(o, "peak_bytes", (double)st->peak_bytes);
     /* the amount the run covered and the measures behind its warnings */
-    ok = ok && num(o, "mean_edge", st->mean_edge);
-    ok = ok && num(o, "t_target", st->t_target);
-    ok = ok && num(o, "strength", st->strength);
+    ok = ok && api__json_num(o, "mean_edge", st->mean_edge);
+    ok = ok && api__json_num(o, "t_target", st->t_target);
+    ok = ok && api__json_num(o, "strength", st->strength);
     /* strength=auto and the fairing filters: the noise level the amount
      * assumed, in mean edges (else 0) */
-    ok = ok && num(o, "noise", st->noise);
+    ok = ok && api__json_num(o, "noise", st->noise);
     /* fairing: the estimated mean squared error (squared mean edges) after
      * K = 0, 1, ... steps, whose minimum gave `steps`; null without */
-    ok = ok && put(o, "sure", st->sure ? cJSON_CreateDoubleArray(st->sure, st->nsure) : cJSON_CreateNull());
-    ok = ok && num(o, "noise_tangential", st->noise_tangential);
-    ok = ok && num(o, "tangential_steps", st->tangential_steps);
-    ok = ok && num(o, "crease_vertices", st->crease_vertices);
-    ok = ok && num(o, "guard_rounds", st->guard_rounds);
-    ok = ok && num(o, "guard_vertices", st->guard_vertices);
-    ok = ok && num(o, "folded_faces", st->folded_faces);
-    ok = ok && num(o, "min_edge_ratio", st->min_edge_ratio);
-    ok = ok && num(o, "area_ratio", st->area_ratio);
+    ok = ok && api__json_put(o, "sure", st->sure ? cJSON_CreateDoubleArray(st->sure, st->nsure)
+                                                 : cJSON_CreateNull());
+    ok = ok && api__json_num(o, "noise_tangential", st->noise_tangential);
+    ok = ok && api__json_num(o, "tangential_steps", st->tangential_steps);
+    ok = ok && api__json_num(o, "crease_vertices", st->crease_vertices);
+    ok = ok && api__json_num(o, "guard_rounds", st->guard_rounds);
+    ok = ok && api__json_num(o, "guard_vertices", st->guard_vertices);
+    ok = ok && api__json_num(o, "folded_faces", st->folded_faces);
+    ok = ok && api__json_num(o, "min_edge_ratio", st->min_edge_ratio);
+    ok = ok && api__json_num(o, "area_ratio", st->area_ratio);
     if (ok) {
         t = cJSON_CreateObject();
-        ok = put(o, "timings", t);
-        ok = ok && num(t, "assemble_s", st->time_assemble);
-        ok = ok && num(t, "analyze_s", st->time_analyze);
-        ok = ok && num(t, "factorize_s", st->time_factorize);
-        ok = ok && num(t, "solve_s", st->time_solve);
-        ok = ok && num(t, "total_s", st->time_total);
+        ok = api__json_put(o, "timings", t);
+        ok = ok && api__json_num(t, "assemble_s", st->time_assemble);
+        ok = ok && api__json_num(t, "analyze_s", st->time_analyze);
+        ok = ok && api__json_num(t, "factorize_s", st->time_factorize);
+        ok = ok && api__json_num(t, "solve_s", st->time_solve);
+        ok = ok && api__json_num(t, "total_s", st->time_total);
     }
     if (ok && st->log && st->nlog > 0)
-        ok = put(o, "log", step_log(st->log, st->nlog));
+        ok = api__json_put(o, "log", step_log(st->log, st->nlog));
     return finish(o, ok);
 }
 
@@ -226,12 +226,12 @@ cJSON *api_json_compare(const mcf_compare_result *c)
     int ok = o != NULL;
     if (!ok)
         return NULL;
-    ok = ok && num(o, "rms_m", c->rms_m);
-    ok = ok && num(o, "rms_rel", c->rms_rel);
-    ok = ok && num(o, "frobenius", c->frobenius);
-    ok = ok && num(o, "max_err", c->max_err);
-    ok = ok && num(o, "normal_angle_deg", c->normal_angle_deg);
-    ok = ok && num(o, "inverted_faces", c->inverted_faces);
+    ok = ok && api__json_num(o, "rms_m", c->rms_m);
+    ok = ok && api__json_num(o, "rms_rel", c->rms_rel);
+    ok = ok && api__json_num(o, "frobenius", c->frobenius);
+    ok = ok && api__json_num(o, "max_err", c->max_err);
+    ok = ok && api__json_num(o, "normal_angle_deg", c->normal_angle_deg);
+    ok = ok && api__json_num(o, "inverted_faces", c->inverted_faces);
     return finish(o, ok);
 }
 
@@ -242,7 +242,7 @@ cJSON *api_json_schemes(void)
     if (!ok)
         return NULL;
     a = cJSON_CreateArray();
-    ok = put(o, "schemes", a);
+    ok = api__json_put(o, "schemes", a);
     for (s = 0; ok && s < MCF_NSCHEMES; s++) {
         const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
         cJSON *e, *cost;
@@ -256,17 +256,17 @@ cJSON *api_json_schemes(void)
         }
         ok = ok && str(e, "name", si->name);
         ok = ok && str(e, "title", si->title);
-        ok = ok && num(e, "order", si->order);
+        ok = ok && api__json_num(e, "order", si->order);
         ok = ok && boolean(e, "explicit", si->is_explicit);
         /* stability 0 means no step limit; say so rather than "0". */
         ok = ok && (si->stability > 0
-                    ? num(e, "stability", si->stability)
-                    : put(e, "stability", cJSON_CreateString("unconditional")));
+                    ? api__json_num(e, "stability", si->stability)
+                    : api__json_put(e, "stability", cJSON_CreateString("unconditional")));
         if (ok) {
             cost = cJSON_CreateObject();
-            ok = put(e, "cost_per_step", cost);
-            ok = ok && num(cost, "solves", si->solves_per_step);
-            ok = ok && num(cost, "factorizations", si->factorizations_per_step);
+            ok = api__json_put(e, "cost_per_step", cost);
+            ok = ok && api__json_num(cost, "solves", si->solves_per_step);
+            ok = ok && api__json_num(cost, "factorizations", si->factorizations_per_step);
         }
         ok = ok && boolean(e, "adaptive", si->has_estimate);
         ok = ok && str(e, "estimate", si->estimate && *si->estimate ? si->estimate : NULL);

@@ -30,27 +30,9 @@
 
 #include "api_internal.h"
 
-/* Adds item under key, deleting it when it cannot be attached. */
-static int put(cJSON *o, const char *key, cJSON *item)
-{
-    if (!item)
-        return 0;
-    if (!cJSON_AddItemToObject(o, key, item)) {
-        cJSON_Delete(item);
-        return 0;
-    }
-    return 1;
-}
-
-/* A number, or null when it is not finite (NaN: "not known here"). */
-static int num(cJSON *o, const char *key, double v)
-{
-    return put(o, key, isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull());
-}
-
 static int str(cJSON *o, const char *key, const char *s)
 {
-    return put(o, key, s ? cJSON_CreateString(s) : cJSON_CreateNull());
+    return api__json_put(o, key, s ? cJSON_CreateString(s) : cJSON_CreateNull());
 }
 
 /* A new object attached under key, or NULL (then the tree is incomplete
@@ -58,7 +40,7 @@ static int str(cJSON *o, const char *key, const char *s)
 static cJSON *obj(cJSON *o, const char *key)
 {
     cJSON *c = cJSON_CreateObject();
-    return put(o, key, c) ? c : NULL;
+    return api__json_put(o, key, c) ? c : NULL;
 }
 
 void api_metrics_init(api_metrics *mt)
@@ -146,14 +128,14 @@ static cJSON *warnings_json(const mcf_flow_stats *st)
 static int timings(cJSON *t, const api_metrics_run *r)
 {
     int ok = 1;
-    ok = ok && num(t, "queue_s", r->queue_s);
-    ok = ok && num(t, "read_s", r->read_s);
-    ok = ok && num(t, "decode_s", r->decode_s);
-    ok = ok && num(t, "flow_s", r->flow_s);
-    ok = ok && num(t, "encode_s", r->encode_s);
-    ok = ok && num(t, "write_s", r->write_s);
-    ok = ok && num(t, "metrics_s", r->metrics_s);
-    ok = ok && num(t, "total_s", r->total_s);
+    ok = ok && api__json_num(t, "queue_s", r->queue_s);
+    ok = ok && api__json_num(t, "read_s", r->read_s);
+    ok = ok && api__json_num(t, "decode_s", r->decode_s);
+    ok = ok && api__json_num(t, "flow_s", r->flow_s);
+    ok = ok && api__json_num(t, "encode_s", r->encode_s);
+    ok = ok && api__json_num(t, "write_s", r->write_s);
+    ok = ok && api__json_num(t, "metrics_s", r->metrics_s);
+    ok = ok && api__json_num(t, "total_s", r->total_s);
     return ok;
 }
 
@@ -166,9 +148,9 @@ static cJSON *compare_json(const api_metrics *mt, const api_metrics_run *r)
     if (!ok)
         return NULL;
     ok = ok && str(c, "target", r->target_name);
-    ok = ok && ((mt->target & 1) ? put(c, "before", api_json_compare(&mt->cmp[0]))
-                                 : put(c, "before", cJSON_CreateNull()));
-    ok = ok && put(c, "after", api_json_compare(&mt->cmp[1]));
+    ok = ok && ((mt->target & 1) ? api__json_put(c, "before", api_json_compare(&mt->cmp[0]))
+                                 : api__json_put(c, "before", cJSON_CreateNull()));
+    ok = ok && api__json_put(c, "after", api_json_compare(&mt->cmp[1]));
     if (!ok) {
         cJSON_Delete(c);
         return NULL;
@@ -191,41 +173,41 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
     ok = ok && str(o, "command", "smooth");
     ok = ok && str(o, "job", r->job);
     ok = ok && str(o, "scheme", si ? si->name : NULL);
-    ok = ok && put(o, "params", api_params_to_json(p));
-    ok = ok && put(o, "warnings", warnings_json(st));
+    ok = ok && api__json_put(o, "params", api_params_to_json(p));
+    ok = ok && api__json_put(o, "warnings", warnings_json(st));
 
     ok = ok && (x = obj(o, "input")) != NULL;
     ok = ok && str(x, "path", r->input_name);
     ok = ok && str(x, "format", format_name(r->input_format));
-    ok = ok && num(x, "bytes", (double)r->input_bytes);
-    ok = ok && put(x, "info", api_json_mesh_info(&mt->info[0], NULL));
+    ok = ok && api__json_num(x, "bytes", (double)r->input_bytes);
+    ok = ok && api__json_put(x, "info", api_json_mesh_info(&mt->info[0], NULL));
     /* "mesh": the daemon's first name for "info", kept for its clients */
-    ok = ok && put(x, "mesh", api_json_mesh_info(&mt->info[0], NULL));
+    ok = ok && api__json_put(x, "mesh", api_json_mesh_info(&mt->info[0], NULL));
 
     ok = ok && (x = obj(o, "output")) != NULL;
     ok = ok && str(x, "path", r->output_name);
     ok = ok && str(x, "format", format_name(r->output_format));
-    ok = ok && num(x, "bytes", (double)r->output_bytes);
-    ok = ok && num(x, "vertices", mt->info[1].nv);
-    ok = ok && num(x, "faces", mt->info[1].nf);
-    ok = ok && num(x, "area", mt->info[1].area);
-    ok = ok && num(x, "volume", mt->info[1].volume);
-    ok = ok && num(x, "quantization_max_error", r->quantization_max_error);
-    ok = ok && put(x, "info", api_json_mesh_info(&mt->info[1], NULL));
+    ok = ok && api__json_num(x, "bytes", (double)r->output_bytes);
+    ok = ok && api__json_num(x, "vertices", mt->info[1].nv);
+    ok = ok && api__json_num(x, "faces", mt->info[1].nf);
+    ok = ok && api__json_num(x, "area", mt->info[1].area);
+    ok = ok && api__json_num(x, "volume", mt->info[1].volume);
+    ok = ok && api__json_num(x, "quantization_max_error", r->quantization_max_error);
+    ok = ok && api__json_put(x, "info", api_json_mesh_info(&mt->info[1], NULL));
 
     ok = ok && (c = obj(o, "curvature")) != NULL;
-    ok = ok && put(c, "before", api_json_curvature(&mt->curv[0]));
-    ok = ok && put(c, "after", api_json_curvature(&mt->curv[1]));
+    ok = ok && api__json_put(c, "before", api_json_curvature(&mt->curv[0]));
+    ok = ok && api__json_put(c, "after", api_json_curvature(&mt->curv[1]));
 
-    ok = ok && put(o, "flow", api_json_flow_stats(st));
+    ok = ok && api__json_put(o, "flow", api_json_flow_stats(st));
     if (ok && (mt->target & 2))
-        ok = put(o, "compare", compare_json(mt, r));
+        ok = api__json_put(o, "compare", compare_json(mt, r));
 
     ok = ok && (x = obj(o, "timings")) != NULL && timings(x, r);
     /* "timing": the daemon's first name for "timings", kept for its
      * clients */
     ok = ok && (x = obj(o, "timing")) != NULL && timings(x, r);
-    ok = ok && num(o, "peak_rss_bytes", r->peak_rss_bytes);
+    ok = ok && api__json_num(o, "peak_rss_bytes", r->peak_rss_bytes);
     if (!ok) {
         cJSON_Delete(o);
         return NULL;

@@ -269,18 +269,10 @@ static int json_depth(const cJSON *j)
  * refused: nested past cJSON's own limit it is still an ELIMIT. */
 static int text_depth(const char *s, size_t n)
 {
-    int d = 0, best = 0, in_str = 0;
-    size_t i;
-    for (i = 0; i < n; i++) {
-        char c = s[i];
-        if (in_str) {
-            if (c == '\\')
-                i++;
-            else if (c == '"')
-                in_str = 0;
-        } else if (c == '"') {
-            in_str = 1;
-        } else if (c == '{' || c == '[') {
+    int d = 0, best = 0, c;
+    size_t i = 0;
+    while ((c = api__json_next(s, n, &i)) >= 0) {
+        if (c == '{' || c == '[') {
             if (++d > best)
                 best = d;
         } else if (c == '}' || c == ']') {

@@ -313,113 +313,142 @@ static int next_line(body *b, const char **s, const char **e)
     return 0;
 }
 
-static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
+/* Scalar property p of row r: the number t (n bytes). */
+static mcf_status ascii_scalar(body *b, const prop *p, unsigned long long r, const char *t,
+                               size_t n, mcf_error *err)
+{
+    char shown[API__SHOWN];
+    double v;
+
+    if (api__parse_double(t, n, &v) != 0)
+        return api__fail(err, MCF_EDECODE, "ply: line %ld: bad number '%s'", b->txt.line,
+                         api__show(t, n, shown));
+    if (p->role >= ROLE_X && p->role <= ROLE_Z) {
+        if (!isfinite(v))
+            return api__fail(err, MCF_EDECODE,
+                             "ply: line %ld: coordinate '%s' is not "
+                             "finite",
+                             b->txt.line, api__show(t, n, shown));
+        b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
+    } else if (p->role >= ROLE_NX && p->role <= ROLE_A && b->want) {
+        put_vattr(b, p, r, v);
+    }
+    return MCF_OK;
+}
+
+/* Value k of list property p (row r): t (n bytes), a face's vertex index
+ * (checked against the vertices, then into the fan f) or a number. */
+static mcf_status ascii_list_value(body *b, const prop *p, unsigned long long r, fan *f,
+                                   long long k, const char *t, size_t n, mcf_error *err)
+{
+    char shown[API__SHOWN];
+
+    if (p->role == ROLE_INDICES) {
+        long long v;
+        if (api__parse_int(t, n, &v) != 0)
+            return api__fail(err, MCF_EDECODE, "ply: line %ld: bad index '%s'", b->txt.line,
+                             api__show(t, n, shown));
+        if (v < 0 || v >= b->nv)
+            return api__fail(err, MCF_EDECODE,
+                             "ply: line %ld: face %llu: index "
+                             "%lld out of range (0..%d)",
+                             b->txt.line, r, v, b->nv - 1);
+        return fan_add(b, f, k, (double)v, r, err);
+    } else {
+        double v;
+        if (api__parse_double(t, n, &v) != 0)
+            return api__fail(err, MCF_EDECODE, "ply: line %ld: bad number '%s'", b->txt.line,
+                             api__show(t, n, shown));
+        if (p->role == ROLE_FTC && b->want)
+            return put_ftc(b, k, v, err);
+    }
+    return MCF_OK;
+}
+
+/* List property p of row r of e: its length t (n bytes), then as many
+ * values from *s on (up to le). */
+static mcf_status ascii_list(body *b, const element *e, const prop *p, unsigned long long r,
+                             const char **s, const char *le, const char *t, size_t n,
+                             mcf_error *err)
 {
     char shown[API__SHOWN], shown2[API__SHOWN];
-    int ei, pi;
+    long long count, k;
+    fan f = {0, 0};
     mcf_status rc;
 
-    for (ei = 0; ei < h->nel; ei++) {
+    if (api__parse_int(t, n, &count) != 0 || count < 0)
+        return api__fail(err, MCF_EDECODE, "ply: line %ld: bad list length '%s'", b->txt.line,
+                         api__show(t, n, shown));
+    if (p->role == ROLE_INDICES && count < 3)
+        return bad_count(b, count, r, err);
+    if (p->role == ROLE_INDICES)
+        b->poly_n = count;
+    for (k = 0; k < count; k++) {
+        n = api__token(s, le, &t);
+        if (n == 0)
+            return api__fail(err, MCF_EDECODE,
+                             "ply: line %ld: %s %llu: list '%s' has "
+                             "%lld of %lld values",
+                             b->txt.line, api__show(e->name, e->nlen, shown), r,
+                             api__show(p->name, p->nlen, shown2), k, count);
+        if ((rc = ascii_list_value(b, p, r, &f, k, t, n, err)) != MCF_OK)
+            return rc;
+    }
+    return MCF_OK;
+}
+
+/* Row r of element e: one line, a value (or a list) per property and
+ * nothing after them; a face's texcoords then go to its triangles. */
+static mcf_status ascii_row(body *b, const element *e, unsigned long long r, mcf_error *err)
+{
+    char shown[API__SHOWN], shown2[API__SHOWN];
+    const char *s, *le, *t;
+    size_t n;
+    int pi;
+    mcf_status rc;
+
+    b->tri0 = b->T.n;
+    b->tmp_n = b->poly_n = 0;
+    if (!next_line(b, &s, &le))
+        return api__fail(err, MCF_EDECODE, "ply: line %ld: input ends before %s %llu of %llu",
+                         b->txt.line, api__show(e->name, e->nlen, shown), r, e->count);
+    for (pi = 0; pi < e->nprops; pi++) {
+        const prop *p = &e->props[pi];
+        n = api__token(&s, le, &t);
+        if (n == 0)
+            return api__fail(err, MCF_EDECODE, "ply: line %ld: %s %llu: value for '%s' missing",
+                             b->txt.line, api__show(e->name, e->nlen, shown), r,
+                             api__show(p->name, p->nlen, shown2));
+        rc = p->is_list ? ascii_list(b, e, p, r, &s, le, t, n, err)
+                        : ascii_scalar(b, p, r, t, n, err);
+        if (rc != MCF_OK)
+            return rc;
+    }
+    if (api__token(&s, le, &t) != 0)
+        return api__fail(err, MCF_EDECODE,
+                         "ply: line %ld: %s %llu has more values than its "
+                         "%d properties",
+                         b->txt.line, api__show(e->name, e->nlen, shown), r, e->nprops);
+    return e->is_face ? end_face(b, err) : MCF_OK;
+}
+
+/* ASCII: the elements' rows in the header's order, then only blank lines. */
+static mcf_status read_ascii(body *b, const header *h, mcf_error *err)
+{
+    const char *s, *le;
+    mcf_status rc;
+
+    for (int ei = 0; ei < h->nel; ei++) {
         const element *e = &h->el[ei];
-        unsigned long long r;
         if (e->nprops == 0) /* empty lines, which are skipped anyway */
             continue;
-        for (r = 0; r < e->count; r++) {
-            const char *s, *le, *t;
-            size_t n;
-            b->tri0 = b->T.n;
-            b->tmp_n = b->poly_n = 0;
-            if (!next_line(b, &s, &le))
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: input ends before %s %llu of %llu",
-                                 b->txt.line, api__show(e->name, e->nlen, shown), r,
-                                 e->count);
-            for (pi = 0; pi < e->nprops; pi++) {
-                const prop *p = &e->props[pi];
-                n = api__token(&s, le, &t);
-                if (n == 0)
-                    return api__fail(err, MCF_EDECODE,
-                                     "ply: line %ld: %s %llu: value for '%s' missing",
-                                     b->txt.line, api__show(e->name, e->nlen, shown), r,
-                                     api__show(p->name, p->nlen, shown2));
-                if (!p->is_list) {
-                    double v;
-                    if (api__parse_double(t, n, &v) != 0)
-                        return api__fail(err, MCF_EDECODE,
-                                         "ply: line %ld: bad number '%s'", b->txt.line,
-                                         api__show(t, n, shown));
-                    if (p->role >= ROLE_X && p->role <= ROLE_Z) {
-                        if (!isfinite(v))
-                            return api__fail(err, MCF_EDECODE,
-                                             "ply: line %ld: coordinate '%s' is not "
-                                             "finite",
-                                             b->txt.line, api__show(t, n, shown));
-                        b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
-                    } else if (p->role >= ROLE_NX && p->role <= ROLE_A && b->want) {
-                        put_vattr(b, p, r, v);
-                    }
-                } else {
-                    long long count, k;
-                    fan f = {0, 0};
-                    if (api__parse_int(t, n, &count) != 0 || count < 0)
-                        return api__fail(err, MCF_EDECODE,
-                                         "ply: line %ld: bad list length '%s'",
-                                         b->txt.line, api__show(t, n, shown));
-                    if (p->role == ROLE_INDICES && count < 3)
-                        return bad_count(b, count, r, err);
-                    if (p->role == ROLE_INDICES)
-                        b->poly_n = count;
-                    for (k = 0; k < count; k++) {
-                        n = api__token(&s, le, &t);
-                        if (n == 0)
-                            return api__fail(err, MCF_EDECODE,
-                                             "ply: line %ld: %s %llu: list '%s' has "
-                                             "%lld of %lld values",
-                                             b->txt.line, api__show(e->name, e->nlen, shown),
-                                             r, api__show(p->name, p->nlen, shown2), k,
-                                             count);
-                        if (p->role == ROLE_INDICES) {
-                            long long v;
-                            if (api__parse_int(t, n, &v) != 0)
-                                return api__fail(err, MCF_EDECODE,
-                                                 "ply: line %ld: bad index '%s'",
-                                                 b->txt.line, api__show(t, n, shown));
-                            if (v < 0 || v >= b->nv)
-                                return api__fail(err, MCF_EDECODE,
-                                                 "ply: line %ld: face %llu: index "
-                                                 "%lld out of range (0..%d)",
-                                                 b->txt.line, r, v, b->nv - 1);
-                            if ((rc = fan_add(b, &f, k, (double)v, r, err)) != MCF_OK)
-                                return rc;
-                        } else {
-                            double v;
-                            if (api__parse_double(t, n, &v) != 0)
-                                return api__fail(err, MCF_EDECODE,
-                                                 "ply: line %ld: bad number '%s'",
-                                                 b->txt.line, api__show(t, n, shown));
-                            if (p->role == ROLE_FTC && b->want
-                                && (rc = put_ftc(b, k, v, err)) != MCF_OK)
-                                return rc;
-                        }
-                    }
-                }
-            }
-            if (api__token(&s, le, &t) != 0)
-                return api__fail(err, MCF_EDECODE,
-                                 "ply: line %ld: %s %llu has more values than its "
-                                 "%d properties",
-                                 b->txt.line, api__show(e->name, e->nlen, shown), r,
-                                 e->nprops);
-            if (e->is_face && (rc = end_face(b, err)) != MCF_OK)
+        for (unsigned long long r = 0; r < e->count; r++)
+            if ((rc = ascii_row(b, e, r, err)) != MCF_OK)
                 return rc;
-        }
     }
-    {
-        const char *s, *le;
-        if (next_line(b, &s, &le))
-            return api__fail(err, MCF_EDECODE,
-                             "ply: line %ld: data after the last element", b->txt.line);
-    }
+    if (next_line(b, &s, &le))
+        return api__fail(err, MCF_EDECODE, "ply: line %ld: data after the last element",
+                         b->txt.line);
     return MCF_OK;
 }
 

@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * api_text.c - the text helpers of api_internal.h, shared by the line- and
- * token-based mesh readers (OBJ, OFF, ASCII PLY, ASCII STL).
+ * token-based mesh readers (OBJ, OFF, ASCII PLY, ASCII STL), and the raw
+ * JSON scan of the parameters' and glTF's checks.
  *
  * Input buffers are untrusted and not NUL-terminated: every helper takes
  * an explicit end or length and never reads past it. Numbers are copied
@@ -110,4 +111,21 @@ const char *api__show(const char *t, size_t n, char out[API__SHOWN])
 const char *api__show_utf8(const char *t, size_t n, char out[API__SHOWN])
 {
     return show(t, n, 0x100, out);
+}
+
+int api__json_next(const char *s, size_t n, size_t *i)
+{
+    char c;
+    if (*i >= n)
+        return -1;
+    c = s[(*i)++];
+    if (c == '"')
+        while (*i < n) {
+            char d = s[(*i)++];
+            if (d == '\\')
+                (*i)++;
+            else if (d == '"')
+                break;
+        }
+    return (unsigned char)c;
 }

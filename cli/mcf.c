@@ -38,6 +38,7 @@
 #include <unistd.h>
 
 #include "api.h"
+#include "prog.h"
 
 #define EXIT_USAGE 2
 #define EXIT_STRICT 3 /* --strict and the result has warnings */
@@ -1037,7 +1038,7 @@ int main(int argc, char **argv)
     static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert", NULL};
     int i, known = 0;
 
-    api_bound_library_threads(argv, 1);
+    prog_bound_blas_threads(argv);
     if (!cmd)
         return fail(EXIT_USAGE, "missing command: smooth, info, schemes, params or convert "
                     "(try mcf --help)");

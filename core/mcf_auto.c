@@ -68,15 +68,14 @@
  * U = -D^-1 L frozen at the input, on the positions and the probes; SURE
  * after every pass, stopping at 2 k* + 10 passes (cap MCF_AUTO_MAX_PASSES).
  *
- * Pure C11 and CHOLMOD, no globals; the run's solver when it lends it (an
- * implicit scheme: its pattern, matrix and symbolic analysis, which the
- * run's own factorizations then reuse), else its own cholmod_common.
+ * Pure C11, no globals; the factorization and the solves by mcf_cholesky.c:
+ * the run's solver when it lends it (an implicit scheme: its pattern and
+ * symbolic analysis, which the run's own factorizations then reuse), else
+ * one of its own.
  */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-
-#include <cholmod.h>
 
 #include "mcf_internal.h"
 
@@ -94,11 +93,9 @@ typedef struct {
     double *yn;         /* nv: n_i . X_i */
     double *mass;       /* nv: the lumped mass at X */
     double *lval;       /* pattern nnz: L's upper values at X */
-    cholmod_common own_cm, *cm; /* cm: own_cm, or the run's */
-    int cm_started;             /* own_cm started */
-    cholmod_sparse *own_A, *A;
-    cholmod_factor *own_L, **L;
-    cholmod_dense *B, *Y, *Yw, *Ew; /* on *cm */
+    mcf__chol *own_ch;  /* the solver, unless the run lends its own */
+    double *ax;         /* pattern nnz: M + h0 L */
+    double *B;          /* nv x NCOL, column-major: the state */
 } auto_ctx;
 
 static void auto_free(auto_ctx *a)
@@ -109,18 +106,10 @@ static void auto_free(auto_ctx *a)
     free(a->yn);
     free(a->mass);
     free(a->lval);
+    free(a->ax);
+    free(a->B);
+    mcf__chol_free(a->own_ch);
     mcf__pattern_free(&a->own_pat);
-    if (a->cm) {
-        cholmod_free_dense(&a->B, a->cm);
-        cholmod_free_dense(&a->Y, a->cm);
-        cholmod_free_dense(&a->Yw, a->cm);
-        cholmod_free_dense(&a->Ew, a->cm);
-    }
-    if (a->cm_started) {
-        cholmod_free_factor(&a->own_L, &a->own_cm);
-        cholmod_free_sparse(&a->own_A, &a->own_cm);
-        cholmod_finish(&a->own_cm);
-    }
 }
 
 /* The second-order high-pass along the unit normals N (3*nv) of positions
@@ -367,13 +356,13 @@ static double positions_area(const double *P, int nv, const int32_t *F, int nf)
 
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
                           mcf_laplacian lap, mcf_mass mk, int moving_mass, double hbar, int K,
-                          const mcf__solver *lend, double *t_best, double *sigma, mcf_error *err)
+                          mcf__chol *lend, double *t_best, double *sigma, mcf_error *err)
 {
     auto_ctx a;
     mcf_status rc = MCF_OK;
     double risk[MAX_CANDIDATES + 1], aratio[MAX_CANDIDATES + 1]; /* area over the input's */
     double *cpl = NULL, s;
-    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, mk, hbar, lend ? lend->pat : NULL, &s, err)) != MCF_OK)
+    if ((rc = auto_setup(&a, X, F, nf, nv, fixed, lap, mk, hbar, lend ? mcf__chol_pattern(lend) : NULL, &s, err)) != MCF_OK)
         goto done;
     *sigma = s;
     const double *mass = a.mass, *lval = a.lval;
@@ -386,36 +375,19 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
     int Kc = K < 6 ? K : 6;
     double str0 = 0.8 * s / hbar + 0.25, h0 = str0 * str0 * hbar * hbar / Kc;
 
-    /* the run's matrix, analysis and factor when it lends them (its
-     * pattern is this one: one symbolic analysis serves both), else our
-     * own */
-    if (lend) {
-        a.cm = lend->cm;
-        a.A = lend->A;
-        a.L = lend->L;
-    } else {
-        cholmod_start(&a.own_cm);
-        a.cm_started = 1;
-        a.cm = &a.own_cm;
-        a.own_cm.error_handler = NULL;
-        a.own_cm.print = 0;
-        a.A = a.own_A = cholmod_allocate_sparse((size_t)nv, (size_t)nv, (size_t)a.pat->nnz, 1, 1, 1,
-                                                CHOLMOD_REAL, a.cm);
-        a.L = &a.own_L;
-        if (a.A) {
-            memcpy(a.A->p, a.pat->colptr, sizeof(int) * ((size_t)nv + 1));
-            memcpy(a.A->i, a.pat->rowind, sizeof(int) * (size_t)a.pat->nnz);
-        }
-    }
-    a.B = cholmod_allocate_dense((size_t)nv, NCOL, (size_t)nv, CHOLMOD_REAL, a.cm);
-    if (!a.A || !a.B) {
-        rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: CHOLMOD allocation failed");
+    /* the run's solver when it lends it (its pattern is this one: one
+     * symbolic analysis serves both), else our own */
+    mcf__chol *ch = lend ? lend : (a.own_ch = mcf__chol_new(a.pat, NCOL, err));
+    a.ax = mcf__malloc((size_t)a.pat->nnz, sizeof(double));
+    a.B = mcf__malloc(NCOL * (size_t)nv, sizeof(double));
+    if (!ch || !a.ax || !a.B) {
+        rc = mcf__fail(err, MCF_ENOMEM, "automatic amount: out of memory (%d vertices)", nv);
         goto done;
     }
     /* M + h0 L; a fixed vertex's row and column become the identity and
      * its couplings -h0 L_ij x_j move to the free rows' right-hand side
      * (cpl), as the run's Dirichlet rows do */
-    double *ax = a.A->x;
+    double *ax = a.ax;
     for (int j = 0; j < nv; j++)
         for (int t = a.pat->colptr[j]; t < a.pat->colptr[j + 1]; t++) {
             int i = a.pat->rowind[t];
@@ -430,14 +402,10 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
                 ax[t] = 0.0;
             }
         }
-    if ((!*a.L && !(*a.L = cholmod_analyze(a.A, a.cm))) || !cholmod_factorize(a.A, *a.L, a.cm) ||
-        a.cm->status != CHOLMOD_OK) {
-        rc = mcf__fail(err, a.cm->status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
-                       "automatic amount: factorization failed (status %d)", a.cm->status);
+    if ((rc = mcf__chol_analyze(ch, err)) != MCF_OK || (rc = mcf__chol_factorize(ch, ax, err)) != MCF_OK)
         goto done;
-    }
     /* the state: positions (0-2) and probes (3..), column-major */
-    double *b = a.B->x;
+    double *b = a.B;
     for (int i = 0; i < nv; i++) {
         for (int c = 0; c < 3; c++)
             b[(size_t)c * nv + i] = X[3 * (size_t)i + c];
@@ -450,7 +418,6 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
     int n = 1, kb = 0;
     int kmax = 4 * Kc;
     for (int k = 1; k <= kmax; k++) {
-        b = a.B->x;
         for (int i = 0; i < nv; i++) {
             if (a.fix[i])
                 continue; /* positions keep X, probes 0 */
@@ -459,13 +426,9 @@ mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv, con
             for (int c = 0; c < 3; c++)
                 b[(size_t)c * nv + i] += cpl[3 * (size_t)i + c];
         }
-        if (!cholmod_solve2(CHOLMOD_A, *a.L, a.B, NULL, &a.Y, NULL, &a.Yw, &a.Ew, a.cm)) {
-            rc = mcf__fail(err, MCF_ENUMERIC, "automatic amount: cholmod_solve failed (status %d)", a.cm->status);
-            goto done;
-        }
-        memcpy(a.B->x, a.Y->x, sizeof(double) * NCOL * (size_t)nv);
-        risk[n++] = sure(&a, a.B->x, (size_t)nv, s);
-        aratio[k] = positions_area(a.B->x, nv, F, nf) / A0;
+        mcf__chol_solve(ch, NCOL, b, 1, (size_t)nv, b, NULL); /* 4 columns: no failure */
+        risk[n++] = sure(&a, b, (size_t)nv, s);
+        aratio[k] = positions_area(b, nv, F, nf) / A0;
         if (risk[k] < risk[kb])
             kb = k;
         if (k >= kb + 3)

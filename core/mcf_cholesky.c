@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * mcf_cholesky.c - the implicit schemes' linear solver: a supernodal
- * Cholesky factorization (CHOLMOD) of the job's SPD matrix, analysed once,
- * refactored every step, and solved for three columns at once.
+ * mcf_cholesky.c - core's SPD solver (the implicit schemes, the automatic
+ * amount, the fairing filter): a supernodal Cholesky factorization
+ * (CHOLMOD) of a job's SPD matrix, analysed once, refactored as often as
+ * the caller needs, and solved for all its columns at once.
  *
  * What it does differently from cholmod_factorize + cholmod_solve2, each
  * measured on the 435k-vertex dragon (lab/README.md, Benchmarks):
@@ -13,11 +14,15 @@
  *    through the map and calls cholmod_super_numeric on S directly:
  *    cholmod_factorize would allocate and fill a permuted transpose of A at
  *    every step (about 25 ms and fresh pages each time).
- *  - The solve runs over the supernodal factor itself with the three
- *    columns (x, y, z) interleaved: one pass forward, one back, no BLAS call
- *    per supernode (99.7% of the dragon's 50k supernodes have 16 columns
- *    or fewer, where a call costs more than its flops), no column-major
- *    copies of the right-hand side.
+ *  - The solve of up to four columns runs over the supernodal factor
+ *    itself with the columns (x, y, z, a probe) interleaved: one pass
+ *    forward, one back, no BLAS call per supernode (99.7% of the dragon's
+ *    50k supernodes have 16 columns or fewer, where a call costs more than
+ *    its flops), no column-major copies of the right-hand side. More
+ *    columns (the fairing filter's nine) go to CHOLMOD's own supernodal
+ *    solve on the same factor, where the BLAS calls pay (measured on
+ *    armadillo's fairing: this kernel with three vectors a row took 37% of
+ *    the run's CPU, CHOLMOD's 31%).
  *  - Both run with subnormal numbers flushed to zero (x86: MXCSR's FTZ and
  *    DAZ, on the calling thread only, restored after). At strength 0.33
  *    in 10 steps a step is tiny (dt ~ 0.01 h^2), the off-diagonal entries are
@@ -31,6 +36,7 @@
  * values and their rounding are those of cholmod_factorize, but for
  * subnormal values, which are 0 here.
  */
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -72,6 +78,7 @@ typedef double v4d __attribute__((vector_size(32)));
 
 struct mcf__chol {
     int n;
+    int ncol;           /* the most columns of a solve */
     const mcf__pattern *pat;
     cholmod_common cm;
     cholmod_factor *L;
@@ -79,11 +86,12 @@ struct mcf__chol {
     int *smap;          /* pat->nnz: entry of A's upper triangle -> S->x */
     v4d *y;             /* n: the permuted right-hand side / solution */
     v4d *buf;           /* maxesize: the solve's rows below a supernode */
+    cholmod_dense *B, *X, *Yw, *Ew; /* more than 4 columns: CHOLMOD's solve */
     size_t bytes;       /* smap, y and buf */
-    cholmod_sparse lent; /* A's upper triangle on the caller's values, lent */
+    int analysed;
 };
 
-mcf__chol *mcf__chol_new(const mcf__pattern *pat, mcf_error *err)
+mcf__chol *mcf__chol_new(const mcf__pattern *pat, int ncol, mcf_error *err)
 {
     mcf__chol *ch = mcf__calloc(1, sizeof *ch);
     if (!ch) {
@@ -91,6 +99,7 @@ mcf__chol *mcf__chol_new(const mcf__pattern *pat, mcf_error *err)
         return NULL;
     }
     ch->n = pat->n;
+    ch->ncol = ncol;
     ch->pat = pat;
     cholmod_start(&ch->cm);
     ch->cm.error_handler = NULL;
@@ -113,6 +122,10 @@ void mcf__chol_free(mcf__chol *ch)
         return;
     cholmod_free_factor(&ch->L, &ch->cm);
     cholmod_free_sparse(&ch->S, &ch->cm);
+    cholmod_free_dense(&ch->B, &ch->cm);
+    cholmod_free_dense(&ch->X, &ch->cm);
+    cholmod_free_dense(&ch->Yw, &ch->cm);
+    cholmod_free_dense(&ch->Ew, &ch->cm);
     cholmod_finish(&ch->cm);
     free(ch->smap);
     free(ch->y);
@@ -125,25 +138,9 @@ size_t mcf__chol_bytes(const mcf__chol *ch)
     return ch ? ch->bytes + ch->cm.memory_usage : 0;
 }
 
-void mcf__chol_lend(mcf__chol *ch, double *val, mcf__solver *lend)
+const mcf__pattern *mcf__chol_pattern(const mcf__chol *ch)
 {
-    cholmod_sparse *A = &ch->lent;
-    memset(A, 0, sizeof *A);
-    A->nrow = A->ncol = (size_t)ch->n;
-    A->nzmax = (size_t)ch->pat->nnz;
-    A->p = ch->pat->colptr;
-    A->i = ch->pat->rowind;
-    A->x = val;
-    A->stype = 1;
-    A->itype = CHOLMOD_INT;
-    A->xtype = CHOLMOD_REAL;
-    A->dtype = CHOLMOD_DOUBLE;
-    A->sorted = 1;
-    A->packed = 1;
-    lend->pat = ch->pat;
-    lend->cm = &ch->cm;
-    lend->A = A;
-    lend->L = &ch->L;
+    return ch->pat;
 }
 
 void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops)
@@ -178,8 +175,9 @@ mcf_status mcf__chol_analyze(mcf__chol *ch, mcf_error *err)
     A.dtype = CHOLMOD_DOUBLE;
     A.sorted = 1;
     A.packed = 1;
-    /* a borrower (mcf__chol_lend) may have analysed already */
-    if (!ch->L && !(ch->L = cholmod_analyze(&A, &ch->cm)))
+    if (ch->analysed)
+        return MCF_OK; /* analysed already (another user of the solver) */
+    if (!(ch->L = cholmod_analyze(&A, &ch->cm)))
         return chol_status(ch, "cholmod_analyze", err);
     if (!ch->L->is_super)
         return mcf__fail(err, MCF_ENUMERIC, "cholmod_analyze: no supernodal factor");
@@ -224,6 +222,7 @@ mcf_status mcf__chol_analyze(mcf__chol *ch, mcf_error *err)
         }
     free(next);
     free(pinv);
+    ch->analysed = 1;
     return MCF_OK;
 }
 
@@ -295,9 +294,19 @@ static inline void solve_body(const cholmod_factor *L, v4d *y, v4d *buf)
             v4d a = yk[jj];
             for (int ii = jj + 1; ii < nscol; ii++)
                 a -= col[ii] * yk[ii];
-            for (int ii = 0; ii < nrect; ii++)
-                a -= lr[ii] * buf[ii];
-            yk[jj] = a / col[jj];
+            /* the long dot product in four chains: one chain waits an
+             * add's latency per row */
+            v4d s0 = zero, s1 = zero, s2 = zero, s3 = zero;
+            int ii = 0;
+            for (; ii + 4 <= nrect; ii += 4) {
+                s0 += lr[ii] * buf[ii];
+                s1 += lr[ii + 1] * buf[ii + 1];
+                s2 += lr[ii + 2] * buf[ii + 2];
+                s3 += lr[ii + 3] * buf[ii + 3];
+            }
+            for (; ii < nrect; ii++)
+                s0 += lr[ii] * buf[ii];
+            yk[jj] = (a - ((s0 + s1) + (s2 + s3))) / col[jj];
         }
     }
 }
@@ -316,14 +325,63 @@ static void solve_avx2(const cholmod_factor *L, v4d *y, v4d *buf)
 }
 #endif
 
-void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X)
+/* Up to four columns: our kernel, one vector per row. More: CHOLMOD's
+ * supernodal solve on the same factor, whose BLAS calls pay with many
+ * columns (the fairing filter's nine on armadillo: our kernel with three
+ * vectors per row took 37% of the run's CPU against 31% for CHOLMOD's). */
+mcf_status mcf__chol_solve(mcf__chol *ch, int ncol, const double *B, size_t rs, size_t cs, double *X,
+                           mcf_error *err)
 {
+    int n = ch->n;
+    if (ncol > 4) {
+        /* column-major B is read in place, else copied to ch->B */
+        int cm = rs == 1 && cs == (size_t)n;
+        if (!cm && !ch->B &&
+            !(ch->B = cholmod_allocate_dense((size_t)n, (size_t)ch->ncol, (size_t)n, CHOLMOD_REAL, &ch->cm)))
+            return chol_status(ch, "solver", err);
+        cholmod_dense Bv = {0};
+        Bv.nrow = Bv.d = (size_t)n;
+        Bv.ncol = (size_t)ncol;
+        Bv.nzmax = (size_t)ncol * (size_t)n;
+        Bv.xtype = CHOLMOD_REAL;
+        Bv.dtype = CHOLMOD_DOUBLE;
+        if (cm) {
+            Bv.x = (double *)(uintptr_t)B; /* CHOLMOD's dense is not const; only read */
+        } else {
+            double *bx = Bv.x = ch->B->x;
+            for (int c = 0; c < ncol; c++)
+                for (int k = 0; k < n; k++)
+                    bx[(size_t)c * n + k] = B[rs * k + cs * c];
+        }
+        unsigned fpu = subnormals_off();
+        int ok = cholmod_solve2(CHOLMOD_A, ch->L, &Bv, NULL, &ch->X, NULL, &ch->Yw, &ch->Ew, &ch->cm);
+        subnormals_restore(fpu);
+        if (!ok) /* only its workspace, allocated on the first call */
+            return chol_status(ch, "cholmod_solve2", err);
+        const double *xx = ch->X->x;
+        if (cm)
+            memcpy(X, xx, sizeof(double) * (size_t)ncol * (size_t)n);
+        else
+            for (int c = 0; c < ncol; c++)
+                for (int k = 0; k < n; k++)
+                    X[rs * k + cs * c] = xx[(size_t)c * n + k];
+        return MCF_OK;
+    }
     const int *perm = ch->L->Perm;
     v4d *y = ch->y;
-    int n = ch->n;
-    for (int k = 0; k < n; k++) {
-        const double *b = B + 3 * (size_t)perm[k];
-        y[k] = (v4d){b[0], b[1], b[2], 0.0};
+    if (ncol == 3 && rs == 3 && cs == 1) { /* the flow's: the loads unrolled */
+        for (int k = 0; k < n; k++) {
+            const double *b = B + 3 * (size_t)perm[k];
+            y[k] = (v4d){b[0], b[1], b[2], 0.0};
+        }
+    } else {
+        for (int k = 0; k < n; k++) {
+            const double *b = B + rs * (size_t)perm[k];
+            v4d v = {0.0, 0.0, 0.0, 0.0};
+            for (int c = 0; c < ncol; c++)
+                v[c] = b[cs * c];
+            y[k] = v;
+        }
     }
     unsigned fpu = subnormals_off();
 #if defined(SOLVE_AVX2)
@@ -333,10 +391,24 @@ void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X)
 #endif
         solve_generic(ch->L, y, ch->buf);
     subnormals_restore(fpu);
-    for (int k = 0; k < n; k++) {
-        double *x = X + 3 * (size_t)perm[k];
-        x[0] = y[k][0];
-        x[1] = y[k][1];
-        x[2] = y[k][2];
+    if (ncol == 3 && rs == 3 && cs == 1) {
+        for (int k = 0; k < n; k++) {
+            double *x = X + 3 * (size_t)perm[k];
+            x[0] = y[k][0];
+            x[1] = y[k][1];
+            x[2] = y[k][2];
+        }
+    } else {
+        for (int k = 0; k < n; k++) {
+            double *x = X + rs * (size_t)perm[k];
+            for (int c = 0; c < ncol; c++)
+                x[cs * c] = y[k][c];
+        }
     }
+    return MCF_OK;
+}
+
+void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X)
+{
+    mcf__chol_solve(ch, 3, B, 3, 1, X, NULL);
 }

@@ -14,8 +14,9 @@
  * on an eigenvalue k in [0, 2] of D^-1 L, flat at the lowest frequencies
  * (no shrinking, no pole). With N = D_F^-1/2 L_FF D_F^-1/2 and y =
  * D_F^1/2 x the system is (I + N N') y' = y - N u, u = D_F^-1/2 L_FB X0_B:
- * CHOLMOD factors I + N N' from N itself (cholmod_factorize_p with beta =
- * 1), once per run; each step is one solve. One explicit pass is Taubin's
+ * I + N N' (N is symmetric: I + N^2, on the free 2-rings) is assembled
+ * and factored once per run by mcf_cholesky.c, as every SPD system in
+ * core; each step is one solve of all the columns. One explicit pass is Taubin's
  * pair x += 0.5 (avg - x), x += -0.53 (avg - x) on the free vertices.
  *
  * The amount: after K steps the displacement along the noisy mesh's
@@ -41,13 +42,11 @@
  * positions first, then halfway to the input, then the input's.
  * docs/fairing.md has the math in words.
  *
- * Pure C11 and CHOLMOD; its own cholmod_common; no globals.
+ * Pure C11; the factorization by mcf_cholesky.c; no globals.
  */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-
-#include <cholmod.h>
 
 #include "mcf_internal.h"
 
@@ -112,11 +111,10 @@ typedef struct {
     /* explicit: Z (nv x ncol, row-major), tmp the same */
     double *Z, *tmp;
     /* implicit */
-    cholmod_common cm;
-    int cm_started;
-    cholmod_sparse *N;
-    cholmod_factor *L;
-    cholmod_dense *Yd, *Bd, *Xd, *Yw, *Ew;
+    mcf__pattern apat;         /* I + N N' (upper triangle) */
+    double *ax;                /* its values */
+    mcf__chol *chol;
+    double *Yc;                /* nfree x ncol, column-major: y, the probes */
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
@@ -151,16 +149,10 @@ static void fair_free(fair_ctx *c)
     free(c->Z);
     free(c->tmp);
     free(c->b);
-    if (c->cm_started) {
-        cholmod_free_sparse(&c->N, &c->cm);
-        cholmod_free_factor(&c->L, &c->cm);
-        cholmod_free_dense(&c->Yd, &c->cm);
-        cholmod_free_dense(&c->Bd, &c->cm);
-        cholmod_free_dense(&c->Xd, &c->cm);
-        cholmod_free_dense(&c->Yw, &c->cm);
-        cholmod_free_dense(&c->Ew, &c->cm);
-        cholmod_finish(&c->cm);
-    }
+    mcf__chol_free(c->chol);
+    mcf__pattern_free(&c->apat);
+    free(c->ax);
+    free(c->Yc);
 }
 
 static double *alloc_d(fair_ctx *c, size_t n)
@@ -238,69 +230,133 @@ static void init_probes(fair_ctx *c)
 
 /* ----------------------------------------------------- implicit engine */
 
-static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
+/* The entries of column k of N = D^-1/2 L_FF D^-1/2 (symmetric): the
+ * free neighbours of vert[k] and k itself, ascending, into row/val;
+ * returns their count. */
+static int n_column(const fair_ctx *c, int k, int *row, double *val)
+{
+    int i = c->vert[k], q = 0, placed = 0;
+    for (int t = c->g.ptr[i]; t <= c->g.ptr[i + 1]; t++) {
+        int j = t < c->g.ptr[i + 1] ? c->g.adj[t] : -1;
+        if (!placed && (j < 0 || j > i)) {
+            row[q] = k;
+            val[q++] = 1.0;
+            placed = 1;
+        }
+        if (j >= 0 && c->fid[j] >= 0) {
+            row[q] = c->fid[j];
+            val[q++] = -1.0 / (c->sq[k] * c->sq[c->fid[j]]);
+        }
+    }
+    return q;
+}
+
+/* A = I + N N' = I + N^2, its upper triangle by columns (rows ascending,
+ * the diagonal last) into c->apat and c->ax: column j gathers N_ik N_kj
+ * over the entries k of N's column j and i <= j of N's column k (the free
+ * 2-ring of j). N by columns first (np, nr, nx), then two passes: the
+ * counts, then the entries. */
+static mcf_status assemble(fair_ctx *c, mcf_error *err)
 {
     int n = c->nfree;
-    cholmod_start(&c->cm);
-    c->cm_started = 1;
-    c->cm.error_handler = NULL;
-    c->cm.print = 0;
-    /* N = D^-1/2 L_FF D^-1/2, unsymmetric storage (stype 0): CHOLMOD then
-     * analyses and factors N N' + beta I */
-    size_t nnz = (size_t)n;
-    for (int k = 0; k < n; k++) {
-        int i = c->vert[k];
-        for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++)
-            nnz += c->fid[c->g.adj[t]] >= 0;
+    size_t nnz_n = (size_t)n;
+    for (int k = 0; k < n; k++)
+        nnz_n += (size_t)(c->g.ptr[c->vert[k] + 1] - c->g.ptr[c->vert[k]]);
+    int *mark = mcf__malloc((size_t)n, sizeof(int)), *list = mcf__malloc((size_t)n, sizeof(int));
+    int *np = mcf__malloc((size_t)n + 1, sizeof(int)), *nr = mcf__malloc(nnz_n, sizeof(int));
+    double *acc = mcf__malloc((size_t)n, sizeof(double)), *nx = mcf__malloc(nnz_n, sizeof(double));
+    int *cp = c->apat.colptr = mcf__malloc((size_t)n + 1, sizeof(int));
+    mcf_status rc = MCF_OK;
+    if (!mark || !list || !np || !nr || !acc || !nx || !cp) {
+        rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
+        goto done;
     }
-    c->N = cholmod_allocate_sparse((size_t)n, (size_t)n, nnz, 1, 1, 0, CHOLMOD_REAL, &c->cm);
-    c->Yd = cholmod_allocate_dense((size_t)n, (size_t)c->ncol, (size_t)n, CHOLMOD_REAL, &c->cm);
-    c->Bd = cholmod_allocate_dense((size_t)n, (size_t)c->ncol, (size_t)n, CHOLMOD_REAL, &c->cm);
-    c->b = alloc_d(c, 3 * (size_t)n);
-    if (!c->N || !c->Yd || !c->Bd || !c->b)
-        return mcf__fail(err, MCF_ENOMEM, "fairing: CHOLMOD allocation failed (%d free vertices)", n);
-    int *cp = c->N->p, *ri = c->N->i;
-    double *val = c->N->x;
-    size_t q = 0;
-    for (int k = 0; k < n; k++) {
-        int i = c->vert[k];
-        cp[k] = (int)q;
-        /* the row indices sorted: the diagonal among the (sorted)
-         * neighbours, which keep their order as free indices */
-        int placed = 0;
-        for (int t = c->g.ptr[i]; t <= c->g.ptr[i + 1]; t++) {
-            int j = t < c->g.ptr[i + 1] ? c->g.adj[t] : -1;
-            if (!placed && (j < 0 || j > i)) {
-                ri[q] = k;
-                val[q++] = 1.0;
-                placed = 1;
+    np[0] = 0;
+    for (int k = 0; k < n; k++)
+        np[k + 1] = np[k] + n_column(c, k, nr + np[k], nx + np[k]);
+    c->apat.n = n;
+    for (int pass = 0; pass < 2; pass++) {
+        for (int i = 0; i < n; i++)
+            mark[i] = -1;
+        size_t q = 0;
+        for (int j = 0; j < n; j++) {
+            int m = 0;
+            cp[j] = (int)q;
+            for (int a = np[j]; a < np[j + 1]; a++) {
+                int k = nr[a];
+                for (int b = np[k]; b < np[k + 1] && nr[b] <= j; b++) {
+                    int i = nr[b];
+                    if (mark[i] != j) {
+                        mark[i] = j;
+                        acc[i] = 0.0;
+                        list[m++] = i;
+                    }
+                    acc[i] += nx[b] * nx[a];
+                }
             }
-            if (j >= 0 && c->fid[j] >= 0) {
-                ri[q] = c->fid[j];
-                val[q++] = -1.0 / (c->sq[k] * c->sq[c->fid[j]]);
+            if (pass == 1) {
+                for (int a = 1; a < m; a++) /* insertion sort: a 2-ring */
+                    for (int b = a; b > 0 && list[b - 1] > list[b]; b--) {
+                        int t = list[b];
+                        list[b] = list[b - 1];
+                        list[b - 1] = t;
+                    }
+                for (int a = 0; a < m; a++) {
+                    c->apat.rowind[q + (size_t)a] = list[a];
+                    c->ax[q + (size_t)a] = acc[list[a]] + (list[a] == j ? 1.0 : 0.0);
+                }
+            }
+            q += (size_t)m;
+        }
+        cp[n] = (int)q;
+        if (pass == 0) {
+            if (q > (size_t)INT32_MAX) {
+                rc = mcf__fail(err, MCF_ELIMIT, "fairing: the system of %d free vertices is too large", n);
+                goto done;
+            }
+            c->apat.nnz = (int)q;
+            c->apat.rowind = mcf__malloc(q ? q : 1, sizeof(int));
+            c->ax = alloc_d(c, q);
+            c->bytes += sizeof(int) * (q + (size_t)n + 1);
+            if (!c->apat.rowind || !c->ax) {
+                rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
+                goto done;
             }
         }
     }
-    cp[n] = (int)q;
+done:
+    free(mark);
+    free(list);
+    free(np);
+    free(nr);
+    free(acc);
+    free(nx);
+    return rc;
+}
+
+static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
+{
+    int n = c->nfree;
+    mcf_status rc;
+    c->Yc = alloc_d(c, (size_t)c->ncol * (size_t)n);
+    c->b = alloc_d(c, 3 * (size_t)n);
+    if (!c->Yc || !c->b)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
+    if ((rc = assemble(c, err)) != MCF_OK || !(c->chol = mcf__chol_new(&c->apat, c->ncol, err)))
+        return rc != MCF_OK ? rc : MCF_ENOMEM;
     double t0 = mcf_now();
-    c->L = cholmod_analyze(c->N, &c->cm);
+    rc = mcf__chol_analyze(c->chol, err);
     c->st->time_analyze += mcf_now() - t0;
-    if (!c->L)
-        return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM
-                              : c->cm.status == CHOLMOD_TOO_LARGE ? MCF_ELIMIT : MCF_ENUMERIC,
-                         "fairing: cholmod_analyze failed (status %d)", c->cm.status);
-    double beta[2] = {1.0, 0.0};
+    if (rc != MCF_OK)
+        return rc;
     t0 = mcf_now();
-    int ok = cholmod_factorize_p(c->N, beta, NULL, 0, c->L, &c->cm);
+    rc = mcf__chol_factorize(c->chol, c->ax, err);
     c->st->time_factorize += mcf_now() - t0;
     c->st->factorizations++;
-    if (c->cm.status == CHOLMOD_OUT_OF_MEMORY)
-        return mcf__fail(err, MCF_ENOMEM, "fairing: cholmod_factorize: out of memory");
-    if (!ok || c->cm.status != CHOLMOD_OK)
-        return mcf__fail(err, c->cm.status == CHOLMOD_TOO_LARGE ? MCF_ELIMIT : MCF_ENUMERIC,
-                         "fairing: cholmod_factorize failed (status %d)", c->cm.status);
+    if (rc != MCF_OK)
+        return rc;
     /* b = N u, u_k = -D_k^-1/2 sum of the fixed neighbours' positions */
-    double *u = c->b, *y = c->Yd->x;
+    double *u = c->b, *y = c->Yc;
     for (int k = 0; k < n; k++) {
         int i = c->vert[k];
         double s[3] = {0, 0, 0};
@@ -309,7 +365,7 @@ static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
                 for (int d = 0; d < 3; d++)
                     s[d] += c->X0[3 * (size_t)c->g.adj[t] + d];
         for (int d = 0; d < 3; d++)
-            y[(size_t)d * n + k] = -s[d] / c->sq[k]; /* u, in Yd for now */
+            y[(size_t)d * n + k] = -s[d] / c->sq[k]; /* u, in Yc for now */
     }
     for (int k = 0; k < n; k++) {
         int i = c->vert[k];
@@ -336,17 +392,12 @@ static mcf_status implicit_step(fair_ctx *c, mcf_error *err)
 {
     int n = c->nfree;
     double t0 = mcf_now();
-    double *bx = c->Bd->x;
-    const double *y = c->Yd->x;
+    double *y = c->Yc;
     for (size_t q = 0; q < 3 * (size_t)n; q++)
-        bx[q] = y[q] - c->b[q];
-    memcpy(bx + 3 * (size_t)n, y + 3 * (size_t)n, sizeof(double) * (size_t)(c->ncol - 3) * (size_t)n);
-    if (!cholmod_solve2(CHOLMOD_A, c->L, c->Bd, NULL, &c->Xd, NULL, &c->Yw, &c->Ew, &c->cm))
-        return mcf__fail(err, c->cm.status == CHOLMOD_OUT_OF_MEMORY ? MCF_ENOMEM : MCF_ENUMERIC,
-                         "fairing: cholmod_solve failed (status %d)", c->cm.status);
-    cholmod_dense *sw = c->Yd;
-    c->Yd = c->Xd;
-    c->Xd = sw;
+        y[q] -= c->b[q];
+    mcf_status rc = mcf__chol_solve(c->chol, c->ncol, y, 1, (size_t)n, y, err);
+    if (rc != MCF_OK)
+        return rc;
     c->st->time_solve += mcf_now() - t0;
     c->st->solves += c->ncol / 3;
     return MCF_OK;
@@ -382,7 +433,7 @@ static void positions(const fair_ctx *c, double *Y)
         return;
     }
     memcpy(Y, c->X0, 3 * sizeof(double) * (size_t)c->nv);
-    const double *y = c->Yd->x;
+    const double *y = c->Yc;
     for (int k = 0; k < c->nfree; k++)
         for (int d = 0; d < 3; d++)
             Y[3 * (size_t)c->vert[k] + d] = y[(size_t)d * c->nfree + k] / c->sq[k];
@@ -399,7 +450,7 @@ static double weighted_trace(const fair_ctx *c, double *var)
             int i = c->vert[k];
             double z = c->probe[(size_t)q * c->nfree + k];
             double y = c->is_explicit ? c->Z[(size_t)c->ncol * i + 3 + q]
-                                      : ((const double *)c->Yd->x)[(size_t)(3 + q) * c->nfree + k];
+                                      : c->Yc[(size_t)(3 + q) * c->nfree + k];
             est[q] += c->w[i] * z * y;
         }
         tr += est[q] / NPROBE;
@@ -816,8 +867,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         st->tangential_steps = c.kbest_t;
         rc = output(&c, X, err);
     }
-    if (c.cm_started)
-        c.bytes += c.cm.memory_usage;
+    c.bytes += mcf__chol_bytes(c.chol);
     st->peak_bytes = c.bytes;
     fair_free(&c);
     return rc;

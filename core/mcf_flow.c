@@ -436,13 +436,9 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
     } else if (T <= 0.0 && p->iterations > 0 && dt_set) {
         T = p->iterations * h;
     } else if (T <= 0.0 && p->strength_auto) {
-        /* an implicit scheme lends its solver: one symbolic analysis
-         * (mcf__chol_analyze keeps the factor the borrower made) */
-        mcf__solver lend;
-        if (c->chol)
-            mcf__chol_lend(c->chol, c->Ax, &lend);
+        /* an implicit scheme lends its solver: one symbolic analysis */
         if ((rc = mcf__auto_time(c->X, c->F, c->nf, c->nv, c->fixed, p->laplacian, p->mass,
-                                 p->scheme != MCF_LINEAR, hbar, nsteps, c->chol ? &lend : NULL,
+                                 p->scheme != MCF_LINEAR, hbar, nsteps, c->chol,
                                  &T, &sigma, err)) != MCF_OK)
             return rc;
         st->noise = sigma / hbar;

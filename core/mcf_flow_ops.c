@@ -108,7 +108,8 @@ mcf_status mcf__flow_solver_init(flow_ctx *c, mcf_error *err)
     if (!c->Ax)
         return mcf__fail(err, MCF_ENOMEM, "solver: out of memory");
     c->bytes += sizeof(double) * (size_t)c->pat.nnz;
-    if (!(c->chol = mcf__chol_new(&c->pat, err)))
+    /* four columns: the automatic amount's, which borrows the solver */
+    if (!(c->chol = mcf__chol_new(&c->pat, 4, err)))
         return MCF_ENOMEM;
     return MCF_OK;
 }

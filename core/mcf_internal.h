@@ -91,25 +91,35 @@ void mcf__pattern_free(mcf__pattern *p);
 void mcf__pattern_fill_L(const mcf__pattern *p, const int32_t *F, int nf,
                          const double *w, double *val);
 
-/* ---- the implicit schemes' solver (mcf_cholesky.c): CHOLMOD's supernodal
- * Cholesky of an SPD matrix on a pattern (kept by the caller, unchanged
- * while the solver lives): analysis once, then any number of numeric
- * factorizations of values on the pattern (pattern order, nnz) and
- * three-column solves. */
+/* ---- the SPD solver (mcf_cholesky.c), every factorization in core (the
+ * implicit schemes, the automatic amount, the fairing filter): CHOLMOD's
+ * supernodal Cholesky of an SPD matrix on a pattern (kept by the caller,
+ * unchanged while the solver lives; only n, nnz, colptr and rowind are
+ * read): analysis once, then any number of numeric factorizations of
+ * values on the pattern (pattern order, nnz) and solves of up to ncol
+ * columns at once. */
 typedef struct mcf__chol mcf__chol;
-mcf__chol *mcf__chol_new(const mcf__pattern *pat, mcf_error *err);
+mcf__chol *mcf__chol_new(const mcf__pattern *pat, int ncol, mcf_error *err);
 void mcf__chol_free(mcf__chol *ch);
 /* The symbolic analysis (fill-reducing ordering, supernodes) of the
- * pattern. ENOMEM, ELIMIT (too large for CHOLMOD's integers), ENUMERIC. */
+ * pattern; once (a second call returns MCF_OK). ENOMEM, ELIMIT (too large
+ * for CHOLMOD's integers), ENUMERIC. */
 mcf_status mcf__chol_analyze(mcf__chol *ch, mcf_error *err);
 /* The numeric factorization of val (analysed first). ENOTPOSDEF, ENOMEM,
  * ELIMIT, ENUMERIC; after a failure the next call refactors as usual. */
 mcf_status mcf__chol_factorize(mcf__chol *ch, const double *val, mcf_error *err);
-/* X = A^-1 B for n x 3 row-major B and X (may alias) after a successful
- * factorization. */
+/* X = A^-1 B after a successful factorization, for ncol (<= the ncol of
+ * mcf__chol_new) columns: entry (k, c) of B and X (may alias) at
+ * [k * rs + c * cs] (row-major n x ncol: rs ncol, cs 1; column-major: rs 1,
+ * cs n). ENOMEM only, and only above four columns. */
+mcf_status mcf__chol_solve(mcf__chol *ch, int ncol, const double *B, size_t rs, size_t cs, double *X,
+                           mcf_error *err);
+/* The same for n x 3 row-major B and X. */
 void mcf__chol_solve3(mcf__chol *ch, const double *B, double *X);
 /* Bytes the solver holds (CHOLMOD's count and its own arrays). */
 size_t mcf__chol_bytes(const mcf__chol *ch);
+/* The pattern it was made for. */
+const mcf__pattern *mcf__chol_pattern(const mcf__chol *ch);
 /* After the analysis: entries of the factor, flops of a factorization. */
 void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops);
 
@@ -156,36 +166,18 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              mcf_error *err);
 
 /* ---- the automatic amount (mcf_auto.c)
- * A run's solver, lent to the automatic amount: its pattern (with the face
- * map), its CHOLMOD workspace and matrix (values overwritten) and its
- * factor, analysed there when *L is NULL and kept for the run. */
-struct cholmod_common_struct;
-struct cholmod_sparse_struct;
-struct cholmod_factor_struct;
-typedef struct {
-    const mcf__pattern *pat;
-    struct cholmod_common_struct *cm;
-    struct cholmod_sparse_struct *A;
-    struct cholmod_factor_struct **L;
-} mcf__solver;
-
-/* Lends the solver to a borrower that factors and solves with CHOLMOD
- * itself (mcf__auto_time): the pattern, the cholmod_common, A's upper
- * triangle on the values val (nnz; the borrower may overwrite them) and
- * the factor, which the borrower may create by cholmod_analyze (then
- * mcf__chol_analyze keeps it). */
-void mcf__chol_lend(mcf__chol *ch, double *val, mcf__solver *lend);
-
-/* The time t_best that minimizes SURE for K frozen implicit steps from X
+ * The time t_best that minimizes SURE for K frozen implicit steps from X
  * (working units, mean edge hbar), and the noise level sigma along the
  * normals it estimated (working units). fixed (nv, may be NULL): the
  * vertices the run holds; moving_mass: the run's mass follows its area
- * (every scheme but `linear`); lend: the run's solver, or NULL. ENOMEM,
- * ENUMERIC. */
+ * (every scheme but `linear`); lend: the run's solver on the run's
+ * pattern (for 4 columns: analysed here if not yet, its factor
+ * overwritten, so the run refactors before it solves), or NULL. ENOMEM,
+ * ENOTPOSDEF, ELIMIT, ENUMERIC. */
 mcf_status mcf__auto_time(const double *X, const int32_t *F, int nf, int nv,
                           const unsigned char *fixed, mcf_laplacian lap,
                           mcf_mass mk, int moving_mass, double hbar, int K,
-                          const mcf__solver *lend, double *t_best,
+                          mcf__chol *lend, double *t_best,
                           double *sigma, mcf_error *err);
 /* Taubin's pass count (0..MCF_AUTO_MAX_PASSES) that minimizes SURE for
  * the passes frozen at X, and sigma as above. ENOMEM. */

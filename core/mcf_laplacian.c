@@ -107,22 +107,6 @@ static inline void tri_weights(const double *p0, const double *p1, const double 
     wf[2] = (q0 + q1 - q2) * s;
 }
 
-void mcf__cot_weights(const double *X, const int32_t *F, int nf,
-                      mcf_laplacian lap, double delta, double *w,
-                      double *area)
-{
-    if (!(delta > 0.0))
-        delta = 1e-300; /* all points coincide: any positive margin */
-    for (int f = 0; f < nf; f++) {
-        const int32_t *t = F + 3 * (size_t)f;
-        double A;
-        tri_weights(X + 3 * (size_t)t[0], X + 3 * (size_t)t[1], X + 3 * (size_t)t[2],
-                    lap, delta, w + 3 * (size_t)f, &A);
-        if (area)
-            area[f] = A;
-    }
-}
-
 /* One face of the explicit pass, scalar: the weights (into w, area when
  * not NULL), then the per-vertex combined scatter of L X and of the mass.
  * Returns the face's area. */
@@ -201,10 +185,11 @@ typedef struct {
     double xy[3][8], z[3][4], a3[4], A[4];
 } lx_terms;
 
-/* Weights (into w[0..11], area[0..3] when not NULL) and scatter terms of
- * the four faces t[0..11]. */
-LX_INLINE void lx_weights(const double *X, const int32_t *t, mcf_laplacian lap,
-                          double delta, double *w, double *area, lx_terms *o)
+/* The weights (wk[0..2]) and areas (*Ap) of the four faces t[0..11] in
+ * lanes, also into w[0..11] and area[0..3] when not NULL, and their edges
+ * e[0..8] (e0 x y z, e1, e2). */
+LX_INLINE void lx_tri(const double *X, const int32_t *t, mcf_laplacian lap, double delta,
+                      double *w, double *area, __m256d e[9], __m256d wk[3], __m256d *Ap)
 {
     __m256d p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z;
     lx_corner(X, t, 0, &p0x, &p0y, &p0z);
@@ -255,6 +240,22 @@ LX_INLINE void lx_weights(const double *X, const int32_t *t, mcf_laplacian lap,
         w2 = _mm256_loadu_pd(wl[2]);
         A = _mm256_loadu_pd(al);
     }
+    e[0] = e0x; e[1] = e0y; e[2] = e0z;
+    e[3] = e1x; e[4] = e1y; e[5] = e1z;
+    e[6] = e2x; e[7] = e2y; e[8] = e2z;
+    wk[0] = w0; wk[1] = w1; wk[2] = w2;
+    *Ap = A;
+}
+
+/* Weights (into w[0..11], area[0..3] when not NULL) and scatter terms of
+ * the four faces t[0..11]. */
+LX_INLINE void lx_weights(const double *X, const int32_t *t, mcf_laplacian lap,
+                          double delta, double *w, double *area, lx_terms *o)
+{
+    __m256d e[9], wk[3], A;
+    lx_tri(X, t, lap, delta, w, area, e, wk, &A);
+    __m256d e0x = e[0], e0y = e[1], e0z = e[2], e1x = e[3], e1y = e[4], e1z = e[5];
+    __m256d e2x = e[6], e2y = e[7], e2z = e[8], w0 = wk[0], w1 = wk[1], w2 = wk[2];
     /* h_k = w_k e_k; corner 0 gets h1 - h2 (= g2 - g1 of face_LX) */
     __m256d h0x = w0 * e0x, h0y = w0 * e0y, h0z = w0 * e0z;
     __m256d h1x = w1 * e1x, h1y = w1 * e1y, h1z = w1 * e1z;
@@ -302,7 +303,43 @@ static double face_blocks_avx2(const double *X, const int32_t *F, int nb, mcf_la
     }
     return total;
 }
+
+/* mcf__cot_weights over the nb blocks of four faces F[0 .. 12 nb - 1]:
+ * the same lanes as the explicit pass (the same bits as tri_weights). */
+__attribute__((target("avx2")))
+static void cot_blocks_avx2(const double *X, const int32_t *F, int nb, mcf_laplacian lap,
+                            double delta, double *w, double *area)
+{
+    for (int b = 0; b < nb; b++) {
+        __m256d e[9], wk[3], A;
+        lx_tri(X, F + 12 * (size_t)b, lap, delta, w + 12 * (size_t)b, area ? area + 4 * (size_t)b : NULL,
+               e, wk, &A);
+    }
+}
 #endif
+
+void mcf__cot_weights(const double *X, const int32_t *F, int nf,
+                      mcf_laplacian lap, double delta, double *w,
+                      double *area)
+{
+    if (!(delta > 0.0))
+        delta = 1e-300; /* all points coincide: any positive margin */
+    int f = 0;
+#if defined(LX_AVX2)
+    if (__builtin_cpu_supports("avx2")) {
+        f = nf / 4 * 4;
+        cot_blocks_avx2(X, F, nf / 4, lap, delta, w, area);
+    }
+#endif
+    for (; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        double A;
+        tri_weights(X + 3 * (size_t)t[0], X + 3 * (size_t)t[1], X + 3 * (size_t)t[2],
+                    lap, delta, w + 3 * (size_t)f, &A);
+        if (area)
+            area[f] = A;
+    }
+}
 
 double mcf__weights_mass_LX(const double *X, const int32_t *F, int nf, int nv,
                             mcf_laplacian lap, double delta, double *w,

@@ -171,65 +171,55 @@ static void uf_union(int32_t *p, int32_t a, int32_t b)
  * an inspection. Both arrays are made in face order, so the stable sort by
  * key gives the order of the comparators above (key, then face), and
  * those serve as the fallback when the scratch cannot be had (or a face
- * key does not fit in 64 bits: more than 2^21 vertices). */
-static void sort_half_edges(half_edge *he, size_t n)
+ * key does not fit in 64 bits: more than 2^21 vertices).
+ *
+ * sort_by_key sorts the n records of sz bytes at base so: k holds their
+ * keys and as many again of scratch (NULL: qsort by cmp), and is freed. */
+static void sort_by_key(void *base, size_t n, size_t sz, uint64_t *k,
+                        int (*cmp)(const void *, const void *))
 {
-    uint64_t *k = n <= UINT32_MAX ? mcf__malloc(2 * n, sizeof *k) : NULL;
     uint32_t *p = k ? mcf__malloc(2 * n, sizeof *p) : NULL;
-    half_edge *out = NULL;
+    unsigned char *out = NULL, *b = base;
     size_t i;
 
     if (p) {
-        for (i = 0; i < n; i++) {
-            k[i] = he[i].key;
+        for (i = 0; i < n; i++)
             p[i] = (uint32_t)i;
-        }
         mcf__radix_sort_u64(k, p, n, k + n, p + n);
         free(k); /* before the gather's copy: peak about qsort's */
         k = NULL;
-        out = mcf__malloc(n, sizeof *out);
+        out = mcf__malloc(n, sz);
     }
     if (out) {
         for (i = 0; i < n; i++)
-            out[i] = he[p[i]];
-        memcpy(he, out, n * sizeof *he);
+            memcpy(out + i * sz, b + (size_t)p[i] * sz, sz);
+        memcpy(b, out, n * sz);
     } else {
-        qsort(he, n, sizeof *he, half_edge_cmp);
+        qsort(b, n, sz, cmp);
     }
     free(k);
     free(p);
     free(out);
 }
 
+static void sort_half_edges(half_edge *he, size_t n)
+{
+    uint64_t *k = n <= UINT32_MAX ? mcf__malloc(2 * n, sizeof *k) : NULL;
+
+    for (size_t i = 0; k && i < n; i++)
+        k[i] = he[i].key;
+    sort_by_key(he, n, sizeof *he, k, half_edge_cmp);
+}
+
 static void sort_face_keys(face_key *fk, size_t n, size_t nv)
 {
     uint64_t *k = nv <= (size_t)1 << 21 && n <= UINT32_MAX
                       ? mcf__malloc(2 * n, sizeof *k) : NULL;
-    uint32_t *p = k ? mcf__malloc(2 * n, sizeof *p) : NULL;
-    face_key *out = NULL;
-    size_t i;
 
-    if (p) {
-        for (i = 0; i < n; i++) {
-            k[i] = (uint64_t)fk[i].v[0] << 42 | (uint64_t)fk[i].v[1] << 21 |
-                   (uint64_t)fk[i].v[2];
-            p[i] = (uint32_t)i;
-        }
-        mcf__radix_sort_u64(k, p, n, k + n, p + n);
-        free(k);
-        k = NULL;
-        out = mcf__malloc(n, sizeof *out);
-    }
-    if (out) {
-        for (i = 0; i < n; i++)
-            out[i] = fk[p[i]];
-        memcpy(fk, out, n * sizeof *fk);
-    } else {
-        qsort(fk, n, sizeof *fk, face_key_cmp);
-    }
-    free(k);
-    free(p);
-    free(out);
+    for (size_t i = 0; k && i < n; i++)
+        k[i] = (uint64_t)fk[i].v[0] << 42 | (uint64_t)fk[i].v[1] << 21 |
+               (uint64_t)fk[i].v[2];
+    sort_by_key(fk, n, sizeof *fk, k, face_key_cmp);
 }
 
 /* Corner index (3f + j) of vertex v in the face of half-edge e. */
@@ -535,13 +525,66 @@ double mcf_mesh_area(const mcf_mesh *m)
     return s;
 }
 
+#if defined(__GNUC__) && defined(__x86_64__)
+#define AV_AVX2 1
+#include <immintrin.h>
+
+/* One coordinate of corner k of the four faces t[0..11], one per lane. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d av_coord(const double *X, const int32_t *t,
+                                                                              int k, int d)
+{
+    return _mm256_set_pd(X[3 * (size_t)t[9 + k] + d], X[3 * (size_t)t[6 + k] + d], X[3 * (size_t)t[3 + k] + d],
+                         X[3 * (size_t)t[k] + d]);
+}
+
+/* mcf__area_volume's per-face terms of the nb blocks of four faces F[0 ..
+ * 12 nb - 1] in AVX2 lanes (the scalar loop's operations in its order, no
+ * fused multiply-add), summed face by face in order as the scalar loop
+ * does: the same bits. The rescale of every implicit step runs it
+ * (armadillo: about 0.8 ms a step scalar). s: A, cx, cy, cz, v. */
+__attribute__((target("avx2")))
+static void area_volume_avx2(const double *X, const int32_t *F, int nb, double s[5])
+{
+    for (int b = 0; b < nb; b++) {
+        const int32_t *t = F + 12 * (size_t)b;
+        __m256d a0 = av_coord(X, t, 0, 0), a1 = av_coord(X, t, 0, 1), a2 = av_coord(X, t, 0, 2);
+        __m256d b0 = av_coord(X, t, 1, 0), b1 = av_coord(X, t, 1, 1), b2 = av_coord(X, t, 1, 2);
+        __m256d d0 = av_coord(X, t, 2, 0), d1 = av_coord(X, t, 2, 1), d2 = av_coord(X, t, 2, 2);
+        __m256d e10 = b0 - a0, e11 = b1 - a1, e12 = b2 - a2, e20 = d0 - a0, e21 = d1 - a1, e22 = d2 - a2;
+        __m256d n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22, n2 = e10 * e21 - e11 * e20;
+        __m256d af = _mm256_set1_pd(0.5) * _mm256_sqrt_pd(n0 * n0 + n1 * n1 + n2 * n2);
+        __m256d tx = af * (a0 + b0 + d0), ty = af * (a1 + b1 + d1), tz = af * (a2 + b2 + d2);
+        __m256d bd0 = b1 * d2 - b2 * d1, bd1 = b2 * d0 - b0 * d2, bd2 = b0 * d1 - b1 * d0;
+        __m256d tv = a0 * bd0 + a1 * bd1 + a2 * bd2;
+        double l[5][4];
+        _mm256_storeu_pd(l[0], af);
+        _mm256_storeu_pd(l[1], tx);
+        _mm256_storeu_pd(l[2], ty);
+        _mm256_storeu_pd(l[3], tz);
+        _mm256_storeu_pd(l[4], tv);
+        for (int j = 0; j < 4; j++)
+            for (int q = 0; q < 5; q++)
+                s[q] += l[q][j];
+    }
+}
+#endif
+
 /* Total area, area centroid (may be NULL) and signed enclosed volume
  * (divergence theorem, may be NULL) in one pass. Returns the area. */
 double mcf__area_volume(const double *X, const int32_t *F, int nf, double *centroid,
                         double *volume)
 {
     double A = 0.0, cx = 0.0, cy = 0.0, cz = 0.0, v = 0.0;
-    for (int f = 0; f < nf; f++) {
+    int f = 0;
+#if defined(AV_AVX2)
+    if (__builtin_cpu_supports("avx2")) {
+        double s[5] = {0.0, 0.0, 0.0, 0.0, 0.0};
+        f = nf / 4 * 4;
+        area_volume_avx2(X, F, nf / 4, s);
+        A = s[0], cx = s[1], cy = s[2], cz = s[3], v = s[4];
+    }
+#endif
+    for (; f < nf; f++) {
         const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1],
                      *d = X + 3 * (size_t)F[3 * f + 2];
         double e1[3], e2[3], n[3], bd[3];

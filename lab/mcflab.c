@@ -23,7 +23,6 @@ int main(int argc, char **argv)
     int rc;
 
     lab_prog = "mcflab";
-    api_bound_library_threads(argv, 0);
     if (argc < 2)
         return lab_fail(LAB_EXIT_USAGE, "missing study: dt-sweep, stability, order or sphere (try mcflab --help)");
     for (int i = 1; i < argc; i++)

@@ -18,13 +18,14 @@
  * unread so that TCP's flow control holds its client, in a FIFO served
  * as streams end and as the reset backlog drains.
  *
+ * The listening socket is h2gate_listen.c's.
+ *
  * One thread (epoll); the connection list is under a mutex only for
  * h2gate_peer, h2gate_health and the stats, which other threads read.
  */
 #define _GNU_SOURCE 1
 
 #include <errno.h>
-#include <netdb.h>
 #include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -33,7 +34,6 @@
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
-#include <arpa/inet.h>
 #include <netinet/in.h>
 #include <unistd.h>
 
@@ -652,42 +652,13 @@ static void wake(void)
 
 int h2gate_start(const h2gate_config *cfg, int *port, char *msg, size_t msgsize)
 {
-    struct addrinfo hints, *res = NULL;
-    char ps[16];
-    struct sockaddr_storage ss;
-    socklen_t sl = sizeof ss;
     struct epoll_event ev;
-    int one = 1, rc;
 
     pthread_mutex_lock(&G.mu);  /* other threads read it (h2gate_health) */
     G.cfg = *cfg;
     pthread_mutex_unlock(&G.mu);
-    memset(&hints, 0, sizeof hints);
-    hints.ai_family = AF_UNSPEC;
-    hints.ai_socktype = SOCK_STREAM;
-    hints.ai_flags = AI_PASSIVE;
-    snprintf(ps, sizeof ps, "%d", cfg->port);
-    rc = getaddrinfo(cfg->bind, ps, &hints, &res);
-    if (rc != 0 || !res) {
-        snprintf(msg, msgsize, "cannot listen for gRPC on %s:%d: %s", cfg->bind, cfg->port,
-                 gai_strerror(rc));
+    if ((G.lfd = h2gate_listen(cfg->bind, cfg->port, port, msg, msgsize)) < 0)
         return -1;
-    }
-    G.lfd = socket(res->ai_family, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-    if (G.lfd < 0 || setsockopt(G.lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0 ||
-        bind(G.lfd, res->ai_addr, res->ai_addrlen) != 0 || listen(G.lfd, SOMAXCONN) != 0 ||
-        getsockname(G.lfd, (struct sockaddr *)&ss, &sl) != 0) {
-        snprintf(msg, msgsize, "cannot listen for gRPC on %s:%d: %s", cfg->bind, cfg->port,
-                 strerror(errno));
-        freeaddrinfo(res);
-        if (G.lfd >= 0)
-            close(G.lfd);
-        G.lfd = -1;
-        return -1;
-    }
-    freeaddrinfo(res);
-    *port = ntohs(ss.ss_family == AF_INET6 ? ((struct sockaddr_in6 *)&ss)->sin6_port
-                                           : ((struct sockaddr_in *)&ss)->sin_port);
     G.ep = epoll_create1(EPOLL_CLOEXEC);
     G.wfd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     memset(&ev, 0, sizeof ev);

@@ -128,6 +128,13 @@ int h2gate_peer(int inner_fd, char *addr, size_t size);
 int h2gate_health(char *why, size_t size);
 void h2gate_get_stats(h2gate_stats *out);
 
+/* --------------------------------------------------- The listening socket */
+
+/* A non-blocking TCP socket listening on bind_addr:port (h2gate_listen.c):
+ * its descriptor, and *bound_port the port it got; or -1 with a one-line
+ * reason in msg. */
+int h2gate_listen(const char *bind_addr, int port, int *bound_port, char *msg, size_t msgsize);
+
 /* ------------------------------------------------------------ The limits
  * One object per gate: its bounds (a copy of the config's) and what
  * counts against them. Not thread-safe: the gate's thread alone calls it. */

@@ -161,6 +161,22 @@ static int parse_route(srv_request *r, const char *url)
     return 0;
 }
 
+/* The offset in the raw target of the path's first control byte, raw or
+ * encoded as libmicrohttpd decodes (%00 ended the path: /v1/jobs/ID%00x). */
+static long path_control_byte(const char *uri)
+{
+    for (const char *p = uri; *p && *p != '?'; p++) {
+        unsigned char b = (unsigned char)*p;
+        if (b == '%' && isxdigit((unsigned char)p[1]) && isxdigit((unsigned char)p[2])) {
+            char hex[3] = {p[1], p[2], '\0'};
+            b = (unsigned char)strtoul(hex, NULL, 16);
+        }
+        if (b < 0x20 || b == 0x7f)
+            return (long)(p - uri);
+    }
+    return -1;
+}
+
 /* The bearer token, checked as the gRPC door checks it (srv_bearer_ok:
  * constant time in the token's length). */
 static int authorized(const srv_rest *d, struct MHD_Connection *c)
@@ -202,9 +218,16 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     srv_rest *d = r->door;
     svc_error p;
     const char *q = srv_query_of(r);
+    long at;
 
     snprintf(r->method, sizeof r->method, "%s", method);
     snprintf(r->path, sizeof r->path, "%s", url);
+    if ((at = path_control_byte(r->uri)) >= 0) {
+        snprintf(r->path, sizeof r->path, "%.*s", (int)strcspn(r->uri, "?"), r->uri);
+        return srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "the path has a control "
+                                 "byte at byte %ld (%.3s): a path is printable", at,
+                                 r->uri[at] == '%' ? r->uri + at : "raw");
+    }
     if (parse_route(r, url) != 0)
         return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
     if (q && strlen(q) > SRV_MAX_QUERY)

@@ -45,6 +45,7 @@
 #include <unistd.h>
 
 #include "grpc_door.h"
+#include "prog.h"
 #include "rest_door.h"
 #include "service.h"
 #include "srv.h"
@@ -324,7 +325,7 @@ int main(int argc, char **argv)
      * this daemon started, before anything else. */
     if (argc > 1 && strcmp(argv[1], SRV_SANDBOX_ARG) == 0)
         return srv_sandbox_child(argc, argv);
-    api_bound_library_threads(argv, 1);
+    prog_bound_blas_threads(argv);
     rc = srv_config_load(&cfg, argc, argv, msg, sizeof msg);
     if (rc > 0)
         return 0;

@@ -2,7 +2,8 @@
 /*
  * test_core_cholesky.c - the implicit schemes' solver (core/mcf_cholesky.c:
  * CHOLMOD's supernodal factor of the pre-permuted lower triangle, our own
- * three-column supernodal solve) against independent references: a dense
+ * supernodal solve of three or more columns) against independent
+ * references: a dense
  * Cholesky written here (small systems), CHOLMOD's own cholmod_factorize +
  * cholmod_solve2 on the upper triangle (the route it replaced), the
  * residual through the pattern's matrix-vector product, a matrix that is
@@ -67,14 +68,20 @@ static void sys_free(sys *s)
     mcf_mesh_free(s->m);
 }
 
-static mcf__chol *factor(const sys *s)
+static mcf__chol *factor_ncol(const sys *s, int ncol)
 {
     mcf_error e = {0};
-    mcf__chol *ch = mcf__chol_new(&s->pat, &e);
+    mcf__chol *ch = mcf__chol_new(&s->pat, ncol, &e);
     assert_non_null(ch);
     assert_int_equal(mcf__chol_analyze(ch, &e), MCF_OK);
+    assert_int_equal(mcf__chol_analyze(ch, &e), MCF_OK); /* once: a no-op */
     assert_int_equal(mcf__chol_factorize(ch, s->val, &e), MCF_OK);
     return ch;
+}
+
+static mcf__chol *factor(const sys *s)
+{
+    return factor_ncol(s, 3);
 }
 
 /* max |a - b| / max |b| over 3n values */
@@ -176,7 +183,7 @@ static void test_dense_reference(void **state)
         for (int i = 0; i < n; i++)
             Xd[3 * i + c] = b[i];
     }
-    mcf__chol *ch = factor(&s);
+    mcf__chol *ch = factor_ncol(&s, 9);
     mcf__chol_solve3(ch, s.B, X);
     /* the solver flushes subnormals only while it runs: the caller's
      * thread gets its own floating-point state back */
@@ -189,6 +196,27 @@ static void test_dense_reference(void **state)
     memcpy(X, s.B, 3 * sizeof(double) * n);
     mcf__chol_solve3(ch, X, X);
     assert_true(rel_max(X, Xd, n) <= 1e-11);
+    /* more columns at once: nine column-major (the fairing filter's
+     * layout), six row-major, four column-major (the automatic amount's):
+     * column c is (1 + c) B_(c mod 3), so its solution is (1 + c)
+     * Xd_(c mod 3); the same 1e-11 */
+    const int ncols[3] = {9, 6, 4};
+    for (int t = 0; t < 3; t++) {
+        int ncol = ncols[t];
+        size_t rs = t == 1 ? (size_t)ncol : 1, cs = t == 1 ? 1 : (size_t)n;
+        double *C = malloc(sizeof(double) * 9 * n);
+        assert_non_null(C);
+        for (int c = 0; c < ncol; c++)
+            for (int i = 0; i < n; i++)
+                C[rs * i + cs * c] = (1.0 + c) * s.B[3 * i + c % 3];
+        assert_int_equal(mcf__chol_solve(ch, ncol, C, rs, cs, C, NULL), MCF_OK);
+        for (int c = 0; c < ncol; c++)
+            for (int i = 0; i < n; i++) {
+                double want = Xd[3 * i + c % 3], got = C[rs * i + cs * c] / (1.0 + c);
+                assert_true(fabs(got - want) <= 1e-11 * (1.0 + fabs(want)));
+            }
+        free(C);
+    }
     mcf__chol_free(ch);
     free(D); free(Xd); free(b); free(X);
     sys_free(&s);
@@ -264,7 +292,7 @@ static void test_not_posdef_then_recover(void **state)
     sys s;
     sys_make(&s, m, 1e-2);
     mcf_error e = {0};
-    mcf__chol *ch = mcf__chol_new(&s.pat, &e);
+    mcf__chol *ch = mcf__chol_new(&s.pat, 3, &e);
     assert_non_null(ch);
     assert_int_equal(mcf__chol_analyze(ch, &e), MCF_OK);
     double *bad = malloc(sizeof(double) * s.pat.nnz), *X = malloc(3 * sizeof(double) * s.n);
@@ -298,7 +326,7 @@ static void *worker(void *p)
     a->ok = X != NULL;
     for (int rep = 0; rep < 3 && a->ok; rep++) {
         mcf_error e = {0};
-        mcf__chol *ch = mcf__chol_new(&a->s->pat, &e);
+        mcf__chol *ch = mcf__chol_new(&a->s->pat, 3, &e);
         a->ok = ch && mcf__chol_analyze(ch, &e) == MCF_OK &&
                 mcf__chol_factorize(ch, a->s->val, &e) == MCF_OK;
         if (a->ok) {

@@ -3,8 +3,8 @@
  * test_server_http.c - integration tests of mcfd's REST door against
  * hostile or careless clients: multipart edge cases, request framing,
  * query floods, followers and per-address caps, header and body deadlines
- * (slowloris), clients that hang up, bearer auth, concurrent clients and
- * clock jumps. A real daemon on loopback, driven with libcurl and raw
+ * (slowloris), clients that hang up, bearer auth, concurrent clients,
+ * clock jumps and control bytes in paths. A real daemon on loopback, driven with libcurl and raw
  * sockets, as in test_server.c; the helpers are srvlib.c's.
  */
 #include "srvlib.h"
@@ -1232,6 +1232,51 @@ static void test_concurrent_clients(void **state)
     stop_daemon(&d);
 }
 
+/* A path with an encoded control byte (%00, %0a, %7f) is refused with a
+ * 400 problem+json naming it. libmicrohttpd decodes the path, and an
+ * encoded NUL ended it there: /healthz%00junk answered 200, and
+ * /v1/jobs/ID%00junk served job ID. Raw control bytes too; an escape of a
+ * printable byte, or a '%' without two hex digits, is routed as before. */
+static void test_path_control_bytes(void **state)
+{
+    static const char *const bad[] = {"/healthz%00junk", "/healthz%00", "/v1/schemes%0a",
+                                      "/healthz%0D%0AX-Injected:%201", "/readyz%7f",
+                                      "/v1/jobs%1b"};
+    char id[SRV_ID_BUF], path[200], req[300];
+    api_buf out;
+    resp_t r;
+
+    (void)state;
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        http(&g_main, "GET", bad[i], NULL, NULL, &r);
+        expect_problem(&g_main, &r, 400, "EINVAL", "control byte", bad[i]);
+        resp_free(&r);
+    }
+    submit(&g_main, "?iterations=1", id);
+    snprintf(path, sizeof path, "/v1/jobs/%s%%00junk", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_problem(&g_main, &r, 400, "EINVAL", "control byte", path);
+    resp_free(&r);
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "the job by its plain path");
+    resp_free(&r);
+    http(&g_main, "GET", "/healthz%41", NULL, NULL, &r);
+    expect_status(&g_main, &r, 404, "/healthz%41 (/healthzA)");
+    resp_free(&r);
+    http(&g_main, "GET", "/healthz%0", NULL, NULL, &r);
+    expect_status(&g_main, &r, 404, "/healthz%0 (no escape)");
+    resp_free(&r);
+    snprintf(req, sizeof req, "GET /healthz\001 HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+             "Connection: close\r\n\r\n");
+    raw_exchange(&g_main, req, strlen(req), &out);
+    if (!out.data || strncmp(out.data, "HTTP/1.1 400", 12) != 0)
+        fail_msg("a raw control byte in the path answered:\n%.300s",
+                 out.data ? out.data : "(nothing)");
+    api_buf_free(&out);
+    expect_alive(&g_main, "after control bytes in paths");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1248,6 +1293,7 @@ int main(void)
         cmocka_unit_test_teardown(test_clock_jumps, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
+        cmocka_unit_test_teardown(test_path_control_bytes, kill_strays),
     };
     /* MCF_TEST_FILTER=test_errors (a cmocka pattern) runs a subset. */
     if (getenv("MCF_TEST_FILTER") && *getenv("MCF_TEST_FILTER"))

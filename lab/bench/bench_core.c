@@ -27,6 +27,13 @@
  *   4. Peak memory of one job: mcf_flow_stats.peak_bytes and the growth of
  *      getrusage ru_maxrss in a child process (peak reset first through
  *      /proc/self/clear_refs, so earlier jobs do not mask it).
+ *   5. End to end (--mcf PATH): the default request `mcf smooth IN OUT`
+ *      (no options: the fairing filter below 150,000 vertices,
+ *      fairing_explicit above) on the dragon and on the meshes where the
+ *      implicit fairing is the default (bunny.drc, armadillo, fertility),
+ *      each a child process: its CPU time (user + sys from wait4), wall
+ *      time and peak RSS, median [min-max] of --reps, the meshes
+ *      interleaved. Issue 19's bar: the dragon's at most 4 s of CPU.
  * Sanity lines first: one step of mcfd and of the peer on sphere_cgal.obj
  * with normalize off must agree to 1e-10 relative (same linear system).
  *
@@ -35,7 +42,10 @@
  * policy instead: one dragon step with 1 and 2 OpenBLAS threads (a child
  * process each), beside N busy processes.
  */
+#define _DEFAULT_SOURCE /* wait4: the child's own rusage */
 #include <errno.h>
+#include <fcntl.h>
+#include <spawn.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -54,6 +64,8 @@
 #include "mcf.h"
 
 #define MAXREPS 32
+
+extern char **environ;
 
 static int g_reps = 5;
 static double g_last_cpu; /* CPU seconds of the last run_mcf / run_peer call */
@@ -701,13 +713,93 @@ static int threads_compare(const char *dir, int load)
     return 0;
 }
 
+/* ---------------------------------------------------------- end to end */
+
+/* One `mcf smooth IN OUT --quiet` (OUT: out_path, the input's extension);
+ * CPU seconds (user + sys) into *cpu_s, peak RSS in KiB into *rss_kb;
+ * returns the wall time, or -1 when the run failed. */
+static double run_request(const char *mcf, const char *in, const char *out_path, double *cpu_s, long *rss_kb)
+{
+    /* posix_spawn: no copy of this process's pages (its peak RSS still
+     * carries over: main runs end_to_end first, while it is small) */
+    char a0[4096], a2[4096], a3[4096], a1[] = "smooth", a4[] = "--quiet";
+    snprintf(a0, sizeof a0, "%s", mcf);
+    snprintf(a2, sizeof a2, "%s", in);
+    snprintf(a3, sizeof a3, "%s", out_path);
+    char *args[] = {a0, a1, a2, a3, a4, NULL};
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+    double t0 = mcf_now();
+    pid_t pid;
+    int err = posix_spawn(&pid, mcf, &fa, NULL, args, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (err != 0)
+        return -1.0;
+    int status = 0;
+    struct rusage ru;
+    if (wait4(pid, &status, 0, &ru) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        return -1.0;
+    double wall = mcf_now() - t0;
+    *cpu_s = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
+             1e-6 * (double)ru.ru_stime.tv_usec;
+    *rss_kb = ru.ru_maxrss;
+    return wall;
+}
+
+/* The default request end to end (see the top of the file). Returns 0, or
+ * 1 when a run failed. */
+static int end_to_end(const char *mcf, const char *dir, int dragon)
+{
+    static const char *const names[] = {"dragon_vrip.drc", "bunny.drc", "armadillo.obj", "fertility.obj"};
+    int first = dragon ? 0 : 1, n = 4, R = g_reps, rc = 0;
+    double cpu[4][MAXREPS], wall[4][MAXREPS], rss[4][MAXREPS];
+    char tmpl[] = "/tmp/bench_core.XXXXXX";
+    if (!mkdtemp(tmpl)) {
+        perror("bench_core: mkdtemp");
+        return 1;
+    }
+    printf("\nend to end: the default request `mcf smooth IN OUT` (a child process each, meshes interleaved;"
+           "\nCPU = user + sys of the child), median [min-max] of %d\n", R);
+    for (int r = 0; r < R; r++)
+        for (int i = first; i < n; i++) {
+            char in[4096], out[4096];
+            const char *ext = strrchr(names[i], '.');
+            snprintf(in, sizeof in, "%s/%s", dir, names[i]);
+            snprintf(out, sizeof out, "%s/out%s", tmpl, ext);
+            long kb = 0;
+            wall[i][r] = run_request(mcf, in, out, &cpu[i][r], &kb);
+            rss[i][r] = kb / 1024.0;
+            unlink(out);
+            if (wall[i][r] < 0.0) {
+                fprintf(stderr, "bench_core: %s smooth %s failed\n", mcf, in);
+                rc = 1;
+                cpu[i][r] = wall[i][r] = rss[i][r] = 0.0;
+            }
+        }
+    rmdir(tmpl);
+    printf("  %-16s | %-24s %-24s %s\n", "mesh", " CPU ms", " wall ms", "peak RSS MiB");
+    for (int i = first; i < n; i++) {
+        printf("  %-16s |", names[i]);
+        print_spread("", 1e3, cpu[i], R);
+        print_spread("", 1e3, wall[i], R);
+        printf(" %.0f\n", vmed(rss[i], R));
+    }
+    if (dragon)
+        printf("  goal (issue 19): the dragon's default request <= 4 s CPU: %s (%.2f s)\n",
+               vmed(cpu[0], R) <= 4.0 ? "PASS" : "FAIL", vmed(cpu[0], R));
+    return rc;
+}
+
 /* --------------------------------------------------------------- main */
 
 static void usage(void)
 {
     fprintf(stderr,
             "usage: bench_core [--meshes DIR] [--reps N] [--ico-level L] [--no-dragon]\n"
-            "                  [--no-accuracy] [--threads [--load N]]\n");
+            "                  [--no-accuracy] [--threads [--load N]] [--step-mesh FILE]\n"
+            "                  [--mcf PATH] [--e2e-only]\n");
     exit(2);
 }
 
@@ -715,6 +807,9 @@ int main(int argc, char **argv)
 {
     const char *dir = getenv("MCF_MESHES");
     int level = 7, dragon = 1, threads_only = 0, do_acc = 1, load = 0;
+    const char *step_mesh = NULL; /* only the desbrun step on this mesh */
+    const char *mcf_path = NULL;  /* the end-to-end part with this mcf */
+    int e2e_only = 0;
     if (!dir || !*dir)
         dir = "../shared/meshes";
     for (int i = 1; i < argc; i++) {
@@ -730,6 +825,12 @@ int main(int argc, char **argv)
             do_acc = 0;
         else if (!strcmp(argv[i], "--threads"))
             threads_only = 1;
+        else if (!strcmp(argv[i], "--step-mesh") && i + 1 < argc)
+            step_mesh = argv[++i];
+        else if (!strcmp(argv[i], "--mcf") && i + 1 < argc)
+            mcf_path = argv[++i];
+        else if (!strcmp(argv[i], "--e2e-only"))
+            e2e_only = 1;
         else if (!strcmp(argv[i], "--load") && i + 1 < argc)
             load = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--step-job") && i + 1 < argc)
@@ -743,6 +844,27 @@ int main(int argc, char **argv)
         usage();
     setvbuf(stdout, NULL, _IOLBF, 0);
     double t_begin = mcf_now();
+    if (e2e_only) {
+        if (!mcf_path)
+            usage();
+        print_machine();
+        return end_to_end(mcf_path, dir, dragon);
+    }
+    if (step_mesh) { /* a quick look: the step table's row of one mesh */
+        print_machine();
+        machine_floor fl = measure_floor();
+        step_row row;
+        mcf_mesh *m = load_mesh(dir, step_mesh);
+        time_implicit(step_mesh, m, 1e-3, 0.0, &row);
+        print_implicit(&row, 1, fl);
+        mcf_mesh_free(m);
+        return 0;
+    }
+    if (!threads_only)
+        print_machine();
+    /* first, while this process is small: Linux carries the parent's peak
+     * RSS into the children's (run_request) */
+    int e2e_failed = mcf_path && !threads_only ? end_to_end(mcf_path, dir, dragon) : 0;
 
     mcf_error e = {0};
     mcf_mesh *meshes[2] = {NULL, NULL};
@@ -765,7 +887,7 @@ int main(int argc, char **argv)
         return rc;
     }
 
-    print_machine();
+    printf("\n");
     for (int i = 0; i < nm; i++)
         printf("mesh:    %-13s %d vertices, %d faces\n", labels[i],
                mcf_mesh_nvertices(meshes[i]), mcf_mesh_nfaces(meshes[i]));
@@ -897,5 +1019,5 @@ int main(int argc, char **argv)
     printf("bench_core: %.0f s\n", mcf_now() - t_begin);
     for (int i = 0; i < nm; i++)
         mcf_mesh_free(meshes[i]);
-    return sane ? 0 : 1;
+    return sane && !e2e_failed ? 0 : 1;
 }

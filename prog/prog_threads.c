@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * api_threads.c - the thread count of the BLAS under libmcf, set once per
- * process by the programs (mcf, mcfd) before any work.
+ * prog_threads.c - the thread count of the BLAS under libmcf, set once per
+ * process by the programs (mcf, mcfd) before any work. The programs' own,
+ * not the libraries': it re-executes the process.
  *
  * The policy: one BLAS thread per job. The daemon's workers are its
  * parallelism (one per core), and a factorization of a scanned surface is
@@ -19,15 +20,15 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#include "api_internal.h"
+#include "prog.h"
 
-void api_bound_library_threads(char **argv, int blas_too)
+void prog_bound_blas_threads(char **argv)
 {
     static const char *const blas[] = {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
                                        "GOTO_NUM_THREADS", "MKL_NUM_THREADS"};
     int changed = 0;
 
-    for (size_t i = 0; blas_too && i < sizeof blas / sizeof blas[0]; i++)
+    for (size_t i = 0; i < sizeof blas / sizeof blas[0]; i++)
         if (!getenv(blas[i])) {
             setenv(blas[i], "1", 1);
             changed = 1;
