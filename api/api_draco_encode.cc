@@ -299,14 +299,10 @@ static mcf_status add_corner_attributes(draco::Mesh &dm, const mcf_mesh *m,
     return MCF_OK;
 }
 
-mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
-                  double *max_quant_err, mcf_error *err)
+/* The options' ranges: quantization_bits -1 (auto) to API_DRACO_MAX_BITS,
+ * compression_level 0 to 10. */
+static mcf_status check_options(const api_encode_opts *o, mcf_error *err)
 {
-    api_encode_opts defo;
-    if (!o) {
-        api_encode_opts_init(&defo);
-        o = &defo;
-    }
     const int qopt = o->quantization_bits;
     const int level = o->compression_level;
     if (qopt < -1 || qopt > API_DRACO_MAX_BITS)
@@ -317,17 +313,23 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
     if (level < 0 || level > 10)
         return api__fail(err, MCF_EINVAL,
                          "draco: compression_level %d out of range (0..10)", level);
-    const api_attrs *at = o->attrs;
-    mcf_status rc = api__attrs_check(at, m, "draco", err);
-    if (rc != MCF_OK)
-        return rc;
+    return MCF_OK;
+}
 
-    const int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
+/* How the positions are stored: pp their quantization (q: the options'
+ * bits, auto turned lossless beyond the float range), as_float float32
+ * rather than float64, rounded when float32 rounds some coordinate. */
+struct position_plan {
+    attr_plan pp;
+    int q = 0;
+    bool as_float = true, rounded = false;
+};
 
-    /* Positions: float32 unless lossless needs more; quantization needs
-     * float32. Auto falls back to lossless beyond the float range. */
+/* Positions: float32 unless lossless needs more; quantization needs
+ * float32. Auto falls back to lossless beyond the float range. */
+static mcf_status plan_positions(const double *X, int nv, const api_attrs *at, int qopt,
+                                 position_plan *pl, mcf_error *err)
+{
     bool exact_float = true, in_range = true;
     for (int i = 0; i < 3 * nv; i++) {
         const double x = X[i];
@@ -336,17 +338,62 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
         else if (static_cast<double>(static_cast<float>(x)) != x)
             exact_float = false;
     }
-    int q = qopt;
-    if (q == -1 && !in_range)
-        q = 0;
-    attr_plan pp = plan_for(at, API_ATTR_POSITION, q);
-    if (!in_range && pp.bits > 0)
+    pl->q = qopt;
+    if (pl->q == -1 && !in_range)
+        pl->q = 0;
+    pl->pp = plan_for(at, API_ATTR_POSITION, pl->q);
+    if (!in_range && pl->pp.bits > 0)
         return api__fail(err, MCF_EINVAL,
                          "draco: a coordinate exceeds the float range (quantized "
                          "Draco stores float32)");
     /* Raw: float32 when exact, or when auto keeps a raw float32 input raw;
      * float64 only for lossless doubles. */
-    const bool as_float = pp.bits > 0 || exact_float || (q == -1 && in_range);
+    pl->as_float = pl->pp.bits > 0 || exact_float || (pl->q == -1 && in_range);
+    pl->rounded = pl->as_float && !exact_float;
+    return MCF_OK;
+}
+
+/* The encoder's settings: each attribute's quantization, the speed of
+ * the compression level, edgebreaker or (preserve_order) sequential. */
+static void configure_encoder(draco::Encoder &enc, const api_encode_opts *o,
+                              const api_attrs *at, const position_plan &pl,
+                              const api__attr *tc, const api__attr *nm)
+{
+    const attr_plan pt_plan = tc ? plan_for(at, API_ATTR_TEXCOORD, pl.q) : attr_plan();
+    const attr_plan pn_plan = nm ? plan_for(at, API_ATTR_NORMAL, pl.q) : attr_plan();
+    const int level = o->compression_level;
+    if (pl.pp.bits > 0)
+        enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, pl.pp.bits);
+    if (tc && pt_plan.bits > 0)
+        quantize_texcoords(enc, *tc, pt_plan);
+    if (nm && pn_plan.bits > 0)
+        enc.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, pn_plan.bits);
+    enc.SetSpeedOptions(10 - level, 10 - level);
+    enc.SetEncodingMethod(o->preserve_order ? draco::MESH_SEQUENTIAL_ENCODING
+                                            : draco::MESH_EDGEBREAKER_ENCODING);
+}
+
+mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
+                  double *max_quant_err, mcf_error *err)
+{
+    api_encode_opts defo;
+    if (!o) {
+        api_encode_opts_init(&defo);
+        o = &defo;
+    }
+    mcf_status rc = check_options(o, err);
+    if (rc != MCF_OK)
+        return rc;
+    const api_attrs *at = o->attrs;
+    if ((rc = api__attrs_check(at, m, "draco", err)) != MCF_OK)
+        return rc;
+
+    const int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    position_plan pl;
+    if ((rc = plan_positions(X, nv, at, o->quantization_bits, &pl, err)) != MCF_OK)
+        return rc;
 
     const api__attr *tc = at && at->a[API_ATTR_TEXCOORD].corners ? &at->a[API_ATTR_TEXCOORD] : nullptr;
     const api__attr *nm = at && at->a[API_ATTR_NORMAL].corners ? &at->a[API_ATTR_NORMAL] : nullptr;
@@ -357,7 +404,7 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
     map_points(dm, nv, nf, F, tc, nm, co, &pm);
 
     int att;
-    if (as_float) {
+    if (pl.as_float) {
         std::vector<float> v = to_float(X, 3 * static_cast<size_t>(nv));
         att = add_attribute(dm, draco::GeometryAttribute::POSITION, 3,
                             draco::DT_FLOAT32, false, nv, v.data(), pm.pv);
@@ -367,24 +414,12 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
     }
     if (att < 0)
         return api__fail(err, MCF_ENOMEM, "draco: cannot add the POSITION attribute");
-
     if ((rc = add_corner_attributes(dm, m, at, tc, nm, co, pm, err)) != MCF_OK)
         return rc;
-    const attr_plan pt_plan = tc ? plan_for(at, API_ATTR_TEXCOORD, q) : attr_plan();
-    const attr_plan pn_plan = nm ? plan_for(at, API_ATTR_NORMAL, q) : attr_plan();
-
     set_faces(dm, nf, F, pm.corner_point);
 
     draco::Encoder enc;
-    if (pp.bits > 0)
-        enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, pp.bits);
-    if (tc && pt_plan.bits > 0)
-        quantize_texcoords(enc, *tc, pt_plan);
-    if (nm && pn_plan.bits > 0)
-        enc.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, pn_plan.bits);
-    enc.SetSpeedOptions(10 - level, 10 - level);
-    enc.SetEncodingMethod(o->preserve_order ? draco::MESH_SEQUENTIAL_ENCODING
-                                            : draco::MESH_EDGEBREAKER_ENCODING);
+    configure_encoder(enc, o, at, pl, tc, nm);
     draco::EncoderBuffer eb;
     const draco::Status st = enc.EncodeMeshToBuffer(dm, &eb);
     if (!st.ok())
@@ -393,8 +428,7 @@ mcf_status encode(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
 
     double qerr = 0.0;
     if (max_quant_err &&
-        (rc = round_trip_error(eb, nv, X, nf, F, pp.bits, as_float && !exact_float, &qerr,
-                               err)) != MCF_OK)
+        (rc = round_trip_error(eb, nv, X, nf, F, pl.pp.bits, pl.rounded, &qerr, err)) != MCF_OK)
         return rc;
     rc = api_buf_append(out, eb.data(), eb.size());
     if (rc != MCF_OK) {

@@ -181,10 +181,99 @@ static mcf_status write_header(api_buf *out, const plyextra *x, int binary, int 
     return rc;
 }
 
+/* Vertex i's row (X its position): binary little-endian or ASCII. */
+static mcf_status vertex_binary(api_buf *out, const plyextra *x, const double *X, int i)
+{
+    unsigned char v[128];
+    size_t n = 0;
+    int k;
+    for (k = 0; k < 3; k++)
+        put_real(v, &n, X[3 * i + k], x->f32);
+    for (k = 0; x->N && k < 3; k++)
+        put_real(v, &n, x->N[3 * i + k], x->f32);
+    for (k = 0; x->T && k < 2; k++)
+        put_real(v, &n, x->T[2 * i + k], x->f32);
+    for (k = 0; x->C && k < x->ccomp; k++)
+        v[n++] = color_byte(x->C[x->ccomp * i + k]);
+    if (x->H) {
+        api__put_f32(v + n, (float)x->H[i]);
+        n += 4;
+    }
+    if (x->K) {
+        api__put_f32(v + n, (float)x->K[i]);
+        n += 4;
+    }
+    return api_buf_append(out, v, n);
+}
+
+static mcf_status vertex_ascii(api_buf *out, const plyextra *x, const double *X, int i)
+{
+    mcf_status rc;
+    int k;
+    rc = api_buf_printf(out, x->f32 ? "%.9g %.9g %.9g" : "%.17g %.17g %.17g",
+                        x->f32 ? (double)(float)X[3 * i] : X[3 * i],
+                        x->f32 ? (double)(float)X[3 * i + 1] : X[3 * i + 1],
+                        x->f32 ? (double)(float)X[3 * i + 2] : X[3 * i + 2]);
+    for (k = 0; x->N && k < 3 && rc == MCF_OK; k++)
+        rc = print_real(out, x->N[3 * i + k], x->f32);
+    for (k = 0; x->T && k < 2 && rc == MCF_OK; k++)
+        rc = print_real(out, x->T[2 * i + k], x->f32);
+    for (k = 0; x->C && k < x->ccomp && rc == MCF_OK; k++)
+        rc = api_buf_printf(out, " %u", (unsigned)color_byte(x->C[x->ccomp * i + k]));
+    if (rc == MCF_OK && x->H)
+        rc = api_buf_printf(out, " %.9g", (double)(float)x->H[i]);
+    if (rc == MCF_OK && x->K)
+        rc = api_buf_printf(out, " %.9g", (double)(float)x->K[i]);
+    if (rc == MCF_OK)
+        rc = api_buf_append(out, "\n", 1);
+    return rc;
+}
+
+/* Texcoord value k (2 per corner) of the polygon whose corners are cs. */
+static double face_tc(const plyextra *x, const size_t *cs, int k)
+{
+    return x->ftc->values[2 * (size_t)x->ftc->corners[cs[k / 2]] + (size_t)(k % 2)];
+}
+
+/* The row of a polygon of pn corners (cs: their corner indices into F),
+ * with its texcoord list when there is one; fb: room for the binary row. */
+static mcf_status face_binary(api_buf *out, const plyextra *x, const int32_t *F,
+                              const size_t *cs, int pn, unsigned char *fb)
+{
+    size_t b = 1;
+    int k;
+    fb[0] = (unsigned char)pn;
+    for (k = 0; k < pn; k++, b += 4)
+        api__put_le32(fb + b, (uint32_t)F[cs[k]]);
+    if (x->ftc) {
+        fb[b++] = (unsigned char)(2 * pn);
+        for (k = 0; k < 2 * pn; k++)
+            put_real(fb, &b, face_tc(x, cs, k), x->f32);
+    }
+    return api_buf_append(out, fb, b);
+}
+
+static mcf_status face_ascii(api_buf *out, const plyextra *x, const int32_t *F,
+                             const size_t *cs, int pn)
+{
+    mcf_status rc = api_buf_printf(out, "%d", pn);
+    int k;
+    for (k = 0; k < pn && rc == MCF_OK; k++)
+        rc = api_buf_printf(out, " %ld", (long)F[cs[k]]);
+    if (rc == MCF_OK && x->ftc) {
+        rc = api_buf_printf(out, " %d", 2 * pn);
+        for (k = 0; k < 2 * pn && rc == MCF_OK; k++)
+            rc = print_real(out, face_tc(x, cs, k), x->f32);
+    }
+    if (rc == MCF_OK)
+        rc = api_buf_append(out, "\n", 1);
+    return rc;
+}
+
 mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
                           api_buf *out, mcf_error *err)
 {
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i, k;
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), i;
     const double *X = mcf_mesh_positions(m);
     const int32_t *F = mcf_mesh_faces(m);
     int binary = o ? o->ply_binary != 0 : 1, pn;
@@ -209,76 +298,10 @@ mcf_status api_ply_encode(const mcf_mesh *m, const api_encode_opts *o,
         return api__fail(err, MCF_ENOMEM, "ply: out of memory");
     }
     rc = write_header(out, &x, binary, nv, pa && pa->poly ? pa->npoly : nf);
-    for (i = 0; i < nv && rc == MCF_OK; i++) {
-        if (binary) {
-            unsigned char v[128];
-            size_t n = 0;
-            for (k = 0; k < 3; k++)
-                put_real(v, &n, X[3 * i + k], x.f32);
-            for (k = 0; x.N && k < 3; k++)
-                put_real(v, &n, x.N[3 * i + k], x.f32);
-            for (k = 0; x.T && k < 2; k++)
-                put_real(v, &n, x.T[2 * i + k], x.f32);
-            for (k = 0; x.C && k < x.ccomp; k++)
-                v[n++] = color_byte(x.C[x.ccomp * i + k]);
-            if (x.H) {
-                api__put_f32(v + n, (float)x.H[i]);
-                n += 4;
-            }
-            if (x.K) {
-                api__put_f32(v + n, (float)x.K[i]);
-                n += 4;
-            }
-            rc = api_buf_append(out, v, n);
-        } else {
-            rc = api_buf_printf(out, x.f32 ? "%.9g %.9g %.9g" : "%.17g %.17g %.17g",
-                                x.f32 ? (double)(float)X[3 * i] : X[3 * i],
-                                x.f32 ? (double)(float)X[3 * i + 1] : X[3 * i + 1],
-                                x.f32 ? (double)(float)X[3 * i + 2] : X[3 * i + 2]);
-            for (k = 0; x.N && k < 3 && rc == MCF_OK; k++)
-                rc = print_real(out, x.N[3 * i + k], x.f32);
-            for (k = 0; x.T && k < 2 && rc == MCF_OK; k++)
-                rc = print_real(out, x.T[2 * i + k], x.f32);
-            for (k = 0; x.C && k < x.ccomp && rc == MCF_OK; k++)
-                rc = api_buf_printf(out, " %u", (unsigned)color_byte(x.C[x.ccomp * i + k]));
-            if (rc == MCF_OK && x.H)
-                rc = api_buf_printf(out, " %.9g", (double)(float)x.H[i]);
-            if (rc == MCF_OK && x.K)
-                rc = api_buf_printf(out, " %.9g", (double)(float)x.K[i]);
-            if (rc == MCF_OK)
-                rc = api_buf_append(out, "\n", 1);
-        }
-    }
-    while (rc == MCF_OK && api__poly_next(pa, nf, &it, cs, &pn)) {
-        if (binary) {
-            size_t b = 1;
-            fb[0] = (unsigned char)pn;
-            for (k = 0; k < pn; k++, b += 4)
-                api__put_le32(fb + b, (uint32_t)F[cs[k]]);
-            if (x.ftc) {
-                fb[b++] = (unsigned char)(2 * pn);
-                for (k = 0; k < 2 * pn; k++)
-                    put_real(fb, &b,
-                             x.ftc->values[2 * (size_t)x.ftc->corners[cs[k / 2]] + (size_t)(k % 2)],
-                             x.f32);
-            }
-            rc = api_buf_append(out, fb, b);
-        } else {
-            rc = api_buf_printf(out, "%d", pn);
-            for (k = 0; k < pn && rc == MCF_OK; k++)
-                rc = api_buf_printf(out, " %ld", (long)F[cs[k]]);
-            if (rc == MCF_OK && x.ftc) {
-                rc = api_buf_printf(out, " %d", 2 * pn);
-                for (k = 0; k < 2 * pn && rc == MCF_OK; k++) {
-                    double t = x.ftc->values[2 * (size_t)x.ftc->corners[cs[k / 2]]
-                                             + (size_t)(k % 2)];
-                    rc = print_real(out, t, x.f32);
-                }
-            }
-            if (rc == MCF_OK)
-                rc = api_buf_append(out, "\n", 1);
-        }
-    }
+    for (i = 0; i < nv && rc == MCF_OK; i++)
+        rc = binary ? vertex_binary(out, &x, X, i) : vertex_ascii(out, &x, X, i);
+    while (rc == MCF_OK && api__poly_next(pa, nf, &it, cs, &pn))
+        rc = binary ? face_binary(out, &x, F, cs, pn, fb) : face_ascii(out, &x, F, cs, pn);
     free(cs);
     free(fb);
     extra_free(&x);

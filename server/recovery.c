@@ -76,26 +76,24 @@ static int result_intact(svc_store *st, const svc_state_rec *r)
 /* A finished job's progress events, when its run left them whole in the
  * store (svc_job.c: events.idx's last end is events.ndjson's size); else
  * it has none, as when they could not be written. */
-static void events_recover(svc_store *st, svc_job *j)
+int svc__events_stored(svc_store *st, const char *id, int *n, size_t *bytes)
 {
     size_t si, sd, last;
 
-    if (st->ops->stat(st, j->id, "events.idx", &si) != 0 || si == 0 ||
+    if (st->ops->stat(st, id, "events.idx", &si) != 0 || si == 0 ||
         si % sizeof last != 0 ||
-        st->ops->stat(st, j->id, "events.ndjson", &sd) != 0 ||
+        st->ops->stat(st, id, "events.ndjson", &sd) != 0 ||
         sd > SVC_EVENTS_MAX || si / sizeof last > sd ||
-        st->ops->get_at(st, j->id, "events.idx", si - sizeof last, &last,
+        st->ops->get_at(st, id, "events.idx", si - sizeof last, &last,
                         sizeof last) != 0 ||
         last != sd)
-        return;
-    j->nevents = (int)(si / sizeof last);
-    j->events_disk = last;
+        return 0;
+    *n = (int)(si / sizeof last);
+    *bytes = last;
+    return 1;
 }
 
-/* request.json and state.json of job id, parsed into a new job (*j) and
- * its recorded state (*r): 0; 1 when it was never acknowledged (removed);
- * -1 when it cannot be read now (left as it is); -2 when damaged. */
-static int load(svc_t *s, const char *id, svc_job **j, svc_state_rec *r)
+int svc__load(svc_t *s, const char *id, svc_job **j, svc_state_rec *r)
 {
     svc_store *st = s->store;
     char *state = NULL, *req = NULL, *shown = NULL;
@@ -140,7 +138,7 @@ static void recover_one(const char *id, void *arg)
 
     if (!valid_id(id))
         return; /* not ours: leave it alone */
-    k = load(s, id, &j, &r);
+    k = svc__load(s, id, &j, &r);
     if (k == 1) {
         /* Never acknowledged (a crash before state.json, the last blob a
          * submission writes). */
@@ -162,7 +160,7 @@ static void recover_one(const char *id, void *arg)
         j->disk_bytes = st->ops->usage(st, id);
         if (!svc__recovered(j, &r)) { /* finished: served until its TTL */
             if (svc_job_status_terminal(r.status))
-                events_recover(st, j);
+                svc__events_stored(st, id, &j->nevents, &j->events_disk);
             pthread_mutex_lock(&s->mu);
             svc__table_insert(s, j);
             pthread_mutex_unlock(&s->mu);
@@ -192,6 +190,8 @@ int svc__recover(svc_t *s, char *msg, size_t msgsize)
     recover_ctx rc;
     int i, failed;
 
+    if (s->store->ops->shared)
+        return 0; /* the store's reaper hands over what a replica left */
     memset(&rc, 0, sizeof rc);
     rc.s = s;
     failed = s->store->ops->scan(s->store, recover_one, &rc) != 0;

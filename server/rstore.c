@@ -2,7 +2,7 @@
 /*
  * rstore.c - the job store in Redis (rstore.h says the keys and the
  * semantics): opening it, the helpers both files use, and the records and
- * blobs (rstore_queue.c: the queue, the reaper, leases and progress).
+ * blobs (rstore_queue.c: the queue, the reaper and progress).
  * Every step that reads and then writes is one Lua script, so replicas
  * racing for a job see one order.
  */
@@ -308,7 +308,7 @@ int rstore_create(rstore *s, const char *id, const rstore_blob *b, int n)
     const char *argv[32];
     size_t lens[32];
     job_keys k;
-    int i, argc = 0;
+    int argc = 0;
 
     if (!rstore__name_ok(id) || n < 0 || 6 + 2 * n > 32) {
         errno = EINVAL;
@@ -321,7 +321,17 @@ int rstore_create(rstore *s, const char *id, const rstore_blob *b, int n)
     argv[argc++] = k.blobs;
     argv[argc++] = s->ttl_ms;
     argv[argc++] = id;
-    for (i = 0; i < argc; i++)
+    if (rstore__blob_args(s, b, n, argv, lens, &argc) != 0)
+        return -1;
+    return rstore__eval_int(s, &lua_create, 3, argc, argv, lens, NULL);
+}
+
+int rstore__blob_args(const rstore *s, const rstore_blob *b, int n,
+                      const char **argv, size_t *lens, int *argc)
+{
+    int i;
+
+    for (i = 0; i < *argc; i++)
         lens[i] = strlen(argv[i]);
     for (i = 0; i < n; i++) {
         if (!rstore__name_ok(b[i].name)) {
@@ -332,12 +342,12 @@ int rstore_create(rstore *s, const char *id, const rstore_blob *b, int n)
             errno = EFBIG;
             return -1;
         }
-        argv[argc] = b[i].name;
-        lens[argc++] = strlen(b[i].name);
-        argv[argc] = b[i].data;
-        lens[argc++] = b[i].len;
+        argv[*argc] = b[i].name;
+        lens[(*argc)++] = strlen(b[i].name);
+        argv[*argc] = b[i].data ? b[i].data : "";
+        lens[(*argc)++] = b[i].len;
     }
-    return rstore__eval_int(s, &lua_create, 3, argc, argv, lens, NULL);
+    return 0;
 }
 
 int rstore_put(rstore *s, const char *id, const char *name,

@@ -69,6 +69,8 @@
  *     state the old one left (the service runs only queued jobs; a
  *     takeover is reported by claim() as RSTORE_RETAKEN, so the service
  *     re-queues a job whose state says running).
+ *   - One step at the end. finish() writes a run's blobs and acks its
+ *     entry in one script, fenced like put() and ack().
  *   - Progress. progress() XADDs a line to P:ev:{id} (MAXLEN ~ ev_max);
  *     events() reads them after a given entry id, blocking up to a bound:
  *     a follower on any replica sees every line, in order, late or not.
@@ -165,6 +167,10 @@ int rstore_claim(rstore *s, int (*fits)(void *ctx, const char *id),
 /* The outcome is recorded: the entry leaves the queue (ESTALE when
  * another replica took the job over). */
 int rstore_ack(rstore *s, const char *id);
+/* The end of a run in one round trip: the n blobs written (as put()
+ * with fence) and the entry acknowledged (as ack()), all or nothing;
+ * ESTALE when another replica took the job over. */
+int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n);
 /* A queued job canceled: its entry leaves the queue (0 also when it was
  * not queued). */
 int rstore_drop(rstore *s, const char *id);
@@ -173,18 +179,13 @@ int rstore_heartbeat(rstore *s, const char *id);
  * claim_idle): entries idle over min_idle seconds taken over, or -1. */
 int rstore_reap(rstore *s, double min_idle);
 
-/* A lease named name (P:lease:NAME) held by this consumer for ttl
- * seconds: taken when free, renewed when ours (ttl 0: given up). 1 ours,
- * 0 another's (its consumer in holder), -1 and errno. */
-int rstore_lease(rstore *s, const char *name, double ttl, char *holder,
-                 size_t size);
-
 /* Progress. */
 int rstore_progress(rstore *s, const char *id, const char *line,
                     size_t len);
 /* Calls fn for each line after entry `after` ("0": from the first),
- * waiting up to block seconds for the first one; after is advanced to
- * the last line given (size RSTORE_ID_MAX). The number of lines, or -1. */
+ * waiting up to block seconds for the first one (0: not at all); after
+ * is advanced to the last line given (size RSTORE_ID_MAX). The number of
+ * lines, or -1. */
 int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
                   double block,
                   void (*fn)(const char *line, size_t len, void *ctx),

@@ -76,6 +76,12 @@ redisReply *rstore__eval(rstore *s, rds_script *sc, int nkeys, int argc,
 /* A script whose reply is an integer: 0 and *v, or -1 and errno. */
 int rstore__eval_int(rstore *s, rds_script *sc, int nkeys, int argc,
                      const char **argv, const size_t *lens, long long *v);
+/* The lengths of argv[0..*argc) (C strings), then the name and bytes of
+ * each of the n blobs appended (*argc advanced; room for 2n more): 0, or
+ * -1 and errno (EINVAL: a name that cannot be a key, EFBIG: over
+ * max_blob). */
+int rstore__blob_args(const rstore *s, const rstore_blob *b, int n,
+                      const char **argv, size_t *lens, int *argc);
 /* A command of C strings on a pooled connection. */
 redisReply *rstore__cmd(rstore *s, double block, int argc,
                         const char **argv);

@@ -2,7 +2,7 @@
 /*
  * rstore_queue.c - the job store in Redis, its queue (rstore.h says the
  * semantics): pushing, claiming and taking a job, acknowledging, dropping,
- * heartbeats, the reaper, dead letters, leases, and progress.
+ * heartbeats, the reaper, dead letters, and progress.
  */
 #include <errno.h>
 #include <pthread.h>
@@ -78,6 +78,29 @@ static rds_script lua_ack = {
     "redis.call('HDEL', KEYS[1], 'runner', 'entry', 'stream')\n"
     "return 1\n", ""};
 
+/* KEYS: hash, events. ARGV: group, consumer, blob prefix, ttl, then
+ * name, data pairs. The end of a run in one step: its blobs written and
+ * its entry acknowledged, only by its runner (else STALE, nothing
+ * written). A retry of a finish whose reply was lost (nothing running,
+ * the last blob, a small one, already these bytes) succeeds. */
+static rds_script lua_finish = {
+    LUA_TOUCH LUA_WRITE
+    "local r = redis.call('HMGET', KEYS[1], 'runner', 'entry', 'stream')\n"
+    "if redis.call('EXISTS', KEYS[1]) == 0 then\n"
+    "  return redis.error_reply('NOJOB no such job') end\n"
+    "if not r[1] and #ARGV >= 6 and redis.call('HGET', KEYS[1], 'b:' .. "
+    "ARGV[#ARGV - 1]) == ARGV[#ARGV] then return 1 end\n"
+    "if r[1] ~= ARGV[2] then\n"
+    "  return redis.error_reply('STALE another replica took the job over') "
+    "end\n"
+    "for i = 5, #ARGV, 2 do write(KEYS[1], ARGV[3], ARGV[i], ARGV[i + 1]) "
+    "end\n"
+    "redis.call('XACK', r[3], ARGV[1], r[2])\n"
+    "redis.call('XDEL', r[3], r[2])\n"
+    "redis.call('HDEL', KEYS[1], 'runner', 'entry', 'stream')\n"
+    "touch(KEYS[1], ARGV[3], KEYS[2], ARGV[4])\n"
+    "return 1\n", ""};
+
 /* KEYS: hash, events. 1 dropped, 0 not queued. */
 static rds_script lua_drop = {
     "local r = redis.call('HMGET', KEYS[1], 'queued', 'qstream')\n"
@@ -95,15 +118,6 @@ static rds_script lua_heartbeat = {
     "end\n"
     "redis.call('XCLAIM', r[3], ARGV[1], ARGV[2], 0, r[2], 'JUSTID')\n"
     "touch(KEYS[1], ARGV[3], KEYS[2], ARGV[4])\n"
-    "return 1\n", ""};
-
-/* KEYS: lease. ARGV: consumer, ttl (0: give it up). 1 ours, else the
- * holder. */
-static rds_script lua_lease = {
-    "local h = redis.call('GET', KEYS[1])\n"
-    "if h and h ~= ARGV[1] then return h end\n"
-    "if tonumber(ARGV[2]) <= 0 then redis.call('DEL', KEYS[1])\n"
-    "else redis.call('SET', KEYS[1], ARGV[1], 'PX', ARGV[2]) end\n"
     "return 1\n", ""};
 
 /* KEYS: events. ARGV: line, ev_max, ttl. */
@@ -227,30 +241,6 @@ int rstore_reap(rstore *s, double min_idle)
         return -1;
     b = reap_stream(s, s->k_queue, 0, min_idle);
     return b < 0 ? -1 : a + b;
-}
-
-int rstore_lease(rstore *s, const char *name, double ttl, char *holder,
-                 size_t size)
-{
-    char key[KEY_MAX], ms[24];
-    const char *argv[3] = {key, s->cfg.consumer, ms};
-    redisReply *r;
-    int rc;
-
-    if (!rstore__name_ok(name)) {
-        errno = EINVAL;
-        return -1;
-    }
-    snprintf(key, sizeof key, "%s:lease:%s", s->cfg.prefix, name);
-    snprintf(ms, sizeof ms, "%lld", (long long)(ttl * 1000));
-    if (!(r = rstore__eval(s, &lua_lease, 1, 3, argv, NULL)))
-        return -1;
-    rc = r->type == REDIS_REPLY_INTEGER ? 1 : 0;
-    if (!rc)
-        snprintf(holder, size, "%.*s", r->type == REDIS_REPLY_STRING
-                                           ? (int)r->len : 0, r->str);
-    rds_reply_free(r);
-    return rc;
 }
 
 /* XREADGROUP of one entry from stream: 1 held, 0 none, -1. */
@@ -423,6 +413,29 @@ int rstore_ack(rstore *s, const char *id)
     return job_script(s, &lua_ack, id);
 }
 
+int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n)
+{
+    const char *argv[32];
+    size_t lens[32];
+    job_keys k;
+    int argc = 0;
+
+    if (rstore__keys(s, id, &k) != 0 || n < 0 || 6 + 2 * n > 32) {
+        errno = EINVAL;
+        return -1;
+    }
+    argv[argc++] = k.hash;
+    argv[argc++] = k.ev;
+    argv[argc++] = GROUP;
+    argv[argc++] = s->cfg.consumer;
+    argv[argc++] = k.blobs;
+    argv[argc++] = s->ttl_ms;
+    if (rstore__blob_args(s, b, n, argv, lens, &argc) != 0)
+        return -1;
+    return rstore__eval_int(s, &lua_finish, 2, argc, argv, lens, NULL) < 0
+               ? -1 : 0;
+}
+
 int rstore_drop(rstore *s, const char *id)
 {
     return job_script(s, &lua_drop, id);
@@ -477,7 +490,14 @@ int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
     if (rstore__keys(s, id, &k) != 0)
         return -1;
     snprintf(ms, sizeof ms, "%lld", (long long)(block * 1000));
-    if (!(r = rstore__cmd(s, block, 8, argv)))
+    /* block <= 0: what is there now (XREAD BLOCK 0 would wait for ever) */
+    if (block <= 0) {
+        argv[3] = "STREAMS";
+        argv[4] = k.ev;
+        argv[5] = after;
+    }
+    if (!(r = rstore__cmd(s, block > 0 ? block : 0, block > 0 ? 8 : 6,
+                          argv)))
         return -1;
     if (r->type == REDIS_REPLY_NIL) {
         rds_reply_free(r);

@@ -4,7 +4,9 @@
  * back from the store, runs the job (api_job_run: decode, check, smooth
  * with progress events, encode, the metrics document), writes result,
  * metrics and fields to the store, and returns the outcome; the worker
- * records and publishes it (svc__finish).
+ * records and publishes it (svc__finish). A store that ends a run in one
+ * step (its finish op: Redis) gets them in the outcome instead, written
+ * with the state by svc__finish.
  *
  * What is the daemon's comes in through api_job_run's hooks: the Draco
  * sandbox (sandbox.c), memory admission once the counts are known
@@ -28,6 +30,7 @@ typedef struct {
     size_t input_len, target_len;
     svc_error prob;           /* a hook's own error (memory, the store) */
     int has_prob;
+    int defer;                /* result, metrics, fields: svc__finish's */
 } run_ctx;
 
 /* A blob read back, tried again on a transient error. */
@@ -119,7 +122,8 @@ static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
 {
     run_ctx *c = ctx;
 
-    if (write_retry(c, name, out->data ? out->data : "", out->len) == 0)
+    if (c->defer ||
+        write_retry(c, name, out->data ? out->data : "", out->len) == 0)
         return MCF_OK;
     svc_error_set(&c->prob, SVC_P_STORAGE, "cannot write the result of job "
                   "%s to the spool (%d tries): %s", c->job->id, c->tries + 1,
@@ -226,6 +230,13 @@ static int run(run_ctx *c, api_job_result *res, svc_outcome *o)
         svc_error_set(&o->err, SVC_P_NOMEM, "out of memory writing metrics");
         goto out;
     }
+    o->disk_add = res->output.len + strlen(metrics) + res->fields.len;
+    if (c->defer) {            /* written by svc__finish */
+        o->metrics = metrics;
+        metrics = NULL;
+        rc = 0;
+        goto out;
+    }
     if (write_retry(c, "metrics.json", metrics, strlen(metrics)) != 0 ||
         (j->keep_fields &&
          write_retry(c, SVC_FIELDS_FILE, res->fields.data, res->fields.len) != 0)) {
@@ -234,7 +245,6 @@ static int run(run_ctx *c, api_job_result *res, svc_outcome *o)
         goto out;
     }
     /* its metrics stay in the store only (svc_read.c reads them) */
-    o->disk_add = res->output.len + strlen(metrics) + res->fields.len;
     rc = 0;
 out:
     free(rq.input);
@@ -254,6 +264,7 @@ void svc__run(svc_job *j, svc_outcome *o)
     memset(o, 0, sizeof *o);
     c.job = j;
     c.svc = j->svc;
+    c.defer = j->svc->store->ops->finish != NULL;
     api_job_result_init(&res);
     o->status = SVC_JOB_FAILED;
     if (run(&c, &res, o) == 0) {
@@ -263,6 +274,8 @@ void svc__run(svc_job *j, svc_outcome *o)
                  api_format_name(res.output_format));
         snprintf(o->result_name, sizeof o->result_name, "%s", res.output_name);
         o->result = api_buf_detach(&res.output, &len);
+        if (c.defer && j->keep_fields)
+            o->fields = api_buf_detach(&res.fields, &o->fields_len);
     } else if (o->status == SVC_JOB_FAILED) {
         svc_cancel_reason why = svc__cancel_reason(j);
         if (why == SVC_CANCEL_USER || why == SVC_CANCEL_CLIENT)

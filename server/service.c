@@ -54,7 +54,7 @@ void svc__table_insert(svc_t *s, svc_job *j)
 }
 
 /* Removes j from the table and drops the table's reference. */
-static void table_remove(svc_t *s, svc_job *j)
+void svc__table_remove(svc_t *s, svc_job *j)
 {
     svc_job **pp = &s->buckets[bucket_of(j->id)];
     while (*pp && *pp != j)
@@ -88,6 +88,9 @@ void svc__wake_locked(svc_t *s)
 svc_job *svc_job_get(svc_t *s, const char *id)
 {
     svc_job *j;
+
+    if (s->store->ops->shared)
+        return svc__shared_get(s, id);
     pthread_mutex_lock(&s->mu);
     j = svc__find_locked(s, id);
     if (j)
@@ -423,7 +426,7 @@ static int forget(svc_t *s, svc_job *j, const char *why)
     int e;
 
     pthread_mutex_lock(&s->mu);
-    table_remove(s, j);
+    svc__table_remove(s, j);
     pthread_mutex_unlock(&s->mu);
     if (s->store->ops->remove(s->store, j->id) == 0) {
         svc_job_unref(j);
@@ -511,7 +514,7 @@ static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone, id_list *again,
     for (b = 0; b < SVC_NBUCKETS; b++)
         for (j = s->buckets[b]; j; j = next) {
             next = j->hnext;
-            if (j->status == SVC_JOB_RUNNING && id_append(beat, j->id) != 0)
+            if (j->run_here && id_append(beat, j->id) != 0)
                 return -1;
             if (j->parked && !s->draining && srv_mono() >= j->retry_at) {
                 if (id_append(again, j->id) != 0)
@@ -546,6 +549,8 @@ void svc_sweep(svc_t *s)
     /* a shared store hands the job of a silent claimer to another */
     for (i = 0; i < beat.n; i++)
         s->store->ops->heartbeat(s->store, beat.id[i]);
+    if (s->store->ops->shared)
+        svc__shared_sweep(s);
     /* their outcome could not be recorded (svc__finish): again */
     for (i = 0; i < again.n; i++)
         s->store->ops->push(s->store, again.id[i], 0);
@@ -666,7 +671,7 @@ void svc_stop(svc_t *s)
     for (b = 0; b < SVC_NBUCKETS; b++)
         for (j = s->buckets[b]; j; j = next) {
             next = j->hnext;
-            table_remove(s, j);
+            svc__table_remove(s, j);
         }
     pthread_mutex_unlock(&s->mu);
     if (s->store)

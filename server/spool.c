@@ -667,6 +667,16 @@ static int sp_progress(svc_store *st, const char *id, const char *line,
     return sp_ack(st, id);
 }
 
+static int sp_follow(svc_store *st, const char *id, char *after,
+                     void (*fn)(const char *line, size_t len, void *ctx),
+                     void *ctx)
+{
+    (void)after;
+    (void)fn;
+    (void)ctx;
+    return sp_ack(st, id);
+}
+
 static void sp_close(svc_store *st)
 {
     spool *sp = (spool *)st;
@@ -685,8 +695,10 @@ static const svc_store_ops spool_ops = {
     sp_create, sp_put, sp_get, sp_get_at, sp_stat, sp_open, sp_remove,
     sp_quarantine, sp_usage, sp_scan,
     sp_push, sp_claim, sp_ack, sp_drop,
-    sp_heartbeat, sp_progress,
+    sp_heartbeat, sp_progress, sp_follow,
+    NULL,                          /* a put per blob: a file each */
     0,                             /* only this process pushes */
+    0,                             /* one process */
 };
 
 svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize)

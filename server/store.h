@@ -67,15 +67,18 @@
  *   (any door thread), remove/quarantine/scan from svc_delete, the sweep
  *   and recovery (svc_start, before the workers start).
  *
- *   What a shared backend must add in the service (not yet done: the
- *   spool serves one process): a service knows the jobs of its own table
- *   (svc_submit's, and recovery's at start). A worker that claims an id
- *   its table does not hold acks it and skips it (workers.c, next_job);
- *   with replicas sharing a queue it must load that job from its record
- *   first (request.json and state.json, as recovery.c's load does), and
- *   readers (svc_job_get) must fall back to the store for an id another
- *   replica accepted. Both doors go through service.h only, so neither
- *   changes.
+ *   A store shared by replicas (shared = 1; svc_shared.c does the
+ *   service's part): any replica may hold a job in its table that
+ *   another runs or finished, so a reader refreshes a job it does not run
+ *   from its state.json (svc_job_get), a job it does not hold is loaded
+ *   from its record (request.json and state.json, as recovery.c's load),
+ *   and the sweep follows the progress of the jobs others run (follow())
+ *   and tells its own running jobs of a cancel asked on another replica
+ *   (the blob "cancel.json"). claim() also says 2: the id was taken over
+ *   from a replica that stopped heartbeating (its state may say running:
+ *   the job is queued again), and 3: the id was dead-lettered (run too
+ *   often; the service writes it failed). Recovery at start is the
+ *   store's own (its reaper): the service loads jobs lazily.
  */
 #ifndef SVC_STORE_H
 #define SVC_STORE_H
@@ -133,12 +136,28 @@ typedef struct {
     int (*heartbeat)(svc_store *st, const char *id);
     int (*progress)(svc_store *st, const char *id, const char *line,
                     size_t len);
+    /* the progress lines other replicas published after cursor *after
+     * (SVC_CURSOR_LEN bytes, "0": from the first), without waiting; the
+     * cursor advanced. The number of lines, or -1 (0: a local store). */
+    int (*follow)(svc_store *st, const char *id, char *after,
+                  void (*fn)(const char *line, size_t len, void *ctx),
+                  void *ctx);
 
     /* 0: only this process fills the queue (a push wakes the workers);
      * else the seconds an idle worker waits before claiming again (a
      * shared queue that other replicas fill) */
+    /* the end of a run in one step, where the store can: the n blobs
+     * put (durable, state.json among them) and the id acknowledged, all
+     * or nothing (ESTALE: another replica took the job over). NULL: the
+     * service puts each blob, then acks. */
+    int (*finish)(svc_store *st, const char *id, const svc_blob *blobs,
+                  int n);
+
     double poll;
+    int shared;                /* other replicas share it (above) */
 } svc_store_ops;
+
+#define SVC_CURSOR_LEN 64      /* a follow() cursor, NUL included */
 
 struct svc_store {
     const svc_store_ops *ops;

@@ -4,44 +4,33 @@
  * operations of rstore.c behind the store's table, plus what the service
  * does not do itself for a shared queue: the fence on the writes of the
  * jobs this replica runs (a replica whose run was taken over writes
- * nothing more) and a lease, renewed by a thread.
+ * nothing more).
  *
- * One mcfd per store for now. The service keeps its jobs in a table of
- * its own, filled from the store at start: a job another replica submits
- * or finishes is not in it, so two replicas on one store would each see
- * half of the jobs. Until the service reads jobs it does not hold from
- * the store (issue 22), this store holds a lease (P:lease:replica, LEASE
- * seconds, renewed at every beat): a second mcfd waits for it at start
- * and, while the first lives, refuses to start with the holder's name
- * (a clean stop gives the lease up).
- * Taking the lease means the previous holder is gone: its pending jobs
- * are taken over at once (no claim_idle wait after a restart).
+ * Any number of mcfd replicas share one store (the service's part is
+ * svc_shared.c). A replica that dies leaves its running jobs pending on
+ * its consumer: the reaper of another replica takes them after
+ * claim_idle seconds without heartbeat (MCFD_REDIS_CLAIM_IDLE, 30 s by
+ * default; tests set it short); a job whose replica stopped during each
+ * of max_runs runs (MCFD_REDIS_MAX_RUNS, 3) is failed, not run again.
  */
 #include <errno.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "rstore.h"
 #include "srv.h"
 #include "store.h"
 
 #define RUNNING_MAX 1024       /* jobs one mcfd runs at once: --workers' most */
-#define LEASE 10.0             /* seconds: a restart waits at most this */
-#define BEAT (LEASE / 4)       /* seconds between renewals */
 
 typedef struct {
     svc_store base;
     rstore *rs;
-    pthread_mutex_t mu;        /* running, stop */
-    pthread_cond_t wake;
+    pthread_mutex_t mu;        /* running */
     char running[RUNNING_MAX][SVC_ID_LEN + 1];
     int nrunning;
-    int stop;
-    pthread_t thread;
-    int has_thread;
 } rstore_st;
 
 static rstore_st *of(svc_store *st) { return (rstore_st *)st; }
@@ -79,50 +68,13 @@ static void set_running(rstore_st *r, const char *id, int on)
     pthread_mutex_unlock(&r->mu);
 }
 
-/* Every beat: the lease, renewed (the service sends the jobs'
- * heartbeats: rd_heartbeat). */
-static void *beat_main(void *arg)
-{
-    rstore_st *r = arg;
-    char holder[128];
-
-    pthread_mutex_lock(&r->mu);
-    while (!r->stop) {
-        struct timespec ts;
-        double end = srv_mono() + BEAT;
-        ts.tv_sec = (time_t)end;
-        ts.tv_nsec = (long)((end - (double)ts.tv_sec) * 1e9);
-        pthread_cond_timedwait(&r->wake, &r->mu, &ts);
-        if (r->stop)
-            break;
-        pthread_mutex_unlock(&r->mu);
-        if (rstore_lease(r->rs, "replica", LEASE, holder, sizeof holder) == 0)
-            srv_logf(SRV_LOG_ERROR, "the Redis store's lease is %s's now: "
-                     "this mcfd stalled over %.0f s", holder, LEASE);
-        pthread_mutex_lock(&r->mu);
-    }
-    pthread_mutex_unlock(&r->mu);
-    return NULL;
-}
-
 /* ------------------------------------------------------- the table */
 
 static void rd_close(svc_store *st)
 {
     rstore_st *r = of(st);
-    char holder[128];
 
-    if (r->has_thread) {
-        pthread_mutex_lock(&r->mu);
-        r->stop = 1;
-        pthread_cond_signal(&r->wake);
-        pthread_mutex_unlock(&r->mu);
-        pthread_join(r->thread, NULL);
-        /* a clean stop: the next mcfd need not wait */
-        (void)rstore_lease(r->rs, "replica", 0, holder, sizeof holder);
-    }
     rstore_close(r->rs);
-    pthread_cond_destroy(&r->wake);
     pthread_mutex_destroy(&r->mu);
     free(r);
 }
@@ -132,18 +84,29 @@ static int rd_ready(svc_store *st, char *why, size_t size)
     return rstore_ready(of(st)->rs, why, size);
 }
 
-static int rd_create(svc_store *st, const char *id, const svc_blob *blobs,
-                     int n)
+#define BLOBS_MAX 12            /* blobs of one create or finish */
+
+/* The store's blobs as rstore's: 0, or -1 (EINVAL: too many). */
+static int to_rstore(const svc_blob *blobs, int n, rstore_blob *b)
 {
-    rstore_blob b[12];
     int i;
 
-    if (n < 0 || n > 12) {
+    if (n < 0 || n > BLOBS_MAX) {
         errno = EINVAL;
         return -1;
     }
     for (i = 0; i < n; i++)
         b[i] = (rstore_blob){blobs[i].name, blobs[i].data, blobs[i].len};
+    return 0;
+}
+
+static int rd_create(svc_store *st, const char *id, const svc_blob *blobs,
+                     int n)
+{
+    rstore_blob b[BLOBS_MAX];
+
+    if (to_rstore(blobs, n, b) != 0)
+        return -1;
     return rstore_create(of(st)->rs, id, b, n);
 }
 
@@ -225,20 +188,21 @@ static int rd_claim(svc_store *st, int (*fits)(void *ctx, const char *id),
     char got[RSTORE_ID_MAX];
     int runs = 0, rc = rstore_claim(r->rs, fits, ctx, got, &runs);
 
-    if (rc == RSTORE_DEAD) {
-        srv_logf(SRV_LOG_ERROR, "job %s: dead-lettered after %d runs whose "
-                 "replica stopped each time", got, runs);
-        return 0;
-    }
-    if (rc != RSTORE_TAKEN && rc != RSTORE_RETAKEN)
+    if (rc != RSTORE_TAKEN && rc != RSTORE_RETAKEN && rc != RSTORE_DEAD)
         return 0;
     if (strlen(got) > SVC_ID_LEN) {      /* not an id this service made */
-        rstore_ack(r->rs, got);
+        if (rc != RSTORE_DEAD)
+            rstore_ack(r->rs, got);
         return 0;
     }
     memcpy(id, got, strlen(got) + 1);
+    if (rc == RSTORE_DEAD) {
+        srv_logf(SRV_LOG_ERROR, "job %s: dead-lettered after %d runs whose "
+                 "replica stopped each time", got, runs);
+        return 3;
+    }
     set_running(r, id, 1);
-    return 1;
+    return rc == RSTORE_RETAKEN ? 2 : 1;
 }
 
 static int rd_ack(svc_store *st, const char *id)
@@ -279,57 +243,49 @@ static int rd_progress(svc_store *st, const char *id, const char *line,
     return rstore_progress(of(st)->rs, id, line, len);
 }
 
+static int rd_follow(svc_store *st, const char *id, char *after,
+                     void (*fn)(const char *line, size_t len, void *ctx),
+                     void *ctx)
+{
+    _Static_assert(SVC_CURSOR_LEN == RSTORE_ID_MAX, "a follow cursor");
+    return rstore_events(of(st)->rs, id, after, 0, fn, ctx);
+}
+
+/* The run's end: its blobs and the ack in one script (rstore_finish). */
+static int rd_finish(svc_store *st, const char *id, const svc_blob *blobs,
+                     int n)
+{
+    rstore_st *r = of(st);
+    rstore_blob b[BLOBS_MAX];
+    int rc, e;
+
+    if (to_rstore(blobs, n, b) != 0)
+        return -1;
+    rc = rstore_finish(r->rs, id, b, n);
+    e = errno;
+    if (rc == 0 || e == ESTALE)
+        set_running(r, id, 0);
+    errno = e;
+    return rc;
+}
+
 static const svc_store_ops redis_ops = {
     "redis", rd_close, rd_ready,
     rd_create, rd_put, rd_get, rd_get_at, rd_stat, rd_open, rd_remove,
     rd_quarantine, rd_usage, rd_scan,
     rd_push, rd_claim, rd_ack, rd_drop,
-    rd_heartbeat, rd_progress,
+    rd_heartbeat, rd_progress, rd_follow, rd_finish,
     0.25,                          /* claim blocks 1 s in XREADGROUP too */
+    1,                             /* shared by replicas */
 };
-
-/* Waits up to LEASE + 2 s for the lease; then takes over what the
- * previous holder left pending. 0, or -1 with the reason in msg. */
-static int take_lease(rstore_st *r, const char *url, char *msg,
-                      size_t msgsize)
-{
-    char holder[128] = "";
-    double end = srv_mono() + LEASE + 2;
-    int rc;
-
-    while ((rc = rstore_lease(r->rs, "replica", LEASE, holder,
-                              sizeof holder)) == 0 && srv_mono() < end) {
-        struct timespec ts = {0, 250 * 1000 * 1000};
-        nanosleep(&ts, NULL);
-    }
-    if (rc < 0) {
-        snprintf(msg, msgsize, "%s: cannot take the store's lease: %s", url,
-                 strerror(errno));
-        return -1;
-    }
-    if (rc == 0) {
-        snprintf(msg, msgsize, "%s is in use by another mcfd (%s): replicas "
-                 "sharing one Redis store are not supported yet; give each "
-                 "its own database (redis://HOST:PORT/DB)", url, holder);
-        return -1;
-    }
-    if ((rc = rstore_reap(r->rs, 0)) < 0) {
-        snprintf(msg, msgsize, "%s: taking over the previous mcfd's jobs: %s",
-                 url, strerror(errno));
-        return -1;
-    }
-    if (rc > 0)
-        srv_logf(SRV_LOG_INFO, "the Redis store: %d jobs left running or "
-                 "claimed by the previous mcfd taken over", rc);
-    return 0;
-}
 
 svc_store *svc_redis_open(const char *url, const char *password_file,
                           int workers, double ttl, char *msg, size_t msgsize)
 {
     rds_config rc;
     rstore_config cfg;
-    pthread_condattr_t ca;
+    const char *idle = getenv("MCFD_REDIS_CLAIM_IDLE"),
+               *runs = getenv("MCFD_REDIS_MAX_RUNS");
     rstore_st *r;
 
     rds_config_default(&rc);
@@ -342,29 +298,25 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
     cfg.pool = workers + 4;        /* a claim holds one while it blocks */
     if (ttl > cfg.ttl)
         cfg.ttl = ttl;
+    /* seconds without heartbeat before another replica takes a running
+     * job over; the sweep heartbeats every second, so 3 s is the least
+     * that never steals a live replica's job */
+    if (idle && atof(idle) >= 3)
+        cfg.claim_idle = atof(idle);
+    /* runs of a job whose replica stops each time before it is failed
+     * (dead letter; 3 by default) */
+    if (runs && atoi(runs) >= 1)
+        cfg.max_runs = atoi(runs);
     if (!(r = calloc(1, sizeof *r))) {
         snprintf(msg, msgsize, "out of memory");
         return NULL;
     }
     r->base.ops = &redis_ops;
     pthread_mutex_init(&r->mu, NULL);
-    pthread_condattr_init(&ca);        /* beats on the monotonic clock */
-    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
-    pthread_cond_init(&r->wake, &ca);
-    pthread_condattr_destroy(&ca);
     if (!(r->rs = rstore_open(&rc, &cfg, msg, msgsize))) {
-        rd_close(&r->base);
+        pthread_mutex_destroy(&r->mu);
+        free(r);
         return NULL;
     }
-    if (take_lease(r, url, msg, msgsize) != 0) {
-        rd_close(&r->base);
-        return NULL;
-    }
-    if (pthread_create(&r->thread, NULL, beat_main, r) != 0) {
-        snprintf(msg, msgsize, "cannot start the heartbeat thread");
-        rd_close(&r->base);
-        return NULL;
-    }
-    r->has_thread = 1;
     return &r->base;
 }

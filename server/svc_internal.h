@@ -14,6 +14,8 @@
  *   runner.c    one job on a worker (api_job_run): returns its outcome
  *   workers.c   the worker pool: claim, run, finish
  *   recovery.c  the store back into the table at start
+ *   svc_shared.c a store shared by replicas: jobs loaded from it and
+ *               refreshed, progress followed, cancels passed on
  *   svc_admit.c memory admission
  *   svc_error.c the table of problems
  *   spool.c     the local store (store.h)
@@ -121,6 +123,11 @@ struct svc_job {
     int parks;                 /* times it was */
     double retry_at;           /* srv_mono() seconds */
     double mem_held;           /* reserved while it runs */
+    int run_here;              /* a worker of this replica runs it (a
+                                  shared store: any other job's state is
+                                  the store's, refreshed) */
+    char ev_after[SVC_CURSOR_LEN];  /* the progress lines of another
+                                  replica's run read so far (follow) */
     /* progress, written by the runner's progress hook (svc__progress) */
     int step;
     double t, dt, energy, volume;
@@ -177,6 +184,9 @@ typedef struct {
     size_t disk_add;           /* bytes it wrote to the store */
     char *result;              /* the encoded result (kept for the
                                   submitter when it asked), or NULL */
+    char *metrics;             /* a store with finish: its metrics.json */
+    char *fields;              /* and its fields.bin (fields=true) */
+    size_t fields_len;
     int nv, nf;
     double run_s;
 } svc_outcome;
@@ -229,6 +239,24 @@ int svc__progress(svc_job *j, const api_job_step *st);
  * 1 when it must be queued. */
 int svc__recovered(svc_job *j, const svc_state_rec *r);
 
+/* A shared store (svc_shared.c's part, lock held): the state another
+ * replica recorded applied to j unless j runs here or is terminal here;
+ * subscribers notified of a change; a job that ends takes the events its
+ * run left in the store (nevents lines, events_bytes bytes: 0 none). 1
+ * when j changed. */
+int svc__remote_state(svc_job *j, const svc_state_rec *r, int nevents,
+                      size_t events_bytes);
+/* One progress line of another replica's run of j (lock held). */
+void svc__remote_progress(svc_job *j, const char *line, size_t len);
+/* A job claimed after its runner stopped heartbeating: a running state
+ * left by that replica goes back to queued (lock held). */
+void svc__retaken_locked(svc_job *j);
+/* A dead-lettered job (run too often, its replica stopping each time):
+ * recorded and published failed. */
+void svc__dead(svc_job *j);
+/* Tells the replica running j of a cancel asked here (no lock). */
+void svc__cancel_elsewhere(svc_job *j, svc_cancel_reason reason);
+
 /* svc_state.c: the persisted forms, pure (no lock) */
 char *svc__request_json(const svc_job *j);            /* request.json */
 /* request.json back: params (typed and both texts), filename, target,
@@ -252,7 +280,25 @@ void svc__run(svc_job *j, svc_outcome *o);
 int svc__workers_start(svc_t *s, char *msg, size_t msgsize);
 void svc__workers_stop(svc_t *s);
 
-/* recovery.c: reloads the store into the table and queue. */
+/* recovery.c: reloads the store into the table and queue (a shared
+ * store: nothing, its reaper recovers). */
 int svc__recover(svc_t *s, char *msg, size_t msgsize);
+/* request.json and state.json of job id, parsed into a new job (*j) and
+ * its recorded state (*r): 0; 1 when it was never acknowledged; -1 when
+ * it cannot be read now; -2 when damaged. */
+int svc__load(svc_t *s, const char *id, svc_job **j, svc_state_rec *r);
+/* A finished job's progress events as its run left them in the store:
+ * 1 and their count and bytes, else 0 (none). No lock. */
+int svc__events_stored(svc_store *st, const char *id, int *n, size_t *bytes);
+
+/* svc_shared.c */
+/* svc_job_get on a shared store: j (or NULL) refreshed, or loaded when
+ * the table does not hold it. A reference, or NULL. */
+svc_job *svc__shared_get(svc_t *s, const char *id);
+/* The sweep's part: other replicas' jobs refreshed and followed, cancels
+ * asked elsewhere of the jobs this replica runs. */
+void svc__shared_sweep(svc_t *s);
+/* service.c: j out of the table (lock held). */
+void svc__table_remove(svc_t *s, svc_job *j);
 
 #endif /* SVC_INTERNAL_H */

@@ -55,6 +55,7 @@ svc_job *svc__job_new(svc_t *s)
     api_params_init(&j->params);
     api_buf_init(&j->events, SVC_EVENTS_MAX);
     snprintf(j->scheme, sizeof j->scheme, "unknown");
+    snprintf(j->ev_after, sizeof j->ev_after, "0");
     return j;
 }
 
@@ -296,6 +297,7 @@ int svc__start(svc_job *j)
         rc = 0;
         j->refs++;             /* the worker's */
         j->status = SVC_JOB_RUNNING;
+        j->run_here = 1;
         j->started = srv_wall();
         j->deadline = s->cfg.job_timeout > 0 ? srv_mono() + s->cfg.job_timeout
                                              : 0;
@@ -307,6 +309,25 @@ int svc__start(svc_job *j)
     if (rc == 0)
         svc__write_state(j, 0);
     return rc;
+}
+
+/* Lock held: its progress runs again from step 1; the events it put in
+ * the store are put again at its end (uncounted till then). */
+static void events_reset_locked(svc_job *j)
+{
+    if (j->events_disk) {
+        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
+        j->disk_bytes -= sub;
+        if (j->in_table)
+            j->svc->disk_bytes -= sub;
+        j->events_disk = 0;
+    }
+    api_buf_free(&j->events);
+    api_buf_init(&j->events, SVC_EVENTS_MAX);
+    free(j->event_end);
+    j->event_end = NULL;
+    j->event_cap = 0;
+    j->nevents = 0;
 }
 
 /* Lock held: a job whose outcome (final) the store would not take goes
@@ -328,18 +349,7 @@ static void park_locked(svc_job *j, svc_job_status final, int e)
     j->step = 0;
     j->t = 0;
     j->result_len = 0;
-    /* its progress runs again from step 1; the events it put in the
-     * store are put again at its end (uncounted till then) */
-    if (j->events_disk) {
-        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
-        j->disk_bytes -= sub;
-        if (j->in_table)
-            j->svc->disk_bytes -= sub;
-        j->events_disk = 0;
-    }
-    api_buf_free(&j->events);
-    api_buf_init(&j->events, SVC_EVENTS_MAX);
-    j->nevents = 0;
+    events_reset_locked(j);
     svc_error_set(&j->err, SVC_P_STORAGE, "job %s %s, but the spool "
                   "could not record it (%s); it runs again in %g s", j->id,
                   svc_job_status_name(final), strerror(e), delay);
@@ -390,45 +400,35 @@ static void apply_outcome_locked(svc_job *j, svc_outcome *o,
     }
 }
 
-/* When the run is over, before its outcome is published: its progress
- * events go to the store (events.ndjson and events.idx, not durable:
- * nothing depends on them after a crash) and out of memory, where
- * admission no longer counts them; svc_job_events reads them back. A
- * store that takes no write loses them (followers then see the outcome
- * alone). Only the job's worker appends to or frees them, so they are
- * written outside the lock. */
-static void events_to_store(svc_job *j)
+/* The job's events as they are now (only its worker appends). */
+static int events_now(svc_job *j, const char **data, size_t *len,
+                      const size_t **ends)
+{
+    int n;
+
+    pthread_mutex_lock(&j->svc->mu);
+    *data = j->events.data;
+    *len = j->events.len;
+    *ends = j->event_end;
+    n = j->nevents;
+    pthread_mutex_unlock(&j->svc->mu);
+    return n;
+}
+
+/* The events written (ok: their len bytes and n ends) or lost: out of
+ * memory either way. */
+static void events_done(svc_job *j, int ok, size_t len, int n)
 {
     svc_t *s = j->svc;
-    svc_store *st = s->store;
-    const char *data;
-    const size_t *ends;
-    size_t len;
-    int n, ok;
 
-    pthread_mutex_lock(&s->mu);
-    data = j->events.data;
-    len = j->events.len;
-    ends = j->event_end;
-    n = j->nevents;
-    pthread_mutex_unlock(&s->mu);
-    if (n == 0)
-        return;
-    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
-         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
-                      0) == 0;
-    if (!ok)
-        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
-                 "written to the spool (%s); late followers get its outcome "
-                 "alone", j->id, n, strerror(errno));
     pthread_mutex_lock(&s->mu);
     api_buf_free(&j->events);
     api_buf_init(&j->events, SVC_EVENTS_MAX);
     free(j->event_end);
     j->event_end = NULL;
     j->event_cap = 0;
-    if (ok) {
-        size_t add = len + (size_t)n * sizeof *ends;
+    if (ok && n > 0) {
+        size_t add = len + (size_t)n * sizeof *j->event_end;
         j->events_disk = len;
         j->disk_bytes += add;
         if (j->in_table)
@@ -439,14 +439,97 @@ static void events_to_store(svc_job *j)
     pthread_mutex_unlock(&s->mu);
 }
 
+/* When the run is over, before its outcome is published: its progress
+ * events go to the store (events.ndjson and events.idx, not durable:
+ * nothing depends on them after a crash) and out of memory, where
+ * admission no longer counts them; svc_job_events reads them back. A
+ * store that takes no write loses them (followers then see the outcome
+ * alone). Only the job's worker appends to or frees them, so they are
+ * written outside the lock. */
+static void events_to_store(svc_job *j)
+{
+    svc_store *st = j->svc->store;
+    const char *data;
+    const size_t *ends;
+    size_t len;
+    int n = events_now(j, &data, &len, &ends), ok;
+
+    if (n == 0)
+        return;
+    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
+         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
+                      0) == 0;
+    if (!ok)
+        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
+                 "written to the spool (%s); late followers get its outcome "
+                 "alone", j->id, n, strerror(errno));
+    events_done(j, ok, len, n);
+}
+
+/* A store with finish (store.h): what the run leaves, written with its
+ * state and its ack in one step. */
+typedef struct {
+    svc_blob b[6];             /* result, metrics, fields, events x2, state */
+    int n;
+    size_t ev_len;             /* its events: bytes and lines */
+    int ev_n;
+} end_blobs;
+
+static void end_add(end_blobs *eb, const char *name, const void *data,
+                    size_t len)
+{
+    eb->b[eb->n++] = (svc_blob){name, data ? data : "", len};
+}
+
+static void end_blobs_of(svc_job *j, const svc_outcome *o, end_blobs *eb)
+{
+    const char *data;
+    const size_t *ends;
+
+    memset(eb, 0, sizeof *eb);
+    if (o->status == SVC_JOB_SUCCEEDED) {
+        end_add(eb, o->result_name, o->result, o->result_len);
+        end_add(eb, "metrics.json", o->metrics,
+                o->metrics ? strlen(o->metrics) : 0);
+        if (o->fields)
+            end_add(eb, SVC_FIELDS_FILE, o->fields, o->fields_len);
+    }
+    if ((eb->ev_n = events_now(j, &data, &eb->ev_len, &ends)) > 0) {
+        end_add(eb, "events.ndjson", data, eb->ev_len);
+        end_add(eb, "events.idx", ends, (size_t)eb->ev_n * sizeof *ends);
+    }
+}
+
+/* The blobs, state r and the ack in one step (state_mu held). */
+static int finish_rec(svc_t *s, const svc_state_rec *r, end_blobs *eb)
+{
+    char *text = svc__state_json(r);
+    int rc, e;
+
+    if (!text) {
+        errno = ENOMEM;
+        return -1;
+    }
+    eb->b[eb->n] = (svc_blob){"state.json", text, strlen(text)};
+    rc = s->store->ops->finish(s->store, r->id, eb->b, eb->n + 1);
+    e = errno;
+    free(text);
+    errno = e;
+    return rc;
+}
+
 void svc__finish(svc_job *j, svc_outcome *o)
 {
     svc_t *s = j->svc;
     svc_state_rec r;
-    int tries = 0, written = 0, e = 0;
+    end_blobs eb;
+    int tries = 0, written = 0, e = 0,
+        fin = s->store->ops->finish && o->status != SVC_JOB_QUEUED;
     double now = srv_wall();
 
-    if (o->status != SVC_JOB_QUEUED)
+    if (fin)
+        end_blobs_of(j, o, &eb);
+    else if (o->status != SVC_JOB_QUEUED)
         events_to_store(j);
     /* The outcome is in the store before anyone can see it (GET polls,
      * waiters, a restart): a client told "succeeded" can always find the
@@ -458,19 +541,30 @@ void svc__finish(svc_job *j, svc_outcome *o)
         pthread_mutex_lock(&s->mu);
         outcome_rec(j, o, now, &r);
         pthread_mutex_unlock(&s->mu);
-        if (write_rec(s, &r, 1) == 0) {
+        if ((fin ? finish_rec(s, &r, &eb) : write_rec(s, &r, 1)) == 0) {
             written = 1;
             break;             /* state_mu held until published */
         }
         e = errno;
         pthread_mutex_unlock(&s->state_mu);
         /* A shutdown alone stops these tries: a cancel asked now changes
-         * nothing of an outcome already reached. */
-        if (o->status == SVC_JOB_QUEUED ||
+         * nothing of an outcome already reached; nor does one of a run
+         * another replica took over (ESTALE: its outcome is that one's). */
+        if (o->status == SVC_JOB_QUEUED || e == ESTALE ||
             !svc__retry(j, &tries, e, "recording its outcome", 1))
             break;
     }
+    if (fin)
+        events_done(j, written, eb.ev_len, eb.ev_n);
     pthread_mutex_lock(&s->mu);
+    j->run_here = 0;
+    if (!written && e == ESTALE) {
+        /* still running, elsewhere: the sweep refreshes it */
+        srv_logf(SRV_LOG_WARN, "job %s: its run here was taken over by "
+                 "another replica; its outcome here is dropped", j->id);
+        pthread_mutex_unlock(&s->mu);
+        return;
+    }
     if (!written && o->status != SVC_JOB_QUEUED)
         park_locked(j, o->status, e);
     else
@@ -478,7 +572,13 @@ void svc__finish(svc_job *j, svc_outcome *o)
     pthread_mutex_unlock(&s->mu);
     if (written)
         pthread_mutex_unlock(&s->state_mu);
-    s->store->ops->ack(s->store, j->id);
+    /* a shared queue: a job stopped by the shutdown goes back to its head
+     * for another replica (else its entry stays pending and the reaper
+     * hands it over) */
+    if (!(fin && written) &&
+        !(s->store->ops->shared && o->status == SVC_JOB_QUEUED &&
+          (!written || s->store->ops->push(s->store, j->id, 1) != 0)))
+        s->store->ops->ack(s->store, j->id);
     /* Counted before anyone hears, so /metrics agrees with what clients
      * have seen. */
     if (written && o->status != SVC_JOB_QUEUED) {
@@ -634,7 +734,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
 {
     svc_t *s = j->svc;
     svc_state_rec r;
-    int rc, e, was_queued, changed = 0;
+    int rc, e, was_queued, run_here, changed = 0;
     double now = srv_wall();
 
     pthread_mutex_lock(&s->state_mu);
@@ -655,6 +755,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     pthread_mutex_lock(&s->mu);
     j->canceling = SVC_CANCEL_NONE;
     was_queued = j->status == SVC_JOB_QUEUED;
+    run_here = j->run_here;
     if (rc == 0 && was_queued) {
         if (!j->parked)
             s->queued--;
@@ -670,6 +771,10 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
         svc__wake_locked(s); /* a worker may have put it back meanwhile */
     pthread_mutex_unlock(&s->mu);
     pthread_mutex_unlock(&s->state_mu);
+    /* a shared store: the replica that runs it (or starts it before
+     * it reads the state written here) stops it at its next sweep */
+    if (rc == 0 && s->store->ops->shared && !run_here)
+        svc__cancel_elsewhere(j, reason);
     if (changed) {
         s->store->ops->drop(s->store, j->id);
         srv_metrics_job(j->scheme, "canceled", 0);
@@ -678,6 +783,144 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     svc_job_unref(j);
     errno = e;
     return rc == 0 ? 1 : -1;
+}
+
+/* ------------------------------------------- a store shared by replicas */
+
+/* Lock held: whether j counts in s->queued (queued, not parked). */
+static int counted(const svc_job *j)
+{
+    return j->in_table && j->status == SVC_JOB_QUEUED && !j->parked;
+}
+
+int svc__remote_state(svc_job *j, const svc_state_rec *r, int nevents,
+                      size_t events_bytes)
+{
+    svc_t *s = j->svc;
+    int was = counted(j), step = j->step, changed;
+    double t = j->t;
+
+    if (j->run_here || j->canceling || svc_job_status_terminal(j->status))
+        return 0;
+    changed = j->status != r->status || j->started != r->started ||
+              (r->cancel_requested && !j->cancel);
+#define X(f) SVC_COPY(j, r, f)
+    SVC_RECORDED(X)
+#undef X
+    j->err = r->err;
+    if (r->cancel_requested && j->status == SVC_JOB_RUNNING) {
+        j->cancel = 1;
+        j->cancel_reason = r->cancel_requested;
+    }
+    j->ready = j->status == SVC_JOB_RUNNING;
+    if (j->status == SVC_JOB_RUNNING && step > j->step) {
+        j->step = step;        /* its progress stream is ahead of state.json */
+        j->t = t;
+    }
+    s->queued += counted(j) - was;
+    if (changed && svc_job_status_terminal(j->status)) {
+        events_reset_locked(j);   /* the store has them all now */
+        j->nevents = nevents;
+        j->events_disk = events_bytes;
+    }
+    if (changed)
+        svc__notify(j, SVC_NOTIFY_STATE);
+    return changed;
+}
+
+static double num_of(const cJSON *o, const char *key, double dflt)
+{
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(o, key);
+    return cJSON_IsNumber(e) ? e->valuedouble : dflt;
+}
+
+void svc__remote_progress(svc_job *j, const char *line, size_t len)
+{
+    cJSON *o;
+
+    if (j->run_here || j->status != SVC_JOB_RUNNING ||
+        !(o = cJSON_ParseWithLength(line, len)))
+        return;
+    j->step = (int)num_of(o, "step", j->step);
+    j->t = num_of(o, "t", j->t);
+    j->dt = num_of(o, "dt", j->dt);
+    j->energy = num_of(o, "energy", NAN);
+    j->volume = num_of(o, "volume", NAN);
+    cJSON_Delete(o);
+    j->ready = 1;
+    add_event(j, line, len);
+    svc__notify(j, SVC_NOTIFY_PROGRESS);
+}
+
+void svc__retaken_locked(svc_job *j)
+{
+    svc_t *s = j->svc;
+
+    if (j->run_here || j->status != SVC_JOB_RUNNING)
+        return;
+    j->status = SVC_JOB_QUEUED;
+    j->started = 0;
+    j->step = 0;
+    j->t = 0;
+    j->ready = 0;
+    events_reset_locked(j);
+    if (counted(j))
+        s->queued++;
+    svc__notify(j, SVC_NOTIFY_STATE);
+}
+
+void svc__dead(svc_job *j)
+{
+    svc_t *s = j->svc;
+    svc_state_rec r;
+    double now = srv_wall();
+    int was;
+
+    pthread_mutex_lock(&s->state_mu);
+    pthread_mutex_lock(&s->mu);
+    if (j->run_here || svc_job_status_terminal(j->status)) {
+        pthread_mutex_unlock(&s->mu);
+        pthread_mutex_unlock(&s->state_mu);
+        return;
+    }
+    svc__state_of(j, &r);
+    r.status = SVC_JOB_FAILED;
+    r.finished = now;
+    r.cancel_requested = SVC_CANCEL_NONE;
+    svc_error_set(&r.err, SVC_P_INTERNAL, "job %s was not run again: the "
+                  "replica running it stopped (killed, out of memory, or "
+                  "lost) during each of its runs", j->id);
+    pthread_mutex_unlock(&s->mu);
+    if (write_rec(s, &r, 1) != 0) {
+        /* the store keeps it dead-lettered; another read retries */
+        srv_logf(SRV_LOG_ERROR, "job %s: cannot record it failed (dead "
+                 "letter): %s", j->id, strerror(errno));
+        pthread_mutex_unlock(&s->state_mu);
+        return;
+    }
+    pthread_mutex_lock(&s->mu);
+    was = counted(j);
+    j->status = SVC_JOB_FAILED;
+    j->finished = now;
+    j->err = r.err;
+    s->queued -= was;
+    events_reset_locked(j);
+    svc__notify(j, SVC_NOTIFY_STATE);
+    pthread_mutex_unlock(&s->mu);
+    pthread_mutex_unlock(&s->state_mu);
+    srv_metrics_job(j->scheme, "failed", 0);
+    svc__log_job(j, 0, 0, 0);
+}
+
+void svc__cancel_elsewhere(svc_job *j, svc_cancel_reason reason)
+{
+    svc_store *st = j->svc->store;
+    char text[32];
+    int n = snprintf(text, sizeof text, "{\"reason\":%d}", (int)reason);
+
+    if (st->ops->put(st, j->id, "cancel.json", text, (size_t)n, 1) != 0)
+        srv_logf(SRV_LOG_WARN, "job %s: its cancel could not be passed to "
+                 "the replica running it: %s", j->id, strerror(errno));
 }
 
 /* ---------------------------------------------------------------- recovery */

@@ -58,7 +58,9 @@ static void wait_work_locked(svc_t *s)
 }
 
 /* The next job to run: claimed, reserved and started, or NULL when the
- * service stops. Waits (on s->work) while it is draining, the queue is
+ * service stops. A shared store's claim also says 2 (taken over from a
+ * replica that stopped: its running state is queued again) and 3 (dead:
+ * written failed). Waits (on s->work) while it is draining, the queue is
  * empty or its head does not fit. */
 static svc_job *next_job(svc_t *s, double *held)
 {
@@ -66,7 +68,7 @@ static svc_job *next_job(svc_t *s, double *held)
     claim_ctx c = {s, 0};
     unsigned seen;
     svc_job *j;
-    int stop, rc;
+    int stop, rc, got;
 
     for (;;) {
         pthread_mutex_lock(&s->mu);
@@ -78,8 +80,23 @@ static svc_job *next_job(svc_t *s, double *held)
         if (stop)
             return NULL;
         c.held = 0;
-        if (s->store->ops->claim(s->store, fits, &c, id) == 1) {
+        got = s->store->ops->claim(s->store, fits, &c, id);
+        if (got == 3) {        /* dead-lettered: failed, not run */
+            svc_admit_release(s, c.held);
+            if ((j = svc_job_get(s, id)))
+                svc__dead(j);
+            svc_job_unref(j);
+            continue;
+        }
+        if (got == 1 || got == 2) {
             j = svc_job_get(s, id);
+            if (j && got == 2) {   /* taken over: queued again */
+                srv_logf(SRV_LOG_INFO, "job %s: taken over from a replica "
+                         "that stopped heartbeating", id);
+                pthread_mutex_lock(&s->mu);
+                svc__retaken_locked(j);
+                pthread_mutex_unlock(&s->mu);
+            }
             rc = j ? svc__start(j) : -1;
             if (rc == 0) {
                 svc_job_unref(j); /* svc__start took the worker's */
@@ -123,6 +140,8 @@ static void *worker_main(void *arg)
         svc__run(j, &o);
         svc__finish(j, &o);
         free(o.result);
+        free(o.metrics);
+        free(o.fields);
         svc_admit_release(s, j->mem_held); /* its memory is free */
         pthread_mutex_lock(&s->mu);
         s->busy--;

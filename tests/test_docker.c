@@ -285,7 +285,9 @@ static void test_redis_deploy(void **state)
     check_redis_command(ystr(d, redis, "command.[2]", cf), cf);
     if (!yhas(d, redis, "volumes", "redis:/data"))
         fail_msg("%s: redis keeps /data on no volume", cf);
-    assert_null(yget(d, svc, "deploy.replicas"));   /* one mcfd per store */
+    assert_string_equal(ystr(d, svc, "deploy.replicas", cf), "2");
+    /* replicas take host ports from a range, one each */
+    assert_string_equal(ystr(d, svc, "ports.[0]", cf), "127.0.0.1:8080-8081:8080");
     yfree(&y);
 
     yload(kf, &y);
@@ -307,18 +309,27 @@ static void test_redis_deploy(void **state)
         } else if (strcmp(kind, "Deployment") == 0) {
             seen |= 2;
             assert_string_equal(ystr(d, c, "image", kf), image_name());
-            assert_string_equal(ystr(d, root, "spec.replicas", kf), "1");
-            assert_string_equal(ystr(d, root, "spec.strategy.type", kf), "Recreate");
+            if (atoi(ystr(d, root, "spec.replicas", kf)) < 2)
+                fail_msg("%s: the Deployment runs fewer than 2 replicas", kf);
+            assert_string_equal(ystr(d, root, "spec.strategy.type", kf), "RollingUpdate");
+            assert_string_equal(ystr(d, root, "spec.strategy.rollingUpdate.maxUnavailable", kf),
+                                "0");
             assert_string_equal(ystr(d, c, "env.[3].name", kf), "MCFD_STORE");
             assert_string_equal(ystr(d, c, "env.[3].value", kf), "redis://mcfd-redis:6379");
             assert_string_equal(ystr(d, c, "env.[4].name", kf), "MCFD_STORE_PASSWORD_FILE");
             assert_string_equal(ystr(d, c, "readinessProbe.httpGet.path", kf), "/readyz");
             assert_string_equal(ystr(d, c, "livenessProbe.httpGet.path", kf), "/healthz");
         } else if (strcmp(kind, "HorizontalPodAutoscaler") == 0) {
-            fail_msg("%s: an autoscaler, but one mcfd per store", kf);
+            seen |= 4;
+            assert_string_equal(ystr(d, root, "apiVersion", kf), "autoscaling/v2");
+            assert_string_equal(ystr(d, root, "spec.scaleTargetRef.kind", kf), "Deployment");
+            assert_string_equal(ystr(d, root, "spec.scaleTargetRef.name", kf), "mcfd");
+            if (atoi(ystr(d, root, "spec.minReplicas", kf)) < 2)
+                fail_msg("%s: the autoscaler may go below 2 replicas", kf);
+            assert_string_equal(ystr(d, root, "spec.metrics.[0].resource.name", kf), "cpu");
         }
     }
-    assert_int_equal(seen, 3);
+    assert_int_equal(seen, 7);
     yfree(&y);
 }
 

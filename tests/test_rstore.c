@@ -378,6 +378,51 @@ static void test_takeover_fences_the_old_runner(void **state)
     rstore_close(b);
 }
 
+/* The end of a run in one script: blobs and ack together, by the runner
+ * only; a runner taken over writes none of them. */
+static void test_finish_is_one_step(void **state)
+{
+    rstore *a = replica("a", 0.3, 3), *b = replica("b", 0.3, 3);
+    char id[RSTORE_ID_MAX], *data;
+    size_t n;
+    int runs = 0;
+    rds *c = peek();
+    rstore_blob end[3] = {
+        {"result.obj", "v 0 0 0\n", 8},
+        {"metrics.json", "{\"rms\":1}", 9},
+        {"state.json", "{\"status\":\"succeeded\"}", 22},
+    };
+    (void)state;
+
+    make_job(a, "j", 10);
+    must_ok(rstore_push(a, "j", 0), "push");
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    redisd_sleep(0.4);
+    assert_int_equal(rstore_reap(b, -1), 1);
+    assert_int_equal(claim(b, id, &runs), RSTORE_RETAKEN);
+    /* a, taken over: nothing written, nothing acknowledged */
+    assert_int_equal(rstore_finish(a, "j", end, 3), -1);
+    assert_int_equal(errno, ESTALE);
+    assert_int_equal(rstore_stat(a, "j", "result.obj", &n), -1);
+    assert_int_equal(errno, ENOENT);
+    assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 1);
+    /* b: all of it, and the queue is empty */
+    must_ok(rstore_finish(b, "j", end, 3), "finish");
+    /* its reply lost, b tries again: done already, not STALE */
+    must_ok(rstore_finish(b, "j", end, 3), "finish again");
+    must_ok(rstore_get(a, "j", "result.obj", &data, &n), "get result");
+    assert_int_equal(n, 8);
+    free(data);
+    must_ok(rstore_get(a, "j", "state.json", &data, &n), "get state");
+    assert_string_equal(data, "{\"status\":\"succeeded\"}");
+    free(data);
+    assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 0);
+    assert_int_equal(claim(a, id, &runs), RSTORE_EMPTY);
+    rds_free(c);
+    rstore_close(a);
+    rstore_close(b);
+}
+
 /* A job held by a replica without room for it (the head did not fit)
  * goes to a replica with room after claim_idle; the first one, given room
  * later, does not take it too. */
@@ -484,28 +529,6 @@ static void test_dead_letter(void **state)
     assert_int_equal(peek_int(c, "XLEN", "mcfd:queue", NULL), 0);
     assert_int_equal(claim(b, id, &runs), RSTORE_EMPTY);
     rds_free(c);
-    rstore_close(a);
-    rstore_close(b);
-}
-
-/* A lease: one holder at a time; free again after its ttl. */
-static void test_lease(void **state)
-{
-    rstore *a = replica("a", 30, 3), *b = replica("b", 30, 3);
-    char holder[64] = "";
-    (void)state;
-
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 0);
-    assert_string_equal(holder, "a");
-    redisd_sleep(0.4);
-    assert_int_equal(rstore_lease(b, "x", 0.3, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 0);
-    assert_string_equal(holder, "b");
-    assert_int_equal(rstore_lease(a, "x", 0, holder, sizeof holder), 0);
-    assert_int_equal(rstore_lease(b, "x", 0, holder, sizeof holder), 1);
-    assert_int_equal(rstore_lease(a, "x", 0.3, holder, sizeof holder), 1);
     rstore_close(a);
     rstore_close(b);
 }
@@ -692,12 +715,12 @@ int main(void)
         cmocka_unit_test_setup(test_queue_order_and_ack, setup),
         cmocka_unit_test_setup(test_queue_full, setup),
         cmocka_unit_test_setup(test_takeover_fences_the_old_runner, setup),
+        cmocka_unit_test_setup(test_finish_is_one_step, setup),
         cmocka_unit_test_setup(test_held_job_goes_to_a_replica_with_room,
                                setup),
         cmocka_unit_test_setup(test_no_duplicate_runs, setup),
         cmocka_unit_test_setup(test_heartbeat_keeps_a_long_job, setup),
         cmocka_unit_test_setup(test_dead_letter, setup),
-        cmocka_unit_test_setup(test_lease, setup),
         cmocka_unit_test_setup(test_progress_seen_from_another_replica,
                                setup),
         cmocka_unit_test_setup(test_redis_down_and_back, setup),

@@ -1,19 +1,25 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """bench_store.py - what keeping jobs in Redis (mcfd --store redis://) costs
-per async job against the local spool (issue 22), one mcfd of each on this
-machine, measured in the same run, interleaved and repeated.
+per async job against the local spool, and how 1, 2 and 3 replicas sharing
+one Redis store do (issue 22), on this machine, measured in the same run,
+interleaved and repeated.
 
-Each round sends the same batch of small async jobs (POST /v1/jobs, one
-worker, so the job's own work is small beside the store's) to the spool
-daemon and to the Redis one, in alternating order, and waits for all of
-them to succeed. Reported per backend (medians over the rounds): jobs/s of
-the batch, p50/p99 of the submission (202) latency, of GET .../result, and
-the CPU seconds per job of mcfd and of redis-server (/proc, utime+stime),
-then the ratios redis/spool. redis-server runs with the AOF on and
-appendfsync always, as docker/kubernetes-redis.yaml deploys it.
+Four setups: one mcfd on the local spool, and 1, 2, 3 mcfd replicas on one
+redis-server (each setup its own database, so that their queues stay
+apart), one worker per mcfd. Each round sends the same batch of small
+async jobs (POST /v1/jobs; the job's own work is small beside the
+store's) to each setup in rotating order, job i submitted to replica
+i % N, its status polled on the next replica and its result read on the
+one after, and waits for all of them to succeed. Reported per setup
+(medians over the rounds): jobs/s of the batch, p50/p99 of the submission
+(202) latency and of GET .../result, the CPU seconds per job of the mcfds
+and of redis-server (/proc, utime+stime), then the ratios against the
+spool. redis-server runs with the AOF on and appendfsync always, as
+docker/kubernetes-redis.yaml deploys it.
 
   /usr/bin/python3 lab/bench/bench_store.py --mcfd build/mcfd [--jobs 40] [--reps 5]
+      [--mesh tests/data/meshes/bunny.drc --iterations 10]   (jobs whose own work dominates)
 """
 import argparse
 import json
@@ -77,19 +83,21 @@ def start_mcfd(mcfd, tmp, name, *flags):
     raise SystemExit("%s did not start (see %s.log)" % (name, name))
 
 
-def batch(url, mesh, n):
-    ids, sub, get = [], [], []
+def batch(urls, mesh, n, iterations=1):
+    ids, sub, get, k = [], [], [], len(urls)
     t0 = time.perf_counter()
-    for _ in range(n):
-        st, body, dt = http("POST", url + "/v1/jobs?scheme=desbrun2&iterations=1", mesh)
+    for i in range(n):
+        st, body, dt = http("POST", urls[i % k] + "/v1/jobs?scheme=desbrun2&iterations=%d" % iterations, mesh)
         assert st == 202
         ids.append(json.loads(body)["id"])
         sub.append(dt)
-    for jid in ids:
+    for i, jid in enumerate(ids):
+        url = urls[(i + 1) % k]
         while json.loads(http("GET", "%s/v1/jobs/%s" % (url, jid))[1])["status"] != "succeeded":
             time.sleep(0.005)
     wall = time.perf_counter() - t0
-    for jid in ids:
+    for i, jid in enumerate(ids):
+        url = urls[(i + 2) % k]
         get.append(http("GET", "%s/v1/jobs/%s/result" % (url, jid))[2])
         http("DELETE", "%s/v1/jobs/%s" % (url, jid))
     return n / wall, sub, get
@@ -100,8 +108,10 @@ def main():
     ap.add_argument("--mcfd", default=os.path.join(ROOT, "build", "mcfd"))
     ap.add_argument("--jobs", type=int, default=40)
     ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--mesh", default=MESH)
+    ap.add_argument("--iterations", type=int, default=1)
     a = ap.parse_args()
-    with open(MESH, "rb") as f:
+    with open(a.mesh, "rb") as f:
         mesh = f.read()
     tmp = tempfile.mkdtemp(prefix="mcfd-bench-store-")
     procs = []
@@ -113,29 +123,33 @@ def main():
                               start_new_session=True)
         procs.append(rd)
         time.sleep(0.5)
-        sp, surl = start_mcfd(a.mcfd, tmp, "spool")
-        rp, rurl = start_mcfd(a.mcfd, tmp, "redis", "--store", "redis://127.0.0.1:%d" % rport)
-        procs += [sp, rp]
-        res = {"spool": [], "redis": []}
-        batch(surl, mesh, 5)                  # warm both
-        batch(rurl, mesh, 5)
+        setups = [("spool", [start_mcfd(a.mcfd, tmp, "spool")])]
+        for n in (1, 2, 3):                   # database n: its own queue
+            store = "redis://127.0.0.1:%d/%d" % (rport, n)
+            setups.append(("redis x%d" % n, [start_mcfd(a.mcfd, tmp, "r%d-%d" % (n, i), "--store", store)
+                                             for i in range(n)]))
+        for _, ds in setups:
+            procs += [p for p, _ in ds]
+        res = {name: [] for name, _ in setups}
+        for name, ds in setups:               # warm each
+            batch([u for _, u in ds], mesh, 5)
         for rep in range(a.reps):
-            order = [("spool", surl, sp), ("redis", rurl, rp)]
-            if rep % 2:
-                order.reverse()
-            for name, url, p in order:
-                c0, r0 = cpu_s(p.pid), cpu_s(rd.pid)
-                rate, sub, get = batch(url, mesh, a.jobs)
+            order = setups[rep % len(setups):] + setups[:rep % len(setups)]
+            for name, ds in order:
+                pids = [p.pid for p, _ in ds]
+                c0, r0 = sum(cpu_s(x) for x in pids), cpu_s(rd.pid)
+                rate, sub, get = batch([u for _, u in ds], mesh, a.jobs, a.iterations)
                 res[name].append(dict(rate=rate, sub=sub, get=get,
-                                      cpu=(cpu_s(p.pid) - c0) / a.jobs,
+                                      cpu=(sum(cpu_s(x) for x in pids) - c0) / a.jobs,
                                       rcpu=(cpu_s(rd.pid) - r0) / a.jobs))
-        print("bench_store: %d async jobs of %s (iterations=1, one worker) x %d rounds, "
-              "interleaved; medians over the rounds" % (a.jobs, os.path.basename(MESH), a.reps))
-        print("%-6s %8s %10s %10s %10s %10s %12s %14s" % (
-            "store", "jobs/s", "POST p50", "POST p99", "GET p50", "GET p99",
+        print("bench_store: %d async jobs of %s (iterations=%d, one worker per mcfd) x %d rounds, "
+              "rotating order; medians over the rounds; %d cores" % (
+                  a.jobs, os.path.basename(a.mesh), a.iterations, a.reps, os.cpu_count()))
+        print("%-9s %8s %10s %10s %10s %10s %12s %14s" % (
+            "setup", "jobs/s", "POST p50", "POST p99", "GET p50", "GET p99",
             "mcfd CPU/job", "redis CPU/job"))
         med = {}
-        for name in ("spool", "redis"):
+        for name, _ in setups:
             r = res[name]
             m = dict(rate=statistics.median(x["rate"] for x in r),
                      sp50=statistics.median(pct(x["sub"], .5) for x in r),
@@ -145,14 +159,16 @@ def main():
                      cpu=statistics.median(x["cpu"] for x in r),
                      rcpu=statistics.median(x["rcpu"] for x in r))
             med[name] = m
-            print("%-6s %8.1f %8.2f ms %8.2f ms %8.2f ms %8.2f ms %9.2f ms %11.2f ms" % (
+            print("%-9s %8.1f %8.2f ms %8.2f ms %8.2f ms %8.2f ms %9.2f ms %11.2f ms" % (
                 name, m["rate"], 1e3 * m["sp50"], 1e3 * m["sp99"], 1e3 * m["gp50"],
-                1e3 * m["gp99"], 1e3 * m["cpu"], 1e3 * m["rcpu"] if name == "redis" else 0))
-        s, r = med["spool"], med["redis"]
-        print("redis/spool: jobs/s %.2f, POST p50 %.2f, GET p50 %.2f, mcfd CPU/job %.2f; "
-              "Redis adds %.2f ms of its own CPU per job" % (
-                  r["rate"] / s["rate"], r["sp50"] / s["sp50"], r["gp50"] / s["gp50"],
-                  r["cpu"] / s["cpu"], 1e3 * r["rcpu"]))
+                1e3 * m["gp99"], 1e3 * m["cpu"], 1e3 * m["rcpu"] if name != "spool" else 0))
+        s = med["spool"]
+        for name, _ in setups[1:]:
+            r = med[name]
+            print("%s/spool: jobs/s %.2f, POST p50 %.2f, GET p50 %.2f, mcfd CPU/job %.2f; "
+                  "Redis adds %.2f ms of its own CPU per job" % (
+                      name, r["rate"] / s["rate"], r["sp50"] / s["sp50"], r["gp50"] / s["gp50"],
+                      r["cpu"] / s["cpu"], 1e3 * r["rcpu"]))
     finally:
         for p in procs:
             try:
