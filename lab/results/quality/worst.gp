@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # bench_quality: clean / noisy / smoothed renders of stanford-bunny.obj, normal noise at noise 0.1 (seed 3)
 # run in this folder: gnuplot worst.gp (needs the render-*.dat files bench_quality
 # writes and removes; rerun bench_quality to regenerate)
