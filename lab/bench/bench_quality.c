@@ -824,7 +824,7 @@ static void figure(const char *out, const char *stem, const figure_spec *fs,
     snprintf(gp, sizeof gp, "%s.gp", stem);
     snprintf(png, sizeof png, "%s.png", stem);
     FILE *g = bench_open_out(out, gp);
-    fprintf(g, "# bench_quality: clean / noisy / smoothed renders of %s at noise %g (seed %d)\n"
+    fprintf(g, "# SPDX-License-Identifier: MIT\n# bench_quality: clean / noisy / smoothed renders of %s at noise %g (seed %d)\n"
                "# run in this folder: gnuplot %s (needs the render-*.dat files bench_quality\n"
                "# writes and removes; rerun bench_quality to regenerate)\n"
                "set terminal pngcairo size %d,%d font 'sans,11'\n"
