@@ -306,6 +306,12 @@ static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
         svc_error_set(err, SVC_P_SPOOL_UNREADY, "cannot record job %s now: "
                       "%s", j->id, strerror(e));
         err->retry_after = 5;
+    } else if (e == EFBIG) {
+        svc_error_set(err, SVC_P_INPUT_LIMIT, "the input (%zu bytes) is "
+                      "larger than the job store takes in one value "
+                      "(Redis's proto-max-bulk-len, less a margin)",
+                      rq->input_len > rq->target_len ? rq->input_len
+                                                     : rq->target_len);
     } else {
         svc_error_set(err, SVC_P_STORAGE, "cannot write job %s to the spool "
                       "%s: %s", j->id, s->cfg.spool, strerror(e));

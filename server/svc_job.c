@@ -770,7 +770,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
 {
     svc_t *s = j->svc;
     svc_state_rec r;
-    int rc, e, was_queued, run_here, changed = 0;
+    int rc, e, was_queued, run_here, changed = 0, unclaimed, taken;
     double now = srv_wall();
 
     pthread_mutex_lock(&s->state_mu);
@@ -786,8 +786,13 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     j->refs++;
     cancel_rec(j, reason, now, &r);
     pthread_mutex_unlock(&s->mu);
-    rc = write_rec(s, &r, 1);
+    /* a shared store decides: canceled while queued, or started by
+     * another replica first (ESTALE: that one's run stops, and it ends
+     * and counts the job) */
+    unclaimed = s->store->ops->shared && r.status == SVC_JOB_CANCELED;
+    rc = write_rec(s, &r, unclaimed ? SVC_PUT_UNCLAIMED : 1);
     e = errno;
+    taken = rc != 0 && unclaimed && e == ESTALE;
     pthread_mutex_lock(&s->mu);
     j->canceling = SVC_CANCEL_NONE;
     was_queued = j->status == SVC_JOB_QUEUED;
@@ -809,7 +814,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     pthread_mutex_unlock(&s->state_mu);
     /* a shared store: the replica that runs it (or starts it before
      * it reads the state written here) stops it at its next sweep */
-    if (rc == 0 && s->store->ops->shared && !run_here)
+    if ((rc == 0 || taken) && s->store->ops->shared && !run_here)
         svc__cancel_elsewhere(j, reason);
     if (changed) {
         s->store->ops->drop(s->store, j->id);
@@ -818,7 +823,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     }
     svc_job_unref(j);
     errno = e;
-    return rc == 0 ? 1 : -1;
+    return rc == 0 || taken ? 1 : -1;
 }
 
 /* ------------------------------------------- a store shared by replicas */

@@ -201,6 +201,12 @@ def test_result_over_proto_max_bulk_len_fails():
         assert cli("XPENDING", "mcfd:queue", "workers")[:1] == "0", "not acknowledged"
         st, _, body = http("GET", d.url + "/metrics")
         assert b'mcfd_jobs_total{scheme="desbrun2",status="failed"} 1' in body
+        # an input over it is refused at once: 413, not a storage error
+        with open(os.path.join(DATA, "meshes", "knot1.obj"), "rb") as f:
+            big = f.read() + b"#" * (1 << 20) + b"\n"
+        st, _, body = http("POST", d.url + "/v1/jobs?scheme=desbrun2", big,
+                           {"Content-Type": "application/octet-stream"})
+        assert st == 413 and b"proto-max-bulk-len" in body, (st, body[:300])
     finally:
         d.stop()
         cli("CONFIG", "SET", "proto-max-bulk-len", "512mb")
