@@ -1,10 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * api_gltf_encode.c - glTF 2.0 encoding (api_gltf_encode): a glTF input's
- * document rewritten with the smoothed surface, or a new document for a
- * mesh from any other format; and the plan record that carries a decoded
- * document from the decoder (possibly in the decode sandbox's child
- * process) to this encoder.
+ * document rewritten with the smoothed surface (a mesh from any other
+ * format gets a new document: api_gltf_fresh.c), and the JSON and
+ * container helpers both use.
  *
  * Rewriting changes only what the smoothing changed. Plain primitives:
  * POSITION and NORMAL values are overwritten in place in their buffers
@@ -28,12 +27,6 @@
  * base64 data: URI; one that was already a URI and did not change keeps
  * its text).
  *
- * A new document (any other input): one node, one mesh, one triangle
- * primitive, one buffer; a vertex per distinct (vertex, texcoord, normal,
- * colour) of the corners, float32 positions (with min and max), normals
- * recomputed, TEXCOORD_0 (v flipped to glTF's top-down convention),
- * COLOR_0, uint32 indices.
- *
  * The decoded document arrives as the plan record (api_gltf_plan.c).
  */
 #include <math.h>
@@ -43,12 +36,9 @@
 
 #include "api_internal.h"
 
-/* glTF's component types and buffer view targets */
-#define GL_FLOAT 5126
+/* glTF's index component types */
 #define GL_UINT 5125
 #define GL_USHORT 5123
-#define GL_ARRAY 34962
-#define GL_ELEMENTS 34963
 
 /* ----------------------------------------------------------- JSON helpers */
 
@@ -68,7 +58,7 @@ static cJSON **items(const cJSON *o, const char *k, int *n)
 }
 
 /* Sets member k of o to x (every earlier k removed). 0 on failure. */
-static int set_item(cJSON *o, const char *k, cJSON *x)
+int api__gltf_set_item(cJSON *o, const char *k, cJSON *x)
 {
     if (!x || !cJSON_IsObject(o)) {
         cJSON_Delete(x);
@@ -80,19 +70,19 @@ static int set_item(cJSON *o, const char *k, cJSON *x)
     return 1;
 }
 
-static int set_num(cJSON *o, const char *k, double v)
+int api__gltf_set_num(cJSON *o, const char *k, double v)
 {
-    return set_item(o, k, cJSON_CreateNumber(v));
+    return api__gltf_set_item(o, k, cJSON_CreateNumber(v));
 }
 
 /* Bounds as exact decimals: cJSON prints 15 significant digits whenever
  * they read back within a relative 2^-52, which can miss a float's value
  * by a double's ulp, and readers check min and max against the data. */
-static int set_vec3(cJSON *o, const char *k, const double v[3])
+int api__gltf_set_vec3(cJSON *o, const char *k, const double v[3])
 {
     char s[96];
     snprintf(s, sizeof s, "[%.17g,%.17g,%.17g]", v[0], v[1], v[2]);
-    return set_item(o, k, cJSON_CreateRaw(s));
+    return api__gltf_set_item(o, k, cJSON_CreateRaw(s));
 }
 
 /* A non-negative integer member (-1: absent or not one). */
@@ -133,9 +123,9 @@ static char *data_uri(const unsigned char *p, size_t n)
 /* Writes root and the buffers in container fmt to out: GLB (buffer 0
  * without a URI, or GLB-bound, as the BIN chunk) or .gltf (buffers that
  * changed or had no URI as data: URIs). */
-static mcf_status serialize(cJSON *root, unsigned char *const *buf,
-                            const size_t *blen, const int *dirty, int nbuf,
-                            api_format fmt, api_buf *out, mcf_error *err)
+mcf_status api__gltf_serialize(cJSON *root, unsigned char *const *buf,
+                               const size_t *blen, const int *dirty, int nbuf,
+                               api_format fmt, api_buf *out, mcf_error *err)
 {
     cJSON **b;
     int nb, i, ok = 1, bin = 0;
@@ -147,14 +137,14 @@ static mcf_status serialize(cJSON *root, unsigned char *const *buf,
         return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
     for (i = 0; i < nb && i < nbuf && ok; i++) {
         const cJSON *uri = cJSON_GetObjectItemCaseSensitive(b[i], "uri");
-        ok = set_num(b[i], "byteLength", (double)blen[i]);
+        ok = api__gltf_set_num(b[i], "byteLength", (double)blen[i]);
         if (fmt == API_FMT_GLB && i == 0) {
             bin = 1;
             while (cJSON_GetObjectItemCaseSensitive(b[i], "uri"))
                 cJSON_DeleteItemFromObjectCaseSensitive(b[i], "uri");
         } else if (!uri || dirty[i] || (fmt == API_FMT_GLTF && !cJSON_IsString(uri))) {
             char *s = data_uri(buf[i], blen[i]);
-            ok = ok && s && set_item(b[i], "uri", cJSON_CreateString(s));
+            ok = ok && s && api__gltf_set_item(b[i], "uri", cJSON_CreateString(s));
             free(s);
         }
     }
@@ -204,7 +194,7 @@ static float get_f32(const unsigned char *p)
 }
 
 /* min and max over n VEC3 floats at p, stride apart. */
-static void bounds(const unsigned char *p, int n, size_t stride, double lo[3],
+void api__gltf_bounds(const unsigned char *p, int n, size_t stride, double lo[3],
                    double hi[3])
 {
     int i, c;
@@ -267,20 +257,20 @@ static mcf_status redraco(api__gltf_prim *g, const double *X, const double *N,
         api__draco_prim_free(&back);
         return api__fail(err, MCF_EMESH, "gltf: the re-encoded stream lost POSITION");
     }
-    bounds(back.attr[i].data, back.npoints, 12, lo, hi);
+    api__gltf_bounds(back.attr[i].data, back.npoints, 12, lo, hi);
     cJSON_ArrayForEach(c, attrs)
         if (cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < nacc)
-            set_num(acc[(int)c->valuedouble], "count", back.npoints);
+            api__gltf_set_num(acc[(int)c->valuedouble], "count", back.npoints);
     ix = int_of(prim, "indices");
     if (ix >= 0 && ix < nacc) {
-        set_num(acc[ix], "count", 3.0 * back.nfaces);
+        api__gltf_set_num(acc[ix], "count", 3.0 * back.nfaces);
         /* unsigned short indices where they fit (a type too narrow for
          * the new point count would be wrong; assimp 5.2 reads Draco's
          * unsigned int indices as none), unsigned int beyond */
-        set_num(acc[ix], "componentType", back.npoints <= 65535 ? GL_USHORT : GL_UINT);
+        api__gltf_set_num(acc[ix], "componentType", back.npoints <= 65535 ? GL_USHORT : GL_UINT);
     }
     if (g->pos.acc >= 0 && g->pos.acc < nacc &&
-        !(set_vec3(acc[g->pos.acc], "min", lo) && set_vec3(acc[g->pos.acc], "max", hi)))
+        !(api__gltf_set_vec3(acc[g->pos.acc], "min", lo) && api__gltf_set_vec3(acc[g->pos.acc], "max", hi)))
         rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
     api__draco_prim_free(&back);
     return rc;
@@ -318,8 +308,8 @@ static mcf_status relayout(api__gltf_doc *d, int b, cJSON **view, int nview,
         }
         len = (len + 3) / 4 * 4 + (size_t)(off % 4);
         memcpy(nb + len, src, (size_t)n);
-        if (!set_num(view[v], "byteOffset", (double)len) ||
-            !set_num(view[v], "byteLength", (double)n)) {
+        if (!api__gltf_set_num(view[v], "byteOffset", (double)len) ||
+            !api__gltf_set_num(view[v], "byteLength", (double)n)) {
             free(nb);
             return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
         }
@@ -331,6 +321,78 @@ static mcf_status relayout(api__gltf_doc *d, int b, cJSON **view, int nview,
     return MCF_OK;
 }
 
+/* The JSON primitive of g, checked: its record names this mesh's
+ * vertices (nv) and normal groups (nn), its POSITION accessor is one of
+ * nacc. */
+static mcf_status prim_of(const api__gltf_prim *g, int nv, int nn, cJSON **mesh, int nmesh,
+                          int nacc, cJSON **prim, mcf_error *err)
+{
+    int v;
+
+    *prim = g->mesh < nmesh
+                ? cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(mesh[g->mesh], "primitives"),
+                                     g->index)
+                : NULL;
+    for (v = 0; v < g->nvert; v++)
+        if (g->vmap[v] >= nv || (g->ngroup && g->ngroup[v] >= nn && nn))
+            return api__fail(err, MCF_EINVAL, "gltf: the document's record does not "
+                             "belong to this mesh");
+    if (!*prim || g->pos.acc < 0 || g->pos.acc >= nacc)
+        return api__fail(err, MCF_EDECODE, "gltf: mesh %d primitive %d is not in the "
+                         "document", g->mesh, g->index);
+    return MCF_OK;
+}
+
+/* A plain primitive: its POSITION (and NORMAL) values overwritten in
+ * place, their buffers marked dirty, then POSITION's bounds over the
+ * whole accessor (pos). */
+static mcf_status rewrite_plain(api__gltf_doc *d, const api__gltf_prim *g, const double *X,
+                                const double *N, cJSON *pos, int *dirty, mcf_error *err)
+{
+    double lo[3], hi[3];
+    int v, k;
+
+    for (v = 0; v < g->nvert; v++)
+        for (k = 0; k < 3; k++) {
+            if (g->vmap[v] >= 0)
+                api__put_f32(d->buf[g->pos.buf] + g->pos.off +
+                                 (size_t)g->pos.stride * (size_t)v + 4 * (size_t)k,
+                             (float)X[3 * (size_t)g->vmap[v] + k]);
+            if (N && g->ngroup && g->ngroup[v] >= 0 && g->nrm.buf >= 0)
+                api__put_f32(d->buf[g->nrm.buf] + g->nrm.off +
+                                 (size_t)g->nrm.stride * (size_t)v + 4 * (size_t)k,
+                             (float)N[3 * (size_t)g->ngroup[v] + k]);
+        }
+    dirty[g->pos.buf] = 1;
+    if (g->nrm.buf >= 0)
+        dirty[g->nrm.buf] = 1;
+    api__gltf_bounds(d->buf[g->pos.buf] + g->pos.off, g->nvert, (size_t)g->pos.stride, lo, hi);
+    if (!api__gltf_set_vec3(pos, "min", lo) || !api__gltf_set_vec3(pos, "max", hi))
+        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
+    return MCF_OK;
+}
+
+/* The buffers holding the ns new Draco streams (streams[i] for view
+ * sv[i]), each laid out again once (dirty 2). */
+static mcf_status relayout_streams(api__gltf_doc *d, cJSON **view, int nview, const int *sv,
+                                   api_buf *streams, int ns, int *dirty, mcf_error *err)
+{
+    mcf_status rc;
+    int p;
+
+    for (p = 0; p < ns; p++) {
+        long long b = int_of(view[sv[p]], "buffer");
+        if (b < 0 || b >= d->nbuf)
+            return api__fail(err, MCF_EDECODE, "gltf: buffer view %d has no buffer", sv[p]);
+        if (dirty[b] != 2) {
+            if ((rc = relayout(d, (int)b, view, nview, sv, streams, ns, err)) != MCF_OK)
+                return rc;
+            dirty[b] = 2;
+        }
+    }
+    return MCF_OK;
+}
+
 static mcf_status rewrite(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
                           mcf_error *err)
 {
@@ -339,9 +401,9 @@ static mcf_status rewrite(const mcf_mesh *m, const api_encode_opts *o, api_buf *
     const int nv = mcf_mesh_nvertices(m);
     const int nn = at->a[API_ATTR_NORMAL].corners ? at->a[API_ATTR_NORMAL].nvalues : 0;
     api__gltf_doc d;
-    cJSON *root = NULL, **acc = NULL, **view = NULL, **mesh = NULL;
+    cJSON *root = NULL, **acc = NULL, **view = NULL, **mesh = NULL, *prim;
     double *N = NULL;
-    int *dirty = NULL, *sv = NULL, nacc, nview, nmesh, p, v, k, ns = 0;
+    int *dirty = NULL, *sv = NULL, nacc, nview, nmesh, p, ns = 0;
     api_buf *streams = NULL;
     mcf_status rc = api__gltf_unplan(at->gltf, at->gltf_len, &d, err);
 
@@ -363,71 +425,23 @@ static mcf_status rewrite(const mcf_mesh *m, const api_encode_opts *o, api_buf *
     }
     for (p = 0; p < d.nprim; p++) {
         api__gltf_prim *g = &d.prim[p];
-        cJSON *prim = g->mesh < nmesh
-                          ? cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(
-                                                   mesh[g->mesh], "primitives"),
-                                               g->index)
-                          : NULL;
-        for (v = 0; v < g->nvert; v++)
-            if (g->vmap[v] >= nv || (g->ngroup && g->ngroup[v] >= nn && nn)) {
-                rc = api__fail(err, MCF_EINVAL, "gltf: the document's record does not "
-                               "belong to this mesh");
-                goto done;
-            }
-        if (!prim || g->pos.acc < 0 || g->pos.acc >= nacc) {
-            rc = api__fail(err, MCF_EDECODE, "gltf: mesh %d primitive %d is not in the "
-                           "document", g->mesh, g->index);
+        if ((rc = prim_of(g, nv, nn, mesh, nmesh, nacc, &prim, err)) != MCF_OK)
             goto done;
-        }
-        if (g->draco_view >= 0) {
-            if (g->draco_view >= nview) {
-                rc = api__fail(err, MCF_EDECODE, "gltf: no buffer view %d", g->draco_view);
-                goto done;
-            }
+        if (g->draco_view < 0)
+            rc = rewrite_plain(&d, g, X, N, acc[g->pos.acc], dirty, err);
+        else if (g->draco_view >= nview)
+            rc = api__fail(err, MCF_EDECODE, "gltf: no buffer view %d", g->draco_view);
+        else {
             api_buf_init(&streams[ns], (size_t)-1);
             sv[ns] = g->draco_view;
-            if ((rc = redraco(g, X, N, o, prim, acc, nacc, &streams[ns++], err)) != MCF_OK)
-                goto done;
-            continue;
+            rc = redraco(g, X, N, o, prim, acc, nacc, &streams[ns++], err);
         }
-        /* plain: in place, then POSITION's bounds over the whole accessor */
-        for (v = 0; v < g->nvert; v++)
-            for (k = 0; k < 3; k++) {
-                if (g->vmap[v] >= 0)
-                    api__put_f32(d.buf[g->pos.buf] + g->pos.off +
-                                     (size_t)g->pos.stride * (size_t)v + 4 * (size_t)k,
-                                 (float)X[3 * (size_t)g->vmap[v] + k]);
-                if (N && g->ngroup && g->ngroup[v] >= 0 && g->nrm.buf >= 0)
-                    api__put_f32(d.buf[g->nrm.buf] + g->nrm.off +
-                                     (size_t)g->nrm.stride * (size_t)v + 4 * (size_t)k,
-                                 (float)N[3 * (size_t)g->ngroup[v] + k]);
-            }
-        dirty[g->pos.buf] = 1;
-        if (g->nrm.buf >= 0)
-            dirty[g->nrm.buf] = 1;
-        {
-            double lo[3], hi[3];
-            bounds(d.buf[g->pos.buf] + g->pos.off, g->nvert, (size_t)g->pos.stride, lo, hi);
-            if (!set_vec3(acc[g->pos.acc], "min", lo) || !set_vec3(acc[g->pos.acc], "max", hi)) {
-                rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-                goto done;
-            }
-        }
-    }
-    /* buffers holding a new Draco stream: laid out again */
-    for (p = 0; p < ns; p++) {
-        long long b = int_of(view[sv[p]], "buffer");
-        if (b < 0 || b >= d.nbuf) {
-            rc = api__fail(err, MCF_EDECODE, "gltf: buffer view %d has no buffer", sv[p]);
+        if (rc != MCF_OK)
             goto done;
-        }
-        if (dirty[b] != 2) {
-            if ((rc = relayout(&d, (int)b, view, nview, sv, streams, ns, err)) != MCF_OK)
-                goto done;
-            dirty[b] = 2;
-        }
     }
-    rc = serialize(root, d.buf, d.buf_len, dirty, d.nbuf,
+    if ((rc = relayout_streams(&d, view, nview, sv, streams, ns, dirty, err)) != MCF_OK)
+        goto done;
+    rc = api__gltf_serialize(root, d.buf, d.buf_len, dirty, d.nbuf,
                    o->format == API_FMT_GLB || o->format == API_FMT_GLTF ? o->format
                                                                           : d.container,
                    out, err);
@@ -443,293 +457,6 @@ done:
     free(N);
     cJSON_Delete(root);
     api__gltf_doc_free(&d);
-    return rc;
-}
-
-/* ----------------------------------------------------------- new document */
-
-/* A glTF vertex: one mesh vertex with one value of each attribute. */
-typedef struct {
-    int32_t k[4];           /* vertex, texcoord, normal, colour (-1: none) */
-    int32_t corner;
-} corner_key;
-
-static int cmp_corner(const void *pa, const void *pb)
-{
-    const corner_key *a = pa, *b = pb;
-    int i;
-    for (i = 0; i < 4; i++)
-        if (a->k[i] != b->k[i])
-            return a->k[i] < b->k[i] ? -1 : 1;
-    return (a->corner > b->corner) - (a->corner < b->corner);
-}
-
-/* Adds a bufferView over [off, off + n) of buffer 0 and an accessor of
- * count elements of type and component type ct; returns its index. */
-static int add_accessor(cJSON *root, size_t off, size_t n, int count, const char *type,
-                        int ct, int target)
-{
-    cJSON *views = cJSON_GetObjectItemCaseSensitive(root, "bufferViews");
-    cJSON *accs = cJSON_GetObjectItemCaseSensitive(root, "accessors");
-    cJSON *v = cJSON_CreateObject(), *a = cJSON_CreateObject();
-    int id = cJSON_GetArraySize(accs);
-    if (!v || !a || !cJSON_AddItemToArray(views, v) || !cJSON_AddItemToArray(accs, a)) {
-        cJSON_Delete(v);
-        cJSON_Delete(a);
-        return -1;
-    }
-    if (!cJSON_AddNumberToObject(v, "buffer", 0) ||
-        !cJSON_AddNumberToObject(v, "byteOffset", (double)off) ||
-        !cJSON_AddNumberToObject(v, "byteLength", (double)n) ||
-        !cJSON_AddNumberToObject(v, "target", target) ||
-        !cJSON_AddNumberToObject(a, "bufferView", cJSON_GetArraySize(views) - 1) ||
-        !cJSON_AddNumberToObject(a, "componentType", ct) ||
-        !cJSON_AddNumberToObject(a, "count", count) ||
-        !cJSON_AddStringToObject(a, "type", type))
-        return -1;
-    return id;
-}
-
-
-/* A mesh that came from Draco, as a KHR_draco_mesh_compression
- * primitive: api_draco_encode's stream (its quantization kept, texture
- * coordinates flipped to glTF's convention first) in *bin, accessors
- * without data whose counts and bounds are what the stream decodes to.
- * Returns 0 (nothing added) when the stream's positions are not float32
- * (lossless doubles), which glTF cannot carry: the caller writes plain. */
-static mcf_status fresh_draco(const mcf_mesh *m, const api_encode_opts *o, cJSON *root,
-                              cJSON *prim, unsigned char **bin, size_t *blen,
-                              int *done, mcf_error *err)
-{
-    static const struct {
-        int type;
-        const char *name, *gtype;
-    } names[] = {{0, "POSITION", "VEC3"}, {1, "NORMAL", "VEC3"}, {3, "TEXCOORD_0", "VEC2"},
-                 {2, "COLOR_0", NULL}};
-    api_attrs *flip = api_attrs_new(mcf_mesh_nvertices(m), mcf_mesh_nfaces(m));
-    api_encode_opts eo = *o;
-    api_buf stream;
-    api__draco_prim back;
-    cJSON *attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes"), *ext, *accs;
-    int i, k, ok = 1;
-    mcf_status rc = MCF_OK;
-
-    *done = 0;
-    memset(&back, 0, sizeof back);
-    api_buf_init(&stream, (size_t)-1);
-    if (!flip)
-        return api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-    flip->float32 = o->attrs->float32;
-    flip->pos_bits = o->attrs->pos_bits;
-    for (k = 0; k < API_ATTR_KINDS && rc == MCF_OK; k++) {
-        const api__attr *a = &o->attrs->a[k];
-        if (!a->corners)
-            continue;
-        rc = api_attrs_set(flip, (api_attr_kind)k, a->ncomp, a->nvalues, a->values,
-                           a->corners, err);
-        if (rc == MCF_OK) {
-            api__attr *f = &flip->a[k];
-            f->bits = a->bits;
-            memcpy(f->qorigin, a->qorigin, sizeof f->qorigin);
-            f->qrange = a->qrange;
-            for (i = 0; k == API_ATTR_TEXCOORD && i < f->nvalues; i++)
-                f->values[2 * (size_t)i + 1] = 1.0 - f->values[2 * (size_t)i + 1];
-            if (k == API_ATTR_TEXCOORD)
-                f->qorigin[1] = 1.0f - f->qorigin[1] - f->qrange;
-        }
-    }
-    eo.format = API_FMT_DRACO;
-    eo.attrs = flip;
-    if (rc == MCF_OK && (rc = api_draco_encode(m, &eo, &stream, NULL, err)) == MCF_OK &&
-        (rc = api__draco_prim_decode(stream.data, stream.len, NULL, &back, err)) == MCF_OK) {
-        double lo[3], hi[3];
-        int id = -1;
-        for (i = 0; i < back.nattr; i++)
-            if (back.attr[i].type == 0 &&
-                (back.attr[i].dtype != API__DRACO_FLOAT32 || back.attr[i].ncomp != 3))
-                goto plain;
-        accs = cJSON_GetObjectItemCaseSensitive(root, "accessors");
-        ext = cJSON_CreateObject();
-        ok = ext && set_num(ext, "bufferView", 0) &&
-             set_item(ext, "attributes", cJSON_CreateObject()) &&
-             set_item(prim, "extensions", cJSON_CreateObject()) &&
-             set_item(cJSON_GetObjectItemCaseSensitive(prim, "extensions"),
-                      "KHR_draco_mesh_compression", ext);
-        for (i = 0; ok && i < back.nattr; i++) {
-            const api__draco_attr *a = &back.attr[i];
-            cJSON *acc;
-            for (k = 0; k < 4 && names[k].type != a->type; k++)
-                ;
-            if (k == 4)
-                continue;
-            if (a->type == 0)
-                bounds(a->data, back.npoints, 12, lo, hi);
-            id = cJSON_GetArraySize(accs);
-            ok = (acc = cJSON_CreateObject()) != NULL && cJSON_AddItemToArray(accs, acc) &&
-                 set_num(acc, "componentType", a->dtype == API__DRACO_FLOAT32 ? GL_FLOAT : 5121) &&
-                 set_num(acc, "count", back.npoints) &&
-                 set_item(acc, "type", cJSON_CreateString(
-                                           names[k].gtype ? names[k].gtype
-                                                          : a->ncomp == 4 ? "VEC4" : "VEC3")) &&
-                 (a->dtype == API__DRACO_FLOAT32 || cJSON_AddTrueToObject(acc, "normalized")) &&
-                 (a->type != 0 || (set_vec3(acc, "min", lo) && set_vec3(acc, "max", hi))) &&
-                 set_num(attrs, names[k].name, id) &&
-                 set_num(cJSON_GetObjectItemCaseSensitive(ext, "attributes"), names[k].name,
-                         a->id);
-        }
-        id = cJSON_GetArraySize(accs);
-        ok = ok && (ext = cJSON_CreateObject()) != NULL && cJSON_AddItemToArray(accs, ext) &&
-             set_num(ext, "componentType", back.npoints <= 65535 ? GL_USHORT : GL_UINT) &&
-             set_num(ext, "count", 3.0 * back.nfaces) &&
-             set_item(ext, "type", cJSON_CreateString("SCALAR")) && set_num(prim, "indices", id) &&
-             set_item(root, "extensionsUsed", cJSON_CreateStringArray(
-                                                  (const char *const[]){"KHR_draco_mesh_compression"}, 1)) &&
-             set_item(root, "extensionsRequired", cJSON_CreateStringArray(
-                                                      (const char *const[]){"KHR_draco_mesh_compression"}, 1)) &&
-             cJSON_AddItemToArray(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"),
-                                  cJSON_CreateObject()) &&
-             set_num(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), 0),
-                     "buffer", 0) &&
-             set_num(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), 0),
-                     "byteLength", (double)stream.len);
-        if (!ok)
-            rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-        else {
-            *bin = (unsigned char *)api_buf_detach(&stream, blen);
-            *done = 1;
-        }
-    }
-plain:
-    api__draco_prim_free(&back);
-    api_buf_free(&stream);
-    api_attrs_free(flip);
-    return rc;
-}
-
-static mcf_status fresh(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
-                        mcf_error *err)
-{
-    const api_attrs *at = o->attrs;
-    const api__attr *tc = at && at->a[API_ATTR_TEXCOORD].corners ? &at->a[API_ATTR_TEXCOORD] : NULL;
-    const api__attr *nm = at && at->a[API_ATTR_NORMAL].corners ? &at->a[API_ATTR_NORMAL] : NULL;
-    const api__attr *co = at && at->a[API_ATTR_COLOR].corners ? &at->a[API_ATTR_COLOR] : NULL;
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    const size_t nc = 3 * (size_t)mcf_mesh_nfaces(m);
-    const int ncol = co ? co->ncomp : 0;
-    corner_key *keys = malloc(sizeof *keys * nc);
-    int32_t *point = malloc(sizeof *point * nc);
-    double *N = NULL, lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-    unsigned char *bin = NULL;
-    size_t np = 0, i, stride, off[5], blen;
-    cJSON *root = cJSON_Parse("{\"asset\":{\"version\":\"2.0\",\"generator\":\"mcfd\"},"
-                              "\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
-                              "\"meshes\":[{\"primitives\":[{\"attributes\":{},\"mode\":4}]}],"
-                              "\"accessors\":[],\"bufferViews\":[],\"buffers\":[{}]}");
-    cJSON *prim, *attrs;
-    int ok, dirty = 1, a;
-    mcf_status rc = MCF_OK;
-
-    if (!keys || !point || !root) {
-        rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-        goto done;
-    }
-    prim = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(
-                                  cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "meshes"), 0),
-                                  "primitives"), 0);
-    attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes");
-    if (at && at->pos_bits >= 0) {
-        /* it came from Draco: it leaves as Draco */
-        int done = 0;
-        if ((rc = fresh_draco(m, o, root, prim, &bin, &blen, &done, err)) != MCF_OK)
-            goto done;
-        if (done) {
-            rc = serialize(root, &bin, &blen, &dirty, 1, o->format, out, err);
-            goto done;
-        }
-    }
-    if (nm && (rc = api__attrs_normals(at, m, &N, err)) != MCF_OK)
-        goto done;
-    for (i = 0; i < nc; i++) {
-        keys[i].k[0] = F[i];
-        keys[i].k[1] = tc ? tc->corners[i] : -1;
-        keys[i].k[2] = nm ? nm->corners[i] : -1;
-        keys[i].k[3] = co ? co->corners[i] : -1;
-        keys[i].corner = (int32_t)i;
-    }
-    qsort(keys, nc, sizeof *keys, cmp_corner);
-    for (i = 0; i < nc; i++) {
-        if (i > 0 && memcmp(keys[i].k, keys[i - 1].k, sizeof keys[i].k) != 0)
-            np++;
-        point[keys[i].corner] = (int32_t)np;
-    }
-    np++;
-    /* positions, normals, texcoords, colours, indices: 4-aligned each */
-    stride = 12 + (nm ? 12 : 0) + (tc ? 8 : 0) + 4 * (size_t)ncol;
-    off[0] = 0;
-    off[1] = 12 * np;
-    off[2] = off[1] + (nm ? 12 * np : 0);
-    off[3] = off[2] + (tc ? 8 * np : 0);
-    off[4] = off[3] + 4 * (size_t)ncol * np;
-    blen = off[4] + 4 * nc;
-    (void)stride;
-    if (!(bin = calloc(blen + 1, 1))) {
-        rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory for %zu bytes", blen);
-        goto done;
-    }
-    for (i = 0; i < nc; i++) {
-        const corner_key *k = &keys[i];
-        size_t pt = (size_t)point[k->corner];
-        int c;
-        for (c = 0; c < 3; c++) {
-            double x = X[3 * (size_t)k->k[0] + c];
-            api__put_f32(bin + off[0] + 12 * pt + 4 * (size_t)c, (float)x);
-            lo[c] = (float)x < lo[c] ? (float)x : lo[c];
-            hi[c] = (float)x > hi[c] ? (float)x : hi[c];
-            if (nm)
-                api__put_f32(bin + off[1] + 12 * pt + 4 * (size_t)c,
-                             (float)N[3 * (size_t)k->k[2] + c]);
-        }
-        if (tc) {
-            api__put_f32(bin + off[2] + 8 * pt, (float)tc->values[2 * (size_t)k->k[1]]);
-            api__put_f32(bin + off[2] + 8 * pt + 4,
-                         (float)(1.0 - tc->values[2 * (size_t)k->k[1] + 1]));
-        }
-        for (c = 0; c < ncol; c++)
-            api__put_f32(bin + off[3] + 4 * (size_t)ncol * pt + 4 * (size_t)c,
-                         (float)co->values[(size_t)ncol * (size_t)k->k[3] + c]);
-        api__put_le32(bin + off[4] + 4 * (size_t)k->corner, (uint32_t)pt);
-    }
-    a = add_accessor(root, off[0], 12 * np, (int)np, "VEC3", GL_FLOAT, GL_ARRAY);
-    ok = a >= 0 && cJSON_AddNumberToObject(attrs, "POSITION", a) &&
-         set_vec3(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a),
-                  "min", lo) &&
-         set_vec3(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a),
-                  "max", hi);
-    if (ok && nm)
-        ok = (a = add_accessor(root, off[1], 12 * np, (int)np, "VEC3", GL_FLOAT, GL_ARRAY)) >= 0 &&
-             cJSON_AddNumberToObject(attrs, "NORMAL", a);
-    if (ok && tc)
-        ok = (a = add_accessor(root, off[2], 8 * np, (int)np, "VEC2", GL_FLOAT, GL_ARRAY)) >= 0 &&
-             cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
-    if (ok && co)
-        ok = (a = add_accessor(root, off[3], 4 * (size_t)ncol * np, (int)np,
-                               ncol == 4 ? "VEC4" : "VEC3", GL_FLOAT, GL_ARRAY)) >= 0 &&
-             cJSON_AddNumberToObject(attrs, "COLOR_0", a);
-    if (ok)
-        ok = (a = add_accessor(root, off[4], 4 * nc, (int)nc, "SCALAR", GL_UINT, GL_ELEMENTS)) >= 0 &&
-             cJSON_AddNumberToObject(prim, "indices", a);
-    if (!ok) {
-        rc = api__fail(err, MCF_ENOMEM, "gltf: out of memory");
-        goto done;
-    }
-    rc = serialize(root, &bin, &blen, &dirty, 1, o->format, out, err);
-done:
-    free(keys);
-    free(point);
-    free(N);
-    free(bin);
-    cJSON_Delete(root);
     return rc;
 }
 
@@ -751,5 +478,5 @@ mcf_status api_gltf_encode(const mcf_mesh *m, const api_encode_opts *o, api_buf 
         return api__fail(err, MCF_EINVAL,
                          "gltf: compression_level %d out of range (0..10)",
                          o->compression_level);
-    return o->attrs && o->attrs->gltf ? rewrite(m, o, out, err) : fresh(m, o, out, err);
+    return o->attrs && o->attrs->gltf ? rewrite(m, o, out, err) : api__gltf_fresh(m, o, out, err);
 }

@@ -429,4 +429,23 @@ mcf_status api__gltf_plan(const api__gltf_doc *doc, api_buf *out,
 mcf_status api__gltf_unplan(const void *buf, size_t len, api__gltf_doc *doc,
                             mcf_error *err);
 
+/* glTF encoding's helpers (api_gltf_encode.c), shared with the new
+ * document's writer (api_gltf_fresh.c). set_item sets member k of o to x
+ * (every earlier k removed; x deleted on failure), set_num a number,
+ * set_vec3 a VEC3 as exact decimals (min, max); 0 on failure. bounds: min
+ * and max over n VEC3 floats at p, stride apart. serialize: root and the
+ * nbuf buffers in container fmt (GLB: buffer 0 as its BIN chunk; .gltf:
+ * data: URIs, a buffer not dirty that was a URI keeps its text) to out. */
+int api__gltf_set_item(cJSON *o, const char *k, cJSON *x);
+int api__gltf_set_num(cJSON *o, const char *k, double v);
+int api__gltf_set_vec3(cJSON *o, const char *k, const double v[3]);
+void api__gltf_bounds(const unsigned char *p, int n, size_t stride, double lo[3],
+                      double hi[3]);
+mcf_status api__gltf_serialize(cJSON *root, unsigned char *const *buf,
+                               const size_t *blen, const int *dirty, int nbuf,
+                               api_format fmt, api_buf *out, mcf_error *err);
+/* A new document for a mesh from any format but glTF (api_gltf_fresh.c). */
+mcf_status api__gltf_fresh(const mcf_mesh *m, const api_encode_opts *o, api_buf *out,
+                           mcf_error *err);
+
 #endif /* API_INTERNAL_H */

@@ -105,6 +105,56 @@ static void *take_array(api__reader *r, size_t count, size_t size, int *short_in
     return a;
 }
 
+/* Attribute kind k's record, when present, into a (nf faces). */
+static mcf_status unpack_attr(api__reader *r, api_attrs *a, int k, int32_t nf, mcf_error *err)
+{
+    int32_t present, ncomp, nvalues, bits;
+    float qo[4], qr;
+    double *v;
+    int32_t *c;
+    mcf_status rc;
+    int shrt;
+
+    if (!api__take(r, &present, 4))
+        return api__fail(err, MCF_EDECODE, "unpack: truncated attributes");
+    if (!present)
+        return MCF_OK;
+    if (!api__take(r, &ncomp, 4) || !api__take(r, &nvalues, 4) ||
+        !api__take(r, &bits, 4) || !api__take(r, qo, sizeof qo) ||
+        !api__take(r, &qr, sizeof qr) || ncomp < 2 || ncomp > 4 ||
+        nvalues < 0 || nvalues > 3 * nf)
+        return api__fail(err, MCF_EDECODE, "unpack: bad attribute %d", k);
+    v = take_array(r, (size_t)ncomp * (size_t)nvalues, sizeof *v, &shrt);
+    c = v ? take_array(r, 3 * (size_t)nf, sizeof *c, &shrt) : NULL;
+    if (!c) {
+        free(v);
+        return shrt ? api__fail(err, MCF_EDECODE, "unpack: truncated attributes")
+                    : api__fail(err, MCF_ENOMEM, "unpack: out of memory");
+    }
+    if ((rc = api__attrs_take(a, (api_attr_kind)k, ncomp, nvalues, v, c, err)) != MCF_OK)
+        return rc;
+    a->a[k].bits = bits;
+    memcpy(a->a[k].qorigin, qo, sizeof qo);
+    a->a[k].qrange = qr;
+    return MCF_OK;
+}
+
+/* The glTF plan record (its length, then its bytes) into a. */
+static mcf_status unpack_gltf(api__reader *r, api_attrs *a, const api_limits *lim,
+                              mcf_error *err)
+{
+    uint64_t gl = 0;
+    int shrt;
+
+    if (!api__take(r, &gl, sizeof gl) || gl > api_mesh_pack_max(lim))
+        return api__fail(err, MCF_EDECODE, "unpack: bad glTF record");
+    if (gl && !(a->gltf = take_array(r, (size_t)gl, 1, &shrt)))
+        return shrt ? api__fail(err, MCF_EDECODE, "unpack: truncated glTF record")
+                    : api__fail(err, MCF_ENOMEM, "unpack: out of memory");
+    a->gltf_len = (size_t)gl;
+    return MCF_OK;
+}
+
 mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
                            mcf_mesh **out, api_attrs **attrs, mcf_error *err)
 {
@@ -140,52 +190,11 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
     }
     a->float32 = f32 != 0;
     a->pos_bits = pbits;
-    for (k = 0; k < API_ATTR_KINDS; k++) {
-        int32_t present, ncomp, nvalues, bits;
-        float qo[4], qr;
-        double *v;
-        int32_t *c;
-        if (!api__take(&r, &present, 4)) {
-            rc = api__fail(err, MCF_EDECODE, "unpack: truncated attributes");
+    for (k = 0; k < API_ATTR_KINDS; k++)
+        if ((rc = unpack_attr(&r, a, k, nf, err)) != MCF_OK)
             goto fail;
-        }
-        if (!present)
-            continue;
-        if (!api__take(&r, &ncomp, 4) || !api__take(&r, &nvalues, 4) ||
-            !api__take(&r, &bits, 4) || !api__take(&r, qo, sizeof qo) ||
-            !api__take(&r, &qr, sizeof qr) || ncomp < 2 || ncomp > 4 ||
-            nvalues < 0 || nvalues > 3 * nf) {
-            rc = api__fail(err, MCF_EDECODE, "unpack: bad attribute %d", k);
-            goto fail;
-        }
-        v = take_array(&r, (size_t)ncomp * (size_t)nvalues, sizeof *v, &shrt);
-        c = v ? take_array(&r, 3 * (size_t)nf, sizeof *c, &shrt) : NULL;
-        if (!c) {
-            free(v);
-            rc = shrt ? api__fail(err, MCF_EDECODE, "unpack: truncated attributes")
-                      : api__fail(err, MCF_ENOMEM, "unpack: out of memory");
-            goto fail;
-        }
-        if ((rc = api__attrs_take(a, (api_attr_kind)k, ncomp, nvalues, v, c,
-                                  err)) != MCF_OK)
-            goto fail;
-        a->a[k].bits = bits;
-        memcpy(a->a[k].qorigin, qo, sizeof qo);
-        a->a[k].qrange = qr;
-    }
-    {
-        uint64_t gl = 0;
-        if (!api__take(&r, &gl, sizeof gl) || gl > api_mesh_pack_max(lim)) {
-            rc = api__fail(err, MCF_EDECODE, "unpack: bad glTF record");
-            goto fail;
-        }
-        if (gl && !(a->gltf = take_array(&r, (size_t)gl, 1, &shrt))) {
-            rc = shrt ? api__fail(err, MCF_EDECODE, "unpack: truncated glTF record")
-                      : api__fail(err, MCF_ENOMEM, "unpack: out of memory");
-            goto fail;
-        }
-        a->gltf_len = (size_t)gl;
-    }
+    if ((rc = unpack_gltf(&r, a, lim, err)) != MCF_OK)
+        goto fail;
     if (r.p != r.end) {
         rc = api__fail(err, MCF_EDECODE, "unpack: %zu bytes after the record",
                        (size_t)(r.end - r.p));

@@ -212,131 +212,131 @@ static srv_gauges gauges(srv_rest *d)
     return g;
 }
 
-static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
-                                  const char *url, const char *method)
+/* The checks every request meets before its route's answer: a printable
+ * path, a route, a bounded query, the token (not for the probes, the
+ * metrics and the page, whose API calls carry it), the method of a fixed
+ * route. 0 when it goes on; else 1 and *ret, the answer sent. */
+static int refused(srv_request *r, struct MHD_Connection *c, const char *url,
+                   const char *method, enum MHD_Result *ret)
 {
-    srv_rest *d = r->door;
-    svc_error p;
     const char *q = srv_query_of(r);
     long at;
 
-    snprintf(r->method, sizeof r->method, "%s", method);
-    snprintf(r->path, sizeof r->path, "%s", url);
     if ((at = path_control_byte(r->uri)) >= 0) {
         snprintf(r->path, sizeof r->path, "%.*s", (int)strcspn(r->uri, "?"), r->uri);
-        return srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "the path has a control "
+        *ret = srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "the path has a control "
                                  "byte at byte %ld (%.3s): a path is printable", at,
                                  r->uri[at] == '%' ? r->uri + at : "raw");
-    }
-    if (parse_route(r, url) != 0)
-        return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
-    if (q && strlen(q) > SRV_MAX_QUERY)
-        return srv_send_problemf(r, c, SVC_P_URI_LIMIT, "the query string has %zu bytes, "
+    } else if (parse_route(r, url) != 0)
+        *ret = srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
+    else if (q && strlen(q) > SRV_MAX_QUERY)
+        *ret = srv_send_problemf(r, c, SVC_P_URI_LIMIT, "the query string has %zu bytes, "
                                  "more than %d: send the parameters as a multipart "
                                  "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
-    /* The page is public too (ui.c): its API calls carry the token. */
-    if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
-        r->rt != RT_UI && !authorized(r->door, c))
-        return srv_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
+    else if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
+             r->rt != RT_UI && !authorized(r->door, c))
+        *ret = srv_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
                                  "<token>' header is required");
-    switch (r->rt) {
-    case RT_HEALTHZ:
-    case RT_READYZ:
-    case RT_METRICS:
-    case RT_OPENAPI:
-    case RT_SCHEMES:
-    case RT_UI:
-        if (!is_get(method)) {
-            svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s",
-                            method, url);
-            return srv_send_problem(r, c, &p, NULL);
-        }
-        break;
-    case RT_SMOOTH:
-    case RT_JOBS:
-        if (strcmp(method, "POST") != 0) {
-            svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s; "
-                            "POST a mesh", method, url);
-            return srv_send_problem(r, c, &p, NULL);
-        }
-        break;
-    default:
-        return srv_route_job(r, c, method);
-    }
+    else if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && strcmp(method, "POST") != 0)
+        *ret = srv_send_problemf(r, c, SVC_P_METHOD, "%s is not allowed on %s; "
+                                 "POST a mesh", method, url);
+    else if ((r->rt <= RT_SCHEMES || r->rt == RT_UI) && !is_get(method))
+        *ret = srv_send_problemf(r, c, SVC_P_METHOD, "%s is not allowed on %s", method, url);
+    else
+        return 0;
+    return 1;
+}
 
-    /* A door that no longer accepts (the gRPC door: h2gate_health) makes
-     * the daemon unhealthy, so an orchestrator restarts it. */
-    if (r->rt == RT_HEALTHZ || r->rt == RT_READYZ) {
-        char why[300];
-        if (d->dm.health && d->dm.health(d->dm.ctx, why, sizeof why) != 0)
-            return srv_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", why);
-    }
+/* /healthz and /readyz. A door that no longer accepts (the gRPC door:
+ * h2gate_health) makes the daemon unhealthy, so an orchestrator restarts
+ * it. Draining and a spool that cannot be written make it unready (every
+ * job goes through the spool). A full queue does not: it is answered per
+ * request (503 + Retry-After), and an orchestrator flapping every replica
+ * out of its Service under load would turn those into connection errors. */
+static enum MHD_Result send_probe(srv_request *r, struct MHD_Connection *c)
+{
+    srv_rest *d = r->door;
+    char sick[300], why[1500];
+    srv_gauges g;
+    cJSON *o;
+
+    if (d->dm.health && d->dm.health(d->dm.ctx, sick, sizeof sick) != 0)
+        return srv_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", sick);
     if (r->rt == RT_HEALTHZ) {
-        cJSON *o = cJSON_CreateObject();
+        o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ok");
         return srv_send_json(r, c, 200, o);
     }
-    if (r->rt == RT_READYZ) {
-        srv_gauges g = gauges(d);
-        cJSON *o;
-        /* Draining and a spool that cannot be written make the daemon
-         * unready. A full queue does not:
-         * it is answered per request (503 + Retry-After), and an
-         * orchestrator flapping every replica out of its Service under
-         * load would turn those into connection errors. */
-        char why[1500];
-        if (g.draining || atomic_load(&d->draining))
-            return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting "
-                                     "down");
-        /* Every job goes through the spool: one that cannot be written
-         * makes every job fail. */
-        if (svc_ready(d->svc, why, sizeof why) != 0)
-            return srv_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
-        o = cJSON_CreateObject();
-        cJSON_AddStringToObject(o, "status", "ready");
-        cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);
-        cJSON_AddNumberToObject(o, "workers_busy", g.workers_busy);
-        return srv_send_json(r, c, 200, o);
-    }
-    if (r->rt == RT_METRICS) {
-        srv_gauges g = gauges(d);
-        size_t n = 0;
-        char *s;
-        /* This request is counted before rendering, so a scrape sees itself. */
-        srv_metrics_request(route_names[r->rt], 200);
-        s = srv_metrics_render(&g, &n);
-        r->status = 200;
-        if (!s)
-            return MHD_NO;
-        {
-            struct MHD_Response *resp = MHD_create_response_from_buffer(
-                n, s, MHD_RESPMEM_MUST_FREE);
-            enum MHD_Result ret;
-            if (!resp) {
-                free(s);
-                return MHD_NO;
-            }
-            MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
-                                    "text/plain; version=0.0.4; charset=utf-8");
-            ret = MHD_queue_response(c, 200, resp);
-            MHD_destroy_response(resp);
-            return ret;
-        }
-    }
-    if (r->rt == RT_OPENAPI) {
-        struct MHD_Response *resp = from_copy(srv_openapi_yaml,
-                                              srv_openapi_yaml_len);
-        if (resp)
-            MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
-                                    "application/yaml");
-        return srv_respond(r, c, 200, resp);
-    }
-    if (r->rt == RT_SCHEMES)
-        return srv_send_json(r, c, 200, api_json_schemes());
-    if (r->rt == RT_UI)
-        return srv_ui_send(r, c, r->asset);
+    g = gauges(d);
+    if (g.draining || atomic_load(&d->draining))
+        return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting down");
+    if (svc_ready(d->svc, why, sizeof why) != 0)
+        return srv_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
+    o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "status", "ready");
+    cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);
+    cJSON_AddNumberToObject(o, "workers_busy", g.workers_busy);
+    return srv_send_json(r, c, 200, o);
+}
 
-    return srv_upload_begin(r, c);
+/* /metrics, Prometheus's text format. This request is counted before
+ * rendering, so a scrape sees itself. */
+static enum MHD_Result send_metrics(srv_request *r, struct MHD_Connection *c)
+{
+    srv_gauges g = gauges(r->door);
+    struct MHD_Response *resp;
+    enum MHD_Result ret;
+    size_t n = 0;
+    char *s;
+
+    srv_metrics_request(route_names[r->rt], 200);
+    s = srv_metrics_render(&g, &n);
+    r->status = 200;
+    if (!s)
+        return MHD_NO;
+    if (!(resp = MHD_create_response_from_buffer(n, s, MHD_RESPMEM_MUST_FREE))) {
+        free(s);
+        return MHD_NO;
+    }
+    MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
+                            "text/plain; version=0.0.4; charset=utf-8");
+    ret = MHD_queue_response(c, 200, resp);
+    MHD_destroy_response(resp);
+    return ret;
+}
+
+/* A request's first call: its checks, then its route's answer (an
+ * upload's first bytes come in the next calls). */
+static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
+                                  const char *url, const char *method)
+{
+    struct MHD_Response *resp;
+    enum MHD_Result ret;
+
+    snprintf(r->method, sizeof r->method, "%s", method);
+    snprintf(r->path, sizeof r->path, "%s", url);
+    if (refused(r, c, url, method, &ret))
+        return ret;
+    switch (r->rt) {
+    case RT_HEALTHZ:
+    case RT_READYZ:
+        return send_probe(r, c);
+    case RT_METRICS:
+        return send_metrics(r, c);
+    case RT_OPENAPI:
+        if ((resp = from_copy(srv_openapi_yaml, srv_openapi_yaml_len)))
+            MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, "application/yaml");
+        return srv_respond(r, c, 200, resp);
+    case RT_SCHEMES:
+        return srv_send_json(r, c, 200, api_json_schemes());
+    case RT_UI:
+        return srv_ui_send(r, c, r->asset);
+    case RT_SMOOTH:
+    case RT_JOBS:
+        return srv_upload_begin(r, c);
+    default:
+        return srv_route_job(r, c, method);
+    }
 }
 
 /* ----------------------------------------------------------- framing */
