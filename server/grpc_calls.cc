@@ -123,14 +123,14 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
         Order o(ctx);
         svc_job *j;
         Status st;
+        svc_error e;
         int here;
         if (!authorized(ctx)) {
             finish(unauthenticated(ctx));
         } else if (!slot_.take(ctx, &st)) {
             finish(st);
-        } else if (!(j = svc_job_get(g.svc, req->id().c_str()))) {
-            finish(door_status(ctx, SVC_P_NOT_FOUND,
-                               "no job '" + req->id().substr(0, 64) + "' (or it expired)"));
+        } else if (!(j = svc_job_find(g.svc, req->id().c_str(), &e))) {
+            finish(status_from(ctx, e));
         } else if ((here = svc_followers(j)) >= SVC_FOLLOWERS_PER_JOB) {
             finish(door_status(ctx, SVC_P_BUSY,
                                "job " + std::string(svc_job_id(j)) + " already has " +
@@ -311,9 +311,10 @@ class Smoother final : public SmootherBase {
                                      pb::Job *resp) override
     {
         return unary(ctx, "GetJob", [&]() -> Status {
-            svc_job *j = svc_job_get(g.svc, req->id().c_str());
+            svc_error e;
+            svc_job *j = svc_job_find(g.svc, req->id().c_str(), &e);
             if (!j)
-                return not_found(ctx, req->id());
+                return status_from(ctx, e);
             bool ok = fill_job(j, resp);
             svc_job_unref(j);
             return ok ? Status::OK : door_status(ctx, SVC_P_NOMEM, "out of memory");
@@ -325,11 +326,11 @@ class Smoother final : public SmootherBase {
                                         pb::Job *resp) override
     {
         return unary(ctx, "CancelJob", [&]() -> Status {
-            svc_job *j = svc_job_get(g.svc, req->id().c_str());
+            svc_error e;
+            svc_job *j = svc_job_find(g.svc, req->id().c_str(), &e);
             if (!j)
-                return not_found(ctx, req->id());
+                return status_from(ctx, e);
             if (svc_cancel(j, SVC_CANCEL_USER) < 0) {
-                svc_error e;
                 svc_error_set(&e, SVC_P_STORAGE,
                               "the spool could not record the cancellation of job %s "
                               "(not canceled; retry): %s", svc_job_id(j), strerror(errno));
@@ -373,12 +374,6 @@ class Smoother final : public SmootherBase {
         grpc::ServerUnaryReactor *r = ctx->DefaultReactor();
         r->Finish(counted(method, authorized(ctx) ? body() : unauthenticated(ctx)));
         return r;
-    }
-
-    static Status not_found(CallbackServerContext *ctx, const std::string &id)
-    {
-        return door_status(ctx, SVC_P_NOT_FOUND,
-                           "no job '" + id.substr(0, 64) + "' (or it expired)");
     }
 };
 

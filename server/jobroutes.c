@@ -298,10 +298,9 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
                         r->path);
         return srv_send_problem(r, c, &p, NULL);
     }
-    j = svc_job_get(r->door->svc, r->id);
+    j = svc_job_find(r->door->svc, r->id, &p);
     if (!j)
-        return srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no job with ID %s "
-                                 "(never existed, deleted, or expired)", r->id);
+        return srv_send_problem(r, c, &p, NULL);
     if (r->rt == RT_JOB) {
         ret = job_json_reply(r, c, j, 200);
     } else if (r->rt == RT_JOB_EVENTS && strcmp(method, "HEAD") == 0) {

@@ -33,13 +33,15 @@ static rds_script lua_create = {
     "touch(KEYS[1], ARGV[1], KEYS[3], ARGV[2])\n"
     "return 1\n", ""};
 
-/* KEYS: hash, events. ARGV: blob prefix, ttl, name, data, fence. */
+/* KEYS: hash, events. ARGV: blob prefix, ttl, name, data, fence (the
+ * runner's consumer; "": none; " ": only while no replica runs it). */
 static rds_script lua_put = {
     LUA_TOUCH LUA_WRITE
     "if redis.call('EXISTS', KEYS[1]) == 0 then\n"
     "  return redis.error_reply('NOJOB no such job') end\n"
-    "if ARGV[5] ~= '' and redis.call('HGET', KEYS[1], 'runner') ~= ARGV[5] "
-    "then\n"
+    "local runner = redis.call('HGET', KEYS[1], 'runner')\n"
+    "if (ARGV[5] == ' ' and runner) or\n"
+    "   (ARGV[5] ~= '' and ARGV[5] ~= ' ' and runner ~= ARGV[5]) then\n"
     "  return redis.error_reply('STALE another replica took the job over') "
     "end\n"
     "write(KEYS[1], ARGV[1], ARGV[3], ARGV[4])\n"
@@ -372,7 +374,7 @@ int rstore_put(rstore *s, const char *id, const char *name,
     argv[2] = k.blobs;
     argv[3] = s->ttl_ms;
     argv[4] = name;
-    argv[6] = fence ? s->cfg.consumer : "";
+    argv[6] = fence == RSTORE_UNCLAIMED ? " " : fence ? s->cfg.consumer : "";
     for (i = 0; i < 7; i++)
         lens[i] = i == 5 ? len : strlen(argv[i]);
     argv[5] = data ? data : "";

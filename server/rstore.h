@@ -131,7 +131,9 @@ const char *rstore_consumer(const rstore *s);
 
 /* Records and blobs: 0, or -1 with errno (ENOENT, EEXIST, EFBIG, ESTALE,
  * EAGAIN: Redis down or busy, ENOSPC: Redis out of memory, ENOMEM, EIO:
- * a reply not as expected). fence: 1 while this replica runs the job. */
+ * a reply not as expected). fence: 1 while this replica runs the job;
+ * RSTORE_UNCLAIMED: only while no replica runs it (else ESTALE). */
+#define RSTORE_UNCLAIMED 2
 int rstore_create(rstore *s, const char *id, const rstore_blob *b, int n);
 int rstore_put(rstore *s, const char *id, const char *name,
                const void *data, size_t len, int fence);

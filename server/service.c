@@ -96,7 +96,30 @@ svc_job *svc_job_get(svc_t *s, const char *id)
     if (j)
         j->refs++;
     pthread_mutex_unlock(&s->mu);
+    if (!j)
+        errno = ENOENT;
     return j;
+}
+
+svc_job *svc_job_find(svc_t *s, const char *id, svc_error *err)
+{
+    svc_job *j = svc_job_get(s, id);
+    int e = errno;
+
+    if (j)
+        return j;
+    if (e == ENOENT) {
+        svc_error_set(err, SVC_P_NOT_FOUND, "no job with ID %.64s (never "
+                      "existed, deleted, or expired)", id);
+    } else if (e == ENOMEM) {
+        svc_error_set(err, SVC_P_NOMEM, "out of memory reading job %.64s", id);
+    } else {
+        /* a shared store down: it cannot say the job does not exist */
+        svc_error_set(err, SVC_P_SPOOL_UNREADY, "the store cannot read job "
+                      "%.64s now: %s", id, strerror(e));
+        err->retry_after = 5;
+    }
+    return NULL;
 }
 
 /* 128 bits from /dev/urandom; if that ever fails, a splitmix64 of the
@@ -283,6 +306,12 @@ static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
         svc_error_set(err, SVC_P_SPOOL_UNREADY, "cannot record job %s now: "
                       "%s", j->id, strerror(e));
         err->retry_after = 5;
+    } else if (e == EFBIG) {
+        svc_error_set(err, SVC_P_INPUT_LIMIT, "the input (%zu bytes) is "
+                      "larger than the job store takes in one value "
+                      "(Redis's proto-max-bulk-len, less a margin)",
+                      rq->input_len > rq->target_len ? rq->input_len
+                                                     : rq->target_len);
     } else {
         svc_error_set(err, SVC_P_STORAGE, "cannot write job %s to the spool "
                       "%s: %s", j->id, s->cfg.spool, strerror(e));
@@ -445,15 +474,12 @@ static int forget(svc_t *s, svc_job *j, const char *why)
 int svc_delete(svc_t *s, const char *id, svc_delete_result *res,
                svc_job_status *before, svc_error *err)
 {
-    svc_job *j = svc_job_get(s, id);
+    svc_job *j = svc_job_find(s, id, err);
     svc_snap sn;
     int rc;
 
-    if (!j) {
-        svc_error_set(err, SVC_P_NOT_FOUND, "no job with ID %s (never "
-                      "existed, deleted, or expired)", id);
+    if (!j)
         return -1;
-    }
     svc_job_snapshot(j, &sn);
     *before = sn.status;
     if (!svc_job_status_terminal(sn.status)) {

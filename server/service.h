@@ -392,8 +392,12 @@ void svc_request_free(svc_request *rq);
  * *err. */
 int svc_submit(svc_t *s, svc_request *rq, svc_job **out, svc_error *err);
 /* A new reference to the job with that ID (a NUL-terminated string of
- * any content), or NULL. */
+ * any content), or NULL and errno: ENOENT (no such job), EAGAIN (a
+ * shared store that cannot answer now), ENOMEM. */
 svc_job *svc_job_get(svc_t *s, const char *id);
+/* svc_job_get for a door: NULL sets *err (ENOTFOUND; ESPOOL with a
+ * retry delay when the store cannot say whether the job exists). */
+svc_job *svc_job_find(svc_t *s, const char *id, svc_error *err);
 /* One more reference to a handle the caller holds; returns j. */
 svc_job *svc_job_ref(svc_job *j);
 /* Drops a reference (accepts NULL). */

@@ -77,7 +77,11 @@
  *   (the blob "cancel.json"). claim() also says 2: the id was taken over
  *   from a replica that stopped heartbeating (its state may say running:
  *   the job is queued again), and 3: the id was dead-lettered (run too
- *   often; the service writes it failed). Recovery at start is the
+ *   often; the service writes it failed). A put with durable
+ *   SVC_PUT_UNCLAIMED (a cancel of a queued job) writes only while no
+ *   replica has taken the job, else ESTALE: the store decides whether the
+ *   cancel or the start came first, so exactly one replica ends (and
+ *   counts) the job. Recovery at start is the
  *   store's own (its reaper): the service loads jobs lazily.
  */
 #ifndef SVC_STORE_H
@@ -88,6 +92,10 @@
 #include "service.h"
 
 typedef struct svc_store svc_store;
+
+/* put()'s durable: durable, and (a shared store) only while no replica
+ * runs the job, else ESTALE (above). */
+#define SVC_PUT_UNCLAIMED 2
 
 /* One blob of a job: its name and bytes (create). */
 typedef struct {

@@ -114,10 +114,10 @@ static int rd_put(svc_store *st, const char *id, const char *name,
                   const void *data, size_t len, int durable)
 {
     rstore_st *r = of(st);
-    int fence = is_running(r, id);
+    int fence = durable == SVC_PUT_UNCLAIMED ? RSTORE_UNCLAIMED
+                                             : is_running(r, id);
 
     /* every acknowledged write is in Redis's append-only file */
-    (void)durable;
     if (rstore_put(r->rs, id, name, data, len, fence) == 0)
         return 0;
     if (errno == ESTALE)

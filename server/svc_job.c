@@ -500,6 +500,39 @@ static void end_blobs_of(svc_job *j, const svc_outcome *o, end_blobs *eb)
     }
 }
 
+/* The store refused a blob of the end as too large for one value (EFBIG:
+ * Redis's proto-max-bulk-len bounds each argument of the finish): a
+ * succeeded run becomes failed, saying why, without its result, metrics
+ * and fields; an end still too large drops its events. Never parked, so
+ * never run again to the same end. 0, or -1 when nothing is left to drop. */
+static int end_too_big(svc_job *j, svc_outcome *o, end_blobs *eb)
+{
+    const svc_blob *big = &eb->b[0];
+    int i;
+
+    if (eb->n == 0)
+        return -1;
+    for (i = 1; i < eb->n; i++)
+        if (eb->b[i].len > big->len)
+            big = &eb->b[i];
+    srv_logf(SRV_LOG_ERROR, "job %s: the store refused its %s (%zu bytes) "
+             "as too large", j->id, big->name, big->len);
+    if (o->status != SVC_JOB_SUCCEEDED) {
+        eb->n = eb->ev_n = 0;      /* its events alone were too large */
+        eb->ev_len = 0;
+        return 0;
+    }
+    o->status = SVC_JOB_FAILED;
+    svc_error_set(&o->err, SVC_P_MESH_LIMIT, "the run ended, but its %s "
+                  "(%zu bytes) is larger than the job store takes in one "
+                  "value (Redis's proto-max-bulk-len, less a margin), so "
+                  "it was not kept; ask for a smaller result (another "
+                  "format, no fields)", big->name, big->len);
+    o->result_len = 0;
+    end_blobs_of(j, o, eb);
+    return 0;
+}
+
 /* The blobs, state r and the ack in one step (state_mu held). */
 static int finish_rec(svc_t *s, const svc_state_rec *r, end_blobs *eb)
 {
@@ -547,6 +580,9 @@ void svc__finish(svc_job *j, svc_outcome *o)
         }
         e = errno;
         pthread_mutex_unlock(&s->state_mu);
+        if (fin && e == EFBIG && o->status != SVC_JOB_QUEUED &&
+            end_too_big(j, o, &eb) == 0)
+            continue;
         /* A shutdown alone stops these tries: a cancel asked now changes
          * nothing of an outcome already reached; nor does one of a run
          * another replica took over (ESTALE: its outcome is that one's). */
@@ -734,7 +770,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
 {
     svc_t *s = j->svc;
     svc_state_rec r;
-    int rc, e, was_queued, run_here, changed = 0;
+    int rc, e, was_queued, run_here, changed = 0, unclaimed, taken;
     double now = srv_wall();
 
     pthread_mutex_lock(&s->state_mu);
@@ -750,8 +786,13 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     j->refs++;
     cancel_rec(j, reason, now, &r);
     pthread_mutex_unlock(&s->mu);
-    rc = write_rec(s, &r, 1);
+    /* a shared store decides: canceled while queued, or started by
+     * another replica first (ESTALE: that one's run stops, and it ends
+     * and counts the job) */
+    unclaimed = s->store->ops->shared && r.status == SVC_JOB_CANCELED;
+    rc = write_rec(s, &r, unclaimed ? SVC_PUT_UNCLAIMED : 1);
     e = errno;
+    taken = rc != 0 && unclaimed && e == ESTALE;
     pthread_mutex_lock(&s->mu);
     j->canceling = SVC_CANCEL_NONE;
     was_queued = j->status == SVC_JOB_QUEUED;
@@ -773,7 +814,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     pthread_mutex_unlock(&s->state_mu);
     /* a shared store: the replica that runs it (or starts it before
      * it reads the state written here) stops it at its next sweep */
-    if (rc == 0 && s->store->ops->shared && !run_here)
+    if ((rc == 0 || taken) && s->store->ops->shared && !run_here)
         svc__cancel_elsewhere(j, reason);
     if (changed) {
         s->store->ops->drop(s->store, j->id);
@@ -782,7 +823,7 @@ int svc_cancel(svc_job *j, svc_cancel_reason reason)
     }
     svc_job_unref(j);
     errno = e;
-    return rc == 0 ? 1 : -1;
+    return rc == 0 || taken ? 1 : -1;
 }
 
 /* ------------------------------------------- a store shared by replicas */

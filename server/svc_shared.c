@@ -60,15 +60,20 @@ static void apply(svc_t *s, svc_job *j, const svc_state_rec *r)
 }
 
 /* A job of the store the table does not hold: loaded and inserted (or
- * the one another thread inserted meanwhile). A reference, or NULL. */
+ * the one another thread inserted meanwhile). A reference, or NULL and
+ * errno (ENOENT: the store has no such job; EAGAIN: it cannot say now). */
 static svc_job *load_new(svc_t *s, const char *id)
 {
     svc_job *n = NULL, *j;
     svc_state_rec r;
 
-    if (strlen(id) != SVC_ID_LEN || svc__load(s, id, &n, &r) != 0) {
+    int rc = strlen(id) == SVC_ID_LEN ? svc__load(s, id, &n, &r) : 1;
+
+    if (rc != 0) {
+        int e = rc == -1 ? errno : ENOENT;  /* -2: not a job's record */
         if (n)
             svc__job_free(n);
+        errno = e;
         return NULL;
     }
     pthread_mutex_lock(&s->mu);
@@ -132,6 +137,7 @@ svc_job *svc__shared_get(svc_t *s, const char *id)
         return load_new(s, id);
     if (refresh(s, j) != 0) {
         svc_job_unref(j);
+        errno = ENOENT;
         return NULL;
     }
     return j;

@@ -260,8 +260,11 @@ def test_32_clients_on_the_local_spool():
 
 
 def test_redis_down_every_replica_503():
+    grpc, pb, pbg = stubs()
     ds = replicas(2, "down")
     try:
+        old = submit(ds[0], "scheme=desbrun2&iterations=1")
+        wait_status(ds[0], old, "succeeded", 60)
         redis_kill()
         for d in ds:
             st, _, body = http("GET", d.url + "/readyz")
@@ -270,6 +273,22 @@ def test_redis_down_every_replica_503():
                 st, hdr, body = http("POST", d.url + "/v1/jobs?scheme=desbrun2", f.read(),
                                      {"Content-Type": "application/octet-stream"})
             assert st == 503 and hdr.get("Retry-After"), (st, hdr, body[:300])
+        # a job B never held (and an ID nobody used): the store cannot say
+        # it does not exist, so 503, not 404
+        for jid in (old, "0" * 32):
+            st, hdr, body = http("GET", "%s/v1/jobs/%s" % (ds[1].url, jid))
+            assert st == 503 and hdr.get("Retry-After"), (st, hdr, body[:300])
+            assert json.loads(body)["code"] == "ESPOOL", body[:300]
+            with grpc.insecure_channel("127.0.0.1:%d" % ds[1].gport) as ch:
+                try:
+                    pbg.SmootherStub(ch).GetJob(pb.GetJobRequest(id=jid), timeout=10)
+                    raise AssertionError("GetJob answered with Redis down")
+                except grpc.RpcError as e:
+                    assert e.code() == grpc.StatusCode.UNAVAILABLE, (e.code(), e.details())
+                    md = dict(e.trailing_metadata() or ())
+                    assert md.get("retry-after-ms"), md
+        # A ran it: it answers from what it holds
+        assert http("GET", "%s/v1/jobs/%s" % (ds[0].url, old))[0] == 200
         redis_start()
         end = time.time() + 15             # rds's backoff is at most 2 s
         for d in ds:

@@ -378,6 +378,47 @@ static void test_takeover_fences_the_old_runner(void **state)
     rstore_close(b);
 }
 
+/* A cancel of a queued job and a start by another replica race: the
+ * store decides. A put RSTORE_UNCLAIMED lands only while no replica runs
+ * the job; once one took it, ESTALE (that replica ends and counts it). */
+static void test_cancel_of_queued_races_a_start(void **state)
+{
+    rstore *a = replica("a", 30, 3), *b = replica("b", 30, 3);
+    char id[RSTORE_ID_MAX], *data;
+    size_t n;
+    int runs = 0;
+    (void)state;
+
+    make_job(a, "j1", 10);
+    make_job(a, "j2", 10);
+    must_ok(rstore_push(a, "j1", 0), "push");
+    must_ok(rstore_push(a, "j2", 0), "push");
+    /* b cancels j1 before anyone takes it */
+    must_ok(rstore_put(b, "j1", "state.json", "{\"status\":\"canceled\"}",
+                       21, RSTORE_UNCLAIMED), "cancel while queued");
+    /* j1 still has its entry (the service drops it next; a replica taking
+     * it meanwhile reads it canceled and acks); a takes j2 before b's
+     * cancel of it, which is refused, nothing written */
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    assert_string_equal(id, "j1");
+    must_ok(rstore_ack(a, "j1"), "ack");
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    assert_string_equal(id, "j2");
+    must_ok(rstore_put(a, "j2", "state.json", "{\"status\":\"running\"}", 20,
+                       1), "put while running");
+    assert_int_equal(rstore_put(b, "j2", "state.json",
+                                "{\"status\":\"canceled\"}", 21,
+                                RSTORE_UNCLAIMED), -1);
+    assert_int_equal(errno, ESTALE);
+    must_ok(rstore_get(b, "j2", "state.json", &data, &n), "get");
+    assert_string_equal(data, "{\"status\":\"running\"}");
+    free(data);
+    /* the runner's own puts are not refused */
+    must_ok(rstore_put(a, "j2", "result.drc", "NEW", 3, 1), "put");
+    rstore_close(a);
+    rstore_close(b);
+}
+
 /* The end of a run in one script: blobs and ack together, by the runner
  * only; a runner taken over writes none of them. */
 static void test_finish_is_one_step(void **state)
@@ -715,6 +756,7 @@ int main(void)
         cmocka_unit_test_setup(test_queue_order_and_ack, setup),
         cmocka_unit_test_setup(test_queue_full, setup),
         cmocka_unit_test_setup(test_takeover_fences_the_old_runner, setup),
+        cmocka_unit_test_setup(test_cancel_of_queued_races_a_start, setup),
         cmocka_unit_test_setup(test_finish_is_one_step, setup),
         cmocka_unit_test_setup(test_held_job_goes_to_a_replica_with_room,
                                setup),

@@ -181,6 +181,37 @@ def test_redis_down_while_a_job_runs():
         d.stop()
 
 
+def test_result_over_proto_max_bulk_len_fails():
+    """A result larger than Redis takes in one argument (proto-max-bulk-len,
+    1 MiB here, its least; 512 MiB by default) fails the job, saying why,
+    once: never parked and run again."""
+    cli("CONFIG", "SET", "proto-max-bulk-len", "1mb")
+    d = daemon("big")
+    try:
+        # bunny as OBJ text: about 3 MB, the 96 kB input fits
+        jid = submit(d, "scheme=desbrun2&iterations=1&format=obj")
+        wait_status(d, jid, "failed", 60)
+        time.sleep(3)                        # past a park's first 2 s delay
+        st, _, body = http("GET", "%s/v1/jobs/%s" % (d.url, jid))
+        job = json.loads(body)
+        assert st == 200 and job["status"] == "failed", (st, job)
+        detail = job["error"]["detail"]
+        assert "proto-max-bulk-len" in detail and "result.obj" in detail, job
+        assert cli("HGET", "mcfd:job:" + jid, "runs") == "1"
+        assert cli("XPENDING", "mcfd:queue", "workers")[:1] == "0", "not acknowledged"
+        st, _, body = http("GET", d.url + "/metrics")
+        assert b'mcfd_jobs_total{scheme="desbrun2",status="failed"} 1' in body
+        # an input over it is refused at once: 413, not a storage error
+        with open(os.path.join(DATA, "meshes", "knot1.obj"), "rb") as f:
+            big = f.read() + b"#" * (1 << 20) + b"\n"
+        st, _, body = http("POST", d.url + "/v1/jobs?scheme=desbrun2", big,
+                           {"Content-Type": "application/octet-stream"})
+        assert st == 413 and b"proto-max-bulk-len" in body, (st, body[:300])
+    finally:
+        d.stop()
+        cli("CONFIG", "SET", "proto-max-bulk-len", "512mb")
+
+
 def test_kill9_then_restart_finishes_the_job():
     d = daemon("crash")
     jid = submit(d, "scheme=desbrun2&iterations=60")
@@ -199,5 +230,5 @@ def test_kill9_then_restart_finishes_the_job():
 if __name__ == "__main__":
     raise SystemExit(run_tests(
         [test_jobs_live_in_redis, test_redis_down_then_back, test_redis_down_while_a_job_runs,
-         test_kill9_then_restart_finishes_the_job],
+         test_result_over_proto_max_bulk_len_fails, test_kill9_then_restart_finishes_the_job],
         setup=redis_start))
