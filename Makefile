@@ -190,7 +190,7 @@ $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHO
 # tests/redisd.c starts and stops.
 REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
 REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/server/rstore.o \
-             $(B)/server/rstore_queue.o
+             $(B)/server/rstore_queue.o $(B)/server/rstore_files.o
 $(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 

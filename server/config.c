@@ -36,6 +36,7 @@ typedef struct {
 enum {
     O_BIND, O_PORT, O_GRPC_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
     O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES, O_STORE, O_STORE_PW,
+    O_BLOB_DIR,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT,
     O_BODY_TIMEOUT, O_SEND_TIMEOUT, O_MAX_MEMORY, O_MAX_JOB_MEMORY, O_DECODE_CPU,
@@ -71,6 +72,9 @@ static const option opts[O_COUNT] = {
                  "replicas (default: the local spool)"},
     [O_STORE_PW] = {"--store-password-file", "MCFD_STORE_PASSWORD_FILE", T_STR,
                     0, 0, "file holding the Redis password (default: none)"},
+    [O_BLOB_DIR] = {"--blob-dir", "MCFD_BLOB_DIR", T_STR, 0, 0,
+                    "with --store: mesh bytes in files in this directory "
+                    "shared by the replicas, not in Redis (default: Redis)"},
     [O_SPOOL_JOBS] = {"--spool-max-jobs", "MCFD_SPOOL_MAX_JOBS", T_INT, 0,
                       1000000000, "jobs kept (queued to expired) before new "
                       "ones get 503, 0: no limit (default 10000)"},
@@ -291,6 +295,13 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
             return -1;
         }
         snprintf(cfg->store, sizeof cfg->store, "%s", v);
+        break;
+    case O_BLOB_DIR:
+        if (!*v || strlen(v) >= sizeof cfg->blob_dir - 128) {
+            snprintf(msg, msgsize, "%s: bad directory \"%s\"", src, v);
+            return -1;
+        }
+        snprintf(cfg->blob_dir, sizeof cfg->blob_dir, "%s", v);
         break;
     case O_STORE_PW:
         snprintf(cfg->store_password_file, sizeof cfg->store_password_file,

@@ -128,6 +128,7 @@ static void service_config(const srv_config *cfg, svc_config *out)
     snprintf(out->store, sizeof out->store, "%s", cfg->store);
     snprintf(out->store_password_file, sizeof out->store_password_file, "%s",
              cfg->store_password_file);
+    snprintf(out->blob_dir, sizeof out->blob_dir, "%s", cfg->blob_dir);
     out->spool_max_jobs = cfg->spool_max_jobs;
     out->spool_max_bytes = cfg->spool_max_bytes;
     out->lim = cfg->lim;

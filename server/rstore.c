@@ -205,6 +205,8 @@ void rstore_config_default(rstore_config *cfg)
     cfg->dead_max = 10000;
     cfg->max_blob = (size_t)512 << 20;
     cfg->pool = 8;
+    cfg->blob_grace = 600;
+    cfg->blob_sweep = 60;
 }
 
 /* proto-max-bulk-len, or Redis's default when CONFIG is refused (a
@@ -276,6 +278,14 @@ rstore *rstore_open(const rds_config *rc, const rstore_config *cfg,
     rds_pool_put(s->pool, c);
     s->max_blob = proto - PROTO_SLACK < cfg->max_blob ? proto - PROTO_SLACK
                                                       : cfg->max_blob;
+    if (cfg->blob_dir[0]) {
+        /* large blobs never pass through Redis: only max_blob bounds them */
+        s->max_blob = cfg->max_blob;
+        if (rstore__files_check(s, msg, msgsize) != 0) {
+            rstore_close(s);
+            return NULL;
+        }
+    }
     return s;
 }
 
@@ -310,6 +320,7 @@ int rstore_create(rstore *s, const char *id, const rstore_blob *b, int n)
     const char *argv[32];
     size_t lens[32];
     job_keys k;
+    rstore_files f;
     int argc = 0;
 
     if (!rstore__name_ok(id) || n < 0 || 6 + 2 * n > 32) {
@@ -323,16 +334,19 @@ int rstore_create(rstore *s, const char *id, const rstore_blob *b, int n)
     argv[argc++] = k.blobs;
     argv[argc++] = s->ttl_ms;
     argv[argc++] = id;
-    if (rstore__blob_args(s, b, n, argv, lens, &argc) != 0)
+    if (rstore__blob_args(s, id, b, n, argv, lens, &argc, &f) != 0)
         return -1;
-    return rstore__eval_int(s, &lua_create, 3, argc, argv, lens, NULL);
+    return rstore__files_end(
+        s, &f, rstore__eval_int(s, &lua_create, 3, argc, argv, lens, NULL));
 }
 
-int rstore__blob_args(const rstore *s, const rstore_blob *b, int n,
-                      const char **argv, size_t *lens, int *argc)
+int rstore__blob_args(rstore *s, const char *id, const rstore_blob *b,
+                      int n, const char **argv, size_t *lens, int *argc,
+                      rstore_files *f)
 {
     int i;
 
+    f->n = 0;
     for (i = 0; i < *argc; i++)
         lens[i] = strlen(argv[i]);
     for (i = 0; i < n; i++) {
@@ -344,6 +358,27 @@ int rstore__blob_args(const rstore *s, const rstore_blob *b, int n,
             errno = EFBIG;
             return -1;
         }
+        if (s->cfg.blob_dir[0] && !is_field(b[i].name) && f->n < FILES_MAX) {
+            int j = f->n;
+
+            if (rstore__file_write(s, id, b[i].name, b[i].data, b[i].len,
+                                   f->ref[j], sizeof f->ref[j]) != 0) {
+                int e = errno;
+                rstore__files_end(s, f, -1);
+                errno = e;
+                return -1;
+            }
+            f->n++;
+            snprintf(f->name[j], sizeof f->name[j], "@%s", b[i].name);
+            /* "SIZE REF" (arg has room for both) */
+            memcpy(f->arg[j] + snprintf(f->arg[j], 24, "%zu ", b[i].len),
+                   f->ref[j], strlen(f->ref[j]) + 1);
+            argv[*argc] = f->name[j];
+            lens[(*argc)++] = strlen(f->name[j]);
+            argv[*argc] = f->arg[j];
+            lens[(*argc)++] = strlen(f->arg[j]);
+            continue;
+        }
         argv[*argc] = b[i].name;
         lens[(*argc)++] = strlen(b[i].name);
         argv[*argc] = b[i].data ? b[i].data : "";
@@ -352,51 +387,63 @@ int rstore__blob_args(const rstore *s, const rstore_blob *b, int n,
     return 0;
 }
 
+int rstore__files_end(rstore *s, rstore_files *f, int rc)
+{
+    int e = errno, i;
+
+    if (rc != 0 && (e == ESTALE || e == ENOENT || e == EEXIST ||
+                    e == ENOSPC || e == EINVAL || e == EFBIG))
+        for (i = 0; i < f->n; i++)
+            rstore__file_unlink(s, f->ref[i]);
+    f->n = 0;
+    errno = e;
+    return rc;
+}
+
 int rstore_put(rstore *s, const char *id, const char *name,
                const void *data, size_t len, int fence)
 {
     job_keys k;
     const char *argv[7];
     size_t lens[7];
-    int i;
+    rstore_blob b = {name, data, len};
+    rstore_files f;
+    int argc = 4;
 
-    if (!rstore__name_ok(id) || !rstore__name_ok(name)) {
-        errno = EINVAL;
+    if (rstore__keys(s, id, &k) != 0)
         return -1;
-    }
-    if (len > s->max_blob) {
-        errno = EFBIG;
-        return -1;
-    }
-    rstore__keys(s, id, &k);
     argv[0] = k.hash;
     argv[1] = k.ev;
     argv[2] = k.blobs;
     argv[3] = s->ttl_ms;
-    argv[4] = name;
+    if (rstore__blob_args(s, id, &b, 1, argv, lens, &argc, &f) != 0)
+        return -1;
     argv[6] = fence == RSTORE_UNCLAIMED ? " " : fence ? s->cfg.consumer : "";
-    for (i = 0; i < 7; i++)
-        lens[i] = i == 5 ? len : strlen(argv[i]);
-    argv[5] = data ? data : "";
-    return rstore__eval_int(s, &lua_put, 2, 7, argv, lens, NULL);
+    lens[6] = strlen(argv[6]);
+    return rstore__files_end(
+        s, &f, rstore__eval_int(s, &lua_put, 2, 7, argv, lens, NULL));
 }
 
 /* A large blob's size and version: 0, or -1 and errno (ENOENT). The
  * size is the server's word: bounded by max_blob before anyone trusts
  * it. */
 static int blob_meta(rstore *s, const job_keys *k, const char *name,
-                     size_t *size, long long *version)
+                     size_t *size, long long *version, char ref[REF_MAX])
 {
-    char sf[RSTORE_ID_MAX + 2], vf[RSTORE_ID_MAX + 2];
-    const char *argv[4] = {"HMGET", k->hash, sf, vf};
+    char sf[RSTORE_ID_MAX + 2], vf[RSTORE_ID_MAX + 2],
+        ff[RSTORE_ID_MAX + 2];
+    const char *argv[5] = {"HMGET", k->hash, sf, vf, ff};
     redisReply *r;
     long long n, v = 0;
 
     snprintf(sf, sizeof sf, "s:%s", name);
     snprintf(vf, sizeof vf, "v:%s", name);
-    if (!(r = rstore__cmd(s, 0, 4, argv)))
+    snprintf(ff, sizeof ff, "f:%s", name);
+    if (!(r = rstore__cmd(s, 0, 5, argv)))
         return -1;
-    if (r->type != REDIS_REPLY_ARRAY || r->elements != 2) {
+    if (r->type != REDIS_REPLY_ARRAY || r->elements != 3 ||
+        (r->element[2]->type == REDIS_REPLY_STRING &&
+         r->element[2]->len >= REF_MAX)) {
         rds_reply_free(r);
         errno = EIO;
         return -1;
@@ -414,16 +461,31 @@ static int blob_meta(rstore *s, const job_keys *k, const char *name,
         errno = EIO;
         return -1;
     }
+    ref[0] = 0;
+    if (r->element[2]->type == REDIS_REPLY_STRING)
+        memcpy(ref, r->element[2]->str, r->element[2]->len + 1);
     rds_reply_free(r);
     *size = (size_t)n;
     *version = v;
     return 0;
 }
 
-/* len bytes of key at off, exactly: 0 or -1 and errno. */
-static int read_range(rstore *s, const char *key, size_t off, char *buf,
-                      size_t len)
+/* len bytes of key (or of file ref, of size bytes, when ref is not "")
+ * at off, exactly: 0 or -1 and errno. */
+static int read_range(rstore *s, const char *key, const char *ref,
+                      size_t size, size_t off, char *buf, size_t len)
 {
+    if (ref[0]) {
+        int fd = rstore__file_open(s, ref, size), rc, e;
+
+        if (fd < 0)
+            return -1;
+        rc = rstore__file_read(fd, off, buf, len);
+        e = errno;
+        close(fd);
+        errno = e;
+        return rc;
+    }
     while (len > 0) {
         size_t n = len < SLICE ? len : SLICE;
         char a[24], b[24];
@@ -497,16 +559,16 @@ int rstore_get(rstore *s, const char *id, const char *name, char **data,
     for (tries = 0; tries < 3; tries++) {
         size_t size, size2;
         long long v, v2;
-        char *buf;
+        char *buf, ref[REF_MAX], ref2[REF_MAX];
 
-        if (blob_meta(s, &k, name, &size, &v) != 0)
+        if (blob_meta(s, &k, name, &size, &v, ref) != 0)
             return -1;
         if (!(buf = malloc(size + 1))) {
             errno = ENOMEM;
             return -1;
         }
-        if (read_range(s, key, 0, buf, size) == 0 &&
-            blob_meta(s, &k, name, &size2, &v2) == 0 && v2 == v &&
+        if (read_range(s, key, ref, size, 0, buf, size) == 0 &&
+            blob_meta(s, &k, name, &size2, &v2, ref2) == 0 && v2 == v &&
             size2 == size) {
             buf[size] = 0;
             *data = buf;
@@ -528,26 +590,28 @@ int rstore_get_at(rstore *s, const char *id, const char *name, size_t off,
     char key[KEY_MAX + RSTORE_ID_MAX];
     size_t size;
     long long v;
+    char ref[REF_MAX];
 
     if (!rstore__name_ok(id) || !rstore__name_ok(name) || is_field(name)) {
         errno = EINVAL;
         return -1;
     }
     rstore__keys(s, id, &k);
-    if (blob_meta(s, &k, name, &size, &v) != 0)
+    if (blob_meta(s, &k, name, &size, &v, ref) != 0)
         return -1;
     if (off > size || len > size - off) {
         errno = EIO;
         return -1;
     }
     snprintf(key, sizeof key, "%s%s", k.blobs, name);
-    return read_range(s, key, off, buf, len);
+    return read_range(s, key, ref, size, off, buf, len);
 }
 
 int rstore_stat(rstore *s, const char *id, const char *name, size_t *size)
 {
     job_keys k;
     long long v;
+    char ref[REF_MAX];
 
     if (!rstore__name_ok(id) || !rstore__name_ok(name)) {
         errno = EINVAL;
@@ -583,7 +647,7 @@ int rstore_stat(rstore *s, const char *id, const char *name, size_t *size)
         *size = (size_t)n;
         return 0;
     }
-    return blob_meta(s, &k, name, size, &v);
+    return blob_meta(s, &k, name, size, &v, ref);
 }
 
 static int remove_as(rstore *s, const char *id, const char *to)
@@ -604,7 +668,11 @@ static int remove_as(rstore *s, const char *id, const char *to)
 
 int rstore_remove(rstore *s, const char *id)
 {
-    return remove_as(s, id, "");
+    int rc = remove_as(s, id, "");
+
+    if (rc == 0)
+        rstore__files_remove(s, id);
+    return rc;
 }
 
 int rstore_quarantine(rstore *s, const char *id)

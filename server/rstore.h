@@ -20,6 +20,16 @@
  *   P:front           stream, jobs put back at the head (read first)
  *   P:dead            stream, dead letters: {job, runs, reason} (MAXLEN ~)
  *   P:quarantine:...  the keys of a quarantined job, renamed
+ * With blob_dir (--blob-dir), a large blob is instead the file
+ * DIR/P/{id}/NAME.UNIQUE, named by the hash's field "f:NAME"; Redis
+ * keeps records, queue and progress. A file is written whole under a
+ * name no other write uses (temp file, fsync, rename, fsync of the
+ * directory) before the script that publishes its name runs: the
+ * script's fencing still decides the one visible result, and a reader
+ * sees the old file or the new, never part of one. A refused write's
+ * files are removed at once; rstore_sweep() (claim runs it every
+ * blob_sweep seconds) removes the files no record names and older than
+ * blob_grace: replaced blobs, a dead runner's, expired or removed jobs'.
  * Every key of a job expires ttl seconds after its last write (puts,
  * heartbeats and progress renew it): a job whose every replica died
  * leaves nothing behind for ever. The service removes jobs itself at
@@ -106,6 +116,11 @@ typedef struct {
     long dead_max;             /* dead letters kept (~) */
     size_t max_blob;           /* bytes of one blob */
     int pool;                  /* connections */
+    char blob_dir[512];        /* "": large blobs in Redis; else in files
+                                  under this shared directory */
+    double blob_grace;         /* seconds an unnamed file is kept (a
+                                  write whose script is on its way) */
+    double blob_sweep;         /* seconds between sweeps (claim runs them) */
 } rstore_config;
 
 typedef struct {
@@ -116,7 +131,7 @@ typedef struct {
 
 /* ttl 1 day, claim_idle 30 s, block 1 s, max_runs 3, queue_max 100000,
  * ev_max 10000, dead_max 10000, max_blob 512 MiB, pool 8, consumer
- * host:pid:nonce. */
+ * host:pid:nonce, blob_dir "", blob_grace 600 s, blob_sweep 60 s. */
 void rstore_config_default(rstore_config *cfg);
 
 /* Connects (once, to check the server and read proto-max-bulk-len) and
@@ -180,6 +195,10 @@ int rstore_heartbeat(rstore *s, const char *id);
 /* Runs the reaper now (claim runs it on its own, min_idle < 0: with
  * claim_idle): entries idle over min_idle seconds taken over, or -1. */
 int rstore_reap(rstore *s, double min_idle);
+
+/* The blob directory's sweep (above): files removed, or -1 (Redis down:
+ * nothing removed). 0 without blob_dir. */
+int rstore_sweep(rstore *s);
 
 /* Progress. */
 int rstore_progress(rstore *s, const char *id, const char *line,

@@ -14,6 +14,7 @@
 #define GROUP "workers"
 #define HELD_MAX 64               /* entries read but not taken yet */
 #define KEY_MAX 320
+#define REF_MAX (KEY_MAX + 128) /* a blob file's name under blob_dir */
 
 typedef struct {
     char id[RSTORE_ID_MAX];
@@ -32,7 +33,19 @@ struct rstore {
     held_entry held[HELD_MAX];
     int nheld;
     double next_reap;
+    double next_sweep;
 };
+
+/* The blobs of one call written to files (--blob-dir): each one's
+ * "@NAME" and "SIZE REF" arguments, and REF to remove when the script
+ * refused them. */
+#define FILES_MAX 16
+typedef struct {
+    char name[FILES_MAX][RSTORE_ID_MAX + 1];
+    char arg[FILES_MAX][KEY_MAX + 160];
+    char ref[FILES_MAX][REF_MAX];
+    int n;
+} rstore_files;
 
 /* The keys of job id: its hash, its events, its blobs' prefix. */
 typedef struct {
@@ -51,11 +64,19 @@ typedef struct {
     "  redis.call('PEXPIRE', h, ttl)\n"                                   \
     "  redis.call('PEXPIRE', ev, ttl)\n"                                  \
     "end\n"
-/* write(h, bp, name, data): one blob, in the hash or its own key */
+/* write(h, bp, name, data): one blob, in the hash or its own key; a
+ * name "@NAME": data is "SIZE FILE", the file holding NAME's bytes
+ * (--blob-dir), published as field f:NAME */
 #define LUA_WRITE                                                         \
     "local function write(h, bp, name, data)\n"                           \
     "  if string.sub(name, -5) == '.json' then\n"                         \
     "    redis.call('HSET', h, 'b:' .. name, data)\n"                     \
+    "  elseif string.sub(name, 1, 1) == '@' then\n"                      \
+    "    local n = string.sub(name, 2)\n"                                  \
+    "    local sp = string.find(data, ' ', 1, true)\n"                     \
+    "    redis.call('HSET', h, 's:' .. n, string.sub(data, 1, sp - 1),\n"  \
+    "               'f:' .. n, string.sub(data, sp + 1))\n"                \
+    "    redis.call('HINCRBY', h, 'v:' .. n, 1)\n"                         \
     "  else\n"                                                            \
     "    redis.call('SET', bp .. name, data)\n"                           \
     "    redis.call('HSET', h, 's:' .. name, #data)\n"                    \
@@ -80,8 +101,23 @@ int rstore__eval_int(rstore *s, rds_script *sc, int nkeys, int argc,
  * each of the n blobs appended (*argc advanced; room for 2n more): 0, or
  * -1 and errno (EINVAL: a name that cannot be a key, EFBIG: over
  * max_blob). */
-int rstore__blob_args(const rstore *s, const rstore_blob *b, int n,
-                      const char **argv, size_t *lens, int *argc);
+int rstore__blob_args(rstore *s, const char *id, const rstore_blob *b,
+                      int n, const char **argv, size_t *lens, int *argc,
+                      rstore_files *f);
+/* After the script of a call whose blobs went to files: rc its result;
+ * refused (errno ESTALE, ENOENT, EEXIST, ENOSPC), the files go (when the
+ * reply was lost they stay: the sweep removes them if unnamed). rc. */
+int rstore__files_end(rstore *s, rstore_files *f, int rc);
+
+/* rstore_files.c: the blob directory (--blob-dir). */
+int rstore__files_check(rstore *s, char *msg, size_t msgsize);
+int rstore__file_write(rstore *s, const char *id, const char *name,
+                       const void *data, size_t len, char *ref,
+                       size_t refsize);
+void rstore__file_unlink(rstore *s, const char *ref);
+int rstore__file_open(rstore *s, const char *ref, size_t size);
+int rstore__file_read(int fd, size_t off, char *buf, size_t len);
+void rstore__files_remove(rstore *s, const char *id);
 /* A command of C strings on a pooled connection. */
 redisReply *rstore__cmd(rstore *s, double block, int argc,
                         const char **argv);

@@ -343,17 +343,18 @@ static int offer_head(rstore *s, int (*fits)(void *ctx, const char *id),
     return got;
 }
 
-static int reap_due(rstore *s)
+/* Whether *next has passed (then it is set period seconds on). */
+static int due(rstore *s, double *next, double period)
 {
     double now = rds_monotonic();
-    int due;
+    int d;
 
     pthread_mutex_lock(&s->mu);
-    due = now >= s->next_reap;
-    if (due)
-        s->next_reap = now + s->cfg.claim_idle / 4;
+    d = now >= *next;
+    if (d)
+        *next = now + period;
     pthread_mutex_unlock(&s->mu);
-    return due;
+    return d;
 }
 
 int rstore_claim(rstore *s, int (*fits)(void *ctx, const char *id),
@@ -378,8 +379,12 @@ int rstore_claim(rstore *s, int (*fits)(void *ctx, const char *id),
         pthread_mutex_unlock(&s->mu);
         if (nheld > 0)
             return RSTORE_EMPTY;       /* the head does not fit */
-        if (reap_due(s) && rstore_reap(s, -1) > 0)
+        if (due(s, &s->next_reap, s->cfg.claim_idle / 4) &&
+            rstore_reap(s, -1) > 0)
             continue;
+        if (s->cfg.blob_dir[0] &&
+            due(s, &s->next_sweep, s->cfg.blob_sweep))
+            (void)rstore_sweep(s);
         if ((rc = read_new(s, s->k_front, 1, 0)) < 0)
             return -1;
         if (rc == 0 && (rc = read_new(s, s->k_queue, 0, s->cfg.block)) < 0)
@@ -418,6 +423,7 @@ int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n)
     const char *argv[32];
     size_t lens[32];
     job_keys k;
+    rstore_files f;
     int argc = 0;
 
     if (rstore__keys(s, id, &k) != 0 || n < 0 || 6 + 2 * n > 32) {
@@ -430,10 +436,12 @@ int rstore_finish(rstore *s, const char *id, const rstore_blob *b, int n)
     argv[argc++] = s->cfg.consumer;
     argv[argc++] = k.blobs;
     argv[argc++] = s->ttl_ms;
-    if (rstore__blob_args(s, b, n, argv, lens, &argc) != 0)
+    if (rstore__blob_args(s, id, b, n, argv, lens, &argc, &f) != 0)
         return -1;
-    return rstore__eval_int(s, &lua_finish, 2, argc, argv, lens, NULL) < 0
-               ? -1 : 0;
+    return rstore__files_end(
+        s, &f,
+        rstore__eval_int(s, &lua_finish, 2, argc, argv, lens, NULL) < 0 ? -1
+                                                                        : 0);
 }
 
 int rstore_drop(rstore *s, const char *id)

@@ -623,7 +623,7 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
     svc_admit_init(s);
     s->store = cfg->store[0]
                    ? svc_redis_open(cfg->store, cfg->store_password_file,
-                                    cfg->workers,
+                                    cfg->blob_dir, cfg->workers,
                                     cfg->result_ttl + cfg->job_timeout + 3600,
                                     msg, msgsize)
                    : svc_spool_open(cfg->spool, msg, msgsize);

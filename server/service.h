@@ -258,6 +258,8 @@ typedef struct {
     char store[1024];          /* redis://HOST[:PORT][/DB]: the jobs in
                                   Redis (store_redis.c); "": the spool */
     char store_password_file[1024]; /* its password's file, "": none */
+    char blob_dir[512];        /* Redis store: mesh bytes in files here,
+                                  "": in Redis */
     int spool_max_jobs;        /* jobs kept before EQUOTA, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before EQUOTA */
     api_limits lim;            /* limits on untrusted input */

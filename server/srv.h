@@ -67,6 +67,7 @@ typedef struct {
     char spool[1024];          /* job spool directory (default ./var/mcfd) */
     char store[1024];          /* redis://... (jobs in Redis), "": the spool */
     char store_password_file[1024]; /* the Redis password's file, "": none */
+    char blob_dir[512];      /* with a Redis store: large blobs in files here */
     int spool_max_jobs;        /* jobs kept before 503, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
     api_limits lim;            /* limits on untrusted input */

@@ -179,9 +179,10 @@ svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize);
  * semantics): url redis://HOST[:PORT][/DB], the password read from
  * password_file ("" or NULL: none) at every connect; connections for
  * workers threads; a job's keys kept at least ttl seconds after its last
- * write. NULL with a one-line reason in msg. */
+ * write; blob_dir ("" or NULL: none): the mesh bytes in files there
+ * (rstore.h). NULL with a one-line reason in msg. */
 svc_store *svc_redis_open(const char *url, const char *password_file,
-                          int workers, double ttl, char *msg,
+                          const char *blob_dir, int workers, double ttl, char *msg,
                           size_t msgsize);
 
 #endif /* SVC_STORE_H */

@@ -280,7 +280,8 @@ static const svc_store_ops redis_ops = {
 };
 
 svc_store *svc_redis_open(const char *url, const char *password_file,
-                          int workers, double ttl, char *msg, size_t msgsize)
+                          const char *blob_dir, int workers, double ttl,
+                          char *msg, size_t msgsize)
 {
     rds_config rc;
     rstore_config cfg;
@@ -296,6 +297,8 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
                  password_file);
     rstore_config_default(&cfg);
     cfg.pool = workers + 4;        /* a claim holds one while it blocks */
+    if (blob_dir && blob_dir[0])
+        snprintf(cfg.blob_dir, sizeof cfg.blob_dir, "%s", blob_dir);
     if (ttl > cfg.ttl)
         cfg.ttl = ttl;
     /* seconds without heartbeat before another replica takes a running

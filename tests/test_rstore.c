@@ -10,7 +10,14 @@
  * runner fenced off, heartbeats keeping a long job, dead letters, a full
  * queue refused, progress seen from another replica, Redis down and back
  * with what was acknowledged kept, and many claimers taking each job once.
+ * A second group runs the tests that matter again with the large blobs
+ * in files (--blob-dir), plus the directory's own: bytes not in Redis,
+ * a fenced-off runner's files removed, expired jobs' files swept, a
+ * missing directory refused at open.
  */
+#include <dirent.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <errno.h>
 #include <pthread.h>
 #include <signal.h>
@@ -23,6 +30,8 @@
 #include "../server/rstore.h"
 
 static redisd S;
+static char blob_dir[256];       /* "": blobs in Redis */
+static char files_root[200];     /* the tests' blob directory */
 
 static int group_setup(void **state)
 {
@@ -47,6 +56,7 @@ static int setup(void **state)
     (void)state;
     rds_reply_free(r);
     rds_free(c);
+    blob_dir[0] = 0;
     return 0;
 }
 
@@ -67,6 +77,7 @@ static rstore *replica(const char *name, double claim_idle, int max_runs)
     cfg.max_runs = max_runs;
     cfg.block = 0.1;
     cfg.ttl = 3600;
+    snprintf(cfg.blob_dir, sizeof cfg.blob_dir, "%s", blob_dir);
     if (!(s = rstore_open(&rc, &cfg, msg, sizeof msg)))
         fail_msg("rstore_open: %s", msg);
     return s;
@@ -726,6 +737,7 @@ static void test_many_claimers_take_each_job_once(void **state)
     int i;
     (void)state;
 
+    memset(T.taken, 0, sizeof T.taken);   /* the test runs twice */
     for (i = 0; i < JOBS; i++) {
         snprintf(id, sizeof id, "j%d", i);
         make_job(r[0], id, 100);
@@ -745,6 +757,168 @@ static void test_many_claimers_take_each_job_once(void **state)
     rds_free(c);
     rstore_close(r[0]);
     rstore_close(r[1]);
+}
+
+/* ------------------------------------------------- the blob directory */
+
+/* Before each test of the blob directory: an empty database, the
+ * replicas' large blobs in files under a new directory. */
+static int setup_files(void **state)
+{
+    static int n;
+    int rc = setup(state);
+
+    snprintf(blob_dir, sizeof blob_dir, "%s/%d", files_root, ++n);
+    return rc != 0 || mkdir(blob_dir, 0755) != 0;
+}
+
+/* Files in the job's directory whose name starts with prefix (-1: no
+ * directory). */
+static int files_of(const char *id, const char *prefix)
+{
+    char dir[400];
+    DIR *d;
+    struct dirent *de;
+    int n = 0;
+
+    snprintf(dir, sizeof dir, "%s/mcfd/%s", blob_dir, id);
+    if (!(d = opendir(dir)))
+        return -1;
+    while ((de = readdir(d)))
+        if (de->d_name[0] != '.' &&
+            strncmp(de->d_name, prefix, strlen(prefix)) == 0)
+            n++;
+    closedir(d);
+    return n;
+}
+
+static void test_files_hold_the_bytes_not_redis(void **state)
+{
+    rstore *a = replica("a", 30, 3);
+    rds *c = peek();
+    char id[RSTORE_ID_MAX], *data, part[100];
+    size_t n, i;
+    int runs;
+    rstore_blob res[2] = {{"result.obj", NULL, 300000},
+                          {"metrics.json", "{}", 2}};
+    (void)state;
+
+    make_job(a, "f", 200000);
+    assert_int_equal(peek_int(c, "EXISTS", "mcfd:blob:f:input", NULL), 0);
+    assert_int_equal(files_of("f", "input."), 1);
+    must_ok(rstore_get(a, "f", "input", &data, &n), "get");
+    assert_int_equal(n, 200000);
+    for (i = 0; i < n; i++)
+        if (data[i] != (char)(i * 7919 >> 3))
+            fail_msg("input byte %zu differs", i);
+    free(data);
+    must_ok(rstore_get_at(a, "f", "input", 1000, part, 100), "get_at");
+    assert_int_equal(part[7], (char)(1007 * 7919 >> 3));
+    must_ok(rstore_stat(a, "f", "input", &n), "stat");
+    assert_int_equal(n, 200000);
+    /* the Redis side holds records only: far less than the bytes */
+    {
+        redisReply *r = rds_cmdl(c, "MEMORY", "USAGE", "mcfd:job:f", NULL);
+        long long m = 0;
+        assert_non_null(r);
+        (void)rds_reply_ll(r, &m);
+        rds_reply_free(r);
+        assert_true(m > 0 && m < 4096);
+    }
+    must_ok(rstore_push(a, "f", 0), "push");
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    res[0].data = data = calloc(1, 300000);
+    data[299999] = 'Z';
+    must_ok(rstore_finish(a, "f", res, 2), "finish");
+    free(data);
+    must_ok(rstore_get(a, "f", "result.obj", &data, &n), "get result");
+    assert_int_equal(n, 300000);
+    assert_int_equal(data[299999], 'Z');
+    free(data);
+    assert_int_equal(peek_int(c, "EXISTS", "mcfd:blob:f:result.obj", NULL),
+                     0);
+    must_ok(rstore_remove(a, "f"), "remove");
+    assert_int_equal(files_of("f", ""), -1);
+    rds_free(c);
+    rstore_close(a);
+}
+
+/* A runner taken over: its result's file never becomes visible and is
+ * removed at once; the new runner's is the one result. */
+static void test_files_of_a_fenced_runner_go(void **state)
+{
+    rstore *a = replica("a", 0.3, 3), *b = replica("b", 0.3, 3);
+    char id[RSTORE_ID_MAX], *data;
+    size_t n;
+    int runs;
+    rstore_blob old = {"result.drc", "OLD-RESULT", 10},
+                new = {"result.drc", "NEW-RESULT", 10};
+    (void)state;
+
+    make_job(a, "t", 1000);
+    must_ok(rstore_push(a, "t", 0), "push");
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    redisd_sleep(0.4);
+    assert_int_equal(rstore_reap(b, -1), 1);
+    assert_int_equal(claim(b, id, &runs), RSTORE_RETAKEN);
+    assert_int_equal(rstore_finish(a, "t", &old, 1), -1);
+    assert_int_equal(errno, ESTALE);
+    assert_int_equal(files_of("t", "result.drc."), 0);
+    must_ok(rstore_finish(b, "t", &new, 1), "finish");
+    assert_int_equal(files_of("t", "result.drc."), 1);
+    must_ok(rstore_get(a, "t", "result.drc", &data, &n), "get");
+    assert_string_equal(data, "NEW-RESULT");
+    free(data);
+    rstore_close(a);
+    rstore_close(b);
+}
+
+/* The sweep: an expired job's files go, a replaced blob's old file goes,
+ * the files a record names stay. */
+static void test_sweep_removes_expired_and_unnamed_files(void **state)
+{
+    rds_config rc = redisd_config(&S);
+    rstore_config cfg;
+    rstore *s;
+    char msg[256], *data;
+    size_t n;
+    (void)state;
+
+    rstore_config_default(&cfg);
+    snprintf(cfg.blob_dir, sizeof cfg.blob_dir, "%s", blob_dir);
+    cfg.ttl = 1;
+    cfg.blob_grace = 0;
+    if (!(s = rstore_open(&rc, &cfg, msg, sizeof msg)))
+        fail_msg("rstore_open: %s", msg);
+    make_job(s, "old", 5000);
+    redisd_sleep(1.3);               /* its keys expire after 1 s */
+    make_job(s, "live", 5000);
+    must_ok(rstore_put(s, "live", "result.obj", "v1", 2, 0), "put");
+    must_ok(rstore_put(s, "live", "result.obj", "v2", 2, 0), "put");
+    assert_int_equal(files_of("old", "input."), 1);
+    assert_int_equal(files_of("live", "result.obj."), 2);
+    assert_int_equal(rstore_sweep(s), 2);
+    assert_int_equal(files_of("old", ""), -1);
+    assert_int_equal(files_of("live", "input."), 1);
+    assert_int_equal(files_of("live", "result.obj."), 1);
+    must_ok(rstore_get(s, "live", "result.obj", &data, &n), "get");
+    assert_string_equal(data, "v2");
+    free(data);
+    rstore_close(s);
+}
+
+static void test_missing_blob_dir_refused_at_open(void **state)
+{
+    rds_config rc = redisd_config(&S);
+    rstore_config cfg;
+    char msg[256] = "";
+    (void)state;
+
+    rstore_config_default(&cfg);
+    snprintf(cfg.blob_dir, sizeof cfg.blob_dir, "%s/no/such/dir", blob_dir);
+    assert_null(rstore_open(&rc, &cfg, msg, sizeof msg));
+    assert_non_null(strstr(msg, "--blob-dir"));
+    assert_non_null(strstr(msg, "No such file"));
 }
 
 int main(void)
@@ -767,6 +941,32 @@ int main(void)
                                setup),
         cmocka_unit_test_setup(test_redis_down_and_back, setup),
         cmocka_unit_test_setup(test_many_claimers_take_each_job_once, setup),
+        /* the same store with the bytes in files (--blob-dir) */
+        cmocka_unit_test_setup(test_takeover_fences_the_old_runner,
+                               setup_files),
+        cmocka_unit_test_setup(test_finish_is_one_step, setup_files),
+        cmocka_unit_test_setup(test_redis_down_and_back, setup_files),
+        cmocka_unit_test_setup(test_many_claimers_take_each_job_once,
+                               setup_files),
+        cmocka_unit_test_setup(test_files_hold_the_bytes_not_redis,
+                               setup_files),
+        cmocka_unit_test_setup(test_files_of_a_fenced_runner_go, setup_files),
+        cmocka_unit_test_setup(test_sweep_removes_expired_and_unnamed_files,
+                               setup_files),
+        cmocka_unit_test_setup(test_missing_blob_dir_refused_at_open,
+                               setup_files),
     };
-    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+    char cmd[300];
+    int rc;
+
+    snprintf(files_root, sizeof files_root, "/tmp/mcfd-blobs-XXXXXX");
+    if (!mkdtemp(files_root)) {
+        perror("mkdtemp");
+        return 1;
+    }
+    rc = cmocka_run_group_tests(tests, group_setup, group_teardown);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", files_root);
+    if (system(cmd) != 0)
+        fprintf(stderr, "could not remove %s\n", files_root);
+    return rc;
 }
