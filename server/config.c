@@ -486,6 +486,11 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
         cfg->max_job_memory = cfg->max_memory;
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
+    if (cfg->blob_dir[0] && !cfg->store[0]) {
+        snprintf(msg, msgsize, "--blob-dir needs --store redis://...: the "
+                 "local spool keeps its blobs in its own directory");
+        return -1;
+    }
     return 0;
 }
 

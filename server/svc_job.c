@@ -501,11 +501,13 @@ static void end_blobs_of(svc_job *j, const svc_outcome *o, end_blobs *eb)
 }
 
 /* The store refused a blob of the end as too large for one value (EFBIG:
- * Redis's proto-max-bulk-len bounds each argument of the finish): a
- * succeeded run becomes failed, saying why, without its result, metrics
- * and fields; an end still too large drops its events. Never parked, so
- * never run again to the same end. 0, or -1 when nothing is left to drop. */
-static int end_too_big(svc_job *j, svc_outcome *o, end_blobs *eb)
+ * Redis's proto-max-bulk-len bounds each argument of the finish) or had
+ * no room for it after every retry (ENOSPC, EDQUOT: the shared blob
+ * directory's disk full, Redis out of memory): a succeeded run becomes
+ * failed, saying why, without its result, metrics and fields; an end
+ * still refused drops its events. Never parked, so never run again to
+ * the same end. 0, or -1 when nothing is left to drop. */
+static int end_refused(svc_job *j, svc_outcome *o, end_blobs *eb, int e)
 {
     const svc_blob *big = &eb->b[0];
     int i;
@@ -515,19 +517,28 @@ static int end_too_big(svc_job *j, svc_outcome *o, end_blobs *eb)
     for (i = 1; i < eb->n; i++)
         if (eb->b[i].len > big->len)
             big = &eb->b[i];
-    srv_logf(SRV_LOG_ERROR, "job %s: the store refused its %s (%zu bytes) "
-             "as too large", j->id, big->name, big->len);
+    srv_logf(SRV_LOG_ERROR, "job %s: the store refused its %s (%zu bytes): "
+             "%s", j->id, big->name, big->len,
+             e == EFBIG ? "too large" : strerror(e));
     if (o->status != SVC_JOB_SUCCEEDED) {
         eb->n = eb->ev_n = 0;      /* its events alone were too large */
         eb->ev_len = 0;
         return 0;
     }
     o->status = SVC_JOB_FAILED;
-    svc_error_set(&o->err, SVC_P_MESH_LIMIT, "the run ended, but its %s "
-                  "(%zu bytes) is larger than the job store takes in one "
-                  "value (Redis's proto-max-bulk-len, less a margin), so "
-                  "it was not kept; ask for a smaller result (another "
-                  "format, no fields)", big->name, big->len);
+    if (e == EFBIG)
+        svc_error_set(&o->err, SVC_P_MESH_LIMIT, "the run ended, but its %s "
+                      "(%zu bytes) is larger than the job store takes in "
+                      "one value (Redis's proto-max-bulk-len, less a "
+                      "margin), so it was not kept; ask for a smaller "
+                      "result (another format, no fields)", big->name,
+                      big->len);
+    else
+        svc_error_set(&o->err, SVC_P_STORAGE, "the run ended, but the job "
+                      "store had no room for its %s (%zu bytes: %s; the "
+                      "blob directory's disk or Redis's memory is full), so "
+                      "it was not kept; submit it again once there is room",
+                      big->name, big->len, strerror(e));
     o->result_len = 0;
     end_blobs_of(j, o, eb);
     return 0;
@@ -581,13 +592,20 @@ void svc__finish(svc_job *j, svc_outcome *o)
         e = errno;
         pthread_mutex_unlock(&s->state_mu);
         if (fin && e == EFBIG && o->status != SVC_JOB_QUEUED &&
-            end_too_big(j, o, &eb) == 0)
+            end_refused(j, o, &eb, e) == 0)
             continue;
         /* A shutdown alone stops these tries: a cancel asked now changes
          * nothing of an outcome already reached; nor does one of a run
          * another replica took over (ESTALE: its outcome is that one's). */
-        if (o->status == SVC_JOB_QUEUED || e == ESTALE ||
-            !svc__retry(j, &tries, e, "recording its outcome", 1))
+        if (o->status == SVC_JOB_QUEUED || e == ESTALE)
+            break;
+        if (svc__retry(j, &tries, e, "recording its outcome", 1))
+            continue;
+        /* a shared store still full after every try: the job fails
+         * clearly rather than being parked and run again to the same end */
+        if (!(fin && s->store->ops->shared && tries >= SVC_RETRY_TRIES &&
+              (e == ENOSPC || e == EDQUOT) &&
+              end_refused(j, o, &eb, e) == 0))
             break;
     }
     if (fin)
