@@ -11,8 +11,11 @@ submissions answer 503 (Retry-After), and once Redis is back from its AOF
 everything works again with what was acknowledged kept; a job running
 while Redis is down succeeds once it is back; mcfd killed (-9)
 while a job runs: the restarted mcfd finishes it under the same ID (after
-MCFD_REDIS_CLAIM_IDLE, 3 s here, without heartbeat). Several replicas on
-one store: tests/test_replicas.py.
+MCFD_REDIS_CLAIM_IDLE, 3 s here, without heartbeat). With --blob-dir: the
+mesh bytes are files in that directory, none in Redis, the result the
+same bytes, a kill -9 taken over with one result file; a missing
+directory stops mcfd at start. Several replicas on one store:
+tests/test_replicas.py.
 """
 import json
 import os
@@ -73,8 +76,8 @@ def store_url():
     return "redis://127.0.0.1:%d" % REDIS["port"]
 
 
-def daemon(name):
-    return Daemon(name, "--store", store_url(), "--workers", "1")
+def daemon(name, *flags):
+    return Daemon(name, "--store", store_url(), "--workers", "1", *flags)
 
 
 def http(method, url, body=None, headers=None):
@@ -227,8 +230,75 @@ def test_kill9_then_restart_finishes_the_job():
         d.stop()
 
 
+def blob_files(d, jid):
+    jd = os.path.join(d, "mcfd", jid)
+    return sorted(os.listdir(jd)) if os.path.isdir(jd) else []
+
+
+def test_blob_dir_holds_the_bytes():
+    bd = os.path.join(TMP, "blobs")
+    os.makedirs(bd, exist_ok=True)
+    d = daemon("files", "--blob-dir", bd)
+    try:
+        q = "scheme=desbrun2&iterations=5"
+        jid = submit(d, q)
+        wait_status(d, jid, "succeeded", 60)
+        res = result_of(d, jid)
+        with open(BUNNY, "rb") as f:
+            st, _, sync = http("POST", d.url + "/smooth?" + q, f.read(),
+                               {"Content-Type": "application/octet-stream"})
+        assert st == 200 and res == sync, (st, len(res), len(sync))
+        assert cli("KEYS", "mcfd:blob:%s:*" % jid) == "", "bytes in Redis"
+        files = blob_files(bd, jid)
+        assert [n for n in files if n.startswith("input.")], files
+        res_files = [n for n in files if n.startswith("result.")]
+        assert len(res_files) == 1, files
+        with open(os.path.join(bd, "mcfd", jid, res_files[0]), "rb") as f:
+            assert f.read() == res
+        assert not [n for n in files if n.endswith(".tmp")], files
+        # DELETE removes the job's files with its records
+        st, _, _ = http("DELETE", "%s/v1/jobs/%s" % (d.url, jid))
+        assert st in (200, 202, 204), st
+        end = time.time() + 10
+        while blob_files(bd, jid) and time.time() < end:
+            time.sleep(0.1)
+        assert blob_files(bd, jid) == [], blob_files(bd, jid)
+    finally:
+        d.stop()
+
+
+def test_blob_dir_kill9_then_restart_finishes_the_job():
+    bd = os.path.join(TMP, "blobs9")
+    os.makedirs(bd, exist_ok=True)
+    d = daemon("crash-files", "--blob-dir", bd)
+    jid = submit(d, "scheme=desbrun2&iterations=60")
+    wait_status(d, jid, "running", 30)
+    d.kill()
+    d = daemon("crash-files", "--blob-dir", bd)
+    try:
+        wait_status(d, jid, "succeeded", 90)
+        res = result_of(d, jid)
+        files = [n for n in blob_files(bd, jid) if n.startswith("result.")]
+        assert len(files) == 1, blob_files(bd, jid)
+        with open(os.path.join(bd, "mcfd", jid, files[0]), "rb") as f:
+            assert f.read() == res
+    finally:
+        d.stop()
+
+
+def test_blob_dir_missing_is_a_startup_error():
+    r = subprocess.run([os.path.join(testlib.BUILD, "mcfd"), "--port", "0",
+                        "--grpc-port", "off", "--store", store_url(),
+                        "--blob-dir", os.path.join(TMP, "no", "such")],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode != 0, r
+    assert "--blob-dir" in r.stderr and "No such file" in r.stderr, r.stderr
+
+
 if __name__ == "__main__":
     raise SystemExit(run_tests(
         [test_jobs_live_in_redis, test_redis_down_then_back, test_redis_down_while_a_job_runs,
-         test_result_over_proto_max_bulk_len_fails, test_kill9_then_restart_finishes_the_job],
+         test_result_over_proto_max_bulk_len_fails, test_kill9_then_restart_finishes_the_job,
+         test_blob_dir_holds_the_bytes, test_blob_dir_kill9_then_restart_finishes_the_job,
+         test_blob_dir_missing_is_a_startup_error],
         setup=redis_start))
