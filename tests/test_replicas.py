@@ -49,12 +49,12 @@ def stubs():
     return grpc, mcfd_pb2, mcfd_pb2_grpc
 
 
-def replicas(n, tag, workers=1):
+def replicas(n, tag, workers=1, *flags):
     ds = []
     try:
         for i in range(n):
             ds.append(Daemon("%s%d" % (tag, i), "--store", rs.store_url(),
-                             "--workers", str(workers)))
+                             "--workers", str(workers), *flags))
     except BaseException:
         stop(ds)
         raise
@@ -301,10 +301,33 @@ def test_redis_down_every_replica_503():
         stop(ds)
 
 
+def test_kill9_of_the_runner_with_blob_dir():
+    """The mesh bytes in a directory the replicas share (--blob-dir): the
+    runner killed (-9), the other finishes the job; one result file, the
+    bytes fetched from either replica, none in Redis."""
+    bd = os.path.join(TMP, "shared-blobs")
+    os.makedirs(bd, exist_ok=True)
+    ds = replicas(2, "killfiles", 1, "--blob-dir", bd)
+    try:
+        jid, alive = kill_runner(ds, "scheme=desbrun2&iterations=60")
+        wait_status(alive, jid, "succeeded", 90)
+        res = result_of(alive, jid)
+        assert cli("HGET", "mcfd:job:" + jid, "runs") == "2"
+        assert cli("KEYS", "mcfd:blob:%s:*" % jid) == ""
+        jd = os.path.join(bd, "mcfd", jid)
+        files = [n for n in os.listdir(jd) if n.startswith("result.")]
+        assert len(files) == 1, os.listdir(jd)
+        with open(os.path.join(jd, files[0]), "rb") as f:
+            assert f.read() == res
+    finally:
+        stop(ds)
+
+
 if __name__ == "__main__":
     raise SystemExit(run_tests(
         [test_submit_a_watch_b_fetch_c, test_cancel_on_b_stops_the_run_on_a,
-         test_kill9_of_the_runner, test_dead_letter_is_failed, test_redis_restart_mid_run,
+         test_kill9_of_the_runner, test_kill9_of_the_runner_with_blob_dir,
+         test_dead_letter_is_failed, test_redis_restart_mid_run,
          test_32_clients_over_three_replicas, test_32_clients_on_the_local_spool,
          test_redis_down_every_replica_503],
         setup=redis_start))

@@ -13,8 +13,8 @@ while Redis is down succeeds once it is back; mcfd killed (-9)
 while a job runs: the restarted mcfd finishes it under the same ID (after
 MCFD_REDIS_CLAIM_IDLE, 3 s here, without heartbeat). With --blob-dir: the
 mesh bytes are files in that directory, none in Redis, the result the
-same bytes, a kill -9 taken over with one result file; a missing
-directory stops mcfd at start. Several replicas on one store:
+same bytes, DELETE removes the files; a missing directory stops mcfd at
+start (a kill -9 taken over with the bytes in files: test_replicas.py). Several replicas on one store:
 tests/test_replicas.py.
 """
 import json
@@ -267,25 +267,6 @@ def test_blob_dir_holds_the_bytes():
         d.stop()
 
 
-def test_blob_dir_kill9_then_restart_finishes_the_job():
-    bd = os.path.join(TMP, "blobs9")
-    os.makedirs(bd, exist_ok=True)
-    d = daemon("crash-files", "--blob-dir", bd)
-    jid = submit(d, "scheme=desbrun2&iterations=60")
-    wait_status(d, jid, "running", 30)
-    d.kill()
-    d = daemon("crash-files", "--blob-dir", bd)
-    try:
-        wait_status(d, jid, "succeeded", 90)
-        res = result_of(d, jid)
-        files = [n for n in blob_files(bd, jid) if n.startswith("result.")]
-        assert len(files) == 1, blob_files(bd, jid)
-        with open(os.path.join(bd, "mcfd", jid, files[0]), "rb") as f:
-            assert f.read() == res
-    finally:
-        d.stop()
-
-
 def test_blob_dir_missing_is_a_startup_error():
     r = subprocess.run([os.path.join(testlib.BUILD, "mcfd"), "--port", "0",
                         "--grpc-port", "off", "--store", store_url(),
@@ -299,6 +280,5 @@ if __name__ == "__main__":
     raise SystemExit(run_tests(
         [test_jobs_live_in_redis, test_redis_down_then_back, test_redis_down_while_a_job_runs,
          test_result_over_proto_max_bulk_len_fails, test_kill9_then_restart_finishes_the_job,
-         test_blob_dir_holds_the_bytes, test_blob_dir_kill9_then_restart_finishes_the_job,
-         test_blob_dir_missing_is_a_startup_error],
+         test_blob_dir_holds_the_bytes, test_blob_dir_missing_is_a_startup_error],
         setup=redis_start))
