@@ -160,7 +160,7 @@ int rstore_get_at(rstore *s, const char *id, const char *name, size_t off,
 int rstore_stat(rstore *s, const char *id, const char *name, size_t *size);
 int rstore_remove(rstore *s, const char *id);
 int rstore_quarantine(rstore *s, const char *id);
-/* Bytes the job holds in Redis (0 when unknown). */
+/* Bytes the job holds in the store, Redis or blob_dir (0 when unknown). */
 size_t rstore_usage(rstore *s, const char *id);
 int rstore_scan(rstore *s, void (*fn)(const char *id, void *ctx),
                 void *ctx);

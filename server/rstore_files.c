@@ -112,7 +112,11 @@ int rstore__file_write(rstore *s, const char *id, const char *name,
     }
     snprintf(path, sizeof path, "%s/%s", s->cfg.blob_dir, ref);
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    if ((fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644)) < 0)
+    fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0 && errno == ENOENT &&      /* a sweep took the empty dir */
+        (mkdir(dir, 0755) == 0 || errno == EEXIST))
+        fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0)
         return -1;
     if (write_all(fd, data, len) != 0 || fsync(fd) != 0) {
         e = errno;
