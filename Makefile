@@ -190,7 +190,7 @@ $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHO
 # tests/redisd.c starts and stops.
 REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
 REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/server/rstore.o \
-             $(B)/server/rstore_queue.o $(B)/server/rstore_files.o
+             $(B)/server/rstore_queue.o $(B)/server/rstore_files.o $(B)/server/fsio.o
 $(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
@@ -469,8 +469,8 @@ $(SERVER_TESTS): $(B)/tests/%: $(B)/tests/%.o $(SRVLIB_OBJ) $(TESTLIB_OBJ) $(B)/
 	$(CXX) $(LDFLAGS) -o $@ $< $(SRVLIB_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
 # test_service drives the job service in-process: its objects (the service,
-# its store and sandbox, the log and metrics it reports to), no door.
-SVC_TEST_OBJ := $(patsubst %.c,$(B)/%.o,$(filter %.c,$(SRV_SERVICE)) server/log.c server/metrics.c)
+# its store and sandbox, the log and metrics it reports to, fsio.c), no door.
+SVC_TEST_OBJ := $(patsubst %.c,$(B)/%.o,$(filter %.c,$(SRV_SERVICE)) server/log.c server/metrics.c server/fsio.c)
 $(B)/tests/test_service.o: CPPFLAGS += -Iserver
 $(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread

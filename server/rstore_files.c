@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include "rstore_internal.h"
+#include "srv.h"
 
 #define PATH_LEN 1024             /* blob_dir (512) and a job's part */
 
@@ -56,33 +57,6 @@ int rstore__files_check(rstore *s, char *msg, size_t msgsize)
     return 0;
 }
 
-static int write_all(int fd, const char *p, size_t len)
-{
-    while (len > 0) {
-        ssize_t w = write(fd, p, len);
-        if (w < 0) {
-            if (errno == EINTR)
-                continue;
-            return -1;
-        }
-        p += w;
-        len -= (size_t)w;
-    }
-    return 0;
-}
-
-static int sync_dir(const char *dir)
-{
-    int fd = open(dir, O_RDONLY | O_DIRECTORY);
-    int rc;
-
-    if (fd < 0)
-        return -1;
-    rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
 /* The blob's bytes in a file of its own; its name (relative to the
  * directory) in ref. 0, or -1 and errno (ENOSPC: disk full), nothing
  * left behind. */
@@ -118,14 +92,14 @@ int rstore__file_write(rstore *s, const char *id, const char *name,
         fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0)
         return -1;
-    if (write_all(fd, data, len) != 0 || fsync(fd) != 0) {
+    if (srv_write_all(fd, data, len) != 0 || fsync(fd) != 0) {
         e = errno;
         close(fd);
         unlink(tmp);
         errno = e;
         return -1;
     }
-    if (close(fd) != 0 || rename(tmp, path) != 0 || sync_dir(dir) != 0) {
+    if (close(fd) != 0 || rename(tmp, path) != 0 || srv_sync_dir(dir) != 0) {
         e = errno;
         unlink(tmp);
         unlink(path);

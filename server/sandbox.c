@@ -58,6 +58,7 @@
 #include <unistd.h>
 
 #include "sandbox.h"
+#include "srv.h"
 
 extern char **environ;
 
@@ -71,21 +72,6 @@ typedef struct {
 } child_head;
 
 /* ------------------------------------------------------------------ child */
-
-static int write_all(int fd, const void *p, size_t n)
-{
-    const char *c = p;
-    while (n > 0) {
-        ssize_t w = write(fd, c, n);
-        if (w < 0 && errno == EINTR)
-            continue;
-        if (w <= 0)
-            return -1;
-        c += w;
-        n -= (size_t)w;
-    }
-    return 0;
-}
 
 int srv_sandbox_child(int argc, char **argv)
 {
@@ -163,9 +149,9 @@ int srv_sandbox_child(int argc, char **argv)
     mcf_mesh_free(m);
     api_attrs_free(attrs);
     /* everything freed: a leak checker (the ASan build) exits clean */
-    if (write_all(1, &h, sizeof h) != 0 ||
-        write_all(1, err.msg, (size_t)h.msglen) != 0 ||
-        write_all(1, out.data, out.len) != 0) {
+    if (srv_write_all(1, &h, sizeof h) != 0 ||
+        srv_write_all(1, err.msg, (size_t)h.msglen) != 0 ||
+        srv_write_all(1, out.data, out.len) != 0) {
         api_buf_free(&out);
         return 6;
     }

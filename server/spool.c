@@ -84,18 +84,6 @@ static void note(spool *sp, int ok, size_t bytes)
     errno = e;
 }
 
-static int fsync_dir(const char *dir)
-{
-    int fd = open(dir, O_RDONLY | O_DIRECTORY);
-    int rc;
-
-    if (fd < 0)
-        return -1;
-    rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
 static int mkdir_p(const char *path)
 {
     char buf[1200];
@@ -251,7 +239,7 @@ static int mkjob(spool *sp, const char *id)
     if (mkdir(dir, 0750) != 0 && errno != EEXIST)
         return -1;
     snprintf(jobs, sizeof jobs, "%s/jobs", sp->dir);
-    return fsync_dir(jobs);
+    return srv_sync_dir(jobs);
 }
 
 /* Writes data to <job>/<name> through a temporary file, fsync()s it when
@@ -261,8 +249,6 @@ static int sp_put(svc_store *st, const char *id, const char *name,
 {
     spool *sp = (spool *)st;
     char path[1400], tmp[1440], dir[1300];
-    const char *p = data;
-    size_t done = 0;
     unsigned long k;
     int fd, rc = -1;
 
@@ -276,15 +262,8 @@ static int sp_put(svc_store *st, const char *id, const char *name,
     fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0640);
     if (fd < 0)
         return -1;
-    while (done < len) {
-        ssize_t w = write(fd, p + done, len - done);
-        if (w < 0) {
-            if (errno == EINTR)
-                continue;
-            goto fail;
-        }
-        done += (size_t)w;
-    }
+    if (srv_write_all(fd, data, len) != 0)
+        goto fail;
     if (durable && fsync(fd) != 0)
         goto fail;
     if (close(fd) != 0) {
@@ -294,7 +273,7 @@ static int sp_put(svc_store *st, const char *id, const char *name,
     fd = -1;
     if (rename(tmp, path) != 0)
         goto fail;
-    if (durable && fsync_dir(dir) != 0)
+    if (durable && srv_sync_dir(dir) != 0)
         goto fail;
     rc = 0;
 fail:
@@ -478,7 +457,7 @@ static int sp_remove(svc_store *st, const char *id)
         note(sp, 0, 0);
         return -1;
     }
-    if (fsync_dir(jobs) != 0) {
+    if (srv_sync_dir(jobs) != 0) {
         note(sp, 0, 0);
         return -1;
     }
@@ -507,7 +486,7 @@ static int sp_quarantine(svc_store *st, const char *id)
             break;
     }
     snprintf(jobs, sizeof jobs, "%s/jobs", sp->dir);
-    if (rename(dir, dest) != 0 || fsync_dir(jobs) != 0 || fsync_dir(qdir) != 0)
+    if (rename(dir, dest) != 0 || srv_sync_dir(jobs) != 0 || srv_sync_dir(qdir) != 0)
         return -1;
     srv_metrics_quarantined();
     return 0;

@@ -11,6 +11,7 @@
  *   log.c       one JSON line per event on stderr
  *   metrics.c   Prometheus counters and histograms
  *   fds.c       descriptors: the limit raised, the doors' caps fitted to it
+ *   fsio.c      whole writes and directory syncs, for every durable file
  * the job service (service.h; its files share svc_internal.h, which says
  * which does what): service.c, svc_job.c, svc_read.c, svc_state.c,
  * svc_error.c, runner.c, workers.c, recovery.c, svc_admit.c, sandbox.c
@@ -123,6 +124,13 @@ int srv_fds_headroom(void);
 #define SRV_FDS_DEAD 5.0
 void srv_fds_watch(double now);
 int srv_fds_health(char *why, size_t size);
+
+/* fsio.c. srv_write_all: all len bytes to fd (EINTR retried, a short
+ * write continued); 0, or -1 and errno. srv_sync_dir: fsync() of the
+ * directory dir, so a file renamed into it stays after a crash; 0, or -1
+ * and errno. */
+int srv_write_all(int fd, const void *data, size_t len);
+int srv_sync_dir(const char *dir);
 
 /* ------------------------------------------------------------------ logging */
 
