@@ -200,6 +200,16 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
                                                  : cJSON_CreateNull());
     ok = ok && api__json_num(o, "noise_tangential", st->noise_tangential);
     ok = ok && api__json_num(o, "tangential_steps", st->tangential_steps);
+    /* fairing: the combination of iterates the result took along the
+     * normals, {steps: [k...], weights: [c...]}; null: Y after `steps` */
+    if (ok && st->ncomb > 0) {
+        cJSON *cb = cJSON_CreateObject();
+        ok = api__json_put(o, "combination", cb);
+        ok = ok && api__json_put(cb, "steps", cJSON_CreateIntArray(st->comb_steps, st->ncomb));
+        ok = ok && api__json_put(cb, "weights", cJSON_CreateDoubleArray(st->comb_weight, st->ncomb));
+    } else {
+        ok = ok && api__json_put(o, "combination", cJSON_CreateNull());
+    }
     ok = ok && api__json_num(o, "crease_vertices", st->crease_vertices);
     ok = ok && api__json_num(o, "guard_rounds", st->guard_rounds);
     ok = ok && api__json_num(o, "guard_vertices", st->guard_vertices);

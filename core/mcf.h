@@ -306,13 +306,20 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * (0: mcf_noise_estimate's), evaluated after every step until K > 2 K* +
  * 10, at most MCF_FAIRING_MAX_STEPS steps (implicit) or
  * MCF_FAIRING_MAX_PASSES passes (explicit) and max_steps. A mesh without
- * noise gets K = 0: it is returned as it came. The result moves every
- * free vertex along the normal of the filtered surface only, and a guard
+ * noise gets K = 0: it is returned as it came. With the automatic
+ * amount the result is SURE's best combination X0 + sum_j c_j (Y_kj -
+ * X0) of the positions after the last MCF_FAIRING_COMB powers of two kj
+ * of steps when its SURE is lower than Y_K's (docs/fairing.md). The
+ * result moves every free vertex along the normal of the filtered
+ * surface only, and a guard
  * takes back every face it would fold (turned against the input's face
  * and lying backwards in its neighbourhood): the filtered positions
  * first, then halfway to the input, then the input's. */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
+/* the fairing filters combine the positions after the last
+ * MCF_FAIRING_COMB powers of two of steps (mcf_flow_stats.comb_*) */
+#define MCF_FAIRING_COMB 4
 
 typedef struct {
     mcf_scheme scheme;        /* default MCF_DESBRUN2 */
@@ -453,6 +460,13 @@ typedef struct {
                                  relaxation assumed, in mean edges */
     int tangential_steps;     /* fairing: the steps whose tangential
                                  displacement the result took (0: none) */
+    int ncomb;                /* fairing: the result along the normals is
+                                 X0 + sum_j comb_weight[j] (Y_comb_steps[j]
+                                 - X0), Y_K the positions after K steps,
+                                 for j < ncomb (SURE's best combination);
+                                 0: Y_steps itself */
+    int comb_steps[MCF_FAIRING_COMB];
+    double comb_weight[MCF_FAIRING_COMB];
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */
