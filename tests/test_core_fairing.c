@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mcf_internal.h" /* mcf__mix64: the run's probes, replayed */
 #include "testlib.h"
 
 /* ------------------------------------------------ dense reference */
@@ -350,6 +351,96 @@ static void test_equations_fixed_steps(void **state)
     }
 }
 
+enum { MAXK = 2100, NPROBE = 6 };
+
+/* The run's Hutchinson estimate of tr(W T^K) replayed: its six
+ * Rademacher probes (mcf_fairing.c's init_probes: the sign of
+ * mcf__mix64(q 0x9e3779b97f4a7c15 + k + 1) for probe q at free vertex k),
+ * through R^K = D^1/2 T^K D^-1/2 for the implicit variant (its probes run
+ * in y = D^1/2 x), T^K for the explicit one. */
+static double probe_trace(const graph *g, const double *TK, const double *w, int is_explicit)
+{
+    int n = g->nfree;
+    double tr = 0.0;
+    for (int q = 0; q < NPROBE; q++)
+        for (int a = 0; a < n; a++) {
+            double za = (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)a + 1) >> 63) ? 1.0 : -1.0;
+            double t = 0.0;
+            for (int b = 0; b < n; b++) {
+                double zb = (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)b + 1) >> 63) ? 1.0 : -1.0;
+                t += (is_explicit ? 1.0 : sqrt(g->D[g->vert[a]] / g->D[g->vert[b]])) * TK[a * n + b] * zb;
+            }
+            tr += w[g->vert[a]] * za * t / NPROBE;
+        }
+    return tr;
+}
+
+/* The combination against its equations: the steps kept are the last
+ * MCF_FAIRING_COMB powers of two up to the last step; the weights solve
+ * G c = -s^2 b, G_jl = sum w r_j r_l, b_j = tr_j - sum w, tr_j the run's
+ * probe estimate of tr(W T^kj) (trk, replayed). The run keeps the
+ * displacements in single precision (relative rounding 6e-8) and adds a
+ * ridge of 1e-9 of G's mean diagonal: G's entries within 2e-7 of |G|'s
+ * row, so the weights within |G^-1| (2e-7 |G| |c| + 1e-9 mean diag |c|)
+ * (measured: 2e-5 of a bound of 5e-3 and up). */
+static void check_combination(const graph *g, const double *T, const double *c, const double *X0,
+                              const double *N0, const double *w, double s, const mcf_flow_stats *st,
+                              const double *trk, const char *name)
+{
+    enum { J = MCF_FAIRING_COMB };
+    int n = g->nfree, last = st->nsure - 1, top = 1;
+    if (st->ncomb == 0) {
+        print_message("%s: no combination taken\n", name);
+        return;
+    }
+    assert_int_equal(st->ncomb, J);
+    while (2 * top <= last)
+        top *= 2;
+    static double r[J][NV], Y[3 * NV];
+    double Gm[J * J], Gi[J * J], b[J], gd = 0.0;
+    for (int j = 0; j < J; j++) {
+        assert_int_equal(st->comb_steps[j], top >> (J - 1 - j));
+        reference_steps(g, T, c, X0, st->comb_steps[j], Y);
+        for (int a = 0; a < n; a++) {
+            int i = g->vert[a];
+            r[j][a] = 0.0;
+            for (int d = 0; d < 3; d++)
+                r[j][a] += N0[3 * i + d] * (Y[3 * i + d] - X0[3 * i + d]);
+        }
+        b[j] = trk[st->comb_steps[j]] - n;
+    }
+    for (int j = 0; j < J; j++) {
+        for (int l = 0; l < J; l++) {
+            Gm[j * J + l] = 0.0;
+            for (int a = 0; a < n; a++)
+                Gm[j * J + l] += w[g->vert[a]] * r[j][a] * r[l][a];
+        }
+        gd += Gm[j * J + j] / J;
+    }
+    for (int l = 0; l < J; l++) { /* G^-1 by columns */
+        double A[J * J], e[J] = {0};
+        memcpy(A, Gm, sizeof A);
+        e[l] = 1.0;
+        dense_solve(A, e, J);
+        for (int j = 0; j < J; j++)
+            Gi[j * J + l] = e[j];
+    }
+    for (int j = 0; j < J; j++) {
+        double ref = 0.0, tol = 0.0;
+        for (int l = 0; l < J; l++) {
+            ref -= s * s * Gi[j * J + l] * b[l];
+            double dg = 1e-9 * gd * fabs(st->comb_weight[l]);
+            for (int m = 0; m < J; m++)
+                dg += 2e-7 * fabs(Gm[l * J + m]) * fabs(st->comb_weight[m]);
+            tol += fabs(Gi[j * J + l]) * dg;
+        }
+        print_message("%s: combination weight of %d steps %.6f, equations %.6f (tolerance %.1e)\n", name,
+                      st->comb_steps[j], st->comb_weight[j], ref, tol);
+        if (!(fabs(st->comb_weight[j] - ref) <= tol))
+            fail_msg("%s: weight of %d steps %.8f, equations %.8f", name, st->comb_steps[j], st->comb_weight[j], ref);
+    }
+}
+
 /* The automatic amount against SURE written out: with the noise level
  * given (noise_sigma), the curve st.sure[K] equals sum w r^2 - s^2 sum w +
  * 2 s^2 tr(W T^K), r along the input's normals, w the barycentric areas
@@ -404,6 +495,7 @@ static void test_equations_sure(void **state)
             for (int b = 0; b < n; b++)
                 TK[a * n + b] = a == b;
         int kmin = 0;
+        static double trk[MAXK];
         for (int K = 0; K < st.nsure; K++) {
             if (K > 0) { /* TK = T TK */
                 for (int a = 0; a < n; a++)
@@ -436,6 +528,8 @@ static void test_equations_sure(void **state)
                 dia += (w[i] * TK[a * n + a]) * (w[i] * TK[a * n + a]);
             }
             double sd = sqrt(2.0 * (fro - dia) / 6.0);
+            if (K < MAXK)
+                trk[K] = probe_trace(&g, TK, w, var);
             double ref = (r2 - s * s * n + 2.0 * s * s * tr) / n / (h * h);
             double tol = 5.0 * 2.0 * s * s * sd / n / (h * h) + 1e-9;
             if (!(fabs(st.sure[K] - ref) <= tol))
@@ -451,6 +545,10 @@ static void test_equations_sure(void **state)
         assert_true(st.nsure - 1 == 2 * kmax + 11 ||
                     st.nsure - 1 == (var ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS));
         tl_assert_near(st.noise, sigma, 1e-12, "the noise level the amount used");
+        /* the run's s: sigma of its own mean edge (working units, unit
+         * area), back in the input's units */
+        double s_run = sigma * st.mean_edge * sqrt(st.area0);
+        check_combination(&g, T, c, X0, N0, w, s_run, &st, trk, var ? "fairing_explicit" : "fairing");
         mcf_flow_stats_free(&st);
         free(T);
         free(c);
@@ -469,11 +567,12 @@ static double rms(const mcf_mesh *m, const mcf_mesh *clean)
     return r.rms_m;
 }
 
-/* Taubin's oracle: the product's scheme=taubin with the uniform
- * Laplacian (lambda 0.5, mu -0.53, Open3D's filter_smooth_taubin's
- * weights), one pass at a time, the best error over the pass counts
- * (stopping 20 passes past the best once 5% worse, as bench_quality). */
-static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean, int *passes)
+/* Taubin's oracle: the product's scheme=taubin with the Laplacian lap
+ * (lambda 0.5, mu -0.53; uniform: Open3D's filter_smooth_taubin's
+ * weights; cotan: the product's default, bench_quality's taubin_best),
+ * one pass at a time, the best error over the pass counts (stopping 20
+ * passes past the best once 5% worse). */
+static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean, mcf_laplacian lap, int *passes)
 {
     mcf_mesh *x = mcf_mesh_dup(noisy, NULL);
     mcf_flow_params p;
@@ -483,7 +582,7 @@ static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean, int *p
     assert_non_null(x);
     mcf_flow_params_init(&p);
     p.scheme = MCF_TAUBIN;
-    p.laplacian = MCF_LAPLACIAN_UNIFORM;
+    p.laplacian = lap;
     p.iterations = 1;
     for (int k = 1; k <= 500; k++) {
         if (mcf_flow_run(x, &p, NULL, &err) != MCF_OK)
@@ -501,6 +600,13 @@ static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean, int *p
     return best;
 }
 
+/* test_default_beats_cotan_taubin's bound on the median ratio: measured
+ * 0.794 before the combination of iterates (tree 9b45e5f: knot1 0.68-0.74)
+ * and 0.739 with it (knot1 0.61-0.62; the sorted ratios' middle pair is
+ * sphere_cgal's 0.628 and bunny_npm_closed's 0.851); halfway. The runs
+ * are deterministic (seeded noise and probes): the margin, 0.02 either
+ * side, is for a change elsewhere, not for chance. */
+#define COTAN_BOUND 0.76
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -531,7 +637,7 @@ static void default_against_taubin(const char *const *names, int nmesh)
             assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 1, &err), MCF_OK);
             double in = rms(m, clean);
             int passes;
-            double tb = taubin_oracle(m, clean, &passes);
+            double tb = taubin_oracle(m, clean, MCF_LAPLACIAN_UNIFORM, &passes);
             assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
             if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
                 fail_msg("%s: %s", names[q], err.msg);
@@ -566,6 +672,48 @@ static void test_default_beats_taubin(void **state)
     static const char *const names[] = {"bunny_npm_closed.obj", "knot1.obj", "sphere_cgal.obj", "bunny.drc"};
     (void)state;
     default_against_taubin(names, 4);
+}
+
+/* Against the product's own cotan Taubin at its best pass count (what
+ * bench_quality's taubin_best and the issue's bar measure), at noise 0.25
+ * mean edges along the normals, seeds 1-3, on the repository's meshes:
+ * the median ratio at most COTAN_BOUND (about 12 s, most of it the
+ * oracle's single passes on bunny.drc). */
+static void test_default_beats_cotan_taubin(void **state)
+{
+    static const char *const names[] = {"bunny_npm_closed.obj", "knot1.obj", "sphere_cgal.obj", "bunny.drc"};
+    double ratio[12];
+    int nr = 0;
+    (void)state;
+    for (int q = 0; q < 4; q++) {
+        mcf_mesh *clean = tl_load(names[q]);
+        for (int seed = 1; seed <= 3; seed++) {
+            mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+            api_params ap;
+            mcf_flow_stats st;
+            mcf_error err = {0};
+            int passes;
+            api_params_init(&ap);
+            assert_int_equal(mcf_flow_add_noise(m, &ap.flow, 0.25, (uint64_t)seed, &err), MCF_OK);
+            double in = rms(m, clean), tb = taubin_oracle(m, clean, MCF_LAPLACIAN_COTAN, &passes);
+            assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
+            if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
+                fail_msg("%s: %s", names[q], err.msg);
+            double e = rms(m, clean);
+            ratio[nr++] = e / tb;
+            print_message("%-20s seed %d: K=%d, combination of %d, error/input %.3f, /cotan Taubin(%d passes) %.3f\n",
+                          names[q], seed, st.steps, st.ncomb, e / in, passes, e / tb);
+            mcf_flow_stats_free(&st);
+            api_params_free(&ap);
+            mcf_mesh_free(m);
+        }
+        mcf_mesh_free(clean);
+    }
+    qsort(ratio, (size_t)nr, sizeof *ratio, cmp_double);
+    double med = 0.5 * (ratio[nr / 2 - 1] + ratio[nr / 2]);
+    print_message("median error / cotan Taubin's oracle over %d cases at noise 0.25: %.3f (worst %.3f)\n", nr, med,
+                  ratio[nr - 1]);
+    assert_true(med <= COTAN_BOUND);
 }
 
 /* The large scans (MESHES). */
@@ -716,7 +864,7 @@ static void test_creases_kept(void **state)
         int passes;
         api_params_init(&ap);
         assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 2, &err), MCF_OK);
-        double in = rms(m, clean), tb = taubin_oracle(m, clean, &passes);
+        double in = rms(m, clean), tb = taubin_oracle(m, clean, MCF_LAPLACIAN_UNIFORM, &passes);
         assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
         if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
             fail_msg("box: %s", err.msg);
@@ -892,6 +1040,7 @@ int main(void)
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_creases_kept),
         cmocka_unit_test(test_default_beats_taubin),
+        cmocka_unit_test(test_default_beats_cotan_taubin),
         cmocka_unit_test(test_default_beats_taubin_scans),
         cmocka_unit_test(test_guard_scans),
         cmocka_unit_test(test_never_worse),
