@@ -613,6 +613,37 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* One case of the default request against Taubin's oracle: clean with
+ * noise rho mean edges along the normals (seed), the oracle with the
+ * Laplacian lap, the default request's run (its stats into st: the
+ * caller frees them); the errors of the input, the oracle and the
+ * result. */
+typedef struct {
+    double in, tb, e;
+    int passes;
+    mcf_scheme scheme;
+} default_case;
+
+static void run_default_case(const mcf_mesh *clean, double rho, int seed, mcf_laplacian lap, mcf_flow_stats *st,
+                             default_case *r)
+{
+    mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+    api_params ap;
+    mcf_error err = {0};
+    assert_non_null(m);
+    api_params_init(&ap);
+    assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho, (uint64_t)seed, &err), MCF_OK);
+    r->in = rms(m, clean);
+    r->tb = taubin_oracle(m, clean, lap, &r->passes);
+    assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
+    if (mcf_flow_run(m, &ap.flow, st, &err) != MCF_OK)
+        fail_msg("the default request: %s", err.msg);
+    r->e = rms(m, clean);
+    r->scheme = ap.flow.scheme;
+    api_params_free(&ap);
+    mcf_mesh_free(m);
+}
+
 /* The default request (api_params_init, api_params_finish with nothing
  * set: the fairing filter) on each mesh x noise 0.1, 0.25, 0.5 mean edges
  * along the normals (seed 1): the median of its error over Taubin's
@@ -629,31 +660,19 @@ static void default_against_taubin(const char *const *names, int nmesh)
     for (int q = 0; q < nmesh; q++) {
         mcf_mesh *clean = tl_load(names[q]);
         for (int k = 0; k < 3; k++) {
-            mcf_mesh *m = mcf_mesh_dup(clean, NULL);
-            api_params ap;
             mcf_flow_stats st;
-            mcf_error err = {0};
-            api_params_init(&ap);
-            assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 1, &err), MCF_OK);
-            double in = rms(m, clean);
-            int passes;
-            double tb = taubin_oracle(m, clean, MCF_LAPLACIAN_UNIFORM, &passes);
-            assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
-            if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
-                fail_msg("%s: %s", names[q], err.msg);
-            double e = rms(m, clean);
-            ratio[nr++] = e / tb;
+            default_case r;
+            run_default_case(clean, rho[k], 1, MCF_LAPLACIAN_UNIFORM, &st, &r);
+            ratio[nr++] = r.e / r.tb;
             print_message("%-20s rho %.2f: %s K=%d, noise %.3f, error/input %.3f, /Taubin(%d passes) %.3f, "
                           "guard %d rounds, folds %d\n",
-                          names[q], rho[k], mcf_scheme_get(ap.flow.scheme)->name, st.steps, st.noise, e / in,
-                          passes, e / tb, st.guard_rounds, st.folded_faces);
-            assert_true(ap.flow.scheme == MCF_FAIRING || ap.flow.scheme == MCF_FAIRING_EXPLICIT);
-            if (!(e < in))
-                fail_msg("%s rho %.2f: error %.4g not below the input's %.4g", names[q], rho[k], e, in);
+                          names[q], rho[k], mcf_scheme_get(r.scheme)->name, st.steps, st.noise, r.e / r.in,
+                          r.passes, r.e / r.tb, st.guard_rounds, st.folded_faces);
+            assert_true(r.scheme == MCF_FAIRING || r.scheme == MCF_FAIRING_EXPLICIT);
+            if (!(r.e < r.in))
+                fail_msg("%s rho %.2f: error %.4g not below the input's %.4g", names[q], rho[k], r.e, r.in);
             assert_int_equal(st.folded_faces, 0);
             mcf_flow_stats_free(&st);
-            api_params_free(&ap);
-            mcf_mesh_free(m);
         }
         mcf_mesh_free(clean);
     }
@@ -688,24 +707,13 @@ static void test_default_beats_cotan_taubin(void **state)
     for (int q = 0; q < 4; q++) {
         mcf_mesh *clean = tl_load(names[q]);
         for (int seed = 1; seed <= 3; seed++) {
-            mcf_mesh *m = mcf_mesh_dup(clean, NULL);
-            api_params ap;
             mcf_flow_stats st;
-            mcf_error err = {0};
-            int passes;
-            api_params_init(&ap);
-            assert_int_equal(mcf_flow_add_noise(m, &ap.flow, 0.25, (uint64_t)seed, &err), MCF_OK);
-            double in = rms(m, clean), tb = taubin_oracle(m, clean, MCF_LAPLACIAN_COTAN, &passes);
-            assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
-            if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
-                fail_msg("%s: %s", names[q], err.msg);
-            double e = rms(m, clean);
-            ratio[nr++] = e / tb;
+            default_case r;
+            run_default_case(clean, 0.25, seed, MCF_LAPLACIAN_COTAN, &st, &r);
+            ratio[nr++] = r.e / r.tb;
             print_message("%-20s seed %d: K=%d, combination of %d, error/input %.3f, /cotan Taubin(%d passes) %.3f\n",
-                          names[q], seed, st.steps, st.ncomb, e / in, passes, e / tb);
+                          names[q], seed, st.steps, st.ncomb, r.e / r.in, r.passes, r.e / r.tb);
             mcf_flow_stats_free(&st);
-            api_params_free(&ap);
-            mcf_mesh_free(m);
         }
         mcf_mesh_free(clean);
     }
@@ -857,28 +865,17 @@ static void test_creases_kept(void **state)
     assert_int_equal(info.closed, 1);
     assert_int_equal(info.manifold, 1);
     for (int k = 0; k < 3; k++) {
-        mcf_mesh *m = mcf_mesh_dup(clean, NULL);
-        api_params ap;
         mcf_flow_stats st;
-        mcf_error err = {0};
-        int passes;
-        api_params_init(&ap);
-        assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 2, &err), MCF_OK);
-        double in = rms(m, clean), tb = taubin_oracle(m, clean, MCF_LAPLACIAN_UNIFORM, &passes);
-        assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
-        if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
-            fail_msg("box: %s", err.msg);
-        double e = rms(m, clean);
+        default_case r;
+        run_default_case(clean, rho[k], 2, MCF_LAPLACIAN_UNIFORM, &st, &r);
         print_message("box rho %.2f: %d crease vertices, K=%d, error/input %.3f, /Taubin(%d passes) %.3f, folds %d\n",
-                      rho[k], st.crease_vertices, st.steps, e / in, passes, e / tb, st.folded_faces);
+                      rho[k], st.crease_vertices, st.steps, r.e / r.in, r.passes, r.e / r.tb, st.folded_faces);
         assert_true(st.crease_vertices > 0);
-        assert_true(e < in);
+        assert_true(r.e < r.in);
         if (k < 2)
-            assert_true(e <= 0.75 * tb);
+            assert_true(r.e <= 0.75 * r.tb);
         assert_int_equal(st.folded_faces, 0);
         mcf_flow_stats_free(&st);
-        api_params_free(&ap);
-        mcf_mesh_free(m);
     }
     mcf_mesh_free(clean);
 }
