@@ -55,7 +55,9 @@
  * 1,525, fertility 1,843, stanford-bunny 1,946, dragon_vrip 2,014,
  * bunny.drc 2,330), charged 2,900 (the same 0.8 margin);
  * `fairing_explicit` 185-491 B (dragon_vrip 432), charged 640 with the
- * other explicit schemes.
+ * other explicit schemes. The combination of iterates (2026-11-25) keeps
+ * four single-precision displacements: 48 B more per vertex, within both
+ * margins (2,378 of 2,900; 539 of 640).
  */
 #include <string.h>
 

@@ -311,10 +311,10 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * X0) of the positions after the last MCF_FAIRING_COMB powers of two kj
  * of steps when its SURE is lower than Y_K's (docs/fairing.md). The
  * result moves every free vertex along the normal of the filtered
- * surface only, and a guard
- * takes back every face it would fold (turned against the input's face
- * and lying backwards in its neighbourhood): the filtered positions
- * first, then halfway to the input, then the input's. */
+ * surface only, and a guard takes back every face it would fold (turned
+ * against the input's face and lying backwards in its neighbourhood):
+ * the filtered positions first, then halfway to the input, then the
+ * input's. */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
 /* the fairing filters combine the positions after the last
