@@ -465,8 +465,8 @@ typedef struct {
                                  - X0), Y_K the positions after K steps,
                                  for j < ncomb (SURE's best combination);
                                  0: Y_steps itself */
-    int comb_steps[MCF_FAIRING_COMB];
-    double comb_weight[MCF_FAIRING_COMB];
+    int comb_steps[MCF_FAIRING_COMB];     /* the weights SURE found, */
+    double comb_weight[MCF_FAIRING_COMB]; /* taken or not (steps 0: none) */
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */

@@ -108,6 +108,16 @@ enum { NPROBE = 6, NCOL = 3 + NPROBE };
  * with the best single step, a few percent of the risk on a 300-vertex
  * mesh, nothing on a scan */
 #define COMB_PENALTY 2.0
+/* The combination's gain 1 + sum_j c_j (g(k)^kj - 1) on the spectrum
+ * k in [0, 2] stays within [COMB_GAIN_MIN, COMB_GAIN_MAX]: a denoiser
+ * does not amplify, nor turn a frequency over by more than half. The
+ * combinations SURE chose on the shared scans (numpy, noise 0.1 and
+ * 0.25) stay within -0.22 .. 1.015; a clean sphere told noise 0.5
+ * (strength 0.5: SURE's model wrong, the iterates nearly equal) got
+ * weights of +-250,000, a gain of -32,575 .. 6,893, and vertices moved by
+ * 0.16 of its radius (0.01 at K*) */
+#define COMB_GAIN_MIN (-0.5)
+#define COMB_GAIN_MAX 1.1
 
 typedef struct {
     const mcf_flow_params *p;
@@ -830,15 +840,33 @@ static int small_spd_solve(double *A, double *y, int J)
     return 1;
 }
 
+/* Whether the gain of the combination with weights cw stays within
+ * [COMB_GAIN_MIN, COMB_GAIN_MAX] on k in [0, 2] (a grid of steps 0.01),
+ * g(k) the gain of one step: 1 / (1 + k^2), or Taubin's pair's
+ * (1 - 0.5 k)(1 + 0.53 k). */
+static int comb_gain_ok(const fair_ctx *c, const double *cw)
+{
+    for (int t = 0; t <= 200; t++) {
+        double k = 0.01 * t, g = c->is_explicit ? (1.0 - 0.5 * k) * (1.0 + 0.53 * k) : 1.0 / (1.0 + k * k);
+        double gain = 1.0;
+        for (int j = 0; j < c->nk; j++)
+            gain += cw[j] * (pow(g, c->kk[j]) - 1.0);
+        if (!(gain >= COMB_GAIN_MIN && gain <= COMB_GAIN_MAX))
+            return 0;
+    }
+    return 1;
+}
+
 /* SURE's best combination of the kept iterates: with r_j = n0 . (Y_kj -
  * X0) and b_j = tr_j - sum w (the trace of T^kj - I), the displacement
  * sum_j c_j r_j has SURE(c) = sum w (sum_j c_j r_j)^2 - s^2 sum w + 2 s^2
  * (sum w + sum_j c_j b_j), least at G c = -s^2 b, G_jl = sum w r_j r_l
  * (a ridge of 1e-9 of G's mean diagonal keeps iterates that coincide
- * solvable). It replaces c->Ybest when its SURE plus COMB_PENALTY s^2 per
- * weight is below the best single step's and its gain over the input
+ * solvable). It replaces c->Ybest when its gain stays within bounds
+ * (comb_gain_ok), its SURE plus COMB_PENALTY s^2 per weight is below the
+ * best single step's and its gain over the input
  * passes SURE_MIN_GAIN (sure_of, the probes' spread of sum_j c_j tr_j
- * included); st->comb_* report it. */
+ * included); st->ncomb reports it taken, st->comb_* the weights found. */
 static void combine(fair_ctx *c)
 {
     int J = c->nk, n = c->nfree;
@@ -864,6 +892,12 @@ static void combine(fair_ctx *c)
     for (int j = 0; j < J; j++)
         G[j * J + j] += 1e-9 * gd;
     if (!(gd > 0.0) || !small_spd_solve(G, cw, J))
+        return;
+    for (int j = 0; j < J; j++) { /* the weights found, taken or not */
+        c->st->comb_steps[j] = c->kk[j];
+        c->st->comb_weight[j] = cw[j];
+    }
+    if (!comb_gain_ok(c, cw))
         return;
     for (int q = 0; q < NPROBE; q++) {
         est[q] = sw; /* the identity's: sum w z^2 = sum w */
@@ -902,10 +936,6 @@ static void combine(fair_ctx *c)
             for (int e = 0; e < 3; e++)
                 c->Ybest[3 * (size_t)c->vert[q] + (size_t)e] += cw[j] * c->dk[j][3 * (size_t)q + (size_t)e];
     c->st->ncomb = J;
-    for (int j = 0; j < J; j++) {
-        c->st->comb_steps[j] = c->kk[j];
-        c->st->comb_weight[j] = cw[j];
-    }
 }
 
 /* The steps, SURE after each (the normal and the tangential part), until
