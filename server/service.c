@@ -629,7 +629,8 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
                    : svc_spool_open(cfg->spool, msg, msgsize);
     if (!s->store ||
         svc__recover(s, msg, msgsize) != 0 ||
-        svc__workers_start(s, msg, msgsize) != 0) {
+        svc__workers_start(s, msg, msgsize) != 0 ||
+        svc__follower_start(s, msg, msgsize) != 0) {
         svc_stop(s);
         return -1;
     }
@@ -692,6 +693,7 @@ void svc_stop(svc_t *s)
 
     if (!s)
         return;
+    svc__follower_stop(s);
     svc__workers_stop(s);
     pthread_mutex_lock(&s->mu);
     for (b = 0; b < SVC_NBUCKETS; b++)

@@ -1,0 +1,170 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""follow_lag.py - how late a follower on replica B sees the steps of a run
+on replica A (two mcfd replicas sharing one redis-server, one worker each).
+
+Each round submits one job to A and follows its SSE stream
+(GET /v1/jobs/ID/events) on A and on B at once, from two threads that
+stamp every progress event with time.perf_counter() as its bytes arrive.
+A's stream is fed from the runner's own memory, so B's stamp minus A's,
+per step, is what following through Redis adds. Also reported: the done
+event's lag (B's minus A's). Medians and p99 over all steps of all rounds.
+Then --cancels rounds of a long job on A canceled on B (DELETE): the time
+from B's 202 to the done event on A's stream (the run stopped there).
+
+  /usr/bin/python3 lab/bench/follow_lag.py [--mcfd build/mcfd] [--rounds 3]
+      [--iterations 150] [--cancels 10] [--mesh tests/data/meshes/bunny.drc]
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import statistics
+import subprocess
+import tempfile
+import threading
+import time
+import urllib.request
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+MESH = os.path.join(ROOT, "tests", "data", "meshes", "bunny.drc")
+
+
+def free_port():
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    p = s.getsockname()[1]
+    s.close()
+    return p
+
+
+def http(method, url, body=None):
+    req = urllib.request.Request(url, data=body, method=method,
+                                 headers={"Content-Type": "application/octet-stream"})
+    with urllib.request.urlopen(req, timeout=60) as r:
+        return r.status, r.read()
+
+
+def start_mcfd(mcfd, tmp, name, *flags):
+    port = free_port()
+    p = subprocess.Popen([mcfd, "--bind", "127.0.0.1", "--port", str(port), "--grpc-port", "off",
+                          "--workers", "1", "--spool", os.path.join(tmp, name), *flags],
+                         stdout=subprocess.DEVNULL, stderr=open(os.path.join(tmp, name + ".log"), "w"),
+                         start_new_session=True)
+    url = "http://127.0.0.1:%d" % port
+    for _ in range(300):
+        try:
+            if http("GET", url + "/readyz")[0] == 200:
+                return p, url
+        except OSError:
+            pass
+        time.sleep(0.05)
+    raise SystemExit("%s did not start (see %s.log)" % (name, name))
+
+
+def follow(url, jid, out):
+    """SSE of job jid: out[step] = arrival time, out['done'] too."""
+    with urllib.request.urlopen("%s/v1/jobs/%s/events" % (url, jid), timeout=120) as r:
+        buf = b""
+        while True:
+            chunk = r.read1(65536)
+            now = time.perf_counter()
+            if not chunk:
+                return
+            buf += chunk
+            while b"\n\n" in buf:
+                ev, buf = buf.split(b"\n\n", 1)
+                ev = ev.decode()
+                kind = re.search(r"^event: (\w+)$", ev, re.M)
+                data = re.search(r"^data: (.*)$", ev, re.M)
+                if kind and kind.group(1) == "progress":
+                    out.setdefault(json.loads(data.group(1))["step"], now)
+                elif kind and kind.group(1) == "done":
+                    out["done"] = now
+                    return
+
+
+def pct(xs, q):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--mcfd", default=os.path.join(ROOT, "build", "mcfd"))
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--iterations", type=int, default=150)
+    ap.add_argument("--mesh", default=MESH)
+    ap.add_argument("--cancels", type=int, default=10)
+    a = ap.parse_args()
+    with open(a.mesh, "rb") as f:
+        mesh = f.read()
+    tmp = tempfile.mkdtemp(prefix="mcfd-follow-lag-")
+    procs = []
+    try:
+        rport = free_port()
+        procs.append(subprocess.Popen(
+            ["redis-server", "--port", str(rport), "--bind", "127.0.0.1", "--dir", tmp,
+             "--appendonly", "yes", "--appendfsync", "always", "--save", "",
+             "--logfile", os.path.join(tmp, "redis.log")], start_new_session=True))
+        time.sleep(0.5)
+        store = "redis://127.0.0.1:%d" % rport
+        (pa, ua), (pb, ub) = [start_mcfd(a.mcfd, tmp, n, "--store", store) for n in ("a", "b")]
+        procs += [pa, pb]
+        lags, done = [], []
+        for _ in range(a.rounds):
+            st, body = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=%d" % a.iterations, mesh)
+            assert st == 202, st
+            jid = json.loads(body)["id"]
+            got = [{}, {}]
+            ts = [threading.Thread(target=follow, args=(u, jid, g)) for u, g in zip((ua, ub), got)]
+            for t in ts:
+                t.start()
+            for t in ts:
+                t.join(180)
+            ga, gb = got
+            steps = [k for k in ga if k != "done" and k in gb]
+            assert len(steps) == a.iterations, (len(steps), a.iterations)
+            lags += [gb[k] - ga[k] for k in steps]
+            done.append(gb["done"] - ga["done"])
+            http("DELETE", "%s/v1/jobs/%s" % (ua, jid))
+        print("follow_lag: %d rounds of %s, %d steps each (%d step lags), B's SSE minus A's, "
+              "%s, %d cores" % (a.rounds, os.path.basename(a.mesh), a.iterations, len(lags),
+                                os.path.basename(a.mcfd), os.cpu_count()))
+        print("step lag: median %.1f ms, p99 %.1f ms, max %.1f ms; done lag: median %.1f ms, max %.1f ms"
+              % (1e3 * statistics.median(lags), 1e3 * pct(lags, .99), 1e3 * max(lags),
+                 1e3 * statistics.median(done), 1e3 * max(done)))
+        cancel = []
+        for _ in range(a.cancels):
+            st, body = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=100000", mesh)
+            jid = json.loads(body)["id"]
+            got = {}
+            t = threading.Thread(target=follow, args=(ua, jid, got))
+            t.start()
+            while len(got) < 3:               # running, a few steps in
+                time.sleep(0.01)
+            req = urllib.request.Request("%s/v1/jobs/%s" % (ub, jid), method="DELETE")
+            with urllib.request.urlopen(req, timeout=60) as r:
+                t0 = time.perf_counter()
+                assert r.status == 202, r.status
+            t.join(60)
+            cancel.append(got["done"] - t0)
+            http("DELETE", "%s/v1/jobs/%s" % (ua, jid))
+        if cancel:
+            print("cancel on B to the run's end on A: median %.1f ms, max %.1f ms (%d runs)"
+                  % (1e3 * statistics.median(cancel), 1e3 * max(cancel), len(cancel)))
+    finally:
+        for p in procs:
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+                p.wait(30)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
+                os.killpg(p.pid, signal.SIGKILL)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
