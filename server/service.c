@@ -297,8 +297,16 @@ static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
     if (e == ENOSPC || e == EDQUOT) {
         /* A full disk is a full spool: transient, the client's to retry,
          * like the quota's (and /readyz says so meanwhile). */
-        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool's filesystem has no "
-                      "room for job %s (%zu bytes): %s", j->id,
+        char where[600];
+        if (s->cfg.blob_dir[0])
+            snprintf(where, sizeof where, "the blob directory %s (or Redis)",
+                     s->cfg.blob_dir);
+        else
+            snprintf(where, sizeof where, "%s", s->cfg.store[0]
+                                                    ? "the job store (Redis)"
+                                                    : "the spool's filesystem");
+        svc_error_set(err, SVC_P_SPOOL_FULL, "%s has no room for job %s "
+                      "(%zu bytes): %s", where, j->id,
                       rq->input_len + rq->target_len, strerror(e));
         err->retry_after = 5;
     } else if (e == EAGAIN) {
