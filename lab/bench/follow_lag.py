@@ -3,14 +3,17 @@
 """follow_lag.py - how late a follower on replica B sees the steps of a run
 on replica A (two mcfd replicas sharing one redis-server, one worker each).
 
-Each round submits one job to A and follows its SSE stream
+Each round submits one job and follows its SSE stream
 (GET /v1/jobs/ID/events) on A and on B at once, from two threads that
 stamp every progress event with time.perf_counter() as its bytes arrive.
-A's stream is fed from the runner's own memory, so B's stamp minus A's,
-per step, is what following through Redis adds. Also reported: the done
-event's lag (B's minus A's). Medians and p99 over all steps of all rounds.
-Then --cancels rounds of a long job on A canceled on B (DELETE): the time
-from B's 202 to the done event on A's stream (the run stopped there).
+Either replica's worker may take the job (one shared queue): the
+runner's stream is fed from its own memory, so the other's stamp minus
+the runner's, per step, is what following through Redis adds (the runner
+is the consumer named in the job's record, host:pid:nonce). Also
+reported: the done event's lag. Medians and p99 over all steps of all
+rounds. Then --cancels rounds of a long job canceled on the replica that
+does not run it (DELETE): the time from its 202 to the done event on the
+runner's stream (the run stopped there).
 
   /usr/bin/python3 lab/bench/follow_lag.py [--mcfd build/mcfd] [--rounds 3]
       [--iterations 150] [--cancels 10] [--mesh tests/data/meshes/bunny.drc]
@@ -87,6 +90,18 @@ def follow(url, jid, out):
                     return
 
 
+def runner_of(rport, jid, procs):
+    """Which of procs (Popen) runs job jid, from its record's consumer."""
+    for _ in range(500):
+        who = subprocess.run(["redis-cli", "-p", str(rport), "HGET", "mcfd:job:" + jid, "runner"],
+                             capture_output=True, text=True).stdout
+        for i, p in enumerate(procs):
+            if ":%d:" % p.pid in who:
+                return i
+        time.sleep(0.01)
+    raise SystemExit("no replica runs %s" % jid)
+
+
 def pct(xs, q):
     xs = sorted(xs)
     return xs[min(len(xs) - 1, int(q * len(xs)))]
@@ -123,15 +138,17 @@ def main():
             ts = [threading.Thread(target=follow, args=(u, jid, g)) for u, g in zip((ua, ub), got)]
             for t in ts:
                 t.start()
+            r = runner_of(rport, jid, [pa, pb])   # while it runs
             for t in ts:
                 t.join(180)
-            ga, gb = got
+            ga, gb = got[r], got[1 - r]            # the runner's, the follower's
             steps = [k for k in ga if k != "done" and k in gb]
             assert len(steps) == a.iterations, (len(steps), a.iterations)
             lags += [gb[k] - ga[k] for k in steps]
             done.append(gb["done"] - ga["done"])
             http("DELETE", "%s/v1/jobs/%s" % (ua, jid))
-        print("follow_lag: %d rounds of %s, %d steps each (%d step lags), B's SSE minus A's, "
+        print("follow_lag: %d rounds of %s, %d steps each (%d step lags), the follower's SSE "
+              "minus the runner's, "
               "%s, %d cores" % (a.rounds, os.path.basename(a.mesh), a.iterations, len(lags),
                                 os.path.basename(a.mcfd), os.cpu_count()))
         print("step lag: median %.1f ms, p99 %.1f ms, max %.1f ms; done lag: median %.1f ms, max %.1f ms"
@@ -141,12 +158,14 @@ def main():
         for _ in range(a.cancels):
             st, body = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=100000", mesh)
             jid = json.loads(body)["id"]
+            r = runner_of(rport, jid, [pa, pb])
+            urun, uother = (ua, ub) if r == 0 else (ub, ua)
             got = {}
-            t = threading.Thread(target=follow, args=(ua, jid, got))
+            t = threading.Thread(target=follow, args=(urun, jid, got))
             t.start()
             while len(got) < 3:               # running, a few steps in
                 time.sleep(0.01)
-            req = urllib.request.Request("%s/v1/jobs/%s" % (ub, jid), method="DELETE")
+            req = urllib.request.Request("%s/v1/jobs/%s" % (uother, jid), method="DELETE")
             with urllib.request.urlopen(req, timeout=60) as r:
                 t0 = time.perf_counter()
                 assert r.status == 202, r.status
@@ -154,7 +173,7 @@ def main():
             cancel.append(got["done"] - t0)
             http("DELETE", "%s/v1/jobs/%s" % (ua, jid))
         if cancel:
-            print("cancel on B to the run's end on A: median %.1f ms, max %.1f ms (%d runs)"
+            print("cancel on the other replica to the run's end: median %.1f ms, max %.1f ms (%d runs)"
                   % (1e3 * statistics.median(cancel), 1e3 * max(cancel), len(cancel)))
     finally:
         for p in procs:
