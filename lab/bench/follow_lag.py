@@ -22,9 +22,6 @@ import argparse
 import json
 import os
 import re
-import shutil
-import signal
-import socket
 import statistics
 import subprocess
 import tempfile
@@ -32,40 +29,10 @@ import threading
 import time
 import urllib.request
 
+from bench_store import http, start_mcfd, start_redis, stop_all   # this folder's
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 MESH = os.path.join(ROOT, "tests", "data", "meshes", "bunny.drc")
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    p = s.getsockname()[1]
-    s.close()
-    return p
-
-
-def http(method, url, body=None):
-    req = urllib.request.Request(url, data=body, method=method,
-                                 headers={"Content-Type": "application/octet-stream"})
-    with urllib.request.urlopen(req, timeout=60) as r:
-        return r.status, r.read()
-
-
-def start_mcfd(mcfd, tmp, name, *flags):
-    port = free_port()
-    p = subprocess.Popen([mcfd, "--bind", "127.0.0.1", "--port", str(port), "--grpc-port", "off",
-                          "--workers", "1", "--spool", os.path.join(tmp, name), *flags],
-                         stdout=subprocess.DEVNULL, stderr=open(os.path.join(tmp, name + ".log"), "w"),
-                         start_new_session=True)
-    url = "http://127.0.0.1:%d" % port
-    for _ in range(300):
-        try:
-            if http("GET", url + "/readyz")[0] == 200:
-                return p, url
-        except OSError:
-            pass
-        time.sleep(0.05)
-    raise SystemExit("%s did not start (see %s.log)" % (name, name))
 
 
 def follow(url, jid, out):
@@ -120,18 +87,14 @@ def main():
     tmp = tempfile.mkdtemp(prefix="mcfd-follow-lag-")
     procs = []
     try:
-        rport = free_port()
-        procs.append(subprocess.Popen(
-            ["redis-server", "--port", str(rport), "--bind", "127.0.0.1", "--dir", tmp,
-             "--appendonly", "yes", "--appendfsync", "always", "--save", "",
-             "--logfile", os.path.join(tmp, "redis.log")], start_new_session=True))
-        time.sleep(0.5)
+        rd, rport = start_redis(tmp)
+        procs.append(rd)
         store = "redis://127.0.0.1:%d" % rport
         (pa, ua), (pb, ub) = [start_mcfd(a.mcfd, tmp, n, "--store", store) for n in ("a", "b")]
         procs += [pa, pb]
         lags, done = [], []
         for _ in range(a.rounds):
-            st, body = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=%d" % a.iterations, mesh)
+            st, body, _ = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=%d" % a.iterations, mesh)
             assert st == 202, st
             jid = json.loads(body)["id"]
             got = [{}, {}]
@@ -156,7 +119,7 @@ def main():
                  1e3 * statistics.median(done), 1e3 * max(done)))
         cancel = []
         for _ in range(a.cancels):
-            st, body = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=100000", mesh)
+            st, body, _ = http("POST", ua + "/v1/jobs?scheme=desbrun2&iterations=100000", mesh)
             jid = json.loads(body)["id"]
             r = runner_of(rport, jid, [pa, pb])
             urun, uother = (ua, ub) if r == 0 else (ub, ua)
@@ -176,13 +139,7 @@ def main():
             print("cancel on the other replica to the run's end: median %.1f ms, max %.1f ms (%d runs)"
                   % (1e3 * statistics.median(cancel), 1e3 * max(cancel), len(cancel)))
     finally:
-        for p in procs:
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-                p.wait(30)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
-                os.killpg(p.pid, signal.SIGKILL)
-        shutil.rmtree(tmp, ignore_errors=True)
+        stop_all(procs, tmp)
 
 
 if __name__ == "__main__":
