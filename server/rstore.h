@@ -210,7 +210,8 @@ int rstore_progress(rstore *s, const char *id, const char *line,
                     size_t len);
 /* Calls fn for each line after entry `after` ("0": from the first),
  * waiting up to block seconds for the first one (0: not at all); after
- * is advanced to the last line given (size RSTORE_ID_MAX). The number of
+ * is advanced to the last line given (size RSTORE_ID_MAX); marks are
+ * passed over, and the control stream is watch()'s alone. The number of
  * lines, or -1. */
 int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
                   double block,

@@ -512,9 +512,11 @@ static int stream_entries(const redisReply *list, int i, char *after,
     return n;
 }
 
-int rstore_watch(rstore *s, int n, const char *const *ids,
-                 char (*after)[RSTORE_ID_MAX], double block,
-                 rstore_watch_fn fn, void *ctx)
+/* rstore_watch, and with ctl 0 without the control stream (its cursor
+ * is the watching thread's alone). */
+static int read_streams(rstore *s, int n, const char *const *ids,
+                        char (*after)[RSTORE_ID_MAX], int ctl, double block,
+                        rstore_watch_fn fn, void *ctx)
 {
     char ms[24];
     const char **argv;
@@ -551,12 +553,14 @@ int rstore_watch(rstore *s, int n, const char *const *ids,
             goto out;
         }
         argv[a + j] = k[j].ev;
-        argv[a + n + 1 + j] = after[j];
+        argv[a + n + ctl + j] = after[j];
     }
-    /* and this replica's control stream, last */
-    argv[a + n] = s->k_ctl;
-    argv[a + 2 * n + 1] = s->ctl_after;
-    if (!(r = rstore__cmd(s, block > 0 ? block : 0, a + 2 * n + 2, argv))) {
+    if (ctl) {                 /* this replica's control stream, last */
+        argv[a + n] = s->k_ctl;
+        argv[a + 2 * n + 1] = s->ctl_after;
+    }
+    if (!(r = rstore__cmd(s, block > 0 ? block : 0, a + 2 * (n + ctl),
+                          argv))) {
         e = errno;
         goto out;
     }
@@ -569,7 +573,7 @@ int rstore_watch(rstore *s, int n, const char *const *ids,
             st->element[0]->type != REDIS_REPLY_STRING ||
             st->element[1]->type != REDIS_REPLY_ARRAY)
             goto out;
-        if (!strcmp(s->k_ctl, st->element[0]->str)) {
+        if (ctl && !strcmp(s->k_ctl, st->element[0]->str)) {
             got += stream_entries(st->element[1], -1, s->ctl_after, fn, ctx);
             continue;
         }
@@ -587,6 +591,13 @@ out:
     return e ? -1 : got;
 }
 
+int rstore_watch(rstore *s, int n, const char *const *ids,
+                 char (*after)[RSTORE_ID_MAX], double block,
+                 rstore_watch_fn fn, void *ctx)
+{
+    return read_streams(s, n, ids, after, 1, block, fn, ctx);
+}
+
 typedef struct {
     void (*fn)(const char *line, size_t len, void *ctx);
     void *ctx;
@@ -597,7 +608,8 @@ static void line_of(void *ctx, int i, const char *line, size_t len)
 {
     lines_only *o = ctx;
 
-    if (i == 0 && line) {
+    (void)i;
+    if (line) {
         o->fn(line, len, o->ctx);
         o->lines++;
     }
@@ -610,7 +622,7 @@ int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
 {
     lines_only o = {fn, ctx, 0};
 
-    return rstore_watch(s, 1, &id, (char (*)[RSTORE_ID_MAX])after, block,
+    return read_streams(s, 1, &id, (char (*)[RSTORE_ID_MAX])after, 0, block,
                         line_of, &o) < 0
                ? -1
                : o.lines;

@@ -714,6 +714,11 @@ static void test_watch_several_jobs(void **state)
     must_ok(rstore_push(a, "k", 0), "push");
     assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
     must_ok(rstore_put(b, "k", "cancel.json", "{}", 2, 0), "put cancel");
+    {   /* a's sweep reading k's stream meanwhile leaves it to the watch */
+        char one[RSTORE_ID_MAX] = "0";
+        lines l = {"", 0};
+        assert_int_equal(rstore_events(a, "k", one, 0, add_line, &l), 0);
+    }
     assert_int_equal(rstore_watch(a, 0, NULL, NULL, 1, add_watched, &wa), 1);
     assert_string_equal(wa.text[2], "k|");
     assert_int_equal(rstore_watch(b, 2, ids, after, 0, add_watched, &w), 1);
