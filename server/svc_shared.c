@@ -46,17 +46,24 @@ static int read_state(svc_t *s, const char *id, svc_state_rec *r)
 
 /* Applies r to j (a reference held); a job that ends here takes its
  * events from the store at once, so that a follower never sees it ended
- * without them. */
-static void apply(svc_t *s, svc_job *j, const svc_state_rec *r)
+ * without them: when the store cannot say now what they are (Redis
+ * just back, this connection still in its backoff), a job held running
+ * stays so until a later refresh (the sweep's, a second on) instead of
+ * ending without its events for good; one loaded now (loaded) ends
+ * with none. */
+static void apply(svc_t *s, svc_job *j, const svc_state_rec *r, int loaded)
 {
-    int n = 0, ended;
+    int n = 0, ended, k = 0;
     size_t bytes = 0;
 
     pthread_mutex_lock(&s->mu);
     ended = svc_job_status_terminal(r->status) &&
             !svc_job_status_terminal(j->status) && !j->run_here;
     pthread_mutex_unlock(&s->mu);
-    if (ended && !svc__events_stored(s->store, j->id, &n, &bytes))
+    if (ended && (k = svc__events_stored(s->store, j->id, &n, &bytes)) < 0 &&
+        !loaded)
+        return;
+    if (ended && k <= 0)
         n = 0, bytes = 0;
     pthread_mutex_lock(&s->mu);
     svc__remote_state(j, r, n, bytes);
@@ -92,7 +99,7 @@ static svc_job *load_new(svc_t *s, const char *id)
     pthread_mutex_unlock(&s->mu);
     if (n)
         svc__job_free(n);
-    apply(s, j, &r);
+    apply(s, j, &r, 1);
     return j;
 }
 
@@ -104,7 +111,7 @@ static int refresh(svc_t *s, svc_job *j)
     svc_state_rec r;
 
     if (read_state(s, j->id, &r) == 0) {
-        apply(s, j, &r);
+        apply(s, j, &r, 0);
         return 0;
     }
     if (errno != ENOENT)

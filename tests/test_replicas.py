@@ -202,6 +202,9 @@ def test_redis_restart_mid_run():
         t = threading.Thread(target=lambda: got.update(zip(("steps", "done"), sse(ds[1], jid))))
         t.start()
         wait_status(ds[1], jid, "running", 30)
+        end = time.time() + 30                 # B's stream is open before Redis goes
+        while b"mcfd_followers 1" not in http("GET", ds[1].url + "/metrics")[2] and time.time() < end:
+            time.sleep(0.05)
         redis_kill()
         time.sleep(1)
         redis_start()                      # the same folder: its AOF
