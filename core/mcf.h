@@ -334,6 +334,12 @@ typedef struct {
     double noise_sigma;       /* fairing: the noise (standard deviation
                                  along the normals, in mean edges) whose
                                  removal SURE optimizes; 0: estimated */
+    int fairing_pick;         /* `fairing` with the automatic amount: also
+                                 run the explicit passes (as
+                                 `fairing_explicit`) and keep theirs when
+                                 their SURE is clearly lower (the default
+                                 request's; mcf_flow_stats.filter_explicit
+                                 says which) */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -467,6 +473,11 @@ typedef struct {
                                  0: Y_steps itself */
     int comb_steps[MCF_FAIRING_COMB];     /* the weights SURE found, */
     double comb_weight[MCF_FAIRING_COMB]; /* taken or not (steps 0: none) */
+    int filter_explicit;      /* fairing: 1 when the result is the
+                                 explicit lambda|mu passes' (always for
+                                 `fairing_explicit`; `fairing` with the
+                                 automatic amount when their SURE is
+                                 lower), 0 the implicit steps' */
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */
