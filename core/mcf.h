@@ -314,7 +314,10 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * surface only, and a guard takes back every face it would fold (turned
  * against the input's face and lying backwards in its neighbourhood):
  * the filtered positions first, then halfway to the input, then the
- * input's. */
+ * input's. With fairing_pick (the default request's `fairing`) and the
+ * automatic amount the explicit passes run too and replace the implicit
+ * result along the normals when their SURE is lower by one standard
+ * error (docs/fairing.md; mcf_flow_stats.filter_explicit). */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
 /* the fairing filters combine the positions after the last
