@@ -14,47 +14,98 @@ namespace mcfd_grpc {
 
 namespace {
 
-/* ------------------------------------------------------------------ Smooth */
+/* ------------------------------------------------------------- uploads */
 
-class SmoothCall : public Follow,
-                   public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
-                   public Expirable {
+/* The upload half of Smooth and SubmitJob, whose reactor bases differ
+ * (bidi and client-streaming): admitted, then read one message at a time
+ * into Upload until the client half-closes, then submitted; the door's
+ * expire ends it while it is late. Call (CRTP, a friend) gives its
+ * reactor's StartRead, ctx_, and under mu_ its end: finished_,
+ * finish_locked(st); finish(st) and finish_error(e) take mu_. */
+template <class Call>
+class Uploading : public Expirable {
   public:
-    explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
+    void expire(const char *what, const char *flag, double limit) override
     {
-        Order o(ctx);
-        owns_job_ = true;
-        Status st = admit_upload(ctx, &slot_);
+        std::lock_guard<std::mutex> l(self().mu_);
+        if (!self().finished_)
+            self().finish_locked(late_status(self().ctx_, what, flag, limit));
+    }
+
+  protected:
+    /* In the call's constructor: reading, or ended. */
+    void begin(CallbackServerContext *ctx, Slot *slot)
+    {
+        Status st = admit_upload(ctx, slot);
         if (st.ok()) {
             up_.arm(this);
             read();
         } else {
-            finish(st);
+            self().finish(st);
         }
     }
 
-    void OnReadDone(bool ok) override
+    /* OnReadDone's part: the next message read, or at the end of the
+     * upload its job submitted (a reference). nullptr when there is no
+     * job (reading on, or the call ended). */
+    svc_job *read_done(bool ok, bool keep_result)
     {
-        Order o(ctx_);
         svc_error e;
         if (ok) {
             if (up_.feed(&req_, &e))
                 read();
             else
-                finish_error(e);
-            return;
+                self().finish_error(e);
+            return nullptr;
         }
         up_.disarm();           /* whole: no expiry from now on */
         {
-            std::lock_guard<std::mutex> l(mu_);
-            if (finished_)      /* cancelled or expired while reading */
-                return;
+            std::lock_guard<std::mutex> l(self().mu_);
+            if (self().finished_)   /* cancelled or expired while reading */
+                return nullptr;
         }
         svc_job *j = nullptr;
-        if (up_.submit(true, &j, &e) != 0) {
-            finish_error(e);
-            return;
+        if (up_.submit(keep_result, &j, &e) != 0) {
+            self().finish_error(e);
+            return nullptr;
         }
+        return j;
+    }
+
+    Upload up_;
+
+  private:
+    Call &self() { return static_cast<Call &>(*this); }
+    void read()
+    {
+        HB_RELEASE(self().ctx_);
+        self().StartRead(&req_);
+    }
+
+    grpc::ByteBuffer req_;          /* parsed by Upload::feed */
+};
+
+/* ------------------------------------------------------------------ Smooth */
+
+class SmoothCall : public Follow,
+                   public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
+                   public Uploading<SmoothCall> {
+    friend class Uploading<SmoothCall>;
+
+  public:
+    explicit SmoothCall(CallbackServerContext *ctx) : Follow(ctx, "Smooth")
+    {
+        Order o(ctx);
+        owns_job_ = true;
+        begin(ctx, &slot_);
+    }
+
+    void OnReadDone(bool ok) override
+    {
+        Order o(ctx_);
+        svc_job *j = read_done(ok, true);
+        if (!j)
+            return;
         ctx_->AddInitialMetadata("mcf-job-id", svc_job_id(j));
         follow(j, true, 0, false, false);
     }
@@ -77,19 +128,8 @@ class SmoothCall : public Follow,
         up_.disarm();
         done();
     }
-    void expire(const char *what, const char *flag, double limit) override
-    {
-        std::lock_guard<std::mutex> l(mu_);
-        if (!finished_)
-            finish_locked(late_status(ctx_, what, flag, limit));
-    }
 
   private:
-    void read()
-    {
-        HB_RELEASE(ctx_);
-        StartRead(&req_);
-    }
     /* Under mu_ (Follow::pump); one write in flight, so one buffer. */
     void start_write(const pb::SmoothResponse *m) override
     {
@@ -109,8 +149,7 @@ class SmoothCall : public Follow,
         Finish(st);
     }
 
-    grpc::ByteBuffer req_, wbuf_;   /* parsed and serialized here (Upload::feed) */
-    Upload up_;
+    grpc::ByteBuffer wbuf_;         /* serialized here */
 };
 
 /* --------------------------------------------------------------- WatchJob */
@@ -175,54 +214,35 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
 
 /* -------------------------------------------------------------- SubmitJob */
 
-class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>, public Expirable {
+class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>,
+                   public Uploading<SubmitCall> {
+    friend class Uploading<SubmitCall>;
+
   public:
     SubmitCall(CallbackServerContext *ctx, grpc::ByteBuffer *resp) : ctx_(ctx), resp_(resp)
     {
         Order o(ctx);
         g.active++;
-        Status st = admit_upload(ctx, &slot_);
-        if (st.ok()) {
-            up_.arm(this);
-            read();
-        } else {
-            end(st);
-        }
+        begin(ctx, &slot_);
     }
 
     void OnReadDone(bool ok) override
     {
         Order o(ctx_);
-        svc_error e;
-        if (ok) {
-            if (up_.feed(&req_, &e))
-                read();
-            else
-                end_error(e);
+        svc_job *j = read_done(ok, false);
+        if (!j)
             return;
-        }
-        up_.disarm();       /* whole: no expiry from now on */
-        {
-            std::lock_guard<std::mutex> l(mu_);
-            if (ended_)     /* cancelled or expired while reading */
-                return;
-        }
-        svc_job *j = nullptr;
-        if (up_.submit(false, &j, &e) != 0) {
-            end_error(e);
-            return;
-        }
         pb::Job job;
         bool own, ok2 = fill_job(j, &job) &&
                         grpc::SerializationTraits<pb::Job>::Serialize(job, resp_, &own).ok();
         svc_job_unref(j);
-        end(ok2 ? Status::OK : door_status(ctx_, SVC_P_NOMEM, "out of memory"));
+        finish(ok2 ? Status::OK : door_status(ctx_, SVC_P_NOMEM, "out of memory"));
     }
 
     void OnCancel() override
     {
         Order o(ctx_);
-        end(Status(StatusCode::CANCELLED, "cancelled by the client"));
+        finish(Status(StatusCode::CANCELLED, "cancelled by the client"));
     }
     void OnDone() override
     {
@@ -231,50 +251,36 @@ class SubmitCall : public grpc::ServerReadReactor<grpc::ByteBuffer>, public Expi
         g.active--;
         delete this;
     }
-    void expire(const char *what, const char *flag, double limit) override
-    {
-        std::lock_guard<std::mutex> l(mu_);
-        if (!ended_)
-            end_locked(late_status(ctx_, what, flag, limit));
-    }
 
   private:
-    void read()
-    {
-        HB_RELEASE(ctx_);
-        StartRead(&req_);
-    }
-
-    void end(const Status &st)
+    void finish(const Status &st)
     {
         std::lock_guard<std::mutex> l(mu_);
-        if (!ended_)
-            end_locked(st);
+        if (!finished_)
+            finish_locked(st);
     }
 
     /* Trailing metadata is added under mu_ and only before Finish: the
      * main thread (expire) and a reaction may end the call at once. */
-    void end_error(const svc_error &e)
+    void finish_error(const svc_error &e)
     {
         std::lock_guard<std::mutex> l(mu_);
-        if (!ended_)
-            end_locked(status_from(ctx_, e));
+        if (!finished_)
+            finish_locked(status_from(ctx_, e));
     }
 
-    void end_locked(const Status &st)
+    void finish_locked(const Status &st)
     {
-        ended_ = true;
+        finished_ = true;
         HB_RELEASE(ctx_);
         Finish(counted("SubmitJob", st));
     }
 
     CallbackServerContext *ctx_;
     grpc::ByteBuffer *resp_;        /* the Job, serialized here */
-    grpc::ByteBuffer req_;          /* parsed by Upload::feed */
-    Upload up_;
     Slot slot_;
     std::mutex mu_;
-    bool ended_ = false;
+    bool finished_ = false;
 };
 
 /* ---------------------------------------------------------------- service */

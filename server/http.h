@@ -83,6 +83,8 @@ struct srv_waiter {
     int suspended;             /* MHD_suspend_connection called, not resumed */
     int pending;               /* notified since srv_waiter_arm */
     int gone;                  /* its client hung up: end the stream */
+    int retry;                 /* asleep on a store that could not be read:
+                                  resumed by srv_http_check_clients */
     int linked;
     struct srv_waiter *prev, *next;
 };
@@ -100,6 +102,10 @@ void srv_waiter_stop(srv_waiter *w);
  * again). A suspended connection is resumed by the next notification. */
 void srv_waiter_arm(srv_waiter *w);
 int srv_waiter_sleep(srv_waiter *w);
+/* Before srv_waiter_sleep: the next sleep ends at the main thread's next
+ * check of the clients (a quarter of a second) even without a
+ * notification, to read the store again. */
+void srv_waiter_retry(srv_waiter *w);
 /* Whether the client of a stream left while it slept. */
 int srv_waiter_gone(srv_waiter *w);
 /* Event streams open now (the mcfd_followers gauge). */

@@ -75,18 +75,22 @@ static int result_intact(svc_store *st, const svc_state_rec *r)
 
 /* A finished job's progress events, when its run left them whole in the
  * store (svc_job.c: events.idx's last end is events.ndjson's size); else
- * it has none, as when they could not be written. */
+ * it has none, as when they could not be written; -1 when the store
+ * cannot say now (a shared store down or reconnecting). */
 int svc__events_stored(svc_store *st, const char *id, int *n, size_t *bytes)
 {
     size_t si, sd, last;
 
-    if (st->ops->stat(st, id, "events.idx", &si) != 0 || si == 0 ||
-        si % sizeof last != 0 ||
-        st->ops->stat(st, id, "events.ndjson", &sd) != 0 ||
-        sd > SVC_EVENTS_MAX || si / sizeof last > sd ||
-        st->ops->get_at(st, id, "events.idx", si - sizeof last, &last,
-                        sizeof last) != 0 ||
-        last != sd)
+    if (st->ops->stat(st, id, "events.idx", &si) != 0 ||
+        st->ops->stat(st, id, "events.ndjson", &sd) != 0)
+        return errno == ENOENT ? 0 : -1;
+    if (si == 0 || si % sizeof last != 0 || sd > SVC_EVENTS_MAX ||
+        si / sizeof last > sd)
+        return 0;
+    if (st->ops->get_at(st, id, "events.idx", si - sizeof last, &last,
+                        sizeof last) != 0)
+        return errno == ENOENT || errno == EIO ? 0 : -1;
+    if (last != sd)
         return 0;
     *n = (int)(si / sizeof last);
     *bytes = last;
@@ -99,7 +103,7 @@ int svc__load(svc_t *s, const char *id, svc_job **j, svc_state_rec *r)
     char *state = NULL, *req = NULL, *shown = NULL;
     size_t len;
     cJSON *so = NULL, *ro = NULL;
-    int rc = -2;
+    int rc = -2, e = 0;
 
     *j = NULL;
     if (st->ops->get(st, id, "state.json", &state, &len) != 0)
@@ -109,8 +113,10 @@ int svc__load(svc_t *s, const char *id, svc_job **j, svc_state_rec *r)
         return -1;
     }
     snprintf((*j)->id, sizeof (*j)->id, "%s", id);
-    if (st->ops->get(st, id, "request.json", &req, &len) == 0 &&
-        (so = cJSON_Parse(state)) && (ro = cJSON_Parse(req)) &&
+    if (st->ops->get(st, id, "request.json", &req, &len) != 0 &&
+        (e = errno) != ENOENT)
+        rc = -1;               /* the store cannot say now: not damaged */
+    else if (req && (so = cJSON_Parse(state)) && (ro = cJSON_Parse(req)) &&
         svc__state_parse(so, r, &shown) == 0) {
         /* the parameters shown are the ones recorded at submission */
         (*j)->params_json = shown;
@@ -124,6 +130,7 @@ int svc__load(svc_t *s, const char *id, svc_job **j, svc_state_rec *r)
     cJSON_Delete(ro);
     free(state);
     free(req);
+    errno = e;
     return rc;
 }
 

@@ -34,7 +34,9 @@ static rds_script lua_create = {
     "return 1\n", ""};
 
 /* KEYS: hash, events. ARGV: blob prefix, ttl, name, data, fence (the
- * runner's consumer; "": none; " ": only while no replica runs it). */
+ * runner's consumer; "": none; " ": only while no replica runs it),
+ * control prefix, id. A cancel.json of a job a replica runs is also
+ * told to that replica's control stream (P:ctl:{consumer}). */
 static rds_script lua_put = {
     LUA_TOUCH LUA_WRITE
     "if redis.call('EXISTS', KEYS[1]) == 0 then\n"
@@ -45,6 +47,11 @@ static rds_script lua_put = {
     "  return redis.error_reply('STALE another replica took the job over') "
     "end\n"
     "write(KEYS[1], ARGV[1], ARGV[3], ARGV[4])\n"
+    LUA_MARK("ARGV[3]")
+    "if ARGV[3] == 'cancel.json' and runner then\n"
+    "  local c = ARGV[6] .. runner\n"
+    "  redis.call('XADD', c, 'MAXLEN', '~', 1000, '*', 'job', ARGV[7])\n"
+    "  redis.call('PEXPIRE', c, ARGV[2]) end\n"
     "touch(KEYS[1], ARGV[1], KEYS[2], ARGV[2])\n"
     "return 1\n", ""};
 
@@ -260,6 +267,11 @@ rstore *rstore_open(const rds_config *rc, const rstore_config *cfg,
     snprintf(s->k_queue, KEY_MAX, "%s:queue", cfg->prefix);
     snprintf(s->k_front, KEY_MAX, "%s:front", cfg->prefix);
     snprintf(s->k_dead, KEY_MAX, "%s:dead", cfg->prefix);
+    snprintf(s->p_ctl, KEY_MAX, "%s:ctl:", cfg->prefix);
+    snprintf(s->k_ctl, KEY_MAX, "%s:ctl:%s", cfg->prefix, cfg->consumer);
+    /* the consumer is new with each process (its nonce): all of its
+     * control stream is for this one */
+    snprintf(s->ctl_after, sizeof s->ctl_after, "0");
     pthread_mutex_init(&s->mu, NULL);
     if (!(s->pool = rds_pool_new(rc, cfg->pool))) {
         snprintf(msg, msgsize, "out of memory");
@@ -404,8 +416,8 @@ int rstore_put(rstore *s, const char *id, const char *name,
                const void *data, size_t len, int fence)
 {
     job_keys k;
-    const char *argv[7];
-    size_t lens[7];
+    const char *argv[9];
+    size_t lens[9];
     rstore_blob b = {name, data, len};
     rstore_files f;
     int argc = 4;
@@ -420,8 +432,12 @@ int rstore_put(rstore *s, const char *id, const char *name,
         return -1;
     argv[6] = fence == RSTORE_UNCLAIMED ? " " : fence ? s->cfg.consumer : "";
     lens[6] = strlen(argv[6]);
+    argv[7] = s->p_ctl;
+    lens[7] = strlen(argv[7]);
+    argv[8] = id;
+    lens[8] = strlen(id);
     return rstore__files_end(
-        s, &f, rstore__eval_int(s, &lua_put, 2, 7, argv, lens, NULL));
+        s, &f, rstore__eval_int(s, &lua_put, 2, 9, argv, lens, NULL));
 }
 
 /* A large blob's size and version: 0, or -1 and errno (ENOENT). The

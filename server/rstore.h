@@ -19,6 +19,8 @@
  *   P:queue           stream, the queue; consumer group "workers"
  *   P:front           stream, jobs put back at the head (read first)
  *   P:dead            stream, dead letters: {job, runs, reason} (MAXLEN ~)
+ *   P:ctl:{consumer}  stream, a replica's control: {job} for each cancel
+ *                     asked (on any replica) of a job it runs (MAXLEN ~)
  *   P:quarantine:...  the keys of a quarantined job, renamed
  * With blob_dir (--blob-dir), a large blob is instead the file
  * DIR/P/{id}/NAME.UNIQUE, named by the hash's field "f:NAME"; Redis
@@ -84,6 +86,9 @@
  *   - Progress. progress() XADDs a line to P:ev:{id} (MAXLEN ~ ev_max);
  *     events() reads them after a given entry id, blocking up to a bound:
  *     a follower on any replica sees every line, in order, late or not.
+ *     A put() of state.json or cancel.json and finish() add a mark to
+ *     the same stream (an entry {s: NAME}), so that watch() wakes a
+ *     follower at a change of state as at a step.
  *   - Redis unreachable or loading its AOF: every call fails at once with
  *     EAGAIN (rds's backoff), ready() says why; nothing blocks past
  *     command_timeout (claim: plus its block time).
@@ -205,11 +210,29 @@ int rstore_progress(rstore *s, const char *id, const char *line,
                     size_t len);
 /* Calls fn for each line after entry `after` ("0": from the first),
  * waiting up to block seconds for the first one (0: not at all); after
- * is advanced to the last line given (size RSTORE_ID_MAX). The number of
+ * is advanced to the last line given (size RSTORE_ID_MAX); marks are
+ * passed over, and the control stream is watch()'s alone. The number of
  * lines, or -1. */
 int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
                   double block,
                   void (*fn)(const char *line, size_t len, void *ctx),
                   void *ctx);
+
+/* The streams of n jobs at once (0 to RSTORE_WATCH_MAX) and this
+ * replica's control stream, one command: waits up to block seconds (0:
+ * not at all) for an entry after after[i] on any of them (the control
+ * stream's cursor is the store's: one thread at a time calls watch),
+ * then calls fn(ctx, i, line, len) for each progress line of job ids[i],
+ * fn(ctx, i, NULL, 0) for each mark (its state.json or cancel.json was
+ * written: put() and finish() add one), and fn(ctx, -1, id, len) for
+ * each cancel of a job this replica runs (a put() of its cancel.json,
+ * from any replica), in order; the cursors advanced. The number of
+ * calls (0: none within the block), or -1 and errno. */
+#define RSTORE_WATCH_MAX 128
+typedef void (*rstore_watch_fn)(void *ctx, int i, const char *line,
+                                size_t len);
+int rstore_watch(rstore *s, int n, const char *const *ids,
+                 char (*after)[RSTORE_ID_MAX], double block,
+                 rstore_watch_fn fn, void *ctx);
 
 #endif /* RSTORE_H */

@@ -57,6 +57,23 @@ int rstore__files_check(rstore *s, char *msg, size_t msgsize)
     return 0;
 }
 
+/* A failed write's files removed, and the job's directory when that
+ * leaves it empty (a submission refused on a full disk leaves nothing;
+ * a writer of the same job that made it meanwhile makes it again, as
+ * after the sweep). -1, errno kept. */
+static int gone(const char *dir, const char *tmp, const char *path)
+{
+    int e = errno;
+
+    if (tmp)
+        unlink(tmp);
+    if (path)
+        unlink(path);
+    rmdir(dir);
+    errno = e;
+    return -1;
+}
+
 /* The blob's bytes in a file of its own; its name (relative to the
  * directory) in ref. 0, or -1 and errno (ENOSPC: disk full), nothing
  * left behind. */
@@ -91,21 +108,15 @@ int rstore__file_write(rstore *s, const char *id, const char *name,
         (mkdir(dir, 0755) == 0 || errno == EEXIST))
         fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0)
-        return -1;
+        return gone(dir, NULL, NULL);
     if (srv_write_all(fd, data, len) != 0 || fsync(fd) != 0) {
         e = errno;
         close(fd);
-        unlink(tmp);
         errno = e;
-        return -1;
+        return gone(dir, tmp, NULL);
     }
-    if (close(fd) != 0 || rename(tmp, path) != 0 || srv_sync_dir(dir) != 0) {
-        e = errno;
-        unlink(tmp);
-        unlink(path);
-        errno = e;
-        return -1;
-    }
+    if (close(fd) != 0 || rename(tmp, path) != 0 || srv_sync_dir(dir) != 0)
+        return gone(dir, tmp, path);
     return 0;
 }
 

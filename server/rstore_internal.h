@@ -29,6 +29,9 @@ struct rstore {
     char ttl_ms[24];
     char k_jobs[KEY_MAX], k_queue[KEY_MAX], k_front[KEY_MAX],
         k_dead[KEY_MAX];
+    char p_ctl[KEY_MAX];       /* P:ctl: (+ a consumer: its control stream) */
+    char k_ctl[KEY_MAX];       /* this replica's control stream */
+    char ctl_after[RSTORE_ID_MAX];  /* read so far (watch: one thread) */
     pthread_mutex_t mu;        /* held, next_reap */
     held_entry held[HELD_MAX];
     int nheld;
@@ -64,6 +67,12 @@ typedef struct {
     "  redis.call('PEXPIRE', h, ttl)\n"                                   \
     "  redis.call('PEXPIRE', ev, ttl)\n"                                  \
     "end\n"
+/* A mark {s: NAME} on the job's events stream (KEYS[2]) when the blob
+ * written (a Lua expression) is its state or a cancel: rstore_watch
+ * wakes the followers on other replicas at once. */
+#define LUA_MARK(name)                                                    \
+    "if " name " == 'state.json' or " name " == 'cancel.json' then\n"     \
+    "  redis.call('XADD', KEYS[2], '*', 's', " name ") end\n"
 /* write(h, bp, name, data): one blob, in the hash or its own key; a
  * name "@NAME": data is "SIZE FILE", the file holding NAME's bytes
  * (--blob-dir), published as field f:NAME */

@@ -98,6 +98,7 @@ static rds_script lua_finish = {
     "redis.call('XACK', r[3], ARGV[1], r[2])\n"
     "redis.call('XDEL', r[3], r[2])\n"
     "redis.call('HDEL', KEYS[1], 'runner', 'entry', 'stream')\n"
+    LUA_MARK("'state.json'")
     "touch(KEYS[1], ARGV[3], KEYS[2], ARGV[4])\n"
     "return 1\n", ""};
 
@@ -482,58 +483,147 @@ int rstore_progress(rstore *s, const char *id, const char *line,
     return 0;
 }
 
+/* The entries of one stream of an XREAD reply ([[entry, [field, value
+ * ...]]...]) after *after: fn(ctx, i, line) per progress line, fn(ctx,
+ * i, NULL) per mark (a state change); i -1, the control stream: fn(ctx,
+ * -1, id) per cancel; the cursor advanced. The number of entries. */
+static int stream_entries(const redisReply *list, int i, char *after,
+                          rstore_watch_fn fn, void *ctx)
+{
+    size_t e;
+    int n = 0;
+
+    for (e = 0; e < list->elements; e++) {
+        const redisReply *x = list->element[e], *l;
+        if (x->type != REDIS_REPLY_ARRAY || x->elements != 2 ||
+            x->element[0]->type != REDIS_REPLY_STRING ||
+            x->element[0]->len >= RSTORE_ID_MAX)
+            continue;
+        snprintf(after, RSTORE_ID_MAX, "%s", x->element[0]->str);
+        l = rds_reply_field(x->element[1], i < 0 ? "job" : "l");
+        if (l && l->type == REDIS_REPLY_STRING)
+            fn(ctx, i, l->str, l->len);
+        else if (rds_reply_field(x->element[1], "s"))
+            fn(ctx, i, NULL, 0);
+        else
+            continue;
+        n++;
+    }
+    return n;
+}
+
+/* rstore_watch, and with ctl 0 without the control stream (its cursor
+ * is the watching thread's alone). */
+static int read_streams(rstore *s, int n, const char *const *ids,
+                        char (*after)[RSTORE_ID_MAX], int ctl, double block,
+                        rstore_watch_fn fn, void *ctx)
+{
+    char ms[24];
+    const char **argv;
+    job_keys *k;
+    redisReply *r = NULL;
+    size_t i;
+    int a = 0, j, got = 0, e = EIO;
+
+    if (n < 0 || n > RSTORE_WATCH_MAX) {
+        errno = EINVAL;
+        return -1;
+    }
+    argv = calloc((size_t)(8 + 2 * n), sizeof *argv);
+    k = calloc((size_t)n + 1, sizeof *k);
+    if (!argv || !k) {
+        free(argv);
+        free(k);
+        errno = ENOMEM;
+        return -1;
+    }
+    argv[a++] = "XREAD";
+    argv[a++] = "COUNT";
+    argv[a++] = "256";
+    /* block <= 0: what is there now (XREAD BLOCK 0 would wait for ever) */
+    if (block > 0) {
+        snprintf(ms, sizeof ms, "%lld", (long long)(block * 1000));
+        argv[a++] = "BLOCK";
+        argv[a++] = ms;
+    }
+    argv[a++] = "STREAMS";
+    for (j = 0; j < n; j++) {
+        if (rstore__keys(s, ids[j], &k[j]) != 0) {
+            e = errno;
+            goto out;
+        }
+        argv[a + j] = k[j].ev;
+        argv[a + n + ctl + j] = after[j];
+    }
+    if (ctl) {                 /* this replica's control stream, last */
+        argv[a + n] = s->k_ctl;
+        argv[a + 2 * n + 1] = s->ctl_after;
+    }
+    if (!(r = rstore__cmd(s, block > 0 ? block : 0, a + 2 * (n + ctl),
+                          argv))) {
+        e = errno;
+        goto out;
+    }
+    /* nil: nothing within the block; else [[stream, [entry...]]...] */
+    if (r->type != REDIS_REPLY_NIL && r->type != REDIS_REPLY_ARRAY)
+        goto out;
+    for (i = 0; r->type == REDIS_REPLY_ARRAY && i < r->elements; i++) {
+        const redisReply *st = r->element[i];
+        if (st->type != REDIS_REPLY_ARRAY || st->elements != 2 ||
+            st->element[0]->type != REDIS_REPLY_STRING ||
+            st->element[1]->type != REDIS_REPLY_ARRAY)
+            goto out;
+        if (ctl && !strcmp(s->k_ctl, st->element[0]->str)) {
+            got += stream_entries(st->element[1], -1, s->ctl_after, fn, ctx);
+            continue;
+        }
+        for (j = 0; j < n && strcmp(k[j].ev, st->element[0]->str); j++)
+            ;
+        if (j < n)
+            got += stream_entries(st->element[1], j, after[j], fn, ctx);
+    }
+    e = 0;
+out:
+    rds_reply_free(r);
+    free(argv);
+    free(k);
+    errno = e;
+    return e ? -1 : got;
+}
+
+int rstore_watch(rstore *s, int n, const char *const *ids,
+                 char (*after)[RSTORE_ID_MAX], double block,
+                 rstore_watch_fn fn, void *ctx)
+{
+    return read_streams(s, n, ids, after, 1, block, fn, ctx);
+}
+
+typedef struct {
+    void (*fn)(const char *line, size_t len, void *ctx);
+    void *ctx;
+    int lines;
+} lines_only;
+
+static void line_of(void *ctx, int i, const char *line, size_t len)
+{
+    lines_only *o = ctx;
+
+    (void)i;
+    if (line) {
+        o->fn(line, len, o->ctx);
+        o->lines++;
+    }
+}
+
 int rstore_events(rstore *s, const char *id, char after[RSTORE_ID_MAX],
                   double block,
                   void (*fn)(const char *line, size_t len, void *ctx),
                   void *ctx)
 {
-    job_keys k;
-    char ms[24];
-    const char *argv[8] = {"XREAD", "COUNT", "256", "BLOCK", ms, "STREAMS",
-                           k.ev, after};
-    redisReply *r, *list;
-    size_t i;
-    int n = 0;
+    lines_only o = {fn, ctx, 0};
 
-    if (rstore__keys(s, id, &k) != 0)
-        return -1;
-    snprintf(ms, sizeof ms, "%lld", (long long)(block * 1000));
-    /* block <= 0: what is there now (XREAD BLOCK 0 would wait for ever) */
-    if (block <= 0) {
-        argv[3] = "STREAMS";
-        argv[4] = k.ev;
-        argv[5] = after;
-    }
-    if (!(r = rstore__cmd(s, block > 0 ? block : 0, block > 0 ? 8 : 6,
-                          argv)))
-        return -1;
-    if (r->type == REDIS_REPLY_NIL) {
-        rds_reply_free(r);
-        return 0;
-    }
-    /* [[stream, [[entry, [l, line]]...]]] */
-    if (r->type != REDIS_REPLY_ARRAY || r->elements != 1 ||
-        r->element[0]->type != REDIS_REPLY_ARRAY ||
-        r->element[0]->elements != 2 ||
-        r->element[0]->element[1]->type != REDIS_REPLY_ARRAY) {
-        rds_reply_free(r);
-        errno = EIO;
-        return -1;
-    }
-    list = r->element[0]->element[1];
-    for (i = 0; i < list->elements; i++) {
-        const redisReply *e = list->element[i], *l;
-        if (e->type != REDIS_REPLY_ARRAY || e->elements != 2 ||
-            e->element[0]->type != REDIS_REPLY_STRING ||
-            e->element[0]->len >= RSTORE_ID_MAX)
-            continue;
-        snprintf(after, RSTORE_ID_MAX, "%s", e->element[0]->str);
-        l = rds_reply_field(e->element[1], "l");
-        if (l && l->type == REDIS_REPLY_STRING) {
-            fn(l->str, l->len, ctx);
-            n++;
-        }
-    }
-    rds_reply_free(r);
-    return n;
+    return read_streams(s, 1, &id, (char (*)[RSTORE_ID_MAX])after, 0, block,
+                        line_of, &o) < 0
+               ? -1
+               : o.lines;
 }

@@ -297,8 +297,16 @@ static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
     if (e == ENOSPC || e == EDQUOT) {
         /* A full disk is a full spool: transient, the client's to retry,
          * like the quota's (and /readyz says so meanwhile). */
-        svc_error_set(err, SVC_P_SPOOL_FULL, "the spool's filesystem has no "
-                      "room for job %s (%zu bytes): %s", j->id,
+        char where[600];
+        if (s->cfg.blob_dir[0])
+            snprintf(where, sizeof where, "the blob directory %s (or Redis)",
+                     s->cfg.blob_dir);
+        else
+            snprintf(where, sizeof where, "%s", s->cfg.store[0]
+                                                    ? "the job store (Redis)"
+                                                    : "the spool's filesystem");
+        svc_error_set(err, SVC_P_SPOOL_FULL, "%s has no room for job %s "
+                      "(%zu bytes): %s", where, j->id,
                       rq->input_len + rq->target_len, strerror(e));
         err->retry_after = 5;
     } else if (e == EAGAIN) {
@@ -629,7 +637,8 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
                    : svc_spool_open(cfg->spool, msg, msgsize);
     if (!s->store ||
         svc__recover(s, msg, msgsize) != 0 ||
-        svc__workers_start(s, msg, msgsize) != 0) {
+        svc__workers_start(s, msg, msgsize) != 0 ||
+        svc__follower_start(s, msg, msgsize) != 0) {
         svc_stop(s);
         return -1;
     }
@@ -692,6 +701,7 @@ void svc_stop(svc_t *s)
 
     if (!s)
         return;
+    svc__follower_stop(s);
     svc__workers_stop(s);
     pthread_mutex_lock(&s->mu);
     for (b = 0; b < SVC_NBUCKETS; b++)

@@ -676,6 +676,7 @@ static const svc_store_ops spool_ops = {
     sp_push, sp_claim, sp_ack, sp_drop,
     sp_heartbeat, sp_progress, sp_follow,
     NULL,                          /* a put per blob: a file each */
+    NULL,                          /* no other replica to watch */
     0,                             /* only this process pushes */
     0,                             /* one process */
 };

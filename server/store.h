@@ -74,7 +74,8 @@
  *   from its record (request.json and state.json, as recovery.c's load),
  *   and the sweep follows the progress of the jobs others run (follow())
  *   and tells its own running jobs of a cancel asked on another replica
- *   (the blob "cancel.json"). claim() also says 2: the id was taken over
+ *   (the blob "cancel.json"); a store with watch() also pushes both to
+ *   the service's follower thread (svc_shared.c) as they are written. claim() also says 2: the id was taken over
  *   from a replica that stopped heartbeating (its state may say running:
  *   the job is queued again), and 3: the id was dead-lettered (run too
  *   often; the service writes it failed). A put with durable
@@ -103,6 +104,9 @@ typedef struct {
     const void *data;
     size_t len;
 } svc_blob;
+
+#define SVC_CURSOR_LEN 64      /* a follow() cursor, NUL included */
+#define SVC_WATCH_MAX 128      /* jobs of one watch() */
 
 typedef struct {
     const char *name;          /* "spool" */
@@ -160,12 +164,22 @@ typedef struct {
      * service puts each blob, then acks. */
     int (*finish)(svc_store *st, const char *id, const svc_blob *blobs,
                   int n);
+    /* a shared store, one thread at a time: waits up to block seconds
+     * for what other replicas publish on any of the n jobs ids[i] (0 to
+     * SVC_WATCH_MAX) after cursor after[i] (advanced), then calls fn(ctx,
+     * i, line, len) per progress line, fn(ctx, i, NULL, 0) when the
+     * job's state.json or cancel.json was written, and fn(ctx, -1, id,
+     * len) when a cancel.json was put for a job this replica runs, in
+     * order. The number of calls (0: none within the block), or -1.
+     * NULL: the store has none (the sweep's follow() alone). */
+    int (*watch)(svc_store *st, int n, const char *const *ids,
+                 char (*after)[SVC_CURSOR_LEN], double block,
+                 void (*fn)(void *ctx, int i, const char *line, size_t len),
+                 void *ctx);
 
     double poll;
     int shared;                /* other replicas share it (above) */
 } svc_store_ops;
-
-#define SVC_CURSOR_LEN 64      /* a follow() cursor, NUL included */
 
 struct svc_store {
     const svc_store_ops *ops;

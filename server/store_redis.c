@@ -251,6 +251,16 @@ static int rd_follow(svc_store *st, const char *id, char *after,
     return rstore_events(of(st)->rs, id, after, 0, fn, ctx);
 }
 
+static int rd_watch(svc_store *st, int n, const char *const *ids,
+                    char (*after)[SVC_CURSOR_LEN], double block,
+                    void (*fn)(void *ctx, int i, const char *line,
+                               size_t len),
+                    void *ctx)
+{
+    _Static_assert(SVC_WATCH_MAX == RSTORE_WATCH_MAX, "a watch");
+    return rstore_watch(of(st)->rs, n, ids, after, block, fn, ctx);
+}
+
 /* The run's end: its blobs and the ack in one script (rstore_finish). */
 static int rd_finish(svc_store *st, const char *id, const svc_blob *blobs,
                      int n)
@@ -274,7 +284,7 @@ static const svc_store_ops redis_ops = {
     rd_create, rd_put, rd_get, rd_get_at, rd_stat, rd_open, rd_remove,
     rd_quarantine, rd_usage, rd_scan,
     rd_push, rd_claim, rd_ack, rd_drop,
-    rd_heartbeat, rd_progress, rd_follow, rd_finish,
+    rd_heartbeat, rd_progress, rd_follow, rd_finish, rd_watch,
     0.25,                          /* claim blocks 1 s in XREADGROUP too */
     1,                             /* shared by replicas */
 };
@@ -296,7 +306,9 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
         snprintf(rc.password_file, sizeof rc.password_file, "%s",
                  password_file);
     rstore_config_default(&cfg);
-    cfg.pool = workers + 4;        /* a claim holds one while it blocks */
+    /* a claim holds one while it blocks, and the follower thread one
+     * while its watch blocks */
+    cfg.pool = workers + 5;
     if (blob_dir && blob_dir[0])
         snprintf(cfg.blob_dir, sizeof cfg.blob_dir, "%s", blob_dir);
     if (ttl > cfg.ttl)

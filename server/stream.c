@@ -145,8 +145,16 @@ static int fill(stream *s)
         size_t len;
         int n;
 
-        if (svc_job_events(j, s->ev_index, CHUNK, &ev, &len, &n) != 0 ||
-            n == 0)
+        if (svc_job_events(j, s->ev_index, CHUNK, &ev, &len, &n) != 0) {
+            /* A shared store that cannot give the events now (Redis
+             * just back): never the end without them; read again at the
+             * next check of the clients. */
+            if (s->pend.len > 0)
+                break;
+            srv_waiter_retry(&s->w);
+            return 0;
+        }
+        if (n == 0)
             break;
         for (line = ev; line < ev + len;) {
             char *nl = memchr(line, '\n', (size_t)(ev + len - line));

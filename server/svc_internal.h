@@ -84,6 +84,10 @@ struct svc {
     int closing;               /* doors must answer now, never wait */
     pthread_t *threads;
     int nthreads;
+    /* a shared store: the follower thread (svc_shared.c) */
+    pthread_t follower;
+    pthread_cond_t follow_cv;  /* stop (its wait after a failure) */
+    int follow_started, follow_stop;
     int urandom;
     uint64_t counter;
 };
@@ -128,6 +132,8 @@ struct svc_job {
                                   the store's, refreshed) */
     char ev_after[SVC_CURSOR_LEN];  /* the progress lines of another
                                   replica's run read so far (follow) */
+    int following;             /* a thread reads its stream (the sweep or
+                                  the follower): ev_after is its own */
     /* progress, written by the runner's progress hook (svc__progress) */
     int step;
     double t, dt, energy, volume;
@@ -246,7 +252,8 @@ int svc__recovered(svc_job *j, const svc_state_rec *r);
  * when j changed. */
 int svc__remote_state(svc_job *j, const svc_state_rec *r, int nevents,
                       size_t events_bytes);
-/* One progress line of another replica's run of j (lock held). */
+/* One progress line of another replica's run of j (lock held): kept
+ * only when it is the next step of those held. */
 void svc__remote_progress(svc_job *j, const char *line, size_t len);
 /* A job claimed after its runner stopped heartbeating: a running state
  * left by that replica goes back to queued (lock held). */
@@ -295,9 +302,15 @@ int svc__events_stored(svc_store *st, const char *id, int *n, size_t *bytes);
 /* svc_job_get on a shared store: j (or NULL) refreshed, or loaded when
  * the table does not hold it. A reference, or NULL. */
 svc_job *svc__shared_get(svc_t *s, const char *id);
-/* The sweep's part: other replicas' jobs refreshed and followed, cancels
- * asked elsewhere of the jobs this replica runs. */
+/* The sweep's part: other replicas' jobs refreshed and followed (those
+ * the follower does not), cancels asked elsewhere of the jobs this
+ * replica runs. */
 void svc__shared_sweep(svc_t *s);
+/* The follower thread (a store with watch): the jobs other replicas run
+ * that have subscribers here followed as their runner publishes. Start:
+ * 0 or -1 (msg); stop joins it (accepts one never started). */
+int svc__follower_start(svc_t *s, char *msg, size_t msgsize);
+void svc__follower_stop(svc_t *s);
 /* service.c: j out of the table (lock held). */
 void svc__table_remove(svc_t *s, svc_job *j);
 

@@ -900,6 +900,15 @@ void svc__remote_progress(svc_job *j, const char *line, size_t len)
     if (j->run_here || j->status != SVC_JOB_RUNNING ||
         !(o = cJSON_ParseWithLength(line, len)))
         return;
+    /* The events held are a prefix of the run's (its end replaces them
+     * with the stored ones and a follower goes on from its count): a
+     * line after a gap (lines the runner could not publish while Redis
+     * was down, or trimmed from a long run's stream) is not kept, and
+     * the followers wait for the end. */
+    if (num_of(o, "step", 0) != j->nevents + 1) {
+        cJSON_Delete(o);
+        return;
+    }
     j->step = (int)num_of(o, "step", j->step);
     j->t = num_of(o, "t", j->t);
     j->dt = num_of(o, "dt", j->dt);

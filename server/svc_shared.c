@@ -7,13 +7,17 @@
  * its state.json; the sweep refreshes the unfinished ones, follows the
  * progress lines of those running elsewhere (so SSE and WatchJob on any
  * replica follow every run) and passes a cancel asked on another replica
- * to the runs of this one. The status changes themselves are svc_job.c's.
+ * to the runs of this one. The follower thread does the same as it
+ * happens (the store's watch: a blocking read) for the jobs followed
+ * here and the cancels of this replica's runs; the sweep stays the
+ * fallback. The status changes themselves are svc_job.c's.
  * Every store call is made without the service lock.
  */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "svc_internal.h"
 
@@ -42,17 +46,24 @@ static int read_state(svc_t *s, const char *id, svc_state_rec *r)
 
 /* Applies r to j (a reference held); a job that ends here takes its
  * events from the store at once, so that a follower never sees it ended
- * without them. */
-static void apply(svc_t *s, svc_job *j, const svc_state_rec *r)
+ * without them: when the store cannot say now what they are (Redis
+ * just back, this connection still in its backoff), a job held running
+ * stays so until a later refresh (the sweep's, a second on) instead of
+ * ending without its events for good; one loaded now (loaded) ends
+ * with none. */
+static void apply(svc_t *s, svc_job *j, const svc_state_rec *r, int loaded)
 {
-    int n = 0, ended;
+    int n = 0, ended, k = 0;
     size_t bytes = 0;
 
     pthread_mutex_lock(&s->mu);
     ended = svc_job_status_terminal(r->status) &&
             !svc_job_status_terminal(j->status) && !j->run_here;
     pthread_mutex_unlock(&s->mu);
-    if (ended && !svc__events_stored(s->store, j->id, &n, &bytes))
+    if (ended && (k = svc__events_stored(s->store, j->id, &n, &bytes)) < 0 &&
+        !loaded)
+        return;
+    if (ended && k <= 0)
         n = 0, bytes = 0;
     pthread_mutex_lock(&s->mu);
     svc__remote_state(j, r, n, bytes);
@@ -88,7 +99,7 @@ static svc_job *load_new(svc_t *s, const char *id)
     pthread_mutex_unlock(&s->mu);
     if (n)
         svc__job_free(n);
-    apply(s, j, &r);
+    apply(s, j, &r, 1);
     return j;
 }
 
@@ -100,7 +111,7 @@ static int refresh(svc_t *s, svc_job *j)
     svc_state_rec r;
 
     if (read_state(s, j->id, &r) == 0) {
-        apply(s, j, &r);
+        apply(s, j, &r, 0);
         return 0;
     }
     if (errno != ENOENT)
@@ -175,7 +186,8 @@ static void follow_line(const char *line, size_t len, void *arg)
 }
 
 /* Another replica's job: its state, and its progress lines while it
- * runs there (the cursor is the sweep's alone). */
+ * runs there, unless the follower thread reads them (the cursor is one
+ * thread's at a time: following). */
 static void sweep_remote(svc_t *s, svc_job *j)
 {
     svc_store *st = s->store;
@@ -184,10 +196,15 @@ static void sweep_remote(svc_t *s, svc_job *j)
     if (refresh(s, j) != 0)
         return;
     pthread_mutex_lock(&s->mu);
-    running = !j->run_here && j->status == SVC_JOB_RUNNING;
+    running = !j->run_here && j->status == SVC_JOB_RUNNING && !j->following;
+    j->following |= running;
     pthread_mutex_unlock(&s->mu);
-    if (running)
-        st->ops->follow(st, j->id, j->ev_after, follow_line, j);
+    if (!running)
+        return;
+    st->ops->follow(st, j->id, j->ev_after, follow_line, j);
+    pthread_mutex_lock(&s->mu);
+    j->following = 0;
+    pthread_mutex_unlock(&s->mu);
 }
 
 /* A job this replica runs: a cancel asked on another replica
@@ -243,4 +260,183 @@ void svc__shared_sweep(svc_t *s)
     }
     free(remote.job);
     free(own.job);
+}
+
+/* ---------------------------------------------------------- the follower */
+
+/* The jobs of one watch: a new watcher is picked up when it ends; the
+ * store answers as soon as an entry comes (a step, a change of state, a
+ * cancel for this replica), so this bounds no follower's lag, only the
+ * first read for a new one. Five commands a second per replica when
+ * idle. */
+#define FOLLOW_BLOCK 0.2
+/* after a failed watch (Redis down: the connection's backoff answers at
+ * once until its next attempt) */
+#define FOLLOW_RETRY 0.25
+
+typedef struct {
+    svc_t *s;
+    svc_job *job[SVC_WATCH_MAX];
+    const char *id[SVC_WATCH_MAX];
+    char after[SVC_WATCH_MAX][SVC_CURSOR_LEN];
+    int n;
+} watch_set;
+
+/* A cancel asked on another replica of job id, which this replica
+ * runs: its flag set now, not at the next sweep. */
+static void cancel_asked(svc_t *s, const char *id, size_t len)
+{
+    char key[SVC_ID_LEN + 1];
+    svc_job *j;
+
+    if (len != SVC_ID_LEN)
+        return;
+    memcpy(key, id, len);
+    key[len] = 0;
+    pthread_mutex_lock(&s->mu);
+    if ((j = svc__find_locked(s, key)) && j->run_here && !j->cancel)
+        j->refs++;
+    else
+        j = NULL;
+    pthread_mutex_unlock(&s->mu);
+    if (j) {
+        sweep_own(s, j);
+        svc_job_unref(j);
+    }
+}
+
+/* One entry of job i's stream: a mark (its state changed: read at once,
+ * so a follower sees the run start and end without waiting for the
+ * sweep) or a progress line (one of a run this replica still thinks
+ * queued: its state first, the run has started). */
+static void watched(void *ctx, int i, const char *line, size_t len)
+{
+    watch_set *w = ctx;
+    svc_job *j;
+    int queued;
+
+    if (i < 0) {
+        cancel_asked(w->s, line, len);
+        return;
+    }
+    j = w->job[i];
+    pthread_mutex_lock(&w->s->mu);
+    queued = j->status == SVC_JOB_QUEUED;
+    pthread_mutex_unlock(&w->s->mu);
+    if (!line || queued)
+        refresh(w->s, j);
+    if (line)
+        follow_line(line, len, j);
+}
+
+/* Lock held: the jobs to watch now, taken (following, a reference):
+ * another replica's, unfinished, with a subscriber here. Ended jobs and
+ * those whose subscribers left drop out at the next round. */
+static void watch_take_locked(svc_t *s, watch_set *w)
+{
+    svc_job *j;
+    int b;
+
+    w->n = 0;
+    for (b = 0; b < SVC_NBUCKETS && w->n < SVC_WATCH_MAX; b++)
+        for (j = s->buckets[b]; j && w->n < SVC_WATCH_MAX; j = j->hnext)
+            if (!j->run_here && j->subs && !j->following &&
+                !svc_job_status_terminal(j->status)) {
+                j->following = 1;
+                j->refs++;
+                w->job[w->n] = j;
+                w->id[w->n] = j->id;
+                memcpy(w->after[w->n], j->ev_after, SVC_CURSOR_LEN);
+                w->n++;
+            }
+}
+
+static void watch_give_locked(watch_set *w)
+{
+    int i;
+
+    for (i = 0; i < w->n; i++) {
+        memcpy(w->job[i]->ev_after, w->after[i], SVC_CURSOR_LEN);
+        w->job[i]->following = 0;
+        svc__unref_locked(w->job[i]);
+    }
+    w->n = 0;
+}
+
+static void wait_locked(svc_t *s, double seconds)
+{
+    struct timespec ts;
+
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    ts.tv_sec += (time_t)seconds;
+    ts.tv_nsec += (long)((seconds - (double)(time_t)seconds) * 1e9);
+    if (ts.tv_nsec >= 1000000000L) {
+        ts.tv_sec++;
+        ts.tv_nsec -= 1000000000L;
+    }
+    pthread_cond_timedwait(&s->follow_cv, &s->mu, &ts);
+}
+
+/* One connection of the store's pool, blocked in the watch most of the
+ * time; reconnects are the store's (the next watch after Redis
+ * returns). */
+static void *follower_main(void *arg)
+{
+    svc_t *s = arg;
+    svc_store *st = s->store;
+    watch_set *w = calloc(1, sizeof *w);
+    int rc;
+
+    if (!w) {
+        srv_logf(SRV_LOG_WARN, "follower: out of memory: progress of "
+                 "other replicas' jobs comes with the sweep only");
+        return NULL;
+    }
+    w->s = s;
+    pthread_mutex_lock(&s->mu);
+    while (!s->follow_stop) {
+        watch_take_locked(s, w);
+        pthread_mutex_unlock(&s->mu);
+        rc = st->ops->watch(st, w->n, w->id, w->after, FOLLOW_BLOCK,
+                            watched, w);
+        pthread_mutex_lock(&s->mu);
+        watch_give_locked(w);
+        if (rc < 0 && !s->follow_stop)
+            wait_locked(s, FOLLOW_RETRY);
+    }
+    pthread_mutex_unlock(&s->mu);
+    free(w);
+    return NULL;
+}
+
+int svc__follower_start(svc_t *s, char *msg, size_t msgsize)
+{
+    pthread_condattr_t ca;
+
+    if (!s->store->ops->shared || !s->store->ops->watch)
+        return 0;
+    pthread_condattr_init(&ca);
+    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    pthread_cond_init(&s->follow_cv, &ca);
+    pthread_condattr_destroy(&ca);
+    if (pthread_create(&s->follower, NULL, follower_main, s) != 0) {
+        pthread_cond_destroy(&s->follow_cv);
+        snprintf(msg, msgsize, "cannot start the follower thread");
+        return -1;
+    }
+    s->follow_started = 1;
+    return 0;
+}
+
+void svc__follower_stop(svc_t *s)
+{
+    if (!s->follow_started)
+        return;
+    pthread_mutex_lock(&s->mu);
+    s->follow_stop = 1;
+    pthread_cond_signal(&s->follow_cv);
+    pthread_mutex_unlock(&s->mu);
+    pthread_join(s->follower, NULL);
+    pthread_cond_destroy(&s->follow_cv);
+    s->follow_started = 0;
 }

@@ -110,6 +110,13 @@ int srv_waiter_sleep(srv_waiter *w)
     return slept;
 }
 
+void srv_waiter_retry(srv_waiter *w)
+{
+    pthread_mutex_lock(&w->door->wait_mu);
+    w->retry = 1;
+    pthread_mutex_unlock(&w->door->wait_mu);
+}
+
 int srv_waiter_gone(srv_waiter *w)
 {
     int gone;
@@ -160,8 +167,11 @@ int srv_http_check_clients(srv_rest *d)
             /* An event stream whose client left: resumed to end
              * (stream.c), which frees its connection now, not when the
              * job moves. */
-            if (!w->gone && client_gone(w->conn)) {
+            if (!w->gone && client_gone(w->conn))
                 w->gone = 1;
+            /* or one to read the store again (srv_waiter_retry) */
+            if (w->gone || w->retry) {
+                w->retry = 0;
                 w->suspended = 0;
                 MHD_resume_connection(w->conn);
             }

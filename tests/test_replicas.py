@@ -192,15 +192,27 @@ def test_dead_letter_is_failed():
 
 
 def test_redis_restart_mid_run():
+    """Redis killed and started again while A runs a job that B's SSE
+    follows (B's follower thread, blocked in XREAD, reconnects): B's
+    stream still carries every step in order and ends succeeded."""
     ds = replicas(2, "rr")
     try:
-        jid = submit(ds[0], "scheme=desbrun2&iterations=20")
+        jid = submit(ds[0], "scheme=desbrun2&iterations=60")
+        got = {}
+        t = threading.Thread(target=lambda: got.update(zip(("steps", "done"), sse(ds[1], jid))))
+        t.start()
         wait_status(ds[1], jid, "running", 30)
+        end = time.time() + 30                 # B's stream is open before Redis goes
+        while b"mcfd_followers 1" not in http("GET", ds[1].url + "/metrics")[2] and time.time() < end:
+            time.sleep(0.05)
         redis_kill()
         time.sleep(1)
         redis_start()                      # the same folder: its AOF
         for d in ds:
             wait_status(d, jid, "succeeded", 90)
+        t.join(60)
+        assert got.get("steps") == list(range(1, 61)), got.get("steps")
+        assert got["done"]["status"] == "succeeded", got["done"]
         assert result_of(ds[0], jid) == result_of(ds[1], jid)
         names = cli("KEYS", "mcfd:blob:%s:result.*" % jid).split()
         assert len(names) == 1, names

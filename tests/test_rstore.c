@@ -637,6 +637,97 @@ static void test_progress_seen_from_another_replica(void **state)
     rstore_close(b);
 }
 
+/* What watch() gave, per job: "line|" or "*|" (a mark); text[2]: the
+ * control stream's cancels, "id|". */
+typedef struct {
+    char text[3][256];
+} watched;
+
+static void add_watched(void *ctx, int i, const char *line, size_t len)
+{
+    watched *w = ctx;
+    char *t = w->text[i < 0 ? 2 : i];
+    size_t at = strlen(t);
+
+    snprintf(t + at, sizeof w->text[0] - at, "%.*s|", line ? (int)len : 1,
+             line ? line : "*");
+}
+
+static void *put_state_later(void *arg)
+{
+    redisd_sleep(0.2);
+    if (rstore_put(arg, "k", "state.json", "{}", 2, 0) != 0)
+        return (void *)1;
+    return NULL;
+}
+
+/* One blocking XREAD over the streams of several jobs (the follower
+ * thread's): each job's lines in order, a mark where its state.json or
+ * cancel.json was written (put or finish), never for another blob; a
+ * write to any of them ends the wait; a cancel of a job a replica runs
+ * reaches that replica's watch. */
+static void test_watch_several_jobs(void **state)
+{
+    rstore *a = replica("a", 30, 3), *b = replica("b", 30, 3);
+    const char *ids[2] = {"j", "k"};
+    char after[2][RSTORE_ID_MAX] = {"0", "0"}, id[RSTORE_ID_MAX];
+    watched w = {{"", "", ""}}, wa = {{"", "", ""}};
+    rstore_blob end[1] = {{"state.json", "{\"status\":\"succeeded\"}", 22}};
+    pthread_t t;
+    void *bad;
+    int runs = 0;
+    (void)state;
+
+    make_job(a, "j", 10);
+    make_job(a, "k", 10);
+    must_ok(rstore_push(a, "j", 0), "push");
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    must_ok(rstore_put(a, "j", "state.json", "{}", 2, 1), "put state");
+    must_ok(rstore_progress(a, "j", "one", 3), "progress");
+    must_ok(rstore_put(a, "j", "metrics.json", "{}", 2, 1), "put other");
+    must_ok(rstore_progress(a, "j", "two", 3), "progress");
+    must_ok(rstore_put(b, "k", "cancel.json", "{}", 2, 0), "put cancel");
+    assert_int_equal(rstore_watch(b, 2, ids, after, 1, add_watched, &w), 4);
+    assert_string_equal(w.text[0], "*|one|two|");
+    assert_string_equal(w.text[1], "*|");
+    /* nothing new: nothing given */
+    assert_int_equal(rstore_watch(b, 2, ids, after, 0, add_watched, &w), 0);
+    /* the end of j's run: a mark */
+    must_ok(rstore_finish(a, "j", end, 1), "finish");
+    assert_int_equal(rstore_watch(b, 2, ids, after, 1, add_watched, &w), 1);
+    assert_string_equal(w.text[0], "*|one|two|*|");
+    /* a write on k while B waits ends the wait */
+    pthread_create(&t, NULL, put_state_later, a);
+    assert_int_equal(rstore_watch(b, 2, ids, after, 5, add_watched, &w), 1);
+    pthread_join(t, &bad);
+    assert_null(bad);
+    assert_string_equal(w.text[1], "*|*|");
+    /* the single-stream read skips the marks */
+    {
+        char one[RSTORE_ID_MAX] = "0";
+        lines l = {"", 0};
+        assert_int_equal(rstore_events(b, "j", one, 0, add_line, &l), 2);
+        assert_string_equal(l.text, "one|two|");
+    }
+    /* a cancel of k, which a runs, put on b: told to a's control stream
+     * (a watches no job), not to b's */
+    must_ok(rstore_push(a, "k", 0), "push");
+    assert_int_equal(claim(a, id, &runs), RSTORE_TAKEN);
+    must_ok(rstore_put(b, "k", "cancel.json", "{}", 2, 0), "put cancel");
+    {   /* a's sweep reading k's stream meanwhile leaves it to the watch */
+        char one[RSTORE_ID_MAX] = "0";
+        lines l = {"", 0};
+        assert_int_equal(rstore_events(a, "k", one, 0, add_line, &l), 0);
+    }
+    assert_int_equal(rstore_watch(a, 0, NULL, NULL, 1, add_watched, &wa), 1);
+    assert_string_equal(wa.text[2], "k|");
+    assert_int_equal(rstore_watch(b, 2, ids, after, 0, add_watched, &w), 1);
+    assert_string_equal(w.text[1], "*|*|*|");
+    assert_string_equal(w.text[2], "");
+    rstore_close(a);
+    rstore_close(b);
+}
+
 /* ------------------------------------------------------ Redis down */
 
 static void test_redis_down_and_back(void **state)
@@ -937,6 +1028,7 @@ int main(void)
         cmocka_unit_test_setup(test_no_duplicate_runs, setup),
         cmocka_unit_test_setup(test_heartbeat_keeps_a_long_job, setup),
         cmocka_unit_test_setup(test_dead_letter, setup),
+        cmocka_unit_test_setup(test_watch_several_jobs, setup),
         cmocka_unit_test_setup(test_progress_seen_from_another_replica,
                                setup),
         cmocka_unit_test_setup(test_redis_down_and_back, setup),

@@ -472,6 +472,42 @@ static size_t send_body(int fd, size_t n)
     return sent;
 }
 
+/* What the REST door holds past --max-memory while uploads stream in:
+ * the bound of docs/reliability.md is VmHWM <= rest + --max-memory + this
+ * (test_grpc.py's UPLOAD_SLACK is gRPC's, 12 MiB). Each upload's
+ * reservation is its bytes plus SVC_UPLOAD_AROUND (2 MiB), which covers
+ * what it costs beside them: its connection's libmicrohttpd pool
+ * (SRV_CONN_MEMORY, 64 KiB) and the page rounding of its buffer; the
+ * body is read straight into that buffer (no copy in flight past 64 KiB)
+ * and a refused one is discarded, never buffered. What no reservation
+ * covers: the pools of connections that hold no upload (the 14 refused
+ * here, 64 KiB each while open: 0.9 MiB) and the malloc arenas of the
+ * two libmicrohttpd threads, grown by the first uploads. Measured
+ * (2026-11-25, 2 cores shared with a sanitizer test run), 8 runs alike:
+ * growth over rest +80.4 MiB for the two declared 40 MiB uploads (84 MiB
+ * reserved, 80 of them bytes) and +95.5 MiB for the chunked one beside a
+ * held 40 MiB one (100 MiB reserved, 96 of them bytes): REST's growth is
+ * its bytes, the AROUND part unused, so it stays within the budget.
+ * 4 MiB is the unreserved part above with room to spare (the arenas:
+ * gRPC's grew 4 MiB, with more threads; 1 MiB of pools), a third of the
+ * gRPC door's 12, whose slices and gate queues hold bytes in flight
+ * that REST never does. */
+#define REST_UPLOAD_SLACK_KIB (4 * 1024)
+
+/* Sets VmHWM back to VmRSS (clear_refs 5, Linux 4.0): 0, or -1. */
+static int reset_hwm(pid_t pid)
+{
+    char path[64];
+    FILE *f;
+    int ok;
+
+    snprintf(path, sizeof path, "/proc/%d/clear_refs", (int)pid);
+    if (!(f = fopen(path, "w")))
+        return -1;
+    ok = fputs("5", f) >= 0;
+    return fclose(f) == 0 && ok ? 0 : -1;
+}
+
 /* Issue 17 item 7: uploads held open were outside the memory budget: 16
  * bodies of 40 MiB, each sent but for its last byte, took 665 MiB against
  * a documented peak of rest + --max-memory 100M (the ceiling was
@@ -490,6 +526,7 @@ static void test_uploads_in_flight(void **state)
     char spool[600], head[256], buf[512] = "";
     int fds[16], held = 0, busy = 0, i, fd;
     long rest, hwm, hwm2 = 0;
+    int reset;
     resp_t r;
 
     (void)state;
@@ -514,6 +551,7 @@ static void test_uploads_in_flight(void **state)
     }
     /* without a Content-Length (chunked): the budget fills as bytes come */
     sleep_ms(200);                     /* the closed uploads gave theirs back */
+    reset = reset_hwm(d.pid) == 0;     /* its own peak */
     fd = connect_from(&d, "127.0.0.1", "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: "
                       "model/obj\r\nTransfer-Encoding: chunked\r\n\r\n");
     {
@@ -541,9 +579,10 @@ static void test_uploads_in_flight(void **state)
         hwm2 = status_kib(d.pid, "VmHWM");
         print_message("    16 uploads of 40 MiB held open (--max-memory 100M): %d taken, %d "
                       "refused 503 EBUSY before their body; a chunked one beside a held "
-                      "40 MiB one: %zu MiB sent, answered %.12s; VmHWM %ld then %ld MiB "
-                      "(rest %ld MiB)\n", held, busy, sent >> 20, buf + 9, hwm >> 10,
-                      hwm2 >> 10, rest >> 10);
+                      "40 MiB one: %zu MiB sent, answered %.12s; VmHWM rest + %.1f then "
+                      "+ %.1f MiB%s (rest %.1f MiB; bound + 100 + %d)\n", held, busy,
+                      sent >> 20, buf + 9, (hwm - rest) / 1024.0, (hwm2 - rest) / 1024.0,
+                      reset ? " (its own)" : "", rest / 1024.0, REST_UPLOAD_SLACK_KIB >> 10);
         assert_true(k == body - 1);
         assert_non_null(strstr(buf, " 503 "));
         close(fd2);
@@ -564,8 +603,10 @@ static void test_uploads_in_flight(void **state)
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
     return;                            /* RSS means nothing there (test_memory_admission) */
 #endif
-    if (hwm > rest + 100 * 1024)
-        fail_msg("peak RSS %ld KiB exceeds rest %ld KiB + --max-memory 100M", hwm, rest);
+    if (hwm > rest + 100 * 1024 + REST_UPLOAD_SLACK_KIB ||
+        hwm2 > rest + 100 * 1024 + REST_UPLOAD_SLACK_KIB)
+        fail_msg("peak RSS %ld KiB (declared), %ld KiB (chunked) exceeds rest %ld KiB + "
+                 "--max-memory 100M + %d KiB", hwm, hwm2, rest, REST_UPLOAD_SLACK_KIB);
 }
 
 int main(void)

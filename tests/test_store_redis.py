@@ -267,6 +267,103 @@ def test_blob_dir_holds_the_bytes():
         d.stop()
 
 
+def mount_small(path, size):
+    """A tmpfs of size (mount's syntax) at path: True, or False when this
+    machine cannot mount one (not root, no mount(8), a container without
+    CAP_SYS_ADMIN)."""
+    os.makedirs(path, exist_ok=True)
+    if os.geteuid() != 0:
+        return False
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=" + size, "tmpfs", path],
+                       capture_output=True, timeout=30)
+    return r.returncode == 0
+
+
+def fill_leaving(filler, leave):
+    """filler grown or cut so that about leave bytes stay free on its
+    filesystem."""
+    with open(filler, "ab") as f:
+        sv = os.statvfs(filler)
+        want = int(f.tell() + sv.f_bavail * sv.f_frsize - leave)
+        if want < f.tell():
+            f.truncate(max(0, want))
+            return
+        zeros = bytes(65536)
+        while f.tell() < want:
+            try:
+                f.write(zeros[:min(len(zeros), want - f.tell())])
+                f.flush()
+            except OSError:           # full: as close as it gets
+                break
+
+
+def tree_files(root):
+    return sorted(os.path.relpath(os.path.join(d, n), root)
+                  for d, _, names in os.walk(root) for n in names)
+
+
+def test_blob_dir_full():
+    """--blob-dir on a full disk (a 1 MiB tmpfs): a submission with no
+    room for its input is a 503 ESPOOLFULL with Retry-After that leaves
+    no file and no record; a job whose result finds no room stays
+    running, its write retried (docs/scale-out.md), with no partial or
+    result file visible, and succeeds once space returns; the replica
+    takes new jobs again."""
+    bd = os.path.join(TMP, "fullblobs")
+    if not mount_small(bd, "1m"):
+        raise testlib.SkipTest("test_blob_dir_full", "cannot mount a small tmpfs here "
+                               "(needs root and mount(8))")
+    filler = os.path.join(bd, "filler")
+    d = None
+    try:
+        d = daemon("blobfull", "--blob-dir", bd)
+        q = "scheme=desbrun2&iterations=40"
+        with open(BUNNY, "rb") as f:
+            mesh = f.read()                  # 96 kB
+        jobs = cli("SCARD", "mcfd:jobs")
+        # no room for the input
+        fill_leaving(filler, 40e3)
+        st, hdr, body = http("POST", d.url + "/v1/jobs?" + q, mesh,
+                             {"Content-Type": "application/octet-stream"})
+        assert st == 503, (st, body[:300])
+        prob = json.loads(body)
+        assert prob["code"] == "ESPOOLFULL" and "no room" in prob["detail"], prob
+        assert bd in prob["detail"], prob           # it names the directory
+        assert int(hdr["Retry-After"]) > 0, hdr
+        assert tree_files(bd) == ["filler"], tree_files(bd)
+        assert os.listdir(os.path.join(bd, "mcfd")) == [], os.listdir(os.path.join(bd, "mcfd"))
+        assert cli("SCARD", "mcfd:jobs") == jobs
+        # room for the input, not for the result: retried, nothing shown
+        fill_leaving(filler, 130e3)
+        jid = submit(d, q)
+        end = time.time() + 60
+        while time.time() < end and b"recording its outcome" not in open(d.logpath, "rb").read():
+            time.sleep(0.1)
+        assert b"recording its outcome" in open(d.logpath, "rb").read(), d.log_tail()
+        st, _, body = http("GET", "%s/v1/jobs/%s" % (d.url, jid))
+        assert st == 200 and json.loads(body)["status"] == "running", body[:300]
+        files = tree_files(bd)
+        assert not [n for n in files if "result." in n or n.endswith(".tmp")], files
+        assert http("GET", "%s/v1/jobs/%s/result" % (d.url, jid))[0] != 200
+        # space returns: the retry writes it, the job succeeds
+        os.unlink(filler)
+        wait_status(d, jid, "succeeded", 45)
+        res = result_of(d, jid)
+        st, _, sync = http("POST", d.url + "/smooth?" + q, mesh,
+                           {"Content-Type": "application/octet-stream"})
+        assert st == 200 and sync == res
+        files = tree_files(bd)
+        assert not [n for n in files if n.endswith(".tmp")], files
+        assert len([n for n in blob_files(bd, jid) if n.startswith("result.")]) == 1, files
+        wait_status(d, submit(d, q), "succeeded", 60)
+        fds = "/proc/%d/fd" % d.p.pid               # no descriptor left open there
+        assert not [n for n in os.listdir(fds) if os.readlink(os.path.join(fds, n)).startswith(bd)]
+    finally:
+        if d:
+            d.stop()                       # exit 0: under ASan, no leak
+        subprocess.run(["umount", bd], capture_output=True, timeout=30)
+
+
 def test_blob_dir_missing_is_a_startup_error():
     r = subprocess.run([os.path.join(testlib.BUILD, "mcfd"), "--port", "0",
                         "--grpc-port", "off", "--store", store_url(),
@@ -280,5 +377,6 @@ if __name__ == "__main__":
     raise SystemExit(run_tests(
         [test_jobs_live_in_redis, test_redis_down_then_back, test_redis_down_while_a_job_runs,
          test_result_over_proto_max_bulk_len_fails, test_kill9_then_restart_finishes_the_job,
-         test_blob_dir_holds_the_bytes, test_blob_dir_missing_is_a_startup_error],
+         test_blob_dir_holds_the_bytes, test_blob_dir_full,
+         test_blob_dir_missing_is_a_startup_error],
         setup=redis_start))

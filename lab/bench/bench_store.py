@@ -83,6 +83,30 @@ def start_mcfd(mcfd, tmp, name, *flags):
     raise SystemExit("%s did not start (see %s.log)" % (name, name))
 
 
+def start_redis(tmp):
+    """A redis-server on a free loopback port, its files in tmp, AOF on with
+    appendfsync always (as docker/kubernetes-redis.yaml deploys it):
+    (Popen, port)."""
+    port = free_port()
+    p = subprocess.Popen(["redis-server", "--port", str(port), "--bind", "127.0.0.1",
+                          "--dir", tmp, "--appendonly", "yes", "--appendfsync", "always",
+                          "--save", "", "--logfile", os.path.join(tmp, "redis.log")],
+                         start_new_session=True)
+    time.sleep(0.5)
+    return p, port
+
+
+def stop_all(procs, tmp):
+    """SIGTERM (then SIGKILL) to each process group, tmp removed."""
+    for p in procs:
+        try:
+            os.killpg(p.pid, signal.SIGTERM)
+            p.wait(30)
+        except (ProcessLookupError, subprocess.TimeoutExpired):
+            os.killpg(p.pid, signal.SIGKILL)
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
 def batch(urls, mesh, n, iterations=1):
     ids, sub, get, k = [], [], [], len(urls)
     t0 = time.perf_counter()
@@ -116,13 +140,8 @@ def main():
     tmp = tempfile.mkdtemp(prefix="mcfd-bench-store-")
     procs = []
     try:
-        rport = free_port()
-        rd = subprocess.Popen(["redis-server", "--port", str(rport), "--bind", "127.0.0.1",
-                               "--dir", tmp, "--appendonly", "yes", "--appendfsync", "always",
-                               "--save", "", "--logfile", os.path.join(tmp, "redis.log")],
-                              start_new_session=True)
+        rd, rport = start_redis(tmp)
         procs.append(rd)
-        time.sleep(0.5)
         setups = [("spool", [start_mcfd(a.mcfd, tmp, "spool")])]
         for n in (1, 2, 3):                   # database n: its own queue
             store = "redis://127.0.0.1:%d/%d" % (rport, n)
@@ -170,13 +189,7 @@ def main():
                       name, r["rate"] / s["rate"], r["sp50"] / s["sp50"], r["gp50"] / s["gp50"],
                       r["cpu"] / s["cpu"], 1e3 * r["rcpu"]))
     finally:
-        for p in procs:
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-                p.wait(30)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
-                os.killpg(p.pid, signal.SIGKILL)
-        shutil.rmtree(tmp, ignore_errors=True)
+        stop_all(procs, tmp)
 
 
 if __name__ == "__main__":
