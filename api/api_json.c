@@ -210,6 +210,9 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     } else {
         ok = ok && api__json_put(o, "combination", cJSON_CreateNull());
     }
+    /* fairing: 1 when the result is the explicit lambda|mu passes', 0
+     * the implicit steps' (or no fairing filter) */
+    ok = ok && api__json_num(o, "filter_explicit", st->filter_explicit);
     ok = ok && api__json_num(o, "crease_vertices", st->crease_vertices);
     ok = ok && api__json_num(o, "guard_rounds", st->guard_rounds);
     ok = ok && api__json_num(o, "guard_vertices", st->guard_vertices);

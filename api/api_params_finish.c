@@ -127,6 +127,11 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
         p->scheme_chosen = 0;
         p->flow.scheme = api_params_scheme(p, nv);
         p->scheme_chosen = 1;
+        /* the default's implicit filter chooses, by SURE, between its
+         * steps and the explicit passes (on a coarse mesh the passes keep
+         * the low modes better: docs/fairing.md); a named `fairing` is
+         * the implicit filter alone */
+        p->flow.fairing_pick = p->flow.scheme == MCF_FAIRING;
     }
     /* the fairing filters' strength: the noise level (mean edges) whose
      * removal their amount optimizes; unset or auto: estimated */

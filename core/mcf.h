@@ -314,7 +314,10 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * surface only, and a guard takes back every face it would fold (turned
  * against the input's face and lying backwards in its neighbourhood):
  * the filtered positions first, then halfway to the input, then the
- * input's. */
+ * input's. With fairing_pick (the default request's `fairing`) and the
+ * automatic amount the explicit passes run too and replace the implicit
+ * result along the normals when their SURE is lower by one standard
+ * error (docs/fairing.md; mcf_flow_stats.filter_explicit). */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
 /* the fairing filters combine the positions after the last
@@ -334,6 +337,12 @@ typedef struct {
     double noise_sigma;       /* fairing: the noise (standard deviation
                                  along the normals, in mean edges) whose
                                  removal SURE optimizes; 0: estimated */
+    int fairing_pick;         /* `fairing` with the automatic amount: also
+                                 run the explicit passes (as
+                                 `fairing_explicit`) and keep theirs when
+                                 their SURE is clearly lower (the default
+                                 request's; mcf_flow_stats.filter_explicit
+                                 says which) */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -467,6 +476,11 @@ typedef struct {
                                  0: Y_steps itself */
     int comb_steps[MCF_FAIRING_COMB];     /* the weights SURE found, */
     double comb_weight[MCF_FAIRING_COMB]; /* taken or not (steps 0: none) */
+    int filter_explicit;      /* fairing: 1 when the result is the
+                                 explicit lambda|mu passes' (always for
+                                 `fairing_explicit`; `fairing` with the
+                                 automatic amount when their SURE is
+                                 lower), 0 the implicit steps' */
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */
