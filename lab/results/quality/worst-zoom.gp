@@ -20,7 +20,7 @@ set title 'clean' noenhanced
 splot 'render-0.dat' using 1:2:3 with polygons fc rgb '#e0d4bc'
 set title 'noisy' noenhanced
 splot 'render-1.dat' using 1:2:3 with polygons fc rgb '#e0d4bc'
-set title 'default (2): 0.57, surface 0.63' noenhanced
+set title 'default (7): 0.57, surface 0.63' noenhanced
 splot 'render-2.dat' using 1:2:3 with polygons fc rgb '#e0d4bc'
 set title 'taubin best (12): 0.55, surface 0.59' noenhanced
 splot 'render-3.dat' using 1:2:3 with polygons fc rgb '#e0d4bc'
