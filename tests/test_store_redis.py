@@ -117,6 +117,15 @@ def result_of(d, jid):
     return res
 
 
+def smooth_sync(d, query):
+    """POST /smooth of the bunny with query: the result bytes (200)."""
+    with open(BUNNY, "rb") as f:
+        st, _, body = http("POST", d.url + "/smooth?" + query, f.read(),
+                           {"Content-Type": "application/octet-stream"})
+    assert st == 200, (st, body[:300])
+    return body
+
+
 def test_jobs_live_in_redis():
     d = daemon("one")
     try:
@@ -126,10 +135,8 @@ def test_jobs_live_in_redis():
         assert cli("SISMEMBER", "mcfd:jobs", jid) == "1"
         wait_status(d, jid, "succeeded", 60)
         res = result_of(d, jid)
-        with open(BUNNY, "rb") as f:
-            st, _, sync = http("POST", d.url + "/smooth?" + q, f.read(),
-                               {"Content-Type": "application/octet-stream"})
-        assert st == 200 and res == sync, (st, len(res), len(sync))
+        sync = smooth_sync(d, q)
+        assert res == sync, (len(res), len(sync))
         names = cli("KEYS", "mcfd:blob:%s:*" % jid).split()
         assert any(n.endswith(":input") for n in names), names
         assert any(":result." in n for n in names), names
@@ -244,10 +251,8 @@ def test_blob_dir_holds_the_bytes():
         jid = submit(d, q)
         wait_status(d, jid, "succeeded", 60)
         res = result_of(d, jid)
-        with open(BUNNY, "rb") as f:
-            st, _, sync = http("POST", d.url + "/smooth?" + q, f.read(),
-                               {"Content-Type": "application/octet-stream"})
-        assert st == 200 and res == sync, (st, len(res), len(sync))
+        sync = smooth_sync(d, q)
+        assert res == sync, (len(res), len(sync))
         assert cli("KEYS", "mcfd:blob:%s:*" % jid) == "", "bytes in Redis"
         files = blob_files(bd, jid)
         assert [n for n in files if n.startswith("input.")], files
@@ -349,9 +354,7 @@ def test_blob_dir_full():
         os.unlink(filler)
         wait_status(d, jid, "succeeded", 45)
         res = result_of(d, jid)
-        st, _, sync = http("POST", d.url + "/smooth?" + q, mesh,
-                           {"Content-Type": "application/octet-stream"})
-        assert st == 200 and sync == res
+        assert smooth_sync(d, q) == res
         files = tree_files(bd)
         assert not [n for n in files if n.endswith(".tmp")], files
         assert len([n for n in blob_files(bd, jid) if n.startswith("result.")]) == 1, files
