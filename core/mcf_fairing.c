@@ -540,25 +540,35 @@ static void weighted_r2(const fair_ctx *c, const double *Y, double m[6])
     }
 }
 
+/* The variance of a SURE gain (over the input, or of one result over
+ * another: the same input, weights and probes) with v the noise variance
+ * it is scaled by: the gain is a sum over the n free vertices of terms
+ * with sum sd and sum of squares sd2, whose spread is taken as that of n
+ * independent terms; the traces' difference dtr enters with 2 v (the
+ * probes' variance vtr); and the gain grows with v as 2 dtr, v being
+ * estimated with a relative standard error c->s2_rel. */
+static double gain_var(const fair_ctx *c, double v, int n, double sd, double sd2, double dtr,
+                       double vtr)
+{
+    double ds = 2.0 * dtr * v * c->s2_rel;
+    double spread = n > 1 ? fmax(0.0, sd2 - sd * sd / n) * n / (n - 1.0) : 0.0;
+    return spread + (4.0 * v * v * vtr + ds * ds);
+}
+
 /* SURE(K) for dim directions of noise level sig (1 along the normals, 2
  * in the tangent planes) from the moments mo (sum w rho^2, sum w^2 rho^2,
  * sum w^2 rho^4) and the trace tr (its probe variance vtr). *z gets the
- * gain over SURE(0) = dim sig^2 sum w in its standard errors, from three
- * sources: the gain is a sum over the n free vertices of d_i = w_i (2 dim
- * sig^2 (1 - tr / sum w) - rho_i^2), whose spread is taken as that of n
- * independent terms; the trace enters with 2 dim sig^2 (the probes'
- * variance); and the gain grows with sig^2 as 2 (sum w - tr), sig^2 being
- * estimated with a relative standard error c->s2_rel. */
+ * gain over SURE(0) = dim sig^2 sum w in its standard errors (gain_var):
+ * the gain is a sum over the free vertices of d_i = w_i (2 dim sig^2 (1 -
+ * tr / sum w) - rho_i^2), and the traces' difference is sum w - tr. */
 static double sure_of(const fair_ctx *c, int dim, double sig, const double *mo, double tr, double vtr,
                       double *z)
 {
-    double sw = (double)c->nfree, n = sw, v = dim * sig * sig;
+    double sw = (double)c->nfree, v = dim * sig * sig;
     double risk = mo[0] - v * sw + 2.0 * v * tr, gain = v * sw - risk;
     double cc = 2.0 * v * (1.0 - tr / sw);
     double sd2 = cc * cc * c->sumw2 - 2.0 * cc * mo[1] + mo[2]; /* sum d_i^2 */
-    double var = n > 1.0 ? fmax(0.0, sd2 - gain * gain / n) * n / (n - 1.0) : 0.0;
-    double ds = 2.0 * (sw - tr) * v * c->s2_rel;
-    var += 4.0 * v * v * vtr + ds * ds;
+    double var = gain_var(c, v, c->nfree, gain, sd2, sw - tr, vtr);
     *z = var > 0.0 ? gain / sqrt(var) : (gain > 0.0 ? INFINITY : 0.0);
     return risk;
 }
@@ -940,8 +950,7 @@ static void combine(fair_ctx *c)
     for (int q = 0; q < NPROBE; q++)
         est[q] = c->trbest[q] - est[q];
     double dtr = mean_trace(est, &vtr), gain = c->risk - risk - COMB_PENALTY * J * s2;
-    double ds = 2.0 * dtr * s2 * c->s2_rel;
-    double var = (n > 1 ? fmax(0.0, dd[1] - dd[0] * dd[0] / n) * n / (n - 1.0) : 0.0) + 4.0 * s2 * s2 * vtr + ds * ds;
+    double var = gain_var(c, s2, n, dd[0], dd[1], dtr, vtr);
     if (!(gain > 0.0) || gain * gain < SURE_MIN_GAIN * SURE_MIN_GAIN * var || !(z >= SURE_MIN_GAIN))
         return;
     memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)c->nv);
@@ -1128,8 +1137,8 @@ static int pick_explicit(const fair_ctx *i, const fair_ctx *e)
     }
     for (int q = 0; q < NPROBE; q++)
         est[q] = i->trbest[q] - e->trbest[q];
-    double dtr = mean_trace(est, &vtr), gain = i->risk - e->risk, ds = 2.0 * dtr * s2 * i->s2_rel;
-    double var = (n > 1 ? fmax(0.0, dd[1] - dd[0] * dd[0] / n) * n / (n - 1.0) : 0.0) + 4.0 * s2 * s2 * vtr + ds * ds;
+    double dtr = mean_trace(est, &vtr), gain = i->risk - e->risk;
+    double var = gain_var(i, s2, n, dd[0], dd[1], dtr, vtr);
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
 
