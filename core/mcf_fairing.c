@@ -128,6 +128,8 @@ enum { NPROBE = 6, NCOL = 3 + NPROBE };
  * 1.37 standard errors: 2 kept the implicit steps, 1.24x the uniform
  * Taubin oracle. */
 #define PICK_MIN_GAIN 1.0
+/* the default request runs the feature-aware stage too (feature_stage) */
+#define FEATURE_IN_DEFAULT 0
 #define COMB_GAIN_MIN (-0.5)
 #define COMB_GAIN_MAX 1.1
 
@@ -736,6 +738,9 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
     c->sure = p->iterations <= 0;
     c->cap = p->iterations > 0 ? p->iterations
              : (c->is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
+    if (p->scheme == MCF_FAIRING_FEATURE)
+        c->cap = 0; /* no linear steps: the noise level, weights and probes
+                       for the feature stage (feature_stage) */
     if (c->cap > p->max_steps && !(p->iterations > 0))
         c->cap = p->max_steps;
     c->s = c->s_t = 0.0;
@@ -1086,6 +1091,57 @@ static mcf_status output(fair_ctx *c, double *X, mcf_error *err)
     return MCF_OK;
 }
 
+/* The feature-aware stage (mcf_feature.c) on the input, X the output
+ * when it is taken (*taken): against c's result along the normals by
+ * SURE (against_lin: the default request's choice; PICK_MIN_GAIN, as the
+ * choice between the implicit steps and the passes) or against the input
+ * (the named `fairing_feature`, or c found nothing: SURE_MIN_GAIN); the
+ * same weights, noise level and probes as c's SURE. */
+static mcf_status feature_stage(fair_ctx *c, int against_lin, const unsigned char *fixed, double *X, int *taken,
+                                mcf_error *err)
+{
+    mcf_flow_stats *st = c->st;
+    mcf__feature_frame fr;
+    mcf__feature_pick pk;
+    double h2 = c->hbar * c->hbar, s2 = c->s * c->s;
+    double *Yf = alloc_d(c, 3 * (size_t)c->nv);
+    *taken = 0;
+    if (!Yf)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    memset(&fr, 0, sizeof fr);
+    fr.nfree = c->nfree;
+    fr.vert = c->vert;
+    fr.w = c->w;
+    fr.probe = c->probe;
+    fr.nprobe = NPROBE;
+    fr.s = c->s;
+    fr.s2_rel = c->s2_rel;
+    fr.min_z = SURE_MIN_GAIN;
+    if (against_lin && c->kbest > 0) {
+        fr.Ylin = c->Ybest;
+        fr.X0 = c->X0;
+        fr.trlin = c->trbest;
+        fr.lin_penalty = st->ncomb > 0 ? COMB_PENALTY * st->ncomb * s2 : 0.0;
+        fr.min_z = PICK_MIN_GAIN;
+    }
+    mcf_status rc = mcf__feature(c->Xin, c->F, c->nf, c->nv, fixed, &fr, Yf, &pk, err);
+    if (rc != MCF_OK)
+        return rc;
+    c->bytes += pk.bytes;
+    st->feature_ran = pk.risk > 0.0 || pk.risk < 0.0 || pk.risk_lin != 0.0;
+    st->feature_sigma_r = pk.sigma_r;
+    st->feature_normal_iters = pk.normal_iters;
+    st->feature_vertex_iters = pk.vertex_iters;
+    st->feature_sure = h2 > 0.0 ? pk.risk / h2 : 0.0;
+    st->feature_sure_against = h2 > 0.0 ? pk.risk_lin / h2 : 0.0;
+    st->feature_z = isfinite(pk.z) ? pk.z : 1e300;
+    if (!pk.won)
+        return MCF_OK;
+    *taken = st->feature = 1;
+    return mcf__feature_output(c->Xin, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * c->s, X, &st->guard_rounds,
+                               &st->guard_vertices, err);
+}
+
 /* One filter's run on X (3*nv) up to its result along the normals
  * (c->Ybest, c->risk) and its tangential iterate; c->is_explicit, c->quiet
  * set by the caller. */
@@ -1198,12 +1254,26 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (ci.bytes + ce.bytes > peak)
             peak = ci.bytes + ce.bytes;
     }
-    if (rc == MCF_OK) {
+    /* the feature-aware stage: the named `fairing_feature` alone, the
+     * default request's against the linear result */
+    int feat = 0;
+    if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && FEATURE_IN_DEFAULT))) {
+        if (c->chol) { /* the factor is done with */
+            mcf__chol_free(c->chol);
+            c->chol = NULL;
+        }
+        rc = feature_stage(c, p->scheme != MCF_FAIRING_FEATURE, fixed, X, &feat, err);
+        if (ci.bytes + ce.bytes > peak)
+            peak = ci.bytes + ce.bytes;
+    }
+    if (rc == MCF_OK && !feat) {
         st->steps = c->kbest;
         st->tangential_steps = c->kbest_t;
         size_t before = c->bytes;
         rc = output(c, X, err);
         peak += c->bytes - before; /* the guard's arrays */
+    } else if (rc == MCF_OK) {
+        st->steps = c->kbest;
     }
     st->peak_bytes = peak;
     fair_free(&ci);
