@@ -23,6 +23,14 @@ void api_limits_default(api_limits *lim)
     lim->max_input_bytes = (size_t)256 << 20;
     lim->max_vertices = 100000000;
     lim->max_faces = 200000000;
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+    /* a few hundred fuzzed bytes may declare counts a decoder reserves
+     * memory for before reading them (libdraco: 12 bytes per face); the
+     * daemon's sandbox bounds that by the estimate, libFuzzer by its 2 GB
+     * RSS limit: the fuzzers keep the old 5M/10M counts */
+    lim->max_vertices = 5000000;
+    lim->max_faces = 10000000;
+#endif
     lim->max_iterations = 100000;
     lim->max_work = 2e10;
     lim->max_json_bytes = (size_t)64 << 10;
