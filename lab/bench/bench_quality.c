@@ -106,6 +106,7 @@ typedef struct {
     double param;        /* t/h^2 for MCF, passes for the filters, steps for fairing, normal iterations for bnf */
     double reading;      /* the requests: the noise level read (mean edges), else NaN */
     double base_cpu;     /* default: the baseline's CPU time on this case, else NaN */
+    double cost;         /* wall seconds of the whole evaluation (oracle search and measures included) */
     char note[200];
 } result;
 
@@ -181,15 +182,20 @@ typedef struct {
     double h;            /* noisy mean edge / sqrt(noisy area): the t/h^2 unit */
 } case_ctx;
 
-/* Fills r's error metrics for result m (a smoothed copy of c->noisy). */
-static void measure(const case_ctx *c, const mcf_mesh *m, result *r)
+/* --surface: the surface error of every method (else of `default` only:
+ * it costs about as much as a method's run on the large scans). */
+static int g_surface_all;
+
+/* Fills r's error metrics for result m (a smoothed copy of c->noisy); the
+ * surface error when surface (else NaN). */
+static void measure(const case_ctx *c, const mcf_mesh *m, result *r, int surface)
 {
     mcf_compare_result a;
     mcf_error e = {0};
     if (mcf_compare(m, c->clean, &a, &e) != MCF_OK)
         die("mcf_compare", &e);
     r->ratio = a.rms_m / c->e0;
-    r->sratio = qg_surface_error(m, c->clean, c->gclean) / c->s0;
+    r->sratio = surface ? qg_surface_error(m, c->clean, c->gclean) / c->s0 : NAN;
     r->flips = qg_flips(m, c->clean);
     r->folds_off = qg_inverted_off_crease(m, c->clean, c->crease) - c->fold0_off;
     double s = c->closed ? mcf_mesh_volume(m) : mcf_mesh_area(m);
@@ -237,7 +243,7 @@ static void run_request(const case_ctx *c, const method *md, result *r, mcf_mesh
     const mcf_scheme_info *si = mcf_scheme_get(p.flow.scheme);
     r->param = p.flow.scheme == MCF_TAUBIN || (si && si->order == 0) ? st.steps : st.t_final / (c->h * c->h);
     r->reading = st.noise > 0 ? st.noise : NAN;
-    measure(c, m, r);
+    measure(c, m, r, md->kind == K_DEFAULT || g_surface_all);
 done:
     mcf_flow_stats_free(&st);
     api_params_free(&p);
@@ -288,7 +294,7 @@ static void run_taubin_best(const case_ctx *c, result *best, mcf_mesh **out)
         failed(best, "taubin_best", e.msg);
     else {
         best->ok = 1;
-        measure(c, m, best);
+        measure(c, m, best, g_surface_all);
     }
     if (out && best->ok)
         *out = m;
@@ -319,7 +325,7 @@ static void run_bnf_best(const case_ctx *c, result *r, mcf_mesh **out)
     r->param = bp.normal_iters;
     snprintf(r->note, sizeof r->note, "sigma_r %g, %d normal, %d vertex iterations", bp.sigma_r, bp.normal_iters,
              bp.vertex_iters);
-    measure(c, m, r);
+    measure(c, m, r, g_surface_all);
     if (out)
         *out = m;
     else
@@ -433,7 +439,7 @@ static void run_o3d(const case_ctx *c, result r[2], mcf_mesh *out[2])
         r[k].ok = 1;
         r[k].cpu = r[k].wall = cpu[k];
         r[k].param = k ? passes : 1;
-        measure(c, m[k], &r[k]);
+        measure(c, m[k], &r[k], g_surface_all);
         if (out)
             out[k] = m[k];
         else
@@ -502,9 +508,12 @@ static void usage(void)
             "                     [--models normal,iso,view,corr,out,quant,clean] [--rho 0.1,0.25,0.5]\n"
             "                     [--seeds N] [--methods NAME,...] [--baseline quality.csv] [--o3d SCRIPT]\n"
             "                     [--render-script SCRIPT] [--render MESH:MODEL:RHO[:SEED]]... [--no-figure]\n"
+            "                     [--surface] [--tables-from a.csv,b.csv]\n"
             "  methods: default, auto:SCHEME, fixed, taubin_best, o3d_default, o3d_best, bnf_best\n"
             "  (default: default,taubin_best,o3d_default,o3d_best,bnf_best); --kinds and --noise are\n"
-            "  the old names of --models and --rho\n");
+            "  the old names of --models and --rho. --surface: every method's surface error (default's\n"
+            "  only without). --tables-from: the tables and renders of earlier runs' quality.csv files\n"
+            "  (e.g. a matrix split over two processes), no run.\n");
     exit(2);
 }
 
@@ -527,16 +536,18 @@ static int match(int c, qn_model k, double rho, int cls)
 }
 
 /* Median and worst over the matching cases of method q's vertex error
- * against the input (peer -1) or against method peer's; n: cases. */
+ * against the input (peer INPUT) or against method peer's (none, NaN,
+ * when peer is another negative: a method not in the run); n: cases. */
+#define INPUT (-100)
 static int versus(qn_model k, double rho, int cls, int q, int peer, double *med, double *worst)
 {
     double *v = malloc(sizeof(double) * (size_t)g_ncase + 1);
     int n = 0;
     for (int c = 0; c < g_ncase; c++) {
-        if (!match(c, k, rho, cls) || q < 0)
+        if (!match(c, k, rho, cls) || q < 0 || (peer < 0 && peer != INPUT))
             continue;
         const result *a = RES(c, q), *b = peer >= 0 ? RES(c, peer) : NULL;
-        if (a->skipped || (b && (b->skipped || !b->ok)) || (peer < -1))
+        if (a->skipped || (b && (b->skipped || !b->ok)))
             continue;
         v[n++] = !a->ok ? INFINITY : a->ratio / (b ? b->ratio : 1.0);
     }
@@ -550,6 +561,8 @@ static const char *mw(char *b, size_t len, double med, double worst)
 {
     if (isnan(med))
         snprintf(b, len, "-");
+    else if (fabs(med) < 0.01 && fabs(worst) < 0.01) /* the clean meshes: small */
+        snprintf(b, len, "%.2g (%.2g)", med, worst);
     else
         snprintf(b, len, "%.3f (%.2f)", med, worst);
     return b;
@@ -668,12 +681,160 @@ static double base_cpu(const char *mesh, qn_model k, double rho, int seed)
     return NAN;
 }
 
+
+/* ------------------------------------------------------------ --tables-from */
+
+/* Splits one CSV line in place into at most max fields (a field that
+ * starts with a double quote runs to the next one, commas included);
+ * returns the count. */
+static int csv_fields(char *line, char **f, int max)
+{
+    int n = 0;
+    char *p = line;
+    while (n < max) {
+        if (*p == '"') {
+            f[n++] = ++p;
+            char *q = strchr(p, '"');
+            if (!q)
+                break;
+            *q = 0;
+            p = q + 1;
+        } else {
+            f[n++] = p;
+            p += strcspn(p, ",");
+        }
+        if (*p != ',')
+            break;
+        *p++ = 0;
+    }
+    return n;
+}
+
+/* The cases and results of earlier runs' quality.csv files (comma-
+ * separated paths), in place of a run: meshes, models, levels, seeds and
+ * methods as those files have them (methods in the order of `all`). The
+ * file buffers stay allocated: names point into them. */
+static void load_tables(char *files, const method *all, int nall, method *meth, int *nmeth, char **names, int *nm,
+                        qn_model *models, int *nk, double *rho, char **ntext, int *nr, int *ns)
+{
+    static char rho_text[MAXNOISE][24];
+    static const char *const want[] = {"mesh", "class", "model", "rho", "seed", "e0", "s0", "flips0", "outliers",
+                                       "method", "param", "ok", "skipped", "ratio", "surface_ratio", "flips",
+                                       "new_flips_off_crease", "drift", "reading", "cpu_s", "wall_s",
+                                       "base_cpu_s", "cost_s", "note"};
+    enum { NW = sizeof want / sizeof want[0] };
+    int have_model[QN_COUNT] = {0}, have_method[MAXMETHOD] = {0}, nrho = 0;
+    double rhos[MAXNOISE];
+    *nm = *ns = 0;
+    for (char *path = strtok(files, ","); path; path = strtok(NULL, ",")) {
+        char *buf;
+        size_t len;
+        if (bench_read_file(path, &buf, &len) != 0) {
+            fprintf(stderr, PROG ": cannot read %s: %s\n", path, strerror(errno));
+            exit(1);
+        }
+        int col[NW], nline = 0;
+        char *save = NULL;
+        for (char *line = strtok_r(buf, "\n", &save); line; line = strtok_r(NULL, "\n", &save), nline++) {
+            char *f[40];
+            int nf = csv_fields(line, f, 40);
+            if (nline == 0) {
+                for (int w = 0; w < NW; w++) {
+                    col[w] = -1;
+                    for (int i = 0; i < nf; i++)
+                        if (!strcmp(f[i], want[w]))
+                            col[w] = i;
+                    if (col[w] < 0) {
+                        fprintf(stderr, PROG ": %s has no column %s\n", path, want[w]);
+                        exit(1);
+                    }
+                }
+                continue;
+            }
+            if (nf < NW)
+                continue;
+#define F(w) f[col[w]]
+            int mesh = -1, q = -1, k = qn_parse(F(2)), seed = atoi(F(4));
+            double r = atof(F(3));
+            for (int m = 0; m < *nm; m++)
+                if (!strcmp(names[m], F(0)))
+                    mesh = m;
+            if (mesh < 0 && *nm < MAXMESH) {
+                mesh = (*nm)++;
+                names[mesh] = F(0);
+                g_cad[mesh] = !strcmp(F(1), "CAD");
+            }
+            for (int a = 0; a < nall; a++)
+                if (!strcmp(all[a].name, F(9)))
+                    q = a;
+            if (mesh < 0 || q < 0 || k < 0 || seed < 1 || seed > MAXSEED) {
+                fprintf(stderr, PROG ": %s line %d: unknown mesh, method or model, or bad seed\n", path, nline + 1);
+                exit(1);
+            }
+            have_model[k] = 1;
+            have_method[q] = 1;
+            *ns = seed > *ns ? seed : *ns;
+            int known = 0;
+            for (int j = 0; j < nrho; j++)
+                known |= rhos[j] == r;
+            if (!known && r > 0 && nrho < MAXNOISE)
+                rhos[nrho++] = r;
+            int c = -1;
+            for (int i = 0; i < g_ncase; i++)
+                if (g_case[i].mesh == mesh && g_case[i].model == (qn_model)k && g_case[i].rho == r &&
+                    g_case[i].seed == seed)
+                    c = i;
+            if (c < 0) {
+                c = g_ncase++;
+                g_case[c] = (qcase){mesh, (qn_model)k, r, seed, atof(F(5)), atof(F(6)), atoi(F(7)), atoi(F(8))};
+            }
+            result *x = RES(c, q); /* the stride is MAXMETHOD here: q indexes `all` for now */
+            x->param = atof(F(10));
+            x->ok = atoi(F(11));
+            x->skipped = atoi(F(12));
+            x->ratio = strtod(F(13), NULL);
+            x->sratio = strtod(F(14), NULL);
+            x->flips = atoi(F(15));
+            x->folds_off = atoi(F(16));
+            x->drift = strtod(F(17), NULL);
+            x->reading = strtod(F(18), NULL);
+            x->cpu = atof(F(19));
+            x->wall = atof(F(20));
+            x->base_cpu = strtod(F(21), NULL);
+            x->cost = atof(F(22));
+            snprintf(x->note, sizeof x->note, "%s", F(23));
+#undef F
+        }
+    }
+    /* the methods in `all`'s order; results moved from `all`'s index to the new one */
+    *nmeth = 0;
+    for (int a = 0; a < nall; a++)
+        if (have_method[a]) {
+            for (int c = 0; c < g_ncase; c++)
+                *RES(c, *nmeth) = *RES(c, a);
+            meth[(*nmeth)++] = all[a];
+        }
+    *nk = 0;
+    for (int k = 0; k < QN_COUNT; k++)
+        if (have_model[k])
+            models[(*nk)++] = (qn_model)k;
+    qsort(rhos, (size_t)nrho, sizeof *rhos, cmp_d);
+    for (int j = 0; j < nrho; j++) {
+        rho[j] = rhos[j];
+        snprintf(rho_text[j], sizeof rho_text[j], "%g", rhos[j]);
+        ntext[j] = rho_text[j];
+    }
+    *nr = nrho;
+    printf("tables from %d cases, %d meshes, %d methods\n", g_ncase, *nm, *nmeth);
+}
+
 /* ------------------------------------------------------------ main */
 
 int main(int argc, char **argv)
 {
     const char *meshes = "../shared/meshes", *out = "lab/results/quality", *o3d_script = "o3d_taubin.py";
     const char *render_script = "render_quality.py", *baseline = NULL;
+    char *from = NULL;
     char list_buf[1024] = "sphere_cgal.obj,bunny_npm_closed.obj,spot.obj,knot1.obj,fertility.obj,"
                           "stanford-bunny.obj,bunny.drc,armadillo.obj,snowden.obj,dragon_vrip_res2.obj,"
                           "car.drc,couplingdown_sub2.obj,blade.obj";
@@ -710,8 +871,12 @@ int main(int argc, char **argv)
             render_script = v, i++;
         else if (!strcmp(a, "--render") && v && nrender < MAXRENDER)
             render_spec[nrender++] = v, i++;
+        else if (!strcmp(a, "--tables-from") && v)
+            from = v, i++;
         else if (!strcmp(a, "--no-figure"))
             do_figure = 0;
+        else if (!strcmp(a, "--surface"))
+            g_surface_all = 1;
         else
             usage();
     }
@@ -758,17 +923,6 @@ int main(int argc, char **argv)
             }
         }
     }
-    int q_default = -1, q_tb = -1, q_od = -1, q_ob = -1, q_bnf = -1;
-    for (int q = 0; q < nmeth; q++)
-        switch (meth[q].kind) {
-        case K_DEFAULT: q_default = q; break;
-        case K_TAUBIN_BEST: q_tb = q; break;
-        case K_O3D_DEFAULT: q_od = q; break;
-        case K_O3D_BEST: q_ob = q; break;
-        case K_BNF_BEST: q_bnf = q; break;
-        default: break;
-        }
-    g_nmeth = nmeth;
 
     char *names[MAXMESH], *ntext[MAXNOISE], *mtext[QN_COUNT], *cads[MAXMESH];
     int nm, nr, nk, ncad;
@@ -799,6 +953,33 @@ int main(int argc, char **argv)
             g_cad[m] |= !strcmp(names[m], cads[c]);
     }
 
+    if (from) {
+        size_t mx = (size_t)MAXMESH * QN_COUNT * MAXNOISE * MAXSEED;
+        g_case = calloc(mx, sizeof *g_case);
+        g_res = calloc(mx * MAXMETHOD, sizeof(result));
+        if (!g_case || !g_res)
+            die("calloc", NULL);
+        g_nmeth = MAXMETHOD;
+        char files[4096]; /* load_tables cuts its copy up */
+        snprintf(files, sizeof files, "%s", from);
+        load_tables(files, all, nall, meth, &nmeth, names, &nm, models, &nk, rho, ntext, &nr, &ns);
+        snprintf(list_given, sizeof list_given, "of %.1000s", from);
+        snprintf(models_given, sizeof models_given, "(as in the files)");
+        snprintf(noise_given, sizeof noise_given, "(as in the files)");
+    }
+    int q_default = -1, q_tb = -1, q_od = -1, q_ob = -1, q_bnf = -1;
+    for (int q = 0; q < nmeth; q++)
+        switch (meth[q].kind) {
+        case K_DEFAULT: q_default = q; break;
+        case K_TAUBIN_BEST: q_tb = q; break;
+        case K_O3D_DEFAULT: q_od = q; break;
+        case K_O3D_BEST: q_ob = q; break;
+        case K_BNF_BEST: q_bnf = q; break;
+        default: break;
+        }
+    if (!from)
+        g_nmeth = nmeth;
+
     bench_print_machine();
     lab_prog = PROG;
     if (lab_mkdir_p(out) != 0)
@@ -813,10 +994,12 @@ int main(int argc, char **argv)
     }
     if (baseline)
         load_baseline(baseline);
+    for (int c = 0; c < g_ncase && from && g_nbase > 0 && q_default >= 0; c++)
+        RES(c, q_default)->base_cpu = base_cpu(names[g_case[c].mesh], g_case[c].model, g_case[c].rho, g_case[c].seed);
     snprintf(g_tmp, sizeof g_tmp, "/tmp/bench_quality.%d", (int)getpid());
     if (lab_mkdir_p(g_tmp) != 0)
         return 1;
-    if (q_od >= 0 || q_ob >= 0) {
+    if (!from && (q_od >= 0 || q_ob >= 0)) {
         o3d_start(o3d_script);
         if (g_o3d.pid)
             printf("Open3D %s (coprocess %s)\n", g_o3d.version, o3d_script);
@@ -824,13 +1007,15 @@ int main(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
 
     size_t maxcase = (size_t)nm * nk * nr * ns;
-    g_case = calloc(maxcase, sizeof *g_case);
-    g_res = calloc(maxcase * (size_t)nmeth, sizeof(result));
+    if (!from) {
+        g_case = calloc(maxcase, sizeof *g_case);
+        g_res = calloc(maxcase * (size_t)nmeth, sizeof(result));
+    }
     if (!g_case || !g_res)
         die("calloc", NULL);
     FILE *csv = bench_open_out(out, "quality.csv");
-    fprintf(csv, "mesh,class,nv,nf,closed,model,rho,seed,e0,s0,flips0,outliers,method,param,ok,ratio,"
-                 "surface_ratio,flips,new_flips_off_crease,drift,reading,cpu_s,wall_s,base_cpu_s,note\n");
+    fprintf(csv, "mesh,class,nv,nf,closed,model,rho,seed,e0,s0,flips0,outliers,method,param,ok,skipped,ratio,"
+                 "surface_ratio,flips,new_flips_off_crease,drift,reading,cpu_s,wall_s,base_cpu_s,cost_s,note\n");
     /* the worst case per model of the default against taubin_best (clean:
      * against nothing), for the renders */
     double worst_vs[QN_COUNT];
@@ -838,8 +1023,20 @@ int main(int argc, char **argv)
     for (int k = 0; k < QN_COUNT; k++)
         worst_vs[k] = -INFINITY, worst_case[k] = -1;
 
-    for (int mi = 0; mi < nm; mi++) {
-        double tm0 = mcf_now();
+    if (from) /* the files, one header */
+        for (char *p = from, *end; *p; p = *end ? end + 1 : end) {
+            char path[4096], *buf, *body;
+            size_t len;
+            end = p + strcspn(p, ",");
+            snprintf(path, sizeof path, "%.*s", (int)(end - p), p);
+            if (bench_read_file(path, &buf, &len) != 0)
+                die(path, NULL);
+            body = strchr(buf, '\n');
+            fputs(p == from ? buf : body ? body + 1 : "", csv);
+            free(buf);
+        }
+    for (int mi = 0; mi < nm && !from; mi++) {
+        double tm0 = mcf_now(), mesh_cost[MAXMETHOD] = {0};
         mcf_mesh *clean = bench_load_mesh(PROG, meshes, names[mi]);
         mcf_mesh_info ci;
         mcf_error e = {0};
@@ -880,6 +1077,7 @@ int main(int argc, char **argv)
                     int o3d_done = 0;
                     for (int q = 0; q < nmeth; q++) {
                         result *rs = RES(cidx, q);
+                        double w0 = mcf_now();
                         rs->reading = rs->base_cpu = NAN;
                         int request = meth[q].kind == K_DEFAULT || meth[q].kind == K_AUTO || meth[q].kind == K_FIXED;
                         if (model == QN_CLEAN && !request) {
@@ -903,18 +1101,20 @@ int main(int argc, char **argv)
                                 *RES(cidx, q_ob) = two[1];
                             o3d_done = 1;
                         }
+                        rs->cost = mcf_now() - w0;
+                        mesh_cost[q] += rs->cost;
                     }
                     if (q_default >= 0)
                         RES(cidx, q_default)->base_cpu = base_cpu(names[mi], model, r, s + 1);
                     printf("  %-6s %4g s%d:", qn_name(model), r, s + 1);
                     for (int q = 0; q < nmeth; q++) {
                         const result *rs = RES(cidx, q);
-                        fprintf(csv, "%s,%s,%d,%d,%d,%s,%g,%d,%.6g,%.6g,%d,%d,%s,%.6g,%d,%.6g,%.6g,%d,%d,%.6g,%.6g,"
-                                     "%.5f,%.5f,%.5f,\"%s\"\n",
+                        fprintf(csv, "%s,%s,%d,%d,%d,%s,%g,%d,%.9g,%.9g,%d,%d,%s,%.6g,%d,%d,%.9g,%.9g,%d,%d,%.6g,%.6g,"
+                                     "%.5f,%.5f,%.5f,%.3f,\"%s\"\n",
                                 names[mi], g_cad[mi] ? "CAD" : "organic", ci.nv, ci.nf, closed, qn_name(model), r,
                                 s + 1, qc->e0, qc->s0, qc->flips0, qc->outliers, meth[q].name, rs->param,
-                                rs->ok, rs->ratio, rs->sratio, rs->flips, rs->folds_off, rs->drift, rs->reading,
-                                rs->cpu, rs->wall, rs->base_cpu, rs->note);
+                                rs->ok, rs->skipped, rs->ratio, rs->sratio, rs->flips, rs->folds_off, rs->drift, rs->reading,
+                                rs->cpu, rs->wall, rs->base_cpu, rs->cost, rs->note);
                         if (!rs->skipped)
                             printf(" %s %.3f", meth[q].name, rs->ratio);
                     }
@@ -927,18 +1127,12 @@ int main(int argc, char **argv)
                             printf("    %s failed: %s\n", meth[q].name, RES(cidx, q)->note);
                     fflush(stdout);
                     fflush(csv);
-                    if (q_default >= 0) {
-                        const result *d = RES(cidx, q_default);
-                        const result *t = q_tb >= 0 && model != QN_CLEAN ? RES(cidx, q_tb) : NULL;
-                        double vs = !d->ok ? INFINITY : t ? (t->ok ? d->ratio / t->ratio : NAN) : d->ratio;
-                        if (vs > worst_vs[model]) {
-                            worst_vs[model] = vs;
-                            worst_case[model] = cidx;
-                        }
-                    }
                     mcf_mesh_free(noisy);
                 }
-        printf("  (%.1f s)\n", mcf_now() - tm0);
+        printf("  (%.1f s; wall s per method:", mcf_now() - tm0);
+        for (int q = 0; q < nmeth; q++)
+            printf(" %s %.1f", meth[q].name, mesh_cost[q]);
+        printf(")\n");
         fflush(stdout);
         qg_grid_free(&gclean);
         free(crease);
@@ -946,6 +1140,15 @@ int main(int argc, char **argv)
         mcf_mesh_free(clean);
     }
     fclose(csv);
+    for (int c = 0; c < g_ncase && q_default >= 0; c++) {
+        const result *d = RES(c, q_default);
+        const result *t = q_tb >= 0 && g_case[c].model != QN_CLEAN ? RES(c, q_tb) : NULL;
+        double vs = !d->ok ? INFINITY : t ? (t->ok ? d->ratio / t->ratio : NAN) : d->ratio;
+        if (vs > worst_vs[g_case[c].model]) {
+            worst_vs[g_case[c].model] = vs;
+            worst_case[g_case[c].model] = c;
+        }
+    }
 
     /* ---- the tables (quality.md; the summary also on stdout) */
     FILE *md = bench_open_out(out, "quality.md");
@@ -977,7 +1180,7 @@ int main(int argc, char **argv)
         double v[6][2], rd[2], cp[2];
         long fi, fo;
         int up;
-        versus(mdl, NAN, -1, q_default, -1, &v[0][0], &v[0][1]);
+        versus(mdl, NAN, -1, q_default, INPUT, &v[0][0], &v[0][1]);
         versus(mdl, NAN, -1, q_default, q_tb, &v[1][0], &v[1][1]);
         versus(mdl, NAN, -1, q_default, q_ob, &v[2][0], &v[2][1]);
         versus(mdl, NAN, -1, q_default, q_bnf, &v[3][0], &v[3][1]);
@@ -1019,16 +1222,16 @@ int main(int argc, char **argv)
             fprintf(md, "| %s (seed %d) | %s |", names[g_case[c].mesh], g_case[c].seed, g_cad[g_case[c].mesh] ? "CAD" : "organic");
             for (int q = 0; q < nmeth; q++)
                 if (!RES(c, q)->skipped)
-                    fprintf(md, RES(c, q)->ok ? " %.3f | %d |" : " failed | - |", RES(c, q)->ratio, RES(c, q)->flips);
+                    fprintf(md, RES(c, q)->ok ? " %.3g | %d |" : " failed | - |", RES(c, q)->ratio, RES(c, q)->flips);
             fprintf(md, "\n");
             if (q_default >= 0)
-                printf("  %-24s %.3f (flips %d)\n", names[g_case[c].mesh], RES(c, q_default)->ratio,
+                printf("  %-24s %.3g (flips %d)\n", names[g_case[c].mesh], RES(c, q_default)->ratio,
                        RES(c, q_default)->flips);
         }
         double med, worst;
-        if (q_default >= 0 && versus(QN_CLEAN, NAN, -1, q_default, -1, &med, &worst) > 0) {
-            fprintf(md, "\ndefault: median %.3f, worst %.3f\n", med, worst);
-            printf("  default: median %.3f, worst %.3f\n", med, worst);
+        if (q_default >= 0 && versus(QN_CLEAN, NAN, -1, q_default, INPUT, &med, &worst) > 0) {
+            fprintf(md, "\ndefault: median %.3g, worst %.3g\n", med, worst);
+            printf("  default: median %.3g, worst %.3g\n", med, worst);
         }
     }
 
@@ -1044,14 +1247,14 @@ int main(int argc, char **argv)
             double limit;
         } th[] = {
             {"normal, organic: median default / taubin_best <= 0.65", QN_NORMAL, NAN, 0, q_tb, 0, 0.65},
-            {"out: median default / input <= 0.55", QN_OUT, NAN, -1, -1, 0, 0.55},
+            {"out: median default / input <= 0.55", QN_OUT, NAN, -1, INPUT, 0, 0.55},
             {"out: median default / o3d_best <= 1.25", QN_OUT, NAN, -1, q_ob, 0, 1.25},
             {"view: median default / taubin_best <= 1.0", QN_VIEW, NAN, -1, q_tb, 0, 1.0},
-            {"clean: worst moved / e(0.1 h normal) <= 0.1", QN_CLEAN, NAN, -1, -1, 1, 0.1},
+            {"clean: worst moved / e(0.1 h normal) <= 0.1", QN_CLEAN, NAN, -1, INPUT, 1, 0.1},
         };
         for (size_t t = 0; t < sizeof th / sizeof th[0]; t++) {
             double med, worst;
-            int n = th[t].peer < -1 ? 0 : versus(th[t].k, th[t].rho, th[t].cls, q_default, th[t].peer, &med, &worst);
+            int n = versus(th[t].k, th[t].rho, th[t].cls, q_default, th[t].peer, &med, &worst);
             double x = th[t].worst ? worst : med;
             const char *holds = n == 0 ? "not measured" : x <= th[t].limit ? "yes" : "NO";
             fprintf(md, "| %s | %s | %s |\n", th[t].what, n ? mw(b[0], sizeof b[0], med, worst) : "-", holds);
@@ -1114,7 +1317,7 @@ int main(int argc, char **argv)
                 double rr = j < nr ? rho[j] : NAN, v[4][2], rd[2], cp[2];
                 long fi, fo;
                 int up;
-                int n = versus(mdl, rr, cls, q_default, -1, &v[0][0], &v[0][1]);
+                int n = versus(mdl, rr, cls, q_default, INPUT, &v[0][0], &v[0][1]);
                 if (n == 0)
                     continue;
                 versus(mdl, rr, cls, q_default, q_tb, &v[1][0], &v[1][1]);
@@ -1139,7 +1342,7 @@ int main(int argc, char **argv)
             qn_model mdl = models[k];
             double v[4][2];
             long fi, fo;
-            int up, worse = 0, n = versus(mdl, NAN, -1, q, -1, &v[0][0], &v[0][1]);
+            int up, worse = 0, n = versus(mdl, NAN, -1, q, INPUT, &v[0][0], &v[0][1]);
             if (n == 0)
                 continue;
             versus(mdl, NAN, -1, q, q_tb, &v[1][0], &v[1][1]);

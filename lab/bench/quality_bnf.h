@@ -35,7 +35,7 @@ int bnf_filter(mcf_mesh *m, const unsigned char *movable, const bnf_params *p);
 /* The grid point whose result comes closest to clean (mcf_compare's
  * area-weighted RMS vertex error): its parameters in *best and, when out
  * is not NULL, its result in *out (the caller frees it). Each sigma_r's
- * normal iterations run cumulatively and stop once the error is 1.5x that
+ * normal iterations run cumulatively and stop once the error is 1.1x that
  * sigma_r's best. 0, or -1 when memory runs out or mcf_compare fails. */
 int bnf_oracle(const mcf_mesh *noisy, const mcf_mesh *clean, const unsigned char *movable,
                bnf_params *best, mcf_mesh **out);
