@@ -420,7 +420,7 @@ python-stubs:
 NPROC := $(shell nproc 2>/dev/null || echo 2)
 run: deps
 	@echo "make run: building build/mcf and build/mcfd, $(NPROC) compiles at a time" \
-	  "(the first build takes about 6 minutes on 2 cores; later ones only what changed)"
+	  "(the first build: about 4 minutes of CPU, some 2-3 minutes on 2 idle cores; later ones only what changed)"
 	@$(MAKE) --no-print-directory -j$(NPROC) all
 	@echo "make run: starting build/mcfd on 127.0.0.1:8080 (gRPC 50051), the page at" \
 	  "http://127.0.0.1:8080/; Ctrl-C stops it and frees the ports"
