@@ -271,6 +271,17 @@ typedef int mcf_cancel_flag;
 typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
                                double energy);
 
+/* Called at the milestones of a run with the share of its work done, in
+ * [0, 1] and never decreasing: after every step of a flow (t / T), and
+ * after each phase of the fairing filters (the noise reading, the
+ * factorization, every step or pass, the second filter of the default's
+ * pick, the output). The share is the core's estimate from the phases'
+ * measured costs (mcf_fairing.c), for a progress line and an estimate of
+ * the time left; phase is a static string naming what just ended
+ * ("setup", "noise", "factor", "probes", "steps", "passes", "output"). Cancel with
+ * mcf_flow_params.cancel. */
+typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
+
 /* The amount of smoothing. MCF moves a surface by about sqrt(t) in time t,
  * so the amount is naturally measured in the mesh's own resolution: with
  * h the mean edge length (in the working units), a total time
@@ -353,6 +364,11 @@ typedef struct {
                                  their SURE is clearly lower (the default
                                  request's; mcf_flow_stats.filter_explicit
                                  says which) */
+    int fairing_robust;       /* the fairing filters with the automatic
+                                 amount: first repair the spikes (vertices
+                                 far off the surface their neighbours
+                                 define, mcf_flow_stats.spikes_repaired;
+                                 the default request's) */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -378,6 +394,7 @@ typedef struct {
     int log_steps;            /* keep the per-step log in the stats */
     mcf_progress_fn progress;
     void *progress_ctx;
+    mcf_work_fn work;         /* may be NULL; called with progress_ctx */
     const mcf_cancel_flag *cancel; /* loaded before every step; may be NULL */
 } mcf_flow_params;
 
@@ -510,6 +527,9 @@ typedef struct {
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
+    int spikes_repaired;      /* fairing_robust: vertices found far off
+                                 the surface their neighbours define and
+                                 put back on it before the filter */
     unsigned warnings;        /* MCF_WARN_* bits */
     int folded_faces;         /* faces the run folded: turned by more
                                  than 90 degrees against the input's same

@@ -107,13 +107,18 @@ static void test_info(void **state)
  * (64 MiB beyond its size, 2 s of CPU): refused at once (under ASan,
  * which cannot run under RLIMIT_AS, by the CPU limit). The same stream
  * as a GLB's Draco primitive too (the daemon's rule: whatever reaches
- * libdraco, api_mem_estimate.draco). */
+ * libdraco, api_mem_estimate.draco). Issue 28: draco_declared_faces.drc
+ * (26 bytes, an edgebreaker header declaring 9,999,999 faces) took
+ * 243 MB before libdraco's "Failed to decode": refused from its header,
+ * more faces than its bytes can hold. */
 static void test_draco_bound(void **state)
 {
     static const char *const bombs[] = {"draco_texcoord_orientations.drc",
-                                        "gltf/draco_bomb.glb"};
+                                        "gltf/draco_bomb.glb",
+                                        "draco_declared_faces.drc"};
     static const char *const was[] = {"exit 0 after 256 MiB and 6-9 s",
-                                      "exit 0 after 13 s of CPU"};
+                                      "exit 0 after 13 s of CPU",
+                                      "exit 1 after 243 MB"};
     size_t k;
 
     (void)state;
@@ -704,7 +709,7 @@ static void test_progress_lines(void **state)
     assert_int_equal(r.status, 0);
     assert_null(strchr(r.err, '\r'));     /* no bar redrawn in place */
     for (k = 1; k <= 10; k++) {
-        snprintf(want, sizeof want, "mcf: %3d%%  step %d  t ", 10 * k, k);
+        snprintf(want, sizeof want, "mcf: %3d%%  steps, step %d  ", 10 * k, k);
         if (lines_starting(r.err, want) != 1)
             fail_msg("--progress: no line '%s':\n%s", want, r.err);
     }
@@ -715,6 +720,21 @@ static void test_progress_lines(void **state)
     r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", "--quiet", "--scheme", "desbrun2", "--strength", "0.33", NULL);
     assert_int_equal(r.status, 0);
     assert_int_equal(r.errlen, 0);
+    tl_run_free(&r);
+
+    /* the fairing default: its phases (the set-up, the noise reading, the
+     * output last), each line with the time elapsed; the time left once
+     * a share is done */
+    r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", NULL);
+    assert_int_equal(r.status, 0);
+    for (k = 0; k < 3; k++) {
+        static const char *const phase[] = {"setup, step", "noise, step", "output, step"};
+        if (!strstr(r.err, phase[k]))
+            fail_msg("--progress: no phase '%s':\n%s", phase[k], r.err);
+    }
+    assert_int_equal(lines_starting(r.err, "mcf: 100%  output, step "), 1);
+    assert_true(lines_starting(r.err, "mcf: ") >= 5);
+    assert_non_null(strstr(r.err, " s left\n"));
     tl_run_free(&r);
 }
 
