@@ -192,7 +192,8 @@ def test_what_a_restart_loses():
     d = daemon("bare", port=port)
     try:
         log = wait_log(d, rb"appendonly no", 10)
-        assert b"save \"\"" in log and b"a restart of this Redis loses" in log, log[-800:]
+        # (JSON-escaped in the log: save "")
+        assert rb'save \"\"' in log and b"a restart of this Redis loses" in log, log[-800:]
         jid = submit(d, "scheme=desbrun2&iterations=80")
         wait_status(d, jid, "running", 30)
         redis_kill("bare")

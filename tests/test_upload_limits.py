@@ -151,9 +151,10 @@ def test_multipart_300mb_over_default_max_upload():
         st, body, sent = multipart_upload(d.port, 300 * MB, chunked=False, expect=False)
         check_413(st, body, "300 MB multipart, sent before read")
         print("    the same sent before read: 413 after %.0f MB sent" % (sent / MB))
-        # the daemon goes on: a small upload is answered
+        # the daemon goes on: a small upload is accepted (its job fails
+        # later: "v" lines and no faces)
         st, body, _ = multipart_upload(d.port, 100, chunked=False, expect=False)
-        assert st in (400, 415, 422), (st, body[:300])   # 100 bytes of "v" lines: no faces
+        assert st == 202, (st, body[:300])
     finally:
         d.stop()
 
