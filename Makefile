@@ -49,8 +49,9 @@ DEB_PKGS := $(DEB_BUILD) clang libclang-rt-14-dev draco libcurl4-openssl-dev \
             chromium python3-protobuf python3-numpy python3-yaml python3-pip python3-venv \
             python3-setuptools python3-wheel curl assimp-utils redis-server
 DEB_BENCH := libeigen3-dev libcgal-dev
-# make quality's peer: Open3D's filter_smooth_taubin (lab/bench/o3d_taubin.py)
-DEB_QUALITY := python3-open3d python3-numpy
+# make quality's peer: Open3D's filter_smooth_taubin (lab/bench/o3d_taubin.py); its renders:
+# matplotlib (lab/bench/render_quality.py)
+DEB_QUALITY := python3-open3d python3-numpy python3-matplotlib
 # npm's packages (package.json, package-lock.json): `npm ci` below.
 NPM_STAMP := node_modules/.package-lock.json
 NPM_CI_FLAGS ?=
@@ -536,7 +537,10 @@ FZ := build-fuzz
 FUZZ_CC  ?= clang
 FUZZ_CXX ?= clang++
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
-FUZZ_CFLAGS := -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer-no-link $(FUZZ_SAN)
+# FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION: api_limits_default's counts at
+# the fuzzers' scale (api/api_limits.c)
+FUZZ_CFLAGS := -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer-no-link $(FUZZ_SAN) \
+               -DFUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
 FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
 FUZZ_NAMES := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=%)
 FUZZ_BIN := $(FUZZ_NAMES:%=$(FZ)/fuzz_%)
@@ -608,8 +612,10 @@ fuzz: $(FUZZ_BIN)
 #   make bench                       benchmarks, ratios against a peer measured in the same run
 #                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers: one part)
 #   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
-#   make quality [QUALITY_ARGS="--list spot.obj --seeds 1"]   the scan-quality study -> lab/results/quality/
-LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR)))
+#   make quality [QUALITY_ARGS="--models out --rho 0.25 --list spot.obj"] [QUALITY_OUT=DIR]
+#                                    the scan-quality study -> build/lab/quality/ (lab/README.md)
+LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR))) \
+      $(if $(QUALITY_OUT),QUALITY_OUT=$(abspath $(QUALITY_OUT))) $(if $(QUALITY_BASELINE),QUALITY_BASELINE=$(abspath $(QUALITY_BASELINE)))
 LAB_LIBS := $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
 LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-ui quality
 

@@ -54,8 +54,8 @@ char *api_buf_detach(api_buf *b, size_t *len);
  * the size_t/double fields only where documented. */
 typedef struct {
     size_t max_input_bytes;    /* one mesh upload (default 256 MiB) */
-    int max_vertices;          /* default 5,000,000 */
-    int max_faces;             /* default 10,000,000 */
+    int max_vertices;          /* default 100,000,000 (api_limits.c) */
+    int max_faces;             /* default 200,000,000 */
     int max_iterations;        /* steps of one job (default 100,000) */
     double max_work;           /* iterations x vertices (default 2e10) */
     size_t max_json_bytes;     /* parameters document (default 64 KiB) */

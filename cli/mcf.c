@@ -30,6 +30,7 @@
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -63,6 +64,15 @@ static const char usage_text[] =
     "Exit status: 0 done; 1 failed (one line 'mcf: ...' on stderr); 2 usage error;\n"
     "3 `mcf smooth --strict` and the result has warnings.\n";
 
+/* The limits on the input (api_limits), options of smooth and convert:
+ * none below memory by default (a 10M-vertex scan needs no option). */
+#define LIMITS_HELP \
+    "  --max-input-bytes N   refuse an input file larger than N bytes (default: no\n" \
+    "                        limit; the daemon's --max-upload is 256 MiB)\n" \
+    "  --max-vertices N      refuse a mesh of more than N vertices (default 100000000)\n" \
+    "  --max-faces N         refuse a mesh of more than N triangles (default 200000000)\n" \
+    "  --max-work N          refuse a job of more than N steps x vertices (default 2e10)\n"
+
 static const char smooth_head[] =
     "usage: mcf smooth IN OUT [options]\n"
     "\n"
@@ -92,6 +102,7 @@ static const char smooth_tail[] =
     "  --strict              a warning (folds, edge_collapse, area_loss,\n"
     "                        little_smoothing) fails the run: exit status 3, OUT not\n"
     "                        written (the metrics file is, when asked for)\n"
+    LIMITS_HELP
     "\n"
     "On stderr, unless --quiet: a summary line (vertices, steps, time, strength, seconds).\n"
     "Always: one line per warning about the result, 'mcf: warning: NAME: ...'.\n";
@@ -102,6 +113,9 @@ static const char convert_head[] =
     "Reads any mesh format (detected from the bytes) and writes OUT's (its extension or\n"
     "--format). Texture coordinates and colours pass through, normals are recomputed;\n"
     "Draco keeps a Draco input's quantization.\n"
+    "\n"
+    "Options of the tool:\n"
+    LIMITS_HELP
     "\n"
     "Options (the daemon's output parameters):\n";
 
@@ -410,8 +424,55 @@ static int set_param(api_params *p, const char *key, const char *value,
 }
 
 /* Parses argv[first..] of command cmd ("smooth" or "convert"). */
+/* The tool's limit options (LIMITS_HELP), in limit_option's order. */
+static const char *const limit_names[] = {"max_input_bytes", "max_vertices", "max_faces",
+                                          "max_work", NULL};
+
+static int limit_index(const char *key)
+{
+    int k;
+    for (k = 0; limit_names[k]; k++)
+        if (!strcmp(key, limit_names[k]))
+            return k;
+    return -1;
+}
+
+/* Sets limit k (limit_index) of lim from the value val of option opt; a
+ * value that is not a whole number in range is a usage error. */
+static int limit_option(int k, const char *opt, const char *val, api_limits *lim)
+{
+    int count = k == 1 || k == 2; /* core's int counts (api_limits.c) */
+    char *end;
+    double v;
+
+    errno = 0;
+    v = strtod(val, &end);
+    if (end == val || *end || errno || !(v >= 1) || v != floor(v) ||
+        v > (count ? 2147483647.0 : 9e18))
+        return fail(EXIT_USAGE, "option '--%s' needs a whole number from 1%s, got '%s'", opt,
+                    count ? " to 2147483647" : "", val);
+    if (k == 0)
+        lim->max_input_bytes = (size_t)v;
+    else if (k == 1)
+        lim->max_vertices = lim->max_fixed = (int)v;
+    else if (k == 2)
+        lim->max_faces = (int)v;
+    else
+        lim->max_work = v;
+    return 0;
+}
+
+/* The tool's limits before its options: api_limits_default's, without a
+ * bound on the input's bytes (a local file; the mesh's counts and memory
+ * are what bound a job). */
+static void cli_limits(api_limits *lim)
+{
+    api_limits_default(lim);
+    lim->max_input_bytes = SIZE_MAX;
+}
+
 static int parse_args(const char *cmd, int argc, char **argv, int first,
-                      api_params *p, const api_limits *lim, cli_opts *o,
+                      api_params *p, api_limits *lim, cli_opts *o,
                       const cJSON *table)
 {
     int smooth = strcmp(cmd, "smooth") == 0, i, rc;
@@ -459,6 +520,19 @@ static int parse_args(const char *cmd, int argc, char **argv, int first,
             else
                 return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
             *(key[0] == 'f' ? &o->fix_file : key[0] == 't' ? &o->target : &o->metrics) = val;
+            continue;
+        }
+        if (limit_index(key) >= 0) {
+            if (eq)
+                val = eq + 1;
+            else if (i + 1 < argc)
+                val = argv[++i];
+            else
+                return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
+            char opt[64];
+            snprintf(opt, sizeof opt, "%.*s", (int)nl, a);
+            if ((rc = limit_option(limit_index(key), opt, val, lim)) != 0)
+                return rc;
             continue;
         }
         /* A job parameter: --NAME VALUE, --NAME=VALUE; a boolean --NAME or --no-NAME. */
@@ -911,7 +985,7 @@ static int cmd_smooth(int argc, char **argv)
     int rc;
 
     memset(&o, 0, sizeof o);
-    api_limits_default(&lim);
+    cli_limits(&lim);
     api_params_init(&p);
     if (!(table = param_table()))
         return 1;
@@ -940,7 +1014,7 @@ static int cmd_info(int argc, char **argv)
 
     if (argc != 3 || (argv[2][0] == '-' && argv[2][1] != '\0'))
         return fail(EXIT_USAGE, "info: needs exactly one input file (try mcf --help)");
-    api_limits_default(&lim);
+    cli_limits(&lim);
     if ((rc = load_mesh(argv[2], &lim, &m, &fmt, &bytes, NULL, NULL)) != 0)
         return rc;
     rc = 1;
@@ -1004,7 +1078,7 @@ static int cmd_convert(int argc, char **argv)
     if (!table)
         return 1;
     memset(&o, 0, sizeof o);
-    api_limits_default(&lim);
+    cli_limits(&lim);
     api_params_init(&p);
     if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o, table)) == 0
         && (rc = output_format(&p, o.pos[1])) == 0
