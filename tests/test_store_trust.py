@@ -164,6 +164,8 @@ def test_evicting_redis_is_refused():
             assert rc != 0, rc
             assert "maxmemory-policy" in err and policy in err, err
             assert "--redis-allow-eviction" in err, err       # says the way out
+            print("    maxmemory-policy %s: mcfd stops at start, exit %d (before: started)"
+                  % (policy, rc), flush=True)
         # the explicit flag: it starts, and says what it risks
         d = daemon("evict", "--redis-allow-eviction")
         try:
@@ -200,6 +202,8 @@ def test_what_a_restart_loses():
         redis_start("bare", persist=False)          # empty: nothing kept
         log = wait_log(d, rb"job " + jid.encode() + rb": its records are gone", 30)
         assert b"took it over" not in log and b"taken over" not in log, log[-1500:]
+        print("    a running job's records lost in a Redis restart: logged as gone, 404 "
+              "(before: \"another replica took it over\")", flush=True)
         # the client is told the same: no such job, on any replica
         end = time.time() + 30
         while http("GET", "%s/v1/jobs/%s" % (d.url, jid))[0] != 404:
@@ -224,6 +228,8 @@ def test_readyz_while_redis_refuses_writes():
             assert st == 503, (st, body)
             assert b"refuses writes" in body and b"maxmemory" in body, body
             time.sleep(0.1)
+        print("    /readyz while Redis refuses writes: 503 to 5 of 5 probes (before: 200 "
+              "to 60 of 60)", flush=True)
         st, hdr, body = post_job(d, "scheme=desbrun2&iterations=1")
         assert st == 503 and int(hdr["Retry-After"]) > 0, (st, hdr, body[:300])
         assert cli("CONFIG", "SET", "maxmemory", "0") == "OK"
@@ -253,6 +259,8 @@ def test_unqueueable_job_is_not_acknowledged():
         assert "cannot queue" in prob["detail"] and "mcfd:queue" in prob["detail"], prob
         assert cli("SCARD", "mcfd:jobs") == jobs, "a record left behind"
         assert set(cli("KEYS", "mcfd:job:*").split()) == keys, "a record left behind"
+        print("    a submission with mcfd:queue a string: 503, no record left (before: "
+              "202 for a job never queued)", flush=True)
         st, _, body = http("GET", d.url + "/readyz")
         assert st == 503 and b"mcfd:queue" in body, (st, body)
         cli("DEL", "mcfd:queue")                # repaired: jobs run again
@@ -287,6 +295,8 @@ def test_garbage_request_record_is_quarantined():
         assert jid not in entries, entries                  # left the queue
         st, _, body = http("GET", "%s/v1/jobs/%s" % (b.url, jid))
         assert st == 404, (st, body)
+        print("    a queued job with a garbage request.json: quarantined, logged, counted "
+              "(before: 404, 0 log lines)", flush=True)
     finally:
         b.stop()
 

@@ -22,8 +22,9 @@ import os
 import select
 import socket
 import time
+import urllib.request
 
-from testlib import Daemon, run_tests
+from testlib import DATA, TMP, Daemon, run_tests
 
 MB = 1000 * 1000
 BOUNDARY = "mcfdtrust0123456789"
@@ -178,6 +179,35 @@ def test_chunked_multipart_over_max_upload():
         d.stop()
 
 
+def test_refused_at_decode_leaves_its_input_off_the_spool():
+    """A job refused at decode (413 for its vertex count) never runs
+    again: its input leaves the spool at once (before: kept until the
+    result TTL, so 15 uploads of 265 MB filled the default 4G quota for an
+    hour); its state and error stay."""
+    d = Daemon("refused", "--max-vertices", "1000")
+    try:
+        with open(os.path.join(DATA, "meshes", "bunny.drc"), "rb") as f:
+            mesh = f.read()                           # 96 kB, 34,834 vertices
+        st, body, _ = send_upload(d.port, [("Content-Type", "application/octet-stream")],
+                                  iter([mesh]), False, len(mesh))
+        assert st == 202, (st, body[:300])
+        jid = json.loads(body)["id"]
+        end, job = time.time() + 60, {}
+        while time.time() < end and job.get("status") not in ("failed", "succeeded"):
+            time.sleep(0.1)
+            with urllib.request.urlopen("%s/v1/jobs/%s" % (d.url, jid), timeout=30) as r:
+                job = json.loads(r.read())
+        assert job["status"] == "failed" and job["error"]["code"] == "ELIMIT", job
+        inp = os.path.join(TMP, "refused", "jobs", jid, "input")
+        assert os.path.getsize(inp) == 0, os.path.getsize(inp)
+        assert os.path.getsize(os.path.join(TMP, "refused", "jobs", jid, "state.json")) > 0
+        print("    a job refused at decode: its 96 kB input emptied at its end (before: "
+              "kept until the result TTL)", flush=True)
+    finally:
+        d.stop()
+
+
 if __name__ == "__main__":
     raise SystemExit(run_tests([test_multipart_300mb_over_default_max_upload,
-                                test_chunked_multipart_over_max_upload]))
+                                test_chunked_multipart_over_max_upload,
+                                test_refused_at_decode_leaves_its_input_off_the_spool]))
