@@ -281,7 +281,8 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  *   otherwise                 total time = strength^2 * h^2
  * and the steps: dt set -> ceil(total / dt) steps of total/steps;
  * otherwise `iterations` steps (MCF_DEFAULT_STEPS when 0) of equal size.
- * An adaptive run starts from that step and ends at the total time.
+ * An adaptive run starts from dt (or total / iterations) when either is
+ * given, else from the total time, and ends at the total time.
  * `taubin` is a filter: it runs `iterations` passes (MCF_DEFAULT_STEPS
  * when 0) and ignores the amount. strength_auto estimates the noise and
  * picks the time that minimizes the expected error (mcf_auto.c), in place
@@ -355,10 +356,13 @@ typedef struct {
     mcf_laplacian laplacian;
     mcf_mass mass;
     int adaptive;             /* needs a scheme with has_estimate */
-    double tol;               /* adaptive, relative to the unit-area size:
-                                 desbrun2: error per unit step (about the
-                                 error at T); ros2, richardson, desbrun:
-                                 local error per step of the first-order
+    double tol;               /* adaptive, relative to the unit-area size
+                                 (M-weighted RMS): desbrun2, richardson:
+                                 the error at T, as 0.3 tol per unit time
+                                 of their own (Milne) local estimates
+                                 (measured 0.1-2.1 tol on scans:
+                                 docs/numerics.md); ros2, desbrun: local
+                                 error per step of the first-order
                                  companion solution (global <= steps*tol) */
     int max_steps;            /* hard cap on steps, rejected ones included
                                  (adaptive); ELIMIT naming max_steps when
@@ -443,6 +447,11 @@ typedef struct {
     double t_final;
     double dt_first, dt_min, dt_max;
     double lambda_max;        /* when estimated (dt_auto), else 0 */
+    double error_estimate;    /* adaptive: the sum of the accepted steps'
+                                 local error estimates (M-weighted RMS
+                                 relative to the unit-area size, as tol),
+                                 the run's own bound on its error at
+                                 t_final; else 0 */
     double area0, area1, volume0, volume1;   /* in input units */
     double time_assemble, time_analyze, time_factorize, time_solve,
            time_total;        /* seconds, monotonic clock */
