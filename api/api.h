@@ -54,8 +54,8 @@ char *api_buf_detach(api_buf *b, size_t *len);
  * the size_t/double fields only where documented. */
 typedef struct {
     size_t max_input_bytes;    /* one mesh upload (default 256 MiB) */
-    int max_vertices;          /* default 5,000,000 */
-    int max_faces;             /* default 10,000,000 */
+    int max_vertices;          /* default 100,000,000 (api_limits.c) */
+    int max_faces;             /* default 200,000,000 */
     int max_iterations;        /* steps of one job (default 100,000) */
     double max_work;           /* iterations x vertices (default 2e10) */
     size_t max_json_bytes;     /* parameters document (default 64 KiB) */
@@ -413,7 +413,7 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
 /* ---------------------------------------------------------------- process */
 
 /* The bounds a Draco decode runs under (api_bounds.c says why): the
- * daemon's in a child process (server/sandbox.c, floors --decode-cpu and
+ * daemon's in a child process (server/sandbox/sandbox.c, floors --decode-cpu and
  * --decode-memory), the CLI's in its own (these defaults). */
 #define API_DECODE_CPU_S 2.0                  /* CPU seconds, floor */
 #define API_DECODE_MEMORY ((size_t)64 << 20)  /* address space, floor */

@@ -25,11 +25,15 @@
  * on stderr: the core's warnings about the result (always), a summary line
  * (unless --quiet), and progress (a bar on a terminal; with --progress,
  * one plain line per 10% elsewhere).
+ *
+ * This file: main and the commands; cli_args.c the options and help,
+ * cli_files.c reading, decoding and writing (cli.h).
  */
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,10 +42,8 @@
 #include <unistd.h>
 
 #include "api.h"
+#include "cli.h"
 #include "prog.h"
-
-#define EXIT_USAGE 2
-#define EXIT_STRICT 3 /* --strict and the result has warnings */
 
 /* `mcf --help`: the commands; each command's own --help has its options. */
 static const char usage_text[] =
@@ -62,6 +64,15 @@ static const char usage_text[] =
     "OUT may be '-' (stdin/stdout; OUT '-' needs --format).\n"
     "Exit status: 0 done; 1 failed (one line 'mcf: ...' on stderr); 2 usage error;\n"
     "3 `mcf smooth --strict` and the result has warnings.\n";
+
+/* The limits on the input (api_limits), options of smooth and convert:
+ * none below memory by default (a 10M-vertex scan needs no option). */
+#define LIMITS_HELP \
+    "  --max-input-bytes N   refuse an input file larger than N bytes (default: no\n" \
+    "                        limit; the daemon's --max-upload is 256 MiB)\n" \
+    "  --max-vertices N      refuse a mesh of more than N vertices (default 100000000)\n" \
+    "  --max-faces N         refuse a mesh of more than N triangles (default 200000000)\n" \
+    "  --max-work N          refuse a job of more than N steps x vertices (default 2e10)\n"
 
 static const char smooth_head[] =
     "usage: mcf smooth IN OUT [options]\n"
@@ -92,6 +103,7 @@ static const char smooth_tail[] =
     "  --strict              a warning (folds, edge_collapse, area_loss,\n"
     "                        little_smoothing) fails the run: exit status 3, OUT not\n"
     "                        written (the metrics file is, when asked for)\n"
+    LIMITS_HELP
     "\n"
     "On stderr, unless --quiet: a summary line (vertices, steps, time, strength, seconds).\n"
     "Always: one line per warning about the result, 'mcf: warning: NAME: ...'.\n";
@@ -102,6 +114,9 @@ static const char convert_head[] =
     "Reads any mesh format (detected from the bytes) and writes OUT's (its extension or\n"
     "--format). Texture coordinates and colours pass through, normals are recomputed;\n"
     "Draco keeps a Draco input's quantization.\n"
+    "\n"
+    "Options of the tool:\n"
+    LIMITS_HELP
     "\n"
     "Options (the daemon's output parameters):\n";
 
@@ -135,14 +150,8 @@ static void on_signal(int sig)
     cancel_flag = 1;
 }
 
-/* The one error line, then the exit status. */
-static int fail(int code, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-
-static int fail(int code, const char *fmt, ...)
+/* The one error line, then the exit status (cli.h). */
+int fail(int code, const char *fmt, ...)
 {
     char msg[1024];
     va_list ap;
@@ -157,441 +166,11 @@ static int fail(int code, const char *fmt, ...)
     return code;
 }
 
-static double now(void)
+double now(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* ------------------------------------------------------------------ files */
-
-/* Reads path ("-": stdin) into a malloc'ed buffer of at most max bytes.
- * Returns 0, or an exit status after printing the error line. */
-static int read_all(const char *path, size_t max, char **buf, size_t *len)
-{
-    FILE *f = strcmp(path, "-") == 0 ? stdin : fopen(path, "rb");
-    char *data = NULL;
-    size_t n = 0, cap = 0;
-    int rc = 1;
-
-    if (!f)
-        return fail(1, "cannot read '%s': %s", path, strerror(errno));
-    for (;;) {
-        size_t got;
-        if (cap - n < 65536) {
-            size_t ncap = cap ? cap * 2 : 1 << 20;
-            char *p = realloc(data, ncap + 1);
-            if (!p) {
-                fail(1, "'%s': out of memory", path);
-                goto done;
-            }
-            data = p;
-            cap = ncap;
-        }
-        got = fread(data + n, 1, cap - n, f);
-        n += got;
-        if (n > max) {
-            fail(1, "'%s': larger than max_input_bytes (%zu)", path, max);
-            goto done;
-        }
-        if (got == 0) {
-            if (ferror(f)) {
-                fail(1, "cannot read '%s': %s", path, strerror(errno));
-                goto done;
-            }
-            break;
-        }
-    }
-    data[n] = '\0';
-    *buf = data;
-    *len = n;
-    data = NULL;
-    rc = 0;
-done:
-    free(data);
-    if (f != stdin)
-        fclose(f);
-    return rc;
-}
-
-/* Writes len bytes to path ("-": stdout) through a temporary file renamed
- * over path, so readers never see a partial file. 0, or -1 with the
- * error line's text in err. */
-static int write_file(const char *path, const void *buf, size_t len,
-                      mcf_error *err)
-{
-    char *tmp;
-    FILE *f;
-    int ok;
-
-    if (strcmp(path, "-") == 0) {
-        if (fwrite(buf, 1, len, stdout) != len || fflush(stdout) != 0) {
-            mcf_error_set(err, MCF_EIO, "cannot write to stdout: %s", strerror(errno));
-            return -1;
-        }
-        return 0;
-    }
-    tmp = malloc(strlen(path) + 32);
-    if (!tmp) {
-        mcf_error_set(err, MCF_ENOMEM, "out of memory");
-        return -1;
-    }
-    sprintf(tmp, "%s.tmp%ld", path, (long)getpid());
-    f = fopen(tmp, "wb");
-    ok = f != NULL;
-    if (f) {
-        ok = fwrite(buf, 1, len, f) == len;
-        ok = (fclose(f) == 0) && ok;
-        ok = ok && rename(tmp, path) == 0;
-    }
-    if (!ok) {
-        int e = errno;
-        if (f)
-            remove(tmp);
-        mcf_error_set(err, MCF_EIO, "cannot write '%s': %s", path, strerror(e));
-    }
-    free(tmp);
-    return ok ? 0 : -1;
-}
-
-/* write_file, or the error line and exit status 1. */
-static int write_all(const char *path, const void *buf, size_t len)
-{
-    mcf_error err;
-    return write_file(path, buf, len, &err) == 0 ? 0 : fail(1, "%s", err.msg);
-}
-
-/* Draco decodes under the daemon's bound (api_decode_bounds with the
- * daemon's default floors; the daemon's is a child process, here it is
- * this one: the CLI's files are its user's): libdraco 1.5.5 trusts counts
- * inside a stream that no header check sees (210 bytes cost 256 MiB and
- * 8.8 s of CPU). While it decodes, the soft RLIMIT_AS is the process's
- * size plus the memory bound (a failed allocation is an ENOMEM), and the
- * soft RLIMIT_CPU the CPU bound beyond what it used (SIGXCPU: the message
- * below, exit 1); both are put back after. No RLIMIT_AS under ASan/TSan
- * (API_SANITIZED). */
-
-static void on_decode_cpu(int sig)
-{
-    static const char msg[] = "mcf: the Draco stream needs more than its "
-                              "decode CPU limit (2 s + 1 us per declared face): refused\n";
-    (void)sig;
-    if (write(2, msg, sizeof msg - 1) < 0) {
-        /* nothing more to say */
-    }
-    _exit(1);
-}
-
-static mcf_status decode_bounded(const char *buf, size_t len,
-                                 const api_limits *lim, mcf_mesh **m,
-                                 api_attrs **attrs, api_format *fmt,
-                                 mcf_error *err)
-{
-    struct rlimit as0, cpu0, rl;
-    struct rusage ru;
-    api_mem_estimate est;
-    double cpu;
-    size_t mem;
-    int bound_as = 0, bound_cpu = 0;
-    mcf_status st;
-    void (*old)(int);
-
-    api_estimate_memory(buf, len, NULL, &est);
-    if (!est.draco) /* libdraco is not reached (the daemon's rule too) */
-        return api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
-    api_decode_bounds(&est, API_DECODE_CPU_S, API_DECODE_MEMORY, &cpu, &mem);
-    if (!API_SANITIZED && getrlimit(RLIMIT_AS, &as0) == 0) {
-        rl = as0;
-        rl.rlim_cur = (rlim_t)(api_vm_size() + mem);
-        bound_as = (as0.rlim_max == RLIM_INFINITY || rl.rlim_cur < as0.rlim_max) &&
-                   setrlimit(RLIMIT_AS, &rl) == 0;
-    }
-    old = signal(SIGXCPU, on_decode_cpu);
-    if (getrlimit(RLIMIT_CPU, &cpu0) == 0 && getrusage(RUSAGE_SELF, &ru) == 0) {
-        rl = cpu0;
-        rl.rlim_cur = (rlim_t)(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + cpu + 1);
-        bound_cpu = (cpu0.rlim_max == RLIM_INFINITY || rl.rlim_cur < cpu0.rlim_max) &&
-                    setrlimit(RLIMIT_CPU, &rl) == 0;
-    }
-    st = api_mesh_decode_attrs(buf, len, lim, m, attrs, fmt, err);
-    if (bound_cpu)
-        setrlimit(RLIMIT_CPU, &cpu0);
-    signal(SIGXCPU, old);
-    if (bound_as)
-        setrlimit(RLIMIT_AS, &as0);
-    if (st == MCF_ENOMEM && bound_as)
-        mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more than %.0f "
-                      "MiB to decode: refused", (double)mem / 1048576.0);
-    return st;
-}
-
-/* Reads and decodes a mesh file; *attrs (the input's texture coordinates,
- * colours, normals and precision, for the output), *fmt and the timings
- * are optional. */
-static int load_mesh_attrs(const char *path, const api_limits *lim,
-                           mcf_mesh **m, api_attrs **attrs, api_format *fmt,
-                           size_t *bytes, double *read_s, double *decode_s)
-{
-    char *buf = NULL;
-    size_t len = 0;
-    mcf_error err = {MCF_OK, ""};
-    mcf_status st;
-    double t0 = now(), t1;
-    int rc;
-
-    if ((rc = read_all(path, lim->max_input_bytes, &buf, &len)) != 0)
-        return rc;
-    t1 = now();
-    st = decode_bounded(buf, len, lim, m, attrs, fmt, &err);
-    free(buf);
-    if (st != MCF_OK)
-        return fail(1, "%s: %s", path, err.msg);
-    if (bytes)
-        *bytes = len;
-    if (read_s)
-        *read_s = t1 - t0;
-    if (decode_s)
-        *decode_s = now() - t1;
-    return 0;
-}
-
-static int load_mesh(const char *path, const api_limits *lim, mcf_mesh **m,
-                     api_format *fmt, size_t *bytes, double *read_s,
-                     double *decode_s)
-{
-    return load_mesh_attrs(path, lim, m, NULL, fmt, bytes, read_s, decode_s);
-}
-
-/* -------------------------------------------------------------- arguments */
-
-typedef struct {
-    const char *pos[3];
-    int npos;
-    const char *target, *metrics, *fix_file;
-    int quiet, progress, strict;
-} cli_opts;
-
-/* The parameter table (api_params_describe): every job parameter is an
- * option of `mcf smooth`, the output ones of `mcf convert` too, so the
- * tool, the daemon and the help cannot disagree on names or ranges. */
-static cJSON *param_table(void)
-{
-    cJSON *t = api_params_describe(NULL);
-    if (!t)
-        fail(1, "out of memory");
-    return t;
-}
-
-static const cJSON *find_param(const cJSON *table, const char *key, int smooth)
-{
-    const cJSON *e;
-    cJSON_ArrayForEach(e, table) {
-        if (strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(e, "name")), key) == 0)
-            return (smooth || cJSON_IsTrue(cJSON_GetObjectItem(e, "output"))) ? e : NULL;
-    }
-    return NULL;
-}
-
-static int is_type(const cJSON *e, const char *type)
-{
-    return strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(e, "type")), type) == 0;
-}
-
-/* Applies one parameter; a refusal is a usage error (exit 2), a limit 1. */
-static int set_param(api_params *p, const char *key, const char *value,
-                     const api_limits *lim)
-{
-    mcf_error err = {MCF_OK, ""};
-    mcf_status st = api_params_set(p, key, value, lim, &err);
-    if (st != MCF_OK)
-        return fail(st == MCF_EINVAL ? EXIT_USAGE : 1, "%s", err.msg);
-    return 0;
-}
-
-/* Parses argv[first..] of command cmd ("smooth" or "convert"). */
-static int parse_args(const char *cmd, int argc, char **argv, int first,
-                      api_params *p, const api_limits *lim, cli_opts *o,
-                      const cJSON *table)
-{
-    int smooth = strcmp(cmd, "smooth") == 0, i, rc;
-
-    for (i = first; i < argc; i++) {
-        const char *a = argv[i], *val = NULL, *eq;
-        const cJSON *e;
-        char key[64];
-        size_t nl, k;
-        int off = 0;
-
-        if (a[0] != '-' || strcmp(a, "-") == 0) {
-            if (o->npos >= 2)
-                return fail(EXIT_USAGE, "%s: unexpected argument '%s' (try mcf %s --help)",
-                            cmd, a, cmd);
-            o->pos[o->npos++] = a;
-            continue;
-        }
-        if (a[1] != '-')
-            return fail(EXIT_USAGE, "%s: unknown option '%s' (try mcf %s --help)", cmd, a, cmd);
-        a += 2;
-        eq = strchr(a, '=');
-        nl = eq ? (size_t)(eq - a) : strlen(a);
-        if (nl >= sizeof key)
-            return fail(EXIT_USAGE, "%s: unknown option '--%.40s' (try mcf %s --help)",
-                        cmd, a, cmd);
-        for (k = 0; k < nl; k++)   /* the daemon's name: dashes become underscores */
-            key[k] = a[k] == '-' ? '_' : a[k];
-        key[nl] = '\0';
-
-        /* The tool's own switches and files. */
-        if (smooth && (!strcmp(key, "quiet") || !strcmp(key, "progress")
-                       || !strcmp(key, "strict"))) {
-            if (eq)
-                return fail(EXIT_USAGE, "option '--%s' takes no value", key);
-            *(key[0] == 'q' ? &o->quiet : key[0] == 'p' ? &o->progress : &o->strict) = 1;
-            continue;
-        }
-        if (smooth && (!strcmp(key, "fix_vertices") || !strcmp(key, "target")
-                       || !strcmp(key, "metrics"))) {
-            if (eq)
-                val = eq + 1;
-            else if (i + 1 < argc)
-                val = argv[++i];
-            else
-                return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
-            *(key[0] == 'f' ? &o->fix_file : key[0] == 't' ? &o->target : &o->metrics) = val;
-            continue;
-        }
-        /* A job parameter: --NAME VALUE, --NAME=VALUE; a boolean --NAME or --no-NAME. */
-        e = find_param(table, key, smooth);
-        if (!e && strncmp(key, "no_", 3) == 0) {
-            e = find_param(table, key + 3, smooth);
-            off = 1;
-            if (e && !is_type(e, "boolean"))
-                e = NULL;
-        }
-        if (!e)
-            return fail(EXIT_USAGE, "%s: unknown option '--%.*s' (try mcf %s --help)",
-                        cmd, (int)nl, a, cmd);
-        if (is_type(e, "boolean")) {
-            if (eq)
-                return fail(EXIT_USAGE, "option '--%.*s' takes no value", (int)nl, a);
-            val = off ? "false" : "true";
-        } else if (eq) {
-            val = eq + 1;
-        } else if (i + 1 < argc) {
-            val = argv[++i];
-        } else {
-            return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
-        }
-        if ((rc = set_param(p, cJSON_GetStringValue(cJSON_GetObjectItem(e, "name")), val,
-                            lim)) != 0)
-            return rc;
-    }
-    if (o->npos < 2)
-        return fail(EXIT_USAGE, "%s: needs IN and OUT (try mcf %s --help)", cmd, cmd);
-    return 0;
-}
-
-/* One command's help: head, then every parameter of the table it takes
- * (with its placeholder, meaning, unit, range and default), then tail. */
-static int print_help(const char *head, int smooth, const char *tail)
-{
-    cJSON *table = param_table();
-    const cJSON *e;
-    int pass;
-
-    if (!table)
-        return 1;
-    fputs(head, stdout);
-    /* smooth: the flow's parameters first, then the output ones */
-    for (pass = smooth ? 0 : 1; pass < 2; pass++) {
-        if (smooth && pass == 1)
-            fputs("\nOutput (also `mcf convert`'s):\n", stdout);
-        cJSON_ArrayForEach(e, table) {
-            const char *name = cJSON_GetStringValue(cJSON_GetObjectItem(e, "name"));
-            const char *unit = cJSON_GetStringValue(cJSON_GetObjectItem(e, "unit"));
-            const cJSON *dv = cJSON_GetObjectItem(e, "default");
-            char flag[64], meta[24], *dtext = NULL;
-            size_t k;
-
-            if (cJSON_IsTrue(cJSON_GetObjectItem(e, "output")) != (pass == 1))
-                continue;
-            for (k = 0; name[k] && k + 1 < sizeof flag; k++)
-                flag[k] = name[k] == '_' ? '-' : name[k];
-            flag[k] = '\0';
-            if (is_type(e, "boolean"))
-                snprintf(meta, sizeof meta, "%s", "");
-            else
-                snprintf(meta, sizeof meta, " %s%s",
-                         is_type(e, "number") ? "X" : is_type(e, "integer") ? "N"
-                         : is_type(e, "array") ? "I,J,..." : "NAME",
-                         cJSON_IsTrue(cJSON_GetObjectItem(e, "auto")) ? "|auto" : "");
-            if (is_type(e, "boolean"))
-                printf("  --%s, --no-%s\n", flag, flag);
-            else
-                printf("  --%s%s\n", flag, meta);
-            printf("      %s%s%s\n", cJSON_GetStringValue(cJSON_GetObjectItem(e, "help")),
-                   unit ? "; unit: " : "", unit ? unit : "");
-            if (dv && !cJSON_IsString(dv))
-                dtext = cJSON_PrintUnformatted(dv);
-            printf("      %s; default %s\n",
-                   cJSON_GetStringValue(cJSON_GetObjectItem(e, "accepts")),
-                   dtext ? dtext : dv ? cJSON_GetStringValue(dv)
-                   : cJSON_GetStringValue(cJSON_GetObjectItem(e, "default_text")));
-            cJSON_free(dtext);
-        }
-    }
-    fputs(tail, stdout);
-    cJSON_Delete(table);
-    return fflush(stdout) == 0 ? 0 : 1;
-}
-
-/* The output format: --format, else OUT's extension. */
-static int output_format(api_params *p, const char *out)
-{
-    if (p->encode.format != API_FMT_UNKNOWN)
-        return 0;
-    p->encode.format = api_format_from_name(out);
-    if (p->encode.format == API_FMT_UNKNOWN)
-        return fail(EXIT_USAGE,
-                    "cannot tell the output format from '%s' (use --format obj|draco|ply|stl|off)",
-                    out);
-    return 0;
-}
-
-/* Encodes (measuring Draco's quantization error) and writes OUT, with the
- * input's attributes when opts->attrs has them. PLY curvature properties
- * are opt-in (--ply-curvature), as in the daemon (ply_curvature). */
-static int save_mesh(const mcf_mesh *m, const api_encode_opts *opts,
-                     const char *path, size_t *bytes, double *encode_s,
-                     double *write_s, double *qerr)
-{
-    api_buf b;
-    api_encode_opts o = *opts;
-    mcf_error err = {MCF_OK, ""};
-    mcf_status st;
-    double t0 = now(), t1;
-    int rc;
-
-    api_buf_init(&b, 0);
-    if (o.format == API_FMT_DRACO)
-        st = api_draco_encode(m, &o, &b, qerr, &err);
-    else
-        st = api_mesh_encode(m, &o, &b, &err);
-    if (st != MCF_OK) {
-        api_buf_free(&b);
-        return fail(1, "%s: %s", path, err.msg);
-    }
-    t1 = now();
-    rc = write_all(path, b.data ? b.data : "", b.len);
-    if (bytes)
-        *bytes = b.len;
-    if (encode_s)
-        *encode_s = t1 - t0;
-    if (write_s)
-        *write_s = now() - t1;
-    api_buf_free(&b);
-    return rc;
 }
 
 /* --------------------------------------------------------------- progress */
@@ -911,7 +490,7 @@ static int cmd_smooth(int argc, char **argv)
     int rc;
 
     memset(&o, 0, sizeof o);
-    api_limits_default(&lim);
+    cli_limits(&lim);
     api_params_init(&p);
     if (!(table = param_table()))
         return 1;
@@ -940,7 +519,7 @@ static int cmd_info(int argc, char **argv)
 
     if (argc != 3 || (argv[2][0] == '-' && argv[2][1] != '\0'))
         return fail(EXIT_USAGE, "info: needs exactly one input file (try mcf --help)");
-    api_limits_default(&lim);
+    cli_limits(&lim);
     if ((rc = load_mesh(argv[2], &lim, &m, &fmt, &bytes, NULL, NULL)) != 0)
         return rc;
     rc = 1;
@@ -1004,7 +583,7 @@ static int cmd_convert(int argc, char **argv)
     if (!table)
         return 1;
     memset(&o, 0, sizeof o);
-    api_limits_default(&lim);
+    cli_limits(&lim);
     api_params_init(&p);
     if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o, table)) == 0
         && (rc = output_format(&p, o.pos[1])) == 0

@@ -752,7 +752,7 @@ static void test_regression_huge_faces(void **state)
     (void)state;
     expect_fail(buf, len, MCF_ELIMIT,
                 "draco: header declares 1044266558 faces, more than max_faces "
-                "(10000000)");
+                "(200000000)");
     free(buf);
 }
 

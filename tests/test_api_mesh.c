@@ -93,8 +93,8 @@ static void test_limits_default(void **state)
     (void)state;
     api_limits_default(&l);
     assert_int_equal(l.max_input_bytes, 256u << 20);
-    assert_int_equal(l.max_vertices, 5000000);
-    assert_int_equal(l.max_faces, 10000000);
+    assert_int_equal(l.max_vertices, 100000000);
+    assert_int_equal(l.max_faces, 200000000);
     assert_int_equal(l.max_iterations, 100000);
     assert_true(l.max_work == 2e10);
     assert_int_equal(l.max_json_bytes, 64u << 10);

@@ -217,7 +217,7 @@ static void test_bad_values(void **state)
     bad3("preserve_order", "on", MCF_EINVAL, "parameter 'preserve_order'");
     bad3("ply_binary", "", MCF_EINVAL, "parameter 'ply_binary' has an empty value");
     bad3("fixed_vertices", "1,x,3", MCF_EINVAL,
-         "parameter 'fixed_vertices' must be a list of at most 5000000 vertex "
+         "parameter 'fixed_vertices' must be a list of at most 100000000 vertex "
          "indices (integers >= 0), got \"x\" (item 2)");
     bad3("fixed_vertices", "-1", MCF_EINVAL, "got \"-1\" (item 1)");
     bad3("fixed_vertices", "3000000000", MCF_EINVAL, "(item 1)");

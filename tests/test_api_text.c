@@ -228,7 +228,7 @@ static void test_decode_begin(void **state)
     (void)state;
     assert_int_equal(api__decode_begin("xyz", "a", 1, &lim, &def, &err), MCF_OK);
     assert_ptr_equal(lim, &def); /* NULL limits: the defaults, in def */
-    assert_int_equal(def.max_vertices, 5000000);
+    assert_int_equal(def.max_vertices, 100000000);
     api_limits_default(&small);
     small.max_input_bytes = 4;
     lim = &small;

@@ -739,6 +739,64 @@ static void test_contradictory_amounts(void **state)
     tl_run_free(&r);
 }
 
+/* The limits on the input (issue 27: no size wall below memory): none of
+ * the old caps (256 MiB, 5M vertices) stands in the tool's way, and its
+ * options --max-input-bytes, --max-vertices, --max-faces bound a
+ * generated 41 x 41 grid (1,681 vertices, 3,200 triangles, a gentle
+ * bump: 1 = just over, 0 = at the bound) the same way the old caps bound
+ * a 5,000,001-vertex scan, through the same checks of every decoder. */
+static void test_limits(void **state)
+{
+    enum { N = 41 };
+    FILE *f;
+    tl_run_result r;
+    long bytes;
+    char nb[32];
+    (void)state;
+    f = fopen(tl_in_scratch("grid.obj"), "w");
+    assert_non_null(f);
+    for (int i = 0; i < N; i++)
+        for (int j = 0; j < N; j++)
+            fprintf(f, "v %d %d %.6f\n", i, j, 0.3 * sin(0.2 * i) * cos(0.3 * j));
+    for (int i = 0; i + 1 < N; i++)
+        for (int j = 0; j + 1 < N; j++) {
+            int a = i * N + j + 1;
+            fprintf(f, "f %d %d %d\nf %d %d %d\n", a, a + N, a + 1, a + 1, a + N, a + N + 1);
+        }
+    bytes = ftell(f);
+    fclose(f);
+    r = tl_run("convert", "grid.obj", "grid.ply", NULL);
+    assert_int_equal(r.status, 0);
+    tl_run_free(&r);
+    r = tl_run("smooth", "grid.obj", "g.obj", "--max-vertices", "1680", NULL);
+    tl_expect_error(&r, 1, "more than max_vertices (1680) vertices");
+    r = tl_run("smooth", "grid.ply", "g.obj", "--max-vertices=1680", NULL);
+    tl_expect_error(&r, 1, "ply: 1681 vertices exceed max_vertices (1680)");
+    r = tl_run("smooth", "grid.ply", "g.obj", "--max-faces", "3199", NULL);
+    tl_expect_error(&r, 1, "ply: 3200 faces exceed max_faces (3199)");
+    snprintf(nb, sizeof nb, "%ld", bytes - 1);
+    r = tl_run("smooth", "grid.obj", "g.obj", "--max-input-bytes", nb, NULL);
+    tl_expect_error(&r, 1, "larger than max_input_bytes");
+    r = tl_run("convert", "grid.obj", "g.ply", "--max-vertices", "1680", NULL);
+    tl_expect_error(&r, 1, "more than max_vertices (1680) vertices");
+    /* steps x vertices, the work of a job that names its steps */
+    r = tl_run("smooth", "grid.obj", "g.obj", "--iterations", "3", "--max-work", "5000", NULL);
+    tl_expect_error(&r, 1, "work of 3 steps x 1681 vertices = 5.04e+03 exceeds max_work (5e+03)");
+    r = tl_run("smooth", "grid.obj", "g.obj", "--max-vertices", "1.5", NULL);
+    tl_expect_error(&r, 2, "option '--max-vertices' needs a whole number from 1 to 2147483647");
+    r = tl_run("smooth", "grid.obj", "g.obj", "--max-faces", "3000000000", NULL);
+    tl_expect_error(&r, 2, "option '--max-faces' needs a whole number");
+    /* at the bounds, and with no option at all: accepted */
+    snprintf(nb, sizeof nb, "%ld", bytes);
+    r = tl_run("smooth", "grid.ply", "g.obj", "--max-vertices", "1681", "--max-faces", "3200",
+               "--quiet", NULL);
+    assert_int_equal(r.status, 0);
+    tl_run_free(&r);
+    r = tl_run("smooth", "grid.obj", "g.obj", "--max-input-bytes", nb, "--quiet", NULL);
+    assert_int_equal(r.status, 0);
+    tl_run_free(&r);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -758,6 +816,7 @@ int main(void)
         cmocka_unit_test(test_warnings_on_stderr),
         cmocka_unit_test(test_progress_lines),
         cmocka_unit_test(test_contradictory_amounts),
+        cmocka_unit_test(test_limits),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -1,55 +1,65 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * bench_quality.c - `make quality` (issue 16): how close to the clean
- * surface a noisy scan comes back, for the default request, every scheme
- * at its automatic amount, Taubin at its best pass count and Open3D's
- * filter_smooth_taubin, all in one run.
+ * bench_quality.c - `make quality` (issues 16 and 31): how close to the
+ * clean surface a noisy scan comes back, for the default request and the
+ * anchors (Taubin and Open3D's Taubin at their best pass count, bilateral
+ * normal filtering at its best parameters), all on the same noisy inputs.
  *
- * Cases: every mesh of the list (default: the shared meshes) x noise kind
- * (`normal`: Gaussian along the vertex normals, mcf_flow_add_noise;
- * `iso`: isotropic Gaussian, each coordinate sigma = rho mean edges) x rho
- * (0.1, 0.25, 0.5 mean edges of the clean mesh) x seed (1..3). The noise
- * moves only what a run moves (the boundary and unreferenced vertices
- * stay, as mcf_flow_add_noise does for the default parameters).
+ * Cases: every mesh of the list (default: the shared meshes, each tagged
+ * organic or CAD: --cad names the CAD parts) x noise model x rho (mean
+ * edges h of the clean mesh; default 0.1, 0.25, 0.5) x seed (1..N,
+ * default 1). The models (quality_noise.c defines them exactly; only the
+ * vertices a default run moves get noise):
+ *   normal  Gaussian along the vertex normals, sigma = rho h
+ *           (mcf_flow_add_noise; bit-identical to issue 16's)
+ *   iso     isotropic Gaussian, sigma = rho h per coordinate (issue 16's)
+ *   view    Gaussian along one unit vector drawn from the seed
+ *   corr    N(0,1) per vertex smoothed by 9 one-ring averages, unit RMS,
+ *           along the normals
+ *   out     `normal` plus 1% of the vertices moved 3-5 h along the normal
+ *   quant   positions rounded to a grid of step rho h, offset from the seed
+ *   clean   rho 0, once per mesh and seed: how far a method moves a mesh
+ *           without noise, as a ratio of the error of `normal` at 0.1 h
+ *           (same seed); only the requests (default, auto:S, fixed) run
  *
- * Methods (one row each per case in quality.csv):
+ * Methods (one row each per case in quality.csv; --methods picks them):
  *   default      api_params_init + api_params_finish with nothing set:
  *                whatever the service does with `curl -F mesh=@scan /smooth`
- *   auto:S       the request `scheme=S` and no amount, for S in desbrun2,
+ *   auto:S       the request `scheme=S` and no amount (S: desbrun2,
  *                desbrun, ros2, richardson, cmcf, linear, taubin and every
- *                scheme whose name starts with "fairing" (the implicit MCF
- *                schemes and the filters; the explicit MCF schemes are
- *                unstable at 10 steps on scans, `implicit` too slow)
- *   fixed        desbrun2, strength 0.33, 10 steps (the old default): the
- *                peer of the CPU-time ratio of the automatic amounts
+ *                scheme whose name starts with "fairing")
+ *   fixed        desbrun2, strength 0.33, 10 steps (the old default)
  *   taubin_best  scheme taubin at its best pass count (an oracle that
  *                knows the clean mesh: passes 1 .. 500 cumulatively on a
  *                growing schedule, stopped 5% past the minimum at twice
  *                the best count)
- *   o3d_default  Open3D's mesh.filter_smooth_taubin() (1 iteration,
- *                lambda 0.5, mu -0.53, uniform weights; Debian's
- *                python3-open3d through lab/bench/o3d_taubin.py, a coprocess)
+ *   o3d_default  Open3D's mesh.filter_smooth_taubin() (1 iteration;
+ *                Debian's python3-open3d through o3d_taubin.py, a coprocess)
  *   o3d_best     the same at its best pass count (the same oracle)
+ *   bnf_best     bilateral normal filtering (Zheng et al. 2011, Sun et
+ *                al. 2007's vertex update; quality_bnf.c) at the best point
+ *                of an 80-point grid (an oracle)
+ * Default: default, taubin_best, o3d_default, o3d_best, bnf_best.
  *
  * Metrics per result: the per-vertex error (mcf_compare's area-weighted
  * RMS distance to the clean vertex) and the surface error (symmetric RMS
- * point-to-surface distance: samples at the vertices and face centroids of
- * one mesh, weighted by area, to the nearest point of the other's
- * triangles, both ways), each as a ratio of the noisy input's; new folds
- * (faces inverted against the clean mesh beyond the input's, and away
- * from the clean mesh's own creases); drift (volume of closed meshes, area
- * of open ones, vs clean); CPU time of the one run (this process's, or
- * the coprocess's for Open3D) and wall time.
+ * point-to-surface distance, quality_geom.c), each as a ratio of the
+ * noisy input's; flips (faces whose normal points against the clean
+ * mesh's, dot < 0; the input's count beside); drift (volume of closed
+ * meshes, area of open ones, vs clean); CPU time of the one run (this
+ * process's, or the coprocess's for Open3D); for the requests, the noise
+ * level the run read (mcf_flow_stats.noise, mean edges); for `default`,
+ * its CPU time against --baseline's (a quality.csv of an earlier run: the
+ * same mesh, model, rho and seed).
  *
- * Output (QUALITY_OUT, lab/results/quality): quality.csv (every run), quality.md
- * (the tables: per method the median and worst over all cases of its
- * error against taubin_best, o3d_best and o3d_default, per-vertex and
- * surface; runs worse than the input; CPU time against `fixed` per mesh;
- * per mesh x noise the default's medians), worst.png (clean / noisy /
- * default / taubin_best / o3d_best of the case where the default does
- * worst against taubin_best, whole and zoomed). Single-threaded
- * (lab/Makefile pins OpenBLAS and OpenMP to one thread). Exit status 1
- * on an error.
+ * Output (--out, lab/results/quality by default): quality.csv (every run),
+ * quality.md (per model: the default against the input and the anchors,
+ * organic and CAD apart, median and worst; flips; CPU against the
+ * baseline; every method's summary; the clean meshes; every case), and
+ * renders (render_quality.py, matplotlib): the case where the default
+ * does worst against taubin_best per model, and any --render case.
+ * Single-threaded (lab/Makefile pins OpenBLAS and OpenMP to one thread).
+ * Exit status 1 on an error, 2 on a usage error.
  */
 #include <errno.h>
 #include <math.h>
@@ -66,14 +76,18 @@
 #include "bench_common.h"
 #include "lab.h"
 #include "mcf.h"
+#include "quality_bnf.h"
+#include "quality_geom.h"
+#include "quality_noise.h"
 
 #define PROG "bench_quality"
-#define MAXMESH 24
-#define MAXNOISE 4
+#define MAXMESH 32
+#define MAXNOISE 6
 #define MAXSEED 5
-#define MAXMETHOD 16
+#define MAXMETHOD 20
+#define MAXRENDER 8
 
-typedef enum { K_DEFAULT, K_AUTO, K_FIXED, K_TAUBIN_BEST, K_O3D_DEFAULT, K_O3D_BEST } method_kind;
+typedef enum { K_DEFAULT, K_AUTO, K_FIXED, K_TAUBIN_BEST, K_O3D_DEFAULT, K_O3D_BEST, K_BNF_BEST } method_kind;
 
 typedef struct {
     char name[32];
@@ -82,15 +96,29 @@ typedef struct {
 } method;
 
 typedef struct {
-    int ok;
+    int ok, skipped;     /* skipped: not run on this case (the oracles on `clean`) */
     double ratio;        /* per-vertex error / the input's */
     double sratio;       /* surface error / the input's */
-    int folds, folds_off;
+    int flips;           /* faces against the clean mesh (dot < 0) */
+    int folds_off;       /* of them, away from the clean mesh's creases */
     double drift;
     double cpu, wall;    /* seconds */
-    double param;        /* t/h^2 for MCF, passes for the filters, steps for fairing */
+    double param;        /* t/h^2 for MCF, passes for the filters, steps for fairing, normal iterations for bnf */
+    double reading;      /* the requests: the noise level read (mean edges), else NaN */
+    double base_cpu;     /* default: the baseline's CPU time on this case, else NaN */
+    double cost;         /* wall seconds of the whole evaluation (oracle search and measures included) */
     char note[200];
 } result;
+
+/* One noisy input. */
+typedef struct {
+    int mesh;
+    qn_model model;
+    double rho;
+    int seed;
+    double e0, s0;       /* the input's vertex and surface errors (clean: those of normal 0.1 h) */
+    int flips0, outliers;
+} qcase;
 
 /* Taubin pass counts evaluated (cumulative) for the oracle. */
 static const int g_passes[] = {1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 20, 25, 30, 40, 50, 60,
@@ -118,397 +146,58 @@ static int cmp_d(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Median and maximum of the finite values of v (NaN when none); v is
- * sorted in place. */
+/* Median and maximum of the non-NaN values of v (NaN when none; an
+ * infinity, a failed run, counts as the worst); v is sorted in place.
+ * *n_out: how many. */
 static double median_max(double *v, int n, double *mx)
 {
     int k = 0;
     for (int i = 0; i < n; i++)
-        if (isfinite(v[i]))
+        if (!isnan(v[i]))
             v[k++] = v[i];
     qsort(v, (size_t)k, sizeof *v, cmp_d);
     *mx = k ? v[k - 1] : NAN;
     return k ? (k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2])) : NAN;
 }
 
-/* ------------------------------------------------------------ noise */
-
-static uint64_t g_rng;
-static double uniform01(void)
+static mcf_mesh *noisy_or_die(const mcf_mesh *clean, qn_model k, double rho, int seed, int *outliers)
 {
-    uint64_t z = (g_rng += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return ((z >> 11) + 0.5) * (1.0 / 9007199254740992.0);
-}
-static double gauss(void)
-{
-    return sqrt(-2.0 * log(uniform01())) * cos(6.283185307179586 * uniform01());
-}
-
-/* The noisy input: normal (mcf_flow_add_noise with the default
- * parameters) or isotropic noise of rho mean edges (sigma per coordinate)
- * on the vertices that normal noise moves (the others, the run's fixed
- * ones, stay). */
-static mcf_mesh *make_noisy(const mcf_mesh *clean, int iso, double rho, int seed)
-{
-    mcf_flow_params p;
     mcf_error e = {0};
-    mcf_flow_params_init(&p);
-    mcf_mesh *m = bench_dup_mesh(PROG, clean);
-    if (mcf_flow_add_noise(m, &p, rho, (uint64_t)seed, &e) != MCF_OK)
-        die("mcf_flow_add_noise", &e);
-    if (!iso)
-        return m;
-    mcf_mesh_info ci;
-    if (mcf_mesh_inspect(clean, &ci, &e) != MCF_OK)
-        die("mcf_mesh_inspect", &e);
-    int nv = mcf_mesh_nvertices(m);
-    double *X = malloc(3 * sizeof(double) * (size_t)nv);
-    const double *N = mcf_mesh_positions(m), *C = mcf_mesh_positions(clean);
-    g_rng = 0x15015015ULL * (uint64_t)seed + (uint64_t)(rho * 1e6);
-    for (int i = 0; i < nv; i++) {
-        int moved = memcmp(N + 3 * i, C + 3 * i, 3 * sizeof(double)) != 0;
-        for (int d = 0; d < 3; d++)
-            X[3 * i + d] = C[3 * i + d] + (moved ? rho * ci.mean_edge * gauss() : 0.0);
-    }
-    mcf_mesh *out = mcf_mesh_new(nv, X, mcf_mesh_nfaces(clean), mcf_mesh_faces(clean), &e);
-    if (!out)
-        die("mcf_mesh_new", &e);
-    free(X);
-    mcf_mesh_free(m);
-    return out;
-}
-/* The clean mesh's own near-reversals: mask[f] = 1 when face f shares an
- * edge with a face whose normal is turned by more than 120 degrees from
- * its own, or has an edge with more than two faces. Models like snowden
- * (thin fins, fold-overs) and the crudely decimated dragon have thousands;
- * any smoothing flattens them, which turns such faces by over 90 degrees
- * against the clean normals, so the folds there are counted apart. */
-typedef struct {
-    int a, b, f;
-} edge_ref;
-
-static int cmp_edge(const void *x, const void *y)
-{
-    const edge_ref *p = x, *q = y;
-    return p->a != q->a ? (p->a > q->a) - (p->a < q->a) : (p->b > q->b) - (p->b < q->b);
-}
-
-static void face_normal(const double *X, const int32_t *t, double n[3])
-{
-    const double *p = X + 3 * (size_t)t[0], *q = X + 3 * (size_t)t[1], *r = X + 3 * (size_t)t[2];
-    double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, v[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
-    n[0] = u[1] * v[2] - u[2] * v[1];
-    n[1] = u[2] * v[0] - u[0] * v[2];
-    n[2] = u[0] * v[1] - u[1] * v[0];
-}
-
-static unsigned char *crease_mask(const mcf_mesh *m, int *count)
-{
-    int nf = mcf_mesh_nfaces(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    const double *X = mcf_mesh_positions(m);
-    edge_ref *E = malloc(3 * (size_t)nf * sizeof *E);
-    unsigned char *mask = calloc((size_t)nf, 1);
-    if (!E || !mask) {
-        fprintf(stderr, PROG ": out of memory\n");
-        exit(1);
-    }
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++) {
-            int a = F[3 * f + k], b = F[3 * f + (k + 1) % 3];
-            E[3 * f + k] = (edge_ref){a < b ? a : b, a < b ? b : a, f};
-        }
-    qsort(E, 3 * (size_t)nf, sizeof *E, cmp_edge);
-    for (size_t i = 0, j; i < 3 * (size_t)nf; i = j) {
-        for (j = i + 1; j < 3 * (size_t)nf && E[j].a == E[i].a && E[j].b == E[i].b; j++)
-            ;
-        if (j - i > 2)
-            for (size_t k = i; k < j; k++)
-                mask[E[k].f] = 1;
-        else if (j - i == 2) {
-            double n1[3], n2[3];
-            face_normal(X, F + 3 * E[i].f, n1);
-            face_normal(X, F + 3 * E[i + 1].f, n2);
-            double d = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2];
-            double l = sqrt((n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2]) *
-                            (n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2]));
-            if (l > 0 && d < -0.5 * l)
-                mask[E[i].f] = mask[E[i + 1].f] = 1;
-        }
-    }
-    free(E);
-    *count = 0;
-    for (int f = 0; f < nf; f++)
-        *count += mask[f];
-    return mask;
-}
-
-/* Faces of x inverted against target (normals more than 90 degrees apart,
- * as mcf_compare counts them) that are not in the crease mask. */
-static int inverted_off_crease(const mcf_mesh *x, const mcf_mesh *target, const unsigned char *mask)
-{
-    int nf = mcf_mesh_nfaces(x), n = 0;
-    const int32_t *F = mcf_mesh_faces(x);
-    for (int f = 0; f < nf; f++) {
-        double a[3], b[3];
-        if (mask[f])
-            continue;
-        face_normal(mcf_mesh_positions(x), F + 3 * f, a);
-        face_normal(mcf_mesh_positions(target), F + 3 * f, b);
-        double la = a[0] * a[0] + a[1] * a[1] + a[2] * a[2], lb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-        if (la > 0 && lb > 0 && a[0] * b[0] + a[1] * b[1] + a[2] * b[2] < 0)
-            n++;
-    }
-    return n;
-}
-
-
-/* ------------------------------------------------- surface distance */
-
-/* A uniform grid over the triangles of a mesh: cell c holds the faces
- * whose bounding boxes overlap it (CSR: start[c] .. start[c + 1] of idx). */
-typedef struct {
-    const double *X;
-    const int32_t *F;
-    double lo[3], cell;
-    int n[3];
-    int *start, *idx;
-} tri_grid;
-
-static int clampi(int v, int lo, int hi)
-{
-    return v < lo ? lo : v > hi ? hi : v;
-}
-
-static void grid_build(tri_grid *g, const mcf_mesh *m)
-{
-    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
-    double hi[3] = {-INFINITY, -INFINITY, -INFINITY}, edge = 0.0;
-    g->X = mcf_mesh_positions(m);
-    g->F = mcf_mesh_faces(m);
-    for (int d = 0; d < 3; d++)
-        g->lo[d] = INFINITY;
-    for (int i = 0; i < nv; i++)
-        for (int d = 0; d < 3; d++) {
-            g->lo[d] = fmin(g->lo[d], g->X[3 * i + d]);
-            hi[d] = fmax(hi[d], g->X[3 * i + d]);
-        }
-    for (int f = 0; f < nf; f++) {
-        const double *a = g->X + 3 * (size_t)g->F[3 * f], *b = g->X + 3 * (size_t)g->F[3 * f + 1];
-        edge += sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
-    }
-    /* cells of about a mean edge (a few triangles each), at most 2^22 */
-    g->cell = fmax(edge / (nf > 0 ? nf : 1), 1e-12);
-    for (;;) {
-        double cells = 1;
-        for (int d = 0; d < 3; d++) {
-            g->n[d] = (int)((hi[d] - g->lo[d]) / g->cell) + 1;
-            cells *= g->n[d];
-        }
-        if (cells <= 4194304)
-            break;
-        g->cell *= 1.5;
-    }
-    size_t nc = (size_t)g->n[0] * g->n[1] * g->n[2];
-    g->start = calloc(nc + 1, sizeof(int));
-    int *cnt = NULL;
-    for (int pass = 0; pass < 2; pass++) {
-        for (int f = 0; f < nf; f++) {
-            int b0[3], b1[3];
-            for (int d = 0; d < 3; d++) {
-                double mn = INFINITY, mx = -INFINITY;
-                for (int k = 0; k < 3; k++) {
-                    double v = g->X[3 * (size_t)g->F[3 * f + k] + d];
-                    mn = fmin(mn, v);
-                    mx = fmax(mx, v);
-                }
-                b0[d] = clampi((int)((mn - g->lo[d]) / g->cell), 0, g->n[d] - 1);
-                b1[d] = clampi((int)((mx - g->lo[d]) / g->cell), 0, g->n[d] - 1);
-            }
-            for (int x = b0[0]; x <= b1[0]; x++)
-                for (int y = b0[1]; y <= b1[1]; y++)
-                    for (int z = b0[2]; z <= b1[2]; z++) {
-                        size_t c = ((size_t)x * g->n[1] + y) * g->n[2] + z;
-                        if (pass == 0)
-                            g->start[c + 1]++;
-                        else
-                            g->idx[cnt[c]++] = f;
-                    }
-        }
-        if (pass == 0) {
-            for (size_t c = 0; c < nc; c++)
-                g->start[c + 1] += g->start[c];
-            g->idx = malloc(sizeof(int) * (size_t)(g->start[nc] > 0 ? g->start[nc] : 1));
-            cnt = malloc(sizeof(int) * nc);
-            if (!g->idx || !cnt) {
-                fprintf(stderr, PROG ": out of memory (grid)\n");
-                exit(1);
-            }
-            memcpy(cnt, g->start, sizeof(int) * nc);
-        }
-    }
-    free(cnt);
-}
-
-static void grid_free(tri_grid *g)
-{
-    free(g->start);
-    free(g->idx);
-}
-
-/* |a + t e - p|^2 */
-static double along2(const double *a, const double *e, double t, const double *p)
-{
-    double q[3] = {a[0] + t * e[0] - p[0], a[1] + t * e[1] - p[1], a[2] + t * e[2] - p[2]};
-    return q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
-}
-
-/* Squared distance from p to triangle abc (Ericson, Real-Time Collision
- * Detection, 5.1.5: the closest point by Voronoi regions). */
-static double tri_dist2(const double *p, const double *a, const double *b, const double *c)
-{
-    double ab[3], ac[3], ap[3], q[3];
-    for (int d = 0; d < 3; d++) {
-        ab[d] = b[d] - a[d];
-        ac[d] = c[d] - a[d];
-        ap[d] = p[d] - a[d];
-    }
-#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
-    double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
-    if (d1 <= 0 && d2 <= 0)
-        return DOT(ap, ap);
-    double bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]};
-    double d3 = DOT(ab, bp), d4 = DOT(ac, bp);
-    if (d3 >= 0 && d4 <= d3)
-        return DOT(bp, bp);
-    double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0)
-        return along2(a, ab, d1 / (d1 - d3), p);
-    double cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
-    double d5 = DOT(ab, cp), d6 = DOT(ac, cp);
-    if (d6 >= 0 && d5 <= d6)
-        return DOT(cp, cp);
-    double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0)
-        return along2(a, ac, d2 / (d2 - d6), p);
-    double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-        double bc[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
-        return along2(b, bc, (d4 - d3) / ((d4 - d3) + (d5 - d6)), p);
-    }
-    double den = 1.0 / (va + vb + vc), v = vb * den, w = vc * den;
-    for (int d = 0; d < 3; d++)
-        q[d] = a[d] + ab[d] * v + ac[d] * w - p[d];
-    return DOT(q, q);
-#undef DOT
-}
-
-/* Squared distance from p to the nearest triangle of g: shells of cells
- * around p's cell until the shell lies farther than the best so far. */
-static double grid_dist2(const tri_grid *g, const double *p)
-{
-    int c0[3];
-    double margin = INFINITY; /* p's distance to its own cell's nearest face */
-    for (int d = 0; d < 3; d++) {
-        double u = (p[d] - g->lo[d]) / g->cell;
-        c0[d] = clampi((int)floor(u), 0, g->n[d] - 1);
-        double fr = u - c0[d];
-        margin = fmin(margin, fr < 0 || fr > 1 ? 0.0 : fmin(fr, 1.0 - fr));
-    }
-    double best = INFINITY;
-    int rmax = g->n[0] + g->n[1] + g->n[2];
-    for (int r = 0; r <= rmax; r++) {
-        /* every cell of shell r lies at least (r - 1 + margin) cells from p */
-        double near = (r - 1 + margin) * g->cell;
-        if (r > 0 && near > 0 && near * near >= best)
-            break;
-        for (int x = c0[0] - r; x <= c0[0] + r; x++)
-            for (int y = c0[1] - r; y <= c0[1] + r; y++)
-                for (int z = c0[2] - r; z <= c0[2] + r; z++) {
-                    int dx = abs(x - c0[0]), dy = abs(y - c0[1]), dz = abs(z - c0[2]);
-                    int cheb = dx > dy ? (dx > dz ? dx : dz) : (dy > dz ? dy : dz);
-                    if (cheb != r || x < 0 || y < 0 || z < 0 || x >= g->n[0] || y >= g->n[1] || z >= g->n[2])
-                        continue;
-                    size_t c = ((size_t)x * g->n[1] + y) * g->n[2] + z;
-                    for (int k = g->start[c]; k < g->start[c + 1]; k++) {
-                        const int32_t *t = g->F + 3 * (size_t)g->idx[k];
-                        double d2 = tri_dist2(p, g->X + 3 * (size_t)t[0], g->X + 3 * (size_t)t[1],
-                                              g->X + 3 * (size_t)t[2]);
-                        if (d2 < best)
-                            best = d2;
-                    }
-                }
-    }
-    return best;
-}
-
-/* Area-weighted mean squared distance from the samples of m (vertices,
- * weight area/6 per face corner, and face centroids, area/2) to g's
- * surface. */
-static double sampled_ms(const mcf_mesh *m, const tri_grid *g)
-{
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    int nf = mcf_mesh_nfaces(m), nv = mcf_mesh_nvertices(m);
-    double *w = calloc((size_t)nv, sizeof(double)), s = 0.0, ws = 0.0;
-    for (int f = 0; f < nf; f++) {
-        const double *a = X + 3 * (size_t)F[3 * f], *b = X + 3 * (size_t)F[3 * f + 1], *c = X + 3 * (size_t)F[3 * f + 2];
-        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-        double A = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        double p[3] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3};
-        s += 0.5 * A * grid_dist2(g, p);
-        ws += 0.5 * A;
-        for (int k = 0; k < 3; k++)
-            w[F[3 * f + k]] += A / 6;
-    }
-    for (int i = 0; i < nv; i++)
-        if (w[i] > 0) {
-            s += w[i] * grid_dist2(g, X + 3 * (size_t)i);
-            ws += w[i];
-        }
-    free(w);
-    return ws > 0 ? s / ws : 0.0;
-}
-
-/* The symmetric RMS surface distance between m and the clean mesh (whose
- * grid is given). */
-static double surface_error(const mcf_mesh *m, const mcf_mesh *clean, const tri_grid *gclean)
-{
-    tri_grid gm;
-    grid_build(&gm, m);
-    double a = sampled_ms(m, gclean), b = sampled_ms(clean, &gm);
-    grid_free(&gm);
-    return sqrt(0.5 * (a + b));
+    mcf_mesh *m = qn_make(clean, k, rho, seed, outliers, &e);
+    if (!m)
+        die(qn_name(k), &e);
+    return m;
 }
 
 /* ------------------------------------------------------------ cases */
 
 typedef struct {
     const mcf_mesh *clean, *noisy;
-    const tri_grid *gclean;
+    const qg_grid *gclean;
     double e0, s0;       /* the noisy input's vertex and surface errors */
-    int fold0, fold0_off;
-    const unsigned char *crease;
+    const unsigned char *crease, *movable;
+    int fold0_off;
     double ref_size;     /* clean volume (closed) or area (open) */
     int closed;
     double h;            /* noisy mean edge / sqrt(noisy area): the t/h^2 unit */
 } case_ctx;
 
-/* Fills r's error metrics for result m (a smoothed copy of c->noisy). */
-static void measure(const case_ctx *c, const mcf_mesh *m, result *r)
+/* --surface: the surface error of every method (else of `default` only:
+ * it costs about as much as a method's run on the large scans). */
+static int g_surface_all;
+
+/* Fills r's error metrics for result m (a smoothed copy of c->noisy); the
+ * surface error when surface (else NaN). */
+static void measure(const case_ctx *c, const mcf_mesh *m, result *r, int surface)
 {
     mcf_compare_result a;
     mcf_error e = {0};
     if (mcf_compare(m, c->clean, &a, &e) != MCF_OK)
         die("mcf_compare", &e);
     r->ratio = a.rms_m / c->e0;
-    r->sratio = surface_error(m, c->clean, c->gclean) / c->s0;
-    r->folds = a.inverted_faces - c->fold0;
-    r->folds_off = inverted_off_crease(m, c->clean, c->crease) - c->fold0_off;
+    r->sratio = surface ? qg_surface_error(m, c->clean, c->gclean) / c->s0 : NAN;
+    r->flips = qg_flips(m, c->clean);
+    r->folds_off = qg_inverted_off_crease(m, c->clean, c->crease) - c->fold0_off;
     double s = c->closed ? mcf_mesh_volume(m) : mcf_mesh_area(m);
     r->drift = (s - c->ref_size) / fabs(c->ref_size);
 }
@@ -516,8 +205,8 @@ static void measure(const case_ctx *c, const mcf_mesh *m, result *r)
 static void failed(result *r, const char *what, const char *msg)
 {
     r->ok = 0;
-    r->ratio = r->sratio = r->drift = NAN;
-    r->folds = r->folds_off = -1;
+    r->ratio = r->sratio = r->drift = INFINITY;
+    r->flips = r->folds_off = -1;
     snprintf(r->note, sizeof r->note, "%s: %s", what, msg);
     for (char *q = r->note; *q; q++)
         if (*q == '"' || *q == '\n')
@@ -553,7 +242,8 @@ static void run_request(const case_ctx *c, const method *md, result *r, mcf_mesh
     r->ok = 1;
     const mcf_scheme_info *si = mcf_scheme_get(p.flow.scheme);
     r->param = p.flow.scheme == MCF_TAUBIN || (si && si->order == 0) ? st.steps : st.t_final / (c->h * c->h);
-    measure(c, m, r);
+    r->reading = st.noise > 0 ? st.noise : NAN;
+    measure(c, m, r, md->kind == K_DEFAULT || g_surface_all);
 done:
     mcf_flow_stats_free(&st);
     api_params_free(&p);
@@ -604,9 +294,39 @@ static void run_taubin_best(const case_ctx *c, result *best, mcf_mesh **out)
         failed(best, "taubin_best", e.msg);
     else {
         best->ok = 1;
-        measure(c, m, best);
+        measure(c, m, best, g_surface_all);
     }
     if (out && best->ok)
+        *out = m;
+    else
+        mcf_mesh_free(m);
+}
+
+/* Bilateral normal filtering at its best grid point; the CPU time is that
+ * of one run at those parameters (not the search's). */
+static void run_bnf_best(const case_ctx *c, result *r, mcf_mesh **out)
+{
+    bnf_params bp;
+    mcf_mesh *m = NULL;
+    if (bnf_oracle(c->noisy, c->clean, c->movable, &bp, NULL) != 0) {
+        failed(r, "bnf_best", "out of memory");
+        return;
+    }
+    m = bench_dup_mesh(PROG, c->noisy);
+    double c0 = cpu_now(), w0 = mcf_now();
+    if (bnf_filter(m, c->movable, &bp) != 0) {
+        mcf_mesh_free(m);
+        failed(r, "bnf_best", "out of memory");
+        return;
+    }
+    r->cpu = cpu_now() - c0;
+    r->wall = mcf_now() - w0;
+    r->ok = 1;
+    r->param = bp.normal_iters;
+    snprintf(r->note, sizeof r->note, "sigma_r %g, %d normal, %d vertex iterations", bp.sigma_r, bp.normal_iters,
+             bp.vertex_iters);
+    measure(c, m, r, g_surface_all);
+    if (out)
         *out = m;
     else
         mcf_mesh_free(m);
@@ -719,145 +439,60 @@ static void run_o3d(const case_ctx *c, result r[2], mcf_mesh *out[2])
         r[k].ok = 1;
         r[k].cpu = r[k].wall = cpu[k];
         r[k].param = k ? passes : 1;
-        measure(c, m[k], &r[k]);
+        measure(c, m[k], &r[k], g_surface_all);
         if (out)
             out[k] = m[k];
         else
             mcf_mesh_free(m[k]);
     }
 }
-/* ------------------------------------------------------------ figure */
+/* ------------------------------------------------------------ renders */
 
-/* Writes the triangles of m (those whose centroid passes the crop box,
- * when crop) as gnuplot polygon blocks with a Lambert grey per face from a
- * fixed light, in the view frame given by the rotation R (3x3 row-major). */
-static void write_tris(const char *dir, const char *name, const mcf_mesh *m, const double R[9],
-                       const double *crop)
+/* Renders the meshes ms (same connectivity; ms[0] the clean one) side by
+ * side into out/stem.png with render_quality.py: each written as a raw
+ * mesh (write_raw) into the scratch folder, removed afterwards. */
+static void render(const char *script, const char *out, const char *stem, const char *title,
+                   const mcf_mesh *const ms[], const char *const labels[], int n)
 {
-    FILE *f = bench_open_out(dir, name);
-    const double *X = mcf_mesh_positions(m);
-    const int32_t *F = mcf_mesh_faces(m);
-    int nf = mcf_mesh_nfaces(m);
-    const double L[3] = {0.35, 0.45, 0.82}; /* view frame: toward the viewer, up-right */
-    fprintf(f, "# %s: one triangle per block, x y z rgb (view frame)\n", name);
-    for (int t = 0; t < nf; t++) {
-        double P[3][3];
-        for (int k = 0; k < 3; k++) {
-            const double *x = X + 3 * (size_t)F[3 * t + k];
-            for (int r = 0; r < 3; r++)
-                P[k][r] = R[3 * r] * x[0] + R[3 * r + 1] * x[1] + R[3 * r + 2] * x[2];
-        }
-        if (crop) {
-            double cx = (P[0][0] + P[1][0] + P[2][0]) / 3, cy = (P[0][1] + P[1][1] + P[2][1]) / 3;
-            if (cx < crop[0] || cx > crop[1] || cy < crop[2] || cy > crop[3])
-                continue;
-        }
-        double u[3], v[3], n[3];
-        for (int r = 0; r < 3; r++) {
-            u[r] = P[1][r] - P[0][r];
-            v[r] = P[2][r] - P[0][r];
-        }
-        n[0] = u[1] * v[2] - u[2] * v[1];
-        n[1] = u[2] * v[0] - u[0] * v[2];
-        n[2] = u[0] * v[1] - u[1] * v[0];
-        double nn = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (nn == 0)
-            continue;
-        double lam = (n[0] * L[0] + n[1] * L[1] + n[2] * L[2]) / nn;
-        /* two-sided, a little ambient so back faces are not black */
-        double g = 0.12 + 0.88 * fabs(lam);
-        if (n[2] < 0)
-            g *= 0.75; /* back-facing: darker */
-        int gi = (int)(255 * g);
-        int rgb = (gi * 235 / 255) << 16 | (gi * 225 / 255) << 8 | (gi * 205 / 255);
-        for (int k = 0; k < 3; k++)
-            fprintf(f, "%.6g %.6g %.6g %d\n", P[k][0], P[k][1], P[k][2], rgb);
-        fprintf(f, "\n");
+    char paths[8][300], args[8][600], png[4096], scr[1024], ttl[256], py[] = "python3", o[] = "--out",
+        t[] = "--title";
+    char *argv[24];
+    int a = 0;
+    snprintf(scr, sizeof scr, "%s", script);
+    snprintf(ttl, sizeof ttl, "%s", title);
+    argv[a++] = py;
+    argv[a++] = scr;
+    snprintf(png, sizeof png, "%s/%s.png", out, stem);
+    argv[a++] = o;
+    argv[a++] = png;
+    argv[a++] = t;
+    argv[a++] = ttl;
+    for (int i = 0; i < n && i < 8; i++) {
+        snprintf(paths[i], sizeof paths[i], "%s/render-%d.bin", g_tmp, i);
+        write_raw(paths[i], ms[i]);
+        snprintf(args[i], sizeof args[i], "%.290s=%.200s", paths[i], labels[i]);
+        argv[a++] = args[i];
     }
-    fclose(f);
-}
-
-typedef struct {
-    const char *mesh;
-    double rho;
-    int seed;
-    double view_rot_y; /* degrees about the vertical axis */
-    double crop[4];    /* fraction of the bounding box in the view frame: x0 x1 y0 y1 */
-} figure_spec;
-
-/* A view rotation: about x by ax degrees (y up -> the mesh's up axis),
- * then about the vertical axis by ay degrees. */
-static void view_matrix(double ax, double ay, double R[9])
-{
-    const double deg = 3.14159265358979323846 / 180;
-    double a = ax * deg, b = ay * deg;
-    double Rx[9] = {1, 0, 0, 0, cos(a), -sin(a), 0, sin(a), cos(a)};
-    double Ry[9] = {cos(b), 0, sin(b), 0, 1, 0, -sin(b), 0, cos(b)};
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            double s = 0;
-            for (int k = 0; k < 3; k++)
-                s += Ry[3 * i + k] * Rx[3 * k + j];
-            R[3 * i + j] = s;
-        }
-}
-
-static void figure(const char *out, const char *stem, const figure_spec *fs,
-                   const mcf_mesh *const ms[], const char *const titles[], int n)
-{
-    double R[9], lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY}, crop[4];
-    view_matrix(0, fs->view_rot_y, R);
-    const double *X = mcf_mesh_positions(ms[0]);
-    for (int i = 0; i < mcf_mesh_nvertices(ms[0]); i++)
-        for (int r = 0; r < 2; r++) {
-            double y = R[3 * r] * X[3 * i] + R[3 * r + 1] * X[3 * i + 1] + R[3 * r + 2] * X[3 * i + 2];
-            lo[r] = y < lo[r] ? y : lo[r];
-            hi[r] = y > hi[r] ? y : hi[r];
-        }
-    crop[0] = lo[0] + fs->crop[0] * (hi[0] - lo[0]);
-    crop[1] = lo[0] + fs->crop[1] * (hi[0] - lo[0]);
-    crop[2] = lo[1] + fs->crop[2] * (hi[1] - lo[1]);
-    crop[3] = lo[1] + fs->crop[3] * (hi[1] - lo[1]);
-    char gp[256], png[256];
-    int rows = n > 3 ? 2 : 1, cols = (n + rows - 1) / rows;
-    double aspect = (crop[3] - crop[2]) / (crop[1] - crop[0]);
-    snprintf(gp, sizeof gp, "%s.gp", stem);
-    snprintf(png, sizeof png, "%s.png", stem);
-    FILE *g = bench_open_out(out, gp);
-    fprintf(g, "# SPDX-License-Identifier: MIT\n# bench_quality: clean / noisy / smoothed renders of %s at noise %g (seed %d)\n"
-               "# run in this folder: gnuplot %s (needs the render-*.dat files bench_quality\n"
-               "# writes and removes; rerun bench_quality to regenerate)\n"
-               "set terminal pngcairo size %d,%d font 'sans,11'\n"
-               "set output '%s'\n"
-               "set multiplot layout %d,%d title '%s, noise %g mean edges (seed %d): clean, noisy, smoothed "
-               "(error / noisy error)' noenhanced\n"
-               "set view 0,0,1.4\nset view equal xy\nset size ratio -1\nunset border\nunset tics\nunset key\nunset colorbox\n"
-               "set xrange [%.9g:%.9g]\nset yrange [%.9g:%.9g]\n"
-               "set pm3d depthorder lighting primary 0.45 specular 0.15 spec2 0.25\n"
-               "set style fill solid noborder\n",
-            fs->mesh, fs->rho, fs->seed, gp, 420 * cols, (int)(rows * (420 * aspect + 40) + 40), png,
-            rows, cols, fs->mesh, fs->rho, fs->seed, crop[0], crop[1], crop[2], crop[3]);
-    for (int i = 0; i < n; i++) {
-        char name[64];
-        snprintf(name, sizeof name, "render-%d.dat", i);
-        write_tris(out, name, ms[i], R, crop);
-        fprintf(g, "set title '%s' noenhanced\nsplot '%s' using 1:2:3 with polygons fc rgb '#e0d4bc'\n",
-                titles[i], name);
+    argv[a] = NULL;
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid == 0) {
+        setenv("OMP_NUM_THREADS", "1", 1);
+        execv("/usr/bin/python3", argv);
+        _exit(127);
     }
-    fprintf(g, "unset multiplot\n");
-    fclose(g);
-    if (lab_gnuplot(out, gp) == 0)
-        printf("figure: %s/%s\n", out, png);
+    int st = -1;
+    if (pid > 0)
+        waitpid(pid, &st, 0);
+    if (pid > 0 && WIFEXITED(st) && WEXITSTATUS(st) == 0)
+        printf("render: %s\n", png);
     else
-        printf("figure: gnuplot failed or is missing (%s/%s written)\n", out, gp);
-    for (int i = 0; i < n; i++) {
-        char path[4096];
-        snprintf(path, sizeof path, "%s/render-%d.dat", out, i);
-        remove(path);
-    }
+        printf("render: %s failed (python3-matplotlib missing?)\n", png);
+    for (int i = 0; i < n && i < 8; i++)
+        remove(paths[i]);
 }
 
-/* ------------------------------------------------------------ main */
+/* ------------------------------------------------------------ tables */
 
 static void split(char *s, char **out, int max, int *n)
 {
@@ -869,140 +504,481 @@ static void split(char *s, char **out, int max, int *n)
 static void usage(void)
 {
     fprintf(stderr,
-            "usage: bench_quality [--meshes DIR] [--out DIR] [--list a.obj,b.drc,...] [--noise 0.1,0.25,0.5]\n"
-            "                     [--kinds normal,iso] [--seeds N] [--methods NAME,...] [--o3d SCRIPT]\n"
-            "                     [--no-figure]\n"
-            "  methods: default, auto:SCHEME, fixed, taubin_best, o3d_default, o3d_best (default: all)\n");
+            "usage: bench_quality [--meshes DIR] [--out DIR] [--list a.obj,b.drc,...] [--cad a.obj,...]\n"
+            "                     [--models normal,iso,view,corr,out,quant,clean] [--rho 0.1,0.25,0.5]\n"
+            "                     [--seeds N] [--methods NAME,...] [--baseline quality.csv] [--o3d SCRIPT]\n"
+            "                     [--render-script SCRIPT] [--render MESH:MODEL:RHO[:SEED]]... [--no-figure]\n"
+            "                     [--surface] [--tables-from a.csv,b.csv]\n"
+            "  methods: default, auto:SCHEME, fixed, taubin_best, o3d_default, o3d_best, bnf_best\n"
+            "  (default: default,taubin_best,o3d_default,o3d_best,bnf_best); --kinds and --noise are\n"
+            "  the old names of --models and --rho. --surface: every method's surface error (default's\n"
+            "  only without). --tables-from: the tables and renders of earlier runs' quality.csv files\n"
+            "  (e.g. a matrix split over two processes), no run.\n");
     exit(2);
 }
 
-static const char *const kind_names[2] = {"normal", "iso"};
-
-/* results[mesh][kind][noise][seed][method] */
+/* The run's cases and results: g_res[case * g_nmeth + method]. */
+static qcase *g_case;
 static result *g_res;
-static int g_nk, g_nr, g_ns, g_nmeth;
-static result *R(int m, int k, int j, int s, int q)
+static int g_ncase, g_nmeth;
+static int g_cad[MAXMESH]; /* 1: the mesh is a CAD part */
+static result *RES(int c, int q)
 {
-    return &g_res[((((size_t)m * g_nk + k) * g_nr + j) * g_ns + s) * g_nmeth + q];
+    return &g_res[(size_t)c * g_nmeth + q];
 }
 
-/* Per method over the cases of kind k (-1: all): median and worst of the
- * ratio of its error (surface error when surf) against method `peer`'s
- * in the same case. */
-static void versus(int nm, int k, int q, int peer, int surf, double *med, double *worst)
+/* Does case c match: model k, rho index j (-1: any; rho[j]), class cls
+ * (-1: any, 0 organic, 1 CAD)? */
+static int match(int c, qn_model k, double rho, int cls)
 {
-    double *v = malloc(sizeof(double) * (size_t)(nm * g_nk * g_nr * g_ns) + 1);
+    const qcase *x = &g_case[c];
+    return x->model == k && (isnan(rho) || x->rho == rho) && (cls < 0 || g_cad[x->mesh] == cls);
+}
+
+/* Median and worst over the matching cases of method q's vertex error
+ * against the input (peer INPUT) or against method peer's (none, NaN,
+ * when peer is another negative: a method not in the run); n: cases. */
+#define INPUT (-100)
+static int versus(qn_model k, double rho, int cls, int q, int peer, double *med, double *worst)
+{
+    double *v = malloc(sizeof(double) * (size_t)g_ncase + 1);
     int n = 0;
-    for (int m = 0; m < nm; m++)
-        for (int kk = 0; kk < g_nk; kk++)
-            for (int j = 0; j < g_nr; j++)
-                for (int s = 0; s < g_ns; s++) {
-                    if (k >= 0 && kk != k)
-                        continue;
-                    const result *a = R(m, kk, j, s, q), *b = peer >= 0 ? R(m, kk, j, s, peer) : NULL;
-                    double x = surf ? a->sratio : a->ratio, y = !b ? 1.0 : surf ? b->sratio : b->ratio;
-                    v[n++] = !a->ok ? INFINITY : b && !b->ok ? NAN : x / y;
-                }
+    for (int c = 0; c < g_ncase; c++) {
+        if (!match(c, k, rho, cls) || q < 0 || (peer < 0 && peer != INPUT))
+            continue;
+        const result *a = RES(c, q), *b = peer >= 0 ? RES(c, peer) : NULL;
+        if (a->skipped || (b && (b->skipped || !b->ok)))
+            continue;
+        v[n++] = !a->ok ? INFINITY : a->ratio / (b ? b->ratio : 1.0);
+    }
     *med = median_max(v, n, worst);
     free(v);
+    return n;
 }
+
+/* "0.412 (0.73)", or "-" */
+static const char *mw(char *b, size_t len, double med, double worst)
+{
+    if (isnan(med))
+        snprintf(b, len, "-");
+    else if (fabs(med) < 0.01 && fabs(worst) < 0.01) /* the clean meshes: small */
+        snprintf(b, len, "%.2g (%.2g)", med, worst);
+    else
+        snprintf(b, len, "%.3f (%.2f)", med, worst);
+    return b;
+}
+
+/* Flips over the matching cases: the input's sum, method q's, and how
+ * many cases q leaves with more than its input. */
+static void flips(qn_model k, double rho, int cls, int q, long *in, long *out, int *up)
+{
+    *in = *out = *up = 0;
+    for (int c = 0; c < g_ncase; c++) {
+        if (q < 0 || !match(c, k, rho, cls) || RES(c, q)->skipped || !RES(c, q)->ok)
+            continue;
+        *in += g_case[c].flips0;
+        *out += RES(c, q)->flips;
+        *up += RES(c, q)->flips > g_case[c].flips0;
+    }
+}
+
+/* Median (and worst) of the default's reading / rho, and of its CPU time
+ * against the baseline's. */
+static void reading_cpu(qn_model k, double rho, int cls, int q, double r[2], double cpu[2])
+{
+    double *a = malloc(sizeof(double) * (size_t)g_ncase + 1), *b = malloc(sizeof(double) * (size_t)g_ncase + 1);
+    int na = 0, nb = 0;
+    for (int c = 0; c < g_ncase; c++) {
+        if (q < 0 || !match(c, k, rho, cls) || !RES(c, q)->ok)
+            continue;
+        if (g_case[c].rho > 0 && !isnan(RES(c, q)->reading))
+            a[na++] = RES(c, q)->reading / g_case[c].rho;
+        if (RES(c, q)->base_cpu > 0)
+            b[nb++] = RES(c, q)->cpu / RES(c, q)->base_cpu;
+    }
+    r[0] = median_max(a, na, &r[1]);
+    cpu[0] = median_max(b, nb, &cpu[1]);
+    free(a);
+    free(b);
+}
+
+/* ------------------------------------------------------------ baseline */
+
+typedef struct {
+    char key[160];
+    double cpu;
+} base_row;
+static base_row *g_base;
+static int g_nbase;
+
+static void case_key(char *k, size_t len, const char *mesh, const char *model, double rho, int seed)
+{
+    snprintf(k, len, "%s|%s|%g|%d", mesh, model, rho, seed);
+}
+
+/* The default's CPU time per case from an earlier quality.csv (columns
+ * mesh, model, rho, seed, method, cpu_s). */
+static void load_baseline(const char *path)
+{
+    char *buf;
+    size_t len;
+    if (bench_read_file(path, &buf, &len) != 0) {
+        printf("baseline: cannot read %s: no CPU ratios\n", path);
+        return;
+    }
+    int col[6] = {-1, -1, -1, -1, -1, -1}, nline = 0;
+    static const char *const want[6] = {"mesh", "model", "rho", "seed", "method", "cpu_s"};
+    for (char *line = buf, *next; line && *line; line = next, nline++) {
+        next = strchr(line, '\n');
+        if (next)
+            *next++ = 0;
+        char *f[32];
+        int nf = 0;
+        for (char *t = line; nf < 32;) {
+            f[nf++] = t;
+            char *cm = strchr(t, ',');
+            if (!cm)
+                break;
+            *cm = 0;
+            t = cm + 1;
+        }
+        if (nline == 0) {
+            for (int i = 0; i < nf; i++)
+                for (int w = 0; w < 6; w++)
+                    if (!strcmp(f[i], want[w]))
+                        col[w] = i;
+            for (int w = 0; w < 6; w++)
+                if (col[w] < 0) {
+                    printf("baseline: %s has no column %s: no CPU ratios\n", path, want[w]);
+                    free(buf);
+                    return;
+                }
+            continue;
+        }
+        int mx = 0;
+        for (int w = 0; w < 6; w++)
+            mx = col[w] > mx ? col[w] : mx;
+        if (nf <= mx || strcmp(f[col[4]], "default"))
+            continue;
+        base_row *nb = realloc(g_base, sizeof *g_base * (size_t)(g_nbase + 1));
+        if (!nb)
+            die("baseline", NULL);
+        g_base = nb;
+        case_key(g_base[g_nbase].key, sizeof g_base[0].key, f[col[0]], f[col[1]], atof(f[col[2]]), atoi(f[col[3]]));
+        g_base[g_nbase++].cpu = atof(f[col[5]]);
+    }
+    free(buf);
+    printf("baseline: %d default runs from %s\n", g_nbase, path);
+}
+
+static double base_cpu(const char *mesh, qn_model k, double rho, int seed)
+{
+    char key[160];
+    case_key(key, sizeof key, mesh, qn_name(k), rho, seed);
+    for (int i = 0; i < g_nbase; i++)
+        if (!strcmp(g_base[i].key, key))
+            return g_base[i].cpu;
+    return NAN;
+}
+
+
+/* ------------------------------------------------------------ --tables-from */
+
+/* Splits one CSV line in place into at most max fields (a field that
+ * starts with a double quote runs to the next one, commas included);
+ * returns the count. */
+static int csv_fields(char *line, char **f, int max)
+{
+    int n = 0;
+    char *p = line;
+    while (n < max) {
+        if (*p == '"') {
+            f[n++] = ++p;
+            char *q = strchr(p, '"');
+            if (!q)
+                break;
+            *q = 0;
+            p = q + 1;
+        } else {
+            f[n++] = p;
+            p += strcspn(p, ",");
+        }
+        if (*p != ',')
+            break;
+        *p++ = 0;
+    }
+    return n;
+}
+
+/* The cases and results of earlier runs' quality.csv files (comma-
+ * separated paths), in place of a run: meshes, models, levels, seeds and
+ * methods as those files have them (methods in the order of `all`). The
+ * file buffers stay allocated: names point into them. */
+static void load_tables(char *files, const method *all, int nall, method *meth, int *nmeth, char **names, int *nm,
+                        qn_model *models, int *nk, double *rho, char **ntext, int *nr, int *ns)
+{
+    static char rho_text[MAXNOISE][24];
+    static const char *const want[] = {"mesh", "class", "model", "rho", "seed", "e0", "s0", "flips0", "outliers",
+                                       "method", "param", "ok", "skipped", "ratio", "surface_ratio", "flips",
+                                       "new_flips_off_crease", "drift", "reading", "cpu_s", "wall_s",
+                                       "base_cpu_s", "cost_s", "note"};
+    enum { NW = sizeof want / sizeof want[0] };
+    int have_model[QN_COUNT] = {0}, have_method[MAXMETHOD] = {0}, nrho = 0;
+    double rhos[MAXNOISE];
+    *nm = *ns = 0;
+    for (char *path = strtok(files, ","); path; path = strtok(NULL, ",")) {
+        char *buf;
+        size_t len;
+        if (bench_read_file(path, &buf, &len) != 0) {
+            fprintf(stderr, PROG ": cannot read %s: %s\n", path, strerror(errno));
+            exit(1);
+        }
+        int col[NW], nline = 0;
+        char *save = NULL;
+        for (char *line = strtok_r(buf, "\n", &save); line; line = strtok_r(NULL, "\n", &save), nline++) {
+            char *f[40];
+            int nf = csv_fields(line, f, 40);
+            if (nline == 0) {
+                for (int w = 0; w < NW; w++) {
+                    col[w] = -1;
+                    for (int i = 0; i < nf; i++)
+                        if (!strcmp(f[i], want[w]))
+                            col[w] = i;
+                    if (col[w] < 0) {
+                        fprintf(stderr, PROG ": %s has no column %s\n", path, want[w]);
+                        exit(1);
+                    }
+                }
+                continue;
+            }
+            if (nf < NW)
+                continue;
+#define F(w) f[col[w]]
+            int mesh = -1, q = -1, k = qn_parse(F(2)), seed = atoi(F(4));
+            double r = atof(F(3));
+            for (int m = 0; m < *nm; m++)
+                if (!strcmp(names[m], F(0)))
+                    mesh = m;
+            if (mesh < 0 && *nm < MAXMESH) {
+                mesh = (*nm)++;
+                names[mesh] = F(0);
+                g_cad[mesh] = !strcmp(F(1), "CAD");
+            }
+            for (int a = 0; a < nall; a++)
+                if (!strcmp(all[a].name, F(9)))
+                    q = a;
+            if (mesh < 0 || q < 0 || k < 0 || seed < 1 || seed > MAXSEED) {
+                fprintf(stderr, PROG ": %s line %d: unknown mesh, method or model, or bad seed\n", path, nline + 1);
+                exit(1);
+            }
+            have_model[k] = 1;
+            have_method[q] = 1;
+            *ns = seed > *ns ? seed : *ns;
+            int known = 0;
+            for (int j = 0; j < nrho; j++)
+                known |= rhos[j] == r;
+            if (!known && r > 0 && nrho < MAXNOISE)
+                rhos[nrho++] = r;
+            int c = -1;
+            for (int i = 0; i < g_ncase; i++)
+                if (g_case[i].mesh == mesh && g_case[i].model == (qn_model)k && g_case[i].rho == r &&
+                    g_case[i].seed == seed)
+                    c = i;
+            if (c < 0) {
+                c = g_ncase++;
+                g_case[c] = (qcase){mesh, (qn_model)k, r, seed, atof(F(5)), atof(F(6)), atoi(F(7)), atoi(F(8))};
+            }
+            result *x = RES(c, q); /* the stride is MAXMETHOD here: q indexes `all` for now */
+            x->param = atof(F(10));
+            x->ok = atoi(F(11));
+            x->skipped = atoi(F(12));
+            x->ratio = strtod(F(13), NULL);
+            x->sratio = strtod(F(14), NULL);
+            x->flips = atoi(F(15));
+            x->folds_off = atoi(F(16));
+            x->drift = strtod(F(17), NULL);
+            x->reading = strtod(F(18), NULL);
+            x->cpu = atof(F(19));
+            x->wall = atof(F(20));
+            x->base_cpu = strtod(F(21), NULL);
+            x->cost = atof(F(22));
+            snprintf(x->note, sizeof x->note, "%s", F(23));
+#undef F
+        }
+    }
+    /* the methods in `all`'s order; results moved from `all`'s index to the new one */
+    *nmeth = 0;
+    for (int a = 0; a < nall; a++)
+        if (have_method[a]) {
+            for (int c = 0; c < g_ncase; c++)
+                *RES(c, *nmeth) = *RES(c, a);
+            meth[(*nmeth)++] = all[a];
+        }
+    *nk = 0;
+    for (int k = 0; k < QN_COUNT; k++)
+        if (have_model[k])
+            models[(*nk)++] = (qn_model)k;
+    qsort(rhos, (size_t)nrho, sizeof *rhos, cmp_d);
+    for (int j = 0; j < nrho; j++) {
+        rho[j] = rhos[j];
+        snprintf(rho_text[j], sizeof rho_text[j], "%g", rhos[j]);
+        ntext[j] = rho_text[j];
+    }
+    *nr = nrho;
+    printf("tables from %d cases, %d meshes, %d methods\n", g_ncase, *nm, *nmeth);
+}
+
+/* ------------------------------------------------------------ main */
 
 int main(int argc, char **argv)
 {
     const char *meshes = "../shared/meshes", *out = "lab/results/quality", *o3d_script = "o3d_taubin.py";
+    const char *render_script = "render_quality.py", *baseline = NULL;
+    char *from = NULL;
     char list_buf[1024] = "sphere_cgal.obj,bunny_npm_closed.obj,spot.obj,knot1.obj,fertility.obj,"
-                          "stanford-bunny.obj,bunny.drc,armadillo.obj,snowden.obj,dragon_vrip_res2.obj";
-    char noise_buf[256] = "0.1,0.25,0.5", kinds_buf[64] = "normal,iso", methods_buf[512] = "";
-    int do_figure = 1;
+                          "stanford-bunny.obj,bunny.drc,armadillo.obj,snowden.obj,dragon_vrip_res2.obj,"
+                          "car.drc,couplingdown_sub2.obj,blade.obj";
+    char cad_buf[1024] = "car.drc,couplingdown_sub2.obj,blade.obj";
+    char noise_buf[256] = "0.1,0.25,0.5", models_buf[128] = "normal,iso,view,corr,out,quant,clean";
+    char methods_buf[512] = "default,taubin_best,o3d_default,o3d_best,bnf_best";
+    char *render_spec[MAXRENDER];
+    int nrender = 0, do_figure = 1, ns = 1;
     double t_start = mcf_now();
-    g_ns = 3;
     for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        const char *a = argv[i];
+        char *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--meshes") && v)
             meshes = v, i++;
         else if (!strcmp(a, "--out") && v)
             out = v, i++;
         else if (!strcmp(a, "--list") && v)
             snprintf(list_buf, sizeof list_buf, "%s", v), i++;
-        else if (!strcmp(a, "--noise") && v)
+        else if (!strcmp(a, "--cad") && v)
+            snprintf(cad_buf, sizeof cad_buf, "%s", v), i++;
+        else if ((!strcmp(a, "--rho") || !strcmp(a, "--noise")) && v)
             snprintf(noise_buf, sizeof noise_buf, "%s", v), i++;
-        else if (!strcmp(a, "--kinds") && v)
-            snprintf(kinds_buf, sizeof kinds_buf, "%s", v), i++;
+        else if ((!strcmp(a, "--models") || !strcmp(a, "--kinds")) && v)
+            snprintf(models_buf, sizeof models_buf, "%s", v), i++;
         else if (!strcmp(a, "--methods") && v)
             snprintf(methods_buf, sizeof methods_buf, "%s", v), i++;
         else if (!strcmp(a, "--seeds") && v)
-            g_ns = atoi(v), i++;
+            ns = atoi(v), i++;
+        else if (!strcmp(a, "--baseline") && v)
+            baseline = v, i++;
         else if (!strcmp(a, "--o3d") && v)
             o3d_script = v, i++;
+        else if (!strcmp(a, "--render-script") && v)
+            render_script = v, i++;
+        else if (!strcmp(a, "--render") && v && nrender < MAXRENDER)
+            render_spec[nrender++] = v, i++;
+        else if (!strcmp(a, "--tables-from") && v)
+            from = v, i++;
         else if (!strcmp(a, "--no-figure"))
             do_figure = 0;
+        else if (!strcmp(a, "--surface"))
+            g_surface_all = 1;
         else
             usage();
     }
-    if (g_ns < 1 || g_ns > MAXSEED)
+    if (ns < 1 || ns > MAXSEED)
         usage();
 
-    /* the methods: every one, or those named */
-    method meth[MAXMETHOD];
-    int nmeth = 0;
-    meth[nmeth++] = (method){"default", K_DEFAULT, ""};
+    /* the methods: those named, in the order of this list */
+    method all[MAXMETHOD], meth[MAXMETHOD];
+    int nall = 0, nmeth = 0;
+    all[nall++] = (method){"default", K_DEFAULT, ""};
     static const char *const autos[] = {"desbrun2", "desbrun", "ros2", "richardson", "cmcf", "linear", "taubin"};
     for (int s = 0; s < MCF_NSCHEMES + 8; s++) {
         const mcf_scheme_info *si = mcf_scheme_get((mcf_scheme)s);
-        if (si && !strncmp(si->name, "fairing", 7) && nmeth < MAXMETHOD) {
-            meth[nmeth] = (method){"", K_AUTO, ""};
-            snprintf(meth[nmeth].name, sizeof meth[nmeth].name, "auto:%s", si->name);
-            snprintf(meth[nmeth++].scheme, sizeof meth[0].scheme, "%s", si->name);
+        if (si && !strncmp(si->name, "fairing", 7) && nall < MAXMETHOD - 12) {
+            all[nall] = (method){"", K_AUTO, ""};
+            snprintf(all[nall].name, sizeof all[nall].name, "auto:%s", si->name);
+            snprintf(all[nall++].scheme, sizeof all[0].scheme, "%s", si->name);
         }
     }
     for (size_t s = 0; s < sizeof autos / sizeof autos[0]; s++) {
-        meth[nmeth] = (method){"", K_AUTO, ""};
-        snprintf(meth[nmeth].name, sizeof meth[nmeth].name, "auto:%s", autos[s]);
-        snprintf(meth[nmeth++].scheme, sizeof meth[0].scheme, "%s", autos[s]);
+        all[nall] = (method){"", K_AUTO, ""};
+        snprintf(all[nall].name, sizeof all[nall].name, "auto:%s", autos[s]);
+        snprintf(all[nall++].scheme, sizeof all[0].scheme, "%s", autos[s]);
     }
-    meth[nmeth++] = (method){"fixed", K_FIXED, ""};
-    meth[nmeth++] = (method){"taubin_best", K_TAUBIN_BEST, ""};
-    meth[nmeth++] = (method){"o3d_default", K_O3D_DEFAULT, ""};
-    meth[nmeth++] = (method){"o3d_best", K_O3D_BEST, ""};
-    if (methods_buf[0]) {
+    all[nall++] = (method){"fixed", K_FIXED, ""};
+    all[nall++] = (method){"taubin_best", K_TAUBIN_BEST, ""};
+    all[nall++] = (method){"o3d_default", K_O3D_DEFAULT, ""};
+    all[nall++] = (method){"o3d_best", K_O3D_BEST, ""};
+    all[nall++] = (method){"bnf_best", K_BNF_BEST, ""};
+    {
         char *mt[MAXMETHOD];
-        int nmt, keep = 0;
+        int nmt;
         split(methods_buf, mt, MAXMETHOD, &nmt);
-        for (int q = 0; q < nmeth; q++)
-            for (int k = 0; k < nmt; k++)
-                if (!strcmp(mt[k], meth[q].name))
-                    meth[keep++] = meth[q];
-        nmeth = keep;
+        for (int k = 0; k < nmt; k++) {
+            int found = 0;
+            for (int q = 0; q < nall; q++)
+                if (!strcmp(mt[k], all[q].name)) {
+                    meth[nmeth++] = all[q];
+                    found = 1;
+                }
+            if (!found) {
+                fprintf(stderr, PROG ": unknown method %s\n", mt[k]);
+                usage();
+            }
+        }
     }
-    int q_default = -1, q_fixed = -1, q_tb = -1, q_od = -1, q_ob = -1;
+
+    char *names[MAXMESH], *ntext[MAXNOISE], *mtext[QN_COUNT], *cads[MAXMESH];
+    int nm, nr, nk, ncad;
+    qn_model models[QN_COUNT];
+    double rho[MAXNOISE];
+    char noise_given[sizeof noise_buf], models_given[sizeof models_buf], list_given[sizeof list_buf];
+    memcpy(noise_given, noise_buf, sizeof noise_buf);
+    memcpy(models_given, models_buf, sizeof models_buf);
+    memcpy(list_given, list_buf, sizeof list_buf);
+    split(list_buf, names, MAXMESH, &nm);
+    split(cad_buf, cads, MAXMESH, &ncad);
+    split(noise_buf, ntext, MAXNOISE, &nr);
+    split(models_buf, mtext, QN_COUNT, &nk);
+    for (int j = 0; j < nr; j++)
+        if (!((rho[j] = atof(ntext[j])) > 0))
+            usage();
+    for (int k = 0; k < nk; k++) {
+        int m = qn_parse(mtext[k]);
+        if (m < 0) {
+            fprintf(stderr, PROG ": unknown noise model %s\n", mtext[k]);
+            usage();
+        }
+        models[k] = (qn_model)m;
+    }
+    for (int m = 0; m < nm; m++) {
+        g_cad[m] = 0;
+        for (int c = 0; c < ncad; c++)
+            g_cad[m] |= !strcmp(names[m], cads[c]);
+    }
+
+    if (from) {
+        size_t mx = (size_t)MAXMESH * QN_COUNT * MAXNOISE * MAXSEED;
+        g_case = calloc(mx, sizeof *g_case);
+        g_res = calloc(mx * MAXMETHOD, sizeof(result));
+        if (!g_case || !g_res)
+            die("calloc", NULL);
+        g_nmeth = MAXMETHOD;
+        char files[4096]; /* load_tables cuts its copy up */
+        snprintf(files, sizeof files, "%s", from);
+        load_tables(files, all, nall, meth, &nmeth, names, &nm, models, &nk, rho, ntext, &nr, &ns);
+        snprintf(list_given, sizeof list_given, "of %.1000s", from);
+        snprintf(models_given, sizeof models_given, "(as in the files)");
+        snprintf(noise_given, sizeof noise_given, "(as in the files)");
+    }
+    int q_default = -1, q_tb = -1, q_od = -1, q_ob = -1, q_bnf = -1;
     for (int q = 0; q < nmeth; q++)
         switch (meth[q].kind) {
         case K_DEFAULT: q_default = q; break;
-        case K_FIXED: q_fixed = q; break;
         case K_TAUBIN_BEST: q_tb = q; break;
         case K_O3D_DEFAULT: q_od = q; break;
         case K_O3D_BEST: q_ob = q; break;
+        case K_BNF_BEST: q_bnf = q; break;
         default: break;
         }
-    g_nmeth = nmeth;
-
-    char *names[MAXMESH], *ntext[MAXNOISE], *ktext[2];
-    int nm, kinds[2];
-    double rho[MAXNOISE];
-    /* the lists as given, for quality.md (split cuts them up) */
-    char noise_given[sizeof noise_buf], kinds_given[sizeof kinds_buf];
-    memcpy(noise_given, noise_buf, sizeof noise_buf);
-    memcpy(kinds_given, kinds_buf, sizeof kinds_buf);
-    split(list_buf, names, MAXMESH, &nm);
-    split(noise_buf, ntext, MAXNOISE, &g_nr);
-    split(kinds_buf, ktext, 2, &g_nk);
-    for (int j = 0; j < g_nr; j++)
-        rho[j] = atof(ntext[j]);
-    for (int k = 0; k < g_nk; k++) {
-        if (strcmp(ktext[k], "normal") && strcmp(ktext[k], "iso"))
-            usage();
-        kinds[k] = !strcmp(ktext[k], "iso");
-    }
+    if (!from)
+        g_nmeth = nmeth;
 
     bench_print_machine();
     lab_prog = PROG;
@@ -1016,313 +992,491 @@ int main(int argc, char **argv)
                p.flow.strength_auto ? "yes" : "no");
         api_params_free(&p);
     }
+    if (baseline)
+        load_baseline(baseline);
+    for (int c = 0; c < g_ncase && from && g_nbase > 0 && q_default >= 0; c++)
+        RES(c, q_default)->base_cpu = base_cpu(names[g_case[c].mesh], g_case[c].model, g_case[c].rho, g_case[c].seed);
     snprintf(g_tmp, sizeof g_tmp, "/tmp/bench_quality.%d", (int)getpid());
     if (lab_mkdir_p(g_tmp) != 0)
         return 1;
-    if (q_od >= 0 || q_ob >= 0) {
+    if (!from && (q_od >= 0 || q_ob >= 0)) {
         o3d_start(o3d_script);
         if (g_o3d.pid)
             printf("Open3D %s (coprocess %s)\n", g_o3d.version, o3d_script);
     }
     signal(SIGPIPE, SIG_IGN);
 
-    g_res = calloc((size_t)nm * g_nk * g_nr * g_ns * nmeth, sizeof(result));
-    if (!g_res)
+    size_t maxcase = (size_t)nm * nk * nr * ns;
+    if (!from) {
+        g_case = calloc(maxcase, sizeof *g_case);
+        g_res = calloc(maxcase * (size_t)nmeth, sizeof(result));
+    }
+    if (!g_case || !g_res)
         die("calloc", NULL);
     FILE *csv = bench_open_out(out, "quality.csv");
-    fprintf(csv, "mesh,nv,nf,closed,noise_kind,noise,seed,e0,s0,method,param,ok,ratio,surface_ratio,"
-                 "new_folds,new_folds_off_crease,drift,cpu_s,wall_s,note\n");
-    int mesh_nv[MAXMESH];
-    /* the worst case of the default against taubin_best, for the renders */
-    double worst_vs = -INFINITY;
-    int wm = -1, wk = 0, wj = 0, ws = 0;
+    fprintf(csv, "mesh,class,nv,nf,closed,model,rho,seed,e0,s0,flips0,outliers,method,param,ok,skipped,ratio,"
+                 "surface_ratio,flips,new_flips_off_crease,drift,reading,cpu_s,wall_s,base_cpu_s,cost_s,note\n");
+    /* the worst case per model of the default against taubin_best (clean:
+     * against nothing), for the renders */
+    double worst_vs[QN_COUNT];
+    int worst_case[QN_COUNT];
+    for (int k = 0; k < QN_COUNT; k++)
+        worst_vs[k] = -INFINITY, worst_case[k] = -1;
 
-    for (int mi = 0; mi < nm; mi++) {
-        double tm0 = mcf_now();
+    if (from) /* the files, one header */
+        for (char *p = from, *end; *p; p = *end ? end + 1 : end) {
+            char path[4096], *buf, *body;
+            size_t len;
+            end = p + strcspn(p, ",");
+            snprintf(path, sizeof path, "%.*s", (int)(end - p), p);
+            if (bench_read_file(path, &buf, &len) != 0)
+                die(path, NULL);
+            body = strchr(buf, '\n');
+            fputs(p == from ? buf : body ? body + 1 : "", csv);
+            free(buf);
+        }
+    for (int mi = 0; mi < nm && !from; mi++) {
+        double tm0 = mcf_now(), mesh_cost[MAXMETHOD] = {0};
         mcf_mesh *clean = bench_load_mesh(PROG, meshes, names[mi]);
         mcf_mesh_info ci;
         mcf_error e = {0};
         if (mcf_mesh_inspect(clean, &ci, &e) != MCF_OK)
             die("mcf_mesh_inspect", &e);
         int closed = ci.boundary_edges == 0, ncrease;
-        mesh_nv[mi] = ci.nv;
-        unsigned char *crease = crease_mask(clean, &ncrease);
-        tri_grid gclean;
-        grid_build(&gclean, clean);
-        printf("\n%s: %d vertices, %d faces, %s%s, %d faces at creases\n", names[mi], ci.nv, ci.nf,
-               closed ? "closed" : "open", ci.manifold ? "" : ", non-manifold", ncrease);
+        unsigned char *crease = qg_crease_mask(clean, &ncrease);
+        unsigned char *movable = malloc((size_t)ci.nv + 1);
+        int nmoved = movable ? qn_moved(clean, movable, &e) : -1;
+        if (nmoved < 0)
+            die("qn_moved", &e);
+        qg_grid gclean;
+        qg_grid_build(&gclean, clean);
+        printf("\n%s (%s): %d vertices (%d move), %d faces, %s%s, %d faces at creases\n", names[mi],
+               g_cad[mi] ? "CAD" : "organic", ci.nv, nmoved, ci.nf, closed ? "closed" : "open",
+               ci.manifold ? "" : ", non-manifold", ncrease);
         fflush(stdout);
-        for (int k = 0; k < g_nk; k++)
-            for (int j = 0; j < g_nr; j++)
-                for (int s = 0; s < g_ns; s++) {
-                    mcf_mesh *noisy = make_noisy(clean, kinds[k], rho[j], s + 1);
+        for (int k = 0; k < nk; k++)
+            for (int j = 0; j < (models[k] == QN_CLEAN ? 1 : nr); j++)
+                for (int s = 0; s < ns; s++) {
+                    qn_model model = models[k];
+                    double r = model == QN_CLEAN ? 0.0 : rho[j];
+                    int cidx = g_ncase++, outliers = 0;
+                    qcase *qc = &g_case[cidx];
+                    mcf_mesh *noisy = noisy_or_die(clean, model, r, s + 1, &outliers);
+                    mcf_mesh *ref = model == QN_CLEAN ? noisy_or_die(clean, QN_NORMAL, 0.1, s + 1, NULL) : NULL;
                     mcf_mesh_info ni;
                     mcf_compare_result c0;
-                    if (mcf_mesh_inspect(noisy, &ni, &e) != MCF_OK || mcf_compare(noisy, clean, &c0, &e) != MCF_OK)
+                    if (mcf_mesh_inspect(noisy, &ni, &e) != MCF_OK ||
+                        mcf_compare(ref ? ref : noisy, clean, &c0, &e) != MCF_OK)
                         die("noisy input", &e);
-                    case_ctx c = {clean, noisy, &gclean, c0.rms_m, surface_error(noisy, clean, &gclean),
-                                  c0.inverted_faces, inverted_off_crease(noisy, clean, crease), crease,
+                    *qc = (qcase){mi, model, r, s + 1, c0.rms_m, qg_surface_error(ref ? ref : noisy, clean, &gclean),
+                                  qg_flips(noisy, clean), outliers};
+                    mcf_mesh_free(ref);
+                    case_ctx c = {clean, noisy, &gclean, qc->e0, qc->s0, crease, movable,
+                                  qg_inverted_off_crease(noisy, clean, crease),
                                   closed ? ci.volume : ci.area, closed, ni.mean_edge / sqrt(ni.area)};
                     int o3d_done = 0;
                     for (int q = 0; q < nmeth; q++) {
-                        result *r = R(mi, k, j, s, q);
-                        if (meth[q].kind == K_DEFAULT || meth[q].kind == K_AUTO || meth[q].kind == K_FIXED)
-                            run_request(&c, &meth[q], r, NULL);
+                        result *rs = RES(cidx, q);
+                        double w0 = mcf_now();
+                        rs->reading = rs->base_cpu = NAN;
+                        int request = meth[q].kind == K_DEFAULT || meth[q].kind == K_AUTO || meth[q].kind == K_FIXED;
+                        if (model == QN_CLEAN && !request) {
+                            rs->skipped = 1;
+                            rs->ratio = rs->sratio = rs->drift = NAN;
+                            snprintf(rs->note, sizeof rs->note, "not run on the clean mesh");
+                        } else if (request)
+                            run_request(&c, &meth[q], rs, NULL);
                         else if (meth[q].kind == K_TAUBIN_BEST)
-                            run_taubin_best(&c, r, NULL);
+                            run_taubin_best(&c, rs, NULL);
+                        else if (meth[q].kind == K_BNF_BEST)
+                            run_bnf_best(&c, rs, NULL);
                         else if (!o3d_done) {
                             result two[2];
                             memset(two, 0, sizeof two);
+                            two[0].reading = two[1].reading = two[0].base_cpu = two[1].base_cpu = NAN;
                             run_o3d(&c, two, NULL);
                             if (q_od >= 0)
-                                *R(mi, k, j, s, q_od) = two[0];
+                                *RES(cidx, q_od) = two[0];
                             if (q_ob >= 0)
-                                *R(mi, k, j, s, q_ob) = two[1];
+                                *RES(cidx, q_ob) = two[1];
                             o3d_done = 1;
                         }
+                        rs->cost = mcf_now() - w0;
+                        mesh_cost[q] += rs->cost;
                     }
+                    if (q_default >= 0)
+                        RES(cidx, q_default)->base_cpu = base_cpu(names[mi], model, r, s + 1);
+                    printf("  %-6s %4g s%d:", qn_name(model), r, s + 1);
                     for (int q = 0; q < nmeth; q++) {
-                        const result *r = R(mi, k, j, s, q);
-                        fprintf(csv, "%s,%d,%d,%d,%s,%g,%d,%.6g,%.6g,%s,%.6g,%d,%.6g,%.6g,%d,%d,%.6g,%.5f,%.5f,\"%s\"\n",
-                                names[mi], ci.nv, ci.nf, closed, kind_names[kinds[k]], rho[j], s + 1, c.e0, c.s0,
-                                meth[q].name, r->param, r->ok, r->ratio, r->sratio, r->folds, r->folds_off,
-                                r->drift, r->cpu, r->wall, r->note);
-                        if (!r->ok)
-                            printf("  %s %s %g seed %d: %s\n", meth[q].name, kind_names[kinds[k]], rho[j], s + 1,
-                                   r->note);
+                        const result *rs = RES(cidx, q);
+                        fprintf(csv, "%s,%s,%d,%d,%d,%s,%g,%d,%.9g,%.9g,%d,%d,%s,%.6g,%d,%d,%.9g,%.9g,%d,%d,%.6g,%.6g,"
+                                     "%.5f,%.5f,%.5f,%.3f,\"%s\"\n",
+                                names[mi], g_cad[mi] ? "CAD" : "organic", ci.nv, ci.nf, closed, qn_name(model), r,
+                                s + 1, qc->e0, qc->s0, qc->flips0, qc->outliers, meth[q].name, rs->param,
+                                rs->ok, rs->skipped, rs->ratio, rs->sratio, rs->flips, rs->folds_off, rs->drift, rs->reading,
+                                rs->cpu, rs->wall, rs->base_cpu, rs->cost, rs->note);
+                        if (!rs->skipped)
+                            printf(" %s %.3f", meth[q].name, rs->ratio);
                     }
+                    if (q_default >= 0 && RES(cidx, q_default)->ok)
+                        printf(" | flips %d -> %d, read %.3g h", qc->flips0, RES(cidx, q_default)->flips,
+                               RES(cidx, q_default)->reading);
+                    printf("\n");
+                    for (int q = 0; q < nmeth; q++)
+                        if (!RES(cidx, q)->ok && !RES(cidx, q)->skipped)
+                            printf("    %s failed: %s\n", meth[q].name, RES(cidx, q)->note);
+                    fflush(stdout);
                     fflush(csv);
-                    if (q_default >= 0 && q_tb >= 0) {
-                        const result *d = R(mi, k, j, s, q_default), *t = R(mi, k, j, s, q_tb);
-                        double vs = d->ok && t->ok ? d->ratio / t->ratio : INFINITY;
-                        if (vs > worst_vs) {
-                            worst_vs = vs;
-                            wm = mi, wk = k, wj = j, ws = s;
-                        }
-                    }
                     mcf_mesh_free(noisy);
                 }
-        /* a line per noise kind and level: medians over seeds */
-        printf("  %-6s %5s |", "noise", "rho");
+        printf("  (%.1f s; wall s per method:", mcf_now() - tm0);
         for (int q = 0; q < nmeth; q++)
-            printf(" %*s", (int)(strlen(meth[q].name) > 7 ? strlen(meth[q].name) : 7), meth[q].name);
-        printf("\n");
-        for (int k = 0; k < g_nk; k++)
-            for (int j = 0; j < g_nr; j++) {
-                printf("  %-6s %5g |", kind_names[kinds[k]], rho[j]);
-                for (int q = 0; q < nmeth; q++) {
-                    double v[MAXSEED], mx;
-                    for (int s = 0; s < g_ns; s++)
-                        v[s] = R(mi, k, j, s, q)->ok ? R(mi, k, j, s, q)->ratio : INFINITY;
-                    printf(" %*.3f", (int)(strlen(meth[q].name) > 7 ? strlen(meth[q].name) : 7),
-                           median_max(v, g_ns, &mx));
-                }
-                printf("\n");
-            }
-        printf("  (%.1f s)\n", mcf_now() - tm0);
+            printf(" %s %.1f", meth[q].name, mesh_cost[q]);
+        printf(")\n");
         fflush(stdout);
-        grid_free(&gclean);
+        qg_grid_free(&gclean);
         free(crease);
+        free(movable);
         mcf_mesh_free(clean);
     }
     fclose(csv);
+    for (int c = 0; c < g_ncase && q_default >= 0; c++) {
+        const result *d = RES(c, q_default);
+        const result *t = q_tb >= 0 && g_case[c].model != QN_CLEAN ? RES(c, q_tb) : NULL;
+        double vs = !d->ok ? INFINITY : t ? (t->ok ? d->ratio / t->ratio : NAN) : d->ratio;
+        if (vs > worst_vs[g_case[c].model]) {
+            worst_vs[g_case[c].model] = vs;
+            worst_case[g_case[c].model] = c;
+        }
+    }
 
-    /* ---- the tables (stdout and quality.md) */
+    /* ---- the tables (quality.md; the summary also on stdout) */
     FILE *md = bench_open_out(out, "quality.md");
-    fprintf(md, "# make quality (bench/bench_quality.c)\n\n"
-                "%d meshes x noise %s x rho %s mean edges x %d seeds; error = area-weighted RMS distance to the\n"
-                "clean vertex (vertex) and symmetric RMS point-to-surface distance (surface), each against the\n"
-                "same case's taubin_best (Taubin at its best pass count, an oracle), o3d_best (Open3D's\n"
-                "filter_smooth_taubin at its best count, the same oracle) and o3d_default (its default, one\n"
-                "iteration): median and worst over the cases. `> input`: runs whose vertex error exceeds the\n"
-                "noisy input's. CPU: median over the cases of the run's CPU time / `fixed` (desbrun2 strength\n"
-                "0.33, 10 steps, the old default) in the same case.%s\n",
-            nm, kinds_given, noise_given, g_ns, g_o3d.pid ? "" : " Open3D was not available: its columns are empty.");
-    for (int k = -1; k < g_nk; k++) {
-        char title[64];
-        snprintf(title, sizeof title, "%s", k < 0 ? "all noise kinds" : k == 0 && kinds[0] == 0 ? "normal noise"
-                                              : kinds[k] ? "isotropic noise" : "normal noise");
-        fprintf(md, "\n## %s\n\n| method | vs taubin_best: vertex median / worst | surface median / worst | "
-                    "vs o3d_best: vertex | surface | vs o3d_default: vertex | surface | vs input: vertex median / worst | > input | CPU / fixed |\n"
-                    "|---|---|---|---|---|---|---|---|---|---|\n", title);
-        printf("\n== %s: method error against ... (median / worst over the cases)\n", title);
-        printf("%-22s | %-17s %-17s | %-17s %-17s | %-17s %-17s | %-17s %7s | %8s\n", "method",
-               "taubin_best vert", "surface", "o3d_best vert", "surface", "o3d_default vert", "surface",
-               "input vert", ">input", "cpu/fix");
-        for (int q = 0; q < nmeth; q++) {
-            double a[8][2], cm = NAN, cw;
-            int peers[3] = {q_tb, q_ob, q_od};
-            for (int p = 0; p < 3; p++)
-                for (int sf = 0; sf < 2; sf++) {
-                    if (peers[p] >= 0)
-                        versus(nm, k, q, peers[p], sf, &a[2 * p + sf][0], &a[2 * p + sf][1]);
-                    else
-                        a[2 * p + sf][0] = a[2 * p + sf][1] = NAN;
-                }
-            versus(nm, k, q, -1, 0, &a[6][0], &a[6][1]);
-            int worse = 0, runs = 0;
-            double *cv = malloc(sizeof(double) * (size_t)(nm * g_nk * g_nr * g_ns) + 1);
-            int ncv = 0;
-            for (int m = 0; m < nm; m++)
-                for (int kk = 0; kk < g_nk; kk++)
-                    for (int j = 0; j < g_nr; j++)
-                        for (int s = 0; s < g_ns; s++) {
-                            if (k >= 0 && kk != k)
-                                continue;
-                            const result *r = R(m, kk, j, s, q);
-                            runs++;
-                            worse += !r->ok || r->ratio > 1.0;
-                            if (q_fixed >= 0 && r->ok && R(m, kk, j, s, q_fixed)->ok)
-                                cv[ncv++] = r->cpu / R(m, kk, j, s, q_fixed)->cpu;
-                        }
-            if (ncv)
-                cm = median_max(cv, ncv, &cw);
-            free(cv);
-            char b[8][2][16];
-            for (int x = 0; x < 7; x++)
-                for (int y = 0; y < 2; y++)
-                    snprintf(b[x][y], 16, isnan(a[x][y]) ? "-" : "%.3f", a[x][y]);
-            printf("%-22s | %6s / %-8s %6s / %-8s | %6s / %-8s %6s / %-8s | %6s / %-8s %6s / %-8s | %6s / %-8s %3d/%-3d | %8.2f\n",
-                   meth[q].name, b[0][0], b[0][1], b[1][0], b[1][1], b[2][0], b[2][1], b[3][0], b[3][1], b[4][0],
-                   b[4][1], b[5][0], b[5][1], b[6][0], b[6][1], worse, runs, cm);
-            fprintf(md, "| %s | %s / %s | %s / %s | %s / %s | %s / %s | %s / %s | %s / %s | %s / %s | %d of %d | %.2f |\n",
-                    meth[q].name, b[0][0], b[0][1], b[1][0], b[1][1], b[2][0], b[2][1], b[3][0], b[3][1], b[4][0],
-                    b[4][1], b[5][0], b[5][1], b[6][0], b[6][1], worse, runs, cm);
-        }
+    static const char *const cls_name[3] = {"all", "organic", "CAD"};
+    char b[8][48];
+    fprintf(md, "# make quality (lab/bench/bench_quality.c)\n\n"
+                "Meshes %s (CAD: %s) x noise models %s x rho %s mean edges (clean: rho 0) x %d seed(s); %d cases.\n"
+                "Error = area-weighted RMS distance to the clean vertex, as a ratio of the noisy input's; `x / P` is\n"
+                "that ratio over method P's in the same case (taubin_best, o3d_best, bnf_best: oracles at their\n"
+                "best parameters against the clean mesh). Cells: median (worst) over the cases. Flips: faces whose\n"
+                "normal points against the clean mesh's (dot < 0), summed over the cases, input -> result, and in\n"
+                "brackets the cases the result has more than its input. read / rho: the noise level the default\n"
+                "read, in mean edges, over the true rho. CPU / baseline: the default's CPU time over the\n"
+                "baseline's on the same case (%s).%s\n",
+            list_given, cad_buf, models_given, noise_given, ns, g_ncase, baseline ? baseline : "no baseline given",
+            g_o3d.pid || (q_od < 0 && q_ob < 0) ? "" : " Open3D was not available: its columns are empty.");
+
+    /* the summary: one line per model, every level pooled (issue 31's table) */
+    fprintf(md, "\n## Summary: the default request per noise model (all levels)\n\n"
+                "| noise | default / input | / taubin_best | / o3d_best | / bnf_best: all | organic | CAD | "
+                "flips input -> default | read / rho | CPU / baseline |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    printf("\n== the default request per noise model (median (worst) over the cases, all levels)\n"
+           "%-6s | %-15s %-15s %-15s %-15s %-15s %-15s | %-22s | %-14s | %s\n", "noise", "/ input", "/ taubin_best",
+           "/ o3d_best", "/ bnf_best", "bnf organic", "bnf CAD", "flips in -> default", "read / rho", "CPU / base");
+    for (int k = 0; k < nk; k++) {
+        qn_model mdl = models[k];
+        if (mdl == QN_CLEAN)
+            continue;
+        double v[6][2], rd[2], cp[2];
+        long fi, fo;
+        int up;
+        versus(mdl, NAN, -1, q_default, INPUT, &v[0][0], &v[0][1]);
+        versus(mdl, NAN, -1, q_default, q_tb, &v[1][0], &v[1][1]);
+        versus(mdl, NAN, -1, q_default, q_ob, &v[2][0], &v[2][1]);
+        versus(mdl, NAN, -1, q_default, q_bnf, &v[3][0], &v[3][1]);
+        versus(mdl, NAN, 0, q_default, q_bnf, &v[4][0], &v[4][1]);
+        versus(mdl, NAN, 1, q_default, q_bnf, &v[5][0], &v[5][1]);
+        flips(mdl, NAN, -1, q_default, &fi, &fo, &up);
+        reading_cpu(mdl, NAN, -1, q_default, rd, cp);
+        for (int x = 0; x < 6; x++)
+            mw(b[x], sizeof b[x], v[x][0], v[x][1]);
+        char fl[64], rr[48], cc[48];
+        snprintf(fl, sizeof fl, "%ld -> %ld (%d up)", fi, fo, up);
+        mw(rr, sizeof rr, rd[0], rd[1]);
+        mw(cc, sizeof cc, cp[0], cp[1]);
+        fprintf(md, "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", qn_name(mdl), b[0], b[1], b[2], b[3], b[4],
+                b[5], fl, rr, cc);
+        printf("%-6s | %-15s %-15s %-15s %-15s %-15s %-15s | %-22s | %-14s | %s\n", qn_name(mdl), b[0], b[1], b[2],
+               b[3], b[4], b[5], fl, rr, cc);
     }
-    /* CPU time against the fixed default, per mesh (the automatic amount's
-     * budget: at most 1.5x on every shared mesh) */
-    if (q_fixed >= 0) {
-        fprintf(md, "\n## CPU time / fixed (desbrun2 strength 0.33), median over the mesh's cases\n\n| mesh | nv |");
-        printf("\n== CPU time / fixed, median over each mesh's cases\n%-22s %7s", "mesh", "nv");
+
+    /* the clean meshes */
+    int have_clean = 0;
+    for (int c = 0; c < g_ncase; c++)
+        have_clean |= g_case[c].model == QN_CLEAN;
+    if (have_clean) {
+        fprintf(md, "\n## Clean meshes (rho 0): how far each request moves them, as a ratio of the error of `normal`\n"
+                    "noise at 0.1 h (same seed); flips against the clean mesh\n\n| mesh | class |");
         for (int q = 0; q < nmeth; q++)
-            if (meth[q].kind == K_AUTO || meth[q].kind == K_DEFAULT) {
-                fprintf(md, " %s |", meth[q].name);
-                printf(" %12s", meth[q].name);
-            }
-        fprintf(md, " fixed CPU s |\n|---|---|");
+            if (meth[q].kind == K_DEFAULT || meth[q].kind == K_AUTO || meth[q].kind == K_FIXED)
+                fprintf(md, " %s: moved / e(0.1 h) | flips |", meth[q].name);
+        fprintf(md, "\n|---|---|");
         for (int q = 0; q < nmeth; q++)
-            if (meth[q].kind == K_AUTO || meth[q].kind == K_DEFAULT)
-                fprintf(md, "---|");
-        fprintf(md, "---|\n");
-        printf(" %12s\n", "fixed s");
-        for (int m = 0; m < nm; m++) {
-            fprintf(md, "| %s | %d |", names[m], mesh_nv[m]);
-            printf("%-22s %7d", names[m], mesh_nv[m]);
-            for (int q = 0; q <= nmeth; q++) {
-                if (q < nmeth && meth[q].kind != K_AUTO && meth[q].kind != K_DEFAULT)
-                    continue;
-                double v[MAXNOISE * MAXSEED * 2], mx;
-                int n = 0;
-                for (int k = 0; k < g_nk; k++)
-                    for (int j = 0; j < g_nr; j++)
-                        for (int s = 0; s < g_ns; s++) {
-                            const result *f = R(m, k, j, s, q_fixed);
-                            if (q == nmeth)
-                                v[n++] = f->ok ? f->cpu : NAN;
-                            else if (R(m, k, j, s, q)->ok && f->ok)
-                                v[n++] = R(m, k, j, s, q)->cpu / f->cpu;
-                        }
-                double med = median_max(v, n, &mx);
-                fprintf(md, q == nmeth ? " %.3f |" : " %.2f |", med);
-                printf(q == nmeth ? " %12.3f" : " %12.2f", med);
-            }
+            if (meth[q].kind == K_DEFAULT || meth[q].kind == K_AUTO || meth[q].kind == K_FIXED)
+                fprintf(md, "---|---|");
+        fprintf(md, "\n");
+        printf("\n== clean meshes: moved / error of 0.1 h normal noise (default)\n");
+        for (int c = 0; c < g_ncase; c++) {
+            if (g_case[c].model != QN_CLEAN)
+                continue;
+            fprintf(md, "| %s (seed %d) | %s |", names[g_case[c].mesh], g_case[c].seed, g_cad[g_case[c].mesh] ? "CAD" : "organic");
+            for (int q = 0; q < nmeth; q++)
+                if (!RES(c, q)->skipped)
+                    fprintf(md, RES(c, q)->ok ? " %.3g | %d |" : " failed | - |", RES(c, q)->ratio, RES(c, q)->flips);
             fprintf(md, "\n");
-            printf("\n");
+            if (q_default >= 0)
+                printf("  %-24s %.3g (flips %d)\n", names[g_case[c].mesh], RES(c, q_default)->ratio,
+                       RES(c, q_default)->flips);
+        }
+        double med, worst;
+        if (q_default >= 0 && versus(QN_CLEAN, NAN, -1, q_default, INPUT, &med, &worst) > 0) {
+            fprintf(md, "\ndefault: median %.3g, worst %.3g\n", med, worst);
+            printf("  default: median %.3g, worst %.3g\n", med, worst);
         }
     }
-    /* the default per mesh x noise: medians over the seeds */
+
+    /* issue 31's thresholds on this run */
     if (q_default >= 0) {
-        fprintf(md, "\n## The default request per mesh and noise (median over seeds; vertex error / input's, "
-                    "surface in brackets)\n\n| mesh | noise | rho | default | taubin_best | o3d_default | o3d_best | "
-                    "default param | new folds (max) | drift (median) |\n|---|---|---|---|---|---|---|---|---|---|\n");
-        for (int m = 0; m < nm; m++)
-            for (int k = 0; k < g_nk; k++)
-                for (int j = 0; j < g_nr; j++) {
-                    int qs[4] = {q_default, q_tb, q_od, q_ob}, fmx = 0;
-                    fprintf(md, "| %s | %s | %g |", names[m], kind_names[kinds[k]], rho[j]);
-                    for (int x = 0; x < 4; x++) {
-                        double v[MAXSEED], w[MAXSEED], mx;
-                        for (int s = 0; s < g_ns; s++) {
-                            const result *r = qs[x] >= 0 ? R(m, k, j, s, qs[x]) : NULL;
-                            v[s] = r && r->ok ? r->ratio : NAN;
-                            w[s] = r && r->ok ? r->sratio : NAN;
-                        }
-                        double a = median_max(v, g_ns, &mx), b = median_max(w, g_ns, &mx);
-                        fprintf(md, isnan(a) ? " - |" : " %.3f (%.3f) |", a, b);
-                    }
-                    double p[MAXSEED], d[MAXSEED], mx;
-                    for (int s = 0; s < g_ns; s++) {
-                        const result *r = R(m, k, j, s, q_default);
-                        p[s] = r->ok ? r->param : NAN;
-                        d[s] = r->ok ? 100 * r->drift : NAN;
-                        fmx = r->folds > fmx ? r->folds : fmx;
-                    }
-                    fprintf(md, " %.3g | %d | %+.2f%% |\n", median_max(p, g_ns, &mx), fmx, median_max(d, g_ns, &mx));
-                }
+        fprintf(md, "\n## Issue 31's done-when on this run\n\n| threshold | measured | holds |\n|---|---|---|\n");
+        printf("\n== issue 31's done-when on this run\n");
+        struct {
+            const char *what;
+            qn_model k;
+            double rho;
+            int cls, peer, worst;
+            double limit;
+        } th[] = {
+            {"normal, organic: median default / taubin_best <= 0.65", QN_NORMAL, NAN, 0, q_tb, 0, 0.65},
+            {"out: median default / input <= 0.55", QN_OUT, NAN, -1, INPUT, 0, 0.55},
+            {"out: median default / o3d_best <= 1.25", QN_OUT, NAN, -1, q_ob, 0, 1.25},
+            {"view: median default / taubin_best <= 1.0", QN_VIEW, NAN, -1, q_tb, 0, 1.0},
+            {"clean: worst moved / e(0.1 h normal) <= 0.1", QN_CLEAN, NAN, -1, INPUT, 1, 0.1},
+        };
+        for (size_t t = 0; t < sizeof th / sizeof th[0]; t++) {
+            double med, worst;
+            int n = versus(th[t].k, th[t].rho, th[t].cls, q_default, th[t].peer, &med, &worst);
+            double x = th[t].worst ? worst : med;
+            const char *holds = n == 0 ? "not measured" : x <= th[t].limit ? "yes" : "NO";
+            fprintf(md, "| %s | %s | %s |\n", th[t].what, n ? mw(b[0], sizeof b[0], med, worst) : "-", holds);
+            printf("  %-55s %-16s %s\n", th[t].what, n ? mw(b[0], sizeof b[0], med, worst) : "-", holds);
+        }
+        /* CAD parts against the BNF oracle, every model pooled */
+        {
+            double *v = malloc(sizeof(double) * (size_t)g_ncase + 1), med, worst;
+            int n = 0;
+            for (int c = 0; c < g_ncase && q_bnf >= 0; c++)
+                if (g_cad[g_case[c].mesh] && g_case[c].model != QN_CLEAN && RES(c, q_bnf)->ok)
+                    v[n++] = RES(c, q_default)->ok ? RES(c, q_default)->ratio / RES(c, q_bnf)->ratio : INFINITY;
+            med = median_max(v, n, &worst);
+            free(v);
+            const char *holds = n == 0 ? "not measured" : med <= 1.0 && worst <= 1.4 ? "yes" : "NO";
+            fprintf(md, "| CAD parts, every model: default / bnf_best median <= 1.0, worst <= 1.4 | %s | %s |\n",
+                    n ? mw(b[0], sizeof b[0], med, worst) : "-", holds);
+            printf("  %-55s %-16s %s\n", "CAD, every model: / bnf_best median <= 1.0, worst <= 1.4",
+                   n ? mw(b[0], sizeof b[0], med, worst) : "-", holds);
+        }
+        /* quantization 0.5 h: no more flips than the input, case by case */
+        {
+            long fi, fo;
+            int up, n = 0;
+            for (int c = 0; c < g_ncase; c++)
+                n += g_case[c].model == QN_QUANT && g_case[c].rho == 0.5;
+            flips(QN_QUANT, 0.5, -1, q_default, &fi, &fo, &up);
+            char fl[64];
+            snprintf(fl, sizeof fl, "%ld -> %ld, %d of %d cases up", fi, fo, up, n);
+            const char *holds = n == 0 ? "not measured" : up == 0 ? "yes" : "NO";
+            fprintf(md, "| quant 0.5 h: no case with more flips than its input | %s | %s |\n", n ? fl : "-", holds);
+            printf("  %-55s %-16s %s\n", "quant 0.5 h: no case with more flips than its input", n ? fl : "-", holds);
+        }
+        {
+            double cp[2], *v = malloc(sizeof(double) * (size_t)g_ncase + 1);
+            int n = 0;
+            for (int c = 0; c < g_ncase; c++)
+                if (RES(c, q_default)->ok && RES(c, q_default)->base_cpu > 0)
+                    v[n++] = RES(c, q_default)->cpu / RES(c, q_default)->base_cpu;
+            cp[0] = median_max(v, n, &cp[1]);
+            free(v);
+            const char *holds = n == 0 ? "not measured" : cp[0] <= 1.5 ? "yes (median)" : "NO (median)";
+            fprintf(md, "| CPU <= 1.5x the baseline's default, same cases | %s over %d cases | %s |\n",
+                    n ? mw(b[0], sizeof b[0], cp[0], cp[1]) : "-", n, holds);
+            printf("  %-55s %-16s %s\n", "CPU <= 1.5x the baseline's default (median over cases)",
+                   n ? mw(b[0], sizeof b[0], cp[0], cp[1]) : "-", holds);
+        }
     }
-    fprintf(md, "\nRenders of the case where the default does worst against taubin_best: worst.png, worst-zoom.png.\n");
+
+    /* per model: levels x classes for the default */
+    for (int k = 0; k < nk; k++) {
+        qn_model mdl = models[k];
+        if (mdl == QN_CLEAN || q_default < 0)
+            continue;
+        fprintf(md, "\n## %s: the default request by level and class\n\n| rho | class | cases | default / input | "
+                    "/ taubin_best | / o3d_best | / bnf_best | flips input -> default | read / rho | CPU / baseline |\n"
+                    "|---|---|---|---|---|---|---|---|---|---|\n", qn_name(mdl));
+        for (int j = 0; j <= nr; j++)
+            for (int cls = -1; cls <= 1; cls++) {
+                double rr = j < nr ? rho[j] : NAN, v[4][2], rd[2], cp[2];
+                long fi, fo;
+                int up;
+                int n = versus(mdl, rr, cls, q_default, INPUT, &v[0][0], &v[0][1]);
+                if (n == 0)
+                    continue;
+                versus(mdl, rr, cls, q_default, q_tb, &v[1][0], &v[1][1]);
+                versus(mdl, rr, cls, q_default, q_ob, &v[2][0], &v[2][1]);
+                versus(mdl, rr, cls, q_default, q_bnf, &v[3][0], &v[3][1]);
+                flips(mdl, rr, cls, q_default, &fi, &fo, &up);
+                reading_cpu(mdl, rr, cls, q_default, rd, cp);
+                for (int x = 0; x < 4; x++)
+                    mw(b[x], sizeof b[x], v[x][0], v[x][1]);
+                fprintf(md, "| %s | %s | %d | %s | %s | %s | %s | %ld -> %ld (%d up) | %s | %s |\n",
+                        j < nr ? ntext[j] : "all", cls_name[cls + 1], n, b[0], b[1], b[2], b[3], fi, fo, up,
+                        mw(b[4], sizeof b[4], rd[0], rd[1]), mw(b[5], sizeof b[5], cp[0], cp[1]));
+            }
+    }
+
+    /* every method, per model */
+    fprintf(md, "\n## Every method per noise model (all levels and meshes)\n\n| noise | method | / input | / taubin_best "
+                "| / o3d_best | / bnf_best | flips input -> method | > input | CPU s (median) |\n"
+                "|---|---|---|---|---|---|---|---|---|\n");
+    for (int k = 0; k < nk; k++)
+        for (int q = 0; q < nmeth; q++) {
+            qn_model mdl = models[k];
+            double v[4][2];
+            long fi, fo;
+            int up, worse = 0, n = versus(mdl, NAN, -1, q, INPUT, &v[0][0], &v[0][1]);
+            if (n == 0)
+                continue;
+            versus(mdl, NAN, -1, q, q_tb, &v[1][0], &v[1][1]);
+            versus(mdl, NAN, -1, q, q_ob, &v[2][0], &v[2][1]);
+            versus(mdl, NAN, -1, q, q_bnf, &v[3][0], &v[3][1]);
+            flips(mdl, NAN, -1, q, &fi, &fo, &up);
+            double *cv = malloc(sizeof(double) * (size_t)g_ncase + 1), cmx;
+            int ncv = 0;
+            for (int c = 0; c < g_ncase; c++)
+                if (match(c, mdl, NAN, -1) && RES(c, q)->ok) {
+                    cv[ncv++] = RES(c, q)->cpu;
+                    worse += mdl != QN_CLEAN && RES(c, q)->ratio > 1.0;
+                }
+            double cmed = median_max(cv, ncv, &cmx);
+            free(cv);
+            for (int x = 0; x < 4; x++)
+                mw(b[x], sizeof b[x], v[x][0], v[x][1]);
+            fprintf(md, "| %s | %s | %s | %s | %s | %s | %ld -> %ld (%d up) | %d of %d | %.3f |\n", qn_name(mdl),
+                    meth[q].name, b[0], b[1], b[2], b[3], fi, fo, up, worse, n, cmed);
+        }
+
+    /* every case */
+    fprintf(md, "\n## Every case (vertex error / input's; the default's surface error in brackets)\n\n"
+                "| mesh | model | rho | seed | default | taubin_best | o3d_best | bnf_best | flips input / "
+                "default / bnf | default read (h) | bnf_best parameters |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (int c = 0; c < g_ncase; c++) {
+        const qcase *x = &g_case[c];
+        int qs[4] = {q_default, q_tb, q_ob, q_bnf};
+        fprintf(md, "| %s | %s | %g | %d |", names[x->mesh], qn_name(x->model), x->rho, x->seed);
+        for (int i = 0; i < 4; i++) {
+            const result *r = qs[i] >= 0 ? RES(c, qs[i]) : NULL;
+            if (!r || r->skipped)
+                fprintf(md, " - |");
+            else if (!r->ok)
+                fprintf(md, " failed |");
+            else if (i == 0)
+                fprintf(md, " %.3f (%.3f) |", r->ratio, r->sratio);
+            else
+                fprintf(md, " %.3f |", r->ratio);
+        }
+        const result *d = q_default >= 0 ? RES(c, q_default) : NULL, *bn = q_bnf >= 0 ? RES(c, q_bnf) : NULL;
+        fprintf(md, " %d / %d / %d | %.3g | %s |\n", x->flips0, d && d->ok ? d->flips : -1,
+                bn && bn->ok ? bn->flips : -1, d ? d->reading : NAN, bn && bn->ok ? bn->note : "-");
+    }
     fclose(md);
 
-    /* ---- renders of the worst case */
-    if (do_figure && wm >= 0) {
-        mcf_mesh *clean = bench_load_mesh(PROG, meshes, names[wm]);
-        mcf_mesh_info ci;
+    /* ---- renders: the worst case per model, and those asked for */
+    int nrc = 0, rcase[QN_COUNT + MAXRENDER];
+    char rstem[QN_COUNT + MAXRENDER][64];
+    if (do_figure)
+        for (int k = 0; k < QN_COUNT; k++)
+            if (worst_case[k] >= 0) {
+                snprintf(rstem[nrc], sizeof rstem[0], "worst-%s", qn_name((qn_model)k));
+                rcase[nrc++] = worst_case[k];
+            }
+    /* --render MESH:MODEL:RHO[:SEED]: those not among the run's cases become new ones (no results) */
+    qcase extra[MAXRENDER];
+    for (int i = 0; i < nrender; i++) {
+        char spec[256], *p[4];
+        int n = 0;
+        snprintf(spec, sizeof spec, "%s", render_spec[i]);
+        for (char *t = strtok(spec, ":"); t && n < 4; t = strtok(NULL, ":"))
+            p[n++] = t;
+        int mk = n >= 3 ? qn_parse(p[1]) : -1, mesh = -1;
+        for (int m = 0; m < nm; m++)
+            if (n >= 1 && !strcmp(names[m], p[0]))
+                mesh = m;
+        if (mk < 0 || mesh < 0) {
+            printf("render: %s: want MESH:MODEL:RHO[:SEED] with MESH in --list\n", render_spec[i]);
+            continue;
+        }
+        extra[i] = (qcase){mesh, (qn_model)mk, mk == QN_CLEAN ? 0.0 : atof(p[2]), n == 4 ? atoi(p[3]) : 1, 0, 0, 0, 0};
+        snprintf(rstem[nrc], sizeof rstem[0], "case-%d", i + 1);
+        rcase[nrc++] = -1 - i;
+    }
+    for (int i = 0; i < nrc; i++) {
+        const qcase *x = rcase[i] >= 0 ? &g_case[rcase[i]] : &extra[-1 - rcase[i]];
         mcf_error e = {0};
-        mcf_mesh_inspect(clean, &ci, &e);
+        mcf_mesh *clean = bench_load_mesh(PROG, meshes, names[x->mesh]);
+        mcf_mesh_info ci, ni;
         int ncrease;
-        unsigned char *crease = crease_mask(clean, &ncrease);
-        tri_grid gclean;
-        grid_build(&gclean, clean);
-        mcf_mesh *noisy = make_noisy(clean, kinds[wk], rho[wj], ws + 1);
-        mcf_mesh_info ni;
+        unsigned char *crease = qg_crease_mask(clean, &ncrease);
+        unsigned char *movable = malloc((size_t)mcf_mesh_nvertices(clean) + 1);
+        if (!movable || qn_moved(clean, movable, &e) < 0)
+            die("qn_moved", &e);
+        qg_grid gclean;
+        qg_grid_build(&gclean, clean);
+        mcf_mesh *noisy = noisy_or_die(clean, x->model, x->rho, x->seed, NULL);
+        mcf_mesh *ref = x->model == QN_CLEAN ? noisy_or_die(clean, QN_NORMAL, 0.1, x->seed, NULL) : NULL;
         mcf_compare_result c0;
+        mcf_mesh_inspect(clean, &ci, &e);
         mcf_mesh_inspect(noisy, &ni, &e);
-        mcf_compare(noisy, clean, &c0, &e);
-        case_ctx c = {clean, noisy, &gclean, c0.rms_m, surface_error(noisy, clean, &gclean), c0.inverted_faces,
-                      inverted_off_crease(noisy, clean, crease), crease,
+        mcf_compare(ref ? ref : noisy, clean, &c0, &e);
+        case_ctx c = {clean, noisy, &gclean, c0.rms_m, qg_surface_error(ref ? ref : noisy, clean, &gclean), crease,
+                      movable, qg_inverted_off_crease(noisy, clean, crease),
                       ci.boundary_edges == 0 ? ci.volume : ci.area, ci.boundary_edges == 0,
                       ni.mean_edge / sqrt(ni.area)};
-        const mcf_mesh *ms[6] = {clean, noisy};
-        const char *titles[6] = {"clean", "noisy"};
-        char tb[4][96];
-        mcf_mesh *res[4] = {0};
-        result r[4];
+        const mcf_mesh *ms[5] = {clean, ref ? ref : noisy};
+        char lb[5][128];
+        const char *labels[5] = {"clean", lb[1]};
+        snprintf(lb[1], sizeof lb[1], x->model == QN_CLEAN ? "(normal 0.1 h, for scale): flips %d"
+                                                           : "noisy: flips %d", qg_flips(ref ? ref : noisy, clean));
+        mcf_mesh *res[3] = {0};
+        result r[3];
         memset(r, 0, sizeof r);
         int n = 2;
-        run_request(&c, &meth[q_default], &r[0], &res[0]);
-        run_taubin_best(&c, &r[1], &res[1]);
-        mcf_mesh *o3[2] = {0};
-        if (g_o3d.pid) {
-            result two[2];
-            memset(two, 0, sizeof two);
-            run_o3d(&c, two, o3);
-            r[2] = two[1];
-            res[2] = o3[1];
-            mcf_mesh_free(o3[0]);
+        method dm = {"default", K_DEFAULT, ""};
+        run_request(&c, &dm, &r[0], &res[0]);
+        if (x->model != QN_CLEAN) {
+            run_taubin_best(&c, &r[1], &res[1]);
+            run_bnf_best(&c, &r[2], &res[2]);
         }
-        static const char *const lab[3] = {"default", "taubin best", "open3d best"};
-        for (int x = 0; x < 3; x++)
-            if (res[x]) {
-                snprintf(tb[x], sizeof tb[x], "%s (%.3g): %.2f, surface %.2f", lab[x], r[x].param, r[x].ratio, r[x].sratio);
-                titles[n] = tb[x];
-                ms[n++] = res[x];
+        static const char *const what[3] = {"default", "taubin_best", "bnf_best"};
+        for (int q = 0; q < 3; q++)
+            if (res[q]) {
+                snprintf(lb[n], sizeof lb[n], "%s: %.2f of the input, flips %d", what[q], r[q].ratio, r[q].flips);
+                labels[n] = lb[n];
+                ms[n++] = res[q];
             }
-        char label[96];
-        snprintf(label, sizeof label, "%s, %s noise", names[wm], kind_names[kinds[wk]]);
-        figure_spec fs = {label, rho[wj], ws + 1, 0, {0.0, 1.0, 0.0, 1.0}};
-        figure(out, "worst", &fs, ms, titles, n);
-        figure_spec zoom = fs;
-        double zc[4] = {0.3, 0.7, 0.4, 0.8};
-        memcpy(zoom.crop, zc, sizeof zc);
-        figure(out, "worst-zoom", &zoom, ms, titles, n);
-        for (int x = 0; x < 3; x++)
-            mcf_mesh_free(res[x]);
-        grid_free(&gclean);
-        free(crease);
+        if (x->model == QN_CLEAN)
+            snprintf(lb[2], sizeof lb[2], "default: moved %.3f x e(0.1 h), flips %d", r[0].ratio, r[0].flips);
+        char title[256];
+        snprintf(title, sizeof title, "%s, %s noise %g h, seed %d", names[x->mesh], qn_name(x->model), x->rho, x->seed);
+        render(render_script, out, rstem[i], title, ms, labels, n);
+        for (int q = 0; q < 3; q++)
+            mcf_mesh_free(res[q]);
+        mcf_mesh_free(ref);
         mcf_mesh_free(noisy);
+        qg_grid_free(&gclean);
+        free(crease);
+        free(movable);
         mcf_mesh_free(clean);
     }
+
     o3d_stop();
     char p1[300], p2[300], p3[300];
     snprintf(p1, sizeof p1, "%s/noisy.bin", g_tmp);
@@ -1334,5 +1488,7 @@ int main(int argc, char **argv)
     rmdir(g_tmp);
     printf("\nCSV: %s/quality.csv, tables: %s/quality.md; run time %.0f s\n", out, out, mcf_now() - t_start);
     free(g_res);
+    free(g_case);
+    free(g_base);
     return 0;
 }

@@ -1,0 +1,111 @@
+/* SPDX-License-Identifier: MIT */
+/*
+ * mcf_fairing_ctx.h - private to the files of one fairing run
+ * (mcf_fairing.c, the engines and the driver; mcf_fairing_sure.c, Stein's
+ * estimate, the combination of iterates and the pick between the
+ * filters; mcf_fairing_output.c, the result along the normals, its
+ * tangential relaxation, the bounds on a move and the fold guard's
+ * positions): the run's state and what those files call across. Never
+ * included outside core/; the contract is mcf.h, docs/fairing.md the math.
+ */
+#ifndef MCF_FAIRING_CTX_H
+#define MCF_FAIRING_CTX_H
+
+#include "mcf_internal.h"
+
+enum { NPROBE = 6, NCOL = 3 + NPROBE };
+/* the least gain of SURE over the input, in its standard errors
+ * (sure_of), for a step to count: one-sided, 2 leaves about 2% of the
+ * steps that gain nothing; the gain's error is small on a scan (one step
+ * count of the 180 `make quality` cases changed, by one), of the gain's size on
+ * a coarse mesh (car.drc: 300 free vertices, a few 15x the mean area) */
+#define SURE_MIN_GAIN 2.0
+/* The combination (combine): the iterates after the last COMB_J powers
+ * of two of steps, e.g. 2, 4, 8 and 16 for a run that stops at 21.
+ * Measured in numpy (normal noise 0.1 and 0.25, seed 1, against the
+ * product's cotan Taubin at its best pass count; the filter alone, without
+ * the creases, bounds and guard): 4 iterates 0.72-1.03 (spot 0.25 0.846
+ * -> 0.796, knot1 0.1 0.874 -> 0.721, armadillo 0.1 0.943 -> 0.898,
+ * fertility 0.25 0.719 -> 0.727, the one worse case of 16); 2 iterates
+ * gain half as much, 3 nearly as much; every power of two and every
+ * k = 2^a, 3 2^a up to the stop the same within 1%; coefficients of the
+ * powers of two stay within +-11 (consecutive k: up to +-35). */
+#define COMB_J MCF_FAIRING_COMB
+
+typedef struct {
+    const mcf_flow_params *p;
+    int nv, nf, nfree;
+    const int32_t *F;
+    double *X0;                /* a copy of the input, working units
+                                  (crease vertices smoothed along) */
+    double *Xin;               /* the input itself where X0 differs
+                                  (creases), else NULL */
+    unsigned char *crease;     /* nv: on a kept crease */
+    unsigned char *fx;         /* nv: fixed, or no edge */
+    mcf__graph g;
+    int *vert;                 /* nfree: free index -> vertex */
+    int *fid;                  /* nv: vertex -> free index, -1 fixed */
+    double *sq;                /* nfree: sqrt(D) */
+    double *w;                 /* nv: area weights (0 on fixed) */
+    double *n0;                /* 3*nv: normals of X0 */
+    double *probe;             /* NPROBE * nfree: the Rademacher probes */
+    int ncol;                  /* 3, or 9 with the probes */
+    int is_explicit;
+    int quiet;                 /* the hook sees no steps (cancel only) */
+    /* explicit: Z (nv x ncol, row-major), tmp the same */
+    double *Z, *tmp;
+    /* implicit */
+    mcf__pattern apat;         /* I + N N' (upper triangle) */
+    double *ax;                /* its values */
+    mcf__chol *chol;
+    double *Yc;                /* nfree x ncol, column-major: y, the probes */
+    double *b;                 /* 3 * nfree: N u, column-major */
+    size_t bytes;
+    mcf_flow_stats *st;
+    /* the run (mcf__fairing's phases) */
+    double hbar;               /* the mean edge */
+    int sure;                  /* the amount by SURE (else iterations) */
+    int cap;                   /* the most steps */
+    double s, s_t;             /* the noise levels, normal and tangential */
+    double *Y, *Ybest, *Yt;    /* 3*nv: the last step, SURE's best (normal,
+                                  tangential) */
+    int kbest, kbest_t;        /* their steps */
+    double risk;               /* SURE at kbest (sum w units) */
+    double trbest[NPROBE];     /* its probes' weighted traces */
+    float *dk[COMB_J];         /* 3*nfree: Y_k - X0 on the free vertices
+                                  after the last powers of two k, oldest
+                                  first */
+    int kk[COMB_J], nk;        /* their k, how many */
+    double trq[COMB_J][NPROBE]; /* their probes' weighted traces */
+    double sumw2;              /* sum_F w^2 (sum_F w = nfree) */
+    double s2_rel;             /* relative standard error of s^2 */
+} fair_ctx;
+
+/* mcf_fairing_sure.c */
+/* The probes' estimates of sum_i w_i (T^K)_ii into est. */
+void mcf__fair_probe_traces(const fair_ctx *c, double est[NPROBE]);
+/* The mean of the probes' estimates est, and the variance of that mean
+ * (*var). */
+double mcf__fair_mean_trace(const double est[NPROBE], double *var);
+/* SURE's moments of the displacement Y - X0 (weighted_r2 in the file). */
+void mcf__fair_weighted_r2(const fair_ctx *c, const double *Y, double m[6]);
+/* SURE(K) and its gain over the input in standard errors (*z). */
+double mcf__fair_sure_of(const fair_ctx *c, int dim, double sig, const double *mo, double tr, double vtr,
+                         double *z);
+/* Keeps Y - X0 after k steps as the newest of the last COMB_J iterates. */
+void mcf__fair_keep_iterate(fair_ctx *c, int k, const double *Y, const double est[NPROBE]);
+/* SURE's best combination of the kept iterates into c->Ybest when it
+ * passes its tests. */
+void mcf__fair_combine(fair_ctx *c);
+/* Whether the explicit run e replaces the implicit run i. */
+int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
+
+/* mcf_fairing_output.c */
+/* Moves from the input (c->Xin) longer than rmax taken back, on the
+ * vertices marked in only (NULL: all). */
+void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigned char *only);
+/* The output into X: along the normals of the filtered surface, relaxed
+ * in its tangent planes, clamped, guarded. */
+mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err);
+
+#endif
