@@ -497,23 +497,28 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
     double h = r->h, T = r->T;
     if (*rc == MCF_ENOMEM || *rc == MCF_ECANCELED)
         return -1;
-    /* Error per unit step (desbrun2, richardson): a step may carry
-     * ADAPT_SAFETY * tol * h / T, so the local errors add up to about
-     * tol at T (the flow contracts errors: a mode's local error reaches
-     * T damped by exp(-lambda (T - t))). Both estimate their own error
-     * from the third divided difference of the last four states
-     * (Milne's device, from their third step on; q = 2); their first
-     * steps use step doubling seen through the step's resolvent
-     * (q = 1), which overstates a second-order result's error:
-     * conservative at the start only. desbrun2's second step has no
-     * estimate and repeats the first step's size (BDF2 starts at ratio
-     * 1). est ~ h^(q+1), so est/h ~ h^q: the exponent is 1/q.
-     * ros2 and desbrun keep their first-order estimates (embedded
-     * solution, step doubling), filtered, per step (est <= tol,
-     * exponent 1/2): ros2's Milne estimate was noisy on scans (spot,
-     * tol 1e-5: 138 rejections in 274 steps, 5x the steps of a fixed
-     * run as accurate), and desbrun per unit step needs ~1/tol steps. */
-    int per_unit = p->scheme == MCF_DESBRUN2 || p->scheme == MCF_RICHARDSON;
+    /* Error per unit step (desbrun2): a step may carry ADAPT_SAFETY *
+     * tol * h / T, so the local errors add up to about tol at T (the
+     * flow contracts errors: a mode's local error reaches T damped by
+     * exp(-lambda (T - t))). desbrun2 estimates its own error from the
+     * third divided difference of the last four states (Milne's device,
+     * from its third step on; q = 2); its first step uses step doubling
+     * seen through the step's resolvent (q = 1), which overstates a
+     * second-order result's error: conservative at the start only. Its
+     * second step has no estimate and repeats the first step's size
+     * (BDF2 starts at ratio 1). est ~ h^(q+1), so est/h ~ h^q: the
+     * exponent is 1/q.
+     * ros2, richardson and desbrun keep their first-order estimates
+     * (embedded solution, the desbrun solutions' difference, step
+     * doubling), filtered, per step (est <= tol, exponent 1/2). The
+     * Milne estimate with their error constants was tried: ros2's was
+     * noisy on scans (spot, tol 1e-5: 138 rejections in 274 steps, 5x
+     * the steps of a fixed run as accurate), richardson's missed the
+     * noise transient on a noisy sphere (tests/test_core_flow.c
+     * test_adaptive, tol 1e-5: 12x tol in 338 steps where 128 fixed
+     * steps are as accurate); desbrun per unit step needs ~1/tol
+     * steps. */
+    int per_unit = p->scheme == MCF_DESBRUN2;
     int milne = per_unit && r->hist.nhist >= 2;
     int q = milne ? 2 : 1;
     int need_est = !(p->scheme == MCF_DESBRUN2 && r->hist.nhist == 1);

@@ -178,26 +178,6 @@ static void step_taylor(flow_ctx *c, double h, double c2)
         c->X[i] += h * c->V[i] + c2 * h * h * c->V2[i];
 }
 
-/* The local error of a second-order one-step result X+ (c->X) from the
- * third divided difference of the last four states (Milne's device, as
- * desbrun2's): X+ minus the quadratic through Xprev2, Xprev, Xold at
- * t + h is DD3 h (h+h1) (h+h1+h2), and the local error is |C| h^3 y''' =
- * 6 |C| h^3 DD3 with the scheme's error constant C (the z^3 coefficient
- * of its stability function minus 1/6). Into *est, in the M-norm (mass
- * at X+'s step); V is scratch. */
-static void milne_estimate(flow_ctx *c, double h, const history *hist, double C, const double *mass, double *est)
-{
-    size_t n3 = 3 * (size_t)c->nv;
-    double h1 = hist->h1, h2 = hist->h2;
-    double tm1 = -h1, tm2 = -h1 - h2, tp = h;
-    double l0 = (tp - tm1) * tp / ((tm2 - tm1) * tm2);
-    double l1 = (tp - tm2) * tp / ((tm1 - tm2) * tm1);
-    double l2 = (tp - tm2) * (tp - tm1) / (tm2 * tm1);
-    for (size_t i = 0; i < n3; i++)
-        c->V[i] = c->X[i] - (l0 * c->Xprev2[i] + l1 * c->Xprev[i] + l2 * c->Xold[i]);
-    *est = 6.0 * fabs(C) * h * h / ((h + h1) * (h + h1 + h2)) * mcf__flow_mnorm(c, c->V, mass);
-}
-
 /* desbrun2 after its first step: variable-step BDF2, operator at the
  * linear extrapolation:
  * (c0 Me + h Le) X+ = Me ((1+w) X^k - w^2/(1+w) X^(k-1)),
@@ -294,8 +274,7 @@ static mcf_status step_ros2(flow_ctx *c, double h, double *est, mcf_error *err)
 }
 
 /* richardson: 2 BE(h/2) o BE(h/2) - BE(h); est from their difference. */
-static mcf_status step_richardson(flow_ctx *c, double h, const history *hist, double *est,
-                                  mcf_error *err)
+static mcf_status step_richardson(flow_ctx *c, double h, double *est, mcf_error *err)
 {
     size_t n3 = 3 * (size_t)c->nv;
     double *X = c->X;
@@ -311,9 +290,7 @@ static mcf_status step_richardson(flow_ctx *c, double h, const history *hist, do
         c->V2[i] = c->V[i] - c->T1[i];
         X[i] = 2.0 * c->V[i] - c->T1[i];
     }
-    if (est && hist->nhist >= 2) /* 2 BE(h/2)^2 - BE(h) = exp(z) - z^3/6 + O(z^4) */
-        milne_estimate(c, h, hist, 1.0 / 6.0, c->mass2, est);
-    else if (est) /* the last factor: the second half step's, at T2 */
+    if (est) /* the last factor: the second half step's, at T2 */
         rc = mcf__flow_filtered_mnorm(c, 1.0, c->mass2, c->V2, est, err);
     return rc;
 }
@@ -371,7 +348,7 @@ mcf_status mcf__flow_step(flow_ctx *c, double h, const history *hist, double *es
     case MCF_ROS2:
         return step_ros2(c, h, est, err);
     case MCF_RICHARDSON:
-        return step_richardson(c, h, hist, est, err);
+        return step_richardson(c, h, est, err);
     case MCF_IMPLICIT:
         return step_implicit(c, h, err);
     case MCF_HUISKEN2:
