@@ -99,6 +99,8 @@ static const char smooth_tail[] =
     "  --progress            progress on stderr when it is not a terminal: one line per\n"
     "                        10% of the time (on a terminal the bar is always shown)\n"
     "  --quiet               no progress bar and no summary line (warnings still print)\n"
+    "  --threads N           threads of the fairing filters' passes (default: the\n"
+    "                        online cores); the result is one thread's bit for bit\n"
     "  --strict              a warning (folds, edge_collapse, area_loss,\n"
     "                        little_smoothing) fails the run: exit status 3, OUT not\n"
     "                        written (the metrics file is, when asked for)\n"
@@ -384,6 +386,7 @@ typedef struct {
     int npos;
     const char *target, *metrics, *fix_file;
     int quiet, progress, strict;
+    int threads;            /* --threads, default the online cores */
 } cli_opts;
 
 /* The parameter table (api_params_describe): every job parameter is an
@@ -520,6 +523,23 @@ static int parse_args(const char *cmd, int argc, char **argv, int first,
             else
                 return fail(EXIT_USAGE, "option '--%.*s' needs a value", (int)nl, a);
             *(key[0] == 'f' ? &o->fix_file : key[0] == 't' ? &o->target : &o->metrics) = val;
+            continue;
+        }
+        if (smooth && !strcmp(key, "threads")) {
+            char *end;
+            long n;
+            if (eq)
+                val = eq + 1;
+            else if (i + 1 < argc)
+                val = argv[++i];
+            else
+                return fail(EXIT_USAGE, "option '--threads' needs a value");
+            errno = 0;
+            n = strtol(val, &end, 10);
+            if (end == val || *end || errno || n < 1 || n > 64)
+                return fail(EXIT_USAGE, "option '--threads' needs a whole number from 1 to 64, "
+                            "got '%s'", val);
+            o->threads = (int)n;
             continue;
         }
         if (limit_index(key) >= 0) {
@@ -920,6 +940,7 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     rq.output_name = o->pos[1];
     rq.target_name = o->target;
     rq.process_rss = 1;
+    rq.threads = o->threads;
 
     /* progress: a bar on a terminal, plain lines with --progress
      * elsewhere; cancel on SIGINT/SIGTERM */
@@ -937,7 +958,9 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     memset(&h, 0, sizeof h);
     h.ctx = &sc;
     h.decode = hook_decode;
-    h.progress = hook_progress;
+    /* no progress shown, none asked of the core (its energy, the area,
+     * is a pass over the faces after every step) */
+    h.progress = sc.show ? hook_progress : NULL;
     h.flowed = hook_flowed;
     h.store = hook_store;
     h.cancel = &cancel_flag;
@@ -976,6 +999,14 @@ done:
     return rc;
 }
 
+/* The cores this process may run on (1 when that cannot be told), at
+ * most 64: the default of --threads. */
+static int online_cores(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
+}
+
 static int cmd_smooth(int argc, char **argv)
 {
     api_limits lim;
@@ -985,6 +1016,7 @@ static int cmd_smooth(int argc, char **argv)
     int rc;
 
     memset(&o, 0, sizeof o);
+    o.threads = online_cores();
     cli_limits(&lim);
     api_params_init(&p);
     if (!(table = param_table()))
