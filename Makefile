@@ -34,7 +34,7 @@ CPPFLAGS += -I/usr/include/suitesparse -Icore -Iapi
 CHOLMOD_A := $(shell $(CC) -print-file-name=libcholmod.a)
 LIBS_SRV  := -lmicrohttpd -lhiredis -lpthread
 LIBS_TEST := -lcmocka -lcurl -lyaml
-# The gRPC door (server/grpc*.cc): Debian's gRPC C++ 1.51 and protobuf.
+# The gRPC door (server/grpc/grpc*.cc): Debian's gRPC C++ 1.51 and protobuf.
 # Deferred (=): pkg-config runs once `make deps` has installed them.
 GRPC_CFLAGS = $(shell pkg-config --cflags grpc++ protobuf)
 LIBS_GRPC   = $(shell pkg-config --libs grpc++ protobuf) -lgrpc++_reflection
@@ -63,8 +63,13 @@ CLI_SRC  := $(wildcard cli/*.c)
 # What the programs (mcf, mcfd) do first in main (prog/prog.h): theirs,
 # not the libraries'.
 PROG_SRC := $(wildcard prog/*.c)
-SRV_SRC  := $(wildcard server/*.c)
-SRV_CXX  := $(wildcard server/*.cc)
+# server/: the daemon's process at the top, one folder per module below
+# (README's Layout); SRV_DIRS lists them, SRV_INC says what each may see.
+SRV_DIRS := server server/service server/sandbox server/store server/store/redis \
+            server/rest server/grpc server/grpc/h2gate
+SRV_SRC  := $(wildcard $(SRV_DIRS:%=%/*.c))
+SRV_CXX  := $(wildcard $(SRV_DIRS:%=%/*.cc))
+SRV_ALL  := $(wildcard $(SRV_DIRS:%=%/*.[ch]) $(SRV_DIRS:%=%/*.cc))
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTLIB  := $(wildcard tests/testlib.c)
 
@@ -124,6 +129,26 @@ $(B)/libmcfapi.a: $(API_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
 $(PROG_OBJ) $(CLI_OBJ) $(B)/server/main.o: CPPFLAGS += -Iprog
+
+# Which headers a server/ file sees, by folder: every one the daemon's
+# (server/: srv.h, service.h, door.h) and its own folder's; the service its
+# store and sandbox as well; the Redis store the store's contract; main.c
+# the two doors and the sandbox. A door has no -I to store/, service/ or
+# sandbox/, so the compiler refuses a door that includes their headers.
+SRV_INC_server               := -Iserver
+SRV_INC_server/service       := -Iserver/service -Iserver/store -Iserver/sandbox
+SRV_INC_server/sandbox       := -Iserver/sandbox
+SRV_INC_server/store         := -Iserver/store
+SRV_INC_server/store/redis   := -Iserver/store -Iserver/store/redis
+SRV_INC_server/rest          := -Iserver/rest
+SRV_INC_server/grpc          := -Iserver/grpc -Iserver/grpc/h2gate
+SRV_INC_server/grpc/h2gate   := -Iserver/grpc/h2gate
+SRV_INC_MAIN                 := -Iserver/rest -Iserver/grpc -Iserver/sandbox
+# $(call srv_inc,BUILD-DIR): each server object under BUILD-DIR gets its folder's.
+srv_inc = $(foreach f,$(SRV_SRC) $(SRV_CXX),$(eval $(1)/$(basename $(f)).o: \
+  CPPFLAGS += -Iserver $(SRV_INC_$(patsubst %/,%,$(dir $(f))))))
+$(call srv_inc,$(B))
+$(B)/server/main.o: CPPFLAGS += $(SRV_INC_MAIN)
 
 $(B)/mcf: $(CLI_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $(CLI_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_API) $(LIBS_CORE)
@@ -186,12 +211,12 @@ $(B)/%.o: %.cc
 $(B)/tests/%: $(B)/tests/%.o $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lpthread
 
-# The Redis store's tests: its client (server/rds.c) and store
-# (server/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
+# The Redis store's tests: its client (server/store/redis/rds.c) and store
+# (server/store/redis/rstore.c) against a real redis-server (Debian's, DEB_PKGS) that
 # tests/redisd.c starts and stops.
 REDIS_TESTS := $(B)/tests/test_redis $(B)/tests/test_rstore
-REDIS_OBJ := $(B)/tests/redisd.o $(B)/server/rds.o $(B)/server/rds_pool.o $(B)/server/rstore.o \
-             $(B)/server/rstore_queue.o $(B)/server/rstore_files.o $(B)/server/fsio.o
+RSTORE_OBJ := $(patsubst %.c,$(B)/%.o,$(wildcard server/store/redis/r*.c))
+REDIS_OBJ := $(B)/tests/redisd.o $(RSTORE_OBJ) $(B)/server/fsio.o
 $(REDIS_TESTS): $(B)/tests/%: $(B)/tests/%.o $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(REDIS_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
@@ -337,7 +362,7 @@ $(B)/server/openapi_yaml.c: api/openapi.yaml
 $(B)/server/openapi_yaml.o: $(B)/server/openapi_yaml.c
 	$(CC) $(WARN) $(CFLAGS) -c $< -o $@
 
-# The page (server/ui.c): web/'s files and three.js (node_modules, `npm ci`
+# The page (server/rest/ui.c): web/'s files and three.js (node_modules, `npm ci`
 # above) embedded by web/embed.sh as build/server/ui_assets.c. The addon's
 # bare `from 'three'` becomes a relative import: the page needs no import
 # map (an inline script its Content-Security-Policy forbids).
@@ -357,8 +382,8 @@ $(B)/server/ui_assets.c: web/embed.sh web/index.html $(UI_WEB) $(NPM_STAMP)
 	  /ui/three.core.js=$(THREE)/build/three.core.js \
 	  /ui/OrbitControls.js=$(B)/ui/OrbitControls.js
 
-$(B)/server/ui_assets.o: $(B)/server/ui_assets.c server/ui_assets.h
-	$(CC) $(WARN) -Iserver $(CFLAGS) -c $< -o $@
+$(B)/server/ui_assets.o: $(B)/server/ui_assets.c server/rest/ui_assets.h
+	$(CC) $(WARN) -Iserver/rest $(CFLAGS) -c $< -o $@
 
 # ---- make install: the two programs, their man pages (made from their
 # --help, so they cannot drift), the licence and the API contracts.
@@ -445,21 +470,20 @@ image-check:
 
 # Every source of the product and its tests (all but lab/), and the lab's
 # header names as one regular expression (lab.h|study.h|...).
-PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] prog/*.[ch] server/*.[ch] server/*.cc \
-                 tests/*.[ch] tests/fuzz/*.[ch])
+PRODUCT_SRC := $(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] prog/*.[ch] tests/*.[ch] tests/fuzz/*.[ch]) \
+               $(SRV_ALL)
 empty :=
 LAB_HEADERS_RE := $(subst $(empty) $(empty),|,$(subst .,\.,$(notdir $(wildcard lab/*.h lab/*/*.h))))
 
-# The job service's files: they alone include svc_internal.h (spool.c, its
-# local store, sees only store.h).
-SRV_SERVICE := $(wildcard server/service.[ch] server/svc_*.[ch] server/runner.c server/workers.c server/recovery.c server/sandbox.[ch] server/spool.c server/store.h \
-  server/store_redis.c server/rstore*.[ch] server/rds*.[ch])
+# The job service's files (service/, with its sandbox/ and store/): they
+# alone include svc_internal.h (spool.c, the local store, sees only store.h).
+SRV_SERVICE := $(wildcard server/service.h server/service/*.[ch] server/sandbox/*.[ch] server/store/*.[ch] server/store/redis/*.[ch])
 # The doors: each reaches jobs through service.h alone and never includes
-# the other door's headers.
-REST_DOOR := $(wildcard server/http.[ch] server/reply.c server/jobroutes.c server/upload.c server/stream.c server/waiter.c server/ui.c server/rest_door.[ch])
+# the other door's headers (the -I flags above enforce the first).
+REST_DOOR := $(wildcard server/rest/*.[ch])
 # The gRPC door's C++ (the only C++ in server/), sharing grpc_internal.h.
-GRPC_CXX := server/grpc.cc server/grpc_calls.cc server/grpc_follow.cc server/grpc_status.cc server/grpc_upload.cc
-GRPC_DOOR := $(wildcard server/grpc*.cc server/grpc_door.h server/grpc_internal.h server/h2gate*.[ch])
+GRPC_CXX := $(wildcard server/grpc/*.cc)
+GRPC_DOOR := $(wildcard server/grpc/*.cc server/grpc/*.h server/grpc/h2gate/*.[ch])
 
 # The daemon's integration tests (test_server*.c, one concern each) share
 # tests/srvlib.c.
@@ -472,7 +496,7 @@ $(SERVER_TESTS): $(B)/tests/%: $(B)/tests/%.o $(SRVLIB_OBJ) $(TESTLIB_OBJ) $(B)/
 # test_service drives the job service in-process: its objects (the service,
 # its store and sandbox, the log and metrics it reports to, fsio.c), no door.
 SVC_TEST_OBJ := $(patsubst %.c,$(B)/%.o,$(filter %.c,$(SRV_SERVICE)) server/log.c server/metrics.c server/fsio.c)
-$(B)/tests/test_service.o: CPPFLAGS += -Iserver
+$(B)/tests/test_service.o: CPPFLAGS += -Iserver -Iserver/sandbox
 $(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $< $(SVC_TEST_OBJ) $(TESTLIB_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_TEST) $(LIBS_API) $(LIBS_CORE) -lhiredis -lpthread
 
@@ -488,20 +512,20 @@ check-deps:
 	  { echo "check-deps: api/ must not include microhttpd.h"; exit 1; }
 	@! grep -nE '\b(exec[lv]p?e?|setenv|putenv|fork)[[:space:]]*\(' core/*.[ch] api/*.[ch] api/*.cc || \
 	  { echo "check-deps: the libraries leave the process to the programs: no exec, fork or setenv in core/ or api/ (prog/ has what mcf and mcfd do first)"; exit 1; }
-	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out $(GRPC_CXX) server/grpc_internal.h,$(wildcard server/*.[ch] server/*.cc)) || \
-	  { echo "check-deps: only the server's gRPC bridge ($(GRPC_CXX), server/grpc_internal.h) includes gRPC or protobuf"; exit 1; }
-	@[ -z "$(filter-out $(GRPC_CXX),$(wildcard server/*.cc server/*.cpp))" ] || \
+	@! grep -nE '#include *[<"](grpc[a-z+]*/|google/protobuf/)|mcfd(\.grpc)?\.pb\.h' core/*.[ch] api/*.c api/*.cc api/*.h $(filter-out $(GRPC_CXX) server/grpc/grpc_internal.h,$(SRV_ALL)) || \
+	  { echo "check-deps: only the server's gRPC bridge ($(GRPC_CXX), server/grpc/grpc_internal.h) includes gRPC or protobuf"; exit 1; }
+	@[ -z "$(filter-out $(GRPC_CXX),$(wildcard $(SRV_DIRS:%=%/*.cc) $(SRV_DIRS:%=%/*.cpp)))" ] || \
 	  { echo "check-deps: $(GRPC_CXX) are the only C++ in server/"; exit 1; }
-	@! grep -nE '#include *[<"]grpc_internal\.h' $(filter-out $(GRPC_CXX),$(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] server/*.[ch] server/*.cc tests/*.[ch])) || \
+	@! grep -nE '#include *[<"]grpc_internal\.h' $(filter-out $(GRPC_CXX),$(wildcard core/*.[ch] api/*.[ch] api/*.cc cli/*.[ch] tests/*.[ch]) $(SRV_ALL)) || \
 	  { echo "check-deps: grpc_internal.h is the gRPC door's own ($(GRPC_CXX)); others use grpc_door.h"; exit 1; }
-	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] prog/*.[ch] server/*.[ch] server/*.cc) || \
+	@! grep -nE '#include *[<"][^>"]*\.\./' $(wildcard core/*.[ch] api/*.c api/*.cc api/*.h cli/*.[ch] prog/*.[ch]) $(SRV_ALL) || \
 	  { echo "check-deps: include a layer's header by name (\"api.h\"), not by a relative path: the -I flags say which layers a file may see"; exit 1; }
 	@! grep -nE '#include *[<"](microhttpd|http)\.h' $(SRV_SERVICE) || \
 	  { echo "check-deps: the job service (service.h) must not know the REST door or libmicrohttpd"; exit 1; }
-	@! grep -nE '#include *[<"]svc_internal\.h' $(filter-out $(SRV_SERVICE),$(wildcard server/*.c server/*.h server/*.cc)) || \
+	@! grep -nE '#include *[<"]svc_internal\.h' $(filter-out $(SRV_SERVICE),$(SRV_ALL)) || \
 	  { echo "check-deps: outside the job service, use service.h, not svc_internal.h"; exit 1; }
-	@! grep -nE '#include *[<"](svc_internal|svc_admit|store|sandbox)\.h' $(REST_DOOR) $(GRPC_DOOR) || \
-	  { echo "check-deps: a door includes service.h, never the service's own headers (svc_internal.h, svc_admit.h, store.h, sandbox.h)"; exit 1; }
+	@! grep -nE '#include *[<"](svc_internal|svc_admit|store|sandbox|rstore[a-z_]*|rds)\.h' $(REST_DOOR) $(GRPC_DOOR) || \
+	  { echo "check-deps: a door includes service.h, never the service's own headers (svc_internal.h, svc_admit.h, store.h, rstore.h, rds.h, sandbox.h)"; exit 1; }
 	@! grep -nE '#include *[<"](grpc_door|h2gate)\.h' $(REST_DOOR) || \
 	  { echo "check-deps: the REST door does not include the gRPC door's headers"; exit 1; }
 	@! grep -nE '#include *[<"](http|rest_door)\.h' $(GRPC_DOOR) || \
@@ -529,7 +553,7 @@ FUZZ_TIME ?= 30
 # 251-byte file costs 4.6 s of CPU (7 s under ASan), and the largest count
 # (2^31) about 8x that; the header counts check_counts bounds are tiny there.
 # The daemon decodes Draco in a sandbox with CPU and memory limits
-# (server/sandbox.c: such a file is a 422 there); the fuzzers call the codec
+# (server/sandbox/sandbox.c: such a file is a 422 there); the fuzzers call the codec
 # directly, hence the long timeout. Crashes, leaks and UB still fail the
 # run at once.
 FUZZ_DRACO_TIMEOUT ?= 120
@@ -545,8 +569,8 @@ FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
 FUZZ_NAMES := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=%)
 FUZZ_BIN := $(FUZZ_NAMES:%=$(FZ)/fuzz_%)
 # The server's pure parts, for fuzz_h2gate: the gRPC door's frame parser
-# and its accounting (server/h2gate.h: no sockets, threads or clock).
-FUZZ_SRVOBJ := $(FZ)/server/h2gate_parser.o $(FZ)/server/h2gate_limits.o
+# and its accounting (server/grpc/h2gate/h2gate.h: no sockets, threads or clock).
+FUZZ_SRVOBJ := $(FZ)/server/grpc/h2gate/h2gate_parser.o $(FZ)/server/grpc/h2gate/h2gate_limits.o
 FUZZ_LIBOBJ := $(CORE_SRC:%.c=$(FZ)/%.o) $(API_SRC:%.c=$(FZ)/%.o) \
                $(API_CXX:%.cc=$(FZ)/%.o) $(FUZZ_SRVOBJ)
 
@@ -562,11 +586,12 @@ $(FZ)/api/%.o: api/%.cc
 	@mkdir -p $(@D)
 	$(FUZZ_CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
 
+$(call srv_inc,$(FZ))
 $(FZ)/server/%.o: server/%.c
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@
 
-$(FZ)/tests/fuzz/fuzz_h2gate.o: CPPFLAGS += -Iserver
+$(FZ)/tests/fuzz/fuzz_h2gate.o: CPPFLAGS += -Iserver/grpc/h2gate
 $(FZ)/tests/fuzz/%.o: tests/fuzz/%.c
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(FUZZ_CFLAGS) -MMD -MP -c $< -o $@

@@ -413,7 +413,7 @@ mcf_status api_mesh_unpack(const void *buf, size_t len, const api_limits *lim,
 /* ---------------------------------------------------------------- process */
 
 /* The bounds a Draco decode runs under (api_bounds.c says why): the
- * daemon's in a child process (server/sandbox.c, floors --decode-cpu and
+ * daemon's in a child process (server/sandbox/sandbox.c, floors --decode-cpu and
  * --decode-memory), the CLI's in its own (these defaults). */
 #define API_DECODE_CPU_S 2.0                  /* CPU seconds, floor */
 #define API_DECODE_MEMORY ((size_t)64 << 20)  /* address space, floor */

@@ -2,7 +2,7 @@
 /*
  * api_bounds.c - the CPU and memory a Draco decode may take, one rule for
  * the daemon (which decodes in a child process under them:
- * server/sandbox.c) and the CLI (in its own process, cli/mcf.c).
+ * server/sandbox/sandbox.c) and the CLI (in its own process, cli/mcf.c).
  *
  * Why: libdraco 1.5.5 trusts counts inside a stream that no header check
  * sees: a 210-byte edgebreaker file costs 8.8 s of CPU and 256 MiB, then

@@ -3,7 +3,7 @@
  * api_estimate.c - a job's peak memory, estimated from what its input
  * declares before a byte of it is decoded: the daemon refuses a job whose
  * estimate exceeds the per-job bound and starts jobs only while their
- * estimates fit its memory budget (server/svc_admit.c).
+ * estimates fit its memory budget (server/service/svc_admit.c).
  *
  * Counts. Draco, PLY and OFF declare their vertex and face counts in a
  * header (Draco's are the ones check_counts bounds; a stream that needs

@@ -216,6 +216,8 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && api__json_num(o, "crease_vertices", st->crease_vertices);
     ok = ok && api__json_num(o, "guard_rounds", st->guard_rounds);
     ok = ok && api__json_num(o, "guard_vertices", st->guard_vertices);
+    /* the default request: the spikes repaired before the filter */
+    ok = ok && api__json_num(o, "spikes_repaired", st->spikes_repaired);
     ok = ok && api__json_num(o, "folded_faces", st->folded_faces);
     ok = ok && api__json_num(o, "min_edge_ratio", st->min_edge_ratio);
     ok = ok && api__json_num(o, "area_ratio", st->area_ratio);

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * api_pack.c - a decoded mesh and its attributes as one exact binary
- * record, and back: what the daemon's decode sandbox (server/sandbox.c)
+ * record, and back: what the daemon's decode sandbox (server/sandbox/sandbox.c)
  * sends from its child process to the worker over a pipe.
  *
  * The record holds everything a decoder hands on to the rest of a job:

@@ -132,6 +132,8 @@ mcf_status api_params_finish(api_params *p, int nv, const api_limits *lim,
          * the low modes better: docs/fairing.md); a named `fairing` is
          * the implicit filter alone */
         p->flow.fairing_pick = p->flow.scheme == MCF_FAIRING;
+        /* and repairs the spikes first (docs/fairing.md, "Spikes") */
+        p->flow.fairing_robust = api__is_fairing(p->flow.scheme);
     }
     /* the fairing filters' strength: the noise level (mean edges) whose
      * removal their amount optimizes; unset or auto: estimated */

@@ -343,6 +343,11 @@ typedef struct {
                                  their SURE is clearly lower (the default
                                  request's; mcf_flow_stats.filter_explicit
                                  says which) */
+    int fairing_robust;       /* the fairing filters with the automatic
+                                 amount: first repair the spikes (vertices
+                                 far off the surface their neighbours
+                                 define, mcf_flow_stats.spikes_repaired;
+                                 the default request's) */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -492,6 +497,9 @@ typedef struct {
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
+    int spikes_repaired;      /* fairing_robust: vertices found far off
+                                 the surface their neighbours define and
+                                 put back on it before the filter */
     unsigned warnings;        /* MCF_WARN_* bits */
     int folded_faces;         /* faces the run folded: turned by more
                                  than 90 degrees against the input's same

@@ -562,6 +562,29 @@ static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won)
     st->filter_explicit = 1;
 }
 
+/* The spikes of X repaired in a copy (*Xs; NULL when there are none),
+ * their count into st->spikes_repaired. ENOMEM only. */
+static mcf_status repair_spikes(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                                double hbar, mcf_flow_stats *st, double **Xs, mcf_error *err)
+{
+    mcf__graph g;
+    mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
+    if (rc != MCF_OK)
+        return rc;
+    double *Y = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    int n = Y ? (memcpy(Y, X, 3 * sizeof(double) * (size_t)nv), mcf__spikes(&g, F, nf, fixed, hbar, Y)) : -1;
+    mcf__graph_free(&g);
+    if (n < 0) {
+        free(Y);
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    }
+    st->spikes_repaired = n;
+    if (n == 0)
+        free(Y);
+    *Xs = n > 0 ? Y : NULL;
+    return MCF_OK;
+}
+
 mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err)
@@ -573,8 +596,14 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     memset(&ce, 0, sizeof ce);
     ci.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
     st->filter_explicit = ci.is_explicit;
-    rc = filter_run(&ci, X, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
-    size_t peak = ci.bytes + mcf__chol_bytes(ci.chol);
+    /* the default request: the spikes repaired first (mcf_spikes.c); the
+     * filter then takes the repaired mesh as its input */
+    double *Xs = NULL;
+    if (p->fairing_robust && p->iterations <= 0 && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
+        return rc;
+    const double *Xf = Xs ? Xs : X;
+    rc = filter_run(&ci, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
+    size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + (Xs ? 3 * sizeof(double) * (size_t)nv : 0);
     /* the default request's `fairing` (fairing_pick) with the automatic
      * amount: the explicit passes too, the lower SURE taken
      * (pick_explicit); the factor freed first */
@@ -583,7 +612,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ci.chol = NULL;
         memset(&se, 0, sizeof se);
         ce.is_explicit = ce.quiet = 1;
-        rc = filter_run(&ce, X, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
+        rc = filter_run(&ce, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
         take_stats(st, &se, won);
         c = won ? &ce : &ci;
@@ -607,6 +636,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         peak += c->bytes - before; /* the guard's arrays */
     }
     st->peak_bytes = peak;
+    free(Xs);
     fair_free(&ci);
     fair_free(&ce);
     return rc;

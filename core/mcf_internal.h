@@ -214,6 +214,17 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err);
 
+/* ---- spikes (mcf_spikes.c)
+ * The vertices of X (graph g, mean edge hbar) far off the surface their
+ * neighbours define (their height over their 1-ring many robust
+ * deviations of the heights and at least a mean edge, far above their
+ * neighbours', pulling their neighbours' rings towards them), not fixed
+ * (fixed: nv), moved back along the surface's normal onto the plane of
+ * their ring's centroid. Returns their count, -1 when out of memory (X
+ * then unchanged). */
+int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned char *fixed, double hbar,
+                double *X);
+
 /* ---- creases (mcf_creases.c)
  * The creases of the mesh (X, F; graph g): the edges between two faces of
  * X smoothed by 10 Taubin passes that meet at more than 40 degrees, kept

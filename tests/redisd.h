@@ -11,7 +11,7 @@
 
 #include <sys/types.h>
 
-#include "../server/rds.h"
+#include "../server/store/redis/rds.h"
 
 typedef struct {
     char dir[64];              /* its directory: AOF, log */

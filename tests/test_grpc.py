@@ -984,7 +984,7 @@ def test_grpc_port_flags():
 #
 # Each of these attacks a real daemon with tests/h2raw.py (frames by hand),
 # prints what it cost and asserts the bound; each failed on the daemon
-# before the gate (server/h2gate.c). `make attack` runs them too.
+# before the gate (server/grpc/h2gate/h2gate.c). `make attack` runs them too.
 
 def proc_cpu(pid):
     """CPU seconds (user + system) a process has used"""

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * test_redis.c - mcfd's Redis client (server/rds.c) against a real
+ * test_redis.c - mcfd's Redis client (server/store/redis/rds.c) against a real
  * redis-server: Debian's 7.0, which `make deps` installs, started by this
  * binary on a free loopback port with the append-only file on (fsync at
  * every write) in its own temporary directory, and stopped at the end

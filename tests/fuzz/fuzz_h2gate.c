@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * fuzz_h2gate.c - libFuzzer target: the gRPC door's gate (server/
+ * fuzz_h2gate.c - libFuzzer target: the gRPC door's gate (server/grpc/h2gate/
  * h2gate_parser.c, h2gate_limits.c) on arbitrary client bytes, driven as
- * server/h2gate.c drives it, with a stand-in for gRPC behind it.
+ * h2gate.c drives it, with a stand-in for gRPC behind it.
  *
  * Input: three control bytes, then what the client sends. They choose
  * one or two connections (from one address or two), the bounds (streams per connection, per address, in all; header
