@@ -240,6 +240,18 @@ mcf_status check_counts(const uint8_t *buf, size_t len, const api_limits *lim,
         return api__fail(err, MCF_ELIMIT,
                          "draco: header declares %u faces, more than max_faces (%d)",
                          n.nfaces, lim->max_faces);
+    /* libdraco sizes its corner table from the declared faces before it
+     * reads them (about 24 B a face): 26 bytes declaring 9,999,999 faces
+     * took 243 MB in `mcf info` (issue 28). The densest stream we made, a
+     * flat 1000 x 1000 grid at 1-bit quantization, holds 684 faces a
+     * byte (600 x 600: 496); 16,384 a byte, plus 4,096, is far above
+     * any real stream (scans: under 1 a byte) and lets 26 bytes ask for
+     * 14 MB at most. */
+    if (n.nfaces > 4096 + 16384 * static_cast<uint64_t>(len))
+        return api__fail(err, MCF_ELIMIT,
+                         "draco: header declares %u faces in a %zu-byte stream, more "
+                         "than 16384 a byte: refused before decoding",
+                         n.nfaces, len);
     if (nv > static_cast<uint32_t>(lim->max_vertices))
         return api__fail(err, MCF_ELIMIT,
                          "draco: header declares %u vertices, more than "

@@ -178,6 +178,16 @@ typedef struct {
  * names its line or element. */
 mcf_status api__tris_add(api__tris *t, int32_t a, int32_t b, int32_t c,
                          long long max, long long first, long long *want);
+/* The triangles a mesh of nv vertices and nf faces (as declared, or
+ * counted: OBJ's `f` lines) may fan its polygons into: the admission
+ * charges the faces declared and, per vertex, up to 2 faces a vertex
+ * (api_estimate_job_bytes), the triangles of a closed surface fanned
+ * without new vertices (2V - 4 + 4 x genus: Euler); an eighth and 1024
+ * above for the genus and small meshes. A reader refuses (ELIMIT) the
+ * polygon that would pass it, before building it: one polygon of 10M
+ * corners in a 9 MB PLY peaked at 474 MiB before the job's 422 (issue
+ * 28). */
+long long api__fan_max(long long nv, long long nf);
 
 /* An encoder's last step. rc is the status of its appends to out since
  * out->len was len0: MCF_OK is returned as is; otherwise out is cut back

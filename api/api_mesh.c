@@ -247,6 +247,12 @@ mcf_status api__mesh_new(int nv, const double *X, int nf, const int32_t *F,
     return MCF_OK;
 }
 
+long long api__fan_max(long long nv, long long nf)
+{
+    long long base = nf > 2 * nv ? nf : 2 * nv;
+    return base + base / 8 + 1024;
+}
+
 mcf_status api__tris_add(api__tris *t, int32_t a, int32_t b, int32_t c,
                          long long max, long long first, long long *want)
 {

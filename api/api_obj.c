@@ -108,6 +108,11 @@ static mcf_status count(const char *buf, size_t len, const api_limits *lim,
             }
         }
     }
+    if (f > api__fan_max(v, np))
+        return api__fail(err, MCF_ELIMIT,
+                         "obj: %ld 'f' lines would fan into %ld triangles, more than "
+                         "%ld vertices and %ld faces make (a closed surface of V "
+                         "vertices has about 2V)", np, f, v, np);
     *nv = (int)v;
     *nf = (int)f;
     *npoly = np;

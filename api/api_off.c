@@ -200,6 +200,12 @@ static mcf_status read_face(reader *r, int i, long long nv, long long nf,
         return api__fail(err, MCF_EDECODE, "off: line %ld: face %d has %lld vertices, "
                          "at least 3 needed",
                          r->in.line, i, *deg);
+    if (*deg - 2 > api__fan_max(nv, nf) - T->n)
+        return api__fail(err, MCF_ELIMIT, "off: line %ld: face %d has %lld corners: the "
+                         "polygons would fan into more than %lld triangles, more than "
+                         "%lld vertices and %lld faces make (a closed surface of V "
+                         "vertices has about 2V)",
+                         r->in.line, i, *deg, api__fan_max(nv, nf), nv, nf);
     for (k = 0; k < *deg; k++) {
         long long v;
         n = token(r, &t);

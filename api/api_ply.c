@@ -53,6 +53,7 @@ typedef struct {
     long long tmp_n, tmp_cap, poly_n, tri0;
     int32_t *psize;                /* each face row's corner count */
     long long np, np_cap;
+    long long fan_max;             /* triangles the declared counts allow */
 } body;
 
 /* The value of type t stored at b; swap: the file's byte order differs
@@ -128,6 +129,21 @@ static mcf_status fan_add(body *b, fan *f, long long k, double v,
     }
     f->prev = i;
     return MCF_OK;
+}
+
+/* A polygon of count corners fans into count - 2 triangles: refused
+ * before it is built when the triangles would pass b->fan_max (set in
+ * api_ply_decode_attrs). */
+static mcf_status fan_budget(const body *b, long long count, unsigned long long idx,
+                             mcf_error *err)
+{
+    if (count - 2 <= b->fan_max - b->T.n)
+        return MCF_OK;
+    return api__fail(err, MCF_ELIMIT,
+                     "ply: face %llu has %lld corners: the polygons would fan into "
+                     "more than %lld triangles, more than %d vertices and the faces "
+                     "declared make (a closed surface of V vertices has about 2V)",
+                     idx, count, b->fan_max, b->nv);
 }
 
 static mcf_status bad_count(const body *b, long long count, unsigned long long idx,
@@ -267,6 +283,8 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                         fan f = {0, 0};
                         if (count < 3)
                             return bad_count(b, count, r, err);
+                        if ((rc = fan_budget(b, count, r, err)) != MCF_OK)
+                            return rc;
                         b->poly_n = count;
                         for (k = 0; k < count; k++) {
                             double v = get_scalar(u + b->pos + (size_t)k * is,
@@ -381,6 +399,8 @@ static mcf_status ascii_list(body *b, const element *e, const prop *p, unsigned 
                          api__show(t, n, shown));
     if (p->role == ROLE_INDICES && count < 3)
         return bad_count(b, count, r, err);
+    if (p->role == ROLE_INDICES && (rc = fan_budget(b, count, r, err)) != MCF_OK)
+        return rc;
     if (p->role == ROLE_INDICES)
         b->poly_n = count;
     for (k = 0; k < count; k++) {
@@ -672,6 +692,10 @@ mcf_status api_ply_decode_attrs(const void *buf, size_t len,
     b.txt.line = h.body_line - 1; /* the line before the first body line */
     b.nv = (int)ve->count;
     b.lim = lim;
+    /* the triangles the declared counts pay for (api__fan_max) */
+    for (i = 0; i < h.nel; i++)
+        if (h.el[i].is_face)
+            b.fan_max = api__fan_max(b.nv, (long long)h.el[i].count);
     b.X = malloc(3 * sizeof *b.X * (size_t)b.nv);
     if (!b.X) {
         rc = api__fail(err, MCF_ENOMEM, "ply: no memory for %d vertices", b.nv);

@@ -756,6 +756,23 @@ static void test_regression_huge_faces(void **state)
     free(buf);
 }
 
+/* Issue 28: a 26-byte v2.2 edgebreaker header declaring 9,999,999 faces
+ * (within max_faces) made libdraco size its corner table, 243 MB, before
+ * failing to decode; refused from the header now: more faces than 16384
+ * a byte of stream. A real stream is far below (bunny.drc 0.7, a flat
+ * 1000 x 1000 grid at 1-bit quantization 684). */
+static void test_declared_faces_per_byte(void **state)
+{
+    size_t len;
+    char *buf = read_data_file("draco_declared_faces.drc", &len);
+    (void)state;
+    assert_int_equal(len, 26);
+    expect_fail(buf, len, MCF_ELIMIT,
+                "draco: header declares 9999999 faces in a 26-byte stream, more "
+                "than 16384 a byte: refused before decoding");
+    free(buf);
+}
+
 /* Hand-made headers for the other counts libdraco trusts: metadata entry
  * sizes and nesting, hole events of v2.0 streams, split symbols, and the
  * sequential point count. */
@@ -1395,6 +1412,7 @@ int main(void)
         cmocka_unit_test(test_truncated_and_corrupted),
         cmocka_unit_test(test_regression_bool_position),
         cmocka_unit_test(test_regression_huge_faces),
+        cmocka_unit_test(test_declared_faces_per_byte),
         cmocka_unit_test(test_hostile_headers),
         cmocka_unit_test(test_limits),
     };

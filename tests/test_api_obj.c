@@ -209,6 +209,26 @@ static void test_polygons(void **state)
     mcf_mesh_free(m);
 }
 
+/* Polygons fanning into more triangles than their vertices and faces
+ * make (api__fan_max: 2 x 3 + 1024 = 1030 here) are refused before the
+ * triangles are built (issue 28); 2,000 corners on 3 vertices: 1,998. */
+static void test_polygon_fan_budget(void **state)
+{
+    api_buf b;
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    int i;
+    (void)state;
+    api_buf_init(&b, 0);
+    assert_int_equal(api_buf_printf(&b, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf"), MCF_OK);
+    for (i = 0; i < 2000; i++)
+        assert_int_equal(api_buf_printf(&b, " %d", 1 + i % 3), MCF_OK);
+    assert_int_equal(api_buf_printf(&b, "\n"), MCF_OK);
+    assert_int_equal(dec(b.data, &m, &err), MCF_ELIMIT);
+    assert_non_null(strstr(err.msg, "1998 triangles"));
+    api_buf_free(&b);
+}
+
 static void test_reference_forms(void **state)
 {
     mcf_mesh *m;
@@ -649,6 +669,7 @@ int main(void)
         cmocka_unit_test(test_roundtrip_extremes),
         cmocka_unit_test(test_encode_limit),
         cmocka_unit_test(test_polygons),
+        cmocka_unit_test(test_polygon_fan_budget),
         cmocka_unit_test(test_reference_forms),
         cmocka_unit_test(test_negative_indices),
         cmocka_unit_test(test_forward_reference),

@@ -393,6 +393,57 @@ static void test_polygons(void **state)
     mcf_mesh_free(m);
 }
 
+/* A polygon fanning into more triangles than its mesh's declared counts
+ * pay for is refused before it is built (issue 28): a 10 MB binary PLY,
+ * 3 vertices and one face of 10,000,002 uchar corners, fanned into
+ * 10,000,000 triangles (within max_faces) and peaked at 474 MiB in the
+ * daemon before its 422; the budget is 2 x the vertices (or the faces
+ * declared) + an eighth + 1024, here 1030. A convex polygon of 250
+ * corners on 250 vertices (248 triangles) still decodes. */
+static void test_polygon_fan_budget(void **state)
+{
+    const unsigned nvs[] = {3, 250};
+    const uint32_t corners[] = {10000002u, 250u};
+    mcf_mesh *m = NULL;
+    mcf_error err;
+    int t;
+    (void)state;
+    for (t = 0; t < 2; t++) {
+        char head[300];
+        size_t hl, n, i;
+        unsigned char *buf;
+        mcf_status st;
+        hl = (size_t)snprintf(head, sizeof head,
+                              "ply\nformat binary_little_endian 1.0\nelement vertex %u\n"
+                              "property float x\nproperty float y\nproperty float z\n"
+                              "element face 1\nproperty list uint uchar vertex_indices\n"
+                              "end_header\n", nvs[t]);
+        n = hl + 12 * nvs[t] + 4 + corners[t];
+        assert_non_null(buf = malloc(n));
+        memcpy(buf, head, hl);
+        for (i = 0; i < nvs[t]; i++) {      /* a circle: a convex polygon */
+            float v[3] = {(float)cos(6.283185307179586 * (double)i / nvs[t]),
+                          (float)sin(6.283185307179586 * (double)i / nvs[t]), 0};
+            memcpy(buf + hl + 12 * i, v, 12);
+        }
+        memcpy(buf + hl + 12 * nvs[t], &corners[t], 4);
+        for (i = 0; i < corners[t]; i++)
+            buf[hl + 12 * nvs[t] + 4 + i] = (unsigned char)(i % nvs[t]);
+        st = dec(buf, n, &m, &err);
+        free(buf);
+        if (t == 0) {
+            assert_int_equal(st, MCF_ELIMIT);
+            assert_non_null(strstr(err.msg, "10000002 corners"));
+            assert_non_null(strstr(err.msg, "more than 1030 triangles"));
+        } else {
+            if (st != MCF_OK)
+                fail_msg("a 250-corner polygon: %s", err.msg);
+            assert_int_equal(mcf_mesh_nfaces(m), 248);
+            mcf_mesh_free(m);
+        }
+    }
+}
+
 /* ----------------------------------------------------------- round trips */
 
 static void roundtrip(const char *file, int binary)
@@ -1137,6 +1188,7 @@ int main(void)
         cmocka_unit_test(test_reference_types),
         cmocka_unit_test(test_reference_layouts),
         cmocka_unit_test(test_polygons),
+        cmocka_unit_test(test_polygon_fan_budget),
         cmocka_unit_test(test_roundtrip),
         cmocka_unit_test(test_roundtrip_scans),
         cmocka_unit_test(test_roundtrip_be),

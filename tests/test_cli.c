@@ -107,13 +107,18 @@ static void test_info(void **state)
  * (64 MiB beyond its size, 2 s of CPU): refused at once (under ASan,
  * which cannot run under RLIMIT_AS, by the CPU limit). The same stream
  * as a GLB's Draco primitive too (the daemon's rule: whatever reaches
- * libdraco, api_mem_estimate.draco). */
+ * libdraco, api_mem_estimate.draco). Issue 28: draco_declared_faces.drc
+ * (26 bytes, an edgebreaker header declaring 9,999,999 faces) took
+ * 243 MB before libdraco's "Failed to decode": refused from its header,
+ * more faces than its bytes can hold. */
 static void test_draco_bound(void **state)
 {
     static const char *const bombs[] = {"draco_texcoord_orientations.drc",
-                                        "gltf/draco_bomb.glb"};
+                                        "gltf/draco_bomb.glb",
+                                        "draco_declared_faces.drc"};
     static const char *const was[] = {"exit 0 after 256 MiB and 6-9 s",
-                                      "exit 0 after 13 s of CPU"};
+                                      "exit 0 after 13 s of CPU",
+                                      "exit 1 after 243 MB"};
     size_t k;
 
     (void)state;
