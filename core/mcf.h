@@ -390,6 +390,11 @@ typedef struct {
     void *progress_ctx;
     mcf_work_fn work;         /* may be NULL; called with progress_ctx */
     const mcf_cancel_flag *cancel; /* loaded before every step; may be NULL */
+    int threads;              /* threads of the fairing filters' passes
+                                 (0 or 1: the caller's only); the result
+                                 is one thread's bit for bit. The caller
+                                 owns the policy: mcf gives its cores,
+                                 mcfd its cores over its workers */
 } mcf_flow_params;
 
 /* Fills p with the defaults: desbrun2, the amount from the mesh
