@@ -27,11 +27,10 @@ import signal
 import socket
 import subprocess
 import time
-import urllib.error
-import urllib.request
 
 import testlib
 from testlib import DATA, TMP, Daemon, run_tests, track
+from test_store_redis import http, wait_status
 
 BUNNY = os.path.join(DATA, "meshes", "bunny.drc")
 REDIS = {}
@@ -86,15 +85,6 @@ def daemon(name, *flags, port=None):
     return Daemon(name, "--store", url_of(port), "--workers", "1", *flags)
 
 
-def http(method, url, body=None, headers=None):
-    req = urllib.request.Request(url, data=body, method=method, headers=headers or {})
-    try:
-        with urllib.request.urlopen(req, timeout=30) as r:
-            return r.status, dict(r.headers), r.read()
-    except urllib.error.HTTPError as e:
-        return e.code, dict(e.headers), e.read()
-
-
 def post_job(d, query):
     with open(BUNNY, "rb") as f:
         return http("POST", d.url + "/v1/jobs?" + query, f.read(),
@@ -105,18 +95,6 @@ def submit(d, query):
     st, _, body = post_job(d, query)
     assert st == 202, (st, body[:300])
     return json.loads(body)["id"]
-
-
-def wait_status(d, jid, want, timeout):
-    end, last = time.time() + timeout, None
-    while time.time() < end:
-        st, _, body = http("GET", "%s/v1/jobs/%s" % (d.url, jid))
-        if st == 200:
-            last = json.loads(body)["status"]
-            if last == want:
-                return
-        time.sleep(0.1)
-    raise AssertionError("job %s: %s after %d s, not %s" % (jid, last, timeout, want))
 
 
 def wait_log(d, pattern, timeout):
