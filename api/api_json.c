@@ -230,6 +230,7 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
         ok = ok && api__json_num(fe, "sure", st->feature_sure);
         ok = ok && api__json_num(fe, "sure_against", st->feature_sure_against);
         ok = ok && api__json_num(fe, "z", st->feature_z);
+        ok = ok && api__json_num(fe, "noise", st->feature_noise);
     } else {
         ok = ok && api__json_put(o, "feature", cJSON_CreateNull());
     }

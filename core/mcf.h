@@ -535,6 +535,9 @@ typedef struct {
                                  the input's), along the same normals, mean
                                  per vertex, squared mean edges */
     double feature_z;         /* the gain in its standard errors */
+    double feature_noise;     /* the noise level the stage read from its
+                                 candidates' residuals (mean edges; SURE
+                                 and the move bound use it) */
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */

@@ -668,10 +668,16 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
             peak = ci.bytes + ce.bytes;
     }
     /* the feature-aware stage: the named `fairing_feature` alone, the
-     * default request's against the linear result (FEATURE_IN_DEFAULT) */
+     * default request's against the linear result on meshes with creases
+     * (FEATURE_CREASE_SHARE) */
     int feat = 0;
+    c->st = st; /* the explicit run's own figures were taken above: the
+                   feature stage's and the output's go to the caller's */
     st->steps = c->kbest;
-    if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && FEATURE_IN_DEFAULT))) {
+    double moving = (double)c->nfree + st->crease_vertices;
+    int creased = st->crease_vertices > 0 && st->crease_vertices >= FEATURE_CREASE_SHARE * moving &&
+                  st->crease_vertices <= FEATURE_CREASE_MAX * moving;
+    if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && creased))) {
         mcf__chol_free(c->chol); /* the factor is done with */
         c->chol = NULL;
         size_t before = c->bytes;

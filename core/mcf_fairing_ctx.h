@@ -100,9 +100,20 @@ void mcf__fair_keep_iterate(fair_ctx *c, int k, const double *Y, const double es
 void mcf__fair_combine(fair_ctx *c);
 /* Whether the explicit run e replaces the implicit run i. */
 int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
-/* The default request runs the feature-aware stage too (not yet:
- * docs/fairing.md, "The feature-aware stage"). */
-#define FEATURE_IN_DEFAULT 0
+/* The default request runs the feature-aware stage when the creases the
+ * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
+ * the vertices it moves and at most FEATURE_CREASE_MAX: the CAD parts
+ * blade.obj 5.4-30% and couplingdown_sub2.obj 22-31%, the shared organic
+ * meshes 0-4.1% (bunny_npm_closed.obj at 0.5 h 4.1%, spot.obj 2.9%),
+ * normal noise 0.1-0.5 h, seed 1 (make quality, 2026-11-28): thin margins
+ * both ways, but a false gate costs time, not quality (SURE still compares
+ * the two results). Past the upper bound nearly every vertex is on a
+ * crease (car.drc, 920 vertices: 72-82%), a tessellation as coarse as its
+ * features, where the stage's own noise reading (mcf_feature.c) takes the
+ * filter's bias for noise (0.19 h for 0.1 h) and the result it took was
+ * 1.48 of the input's error (the linear fairing's 0.93). */
+#define FEATURE_CREASE_SHARE 0.05
+#define FEATURE_CREASE_MAX 0.5
 /* The feature-aware stage (mcf_feature.c) on the input, X its output when
  * SURE takes it (*taken): against c's result along the normals
  * (against_lin: the default request's choice, PICK_MIN_GAIN, as the
@@ -121,9 +132,9 @@ void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsi
  * in its tangent planes, clamped, guarded. */
 mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err);
 /* The feature stage's result Yf as the output into X: mcf__feature_output
- * with moves bounded by MAX_MOVE noise levels; the guard's counts into
- * c->st. */
-mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double *X,
+ * with moves bounded by MAX_MOVE noise levels sf (the stage's reading);
+ * the guard's counts into c->st. */
+mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double sf, double *X,
                                     mcf_error *err);
 
 #endif

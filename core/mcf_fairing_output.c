@@ -241,9 +241,9 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
     return MCF_OK;
 }
 
-mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double *X,
+mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double sf, double *X,
                                     mcf_error *err)
 {
-    return mcf__feature_output(c->Xin, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * c->s, X, &c->st->guard_rounds,
+    return mcf__feature_output(c->Xin, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * sf, X, &c->st->guard_rounds,
                                &c->st->guard_vertices, err);
 }

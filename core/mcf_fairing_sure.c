@@ -357,9 +357,10 @@ mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *
         st->feature_sure = h2 > 0.0 ? pk.risk / h2 : 0.0;
         st->feature_sure_against = h2 > 0.0 ? pk.risk_lin / h2 : 0.0;
         st->feature_z = isfinite(pk.z) ? pk.z : 1e300;
+        st->feature_noise = c->hbar > 0.0 ? pk.s / c->hbar : 0.0;
         if (pk.won) {
             *taken = st->feature = 1;
-            rc = mcf__fair_feature_output(c, Yf, fixed, X, err);
+            rc = mcf__fair_feature_output(c, Yf, fixed, pk.s, X, err);
         }
     }
     free(Yf);

@@ -265,17 +265,27 @@ void mcf__bnf_run(mcf__bnf *b, const double *X, const unsigned char *fixed, doub
 
 /* ------------------------------------------------------------ the choice */
 
-/* The candidates: range widths (on |n_i - n_j|, unit normals), normal
- * iterations (the results after NIT_A and after NIT_B, one run), vertex
- * iterations (after VIT_A and VIT_B, one run). Measured in numpy on the
- * three shared CAD parts at noise 0.1-0.5 (the oracle's best among
- * sigma_r 0.35-1.4, 5-20 normal and 10-20 vertex iterations lay at
- * 0.35-1.0, 5-20, 10-15). */
-static const double SIGMA_R[] = {0.35, 0.5, 0.7, 1.0};
-enum { NSIG = sizeof SIGMA_R / sizeof SIGMA_R[0], NIT_A = 5, NIT_B = 15, VIT_A = 10, VIT_B = 20, NPROBE_F = 2 };
+/* The candidates: range widths (on |n_i - n_j|, unit normals) x normal
+ * iterations (the results after each of NIT, one run per width) x vertex
+ * iterations (after each of VIT, one run per normal count): 18. Measured
+ * on the three shared CAD parts at noise 0.1-0.5 h along the normals, the
+ * true risk known from the clean mesh (a lab diagnostic, 2026-11-28): the
+ * least lay at sigma_r 0.35-1.0, 5-30 normal and 5-40 vertex iterations
+ * (blade.obj: 0.7-1.0, 20-30, 20-40; car.drc: 0.35-0.7, 5-30, 5;
+ * couplingdown_sub2.obj: 0.35, 10-20, 5). A middle width (0.6) was never
+ * SURE's pick in make quality's CAD cases (normal noise, seed 1) nor on
+ * the box of test_feature_box, and cost a third of the stage. */
+static const double SIGMA_R[] = {0.35, 1.0};
+static const int NIT[] = {5, 12, 30};
+static const int VIT[] = {5, 12, 30};
+enum { NSIG = sizeof SIGMA_R / sizeof SIGMA_R[0], NNIT = sizeof NIT / sizeof NIT[0],
+       NVIT = sizeof VIT / sizeof VIT[0], NCAND = NSIG * NNIT * NVIT, NPROBE_F = 2 };
+/* the noise level read from the residuals (below): within [1/S_RANGE,
+ * S_RANGE] of the frame's reading */
+#define S_RANGE 2.0
 
 /* SURE's terms of one result Y against the frame: sum_F w r^2 and the
- * per-vertex r_i along m into r (nfree). */
+ * per-vertex r_i along m into r (nfree, may be NULL). */
 static double residuals(const mcf__feature_frame *fr, const double *w, const double *Y, const double *X0,
                         const double *m, double *r)
 {
@@ -284,8 +294,10 @@ static double residuals(const mcf__feature_frame *fr, const double *w, const dou
         size_t i = (size_t)fr->vert[k];
         double d[3];
         mcf__sub3(Y + 3 * i, X0 + 3 * i, d);
-        r[k] = mcf__dot3(m + 3 * i, d);
-        sum += w[i] * r[k] * r[k];
+        double rk = mcf__dot3(m + 3 * i, d);
+        if (r)
+            r[k] = rk;
+        sum += w[i] * rk * rk;
     }
     return sum;
 }
@@ -295,9 +307,10 @@ static double residuals(const mcf__feature_frame *fr, const double *w, const dou
  * the probes' spread of the two divergences' difference (vdiv, times
  * 4 s^4), and the noise level's relative error on s^2 (times the
  * divergences' difference ddiv, 2 s^2 ddiv s2_rel). */
-static double diff_var(const mcf__feature_frame *fr, const double *ra, const double *rb, double ddiv, double vdiv)
+static double diff_var(const mcf__feature_frame *fr, double s, const double *ra, const double *rb, double ddiv,
+                       double vdiv)
 {
-    double s2 = fr->s * fr->s, sd = 0.0, sd2 = 0.0;
+    double s2 = s * s, sd = 0.0, sd2 = 0.0;
     int n = fr->nfree;
     for (int k = 0; k < n; k++) {
         double w = fr->w[fr->vert[k]], t = w * ((ra ? ra[k] * ra[k] : 0.0) - (rb ? rb[k] * rb[k] : 0.0));
@@ -322,6 +335,22 @@ double mcf__feature_div(const mcf__feature_frame *fr, const double *w, const dou
     return div / eps;
 }
 
+/* One probe's estimate of tr(J' W J) = E |W^1/2 J z|^2: sum_k w_i (m_i .
+ * (Yz_i - Y_i))^2 / eps^2 (the same finite difference as the divergence). */
+static double jtj(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y, const double *Yz,
+                  double eps)
+{
+    double sum = 0.0;
+    for (int k = 0; k < fr->nfree; k++) {
+        size_t i = (size_t)fr->vert[k];
+        double d[3];
+        mcf__sub3(Yz + 3 * i, Y + 3 * i, d);
+        double a = mcf__dot3(m + 3 * i, d);
+        sum += w[i] * a * a;
+    }
+    return sum / (eps * eps);
+}
+
 /* mean and variance of the mean of q estimates */
 static double mean_var(const double *e, int q, double *var)
 {
@@ -335,12 +364,14 @@ static double mean_var(const double *e, int q, double *var)
 }
 
 /* The weights of the candidates' SURE: the barycentric areas of the most
- * smoothing candidate's result Y over their mean on the frame's vertices.
+ * smoothing candidate's result Y (into ap, nv) over their mean on the
+ * frame's vertices (into wp, nv, zeroed by the caller).
  * The noisy mesh's areas grow with the noise at each vertex, so sum w r^2
  * comes out high for a result that removes the noise (blade, noise 0.25,
  * clean normals: SURE 0.0157 for a true 0.0020 with them, 0.0022 for
  * 0.0027 with these), and most for the candidate that removes the most. */
-static void pilot_weights(const mcf__feature_frame *fr, const double *Y, const int32_t *F, int nf, double *wp)
+static void pilot_weights(const mcf__feature_frame *fr, const double *Y, const int32_t *F, int nf, int nv,
+                          double *wp, double *ap)
 {
     double sum = 0.0;
     for (int f = 0; f < nf; f++) {
@@ -353,44 +384,115 @@ static void pilot_weights(const mcf__feature_frame *fr, const double *Y, const i
         for (int k = 0; k < 3; k++)
             wp[t[k]] += a;
     }
+    memcpy(ap, wp, sizeof(double) * (size_t)nv);
     for (int k = 0; k < fr->nfree; k++)
         sum += wp[fr->vert[k]];
     for (int k = 0; k < fr->nfree; k++)
         wp[fr->vert[k]] = sum > 0.0 ? wp[fr->vert[k]] * fr->nfree / sum : 1.0;
 }
 
+/* One candidate's sums: with the pilot's weights (the choice: residual,
+ * divergence, tr J'WJ) and with the frame's (the comparison: residual,
+ * divergence and its variance). */
+typedef struct {
+    double sr2, div, jj;
+    double sr2_f, div_f, vdiv_f;
+    double rms;               /* the widest kernel's: the residual's RMS over
+                                 every vertex the filter moves */
+} cand_sums;
+
+/* The area-weighted RMS over the vertices the filter moves (not fixed, on
+ * a face) of n_i . (Y_i - X_i), n the reference normals, a the pilot's
+ * barycentric areas: the residual's deviation, creases and all. */
+static double moving_residual(const mcf__bnf *b, const unsigned char *fixed, const double *X, const double *Y,
+                              const double *n, const double *a)
+{
+    double sum = 0.0, sa = 0.0;
+    for (int i = 0; i < b->nv; i++)
+        if (!(fixed && fixed[i]) && b->vdeg[i] > 0) {
+            double d[3];
+            mcf__sub3(Y + 3 * (size_t)i, X + 3 * (size_t)i, d);
+            double r = mcf__dot3(n + 3 * (size_t)i, d);
+            sum += a[i] * r * r;
+            sa += a[i];
+        }
+    return sa > 0.0 ? sqrt(sum / sa) : 0.0;
+}
+
+/* The noise level the candidates' residuals say: the least over the
+ * widest range kernel's candidates k of rms_k / sqrt(1 - (2 div_k -
+ * tr J_k'WJ_k) / sum w) (E sum w r^2 = |bias|^2 + s^2 (tr W - 2 tr WJ +
+ * tr J'WJ) for noise of deviation s: the bias only adds, so the least is
+ * the nearest; the widest kernel's filter is the nearest to linear, where
+ * the finite differences read J'WJ, while a narrow one's switching makes
+ * them read more than sum w), within [s0 / S_RANGE, s0 S_RANGE] of the
+ * frame's reading s0. The residual over every moving vertex (weighted by
+ * the pilot's areas), not SURE's sum over the frame's: the frame leaves
+ * out the creases, which on a noisy mesh are where the noise is large
+ * (blade.obj at 0.5 h: 29% of the vertices; the sum read 0.32 h where
+ * this reads 0.38 h of the noisy mesh's mean edge, which is longer than
+ * the clean one's). The linear fairing's reading (mcf__noise_levels)
+ * is low on meshes of graded density: blade.obj 0.28 h, and with it SURE
+ * took a candidate of 0.90 of the input's error (0.23 at this reading). */
+static double noise_from_residuals(const cand_sums *cs, double sumw, double s0)
+{
+    double s = INFINITY;
+    for (int k = (NSIG - 1) * NNIT * NVIT; k < NCAND; k++) {
+        double dof = 1.0 - (2.0 * cs[k].div - cs[k].jj) / sumw;
+        s = fmin(s, cs[k].rms / sqrt(fmax(dof, 0.25)));
+    }
+    return fmin(fmax(s, s0 / S_RANGE), s0 * S_RANGE);
+}
+
+/* The candidate of least SURE at noise level s. */
+static int least_sure(const cand_sums *cs, double sumw, double s)
+{
+    double lo = INFINITY, s2 = s * s;
+    int k = 0;
+    for (int j = 0; j < NCAND; j++) {
+        double risk = cs[j].sr2 - s2 * sumw + 2.0 * s2 * cs[j].div;
+        if (risk < lo) {
+            lo = risk;
+            k = j;
+        }
+    }
+    return k;
+}
+
 mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
                         const mcf__feature_frame *fr, double *Yout, mcf__feature_pick *pick, mcf_error *err)
 {
     int nfree = fr->nfree, nin = 1 + NPROBE_F;
-    double s = fr->s, s2 = s * s, eps = FD_STEP * s, sumw = 0.0;
+    double s = fr->s, eps = FD_STEP * s, sumw = 0.0;
     size_t n3 = 3 * (size_t)nv, nf3 = 3 * (size_t)nf;
     mcf_status rc = MCF_OK;
     memset(pick, 0, sizeof *pick);
     mcf__bnf *b = mcf__bnf_new(X, F, nf, nv, err);
     double *m = mcf__malloc(n3 + 1, sizeof(double)), *Xp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double));
-    double *Yp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double)), *N5 = mcf__malloc((size_t)nin * nf3 + 1, sizeof(double));
-    double *N15 = mcf__malloc((size_t)nin * nf3 + 1, sizeof(double)), *r = mcf__malloc((size_t)nfree + 1, sizeof(double));
+    double *Yp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double));
+    double *Nk = mcf__malloc((size_t)NNIT * nin * nf3 + 1, sizeof(double));
     double *rbest = mcf__malloc((size_t)nfree + 1, sizeof(double)), *rlin = mcf__malloc((size_t)nfree + 1, sizeof(double));
-    double *wp = mcf__calloc((size_t)nv + 1, sizeof(double));
+    double *wp = mcf__calloc((size_t)nv + 1, sizeof(double)), *ap = mcf__malloc((size_t)nv + 1, sizeof(double));
+    cand_sums *cs = mcf__malloc(NCAND, sizeof *cs);
     if (!b) {
         rc = err ? err->status : MCF_ENOMEM;
         goto done;
     }
-    if (!m || !Xp || !Yp || !N5 || !N15 || !r || !rbest || !rlin || !wp) {
+    if (!m || !Xp || !Yp || !Nk || !rbest || !rlin || !wp || !ap || !cs) {
         rc = mcf__fail(err, MCF_ENOMEM, "feature filter: out of memory (%d vertices)", nv);
         goto done;
     }
-    pick->bytes = mcf__bnf_bytes(b) + sizeof(double) * ((size_t)nin * (2 * n3 + 2 * nf3) + n3 + nv + 3 * (size_t)nfree);
+    pick->bytes = mcf__bnf_bytes(b) + sizeof(double) * ((size_t)nin * (2 * n3 + NNIT * nf3) + n3 + 2 * (size_t)nv + 2 * (size_t)nfree) +
+                  NCAND * sizeof *cs;
     for (int k = 0; k < nfree; k++)
         sumw += fr->w[fr->vert[k]];
     if (!(s > 0.0) || nfree == 0 || fr->nprobe < NPROBE_F)
         goto done;
-    /* the reference normals m: those of the most smoothing candidate's
-     * result (the widest range kernel, the most iterations) */
-    mcf__bnf_run(b, X, fixed, SIGMA_R[NSIG - 1], NIT_B, VIT_B, Yp);
+    /* the reference normals m: those of a strongly smoothing candidate's
+     * result (the widest range kernel) */
+    mcf__bnf_run(b, X, fixed, SIGMA_R[NSIG - 1], 15, 20, Yp);
     mcf__vertex_normals(Yp, F, nf, nv, m);
-    pilot_weights(fr, Yp, F, nf, wp);
+    pilot_weights(fr, Yp, F, nf, nv, wp, ap);
     /* the inputs: X, and X + eps z_q m for the probes z_q */
     for (int q = 0; q < nin; q++) {
         double *x = Xp + (size_t)q * n3;
@@ -403,58 +505,64 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
                     x[3 * i + e] += eps * z * m[3 * i + e];
             }
     }
-    double best = INFINITY;
+    /* every candidate's sums, the results read on the way */
     for (int si = 0; si < NSIG; si++) {
         for (int q = 0; q < nin; q++) {
             mcf__bnf_start(b, Xp + (size_t)q * n3);
-            memcpy(N5 + (size_t)q * nf3, mcf__bnf_normals(b, SIGMA_R[si], NIT_A), nf3 * sizeof(double));
-            memcpy(N15 + (size_t)q * nf3, mcf__bnf_normals(b, SIGMA_R[si], NIT_B - NIT_A), nf3 * sizeof(double));
+            for (int ni = 0; ni < NNIT; ni++)
+                memcpy(Nk + ((size_t)ni * nin + q) * nf3,
+                       mcf__bnf_normals(b, SIGMA_R[si], NIT[ni] - (ni ? NIT[ni - 1] : 0)), nf3 * sizeof(double));
         }
-        for (int ni = 0; ni < 2; ni++) {
-            const double *Nn = ni ? N15 : N5;
+        for (int ni = 0; ni < NNIT; ni++) {
             memcpy(Yp, Xp, (size_t)nin * n3 * sizeof(double));
-            for (int vi = 0; vi < 2; vi++) {
-                double div[NPROBE_F], vdiv;
+            for (int vi = 0; vi < NVIT; vi++) {
+                cand_sums *c = &cs[(si * NNIT + ni) * NVIT + vi];
+                double div[NPROBE_F], divf[NPROBE_F], jj[NPROBE_F], v;
                 for (int q = 0; q < nin; q++)
-                    mcf__bnf_vertices(b, Nn + (size_t)q * nf3, fixed, vi ? VIT_B - VIT_A : VIT_A, Yp + (size_t)q * n3);
-                double sr2 = residuals(fr, wp, Yp, X, m, r);
-                for (int q = 1; q < nin; q++)
-                    div[q - 1] = mcf__feature_div(fr, wp, m, Yp, Yp + (size_t)q * n3,
-                                                  fr->probe + (size_t)(q - 1) * nfree, eps);
-                double dv = mean_var(div, NPROBE_F, &vdiv);
-                double risk = sr2 - s2 * sumw + 2.0 * s2 * dv;
-                if (risk < best) {
-                    best = risk;
-                    /* the comparison's terms, with the frame's weights */
-                    pick->risk = residuals(fr, fr->w, Yp, X, m, r);
-                    for (int q = 1; q < nin; q++)
-                        div[q - 1] = mcf__feature_div(fr, fr->w, m, Yp, Yp + (size_t)q * n3,
-                                                      fr->probe + (size_t)(q - 1) * nfree, eps);
-                    pick->div = mean_var(div, NPROBE_F, &pick->vdiv);
-                    pick->risk += 2.0 * s2 * pick->div - s2 * sumw;
-                    pick->sigma_r = SIGMA_R[si];
-                    pick->normal_iters = ni ? NIT_B : NIT_A;
-                    pick->vertex_iters = vi ? VIT_B : VIT_A;
-                    memcpy(Yout, Yp, n3 * sizeof(double));
-                    memcpy(rbest, r, sizeof(double) * (size_t)nfree);
+                    mcf__bnf_vertices(b, Nk + ((size_t)ni * nin + q) * nf3, fixed, VIT[vi] - (vi ? VIT[vi - 1] : 0),
+                                      Yp + (size_t)q * n3);
+                c->sr2 = residuals(fr, wp, Yp, X, m, NULL);
+                c->sr2_f = residuals(fr, fr->w, Yp, X, m, NULL);
+                for (int q = 1; q < nin; q++) {
+                    const double *z = fr->probe + (size_t)(q - 1) * nfree, *Yq = Yp + (size_t)q * n3;
+                    div[q - 1] = mcf__feature_div(fr, wp, m, Yp, Yq, z, eps);
+                    divf[q - 1] = mcf__feature_div(fr, fr->w, m, Yp, Yq, z, eps);
+                    jj[q - 1] = jtj(fr, wp, m, Yp, Yq, eps);
                 }
+                c->div = mean_var(div, NPROBE_F, &v);
+                c->jj = mean_var(jj, NPROBE_F, &v);
+                c->div_f = mean_var(divf, NPROBE_F, &c->vdiv_f);
+                c->rms = si == NSIG - 1 ? moving_residual(b, fixed, X, Yp, m, ap) : 0.0;
             }
         }
     }
+    /* the noise level and the candidate of least SURE at it */
+    double sf = noise_from_residuals(cs, sumw, s), s2 = sf * sf;
+    int k = least_sure(cs, sumw, sf);
+    pick->s = sf;
+    pick->sigma_r = SIGMA_R[k / (NNIT * NVIT)];
+    pick->normal_iters = NIT[(k / NVIT) % NNIT];
+    pick->vertex_iters = VIT[k % NVIT];
+    pick->div = cs[k].div_f;
+    pick->vdiv = cs[k].vdiv_f;
+    pick->risk = cs[k].sr2_f - s2 * sumw + 2.0 * s2 * cs[k].div_f;
+    mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
+    residuals(fr, fr->w, Yout, X, m, rbest);
     /* against the linear fairing's result (or the input): its SURE along
-     * the same normals m, its trace from the same probes */
-    double trl, vtrl;
+     * the same normals m, its trace from the same probes, at the same
+     * noise level */
+    double trl, vtrl, rs2 = s > 0.0 ? s2 / (s * s) : 1.0;
     if (fr->Ylin) {
         double sl = residuals(fr, fr->w, fr->Ylin, fr->X0, m, rlin);
         trl = mean_var(fr->trlin, fr->nprobe, &vtrl);
-        pick->risk_lin = sl - s2 * sumw + 2.0 * s2 * trl + fr->lin_penalty;
+        pick->risk_lin = sl - s2 * sumw + 2.0 * s2 * trl + fr->lin_penalty * rs2;
     } else {
         trl = sumw;
         vtrl = 0.0;
         pick->risk_lin = s2 * sumw;
     }
     double gain = pick->risk_lin - pick->risk;
-    double var = diff_var(fr, fr->Ylin ? rlin : NULL, rbest, trl - pick->div, vtrl + pick->vdiv);
+    double var = diff_var(fr, sf, fr->Ylin ? rlin : NULL, rbest, trl - pick->div, vtrl + pick->vdiv);
     pick->z = var > 0.0 ? gain / sqrt(var) : (gain > 0.0 ? INFINITY : 0.0);
     pick->won = gain > 0.0 && pick->z >= fr->min_z;
     pick->risk /= sumw;
@@ -464,12 +572,12 @@ done:
     free(m);
     free(Xp);
     free(Yp);
-    free(N5);
-    free(N15);
-    free(r);
+    free(Nk);
     free(rbest);
     free(rlin);
     free(wp);
+    free(ap);
+    free(cs);
     return rc;
 }
 

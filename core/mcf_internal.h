@@ -262,6 +262,8 @@ typedef struct {
     double risk, risk_lin;    /* SURE (mean per vertex, squared units) of
                                  the chosen candidate and of Ylin */
     double z;                 /* the gain in standard errors */
+    double s;                 /* the noise level it read from its own
+                                 residuals (working units; see mcf_feature.c) */
     double div, vdiv;         /* (internal) the divergence, its variance */
     size_t bytes;             /* held at the peak */
 } mcf__feature_pick;

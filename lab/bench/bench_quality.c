@@ -242,6 +242,12 @@ static void run_request(const case_ctx *c, const method *md, result *r, mcf_mesh
     const mcf_scheme_info *si = mcf_scheme_get(p.flow.scheme);
     r->param = p.flow.scheme == MCF_TAUBIN || (si && si->order == 0) ? st.steps : st.t_final / (c->h * c->h);
     r->reading = st.noise > 0 ? st.noise : NAN;
+    if (st.feature_ran) /* the feature-aware stage's pick (mcf_flow_stats.feature*) */
+        snprintf(r->note, sizeof r->note, "creases %d; feature %s (sigma_r %g, %d+%d iterations, z %.2f)",
+                 st.crease_vertices, st.feature ? "taken" : "not taken", st.feature_sigma_r,
+                 st.feature_normal_iters, st.feature_vertex_iters, st.feature_z);
+    else
+        snprintf(r->note, sizeof r->note, "creases %d; feature not run", st.crease_vertices);
     measure(c, m, r, md->kind == K_DEFAULT || g_surface_all);
 done:
     mcf_flow_stats_free(&st);
