@@ -80,6 +80,9 @@
 #include "mcf_internal.h"
 
 enum { NPROBE = 1, NCOL = 3 + NPROBE };
+/* the uneven reading (mcf__noise_shape) leaves out the high-pass values
+ * above NOISE_TRIM robust deviations: creases and spikes, not noise */
+#define NOISE_TRIM 4.0
 
 typedef struct {
     int nv, nf;
@@ -151,6 +154,54 @@ static double mad(const mcf__graph *g, const unsigned char *fixed, const double 
     return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
 }
 
+/* The RMS of v over the vertices mad() counts, those with |v| above
+ * trim robust deviations (1.4826 mad) left out (creases, spikes). */
+static double trimmed_rms(const mcf__graph *g, const unsigned char *fixed, const double *v, double mad_v,
+                          double trim)
+{
+    double s = 0.0, lim = trim * 1.4826 * mad_v;
+    size_t k = 0;
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]) && fabs(v[i]) <= lim) {
+            s += v[i] * v[i];
+            k++;
+        }
+    return k ? sqrt(s / (double)k) : 0.0;
+}
+
+/* The share of the largest eigenvalue of the 3 x 3 sum of E_i E_i' over
+ * the vertices mad() counts whose |E_i| is at most trim times the median,
+ * E (3*nv) the second-order high-pass vectors (I - Avg)^2 X; len (nv) and
+ * work (nv) scratch. 1/3 for directions spread evenly, 1 for one
+ * direction. */
+static double direction_share(const mcf__graph *g, const unsigned char *fixed, const double *E, double trim,
+                              double *len, double *work)
+{
+    double M[9] = {0}, v[3] = {1.0, 0.7, 0.4}, lam = 0.0;
+    for (int i = 0; i < g->n; i++)
+        len[i] = sqrt(mcf__dot3(E + 3 * (size_t)i, E + 3 * (size_t)i));
+    double lim = trim * mad(g, fixed, len, work);
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]) && len[i] <= lim)
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++)
+                    M[3 * a + b] += E[3 * (size_t)i + a] * E[3 * (size_t)i + b];
+    double trace = M[0] + M[4] + M[8];
+    if (!(trace > 0.0))
+        return 0.0;
+    for (int it = 0; it < 100; it++) { /* power iteration: M is PSD */
+        double w[3];
+        for (int a = 0; a < 3; a++)
+            w[a] = M[3 * a] * v[0] + M[3 * a + 1] * v[1] + M[3 * a + 2] * v[2];
+        lam = sqrt(mcf__dot3(w, w));
+        if (!(lam > 0.0))
+            return 0.0;
+        for (int a = 0; a < 3; a++)
+            v[a] = w[a] / lam;
+    }
+    return lam / trace;
+}
+
 /* The tangential second-order high-pass of P (3*nv) into e (nv): the
  * length of the tangential part (normals N) of (I - Avg)^2 P; tmp and t2
  * are 3*nv scratch. */
@@ -176,12 +227,12 @@ static void tangential_high_pass(const mcf__graph *g, const double *N, const dou
 mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
                             const unsigned char *fixed, double *sigma, mcf_error *err)
 {
-    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, err);
+    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, NULL, err);
 }
 
 mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
-                             mcf_error *err)
+                             mcf__noise_shape *shape, mcf_error *err)
 {
     mcf__graph g;
     mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
@@ -203,7 +254,7 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
     mcf__graph_taubin(&g, fixed, P, 3, 10, tmp);
     mcf__vertex_normals(P, F, nf, nv, N);
     high_pass(&g, N, X, e, d, tmp);
-    double mad_y = mad(&g, fixed, e, P);
+    double mad_y = mad(&g, fixed, e, P), rms_y = shape ? trimmed_rms(&g, fixed, e, mad_y, NOISE_TRIM) : 0.0;
     /* the response to unit Gaussian noise along the same normals on the
      * free vertices (mcf_mesh_add_noise's generator: reproducible) */
     mcf__gauss_fill(0x5eed5eedULL, d, (size_t)nv);
@@ -213,6 +264,18 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
     high_pass(&g, N, P, e, d, tmp);
     double mad_n = mad(&g, fixed, e, P);
     *sigma = mad_n > 0.0 ? mad_y / mad_n : 0.0;
+    if (shape) {
+        double rms_n = trimmed_rms(&g, fixed, e, mad_n, NOISE_TRIM);
+        shape->sigma_rms = rms_n > 0.0 ? rms_y / rms_n : 0.0;
+        /* the high-pass vectors (I - Avg)^2 X into P, their directions */
+        mcf__graph_average(&g, X, 3, tmp);
+        for (size_t q = 0; q < 3 * (size_t)nv; q++)
+            tmp[q] = X[q] - tmp[q];
+        mcf__graph_average(&g, tmp, 3, P);
+        for (size_t q = 0; q < 3 * (size_t)nv; q++)
+            P[q] = tmp[q] - P[q];
+        shape->direction_share = direction_share(&g, fixed, P, NOISE_TRIM, e, d);
+    }
     if (sigma_t) {
         /* the same for the tangential part, calibrated by unit Gaussian
          * noise in the tangent planes (two independent components) */
