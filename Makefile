@@ -7,6 +7,8 @@
 #   make install    mcf, mcfd and their man pages under $(DESTDIR)$(PREFIX) (PREFIX=/usr/local);
 #                   make uninstall removes them
 #   make test       deps, build, then every unit test binary (build/tests/test_*)
+#   make check      the libraries' unit tests only (test_core_*, test_api_*): no daemon,
+#                   no package install, no large mesh; one test: build/tests/test_NAME
 #   make bench      benchmarks (lab/bench/), ratios against a peer measured in the same run;
 #                   make experiments, make quality: the lab's studies (lab/README.md)
 #   make SAN=address,undefined test    the same under sanitizers (objects in build-san/)
@@ -98,7 +100,7 @@ ifneq ($(SRV_SRC),)
 PROGS += $(B)/mcfd
 endif
 
-.PHONY: all deps deps-build test unit bench run check-deps clean asan fuzz image image-check
+.PHONY: all deps deps-build test check bench run check-deps clean asan fuzz image image-check
 .DEFAULT_GOAL := all
 
 all: $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL) $(PROGS)
@@ -280,6 +282,22 @@ test: deps
 asan:
 	$(MAKE) SAN=address,undefined test
 
+# ---- make check: core's and api's unit tests (tests/test_core_*.c,
+# test_api_*.c) with MESHES unset, so those that need a large mesh skip by
+# name; no daemon, no `make deps`, nothing installed. Each binary's output
+# is kept in $(B)/tests/NAME.check; the last line counts them.
+CHECK_BIN := $(filter $(B)/tests/test_core_% $(B)/tests/test_api_%,$(TEST_BIN))
+check: $(CHECK_BIN)
+	@fail=0; for t in $(CHECK_BIN); do \
+	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES= MCF_TESTDATA=$(CURDIR)/tests/data \
+	    $$t > $$t.check 2>&1 || { fail=1; cat $$t.check; }; \
+	  echo "$$t: $$(sed -n 's/^\[  \([A-Z]*\) *\] \([0-9]*\) test(s).*/\2 \1/p' $$t.check | tr '\n' ' ')"; \
+	done; \
+	count() { cat $(CHECK_BIN:%=%.check) | sed -n "s/^\[  $$1 *\] \([0-9]*\) test(s).*/\1/p" | \
+	  awk '{ n += $$1 } END { print n + 0 }'; }; \
+	echo "make check: $$(count PASSED) passed, $$(count FAILED) failed, $$(count SKIPPED) skipped" \
+	  "(the skipped need MESHES: make test MESHES=...)"; exit $$fail
+
 # ---- ThreadSanitizer on the daemon (build-tsan/): test_service (the job
 # service in-process) and test_server* against TSan builds of mcfd (the job
 # service, the REST door, the sandbox), with
@@ -439,10 +457,16 @@ python-stubs:
 
 .PHONY: install uninstall python-stubs
 
-# Builds (after deps) and runs the daemon in the foreground with its
-# embedded defaults: 127.0.0.1:8080, one worker per core, spool ./var/mcfd.
+# Builds (after deps) on every core and runs the daemon in the foreground
+# with its embedded defaults: 127.0.0.1:8080, one worker per core, spool
+# ./var/mcfd. Ctrl-C stops it (it holds 8080 and 50051).
+NPROC := $(shell nproc 2>/dev/null || echo 2)
 run: deps
-	$(MAKE) all
+	@echo "make run: building build/mcf and build/mcfd, $(NPROC) compiles at a time" \
+	  "(the first build: about 4 minutes of CPU, some 2-3 minutes on 2 idle cores; later ones only what changed)"
+	@$(MAKE) --no-print-directory -j$(NPROC) all
+	@echo "make run: starting build/mcfd on 127.0.0.1:8080 (gRPC 50051), the page at" \
+	  "http://127.0.0.1:8080/; Ctrl-C stops it and frees the ports"
 	exec $(B)/mcfd
 
 # ---- the container image: docker/Dockerfile built with Debian's podman

@@ -605,6 +605,9 @@ typedef struct {
     void (*ready)(void *ctx, const api_params *p, api_format in_fmt);
     /* Every step of the flow; nonzero cancels the job (MCF_ECANCELED). */
     int (*progress)(void *ctx, const api_job_step *s);
+    /* The flow's share of work done, 0..1, at its milestones (the core's
+     * mcf_work_fn: every step, the fairing filters' phases and passes). */
+    void (*work)(void *ctx, const char *phase, double done);
     /* The flow is done: nonzero withholds the output (not encoded, not
      * stored; output.path null in the document): the CLI's --strict. */
     int (*flowed)(void *ctx, const mcf_flow_stats *st);

@@ -171,6 +171,12 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     return h->progress(h->ctx, &s);
 }
 
+static void on_work(void *ctx, const char *phase, double done)
+{
+    const api_job_hooks *h = ((progress_ctx *)ctx)->jb->h;
+    h->work(h->ctx, phase, done);
+}
+
 static mcf_status flow(job *jb, api_params *p)
 {
     const api_job_hooks *h = jb->h;
@@ -183,6 +189,10 @@ static mcf_status flow(job *jb, api_params *p)
         p->flow.progress = on_progress;
         p->flow.progress_ctx = &pc;
     }
+    if (h && h->work) {
+        p->flow.work = on_work;
+        p->flow.progress_ctx = &pc;
+    }
     if (h)
         p->flow.cancel = h->cancel;
     /* the step log: the document's flow.log, each step's volume */
@@ -191,6 +201,7 @@ static mcf_status flow(job *jb, api_params *p)
     rc = mcf_flow_run(jb->m, &p->flow, &res->stats, &res->err);
     res->flow_s = jb->run.flow_s = elapsed(t0);
     p->flow.progress = NULL;
+    p->flow.work = NULL;
     p->flow.progress_ctx = NULL;
     return rc == MCF_OK ? MCF_OK : failed(jb, API_JOB_RUN, "flow", rc);
 }

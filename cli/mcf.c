@@ -98,7 +98,9 @@ static const char smooth_tail[] =
     "                        the result (and the input) with it\n"
     "  --metrics FILE.json   write the metrics document (the daemon's /v1/jobs/ID/metrics)\n"
     "  --progress            progress on stderr when it is not a terminal: one line per\n"
-    "                        10% of the time (on a terminal the bar is always shown)\n"
+    "                        10% of the work (the flow's steps; the filter's phases,\n"
+    "                        steps and passes) with the time elapsed and an estimate\n"
+    "                        of the time left (on a terminal the bar is always shown)\n"
     "  --quiet               no progress bar and no summary line (warnings still print)\n"
     "  --strict              a warning (folds, edge_collapse, area_loss,\n"
     "                        little_smoothing) fails the run: exit status 3, OUT not\n"
@@ -175,35 +177,38 @@ double now(void)
 
 /* --------------------------------------------------------------- progress */
 
+/* The flow's share of work done (the core's estimate at its milestones:
+ * every step, the fairing filters' phases and passes), the time since
+ * the flow started and an estimate of the time left from both. */
 typedef struct {
-    double total_time;    /* > 0: progress by t, else by steps */
-    int total_steps;
     int bar;              /* 1: a bar redrawn in place (a terminal) */
+    double start;         /* when the flow started (the ready hook) */
     double last;          /* when the bar was last drawn */
     int drawn;
     int next_tenth;       /* plain lines: the next 10% to report */
+    int step;             /* the last step the flow reported */
 } progress_state;
 
-static void on_progress(progress_state *ps, const api_job_step *s)
+static void on_work(progress_state *ps, const char *phase, double frac)
 {
-    double frac, tn = now();
+    double tn = now(), el = tn - ps->start;
     int i, fill;
-    char bar[41];
+    char bar[41], left[48] = "";
 
-    if (ps->total_time <= 0 && s->t_target > 0)
-        ps->total_time = s->t_target; /* the amount came from strength */
-    frac = ps->total_time > 0 ? s->t / ps->total_time
-                              : (double)s->step / (ps->total_steps > 0 ? ps->total_steps : 1);
     if (!(frac >= 0))
         frac = 0;
     if (frac > 1)
         frac = 1;
+    /* the time left: the elapsed time scaled by the share still to do,
+     * once a share worth extrapolating (2%) is done */
+    if (frac >= 0.02 && frac < 1)
+        snprintf(left, sizeof left, ", about %.0f s left", ceil(el * (1 - frac) / frac));
     if (!ps->bar) {
         /* One plain line per 10% reached (a log or a pipe, not a terminal). */
         if (frac * 10 + 1e-9 >= ps->next_tenth && ps->next_tenth <= 10) {
             int tenth = (int)(frac * 10 + 1e-9);
-            fprintf(stderr, "mcf: %3d%%  step %d  t %.4g  energy %.6g\n", tenth * 10,
-                    s->step, s->t, s->energy);
+            fprintf(stderr, "mcf: %3d%%  %s, step %d  %.1f s elapsed%s\n", tenth * 10,
+                    phase, ps->step, el, left);
             fflush(stderr);
             ps->next_tenth = tenth + 1;
         }
@@ -216,8 +221,8 @@ static void on_progress(progress_state *ps, const api_job_step *s)
     for (i = 0; i < 40; i++)
         bar[i] = i < fill ? '#' : '.';
     bar[40] = '\0';
-    fprintf(stderr, "\r[%s] %3d%%  step %d  t %.4g  energy %.6g ", bar,
-            (int)(frac * 100 + 0.5), s->step, s->t, s->energy);
+    fprintf(stderr, "\r[%s] %3d%%  %s, step %d  %.1f s%s \033[K", bar,
+            (int)(frac * 100 + 0.5), phase, ps->step, el, left);
     fflush(stderr);
     ps->drawn = 1;
 }
@@ -299,10 +304,22 @@ static mcf_status hook_decode(void *ctx, const char *part, const void *buf, size
 
 static int hook_progress(void *ctx, const api_job_step *s)
 {
+    ((smooth_ctx *)ctx)->ps.step = s->step;
+    return 0;
+}
+
+static void hook_ready(void *ctx, const api_params *p, api_format in_fmt)
+{
+    (void)p;
+    (void)in_fmt;
+    ((smooth_ctx *)ctx)->ps.start = now();
+}
+
+static void hook_work(void *ctx, const char *phase, double done)
+{
     smooth_ctx *sc = ctx;
     if (sc->show)
-        on_progress(&sc->ps, s);
-    return 0;
+        on_work(&sc->ps, phase, done);
 }
 
 /* What the core says about the result, whatever --quiet says; under
@@ -432,8 +449,8 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     sc.o = o;
     sc.ps.bar = isatty(STDERR_FILENO);
     sc.show = !o->quiet && (sc.ps.bar || o->progress);
-    sc.ps.total_time = p->time_set ? p->flow.time : 0;
-    sc.ps.total_steps = p->flow.iterations > 0 ? p->flow.iterations : MCF_DEFAULT_STEPS;
+    sc.ps.start = now();
+    sc.ps.next_tenth = 1;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     sigemptyset(&sa.sa_mask);
@@ -443,6 +460,8 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     h.ctx = &sc;
     h.decode = hook_decode;
     h.progress = hook_progress;
+    h.ready = hook_ready;
+    h.work = hook_work;
     h.flowed = hook_flowed;
     h.store = hook_store;
     h.cancel = &cancel_flag;

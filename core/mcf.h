@@ -270,6 +270,17 @@ typedef int mcf_cancel_flag;
 typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
                                double energy);
 
+/* Called at the milestones of a run with the share of its work done, in
+ * [0, 1] and never decreasing: after every step of a flow (t / T), and
+ * after each phase of the fairing filters (the noise reading, the
+ * factorization, every step or pass, the second filter of the default's
+ * pick, the output). The share is the core's estimate from the phases'
+ * measured costs (mcf_fairing.c), for a progress line and an estimate of
+ * the time left; phase is a static string naming what just ended
+ * ("setup", "noise", "factor", "probes", "steps", "passes", "output"). Cancel with
+ * mcf_flow_params.cancel. */
+typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
+
 /* The amount of smoothing. MCF moves a surface by about sqrt(t) in time t,
  * so the amount is naturally measured in the mesh's own resolution: with
  * h the mean edge length (in the working units), a total time
@@ -373,6 +384,7 @@ typedef struct {
     int log_steps;            /* keep the per-step log in the stats */
     mcf_progress_fn progress;
     void *progress_ctx;
+    mcf_work_fn work;         /* may be NULL; called with progress_ctx */
     const mcf_cancel_flag *cancel; /* loaded before every step; may be NULL */
 } mcf_flow_params;
 

@@ -52,6 +52,7 @@ typedef struct {
     int ncol;                  /* 3, or 9 with the probes */
     int is_explicit;
     int quiet;                 /* the hook sees no steps (cancel only) */
+    double w0, w1;             /* its share of the run's work (mcf_fairing.c, work()) */
     /* explicit: Z (nv x ncol, row-major), tmp the same */
     double *Z, *tmp;
     /* implicit */

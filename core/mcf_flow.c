@@ -632,6 +632,8 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
             p->progress(p->progress_ctx, r->k, r->t, r->hist.h1,
                         mcf__area_volume(c->X, c->F, c->nf, NULL, NULL) / (r->scale * r->scale)))
             return mcf__fail(err, MCF_ECANCELED, "canceled by the progress callback at step %d", r->k);
+        if (p->work)
+            p->work(p->progress_ctx, "steps", r->T > 0.0 ? fmin(1.0, r->t / r->T) : 0.0);
     }
 }
 

@@ -709,7 +709,7 @@ static void test_progress_lines(void **state)
     assert_int_equal(r.status, 0);
     assert_null(strchr(r.err, '\r'));     /* no bar redrawn in place */
     for (k = 1; k <= 10; k++) {
-        snprintf(want, sizeof want, "mcf: %3d%%  step %d  t ", 10 * k, k);
+        snprintf(want, sizeof want, "mcf: %3d%%  steps, step %d  ", 10 * k, k);
         if (lines_starting(r.err, want) != 1)
             fail_msg("--progress: no line '%s':\n%s", want, r.err);
     }
@@ -720,6 +720,21 @@ static void test_progress_lines(void **state)
     r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", "--quiet", "--scheme", "desbrun2", "--strength", "0.33", NULL);
     assert_int_equal(r.status, 0);
     assert_int_equal(r.errlen, 0);
+    tl_run_free(&r);
+
+    /* the fairing default: its phases (the set-up, the noise reading, the
+     * output last), each line with the time elapsed; the time left once
+     * a share is done */
+    r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", NULL);
+    assert_int_equal(r.status, 0);
+    for (k = 0; k < 3; k++) {
+        static const char *const phase[] = {"setup, step", "noise, step", "output, step"};
+        if (!strstr(r.err, phase[k]))
+            fail_msg("--progress: no phase '%s':\n%s", phase[k], r.err);
+    }
+    assert_int_equal(lines_starting(r.err, "mcf: 100%  output, step "), 1);
+    assert_true(lines_starting(r.err, "mcf: ") >= 5);
+    assert_non_null(strstr(r.err, " s left\n"));
     tl_run_free(&r);
 }
 

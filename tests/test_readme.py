@@ -8,9 +8,11 @@ daemon on 127.0.0.1:8080, gRPC 50051) or `<!-- not run: WHY -->`. This test
 finds every marked block, whatever the README holds when it runs, and runs
 the examples in order with bash (set -eo pipefail) from the top of a fresh
 copy of the tree (the tracked files, committed into a scratch git
-repository), with this build's mcf and mcfd first on PATH as `make install`
-would put them, against a real daemon it starts on free loopback ports (the
-blocks' 8080 and 50051 are rewritten to them). Then:
+repository) with the environment the test was given (no PATH of its own:
+an example that says `mcf` where it needs `build/mcf` fails here as it fails
+for a newcomer), the copy's build/ being this build (what the README's
+set-up, `make run`, leaves there), against a real daemon it starts on free
+loopback ports (the blocks' 8080 and 50051 are rewritten to them). Then:
 - every block exits 0;
 - every mesh an example names under out/ exists, decodes (`mcf info`) and
   is worth looking at: it has the vertices (or faces) of the repository
@@ -115,11 +117,8 @@ def test_examples_run():
     examples = [(n, mark, code) for n, mark, code in found if mark and mark.startswith("example")]
     assert len(examples) >= 5, examples
     fresh_copy()
-    bindir = os.path.join(TMP, "bin")
-    os.mkdir(bindir)
-    for prog in ("mcf", "mcfd"):
-        os.symlink(os.path.join(BUILD, prog), os.path.join(bindir, prog))
-    env = dict(os.environ, PATH=bindir + ":" + os.environ.get("PATH", "/usr/bin:/bin"))
+    os.symlink(os.path.abspath(BUILD), os.path.join(COPY, "build"))
+    env = dict(os.environ)
     daemon = Daemon("readme", "--workers", "2")
     try:
         for n, mark, code in examples:

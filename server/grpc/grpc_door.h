@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * grpc_door.h - the gRPC door of mcfd (server/grpc*.cc, the only C++ in
+ * grpc_door.h - the gRPC door of mcfd (server/grpc/grpc*.cc, the only C++ in
  * server/, sharing grpc_internal.h): api/mcfd.proto's mcfd.v1.Smoother served on --grpc-port with
  * gRPC's C++ callback API, beside the REST door, on the same job service.
  * Its face is door.h's, like the REST door's (rest_door.h). Plain C; no

@@ -74,6 +74,10 @@ struct conn {
     int server_spoke;          /* gRPC has sent its preface */
 };
 
+/* The gate's state: a process singleton by design (one daemon has one gRPC
+ * door, so one gate; h2gate_start and h2gate_stop, called once each by the
+ * door, bracket it). Fields are the gate thread's unless a comment names
+ * the lock (mu) or says other threads read them. */
 static struct {
     h2gate_config cfg;
     pthread_mutex_t mu;        /* conns list, stats, health fields */
