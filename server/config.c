@@ -54,7 +54,10 @@ static const option opts[O_COUNT] = {
                      "gRPC port on the same address, 0 picks a free one, "
                      "off (or -1) disables it (default 50051)"},
     [O_WORKERS] = {"--workers", "MCFD_WORKERS", T_INT, 1, 1024,
-                   "mesh worker threads (default: online CPUs)"},
+                   "mesh worker threads (default: online CPUs); each job's "
+                   "filter passes run on online CPUs / workers threads (at "
+                   "least 1): the workers share the cores, never "
+                   "oversubscribe them (--workers 1: a job on every core)"},
     [O_QUEUE] = {"--queue", "MCFD_QUEUE", T_INT, 0, 1000000,
                  "jobs waiting for a worker before 503 (default 64)"},
     [O_HTTP_THREADS] = {"--http-threads", "MCFD_HTTP_THREADS", T_INT, 1, 64,
@@ -84,9 +87,10 @@ static const option opts[O_COUNT] = {
     [O_MAX_UPLOAD] = {"--max-upload", "MCFD_MAX_UPLOAD", T_SIZE, 0, 0,
                       "largest mesh upload, e.g. 256M (default 256M)"},
     [O_MAX_VERTICES] = {"--max-vertices", "MCFD_MAX_VERTICES", T_INT, 3,
-                        2000000000, "vertices per mesh (default 5000000)"},
+                        2000000000, "vertices per mesh (default 100000000: memory, --max-memory, is "
+                        "the wall)"},
     [O_MAX_FACES] = {"--max-faces", "MCFD_MAX_FACES", T_INT, 1, 2000000000,
-                     "faces per mesh (default 10000000)"},
+                     "faces per mesh (default 200000000)"},
     [O_MAX_ITER] = {"--max-iterations", "MCFD_MAX_ITERATIONS", T_INT, 1,
                     2000000000, "steps per job (default 100000)"},
     [O_MAX_WORK] = {"--max-work", "MCFD_MAX_WORK", T_NUM, 0, 0,
@@ -484,6 +488,8 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
         cfg->body_timeout = 60.0 + (double)cfg->lim.max_input_bytes / 1048576.0;
     if (cfg->max_job_memory == 0 || cfg->max_job_memory > cfg->max_memory)
         cfg->max_job_memory = cfg->max_memory;
+    /* the cores shared between the workers (--workers' help) */
+    cfg->job_threads = ncpu > cfg->workers ? (int)(ncpu / cfg->workers) : 1;
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
     if (cfg->blob_dir[0] && !cfg->store[0]) {

@@ -123,6 +123,7 @@ static void service_config(const srv_config *cfg, svc_config *out)
 {
     memset(out, 0, sizeof *out);
     out->workers = cfg->workers;
+    out->job_threads = cfg->job_threads;
     out->queue = cfg->queue;
     snprintf(out->spool, sizeof out->spool, "%s", cfg->spool);
     snprintf(out->store, sizeof out->store, "%s", cfg->store);

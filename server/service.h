@@ -252,6 +252,7 @@ typedef struct svc svc_t;
 
 typedef struct {
     int workers;               /* worker threads */
+    int job_threads;           /* each job's threads (mcf_flow_params.threads) */
     int queue;                 /* queued jobs beyond the running ones */
     char spool[1024];          /* the local store's directory (made when
                                   missing) */

@@ -56,6 +56,8 @@ typedef struct {
     int grpc_port;             /* gRPC door: 0 any free port, -1 off
                                   (default 50051) */
     int workers;               /* mesh worker threads (default: online CPUs) */
+    int job_threads;           /* a job's threads: online CPUs / workers,
+                                  at least 1 (derived) */
     int queue;                 /* queued jobs beyond the running ones */
     int http_threads;          /* MHD thread pool size (default 2) */
     int max_connections;       /* MHD connection limit (fitted to the

@@ -171,6 +171,7 @@ static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
 
     rq->lim = &c->svc->cfg.lim;
     rq->metrics = 1;
+    rq->threads = c->svc->cfg.job_threads;
     rq->fields = j->keep_fields;
     rq->max_output = SVC_RESULT_MAX;
     rq->job = j->id;
