@@ -169,15 +169,55 @@ static double trimmed_rms(const mcf__graph *g, const unsigned char *fixed, const
     return k ? sqrt(s / (double)k) : 0.0;
 }
 
+/* The largest eigenvalue of the symmetric 3 x 3 M (row-major) in closed
+ * form (the trigonometric solution of its characteristic cubic: Smith,
+ * CACM 4(4) 168, 1961) and a unit eigenvector of it into v (the longest
+ * cross product of two rows of M - lambda I; any unit vector when lambda
+ * is a double eigenvalue). */
+static double largest_eigen(const double *M, double *v)
+{
+    double q = (M[0] + M[4] + M[8]) / 3.0, p1 = M[1] * M[1] + M[2] * M[2] + M[5] * M[5];
+    double p2 = (M[0] - q) * (M[0] - q) + (M[4] - q) * (M[4] - q) + (M[8] - q) * (M[8] - q) + 2.0 * p1;
+    double p = sqrt(p2 / 6.0), lam = q;
+    v[0] = 1.0;
+    v[1] = v[2] = 0.0;
+    if (!(p > 0.0))
+        return lam;
+    double B[9];
+    for (int a = 0; a < 9; a++)
+        B[a] = (M[a] - (a % 4 == 0 ? q : 0.0)) / p;
+    double r = 0.5 * (B[0] * (B[4] * B[8] - B[5] * B[7]) - B[1] * (B[3] * B[8] - B[5] * B[6]) +
+                      B[2] * (B[3] * B[7] - B[4] * B[6]));
+    lam = q + 2.0 * p * cos(acos(fmax(-1.0, fmin(1.0, r))) / 3.0);
+    double R[9], c[3][3], best = 0.0;
+    for (int a = 0; a < 9; a++)
+        R[a] = M[a] - (a % 4 == 0 ? lam : 0.0);
+    mcf__cross3(R, R + 3, c[0]);
+    mcf__cross3(R, R + 6, c[1]);
+    mcf__cross3(R + 3, R + 6, c[2]);
+    for (int k = 0; k < 3; k++) {
+        double l = mcf__dot3(c[k], c[k]);
+        if (l > best) {
+            best = l;
+            for (int a = 0; a < 3; a++)
+                v[a] = c[k][a];
+        }
+    }
+    if (best > 0.0)
+        for (int a = 0; a < 3; a++)
+            v[a] /= sqrt(best);
+    return lam;
+}
+
 /* The share of the largest eigenvalue of the 3 x 3 sum of E_i E_i' over
  * the vertices mad() counts whose |E_i| is at most trim times the median,
- * E (3*nv) the second-order high-pass vectors (I - Avg)^2 X; len (nv) and
- * work (nv) scratch. 1/3 for directions spread evenly, 1 for one
- * direction. */
+ * E (3*nv) the second-order high-pass vectors (I - Avg)^2 X, and its unit
+ * eigenvector into dir; len (nv) and work (nv) scratch. 1/3 for
+ * directions spread evenly, 1 for one direction. */
 static double direction_share(const mcf__graph *g, const unsigned char *fixed, const double *E, double trim,
-                              double *len, double *work)
+                              double *len, double *work, double *dir)
 {
-    double M[9] = {0}, v[3] = {1.0, 0.7, 0.4}, lam = 0.0;
+    double M[9] = {0};
     for (int i = 0; i < g->n; i++)
         len[i] = sqrt(mcf__dot3(E + 3 * (size_t)i, E + 3 * (size_t)i));
     double lim = trim * mad(g, fixed, len, work);
@@ -189,17 +229,49 @@ static double direction_share(const mcf__graph *g, const unsigned char *fixed, c
     double trace = M[0] + M[4] + M[8];
     if (!(trace > 0.0))
         return 0.0;
-    for (int it = 0; it < 100; it++) { /* power iteration: M is PSD */
-        double w[3];
-        for (int a = 0; a < 3; a++)
-            w[a] = M[3 * a] * v[0] + M[3 * a + 1] * v[1] + M[3 * a + 2] * v[2];
-        lam = sqrt(mcf__dot3(w, w));
-        if (!(lam > 0.0))
-            return 0.0;
-        for (int a = 0; a < 3; a++)
-            v[a] = w[a] / lam;
+    return largest_eigen(M, dir) / trace;
+}
+
+/* The variance of the second-order high-pass ((I - Avg)^2 z)_i of unit
+ * i.i.d. values z on the free vertices (0 on the fixed) into c (nv): the
+ * squared norm of row i of (I - Avg)^2 over the free columns, accumulated
+ * over the 2-ring; acc (nv) scratch, zero on entry and exit, and touched
+ * (nv) scratch. */
+static void high_pass_variance(const mcf__graph *g, const unsigned char *fixed, double *c, double *acc,
+                               int *touched)
+{
+    for (int i = 0; i < g->n; i++) {
+        int nt = 0, di = g->ptr[i + 1] - g->ptr[i];
+        /* row i of I - Avg: 1 at i, -1/d_i at its neighbours (none: 0) */
+#define ADD(k, x)                   \
+    do {                            \
+        if (acc[k] == 0.0)          \
+            touched[nt++] = (k);    \
+        acc[k] += (x);              \
+        if (acc[k] == 0.0)          \
+            acc[k] = 1e-300;        \
+    } while (0)
+        for (int t = -1; t < di; t++) {
+            int j = t < 0 ? i : g->adj[g->ptr[i] + t];
+            double a = di == 0 ? 0.0 : t < 0 ? 1.0 : -1.0 / di;
+            int dj = g->ptr[j + 1] - g->ptr[j];
+            if (a == 0.0 || dj == 0)
+                continue;
+            /* times row j of I - Avg */
+            ADD(j, a);
+            for (int s = g->ptr[j]; s < g->ptr[j + 1]; s++)
+                ADD(g->adj[s], -a / dj);
+        }
+#undef ADD
+        double v = 0.0;
+        for (int q = 0; q < nt; q++) {
+            int k = touched[q];
+            if (!(fixed && fixed[k]))
+                v += acc[k] * acc[k];
+            acc[k] = 0.0;
+        }
+        c[i] = v;
     }
-    return lam / trace;
 }
 
 /* The tangential second-order high-pass of P (3*nv) into e (nv): the
@@ -274,7 +346,41 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
         mcf__graph_average(&g, tmp, 3, P);
         for (size_t q = 0; q < 3 * (size_t)nv; q++)
             P[q] = tmp[q] - P[q];
-        shape->direction_share = direction_share(&g, fixed, P, NOISE_TRIM, e, d);
+        double u[3] = {0.0, 0.0, 0.0};
+        shape->direction_share = direction_share(&g, fixed, P, NOISE_TRIM, e, d, u);
+        /* the noise along u: (I - Avg)^2 of s g u is s u (I - Avg)^2 g,
+         * so the high-pass vectors' component along u has the variance
+         * s^2 c_i (high_pass_variance); over the vertices within
+         * NOISE_TRIM robust deviations of it, s^2 = sum (E_i . u)^2 /
+         * sum c_i */
+        double un2 = 0.0, num = 0.0, den = 0.0;
+        size_t k = 0;
+        for (int i = 0; i < nv; i++)
+            e[i] = mcf__dot3(P + 3 * (size_t)i, u);
+        double lim = NOISE_TRIM * 1.4826 * mad(&g, fixed, e, d);
+        int *touched = mcf__malloc((size_t)nv, sizeof(int));
+        if (!touched) {
+            rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
+            goto done;
+        }
+        memset(tmp, 0, sizeof(double) * (size_t)nv);
+        high_pass_variance(&g, fixed, d, tmp, touched);
+        free(touched);
+        for (int i = 0; i < nv; i++)
+            if (g.ptr[i + 1] - g.ptr[i] >= 3 && !(fixed && fixed[i])) {
+                double a = mcf__dot3(u, N + 3 * (size_t)i);
+                un2 += a * a;
+                k++;
+                if (fabs(e[i]) <= lim) {
+                    num += e[i] * e[i];
+                    den += d[i];
+                }
+            }
+        double s3 = den > 0.0 ? sqrt(num / den) : 0.0;
+        un2 = k ? un2 / (double)k : 0.0;
+        shape->sigma_dir = s3;
+        shape->sigma_view = s3 * sqrt(un2);
+        shape->sigma_view_t = s3 * sqrt(0.5 * (1.0 - un2));
     }
     if (sigma_t) {
         /* the same for the tangential part, calibrated by unit Gaussian

@@ -427,23 +427,29 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
     c->s = c->s_t = 0.0;
     if (c->sure) {
         double s_est = 0.0, s_t = 0.0, s;
-        mcf__noise_shape shape = {0.0, 0.0};
+        mcf__noise_shape shape = {0};
         int robust = p->fairing_robust && !(p->noise_sigma > 0.0);
         if ((rc = mcf__noise_levels(c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, robust ? &shape : NULL,
                                     err)) != MCF_OK)
             return rc;
         s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
-        /* the default request: noise along one direction (one viewpoint)
-         * is uneven along the normals, which the ratio of medians reads
-         * low; its RMS reading instead (VIEW_SHARE, VIEW_RATIO) */
-        if (robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est)
-            s = shape.sigma_rms;
+        /* the default request: noise along one direction (one viewpoint),
+         * the high-pass vectors sharing one direction and the RMS reading
+         * above the median one (VIEW_SHARE, VIEW_RATIO), is read along
+         * that direction and split into its parts along the normals and
+         * in the tangent planes (mcf__noise_shape) */
+        int view = robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est;
+        if (view)
+            s = shape.sigma_view;
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
          * it cannot be told from the mesh), and at most the normal
-         * noise (scanners' noise is isotropic at most) */
-        s_t = fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
+         * noise (scanners' noise is isotropic at most); one viewpoint's
+         * noise: its part in the tangent planes, which is most of it
+         * (two thirds of its variance for a direction at random) */
+        s_t = view ? shape.sigma_view_t
+                   : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
         st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
         /* the creases' smoothing along them moves a vertex by at most
