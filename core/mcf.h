@@ -339,7 +339,11 @@ typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
  * noise_sigma (0: estimated). It takes no iterations (EINVAL). Its result
  * (along its normals, moves bounded and guarded as above) is taken when
  * its SURE's gain over the input is twice its standard error, else the
- * input comes back; mcf_flow_stats.feature* report it. */
+ * input comes back; mcf_flow_stats.feature* report it. The default
+ * request (fairing_pick, automatic amount) runs the same stage after the
+ * linear fairing when the creases it holds are 10-50% of its moving
+ * vertices, and takes its result when its SURE beats the linear result's
+ * (docs/fairing.md, "In the default request"). */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
 /* the fairing filters combine the positions after the last

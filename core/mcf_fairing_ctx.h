@@ -102,17 +102,23 @@ void mcf__fair_combine(fair_ctx *c);
 int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
 /* The default request runs the feature-aware stage when the creases the
  * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
- * the vertices it moves and at most FEATURE_CREASE_MAX: the CAD parts
- * blade.obj 5.4-30% and couplingdown_sub2.obj 22-31%, the shared organic
- * meshes 0-4.1% (bunny_npm_closed.obj at 0.5 h 4.1%, spot.obj 2.9%),
- * normal noise 0.1-0.5 h, seed 1 (make quality, 2026-11-28): thin margins
- * both ways, but a false gate costs time, not quality (SURE still compares
- * the two results). Past the upper bound nearly every vertex is on a
- * crease (car.drc, 920 vertices: 72-82%), a tessellation as coarse as its
- * features, where the stage's own noise reading (mcf_feature.c) takes the
- * filter's bias for noise (0.19 h for 0.1 h) and the result it took was
- * 1.48 of the input's error (the linear fairing's 0.93). */
-#define FEATURE_CREASE_SHARE 0.05
+ * the vertices it moves and at most FEATURE_CREASE_MAX. Measured with
+ * normal noise 0.1-0.5 h, seed 1 (make quality, 2026-11-28): the CAD parts
+ * blade.obj 5.4% (0.1 h), 12.6% (0.25 h), 30% (0.5 h) and
+ * couplingdown_sub2.obj 22-31%; the shared organic meshes 0-4.1%
+ * (bunny_npm_closed.obj at 0.5 h), except snowden.obj, a 54k-vertex scan
+ * with real sharp edges, 7.3-9.4%, where the stage cost 8x the linear
+ * fairing (27-31 s of CPU against 3.5 s) for the same error (taken at 0.1 h:
+ * 0.534 of the input's against 0.533). So blade.obj at 0.1 h goes without
+ * (0.197 of the input's error against 0.159 with the stage). The margins
+ * are thin (9.4% below, 12.6% above): a wrong gate costs time, or the
+ * stage's gain, never more than that (SURE still compares the results).
+ * Past the upper bound nearly every vertex is on a crease (car.drc, 920
+ * vertices: 72-82%), a tessellation as coarse as its features, where the
+ * stage's own noise reading (mcf_feature.c) takes the filter's bias for
+ * noise (0.19 h for 0.1 h) and the result it took was 1.48 of the input's
+ * error (the linear fairing's 0.93). */
+#define FEATURE_CREASE_SHARE 0.10
 #define FEATURE_CREASE_MAX 0.5
 /* The feature-aware stage (mcf_feature.c) on the input, X its output when
  * SURE takes it (*taken): against c's result along the normals
