@@ -366,16 +366,23 @@ ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budg
   test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
   test_followers_and_per_ip test_per_ip_busy test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
-  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight
+  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight test_cpu_budget
 ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
   test_no_descriptors_makes_the_daemon_unhealthy test_header_blocks_are_bounded \
   test_abandoned_streams_are_bounded test_rapid_reset_is_paced \
   test_compressed_messages_are_refused test_uploads_in_flight_fit_the_memory_budget \
   test_open_and_cancel_thousands_of_calls test_unread_answer_is_cancelled
+# issue 28's, in tests/test_store_trust.py (a real redis-server) and
+# tests/test_upload_limits.py; the C ones are in ATTACKS
+ATTACKS_PY := test_evicting_redis_is_refused test_what_a_restart_loses \
+  test_readyz_while_redis_refuses_writes test_unqueueable_job_is_not_acknowledged \
+  test_garbage_request_record_is_quarantined test_multipart_300mb_over_default_max_upload \
+  test_chunked_multipart_over_max_upload test_refused_at_decode_leaves_its_input_off_the_spool
 attack: deps
 	$(MAKE) all $(SERVER_TESTS)
-	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC); do \
-	  case " $(ATTACKS_GRPC) " in *" $$t "*) run="/usr/bin/python3 tests/test_grpc.py";; \
+	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC) $(ATTACKS_PY); do \
+	  case " $(ATTACKS_GRPC) $(ATTACKS_PY) " in \
+	    *" $$t "*) run="/usr/bin/python3 $$(grep -l "^def $$t(" tests/test_*.py)";; \
 	    *) run=$$(grep -l "^static void $$t(" $(SERVER_TEST_NAMES:%=tests/%.c) | \
 	          sed 's|^tests/|$(B)/tests/|; s|\.c$$||');; esac; \
 	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \

@@ -45,5 +45,5 @@ endif
 # regions on its own stack (README, Benchmarks).
 CHOLMOD_SERIAL = $(B)/libcholmod_serial.a
 LIBS_CORE = $(CHOLMOD_SERIAL) -lamd -lcolamd -lccolamd -lcamd -lmetis \
-            -llapack -lblas -lsuitesparseconfig -lm
+            -llapack -lblas -lsuitesparseconfig -lm -lpthread
 LIBS_API  := -ldraco -lcjson

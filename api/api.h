@@ -644,6 +644,8 @@ typedef struct {
     double queue_s, read_s;    /* NaN: the door has none */
     int process_rss;           /* peak_rss_bytes: the process's peak
                                   resident size (a process of one job) */
+    int threads;               /* mcf_flow_params.threads: the job's share
+                                  of the cores (0: one) */
 } api_job_request;
 
 /* api_job_request_init: no input, no target, no document, NaN times. */

@@ -197,6 +197,7 @@ static mcf_status flow(job *jb, api_params *p)
         p->flow.cancel = h->cancel;
     /* the step log: the document's flow.log, each step's volume */
     p->flow.log_steps = jb->rq->metrics;
+    p->flow.threads = jb->rq->threads;
     t0 = mcf_now();
     rc = mcf_flow_run(jb->m, &p->flow, &res->stats, &res->err);
     res->flow_s = jb->run.flow_s = elapsed(t0);

@@ -182,6 +182,9 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && api__json_num(o, "dt_min", st->dt_min);
     ok = ok && api__json_num(o, "dt_max", st->dt_max);
     ok = ok && api__json_num(o, "lambda_max", st->lambda_max);
+    /* adaptive runs: the sum of the accepted steps' local error
+     * estimates, relative to the unit-area size (0 otherwise) */
+    ok = ok && api__json_num(o, "error_estimate", st->error_estimate);
     ok = ok && api__json_num(o, "area0", st->area0);
     ok = ok && api__json_num(o, "area1", st->area1);
     ok = ok && api__json_num(o, "volume0", st->volume0);

@@ -22,6 +22,7 @@ typedef struct {
     int npos;
     const char *target, *metrics, *fix_file;
     int quiet, progress, strict;
+    int threads;            /* --threads, default the online cores */
 } cli_opts;
 
 /* mcf.c: the one error line (newlines become spaces), then the exit status;

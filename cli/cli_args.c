@@ -154,6 +154,23 @@ int parse_args(const char *cmd, int argc, char **argv, int first,
             *(key[0] == 'f' ? &o->fix_file : key[0] == 't' ? &o->target : &o->metrics) = val;
             continue;
         }
+        if (smooth && !strcmp(key, "threads")) {
+            char *end;
+            long n;
+            if (eq)
+                val = eq + 1;
+            else if (i + 1 < argc)
+                val = argv[++i];
+            else
+                return fail(EXIT_USAGE, "option '--threads' needs a value");
+            errno = 0;
+            n = strtol(val, &end, 10);
+            if (end == val || *end || errno || n < 1 || n > 64)
+                return fail(EXIT_USAGE, "option '--threads' needs a whole number from 1 to 64, "
+                            "got '%s'", val);
+            o->threads = (int)n;
+            continue;
+        }
         if (limit_index(key) >= 0) {
             if (eq)
                 val = eq + 1;

@@ -102,6 +102,8 @@ static const char smooth_tail[] =
     "                        steps and passes) with the time elapsed and an estimate\n"
     "                        of the time left (on a terminal the bar is always shown)\n"
     "  --quiet               no progress bar and no summary line (warnings still print)\n"
+    "  --threads N           threads of the fairing filters' passes (default: the\n"
+    "                        online cores); the result is one thread's bit for bit\n"
     "  --strict              a warning (folds, edge_collapse, area_loss,\n"
     "                        little_smoothing) fails the run: exit status 3, OUT not\n"
     "                        written (the metrics file is, when asked for)\n"
@@ -442,6 +444,7 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     rq.output_name = o->pos[1];
     rq.target_name = o->target;
     rq.process_rss = 1;
+    rq.threads = o->threads;
 
     /* progress: a bar on a terminal, plain lines with --progress
      * elsewhere; cancel on SIGINT/SIGTERM */
@@ -500,6 +503,14 @@ done:
     return rc;
 }
 
+/* The cores this process may run on (1 when that cannot be told), at
+ * most 64: the default of --threads. */
+static int online_cores(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
+}
+
 static int cmd_smooth(int argc, char **argv)
 {
     api_limits lim;
@@ -509,6 +520,7 @@ static int cmd_smooth(int argc, char **argv)
     int rc;
 
     memset(&o, 0, sizeof o);
+    o.threads = online_cores();
     cli_limits(&lim);
     api_params_init(&p);
     if (!(table = param_table()))

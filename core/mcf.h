@@ -292,7 +292,8 @@ typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
  *   otherwise                 total time = strength^2 * h^2
  * and the steps: dt set -> ceil(total / dt) steps of total/steps;
  * otherwise `iterations` steps (MCF_DEFAULT_STEPS when 0) of equal size.
- * An adaptive run starts from that step and ends at the total time.
+ * An adaptive run starts from dt (or total / iterations) when either is
+ * given, else from the total time, and ends at the total time.
  * `taubin` is a filter: it runs `iterations` passes (MCF_DEFAULT_STEPS
  * when 0) and ignores the amount. strength_auto estimates the noise and
  * picks the time that minimizes the expected error (mcf_auto.c), in place
@@ -371,11 +372,14 @@ typedef struct {
     mcf_laplacian laplacian;
     mcf_mass mass;
     int adaptive;             /* needs a scheme with has_estimate */
-    double tol;               /* adaptive, relative to the unit-area size:
-                                 desbrun2: error per unit step (about the
-                                 error at T); ros2, richardson, desbrun:
-                                 local error per step of the first-order
-                                 companion solution (global <= steps*tol) */
+    double tol;               /* adaptive, relative to the unit-area size
+                                 (M-weighted RMS): desbrun2: the error at
+                                 T, as 0.3 tol per unit time of its own
+                                 (Milne) local estimate (measured 0.07-0.94
+                                 tol on scans: docs/numerics.md); ros2,
+                                 richardson, desbrun: local error per step
+                                 of the first-order companion solution
+                                 (global <= steps*tol) */
     int max_steps;            /* hard cap on steps, rejected ones included
                                  (adaptive); ELIMIT naming max_steps when
                                  a run would need more */
@@ -386,6 +390,11 @@ typedef struct {
     void *progress_ctx;
     mcf_work_fn work;         /* may be NULL; called with progress_ctx */
     const mcf_cancel_flag *cancel; /* loaded before every step; may be NULL */
+    int threads;              /* threads of the fairing filters' passes
+                                 (0 or 1: the caller's only); the result
+                                 is one thread's bit for bit. The caller
+                                 owns the policy: mcf gives its cores,
+                                 mcfd its cores over its workers */
 } mcf_flow_params;
 
 /* Fills p with the defaults: desbrun2, the amount from the mesh
@@ -460,6 +469,11 @@ typedef struct {
     double t_final;
     double dt_first, dt_min, dt_max;
     double lambda_max;        /* when estimated (dt_auto), else 0 */
+    double error_estimate;    /* adaptive: the sum of the accepted steps'
+                                 local error estimates (M-weighted RMS
+                                 relative to the unit-area size, as tol),
+                                 the run's own bound on its error at
+                                 t_final; else 0 */
     double area0, area1, volume0, volume1;   /* in input units */
     double time_assemble, time_analyze, time_factorize, time_solve,
            time_total;        /* seconds, monotonic clock */

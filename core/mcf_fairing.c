@@ -493,7 +493,7 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
             return mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
         if (c->is_explicit) {
             double t0 = mcf_now();
-            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp);
+            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp, c->p->threads);
             st->time_solve += mcf_now() - t0;
         } else if ((rc = implicit_step(c, err)) != MCF_OK) {
             return rc;

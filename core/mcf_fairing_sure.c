@@ -44,10 +44,12 @@
 /* The probes' estimates of sum_i w_i (T^K)_ii into est. */
 void mcf__fair_probe_traces(const fair_ctx *c, double est[NPROBE])
 {
-    for (int q = 0; q < NPROBE; q++) {
+    /* one sweep over the rows (each est[q] sums in the same order) */
+    for (int q = 0; q < NPROBE; q++)
         est[q] = 0.0;
-        for (int k = 0; k < c->nfree; k++) {
-            int i = c->vert[k];
+    for (int k = 0; k < c->nfree; k++) {
+        int i = c->vert[k];
+        for (int q = 0; q < NPROBE; q++) {
             double z = c->probe[(size_t)q * c->nfree + k];
             double y = c->is_explicit ? c->Z[(size_t)c->ncol * i + 3 + q]
                                       : c->Yc[(size_t)(3 + q) * c->nfree + k];

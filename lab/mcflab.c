@@ -30,6 +30,8 @@ int main(int argc, char **argv)
             printf(usage, study_usage);
             return fflush(stdout) == 0 ? 0 : 1;
         }
+    if (!strcmp(argv[1], "adaptive"))
+        return study_adaptive(argc, argv);
     if ((rc = study_parse(argc, argv, &o)) != 0)
         return rc;
     if ((rc = lab_mkdir_p(o.out)) != 0)

@@ -164,5 +164,8 @@ int study_dt_sweep(xopts *o);
 int study_stability(xopts *o);
 int study_order(xopts *o);
 int study_sphere(xopts *o);
+/* `mcflab adaptive` (study_adaptive.c) parses its own options: the error
+ * of adaptive runs against tol (issue 30). 0, or the exit status. */
+int study_adaptive(int argc, char **argv);
 
 #endif /* STUDY_H */

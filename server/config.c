@@ -36,11 +36,11 @@ typedef struct {
 enum {
     O_BIND, O_PORT, O_GRPC_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
     O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES, O_STORE, O_STORE_PW,
-    O_BLOB_DIR,
+    O_BLOB_DIR, O_ALLOW_EVICTION,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
     O_MAX_JSON, O_TTL, O_JOB_TIMEOUT, O_DRAIN, O_HEADER_TIMEOUT,
     O_BODY_TIMEOUT, O_SEND_TIMEOUT, O_MAX_MEMORY, O_MAX_JOB_MEMORY, O_DECODE_CPU,
-    O_DECODE_MEMORY, O_TOKEN,
+    O_DECODE_MEMORY, O_JOB_CPU, O_TOKEN,
     O_LOG, O_PROBE,
     O_HELP, O_VERSION, O_COUNT
 };
@@ -54,7 +54,10 @@ static const option opts[O_COUNT] = {
                      "gRPC port on the same address, 0 picks a free one, "
                      "off (or -1) disables it (default 50051)"},
     [O_WORKERS] = {"--workers", "MCFD_WORKERS", T_INT, 1, 1024,
-                   "mesh worker threads (default: online CPUs)"},
+                   "mesh worker threads (default: online CPUs); each job's "
+                   "filter passes run on online CPUs / workers threads (at "
+                   "least 1): the workers share the cores, never "
+                   "oversubscribe them (--workers 1: a job on every core)"},
     [O_QUEUE] = {"--queue", "MCFD_QUEUE", T_INT, 0, 1000000,
                  "jobs waiting for a worker before 503 (default 64)"},
     [O_HTTP_THREADS] = {"--http-threads", "MCFD_HTTP_THREADS", T_INT, 1, 64,
@@ -72,6 +75,10 @@ static const option opts[O_COUNT] = {
                  "replicas (default: the local spool)"},
     [O_STORE_PW] = {"--store-password-file", "MCFD_STORE_PASSWORD_FILE", T_STR,
                     0, 0, "file holding the Redis password (default: none)"},
+    [O_ALLOW_EVICTION] = {"--redis-allow-eviction",
+                          "MCFD_REDIS_ALLOW_EVICTION", T_FLAG, 0, 0,
+                          "run on a Redis whose maxmemory-policy may evict "
+                          "keys (default: refused at start; env: 1)"},
     [O_BLOB_DIR] = {"--blob-dir", "MCFD_BLOB_DIR", T_STR, 0, 0,
                     "with --store: mesh bytes in files in this directory "
                     "shared by the replicas, not in Redis (default: Redis)"},
@@ -84,9 +91,10 @@ static const option opts[O_COUNT] = {
     [O_MAX_UPLOAD] = {"--max-upload", "MCFD_MAX_UPLOAD", T_SIZE, 0, 0,
                       "largest mesh upload, e.g. 256M (default 256M)"},
     [O_MAX_VERTICES] = {"--max-vertices", "MCFD_MAX_VERTICES", T_INT, 3,
-                        2000000000, "vertices per mesh (default 5000000)"},
+                        2000000000, "vertices per mesh (default 100000000: memory, --max-memory, is "
+                        "the wall)"},
     [O_MAX_FACES] = {"--max-faces", "MCFD_MAX_FACES", T_INT, 1, 2000000000,
-                     "faces per mesh (default 10000000)"},
+                     "faces per mesh (default 200000000)"},
     [O_MAX_ITER] = {"--max-iterations", "MCFD_MAX_ITERATIONS", T_INT, 1,
                     2000000000, "steps per job (default 100000)"},
     [O_MAX_WORK] = {"--max-work", "MCFD_MAX_WORK", T_NUM, 0, 0,
@@ -122,6 +130,9 @@ static const option opts[O_COUNT] = {
     [O_DECODE_CPU] = {"--decode-cpu", "MCFD_DECODE_CPU", T_DUR, 0, 0,
                       "CPU seconds of a sandboxed Draco decode, plus 1 us per "
                       "declared face (default 2s)"},
+    [O_JOB_CPU] = {"--job-cpu", "MCFD_JOB_CPU", T_DUR, 0, 0,
+                   "a job's CPU budget: this plus 0.5 s per MiB of its memory "
+                   "estimate, 0: none (default 30s)"},
     [O_DECODE_MEMORY] = {"--decode-memory", "MCFD_DECODE_MEMORY", T_SIZE, 0,
                          0, "smallest memory limit of a sandboxed Draco "
                          "decode; above it twice the estimate (default 64M)"},
@@ -257,6 +268,13 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
         }
     }
     switch (o) {
+    case O_ALLOW_EVICTION:        /* from the environment: 1 or 0 */
+        if (strcmp(v, "1") != 0 && strcmp(v, "0") != 0) {
+            snprintf(msg, msgsize, "%s: expected 1 or 0, got \"%s\"", src, v);
+            return -1;
+        }
+        cfg->redis_allow_eviction = v[0] == '1';
+        break;
     case O_BIND:
         if (!*v || strlen(v) >= sizeof cfg->bind) {
             snprintf(msg, msgsize, "%s: bad address \"%s\"", src, v);
@@ -317,6 +335,7 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
     case O_MAX_JSON: cfg->lim.max_json_bytes = z; break;
     case O_TTL: cfg->result_ttl = d; break;
     case O_JOB_TIMEOUT: cfg->job_timeout = d; break;
+    case O_JOB_CPU: cfg->job_cpu = d; break;
     case O_DRAIN: cfg->drain_timeout = d; break;
     case O_HEADER_TIMEOUT: cfg->header_timeout = d; break;
     case O_BODY_TIMEOUT: cfg->body_timeout = d; break;
@@ -416,6 +435,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     api_limits_default(&cfg->lim);
     cfg->result_ttl = 3600;
     cfg->job_timeout = 600;
+    cfg->job_cpu = 30;
     cfg->drain_timeout = 25;
     cfg->header_timeout = 30;
     cfg->body_timeout = -1;    /* derived from --max-upload below */
@@ -454,7 +474,10 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
                        MHD_get_version());
                 return 1;
             }
-            cfg->probe = 1;
+            if (o == O_ALLOW_EVICTION)
+                cfg->redis_allow_eviction = 1;
+            else
+                cfg->probe = 1;
             continue;
         }
         if (eq)
@@ -484,6 +507,8 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
         cfg->body_timeout = 60.0 + (double)cfg->lim.max_input_bytes / 1048576.0;
     if (cfg->max_job_memory == 0 || cfg->max_job_memory > cfg->max_memory)
         cfg->max_job_memory = cfg->max_memory;
+    /* the cores shared between the workers (--workers' help) */
+    cfg->job_threads = ncpu > cfg->workers ? (int)(ncpu / cfg->workers) : 1;
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
     if (cfg->blob_dir[0] && !cfg->store[0]) {

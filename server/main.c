@@ -123,17 +123,29 @@ static void service_config(const srv_config *cfg, svc_config *out)
 {
     memset(out, 0, sizeof *out);
     out->workers = cfg->workers;
+    out->job_threads = cfg->job_threads;
     out->queue = cfg->queue;
     snprintf(out->spool, sizeof out->spool, "%s", cfg->spool);
     snprintf(out->store, sizeof out->store, "%s", cfg->store);
     snprintf(out->store_password_file, sizeof out->store_password_file, "%s",
              cfg->store_password_file);
     snprintf(out->blob_dir, sizeof out->blob_dir, "%s", cfg->blob_dir);
+    out->redis_allow_eviction = cfg->redis_allow_eviction;
     out->spool_max_jobs = cfg->spool_max_jobs;
     out->spool_max_bytes = cfg->spool_max_bytes;
     out->lim = cfg->lim;
     out->result_ttl = cfg->result_ttl;
     out->job_timeout = cfg->job_timeout;
+    out->job_cpu = cfg->job_cpu;
+    /* CPU seconds per MiB of a job's memory estimate in its budget: the
+     * estimate grows with the vertices (640-2,900 B each) and a step's
+     * CPU with them; the dragon (435k vertices, estimate 673 MiB, default
+     * parameters) takes 27 s, its budget 366 s. A knob for tests and
+     * tuning, like MCFD_REDIS_CLAIM_IDLE. */
+    out->job_cpu_per_mib = getenv("MCFD_JOB_CPU_PER_MIB") &&
+                                   atof(getenv("MCFD_JOB_CPU_PER_MIB")) >= 0
+                               ? atof(getenv("MCFD_JOB_CPU_PER_MIB"))
+                               : 0.5;
     out->max_memory = cfg->max_memory;
     out->max_job_memory = cfg->max_job_memory;
     out->decode_cpu = cfg->decode_cpu;

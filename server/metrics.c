@@ -9,6 +9,7 @@
  *   mcfd_job_duration_seconds                  histogram (run time)
  *   mcfd_upload_bytes                          histogram (mesh uploads)
  *   mcfd_spool_quarantined_total               counter (damaged jobs)
+ *   mcfd_jobs_cpu_budget_exceeded_total        counter (jobs stopped)
  *   mcfd_queue_depth, mcfd_queue_capacity, mcfd_workers,
  *   mcfd_workers_busy, mcfd_jobs_in_memory, mcfd_draining   gauges
  * Label sets are small and bounded (routes are a fixed list, codes are
@@ -53,6 +54,7 @@ static struct {
     histogram duration, upload;
     double start;
     double quarantined;
+    double cpu_budget;
 } M = {.mu = PTHREAD_MUTEX_INITIALIZER};
 
 void srv_metrics_init(void)
@@ -137,6 +139,13 @@ void srv_metrics_quarantined(void)
     pthread_mutex_unlock(&M.mu);
 }
 
+void srv_metrics_cpu_budget(void)
+{
+    pthread_mutex_lock(&M.mu);
+    M.cpu_budget++;
+    pthread_mutex_unlock(&M.mu);
+}
+
 static void render_histogram(api_buf *b, const char *name, const char *help,
                              const histogram *h)
 {
@@ -203,6 +212,11 @@ char *srv_metrics_render(const srv_gauges *g, size_t *len)
                    "directories moved to <spool>/quarantine.\n# TYPE "
                    "mcfd_spool_quarantined_total counter\n"
                    "mcfd_spool_quarantined_total %.17g\n", M.quarantined);
+    api_buf_printf(&b, "# HELP mcfd_jobs_cpu_budget_exceeded_total Jobs stopped "
+                   "for using their CPU budget (--job-cpu + 0.5 s per MiB of "
+                   "their memory estimate).\n# TYPE "
+                   "mcfd_jobs_cpu_budget_exceeded_total counter\n"
+                   "mcfd_jobs_cpu_budget_exceeded_total %.17g\n", M.cpu_budget);
     pthread_mutex_unlock(&M.mu);
     gauge(&b, "mcfd_queue_depth", "Jobs waiting for a worker.", g->queue_depth);
     gauge(&b, "mcfd_queue_capacity", "Longest queue before 503.",

@@ -219,7 +219,8 @@ typedef enum {
     SVC_CANCEL_USER,       /* a client asked (DELETE, CancelJob) */
     SVC_CANCEL_SHUTDOWN,   /* svc_checkpoint_running: runs again later */
     SVC_CANCEL_TIMEOUT,    /* the job timeout passed */
-    SVC_CANCEL_CLIENT      /* the job's only client left (a door saw it) */
+    SVC_CANCEL_CLIENT,     /* the job's only client left (a door saw it) */
+    SVC_CANCEL_CPU         /* the job used its CPU budget (svc_config) */
 } svc_cancel_reason;
 
 typedef struct {
@@ -252,6 +253,7 @@ typedef struct svc svc_t;
 
 typedef struct {
     int workers;               /* worker threads */
+    int job_threads;           /* each job's threads (mcf_flow_params.threads) */
     int queue;                 /* queued jobs beyond the running ones */
     char spool[1024];          /* the local store's directory (made when
                                   missing) */
@@ -260,6 +262,8 @@ typedef struct {
     char store_password_file[1024]; /* its password's file, "": none */
     char blob_dir[512];        /* Redis store: mesh bytes in files here,
                                   "": in Redis */
+    int redis_allow_eviction;  /* Redis store: opened even when its
+                                  maxmemory-policy may evict keys */
     int spool_max_jobs;        /* jobs kept before EQUOTA, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before EQUOTA */
     api_limits lim;            /* limits on untrusted input */
@@ -268,6 +272,11 @@ typedef struct {
     size_t max_memory;         /* estimated peak of the running jobs */
     size_t max_job_memory;     /* estimated peak of one job (svc_admit.c) */
     double decode_cpu;         /* CPU seconds of a sandboxed decode, floor */
+    double job_cpu;            /* a job's CPU budget: these seconds plus
+                                  job_cpu_per_mib per MiB of its memory
+                                  estimate, on its worker's thread; 0:
+                                  none */
+    double job_cpu_per_mib;    /* 0.5 s (MCFD_JOB_CPU_PER_MIB) */
     size_t decode_memory;      /* its memory limit, floor (sandbox.c) */
 } svc_config;
 

@@ -56,6 +56,8 @@ typedef struct {
     int grpc_port;             /* gRPC door: 0 any free port, -1 off
                                   (default 50051) */
     int workers;               /* mesh worker threads (default: online CPUs) */
+    int job_threads;           /* a job's threads: online CPUs / workers,
+                                  at least 1 (derived) */
     int queue;                 /* queued jobs beyond the running ones */
     int http_threads;          /* MHD thread pool size (default 2) */
     int max_connections;       /* MHD connection limit (fitted to the
@@ -69,6 +71,8 @@ typedef struct {
     char store[1024];          /* redis://... (jobs in Redis), "": the spool */
     char store_password_file[1024]; /* the Redis password's file, "": none */
     char blob_dir[512];      /* with a Redis store: large blobs in files here */
+    int redis_allow_eviction;  /* a Redis that may evict keys is not
+                                  refused at start */
     int spool_max_jobs;        /* jobs kept before 503, 0: none */
     size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
     api_limits lim;            /* limits on untrusted input */
@@ -84,6 +88,7 @@ typedef struct {
     size_t max_memory;         /* estimated peak of the running jobs */
     size_t max_job_memory;     /* estimated peak of one job */
     double decode_cpu;         /* CPU seconds of a sandboxed decode (floor) */
+    double job_cpu;            /* a job's CPU budget's floor, 0: none */
     size_t decode_memory;      /* its memory limit (floor) */
     char token_file[1024];     /* empty: no authentication */
     char token[512];           /* the bearer token read from token_file */
@@ -185,6 +190,8 @@ void srv_metrics_grpc(const char *method, const char *code);
 void srv_metrics_job(const char *scheme, const char *status, double seconds);
 /* One job directory moved to the spool's quarantine (spool.c). */
 void srv_metrics_quarantined(void);
+/* A job stopped for using its CPU budget. */
+void srv_metrics_cpu_budget(void);
 
 typedef struct {
     int queue_depth, queue_capacity;

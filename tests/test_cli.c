@@ -696,7 +696,7 @@ static void test_progress_lines(void **state)
     /* a flow's progress at a named amount (the fairing default and the
      * automatic amount take as many steps as the noise they read says) */
     tl_run_result r = tl_run("smooth", tl_sphere(), "p.obj", "--scheme", "desbrun2", "--strength", "0.33", NULL);
-    char want[32];
+    char want[64];
     int k;
     (void)state;
     assert_int_equal(r.status, 0);

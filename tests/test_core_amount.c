@@ -279,6 +279,78 @@ static void test_adaptive_follows_tol(void **state)
     mcf_mesh_free(clean);
 }
 
+/* Issue 30: the error of an adaptive run follows tol. On test_nm (114
+ * vertices, three boundary loops, two non-manifold vertices, needle
+ * triangles) at strength 0.5, against desbrun2 with 1600 fixed steps
+ * (shown converged: its distance to 400 steps is asserted below 1e-7, 0.1
+ * of the tightest tol; measured 3.0e-8), desbrun2 with tol 1e-3 .. 1e-6,
+ * errors relative to the unit-area size as tol is:
+ *  - the RMS error (M-weighted) is at most 3 tol and at least tol / 30:
+ *    measured 0.07-0.18 tol; below tol by design (the local errors may
+ *    add up to 0.3 tol);
+ *  - 10x tighter buys at least 4x: measured 5.8, 7.7, 9.1x (the issue
+ *    asks 5x; 4 leaves room for another platform's rounding);
+ *  - the max over the vertices is at most 20 tol: measured 0.2-0.5 tol;
+ *  - the run's own estimate (error_estimate, at most 0.3 tol by the
+ *    control; measured 0.15-0.24 tol) is no more than 10x below the
+ *    measured error (it is above it here).
+ * About 0.5 s of CPU. */
+static void test_adaptive_error_follows_tol(void **state)
+{
+    static const double tol[4] = {1e-3, 1e-4, 1e-5, 1e-6};
+    static const mcf_scheme s[1] = {MCF_DESBRUN2};
+    mcf_mesh *m0 = tl_load("test_nm.obj");
+    mcf_mesh *ref = mcf_mesh_dup(m0, NULL), *ref4 = mcf_mesh_dup(m0, NULL);
+    double size = sqrt(mcf_mesh_area(m0)), T = 0.5 * 0.5 * unit_mean_edge(m0) * unit_mean_edge(m0);
+    mcf_flow_params p;
+    mcf_error err = {0};
+    (void)state;
+    mcf_flow_params_init(&p);
+    p.time = T;
+    p.iterations = 1600;
+    assert_int_equal(mcf_flow_run(ref, &p, NULL, &err), MCF_OK);
+    p.iterations = 400;
+    assert_int_equal(mcf_flow_run(ref4, &p, NULL, &err), MCF_OK);
+    double self = rms(ref4, ref) / size;
+    print_message("reference: 1600 vs 400 steps %.2e\n", self);
+    assert_true(self < 1e-7);
+    for (int k = 0; k < 1; k++) {
+        double e[4];
+        for (int j = 0; j < 4; j++) {
+            mcf_mesh *m = mcf_mesh_dup(m0, NULL);
+            mcf_flow_stats st;
+            mcf_compare_result c;
+            mcf_flow_params_init(&p);
+            p.scheme = s[k];
+            p.time = T;
+            p.adaptive = 1;
+            p.tol = tol[j];
+            if (mcf_flow_run(m, &p, &st, &err) != MCF_OK)
+                fail_msg("%s tol %g: %s", mcf_scheme_get(s[k])->name, tol[j], err.msg);
+            assert_int_equal(mcf_compare(m, ref, &c, NULL), MCF_OK);
+            e[j] = c.rms_m / size;
+            double mx = c.max_err / size;
+            print_message("%-10s tol %.0e: %3d steps (+%d), RMS %.2e (%.2f tol), max %.2f tol, estimate %.2f tol\n",
+                          mcf_scheme_get(s[k])->name, tol[j], st.steps, st.rejected, e[j], e[j] / tol[j], mx / tol[j],
+                          st.error_estimate / tol[j]);
+            if (!(e[j] <= 3.0 * tol[j] && e[j] >= tol[j] / 30.0))
+                fail_msg("%s tol %g: RMS %.2e not within [tol/30, 3 tol]", mcf_scheme_get(s[k])->name, tol[j], e[j]);
+            if (!(mx <= 20.0 * tol[j]))
+                fail_msg("%s tol %g: max %.2e over 20 tol", mcf_scheme_get(s[k])->name, tol[j], mx);
+            if (!(st.error_estimate > 0.0 && st.error_estimate <= 0.5 * tol[j] && 10.0 * st.error_estimate >= e[j]))
+                fail_msg("%s tol %g: estimate %.2e against error %.2e", mcf_scheme_get(s[k])->name, tol[j],
+                         st.error_estimate, e[j]);
+            if (j > 0 && !(e[j - 1] >= 4.0 * e[j]))
+                fail_msg("%s tol %g: 10x tighter bought %.1fx", mcf_scheme_get(s[k])->name, tol[j], e[j - 1] / e[j]);
+            mcf_flow_stats_free(&st);
+            mcf_mesh_free(m);
+        }
+    }
+    mcf_mesh_free(ref);
+    mcf_mesh_free(ref4);
+    mcf_mesh_free(m0);
+}
+
 /* strength=auto on a coarse real scan at three noise levels: the noise
  * estimate is within 25% of the injected one (measured 0.107, 0.236, 0.392
  * of 0.1, 0.25, 0.5: the noisy normals hide part of the largest), and the
@@ -568,6 +640,7 @@ int main(void)
         cmocka_unit_test(test_warnings),
         cmocka_unit_test(test_adaptive_scan),
         cmocka_unit_test(test_adaptive_follows_tol),
+        cmocka_unit_test(test_adaptive_error_follows_tol),
         cmocka_unit_test(test_strength_auto),
         cmocka_unit_test(test_auto_never_harms),
         cmocka_unit_test(test_noise_estimate_fixed_part),

@@ -609,6 +609,49 @@ static void test_uploads_in_flight(void **state)
                  "--max-memory 100M + %d KiB", hwm, hwm2, rest, REST_UPLOAD_SLACK_KIB);
 }
 
+/* Issue 28 item 10: a job's CPU budget, --job-cpu plus
+ * MCFD_JOB_CPU_PER_MIB s per MiB of its memory estimate (0.5 by default;
+ * 0.2 s + 0.01 s/MiB here, so the test is short), on its worker's
+ * thread: a job of 20,000 implicit steps of the 812-vertex sphere (about
+ * 6 s of CPU here, all of them before) is stopped 422 ELIMIT naming the
+ * budget, counted in mcfd_jobs_cpu_budget_exceeded_total, and logged with
+ * its cpu_s and cpu_budget_s; a short job still succeeds. */
+static void test_cpu_budget(void **state)
+{
+    static const char *const flags[] = {"--workers", "1", "--job-cpu", "0.2",
+                                        NULL};
+    upload_t up = {.mesh = "sphere_cgal.obj"};
+    daemon_t d;
+    char spool[600];
+    resp_t r;
+    const char *at;
+    int step = -1;
+
+    (void)state;
+    snprintf(spool, sizeof spool, "%s/cpu-budget", g_tmp);
+    setenv("MCFD_JOB_CPU_PER_MIB", "0.01", 1);
+    assert_int_equal(start_daemon(&d, "cpu-budget", spool, flags), 0);
+    unsetenv("MCFD_JOB_CPU_PER_MIB");
+    http(&d, "POST", "/smooth?scheme=desbrun2&iterations=20000&dt=1e-7", NULL,
+         &up, &r);
+    expect_problem(&d, &r, 422, "ELIMIT", "CPU budget",
+                   "a job past its CPU budget");
+    if ((at = strstr(r.body.data, "stopped after step ")))
+        step = atoi(at + strlen("stopped after step "));
+    print_message("    20,000 steps under a CPU budget of 0.2 s + 0.01 s/MiB: 422 after "
+                  "step %d (before: all 20,000 steps)\n", step);
+    assert_true(step > 0 && step < 20000);
+    resp_free(&r);
+    http(&d, "GET", "/metrics", NULL, NULL, &r);
+    expect_status(&d, &r, 200, "GET /metrics");
+    assert_true(metric(r.body.data, "mcfd_jobs_cpu_budget_exceeded_total") == 1);
+    resp_free(&r);
+    http(&d, "POST", "/smooth?scheme=desbrun2&iterations=2", NULL, &up, &r);
+    expect_status(&d, &r, 200, "a short job under the budget");
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -618,6 +661,7 @@ int main(void)
         cmocka_unit_test_teardown(test_draco_sandbox, kill_strays),
         cmocka_unit_test_teardown(test_memory_admission, kill_strays),
         cmocka_unit_test_teardown(test_uploads_in_flight, kill_strays),
+        cmocka_unit_test_teardown(test_cpu_budget, kill_strays),
     };
     /* MCF_TEST_FILTER=test_errors (a cmocka pattern) runs a subset. */
     if (getenv("MCF_TEST_FILTER") && *getenv("MCF_TEST_FILTER"))

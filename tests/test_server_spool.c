@@ -331,6 +331,25 @@ static void test_spool_full(void **state)
         assert_string_equal(jstr(j, "status"), "succeeded");
         cJSON_Delete(j);
     }
+    /* A synchronous client whose result finds no room is answered 503
+     * with Retry-After once the short retries for it are spent (issue
+     * 28: before, a 500 after the async job's 37 s of retries, longer
+     * than the 30 s of common proxies). */
+    fill_leaving(filler, 100e3);
+    {
+        double t0 = mcf_now();
+        char ra[32];
+        http(&d, "POST", "/smooth?iterations=2", NULL, &up, &r);
+        print_message("    a synchronous job whose result finds no room: %ld "
+                      "in %.1f s (before: 500 in 36.8 s)\n", r.code,
+                      mcf_now() - t0);
+        expect_problem(&d, &r, 503, "ESPOOLFULL", "no room",
+                       "a synchronous job whose result finds no room");
+        if (!header(&r, "Retry-After", ra, sizeof ra) || atoi(ra) < 1)
+            fail_msg("the 503 has no Retry-After");
+        resp_free(&r);
+    }
+    unlink(filler);
     stop_daemon(&d);
     unmount_all();
 }

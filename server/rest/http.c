@@ -676,6 +676,14 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
     return r;
 }
 
+/* The bytes of a refused body read and discarded (http.h, SRV_DRAIN_MAX):
+ * all it declared (no more than a valid body may hold: its head was
+ * checked), else SRV_DRAIN_MAX past the error. */
+static size_t drain_bound(const srv_request *r)
+{
+    return r->declared > 0 ? r->declared : r->perr_at - 1 + SRV_DRAIN_MAX;
+}
+
 enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
                                 const char *url, const char *method,
                                 const char *version, const char *upload_data,
@@ -719,16 +727,24 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     if (r->waiting)
         return srv_wait_or_answer(r, c);
     if (*upload_data_size > 0) {
-        if (r->has_perr && !r->perr_at)
-            r->perr_at = r->bytes_in + 1;
         srv_upload_consume(r, upload_data, *upload_data_size);
         *upload_data_size = 0;
         if (r->conn)
             conn_body(r->conn, r->bytes_in);
+        if (r->has_perr && !r->perr_at) {
+            /* refused: what it holds goes now, the rest is discarded */
+            r->perr_at = r->bytes_in + 1;
+            api_buf_free(&r->mesh);
+            api_buf_free(&r->target);
+            svc_upload_release(r->door->svc, &r->mem_held);
+        }
         /* A refused body is read and discarded so that its client hears
-         * why, but only so far: then the connection is dropped. */
-        if (r->perr_at && r->bytes_in - (r->perr_at - 1) > SRV_DRAIN_MAX)
+         * why, but only so far (SRV_DRAIN_MAX): then the answer goes
+         * straight to the socket, and the connection is closed. */
+        if (r->perr_at && r->bytes_in > drain_bound(r)) {
+            srv_send_problem_raw(r, c, &r->perr);
             return MHD_NO;
+        }
         return MHD_YES;
     }
     if (r->conn) /* the body is complete */

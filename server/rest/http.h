@@ -179,6 +179,7 @@ typedef struct {
     svc_error perr;            /* found while reading; answered at the end */
     int has_perr;
     size_t perr_at;            /* bytes_in + 1 when perr was first seen */
+    size_t declared;           /* its Content-Length, 0: none */
     size_t mem_held;           /* its bytes' reservation in --max-memory
                                   (svc_upload_reserve) */
     /* waiting on a job */
@@ -224,14 +225,24 @@ enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
     ;
 /* An empty response (204, HEAD). */
 struct MHD_Response *srv_empty_response(void);
+/* The problem written straight to the connection's socket, with
+ * Connection: close, for a body MHD is still reading (it queues no
+ * answer then): the caller returns MHD_NO next, which closes the
+ * connection. Counted and logged like srv_send_problem's. */
+void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
+                          const svc_error *e);
 
 /* upload.c: the checks of an upload's head (415, 413, 503 before the
  * body), the body's bytes, and the submission once it is complete. */
 enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c);
 void srv_upload_consume(srv_request *r, const char *data, size_t size);
 enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c);
-/* Content-Length above this: refused before it is read; a refused body
- * is read and discarded up to this much, then the connection dropped. */
+/* Content-Length above this: refused before it is read. A refused body
+ * is read and discarded, so that a client sending it all before it reads
+ * hears why: to its declared end (at most what a valid body may hold,
+ * checked at its head); without a declared length, up to this much past
+ * the error, then the answer is written on the socket and the connection
+ * closed. */
 #define SRV_DRAIN_MAX ((unsigned long long)16 << 20)
 
 /* jobroutes.c: the /v1/jobs/ID routes, and a waiting /smooth request

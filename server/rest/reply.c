@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 
 #include "http.h"
 
@@ -165,6 +166,39 @@ enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
     if (job)
         MHD_add_response_header(resp, "X-Job-Id", job);
     return srv_respond(r, c, http, resp);
+}
+
+void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
+                          const svc_error *e)
+{
+    const union MHD_ConnectionInfo *ci =
+        MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+    cJSON *o = srv_problem_json(e, r->path, NULL);
+    char *body = o ? cJSON_PrintUnformatted(o) : NULL, head[256], retry[40] = "";
+    unsigned http = svc_problem_http(e->problem);
+    int n;
+
+    cJSON_Delete(o);
+    r->status = http;
+    srv_metrics_request(srv_route_name(r->rt), http);
+    if (!ci || !body) {
+        free(body);
+        return;
+    }
+    if (http == 503)
+        snprintf(retry, sizeof retry, "Retry-After: %.0f\r\n",
+                 e->retry_after > 0 ? ceil(e->retry_after) : 1.0);
+    n = snprintf(head, sizeof head, "HTTP/1.1 %u %s\r\nContent-Type: "
+                 "application/problem+json\r\nContent-Length: %zu\r\n"
+                 "%sConnection: close\r\n\r\n", http, srv_http_reason(http),
+                 strlen(body), retry);
+    /* a few hundred bytes into an idle socket's send buffer: whole, or
+     * (a client that reads nothing) lost with the connection */
+    if (send(ci->connect_fd, head, (size_t)n, MSG_NOSIGNAL | MSG_DONTWAIT) ==
+        n)
+        (void)send(ci->connect_fd, body, strlen(body),
+                   MSG_NOSIGNAL | MSG_DONTWAIT);
+    free(body);
 }
 
 enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,

@@ -9,7 +9,9 @@
  *
  * MHD cannot answer in the middle of an upload, so errors found while
  * reading (a part over its limit, broken multipart) are remembered and
- * answered once the body has been consumed.
+ * answered once the body has been consumed; a body without a declared
+ * length that goes on past the drain bound (http.h, SRV_DRAIN_MAX) is
+ * answered on the socket and its connection closed.
  */
 #include <ctype.h>
 #include <errno.h>
@@ -284,6 +286,7 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
         }
         if (errno != 0 || end == h)
             n = 0;
+        r->declared = (size_t)n;
     }
     /* Busy or draining: say so before the body only when the client waits
      * for it (Expect: 100-continue) or the body is over SRV_DRAIN_MAX. A

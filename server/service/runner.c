@@ -125,9 +125,18 @@ static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
     if (c->defer ||
         write_retry(c, name, out->data ? out->data : "", out->len) == 0)
         return MCF_OK;
-    svc_error_set(&c->prob, SVC_P_STORAGE, "cannot write the result of job "
-                  "%s to the spool (%d tries): %s", c->job->id, c->tries + 1,
-                  strerror(errno));
+    if (errno == ENOSPC || errno == EDQUOT) {
+        /* the client's to retry once there is room (a synchronous one
+         * hears it after SVC_RETRY_SYNC_TRIES: 503 with Retry-After) */
+        svc_error_set(&c->prob, SVC_P_SPOOL_FULL, "the spool has no room "
+                      "for the result of job %s (%d tries): %s", c->job->id,
+                      c->tries + 1, strerror(errno));
+        c->prob.retry_after = 5;
+    } else {
+        svc_error_set(&c->prob, SVC_P_STORAGE, "cannot write the result of "
+                      "job %s to the spool (%d tries): %s", c->job->id,
+                      c->tries + 1, strerror(errno));
+    }
     c->has_prob = 1;
     return mcf_error_set(err, MCF_EIO, "%s", c->prob.detail);
 }
@@ -171,6 +180,7 @@ static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
 
     rq->lim = &c->svc->cfg.lim;
     rq->metrics = 1;
+    rq->threads = c->svc->cfg.job_threads;
     rq->fields = j->keep_fields;
     rq->max_output = SVC_RESULT_MAX;
     rq->job = j->id;

@@ -113,6 +113,9 @@ svc_job *svc_job_find(svc_t *s, const char *id, svc_error *err)
                       "existed, deleted, or expired)", id);
     } else if (e == ENOMEM) {
         svc_error_set(err, SVC_P_NOMEM, "out of memory reading job %.64s", id);
+    } else if (e == EBADMSG) {
+        svc_error_set(err, SVC_P_STORAGE, "job %.64s is damaged in the store "
+                      "(its state.json or request.json does not parse)", id);
     } else {
         /* a shared store down: it cannot say the job does not exist */
         svc_error_set(err, SVC_P_SPOOL_UNREADY, "the store cannot read job "
@@ -327,6 +330,33 @@ static int store_create(svc_t *s, svc_job *j, const svc_request *rq,
     return -1;
 }
 
+/* A job recorded but refused by the queue (Redis: the queue key of
+ * another type, out of memory, down): not acknowledged, so nothing of it
+ * is kept; the client hears why and retries. Takes j (no one else knows
+ * its ID yet). */
+static void unqueued(svc_t *s, svc_job *j, svc_error *err)
+{
+    char why[400];
+    int e = errno;
+
+    if (s->store->ops->ready(s->store, why, sizeof why) == 0)
+        snprintf(why, sizeof why, "%s", strerror(e));
+    pthread_mutex_lock(&s->mu);
+    svc__table_remove(s, j);
+    s->queued--;
+    pthread_mutex_unlock(&s->mu);
+    if (s->store->ops->remove(s->store, j->id) != 0)
+        srv_logf(SRV_LOG_ERROR, "job %s: cannot queue it, nor remove its "
+                 "records (%s): it was never acknowledged", j->id,
+                 strerror(errno));
+    srv_logf(SRV_LOG_ERROR, "job %s: cannot queue it: %s; refused (503)",
+             j->id, why);
+    svc_error_set(err, SVC_P_SPOOL_UNREADY, "cannot queue the job now: %s; "
+                  "nothing of it was kept", why);
+    err->retry_after = 5;
+    svc_job_unref(j);
+}
+
 int svc_submit(svc_t *s, svc_request *rq, svc_job **out, svc_error *err)
 {
     const svc_config *cfg = &s->cfg;
@@ -372,9 +402,10 @@ int svc_submit(svc_t *s, svc_request *rq, svc_job **out, svc_error *err)
     s->queued++;
     j->refs++; /* the caller's */
     pthread_mutex_unlock(&s->mu);
-    if (s->store->ops->push(s->store, j->id, 0) != 0)
-        srv_logf(SRV_LOG_ERROR, "job %s: cannot queue it (%s); it runs after "
-                 "the next start", j->id, strerror(errno));
+    if (s->store->ops->push(s->store, j->id, 0) != 0) {
+        unqueued(s, j, err);
+        return -1;
+    }
     pthread_mutex_lock(&s->mu);
     svc__wake_locked(s);
     pthread_mutex_unlock(&s->mu);
@@ -453,6 +484,33 @@ const api_limits *svc_limits(const svc_t *s)
 }
 
 /* ------------------------------------------------------------------ delete */
+
+/* A job that failed or was canceled never runs again: its input and
+ * target leave the store now, not at its result TTL (issue 28: 15
+ * uploads of 265 MB refused at decode held the default 4G spool quota
+ * for an hour). Emptied, the store having no removal of one blob; best
+ * effort (a failure leaves them to the TTL). */
+void svc__drop_input(svc_job *j)
+{
+    static const char *const names[2] = {"input", "target"};
+    svc_t *s = j->svc;
+    svc_store *st = s->store;
+    int k;
+
+    for (k = 0; k < 1 + (j->has_target != 0); k++) {
+        size_t size = 0;
+        if (st->ops->stat(st, j->id, names[k], &size) != 0 || size == 0 ||
+            st->ops->put(st, j->id, names[k], "", 0, 1) != 0)
+            continue;
+        pthread_mutex_lock(&s->mu);
+        if (size > j->disk_bytes)
+            size = j->disk_bytes;
+        j->disk_bytes -= size;
+        if (j->in_table)
+            s->disk_bytes -= size;
+        pthread_mutex_unlock(&s->mu);
+    }
+}
 
 /* Forgets a finished job: out of the table first (a visible job always
  * has its blobs), then out of the store; a job that cannot be removed is
@@ -571,6 +629,19 @@ static int sweep_locked(svc_t *s, svc_job ***gone, int *ngone, id_list *again,
     return 0;
 }
 
+/* The run of job id here stops at its next step. */
+static void stop_run(svc_t *s, const char *id)
+{
+    svc_job *j;
+
+    pthread_mutex_lock(&s->mu);
+    if ((j = svc__find_locked(s, id)) && j->run_here && !j->cancel) {
+        j->cancel_reason = SVC_CANCEL_USER;
+        j->cancel = 1;
+    }
+    pthread_mutex_unlock(&s->mu);
+}
+
 void svc_sweep(svc_t *s)
 {
     svc_job **gone = NULL;
@@ -580,9 +651,13 @@ void svc_sweep(svc_t *s)
     pthread_mutex_lock(&s->mu);
     sweep_locked(s, &gone, &ngone, &again, &beat);
     pthread_mutex_unlock(&s->mu);
-    /* a shared store hands the job of a silent claimer to another */
+    /* a shared store hands the job of a silent claimer to another; a run
+     * whose records are gone from it (ENOENT) is stopped: its outcome
+     * can no longer be recorded (svc__finish says so) */
     for (i = 0; i < beat.n; i++)
-        s->store->ops->heartbeat(s->store, beat.id[i]);
+        if (s->store->ops->heartbeat(s->store, beat.id[i]) != 0 &&
+            errno == ENOENT && s->store->ops->shared)
+            stop_run(s, beat.id[i]);
     if (s->store->ops->shared)
         svc__shared_sweep(s);
     /* their outcome could not be recorded (svc__finish): again */
@@ -633,7 +708,7 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
                    ? svc_redis_open(cfg->store, cfg->store_password_file,
                                     cfg->blob_dir, cfg->workers,
                                     cfg->result_ttl + cfg->job_timeout + 3600,
-                                    msg, msgsize)
+                                    cfg->redis_allow_eviction, msg, msgsize)
                    : svc_spool_open(cfg->spool, msg, msgsize);
     if (!s->store ||
         svc__recover(s, msg, msgsize) != 0 ||

@@ -54,6 +54,11 @@
  * in all (svc__retry), long enough for connections to time out or be
  * closed, short enough that a full disk fails the job within a minute. */
 #define SVC_RETRY_TRIES 10
+/* The tries of a synchronous job's outcome (a client waits on its
+ * connection: POST /smooth): 0.1 + 0.2 + 0.4 + 0.8 = 1.5 s of waits,
+ * then the client gets a 503 with Retry-After and the job is dropped,
+ * well within the 30 s after which common proxies give up (issue 28). */
+#define SVC_RETRY_SYNC_TRIES 4
 #define SVC_FIELDS_FILE "fields.bin"        /* fields: api_fields_encode */
 
 /* The memory budget of the running jobs and the uploads (svc_admit.c). */
@@ -143,6 +148,9 @@ struct svc_job {
     svc_cancel_reason cancel_reason;
     svc_cancel_reason canceling;  /* a cancel being written (svc_cancel) */
     double deadline;           /* srv_mono() the job timeout passes, 0 */
+    double cpu_budget;         /* CPU seconds its run may take, 0: none */
+    double cpu0, cpu_used;     /* its worker thread's CPU clock at its start;
+                                  the seconds it took */
     api_buf events;            /* ndjson lines, one per step */
     size_t *event_end;         /* byte offset past each line */
     int nevents, event_cap;
@@ -221,9 +229,17 @@ int svc__start(svc_job *j);
 /* running -> its outcome, recorded first (with retries), then published;
  * a job whose outcome the store refuses is parked (queued again later). */
 void svc__finish(svc_job *j, svc_outcome *o);
+/* Whether a client waits on its connection for j's answer (POST
+ * /smooth) on this replica: its tries are bounded by
+ * SVC_RETRY_SYNC_TRIES. A local store only: on a shared one another
+ * replica may run it, or be the one waiting. */
+int svc__sync(const svc_job *j);
+/* A job that failed or was canceled: its input and target emptied in
+ * the store now (service.c), not at its result TTL; best effort. */
+void svc__drop_input(svc_job *j);
 /* A transient error of the store or of memory (EMFILE, ENOSPC, ENOMEM,
  * ...): waits before try *tries + 2 (0.1 s doubling, SVC_RETRY_TRIES
- * times), watching the job's cancel (any, or with only_shutdown the
+ * times, SVC_RETRY_SYNC_TRIES for a synchronous job), watching the job's cancel (any, or with only_shutdown the
  * shutdown's). 1 to try again, 0 to give up; errno is kept. */
 int svc__retry(svc_job *j, int *tries, int e, const char *what,
                int only_shutdown);

@@ -117,13 +117,29 @@ svc_cancel_reason svc__cancel_reason(const svc_job *j)
     return r;
 }
 
+/* The CPU seconds the calling thread has taken. */
+static double thread_cpu(void)
+{
+    struct timespec ts;
+
+    if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0)
+        return 0;
+    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+int svc__sync(const svc_job *j)
+{
+    return j->keep_result && !j->svc->store->ops->shared;
+}
+
 int svc__retry(svc_job *j, int *tries, int e, const char *what,
                int only_shutdown)
 {
     svc_t *s = j->svc;
     double delay, end;
 
-    if (!transient(e) || *tries >= SVC_RETRY_TRIES)
+    if (!transient(e) ||
+        *tries >= (svc__sync(j) ? SVC_RETRY_SYNC_TRIES : SVC_RETRY_TRIES))
         goto give_up;
     delay = 0.1 * (double)(1 << *tries);
     if (delay > 8)
@@ -169,6 +185,13 @@ int svc__start(svc_job *j)
         j->started = srv_wall();
         j->deadline = s->cfg.job_timeout > 0 ? srv_mono() + s->cfg.job_timeout
                                              : 0;
+        /* on the worker's thread, which runs it (workers.c) */
+        j->cpu_budget = s->cfg.job_cpu > 0
+                            ? s->cfg.job_cpu + s->cfg.job_cpu_per_mib *
+                                                   j->mem_estimate / 1048576.0
+                            : 0;
+        j->cpu0 = thread_cpu();
+        j->cpu_used = 0;
         s->queued--;
         s->busy++;
         svc__notify(j, SVC_NOTIFY_STATE);
@@ -430,14 +453,29 @@ static int finish_rec(svc_t *s, const svc_state_rec *r, end_blobs *eb)
     return rc;
 }
 
+/* Lock held: the outcome o could not be recorded and will not be (its
+ * error says why): j fails here, leaves the table (404 from now), and a
+ * client waiting on it hears o's error. */
+static void dropped_locked(svc_job *j, svc_outcome *o, svc_state_rec *r)
+{
+    srv_logf(SRV_LOG_ERROR, "%s", o->err.detail);
+    o->status = r->status = SVC_JOB_FAILED;
+    r->result_len = 0;
+    apply_outcome_locked(j, o, r);
+    if (j->in_table)
+        svc__table_remove(j->svc, j);
+    svc__notify(j, SVC_NOTIFY_STATE);
+}
+
 void svc__finish(svc_job *j, svc_outcome *o)
 {
     svc_t *s = j->svc;
     svc_state_rec r;
     end_blobs eb;
     int tries = 0, written = 0, e = 0,
-        fin = s->store->ops->finish && o->status != SVC_JOB_QUEUED;
-    double now = srv_wall();
+        fin = s->store->ops->finish && o->status != SVC_JOB_QUEUED,
+        sync = svc__sync(j) && o->status != SVC_JOB_QUEUED;
+    double now = srv_wall(), t0 = srv_mono();
 
     if (fin)
         end_blobs_of(j, o, &eb);
@@ -464,8 +502,10 @@ void svc__finish(svc_job *j, svc_outcome *o)
             continue;
         /* A shutdown alone stops these tries: a cancel asked now changes
          * nothing of an outcome already reached; nor does one of a run
-         * another replica took over (ESTALE: its outcome is that one's). */
-        if (o->status == SVC_JOB_QUEUED || e == ESTALE)
+         * another replica took over (ESTALE: its outcome is that one's),
+         * nor one whose records a shared store lost (ENOENT). */
+        if (o->status == SVC_JOB_QUEUED || e == ESTALE ||
+            (e == ENOENT && s->store->ops->shared))
             break;
         if (svc__retry(j, &tries, e, "recording its outcome", 1))
             continue;
@@ -485,6 +525,37 @@ void svc__finish(svc_job *j, svc_outcome *o)
         srv_logf(SRV_LOG_WARN, "job %s: its run here was taken over by "
                  "another replica; its outcome here is dropped", j->id);
         pthread_mutex_unlock(&s->mu);
+        return;
+    }
+    if (!written && e == ENOENT && s->store->ops->shared) {
+        /* nobody took it over: its records are gone, so is the job (404
+         * from now); a client waiting here hears why */
+        svc_error_set(&o->err, SVC_P_STORAGE, "job %s: its records are "
+                      "gone from the store (a restart of a Redis without "
+                      "persistence, an eviction, or a deletion); its "
+                      "outcome here is dropped", j->id);
+        dropped_locked(j, o, &r);
+        pthread_mutex_unlock(&s->mu);
+        return;
+    }
+    if (!written && sync && transient(e)) {
+        svc_error_set(&o->err, e == ENOSPC || e == EDQUOT
+                      ? SVC_P_SPOOL_FULL : SVC_P_SPOOL_UNREADY, "job %s %s, "
+                      "but the spool has no room to record it (%s, %d tries "
+                      "in %.1f s): it is dropped; submit it again after the "
+                      "delay, or as an async job (POST /v1/jobs: its outcome "
+                      "is tried for longer)", j->id,
+                      svc_job_status_name(o->status), strerror(e), tries + 1,
+                      srv_mono() - t0);
+        o->err.retry_after = 5;
+        dropped_locked(j, o, &r);
+        pthread_mutex_unlock(&s->mu);
+        srv_metrics_job(j->scheme, "failed", o->run_s);
+        s->store->ops->ack(s->store, j->id);
+        if (s->store->ops->remove(s->store, j->id) != 0)
+            srv_logf(SRV_LOG_WARN, "job %s: cannot remove its files (%s): "
+                     "it runs again after a restart, for no one", j->id,
+                     strerror(errno));
         return;
     }
     if (!written && o->status != SVC_JOB_QUEUED)
@@ -507,6 +578,9 @@ void svc__finish(svc_job *j, svc_outcome *o)
         srv_metrics_job(j->scheme, svc_job_status_name(o->status), o->run_s);
         svc__log_job(j, o->nv, o->nf, o->run_s);
     }
+    if (written && (o->status == SVC_JOB_FAILED ||
+                    o->status == SVC_JOB_CANCELED))
+        svc__drop_input(j);
     pthread_mutex_lock(&s->mu);
     svc__notify(j, SVC_NOTIFY_STATE);
     pthread_mutex_unlock(&s->mu);
@@ -534,6 +608,12 @@ int svc__canceled_error(svc_job *j, int steps, svc_error *e)
         svc_error_set(e, SVC_P_TIMEOUT, "the job ran longer than "
                       "--job-timeout %g s and was stopped %s",
                       s->cfg.job_timeout, when);
+    else if (reason == SVC_CANCEL_CPU)
+        svc_error_set(e, SVC_P_TIMEOUT, "the job used more than its CPU "
+                      "budget, %.2f s (--job-cpu %g s + %g s per MiB of its "
+                      "memory estimate, %.1f MiB), and was stopped %s",
+                      j->cpu_budget, s->cfg.job_cpu, s->cfg.job_cpu_per_mib,
+                      j->mem_estimate / 1048576.0, when);
     else if (reason == SVC_CANCEL_CLIENT)
         svc_error_set(e, SVC_P_CANCELED, "canceled %s: the client closed "
                       "its connection before the answer", when);
@@ -604,6 +684,14 @@ int svc__progress(svc_job *j, const api_job_step *st)
     if (!j->cancel && j->deadline > 0 && srv_mono() > j->deadline) {
         j->cancel = 1;
         j->cancel_reason = SVC_CANCEL_TIMEOUT;
+    }
+    /* the worker's thread runs the flow and calls this hook */
+    if (j->cpu_budget > 0)
+        j->cpu_used = thread_cpu() - j->cpu0;
+    if (!j->cancel && j->cpu_budget > 0 && j->cpu_used > j->cpu_budget) {
+        j->cancel = 1;
+        j->cancel_reason = SVC_CANCEL_CPU;
+        srv_metrics_cpu_budget();
     }
     stop = j->cancel;
     pthread_mutex_unlock(&s->mu);

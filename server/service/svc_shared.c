@@ -72,7 +72,8 @@ static void apply(svc_t *s, svc_job *j, const svc_state_rec *r, int loaded)
 
 /* A job of the store the table does not hold: loaded and inserted (or
  * the one another thread inserted meanwhile). A reference, or NULL and
- * errno (ENOENT: the store has no such job; EAGAIN: it cannot say now). */
+ * errno (ENOENT: the store has no such job; EBADMSG: its state.json or
+ * request.json does not parse; EAGAIN: it cannot say now). */
 static svc_job *load_new(svc_t *s, const char *id)
 {
     svc_job *n = NULL, *j;
@@ -81,7 +82,7 @@ static svc_job *load_new(svc_t *s, const char *id)
     int rc = strlen(id) == SVC_ID_LEN ? svc__load(s, id, &n, &r) : 1;
 
     if (rc != 0) {
-        int e = rc == -1 ? errno : ENOENT;  /* -2: not a job's record */
+        int e = rc == -1 ? errno : rc == -2 ? EBADMSG : ENOENT;
         if (n)
             svc__job_free(n);
         errno = e;

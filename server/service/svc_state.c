@@ -28,7 +28,7 @@
 
 static const char *const stage_names[] = {"", "params", "decode", "run"};
 static const char *const cancel_names[] = {"", "user", "shutdown", "timeout",
-                                           "client"};
+                                           "client", "cpu"};
 
 static int index_of(const char *s, const char *const *names, int n)
 {
@@ -272,7 +272,7 @@ static void error_from_json(svc_error *e, const cJSON *o)
                             (api_job_stage)(index_of(str_of(o, "stage"), stage_names, 4) > 0
                                             ? index_of(str_of(o, "stage"), stage_names, 4)
                                             : API_JOB_RUN), o);
-    i = index_of(str_of(o, "cancel"), cancel_names, 5);
+    i = index_of(str_of(o, "cancel"), cancel_names, 6);
     e->cancel = i > 0 ? (svc_cancel_reason)i : SVC_CANCEL_NONE;
 }
 
@@ -364,6 +364,10 @@ void svc__log_job(const svc_job *j, int nv, int nf, double run_s)
     cJSON_AddNumberToObject(o, "queue_ms",
                             j->started > 0 ? (j->started - j->created) * 1e3 : 0);
     cJSON_AddNumberToObject(o, "run_ms", run_s * 1e3);
+    if (j->cpu_budget > 0) {
+        cJSON_AddNumberToObject(o, "cpu_s", j->cpu_used);
+        cJSON_AddNumberToObject(o, "cpu_budget_s", j->cpu_budget);
+    }
     if (j->recovered)
         cJSON_AddBoolToObject(o, "recovered", 1);
     if (j->status == SVC_JOB_FAILED || j->status == SVC_JOB_CANCELED) {

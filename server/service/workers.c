@@ -40,6 +40,40 @@ static int fits(void *arg, const char *id)
     return 1;
 }
 
+/* A job claimed from a shared queue that cannot be loaded: damaged
+ * (EBADMSG: its state.json or request.json does not parse) it is moved
+ * to quarantine, logged and counted, never run; gone (ENOENT: its records
+ * were removed, evicted or lost in a restart of the store) it is logged.
+ * Either way its entry leaves the queue: 1 (the caller acknowledges
+ * it). 0 when the store cannot say now: the entry stays pending, and the
+ * reaper hands it over again after claim_idle. */
+static int unloadable(svc_t *s, const char *id, int e)
+{
+    svc_store *st = s->store;
+
+    if (e == EBADMSG) {
+        st->ops->ack(st, id);          /* before its keys are renamed */
+        if (st->ops->quarantine(st, id) == 0)
+            srv_logf(SRV_LOG_ERROR, "job %s: taken from the queue, but its "
+                     "state.json or request.json does not parse: moved to "
+                     "quarantine, not run", id);
+        else
+            srv_logf(SRV_LOG_ERROR, "job %s: taken from the queue, but its "
+                     "state.json or request.json does not parse, and it "
+                     "could not be moved to quarantine (%s): not run", id,
+                     strerror(errno));
+        srv_metrics_quarantined();
+    } else if (e == ENOENT) {
+        srv_logf(SRV_LOG_ERROR, "job %s: taken from the queue, but its "
+                 "records are gone from the store (removed, evicted, or "
+                 "lost in a restart of a store without persistence): not "
+                 "run", id);
+    } else {
+        return 0;
+    }
+    return 1;
+}
+
 /* Waits on s->work (s->mu held): until woken, or the store's poll. */
 static void wait_work_locked(svc_t *s)
 {
@@ -68,7 +102,7 @@ static svc_job *next_job(svc_t *s, double *held)
     claim_ctx c = {s, 0};
     unsigned seen;
     svc_job *j;
-    int stop, rc, got;
+    int stop, rc, got, done;
 
     for (;;) {
         pthread_mutex_lock(&s->mu);
@@ -89,7 +123,9 @@ static svc_job *next_job(svc_t *s, double *held)
             continue;
         }
         if (got == 1 || got == 2) {
-            j = svc_job_get(s, id);
+            done = 1;
+            if (!(j = svc_job_get(s, id)))
+                done = unloadable(s, id, errno);
             if (j && got == 2) {   /* taken over: queued again */
                 srv_logf(SRV_LOG_INFO, "job %s: taken over from a replica "
                          "that stopped heartbeating", id);
@@ -107,9 +143,9 @@ static svc_job *next_job(svc_t *s, double *held)
              * being written, or a drain: back at the head, to run should
              * the cancel fail, or after the restart */
             svc_admit_release(s, c.held);
-            if (rc < 0)
+            if (rc < 0 && done)
                 s->store->ops->ack(s->store, id);
-            else
+            else if (rc >= 0)
                 s->store->ops->push(s->store, id, 1);
             svc_job_unref(j);
             if (rc < 0)

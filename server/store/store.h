@@ -194,9 +194,11 @@ svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize);
  * password_file ("" or NULL: none) at every connect; connections for
  * workers threads; a job's keys kept at least ttl seconds after its last
  * write; blob_dir ("" or NULL: none): the mesh bytes in files there
- * (rstore.h). NULL with a one-line reason in msg. */
+ * (rstore.h). A server whose maxmemory-policy may evict keys is refused
+ * unless allow_eviction; what its settings mean for the jobs (eviction,
+ * what a restart loses) is logged. NULL with a one-line reason in msg. */
 svc_store *svc_redis_open(const char *url, const char *password_file,
-                          const char *blob_dir, int workers, double ttl, char *msg,
-                          size_t msgsize);
+                          const char *blob_dir, int workers, double ttl,
+                          int allow_eviction, char *msg, size_t msgsize);
 
 #endif /* SVC_STORE_H */

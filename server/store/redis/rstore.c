@@ -279,6 +279,11 @@ rstore *rstore_open(const rds_config *rc, const rstore_config *cfg,
         return NULL;
     }
     c = rds_pool_get(s->pool);
+    if (rstore__server_check(s, c, msg, msgsize) != 0) {
+        rds_pool_put(s->pool, c);
+        rstore_close(s);
+        return NULL;
+    }
     if (rstore__make_group(c, s->k_queue) != 0 ||
         rstore__make_group(c, s->k_front) != 0) {
         snprintf(msg, msgsize, "%s", rds_errmsg(c));
@@ -311,19 +316,6 @@ void rstore_close(rstore *s)
 }
 
 const char *rstore_consumer(const rstore *s) { return s->cfg.consumer; }
-
-int rstore_ready(rstore *s, char *why, size_t size)
-{
-    rds *c = rds_pool_get(s->pool);
-    /* a read, not PING: a server loading its AOF answers PING */
-    redisReply *r = rds_cmdl(c, "EXISTS", s->k_queue, NULL);
-
-    if (!r)
-        snprintf(why, size, "%s", rds_errmsg(c));
-    rds_pool_put(s->pool, c);
-    rds_reply_free(r);
-    return r ? 0 : -1;
-}
 
 /* ---------------------------------------------------- records and blobs */
 

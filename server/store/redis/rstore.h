@@ -66,7 +66,7 @@
  *     or running.
  *   - Heartbeats and the reaper. heartbeat() resets the entry's idle time
  *     (XCLAIM ... JUSTID) only while this consumer owns it (else ESTALE:
- *     another replica took the job). The reaper (in claim, at most every
+ *     another replica took the job; ENOENT: its record is gone). The reaper (in claim, at most every
  *     claim_idle/4) takes entries idle longer than claim_idle with
  *     XAUTOCLAIM, from any consumer: a replica that died (kill -9, lost
  *     node) or held a job it had no room for. Entries whose stream entry
@@ -126,6 +126,8 @@ typedef struct {
     double blob_grace;         /* seconds an unnamed file is kept (a
                                   write whose script is on its way) */
     double blob_sweep;         /* seconds between sweeps (claim runs them) */
+    int allow_eviction;        /* open even when the server's
+                                  maxmemory-policy may evict keys */
 } rstore_config;
 
 typedef struct {
@@ -140,12 +142,22 @@ typedef struct {
 void rstore_config_default(rstore_config *cfg);
 
 /* Connects (once, to check the server and read proto-max-bulk-len) and
- * makes the consumer group. NULL with a one-line reason in msg. */
+ * makes the consumer group. NULL with a one-line reason in msg; also
+ * when the server's maxmemory-policy is not noeviction (every key of a
+ * job has a TTL: volatile-* policies evict them too) or cannot be read,
+ * unless cfg->allow_eviction. */
 rstore *rstore_open(const rds_config *rc, const rstore_config *cfg,
                     char *msg, size_t msgsize);
 void rstore_close(rstore *s);
-/* 0, or -1 and why (Redis down, loading, out of memory). */
+/* 0, or -1 and why: Redis down or loading, refusing writes (noeviction
+ * at maxmemory: a small write is tried), or P:queue or P:front of a type
+ * other than stream (no job can be queued). */
 int rstore_ready(rstore *s, char *why, size_t size);
+/* What the server's settings found at open mean for the jobs, one line
+ * for the log: the eviction policy, and what a restart of the server
+ * loses (appendonly, appendfsync, save). *warn (may be NULL): 1 when
+ * they may lose or evict acknowledged jobs. */
+const char *rstore_notes(const rstore *s, int *warn);
 /* The consumer name (this replica). */
 const char *rstore_consumer(const rstore *s);
 

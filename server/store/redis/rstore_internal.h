@@ -2,7 +2,7 @@
 /*
  * rstore_internal.h - what rstore.c and rstore_queue.c share: the store's
  * state, the keys of a job, the Lua helpers of the scripts, and the calls
- * on a pooled connection. Only those two files include it.
+ * on a pooled connection. Only rstore*.c include it.
  */
 #ifndef RSTORE_INTERNAL_H
 #define RSTORE_INTERNAL_H
@@ -37,6 +37,9 @@ struct rstore {
     int nheld;
     double next_reap;
     double next_sweep;
+    char notes[1024];          /* what the server's settings mean for the
+                                  jobs (rstore_server.c) */
+    int notes_warn;            /* they may lose or evict jobs */
 };
 
 /* The blobs of one call written to files (--blob-dir): each one's
@@ -117,6 +120,11 @@ int rstore__blob_args(rstore *s, const char *id, const rstore_blob *b,
  * refused (errno ESTALE, ENOENT, EEXIST, ENOSPC), the files go (when the
  * reply was lost they stay: the sweep removes them if unnamed). rc. */
 int rstore__files_end(rstore *s, rstore_files *f, int rc);
+
+/* rstore_server.c: the server's eviction policy (refused unless
+ * cfg.allow_eviction: msg says why) and persistence, into notes: 0 or
+ * -1. */
+int rstore__server_check(rstore *s, rds *c, char *msg, size_t msgsize);
 
 /* rstore_files.c: the blob directory (--blob-dir). */
 int rstore__files_check(rstore *s, char *msg, size_t msgsize);

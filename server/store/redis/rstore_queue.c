@@ -110,9 +110,13 @@ static rds_script lua_drop = {
     "redis.call('HDEL', KEYS[1], 'queued', 'qstream')\n"
     "return 1\n", ""};
 
-/* KEYS: hash, events. ARGV: group, consumer, blob prefix, ttl. */
+/* KEYS: hash, events. ARGV: group, consumer, blob prefix, ttl. A job
+ * whose record is gone (a Redis restarted without persistence, an
+ * eviction, a deletion) is NOJOB, not STALE: no replica took it. */
 static rds_script lua_heartbeat = {
     LUA_TOUCH
+    "if redis.call('EXISTS', KEYS[1]) == 0 then\n"
+    "  return redis.error_reply('NOJOB no such job') end\n"
     "local r = redis.call('HMGET', KEYS[1], 'runner', 'entry', 'stream')\n"
     "if r[1] ~= ARGV[2] then\n"
     "  return redis.error_reply('STALE another replica took the job over') "

@@ -227,7 +227,14 @@ static int rd_heartbeat(svc_store *st, const char *id)
 
     if (rstore_heartbeat(r->rs, id) == 0)
         return 0;
-    if (errno == ESTALE && is_running(r, id)) {
+    if (errno == ENOENT && is_running(r, id)) {
+        srv_logf(SRV_LOG_ERROR, "job %s: its records are gone from Redis "
+                 "while it runs here (a restart of a Redis without "
+                 "persistence, an eviction, or a deletion): its outcome "
+                 "cannot be recorded", id);
+        set_running(r, id, 0);
+        errno = ENOENT;
+    } else if (errno == ESTALE && is_running(r, id)) {
         srv_logf(SRV_LOG_WARN, "job %s: another replica took it over (no "
                  "heartbeat for too long); its writes from here are refused",
                  id);
@@ -291,7 +298,7 @@ static const svc_store_ops redis_ops = {
 
 svc_store *svc_redis_open(const char *url, const char *password_file,
                           const char *blob_dir, int workers, double ttl,
-                          char *msg, size_t msgsize)
+                          int allow_eviction, char *msg, size_t msgsize)
 {
     rds_config rc;
     rstore_config cfg;
@@ -322,6 +329,7 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
      * (dead letter; 3 by default) */
     if (runs && atoi(runs) >= 1)
         cfg.max_runs = atoi(runs);
+    cfg.allow_eviction = allow_eviction;
     if (!(r = calloc(1, sizeof *r))) {
         snprintf(msg, msgsize, "out of memory");
         return NULL;
@@ -332,6 +340,11 @@ svc_store *svc_redis_open(const char *url, const char *password_file,
         pthread_mutex_destroy(&r->mu);
         free(r);
         return NULL;
+    }
+    {
+        int warn;
+        const char *notes = rstore_notes(r->rs, &warn);
+        srv_logf(warn ? SRV_LOG_WARN : SRV_LOG_INFO, "%s", notes);
     }
     return &r->base;
 }
