@@ -167,7 +167,9 @@ $(B)/mcfd: $(SRV_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIA
 # (flags.mk's serial copy is Debian's libcholmod.a, whose objects are not
 # position-independent: 278 absolute 32-bit relocations cannot go into a
 # shared object); the module sets OMP_NUM_THREADS=1 before loading it.
-# The same output bytes as mcf (tests/test_pymcf.py).
+# The same mesh as mcf to rounding, not the same bytes: Debian's
+# libcholmod calls OpenBLAS's dpotrf/dtrsm where mcf's serial copy runs
+# small ones as loops (tests/test_pymcf.py states the tolerance).
 PIC := $(B)/pic
 PYEXT_SRC := $(wildcard pyext/*.c)
 PIC_OBJ := $(CORE_SRC:%.c=$(PIC)/%.o) $(API_SRC:%.c=$(PIC)/%.o) $(API_CXX:%.cc=$(PIC)/%.o) \

@@ -3,7 +3,8 @@
  * mcfpy.c - the in-process door for Python (build/libmcfpy.so, loaded by
  * clients/python/mcf with ctypes): one job from the input's bytes to the
  * result's, through api_job_run as `mcf smooth` runs it, so the same
- * bytes and parameters give the same output bytes.
+ * bytes and parameters give the same mesh, to rounding (this library
+ * links Debian's shared CHOLMOD, mcf its serial copy: Makefile, pylib).
  *
  * Like cli/, a client of api and core: the parameters are set one by one
  * through api_params_set (the table that validates mcf's options and the

@@ -8,7 +8,10 @@
 
 No daemon: the same C library (libmcf and its api layer, build/libmcfpy.so
 through ctypes) runs the same job as `mcf smooth IN OUT --NAME VALUE ...`, so
-the same input bytes and parameters give the same output bytes. The GIL is
+the same input and parameters give the same mesh, to rounding: the library
+links Debian's shared CHOLMOD, whose dense kernels are OpenBLAS's, where mcf
+runs small ones as loops (core/cholmod_serial/stand_ins.c); positions agree
+within 1e-12 of the bounding box's diagonal (tests/test_pymcf.py). The GIL is
 released while it works (threads run beside it), progress is reported to a
 callback, failures raise mcfd_client's typed errors with the daemon's codes
 (EINVAL, EFORMAT, EDECODE, EMESH, ELIMIT, ...), and a result the library
@@ -156,9 +159,13 @@ def _run(data, out_name, params, progress, with_metrics):
     return out, metrics, names
 
 
-def _o3d_mesh(mesh):
+def _o3d_kind(mesh):
+    """"legacy" for an open3d.geometry.TriangleMesh, "tensor" for an
+    open3d.t.geometry.TriangleMesh, else None."""
     m = type(mesh)
-    return m.__module__.startswith("open3d") and m.__name__ == "TriangleMesh"
+    if not (m.__module__.startswith("open3d") and m.__name__ == "TriangleMesh"):
+        return None
+    return "tensor" if ".t." in m.__module__ + "." else "legacy"
 
 
 def smooth(mesh, *, out=None, progress=None, with_metrics=False, **params):
@@ -169,7 +176,8 @@ def smooth(mesh, *, out=None, progress=None, with_metrics=False, **params):
       pair, vertices in the input's float type (float32 stays float32,
       anything else float64), faces int32;
     - an Open3D TriangleMesh: a new one, its vertex colours, triangle UVs
-      and everything else kept, its normals recomputed when it had them;
+      and everything else kept, its normals recomputed when it had them
+      (open3d.geometry's, or open3d.t.geometry's with its float type);
     - any other object with `vertices` and `faces` arrays (a trimesh
       Trimesh, ...): a copy (its own copy(), else copy.deepcopy) whose
       `vertices` are the result; colours, UVs and the rest untouched;
@@ -226,7 +234,21 @@ def _arrays(mesh):
     if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
         V, F = _mesh.check_arrays(*mesh)
         return V, F, lambda V2: (V2, np.ascontiguousarray(F, dtype=np.int32))
-    if _o3d_mesh(mesh):
+    kind = _o3d_kind(mesh)
+    if kind == "tensor":
+        import open3d as o3d
+        V, F = _mesh.check_arrays(mesh.vertex.positions.numpy(), mesh.triangle.indices.numpy())
+
+        def rebuild(V2):
+            m = mesh.clone()                             # colours, UVs, the rest
+            m.vertex.positions = o3d.core.Tensor(V2)
+            if "normals" in m.vertex:
+                m.compute_vertex_normals()
+            if "normals" in m.triangle:
+                m.compute_triangle_normals()
+            return m
+        return V, F, rebuild
+    if kind == "legacy":
         import open3d as o3d
         V, F = _mesh.check_arrays(np.asarray(mesh.vertices), np.asarray(mesh.triangles))
 
