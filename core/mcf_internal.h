@@ -183,6 +183,7 @@ typedef struct {
     double sigma_rms;
     double direction_share;
     double sigma_dir, sigma_view, sigma_view_t;
+    double direction[3];
 } mcf__noise_shape;
 mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
