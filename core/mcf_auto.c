@@ -379,6 +379,7 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
         double s3 = den > 0.0 ? sqrt(num / den) : 0.0;
         un2 = k ? un2 / (double)k : 0.0;
         shape->sigma_dir = s3;
+        memcpy(shape->direction, u, sizeof u);
         shape->sigma_view = s3 * sqrt(un2);
         shape->sigma_view_t = s3 * sqrt(0.5 * (1.0 - un2));
     }

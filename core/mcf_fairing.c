@@ -455,6 +455,13 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
                    : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
         st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
+        st->noise_share = shape.direction_share;
+        st->noise_kind = p->noise_sigma > 0.0 ? MCF_NOISE_GIVEN
+                         : view               ? MCF_NOISE_ONE_DIRECTION
+                         : s_t > 0.0          ? MCF_NOISE_ISOTROPIC
+                                              : MCF_NOISE_NORMAL;
+        if (view)
+            memcpy(st->noise_direction, shape.direction, sizeof shape.direction);
         /* the creases' smoothing along them moves a vertex by at most
          * CREASE_MAX_MOVE noise levels: more is the shape, not the noise
          * (a coarse mesh's zigzag "chains", car.drc: 0.27 units for noise
@@ -665,7 +672,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     /* the default request: the spikes repaired first (mcf_spikes.c); the
      * filter then takes the repaired mesh as its input */
     double *Xs = NULL;
-    if (p->fairing_robust && p->iterations <= 0 && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
+    st->robust = p->fairing_robust && p->iterations <= 0;
+    if (st->robust && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
         return rc;
     const double *Xf = Xs ? Xs : X;
     rc = filter_run(&ci, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
@@ -716,12 +724,17 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     if (rc == MCF_OK && !feat) {
         st->tangential_steps = c->kbest_t;
         size_t before = c->bytes;
+        /* the output's figures (the guard's, the flips') are the run's:
+         * the explicit passes ran with their own stats (se) */
+        c->st = st;
         rc = mcf__fair_output(c, X, err);
         peak += c->bytes - before; /* the guard's arrays */
         c->w0 = 0.0;
         c->w1 = 1.0;
         work(c, "output", 1.0);
     }
+    if (p->scheme != MCF_FAIRING_FEATURE)
+        st->filter = feat ? MCF_FAIRING_FEATURE : c->is_explicit ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
     st->peak_bytes = peak;
     free(Xs);
     fair_free(&ci);
