@@ -25,7 +25,8 @@
  * each coordinate), SURE(K) = sum w r^2 - s^2 sum w + 2 s^2 sum w_i
  * (T^K)_ii estimates sum w (error)^2 without the clean mesh; w are the
  * barycentric vertex areas over their mean. The weighted trace comes from
- * six Rademacher probes carried through the same steps as extra columns
+ * six Rademacher probes (three on a mesh of over a million free vertices:
+ * PROBES_FEW_ABOVE) carried through the same steps as extra columns
  * (Hutchinson); for the implicit step T = D^-1/2 R D^1/2, R = (I + NN')^-1,
  * so the probes run through R in y. The run stops at the first power of
  * two past K* + 5 (K* the best so far: sure_stop) or at the cap. It keeps the displacements Y_k - X0
@@ -162,7 +163,7 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
 
 static void init_probes(fair_ctx *c)
 {
-    for (int q = 0; q < NPROBE; q++)
+    for (int q = 0; q < c->nprobe; q++)
         for (int k = 0; k < c->nfree; k++)
             c->probe[(size_t)q * c->nfree + k] =
                 (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)k + 1) >> 63) ? 1.0 : -1.0;
@@ -324,7 +325,7 @@ static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
         for (int d = 0; d < 3; d++)
             y[(size_t)d * n + k] = c->sq[k] * c->X0[3 * (size_t)c->vert[k] + d];
     if (c->ncol > 3)
-        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * NPROBE * (size_t)n);
+        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * (size_t)c->nprobe * (size_t)n);
     return MCF_OK;
 }
 
@@ -448,11 +449,12 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
 static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
-    c->ncol = c->sure ? NCOL : 3;
+    c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
+    c->ncol = c->sure ? 3 + c->nprobe : 3;
     c->Y = alloc_d(c, 3 * (size_t)nv);
     c->Ybest = alloc_d(c, 3 * (size_t)nv);
     c->Yt = alloc_d(c, 3 * (size_t)nv);
-    c->probe = c->sure ? alloc_d(c, NPROBE * (size_t)(c->nfree ? c->nfree : 1)) : NULL;
+    c->probe = c->sure ? alloc_d(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
     if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
@@ -519,7 +521,7 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
             mcf__fair_probe_traces(c, est);
-            double tr = mcf__fair_mean_trace(est, &vtr);
+            double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
             mcf__fair_weighted_r2(c, Y, mo);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
