@@ -173,7 +173,7 @@ double api_estimate_job_bytes(long long nv, long long nf, size_t input_bytes,
     if (((s == MCF_EULER || s == MCF_TAYLOR2) && !auto_amount) || s == MCF_TAUBIN ||
         s == MCF_FAIRING_EXPLICIT)
         per_vertex = 640.0;
-    else if (s == MCF_FAIRING)
+    else if (s == MCF_FAIRING || s == MCF_FAIRING_FEATURE)
         per_vertex = FAIRING_PER_VERTEX;
     /* Charged per face as well when a mesh has more than 2 faces per
      * vertex (a triangle soup, an STL counted as one vertex per face). */

@@ -216,6 +216,23 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     /* fairing: 1 when the result is the explicit lambda|mu passes', 0
      * the implicit steps' (or no fairing filter) */
     ok = ok && api__json_num(o, "filter_explicit", st->filter_explicit);
+    /* the feature-aware stage (the default request and fairing_feature):
+     * null when it did not run; else whether the result is its own, the
+     * candidate of least SURE and the two SUREs compared (squared mean
+     * edges per vertex) */
+    if (ok && st->feature_ran) {
+        cJSON *fe = cJSON_CreateObject();
+        ok = api__json_put(o, "feature", fe);
+        ok = ok && api__json_put(fe, "taken", cJSON_CreateBool(st->feature));
+        ok = ok && api__json_num(fe, "sigma_r", st->feature_sigma_r);
+        ok = ok && api__json_num(fe, "normal_iterations", st->feature_normal_iters);
+        ok = ok && api__json_num(fe, "vertex_iterations", st->feature_vertex_iters);
+        ok = ok && api__json_num(fe, "sure", st->feature_sure);
+        ok = ok && api__json_num(fe, "sure_against", st->feature_sure_against);
+        ok = ok && api__json_num(fe, "z", st->feature_z);
+    } else {
+        ok = ok && api__json_put(o, "feature", cJSON_CreateNull());
+    }
     ok = ok && api__json_num(o, "crease_vertices", st->crease_vertices);
     ok = ok && api__json_num(o, "guard_rounds", st->guard_rounds);
     ok = ok && api__json_num(o, "guard_vertices", st->guard_vertices);

@@ -27,7 +27,7 @@ mcf_scheme api_params_scheme(const api_params *p, long long nv)
 
 int api__is_fairing(mcf_scheme s)
 {
-    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
+    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT || s == MCF_FAIRING_FEATURE;
 }
 
 int api_params_auto_amount(const api_params *p)

@@ -397,7 +397,8 @@ static void print_summary(const cli_opts *o, const api_params *p, const api_job_
 {
     const mcf_flow_stats *st = &res->stats;
 
-    if (p->flow.scheme == MCF_FAIRING || p->flow.scheme == MCF_FAIRING_EXPLICIT) {
+    if (p->flow.scheme == MCF_FAIRING || p->flow.scheme == MCF_FAIRING_EXPLICIT ||
+        p->flow.scheme == MCF_FAIRING_FEATURE) {
         /* a filter: its steps and the noise they were chosen for */
         fprintf(stderr, "mcf: %s -> %s: %d vertices, %s %d step%s for noise %.3g mean edges in %.2f s%s\n",
                 o->pos[0], o->pos[1], res->nv, mcf_scheme_get(p->flow.scheme)->name, st->steps,

@@ -222,6 +222,7 @@ typedef enum {
     MCF_TAUBIN,
     MCF_FAIRING,
     MCF_FAIRING_EXPLICIT,
+    MCF_FAIRING_FEATURE,
     MCF_NSCHEMES
 } mcf_scheme;
 
@@ -329,7 +330,16 @@ typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
  * input's. With fairing_pick (the default request's `fairing`) and the
  * automatic amount the explicit passes run too and replace the implicit
  * result along the normals when their SURE is lower by one standard
- * error (docs/fairing.md; mcf_flow_stats.filter_explicit). */
+ * error (docs/fairing.md; mcf_flow_stats.filter_explicit).
+ * `fairing_feature` (mcf_feature.c) is the feature-aware stage for
+ * piecewise-smooth shapes: bilateral normal filtering of the face normals
+ * (Zheng et al. 2011) and the vertex update of Sun et al. 2007, the range
+ * kernel's width and both iterations chosen among a few candidates by SURE
+ * with a Monte-Carlo divergence (Ramani et al. 2008), for the noise level
+ * noise_sigma (0: estimated). It takes no iterations (EINVAL). Its result
+ * (along its normals, moves bounded and guarded as above) is taken when
+ * its SURE's gain over the input is twice its standard error, else the
+ * input comes back; mcf_flow_stats.feature* report it. */
 #define MCF_FAIRING_MAX_STEPS 200
 #define MCF_FAIRING_MAX_PASSES 2000
 /* the fairing filters combine the positions after the last
@@ -512,6 +522,19 @@ typedef struct {
                                  `fairing_explicit`; `fairing` with the
                                  automatic amount when their SURE is
                                  lower), 0 the implicit steps' */
+    int feature_ran;          /* fairing (the default request) and
+                                 fairing_feature: the feature-aware stage
+                                 ran (bilateral normal filtering and a
+                                 vertex update, mcf_feature.c) */
+    int feature;              /* 1 when the result is that stage's */
+    double feature_sigma_r;   /* its candidate of least SURE: the range */
+    int feature_normal_iters; /* kernel's width (unit normals), the normal */
+    int feature_vertex_iters; /* filter's and vertex update's iterations */
+    double feature_sure;      /* its SURE and the SURE it was compared */
+    double feature_sure_against; /* with (the linear fairing's result, or
+                                 the input's), along the same normals, mean
+                                 per vertex, squared mean edges */
+    double feature_z;         /* the gain in its standard errors */
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */

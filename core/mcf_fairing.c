@@ -412,6 +412,9 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
              : (c->is_explicit ? MCF_FAIRING_MAX_PASSES : MCF_FAIRING_MAX_STEPS);
     if (c->cap > p->max_steps && !(p->iterations > 0))
         c->cap = p->max_steps;
+    if (p->scheme == MCF_FAIRING_FEATURE)
+        c->cap = 0; /* no linear steps: the noise level, weights and probes
+                       for the feature stage (mcf__fair_feature) */
     c->s = c->s_t = 0.0;
     if (c->sure) {
         double s_est = 0.0, s_t = 0.0, s;
@@ -681,8 +684,20 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (ci.bytes + ce.bytes > peak)
             peak = ci.bytes + ce.bytes;
     }
-    if (rc == MCF_OK) {
-        st->steps = c->kbest;
+    /* the feature-aware stage: the named `fairing_feature` alone, the
+     * default request's against the linear result (FEATURE_IN_DEFAULT) */
+    int feat = 0;
+    st->steps = c->kbest;
+    if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && FEATURE_IN_DEFAULT))) {
+        mcf__chol_free(c->chol); /* the factor is done with */
+        c->chol = NULL;
+        size_t before = c->bytes;
+        rc = mcf__fair_feature(c, p->scheme != MCF_FAIRING_FEATURE, fixed, X, &feat, err);
+        if (ci.bytes + ce.bytes > peak)
+            peak = ci.bytes + ce.bytes;
+        c->bytes = before;
+    }
+    if (rc == MCF_OK && !feat) {
         st->tangential_steps = c->kbest_t;
         size_t before = c->bytes;
         rc = mcf__fair_output(c, X, err);

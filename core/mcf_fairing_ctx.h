@@ -113,6 +113,18 @@ void mcf__fair_keep_iterate(fair_ctx *c, int k, const double *Y, const double es
 void mcf__fair_combine(fair_ctx *c);
 /* Whether the explicit run e replaces the implicit run i. */
 int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
+/* The default request runs the feature-aware stage too (not yet:
+ * docs/fairing.md, "The feature-aware stage"). */
+#define FEATURE_IN_DEFAULT 0
+/* The feature-aware stage (mcf_feature.c) on the input, X its output when
+ * SURE takes it (*taken): against c's result along the normals
+ * (against_lin: the default request's choice, PICK_MIN_GAIN, as the
+ * choice between the implicit steps and the passes) or against the input
+ * (the named `fairing_feature`, or c found nothing: SURE_MIN_GAIN); the
+ * same weights, noise level and probes as c's SURE; fixed: the vertices
+ * the run holds (not the creases). ENOMEM, ELIMIT. */
+mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *fixed, double *X, int *taken,
+                             mcf_error *err);
 
 /* mcf_fairing_output.c */
 /* Moves from the input (c->Xin) longer than rmax taken back, on the
@@ -121,5 +133,10 @@ void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsi
 /* The output into X: along the normals of the filtered surface, relaxed
  * in its tangent planes, clamped, guarded. */
 mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err);
+/* The feature stage's result Yf as the output into X: mcf__feature_output
+ * with moves bounded by MAX_MOVE noise levels; the guard's counts into
+ * c->st. */
+mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double *X,
+                                    mcf_error *err);
 
 #endif

@@ -240,3 +240,10 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
     c->bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
     return MCF_OK;
 }
+
+mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double *X,
+                                    mcf_error *err)
+{
+    return mcf__feature_output(c->Xin, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * c->s, X, &c->st->guard_rounds,
+                               &c->st->guard_vertices, err);
+}

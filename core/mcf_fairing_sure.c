@@ -319,3 +319,49 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
     double var = gain_var(i, s2, n, dd[0], dd[1], dtr, vtr);
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
+
+mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *fixed, double *X, int *taken,
+                             mcf_error *err)
+{
+    mcf_flow_stats *st = c->st;
+    mcf__feature_frame fr;
+    mcf__feature_pick pk;
+    double h2 = c->hbar * c->hbar, s2 = c->s * c->s;
+    double *Yf = mcf__malloc(3 * (size_t)c->nv + 1, sizeof(double));
+    *taken = 0;
+    if (!Yf)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    memset(&fr, 0, sizeof fr);
+    fr.nfree = c->nfree;
+    fr.vert = c->vert;
+    fr.w = c->w;
+    fr.probe = c->probe;
+    fr.nprobe = NPROBE;
+    fr.s = c->s;
+    fr.s2_rel = c->s2_rel;
+    fr.min_z = SURE_MIN_GAIN;
+    if (against_lin && c->kbest > 0) {
+        fr.Ylin = c->Ybest;
+        fr.X0 = c->X0;
+        fr.trlin = c->trbest;
+        fr.lin_penalty = st->ncomb > 0 ? COMB_PENALTY * st->ncomb * s2 : 0.0;
+        fr.min_z = PICK_MIN_GAIN;
+    }
+    mcf_status rc = mcf__feature(c->Xin, c->F, c->nf, c->nv, fixed, &fr, Yf, &pk, err);
+    if (rc == MCF_OK) {
+        c->bytes += pk.bytes + 3 * sizeof(double) * (size_t)c->nv;
+        st->feature_ran = 1;
+        st->feature_sigma_r = pk.sigma_r;
+        st->feature_normal_iters = pk.normal_iters;
+        st->feature_vertex_iters = pk.vertex_iters;
+        st->feature_sure = h2 > 0.0 ? pk.risk / h2 : 0.0;
+        st->feature_sure_against = h2 > 0.0 ? pk.risk_lin / h2 : 0.0;
+        st->feature_z = isfinite(pk.z) ? pk.z : 1e300;
+        if (pk.won) {
+            *taken = st->feature = 1;
+            rc = mcf__fair_feature_output(c, Yf, fixed, X, err);
+        }
+    }
+    free(Yf);
+    return rc;
+}

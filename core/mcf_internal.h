@@ -214,6 +214,75 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err);
 
+/* ---- the feature-aware stage (mcf_feature.c)
+ * Bilateral normal filtering of the face normals (Gaussian spatial and
+ * range kernels over the faces sharing a vertex, Zheng et al. 2011), then
+ * Sun et al.'s vertex update, on a mesh's connectivity. */
+typedef struct mcf__bnf mcf__bnf;
+/* The face neighbourhoods of F and the spatial width (the mean distance
+ * of neighbouring centroids of X). ENOMEM, ELIMIT. */
+mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_error *err);
+void mcf__bnf_free(mcf__bnf *b); /* accepts NULL */
+size_t mcf__bnf_bytes(const mcf__bnf *b);
+/* The face normals and spatial weights of X, the filter's start. */
+void mcf__bnf_start(mcf__bnf *b, const double *X);
+/* nit more iterations of the normal filter with range width sigma_r
+ * (on |n_i - n_j|); returns the normals (3*nf, valid until the next call). */
+const double *mcf__bnf_normals(mcf__bnf *b, double sigma_r, int nit);
+/* vit vertex updates of Y (3*nv, in place) toward the planes of the face
+ * normals n (3*nf); vertices with fixed[i] (may be NULL) stay. */
+void mcf__bnf_vertices(mcf__bnf *b, const double *n, const unsigned char *fixed, int vit, double *Y);
+/* All three from X into Y. */
+void mcf__bnf_run(mcf__bnf *b, const double *X, const unsigned char *fixed, double sigma_r, int nit, int vit,
+                  double *Y);
+
+/* What SURE sums over and what the feature stage is compared with. */
+typedef struct {
+    int nfree;                /* the vertices SURE sums over */
+    const int *vert;          /* their indices */
+    const double *w;          /* nv: their weights (mean 1) */
+    const double *probe;      /* nprobe x nfree Rademacher probes */
+    int nprobe;
+    double s, s2_rel;         /* the noise level and its square's relative
+                                 standard error */
+    const double *Ylin;       /* the linear fairing's result (3*nv), or
+                                 NULL: the input */
+    const double *X0;         /* what Ylin's displacement is measured from */
+    const double *trlin;      /* nprobe: the probes' weighted traces of
+                                 Ylin's filter */
+    double lin_penalty;       /* added to Ylin's SURE (sum w units) */
+    double min_z;             /* the gain over Ylin's SURE the stage needs,
+                                 in standard errors */
+} mcf__feature_frame;
+
+typedef struct {
+    int won;                  /* SURE's gain passed min_z */
+    double sigma_r;           /* the chosen candidate */
+    int normal_iters, vertex_iters;
+    double risk, risk_lin;    /* SURE (mean per vertex, squared units) of
+                                 the chosen candidate and of Ylin */
+    double z;                 /* the gain in standard errors */
+    double div, vdiv;         /* (internal) the divergence, its variance */
+    size_t bytes;             /* held at the peak */
+} mcf__feature_pick;
+
+/* The candidates' SURE with Monte-Carlo divergence (the frame's first
+ * probes, steps of 0.3 s along reference normals), the least into Yout
+ * (3*nv) and pick; Yout untouched when there is nothing to filter (s 0,
+ * no vertex). fixed: the vertices the filter holds. ENOMEM, ELIMIT. */
+mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf__feature_frame *fr, double *Yout, mcf__feature_pick *pick, mcf_error *err);
+/* One probe's estimate of the divergence sum_k w_i d(m_i . f_i)/d(y_i
+ * along m_i) over the frame's vertices i = vert[k]: sum_k w_i z_k m_i .
+ * (Yz_i - Y_i) / eps, Y = f(y), Yz = f(y + eps z m) (Ramani et al. 2008). */
+double mcf__feature_div(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y,
+                        const double *Yz, const double *z, double eps);
+/* The output: X = Xin + n <n, Y - Xin> on the vertices not fixed (n the
+ * normals of Y), moves beyond rmax taken back, then the fold guard
+ * (mcf__unfold, Y's positions first). ENOMEM. */
+mcf_status mcf__feature_output(const double *Xin, const double *Y, const int32_t *F, int nf, int nv,
+                               const unsigned char *fixed, double rmax, double *X, int *rounds, int *moves,
+                               mcf_error *err);
 /* ---- spikes (mcf_spikes.c)
  * The vertices of X (graph g, mean edge hbar) far off the surface their
  * neighbours define (their height over their 1-ring many robust

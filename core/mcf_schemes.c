@@ -48,11 +48,13 @@ static const mcf_scheme_info SCHEMES[MCF_NSCHEMES] = {
                      "default: denoising scans; one factorization per run"},
     [MCF_FAIRING_EXPLICIT] = {"fairing_explicit", "Taubin passes along the normals, amount by SURE", 0, 1, 0.0, 0, 0, 0, "",
                               "denoising meshes too large to factor; no linear solve"},
+    [MCF_FAIRING_FEATURE] = {"fairing_feature", "bilateral normal filtering and vertex update, parameters by SURE", 0, 1, 0.0, 0, 0, 0, "",
+                             "denoising CAD parts: flat faces and sharp edges (the default's choice for them)"},
 };
 
 int mcf__is_fairing(mcf_scheme s)
 {
-    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT;
+    return s == MCF_FAIRING || s == MCF_FAIRING_EXPLICIT || s == MCF_FAIRING_FEATURE;
 }
 
 const mcf_scheme_info *mcf_scheme_get(mcf_scheme s)
@@ -110,6 +112,8 @@ mcf_status mcf_flow_params_check(const mcf_flow_params *p, int nv, mcf_error *er
     if (mcf__is_fairing(p->scheme) && (p->time > 0.0 || p->adaptive || p->dt_auto || p->dt > 0.0))
         return mcf__fail(err, MCF_EINVAL, "%s is a filter: it takes iterations (steps) or the noise level, not time, dt or adaptive",
                          si->name);
+    if (p->scheme == MCF_FAIRING_FEATURE && p->iterations > 0)
+        return mcf__fail(err, MCF_EINVAL, "fairing_feature chooses its own iterations (by SURE): it takes the noise level only");
     if (!(isfinite(p->noise_sigma) && p->noise_sigma >= 0.0))
         return mcf__fail(err, MCF_EINVAL, "noise_sigma: must be a finite number >= 0, got %g", p->noise_sigma);
     if (p->adaptive && !si->has_estimate)

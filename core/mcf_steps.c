@@ -367,6 +367,7 @@ mcf_status mcf__flow_step(flow_ctx *c, double h, const history *hist, double *es
         step_taubin(c);
         return MCF_OK;
     case MCF_FAIRING:
+    case MCF_FAIRING_FEATURE:
     case MCF_FAIRING_EXPLICIT: /* filters: run_fairing, never a step here */
     case MCF_NSCHEMES:
         break;

@@ -906,6 +906,51 @@ static void test_creases_kept(void **state)
     mcf_mesh_free(clean);
 }
 
+/* The feature-aware stage by name (`fairing_feature`: bilateral normal
+ * filtering and a vertex update, its parameters by SURE) on the box of
+ * test_creases_kept with noise along the normals, seeds 1-2, against the
+ * default request (the linear fairing, creases held): it is taken
+ * (flow.feature) and its error is at most margin[k] of the default's:
+ * 0.75 at noise 0.1 (measured 0.63, 0.64), 1.0 at 0.25 (measured 0.60,
+ * 0.96: on seed 2 SURE took range width 0.5 over 0.35). At 0.5 it is
+ * worse than the linear fairing (seed 1: 0.499 of the input against
+ * 0.402): not asserted, and why the default does not take it yet. */
+static void test_feature_box(void **state)
+{
+    static const double rho[2] = {0.1, 0.25}, margin[2] = {0.75, 1.0};
+    mcf_mesh *clean = box_mesh(16);
+    (void)state;
+    for (int k = 0; k < 2; k++)
+        for (int seed = 1; seed <= 2; seed++) {
+            mcf_flow_stats st, sf;
+            default_case r;
+            mcf_flow_params p;
+            mcf_error err = {0};
+            run_default_case(clean, rho[k], seed, MCF_LAPLACIAN_UNIFORM, &st, &r);
+            mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+            assert_non_null(m);
+            mcf_flow_params_init(&p);
+            p.scheme = MCF_FAIRING_FEATURE;
+            assert_int_equal(mcf_flow_add_noise(m, &p, rho[k], (uint64_t)seed, &err), MCF_OK);
+            if (mcf_flow_run(m, &p, &sf, &err) != MCF_OK)
+                fail_msg("fairing_feature: %s", err.msg);
+            double e = rms(m, clean);
+            print_message("box rho %.2f seed %d: default %.3f of the input, fairing_feature %.3f (%s; sigma_r %.2f, "
+                          "%d + %d iterations, SURE %.4f against the input's %.4f), folds %d\n",
+                          rho[k], seed, r.e / r.in, e / r.in, sf.feature ? "taken" : "not taken", sf.feature_sigma_r,
+                          sf.feature_normal_iters, sf.feature_vertex_iters, sf.feature_sure, sf.feature_sure_against,
+                          sf.folded_faces);
+            assert_int_equal(sf.feature_ran, 1);
+            assert_int_equal(sf.feature, 1);
+            assert_true(e <= margin[k] * r.e);
+            assert_int_equal(sf.folded_faces, 0);
+            mcf_flow_stats_free(&st);
+            mcf_flow_stats_free(&sf);
+            mcf_mesh_free(m);
+        }
+    mcf_mesh_free(clean);
+}
+
 /* ------------------------------------------- never worse than sent */
 
 #define PI_D 3.14159265358979323846
@@ -1101,6 +1146,7 @@ int main(void)
         cmocka_unit_test(test_equations_sure),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_creases_kept),
+        cmocka_unit_test(test_feature_box),
         cmocka_unit_test(test_default_beats_taubin),
         cmocka_unit_test(test_default_beats_cotan_taubin),
         cmocka_unit_test(test_default_beats_taubin_scans),
