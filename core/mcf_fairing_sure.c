@@ -336,7 +336,7 @@ mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *
     fr.vert = c->vert;
     fr.w = c->w;
     fr.probe = c->probe;
-    fr.nprobe = NPROBE;
+    fr.nprobe = c->nprobe;
     fr.s = c->s;
     fr.s2_rel = c->s2_rel;
     fr.min_z = SURE_MIN_GAIN;
