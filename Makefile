@@ -290,20 +290,20 @@ asan:
 	$(MAKE) SAN=address,undefined test
 
 # ---- make check: core's and api's unit tests (tests/test_core_*.c,
-# test_api_*.c) with MESHES unset, so those that need a large mesh skip by
-# name; no daemon, no `make deps`, nothing installed. Each binary's output
+# test_api_*.c) with MESHES unset and MCF_QUICK set, so those that need a
+# large mesh and the long studies (tl_long) skip by name; no daemon, no `make deps`, nothing installed. Each binary's output
 # is kept in $(B)/tests/NAME.check; the last line counts them.
 CHECK_BIN := $(filter $(B)/tests/test_core_% $(B)/tests/test_api_%,$(TEST_BIN))
 check: $(CHECK_BIN)
 	@fail=0; for t in $(CHECK_BIN); do \
-	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES= MCF_TESTDATA=$(CURDIR)/tests/data \
+	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES= MCF_QUICK=1 MCF_TESTDATA=$(CURDIR)/tests/data \
 	    $$t > $$t.check 2>&1 || { fail=1; cat $$t.check; }; \
 	  echo "$$t: $$(sed -n 's/^\[  \([A-Z]*\) *\] \([0-9]*\) test(s).*/\2 \1/p' $$t.check | tr '\n' ' ')"; \
 	done; \
 	count() { cat $(CHECK_BIN:%=%.check) | sed -n "s/^\[  $$1 *\] \([0-9]*\) test(s).*/\1/p" | \
 	  awk '{ n += $$1 } END { print n + 0 }'; }; \
 	echo "make check: $$(count PASSED) passed, $$(count FAILED) failed, $$(count SKIPPED) skipped" \
-	  "(the skipped need MESHES: make test MESHES=...)"; exit $$fail
+	  "(the skipped need MESHES or are long studies: make test MESHES=... runs them)"; exit $$fail
 
 # ---- ThreadSanitizer on the daemon (build-tsan/): test_service (the job
 # service in-process) and test_server* against TSan builds of mcfd (the job

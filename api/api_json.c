@@ -202,6 +202,19 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && api__json_put(o, "sure", st->sure ? cJSON_CreateDoubleArray(st->sure, st->nsure)
                                                  : cJSON_CreateNull());
     ok = ok && api__json_num(o, "noise_tangential", st->noise_tangential);
+    /* what the amount assumed of the noise: null (nothing read), given,
+     * normal, isotropic (the tangent planes too) or one_direction (one
+     * viewpoint's: noise_direction the unit vector read); noise_share the
+     * default request's direction statistic (null unless it read it) */
+    static const char *const kinds[] = {NULL, "given", "normal", "isotropic", "one_direction"};
+    ok = ok && str(o, "noise_kind",
+                   st->noise_kind > 0 && st->noise_kind < (int)(sizeof kinds / sizeof *kinds) ? kinds[st->noise_kind]
+                                                                                            : NULL);
+    ok = ok && api__json_put(o, "noise_share", st->noise_share > 0.0 ? cJSON_CreateNumber(st->noise_share)
+                                                                      : cJSON_CreateNull());
+    ok = ok && api__json_put(o, "noise_direction", st->noise_kind == MCF_NOISE_ONE_DIRECTION
+                                                       ? vec3(st->noise_direction)
+                                                       : cJSON_CreateNull());
     ok = ok && api__json_num(o, "tangential_steps", st->tangential_steps);
     /* fairing: the combination of iterates the result took along the
      * normals, {steps: [k...], weights: [c...]}; null: Y after `steps` */
@@ -236,8 +249,14 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && api__json_num(o, "crease_vertices", st->crease_vertices);
     ok = ok && api__json_num(o, "guard_rounds", st->guard_rounds);
     ok = ok && api__json_num(o, "guard_vertices", st->guard_vertices);
-    /* the default request: the spikes repaired before the filter */
+    /* the default request: its robust stages ran (robust), the spikes
+     * repaired before the filter; the filter whose result was taken */
+    ok = ok && boolean(o, "robust", st->robust);
     ok = ok && api__json_num(o, "spikes_repaired", st->spikes_repaired);
+    {
+        const mcf_scheme_info *fi = mcf_scheme_get(st->filter);
+        ok = ok && str(o, "filter", fi ? fi->name : NULL);
+    }
     ok = ok && api__json_num(o, "folded_faces", st->folded_faces);
     ok = ok && api__json_num(o, "min_edge_ratio", st->min_edge_ratio);
     ok = ok && api__json_num(o, "area_ratio", st->area_ratio);

@@ -469,6 +469,18 @@ enum {
 const char *mcf_warning_name(unsigned bit);
 const char *mcf_warning_text(unsigned bit);
 
+/* What the amount assumed of the noise (mcf_flow_stats.noise_kind). */
+typedef enum {
+    MCF_NOISE_NONE = 0,      /* nothing read: the amount was set */
+    MCF_NOISE_GIVEN,         /* the level given (noise_sigma) */
+    MCF_NOISE_NORMAL,        /* read: along the normals only */
+    MCF_NOISE_ISOTROPIC,     /* read: along the normals and in the tangent
+                                planes (there at most as much) */
+    MCF_NOISE_ONE_DIRECTION  /* read: along one direction (one viewpoint's
+                                depth noise), split into its parts along
+                                the normals and in the tangent planes */
+} mcf_noise_kind;
+
 typedef struct {
     int steps;                /* accepted steps (fairing: K, the steps or
                                  passes the result is made of) */
@@ -541,6 +553,22 @@ typedef struct {
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
+    int robust;               /* 1 when fairing_robust's stages ran (the
+                                 spike repair and the reading of the
+                                 noise's direction) */
+    int noise_kind;           /* mcf_noise_kind: what the amount assumed */
+    double noise_share;       /* robust: the high-pass vectors' largest
+                                 eigenvalue's share (1/3 directions spread
+                                 evenly, 1 one direction; the reading
+                                 switches to one direction at 0.7) */
+    double noise_direction[3]; /* MCF_NOISE_ONE_DIRECTION: the unit
+                                 direction read (its sign arbitrary), else
+                                 zeros */
+    mcf_scheme filter;        /* the filter whose result was taken: the
+                                 fairing filters MCF_FAIRING,
+                                 MCF_FAIRING_EXPLICIT (filter_explicit) or
+                                 MCF_FAIRING_FEATURE (feature); else the
+                                 scheme */
     int spikes_repaired;      /* fairing_robust: vertices found far off
                                  the surface their neighbours define and
                                  put back on it before the filter */

@@ -80,6 +80,9 @@
 #include "mcf_internal.h"
 
 enum { NPROBE = 1, NCOL = 3 + NPROBE };
+/* the uneven reading (mcf__noise_shape) leaves out the high-pass values
+ * above NOISE_TRIM robust deviations: creases and spikes, not noise */
+#define NOISE_TRIM 4.0
 
 typedef struct {
     int nv, nf;
@@ -151,6 +154,126 @@ static double mad(const mcf__graph *g, const unsigned char *fixed, const double 
     return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
 }
 
+/* The RMS of v over the vertices mad() counts, those with |v| above
+ * trim robust deviations (1.4826 mad) left out (creases, spikes). */
+static double trimmed_rms(const mcf__graph *g, const unsigned char *fixed, const double *v, double mad_v,
+                          double trim)
+{
+    double s = 0.0, lim = trim * 1.4826 * mad_v;
+    size_t k = 0;
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]) && fabs(v[i]) <= lim) {
+            s += v[i] * v[i];
+            k++;
+        }
+    return k ? sqrt(s / (double)k) : 0.0;
+}
+
+/* The largest eigenvalue of the symmetric 3 x 3 M (row-major) in closed
+ * form (the trigonometric solution of its characteristic cubic: Smith,
+ * CACM 4(4) 168, 1961) and a unit eigenvector of it into v (the longest
+ * cross product of two rows of M - lambda I; any unit vector when lambda
+ * is a double eigenvalue). */
+static double largest_eigen(const double *M, double *v)
+{
+    double q = (M[0] + M[4] + M[8]) / 3.0, p1 = M[1] * M[1] + M[2] * M[2] + M[5] * M[5];
+    double p2 = (M[0] - q) * (M[0] - q) + (M[4] - q) * (M[4] - q) + (M[8] - q) * (M[8] - q) + 2.0 * p1;
+    double p = sqrt(p2 / 6.0), lam = q;
+    v[0] = 1.0;
+    v[1] = v[2] = 0.0;
+    if (!(p > 0.0))
+        return lam;
+    double B[9];
+    for (int a = 0; a < 9; a++)
+        B[a] = (M[a] - (a % 4 == 0 ? q : 0.0)) / p;
+    double r = 0.5 * (B[0] * (B[4] * B[8] - B[5] * B[7]) - B[1] * (B[3] * B[8] - B[5] * B[6]) +
+                      B[2] * (B[3] * B[7] - B[4] * B[6]));
+    lam = q + 2.0 * p * cos(acos(fmax(-1.0, fmin(1.0, r))) / 3.0);
+    double R[9], c[3][3], best = 0.0;
+    for (int a = 0; a < 9; a++)
+        R[a] = M[a] - (a % 4 == 0 ? lam : 0.0);
+    mcf__cross3(R, R + 3, c[0]);
+    mcf__cross3(R, R + 6, c[1]);
+    mcf__cross3(R + 3, R + 6, c[2]);
+    for (int k = 0; k < 3; k++) {
+        double l = mcf__dot3(c[k], c[k]);
+        if (l > best) {
+            best = l;
+            for (int a = 0; a < 3; a++)
+                v[a] = c[k][a];
+        }
+    }
+    if (best > 0.0)
+        for (int a = 0; a < 3; a++)
+            v[a] /= sqrt(best);
+    return lam;
+}
+
+/* The share of the largest eigenvalue of the 3 x 3 sum of E_i E_i' over
+ * the vertices mad() counts whose |E_i| is at most trim times the median,
+ * E (3*nv) the second-order high-pass vectors (I - Avg)^2 X, and its unit
+ * eigenvector into dir; len (nv) and work (nv) scratch. 1/3 for
+ * directions spread evenly, 1 for one direction. */
+static double direction_share(const mcf__graph *g, const unsigned char *fixed, const double *E, double trim,
+                              double *len, double *work, double *dir)
+{
+    double M[9] = {0};
+    for (int i = 0; i < g->n; i++)
+        len[i] = sqrt(mcf__dot3(E + 3 * (size_t)i, E + 3 * (size_t)i));
+    double lim = trim * mad(g, fixed, len, work);
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]) && len[i] <= lim)
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++)
+                    M[3 * a + b] += E[3 * (size_t)i + a] * E[3 * (size_t)i + b];
+    double trace = M[0] + M[4] + M[8];
+    if (!(trace > 0.0))
+        return 0.0;
+    return largest_eigen(M, dir) / trace;
+}
+
+/* The variance of the second-order high-pass ((I - Avg)^2 z)_i of unit
+ * i.i.d. values z on the free vertices (0 on the fixed) into c (nv): the
+ * squared norm of row i of (I - Avg)^2 over the free columns, accumulated
+ * over the 2-ring; acc (nv) scratch, zero on entry and exit, and touched
+ * (nv) scratch. */
+static void high_pass_variance(const mcf__graph *g, const unsigned char *fixed, double *c, double *acc,
+                               int *touched)
+{
+    for (int i = 0; i < g->n; i++) {
+        int nt = 0, di = g->ptr[i + 1] - g->ptr[i];
+        /* row i of I - Avg: 1 at i, -1/d_i at its neighbours (none: 0) */
+#define ADD(k, x)                   \
+    do {                            \
+        if (acc[k] == 0.0)          \
+            touched[nt++] = (k);    \
+        acc[k] += (x);              \
+        if (acc[k] == 0.0)          \
+            acc[k] = 1e-300;        \
+    } while (0)
+        for (int t = -1; t < di; t++) {
+            int j = t < 0 ? i : g->adj[g->ptr[i] + t];
+            double a = di == 0 ? 0.0 : t < 0 ? 1.0 : -1.0 / di;
+            int dj = g->ptr[j + 1] - g->ptr[j];
+            if (a == 0.0 || dj == 0)
+                continue;
+            /* times row j of I - Avg */
+            ADD(j, a);
+            for (int s = g->ptr[j]; s < g->ptr[j + 1]; s++)
+                ADD(g->adj[s], -a / dj);
+        }
+#undef ADD
+        double v = 0.0;
+        for (int q = 0; q < nt; q++) {
+            int k = touched[q];
+            if (!(fixed && fixed[k]))
+                v += acc[k] * acc[k];
+            acc[k] = 0.0;
+        }
+        c[i] = v;
+    }
+}
+
 /* The tangential second-order high-pass of P (3*nv) into e (nv): the
  * length of the tangential part (normals N) of (I - Avg)^2 P; tmp and t2
  * are 3*nv scratch. */
@@ -176,12 +299,12 @@ static void tangential_high_pass(const mcf__graph *g, const double *N, const dou
 mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
                             const unsigned char *fixed, double *sigma, mcf_error *err)
 {
-    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, err);
+    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, NULL, err);
 }
 
 mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
-                             mcf_error *err)
+                             mcf__noise_shape *shape, mcf_error *err)
 {
     mcf__graph g;
     mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
@@ -203,7 +326,7 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
     mcf__graph_taubin(&g, fixed, P, 3, 10, tmp, 1);
     mcf__vertex_normals(P, F, nf, nv, N);
     high_pass(&g, N, X, e, d, tmp);
-    double mad_y = mad(&g, fixed, e, P);
+    double mad_y = mad(&g, fixed, e, P), rms_y = shape ? trimmed_rms(&g, fixed, e, mad_y, NOISE_TRIM) : 0.0;
     /* the response to unit Gaussian noise along the same normals on the
      * free vertices (mcf_mesh_add_noise's generator: reproducible) */
     mcf__gauss_fill(0x5eed5eedULL, d, (size_t)nv);
@@ -213,6 +336,53 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
     high_pass(&g, N, P, e, d, tmp);
     double mad_n = mad(&g, fixed, e, P);
     *sigma = mad_n > 0.0 ? mad_y / mad_n : 0.0;
+    if (shape) {
+        double rms_n = trimmed_rms(&g, fixed, e, mad_n, NOISE_TRIM);
+        shape->sigma_rms = rms_n > 0.0 ? rms_y / rms_n : 0.0;
+        /* the high-pass vectors (I - Avg)^2 X into P, their directions */
+        mcf__graph_average(&g, X, 3, tmp);
+        for (size_t q = 0; q < 3 * (size_t)nv; q++)
+            tmp[q] = X[q] - tmp[q];
+        mcf__graph_average(&g, tmp, 3, P);
+        for (size_t q = 0; q < 3 * (size_t)nv; q++)
+            P[q] = tmp[q] - P[q];
+        double u[3] = {0.0, 0.0, 0.0};
+        shape->direction_share = direction_share(&g, fixed, P, NOISE_TRIM, e, d, u);
+        /* the noise along u: (I - Avg)^2 of s g u is s u (I - Avg)^2 g,
+         * so the high-pass vectors' component along u has the variance
+         * s^2 c_i (high_pass_variance); over the vertices within
+         * NOISE_TRIM robust deviations of it, s^2 = sum (E_i . u)^2 /
+         * sum c_i */
+        double un2 = 0.0, num = 0.0, den = 0.0;
+        size_t k = 0;
+        for (int i = 0; i < nv; i++)
+            e[i] = mcf__dot3(P + 3 * (size_t)i, u);
+        double lim = NOISE_TRIM * 1.4826 * mad(&g, fixed, e, d);
+        int *touched = mcf__malloc((size_t)nv, sizeof(int));
+        if (!touched) {
+            rc = mcf__fail(err, MCF_ENOMEM, "noise estimate: out of memory (%d vertices)", nv);
+            goto done;
+        }
+        memset(tmp, 0, sizeof(double) * (size_t)nv);
+        high_pass_variance(&g, fixed, d, tmp, touched);
+        free(touched);
+        for (int i = 0; i < nv; i++)
+            if (g.ptr[i + 1] - g.ptr[i] >= 3 && !(fixed && fixed[i])) {
+                double a = mcf__dot3(u, N + 3 * (size_t)i);
+                un2 += a * a;
+                k++;
+                if (fabs(e[i]) <= lim) {
+                    num += e[i] * e[i];
+                    den += d[i];
+                }
+            }
+        double s3 = den > 0.0 ? sqrt(num / den) : 0.0;
+        un2 = k ? un2 / (double)k : 0.0;
+        shape->sigma_dir = s3;
+        memcpy(shape->direction, u, sizeof u);
+        shape->sigma_view = s3 * sqrt(un2);
+        shape->sigma_view_t = s3 * sqrt(0.5 * (1.0 - un2));
+    }
     if (sigma_t) {
         /* the same for the tangential part, calibrated by unit Gaussian
          * noise in the tangent planes (two independent components) */

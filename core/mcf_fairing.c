@@ -68,6 +68,19 @@
  * over m, m = 0.6745, f(m) = 0.636), so sqrt(2) 1.166 on s, twice that on
  * s^2 */
 #define S2_REL_SQRT_N 3.3
+/* The default request takes the RMS reading of the noise (mcf__noise_shape)
+ * when the high-pass vectors share one direction (their largest
+ * eigenvalue's share at least VIEW_SHARE) and the RMS reading is at least
+ * VIEW_RATIO of the median one. Measured in numpy (2026-11-28, seed 1,
+ * spot, fertility, bunny_npm_closed, knot1, car, blade, sphere_cgal,
+ * couplingdown_sub2): one viewpoint's noise of 0.25 and 0.5 h shares
+ * 0.75-1.00 (car 0.50-0.53, couplingdown 0.62 at 0.25) with ratios
+ * 1.12-1.41; clean meshes share 0.33-0.58 (ratios up to 1.41), noise
+ * along the normals 0.34-0.60 except blade's 0.86-0.94 (a thin part: its
+ * normals two directions) with ratios 0.96-1.09, isotropic 0.34-0.54,
+ * quantization 0.35-0.63: none of those switches */
+#define VIEW_SHARE 0.7
+#define VIEW_RATIO 1.15
 
 static void fair_free(fair_ctx *c)
 {
@@ -418,17 +431,38 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
     c->s = c->s_t = 0.0;
     if (c->sure) {
         double s_est = 0.0, s_t = 0.0, s;
-        if ((rc = mcf__noise_levels(c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, err)) != MCF_OK)
+        mcf__noise_shape shape = {0};
+        int robust = p->fairing_robust && !(p->noise_sigma > 0.0);
+        if ((rc = mcf__noise_levels(c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, robust ? &shape : NULL,
+                                    err)) != MCF_OK)
             return rc;
         s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
+        /* the default request: noise along one direction (one viewpoint),
+         * the high-pass vectors sharing one direction and the RMS reading
+         * above the median one (VIEW_SHARE, VIEW_RATIO), is read along
+         * that direction and split into its parts along the normals and
+         * in the tangent planes (mcf__noise_shape) */
+        int view = robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est;
+        if (view)
+            s = shape.sigma_view;
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
          * it cannot be told from the mesh), and at most the normal
-         * noise (scanners' noise is isotropic at most) */
-        s_t = fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
+         * noise (scanners' noise is isotropic at most); one viewpoint's
+         * noise: its part in the tangent planes, which is most of it
+         * (two thirds of its variance for a direction at random) */
+        s_t = view ? shape.sigma_view_t
+                   : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
         st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
+        st->noise_share = shape.direction_share;
+        st->noise_kind = p->noise_sigma > 0.0 ? MCF_NOISE_GIVEN
+                         : view               ? MCF_NOISE_ONE_DIRECTION
+                         : s_t > 0.0          ? MCF_NOISE_ISOTROPIC
+                                              : MCF_NOISE_NORMAL;
+        if (view)
+            memcpy(st->noise_direction, shape.direction, sizeof shape.direction);
         /* the creases' smoothing along them moves a vertex by at most
          * CREASE_MAX_MOVE noise levels: more is the shape, not the noise
          * (a coarse mesh's zigzag "chains", car.drc: 0.27 units for noise
@@ -655,7 +689,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     /* the default request: the spikes repaired first (mcf_spikes.c); the
      * filter then takes the repaired mesh as its input */
     double *Xs = NULL;
-    if (p->fairing_robust && p->iterations <= 0 && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
+    st->robust = p->fairing_robust && p->iterations <= 0;
+    if (st->robust && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
         return rc;
     const double *Xf = Xs ? Xs : X;
     rc = filter_run(&ci, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
@@ -706,6 +741,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         c->w1 = 1.0;
         work(c, "output", 1.0);
     }
+    if (p->scheme != MCF_FAIRING_FEATURE)
+        st->filter = feat ? MCF_FAIRING_FEATURE : c->is_explicit ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
     st->peak_bytes = peak;
     free(Xs);
     fair_free(&ci);

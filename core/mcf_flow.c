@@ -432,6 +432,7 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
             if (nsteps > p->max_steps)
                 nsteps = p->max_steps;
             st->noise = sigma / hbar;
+            st->noise_kind = MCF_NOISE_NORMAL;
         }
     } else if (T <= 0.0 && p->iterations > 0 && dt_set) {
         T = p->iterations * h;
@@ -442,6 +443,7 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
                                  &T, &sigma, err)) != MCF_OK)
             return rc;
         st->noise = sigma / hbar;
+        st->noise_kind = MCF_NOISE_NORMAL;
         if (!(T > 0.0))
             nsteps = 0; /* no noise to remove: the mesh comes back as it came */
     } else if (T <= 0.0) {
@@ -759,6 +761,7 @@ mcf_status mcf_flow_run(mcf_mesh *m, const mcf_flow_params *p,
         return rc;
     mcf_flow_stats *st = stats ? stats : &st_local;
     memset(st, 0, sizeof *st);
+    st->filter = p->scheme;
     c.p = p;
     c.si = mcf_scheme_get(p->scheme);
     c.st = st;

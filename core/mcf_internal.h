@@ -172,9 +172,22 @@ mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
  * tangent planes, per direction: the same ratio of medians for the length
  * of the tangential part of the second-order high-pass (I - Avg)^2 X. A
  * clean scan's irregular triangles read as 0.02-0.12 mean edges of it. */
+/* What shape (not NULL) gets: sigma_rms, the same high-pass's RMS over
+ * the vertices within 4 robust deviations, calibrated the same way (it
+ * reads noise whose deviation varies over the mesh, such as one
+ * viewpoint's depth noise, whose normal component is s |u . n|, where the
+ * ratio of medians reads low); direction_share, the largest eigenvalue's
+ * share of the sum of the 3D high-pass vectors' outer products over the
+ * same vertices (1/3: directions spread evenly; near 1: one direction). */
+typedef struct {
+    double sigma_rms;
+    double direction_share;
+    double sigma_dir, sigma_view, sigma_view_t;
+    double direction[3];
+} mcf__noise_shape;
 mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
-                             mcf_error *err);
+                             mcf__noise_shape *shape, mcf_error *err);
 
 /* ---- the automatic amount (mcf_auto.c)
  * The time t_best that minimizes SURE for K frozen implicit steps from X

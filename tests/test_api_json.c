@@ -156,7 +156,43 @@ static void test_flow_stats(void **state)
     st.nlog = 0;
     j = reparse(api_json_flow_stats(&st), 1);
     assert_null(cJSON_GetObjectItem(j, "log"));
+    /* nothing read, the scheme desbrun2 (memset: filter 0): nulls */
+    assert_true(cJSON_IsNull(cJSON_GetObjectItem(j, "noise_kind")));
+    assert_true(cJSON_IsNull(cJSON_GetObjectItem(j, "noise_share")));
+    assert_true(cJSON_IsNull(cJSON_GetObjectItem(j, "noise_direction")));
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(j, "robust")));
+    assert_string_equal(cJSON_GetObjectItem(j, "filter")->valuestring, mcf_scheme_get((mcf_scheme)0)->name);
     cJSON_Delete(j);
+    {
+        /* the default request's reading of one viewpoint's noise */
+        static const char *const kind[] = {"given", "normal", "isotropic", "one_direction"};
+        for (int k = MCF_NOISE_GIVEN; k <= MCF_NOISE_ONE_DIRECTION; k++) {
+            st.robust = 1;
+            st.noise_kind = k;
+            st.noise_share = 0.875;
+            st.noise_direction[0] = 0.6;
+            st.noise_direction[1] = 0.0;
+            st.noise_direction[2] = -0.8;
+            st.spikes_repaired = 7;
+            st.filter = MCF_FAIRING_EXPLICIT;
+            j = reparse(api_json_flow_stats(&st), 0);
+            assert_string_equal(cJSON_GetObjectItem(j, "noise_kind")->valuestring, kind[k - MCF_NOISE_GIVEN]);
+            same(get(j, "noise_share"), 0.875, "noise_share");
+            assert_true(cJSON_IsTrue(cJSON_GetObjectItem(j, "robust")));
+            same(get(j, "spikes_repaired"), 7, "spikes_repaired");
+            assert_string_equal(cJSON_GetObjectItem(j, "filter")->valuestring, "fairing_explicit");
+            l = cJSON_GetObjectItem(j, "noise_direction");
+            if (k == MCF_NOISE_ONE_DIRECTION) {
+                assert_int_equal(cJSON_GetArraySize(l), 3);
+                same(cJSON_GetArrayItem(l, 0)->valuedouble, 0.6, "direction x");
+                same(cJSON_GetArrayItem(l, 2)->valuedouble, -0.8, "direction z");
+            } else {
+                assert_true(cJSON_IsNull(l));
+            }
+            cJSON_Delete(j);
+        }
+        memset(&st, 0, sizeof st);
+    }
     {
         /* A long run's log: API_LOG_MAX entries, the first and last steps
          * and evenly spaced ones between, each with its step. */

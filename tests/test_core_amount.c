@@ -140,6 +140,7 @@ static void test_amount_rules(void **state)
  * that time loses more than the 40% area_loss needs. */
 static void test_warnings(void **state)
 {
+    tl_long("runs that destroy a 35k-vertex scan say so");
     mcf_mesh *clean = tl_load("bunny.drc");
     mcf_mesh *m = noisy(clean, 0.1, 1);
     mcf_flow_params p;
@@ -184,6 +185,7 @@ static void test_warnings(void **state)
  * t = 3.3e-5 of 1e-3 in 22,576 steps on an 11k head. */
 static void test_adaptive_scan(void **state)
 {
+    tl_long("four adaptive schemes on bunny.drc against a 200-step reference");
     static const mcf_scheme s[] = {MCF_DESBRUN2, MCF_ROS2, MCF_RICHARDSON, MCF_DESBRUN};
     mcf_mesh *clean = tl_load("bunny.drc");
     mcf_mesh *m0 = noisy(clean, 0.25, 3);
@@ -245,6 +247,7 @@ static void test_adaptive_scan(void **state)
  * 1e-5 ended 14x tol away). Relative to the unit-area size, as tol is. */
 static void test_adaptive_follows_tol(void **state)
 {
+    tl_long("adaptive desbrun2 at three tols against 1,280 fixed steps");
     static const double tol[3] = {1e-4, 1e-5, 1e-6};
     mcf_mesh *clean = tl_load("bunny_npm_closed.obj");
     mcf_mesh *m0 = noisy(clean, 0.25, 3), *ref = mcf_mesh_dup(m0, NULL);
@@ -411,6 +414,7 @@ static void test_strength_auto(void **state)
  * amount"); the bound is the issue's: at most the input's error. */
 static void test_auto_never_harms(void **state)
 {
+    tl_long("the automatic amount at three noise levels on bunny.drc");
     static const char *const meshes[] = {"icosphere2", "test_nm.obj", "sphere_cgal.obj",
                                          "bunny_npm_closed.obj", "knot1.obj", "bunny.drc"};
     static const char *const schemes[] = {"desbrun2", "cmcf", "linear", "taubin"};

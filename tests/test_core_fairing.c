@@ -706,6 +706,7 @@ static void default_against_taubin(const char *const *names, int nmesh)
  * 0.5). */
 static void test_default_beats_taubin(void **state)
 {
+    tl_long("the default against Taubin's oracle");
     static const char *const names[] = {"bunny_npm_closed.obj", "knot1.obj", "sphere_cgal.obj", "bunny.drc"};
     (void)state;
     default_against_taubin(names, 4);
@@ -718,6 +719,7 @@ static void test_default_beats_taubin(void **state)
  * oracle's single passes on bunny.drc). */
 static void test_default_beats_cotan_taubin(void **state)
 {
+    tl_long("the default against cotan Taubin's oracle");
     static const char *const names[] = {"bunny_npm_closed.obj", "knot1.obj", "sphere_cgal.obj", "bunny.drc"};
     double ratio[12];
     int nr = 0;
@@ -917,6 +919,7 @@ static void test_creases_kept(void **state)
  * 0.402): not asserted, and why the default does not take it yet. */
 static void test_feature_box(void **state)
 {
+    tl_long("the feature stage on a noisy box");
     static const double rho[2] = {0.1, 0.25}, margin[2] = {0.75, 1.0};
     mcf_mesh *clean = box_mesh(16);
     (void)state;

@@ -129,6 +129,7 @@ static void test_order_first(void **state)
  * t = 0.1 (R = 0.775): measured ~0.1%. */
 static void test_sphere_law(void **state)
 {
+    tl_long("the radius law on a 10,242-vertex sphere");
     (void)state;
     const mcf_scheme ss[] = {MCF_DESBRUN2, MCF_DESBRUN, MCF_ROS2, MCF_RICHARDSON, MCF_ARC, MCF_HUISKEN2};
     for (size_t i = 0; i < sizeof ss / sizeof *ss; i++) {
@@ -346,6 +347,7 @@ static void test_degenerate_no_nan(void **state)
  * fixed-step run of the same scheme with equal or better accuracy. */
 static void test_adaptive(void **state)
 {
+    tl_long("adaptive against fixed steps on a noisy sphere");
     (void)state;
     const double T = 0.01, tol = 1e-5;
     mcf_mesh *base = sphere(3);

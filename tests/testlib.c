@@ -83,6 +83,17 @@ void tl_skip(const char *tag, const char *why)
     skip();
 }
 
+void tl_long(const char *what)
+{
+    const char *quick = getenv("MCF_QUICK");
+    char why[512];
+
+    if (!quick || !*quick)
+        return;
+    snprintf(why, sizeof why, "a long study (%s): `make test` runs it", what);
+    tl_skip("long", why);
+}
+
 const char *tl_need_mesh(const char *name)
 {
     const char *p = tl_mesh_path(name), *big = tl_meshes_dir();

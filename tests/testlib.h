@@ -51,6 +51,12 @@ const char *tl_mesh_path(const char *name);
  * and whose tags it lists (tl_need_mesh's tag is the mesh's name). */
 void tl_skip(const char *tag, const char *why);
 
+/* Marks the current test a long study (seconds of CPU or more): under
+ * `make check` ($MCF_QUICK set) it is skipped by name with WHAT it measures,
+ * so that the quick loop stays under a minute; `make test` runs it. Call it
+ * before the test has allocated anything. */
+void tl_long(const char *what);
+
 /* 1 when mesh NAME is one of the repository's own (tests/data/meshes). */
 int tl_mesh_in_repo(const char *name);
 
