@@ -735,6 +735,9 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     if (rc == MCF_OK && !feat) {
         st->tangential_steps = c->kbest_t;
         size_t before = c->bytes;
+        /* the output's figures (the guard's, the flips') are the run's:
+         * the explicit passes ran with their own stats (se) */
+        c->st = st;
         rc = mcf__fair_output(c, X, err);
         peak += c->bytes - before; /* the guard's arrays */
         c->w0 = 0.0;
