@@ -158,6 +158,38 @@ $(B)/mcf: $(CLI_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL
 $(B)/mcfd: $(SRV_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(CHOLMOD_SERIAL)
 	$(CXX) $(LDFLAGS) -o $@ $(SRV_OBJ) $(PROG_OBJ) $(B)/libmcfapi.a $(B)/libmcf.a $(LIBS_SRV) $(LIBS_GRPC) $(LIBS_API) $(LIBS_CORE)
 
+# ---- the in-process door for Python (pyext/mcfpy.c; clients/python's
+# `mcf` module loads it with ctypes): libmcf and libmcfapi inside one
+# shared library that exports mcfpy_* alone (pyext/mcfpy.map), from their
+# own position-independent objects in $(B)/pic/ (the programs' stay as
+# they are). Built by `make pylib`, `make test` and `pip install
+# ./clients/python`, not by `make`. CHOLMOD is Debian's shared libcholmod
+# (flags.mk's serial copy is Debian's libcholmod.a, whose objects are not
+# position-independent: 278 absolute 32-bit relocations cannot go into a
+# shared object); the module sets OMP_NUM_THREADS=1 before loading it.
+# The same mesh as mcf to rounding, not the same bytes: Debian's
+# libcholmod calls OpenBLAS's dpotrf/dtrsm where mcf's serial copy runs
+# small ones as loops (tests/test_pymcf.py states the tolerance).
+PIC := $(B)/pic
+PYEXT_SRC := $(wildcard pyext/*.c)
+PIC_OBJ := $(CORE_SRC:%.c=$(PIC)/%.o) $(API_SRC:%.c=$(PIC)/%.o) $(API_CXX:%.cc=$(PIC)/%.o) \
+           $(PYEXT_SRC:%.c=$(PIC)/%.o)
+$(PIC)/core/%.o: core/%.c
+	@mkdir -p $(@D)
+	$(CC) $(WARN) $(CPPFLAGS) $(CFLAGS) -fPIC -MMD -MP -c $< -o $@
+$(PIC)/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(WARN) -D_POSIX_C_SOURCE=200809L $(CPPFLAGS) $(CFLAGS) -fPIC -MMD -MP -c $< -o $@
+$(PIC)/%.o: %.cc
+	@mkdir -p $(@D)
+	$(CXX) $(CXXWARN) -I/usr/include/draco $(CPPFLAGS) $(CXXFLAGS) -fPIC -MMD -MP -c $< -o $@
+$(B)/libmcfpy.so: $(PIC_OBJ) pyext/mcfpy.map
+	$(CXX) $(LDFLAGS) -shared -Wl,--version-script=pyext/mcfpy.map -Wl,-z,defs \
+	  -o $@ $(PIC_OBJ) $(LIBS_API) $(patsubst $(CHOLMOD_SERIAL),-lcholmod,$(LIBS_CORE))
+pylib: $(B)/libmcfpy.so
+.PHONY: pylib
+-include $(PIC_OBJ:.o=.d)
+
 # ---- the gRPC contract: api/mcfd.proto -> $(B)/gen/mcfd{,.grpc}.pb.{cc,h}
 # (protoc + grpc_cpp_plugin, Debian's protobuf-compiler-grpc). Generated
 # code is compiled without our warning flags (it is not ours to fix) and
@@ -259,7 +291,7 @@ deps-build:
 # each binary's output is printed whole when it ends.
 TEST_LANE1 = $(CHECK_BIN) $(filter $(B)/tests/test_cli $(LAB_TEST_BIN),$(TEST_BIN))
 test: deps
-	$(MAKE) all $(TEST_BIN)
+	$(MAKE) all $(TEST_BIN) $(if $(SAN),,$(B)/libmcfpy.so)
 	$(MAKE) check-deps
 	@rm -f $(B)/tests/skipped.log $(B)/tests/*.out; \
 	run() { for t in "$$@"; do \
@@ -673,14 +705,15 @@ fuzz: $(FUZZ_BIN)
 #   make experiments [EXP_DIR=DIR]   every flow study -> lab/results/experiments/
 #   make exp-sweep-spot ...          one of them (lab/Makefile lists them)
 #   make bench                       benchmarks, ratios against a peer measured in the same run
-#                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers: one part)
+#                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers,
+#                                    bench-scale [SCALE_ARGS=--big for 7M]: one part)
 #   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
 #   make quality [QUALITY_ARGS="--models out --rho 0.25 --list spot.obj"] [QUALITY_OUT=DIR]
 #                                    the scan-quality study -> build/lab/quality/ (lab/README.md)
 LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR))) \
       $(if $(QUALITY_OUT),QUALITY_OUT=$(abspath $(QUALITY_OUT))) $(if $(QUALITY_BASELINE),QUALITY_BASELINE=$(abspath $(QUALITY_BASELINE)))
 LAB_LIBS := $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
-LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-ui quality
+LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-scale bench-ui quality
 
 experiments: deps
 	$(MAKE) $(LAB_LIBS)
@@ -690,8 +723,8 @@ exp-%: deps
 	$(MAKE) $(LAB_LIBS)
 	$(LAB) $@
 
-bench bench-core bench-server bench-grpc bench-store bench-peers: deps
-	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
+bench bench-core bench-server bench-grpc bench-store bench-peers bench-scale: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_BENCH) $(DEB_QUALITY)" deps
 	$(MAKE) all
 	$(LAB) $@
 

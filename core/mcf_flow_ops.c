@@ -211,7 +211,7 @@ mcf_status mcf__flow_be_step(flow_ctx *c, const double *X, double h, const doubl
 
 /* Faces a step folded (mcf__folded_faces against fn_before: turned by
  * more than 90 degrees and lying backwards in the neighbourhood). The new
- * face normals go to fn_after (the next step's "before"); N (3*nv) is
+ * face normals go to fn_after (the next step's "before"); N (4*nv) is
  * scratch. Faces that were degenerate before (zero normal) cannot fold. */
 int mcf__flow_folded_faces(const double *X, const int32_t *F, int nf, int nv,
                            const double *fn_before, double *fn_after, double *N)

@@ -17,6 +17,7 @@
  *
  * Pure C11; no allocation outside mcf__unfold.
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -32,26 +33,14 @@ void mcf__face_normals(const double *X, const int32_t *F, int nf, double *fn)
     }
 }
 
-/* N (3*nv) = the sums of the (unnormalized) face normals fn around each
- * vertex. */
-static void vertex_normal_sums(const int32_t *F, int nf, int nv, const double *fn, double *N)
+/* The squared lengths of triangle t's two edges from its first corner,
+ * summed. */
+static double edges2(const double *X, const int32_t *t)
 {
-    memset(N, 0, 3 * sizeof(double) * (size_t)nv);
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            for (int d = 0; d < 3; d++)
-                N[3 * (size_t)F[3 * f + k] + d] += fn[3 * (size_t)f + d];
-}
-
-/* 1 when face f lies backwards in its neighbourhood: its normal points
- * against the sum of its three vertices' normal sums N. */
-static int lies_backwards(const int32_t *F, const double *fn, const double *N, int f)
-{
-    double s[3] = {0, 0, 0};
-    for (int k = 0; k < 3; k++)
-        for (int d = 0; d < 3; d++)
-            s[d] += N[3 * (size_t)F[3 * f + k] + d];
-    return mcf__dot3(fn + 3 * (size_t)f, s) < 0.0;
+    double e1[3], e2[3];
+    mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
+    mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
+    return mcf__dot3(e1, e1) + mcf__dot3(e2, e2);
 }
 
 /* 1 when face t has no orientation to judge: its normal n, or its
@@ -64,11 +53,48 @@ static int lies_backwards(const int32_t *F, const double *fn, const double *N, i
 #define DEGENERATE 1e-10
 static int degenerate(const double *X, const int32_t *t, const double *n, const double *r)
 {
-    double e1[3], e2[3];
-    mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
-    mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
-    double s = DEGENERATE * (mcf__dot3(e1, e1) + mcf__dot3(e2, e2));
+    double s = DEGENERATE * edges2(X, t);
     return mcf__dot3(n, n) <= s * s || mcf__dot3(r, r) <= s * s;
+}
+
+/* N (4*nv) = per vertex, the sums of the (unnormalized) face normals fn
+ * around it (3 values) and the sum of those faces' two squared edges
+ * from their first corner (the scale of their normals' rounding). */
+static void vertex_normal_sums(const double *X, const int32_t *F, int nf, int nv, const double *fn, double *N)
+{
+    memset(N, 0, 4 * sizeof(double) * (size_t)nv);
+    for (int f = 0; f < nf; f++) {
+        double e = edges2(X, F + 3 * (size_t)f);
+        for (int k = 0; k < 3; k++) {
+            double *n = N + 4 * (size_t)F[3 * f + k];
+            for (int d = 0; d < 3; d++)
+                n[d] += fn[3 * (size_t)f + d];
+            n[3] += e;
+        }
+    }
+}
+
+/* 1 when face f does not lie clearly forward in its neighbourhood: its
+ * normal points against the sum s of its three vertices' normal sums N,
+ * or s is within rounding of perpendicular to it (below DEGENERATE times
+ * |fn| and the squared edges of the faces summed). The second case is a
+ * neighbourhood without a side: dragon_vrip_res2 has two-sided fins, the
+ * same triangle twice with opposite orientations (faces 178664 and
+ * 178667), where s is 0 in exact arithmetic and its rounding (1e-23
+ * against normals of 3e-8) took a sign that changed with the units: the
+ * guard, in working units, saw no fold, and the result in input units
+ * had one. There the turn against the reference alone decides. */
+static int lies_backwards(const int32_t *F, const double *fn, const double *N, int f)
+{
+    double s[3] = {0, 0, 0}, e = 0.0;
+    const double *n = fn + 3 * (size_t)f;
+    for (int k = 0; k < 3; k++) {
+        const double *v = N + 4 * (size_t)F[3 * f + k];
+        for (int d = 0; d < 3; d++)
+            s[d] += v[d];
+        e += v[3];
+    }
+    return mcf__dot3(n, s) <= DEGENERATE * sqrt(mcf__dot3(n, n)) * e;
 }
 
 int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
@@ -76,7 +102,7 @@ int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const d
 {
     int bad = 0;
     mcf__face_normals(X, F, nf, fn);
-    vertex_normal_sums(F, nf, nv, fn, N);
+    vertex_normal_sums(X, F, nf, nv, fn, N);
     for (int f = 0; f < nf; f++) {
         const double *n = fn + 3 * (size_t)f, *r = fn_ref + 3 * (size_t)f;
         int b = mcf__dot3(n, r) < 0.0 && !degenerate(X, F + 3 * (size_t)f, n, r) && lies_backwards(F, fn, N, f);
@@ -91,7 +117,7 @@ int mcf__folds_against(const double *X, const double *X_ref, const int32_t *F, i
 {
     double *fr = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
     double *fn = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
-    double *N = mcf__malloc(3 * (size_t)nv + 1, sizeof(double));
+    double *N = mcf__malloc(4 * (size_t)nv + 1, sizeof(double));
     int bad = -1;
     if (fr && fn && N) {
         mcf__face_normals(X_ref, F, nf, fr);
@@ -122,7 +148,7 @@ mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int
 {
     double *fr = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
     double *fn = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
-    double *N = mcf__malloc(3 * (size_t)nv + 1, sizeof(double));
+    double *N = mcf__malloc(4 * (size_t)nv + 1, sizeof(double));
     unsigned char *bad = mcf__malloc((size_t)nf + 1, 1), *mark = mcf__calloc((size_t)nv + 1, 1);
     if (!fr || !fn || !N || !bad || !mark) {
         free(fr);

@@ -335,9 +335,10 @@ int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
  * A face a run folded: its normal turned against the same face's normal
  * in a reference (fn_ref: the input's, or the step before's) and it lies
  * backwards in its neighbourhood of X (its normal against the sum of its
- * vertices' summed face normals). */
+ * vertices' summed face normals, or that sum within rounding of
+ * perpendicular to it: a two-sided fin has no side to lie on). */
 void mcf__face_normals(const double *X, const int32_t *F, int nf, double *fn); /* unnormalized */
-/* The count; fn (3*nf) gets X's face normals, N (3*nv) is scratch, mask
+/* The count; fn (3*nf) gets X's face normals, N (4*nv) is scratch, mask
  * (nf, may be NULL) gets 1 on each folded face. */
 int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
                       double *fn, double *N, unsigned char *mask);

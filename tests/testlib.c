@@ -519,20 +519,29 @@ static void tl_face_normal(const double *X, const int32_t *t, double *n)
 int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf, int nv,
                      unsigned char *mask)
 {
-    double *N = calloc(3 * (size_t)nv + 1, sizeof *N);
+    /* per vertex: the summed face normals, and the summed squared edges
+     * (from the first corner) of those faces, the scale of the sum's
+     * rounding */
+    double *N = calloc(3 * (size_t)nv + 1, sizeof *N), *E = calloc((size_t)nv + 1, sizeof *E);
     int bad = 0;
-    if (!N)
+    if (!N || !E)
         fail_msg("tl_folds_against: out of memory");
     for (int f = 0; f < nf; f++) {
-        double a[3];
-        tl_face_normal(X, F + 3 * (size_t)f, a);
-        for (int k = 0; k < 3; k++)
+        const int32_t *t = F + 3 * (size_t)f;
+        double a[3], e = 0.0;
+        tl_face_normal(X, t, a);
+        for (int k = 1; k < 3; k++)
             for (int d = 0; d < 3; d++)
-                N[3 * (size_t)F[3 * f + k] + d] += a[d];
+                e += (X[3 * (size_t)t[k] + d] - X[3 * (size_t)t[0] + d]) * (X[3 * (size_t)t[k] + d] - X[3 * (size_t)t[0] + d]);
+        for (int k = 0; k < 3; k++) {
+            for (int d = 0; d < 3; d++)
+                N[3 * (size_t)t[k] + d] += a[d];
+            E[t[k]] += e;
+        }
     }
     for (int f = 0; f < nf; f++) {
         const int32_t *t = F + 3 * (size_t)f;
-        double a[3], b[3], s[3] = {0, 0, 0}, e = 0.0;
+        double a[3], b[3], s[3] = {0, 0, 0}, e = 0.0, es = 0.0;
         tl_face_normal(X, t, a);
         tl_face_normal(X0, t, b);
         for (int k = 1; k < 3; k++)
@@ -540,16 +549,22 @@ int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf
                 double q = X[3 * (size_t)t[k] + d] - X[3 * (size_t)t[0] + d];
                 e += q * q;
             }
-        for (int k = 0; k < 3; k++)
+        for (int k = 0; k < 3; k++) {
             for (int d = 0; d < 3; d++)
                 s[d] += N[3 * (size_t)t[k] + d];
+            es += E[t[k]];
+        }
         double aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2], bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
+        /* lying backwards: against s, or within rounding (1e-10 of |a| and
+         * the squared edges summed) of perpendicular to it (a two-sided
+         * fin's s is 0 but for rounding) */
         int fold = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] < 0.0 && aa > 1e-20 * e * e && bb > 1e-20 * e * e &&
-                   a[0] * s[0] + a[1] * s[1] + a[2] * s[2] < 0.0;
+                   a[0] * s[0] + a[1] * s[1] + a[2] * s[2] <= 1e-10 * sqrt(aa) * es;
         if (mask)
             mask[f] = (unsigned char)fold;
         bad += fold;
     }
     free(N);
+    free(E);
     return bad;
 }

@@ -186,8 +186,10 @@ void tl_smooth_a_little(mcf_mesh *m);
  * mcf_flow_stats.folded_faces counts): turned by more than 90 degrees
  * against X0's same face and lying backwards in their neighbourhood of X
  * (the normal against the sum of the three vertices' summed face
- * normals); faces degenerate in X or X0 (a normal below 1e-10 of the
- * squared edges) are not judged. mask (nf, may be NULL) gets 1 on each.
+ * normals, or within rounding of perpendicular to it: 1e-10 of the face
+ * normal's length times the squared edges of the faces summed); faces
+ * degenerate in X or X0 (a normal below 1e-10 of the squared edges) are
+ * not judged. mask (nf, may be NULL) gets 1 on each.
  * Returns the count. */
 int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf, int nv,
                      unsigned char *mask);
