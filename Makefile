@@ -705,14 +705,15 @@ fuzz: $(FUZZ_BIN)
 #   make experiments [EXP_DIR=DIR]   every flow study -> lab/results/experiments/
 #   make exp-sweep-spot ...          one of them (lab/Makefile lists them)
 #   make bench                       benchmarks, ratios against a peer measured in the same run
-#                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers: one part)
+#                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers,
+#                                    bench-scale [SCALE_ARGS=--big for 7M]: one part)
 #   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
 #   make quality [QUALITY_ARGS="--models out --rho 0.25 --list spot.obj"] [QUALITY_OUT=DIR]
 #                                    the scan-quality study -> build/lab/quality/ (lab/README.md)
 LAB = $(MAKE) -C lab B=$(abspath $(B)) MESHES=$(MESHES) $(if $(EXP_DIR),EXP_DIR=$(abspath $(EXP_DIR))) \
       $(if $(QUALITY_OUT),QUALITY_OUT=$(abspath $(QUALITY_OUT))) $(if $(QUALITY_BASELINE),QUALITY_BASELINE=$(abspath $(QUALITY_BASELINE)))
 LAB_LIBS := $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL)
-LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-ui quality
+LAB_TARGETS := experiments bench bench-core bench-server bench-grpc bench-store bench-peers bench-scale bench-ui quality
 
 experiments: deps
 	$(MAKE) $(LAB_LIBS)
@@ -722,8 +723,8 @@ exp-%: deps
 	$(MAKE) $(LAB_LIBS)
 	$(LAB) $@
 
-bench bench-core bench-server bench-grpc bench-store bench-peers: deps
-	$(MAKE) EXTRA_PKGS="$(DEB_BENCH)" deps
+bench bench-core bench-server bench-grpc bench-store bench-peers bench-scale: deps
+	$(MAKE) EXTRA_PKGS="$(DEB_BENCH) $(DEB_QUALITY)" deps
 	$(MAKE) all
 	$(LAB) $@
 

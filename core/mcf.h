@@ -316,8 +316,8 @@ typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
  * graph, no factorization. K is `iterations` when set; otherwise the K
  * that minimizes Stein's unbiased risk estimate of the result's error for
  * Gaussian noise of deviation noise_sigma mean edges along the normals
- * (0: mcf_noise_estimate's), evaluated after every step until K > 2 K* +
- * 10, at most MCF_FAIRING_MAX_STEPS steps (implicit) or
+ * (0: mcf_noise_estimate's), evaluated after every step up to the first
+ * power of two past K* + 5 (K* the best so far), at most MCF_FAIRING_MAX_STEPS steps (implicit) or
  * MCF_FAIRING_MAX_PASSES passes (explicit) and max_steps. A mesh without
  * noise gets K = 0: it is returned as it came. With the automatic
  * amount the result is SURE's best combination X0 + sum_j c_j (Y_kj -

@@ -25,10 +25,11 @@
  * each coordinate), SURE(K) = sum w r^2 - s^2 sum w + 2 s^2 sum w_i
  * (T^K)_ii estimates sum w (error)^2 without the clean mesh; w are the
  * barycentric vertex areas over their mean. The weighted trace comes from
- * six Rademacher probes carried through the same steps as extra columns
+ * six Rademacher probes (three on a mesh of over a million free vertices:
+ * PROBES_FEW_ABOVE) carried through the same steps as extra columns
  * (Hutchinson); for the implicit step T = D^-1/2 R D^1/2, R = (I + NN')^-1,
- * so the probes run through R in y. The run stops once K > 2 K* + 10 (K*
- * the best so far) or at the cap. It keeps the displacements Y_k - X0
+ * so the probes run through R in y. The run stops at the first power of
+ * two past K* + 5 (K* the best so far: sure_stop) or at the cap. It keeps the displacements Y_k - X0
  * after the last COMB_J powers of two k of steps; the combination X0 +
  * sum_j c_j (Y_kj - X0) whose SURE is least (a 4 x 4 linear system:
  * combine) replaces Y at K* when its SURE is lower still.
@@ -80,6 +81,22 @@
  * quantization 0.35-0.63: none of those switches */
 #define VIEW_SHARE 0.7
 #define VIEW_RATIO 1.15
+/* Is there noise at all? Noise is white: its high-pass correlates with its
+ * own 1-ring average as the calibration noise's does (mcf__noise_shape:
+ * corr_noise, -0.29 to -0.32 on the shared meshes), while a clean
+ * surface's high-pass (its curvature, its triangles' irregularity) is
+ * smoother: the correlation is higher. The default request reads no noise
+ * when corr exceeds corr_noise by more than WHITE_GAP. Measured
+ * (2026-11-28, mcf smooth, seed 1): clean meshes exceed it by 0.12-1.7
+ * (sphere_cgal, spot, fertility, bunny_npm_closed, knot1, armadillo,
+ * snowden, stanford-bunny, bunny.drc), the CAD parts by 0.04-0.08 (car,
+ * blade, couplingdown_sub2: those the reading and SURE leave nearly
+ * alone, below 0.13 of the error of 0.1 h noise); Gaussian noise along
+ * the normals of 0.05 h by at most 0.07, of 0.1 h by at most 0.06 (car),
+ * one viewpoint's of 0.1 h by at most 0.06. Before, the default moved
+ * fertility, bunny_npm_closed and armadillo 0.11, 0.23 and 0.28 of the
+ * error of 0.1 h noise */
+#define WHITE_GAP 0.1
 
 static void fair_free(fair_ctx *c)
 {
@@ -175,7 +192,7 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
 
 static void init_probes(fair_ctx *c)
 {
-    for (int q = 0; q < NPROBE; q++)
+    for (int q = 0; q < c->nprobe; q++)
         for (int k = 0; k < c->nfree; k++)
             c->probe[(size_t)q * c->nfree + k] =
                 (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)k + 1) >> 63) ? 1.0 : -1.0;
@@ -337,7 +354,7 @@ static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
         for (int d = 0; d < 3; d++)
             y[(size_t)d * n + k] = c->sq[k] * c->X0[3 * (size_t)c->vert[k] + d];
     if (c->ncol > 3)
-        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * NPROBE * (size_t)n);
+        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * (size_t)c->nprobe * (size_t)n);
     return MCF_OK;
 }
 
@@ -397,7 +414,7 @@ static void positions(const fair_ctx *c, double *Y)
  * the 35k bunny and 43k armadillo, implicit): the set-up (graph, creases)
  * WORK_SETUP, the noise reading up to WORK_NOISE, the factorization up to
  * WORK_INIT, the steps the rest, counted against the steps SURE will run
- * (2 K* + 11, K* its best so far, at most the cap). Of the run: the
+ * (sure_stop(K*), K* its best so far, at most the cap). Of the run: the
  * default's second filter WORK_PICK, the output (guard and unfolding)
  * WORK_OUTPUT. */
 #define WORK_SETUP 0.2
@@ -444,6 +461,8 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         int view = robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est;
         if (view)
             s = shape.sigma_view;
+        else if (robust && shape.corr > shape.corr_noise + WHITE_GAP)
+            s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP) */
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
@@ -485,11 +504,12 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
 static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
-    c->ncol = c->sure ? NCOL : 3;
+    c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
+    c->ncol = c->sure ? 3 + c->nprobe : 3;
     c->Y = alloc_d(c, 3 * (size_t)nv);
     c->Ybest = alloc_d(c, 3 * (size_t)nv);
     c->Yt = alloc_d(c, 3 * (size_t)nv);
-    c->probe = c->sure ? alloc_d(c, NPROBE * (size_t)(c->nfree ? c->nfree : 1)) : NULL;
+    c->probe = c->sure ? alloc_d(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
     if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
@@ -511,8 +531,23 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
     return MCF_OK;
 }
 
+/* The last step SURE runs with K* its best so far: the first power of two
+ * past K* + 5. The combination keeps only powers of two, and the next one
+ * (twice that) lies past 2 K* + 10, where the rule before this one stopped:
+ * the same kept iterates, so the same result unless SURE finds a lower
+ * minimum between this stop and 2 K* + 10 (on a scan its curve is smooth
+ * and rises from K* on: the 1.74M dragon's K* 40 stops at 64, not 91,
+ * its output unchanged). */
+static int sure_stop(int kstar)
+{
+    int k = 1;
+    while (k <= kstar + 5)
+        k *= 2;
+    return k;
+}
+
 /* The steps, SURE after each (the normal and the tangential part), until
- * K > 2 K* + 10 or the cap: c->Ybest, c->Yt at c->kbest, c->kbest_t. */
+ * sure_stop(K*) or the cap: c->Ybest, c->Yt at c->kbest, c->kbest_t. */
 static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
 {
     mcf_flow_stats *st = c->st;
@@ -541,7 +576,7 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
             mcf__fair_probe_traces(c, est);
-            double tr = mcf__fair_mean_trace(est, &vtr);
+            double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
             mcf__fair_weighted_r2(c, Y, mo);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
@@ -565,10 +600,10 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         }
         if (hook && hook(hook_ctx, k, c->quiet ? NULL : Y))
             return mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
-        int kend = c->sure ? 2 * (c->kbest > c->kbest_t ? c->kbest : c->kbest_t) + 11 : c->cap;
+        int kend = c->sure ? sure_stop(c->kbest > c->kbest_t ? c->kbest : c->kbest_t) : c->cap;
         work(c, c->is_explicit ? "passes" : "steps",
              WORK_INIT + (1.0 - WORK_INIT) * k / (kend < c->cap ? kend : c->cap));
-        if (c->sure && k > 2 * (c->kbest > c->kbest_t ? c->kbest : c->kbest_t) + 10)
+        if (c->sure && k >= kend)
             break;
     }
     if (!c->sure && c->cap > 0)

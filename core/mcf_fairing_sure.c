@@ -49,7 +49,7 @@ void mcf__fair_probe_traces(const fair_ctx *c, double est[NPROBE])
         est[q] = 0.0;
     for (int k = 0; k < c->nfree; k++) {
         int i = c->vert[k];
-        for (int q = 0; q < NPROBE; q++) {
+        for (int q = 0; q < c->nprobe; q++) {
             double z = c->probe[(size_t)q * c->nfree + k];
             double y = c->is_explicit ? c->Z[(size_t)c->ncol * i + 3 + q]
                                       : c->Yc[(size_t)(3 + q) * c->nfree + k];
@@ -58,16 +58,16 @@ void mcf__fair_probe_traces(const fair_ctx *c, double est[NPROBE])
     }
 }
 
-/* The mean of the probes' estimates est, and the variance of that mean
- * (*var). */
-double mcf__fair_mean_trace(const double est[NPROBE], double *var)
+/* The mean of the nprobe probes' estimates est, and the variance of that
+ * mean (*var). */
+double mcf__fair_mean_trace(const double *est, int nprobe, double *var)
 {
     double tr = 0.0, v = 0.0;
-    for (int q = 0; q < NPROBE; q++)
-        tr += est[q] / NPROBE;
-    for (int q = 0; q < NPROBE; q++)
+    for (int q = 0; q < nprobe; q++)
+        tr += est[q] / nprobe;
+    for (int q = 0; q < nprobe; q++)
         v += (est[q] - tr) * (est[q] - tr);
-    *var = v / ((NPROBE - 1) * NPROBE);
+    *var = v / ((nprobe - 1) * nprobe);
     return tr;
 }
 
@@ -217,7 +217,7 @@ static int comb_gain_ok(const fair_ctx *c, const double *cw)
 void mcf__fair_combine(fair_ctx *c)
 {
     int J = c->nk, n = c->nfree;
-    double G[COMB_J * COMB_J] = {0}, cw[COMB_J], est[NPROBE], r[COMB_J], mo[3] = {0, 0, 0};
+    double G[COMB_J * COMB_J] = {0}, cw[COMB_J], est[NPROBE] = {0}, r[COMB_J], mo[3] = {0, 0, 0};
     double s2 = c->s * c->s, sw = (double)n, gd = 0.0, vtr, z;
     /* combinations between the kept iterates only: a run the cap
      * stopped may have its best step past the last (the box of
@@ -234,7 +234,7 @@ void mcf__fair_combine(fair_ctx *c)
     }
     for (int j = 0; j < J; j++) {
         gd += G[j * J + j] / J;
-        cw[j] = -s2 * (mcf__fair_mean_trace(c->trq[j], &vtr) - sw);
+        cw[j] = -s2 * (mcf__fair_mean_trace(c->trq[j], c->nprobe, &vtr) - sw);
     }
     for (int j = 0; j < J; j++)
         G[j * J + j] += 1e-9 * gd;
@@ -246,7 +246,7 @@ void mcf__fair_combine(fair_ctx *c)
     }
     if (!comb_gain_ok(c, cw))
         return;
-    for (int q = 0; q < NPROBE; q++) {
+    for (int q = 0; q < c->nprobe; q++) {
         est[q] = sw; /* the identity's: sum w z^2 = sum w */
         for (int j = 0; j < J; j++)
             est[q] += cw[j] * (c->trq[j][q] - sw);
@@ -269,11 +269,11 @@ void mcf__fair_combine(fair_ctx *c)
         mo[1] += w * w * rho * rho;
         mo[2] += w * w * rho * rho * rho * rho;
     }
-    double tr = mcf__fair_mean_trace(est, &vtr), risk = mcf__fair_sure_of(c, 1, c->s, mo, tr, vtr, &z), tr_comb[NPROBE];
+    double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr), risk = mcf__fair_sure_of(c, 1, c->s, mo, tr, vtr, &z), tr_comb[NPROBE];
     memcpy(tr_comb, est, sizeof est);
-    for (int q = 0; q < NPROBE; q++)
+    for (int q = 0; q < c->nprobe; q++)
         est[q] = c->trbest[q] - est[q];
-    double dtr = mcf__fair_mean_trace(est, &vtr), gain = c->risk - risk - COMB_PENALTY * J * s2;
+    double dtr = mcf__fair_mean_trace(est, c->nprobe, &vtr), gain = c->risk - risk - COMB_PENALTY * J * s2;
     double var = gain_var(c, s2, n, dd[0], dd[1], dtr, vtr);
     if (!(gain > 0.0) || gain * gain < SURE_MIN_GAIN * SURE_MIN_GAIN * var || !(z >= SURE_MIN_GAIN))
         return;
@@ -297,7 +297,7 @@ void mcf__fair_combine(fair_ctx *c)
  * level's uncertainty. */
 int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
 {
-    if (e->kbest == 0 || i->nfree != e->nfree)
+    if (e->kbest == 0 || i->nfree != e->nfree || i->nprobe != e->nprobe)
         return 0;
     if (i->kbest == 0)
         return 1; /* the implicit filter found nothing to remove */
@@ -313,9 +313,9 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
         dd[0] += t;
         dd[1] += t * t;
     }
-    for (int q = 0; q < NPROBE; q++)
+    for (int q = 0; q < i->nprobe; q++)
         est[q] = i->trbest[q] - e->trbest[q];
-    double dtr = mcf__fair_mean_trace(est, &vtr), gain = i->risk - e->risk;
+    double dtr = mcf__fair_mean_trace(est, i->nprobe, &vtr), gain = i->risk - e->risk;
     double var = gain_var(i, s2, n, dd[0], dd[1], dtr, vtr);
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
@@ -336,7 +336,7 @@ mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *
     fr.vert = c->vert;
     fr.w = c->w;
     fr.probe = c->probe;
-    fr.nprobe = NPROBE;
+    fr.nprobe = c->nprobe;
     fr.s = c->s;
     fr.s2_rel = c->s2_rel;
     fr.min_z = SURE_MIN_GAIN;

@@ -124,6 +124,7 @@ typedef struct {
     }
 
 HALF_PASS(half_pass_3, 3)
+HALF_PASS(half_pass_6, 6)
 HALF_PASS(half_pass_9, 9)
 
 static void half_pass_n(const half_pass *h, size_t lo, size_t hi)
@@ -147,6 +148,8 @@ static void half_pass_range(void *ctx, size_t lo, size_t hi)
     const half_pass *h = ctx;
     if (h->ncol == 3)
         half_pass_3(h, lo, hi);
+    else if (h->ncol == 6)
+        half_pass_6(h, lo, hi);
     else if (h->ncol == 9)
         half_pass_9(h, lo, hi);
     else

@@ -7,7 +7,8 @@
  * one, bit for bit (each thread writes only its own vertices, each in the
  * order one thread would: no tolerance is needed, none is allowed). A
  * 40,962-vertex icosphere (over MCF_PAR_MIN, so the threads do run) with
- * noise 0.25 mean edges; about 4 s of CPU.
+ * noise 0.25 mean edges; about 4 s of CPU. The passes' column counts give
+ * the same columns bit for bit (test_passes_columns_split).
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -92,11 +93,62 @@ static void test_passes_one_thread_equal(void **state)
     free(Xt);
 }
 
+/* The passes' column counts (mcf_graph.c: unrolled for 3, 6 and 9, any
+ * other by a loop; the fairing filter moves 6 on a mesh of over a million
+ * vertices, 9 otherwise): Taubin passes on 9 columns equal, bit for bit,
+ * the same passes on the columns split 6 + 3, 3 + 3 + 3 and 4 + 4 + 1 (each
+ * column's sums run in the same order whatever the others), some vertices
+ * fixed, on 1 and 2 threads. An icosphere of 40,962 vertices, 3 passes. */
+static void test_passes_columns_split(void **state)
+{
+    static const int splits[3][4] = {{6, 3, 0}, {3, 3, 3, 0}, {4, 4, 1, 0}};
+    mcf_error err;
+    mcf__graph g;
+    (void)state;
+    mcf_mesh *m = mcf_mesh_new_icosphere(6, 1.0, &err);
+    assert_non_null(m);
+    int nv = mcf_mesh_nvertices(m);
+    assert_int_equal(mcf__graph_build(mcf_mesh_faces(m), mcf_mesh_nfaces(m), nv, &g, &err), MCF_OK);
+    size_t n9 = 9 * (size_t)nv;
+    double *Z = malloc(sizeof(double) * n9), *Zs = malloc(sizeof(double) * n9);
+    double *P = malloc(sizeof(double) * n9), *tmp = malloc(sizeof(double) * n9);
+    unsigned char *fixed = calloc((size_t)nv, 1);
+    assert_true(Z && Zs && P && tmp && fixed);
+    for (size_t i = 0; i < n9; i++)
+        Z[i] = (double)(mcf__mix64(i + 1) >> 11) / 9007199254740992.0 - 0.5;
+    for (int i = 0; i < nv; i += 97)
+        fixed[i] = 1;
+    memcpy(Zs, Z, sizeof(double) * n9);
+    mcf__graph_taubin(&g, fixed, Z, 9, 3, tmp, 1);
+    for (int s = 0; s < 3; s++)
+        for (int t = 1; t <= 2; t++) {
+            int c0 = 0;
+            for (int b = 0; splits[s][b]; c0 += splits[s][b++]) {
+                int nc = splits[s][b];
+                for (int i = 0; i < nv; i++)
+                    memcpy(P + (size_t)nc * i, Zs + 9 * (size_t)i + c0, sizeof(double) * nc);
+                mcf__graph_taubin(&g, fixed, P, nc, 3, tmp, t);
+                for (int i = 0; i < nv; i++)
+                    if (memcmp(P + (size_t)nc * i, Z + 9 * (size_t)i + c0, sizeof(double) * nc))
+                        fail_msg("split %d, columns %d..%d, %d threads: vertex %d differs", s, c0,
+                                 c0 + nc - 1, t, i);
+            }
+        }
+    mcf__graph_free(&g);
+    mcf_mesh_free(m);
+    free(Z);
+    free(Zs);
+    free(P);
+    free(tmp);
+    free(fixed);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_par_for_covers),
         cmocka_unit_test(test_passes_one_thread_equal),
+        cmocka_unit_test(test_passes_columns_split),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

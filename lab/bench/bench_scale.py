@@ -92,6 +92,18 @@ def dgemm_rate():
                                 text=True, check=True).stdout)
 
 
+def cpu_model():
+    """The CPU's model name (/proc/cpuinfo), else the machine type."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def run(argv, env=None):
     """(stdout, CPU s, wall s, peak RSS bytes) of a child process."""
     t0 = time.perf_counter()
@@ -152,7 +164,7 @@ def main():
     o3d_env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     rate = dgemm_rate()
     print("scale table: %s, %d cores, %s UTC, load %.1f; 1-thread dgemm %.1f GFLOP/s"
-          % (platform.processor() or platform.machine(), os.cpu_count(),
+          % (cpu_model(), os.cpu_count(),
              time.strftime("%Y-%m-%d %H:%M", time.gmtime()), os.getloadavg()[0], rate))
     print("the default request (`mcf smooth IN OUT`) vs Open3D filter_smooth_taubin at its best "
           "pass count (OMP_NUM_THREADS=1); medians of %d interleaved repetitions" % args.reps)
