@@ -169,6 +169,22 @@ static double trimmed_rms(const mcf__graph *g, const unsigned char *fixed, const
     return k ? sqrt(s / (double)k) : 0.0;
 }
 
+/* The correlation of v with its 1-ring average, sum v_i (Avg v)_i / sum
+ * v_i^2, over the vertices mad() counts with |v_i| within trim robust
+ * deviations; avg (nv) scratch. */
+static double ring_correlation(const mcf__graph *g, const unsigned char *fixed, const double *v, double mad_v,
+                               double trim, double *avg)
+{
+    double num = 0.0, den = 0.0, lim = trim * 1.4826 * mad_v;
+    mcf__graph_average(g, v, 1, avg);
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]) && fabs(v[i]) <= lim) {
+            num += v[i] * avg[i];
+            den += v[i] * v[i];
+        }
+    return den > 0.0 ? num / den : 0.0;
+}
+
 /* The largest eigenvalue of the symmetric 3 x 3 M (row-major) in closed
  * form (the trigonometric solution of its characteristic cubic: Smith,
  * CACM 4(4) 168, 1961) and a unit eigenvector of it into v (the longest
@@ -327,6 +343,7 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
     mcf__vertex_normals(P, F, nf, nv, N);
     high_pass(&g, N, X, e, d, tmp);
     double mad_y = mad(&g, fixed, e, P), rms_y = shape ? trimmed_rms(&g, fixed, e, mad_y, NOISE_TRIM) : 0.0;
+    double corr_y = shape ? ring_correlation(&g, fixed, e, mad_y, NOISE_TRIM, tmp) : 0.0;
     /* the response to unit Gaussian noise along the same normals on the
      * free vertices (mcf_mesh_add_noise's generator: reproducible) */
     mcf__gauss_fill(0x5eed5eedULL, d, (size_t)nv);
@@ -338,6 +355,8 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
     *sigma = mad_n > 0.0 ? mad_y / mad_n : 0.0;
     if (shape) {
         double rms_n = trimmed_rms(&g, fixed, e, mad_n, NOISE_TRIM);
+        shape->corr = corr_y;
+        shape->corr_noise = ring_correlation(&g, fixed, e, mad_n, NOISE_TRIM, tmp);
         shape->sigma_rms = rms_n > 0.0 ? rms_y / rms_n : 0.0;
         /* the high-pass vectors (I - Avg)^2 X into P, their directions */
         mcf__graph_average(&g, X, 3, tmp);

@@ -81,6 +81,22 @@
  * quantization 0.35-0.63: none of those switches */
 #define VIEW_SHARE 0.7
 #define VIEW_RATIO 1.15
+/* Is there noise at all? Noise is white: its high-pass correlates with its
+ * own 1-ring average as the calibration noise's does (mcf__noise_shape:
+ * corr_noise, -0.29 to -0.32 on the shared meshes), while a clean
+ * surface's high-pass (its curvature, its triangles' irregularity) is
+ * smoother: the correlation is higher. The default request reads no noise
+ * when corr exceeds corr_noise by more than WHITE_GAP. Measured
+ * (2026-11-28, mcf smooth, seed 1): clean meshes exceed it by 0.12-1.7
+ * (sphere_cgal, spot, fertility, bunny_npm_closed, knot1, armadillo,
+ * snowden, stanford-bunny, bunny.drc), the CAD parts by 0.04-0.08 (car,
+ * blade, couplingdown_sub2: those the reading and SURE leave nearly
+ * alone, below 0.13 of the error of 0.1 h noise); Gaussian noise along
+ * the normals of 0.05 h by at most 0.07, of 0.1 h by at most 0.06 (car),
+ * one viewpoint's of 0.1 h by at most 0.06. Before, the default moved
+ * fertility, bunny_npm_closed and armadillo 0.11, 0.23 and 0.28 of the
+ * error of 0.1 h noise */
+#define WHITE_GAP 0.1
 
 static void fair_free(fair_ctx *c)
 {
@@ -445,6 +461,8 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         int view = robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est;
         if (view)
             s = shape.sigma_view;
+        else if (robust && shape.corr > shape.corr_noise + WHITE_GAP)
+            s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP) */
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below

@@ -178,12 +178,23 @@ mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
  * viewpoint's depth noise, whose normal component is s |u . n|, where the
  * ratio of medians reads low); direction_share, the largest eigenvalue's
  * share of the sum of the 3D high-pass vectors' outer products over the
- * same vertices (1/3: directions spread evenly; near 1: one direction). */
+ * same vertices (1/3: directions spread evenly; near 1: one direction),
+ * and direction its unit eigenvector u; sigma_dir, the deviation of
+ * noise along u read from the high-pass vectors' components along u
+ * (their exact variance per unit noise: the row norms of (I - Avg)^2),
+ * sigma_view its part along the normals (sigma_dir sqrt(mean (u .
+ * n)^2)), sigma_view_t its part in the tangent planes per direction
+ * (sigma_dir sqrt(mean (1 - (u . n)^2) / 2)); corr and corr_noise, the
+ * correlation of the high-pass along the normals with its 1-ring average
+ * (over the same vertices) for X and for the calibration's unit noise:
+ * about equal when X's high-pass is noise, higher when it is the
+ * surface's own. */
 typedef struct {
     double sigma_rms;
     double direction_share;
     double sigma_dir, sigma_view, sigma_view_t;
     double direction[3];
+    double corr, corr_noise;
 } mcf__noise_shape;
 mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,

@@ -11,7 +11,10 @@
  *    model), the default request's error against the input's and against
  *    the uniform Taubin oracle (Open3D's filter_smooth_taubin's weights at
  *    its best pass count, chosen knowing the clean mesh).
- * Runs in about 5 s.
+ *  - one viewpoint's noise: mcf__noise_levels' reading against the
+ *    injected noise and an independent eigensolver, and the default
+ *    request against Taubin's oracles; clean meshes come back unchanged.
+ * Runs in about 8 s.
  */
 #include <math.h>
 #include <stdio.h>
@@ -475,7 +478,7 @@ static void test_view_reading(void **state)
 /* The uniform Taubin oracle (lambda 0.5, mu -0.53, Open3D's
  * filter_smooth_taubin): the best error over the pass counts, one pass at
  * a time, stopping 20 passes past the best once 5% worse. */
-static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean)
+static double taubin_oracle_lap(const mcf_mesh *noisy, const mcf_mesh *clean, mcf_laplacian lap)
 {
     mcf_mesh *x = mcf_mesh_dup(noisy, NULL);
     mcf_flow_params p;
@@ -484,7 +487,7 @@ static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean)
     assert_non_null(x);
     mcf_flow_params_init(&p);
     p.scheme = MCF_TAUBIN;
-    p.laplacian = MCF_LAPLACIAN_UNIFORM;
+    p.laplacian = lap;
     p.iterations = 1;
     for (int k = 1; k <= 500; k++) {
         assert_int_equal(mcf_flow_run(x, &p, NULL, NULL), MCF_OK);
@@ -498,6 +501,11 @@ static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean)
     }
     mcf_mesh_free(x);
     return best;
+}
+
+static double taubin_oracle(const mcf_mesh *noisy, const mcf_mesh *clean)
+{
+    return taubin_oracle_lap(noisy, clean, MCF_LAPLACIAN_UNIFORM);
 }
 
 /* issue 31's `out`: Gaussian noise of 0.1 mean edges along the normals
@@ -600,6 +608,149 @@ static void test_outliers_end_to_end(void **state)
     assert_true(nrep_all >= (int)ceil(0.85 * nout_all));
 }
 
+/* issue 31's `view` on a repository mesh: Gaussian noise of rho mean
+ * edges along one unit vector *u drawn from the seed, on the vertices a
+ * run moves (mcf_flow_add_noise's: those it changes). */
+static mcf_mesh *with_view_noise(const mcf_mesh *clean, double rho, int seed, double u[3])
+{
+    mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+    mcf_flow_params p;
+    mcf_mesh_info info;
+    int nv = mcf_mesh_nvertices(clean);
+    double *X = malloc(3 * sizeof(double) * (size_t)nv), l = 0.0;
+    uint64_t r = 7919u * (uint64_t)seed;
+    assert_non_null(m);
+    assert_non_null(X);
+    mcf_flow_params_init(&p);
+    assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
+    assert_int_equal(mcf_flow_add_noise(m, &p, 0.1, (uint64_t)seed, NULL), MCF_OK); /* which move */
+    for (int d = 0; d < 3; d++) {
+        u[d] = gauss01(&r);
+        l += u[d] * u[d];
+    }
+    for (int d = 0; d < 3; d++)
+        u[d] /= sqrt(l);
+    memcpy(X, mcf_mesh_positions(clean), 3 * sizeof(double) * (size_t)nv);
+    for (int i = 0; i < nv; i++) {
+        double g = rho * info.mean_edge * gauss01(&r);
+        if (memcmp(mcf_mesh_positions(m) + 3 * (size_t)i, X + 3 * (size_t)i, 3 * sizeof(double)))
+            for (int d = 0; d < 3; d++)
+                X[3 * (size_t)i + d] += g * u[d];
+    }
+    mcf_mesh *out = mcf_mesh_new(nv, X, mcf_mesh_nfaces(clean), mcf_mesh_faces(clean), NULL);
+    assert_non_null(out);
+    free(X);
+    mcf_mesh_free(m);
+    return out;
+}
+
+/* The default request through api_params (nothing set) on m in place. */
+static void run_default(mcf_mesh *m, mcf_flow_stats *st)
+{
+    api_params ap;
+    mcf_error err = {0};
+    api_params_init(&ap);
+    assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
+    if (mcf_flow_run(m, &ap.flow, st, &err) != MCF_OK)
+        fail_msg("%s", err.msg);
+    api_params_free(&ap);
+}
+
+/* One viewpoint's noise end to end (issue 31: "one viewpoint median <=
+ * 1.0x Taubin's oracle", make quality's taubin_best: the product's Taubin,
+ * cotan weights, at its best pass count): sphere_cgal, bunny_npm_closed
+ * and knot1 at 0.25 and 0.5 mean edges, seed 1. The default's error over
+ * that oracle's at most VIEW_COTAN_WORST in every case and
+ * VIEW_COTAN_MEDIAN for the median; over the uniform Taubin oracle
+ * (Open3D's weights, which move vertices along the surface too and so
+ * take more of this noise's tangential part) a median at most
+ * VIEW_UNIFORM_MEDIAN; the metrics say one_direction and the direction
+ * read is the injected one within VIEW_DIR_COS. Measured (2026-11-28):
+ * error / cotan Taubin 0.29-0.78, median 0.57; / uniform Taubin
+ * 0.73-1.04, median 0.97; |u . read| >= 0.9999. Before (the median
+ * reading along the normals) make quality had 1.06-1.18 against the
+ * cotan oracle on these meshes. The bounds: issue 31's 1.0 for the
+ * median less 0.2, 0.9 for each case; the uniform oracle's median the
+ * measured 0.97 plus 0.13; the runs are deterministic. About 2 s. */
+#define VIEW_COTAN_WORST 0.9
+#define VIEW_COTAN_MEDIAN 0.8
+#define VIEW_UNIFORM_MEDIAN 1.1
+#define VIEW_DIR_COS 0.99
+static void test_view_end_to_end(void **state)
+{
+    static const char *const names[] = {"sphere_cgal.obj", "bunny_npm_closed.obj", "knot1.obj"};
+    static const double rhos[] = {0.25, 0.5};
+    double rtb[6], rtc[6];
+    int nr = 0;
+    (void)state;
+    for (int q = 0; q < 3; q++)
+        tl_need_mesh(names[q]);
+    for (int q = 0; q < 3; q++) {
+        mcf_mesh *clean = tl_load(names[q]);
+        for (int r = 0; r < 2; r++) {
+            double u[3];
+            mcf_mesh *m = with_view_noise(clean, rhos[r], 1, u);
+            mcf_flow_stats st;
+            double in = rms(m, clean), tb = taubin_oracle(m, clean), tc = taubin_oracle_lap(m, clean, MCF_LAPLACIAN_COTAN);
+            run_default(m, &st);
+            double e = rms(m, clean), c = fabs(mcf__dot3(u, st.noise_direction));
+            print_message("%-20s view %.2f: noise %.3f (kind %d), direction . u %.4f, K=%d, error/input %.3f, "
+                          "/Taubin %.3f, /cotan Taubin %.3f\n",
+                          names[q], rhos[r], st.noise, st.noise_kind, c, st.steps, e / in, e / tb, e / tc);
+            assert_int_equal(st.noise_kind, MCF_NOISE_ONE_DIRECTION);
+            assert_true(c >= VIEW_DIR_COS);
+            assert_true(e <= VIEW_COTAN_WORST * tc);
+            rtc[nr] = e / tc;
+            rtb[nr++] = e / tb;
+            mcf_flow_stats_free(&st);
+            mcf_mesh_free(m);
+        }
+        mcf_mesh_free(clean);
+    }
+    qsort(rtb, (size_t)nr, sizeof *rtb, cmp_double);
+    qsort(rtc, (size_t)nr, sizeof *rtc, cmp_double);
+    double med = 0.5 * (rtb[nr / 2 - 1] + rtb[nr / 2]), medc = 0.5 * (rtc[nr / 2 - 1] + rtc[nr / 2]);
+    print_message("median error / cotan Taubin %.3f, / uniform Taubin %.3f\n", medc, med);
+    assert_true(medc <= VIEW_COTAN_MEDIAN);
+    assert_true(med <= VIEW_UNIFORM_MEDIAN);
+}
+
+/* No harm (issue 31: "a clean mesh moved <= 0.1x the error of 0.1 h
+ * noise"): the default request on the repository's clean meshes moves
+ * them by at most CLEAN_BOUND times the error Gaussian noise of 0.1 mean
+ * edges along the normals would be (mcf_flow_add_noise, seed 1), and says
+ * it read no noise where the surface's high-pass is not white (WHITE_GAP).
+ * Measured (2026-11-28): sphere_cgal, bunny_npm_closed, knot1 and car
+ * 0 (to 1e-14); bunny_npm_closed moved 0.23 before the test that there is
+ * noise at all. CLEAN_BOUND: issue 31's 0.1 halved, a margin for a change
+ * elsewhere. */
+#define CLEAN_BOUND 0.05
+static void test_clean_untouched(void **state)
+{
+    static const char *const names[] = {"sphere_cgal.obj", "bunny_npm_closed.obj", "knot1.obj", "car.drc"};
+    (void)state;
+    for (int q = 0; q < 4; q++)
+        tl_need_mesh(names[q]);
+    for (int q = 0; q < 4; q++) {
+        mcf_mesh *clean = tl_load(names[q]), *m = mcf_mesh_dup(clean, NULL), *n = mcf_mesh_dup(clean, NULL);
+        mcf_flow_params p;
+        mcf_flow_stats st;
+        assert_non_null(m);
+        assert_non_null(n);
+        mcf_flow_params_init(&p);
+        assert_int_equal(mcf_flow_add_noise(n, &p, 0.1, 1, NULL), MCF_OK);
+        run_default(m, &st);
+        double moved = rms(m, clean), e01 = rms(n, clean);
+        print_message("%-20s clean: noise read %.4f, K=%d, moved %.3g of the error of 0.1 h noise\n", names[q],
+                      st.noise, st.steps, moved / e01);
+        assert_true(moved <= CLEAN_BOUND * e01);
+        mcf_flow_stats_free(&st);
+        mcf_mesh_free(m);
+        mcf_mesh_free(n);
+        mcf_mesh_free(clean);
+    }
+}
+
 /* A named scheme stays as it was: `fairing` named repairs nothing. */
 static void test_named_untouched(void **state)
 {
@@ -630,6 +781,8 @@ int main(void)
         cmocka_unit_test(test_spikes_none),
         cmocka_unit_test(test_view_reading),
         cmocka_unit_test(test_outliers_end_to_end),
+        cmocka_unit_test(test_view_end_to_end),
+        cmocka_unit_test(test_clean_untouched),
         cmocka_unit_test(test_named_untouched),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
