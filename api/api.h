@@ -372,6 +372,13 @@ cJSON *api_params_given_json(const api_params *p);
  * smooth --help`, `mcf params` and the test that keeps api/openapi.yaml
  * and api/mcfd.proto in step with the table. NULL when out of memory. */
 cJSON *api_params_describe(const api_limits *lim);
+/* The name of names (n of them, NULLs skipped) nearest to word, for "did
+ * you mean" in errors: the smallest edit distance (insert, delete,
+ * substitute, swap two neighbours), at most 2 and less than half of
+ * word's length (a tie: the first of word's length, else the first);
+ * NULL when none is that near (or word is longer than 63 characters).
+ * Case and '-'/'_' are not told apart. */
+const char *api_nearest_name(const char *word, const char *const *names, size_t n);
 
 /* ----------------------------------------------------------- memory estimate */
 

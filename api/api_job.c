@@ -330,11 +330,17 @@ mcf_status api_job_run(api_job_request *rq, api_params *p,
     double t_start = mcf_now();
 
     api_job_result_free(res);
-    if (!rq || !p || !rq->input || rq->input_len == 0) {
-        mcf_error_set(&res->err, MCF_EINVAL, "job: no input");
+    if (!rq || !p) {
+        mcf_error_set(&res->err, MCF_EINVAL, "job: no request or parameters");
         res->stage = API_JOB_DECODE;
         res->part = "mesh";
         return MCF_EINVAL;
+    }
+    if (!rq->input || rq->input_len == 0) {
+        mcf_error_set(&res->err, MCF_EDECODE, "the input is empty (0 bytes): no mesh to read");
+        res->stage = API_JOB_DECODE;
+        res->part = "mesh";
+        return MCF_EDECODE;
     }
     if (!rq->lim)
         api_limits_default(&def);

@@ -166,7 +166,8 @@ static const keydoc docs[] = {
     {"tol", "error per step", "tolerance of adaptive steps (needs adaptive)", NULL, 0},
     {"max_steps", "steps", "cap on the steps of a run, rejected adaptive attempts "
      "included", NULL, 0},
-    {"format", NULL, "output format: obj, draco, ply, stl, off, glb or gltf", "the input's", 1},
+    {"format", NULL, "output format: obj, draco (or drc), ply, stl, off, glb or gltf",
+     "the input's", 1},
     {"quantization_bits", "bits", "Draco output: position bits; auto keeps a Draco "
      "input's, 16 from other formats; 0 lossless", NULL, 1},
     {"compression_level", NULL, "Draco output: 0 fastest to 10 smallest", NULL, 1},

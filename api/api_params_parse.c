@@ -30,19 +30,40 @@ static const char *shorten(const char *s, size_t max, char *out)
     return out;
 }
 
+/* The choice of a named key nearest to text (api_nearest_name), or NULL. */
+static const char *nearest_choice(const keydef *k, const char *text)
+{
+    const char *names[MCF_NSCHEMES + 1];
+    size_t n = 0;
+
+    if (k->kind == K_SCHEME) {
+        for (n = 0; n < (size_t)MCF_NSCHEMES; n++)
+            names[n] = mcf_scheme_get((mcf_scheme)n)->name;
+        return api_nearest_name(text, names, n);
+    }
+    if (k->kind != K_ENUM && k->kind != K_FORMAT)
+        return NULL;
+    for (const char *const *c = k->kind == K_ENUM ? k->names : api__format_names; *c; c++)
+        n++;
+    return api_nearest_name(text, k->kind == K_ENUM ? k->names : api__format_names, n);
+}
+
 /* The EINVAL of a bad value. shown: how to print the value (NULL: the
- * text in quotes). */
+ * text in quotes); a choice near the text is offered. */
 static mcf_status bad_value(const keydef *k, const char *text,
                             const char *shown, const api_limits *lim,
                             mcf_error *err)
 {
-    char what[200], s[48];
+    char what[200], s[48], hint[48] = "";
+    const char *near = shown ? NULL : nearest_choice(k, text);
     api__param_accepts(k, lim, what, sizeof what);
+    if (near)
+        snprintf(hint, sizeof hint, " (did you mean %s?)", near);
     if (shown)
         return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got %s",
                          k->name, what, shown);
-    return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got \"%s\"",
-                     k->name, what, shorten(text, 40, s));
+    return api__fail(err, MCF_EINVAL, "parameter '%s' must be %s, got \"%s\"%s",
+                     k->name, what, shorten(text, 40, s), hint);
 }
 
 static int parse_ll(const char *t, long long *out)
@@ -113,6 +134,8 @@ static int parse_value(const keydef *k, const char *t, const api_limits *lim,
         return 0;
     }
     case K_FORMAT:
+        if (strcmp(t, "drc") == 0)     /* Draco's extension, as OUT's names it */
+            t = "draco";
         for (i = 0; api__format_names[i]; i++)
             if (strcmp(t, api__format_names[i]) == 0) {
                 v->e = (int)api_format_from_name(t);
@@ -204,7 +227,14 @@ static mcf_status set_shown(api_params *p, const char *key, const char *text,
     k = api__param_find(key);
     if (!k) {
         char list[256], s[48];
+        const char *names[64], *near;
         size_t used = 0, i, room;
+        /* A name near it is the whole answer (the list leaves it no room). */
+        for (i = 0; i < api__param_nkeys && i < 64; i++)
+            names[i] = api__param_keys[i].name;
+        if ((near = api_nearest_name(key, names, i)) != NULL)
+            return api__fail(err, MCF_EINVAL, "unknown parameter '%s' (did you mean '%s'?)",
+                             shorten(key, 40, s), near);
         list[0] = '\0';
         for (i = 0; i < api__param_nkeys; i++) {
             int n = snprintf(list + used, sizeof list - used, "%s%s",

@@ -2,7 +2,8 @@
 /*
  * api_text.c - the text helpers of api_internal.h, shared by the line- and
  * token-based mesh readers (OBJ, OFF, ASCII PLY, ASCII STL), and the raw
- * JSON scan of the parameters' and glTF's checks.
+ * JSON scan of the parameters' and glTF's checks; and api_nearest_name
+ * (api.h), the "did you mean" of the parameters' and mcf's errors.
  *
  * Input buffers are untrusted and not NUL-terminated: every helper takes
  * an explicit end or length and never reads past it. Numbers are copied
@@ -10,6 +11,7 @@
  * functions' own leniency (leading white space, a '+' sign for integers)
  * is refused here so that a token means the same to every reader.
  */
+#include <ctype.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -128,4 +130,56 @@ int api__json_next(const char *s, size_t n, size_t *i)
                 break;
         }
     return (unsigned char)c;
+}
+
+/* One character as the nearest name compares it: case and '-'/'_' folded. */
+static int fold(char c)
+{
+    return c == '-' ? '_' : tolower((unsigned char)c);
+}
+
+/* The optimal-string-alignment distance of a and b (each < 64 chars). */
+static size_t edit_distance(const char *a, size_t la, const char *b, size_t lb)
+{
+    unsigned char d[64][64];    /* distances are at most 63 */
+    size_t i, j;
+
+    for (i = 0; i <= la; i++)
+        d[i][0] = (unsigned char)i;
+    for (j = 0; j <= lb; j++)
+        d[0][j] = (unsigned char)j;
+    for (i = 1; i <= la; i++)
+        for (j = 1; j <= lb; j++) {
+            size_t sub = d[i - 1][j - 1] + (size_t)(fold(a[i - 1]) != fold(b[j - 1]));
+            size_t del = d[i - 1][j] + (size_t)1, ins = d[i][j - 1] + (size_t)1;
+            size_t v = sub < del ? sub : del;
+            if (ins < v)
+                v = ins;
+            if (i > 1 && j > 1 && fold(a[i - 1]) == fold(b[j - 2]) &&
+                fold(a[i - 2]) == fold(b[j - 1]) && d[i - 2][j - 2] + (size_t)1 < v)
+                v = d[i - 2][j - 2] + (size_t)1;
+            d[i][j] = (unsigned char)v;
+        }
+    return d[la][lb];
+}
+
+const char *api_nearest_name(const char *word, const char *const *names, size_t n)
+{
+    const char *best = NULL;
+    size_t lw = word ? strlen(word) : 64, bd = 3, i;
+
+    if (lw >= 64)
+        return NULL;
+    for (i = 0; i < n; i++) {
+        size_t ln = names[i] ? strlen(names[i]) : 64, dist;
+        if (ln >= 64 || (ln > lw ? ln - lw : lw - ln) >= bd)
+            continue;
+        dist = edit_distance(word, lw, names[i], ln);
+        /* a tie goes to a name of word's length (desbrun3: desbrun2) */
+        if (2 * dist < lw && (dist < bd || (dist == bd && ln == lw && strlen(best) != lw))) {
+            bd = dist;
+            best = names[i];
+        }
+    }
+    return best;
 }

@@ -97,6 +97,47 @@ static int limit_option(int k, const char *opt, const char *val, api_limits *lim
 /* The tool's limits before its options: api_limits_default's, without a
  * bound on the input's bytes (a local file; the mesh's counts and memory
  * are what bound a job). */
+/* The usage error of an unknown option --NAME (key: NAME with '_' for
+ * '-'), offering the nearest option cmd takes (api_nearest_name). */
+static int unknown_option(const char *cmd, const char *a, size_t nl, const char *key,
+                          const cJSON *table, int smooth)
+{
+    static const char *const own[] = {"quiet", "progress", "strict", "fix_vertices",
+                                      "target", "metrics", "threads"};
+    const char *names[96], *near;
+    const cJSON *e;
+    size_t n = 0, k, off = 0;
+    char flag[64];
+
+    cJSON_ArrayForEach(e, table) {
+        const char *name = cJSON_GetStringValue(cJSON_GetObjectItem(e, "name"));
+        if (n < 64 && find_param(table, name, smooth))
+            names[n++] = name;
+    }
+    for (k = 0; limit_names[k]; k++)
+        names[n++] = limit_names[k];
+    for (k = 0; smooth && k < sizeof own / sizeof own[0]; k++)
+        names[n++] = own[k];
+    near = api_nearest_name(key, names, n);
+    if (!near && strncmp(key, "no_", 3) == 0) {       /* --no-NAME of a boolean */
+        near = api_nearest_name(key + 3, names, n);
+        e = near ? find_param(table, near, smooth) : NULL;
+        if (!e || !is_type(e, "boolean"))
+            near = NULL;
+        else
+            off = 3;
+    }
+    if (!near)
+        return fail(EXIT_USAGE, "%s: unknown option '--%.*s' (try mcf %s --help)",
+                    cmd, (int)nl, a, cmd);
+    memcpy(flag, "no-", off);
+    for (k = 0; near[k] && off + k + 1 < sizeof flag; k++)
+        flag[off + k] = near[k] == '_' ? '-' : near[k];
+    flag[off + k] = '\0';
+    return fail(EXIT_USAGE, "%s: unknown option '--%.*s', did you mean '--%s'? (try mcf %s --help)",
+                cmd, (int)nl, a, flag, cmd);
+}
+
 void cli_limits(api_limits *lim)
 {
     api_limits_default(lim);
@@ -193,8 +234,7 @@ int parse_args(const char *cmd, int argc, char **argv, int first,
                 e = NULL;
         }
         if (!e)
-            return fail(EXIT_USAGE, "%s: unknown option '--%.*s' (try mcf %s --help)",
-                        cmd, (int)nl, a, cmd);
+            return unknown_option(cmd, a, nl, key, table, smooth);
         if (is_type(e, "boolean")) {
             if (eq)
                 return fail(EXIT_USAGE, "option '--%.*s' takes no value", (int)nl, a);
@@ -272,13 +312,18 @@ int print_help(const char *head, int smooth, const char *tail)
 /* The output format: --format, else OUT's extension. */
 int output_format(api_params *p, const char *out)
 {
+    char list[64] = "";
+    size_t used = 0;
+    int f;
+
     if (p->encode.format != API_FMT_UNKNOWN)
         return 0;
     p->encode.format = api_format_from_name(out);
-    if (p->encode.format == API_FMT_UNKNOWN)
-        return fail(EXIT_USAGE,
-                    "cannot tell the output format from '%s' (use --format obj|draco|ply|stl|off)",
-                    out);
-    return 0;
+    if (p->encode.format != API_FMT_UNKNOWN)
+        return 0;
+    for (f = API_FMT_OBJ; f <= API_FMT_GLTF && used < sizeof list; f++)
+        used += (size_t)snprintf(list + used, sizeof list - used, "%s%s", f > API_FMT_OBJ ? "|" : "",
+                                 api_format_name((api_format)f));
+    return fail(EXIT_USAGE, "cannot tell the output format from '%s' (use --format %s)", out, list);
 }
 

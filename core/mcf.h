@@ -368,8 +368,12 @@ typedef struct {
     int fairing_robust;       /* the fairing filters with the automatic
                                  amount: first repair the spikes (vertices
                                  far off the surface their neighbours
-                                 define, mcf_flow_stats.spikes_repaired;
-                                 the default request's) */
+                                 define, mcf_flow_stats.spikes_repaired),
+                                 and take back the faces without area in
+                                 the input that the output turned against
+                                 the filtered normals
+                                 (mcf_flow_stats.flips_repaired); the
+                                 default request's */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -554,8 +558,8 @@ typedef struct {
                                  vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
     int robust;               /* 1 when fairing_robust's stages ran (the
-                                 spike repair and the reading of the
-                                 noise's direction) */
+                                 spike repair, the reading of the noise's
+                                 direction, the flips' repair) */
     int noise_kind;           /* mcf_noise_kind: what the amount assumed */
     double noise_share;       /* robust: the high-pass vectors' largest
                                  eigenvalue's share (1/3 directions spread
@@ -572,6 +576,10 @@ typedef struct {
     int spikes_repaired;      /* fairing_robust: vertices found far off
                                  the surface their neighbours define and
                                  put back on it before the filter */
+    int flips_repaired;       /* fairing_robust: faces without area in the
+                                 input that the output gave an orientation
+                                 against the filtered normals, taken back
+                                 toward the input */
     unsigned warnings;        /* MCF_WARN_* bits */
     int folded_faces;         /* faces the run folded: turned by more
                                  than 90 degrees against the input's same

@@ -234,6 +234,12 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
         mcf__fair_clamp_moves(c, X, rmax, NULL);
         mcf__fair_clamp_moves(c, c->Ybest, rmax, NULL);
     }
+    /* the faces the input had without area, turned by the output against
+     * the filtered normals (c->Y: Y's normals), taken back (mcf_flips.c) */
+    int flip_moves;
+    if (c->p->fairing_robust && (rc = mcf__flips_repair(X, c->Xin, c->Y, c->F, nf, nv, &st->flips_repaired,
+                                                        &flip_moves, err)) != MCF_OK)
+        return rc;
     if ((rc = mcf__unfold(X, c->Xin, c->Ybest, c->F, nf, nv, &st->guard_rounds, &st->guard_vertices,
                           &left, err)) != MCF_OK)
         return rc;

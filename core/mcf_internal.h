@@ -353,6 +353,16 @@ int mcf__folds_against(const double *X, const double *X_ref, const int32_t *F, i
 mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int32_t *F, int nf, int nv,
                        int *rounds, int *moves, int *left, mcf_error *err);
 
+/* ---- flips (mcf_flips.c)
+ * The fairing filter's faces that were degenerate in its input X_in and
+ * that X gives an orientation not facing along the filtered normal field
+ * (field: unit vertex normals, 3*nv) by 60 degrees, taken back: their
+ * vertices that X moved halve their displacement from X_in (6 rounds),
+ * then take X_in's positions. repaired: such faces before the first
+ * round; moves: vertex moves. ENOMEM only. */
+mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field, const int32_t *F, int nf,
+                             int nv, int *repaired, int *moves, mcf_error *err);
+
 /* n standard normal draws from a 64-bit seed, mcf_mesh_add_noise's
  * generator (the same draws in the same order). (mcf_mesh.c) */
 void mcf__gauss_fill(uint64_t seed, double *z, size_t n);

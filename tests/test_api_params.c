@@ -162,6 +162,8 @@ static void test_scalar_keys(void **state)
     assert_int_equal(p.encode.format, API_FMT_DRACO);
     ok3("format", "off", &p);
     assert_int_equal(p.encode.format, API_FMT_OFF);
+    ok3("format", "drc", &p);       /* Draco's extension names it too */
+    assert_int_equal(p.encode.format, API_FMT_DRACO);
     ok3("quantization_bits", "24", &p);
     assert_int_equal(p.encode.quantization_bits, 24);
     ok3("compression_level", "0", &p);
@@ -209,7 +211,11 @@ static void test_bad_values(void **state)
     bad3("seed", "1", MCF_EINVAL, "unknown parameter 'seed'");
     bad3("format", "fbx", MCF_EINVAL,
          "parameter 'format' must be one of obj, draco, ply, stl, off, glb, gltf, got \"fbx\"");
-    bad3("format", "drc", MCF_EINVAL, "parameter 'format'");
+    /* a near name is offered (api_nearest_name) */
+    bad3("format", "stll", MCF_EINVAL, "got \"stll\" (did you mean stl?)");
+    bad3("scheme", "taubn", MCF_EINVAL, "got \"taubn\" (did you mean taubin?)");
+    bad3("iterationz", "5", MCF_EINVAL, "unknown parameter 'iterationz' (did you mean 'iterations'?)");
+    bad3("strenght", "1", MCF_EINVAL, "unknown parameter 'strenght' (did you mean 'strength'?)");
     bad3("quantization_bits", "25", MCF_EINVAL,
          "parameter 'quantization_bits' must be an integer from 0 to 24");
     bad3("compression_level", "11", MCF_EINVAL,
@@ -221,8 +227,8 @@ static void test_bad_values(void **state)
          "indices (integers >= 0), got \"x\" (item 2)");
     bad3("fixed_vertices", "-1", MCF_EINVAL, "got \"-1\" (item 1)");
     bad3("fixed_vertices", "3000000000", MCF_EINVAL, "(item 1)");
-    bad3("iterationz", "5", MCF_EINVAL,
-         "unknown parameter 'iterationz' (accepted: scheme,dt,iterations,time,"
+    bad3("smoothness", "5", MCF_EINVAL,
+         "unknown parameter 'smoothness' (accepted: scheme,dt,iterations,time,"
          "strength,boundary,fixed_vertices,rescale,normalize,laplacian,mass,adaptive,tol,"
          "max_steps,format,quantization_bits,compression_level,"
          "preserve_order,ply_curvature,ply_binary)");

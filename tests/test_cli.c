@@ -313,7 +313,36 @@ static void test_errors(void **state)
     r = tl_run("smooth", tl_sphere(), "o.obj", "--tol", "1e-5", NULL);
     tl_expect_error(&r, 2, "parameter 'tol' applies to adaptive runs only");
     r = tl_run("smooth", tl_sphere(), "o.xyz", NULL);
-    tl_expect_error(&r, 2, "cannot tell the output format from 'o.xyz'");
+    tl_expect_error(&r, 2, "cannot tell the output format from 'o.xyz' "
+                    "(use --format obj|draco|ply|stl|off|glb|gltf)");
+    /* issue 29: a mistyped option is offered the nearest one; format=drc
+     * (Draco's extension) is Draco; an empty file says so */
+    r = tl_run("smooth", tl_sphere(), "o.obj", "--strenght", "0.5", NULL);
+    tl_expect_error(&r, 2, "unknown option '--strenght', did you mean '--strength'?");
+    r = tl_run("smooth", tl_sphere(), "o.obj", "--progres", NULL);
+    tl_expect_error(&r, 2, "did you mean '--progress'?");
+    r = tl_run("smooth", tl_sphere(), "o.obj", "--fix-vertice", "f.txt", NULL);
+    tl_expect_error(&r, 2, "did you mean '--fix-vertices'?");
+    r = tl_run("smooth", tl_sphere(), "o.obj", "--no-normalise", NULL);
+    tl_expect_error(&r, 2, "did you mean '--no-normalize'?");
+    r = tl_run("smooth", tl_sphere(), "o.obj", "--scheme", "desbrun3", NULL);
+    tl_expect_error(&r, 2, "got \"desbrun3\" (did you mean desbrun2?)");
+    r = tl_run("convert", tl_sphere(), "o.xyz", "--format", "drc", NULL);
+    assert_int_equal(r.status, 0);
+    tl_run_free(&r);
+    f = fopen(tl_in_scratch("o.xyz"), "rb");
+    assert_non_null(f);
+    {
+        char magic[5] = "";
+        assert_int_equal(fread(magic, 1, 5, f), 5);
+        assert_memory_equal(magic, "DRACO", 5);
+    }
+    fclose(f);
+    f = fopen(tl_in_scratch("empty.obj"), "w");
+    assert_non_null(f);
+    fclose(f);
+    r = tl_run("smooth", "empty.obj", "o.obj", NULL);
+    tl_expect_error(&r, 1, "empty.obj: the input is empty (0 bytes): no mesh to read");
     r = tl_run("smooth", "missing.obj", "o.obj", NULL);
     tl_expect_error(&r, 1, "cannot read 'missing.obj'");
     r = tl_run("info", NULL);

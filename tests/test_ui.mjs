@@ -117,6 +117,7 @@ async function test_smooth_and_compare() {
                              { timeout: 120000 });
   const st = await statusText();
   assert(/^Done: job [0-9a-f]{32}/.test(st), `the job succeeded: "${st}"`);
+  assert(/: desbrun2, \d+ steps? to t = /.test(st), `the status says what ran: "${st}"`);
   assert(await page.$eval('#progress', p => p.value) === 1, 'the progress bar is full');
   await nextFrames();
   console.log(`    knot1.obj: load to first frame ${(await page.evaluate(() => window.mcfd.perf.firstFrameMs)).toFixed(0)} ms`);
@@ -134,7 +135,13 @@ async function test_smooth_and_compare() {
     .map(r => Array.from(r.querySelectorAll('td')).map(d => Number(d.textContent))));
   assert(errs.length === 1 && errs[0][1] < errs[0][0],
          `smoothing lowers the error against the clean mesh: ${JSON.stringify(errs)}`);
-  assert((await page.$$('#downloads button')).length === 5, 'a download per format');
+  const labels = await page.$$eval('#downloads button', b => b.map(x => x.textContent));
+  assert(labels.length === 7 && labels.includes('glTF binary (.glb)') && labels.includes('glTF (.gltf)'),
+         `a download per format, glTF and GLB too: ${labels}`);
+  const accept = await page.$eval('#mesh', e => e.accept);
+  const formats = await page.$$eval('#format option', o => o.map(x => x.value));
+  assert(/\.glb/.test(accept) && /\.gltf/.test(accept) && formats.includes('glb') &&
+         formats.includes('gltf'), `glTF in the file picker and the result format: ${accept} ${formats}`);
 }
 
 async function test_colour_switch() {
@@ -181,6 +188,26 @@ async function test_download_own_format() {
   assert(/^# mcfd: \d+ vertices/.test(fs.readFileSync(file, 'utf8')), 'it is mcfd\'s OBJ');
 }
 
+// A clean mesh (the knot as GLB, converted by mcf): the default filter
+// reads no noise, takes no step, and the status says so.
+async function test_clean_mesh_reason() {
+  const glb = path.join(TMP, 'knot1.glb');
+  execFileSync(path.join(BUILD, 'mcf'), ['convert', path.join(DATA, 'meshes', 'knot1.obj'), glb]);
+  await (await page.$('#mesh')).uploadFile(glb);
+  await page.$eval('#target', e => { e.value = ''; });
+  await page.select('#scheme', '');
+  const last = await statusText();
+  await page.click('#run');
+  await page.waitForFunction(prev => {
+    const t = document.getElementById('status').textContent;
+    return t !== prev && /^(Done: job .*\.|Job )/.test(t);
+  }, { timeout: 60000 }, last);
+  const st = await statusText();
+  await shot('clean-nothing-to-remove.png');
+  assert(/nothing to remove: the noise read is 0 mean edges, so fairing took no step/.test(st),
+         `the status says why nothing changed: "${st}"`);
+}
+
 async function test_cancel() {
   const input = await page.$('#mesh');
   await input.uploadFile(path.join(DATA, 'meshes', 'bunny.drc'));
@@ -203,7 +230,8 @@ async function test_no_console_error() {
 }
 
 const TESTS = [test_page_asks_for_token, test_smooth_and_compare, test_colour_switch,
-               test_keyboard_orbit, test_download_own_format, test_cancel, test_no_console_error];
+               test_keyboard_orbit, test_download_own_format, test_clean_mesh_reason, test_cancel,
+               test_no_console_error];
 
 // ------------------------------------------------------------ main
 

@@ -8,7 +8,8 @@ import { Compare, defaultScale } from './view.js';
 
 const $ = id => document.getElementById(id);
 const FORMATS = [['obj', 'OBJ', '.obj'], ['draco', 'Draco', '.drc'], ['ply', 'PLY', '.ply'],
-                 ['stl', 'STL', '.stl'], ['off', 'OFF', '.off']];
+                 ['stl', 'STL', '.stl'], ['off', 'OFF', '.off'], ['glb', 'glTF binary', '.glb'],
+                 ['gltf', 'glTF', '.gltf']];
 const DEFAULT_ITERATIONS = 10; // Params.iterations' default (api/openapi.yaml)
 
 const state = { file: null, job: null, fields: null, busy: false };
@@ -166,7 +167,7 @@ $('job-form').addEventListener('submit', async e => {
       perf.succeededAt = performance.now();
       status('Done: loading the fields...');
       await showJob(job);
-      status(`Done: job ${job.id}.`);
+      status(`Done: job ${job.id}: ${summary(job.metrics)}.`);
     }
   } catch (err) {
     fail(err);
@@ -203,6 +204,18 @@ async function showJob(job) {
   perf.firstFrameMs = performance.now() - perf.succeededAt;
   metricsTable(job.metrics);
   downloads(job);
+}
+
+// What the job did, as mcf's summary line says it; a filter that took no
+// step says why nothing changed (the noise it read off the mesh).
+function summary(m) {
+  const f = m.flow, s = n => (n === 1 ? '' : 's');
+  if (f.steps === 0)
+    return `nothing to remove: the noise read is ${fmt(f.noise)} mean edges, so ${f.filter || m.scheme} ` +
+           'took no step and the mesh is unchanged';
+  if (/^fairing/.test(f.filter))
+    return `${f.filter}, ${f.steps} step${s(f.steps)} for noise ${fmt(f.noise)} mean edges`;
+  return `${m.scheme}, ${f.steps} step${s(f.steps)} to t = ${fmt(f.t_final)}`;
 }
 
 // The values view i shows for the chosen colour mode (null: plain).
