@@ -25,8 +25,9 @@ Error: the area-weighted RMS distance to the clean mesh (barycentric
 mass of the clean mesh, as mcf_compare's rms_m), over the input's. The
 medians of the repetitions are printed, with the machine's 1-thread dgemm
 rate beside them (absolute times mean nothing without it: the machine is
-shared). About 9 minutes with two repetitions on 2 cores, 25 more with
---big (the 7M row: about 3 GB per process).
+shared). About 25 minutes with two repetitions on 2 shared cores (load 16,
+2026-11-28), 18 more with --big at one repetition (the 7M row: about 4 GB
+per process).
 """
 import argparse
 import os
