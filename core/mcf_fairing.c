@@ -416,16 +416,24 @@ static void positions(const fair_ctx *c, double *Y)
  * WORK_INIT, the steps the rest, counted against the steps SURE will run
  * (sure_stop(K*), K* its best so far, at most the cap). Of the run: the
  * default's second filter WORK_PICK, the output (guard and unfolding)
- * WORK_OUTPUT. */
+ * WORK_OUTPUT. The share never decreases (mcf_work_fn): a K* that grows
+ * holds it until the steps catch up. */
 #define WORK_SETUP 0.2
 #define WORK_NOISE 0.45
 #define WORK_INIT 0.55
 #define WORK_PICK 0.15
 #define WORK_OUTPUT 0.12
-static void work(const fair_ctx *c, const char *phase, double f)
+static void work(fair_ctx *c, const char *phase, double f)
 {
+    double done = c->w0 + fmin(1.0, f) * (c->w1 - c->w0);
+
+    /* the steps' share falls when SURE's K* grows (more steps to come):
+     * mcf_work_fn promises a share that never decreases, so it holds */
+    if (done < c->work_done)
+        done = c->work_done;
+    c->work_done = done;
     if (c->p->work)
-        c->p->work(c->p->progress_ctx, phase, c->w0 + fmin(1.0, f) * (c->w1 - c->w0));
+        c->p->work(c->p->progress_ctx, phase, done);
 }
 
 /* The amount: iterations steps, or SURE with the noise level (c->s,

@@ -66,6 +66,7 @@ typedef struct {
     int is_explicit;
     int quiet;                 /* the hook sees no steps (cancel only) */
     double w0, w1;             /* its share of the run's work (mcf_fairing.c, work()) */
+    double work_done;          /* the last share reported: never less */
     /* explicit: Z (nv x ncol, row-major), tmp the same */
     double *Z, *tmp;
     /* implicit */
