@@ -176,7 +176,7 @@ const char *api_nearest_name(const char *word, const char *const *names, size_t 
             continue;
         dist = edit_distance(word, lw, names[i], ln);
         /* a tie goes to a name of word's length (desbrun3: desbrun2) */
-        if (2 * dist < lw && (dist < bd || (dist == bd && ln == lw && strlen(best) != lw))) {
+        if (2 * dist < lw && (dist < bd || (dist == bd && best && ln == lw && strlen(best) != lw))) {
             bd = dist;
             best = names[i];
         }

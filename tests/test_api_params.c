@@ -216,6 +216,13 @@ static void test_bad_values(void **state)
     bad3("scheme", "taubn", MCF_EINVAL, "got \"taubn\" (did you mean taubin?)");
     bad3("iterationz", "5", MCF_EINVAL, "unknown parameter 'iterationz' (did you mean 'iterations'?)");
     bad3("strenght", "1", MCF_EINVAL, "unknown parameter 'strenght' (did you mean 'strength'?)");
+    {
+        /* three edits from the only name of its length: no suggestion (and
+         * no tie-break against a best not found yet: the fuzzer's crash) */
+        static const char *const names[] = {"abcdefg", "desbrun2"};
+        assert_null(api_nearest_name("xyzdefg", names, 2));
+        assert_string_equal(api_nearest_name("desbrun3", names, 2), "desbrun2");
+    }
     bad3("quantization_bits", "25", MCF_EINVAL,
          "parameter 'quantization_bits' must be an integer from 0 to 24");
     bad3("compression_level", "11", MCF_EINVAL,
