@@ -989,22 +989,6 @@ static void test_feature_box(void **state)
 
 #define PI_D 3.14159265358979323846
 
-/* splitmix64 in [0, 1), and a standard Gaussian from two of them. */
-static double uniform01(uint64_t *r)
-{
-    uint64_t z = (*r += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
-
-static double gauss01(uint64_t *r)
-{
-    double a = uniform01(r);
-    return sqrt(-2.0 * log(1.0 - a)) * cos(2.0 * PI_D * uniform01(r));
-}
-
 /* A coarse genus-1 mesh (the issue's unseen set had one of 250 vertices):
  * a torus of radii 1 and r, 25 x 10 vertices; jittered: at jittered
  * angles, each quad split along a diagonal drawn at random (fixed seed):
@@ -1017,10 +1001,10 @@ static mcf_mesh *coarse_torus(double rt, int jittered)
     int32_t F[6 * NU * NW];
     uint64_t r = 7;
     for (int i = 0; i < NU; i++)
-        u[i] = 2.0 * PI_D * (i + (jittered ? 0.8 * (uniform01(&r) - 0.5) : 0.0)) / NU;
+        u[i] = 2.0 * PI_D * (i + (jittered ? 0.8 * (tl_uniform01(&r) - 0.5) : 0.0)) / NU;
     for (int i = 0; i < NU; i++)
         for (int j = 0; j < NW; j++) {
-            double v = 2.0 * PI_D * (j + (jittered ? 0.8 * (uniform01(&r) - 0.5) : 0.0)) / NW,
+            double v = 2.0 * PI_D * (j + (jittered ? 0.8 * (tl_uniform01(&r) - 0.5) : 0.0)) / NW,
                    *x = X + 3 * (i * NW + j);
             x[0] = (1.0 + rt * cos(v)) * cos(u[i]);
             x[1] = (1.0 + rt * cos(v)) * sin(u[i]);
@@ -1031,7 +1015,7 @@ static mcf_mesh *coarse_torus(double rt, int jittered)
             int32_t a = i * NW + j, b = ((i + 1) % NU) * NW + j, c = ((i + 1) % NU) * NW + (j + 1) % NW,
                     d = i * NW + (j + 1) % NW, *t = F + 6 * (i * NW + j);
             int32_t q1[6] = {a, b, c, a, c, d}, q2[6] = {a, b, d, b, c, d};
-            memcpy(t, !jittered || uniform01(&r) < 0.5 ? q1 : q2, sizeof q1);
+            memcpy(t, !jittered || tl_uniform01(&r) < 0.5 ? q1 : q2, sizeof q1);
         }
     mcf_mesh *m = mcf_mesh_new(NU * NW, X, 2 * NU * NW, F, NULL);
     assert_non_null(m);
@@ -1058,7 +1042,7 @@ static mcf_mesh *noisy_copy(const mcf_mesh *clean, const api_params *ap, int iso
     for (int i = 0; i < nv; i++) {
         int moved = memcmp(N + 3 * i, C + 3 * i, 3 * sizeof(double)) != 0;
         for (int d = 0; d < 3; d++)
-            X[3 * i + d] = C[3 * i + d] + (moved ? rho * info.mean_edge * gauss01(&r) : 0.0);
+            X[3 * i + d] = C[3 * i + d] + (moved ? rho * info.mean_edge * tl_gauss01(&r) : 0.0);
     }
     mcf_mesh *out = mcf_mesh_new(nv, X, mcf_mesh_nfaces(clean), mcf_mesh_faces(clean), NULL);
     assert_non_null(out);
@@ -1112,7 +1096,6 @@ static void test_never_worse(void **state)
         mcf_mesh_free(clean);
     }
 }
-
 
 /* Coarse tori (250 vertices: the even one of /work/check/e2e.py, radii
  * 1 and 0.35, and test_never_worse's jittered one) at noise 0.1 and 0.25

@@ -28,16 +28,6 @@
 #include "mcf_internal.h" /* mcf__flips_repair */
 #include "testlib.h"
 
-/* splitmix64 in [0, 1) */
-static double uniform01(uint64_t *r)
-{
-    uint64_t z = (*r += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
-
 /* An n x n grid of unit squares in z = 0, each split along one diagonal,
  * facing +z; X (3 n^2) and F (6 (n-1)^2) are the caller's. */
 static void grid(int n, double *X, int32_t *F)
@@ -226,14 +216,14 @@ static void test_flips_reference(void **state)
                     memcpy(Xin + 3 * (i * n + j), Xc + 3 * (5 * n + 5), 3 * sizeof(double));
         }
         for (int q = 0; q < 12; q++) { /* vertices onto a grid neighbour */
-            int i = 1 + (int)(uniform01(&r) * (n - 2)), j = 1 + (int)(uniform01(&r) * (n - 2));
-            int di = uniform01(&r) < 0.5 ? 0 : 1, dj = 1 - di;
+            int i = 1 + (int)(tl_uniform01(&r) * (n - 2)), j = 1 + (int)(tl_uniform01(&r) * (n - 2));
+            int di = tl_uniform01(&r) < 0.5 ? 0 : 1, dj = 1 - di;
             memcpy(Xin + 3 * (i * n + j), Xin + 3 * ((i + di) * n + j + dj), 3 * sizeof(double));
         }
         for (int k = 0; k < 3 * nv; k++)
-            X[k] = Xin[k] + 0.4 * (2.0 * uniform01(&r) - 1.0);
+            X[k] = Xin[k] + 0.4 * (2.0 * tl_uniform01(&r) - 1.0);
         for (int i = 0; i < nv; i++) {
-            double a = 0.5 * (2.0 * uniform01(&r) - 1.0), b = 0.5 * (2.0 * uniform01(&r) - 1.0);
+            double a = 0.5 * (2.0 * tl_uniform01(&r) - 1.0), b = 0.5 * (2.0 * tl_uniform01(&r) - 1.0);
             double l = sqrt(a * a + b * b + 1.0);
             field[3 * i] = a / l;
             field[3 * i + 1] = b / l;
@@ -292,7 +282,7 @@ static void test_flips_none(void **state)
     (void)state;
     grid(n, Xin, F);
     for (int k = 0; k < 3 * nv; k++) {
-        X[k] = Xin[k] + 0.45 * (2.0 * uniform01(&r) - 1.0);
+        X[k] = Xin[k] + 0.45 * (2.0 * tl_uniform01(&r) - 1.0);
         field[k] = k % 3 == 2 ? -1.0 : 0.0; /* a field that disagrees with every face */
     }
     memcpy(X0, X, sizeof X);

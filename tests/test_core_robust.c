@@ -24,24 +24,6 @@
 #include "mcf_internal.h" /* mcf__spikes, mcf__graph_build */
 #include "testlib.h"
 
-#define PI_D 3.14159265358979323846
-
-/* splitmix64 in [0, 1), and a standard Gaussian from two of them. */
-static double uniform01(uint64_t *r)
-{
-    uint64_t z = (*r += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
-
-static double gauss01(uint64_t *r)
-{
-    double a = uniform01(r);
-    return sqrt(-2.0 * log(1.0 - a)) * cos(2.0 * PI_D * uniform01(r));
-}
-
 /* mcf__spikes on X (the mesh m's faces, nothing fixed but the vertices of
  * degree < 3 that it skips anyway); returns the count. */
 static int run_spikes(const mcf_mesh *m, double *X, double hbar, const unsigned char *fixed)
@@ -149,9 +131,9 @@ static void test_spikes_noisy_cylinder(void **state)
     }
     for (int i = 0; i < N * N; i++) {
         int ix = i % N, iy = i / N, inner = ix > 1 && ix < N - 2 && iy > 1 && iy < N - 2;
-        double n[3] = {0.0, C[3 * i + 1] / r, (C[3 * i + 2] + r) / r}, a = 0.1 * h * gauss01(&rng);
-        if (inner && uniform01(&rng) < 0.01) {
-            a += (3.0 + 2.0 * uniform01(&rng)) * h * (uniform01(&rng) < 0.5 ? -1.0 : 1.0);
+        double n[3] = {0.0, C[3 * i + 1] / r, (C[3 * i + 2] + r) / r}, a = 0.1 * h * tl_gauss01(&rng);
+        if (inner && tl_uniform01(&rng) < 0.01) {
+            a += (3.0 + 2.0 * tl_uniform01(&rng)) * h * (tl_uniform01(&rng) < 0.5 ? -1.0 : 1.0);
             truth[i] = 1;
             nspike++;
         }
@@ -228,7 +210,6 @@ static void test_spikes_none(void **state)
 }
 
 /* ------------------------------------------------------- end to end */
-
 
 static int cmp_double(const void *a, const void *b)
 {
@@ -432,14 +413,14 @@ static void test_view_reading(void **state)
                 double rho = r < 2 ? rhos[r] : 0.5 * kind, u[3], ul = 0.0, un2 = 0.0, h = info.mean_edge;
                 int counted = 0;
                 for (int d = 0; d < 3; d++) {
-                    u[d] = gauss01(&rng);
+                    u[d] = tl_gauss01(&rng);
                     ul += u[d] * u[d];
                 }
                 for (int d = 0; d < 3; d++)
                     u[d] /= sqrt(ul);
                 memcpy(X, X0, 3 * sizeof(double) * (size_t)nv);
                 for (int i = 0; i < nv; i++) {
-                    double g = rho * info.mean_edge * gauss01(&rng), un = u[0] * N[3 * i] + u[1] * N[3 * i + 1] + u[2] * N[3 * i + 2];
+                    double g = rho * info.mean_edge * tl_gauss01(&rng), un = u[0] * N[3 * i] + u[1] * N[3 * i + 1] + u[2] * N[3 * i + 2];
                     const double *dir = r < 2 ? u : N + 3 * (size_t)i;
                     for (int d = 0; d < 3; d++)
                         X[3 * (size_t)i + d] += g * dir[d];
@@ -531,9 +512,9 @@ static mcf_mesh *with_outliers(const mcf_mesh *clean, int seed, int *nout)
     *nout = 0;
     for (int i = 0; i < nv; i++) {
         if (!memcmp(X + 3 * i, mcf_mesh_positions(clean) + 3 * (size_t)i, 3 * sizeof(double)) ||
-            !(uniform01(&r) < 0.01))
+            !(tl_uniform01(&r) < 0.01))
             continue;
-        double a = (3.0 + 2.0 * uniform01(&r)) * info.mean_edge * (uniform01(&r) < 0.5 ? -1.0 : 1.0);
+        double a = (3.0 + 2.0 * tl_uniform01(&r)) * info.mean_edge * (tl_uniform01(&r) < 0.5 ? -1.0 : 1.0);
         for (int e = 0; e < 3; e++)
             X[3 * i + e] += a * N[3 * i + e];
         (*nout)++;
@@ -625,14 +606,14 @@ static mcf_mesh *with_view_noise(const mcf_mesh *clean, double rho, int seed, do
     assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
     assert_int_equal(mcf_flow_add_noise(m, &p, 0.1, (uint64_t)seed, NULL), MCF_OK); /* which move */
     for (int d = 0; d < 3; d++) {
-        u[d] = gauss01(&r);
+        u[d] = tl_gauss01(&r);
         l += u[d] * u[d];
     }
     for (int d = 0; d < 3; d++)
         u[d] /= sqrt(l);
     memcpy(X, mcf_mesh_positions(clean), 3 * sizeof(double) * (size_t)nv);
     for (int i = 0; i < nv; i++) {
-        double g = rho * info.mean_edge * gauss01(&r);
+        double g = rho * info.mean_edge * tl_gauss01(&r);
         if (memcmp(mcf_mesh_positions(m) + 3 * (size_t)i, X + 3 * (size_t)i, 3 * sizeof(double)))
             for (int d = 0; d < 3; d++)
                 X[3 * (size_t)i + d] += g * u[d];

@@ -83,6 +83,21 @@ void tl_skip(const char *tag, const char *why)
     skip();
 }
 
+double tl_uniform01(uint64_t *r)
+{
+    uint64_t z = (*r += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
+}
+
+double tl_gauss01(uint64_t *r)
+{
+    double a = tl_uniform01(r);
+    return sqrt(-2.0 * log(1.0 - a)) * cos(2.0 * 3.14159265358979323846 * tl_uniform01(r));
+}
+
 void tl_long(const char *what)
 {
     const char *quick = getenv("MCF_QUICK");

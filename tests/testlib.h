@@ -57,6 +57,12 @@ void tl_skip(const char *tag, const char *why);
  * before the test has allocated anything. */
 void tl_long(const char *what);
 
+/* Seeded numbers for the tests' own noise: splitmix64 in [0, 1) from the
+ * state *r (advanced), and a standard Gaussian from two of them
+ * (Box-Muller). */
+double tl_uniform01(uint64_t *r);
+double tl_gauss01(uint64_t *r);
+
 /* 1 when mesh NAME is one of the repository's own (tests/data/meshes). */
 int tl_mesh_in_repo(const char *name);
 
