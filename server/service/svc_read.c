@@ -1,10 +1,11 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * svc_read.c - the job service's readers (service.h): snapshots (with the
- * parameters and the metrics document: everything a door shows), the
- * metrics, the progress events from a given index on, and the result
- * bytes. Every reader copies under the service lock and reads the store
- * outside it.
+ * svc_read.c - the job service's readers (service.h): a job by its ID
+ * (svc_job_get: the table's, or loaded from a shared store by
+ * svc_shared.c), snapshots (with the parameters and the metrics document:
+ * everything a door shows), the metrics, the progress events from a given
+ * index on, and the result bytes. Every reader copies under the service
+ * lock and reads the store outside it.
  */
 #include <errno.h>
 #include <fcntl.h>
