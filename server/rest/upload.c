@@ -14,7 +14,7 @@
  * the middle of an upload, so an error found while reading (a body
  * without a declared length past the limit, a part over it, broken
  * multipart) is written on the socket at once, the rest discarded up to
- * the drain bound (http.h, SRV_DRAIN_MAX), and the connection closed.
+ * the drain bound (rest_internal.h, SRV_DRAIN_MAX), and the connection closed.
  */
 #include <ctype.h>
 #include <errno.h>
@@ -23,7 +23,7 @@
 #include <string.h>
 #include <strings.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 /* "bunny.drc" -> "bunny": letters, digits, '-', '_' and '.', at most 64. */
 static void sanitize_name(char *out, size_t size, const char *in)
