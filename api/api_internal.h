@@ -220,6 +220,16 @@ typedef struct {
     char *text;             /* the statement's line, NUL-terminated */
 } api__stmt;
 
+/* A per-vertex scalar the attributes do not model, passed through as it
+ * came (a PLY vertex property: quality, confidence, intensity, ...):
+ * its name, its PLY type (api_ply_internal.h's ptype) and nv values. */
+typedef struct {
+    char *name;
+    int type;
+    double *values;
+} api__scalar;
+#define API__SCALARS_MAX 16     /* more are named in not_kept */
+
 struct api_attrs {
     int nv, nf;
     int float32;            /* positions were single precision */
@@ -238,6 +248,13 @@ struct api_attrs {
      * back before polygon stmt[i].at (npoly: after the last). */
     api__stmt *stmt;
     int nstmt;
+    /* PLY vertex scalars passed through (the PLY encoder writes them back;
+     * other formats cannot), and what the input had that no output keeps
+     * ("vertex flags (a list), element edge"; NULL: nothing). */
+    api__scalar *scal;
+    int nscal;
+    char *not_kept;
+    int nnot_kept;
 };
 
 /* Takes ownership of values and corners (malloc'ed, corners not NULL;
@@ -246,6 +263,14 @@ struct api_attrs {
 mcf_status api__attrs_take(api_attrs *a, api_attr_kind k, int ncomp,
                            int nvalues, double *values, int32_t *corners,
                            mcf_error *err);
+
+/* Takes ownership of values (malloc'ed, nv of them; freed on failure
+ * too) as the pass-through scalar `name` (n bytes) of PLY type `type`.
+ * ENOMEM. */
+mcf_status api__attrs_scalar(api_attrs *a, const char *name, size_t n, int type,
+                             double *values, mcf_error *err);
+/* Appends "what" (n bytes) to the list of what no output keeps. ENOMEM. */
+mcf_status api__attrs_drop(api_attrs *a, const char *what, size_t n, mcf_error *err);
 
 /* The input's polygon sizes (npoly of them, each >= 3, their triangles
  * summing to the handle's face count; copied, and kept only when one has
