@@ -174,6 +174,7 @@ async function preview(file) {
   state.preview = state.fields = f;
   compare.setMeshes([f.arrays['input.positions'], null], f.arrays.faces);
   $('before-info').textContent = counts(f);
+  $('after-info').textContent = 'shows when a job is done';
   resetScale();
   await compare.frame();
   perf.inputShownMs = performance.now() - perf.chosenAt;

@@ -17,6 +17,14 @@ const DIVERGING = [[0.23, 0.30, 0.75], [0.55, 0.69, 0.99], [0.87, 0.87, 0.87],
 const SEQUENTIAL = [[0.93, 0.93, 0.93], [0.99, 0.80, 0.45], [0.94, 0.45, 0.18],
                     [0.70, 0.09, 0.16], [0.35, 0.0, 0.25]];
 
+// The renderer takes vertex colours as linear RGB and writes sRGB; the
+// maps (and the legends' 2D canvas) are sRGB: the mesh gets each channel
+// through the sRGB transfer function so that it shows the legend's colours
+// (without it the mesh was a paler map than its legend).
+function toLinear(c) {
+  return c <= 0.04045 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4);
+}
+
 function mapColour(stops, t, out, o) {
   t = Math.min(1, Math.max(0, t)) * (stops.length - 1);
   const i = Math.min(stops.length - 2, Math.floor(t)), f = t - i;
@@ -166,7 +174,12 @@ export class Compare {
     const c = attr.array, div = map !== 'sequential', stops = div ? DIVERGING : SEQUENTIAL;
     for (let k = 0, o = 0; o < c.length; k++, o += 3) {
       const x = values ? values[k] : NaN;
-      if (Number.isFinite(x)) mapColour(stops, position(x, lo, hi, div), c, o);
+      if (Number.isFinite(x)) {
+        mapColour(stops, position(x, lo, hi, div), c, o);
+        c[o] = toLinear(c[o]);
+        c[o + 1] = toLinear(c[o + 1]);
+        c[o + 2] = toLinear(c[o + 2]);
+      }
       else { c[o] = PLAIN[0]; c[o + 1] = PLAIN[1]; c[o + 2] = PLAIN[2]; }
     }
     attr.needsUpdate = true;
