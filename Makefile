@@ -369,13 +369,15 @@ tsan: deps
 # followers, queued memory, uploads in flight; for the gRPC door:
 # connection floods, descriptors, header blocks, abandoned streams, rapid
 # reset, compressed messages); the README's reliability section quotes
-# them. ATTACKS are in test_server*.c, ATTACKS_GRPC in test_grpc.py.
+# them. ATTACKS are in test_server*.c and test_service.c, ATTACKS_GRPC in
+# test_grpc.py.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
   test_http_small_things test_transfer_framing test_query_flood test_spool_failures test_spool_quota test_spool_full \
   test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
   test_followers_and_per_ip test_per_ip_busy test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
-  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight test_cpu_budget
+  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight test_cpu_budget \
+  test_cpu_budget_counts_job_threads
 ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
   test_no_descriptors_makes_the_daemon_unhealthy test_header_blocks_are_bounded \
   test_abandoned_streams_are_bounded test_rapid_reset_is_paced \
@@ -388,11 +390,11 @@ ATTACKS_PY := test_evicting_redis_is_refused test_what_a_restart_loses \
   test_garbage_request_record_is_quarantined test_multipart_300mb_over_default_max_upload \
   test_chunked_multipart_over_max_upload test_refused_at_decode_leaves_its_input_off_the_spool
 attack: deps
-	$(MAKE) all $(SERVER_TESTS)
+	$(MAKE) all $(SERVER_TESTS) $(B)/tests/test_service
 	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC) $(ATTACKS_PY); do \
 	  case " $(ATTACKS_GRPC) $(ATTACKS_PY) " in \
 	    *" $$t "*) run="/usr/bin/python3 $$(grep -l "^def $$t(" tests/test_*.py)";; \
-	    *) run=$$(grep -l "^static void $$t(" $(SERVER_TEST_NAMES:%=tests/%.c) | \
+	    *) run=$$(grep -l "^static void $$t(" $(SERVER_TEST_NAMES:%=tests/%.c) tests/test_service.c | \
 	          sed 's|^tests/|$(B)/tests/|; s|\.c$$||');; esac; \
 	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=$(B) MCF_TEST_FILTER=$$t \

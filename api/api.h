@@ -589,6 +589,9 @@ typedef struct {
                                   units); NaN without a log (no metrics) */
     double t_target;           /* the run's total time once the core knows
                                   it (0: the run counts steps) */
+    double threads_cpu_s;      /* CPU seconds of the threads the flow
+                                  started besides the caller's so far
+                                  (mcf_flow_stats.threads_cpu_s) */
 } api_job_step;
 
 /* The door's hooks; any may be NULL. ctx is passed to each. */

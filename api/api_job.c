@@ -168,6 +168,7 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     s.volume = st->log && step >= 1 && step <= st->nlog
                    ? st->log[step - 1].volume : NAN;
     s.t_target = st->t_target;
+    s.threads_cpu_s = st->threads_cpu_s;
     return h->progress(h->ctx, &s);
 }
 

@@ -339,7 +339,7 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
      * mesh itself tilt with the noise, and the high-pass along them then
      * misses a part of it (0.36-0.39 read for 0.5 mean edges) */
     memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
-    mcf__graph_taubin(&g, fixed, P, 3, 10, tmp, 1);
+    mcf__graph_taubin(&g, fixed, P, 3, 10, tmp, 1, NULL);
     mcf__vertex_normals(P, F, nf, nv, N);
     high_pass(&g, N, X, e, d, tmp);
     double mad_y = mad(&g, fixed, e, P), rms_y = shape ? trimmed_rms(&g, fixed, e, mad_y, NOISE_TRIM) : 0.0;

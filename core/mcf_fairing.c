@@ -573,7 +573,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
             return mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
         if (c->is_explicit) {
             double t0 = mcf_now();
-            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp, c->p->threads);
+            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp, c->p->threads,
+                              c->threads_cpu_s);
             st->time_solve += mcf_now() - t0;
         } else if ((rc = implicit_step(c, err)) != MCF_OK) {
             return rc;
@@ -704,6 +705,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     mcf_status rc;
     memset(&ci, 0, sizeof ci);
     memset(&ce, 0, sizeof ce);
+    ci.threads_cpu_s = ce.threads_cpu_s = &st->threads_cpu_s;
     ci.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
     st->filter_explicit = ci.is_explicit;
     /* the shares of work (work()): the default's pick runs the explicit

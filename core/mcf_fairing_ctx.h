@@ -77,6 +77,9 @@ typedef struct {
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
+    double *threads_cpu_s;     /* the caller's mcf_flow_stats.threads_cpu_s
+                                  (the pick's explicit run too, whose st is
+                                  its own), grown as the passes run */
     /* the run (mcf__fairing's phases) */
     double hbar;               /* the mean edge */
     int sure;                  /* the amount by SURE (else iterations) */

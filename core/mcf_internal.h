@@ -128,10 +128,12 @@ void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops);
  * nthreads threads (the caller's among them; one below MCF_PAR_MIN
  * items); returns when all are done. Each range must write only its own
  * items: the results are then one thread's bit for bit. Never fails (a
- * thread that cannot start leaves its range to the caller). */
+ * thread that cannot start leaves its range to the caller). cpu_s (may
+ * be NULL): += the CPU seconds of the threads it started (not the
+ * caller's), added on the caller's thread after the join. */
 #define MCF_PAR_MIN 20000
 typedef void (*mcf__par_fn)(void *ctx, size_t lo, size_t hi);
-void mcf__par_for(int nthreads, size_t n, mcf__par_fn fn, void *ctx);
+void mcf__par_for(int nthreads, double *cpu_s, size_t n, mcf__par_fn fn, void *ctx);
 
 /* ---- the uniform graph Laplacian (mcf_graph.c)
  * The vertex adjacency of a mesh, weight 1 per edge: row i of the full
@@ -155,9 +157,10 @@ void mcf__graph_average(const mcf__graph *g, const double *v, int ncol, double *
 /* `passes` Taubin passes (x += lambda (avg - x), then x += mu (avg - x),
  * lambda 0.5, mu -0.53) on X (n x ncol) in place; vertices with fixed[i]
  * set (fixed may be NULL) stay. tmp: n x ncol scratch. On nthreads
- * threads (mcf__par_for: the same result as one). */
+ * threads (mcf__par_for: the same result as one; cpu_s, may be NULL,
+ * += their CPU seconds). */
 void mcf__graph_taubin(const mcf__graph *g, const unsigned char *fixed, double *X, int ncol,
-                       int passes, double *tmp, int nthreads);
+                       int passes, double *tmp, int nthreads, double *cpu_s);
 
 /* ---- the noise level (mcf_auto.c)
  * The standard deviation sigma (X's units) of Gaussian noise along the

@@ -150,7 +150,9 @@ struct svc_job {
     double deadline;           /* srv_mono() the job timeout passes, 0 */
     double cpu_budget;         /* CPU seconds its run may take, 0: none */
     double cpu0, cpu_used;     /* its worker thread's CPU clock at its start;
-                                  the seconds it took */
+                                  the seconds it took, the threads its flow
+                                  started included */
+    double cpu_threads;        /* those threads' share of cpu_used */
     api_buf events;            /* ndjson lines, one per step */
     size_t *event_end;         /* byte offset past each line */
     int nevents, event_cap;

@@ -191,7 +191,7 @@ int svc__start(svc_job *j)
                                                    j->mem_estimate / 1048576.0
                             : 0;
         j->cpu0 = thread_cpu();
-        j->cpu_used = 0;
+        j->cpu_used = j->cpu_threads = 0;
         s->queued--;
         s->busy++;
         svc__notify(j, SVC_NOTIFY_STATE);
@@ -685,9 +685,12 @@ int svc__progress(svc_job *j, const api_job_step *st)
         j->cancel = 1;
         j->cancel_reason = SVC_CANCEL_TIMEOUT;
     }
-    /* the worker's thread runs the flow and calls this hook */
-    if (j->cpu_budget > 0)
-        j->cpu_used = thread_cpu() - j->cpu0;
+    /* the worker's thread runs the flow and calls this hook; the threads
+     * the flow starts (mcf_flow_params.threads) count too */
+    if (j->cpu_budget > 0) {
+        j->cpu_threads = st->threads_cpu_s;
+        j->cpu_used = thread_cpu() - j->cpu0 + j->cpu_threads;
+    }
     if (!j->cancel && j->cpu_budget > 0 && j->cpu_used > j->cpu_budget) {
         j->cancel = 1;
         j->cancel_reason = SVC_CANCEL_CPU;

@@ -36,6 +36,8 @@ static void snapshot_locked(const svc_job *j, svc_snap *s)
     s->volume = j->volume;
     s->steps_planned = j->steps_planned;
     s->time_planned = j->time_planned;
+    s->cpu_s = j->cpu_used;
+    s->cpu_threads_s = j->cpu_threads;
     if (j->status == SVC_JOB_SUCCEEDED)
         frac = 1;
     else if (j->steps_planned > 0)
