@@ -129,11 +129,12 @@ function chooseFile(f) {
   perf.inputShownMs = 0;
   $('mesh-name').textContent = `${f.name} (${(f.size / 1024).toFixed(0)} KiB)`;
   compare.setMeshes([null, null], new Uint32Array(0));
-  for (const id of ['before-info', 'after-info', 'scale-before', 'scale-after'])
+  for (const id of ['before-info', 'after-info', 'scale-before', 'scale-after', 'unit-before', 'unit-after'])
     $(id).replaceChildren();
   $('metrics').tBodies[0].replaceChildren();
   $('downloads').replaceChildren();
   $('progress').value = 0;
+  $('scale-min').value = $('scale-max').value = '';
   updateRun();
   if (f.size > PREVIEW_MAX_BYTES) {
     status(`${f.name}: ${(f.size / 2 ** 20).toFixed(0)} MiB, more than the preview reads ` +
@@ -145,6 +146,8 @@ function chooseFile(f) {
     if (state.file !== f) return;
     if (e instanceof api.ApiError && e.status === 401) return fail(e);
     console.warn(e);
+    if (e instanceof api.ApiError && e.status >= 500) // busy, draining: not the file's fault
+      return status(`${f.name}: no input view (${e.message}); it shows with the result. Press Smooth.`);
     status(`${f.name} cannot be read: ${e.message || e}`, true);
   });
 }
