@@ -12,7 +12,7 @@
 #include <string.h>
 #include <sys/socket.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 const char *srv_http_reason(unsigned status)
 {

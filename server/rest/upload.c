@@ -10,7 +10,7 @@
  * MHD cannot answer in the middle of an upload, so errors found while
  * reading (a part over its limit, broken multipart) are remembered and
  * answered once the body has been consumed; a body without a declared
- * length that goes on past the drain bound (http.h, SRV_DRAIN_MAX) is
+ * length that goes on past the drain bound (rest_internal.h, SRV_DRAIN_MAX) is
  * answered on the socket and its connection closed.
  */
 #include <ctype.h>
@@ -20,7 +20,7 @@
 #include <string.h>
 #include <strings.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 /* "bunny.drc" -> "bunny": letters, digits, '-', '_' and '.', at most 64. */
 static void sanitize_name(char *out, size_t size, const char *in)
