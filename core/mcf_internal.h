@@ -307,11 +307,15 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
 double mcf__feature_div(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y,
                         const double *Yz, const double *z, double eps);
 /* The output: X = Xin + n <n, Y - Xin> on the vertices not fixed (n the
- * normals of Y), moves beyond rmax taken back, then the fold guard
- * (mcf__unfold, Y's positions first). ENOMEM. */
-mcf_status mcf__feature_output(const double *Xin, const double *Y, const int32_t *F, int nf, int nv,
-                               const unsigned char *fixed, double rmax, double *X, int *rounds, int *moves,
-                               mcf_error *err);
+ * normals of Y), moves beyond rmax taken back, then, when flips is not
+ * NULL (the default request), the repair of the faces the input had
+ * without area (mcf__flips_repair against Y's normals; its count into
+ * *flips), then the fold guard (mcf__unfold with fn_orig, Y's
+ * positions first).
+ * ENOMEM. */
+mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
+                               int nv, const unsigned char *fixed, double rmax, int *flips, double *X, int *rounds,
+                               int *moves, mcf_error *err);
 /* ---- spikes (mcf_spikes.c)
  * The vertices of X (graph g, mean edge hbar) far off the surface their
  * neighbours define (their height over their 1-ring many robust
@@ -347,16 +351,24 @@ void mcf__face_normals(const double *X, const int32_t *F, int nf, double *fn); /
  * (nf, may be NULL) gets 1 on each folded face. */
 int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
                       double *fn, double *N, unsigned char *mask);
+/* The faces of X lying backwards in their neighbourhood (the second test
+ * above alone; degenerate faces not), mask (nf) 1 on each; fn (3*nf)
+ * gets X's face normals, N (4*nv) is scratch. Returns their count. */
+int mcf__backwards_faces(const double *X, const int32_t *F, int nf, int nv, double *fn, double *N,
+                         unsigned char *mask);
 /* The faces of X folded against X_ref's; -1 when out of memory. */
 int mcf__folds_against(const double *X, const double *X_ref, const int32_t *F, int nf, int nv);
-/* The fairing filter's guard: while X has faces folded against X_in's,
- * their vertices that the run moved (X != X_in) take Y's positions (2
- * rounds), then halve their displacement from X_in (6 rounds), then take
- * X_in's positions. rounds: rounds that moved a vertex; moves: vertex
- * moves; left: folded faces left (0 unless the 64-round cap was hit).
+/* The fairing filter's guard: while X has faces folded against X_in's
+ * (or against fn_orig, when not NULL: the face normals of the request's
+ * own input, where a stage before the filter, the spike repair, made
+ * X_in), their vertices that the run moved (X != X_in) take Y's positions
+ * (2 rounds), then halve their displacement from X_in (6 rounds), then
+ * take X_in's positions. rounds: rounds that moved a vertex; moves:
+ * vertex moves; left: folded faces left (0 unless the 64-round cap was
+ * hit; with fn_orig, the faces X_in itself folded against it may stay).
  * ENOMEM only. */
-mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int32_t *F, int nf, int nv,
-                       int *rounds, int *moves, int *left, mcf_error *err);
+mcf_status mcf__unfold(double *X, const double *X_in, const double *fn_orig, const double *Y, const int32_t *F,
+                       int nf, int nv, int *rounds, int *moves, int *left, mcf_error *err);
 
 /* ---- flips (mcf_flips.c)
  * The fairing filter's faces that were degenerate in its input X_in and
@@ -432,5 +444,10 @@ void mcf__radix_sort_u64(uint64_t *key, uint32_t *val, size_t n, uint64_t *tk,
  * inverse, for sorting doubles with mcf__radix_sort_u64. (mcf_sort.c) */
 uint64_t mcf__double_key(double x);
 double mcf__key_double(uint64_t u);
+/* The median of v[0..n) (finite values; v is reordered): the middle value,
+ * or the mean of the two middle ones, exactly as a sort would give them;
+ * 0 for n = 0. Linear time on any data but an adversarial order, which
+ * falls back to sorting (mcf_sort.c) */
+double mcf__median(double *v, size_t n);
 
 #endif /* MCF_INTERNAL_H */

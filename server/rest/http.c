@@ -625,12 +625,14 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
     return r;
 }
 
-/* The bytes of a refused body read and discarded (rest_internal.h, SRV_DRAIN_MAX):
- * all it declared (no more than a valid body may hold: its head was
- * checked), else SRV_DRAIN_MAX past the error. */
+/* The bytes of a refused body read and discarded (rest_internal.h,
+ * SRV_DRAIN_MAX): refused from its head, all it declared (no more than
+ * SRV_DRAIN_MAX: its head was checked); else SRV_DRAIN_MAX past the
+ * error. */
 static size_t drain_bound(const srv_request *r)
 {
-    return r->declared > 0 ? r->declared : r->perr_at - 1 + SRV_DRAIN_MAX;
+    return r->perr_head && r->declared > 0 ? r->declared
+                                           : r->perr_at - 1 + SRV_DRAIN_MAX;
 }
 
 enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
@@ -686,16 +688,27 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
             api_buf_free(&r->mesh);
             api_buf_free(&r->target);
             svc_upload_release(r->door->svc, &r->mem_held);
+            /* found in the body (over --max-upload on the way, broken
+             * multipart): answered now, a client that reads while it
+             * sends stops there */
+            if (!r->perr_head) {
+                srv_send_problem_raw(r, c, &r->perr);
+                r->answered = 1;
+            }
         }
         /* A refused body is read and discarded so that its client hears
          * why, but only so far (SRV_DRAIN_MAX): then the answer goes
-         * straight to the socket, and the connection is closed. */
+         * straight to the socket (if it has not yet), and the connection
+         * is closed. */
         if (r->perr_at && r->bytes_in > drain_bound(r)) {
-            srv_send_problem_raw(r, c, &r->perr);
+            if (!r->answered)
+                srv_send_problem_raw(r, c, &r->perr);
             return MHD_NO;
         }
         return MHD_YES;
     }
+    if (r->answered) /* the rest of a refused body: the answer is out */
+        return MHD_NO;
     if (r->conn) /* the body is complete */
         conn_waiting(r->conn, 0);
     if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && !r->job)

@@ -178,8 +178,15 @@ typedef struct {
     size_t fields_bytes;
     char filename[128];
     size_t bytes_in;
-    svc_error perr;            /* found while reading; answered at the end */
+    svc_error perr;            /* refused: at its head (perr_head), answered
+                                  once the body is read and discarded, or
+                                  while reading, answered at once on the
+                                  socket (answered) */
     int has_perr;
+    int perr_head;             /* perr was set from the head */
+    int answered;              /* perr written on the socket: the rest of
+                                  the body is discarded, then the
+                                  connection closed */
     size_t perr_at;            /* bytes_in + 1 when perr was first seen */
     size_t declared;           /* its Content-Length, 0: none */
     size_t mem_held;           /* its bytes' reservation in --max-memory
@@ -234,9 +241,12 @@ enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
 /* An empty response (204, HEAD). */
 struct MHD_Response *srv_empty_response(void);
 /* The problem written straight to the connection's socket, with
- * Connection: close, for a body MHD is still reading (it queues no
- * answer then): the caller returns MHD_NO next, which closes the
- * connection. Counted and logged like srv_send_problem's. */
+ * Connection: close, for a body MHD is still reading (libmicrohttpd
+ * 0.9.75 queues no answer then: MHD_queue_response says MHD_NO), then
+ * the socket's sending side shut (the client reads the answer and an
+ * end, not a reset): the caller discards what still comes, and returns
+ * MHD_NO, which closes the connection. Counted and logged like
+ * srv_send_problem's. */
 void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
                           const svc_error *e);
 
@@ -245,12 +255,15 @@ void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
 enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c);
 void srv_upload_consume(srv_request *r, const char *data, size_t size);
 enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c);
-/* Content-Length above this: refused before it is read. A refused body
- * is read and discarded, so that a client sending it all before it reads
- * hears why: to its declared end (at most what a valid body may hold,
- * checked at its head); without a declared length, up to this much past
- * the error, then the answer is written on the socket and the connection
- * closed. */
+/* A body refused from its head (a busy daemon's 503 to a client that
+ * did not wait for 100 Continue) is read and discarded, so that a client
+ * sending it all before it reads hears why: to its declared end (at most
+ * this: above it, refused before it is read), or without a declared
+ * length up to this much, then the answer is written on the socket and
+ * the connection closed. A refusal found in the body (a part over
+ * --max-upload, a body past it, broken multipart) is written on the
+ * socket at once, and up to this much more of the body discarded before
+ * the close. */
 #define SRV_DRAIN_MAX ((unsigned long long)16 << 20)
 
 /* jobroutes.c: the /v1/jobs/ID routes, and a waiting /smooth request
