@@ -385,12 +385,14 @@ ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
   test_abandoned_streams_are_bounded test_rapid_reset_is_paced \
   test_compressed_messages_are_refused test_uploads_in_flight_fit_the_memory_budget \
   test_open_and_cancel_thousands_of_calls test_unread_answer_is_cancelled
-# issue 28's, in tests/test_store_trust.py (a real redis-server) and
-# tests/test_upload_limits.py; the C ones are in ATTACKS
+# issue 28's, in tests/test_store_trust.py and tests/test_redis_network.py
+# (a real redis-server) and tests/test_upload_limits.py; the C ones are in
+# ATTACKS
 ATTACKS_PY := test_evicting_redis_is_refused test_what_a_restart_loses \
   test_readyz_while_redis_refuses_writes test_unqueueable_job_is_not_acknowledged \
   test_garbage_request_record_is_quarantined test_multipart_300mb_over_default_max_upload \
-  test_chunked_multipart_over_max_upload test_refused_at_decode_leaves_its_input_off_the_spool
+  test_chunked_multipart_over_max_upload test_refused_at_decode_leaves_its_input_off_the_spool \
+  test_latency_drops_and_partition
 attack: deps
 	$(MAKE) all $(SERVER_TESTS) $(B)/tests/test_service
 	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC) $(ATTACKS_PY); do \

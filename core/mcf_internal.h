@@ -450,5 +450,10 @@ void mcf__radix_sort_u64(uint64_t *key, uint32_t *val, size_t n, uint64_t *tk,
  * inverse, for sorting doubles with mcf__radix_sort_u64. (mcf_sort.c) */
 uint64_t mcf__double_key(double x);
 double mcf__key_double(uint64_t u);
+/* The median of v[0..n) (finite values; v is reordered): the middle value,
+ * or the mean of the two middle ones, exactly as a sort would give them;
+ * 0 for n = 0. Linear time on any data but an adversarial order, which
+ * falls back to sorting (mcf_sort.c) */
+double mcf__median(double *v, size_t n);
 
 #endif /* MCF_INTERNAL_H */

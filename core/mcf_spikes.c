@@ -73,19 +73,10 @@
  * places) 0.203 -> 0.325 of the input's error at 0.1 h: the comparison
  * leaves such rings alone. */
 
-static int cmp_double(const void *x, const void *y)
-{
-    double a = *(const double *)x, b = *(const double *)y;
-    return (a > b) - (a < b);
-}
-
-/* The median of v[0..n) (sorted in place); 0 for n = 0. */
+/* The median of v[0..n) (reordered); 0 for n = 0. */
 static double median(double *v, int n)
 {
-    if (n == 0)
-        return 0.0;
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    return mcf__median(v, (size_t)n);
 }
 
 /* Whether vertex i passes the ring tests (SPIKE_RING, SPIKE_PULL) on
