@@ -132,12 +132,6 @@ static void high_pass(const mcf__graph *g, const double *N, const double *P, dou
         e[i] = d[i] - tmp[i];
 }
 
-static int cmp_double(const void *x, const void *y)
-{
-    double a = *(const double *)x, b = *(const double *)y;
-    return (a > b) - (a < b);
-}
-
 /* Median of |v_i| over the free vertices with a 1-ring of at least 3 (the
  * others, on slivers and boundaries' tips, say little; fixed vertices
  * carry no noise); work (nv) is scratch. */
@@ -148,10 +142,7 @@ static double mad(const mcf__graph *g, const unsigned char *fixed, const double 
     for (int i = 0; i < g->n; i++)
         if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]))
             work[k++] = fabs(v[i]);
-    if (k == 0)
-        return 0.0;
-    qsort(work, k, sizeof *work, cmp_double);
-    return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
+    return mcf__median(work, k);
 }
 
 /* The RMS of v over the vertices mad() counts, those with |v| above

@@ -324,6 +324,12 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
  * (fixed: nv), moved back along the surface's normal onto the plane of
  * their ring's centroid. Returns their count, -1 when out of memory (X
  * then unchanged). */
+/* The share of the vertices not fixed and with an edge whose 1-ring lies
+ * within tol of the plane through them along their normal N (3*nv): every
+ * neighbour j with |N_i . (x_j - x_i)| <= tol. 0 when there is none.
+ * (mcf_spikes.c; the default request's test for exact positions) */
+double mcf__flat_share(const mcf__graph *g, const double *X, const double *N, const unsigned char *fixed,
+                       double tol);
 int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned char *fixed, double hbar,
                 double *X);
 
@@ -444,5 +450,10 @@ void mcf__radix_sort_u64(uint64_t *key, uint32_t *val, size_t n, uint64_t *tk,
  * inverse, for sorting doubles with mcf__radix_sort_u64. (mcf_sort.c) */
 uint64_t mcf__double_key(double x);
 double mcf__key_double(uint64_t u);
+/* The median of v[0..n) (finite values; v is reordered): the middle value,
+ * or the mean of the two middle ones, exactly as a sort would give them;
+ * 0 for n = 0. Linear time on any data but an adversarial order, which
+ * falls back to sorting (mcf_sort.c) */
+double mcf__median(double *v, size_t n);
 
 #endif /* MCF_INTERNAL_H */

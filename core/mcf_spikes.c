@@ -73,19 +73,10 @@
  * places) 0.203 -> 0.325 of the input's error at 0.1 h: the comparison
  * leaves such rings alone. */
 
-static int cmp_double(const void *x, const void *y)
-{
-    double a = *(const double *)x, b = *(const double *)y;
-    return (a > b) - (a < b);
-}
-
-/* The median of v[0..n) (sorted in place); 0 for n = 0. */
+/* The median of v[0..n) (reordered); 0 for n = 0. */
 static double median(double *v, int n)
 {
-    if (n == 0)
-        return 0.0;
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    return mcf__median(v, (size_t)n);
 }
 
 /* Whether vertex i passes the ring tests (SPIKE_RING, SPIKE_PULL) on
@@ -223,6 +214,26 @@ static void centroid_repairs(const int32_t *F, int nf, int nv, const unsigned ch
     for (int i = 0; i < nv; i++)
         if (spike[i] && cnt[2 * (size_t)i + 1] < cnt[2 * (size_t)i])
             memcpy(X + 3 * (size_t)i, C + 3 * (size_t)i, 3 * sizeof(double));
+}
+
+double mcf__flat_share(const mcf__graph *g, const double *X, const double *N, const unsigned char *fixed,
+                       double tol)
+{
+    int flat = 0, n = 0;
+    for (int i = 0; i < g->n; i++) {
+        if (fixed[i] || g->ptr[i + 1] == g->ptr[i])
+            continue;
+        int ok = 1;
+        const double *x = X + 3 * (size_t)i, *nn = N + 3 * (size_t)i;
+        for (int t = g->ptr[i]; ok && t < g->ptr[i + 1]; t++) {
+            double d[3];
+            mcf__sub3(X + 3 * (size_t)g->adj[t], x, d);
+            ok = fabs(mcf__dot3(nn, d)) <= tol;
+        }
+        flat += ok;
+        n++;
+    }
+    return n > 0 ? (double)flat / n : 0.0;
 }
 
 int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned char *fixed, double hbar,
