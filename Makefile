@@ -16,6 +16,8 @@
 #   make WERROR=1 ...                  warnings are errors (CI)
 #   make check-deps the one-way dependency server -> api -> core, no exec/setenv in the libraries, the doors -> service.h, includes by name,
 #                   nothing outside lab/ includes the lab, an SPDX line atop every source file
+#   make check-graph the graph of includes and calls (.ci/depgraph.py): no cycle in server/rest,
+#                   server/service or api; the whole server's nodes, edges, levels and cycles
 #   make image      the container image (docker/Dockerfile, podman); make image-check runs it
 #
 # Sources are picked up by wildcard: a new core/*.c, api/*.c, api/*.cc or
@@ -100,7 +102,7 @@ ifneq ($(SRV_SRC),)
 PROGS += $(B)/mcfd
 endif
 
-.PHONY: all deps deps-build test check bench run check-deps clean asan fuzz image image-check
+.PHONY: all deps deps-build test check bench run check-deps check-graph clean asan fuzz image image-check
 .DEFAULT_GOAL := all
 
 all: $(B)/libmcf.a $(B)/libmcfapi.a $(CHOLMOD_SERIAL) $(PROGS)
@@ -292,7 +294,7 @@ deps-build:
 TEST_LANE1 = $(CHECK_BIN) $(filter $(B)/tests/test_cli $(LAB_TEST_BIN),$(TEST_BIN))
 test: deps
 	$(MAKE) all $(TEST_BIN) $(if $(SAN),,$(B)/libmcfpy.so)
-	$(MAKE) check-deps
+	$(MAKE) check-deps check-graph
 	@rm -f $(B)/tests/skipped.log $(B)/tests/*.out; \
 	run() { for t in "$$@"; do \
 	  { OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
@@ -369,30 +371,34 @@ tsan: deps
 # followers, queued memory, uploads in flight; for the gRPC door:
 # connection floods, descriptors, header blocks, abandoned streams, rapid
 # reset, compressed messages); the README's reliability section quotes
-# them. ATTACKS are in test_server*.c, ATTACKS_GRPC in test_grpc.py.
+# them. ATTACKS are in test_server*.c and test_service.c, ATTACKS_GRPC in
+# test_grpc.py.
 ATTACKS := test_multipart_unnamed test_multipart_duplicates test_hangup_and_budgets \
   test_http_small_things test_transfer_framing test_query_flood test_spool_failures test_spool_quota test_spool_full \
   test_descriptor_exhaustion test_readonly_outcomes test_step_log_memory test_events_memory test_spool_damage \
   test_followers_and_per_ip test_per_ip_busy test_header_deadline test_queued_inputs_on_disk \
   test_cancel_survives_shutdown test_quantization_cap test_draco_sandbox \
-  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight test_cpu_budget
+  test_memory_admission test_body_timeout test_clock_jumps test_uploads_in_flight test_cpu_budget \
+  test_cpu_budget_counts_job_threads
 ATTACKS_GRPC := test_connection_flood_leaves_the_doors_working \
   test_no_descriptors_makes_the_daemon_unhealthy test_header_blocks_are_bounded \
   test_abandoned_streams_are_bounded test_rapid_reset_is_paced \
   test_compressed_messages_are_refused test_uploads_in_flight_fit_the_memory_budget \
   test_open_and_cancel_thousands_of_calls test_unread_answer_is_cancelled
-# issue 28's, in tests/test_store_trust.py (a real redis-server) and
-# tests/test_upload_limits.py; the C ones are in ATTACKS
+# issue 28's, in tests/test_store_trust.py and tests/test_redis_network.py
+# (a real redis-server) and tests/test_upload_limits.py; the C ones are in
+# ATTACKS
 ATTACKS_PY := test_evicting_redis_is_refused test_what_a_restart_loses \
   test_readyz_while_redis_refuses_writes test_unqueueable_job_is_not_acknowledged \
   test_garbage_request_record_is_quarantined test_multipart_300mb_over_default_max_upload \
-  test_chunked_multipart_over_max_upload test_refused_at_decode_leaves_its_input_off_the_spool
+  test_chunked_multipart_over_max_upload test_refused_at_decode_leaves_its_input_off_the_spool \
+  test_latency_drops_and_partition
 attack: deps
-	$(MAKE) all $(SERVER_TESTS)
+	$(MAKE) all $(SERVER_TESTS) $(B)/tests/test_service
 	@fail=0; for t in $(ATTACKS) $(ATTACKS_GRPC) $(ATTACKS_PY); do \
 	  case " $(ATTACKS_GRPC) $(ATTACKS_PY) " in \
 	    *" $$t "*) run="/usr/bin/python3 $$(grep -l "^def $$t(" tests/test_*.py)";; \
-	    *) run=$$(grep -l "^static void $$t(" $(SERVER_TEST_NAMES:%=tests/%.c) | \
+	    *) run=$$(grep -l "^static void $$t(" $(SERVER_TEST_NAMES:%=tests/%.c) tests/test_service.c | \
 	          sed 's|^tests/|$(B)/tests/|; s|\.c$$||');; esac; \
 	  OPENBLAS_NUM_THREADS=1 OMP_THREAD_LIMIT=1 MCF_MESHES=$(MESHES) \
 	    MCF_TESTDATA=$(CURDIR)/tests/data MCF_BUILD=$(B) MCF_TEST_FILTER=$$t \
@@ -554,6 +560,13 @@ REST_DOOR := $(wildcard server/rest/*.[ch])
 # The gRPC door's C++ (the only C++ in server/), sharing grpc_internal.h.
 GRPC_CXX := $(wildcard server/grpc/*.cc)
 GRPC_DOOR := $(wildcard server/grpc/*.cc server/grpc/*.h server/grpc/h2gate/*.[ch])
+# The leaves that broke the cycles of issue 32 (the REST door's request
+# accessors, the service's table and wake-up, the codecs' shared steps):
+# called by their module's files, they call none of them.
+LEAVES := $(wildcard server/rest/request.c server/service/svc_table.c api/api_codec.c api/api_gltf_write.c)
+# The modules whose include-and-call graph has no cycle (make check-graph,
+# .ci/depgraph.py over the objects: a file that calls back up fails it).
+ACYCLIC := server/rest server/service api
 
 # The daemon's integration tests (test_server*.c, one concern each) share
 # tests/srvlib.c.
@@ -574,6 +587,13 @@ $(B)/tests/test_service: $(B)/tests/test_service.o $(SVC_TEST_OBJ) $(TESTLIB_OBJ
 SPDX_FILES := '*.c' '*.h' '*.cc' '*.cpp' '*.proto' '*.py' '*.mjs' '*.js' '*.sh' '*.gp' \
   '*.css' '*.html' '*.yaml' '*.toml' '*.mk' Makefile '*/Makefile' .ci/run docker/Dockerfile \
   docker/build-packages
+
+# The graph of includes and calls (.ci/depgraph.py, from the sources and
+# nm of the objects): nodes, edges, levels, cycles; fails on a cycle in
+# $(ACYCLIC). make test runs it.
+check-graph: $(SRV_OBJ) $(API_OBJ)
+	@python3 .ci/depgraph.py --build $(B) --fail-on-cycle $(ACYCLIC)
+	@python3 .ci/depgraph.py --build $(B) server
 
 check-deps:
 	@! grep -nE '#include *[<"](microhttpd|cjson/cJSON|cJSON|curl/curl|api)\.h' core/*.c core/*.h || \
@@ -598,8 +618,12 @@ check-deps:
 	  { echo "check-deps: a door includes service.h, never the service's own headers (svc_internal.h, svc_admit.h, store.h, rstore.h, rds.h, sandbox.h)"; exit 1; }
 	@! grep -nE '#include *[<"](grpc_door|h2gate)\.h' $(REST_DOOR) || \
 	  { echo "check-deps: the REST door does not include the gRPC door's headers"; exit 1; }
-	@! grep -nE '#include *[<"](http|rest_door)\.h' $(GRPC_DOOR) || \
+	@! grep -nE '#include *[<"](http|rest_door|rest_internal)\.h' $(GRPC_DOOR) || \
 	  { echo "check-deps: the gRPC door does not include the REST door's headers"; exit 1; }
+	@! grep -nE '#include *[<"]http\.h' $(filter-out server/rest/http.c server/rest/rest_door.c,$(SRV_ALL)) || \
+	  { echo "check-deps: only rest_door.c includes the router's http.h: the door's other files are called by http.c and never call it back (rest_internal.h)"; exit 1; }
+	@! grep -HnE '#include *"' $(LEAVES) | grep -vE ':[0-9]+:#include *"(rest_internal|svc_internal|api_internal)\.h"' || \
+	  { echo "check-deps: the leaves $(LEAVES) include their module's internal header alone (they call no other file of it: make check-graph)"; exit 1; }
 	@! grep -nE '#include *[<"]([^>"]*/)?(lab/|$(LAB_HEADERS_RE))' $(PRODUCT_SRC) || \
 	  { echo "check-deps: nothing outside lab/ includes the lab's headers: the lab is a client of the product, never a part"; exit 1; }
 	@missing=$$(git ls-files -- $(SPDX_FILES) 2>/dev/null | grep -v -e '^tests/fuzz/corpus' -e '^tests/data/' | \

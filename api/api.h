@@ -104,7 +104,9 @@ const char *api_format_mime(api_format f);       /* "model/obj", ... */
  * Formats: Draco NORMAL, TEX_COORD and COLOR (the first of each), with
  * their quantization; OBJ vt and vn (per corner) and `v x y z r g b`; PLY
  * vertex nx ny nz, s t (also u v, texture_u texture_v), red green blue
- * [alpha], and the face `texcoord` list (6 floats) draco_decoder writes.
+ * [alpha], and the face `texcoord` list (6 floats) draco_decoder writes;
+ * PLY's other vertex scalars pass through to a PLY output as they came
+ * (api_attrs_not_kept names what an output does not keep).
  * STL and OFF carry none. The connectivity as it came: the polygons of
  * an OBJ, PLY or OFF (smoothed as their fan triangles) are written back
  * as those polygons by the same three formats, and OBJ's g, o, s, usemtl
@@ -149,6 +151,14 @@ int api_attrs_float32(const api_attrs *a);
  * from Draco, or absent. */
 #define API_ATTR_POSITION API_ATTR_KINDS
 int api_attrs_draco_bits(const api_attrs *a, int k);
+/* What an output in format `out` will not keep of the input, for the user
+ * to be told: PLY vertex properties the attributes do not model (quality,
+ * confidence, intensity, ...; a PLY output writes them back, as they came,
+ * with their types, the first 16 of them), PLY list properties and
+ * elements other than the vertices and faces. Writes "vertex quality,
+ * element edge" (truncated with "..." to n bytes) into buf and returns how
+ * many items; 0 and "" when everything is kept (and for NULL). */
+int api_attrs_not_kept(const api_attrs *a, api_format out, char *buf, size_t n);
 
 /* Encoder options; api_encode_opts_init sets the defaults. */
 typedef struct {
@@ -514,6 +524,8 @@ typedef struct {
     api_format input_format, output_format;
     size_t input_bytes, output_bytes;
     double quantization_max_error; /* Draco output (api_draco_encode) */
+    const char *not_kept;          /* api_attrs_not_kept's list; NULL: all
+                                      kept (output.not_kept null) */
     double queue_s, read_s, decode_s, flow_s, encode_s, write_s,
            total_s;                /* seconds per phase */
     double metrics_s;              /* in api_metrics_before and _after */
@@ -589,6 +601,9 @@ typedef struct {
                                   units); NaN without a log (no metrics) */
     double t_target;           /* the run's total time once the core knows
                                   it (0: the run counts steps) */
+    double threads_cpu_s;      /* CPU seconds of the threads the flow
+                                  started besides the caller's so far
+                                  (mcf_flow_stats.threads_cpu_s) */
 } api_job_step;
 
 /* The door's hooks; any may be NULL. ctx is passed to each. */
@@ -670,6 +685,10 @@ typedef struct {
     int nv, nf;                /* the input's counts once decoded */
     int withheld;              /* the flowed hook withheld the output */
     double quantization_max_error;  /* Draco output; NaN otherwise */
+    /* What the output does not keep of the input (api_attrs_not_kept):
+     * not_kept_n items named in not_kept ("" when none). */
+    char not_kept[256];
+    int not_kept_n;
     double flow_s;
     /* a failure: where, which part ("mesh", "target", "params",
      * "flow", "encode", "output", "metrics", "fields") and the core's or

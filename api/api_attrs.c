@@ -13,6 +13,7 @@
  * stays a crease. Small and not tuned: one pass over the corners per call.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -57,6 +58,12 @@ void api_attrs_free(api_attrs *a)
     for (k = 0; k < a->nstmt; k++)
         free(a->stmt[k].text);
     free(a->stmt);
+    for (k = 0; k < a->nscal; k++) {
+        free(a->scal[k].name);
+        free(a->scal[k].values);
+    }
+    free(a->scal);
+    free(a->not_kept);
     free(a);
 }
 
@@ -384,6 +391,72 @@ mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
     a->stmt[a->nstmt].at = at;
     a->stmt[a->nstmt++].text = t;
     return MCF_OK;
+}
+
+/* ------------------------------------ pass-through scalars, what is not kept */
+
+mcf_status api__attrs_scalar(api_attrs *a, const char *name, size_t n, int type,
+                             double *values, mcf_error *err)
+{
+    char *t = malloc(n + 1);
+    api__scalar *sc = realloc(a->scal, sizeof *sc * ((size_t)a->nscal + 1));
+    if (sc)
+        a->scal = sc;
+    if (!t || !sc) {
+        free(t);
+        free(values);
+        return api__fail(err, MCF_ENOMEM, "attributes: out of memory for a property");
+    }
+    memcpy(t, name, n);
+    t[n] = '\0';
+    a->scal[a->nscal].name = t;
+    a->scal[a->nscal].type = type;
+    a->scal[a->nscal++].values = values;
+    return MCF_OK;
+}
+
+mcf_status api__attrs_drop(api_attrs *a, const char *what, size_t n, mcf_error *err)
+{
+    size_t old = a->not_kept ? strlen(a->not_kept) : 0;
+    char *t = realloc(a->not_kept, old + n + 3);
+    if (!t)
+        return api__fail(err, MCF_ENOMEM, "attributes: out of memory");
+    if (old)
+        memcpy(t + old, ", ", 2), old += 2;
+    memcpy(t + old, what, n);
+    t[old + n] = '\0';
+    a->not_kept = t;
+    a->nnot_kept++;
+    return MCF_OK;
+}
+
+/* Appends "<sep><what>" to buf (n bytes) at *len, truncating. */
+static void put_item(char *buf, size_t n, size_t *len, const char *what, const char *name)
+{
+    int w;
+    if (*len >= n)
+        return;
+    w = snprintf(buf + *len, n - *len, "%s%s%s", *len ? ", " : "", what, name);
+    *len = w < 0 ? n : *len + (size_t)w;
+}
+
+int api_attrs_not_kept(const api_attrs *a, api_format out, char *buf, size_t n)
+{
+    size_t len = 0;
+    int k, count = 0;
+    if (n)
+        buf[0] = '\0';
+    if (!a)
+        return 0;
+    for (k = 0; out != API_FMT_PLY && k < a->nscal; k++, count++)
+        put_item(buf, n, &len, "vertex ", a->scal[k].name);
+    if (a->not_kept) {
+        put_item(buf, n, &len, "", a->not_kept);
+        count += a->nnot_kept;
+    }
+    if (len >= n && n >= 4)
+        memcpy(buf + n - 4, "...", 4);
+    return count;
 }
 
 int api__attrs_maxpoly(const api_attrs *a)

@@ -566,26 +566,3 @@ mcf_status api_gltf_decode_attrs(const void *buf, size_t len, const api_limits *
     api__gltf_doc_free(&d);
     return rc;
 }
-
-void api__gltf_doc_free(api__gltf_doc *d)
-{
-    int i;
-    for (i = 0; i < d->nbuf; i++)
-        free(d->buf[i]);
-    free(d->buf);
-    free(d->buf_len);
-    free(d->json);
-    for (i = 0; i < d->nprim; i++) {
-        api__gltf_prim *g = &d->prim[i];
-        api__draco_prim_free(&g->draco);
-        free(g->tri);
-        free(g->xyz);
-        free(g->nxyz);
-        free(g->uv);
-        free(g->rgba);
-        free(g->vmap);
-        free(g->ngroup);
-    }
-    free(d->prim);
-    memset(d, 0, sizeof *d);
-}

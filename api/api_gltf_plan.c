@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * api_gltf_plan.c - the plan record: a decoded glTF document as bytes, from
- * the decoder (possibly in the decode sandbox's child process, through
- * api_mesh_pack) to the encoder (api_gltf_encode.c).
+ * api_gltf_plan.c - the decoded glTF document (api__gltf_doc): its free,
+ * and the plan record, the document as bytes, from the decoder (possibly
+ * in the decode sandbox's child process, through api_mesh_pack) to the
+ * encoder (api_gltf_encode.c).
  *
  * Layout, host byte order: "MCFGLTF1", the container, the JSON text, the
  * buffers, and per triangle primitive its location in the document, where
@@ -17,6 +18,31 @@
 #include "api_internal.h"
 
 static const char MAGIC[8] = {'M', 'C', 'F', 'G', 'L', 'T', 'F', '1'};
+
+/* --------------------------------------------------------------- document */
+
+void api__gltf_doc_free(api__gltf_doc *d)
+{
+    int i;
+    for (i = 0; i < d->nbuf; i++)
+        free(d->buf[i]);
+    free(d->buf);
+    free(d->buf_len);
+    free(d->json);
+    for (i = 0; i < d->nprim; i++) {
+        api__gltf_prim *g = &d->prim[i];
+        api__draco_prim_free(&g->draco);
+        free(g->tri);
+        free(g->xyz);
+        free(g->nxyz);
+        free(g->uv);
+        free(g->rgba);
+        free(g->vmap);
+        free(g->ngroup);
+    }
+    free(d->prim);
+    memset(d, 0, sizeof *d);
+}
 
 /* ------------------------------------------------------------ plan record */
 

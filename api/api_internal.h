@@ -7,8 +7,9 @@
  * mcf__. Most of them serve the mesh codecs (api_obj.c, api_off.c,
  * api_ply.c, api_stl.c): the text helpers (tokens, lines, numbers, tokens
  * quoted in error messages) live in api_text.c, the decode prologue and
- * encode epilogue in api_mesh.c, and the byte-level ones below are inline
- * because the binary readers call them for every value. This header is
+ * encode epilogue in api_codec.c (a leaf below the codecs), and the
+ * byte-level ones below are inline because the binary readers call them
+ * for every value. This header is
  * also included (as C) by api_draco*.cc, so what is inline here is valid
  * C++ too.
  */
@@ -143,7 +144,7 @@ static inline int api__take(api__reader *r, void *dst, size_t n)
     return 1;
 }
 
-/* ----------------------------------------------------- codecs (api_mesh.c) */
+/* ---------------------------------------------------- codecs (api_codec.c) */
 
 /* The checks every text or binary decoder makes first, with messages
  * prefixed by codec ("obj", ...): a NULL *lim is replaced by def filled
@@ -220,6 +221,16 @@ typedef struct {
     char *text;             /* the statement's line, NUL-terminated */
 } api__stmt;
 
+/* A per-vertex scalar the attributes do not model, passed through as it
+ * came (a PLY vertex property: quality, confidence, intensity, ...):
+ * its name, its PLY type (api_ply_internal.h's ptype) and nv values. */
+typedef struct {
+    char *name;
+    int type;
+    double *values;
+} api__scalar;
+#define API__SCALARS_MAX 16     /* more are named in not_kept */
+
 struct api_attrs {
     int nv, nf;
     int float32;            /* positions were single precision */
@@ -238,6 +249,13 @@ struct api_attrs {
      * back before polygon stmt[i].at (npoly: after the last). */
     api__stmt *stmt;
     int nstmt;
+    /* PLY vertex scalars passed through (the PLY encoder writes them back;
+     * other formats cannot), and what the input had that no output keeps
+     * ("vertex flags (a list), element edge"; NULL: nothing). */
+    api__scalar *scal;
+    int nscal;
+    char *not_kept;
+    int nnot_kept;
 };
 
 /* Takes ownership of values and corners (malloc'ed, corners not NULL;
@@ -246,6 +264,14 @@ struct api_attrs {
 mcf_status api__attrs_take(api_attrs *a, api_attr_kind k, int ncomp,
                            int nvalues, double *values, int32_t *corners,
                            mcf_error *err);
+
+/* Takes ownership of values (malloc'ed, nv of them; freed on failure
+ * too) as the pass-through scalar `name` (n bytes) of PLY type `type`.
+ * ENOMEM. */
+mcf_status api__attrs_scalar(api_attrs *a, const char *name, size_t n, int type,
+                             double *values, mcf_error *err);
+/* Appends "what" (n bytes) to the list of what no output keeps. ENOMEM. */
+mcf_status api__attrs_drop(api_attrs *a, const char *what, size_t n, mcf_error *err);
 
 /* The input's polygon sizes (npoly of them, each >= 3, their triangles
  * summing to the handle's face count; copied, and kept only when one has
@@ -430,6 +456,7 @@ mcf_status api__gltf_check_json(const void *in, size_t in_len, const char *json,
 mcf_status api__gltf_parse(const void *buf, size_t len, const char *json,
                            size_t json_len, const api_limits *lim,
                            api__gltf_doc *doc, mcf_error *err);
+/* Frees what doc holds (api_gltf_plan.c); doc is left empty. */
 void api__gltf_doc_free(api__gltf_doc *doc);
 
 /* The plan record the decoder leaves in api_attrs (api__gltf_plan) and
@@ -439,13 +466,16 @@ mcf_status api__gltf_plan(const api__gltf_doc *doc, api_buf *out,
 mcf_status api__gltf_unplan(const void *buf, size_t len, api__gltf_doc *doc,
                             mcf_error *err);
 
-/* glTF encoding's helpers (api_gltf_encode.c), shared with the new
- * document's writer (api_gltf_fresh.c). set_item sets member k of o to x
+/* The glTF writers' helpers (api_gltf_write.c), shared by the rewrite
+ * (api_gltf_encode.c) and the new document (api_gltf_fresh.c). items:
+ * the items of array member k of o (NULL when none: *n = 0; NULL too out
+ * of memory), to free. set_item sets member k of o to x
  * (every earlier k removed; x deleted on failure), set_num a number,
  * set_vec3 a VEC3 as exact decimals (min, max); 0 on failure. bounds: min
  * and max over n VEC3 floats at p, stride apart. serialize: root and the
  * nbuf buffers in container fmt (GLB: buffer 0 as its BIN chunk; .gltf:
  * data: URIs, a buffer not dirty that was a URI keeps its text) to out. */
+cJSON **api__gltf_items(const cJSON *o, const char *k, int *n);
 int api__gltf_set_item(cJSON *o, const char *k, cJSON *x);
 int api__gltf_set_num(cJSON *o, const char *k, double v);
 int api__gltf_set_vec3(cJSON *o, const char *k, const double v[3]);

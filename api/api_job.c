@@ -168,6 +168,7 @@ static int on_progress(void *ctx, int step, double t, double dt, double energy)
     s.volume = st->log && step >= 1 && step <= st->nlog
                    ? st->log[step - 1].volume : NAN;
     s.t_target = st->t_target;
+    s.threads_cpu_s = st->threads_cpu_s;
     return h->progress(h->ctx, &s);
 }
 
@@ -235,6 +236,8 @@ static mcf_status output(job *jb, const api_params *p)
     jb->run.encode_s = elapsed(t0);
     jb->run.output_bytes = res->output.len;
     jb->run.quantization_max_error = res->quantization_max_error;
+    res->not_kept_n = api_attrs_not_kept(jb->attrs, f, res->not_kept, sizeof res->not_kept);
+    jb->run.not_kept = res->not_kept_n ? res->not_kept : NULL;
     if (h && h->store) {
         t0 = mcf_now();
         if ((rc = h->store(h->ctx, &res->output, res->output_name,

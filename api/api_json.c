@@ -270,6 +270,7 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
         ok = ok && api__json_num(t, "factorize_s", st->time_factorize);
         ok = ok && api__json_num(t, "solve_s", st->time_solve);
         ok = ok && api__json_num(t, "total_s", st->time_total);
+        ok = ok && api__json_num(t, "threads_cpu_s", st->threads_cpu_s);
     }
     if (ok && st->log && st->nlog > 0)
         ok = api__json_put(o, "log", step_log(st->log, st->nlog));

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * api_mesh.c - format detection and naming, encoder options, and the
- * decode/encode dispatchers over the per-format codecs.
+ * api_mesh.c - format detection and naming, and the decode/encode
+ * dispatchers over the per-format codecs.
  *
  * Detection looks at the bytes only, in an order where no rule can steal
  * another format's file: Draco's "DRACO" magic, "ply" + newline, the
@@ -13,9 +13,8 @@
  * OFF and OBJ keyword sets are disjoint, so the comment skipping of the
  * one rule cannot take the other's files.
  *
- * Also the steps every codec shares (api_internal.h): the decoders'
- * argument and size checks, the core mesh at the end of a decode, and
- * the encoders' roll-back on failure.
+ * The steps every codec shares, and the encoder options' defaults, are
+ * api_codec.c's: the codecs call them and this file calls the codecs.
  */
 #include <ctype.h>
 #include <stdlib.h>
@@ -201,97 +200,6 @@ const char *api_format_ext(api_format f)
 const char *api_format_mime(api_format f)
 {
     return (unsigned)f < NFORMATS ? formats[f].mime : formats[0].mime;
-}
-
-void api_encode_opts_init(api_encode_opts *o)
-{
-    memset(o, 0, sizeof *o);
-    o->format = API_FMT_UNKNOWN;
-    o->quantization_bits = -1; /* auto: the input's, else 16 bits */
-    o->compression_level = 7;
-    o->preserve_order = 0;
-    o->ply_binary = 1;
-    o->ply_curvature = 0;
-    o->ply_mean_curvature = NULL;
-    o->ply_gaussian_curvature = NULL;
-    o->stl_binary = 1;
-    o->attrs = NULL;
-}
-
-mcf_status api__decode_begin(const char *codec, const void *buf, size_t len,
-                             const api_limits **lim, api_limits *def,
-                             mcf_error *err)
-{
-    if (!*lim) {
-        api_limits_default(def);
-        *lim = def;
-    }
-    if (!buf && len)
-        return api__fail(err, MCF_EINVAL, "%s: NULL buffer", codec);
-    if (len > (*lim)->max_input_bytes)
-        return api__fail(err, MCF_ELIMIT,
-                         "%s: input of %zu bytes exceeds max_input_bytes (%zu)",
-                         codec, len, (*lim)->max_input_bytes);
-    if (len == 0)
-        return api__fail(err, MCF_EDECODE, "%s: empty input", codec);
-    return MCF_OK;
-}
-
-mcf_status api__mesh_new(int nv, const double *X, int nf, const int32_t *F,
-                         mcf_mesh **out, mcf_error *err)
-{
-    mcf_mesh *m = mcf_mesh_new(nv, X, nf, F, err);
-    if (!m)
-        return (err && err->status != MCF_OK) ? err->status : MCF_EMESH;
-    *out = m;
-    return MCF_OK;
-}
-
-long long api__fan_max(long long nv, long long nf)
-{
-    long long base = nf > 2 * nv ? nf : 2 * nv;
-    return base + base / 8 + 1024;
-}
-
-mcf_status api__tris_add(api__tris *t, int32_t a, int32_t b, int32_t c,
-                         long long max, long long first, long long *want)
-{
-    if (t->n >= max)
-        return MCF_ELIMIT;
-    if (t->n == t->cap) {
-        long long ncap = t->cap ? 2 * t->cap : first;
-        int32_t *p;
-        if (ncap > max)
-            ncap = max;
-        if (want)
-            *want = ncap;
-        p = realloc(t->F, 3 * sizeof *p * (size_t)ncap);
-        if (!p)
-            return MCF_ENOMEM;
-        t->F = p;
-        t->cap = ncap;
-    }
-    t->F[3 * t->n] = a;
-    t->F[3 * t->n + 1] = b;
-    t->F[3 * t->n + 2] = c;
-    t->n++;
-    return MCF_OK;
-}
-
-mcf_status api__encode_end(api_buf *out, size_t len0, mcf_status rc,
-                           const char *codec, int n, const char *what,
-                           mcf_error *err)
-{
-    if (rc == MCF_OK)
-        return MCF_OK;
-    out->len = len0;
-    if (out->data)
-        out->data[len0] = '\0';
-    if (rc == MCF_ENOMEM)
-        return api__fail(err, rc, "%s: out of memory writing %d %s", codec, n,
-                         what);
-    return api__fail(err, rc, "%s: output exceeds its maximum of %zu bytes",
-                     codec, out->max);
 }
 
 mcf_status api_mesh_decode(const void *buf, size_t len, const api_limits *lim,

@@ -193,6 +193,7 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
     ok = ok && api__json_num(x, "area", mt->info[1].area);
     ok = ok && api__json_num(x, "volume", mt->info[1].volume);
     ok = ok && api__json_num(x, "quantization_max_error", r->quantization_max_error);
+    ok = ok && str(x, "not_kept", r->not_kept);
     ok = ok && api__json_put(x, "info", api_json_mesh_info(&mt->info[1], NULL));
 
     ok = ok && (c = obj(o, "curvature")) != NULL;

@@ -20,10 +20,14 @@
  * texture_u texture_v), red green blue [alpha] (integer types scaled to
  * [0, 1]) and the face `texcoord` list draco_decoder writes; one with a
  * missing component or a non-finite value is dropped, never an error;
- * and each face's corner count, so polygons can be written back.
+ * every other vertex scalar (quality, confidence, ...) as it came, to be
+ * written back (the first API__SCALARS_MAX; what is not read is named:
+ * api_attrs_not_kept); and each face's corner count, so polygons can be
+ * written back.
  */
 #include <limits.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -46,6 +50,7 @@ typedef struct {
     int want;
     double *va[NVROLES];
     double vscale[NVROLES];        /* 1 / type maximum for integer colours */
+    double *xa[API__SCALARS_MAX];  /* the ROLE_EXTRA properties, by rank */
     double *ftc;
     long long ftc_cap;
     int ftc_bad;                   /* some face lacks a usable list */
@@ -161,9 +166,12 @@ static mcf_status bad_count(const body *b, long long count, unsigned long long i
 /* An attribute value v of vertex r for property p (attributes wanted). */
 static void put_vattr(body *b, const prop *p, unsigned long long r, double v)
 {
-    int k = p->role - ROLE_NX;
-    if (b->va[k])
-        b->va[k][r] = v * b->vscale[k];
+    if (p->role == ROLE_EXTRA) {
+        if (p->extra < API__SCALARS_MAX && b->xa[p->extra])
+            b->xa[p->extra][r] = v;
+    } else if (b->va[p->role - ROLE_NX]) {
+        b->va[p->role - ROLE_NX][r] = v * b->vscale[p->role - ROLE_NX];
+    }
 }
 
 /* Value k of the face's texcoord list (kept in tmp until the row ends). */
@@ -259,7 +267,7 @@ static mcf_status read_binary(body *b, const header *h, mcf_error *err)
                                              "not finite",
                                              r, api__show(p->name, p->nlen, shown));
                         b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
-                    } else if (p->role >= ROLE_NX && p->role <= ROLE_A && b->want) {
+                    } else if (((p->role >= ROLE_NX && p->role <= ROLE_A) || p->role == ROLE_EXTRA) && b->want) {
                         put_vattr(b, p, r, get_scalar(u + b->pos, p->type, swap));
                     }
                     b->pos += sz;
@@ -348,7 +356,7 @@ static mcf_status ascii_scalar(body *b, const prop *p, unsigned long long r, con
                              "finite",
                              b->txt.line, api__show(t, n, shown));
         b->X[3 * r + (unsigned)(p->role - ROLE_X)] = v;
-    } else if (p->role >= ROLE_NX && p->role <= ROLE_A && b->want) {
+    } else if (((p->role >= ROLE_NX && p->role <= ROLE_A) || p->role == ROLE_EXTRA) && b->want) {
         put_vattr(b, p, r, v);
     }
     return MCF_OK;
@@ -488,12 +496,43 @@ static int all_finite(const double *v, size_t n)
     return 1;
 }
 
+/* What of h no output keeps, named in a: the vertex and face
+ * properties not read (lists of the vertex, scalars of the face, vertex
+ * scalars past API__SCALARS_MAX) and the other elements. */
+static mcf_status name_not_kept(api_attrs *a, const header *h, mcf_error *err)
+{
+    char what[96], shown[API__SHOWN], shown2[API__SHOWN];
+    mcf_status rc = MCF_OK;
+    int i, j;
+    for (i = 0; i < h->nel && rc == MCF_OK; i++) {
+        const element *e = &h->el[i];
+        if (!e->is_vertex && !e->is_face) {
+            snprintf(what, sizeof what, "element %s", api__show(e->name, e->nlen, shown));
+            rc = api__attrs_drop(a, what, strlen(what), err);
+            continue;
+        }
+        for (j = 0; j < e->nprops && rc == MCF_OK; j++) {
+            const prop *p = &e->props[j];
+            if (p->role == ROLE_INDICES || p->role == ROLE_FTC
+                || (p->role >= ROLE_X && p->role <= ROLE_A)
+                || (p->role == ROLE_EXTRA && p->extra < API__SCALARS_MAX))
+                continue;
+            snprintf(what, sizeof what, "%s %s%s", api__show(e->name, e->nlen, shown),
+                     api__show(p->name, p->nlen, shown2), p->is_list ? " (a list)" : "");
+            rc = api__attrs_drop(a, what, strlen(what), err);
+        }
+    }
+    return rc;
+}
+
 /* The attributes read into b, for mesh m, as a new handle in *attrs.
  * Vertex attributes need all their components (nx ny nz, s t, red green
  * blue); one with a non-finite value is dropped, as is a face texcoord
- * list some face lacks. float32: x, y and z were all `float`. */
-static mcf_status make_attrs(body *b, const mcf_mesh *m, int float32,
-                             api_attrs **attrs, mcf_error *err)
+ * list some face lacks; the other vertex scalars pass through as they
+ * came. float32: x, y and z were all `float`. */
+static mcf_status make_attrs(body *b, const header *h, const element *ve,
+                             const mcf_mesh *m, int float32, api_attrs **attrs,
+                             mcf_error *err)
 {
     int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), k, c;
     size_t nc = 3 * (size_t)nf;
@@ -555,6 +594,15 @@ static mcf_status make_attrs(body *b, const mcf_mesh *m, int float32,
                 rc = api__attr_dedupe(&a->a[API_ATTR_TEXCOORD], nc, err);
         }
     }
+    for (k = 0; k < ve->nprops && rc == MCF_OK; k++) {
+        const prop *p = &ve->props[k];
+        if (p->role == ROLE_EXTRA && p->extra < API__SCALARS_MAX) {
+            rc = api__attrs_scalar(a, p->name, p->nlen, (int)p->type, b->xa[p->extra], err);
+            b->xa[p->extra] = NULL;
+        }
+    }
+    if (rc == MCF_OK)
+        rc = name_not_kept(a, h, err);
     if (rc == MCF_OK)
         rc = api__attrs_polys(a, b->psize, (int)b->np, err);
     if (rc != MCF_OK) {
@@ -656,6 +704,10 @@ static mcf_status want_attrs(body *b, const element *ve, int *float32, mcf_error
                                "ply: no memory for the attributes of %d vertices",
                                b->nv);
         }
+        if (p->role == ROLE_EXTRA && p->extra < API__SCALARS_MAX
+            && !(b->xa[p->extra] = malloc(sizeof *b->xa[0] * (size_t)b->nv)))
+            return api__fail(err, MCF_ENOMEM,
+                             "ply: no memory for the properties of %d vertices", b->nv);
     }
     return MCF_OK;
 }
@@ -708,7 +760,7 @@ mcf_status api_ply_decode_attrs(const void *buf, size_t len,
         goto done;
     if ((rc = api__mesh_new(b.nv, b.X, (int)b.T.n, b.T.F, &m, err)) != MCF_OK)
         goto done;
-    if (attrs && (rc = make_attrs(&b, m, float32, attrs, err)) != MCF_OK) {
+    if (attrs && (rc = make_attrs(&b, &h, ve, m, float32, attrs, err)) != MCF_OK) {
         mcf_mesh_free(m);
         goto done;
     }
@@ -718,6 +770,8 @@ done:
     free(b.T.F);
     for (i = 0; i < NVROLES; i++)
         free(b.va[i]);
+    for (i = 0; i < API__SCALARS_MAX; i++)
+        free(b.xa[i]);
     free(b.ftc);
     free(b.tmp);
     free(b.psize);

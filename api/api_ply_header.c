@@ -42,6 +42,15 @@ void api__ply_header_free(header *h)
     h->nel = h->cap = 0;
 }
 
+const char *api__ply_type_name(ptype t)
+{
+    size_t i;
+    for (i = 0; i < sizeof type_names / sizeof type_names[0]; i++)
+        if (type_names[i].t == t)
+            return type_names[i].name;
+    return "double";
+}
+
 static ptype parse_type(const char *t, size_t n)
 {
     size_t i;
@@ -262,8 +271,13 @@ static mcf_status parse_property(const char *s, const char *le, long line, heade
                              line, api__show(name, nn, shown));
     pr.name = name;
     pr.nlen = nn;
-    if (e->is_vertex && !pr.is_list)
+    if (e->is_vertex && !pr.is_list) {
         pr.role = vertex_role(e, &pr);
+        if (pr.role == ROLE_NONE) {
+            pr.role = ROLE_EXTRA;
+            pr.extra = e->nextra++;
+        }
+    }
     if (e->is_face && pr.is_list && api__tok_is(name, nn, "texcoord"))
         pr.role = ROLE_FTC;
     if (e->is_face

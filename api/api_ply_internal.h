@@ -12,8 +12,9 @@
 
 typedef enum { T_NONE = 0, T_I8, T_U8, T_I16, T_U16, T_I32, T_U32, T_F32, T_F64 } ptype;
 
-/* Bytes of one value of each ptype (T_NONE: 0). */
+/* Bytes of one value of each ptype (T_NONE: 0), and its header name. */
 extern const size_t api__ply_type_size[T_F64 + 1];
+const char *api__ply_type_name(ptype t);
 
 static inline int is_int_type(ptype t)
 {
@@ -25,6 +26,9 @@ enum {
     /* vertex attributes (read only for api_ply_decode_attrs) */
     ROLE_NX, ROLE_NY, ROLE_NZ, ROLE_S, ROLE_T, ROLE_R, ROLE_G, ROLE_B, ROLE_A,
     ROLE_FTC,       /* the face's `texcoord` list (u v per corner) */
+    ROLE_EXTRA,     /* any other vertex scalar (quality, confidence, ...):
+                       passed through (api__attrs_scalar), the first
+                       API__PLY_EXTRA_MAX of them */
     ROLE_COUNT
 };
 #define NVROLES (ROLE_A - ROLE_NX + 1)
@@ -38,6 +42,7 @@ typedef struct {
     ptype type;             /* scalar type, or the list's item type */
     ptype count_type;       /* list only */
     int role;
+    int extra;              /* ROLE_EXTRA: its rank among the element's */
 } prop;
 
 typedef struct {
@@ -46,6 +51,7 @@ typedef struct {
     unsigned long long count;
     prop *props;
     int nprops, cap;
+    int nextra;             /* ROLE_EXTRA properties */
     int is_vertex, is_face;
 } element;
 

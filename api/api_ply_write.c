@@ -11,7 +11,9 @@
  * `mean_curvature` and `gaussian_curvature` vertex properties (given, or
  * computed with ply_curvature); `property list uchar int vertex_indices`
  * triangles, or the input's polygons when the attributes hold them (of at
- * most 127 corners, so a face texcoord list's count fits its uchar).
+ * most 127 corners, so a face texcoord list's count fits its uchar);
+ * the input's other vertex scalars (api__scalar) last, with their names
+ * and types, values as they came.
  * ASCII uses %.17g for doubles, %.9g for floats (exact round
  * trips).
  */
@@ -19,7 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "api_internal.h"
+#include "api_ply_internal.h"
 
 static void put_le64(unsigned char *p, uint64_t v)
 {
@@ -44,7 +46,17 @@ typedef struct {
     int ccomp;
     const double *H, *K;    /* curvatures, or NULL */
     double *Hown, *Kown;    /* computed here (ply_curvature) */
+    const api__scalar *S;   /* the input's other vertex scalars */
+    int ns;
 } plyextra;
+
+/* Whether scalar k is written: not one this writer computes itself. */
+static int scalar_kept(const plyextra *x, int k)
+{
+    const char *n = x->S[k].name;
+    return !(x->H && strcmp(n, "mean_curvature") == 0)
+           && !(x->K && strcmp(n, "gaussian_curvature") == 0);
+}
 
 static void extra_free(plyextra *x)
 {
@@ -84,6 +96,8 @@ static mcf_status extra_init(plyextra *x, const mcf_mesh *m,
     if (!a)
         return MCF_OK;
     x->f32 = a->float32;
+    x->S = a->scal;
+    x->ns = a->nscal;
     if (a->a[API_ATTR_NORMAL].corners) {
         /* PLY normals are per vertex: creases cannot be kept here. */
         x->N = malloc(3 * sizeof *x->N * (nv + 1));
@@ -151,6 +165,7 @@ static mcf_status write_header(api_buf *out, const plyextra *x, int binary, int 
 {
     const char *real;
     mcf_status rc;
+    int k;
 
     real = x->f32 ? "float" : "double";
     rc = api_buf_printf(out,
@@ -171,6 +186,10 @@ static mcf_status write_header(api_buf *out, const plyextra *x, int binary, int 
         rc = api_buf_printf(out, "property float mean_curvature\n");
     if (rc == MCF_OK && x->K)
         rc = api_buf_printf(out, "property float gaussian_curvature\n");
+    for (k = 0; k < x->ns && rc == MCF_OK; k++)
+        if (scalar_kept(x, k))
+            rc = api_buf_printf(out, "property %s %s\n",
+                                api__ply_type_name((ptype)x->S[k].type), x->S[k].name);
     if (rc == MCF_OK)
         rc = api_buf_printf(out, "element face %d\nproperty list uchar int "
                                  "vertex_indices\n%s",
@@ -181,10 +200,38 @@ static mcf_status write_header(api_buf *out, const plyextra *x, int binary, int 
     return rc;
 }
 
+/* Appends v as a little-endian value of PLY type t (v came from a value of
+ * that type, so the conversion is exact). */
+static void put_typed(unsigned char *p, size_t *n, double v, ptype t)
+{
+    switch (t) {
+    case T_I8: case T_U8:
+        p[*n] = t == T_I8 ? (unsigned char)(signed char)v : (unsigned char)v;
+        break;
+    case T_I16: case T_U16: {
+        uint16_t u = t == T_I16 ? (uint16_t)(int16_t)v : (uint16_t)v;
+        p[*n] = (unsigned char)u;
+        p[*n + 1] = (unsigned char)(u >> 8);
+        break;
+    }
+    case T_I32: case T_U32:
+        api__put_le32(p + *n, t == T_I32 ? (uint32_t)(int32_t)v : (uint32_t)v);
+        break;
+    case T_F32:
+        api__put_f32(p + *n, (float)v);
+        break;
+    default:
+        put_double(p + *n, v);
+        break;
+    }
+    *n += api__ply_type_size[t == T_NONE ? T_F64 : t];
+}
+
 /* Vertex i's row (X its position): binary little-endian or ASCII. */
 static mcf_status vertex_binary(api_buf *out, const plyextra *x, const double *X, int i)
 {
-    unsigned char v[128];
+    /* x y z, normals, texcoords (8 bytes each), colours, H, K, scalars */
+    unsigned char v[8 * 8 + 4 + 2 * 4 + 8 * API__SCALARS_MAX];
     size_t n = 0;
     int k;
     for (k = 0; k < 3; k++)
@@ -203,6 +250,9 @@ static mcf_status vertex_binary(api_buf *out, const plyextra *x, const double *X
         api__put_f32(v + n, (float)x->K[i]);
         n += 4;
     }
+    for (k = 0; k < x->ns; k++)
+        if (scalar_kept(x, k))
+            put_typed(v, &n, x->S[k].values[i], (ptype)x->S[k].type);
     return api_buf_append(out, v, n);
 }
 
@@ -224,6 +274,12 @@ static mcf_status vertex_ascii(api_buf *out, const plyextra *x, const double *X,
         rc = api_buf_printf(out, " %.9g", (double)(float)x->H[i]);
     if (rc == MCF_OK && x->K)
         rc = api_buf_printf(out, " %.9g", (double)(float)x->K[i]);
+    for (k = 0; k < x->ns && rc == MCF_OK; k++) {
+        ptype t = (ptype)x->S[k].type;
+        if (scalar_kept(x, k))
+            rc = is_int_type(t) ? api_buf_printf(out, " %.0f", x->S[k].values[i])
+                                : print_real(out, x->S[k].values[i], t == T_F32);
+    }
     if (rc == MCF_OK)
         rc = api_buf_append(out, "\n", 1);
     return rc;

@@ -494,6 +494,8 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
                   sc.nwarn, sc.nwarn > 1 ? "s" : "", o->pos[1]);
         goto done;
     }
+    if (!o->quiet && res.not_kept_n)
+        fprintf(stderr, "mcf: note: %s does not keep the input's %s\n", o->pos[1], res.not_kept);
     if (!o->quiet)
         print_summary(o, p, &res, sc.nwarn);
     rc = 0;
@@ -611,7 +613,9 @@ static int cmd_convert(int argc, char **argv)
     cli_opts o;
     mcf_mesh *m = NULL;
     api_attrs *attrs = NULL;
+    api_format in_fmt = API_FMT_UNKNOWN;
     cJSON *table = param_table();
+    char not_kept[256];
     int rc;
 
     if (!table)
@@ -621,9 +625,14 @@ static int cmd_convert(int argc, char **argv)
     api_params_init(&p);
     if ((rc = parse_args("convert", argc, argv, 2, &p, &lim, &o, table)) == 0
         && (rc = output_format(&p, o.pos[1])) == 0
-        && (rc = load_mesh_attrs(o.pos[0], &lim, &m, &attrs, NULL, NULL, NULL, NULL)) == 0) {
+        && (rc = load_mesh_attrs(o.pos[0], &lim, &m, &attrs, &in_fmt, NULL, NULL, NULL)) == 0) {
         p.encode.attrs = attrs;
         rc = save_mesh(m, &p.encode, o.pos[1], NULL, NULL, NULL, NULL);
+        if (rc == 0 && !o.quiet
+            && api_attrs_not_kept(attrs, p.encode.format == API_FMT_UNKNOWN ? in_fmt
+                                                                            : p.encode.format,
+                                  not_kept, sizeof not_kept))
+            fprintf(stderr, "mcf: note: %s does not keep the input's %s\n", o.pos[1], not_kept);
     }
     mcf_mesh_free(m);
     api_attrs_free(attrs);

@@ -507,6 +507,12 @@ typedef struct {
     double area0, area1, volume0, volume1;   /* in input units */
     double time_assemble, time_analyze, time_factorize, time_solve,
            time_total;        /* seconds, monotonic clock */
+    double threads_cpu_s;     /* CPU seconds of the threads the run started
+                                 besides the caller's (threads > 1: the
+                                 passes), CLOCK_THREAD_CPUTIME_ID, added
+                                 after each join on the caller's thread: a
+                                 progress callback reads it as it grows
+                                 (the caller's own CPU is its own clock's) */
     size_t peak_bytes;        /* peak heap held by the solver for this job */
     double factor_nnz;        /* implicit schemes: entries of the Cholesky */
     double factor_flops;      /* factor, flops of one factorization (0 else) */

@@ -132,12 +132,6 @@ static void high_pass(const mcf__graph *g, const double *N, const double *P, dou
         e[i] = d[i] - tmp[i];
 }
 
-static int cmp_double(const void *x, const void *y)
-{
-    double a = *(const double *)x, b = *(const double *)y;
-    return (a > b) - (a < b);
-}
-
 /* Median of |v_i| over the free vertices with a 1-ring of at least 3 (the
  * others, on slivers and boundaries' tips, say little; fixed vertices
  * carry no noise); work (nv) is scratch. */
@@ -148,10 +142,7 @@ static double mad(const mcf__graph *g, const unsigned char *fixed, const double 
     for (int i = 0; i < g->n; i++)
         if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i]))
             work[k++] = fabs(v[i]);
-    if (k == 0)
-        return 0.0;
-    qsort(work, k, sizeof *work, cmp_double);
-    return k % 2 ? work[k / 2] : 0.5 * (work[k / 2 - 1] + work[k / 2]);
+    return mcf__median(work, k);
 }
 
 /* The RMS of v over the vertices mad() counts, those with |v| above
@@ -339,7 +330,7 @@ mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
      * mesh itself tilt with the noise, and the high-pass along them then
      * misses a part of it (0.36-0.39 read for 0.5 mean edges) */
     memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
-    mcf__graph_taubin(&g, fixed, P, 3, 10, tmp, 1);
+    mcf__graph_taubin(&g, fixed, P, 3, 10, tmp, 1, NULL);
     mcf__vertex_normals(P, F, nf, nv, N);
     high_pass(&g, N, X, e, d, tmp);
     double mad_y = mad(&g, fixed, e, P), rms_y = shape ? trimmed_rms(&g, fixed, e, mad_y, NOISE_TRIM) : 0.0;

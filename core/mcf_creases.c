@@ -164,7 +164,7 @@ int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
     }
     /* the unit face normals of X smoothed by 10 Taubin passes */
     memcpy(P, X, 3 * sizeof(double) * (size_t)nv);
-    mcf__graph_taubin(g, fixed, P, 3, 10, tmp, 1);
+    mcf__graph_taubin(g, fixed, P, 3, 10, tmp, 1, NULL);
     mcf__face_normals(P, F, nf, fn);
     for (int f = 0; f < nf; f++) {
         double *n = fn + 3 * (size_t)f;

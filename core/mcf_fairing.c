@@ -573,7 +573,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
             return mcf__fail(err, MCF_ECANCELED, "canceled at step %d", k - 1);
         if (c->is_explicit) {
             double t0 = mcf_now();
-            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp, c->p->threads);
+            mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp, c->p->threads,
+                              c->threads_cpu_s);
             st->time_solve += mcf_now() - t0;
         } else if ((rc = implicit_step(c, err)) != MCF_OK) {
             return rc;
@@ -704,6 +705,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     mcf_status rc;
     memset(&ci, 0, sizeof ci);
     memset(&ce, 0, sizeof ce);
+    ci.threads_cpu_s = ce.threads_cpu_s = &st->threads_cpu_s;
     ci.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
     st->filter_explicit = ci.is_explicit;
     /* the shares of work (work()): the default's pick runs the explicit
@@ -719,8 +721,19 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     if (st->robust && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
         return rc;
     const double *Xf = Xs ? Xs : X;
+    /* the request's input's face normals: the fold guard judges the
+     * output against them too (the repair turns the faces at a spike; the
+     * `folds` warning counts against the request's input) */
+    double *fn_orig = Xs ? mcf__malloc(3 * (size_t)nf + 1, sizeof(double)) : NULL;
+    if (Xs && !fn_orig) {
+        free(Xs);
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d faces)", nf);
+    }
+    if (fn_orig)
+        mcf__face_normals(X, F, nf, fn_orig);
+    ci.fn_orig = ce.fn_orig = fn_orig;
     rc = filter_run(&ci, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
-    size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + (Xs ? 3 * sizeof(double) * (size_t)nv : 0);
+    size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + (Xs ? 3 * sizeof(double) * ((size_t)nv + (size_t)nf) : 0);
     /* the default request's `fairing` (fairing_pick) with the automatic
      * amount: the explicit passes too, the lower SURE taken
      * (pick_explicit); the factor freed first */
@@ -780,6 +793,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         st->filter = feat ? MCF_FAIRING_FEATURE : c->is_explicit ? MCF_FAIRING_EXPLICIT : MCF_FAIRING;
     st->peak_bytes = peak;
     free(Xs);
+    free(fn_orig);
     fair_free(&ci);
     fair_free(&ce);
     return rc;

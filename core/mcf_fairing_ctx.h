@@ -52,6 +52,9 @@ typedef struct {
                                   (crease vertices smoothed along) */
     double *Xin;               /* the input itself where X0 differs
                                   (creases), else NULL */
+    const double *fn_orig;     /* 3*nf: the request's input's face normals
+                                  when the spike stage repaired it (the
+                                  guard's second reference), else NULL */
     unsigned char *crease;     /* nv: on a kept crease */
     unsigned char *fx;         /* nv: fixed, or no edge */
     mcf__graph g;
@@ -77,6 +80,9 @@ typedef struct {
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
+    double *threads_cpu_s;     /* the caller's mcf_flow_stats.threads_cpu_s
+                                  (the pick's explicit run too, whose st is
+                                  its own), grown as the passes run */
     /* the run (mcf__fairing's phases) */
     double hbar;               /* the mean edge */
     int sure;                  /* the amount by SURE (else iterations) */
@@ -153,7 +159,7 @@ void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsi
 mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err);
 /* The feature stage's result Yf as the output into X: mcf__feature_output
  * with moves bounded by MAX_MOVE noise levels sf (the stage's reading);
- * the guard's counts into c->st. */
+ * the flips repair's (the default request) and the guard's counts into c->st. */
 mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double sf, double *X,
                                     mcf_error *err);
 

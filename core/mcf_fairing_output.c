@@ -240,7 +240,7 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
     if (c->p->fairing_robust && (rc = mcf__flips_repair(X, c->Xin, c->Y, c->F, nf, nv, &st->flips_repaired,
                                                         &flip_moves, err)) != MCF_OK)
         return rc;
-    if ((rc = mcf__unfold(X, c->Xin, c->Ybest, c->F, nf, nv, &st->guard_rounds, &st->guard_vertices,
+    if ((rc = mcf__unfold(X, c->Xin, c->fn_orig, c->Ybest, c->F, nf, nv, &st->guard_rounds, &st->guard_vertices,
                           &left, err)) != MCF_OK)
         return rc;
     c->bytes += (6 * sizeof(double) + 1) * (size_t)nf + (3 * sizeof(double) + 1) * (size_t)nv;
@@ -250,6 +250,7 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
 mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigned char *fixed, double sf, double *X,
                                     mcf_error *err)
 {
-    return mcf__feature_output(c->Xin, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * sf, X, &c->st->guard_rounds,
+    return mcf__feature_output(c->Xin, c->fn_orig, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * sf,
+                               c->p->fairing_robust ? &c->st->flips_repaired : NULL, X, &c->st->guard_rounds,
                                &c->st->guard_vertices, err);
 }

@@ -581,9 +581,9 @@ done:
     return rc;
 }
 
-mcf_status mcf__feature_output(const double *Xin, const double *Y, const int32_t *F, int nf, int nv,
-                               const unsigned char *fixed, double rmax, double *X, int *rounds, int *moves,
-                               mcf_error *err)
+mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
+                               int nv, const unsigned char *fixed, double rmax, int *flips, double *X, int *rounds,
+                               int *moves, mcf_error *err)
 {
     double *N = mcf__malloc(3 * (size_t)nv + 1, sizeof(double)), *G = mcf__malloc(3 * (size_t)nv + 1, sizeof(double));
     int left;
@@ -616,7 +616,12 @@ mcf_status mcf__feature_output(const double *Xin, const double *Y, const int32_t
                     p[e] = x0[e] + d[e] * (fmax(0.0, rmax - (l - rmax) / 2.0) / l);
         }
     }
-    mcf_status rc = mcf__unfold(X, Xin, G, F, nf, nv, rounds, moves, &left, err);
+    /* the faces the input had without area, turned against Y's normal
+     * field, taken back as the linear fairing's output does (mcf_flips.c) */
+    int flip_moves;
+    mcf_status rc = flips ? mcf__flips_repair(X, Xin, N, F, nf, nv, flips, &flip_moves, err) : MCF_OK;
+    if (rc == MCF_OK)
+        rc = mcf__unfold(X, Xin, fn_orig, G, F, nf, nv, rounds, moves, &left, err);
     free(N);
     free(G);
     return rc;

@@ -97,18 +97,48 @@ static int lies_backwards(const int32_t *F, const double *fn, const double *N, i
     return mcf__dot3(n, s) <= DEGENERATE * sqrt(mcf__dot3(n, n)) * e;
 }
 
-int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
-                      double *fn, double *N, unsigned char *mask)
+/* Whether face f of X (normal n) turned against the reference normal r. */
+static int turned(const double *X, const int32_t *F, int f, const double *n, const double *r)
+{
+    return mcf__dot3(n, r) < 0.0 && !degenerate(X, F + 3 * (size_t)f, n, r);
+}
+
+/* mcf__folded_faces against fn_ref, or also against fn_ref2 (not NULL):
+ * turned against either and lying backwards. */
+static int folded(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref, const double *fn_ref2,
+                  double *fn, double *N, unsigned char *mask)
 {
     int bad = 0;
     mcf__face_normals(X, F, nf, fn);
     vertex_normal_sums(X, F, nf, nv, fn, N);
     for (int f = 0; f < nf; f++) {
-        const double *n = fn + 3 * (size_t)f, *r = fn_ref + 3 * (size_t)f;
-        int b = mcf__dot3(n, r) < 0.0 && !degenerate(X, F + 3 * (size_t)f, n, r) && lies_backwards(F, fn, N, f);
+        const double *n = fn + 3 * (size_t)f;
+        int b = (turned(X, F, f, n, fn_ref + 3 * (size_t)f) ||
+                 (fn_ref2 && turned(X, F, f, n, fn_ref2 + 3 * (size_t)f))) &&
+                lies_backwards(F, fn, N, f);
         if (mask)
             mask[f] = (unsigned char)b;
         bad += b;
+    }
+    return bad;
+}
+
+int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
+                      double *fn, double *N, unsigned char *mask)
+{
+    return folded(X, F, nf, nv, fn_ref, NULL, fn, N, mask);
+}
+
+int mcf__backwards_faces(const double *X, const int32_t *F, int nf, int nv, double *fn, double *N,
+                         unsigned char *mask)
+{
+    int bad = 0;
+    mcf__face_normals(X, F, nf, fn);
+    vertex_normal_sums(X, F, nf, nv, fn, N);
+    for (int f = 0; f < nf; f++) {
+        const double *n = fn + 3 * (size_t)f;
+        mask[f] = (unsigned char)(!degenerate(X, F + 3 * (size_t)f, n, n) && lies_backwards(F, fn, N, f));
+        bad += mask[f];
     }
     return bad;
 }
@@ -143,8 +173,8 @@ int mcf__folds_against(const double *X, const double *X_ref, const int32_t *F, i
  * edges), fewer faces facing against the clean mesh's. */
 enum { GUARD_Y = 2, GUARD_HALF = 6, GUARD_MAX = 64 };
 
-mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int32_t *F, int nf, int nv,
-                       int *rounds, int *moves, int *left, mcf_error *err)
+mcf_status mcf__unfold(double *X, const double *X_in, const double *fn_orig, const double *Y, const int32_t *F,
+                       int nf, int nv, int *rounds, int *moves, int *left, mcf_error *err)
 {
     double *fr = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
     double *fn = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
@@ -160,7 +190,7 @@ mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int
     }
     mcf__face_normals(X_in, F, nf, fr);
     *rounds = *moves = 0;
-    int nbad = mcf__folded_faces(X, F, nf, nv, fr, fn, N, bad);
+    int nbad = folded(X, F, nf, nv, fr, fn_orig, fn, N, bad);
     for (int round = 0; nbad > 0 && round < GUARD_MAX; round++) {
         int moved = 0;
         for (int f = 0; f < nf; f++)
@@ -185,7 +215,7 @@ mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int
         }
         *moves += moved;
         *rounds += moved > 0;
-        nbad = mcf__folded_faces(X, F, nf, nv, fr, fn, N, bad);
+        nbad = folded(X, F, nf, nv, fr, fn_orig, fn, N, bad);
     }
     *left = nbad;
     free(fr);

@@ -157,12 +157,12 @@ static void half_pass_range(void *ctx, size_t lo, size_t hi)
 }
 
 void mcf__graph_taubin(const mcf__graph *g, const unsigned char *fixed, double *X, int ncol,
-                       int passes, double *tmp, int nthreads)
+                       int passes, double *tmp, int nthreads, double *cpu_s)
 {
     /* lambda from X into tmp, mu from tmp back into X */
     half_pass h[2] = {{g, fixed, X, tmp, MCF_TAUBIN_LAMBDA, ncol},
                       {g, fixed, tmp, X, MCF_TAUBIN_MU, ncol}};
     for (int k = 0; k < passes; k++)
         for (int q = 0; q < 2; q++)
-            mcf__par_for(nthreads, (size_t)g->n, half_pass_range, &h[q]);
+            mcf__par_for(nthreads, cpu_s, (size_t)g->n, half_pass_range, &h[q]);
 }

@@ -128,10 +128,12 @@ void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops);
  * nthreads threads (the caller's among them; one below MCF_PAR_MIN
  * items); returns when all are done. Each range must write only its own
  * items: the results are then one thread's bit for bit. Never fails (a
- * thread that cannot start leaves its range to the caller). */
+ * thread that cannot start leaves its range to the caller). cpu_s (may
+ * be NULL): += the CPU seconds of the threads it started (not the
+ * caller's), added on the caller's thread after the join. */
 #define MCF_PAR_MIN 20000
 typedef void (*mcf__par_fn)(void *ctx, size_t lo, size_t hi);
-void mcf__par_for(int nthreads, size_t n, mcf__par_fn fn, void *ctx);
+void mcf__par_for(int nthreads, double *cpu_s, size_t n, mcf__par_fn fn, void *ctx);
 
 /* ---- the uniform graph Laplacian (mcf_graph.c)
  * The vertex adjacency of a mesh, weight 1 per edge: row i of the full
@@ -155,9 +157,10 @@ void mcf__graph_average(const mcf__graph *g, const double *v, int ncol, double *
 /* `passes` Taubin passes (x += lambda (avg - x), then x += mu (avg - x),
  * lambda 0.5, mu -0.53) on X (n x ncol) in place; vertices with fixed[i]
  * set (fixed may be NULL) stay. tmp: n x ncol scratch. On nthreads
- * threads (mcf__par_for: the same result as one). */
+ * threads (mcf__par_for: the same result as one; cpu_s, may be NULL,
+ * += their CPU seconds). */
 void mcf__graph_taubin(const mcf__graph *g, const unsigned char *fixed, double *X, int ncol,
-                       int passes, double *tmp, int nthreads);
+                       int passes, double *tmp, int nthreads, double *cpu_s);
 
 /* ---- the noise level (mcf_auto.c)
  * The standard deviation sigma (X's units) of Gaussian noise along the
@@ -304,11 +307,15 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
 double mcf__feature_div(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y,
                         const double *Yz, const double *z, double eps);
 /* The output: X = Xin + n <n, Y - Xin> on the vertices not fixed (n the
- * normals of Y), moves beyond rmax taken back, then the fold guard
- * (mcf__unfold, Y's positions first). ENOMEM. */
-mcf_status mcf__feature_output(const double *Xin, const double *Y, const int32_t *F, int nf, int nv,
-                               const unsigned char *fixed, double rmax, double *X, int *rounds, int *moves,
-                               mcf_error *err);
+ * normals of Y), moves beyond rmax taken back, then, when flips is not
+ * NULL (the default request), the repair of the faces the input had
+ * without area (mcf__flips_repair against Y's normals; its count into
+ * *flips), then the fold guard (mcf__unfold with fn_orig, Y's
+ * positions first).
+ * ENOMEM. */
+mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
+                               int nv, const unsigned char *fixed, double rmax, int *flips, double *X, int *rounds,
+                               int *moves, mcf_error *err);
 /* ---- spikes (mcf_spikes.c)
  * The vertices of X (graph g, mean edge hbar) far off the surface their
  * neighbours define (their height over their 1-ring many robust
@@ -344,16 +351,24 @@ void mcf__face_normals(const double *X, const int32_t *F, int nf, double *fn); /
  * (nf, may be NULL) gets 1 on each folded face. */
 int mcf__folded_faces(const double *X, const int32_t *F, int nf, int nv, const double *fn_ref,
                       double *fn, double *N, unsigned char *mask);
+/* The faces of X lying backwards in their neighbourhood (the second test
+ * above alone; degenerate faces not), mask (nf) 1 on each; fn (3*nf)
+ * gets X's face normals, N (4*nv) is scratch. Returns their count. */
+int mcf__backwards_faces(const double *X, const int32_t *F, int nf, int nv, double *fn, double *N,
+                         unsigned char *mask);
 /* The faces of X folded against X_ref's; -1 when out of memory. */
 int mcf__folds_against(const double *X, const double *X_ref, const int32_t *F, int nf, int nv);
-/* The fairing filter's guard: while X has faces folded against X_in's,
- * their vertices that the run moved (X != X_in) take Y's positions (2
- * rounds), then halve their displacement from X_in (6 rounds), then take
- * X_in's positions. rounds: rounds that moved a vertex; moves: vertex
- * moves; left: folded faces left (0 unless the 64-round cap was hit).
+/* The fairing filter's guard: while X has faces folded against X_in's
+ * (or against fn_orig, when not NULL: the face normals of the request's
+ * own input, where a stage before the filter, the spike repair, made
+ * X_in), their vertices that the run moved (X != X_in) take Y's positions
+ * (2 rounds), then halve their displacement from X_in (6 rounds), then
+ * take X_in's positions. rounds: rounds that moved a vertex; moves:
+ * vertex moves; left: folded faces left (0 unless the 64-round cap was
+ * hit; with fn_orig, the faces X_in itself folded against it may stay).
  * ENOMEM only. */
-mcf_status mcf__unfold(double *X, const double *X_in, const double *Y, const int32_t *F, int nf, int nv,
-                       int *rounds, int *moves, int *left, mcf_error *err);
+mcf_status mcf__unfold(double *X, const double *X_in, const double *fn_orig, const double *Y, const int32_t *F,
+                       int nf, int nv, int *rounds, int *moves, int *left, mcf_error *err);
 
 /* ---- flips (mcf_flips.c)
  * The fairing filter's faces that were degenerate in its input X_in and
@@ -429,5 +444,10 @@ void mcf__radix_sort_u64(uint64_t *key, uint32_t *val, size_t n, uint64_t *tk,
  * inverse, for sorting doubles with mcf__radix_sort_u64. (mcf_sort.c) */
 uint64_t mcf__double_key(double x);
 double mcf__key_double(uint64_t u);
+/* The median of v[0..n) (finite values; v is reordered): the middle value,
+ * or the mean of the two middle ones, exactly as a sort would give them;
+ * 0 for n = 0. Linear time on any data but an adversarial order, which
+ * falls back to sorting (mcf_sort.c) */
+double mcf__median(double *v, size_t n);
 
 #endif /* MCF_INTERNAL_H */

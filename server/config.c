@@ -89,7 +89,9 @@ static const option opts[O_COUNT] = {
                        0, "bytes of jobs kept before new ones get 503 "
                        "(default 4G)"},
     [O_MAX_UPLOAD] = {"--max-upload", "MCFD_MAX_UPLOAD", T_SIZE, 0, 0,
-                      "largest mesh upload, e.g. 256M (default 256M)"},
+                      "largest upload: the mesh, or the mesh and a target "
+                      "together, e.g. 256M; a Content-Length over it is "
+                      "refused before the body (default 256M)"},
     [O_MAX_VERTICES] = {"--max-vertices", "MCFD_MAX_VERTICES", T_INT, 3,
                         2000000000, "vertices per mesh (default 100000000: memory, --max-memory, is "
                         "the wall)"},
@@ -492,12 +494,15 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
             return -1;
     }
     /* A multipart body carries the mesh, an optional target and params. */
-    if (cfg->lim.max_input_bytes > (SIZE_MAX - cfg->lim.max_json_bytes) / 2 -
+    if (cfg->lim.max_input_bytes > SIZE_MAX / 2 - 2 * cfg->lim.max_json_bytes -
                                        (1u << 20)) {
         snprintf(msg, msgsize, "--max-upload is too large");
         return -1;
     }
-    cfg->max_body = 2 * cfg->lim.max_input_bytes + cfg->lim.max_json_bytes +
+    /* a multipart body: the mesh and a target together within
+     * --max-upload, the params part and the plain fields within the JSON
+     * limit each, and 1 MiB for the parts' headers and boundaries */
+    cfg->max_body = cfg->lim.max_input_bytes + 2 * cfg->lim.max_json_bytes +
                     (1u << 20);
     /* A minute for the head's round trips plus the largest upload at
      * 1 MiB/s (8 Mbit/s): a client trickling at the 4 KiB/s the average

@@ -448,6 +448,11 @@ typedef struct {
     double t, dt, energy, volume;  /* the last step's (step > 0) */
     int steps_planned;         /* iterations when time is not set, else 0 */
     double time_planned;       /* total flow time when set, else 0 */
+    double cpu_s;              /* CPU seconds its run took, as its budget
+                                  counts them at its last step: its worker's
+                                  thread and the threads its flow started
+                                  (0 without a budget, --job-cpu 0) */
+    double cpu_threads_s;      /* the latter's share */
     double fraction;           /* of the run done, 0..1 (1: succeeded) */
     double created, started, finished;  /* epoch seconds, 0: not yet */
     char scheme[24];

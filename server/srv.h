@@ -20,7 +20,7 @@
  * the doors (door.h: one face for both):
  *   the gRPC door (grpc_door.h): grpc*.cc, the only C++ here, behind
  *   h2gate.c    its socket: accepts, admits and relays connections to gRPC
- *   the REST door on libmicrohttpd (rest_door.h; http.h for its files):
+ *   the REST door on libmicrohttpd (rest_door.h; rest_internal.h for its files):
  *   rest_door.c its face: MHD started, the tick's deadlines, the gauges
  *   http.c      MHD entry points, connections, routing, plain routes
  *   upload.c    request bodies: raw and multipart uploads, submit
@@ -29,6 +29,7 @@
  *   stream.c    streamed bodies: ndjson progress and Server-Sent Events
  *   reply.c     RFC 9457 problem+json from the table of problems, the
  *               job document with its links
+ *   request.c   what a request says: its route's label, its query (a leaf)
  *
  * Threads: MHD's small pool runs the REST door and never touches a mesh;
  * the service's worker pool decodes, smooths and encodes.

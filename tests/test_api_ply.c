@@ -1029,6 +1029,85 @@ static void test_ply_attrs(void **state)
     mcf_mesh_free(m);
 }
 
+/* Vertex properties the attributes do not model (a scanner's quality and
+ * confidence, a signed short, an int) pass through a smoothing's decode
+ * and encode as they came: the same names, types and values, in ASCII
+ * and binary, and again after a second round; what cannot pass (a vertex
+ * list, a face scalar, another element) is named by api_attrs_not_kept,
+ * which names the scalars too for a format without them. */
+static void test_ply_passthrough(void **state)
+{
+    static const char src[] =
+        "ply\nformat ascii 1.0\nelement vertex 4\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        "property float quality\nproperty uchar confidence\nproperty short s16\n"
+        "property int i32\nproperty list uchar int ring\n"
+        "element face 4\nproperty list uchar int vertex_indices\nproperty int tag\n"
+        "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n"
+        "0 0 0 0.25 0 -32768 -7 0\n1 0 0 1.5 17 -1 2147483647 1 3\n"
+        "0 1 0 2.75 200 12 0 0\n0 0 1 3.125 255 32767 -2147483648 0\n"
+        "3 0 2 1 7\n3 0 1 3 7\n3 0 3 2 7\n3 1 2 3 7\n0 1\n";
+    static const char *const decl[] = {"property float quality\n", "property uchar confidence\n",
+                                       "property short s16\n", "property int i32\n"};
+    /* the values as written above, per property, per vertex */
+    static const double want[4][4] = {{0.25, 1.5, 2.75, 3.125}, {0, 17, 200, 255},
+                                      {-32768, -1, 12, 32767},
+                                      {-7, 2147483647.0, 0, -2147483648.0}};
+    char names[256];
+    mcf_error err;
+    mcf_mesh *m = NULL;
+    api_attrs *a = NULL;
+    int bin, round, k, v;
+    (void)state;
+    assert_int_equal(api_ply_decode_attrs(src, sizeof src - 1, NULL, &m, &a, &err), MCF_OK);
+    assert_int_equal(api_attrs_not_kept(a, API_FMT_PLY, names, sizeof names), 3);
+    assert_string_equal(names, "vertex ring (a list), face tag, element edge");
+    assert_int_equal(api_attrs_not_kept(a, API_FMT_OBJ, names, sizeof names), 7);
+    assert_string_equal(names, "vertex quality, vertex confidence, vertex s16, vertex i32, "
+                               "vertex ring (a list), face tag, element edge");
+    assert_int_equal(api_attrs_not_kept(a, API_FMT_OBJ, names, 20), 7);
+    assert_string_equal(names, "vertex quality, ...");
+    assert_int_equal(api_attrs_not_kept(NULL, API_FMT_OBJ, names, sizeof names), 0);
+    assert_string_equal(names, "");
+    for (bin = 0; bin < 2; bin++) {
+        api_attrs *cur = a;
+        mcf_mesh *cm = m;
+        for (round = 0; round < 2; round++) {
+            api_encode_opts o;
+            api_buf b;
+            mcf_mesh *d = NULL;
+            api_attrs *da = NULL;
+            api_encode_opts_init(&o);
+            o.format = API_FMT_PLY;
+            o.ply_binary = bin;
+            o.attrs = cur;
+            api_buf_init(&b, 0);
+            assert_int_equal(api_ply_encode(cm, &o, &b, &err), MCF_OK);
+            for (k = 0; k < 4; k++)
+                assert_non_null(strstr(b.data, decl[k]));
+            assert_int_equal(api_ply_decode_attrs(b.data, b.len, NULL, &d, &da, &err), MCF_OK);
+            tl_assert_same_mesh(m, d);
+            assert_int_equal(da->nscal, 4);
+            for (k = 0; k < 4; k++)
+                for (v = 0; v < 4; v++)
+                    assert_true(da->scal[k].values[v] == want[k][v]);
+            /* what mcfd wrote is all a PLY keeps: nothing more to name */
+            assert_int_equal(api_attrs_not_kept(da, API_FMT_PLY, names, sizeof names), 0);
+            api_buf_free(&b);
+            if (cur != a) {
+                api_attrs_free(cur);
+                mcf_mesh_free(cm);
+            }
+            cur = da;
+            cm = d;
+        }
+        api_attrs_free(cur);
+        mcf_mesh_free(cm);
+    }
+    api_attrs_free(a);
+    mcf_mesh_free(m);
+}
+
 /* Vertex texcoords under their three usual names, uchar and float
  * colours, normals, double positions; curvature only when asked. */
 static void test_ply_attr_names(void **state)
@@ -1197,6 +1276,7 @@ int main(void)
         cmocka_unit_test(test_ply_attrs),
         cmocka_unit_test(test_ply_attr_names),
         cmocka_unit_test(test_ply_attr_partial),
+        cmocka_unit_test(test_ply_passthrough),
         cmocka_unit_test(test_header_errors),
         cmocka_unit_test(test_body_errors),
         cmocka_unit_test(test_binary_errors),

@@ -448,7 +448,7 @@ static void test_metrics_document_layout(void **state)
     static const char *const input[] = {"path", "format", "bytes", "info", "mesh", NULL};
     static const char *const output[] = {"path", "format", "bytes", "vertices", "faces",
                                          "area", "volume", "quantization_max_error",
-                                         "info", NULL};
+                                         "not_kept", "info", NULL};
     static const char *const timings[] = {"queue_s", "read_s", "decode_s", "flow_s",
                                           "encode_s", "write_s", "metrics_s", "total_s",
                                           NULL};

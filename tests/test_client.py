@@ -261,6 +261,83 @@ def test_retries_when_busy():
                 pass
 
 
+def test_submit_wait_result():
+    """submit() returns at once with a handle whose result() equals
+    smooth()'s for the same request, in the kind the mesh was given (bytes,
+    arrays, a path), through both doors; wait() reports progress and ends
+    succeeded; metrics() is the job's document; a handle rebuilt from the ID
+    gives bytes."""
+    with open(BUNNY, "rb") as f:
+        data = f.read()
+    V, F = sphere_arrays()
+    src = os.path.join(TMP, "sub.obj")
+    shutil.copy(SPHERE, src)
+    for url in both():
+        want = mcfd_client.smooth(data, url=url, iterations=4)
+        job = mcfd_client.submit(data, url=url, iterations=4)
+        assert len(job.id) == 32 and job.status()["status"] in ("queued", "running", "succeeded")
+        steps = []
+        doc = job.wait(timeout=120, progress=steps.append)
+        assert doc["status"] == "succeeded" and doc["progress"]["step"] == 4, doc
+        assert steps and steps[-1]["step"] == 4 and all(s["step"] >= 1 for s in steps), steps
+        assert job.result() == want, url
+        assert job.metrics()["flow"]["steps"] == 4
+        assert mcfd_client.Job(job.id, url).result() == want
+        V2, F2 = mcfd_client.submit((V.astype(np.float32), F), url=url, strength=0.5).result(120)
+        W2, _ = mcfd_client.smooth((V.astype(np.float32), F), url=url, strength=0.5)
+        assert V2.dtype == np.float32 and (F2 == F).all() and (V2 == W2).all()
+        out = mcfd_client.submit(src, url=url, iterations=2, out=TMP).result(120)
+        assert out == os.path.join(TMP, "sub-smoothed.obj") and info(out)["vertices"] == 812
+
+
+def test_submit_cancel_and_failures():
+    """A running job canceled through its handle ends canceled and its
+    result() raises Canceled; a mesh that does not decode is accepted at
+    submit and its result() raises MeshError with the daemon's code; a bad
+    parameter raises at submit; wait() past its timeout raises TimeoutError
+    and leaves the job running; the batch helper returns paths and errors in
+    order."""
+    with open(SPHERE, "rb") as f:
+        data = f.read()
+    for url in both():
+        job = mcfd_client.submit(data, url=url, scheme="desbrun2", iterations=50000, dt=1e-9)
+        try:
+            job.wait(timeout=0.3)
+        except TimeoutError:
+            pass
+        else:
+            raise AssertionError("50,000 steps finished within 0.3 s")
+        assert job.cancel()["status"] in ("canceled", "running", "queued")
+        assert job.wait(timeout=60)["status"] == "canceled"
+        assert job.cancel()["status"] == "canceled"   # a finished job is left as it is
+        try:
+            job.result()
+        except mcfd_client.Canceled as e:
+            assert e.code == "ECANCELED" and e.job == job.id
+        else:
+            raise AssertionError("a canceled job gave a result")
+        bad = mcfd_client.submit(b"solid x\nnot a mesh", url=url)
+        try:
+            bad.result(timeout=60)
+        except mcfd_client.MeshError as e:
+            assert e.code in ("EFORMAT", "EDECODE"), e.code
+        else:
+            raise AssertionError("a non-mesh gave a result")
+        try:
+            mcfd_client.submit(data, url=url, dt=5000)
+        except mcfd_client.InvalidParameter as e:
+            assert "dt" in e.detail
+        else:
+            raise AssertionError("dt=5000 was accepted")
+    missing = os.path.join(TMP, "missing.obj")
+    got = mcfd_client.smooth_files([SPHERE, missing, BUNNY], os.path.join(TMP, "batch"),
+                                   url=MAIN.url, max_in_flight=2, iterations=2)
+    assert got[0] == os.path.join(TMP, "batch", "sphere_cgal-smoothed.obj"), got
+    assert isinstance(got[1], OSError), got
+    assert got[2] == os.path.join(TMP, "batch", "bunny-smoothed.drc"), got
+    assert info(got[0])["vertices"] == 812 and info(got[2])["vertices"] == 34834
+
+
 def setup():
     global MAIN, GATE
     MAIN = Daemon("main", "--workers", "2")

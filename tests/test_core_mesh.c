@@ -710,6 +710,45 @@ static void test_radix_sort(void **state)
     }
 }
 
+/* Reference model: mcf__median against the middle of a qsort'ed copy
+ * (the middle value, or the mean of the two middle ones), bit for bit,
+ * at sizes 0-40, 1000, 1001 and 100,003, on random values, few distinct
+ * values (ties across the pivot), sorted, reversed, all equal and an
+ * organ pipe (orders that defeat a naive pivot). */
+static void test_median_select(void **state)
+{
+    static const size_t sizes[] = {1000, 1001, 100003};
+    uint64_t x = 2463534242ull;
+    (void)state;
+    for (size_t si = 0; si < 41 + sizeof sizes / sizeof sizes[0]; si++) {
+        size_t n = si < 41 ? si : sizes[si - 41];
+        double *a = malloc((n + 1) * sizeof *a), *b = malloc((n + 1) * sizeof *b);
+        assert_true(a && b);
+        for (int shape = 0; shape < 6; shape++) {
+            for (size_t i = 0; i < n; i++) {
+                x ^= x << 13; x ^= x >> 7; x ^= x << 17;
+                a[i] = shape == 0 ? ldexp((double)(x >> 11), -53) - 0.25
+                     : shape == 1 ? (double)(x % 5)
+                     : shape == 2 ? (double)i
+                     : shape == 3 ? (double)(n - i)
+                     : shape == 4 ? 7.0
+                     : (double)(i < n / 2 ? i : n - i);
+            }
+            memcpy(b, a, n * sizeof *a);
+            qsort(b, n, sizeof *b, double_cmp);
+            double ref = n == 0 ? 0.0 : n % 2 ? b[n / 2] : 0.5 * (b[n / 2 - 1] + b[n / 2]);
+            double got = mcf__median(a, n);
+            if (memcmp(&got, &ref, sizeof got) != 0)
+                fail_msg("n %zu shape %d: median %.17g, the sort's %.17g", n, shape, got, ref);
+            /* a permutation of the input: sorted, the same values */
+            qsort(a, n, sizeof *a, double_cmp);
+            assert_true(n == 0 || memcmp(a, b, n * sizeof *a) == 0);
+        }
+        free(a);
+        free(b);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -728,6 +767,7 @@ int main(void)
         cmocka_unit_test(test_compare_translated),
         cmocka_unit_test(test_compare_inverted),
         cmocka_unit_test(test_radix_sort),
+        cmocka_unit_test(test_median_select),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

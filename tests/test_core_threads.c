@@ -8,11 +8,14 @@
  * order one thread would: no tolerance is needed, none is allowed). A
  * 40,962-vertex icosphere (over MCF_PAR_MIN, so the threads do run) with
  * noise 0.25 mean edges; about 4 s of CPU. The passes' column counts give
- * the same columns bit for bit (test_passes_columns_split).
+ * the same columns bit for bit (test_passes_columns_split). The threads'
+ * CPU is counted for the caller (mcf_flow_stats.threads_cpu_s: mcfd's
+ * per-job CPU budget, issue 28): test_threads_cpu_counted.
  */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "mcf_internal.h"
 #include "testlib.h"
@@ -33,7 +36,7 @@ static void test_par_for_covers(void **state)
         for (int t = 0; t <= 5; t++) {
             unsigned char *hits = calloc(sizes[s] + 1, 1);
             assert_non_null(hits);
-            mcf__par_for(t, sizes[s], count_range, hits);
+            mcf__par_for(t, NULL, sizes[s], count_range, hits);
             for (size_t i = 0; i < sizes[s]; i++)
                 if (hits[i] != 1)
                     fail_msg("n %zu, %d threads: item %zu run %d times", sizes[s], t, i, hits[i]);
@@ -46,7 +49,7 @@ static void test_par_for_covers(void **state)
  * noisy icosphere, on `threads` threads, as many as SURE says (nine
  * columns: the positions and six probes) or `iterations` (three): the
  * result's positions into X (3 nv), its step count returned. */
-static int explicit_run(int threads, int iterations, double *X, int nv)
+static int explicit_run(int threads, int iterations, double *X, int nv, double *threads_cpu_s)
 {
     mcf_error err = {0};
     mcf_mesh *m = mcf_mesh_new_icosphere(6, 1.0, &err);
@@ -69,6 +72,8 @@ static int explicit_run(int threads, int iterations, double *X, int nv)
         fail_msg("fairing_explicit on %d threads: %s", threads, err.msg);
     memcpy(X, mcf_mesh_positions(m), 3 * sizeof(double) * (size_t)nv);
     steps = st.steps;
+    if (threads_cpu_s)
+        *threads_cpu_s = st.threads_cpu_s;
     mcf_flow_stats_free(&st);
     api_params_free(&ap);
     mcf_mesh_free(m);
@@ -82,15 +87,73 @@ static void test_passes_one_thread_equal(void **state)
     (void)state;
     assert_true(X1 && Xt);
     for (int it = 0; it <= 12; it += 12) {
-        int k1 = explicit_run(1, it, X1, NV);
+        int k1 = explicit_run(1, it, X1, NV, NULL);
         assert_true(k1 > 0); /* the noise was found and removed */
         /* 2 threads (3 on the shorter run: uneven ranges) */
-        int t = it ? 3 : 2, kt = explicit_run(t, it, Xt, NV);
+        int t = it ? 3 : 2, kt = explicit_run(t, it, Xt, NV, NULL);
         assert_int_equal(kt, k1);
         assert_memory_equal(Xt, X1, 3 * sizeof(double) * NV);
     }
     free(X1);
     free(Xt);
+}
+
+/* A range's work that costs CPU in proportion to its length: sums of
+ * a hash (stored, so the loop is not optimized away). */
+static void busy_range(void *ctx, size_t lo, size_t hi)
+{
+    uint64_t acc = 0;
+    volatile uint64_t sink;
+    (void)ctx;
+    for (size_t i = lo; i < hi; i++)
+        for (uint64_t k = 0; k < 64; k++)
+            acc += mcf__mix64(i * 64 + k);
+    sink = acc;
+    (void)sink;
+}
+
+static double own_cpu(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* mcf__par_for adds the CPU seconds of the threads it starts, never the
+ * caller's: none on one thread or below MCF_PAR_MIN items; on 4 threads,
+ * three ranges as long as the caller's own. The caller's own range is
+ * measured on its clock around the call (it also waits in the join,
+ * which costs no CPU), so the helpers' sum is about 3x it: asserted
+ * within [1.5x, 6x], room for the scheduling noise of a loaded machine
+ * (thread start-up, cache misses), never a time bound. Then the explicit
+ * fairing passes on 2 threads report their helper's CPU in
+ * mcf_flow_stats.threads_cpu_s (0 on one thread). */
+static void test_threads_cpu_counted(void **state)
+{
+    enum { NV = 40962, N = 4 * MCF_PAR_MIN * 16 };
+    double cpu = 0.0, c0, own;
+    (void)state;
+    mcf__par_for(1, &cpu, N, busy_range, NULL);
+    assert_true(cpu == 0.0);
+    mcf__par_for(4, &cpu, MCF_PAR_MIN - 1, busy_range, NULL);
+    assert_true(cpu == 0.0);
+    c0 = own_cpu();
+    mcf__par_for(4, &cpu, N, busy_range, NULL);
+    own = own_cpu() - c0;
+    print_message("    4 threads: the caller's range %.3f s of CPU, the three others' %.3f s\n",
+                  own, cpu);
+    assert_true(own > 0.0);
+    assert_true(cpu >= 1.5 * own && cpu <= 6.0 * own);
+
+    double *X = malloc(3 * sizeof(double) * NV), t1 = -1.0, t2 = -1.0;
+    assert_non_null(X);
+    explicit_run(1, 12, X, NV, &t1);
+    explicit_run(2, 12, X, NV, &t2);
+    print_message("    12 explicit passes, 40,962 vertices: threads_cpu_s %.3f on 1 thread, "
+                  "%.3f on 2\n", t1, t2);
+    assert_true(t1 == 0.0);
+    assert_true(t2 > 0.0);
+    free(X);
 }
 
 /* The passes' column counts (mcf_graph.c: unrolled for 3, 6 and 9, any
@@ -119,7 +182,7 @@ static void test_passes_columns_split(void **state)
     for (int i = 0; i < nv; i += 97)
         fixed[i] = 1;
     memcpy(Zs, Z, sizeof(double) * n9);
-    mcf__graph_taubin(&g, fixed, Z, 9, 3, tmp, 1);
+    mcf__graph_taubin(&g, fixed, Z, 9, 3, tmp, 1, NULL);
     for (int s = 0; s < 3; s++)
         for (int t = 1; t <= 2; t++) {
             int c0 = 0;
@@ -127,7 +190,7 @@ static void test_passes_columns_split(void **state)
                 int nc = splits[s][b];
                 for (int i = 0; i < nv; i++)
                     memcpy(P + (size_t)nc * i, Zs + 9 * (size_t)i + c0, sizeof(double) * nc);
-                mcf__graph_taubin(&g, fixed, P, nc, 3, tmp, t);
+                mcf__graph_taubin(&g, fixed, P, nc, 3, tmp, t, NULL);
                 for (int i = 0; i < nv; i++)
                     if (memcmp(P + (size_t)nc * i, Z + 9 * (size_t)i + c0, sizeof(double) * nc))
                         fail_msg("split %d, columns %d..%d, %d threads: vertex %d differs", s, c0,
@@ -149,6 +212,7 @@ int main(void)
         cmocka_unit_test(test_par_for_covers),
         cmocka_unit_test(test_passes_one_thread_equal),
         cmocka_unit_test(test_passes_columns_split),
+        cmocka_unit_test(test_threads_cpu_counted),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

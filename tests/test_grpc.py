@@ -460,6 +460,12 @@ def test_resource_exhausted_limits():
     t0 = time.time()
     smooth_err(MAIN, big * 20, None, grpc.StatusCode.RESOURCE_EXHAUSTED, "upload limit", total=False)
     assert time.time() - t0 < 30
+    # the mesh and a target share --max-upload (16M), as on REST: from
+    # the declared sizes at the header, else at the chunk that passes it
+    smooth_err(MAIN, data, None, grpc.StatusCode.RESOURCE_EXHAUSTED, "together", total=False,
+               total_size=10 << 20, target_size=10 << 20)
+    smooth_err(MAIN, big * 9, None, grpc.StatusCode.RESOURCE_EXHAUSTED, "together", total=False,
+               target=big * 9)
     # a budget that needs the mesh: max_work through iterations
     e = smooth_err(MAIN, big_obj(), dict(iterations=100000), grpc.StatusCode.RESOURCE_EXHAUSTED,
                    "max_work")

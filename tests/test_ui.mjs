@@ -5,13 +5,17 @@
 //
 // It opens /, types the token the page asks for, uploads a repository mesh
 // (tests/data/meshes/knot1.obj with noise added by tests/noisy.py, and the
-// clean knot as the target to compare with), waits for the job to succeed,
-// and checks what a person would
+// clean knot as the target to compare with), sees the input view before the
+// job (the daemon's reading: the same positions the job's fields start
+// from), waits for the job to succeed, and checks what a person would
 // see: both canvases show the mesh (pixels unlike the background), the
-// colour-mode switch changes the pixels, the metrics table and the five
-// downloads are there, the job's own format downloads, a long job can be
-// canceled from the page, and no console error was logged. Screenshots are
-// kept in $MCF_BUILD/tests/ui/ (make test's artifacts).
+// smoothed view's default colours are not uniform (colourSpread), the
+// colour-mode switch changes the pixels, the metrics table and the seven
+// downloads are there, the job's own format downloads, a clean mesh says
+// why nothing changed, an unreadable file says why, a long job shows the
+// input while it runs and can be canceled from the page, and no console
+// error was logged. Screenshots of each state of the page (state-*.png)
+// are kept in $MCF_BUILD/tests/ui/ (make test's artifacts).
 //
 // Output is cmocka's ([ RUN ], [ OK ], [  PASSED  ] N test(s)) for make
 // test's count; when chromium cannot start at all, the tests are SKIPPED
@@ -45,15 +49,21 @@ function assert(cond, what) {
 
 // Pixels of a view's canvas unlike the background (more than 24 levels in
 // a channel: antialiasing and dithering stay under it), as a fraction, and
-// the RGBA bytes for comparisons.
+// the RGBA bytes for comparisons (carried as base64: a JSON array of a
+// million numbers took seconds a call under load).
 async function canvasPixels(id) {
-  return page.evaluate(canvasId => {
+  const b64 = await page.evaluate(canvasId => {
     const c = document.getElementById(canvasId);
     const copy = Object.assign(document.createElement('canvas'), { width: c.width, height: c.height });
     const g = copy.getContext('2d');
     g.drawImage(c, 0, 0);
-    return Array.from(g.getImageData(0, 0, c.width, c.height).data);
+    const px = g.getImageData(0, 0, c.width, c.height).data;
+    let bin = '';
+    for (let i = 0; i < px.length; i += 0x8000)
+      bin += String.fromCharCode.apply(null, px.subarray(i, i + 0x8000));
+    return btoa(bin);
   }, id);
+  return new Uint8Array(Buffer.from(b64, 'base64'));
 }
 
 function unlikeBackground(px) {
@@ -62,6 +72,23 @@ function unlikeBackground(px) {
     if (Math.abs(px[i] - BACKGROUND[0]) > 24 || Math.abs(px[i + 1] - BACKGROUND[1]) > 24 ||
         Math.abs(px[i + 2] - BACKGROUND[2]) > 24) n++;
   return n / (px.length / 4);
+}
+
+// How varied the colours of a view's mesh are, whatever its shading: over
+// the pixels unlike the background, s = (R - B) / (R + G + B) (a ratio, so
+// the lighting's brightness cancels; the diverging map's blue end is about
+// -0.4, its grey middle 0, its red end +0.6), and the spread is s's
+// interdecile range (p90 - p10: a few saturated spikes do not make it).
+function colourSpread(px) {
+  const s = [];
+  for (let i = 0; i < px.length; i += 4) {
+    const [r, g, b] = [px[i], px[i + 1], px[i + 2]];
+    if (Math.abs(r - BACKGROUND[0]) > 24 || Math.abs(g - BACKGROUND[1]) > 24 ||
+        Math.abs(b - BACKGROUND[2]) > 24) s.push((r - b) / Math.max(1, r + g + b));
+  }
+  if (s.length < 100) return 0;
+  s.sort((x, y) => x - y);
+  return s[Math.floor(0.9 * (s.length - 1))] - s[Math.floor(0.1 * (s.length - 1))];
 }
 
 function changed(a, b) {
@@ -83,6 +110,15 @@ async function nextFrames() {
 
 const statusText = () => page.$eval('#status', e => e.textContent);
 
+// Waits for the input view of the file just chosen (the page's preview).
+async function inputShown() {
+  await page.waitForFunction(() => window.mcfd.perf.inputShownMs > 0 ||
+                             document.getElementById('status').classList.contains('error'),
+                             { timeout: 60000 });
+  assert(!(await page.$eval('#status', e => e.classList.contains('error'))),
+         `the input is read: "${await statusText()}"`);
+}
+
 // ------------------------------------------------------------ tests
 
 async function test_page_asks_for_token() {
@@ -96,6 +132,8 @@ async function test_page_asks_for_token() {
   await page.keyboard.press('Enter');
   await page.waitForFunction(() => document.getElementById('scheme').options.length > 3,
                              { timeout: 10000 });
+  await page.waitForFunction(() => /Choose a mesh/.test(document.getElementById('status').textContent));
+  await shot('state-1-empty.png');
   const schemes = await page.$$eval('#scheme option', o => o.map(x => x.value));
   assert(schemes.includes('desbrun2'), 'the scheme list comes from GET /v1/schemes');
   const d2 = await page.$eval('#scheme option[value=desbrun2]', o => o.textContent);
@@ -108,7 +146,24 @@ async function test_smooth_and_compare() {
   execFileSync('/usr/bin/python3', [path.join(ROOT, 'tests', 'noisy.py'),
                                     path.join(DATA, 'meshes', 'knot1.obj'), '0.3', '1', noisy]);
   await input.uploadFile(noisy);
-  await page.select('#scheme', 'desbrun2');
+  // the input view, before any job of the user's: the daemon's reading
+  await inputShown();
+  await nextFrames();
+  const st0 = await statusText();
+  const nv = fs.readFileSync(noisy, 'utf8').split('\n').filter(l => l.startsWith('v ')).length;
+  assert(new RegExp(`^knot1\\.obj: ${nv.toLocaleString('en-US')} vertices, [\\d,]+ faces, as the daemon reads it`).test(st0),
+         `the status says the input was read (${nv} vertices): "${st0}"`);
+  const inBefore = unlikeBackground(await canvasPixels('before'));
+  const inAfter = unlikeBackground(await canvasPixels('after'));
+  const inSpread = colourSpread(await canvasPixels('before'));
+  console.log(`    input view ${(await page.evaluate(() => window.mcfd.perf.inputShownMs)).toFixed(0)} ms ` +
+              `after choosing: mesh pixels before ${(100 * inBefore).toFixed(1)} %, after ` +
+              `${(100 * inAfter).toFixed(2)} %, colour spread ${inSpread.toFixed(3)}`);
+  assert(inBefore > 0.05 && inAfter < 0.001, 'the input view shows the mesh, the result view nothing yet');
+  assert(inSpread > 0.1, 'the input view is coloured by its curvature');
+  await shot('state-2-input.png');
+  await page.evaluate(() => { window.previewPositions = window.mcfd.state.preview.arrays['input.positions']; });
+  // the default filter, as a new user runs it
   await (await page.$('#target')).uploadFile(path.join(DATA, 'meshes', 'knot1.obj'));
   await page.waitForFunction(() => !document.getElementById('run').disabled);
   await page.click('#run');
@@ -117,16 +172,43 @@ async function test_smooth_and_compare() {
                              { timeout: 120000 });
   const st = await statusText();
   assert(/^Done: job [0-9a-f]{32}/.test(st), `the job succeeded: "${st}"`);
-  assert(/: desbrun2, \d+ steps? to t = /.test(st), `the status says what ran: "${st}"`);
+  assert(/: fairing\S*, \d+ steps? for noise [\d.]+ mean edges\.$/.test(st), `the status says what ran: "${st}"`);
   assert(await page.$eval('#progress', p => p.value) === 1, 'the progress bar is full');
   await nextFrames();
   console.log(`    knot1.obj: load to first frame ${(await page.evaluate(() => window.mcfd.perf.firstFrameMs)).toFixed(0)} ms`);
-  const shotFile = await shot('compare-mean-curvature.png');
+  const shotFile = await shot('state-4-done.png');
   const before = unlikeBackground(await canvasPixels('before'));
   const after = unlikeBackground(await canvasPixels('after'));
   console.log(`    mesh pixels: before ${(100 * before).toFixed(1)} %, after ${(100 * after).toFixed(1)} % (${shotFile})`);
   // the knot fills about a fifth of each view; an empty view has none
   assert(before > 0.05 && after > 0.05, 'both views show the mesh');
+  assert(await page.evaluate(() => {
+    const a = window.previewPositions, b = window.mcfd.state.fields.arrays['input.positions'];
+    return a.length === b.length && a.every((x, i) => x === b[i]);
+  }), 'the input view showed the positions the job smoothed (the same float32 values)');
+  // the default scale shows the smoothed surface's curvature, not one colour
+  const spread = colourSpread(await canvasPixels('after'));
+  const legend = await page.$eval('#unit-after', e => e.textContent);
+  assert(/1\/length/.test(legend), `the legend has units: "${legend}"`);
+  // the former default (symmetric about 0 over both meshes' p02..p98), for the record
+  const old = await page.evaluate(() => {
+    const s = window.mcfd.state.fields.stats;
+    return Math.max(...['input', 'result'].map(m => s[`${m}.mean_curvature`])
+      .map(x => Math.max(Math.abs(x.p02), Math.abs(x.p98))));
+  });
+  await page.$eval('#scale-min', (e, v) => { e.value = v; e.dispatchEvent(new Event('change')); }, String(-old));
+  await page.$eval('#scale-max', (e, v) => { e.value = v; e.dispatchEvent(new Event('change')); }, String(old));
+  await nextFrames();
+  const oldSpread = colourSpread(await canvasPixels('after'));
+  await shot('former-scale.png');
+  await page.click('#scale-reset');
+  await nextFrames();
+  console.log(`    smoothed view's colour spread (p90 - p10 of (R-B)/(R+G+B)): ${spread.toFixed(3)} ` +
+              `with the default scale, ${oldSpread.toFixed(3)} with the former one (±${old.toPrecision(3)})`);
+  // 0.1: a tenth of the map's range of s (-0.41 .. +0.64 at its ends); measured here on
+  // this knot, 0.22 with the default scale, 0.065 with the former one (0.029 before
+  // view.js converted the map to linear RGB: the page as it was)
+  assert(spread > 0.1, `the smoothed view is not one colour: spread ${spread.toFixed(3)}`);
   const rows = await page.$$eval('#metrics tbody tr th', t => t.map(x => x.textContent));
   assert(rows.some(r => /error vs target/.test(r)), 'the metrics compare with the target');
   assert(rows.some(r => /volume drift/.test(r)) && rows.some(r => /time: flow/.test(r)),
@@ -203,25 +285,47 @@ async function test_clean_mesh_reason() {
     return t !== prev && /^(Done: job .*\.|Job )/.test(t);
   }, { timeout: 60000 }, last);
   const st = await statusText();
-  await shot('clean-nothing-to-remove.png');
+  await shot('state-5-clean.png');
   assert(/nothing to remove: the noise read is 0 mean edges, so fairing took no step/.test(st),
          `the status says why nothing changed: "${st}"`);
 }
 
+// A file the daemon cannot read: the page says why as soon as it is chosen.
+async function test_unreadable_file() {
+  const bad = path.join(TMP, 'broken.ply');
+  fs.writeFileSync(bad, 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1 2\n');
+  await (await page.$('#mesh')).uploadFile(bad);
+  await page.waitForFunction(() => document.getElementById('status').classList.contains('error'),
+                             { timeout: 60000 });
+  const st = await statusText();
+  await shot('state-6-error.png');
+  assert(/^broken\.ply cannot be read: .*ply/.test(st), `the status says why: "${st}"`);
+  assert(unlikeBackground(await canvasPixels('before')) < 0.001, 'no view of the last mesh is left');
+  assert(await page.$eval('#unit-before', e => e.textContent) === '', 'nor its legend');
+}
+
+// A long job: the input view is there while it runs, and Cancel stops it.
 async function test_cancel() {
   const input = await page.$('#mesh');
   await input.uploadFile(path.join(DATA, 'meshes', 'bunny.drc'));
+  await inputShown();
   await page.$eval('#target', e => { e.value = ''; });
   await page.type('#iterations', '100000');
   await page.select('#scheme', 'euler');
   await page.click('#run');
   await page.waitForFunction(() => /running: step [1-9]/.test(document.getElementById('status').textContent),
                              { timeout: 60000 });
+  await nextFrames();
+  await shot('state-3-running.png');
+  assert(unlikeBackground(await canvasPixels('before')) > 0.05,
+         'the input view stays while the job runs');
   assert(!(await page.$eval('#cancel', b => b.disabled)), 'Cancel is enabled while the job runs');
   await page.click('#cancel');
   await page.waitForFunction(() => /Job canceled/.test(document.getElementById('status').textContent),
                              { timeout: 30000 });
-  await shot('canceled.png');
+  await shot('state-7-canceled.png');
+  const st = await statusText();
+  assert(/^Job canceled at step \d+: nothing was kept\.$/.test(st), `the status says so: "${st}"`);
   assert(!(await page.$eval('#run', b => b.disabled)), 'the form is usable again');
 }
 
@@ -230,7 +334,8 @@ async function test_no_console_error() {
 }
 
 const TESTS = [test_page_asks_for_token, test_smooth_and_compare, test_colour_switch,
-               test_keyboard_orbit, test_download_own_format, test_clean_mesh_reason, test_cancel,
+               test_keyboard_orbit, test_download_own_format, test_clean_mesh_reason,
+               test_unreadable_file, test_cancel,
                test_no_console_error];
 
 // ------------------------------------------------------------ main

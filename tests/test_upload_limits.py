@@ -1,21 +1,33 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """test_upload_limits.py - uploads over --max-upload on the REST door
-(issue 28, item 6): whatever their size and framing, the client hears a
-413 ELIMIT, never a dropped connection without a status. The bodies are
-generated as they are sent (nothing of their size is kept in memory or on
-disk) by a raw socket client that reads while it sends, as curl does.
+(issues 27 and 28): whatever their size and framing, the client hears a
+413 ELIMIT as soon as the daemon can know, never a dropped connection
+without a status, and nothing of the body stays on the spool. The bodies
+are generated as they are sent (nothing of their size is kept in memory
+or on disk) by a raw socket client that reads while it sends, as curl
+does, and stops sending at the answer: its count of bytes sent bounds
+what the daemon read.
 
-- a 300 MB multipart body with Content-Length and Expect: 100-continue
-  under the default --max-upload (256 MiB): its head is within what a
-  multipart body may hold (a mesh and a target of up to --max-upload
-  each), its mesh part is not. Before: 100 Continue, then the connection
-  dropped 16 MiB past the mesh's limit, no status (MHD: "Application
+--max-upload bounds a request's body: a raw mesh, or a multipart body's
+mesh and target together (plus the parameters and the framing, at most
+2 x 64 KiB + 1 MiB more).
+
+- a 300 MB multipart body with Content-Length under the default
+  --max-upload (256 MiB), with Expect: 100-continue (answered before the
+  100, nothing sent) and without it (answered from the head while the
+  client sends). Before: read whole (a mesh and a target of up to
+  --max-upload each fit its head), then 413, 1.9 s; before that, 100
+  Continue, then the connection dropped and no status (MHD: "Application
   reported internal error");
-- the same without Expect, as a client that sends before it reads;
+- a 300 MB raw body, the same;
 - a chunked multipart body of 300 MB under --max-upload 8M: no
-  Content-Length, so no bound but the stream's; before: dropped 16 MiB
-  past the limit, no status.
+  Content-Length, so the limit is met on the way; answered at once, on the
+  socket (libmicrohttpd 0.9.75 queues no answer in the middle of a body),
+  then up to 16 MiB more discarded before the close. Before: answered
+  only 16 MiB past the limit (28 MB sent);
+- a multipart body within its declared length whose mesh and target
+  together pass the limit: answered at the part that passes it.
 """
 import json
 import os
@@ -139,6 +151,27 @@ def check_413(st, body, what):
     assert st == 413, "%s: status %r, %r" % (what, st, body[:300])
     prob = json.loads(body)
     assert prob["code"] == "ELIMIT" and "--max-upload" in prob["detail"], prob
+    return prob["detail"]
+
+
+def spool_leftovers(name):
+    """What a refused upload could have left on the daemon's spool: job
+    directories, temporary files."""
+    root = os.path.join(TMP, name)
+    jobs = os.path.join(root, "jobs")
+    left = [j for j in os.listdir(jobs) if not j.startswith(".")] if os.path.isdir(jobs) else []
+    for dp, _, fs in os.walk(root):
+        left += [os.path.join(dp, f) for f in fs if f.endswith(".tmp")]
+    return left
+
+
+# What the daemon may read of a refused body is bounded by what the
+# client sends before it reads the answer: the loopback sockets' buffers
+# (the client's send buffer and the daemon's receive buffer, each up to a
+# few MB as Linux tunes them) and the send loop's 64 KiB pieces. 32 MB is
+# far below the 300 MB bodies and above any buffering measured (at most
+# 10 MB past what the daemon had read when it answered).
+BUFFERED = 32 * MB
 
 
 def test_multipart_300mb_over_default_max_upload():
@@ -146,12 +179,24 @@ def test_multipart_300mb_over_default_max_upload():
     try:
         t0 = time.time()
         st, body, sent = multipart_upload(d.port, 300 * MB, chunked=False, expect=True)
-        check_413(st, body, "300 MB multipart, Expect: 100-continue")
-        print("    300 MB multipart with Content-Length, Expect: 100-continue: 413 after "
-              "%.0f MB sent, %.1f s" % (sent / MB, time.time() - t0))
+        detail = check_413(st, body, "300 MB multipart, Expect: 100-continue")
+        assert "Content-Length" in detail, detail  # from the head
+        assert sent == 0, sent                     # before the 100
+        print("    300 MB multipart with Content-Length, Expect: 100-continue: 413 from the "
+              "head, %d bytes sent, %.2f s" % (sent, time.time() - t0))
+        t0 = time.time()
         st, body, sent = multipart_upload(d.port, 300 * MB, chunked=False, expect=False)
         check_413(st, body, "300 MB multipart, sent before read")
-        print("    the same sent before read: 413 after %.0f MB sent" % (sent / MB))
+        assert sent < BUFFERED, sent
+        print("    the same sent before read: 413 from the head after %.1f MB sent, %.2f s"
+              % (sent / MB, time.time() - t0))
+        line = b"v 0 0 0\n" * 8192
+        st, body, sent = send_upload(d.port, [("Content-Type", "application/octet-stream")],
+                                     (line for _ in range(300 * MB // len(line))), False,
+                                     300 * MB // len(line) * len(line))
+        check_413(st, body, "300 MB raw body")
+        assert sent < BUFFERED, sent
+        assert spool_leftovers("big") == [], spool_leftovers("big")
         # the daemon goes on: a small upload is accepted (its job fails
         # later: "v" lines and no faces)
         st, body, _ = multipart_upload(d.port, 100, chunked=False, expect=False)
@@ -166,15 +211,39 @@ def test_chunked_multipart_over_max_upload():
         t0 = time.time()
         st, body, sent = multipart_upload(d.port, 300 * MB, chunked=True, expect=False)
         check_413(st, body, "300 MB chunked multipart")
-        assert sent < 100 * MB, sent       # cut early: the rest is never read
-        print("    300 MB chunked multipart over --max-upload 8M: 413 after %.0f MB sent, "
-              "%.1f s" % (sent / MB, time.time() - t0))
+        assert sent < 8 * 1048576 + BUFFERED, sent   # cut at the limit
+        print("    300 MB chunked multipart over --max-upload 8M: 413 after %.1f MB sent, "
+              "%.2f s (before: 28 MB)" % (sent / MB, time.time() - t0))
         # a raw chunked body over it, as well
         line = b"v 0 0 0\n" * 8192
         st, body, sent = send_upload(d.port, [("Content-Type", "application/octet-stream")],
                                      (line for _ in range(300 * MB // len(line))), True)
         check_413(st, body, "300 MB chunked raw body")
-        assert sent < 100 * MB, sent
+        assert sent < 8 * 1048576 + BUFFERED, sent
+        print("    300 MB chunked raw body: 413 after %.1f MB sent" % (sent / MB))
+        # within its declared length (so past the head, which allows a
+        # body of 8 MiB + 1.125 MiB), a mesh and a target of 4.5 MB each:
+        # 413 at the target's part
+        head, mesh, _ = multipart_parts(4500 * 1000)
+        thead = ("\r\n--%s\r\nContent-Disposition: form-data; name=\"target\"; "
+                 "filename=\"t.obj\"\r\n\r\n" % BOUNDARY).encode()
+        tail = ("\r\n--%s--\r\n" % BOUNDARY).encode()
+
+        def pieces():
+            yield head
+            yield from mesh()
+            yield thead
+            yield from mesh()
+            yield tail
+        total = len(head) + len(thead) + len(tail) + 9 * MB
+        st, body, sent = send_upload(
+            d.port, [("Content-Type", "multipart/form-data; boundary=" + BOUNDARY)],
+            pieces(), False, total)
+        detail = check_413(st, body, "a mesh and a target of 4.5 MB under 8M")
+        assert "target" in detail, detail
+        print("    a 4.5 MB mesh and a 4.5 MB target under --max-upload 8M: 413 after %.1f MB "
+              "sent (%s)" % (sent / MB, detail))
+        assert spool_leftovers("chunked") == [], spool_leftovers("chunked")
     finally:
         d.stop()
 

@@ -3,6 +3,13 @@
 // the job (submit, progress from its events, cancel), the before/after
 // views coloured by the job's per-vertex fields, the metrics table and the
 // downloads. Everything goes through the REST API (api.js).
+//
+// The input is shown as soon as it is chosen, as the daemon reads it: the
+// page sends it as a one-step explicit job with fields (PREVIEW), shows that
+// document's input arrays (the same positions, faces and curvature the
+// smoothing job starts from, for every format the daemon reads: the page
+// parses no mesh format) and deletes the job. Over PREVIEW_MAX_BYTES the
+// page does not read it twice: the input shows with the job's result.
 import * as api from './api.js';
 import { Compare, defaultScale } from './view.js';
 
@@ -11,10 +18,22 @@ const FORMATS = [['obj', 'OBJ', '.obj'], ['draco', 'Draco', '.drc'], ['ply', 'PL
                  ['stl', 'STL', '.stl'], ['off', 'OFF', '.off'], ['glb', 'glTF binary', '.glb'],
                  ['gltf', 'glTF', '.gltf']];
 const DEFAULT_ITERATIONS = 10; // Params.iterations' default (api/openapi.yaml)
+// The input view's job: about the cheapest the daemon runs (one explicit
+// step of 0.01 mean edges, written as binary STL) so that its fields carry
+// the input as read. Its result is never shown; the job is deleted.
+const PREVIEW = { scheme: 'euler', iterations: 1, strength: 0.01, format: 'stl' };
+// Above this the page does not preview: the input is read once, by the
+// smoothing job, and shows with its result. A preview costs the daemon a
+// decode, the curvature and the metrics again; 32 MiB of OBJ is some 500k
+// vertices, the size of dragon_vrip.drc (435k vertices in 1.3 MB of Draco,
+// whose preview is measured by lab/bench/bench_ui.mjs).
+const PREVIEW_MAX_BYTES = 32 << 20;
 
-const state = { file: null, job: null, fields: null, busy: false };
+// file: the chosen mesh; preview: its input-view job's fields (null until
+// read); fields: what the views show (a preview's or a finished job's).
+const state = { file: null, job: null, fields: null, preview: null, busy: false };
 // What the browser test and the dragon measurement read.
-const perf = { succeededAt: 0, fieldsMs: 0, firstFrameMs: 0 };
+const perf = { succeededAt: 0, fieldsMs: 0, firstFrameMs: 0, chosenAt: 0, inputShownMs: 0 };
 const compare = new Compare([$('before'), $('after')], [$('legend-before'), $('legend-after')]);
 window.mcfd = { state, perf, compare };
 
@@ -95,12 +114,74 @@ function params() {
   return p;
 }
 
+function counts(f) {
+  return `${f.vertices.toLocaleString()} vertices, ${f.faces.toLocaleString()} faces`;
+}
+
+// A new mesh: what was shown of the last one goes, and the input is read
+// by the daemon (preview) unless it is larger than PREVIEW_MAX_BYTES.
 function chooseFile(f) {
   if (!f) return;
+  if (state.busy) return status(`A job is running: cancel it before choosing ${f.name}.`, true);
   state.file = f;
+  state.fields = state.preview = null;
+  perf.chosenAt = performance.now();
+  perf.inputShownMs = 0;
   $('mesh-name').textContent = `${f.name} (${(f.size / 1024).toFixed(0)} KiB)`;
-  status('Ready: press Smooth.');
+  compare.setMeshes([null, null], new Uint32Array(0));
+  for (const id of ['before-info', 'after-info', 'scale-before', 'scale-after', 'unit-before', 'unit-after'])
+    $(id).replaceChildren();
+  $('metrics').tBodies[0].replaceChildren();
+  $('downloads').replaceChildren();
+  $('progress').value = 0;
+  $('scale-min').value = $('scale-max').value = '';
   updateRun();
+  if (f.size > PREVIEW_MAX_BYTES) {
+    status(`${f.name}: ${(f.size / 2 ** 20).toFixed(0)} MiB, more than the preview reads ` +
+           `(${PREVIEW_MAX_BYTES >> 20} MiB): the input shows with the result. Press Smooth.`);
+    return;
+  }
+  status(`Reading ${f.name} (the daemon decodes it)...`);
+  preview(f).catch(e => {
+    if (state.file !== f) return;
+    if (e instanceof api.ApiError && e.status === 401) return fail(e);
+    console.warn(e);
+    if (e instanceof api.ApiError && e.status >= 500) // busy, draining: not the file's fault
+      return status(`${f.name}: no input view (${e.message}); it shows with the result. Press Smooth.`);
+    status(`${f.name} cannot be read: ${e.message || e}`, true);
+  });
+}
+
+// The PREVIEW job's fields document (null: another file was chosen
+// meanwhile); the job is deleted once read. Throws what the daemon said
+// when it cannot read the file.
+async function previewFields(file) {
+  const job = await api.submit(file, PREVIEW, null, true);
+  try {
+    let end = job;
+    await api.follow(job.id, (type, data) => { if (type === 'status' || type === 'done') end = data; });
+    if (!['succeeded', 'failed', 'canceled'].includes(end.status))
+      end = await api.getJSON(`/v1/jobs/${job.id}`);
+    if (end.status !== 'succeeded') throw new Error(end.error ? end.error.detail : `job ${end.status}`);
+    return state.file === file ? await api.fields(job.id) : null;
+  } finally {
+    api.cancel(job.id).catch(e => console.warn(e)); // DELETE: the preview's job is not kept
+  }
+}
+
+// The input view: the preview's input arrays, unless the smoothing job's
+// own fields came first.
+async function preview(file) {
+  const f = await previewFields(file);
+  if (!f || state.file !== file || state.fields) return;
+  state.preview = state.fields = f;
+  compare.setMeshes([f.arrays['input.positions'], null], f.arrays.faces);
+  $('before-info').textContent = counts(f);
+  $('after-info').textContent = 'shows when a job is done';
+  resetScale();
+  await compare.frame();
+  perf.inputShownMs = performance.now() - perf.chosenAt;
+  if (!state.busy) status(`${file.name}: ${counts(f)}, as the daemon reads it. Press Smooth.`);
 }
 
 function updateRun() {
@@ -161,8 +242,10 @@ $('job-form').addEventListener('submit', async e => {
   try {
     state.jobFile = state.file;
     const job = await runJob(state.file, $('target').files[0] || null, params(), showProgress, true);
-    if (job.status !== 'succeeded') {
-      status(`Job ${job.status}: ${job.error ? job.error.detail : ''}`, job.status === 'failed');
+    if (job.status === 'canceled') {
+      status(`Job canceled at step ${job.progress.step}: nothing was kept.`);
+    } else if (job.status !== 'succeeded') {
+      status(`Job ${job.status}: ${job.error ? job.error.detail : ''}`, true);
     } else {
       perf.succeededAt = performance.now();
       status('Done: loading the fields...');
@@ -196,11 +279,9 @@ async function showJob(job) {
   state.fields = f;
   compare.setMeshes([f.arrays['input.positions'], f.arrays['result.positions']],
                     f.arrays.faces);
-  $('before-info').textContent = `${f.vertices.toLocaleString()} vertices, ${f.faces.toLocaleString()} faces`;
-  $('after-info').textContent = $('before-info').textContent;
+  $('before-info').textContent = $('after-info').textContent = counts(f);
   resetScale();
-  await new Promise(resolve => { compare.onFrame = resolve; });
-  compare.onFrame = null;
+  await compare.frame();
   perf.firstFrameMs = performance.now() - perf.succeededAt;
   metricsTable(job.metrics);
   downloads(job);
@@ -218,16 +299,20 @@ function summary(m) {
   return `${m.scheme}, ${f.steps} step${s(f.steps)} to t = ${fmt(f.t_final)}`;
 }
 
-// The values view i shows for the chosen colour mode (null: plain).
+// The values view i shows for the chosen colour mode (null: plain). A
+// preview has the input only (its job's result and displacement are not
+// this smoothing's).
 function values(i) {
   const f = state.fields, mode = $('colour').value;
   if (!f || mode === 'none') return null;
+  if (f === state.preview && (i || mode === 'displacement')) return null;
   if (mode === 'displacement') return f.arrays.displacement;
   return f.arrays[`${i ? 'result' : 'input'}.${mode}`];
 }
 
 function stats(i) {
   const f = state.fields, mode = $('colour').value;
+  if (f === state.preview && (i || mode === 'displacement')) return null;
   if (mode === 'displacement') return f.stats.displacement;
   return f.stats[`${i ? 'result' : 'input'}.${mode}`];
 }
@@ -247,25 +332,33 @@ function scales() {
     const lo = Number($('scale-min').value), hi = Number($('scale-max').value);
     return [[lo, hi], [lo, hi]];
   }
-  return [0, 1].map(i => defaultScale(mode, [stats(i)]));
+  return [0, 1].map(i => defaultScale(mode, stats(i)));
 }
+
+// What the legend's numbers measure: the mesh's length unit is its own.
+const UNITS = { mean_curvature: 'mean curvature H, 1/length',
+                gaussian_curvature: 'Gaussian curvature K, 1/length²',
+                displacement: 'displacement, length' };
 
 function recolour() {
   if (!state.fields) return;
   const mode = $('colour').value;
   const map = mode === 'displacement' ? 'sequential' : 'diverging';
   scales().forEach(([lo, hi], i) => {
-    compare.colour(i, values(i), lo, hi, map);
-    const p = $(i ? 'scale-after' : 'scale-before');
-    p.replaceChildren(...(mode === 'none' ? [] :
-      [lo, (lo + hi) / 2, hi].map(x => Object.assign(document.createElement('span'),
-                                                     { textContent: fmt(x) }))));
+    const v = values(i), shown = mode !== 'none' && compare.has(i);
+    compare.colour(i, v, lo, hi, map);
+    // the middle label: zero when a diverging scale spans it (view.js position)
+    const mid = map === 'diverging' && lo < 0 && hi > 0 ? 0 : (lo + hi) / 2;
+    $(i ? 'scale-after' : 'scale-before').replaceChildren(...(shown && v ?
+      [lo, mid, hi].map(x => Object.assign(document.createElement('span'), { textContent: fmt(x) })) : []));
+    $(i ? 'unit-after' : 'unit-before').textContent = shown && v ? UNITS[mode] : '';
   });
 }
 
+// The default shared scale: the smoothed mesh's (the input's in a preview).
 function resetScale() {
   if (!state.fields) return;
-  const [lo, hi] = defaultScale($('colour').value, [stats(0), stats(1)]);
+  const [lo, hi] = defaultScale($('colour').value, stats(1) || stats(0));
   $('scale-min').value = lo.toPrecision(4);
   $('scale-max').value = hi.toPrecision(4);
   recolour();

@@ -17,6 +17,14 @@ const DIVERGING = [[0.23, 0.30, 0.75], [0.55, 0.69, 0.99], [0.87, 0.87, 0.87],
 const SEQUENTIAL = [[0.93, 0.93, 0.93], [0.99, 0.80, 0.45], [0.94, 0.45, 0.18],
                     [0.70, 0.09, 0.16], [0.35, 0.0, 0.25]];
 
+// The renderer takes vertex colours as linear RGB and writes sRGB; the
+// maps (and the legends' 2D canvas) are sRGB: the mesh gets each channel
+// through the sRGB transfer function so that it shows the legend's colours
+// (without it the mesh was a paler map than its legend).
+function toLinear(c) {
+  return c <= 0.04045 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4);
+}
+
 function mapColour(stops, t, out, o) {
   t = Math.min(1, Math.max(0, t)) * (stops.length - 1);
   const i = Math.min(stops.length - 2, Math.floor(t)), f = t - i;
@@ -26,15 +34,29 @@ function mapColour(stops, t, out, o) {
   out[o + 2] = a[2] + (b[2] - a[2]) * f;
 }
 
-// The default scale of a field from the server's stats of one or both
-// meshes: symmetric about zero for curvature, [0, p98] for displacement.
-export function defaultScale(field, statsList) {
-  const s = statsList.filter(Boolean);
-  if (!s.length) return [0, 1];
-  if (field === 'displacement')
-    return [0, Math.max(...s.map(x => x.p98 ?? 0)) || 1];
-  const a = Math.max(...s.map(x => Math.max(Math.abs(x.p02 ?? 0), Math.abs(x.p98 ?? 0)))) || 1;
-  return [-a, a];
+// The default scale of a field from the daemon's robust stats of one mesh
+// (the smoothed one when there is one: a noisy input then saturates where
+// it is noisy instead of flattening the result to grey): [0, p98] for
+// displacement; for curvature [min(p02, 0), max(p98, 0)], which the
+// diverging map shows with zero in its middle (position), or +-a when the
+// field has one sign. Measured on the noisy knot (tests/test_ui.mjs): the
+// former default, symmetric over both meshes' extremes, coloured the
+// smoothed knot nearly uniformly.
+export function defaultScale(field, stats) {
+  if (!stats) return [0, 1];
+  if (field === 'displacement') return [0, stats.p98 || 1];
+  let lo = Math.min(stats.p02 ?? 0, 0), hi = Math.max(stats.p98 ?? 0, 0);
+  if (lo === 0) lo = -hi;
+  if (hi === 0) hi = -lo;
+  return lo < hi ? [lo, hi] : [-1, 1];
+}
+
+// Where x falls on the scale [lo, hi], 0..1. A diverging scale that spans
+// zero puts zero at the middle (white) and stretches each side to its own
+// end; any other scale is linear.
+export function position(x, lo, hi, diverging) {
+  if (diverging && lo < 0 && hi > 0) return x < 0 ? 0.5 - 0.5 * x / lo : 0.5 + 0.5 * x / hi;
+  return (x - lo) / (hi > lo ? hi - lo : 1);
 }
 
 export class Compare {
@@ -42,7 +64,7 @@ export class Compare {
     this.camera = new THREE.PerspectiveCamera(35, 4 / 3, 1e-3, 1e3);
     this.views = canvases.map((c, i) => this.#view(c, legends[i]));
     this.pending = false;
-    this.onFrame = null;
+    this.waiting = []; // frame()'s resolvers
     const ro = new ResizeObserver(() => this.#resize());
     canvases.forEach(c => ro.observe(c));
   }
@@ -94,8 +116,9 @@ export class Compare {
     this.render();
   }
 
-  // Shows the two meshes: positions (Float32Array, 3 per vertex) and the
-  // shared faces (Uint32Array), replacing what was shown.
+  // Shows the two meshes: positions (Float32Array, 3 per vertex; null:
+  // that view is emptied) and the shared faces (Uint32Array), replacing
+  // what was shown; the camera frames the first.
   setMeshes(positionsList, faces) {
     const index = new THREE.BufferAttribute(faces, 1);
     this.views.forEach((v, i) => {
@@ -103,7 +126,9 @@ export class Compare {
         v.scene.remove(v.mesh);
         v.mesh.geometry.dispose();
         v.mesh.material.dispose();
+        v.mesh = null;
       }
+      if (!positionsList[i]) return this.#legend(v.legend, null);
       const g = new THREE.BufferGeometry();
       g.setIndex(index);
       g.setAttribute('position', new THREE.BufferAttribute(positionsList[i], 3));
@@ -116,6 +141,12 @@ export class Compare {
       v.scene.add(v.mesh);
     });
     this.resetView();
+    this.render();
+  }
+
+  // Whether view i shows a mesh.
+  has(i) {
+    return this.views[i].mesh !== null;
   }
 
   resetView() {
@@ -135,16 +166,20 @@ export class Compare {
   }
 
   // Colours view i by values (Float32Array, one per vertex; null: plain)
-  // over scale [lo, hi]; map 'diverging' or 'sequential'.
+  // over scale [lo, hi] (position); map 'diverging' or 'sequential'.
   colour(i, values, lo, hi, map) {
     const v = this.views[i];
     if (!v.mesh) return;
     const attr = v.mesh.geometry.getAttribute('color');
-    const c = attr.array, stops = map === 'sequential' ? SEQUENTIAL : DIVERGING;
-    const span = hi > lo ? hi - lo : 1;
+    const c = attr.array, div = map !== 'sequential', stops = div ? DIVERGING : SEQUENTIAL;
     for (let k = 0, o = 0; o < c.length; k++, o += 3) {
       const x = values ? values[k] : NaN;
-      if (Number.isFinite(x)) mapColour(stops, (x - lo) / span, c, o);
+      if (Number.isFinite(x)) {
+        mapColour(stops, position(x, lo, hi, div), c, o);
+        c[o] = toLinear(c[o]);
+        c[o + 1] = toLinear(c[o + 1]);
+        c[o + 2] = toLinear(c[o + 2]);
+      }
       else { c[o] = PLAIN[0]; c[o + 1] = PLAIN[1]; c[o + 2] = PLAIN[2]; }
     }
     attr.needsUpdate = true;
@@ -170,7 +205,15 @@ export class Compare {
     requestAnimationFrame(() => {
       this.pending = false;
       this.drawNow();
-      if (this.onFrame) this.onFrame();
+      for (const resolve of this.waiting.splice(0)) resolve();
+    });
+  }
+
+  // Resolves once the next frame (render()'s) is drawn.
+  frame() {
+    return new Promise(resolve => {
+      this.waiting.push(resolve);
+      this.render();
     });
   }
 

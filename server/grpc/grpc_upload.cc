@@ -200,9 +200,12 @@ bool Upload::header(const pb::SmoothHeader &h, svc_error *e)
         total_size_ = (long long)h.total_size();
     }
     if (h.has_target_size()) {
-        if (h.target_size() > lim->max_input_bytes)
-            return limit(e, "target_size %llu is over the upload limit of %zu bytes (--max-upload)",
-                         (unsigned long long)h.target_size(), lim->max_input_bytes);
+        /* the mesh and the target share --max-upload, as on REST */
+        if (h.target_size() > lim->max_input_bytes - (size_t)(total_size_ > 0 ? total_size_ : 0))
+            return limit(e, "target_size %llu and total_size %lld together are over the upload "
+                         "limit of %zu bytes (--max-upload: the mesh and the target together)",
+                         (unsigned long long)h.target_size(), total_size_ > 0 ? total_size_ : 0,
+                         lim->max_input_bytes);
         target_size_ = (long long)h.target_size();
     }
     /* REST's early 503: no room now, so no reason to take the bytes */
@@ -257,6 +260,9 @@ bool Upload::append(char **buf, size_t *len, long long declared, const std::stri
     size_t max = g.cfg->lim.max_input_bytes;
     if (b.size() > max - *len)
         return limit(e, "the %s is over the upload limit of %zu bytes (--max-upload)", what, max);
+    if (b.size() > max - (mesh_len_ + target_len_))
+        return limit(e, "the mesh and the target together are over the upload limit of %zu "
+                     "bytes (--max-upload)", max);
     if (declared >= 0 && (long long)(*len + b.size()) > declared)
         return fail(e, SVC_P_INPUT_INVALID, "more bytes of the %s than its declared size %lld",
                     what, declared);

@@ -38,16 +38,6 @@
 
 #include "http.h"
 
-static const char *const route_names[] = {
-    "healthz", "readyz", "metrics", "openapi", "schemes", "smooth", "jobs",
-    "job", "job_result", "job_metrics", "job_events", "job_fields", "ui",
-    "other"};
-
-const char *srv_route_name(srv_route rt)
-{
-    return route_names[rt];
-}
-
 /* The longest query string read (the request line and headers together
  * are bounded by MHD's per-connection pool, SRV_CONN_MEMORY in main.c). */
 #define SRV_MAX_QUERY 8192
@@ -55,47 +45,6 @@ const char *srv_route_name(srv_route rt)
 /* An upload still coming after --header-timeout must have averaged this
  * many bytes a second since its head (slow-body clients hold a slot). */
 #define SRV_MIN_BODY_RATE 4096.0
-
-const char *srv_query_of(const srv_request *r)
-{
-    const char *q = strchr(r->uri, '?');
-    return q ? q + 1 : NULL;
-}
-
-const char *srv_query_value(const srv_request *r, const char *key,
-                            char *out, size_t size)
-{
-    const char *p = srv_query_of(r), *found = NULL;
-    size_t klen = strlen(key);
-
-    while (p && *p) {
-        size_t n = strcspn(p, "&");
-        if (n > klen && strncmp(p, key, klen) == 0 && p[klen] == '=')
-            found = p + klen + 1;
-        else if (n == klen && strncmp(p, key, klen) == 0)
-            found = p + klen;
-        p += n;
-        if (*p == '&')
-            p++;
-    }
-    if (!found)
-        return NULL;
-    {
-        size_t i = 0;
-        for (; *found && *found != '&' && i + 1 < size; found++) {
-            if (*found == '%' && isxdigit((unsigned char)found[1]) &&
-                isxdigit((unsigned char)found[2])) {
-                char hex[3] = {found[1], found[2], 0};
-                out[i++] = (char)strtol(hex, NULL, 16);
-                found += 2;
-            } else {
-                out[i++] = *found == '+' ? ' ' : *found;
-            }
-        }
-        out[i] = '\0';
-    }
-    return out;
-}
 
 /* A response owning a copy of the bytes. */
 static struct MHD_Response *from_copy(const void *data, size_t len)
@@ -289,7 +238,7 @@ static enum MHD_Result send_metrics(srv_request *r, struct MHD_Connection *c)
     size_t n = 0;
     char *s;
 
-    srv_metrics_request(route_names[r->rt], 200);
+    srv_metrics_request(srv_route_name(r->rt), 200);
     s = srv_metrics_render(&g, &n);
     r->status = 200;
     if (!s)
@@ -676,12 +625,14 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
     return r;
 }
 
-/* The bytes of a refused body read and discarded (http.h, SRV_DRAIN_MAX):
- * all it declared (no more than a valid body may hold: its head was
- * checked), else SRV_DRAIN_MAX past the error. */
+/* The bytes of a refused body read and discarded (rest_internal.h,
+ * SRV_DRAIN_MAX): refused from its head, all it declared (no more than
+ * SRV_DRAIN_MAX: its head was checked); else SRV_DRAIN_MAX past the
+ * error. */
 static size_t drain_bound(const srv_request *r)
 {
-    return r->declared > 0 ? r->declared : r->perr_at - 1 + SRV_DRAIN_MAX;
+    return r->perr_head && r->declared > 0 ? r->declared
+                                           : r->perr_at - 1 + SRV_DRAIN_MAX;
 }
 
 enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
@@ -737,16 +688,27 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
             api_buf_free(&r->mesh);
             api_buf_free(&r->target);
             svc_upload_release(r->door->svc, &r->mem_held);
+            /* found in the body (over --max-upload on the way, broken
+             * multipart): answered now, a client that reads while it
+             * sends stops there */
+            if (!r->perr_head) {
+                srv_send_problem_raw(r, c, &r->perr);
+                r->answered = 1;
+            }
         }
         /* A refused body is read and discarded so that its client hears
          * why, but only so far (SRV_DRAIN_MAX): then the answer goes
-         * straight to the socket, and the connection is closed. */
+         * straight to the socket (if it has not yet), and the connection
+         * is closed. */
         if (r->perr_at && r->bytes_in > drain_bound(r)) {
-            srv_send_problem_raw(r, c, &r->perr);
+            if (!r->answered)
+                srv_send_problem_raw(r, c, &r->perr);
             return MHD_NO;
         }
         return MHD_YES;
     }
+    if (r->answered) /* the rest of a refused body: the answer is out */
+        return MHD_NO;
     if (r->conn) /* the body is complete */
         conn_waiting(r->conn, 0);
     if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && !r->job)
@@ -789,7 +751,7 @@ static void request_free(srv_request *r, int toe)
         cJSON_AddStringToObject(o, "type", "request");
         cJSON_AddStringToObject(o, "method", r->method);
         cJSON_AddStringToObject(o, "path", r->path);
-        cJSON_AddStringToObject(o, "route", route_names[r->rt]);
+        cJSON_AddStringToObject(o, "route", srv_route_name(r->rt));
         cJSON_AddNumberToObject(o, "status", r->status);
         cJSON_AddNumberToObject(o, "ms", (mcf_now() - r->t0) * 1e3);
         cJSON_AddNumberToObject(o, "bytes_in", (double)r->bytes_in);

@@ -13,7 +13,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 /* The job's id and the link to its metrics, on every result; and the
  * core's warnings about the result, when there are any (the metrics'

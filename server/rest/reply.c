@@ -12,7 +12,7 @@
 #include <string.h>
 #include <sys/socket.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 const char *srv_http_reason(unsigned status)
 {
@@ -198,6 +198,9 @@ void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
         n)
         (void)send(ci->connect_fd, body, strlen(body),
                    MSG_NOSIGNAL | MSG_DONTWAIT);
+    /* nothing more to say: the client reads the answer, then the end,
+     * while the daemon goes on reading what it sends */
+    (void)shutdown(ci->connect_fd, SHUT_WR);
     free(body);
 }
 

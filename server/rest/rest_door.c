@@ -3,7 +3,7 @@
  * rest_door.c - the REST door's face (rest_door.h, door.h): its state
  * made and freed, libmicrohttpd started on the bound address with the
  * door's callbacks (http.c) and caps, the tick's deadlines, the drain, the
- * gauges. What a request does is the other files of http.h's.
+ * gauges. What a request does is the other files of rest_internal.h's.
  */
 #include <errno.h>
 #include <netdb.h>

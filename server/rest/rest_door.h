@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * rest_door.h - the REST door of mcfd (http.c and the files of http.h, on
+ * rest_door.h - the REST door of mcfd (http.c and the files of rest_internal.h, on
  * libmicrohttpd): the HTTP API of api/openapi.yaml, the page, the probes
  * and the metrics, on --bind:--port, beside the gRPC door, on the same job
  * service. Its face is door.h's, like the gRPC door's (grpc_door.h).

@@ -22,7 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 #define CHUNK (64 * 1024)
 

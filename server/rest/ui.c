@@ -17,7 +17,7 @@
  */
 #include <string.h>
 
-#include "http.h"
+#include "rest_internal.h"
 #include "ui_assets.h"
 
 #define UI_CSP "default-src 'none'; script-src 'self'; style-src 'self'; " \

@@ -7,11 +7,14 @@
  * its limit), and the submission to the job service once the body is
  * complete.
  *
- * MHD cannot answer in the middle of an upload, so errors found while
- * reading (a part over its limit, broken multipart) are remembered and
- * answered once the body has been consumed; a body without a declared
- * length that goes on past the drain bound (http.h, SRV_DRAIN_MAX) is
- * answered on the socket and its connection closed.
+ * --max-upload bounds the body: a raw mesh, or a multipart body's mesh
+ * and target together (plus the parameters and the framing): a
+ * Content-Length over it is a 413 from the head, before any byte of the
+ * body (and before 100 Continue). libmicrohttpd 0.9.75 cannot answer in
+ * the middle of an upload, so an error found while reading (a body
+ * without a declared length past the limit, a part over it, broken
+ * multipart) is written on the socket at once, the rest discarded up to
+ * the drain bound (rest_internal.h, SRV_DRAIN_MAX), and the connection closed.
  */
 #include <ctype.h>
 #include <errno.h>
@@ -20,7 +23,7 @@
 #include <string.h>
 #include <strings.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 /* "bunny.drc" -> "bunny": letters, digits, '-', '_' and '.', at most 64. */
 static void sanitize_name(char *out, size_t size, const char *in)
@@ -170,9 +173,16 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
         r->has_perr = 1;
         return MHD_NO;
     }
-    if (dst->len + size > limit) {
-        svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "multipart field '%s' is "
-                        "larger than %zu bytes (%s)", key, limit, limit_name);
+    /* the mesh and the target share --max-upload */
+    if (dst->len + size > limit ||
+        (dst != &r->params && r->mesh.len + r->target.len + size > limit)) {
+        if (dst != &r->params && r->mesh.len + r->target.len > dst->len)
+            svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "multipart fields "
+                            "'mesh' and 'target' together are larger than "
+                            "%zu bytes (--max-upload: the whole upload)", limit);
+        else
+            svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "multipart field '%s' is "
+                            "larger than %zu bytes (%s)", key, limit, limit_name);
         r->has_perr = 1;
         return MHD_NO;
     }
@@ -200,8 +210,8 @@ void srv_upload_consume(srv_request *r, const char *data, size_t size)
     if (r->multipart && r->bytes_in > cfg->max_body) {
         svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "the multipart body exceeds "
                         "%zu bytes, the most it may hold with --max-upload %zu "
-                        "(a mesh and a target of up to --max-upload each, and "
-                        "the parameters)", cfg->max_body,
+                        "(the mesh and a target together, and the "
+                        "parameters)", cfg->max_body,
                         cfg->lim.max_input_bytes);
         r->has_perr = 1;
         return;
@@ -276,9 +286,9 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
             if (r->multipart)
                 svc_error_set(&p, SVC_P_INPUT_LIMIT, "Content-Length %llu "
                                 "exceeds %zu bytes, the most a multipart body "
-                                "may hold with --max-upload %zu (a mesh and a "
-                                "target of up to --max-upload each, and the "
-                                "parameters)", n, lim, cfg->lim.max_input_bytes);
+                                "may hold with --max-upload %zu (the mesh and "
+                                "a target together, and the parameters)", n,
+                                lim, cfg->lim.max_input_bytes);
             else
                 svc_error_set(&p, SVC_P_INPUT_LIMIT, "Content-Length %llu exceeds "
                                 "the limit of %zu bytes (--max-upload)", n, lim);
@@ -308,7 +318,7 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
     if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c))
         return srv_send_problem(r, c, &p, NULL);
     r->perr = p;
-    r->has_perr = 1;
+    r->has_perr = r->perr_head = 1;
     return MHD_YES;
 }
 

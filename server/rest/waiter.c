@@ -22,7 +22,7 @@
 #include <string.h>
 #include <sys/socket.h>
 
-#include "http.h"
+#include "rest_internal.h"
 
 /* The service's callback: service lock held. */
 static void on_notify(void *ctx, unsigned what)

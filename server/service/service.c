@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * service.c - the job service's life and table (service.h): the service
- * object and its lifecycle (start, drain, close, checkpoint, stop), the
- * ID table, admission and submit, delete, the TTL sweep and the gauges.
+ * service.c - the job service's life (service.h): the service object and
+ * its lifecycle (start, drain, close, checkpoint, stop), admission and
+ * submit, delete, the TTL sweep and the gauges. The table it fills is
+ * svc_table.c's; a job's fields are written by svc_job.c.
  *
  * A job is accepted only after its input, request and state are in the
  * store (svc_store create), so an accepted job survives kill -9:
@@ -26,48 +27,6 @@
 
 /* ------------------------------------------------------------------- table */
 
-static unsigned bucket_of(const char *id)
-{
-    uint32_t h = 2166136261u;
-    for (; *id; id++)
-        h = (h ^ (unsigned char)*id) * 16777619u;
-    return h % SVC_NBUCKETS;
-}
-
-svc_job *svc__find_locked(svc_t *s, const char *id)
-{
-    svc_job *j;
-    for (j = s->buckets[bucket_of(id)]; j; j = j->hnext)
-        if (strcmp(j->id, id) == 0)
-            return j;
-    return NULL;
-}
-
-void svc__table_insert(svc_t *s, svc_job *j)
-{
-    unsigned b = bucket_of(j->id);
-    j->hnext = s->buckets[b];
-    s->buckets[b] = j;
-    j->in_table = 1;
-    s->njobs++;
-    s->disk_bytes += j->disk_bytes;
-}
-
-/* Removes j from the table and drops the table's reference. */
-void svc__table_remove(svc_t *s, svc_job *j)
-{
-    svc_job **pp = &s->buckets[bucket_of(j->id)];
-    while (*pp && *pp != j)
-        pp = &(*pp)->hnext;
-    if (*pp) {
-        *pp = j->hnext;
-        j->in_table = 0;
-        s->njobs--;
-        s->disk_bytes -= j->disk_bytes;
-        svc__unref_locked(j);
-    }
-}
-
 /* Lock held: puts back a job whose removal from the store failed (the
  * caller's reference becomes the table's), unless its ID came back
  * meanwhile. */
@@ -77,52 +36,6 @@ static void table_restore(svc_t *s, svc_job *j)
         svc__table_insert(s, j);
     else
         svc__unref_locked(j);
-}
-
-void svc__wake_locked(svc_t *s)
-{
-    s->wakes++;
-    pthread_cond_broadcast(&s->work);
-}
-
-svc_job *svc_job_get(svc_t *s, const char *id)
-{
-    svc_job *j;
-
-    if (s->store->ops->shared)
-        return svc__shared_get(s, id);
-    pthread_mutex_lock(&s->mu);
-    j = svc__find_locked(s, id);
-    if (j)
-        j->refs++;
-    pthread_mutex_unlock(&s->mu);
-    if (!j)
-        errno = ENOENT;
-    return j;
-}
-
-svc_job *svc_job_find(svc_t *s, const char *id, svc_error *err)
-{
-    svc_job *j = svc_job_get(s, id);
-    int e = errno;
-
-    if (j)
-        return j;
-    if (e == ENOENT) {
-        svc_error_set(err, SVC_P_NOT_FOUND, "no job with ID %.64s (never "
-                      "existed, deleted, or expired)", id);
-    } else if (e == ENOMEM) {
-        svc_error_set(err, SVC_P_NOMEM, "out of memory reading job %.64s", id);
-    } else if (e == EBADMSG) {
-        svc_error_set(err, SVC_P_STORAGE, "job %.64s is damaged in the store "
-                      "(its state.json or request.json does not parse)", id);
-    } else {
-        /* a shared store down: it cannot say the job does not exist */
-        svc_error_set(err, SVC_P_SPOOL_UNREADY, "the store cannot read job "
-                      "%.64s now: %s", id, strerror(e));
-        err->retry_after = 5;
-    }
-    return NULL;
 }
 
 /* 128 bits from /dev/urandom; if that ever fails, a splitmix64 of the
@@ -484,33 +397,6 @@ const api_limits *svc_limits(const svc_t *s)
 }
 
 /* ------------------------------------------------------------------ delete */
-
-/* A job that failed or was canceled never runs again: its input and
- * target leave the store now, not at its result TTL (issue 28: 15
- * uploads of 265 MB refused at decode held the default 4G spool quota
- * for an hour). Emptied, the store having no removal of one blob; best
- * effort (a failure leaves them to the TTL). */
-void svc__drop_input(svc_job *j)
-{
-    static const char *const names[2] = {"input", "target"};
-    svc_t *s = j->svc;
-    svc_store *st = s->store;
-    int k;
-
-    for (k = 0; k < 1 + (j->has_target != 0); k++) {
-        size_t size = 0;
-        if (st->ops->stat(st, j->id, names[k], &size) != 0 || size == 0 ||
-            st->ops->put(st, j->id, names[k], "", 0, 1) != 0)
-            continue;
-        pthread_mutex_lock(&s->mu);
-        if (size > j->disk_bytes)
-            size = j->disk_bytes;
-        j->disk_bytes -= size;
-        if (j->in_table)
-            s->disk_bytes -= size;
-        pthread_mutex_unlock(&s->mu);
-    }
-}
 
 /* Forgets a finished job: out of the table first (a visible job always
  * has its blobs), then out of the store; a job that cannot be removed is

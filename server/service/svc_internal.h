@@ -3,12 +3,16 @@
  * svc_internal.h - what the files of the job service share, and only
  * they: the service object, the job struct, and each file's part.
  *
- *   service.c   the service's life, the table, admission and submit,
- *               delete, sweep, gauges
- *   svc_job.c   a job's life: references, subscriptions, every status
- *               transition (start, finish, park, cancel, recovery's),
- *               progress and events; the only writer of a job's status
- *   svc_read.c  the readers: snapshots, metrics, events, result bytes
+ *   service.c   the service's life, admission and submit, delete,
+ *               sweep, gauges
+ *   svc_table.c the table of jobs by ID and the workers' wake-up (a leaf)
+ *   svc_ref.c   a job's references and subscriptions
+ *   svc_job.c   a job's life: every status transition (start, finish,
+ *               park, cancel, recovery's, another replica's), progress;
+ *               the only writer of a job's status
+ *   svc_events.c a job's progress events: in memory, then in the store
+ *   svc_read.c  the readers: lookup by ID, snapshots, metrics, events,
+ *               result bytes
  *   svc_state.c the persisted forms (request.json, state.json) from plain
  *               copies, without a lock; the job's log line
  *   runner.c    one job on a worker (api_job_run): returns its outcome
@@ -150,7 +154,9 @@ struct svc_job {
     double deadline;           /* srv_mono() the job timeout passes, 0 */
     double cpu_budget;         /* CPU seconds its run may take, 0: none */
     double cpu0, cpu_used;     /* its worker thread's CPU clock at its start;
-                                  the seconds it took */
+                                  the seconds it took, the threads its flow
+                                  started included */
+    double cpu_threads;        /* those threads' share of cpu_used */
     api_buf events;            /* ndjson lines, one per step */
     size_t *event_end;         /* byte offset past each line */
     int nevents, event_cap;
@@ -205,13 +211,40 @@ typedef struct {
     double run_s;
 } svc_outcome;
 
-/* service.c: the table (lock held) */
+/* svc_table.c: the table (lock held). Called by the files that fill or
+ * read it; calls none of them. */
 svc_job *svc__find_locked(svc_t *s, const char *id);
+/* The table takes the caller's reference. */
 void svc__table_insert(svc_t *s, svc_job *j);
+/* j out of the table, the table's reference dropped. */
+void svc__table_remove(svc_t *s, svc_job *j);
 /* Wakes the workers (lock held): something may be claimable. */
 void svc__wake_locked(svc_t *s);
 
-/* svc_job.c: a job's life */
+/* svc_events.c: a job's progress events (j->events, j->event_end). */
+/* The longest ndjson line of one step. */
+#define SVC_EVENT_LINE 320
+/* One step's line ({"step", "t", "dt", "energy", "volume"}, non-finite
+ * numbers as null) into line; its length. */
+int svc__event_line(const api_job_step *st, char line[SVC_EVENT_LINE]);
+/* Lock held: one more line in the job's event log (dropped when the log
+ * is full or memory is short: the stream then skips it). */
+void svc__event_add_locked(svc_job *j, const char *line, size_t n);
+/* Lock held: the log emptied for a run from step 1; the events it put in
+ * the store are uncounted till they are put again. */
+void svc__events_reset_locked(svc_job *j);
+/* The log as it is now (only its worker appends): its count, *data,
+ * *len and the line ends. Takes the lock. */
+int svc__events_now(svc_job *j, const char **data, size_t *len,
+                    const size_t **ends);
+/* After the log was written to the store (ok: len bytes and n ends) or
+ * lost: out of memory either way, the bytes on disk counted. */
+void svc__events_done(svc_job *j, int ok, size_t len, int n);
+/* The run's events to the store and out of memory, before its outcome
+ * is published (a store without finish). */
+void svc__events_to_store(svc_job *j);
+
+/* svc_ref.c: references and subscriptions */
 svc_job *svc__job_new(svc_t *s);
 void svc__job_free(svc_job *j);
 void svc__unref_locked(svc_job *j);
@@ -234,8 +267,9 @@ void svc__finish(svc_job *j, svc_outcome *o);
  * SVC_RETRY_SYNC_TRIES. A local store only: on a shared one another
  * replica may run it, or be the one waiting. */
 int svc__sync(const svc_job *j);
+/* svc_job.c: a job's life */
 /* A job that failed or was canceled: its input and target emptied in
- * the store now (service.c), not at its result TTL; best effort. */
+ * the store now, not at its result TTL; best effort. */
 void svc__drop_input(svc_job *j);
 /* A transient error of the store or of memory (EMFILE, ENOSPC, ENOMEM,
  * ...): waits before try *tries + 2 (0.1 s doubling, SVC_RETRY_TRIES
@@ -327,7 +361,5 @@ void svc__shared_sweep(svc_t *s);
  * 0 or -1 (msg); stop joins it (accepts one never started). */
 int svc__follower_start(svc_t *s, char *msg, size_t msgsize);
 void svc__follower_stop(svc_t *s);
-/* service.c: j out of the table (lock held). */
-void svc__table_remove(svc_t *s, svc_job *j);
 
 #endif /* SVC_INTERNAL_H */

@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * svc_job.c - a job's life in the job service: references,
- * subscriptions, progress events, and every change of its status, each
- * one recorded in the store before anyone can see it:
+ * svc_job.c - a job's life in the job service: its progress, and every
+ * change of its status, each one recorded in the store before anyone can
+ * see it:
  *
  *   queued   -> running     a worker starts it (svc__start)
  *   running  -> succeeded, failed, canceled; or queued again: stopped by
@@ -17,7 +17,7 @@
  * written: a client never sees a state a restart could change. state_mu
  * keeps a snapshot and its write together, so the last taken is the last
  * written. No other file writes a job's status. (A job's references and
- * subscriptions: svc_ref.c.)
+ * subscriptions: svc_ref.c; its progress events: svc_events.c.)
  */
 #include <errno.h>
 #include <math.h>
@@ -191,7 +191,7 @@ int svc__start(svc_job *j)
                                                    j->mem_estimate / 1048576.0
                             : 0;
         j->cpu0 = thread_cpu();
-        j->cpu_used = 0;
+        j->cpu_used = j->cpu_threads = 0;
         s->queued--;
         s->busy++;
         svc__notify(j, SVC_NOTIFY_STATE);
@@ -200,25 +200,6 @@ int svc__start(svc_job *j)
     if (rc == 0)
         svc__write_state(j, 0);
     return rc;
-}
-
-/* Lock held: its progress runs again from step 1; the events it put in
- * the store are put again at its end (uncounted till then). */
-static void events_reset_locked(svc_job *j)
-{
-    if (j->events_disk) {
-        size_t sub = j->events_disk + (size_t)j->nevents * sizeof(size_t);
-        j->disk_bytes -= sub;
-        if (j->in_table)
-            j->svc->disk_bytes -= sub;
-        j->events_disk = 0;
-    }
-    api_buf_free(&j->events);
-    api_buf_init(&j->events, SVC_EVENTS_MAX);
-    free(j->event_end);
-    j->event_end = NULL;
-    j->event_cap = 0;
-    j->nevents = 0;
 }
 
 /* Lock held: a job whose outcome (final) the store would not take goes
@@ -240,7 +221,7 @@ static void park_locked(svc_job *j, svc_job_status final, int e)
     j->step = 0;
     j->t = 0;
     j->result_len = 0;
-    events_reset_locked(j);
+    svc__events_reset_locked(j);
     svc_error_set(&j->err, SVC_P_STORAGE, "job %s %s, but the spool "
                   "could not record it (%s); it runs again in %g s", j->id,
                   svc_job_status_name(final), strerror(e), delay);
@@ -291,72 +272,6 @@ static void apply_outcome_locked(svc_job *j, svc_outcome *o,
     }
 }
 
-/* The job's events as they are now (only its worker appends). */
-static int events_now(svc_job *j, const char **data, size_t *len,
-                      const size_t **ends)
-{
-    int n;
-
-    pthread_mutex_lock(&j->svc->mu);
-    *data = j->events.data;
-    *len = j->events.len;
-    *ends = j->event_end;
-    n = j->nevents;
-    pthread_mutex_unlock(&j->svc->mu);
-    return n;
-}
-
-/* The events written (ok: their len bytes and n ends) or lost: out of
- * memory either way. */
-static void events_done(svc_job *j, int ok, size_t len, int n)
-{
-    svc_t *s = j->svc;
-
-    pthread_mutex_lock(&s->mu);
-    api_buf_free(&j->events);
-    api_buf_init(&j->events, SVC_EVENTS_MAX);
-    free(j->event_end);
-    j->event_end = NULL;
-    j->event_cap = 0;
-    if (ok && n > 0) {
-        size_t add = len + (size_t)n * sizeof *j->event_end;
-        j->events_disk = len;
-        j->disk_bytes += add;
-        if (j->in_table)
-            s->disk_bytes += add;
-    } else {
-        j->nevents = 0;
-    }
-    pthread_mutex_unlock(&s->mu);
-}
-
-/* When the run is over, before its outcome is published: its progress
- * events go to the store (events.ndjson and events.idx, not durable:
- * nothing depends on them after a crash) and out of memory, where
- * admission no longer counts them; svc_job_events reads them back. A
- * store that takes no write loses them (followers then see the outcome
- * alone). Only the job's worker appends to or frees them, so they are
- * written outside the lock. */
-static void events_to_store(svc_job *j)
-{
-    svc_store *st = j->svc->store;
-    const char *data;
-    const size_t *ends;
-    size_t len;
-    int n = events_now(j, &data, &len, &ends), ok;
-
-    if (n == 0)
-        return;
-    ok = st->ops->put(st, j->id, "events.ndjson", data, len, 0) == 0 &&
-         st->ops->put(st, j->id, "events.idx", ends, (size_t)n * sizeof *ends,
-                      0) == 0;
-    if (!ok)
-        srv_logf(SRV_LOG_WARN, "job %s: its %d progress events could not be "
-                 "written to the spool (%s); late followers get its outcome "
-                 "alone", j->id, n, strerror(errno));
-    events_done(j, ok, len, n);
-}
-
 /* A store with finish (store.h): what the run leaves, written with its
  * state and its ack in one step. */
 typedef struct {
@@ -385,7 +300,7 @@ static void end_blobs_of(svc_job *j, const svc_outcome *o, end_blobs *eb)
         if (o->fields)
             end_add(eb, SVC_FIELDS_FILE, o->fields, o->fields_len);
     }
-    if ((eb->ev_n = events_now(j, &data, &eb->ev_len, &ends)) > 0) {
+    if ((eb->ev_n = svc__events_now(j, &data, &eb->ev_len, &ends)) > 0) {
         end_add(eb, "events.ndjson", data, eb->ev_len);
         end_add(eb, "events.idx", ends, (size_t)eb->ev_n * sizeof *ends);
     }
@@ -453,6 +368,33 @@ static int finish_rec(svc_t *s, const svc_state_rec *r, end_blobs *eb)
     return rc;
 }
 
+/* A job that failed or was canceled never runs again: its input and
+ * target leave the store now, not at its result TTL (issue 28: 15
+ * uploads of 265 MB refused at decode held the default 4G spool quota
+ * for an hour). Emptied, the store having no removal of one blob; best
+ * effort (a failure leaves them to the TTL). */
+void svc__drop_input(svc_job *j)
+{
+    static const char *const names[2] = {"input", "target"};
+    svc_t *s = j->svc;
+    svc_store *st = s->store;
+    int k;
+
+    for (k = 0; k < 1 + (j->has_target != 0); k++) {
+        size_t size = 0;
+        if (st->ops->stat(st, j->id, names[k], &size) != 0 || size == 0 ||
+            st->ops->put(st, j->id, names[k], "", 0, 1) != 0)
+            continue;
+        pthread_mutex_lock(&s->mu);
+        if (size > j->disk_bytes)
+            size = j->disk_bytes;
+        j->disk_bytes -= size;
+        if (j->in_table)
+            s->disk_bytes -= size;
+        pthread_mutex_unlock(&s->mu);
+    }
+}
+
 /* Lock held: the outcome o could not be recorded and will not be (its
  * error says why): j fails here, leaves the table (404 from now), and a
  * client waiting on it hears o's error. */
@@ -480,7 +422,7 @@ void svc__finish(svc_job *j, svc_outcome *o)
     if (fin)
         end_blobs_of(j, o, &eb);
     else if (o->status != SVC_JOB_QUEUED)
-        events_to_store(j);
+        svc__events_to_store(j);
     /* The outcome is in the store before anyone can see it (GET polls,
      * waiters, a restart): a client told "succeeded" can always find the
      * result again, and no terminal state a client saw changes after a
@@ -517,7 +459,7 @@ void svc__finish(svc_job *j, svc_outcome *o)
             break;
     }
     if (fin)
-        events_done(j, written, eb.ev_len, eb.ev_n);
+        svc__events_done(j, written, eb.ev_len, eb.ev_n);
     pthread_mutex_lock(&s->mu);
     j->run_here = 0;
     if (!written && e == ESTALE) {
@@ -635,43 +577,12 @@ void svc__ready(svc_job *j, const char *scheme, const char *in_format)
     pthread_mutex_unlock(&s->mu);
 }
 
-static void fmt_num(char *buf, size_t size, double v)
-{
-    if (isfinite(v))
-        snprintf(buf, size, "%.17g", v);
-    else
-        snprintf(buf, size, "null");
-}
-
-/* Lock held: one more ndjson line in the job's event log (dropped when
- * the log is full or memory is short: the stream then skips it). */
-static void add_event(svc_job *j, const char *line, size_t n)
-{
-    if (j->nevents == j->event_cap) {
-        int cap = j->event_cap ? 2 * j->event_cap : 256;
-        size_t *p = realloc(j->event_end, (size_t)cap * sizeof *p);
-        if (!p)
-            return;
-        j->event_end = p;
-        j->event_cap = cap;
-    }
-    if (api_buf_append(&j->events, line, n) == MCF_OK)
-        j->event_end[j->nevents++] = j->events.len;
-}
-
 int svc__progress(svc_job *j, const api_job_step *st)
 {
     svc_t *s = j->svc;
-    char line[320], a[32], b[32], e[32], v[32];
-    int stop, n;
+    char line[SVC_EVENT_LINE];
+    int stop, n = svc__event_line(st, line);
 
-    fmt_num(a, sizeof a, st->t);
-    fmt_num(b, sizeof b, st->dt);
-    fmt_num(e, sizeof e, st->energy);
-    fmt_num(v, sizeof v, st->volume);
-    n = snprintf(line, sizeof line,
-                 "{\"step\":%d,\"t\":%s,\"dt\":%s,\"energy\":%s,\"volume\":%s}\n",
-                 st->step, a, b, e, v);
     pthread_mutex_lock(&s->mu);
     j->step = st->step;
     j->t = st->t;
@@ -679,15 +590,18 @@ int svc__progress(svc_job *j, const api_job_step *st)
     j->energy = st->energy;
     j->volume = st->volume;
     if (n > 0)
-        add_event(j, line, (size_t)n);
+        svc__event_add_locked(j, line, (size_t)n);
     svc__notify(j, SVC_NOTIFY_PROGRESS);
     if (!j->cancel && j->deadline > 0 && srv_mono() > j->deadline) {
         j->cancel = 1;
         j->cancel_reason = SVC_CANCEL_TIMEOUT;
     }
-    /* the worker's thread runs the flow and calls this hook */
-    if (j->cpu_budget > 0)
-        j->cpu_used = thread_cpu() - j->cpu0;
+    /* the worker's thread runs the flow and calls this hook; the threads
+     * the flow starts (mcf_flow_params.threads) count too */
+    if (j->cpu_budget > 0) {
+        j->cpu_threads = st->threads_cpu_s;
+        j->cpu_used = thread_cpu() - j->cpu0 + j->cpu_threads;
+    }
     if (!j->cancel && j->cpu_budget > 0 && j->cpu_used > j->cpu_budget) {
         j->cancel = 1;
         j->cancel_reason = SVC_CANCEL_CPU;
@@ -834,7 +748,7 @@ int svc__remote_state(svc_job *j, const svc_state_rec *r, int nevents,
     }
     s->queued += counted(j) - was;
     if (changed && svc_job_status_terminal(j->status)) {
-        events_reset_locked(j);   /* the store has them all now */
+        svc__events_reset_locked(j);   /* the store has them all now */
         j->nevents = nevents;
         j->events_disk = events_bytes;
     }
@@ -872,7 +786,7 @@ void svc__remote_progress(svc_job *j, const char *line, size_t len)
     j->volume = num_of(o, "volume", NAN);
     cJSON_Delete(o);
     j->ready = 1;
-    add_event(j, line, len);
+    svc__event_add_locked(j, line, len);
     svc__notify(j, SVC_NOTIFY_PROGRESS);
 }
 
@@ -887,7 +801,7 @@ void svc__retaken_locked(svc_job *j)
     j->step = 0;
     j->t = 0;
     j->ready = 0;
-    events_reset_locked(j);
+    svc__events_reset_locked(j);
     if (counted(j))
         s->queued++;
     svc__notify(j, SVC_NOTIFY_STATE);
@@ -928,7 +842,7 @@ void svc__dead(svc_job *j)
     j->finished = now;
     j->err = r.err;
     s->queued -= was;
-    events_reset_locked(j);
+    svc__events_reset_locked(j);
     svc__notify(j, SVC_NOTIFY_STATE);
     pthread_mutex_unlock(&s->mu);
     pthread_mutex_unlock(&s->state_mu);

@@ -1,10 +1,11 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * svc_read.c - the job service's readers (service.h): snapshots (with the
- * parameters and the metrics document: everything a door shows), the
- * metrics, the progress events from a given index on, and the result
- * bytes. Every reader copies under the service lock and reads the store
- * outside it.
+ * svc_read.c - the job service's readers (service.h): a job by its ID
+ * (svc_job_get: the table's, or loaded from a shared store by
+ * svc_shared.c), snapshots (with the parameters and the metrics document:
+ * everything a door shows), the metrics, the progress events from a given
+ * index on, and the result bytes. Every reader copies under the service
+ * lock and reads the store outside it.
  */
 #include <errno.h>
 #include <fcntl.h>
@@ -36,6 +37,8 @@ static void snapshot_locked(const svc_job *j, svc_snap *s)
     s->volume = j->volume;
     s->steps_planned = j->steps_planned;
     s->time_planned = j->time_planned;
+    s->cpu_s = j->cpu_used;
+    s->cpu_threads_s = j->cpu_threads;
     if (j->status == SVC_JOB_SUCCEEDED)
         frac = 1;
     else if (j->steps_planned > 0)
@@ -327,4 +330,46 @@ void svc_job_release_result(svc_job *j)
     free(j->result);
     j->result = NULL;
     pthread_mutex_unlock(&j->svc->mu);
+}
+
+/* ------------------------------------------------------------------ lookup */
+
+svc_job *svc_job_get(svc_t *s, const char *id)
+{
+    svc_job *j;
+
+    if (s->store->ops->shared)
+        return svc__shared_get(s, id);
+    pthread_mutex_lock(&s->mu);
+    j = svc__find_locked(s, id);
+    if (j)
+        j->refs++;
+    pthread_mutex_unlock(&s->mu);
+    if (!j)
+        errno = ENOENT;
+    return j;
+}
+
+svc_job *svc_job_find(svc_t *s, const char *id, svc_error *err)
+{
+    svc_job *j = svc_job_get(s, id);
+    int e = errno;
+
+    if (j)
+        return j;
+    if (e == ENOENT) {
+        svc_error_set(err, SVC_P_NOT_FOUND, "no job with ID %.64s (never "
+                      "existed, deleted, or expired)", id);
+    } else if (e == ENOMEM) {
+        svc_error_set(err, SVC_P_NOMEM, "out of memory reading job %.64s", id);
+    } else if (e == EBADMSG) {
+        svc_error_set(err, SVC_P_STORAGE, "job %.64s is damaged in the store "
+                      "(its state.json or request.json does not parse)", id);
+    } else {
+        /* a shared store down: it cannot say the job does not exist */
+        svc_error_set(err, SVC_P_SPOOL_UNREADY, "the store cannot read job "
+                      "%.64s now: %s", id, strerror(e));
+        err->retry_after = 5;
+    }
+    return NULL;
 }

@@ -366,6 +366,7 @@ void svc__log_job(const svc_job *j, int nv, int nf, double run_s)
     cJSON_AddNumberToObject(o, "run_ms", run_s * 1e3);
     if (j->cpu_budget > 0) {
         cJSON_AddNumberToObject(o, "cpu_s", j->cpu_used);
+        cJSON_AddNumberToObject(o, "cpu_threads_s", j->cpu_threads);
         cJSON_AddNumberToObject(o, "cpu_budget_s", j->cpu_budget);
     }
     if (j->recovered)

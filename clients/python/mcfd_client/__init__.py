@@ -4,6 +4,9 @@
     import mcfd_client
     out = mcfd_client.smooth("scan.obj", url="http://127.0.0.1:8080", strength=0.5)
     V2, F2 = mcfd_client.smooth((V, F), url="grpc://127.0.0.1:50051", scheme="desbrun2")
+    job = mcfd_client.submit("scan.drc", url="http://127.0.0.1:8080")   # returns at once
+    out = job.result(timeout=60)                     # or job.status(), job.wait(), job.cancel()
+    mcfd_client.smooth_files(["a.obj", "b.ply"], "out/", url="http://127.0.0.1:8080")
 
 The parameters are the daemon's (`mcf params` lists them, with their ranges
 and defaults); the daemon validates them, so a bad one raises
@@ -15,13 +18,15 @@ import urllib.parse
 import warnings as _warnings
 
 from . import _grpc, _mesh, _rest
+from ._jobs import Job, smooth_files
 from .errors import (Busy, Canceled, InvalidParameter, LimitExceeded, MCFDError, MeshError,
-                     NotFound, ServerError, SmoothingWarning, Unauthorized, Unreachable)
+                     NotFound, NotReady, ServerError, SmoothingWarning, Unauthorized,
+                     Unreachable)
 
 __version__ = "1.0.0"
-__all__ = ["smooth", "Busy", "Canceled", "InvalidParameter", "LimitExceeded", "MCFDError",
-           "MeshError", "NotFound", "ServerError", "SmoothingWarning", "Unauthorized",
-           "Unreachable"]
+__all__ = ["smooth", "submit", "smooth_files", "Job", "Busy", "Canceled", "InvalidParameter",
+           "LimitExceeded", "MCFDError", "MeshError", "NotFound", "NotReady", "ServerError",
+           "SmoothingWarning", "Unauthorized", "Unreachable"]
 
 _EXT = {"draco": "drc"}
 
@@ -33,8 +38,9 @@ def smooth(mesh, url="http://127.0.0.1:8080", *, target=None, out=None, progress
     kind mesh was given:
 
     - a path (str or os.PathLike): the result is written to `out` (default:
-      beside the input, NAME-smoothed.EXT, EXT the output format's) and its
-      path returned, of the input's type;
+      beside the input, NAME-smoothed.EXT, EXT the output format's; an
+      existing directory: NAME-smoothed.EXT in it) and its path returned,
+      of the input's type;
     - bytes: the result's bytes (the daemon's format: the input's, or the
       `format` parameter's);
     - a (vertices, faces) pair of numpy arrays, (n, 3) and (m, 3): a new
@@ -57,6 +63,34 @@ def smooth(mesh, url="http://127.0.0.1:8080", *, target=None, out=None, progress
     daemon warns about (folds, edge_collapse, area_loss, little_smoothing)
     is returned, with one SmoothingWarning per warning (warnings.warn).
     """
+    kind, data, filename, params, target = _prepare(mesh, params, target)
+    door = _door_for(url, token, timeout)
+    answer = _with_retries(lambda: door.smooth(data, filename, params, target, progress,
+                                               with_metrics), retries, max_wait)
+    _warn(answer, stacklevel=3)
+    result = _deliver(kind, mesh, out, answer)
+    return (result, answer.metrics) if with_metrics else result
+
+
+def submit(mesh, url="http://127.0.0.1:8080", *, target=None, out=None, timeout=600.0,
+           retries=5, max_wait=60.0, token=None, **params):
+    """Submits mesh to the daemon at url and returns at once, once the job
+    is queued, with a Job handle: job.id, job.status(), job.wait(timeout,
+    progress), job.result(timeout) (the result in the kind mesh was given,
+    as smooth() returns it; a failed job raises its typed error),
+    job.metrics(), job.cancel(). The arguments are smooth()'s; timeout
+    bounds each call to the daemon. Parameters the daemon refuses raise at
+    once (InvalidParameter); problems that need the mesh (MeshError,
+    LimitExceeded) come from job.result()."""
+    kind, data, filename, params, target = _prepare(mesh, params, target)
+    door = _door_for(url, token, timeout)
+    doc = _with_retries(lambda: door.submit(data, filename, params, target), retries, max_wait)
+    return Job(doc["id"], url, _door=door,
+               _deliver=lambda answer: _deliver(kind, mesh, out, answer))
+
+
+def _prepare(mesh, params, target):
+    """(kind, bytes, file name, params, target bytes) of a request."""
     kind, data, filename = _input(mesh)
     if kind == "arrays":
         if params.get("format", "ply") != "ply":
@@ -65,20 +99,29 @@ def smooth(mesh, url="http://127.0.0.1:8080", *, target=None, out=None, progress
         params["format"] = "ply"
     if target is not None:
         target = _input(target)[1]
-    answer = _with_retries(url, data, filename, params, target, progress, with_metrics,
-                           timeout, retries, max_wait, token)
+    return kind, data, filename, params, target
+
+
+def _warn(answer, stacklevel=3):
     for name in answer.warnings:
-        _warnings.warn(SmoothingWarning(name, answer.job), stacklevel=2)
+        _warnings.warn(SmoothingWarning(name, answer.job), stacklevel=stacklevel)
+
+
+def _deliver(kind, mesh, out, answer):
+    """The answer in the kind mesh was given: arrays, bytes, or a path."""
     if kind == "arrays":
-        result = _mesh.from_ply(answer.data, float_type=_float_type(mesh))
-    elif kind == "bytes":
-        result = answer.data
+        return _mesh.from_ply(answer.data, float_type=_float_type(mesh))
+    if kind == "bytes":
+        return answer.data
+    if out is None:
+        path = _beside(mesh, answer.format)
+    elif os.path.isdir(out):
+        path = os.path.join(out, os.path.basename(_beside(mesh, answer.format)))
     else:
-        path = out if out is not None else _beside(mesh, answer.format)
-        with open(path, "wb") as f:
-            f.write(answer.data)
-        result = type(mesh)(path) if not isinstance(mesh, str) else os.fspath(path)
-    return (result, answer.metrics) if with_metrics else result
+        path = out
+    with open(path, "wb") as f:
+        f.write(answer.data)
+    return type(mesh)(path) if not isinstance(mesh, str) else os.fspath(path)
 
 
 def _float_type(mesh):
@@ -108,20 +151,20 @@ def _beside(path, fmt):
     return os.path.join(os.path.dirname(p), "%s-smoothed.%s" % (stem, ext))
 
 
-def _with_retries(url, data, filename, params, target, progress, with_metrics, timeout,
-                  retries, max_wait, token):
+def _door_for(url, token, timeout):
+    """The door object of url: REST (http, https) or gRPC (grpc, grpcs)."""
     u = urllib.parse.urlsplit(url)
     if u.scheme in ("grpc", "grpcs"):
         meta = (("authorization", "Bearer " + token),) if token else None
-        call = lambda: _grpc.smooth(u.netloc, u.scheme == "grpcs", data, filename, params,  # noqa: E731
-                                    target, progress, with_metrics, timeout, meta)
-    elif u.scheme in ("http", "https"):
-        base = url.rstrip("/")
+        return _grpc.Door(u.netloc, u.scheme == "grpcs", timeout, meta)
+    if u.scheme in ("http", "https"):
         headers = {"Authorization": "Bearer " + token} if token else {}
-        call = lambda: _rest.smooth(base, data, filename, params, target, progress,  # noqa: E731
-                                    with_metrics, timeout, headers)
-    else:
-        raise ValueError("url must start with http://, https://, grpc:// or grpcs://, not %r" % url)
+        return _rest.Door(url.rstrip("/"), timeout, headers)
+    raise ValueError("url must start with http://, https://, grpc:// or grpcs://, not %r" % url)
+
+
+def _with_retries(call, retries, max_wait):
+    """call(), retried after a Busy daemon's delay up to retries times."""
     attempt = 0
     while True:
         try:

@@ -11,6 +11,7 @@ and, when it is worth retrying, the delay in `retry-after-ms`.
 import json
 
 from . import errors
+from ._jobs import grpc_job_doc
 from ._rest import Answer
 
 CHUNK = 64 * 1024
@@ -77,36 +78,83 @@ def _error(grpc, e):
                             retry_after=int(retry) / 1000.0 if retry and retry.isdigit() else None)
 
 
-def smooth(target_addr, secure, data, filename, params, target, progress, want_metrics,
-           timeout, metadata):
-    """One attempt; raises MCFDError (Busy carries retry_after)."""
-    grpc, pb, pb_grpc = _modules()
-    params = dict(params)
-    output_format = params.pop("format", None)
-    p = _params(pb, params)
-    channel = (grpc.secure_channel(target_addr, grpc.ssl_channel_credentials()) if secure
-               else grpc.insecure_channel(target_addr))
+def _channel(grpc, target_addr, secure):
+    return (grpc.secure_channel(target_addr, grpc.ssl_channel_credentials()) if secure
+            else grpc.insecure_channel(target_addr))
+
+
+def _read_answer(responses, progress):
+    """The Answer of a Smooth or WatchJob stream: progress to the callback,
+    then the metrics, the result's header and its chunks."""
     chunks, metrics, header = [], None, None
-    try:
-        stub = pb_grpc.SmootherStub(channel)
-        for r in stub.Smooth(_requests(pb, data, filename, p, output_format, target),
-                             timeout=timeout, metadata=metadata):
-            part = r.WhichOneof("part")
-            if part == "progress" and progress:
-                g = r.progress
-                progress({"step": g.step, "t": g.t, "dt": g.dt, "energy": g.energy,
-                          "volume": g.volume})
-            elif part == "metrics":
-                metrics = json.loads(r.metrics)
-            elif part == "result_header":
-                header = r.result_header
-            elif part == "result_chunk":
-                chunks.append(r.result_chunk)
-    except grpc.RpcError as e:
-        raise _error(grpc, e) from None
-    finally:
-        channel.close()
+    for r in responses:
+        part = r.WhichOneof("part")
+        if part == "progress" and progress:
+            g = r.progress
+            progress({"step": g.step, "t": g.t, "dt": g.dt, "energy": g.energy,
+                      "volume": g.volume})
+        elif part == "metrics":
+            metrics = json.loads(r.metrics)
+        elif part == "result_header":
+            header = r.result_header
+        elif part == "result_chunk":
+            chunks.append(r.result_chunk)
     if header is None:
         raise errors.ServerError("the call ended without a result", status="OK")
     return Answer(b"".join(chunks), header.format, header.job_id,
                   list((metrics or {}).get("warnings") or ()), metrics)
+
+
+class Door:
+    """The gRPC door of one daemon: one call per method, each on its own
+    channel (a Job handle holds no connection between calls)."""
+
+    def __init__(self, target_addr, secure, timeout, metadata):
+        self.addr, self.secure, self.timeout, self.metadata = target_addr, secure, timeout, metadata
+
+    def _call(self, fn):
+        grpc, pb, pb_grpc = _modules()
+        channel = _channel(grpc, self.addr, self.secure)
+        try:
+            return fn(pb, pb_grpc.SmootherStub(channel))
+        except grpc.RpcError as e:
+            raise _error(grpc, e) from None
+        finally:
+            channel.close()
+
+    def smooth(self, data, filename, params, target, progress, want_metrics):
+        """One Smooth call; raises MCFDError (Busy carries retry_after)."""
+        params = dict(params)
+        output_format = params.pop("format", None)
+        return self._call(lambda pb, stub: _read_answer(
+            stub.Smooth(_requests(pb, data, filename, _params(pb, params), output_format, target),
+                        timeout=self.timeout, metadata=self.metadata), progress))
+
+    def submit(self, data, filename, params, target):
+        """SubmitJob: the queued job's state (REST's Job document)."""
+        params = dict(params)
+        output_format = params.pop("format", None)
+        return self._call(lambda pb, stub: grpc_job_doc(stub.SubmitJob(
+            _requests(pb, data, filename, _params(pb, params), output_format, target),
+            timeout=self.timeout, metadata=self.metadata)))
+
+    def get(self, job_id):
+        return self._call(lambda pb, stub: grpc_job_doc(stub.GetJob(
+            pb.GetJobRequest(id=job_id), timeout=self.timeout, metadata=self.metadata)))
+
+    def cancel(self, job_id):
+        return self._call(lambda pb, stub: grpc_job_doc(stub.CancelJob(
+            pb.CancelJobRequest(id=job_id), timeout=self.timeout, metadata=self.metadata)))
+
+    def result(self, job_id):
+        """WatchJob from past the last step: the metrics and the result."""
+        return self._call(lambda pb, stub: _read_answer(stub.WatchJob(
+            pb.WatchJobRequest(id=job_id, from_step=2**31 - 1), timeout=self.timeout,
+            metadata=self.metadata), None))
+
+    def metrics(self, job_id):
+        doc = self.get(job_id)
+        if "metrics" not in doc:
+            raise errors.error_for("ENOTREADY", "job %s is %s: no metrics" % (job_id, doc["status"]),
+                                   status="FAILED_PRECONDITION", job=job_id)
+        return doc["metrics"]

@@ -77,12 +77,18 @@ def _warnings(resp):
     return [x.strip() for x in w.split(",") if x.strip()] if w else []
 
 
-def smooth(base, data, filename, params, target, progress, want_metrics, timeout, headers):
-    """One attempt; raises MCFDError (Busy carries retry_after)."""
+def _upload(data, filename, params, target):
+    """(body, content type) of a job's upload: the mesh, the parameters as
+    JSON, the optional target."""
     fields = [("mesh", filename, data), ("params", None, json.dumps(params).encode())]
     if target is not None:
         fields.append(("target", "target", target))
-    body, ctype = _multipart(fields)
+    return _multipart(fields)
+
+
+def smooth(base, data, filename, params, target, progress, want_metrics, timeout, headers):
+    """One attempt; raises MCFDError (Busy carries retry_after)."""
+    body, ctype = _upload(data, filename, params, target)
     query = "?stream=ndjson" if progress else ""
     req = urllib.request.Request(base + "/v1/smooth" + query, data=body, method="POST",
                                  headers=dict(headers, **{"Content-Type": ctype}))
@@ -117,3 +123,48 @@ def smooth(base, data, filename, params, target, progress, want_metrics, timeout
         with _open(req, timeout) as resp:
             answer.metrics = json.loads(resp.read())
     return answer
+
+
+class Door:
+    """The REST door of one daemon (base: http://HOST:PORT)."""
+
+    def __init__(self, base, timeout, headers):
+        self.base, self.timeout, self.headers = base, timeout, headers
+
+    def _json(self, method, path, body=None, ctype=None):
+        headers = dict(self.headers, **({"Content-Type": ctype} if ctype else {}))
+        req = urllib.request.Request(self.base + path, data=body, method=method, headers=headers)
+        with _open(req, self.timeout) as resp:
+            raw = resp.read()
+        return json.loads(raw) if raw else None
+
+    def smooth(self, data, filename, params, target, progress, want_metrics):
+        return smooth(self.base, data, filename, params, target, progress, want_metrics,
+                      self.timeout, self.headers)
+
+    def submit(self, data, filename, params, target):
+        """POST /v1/jobs: the queued job's state."""
+        body, ctype = _upload(data, filename, params, target)
+        return self._json("POST", "/v1/jobs", body, ctype)
+
+    def get(self, job_id):
+        return self._json("GET", "/v1/jobs/" + urllib.parse.quote(job_id))
+
+    def cancel(self, job_id):
+        """DELETE of an unfinished job. REST's DELETE also forgets a finished
+        job, which cancel() must not: the state is read first; a job that
+        finishes between that read and the DELETE is forgotten by it (204),
+        and None is returned."""
+        doc = self.get(job_id)
+        if doc["status"] in ("succeeded", "failed", "canceled"):
+            return doc
+        return self._json("DELETE", "/v1/jobs/" + urllib.parse.quote(job_id))
+
+    def result(self, job_id):
+        req = urllib.request.Request(self.base + "/v1/jobs/%s/result" % urllib.parse.quote(job_id),
+                                     headers=self.headers)
+        with _open(req, self.timeout) as resp:
+            return Answer(resp.read(), _format_of(resp), job_id, _warnings(resp))
+
+    def metrics(self, job_id):
+        return self._json("GET", "/v1/jobs/%s/metrics" % urllib.parse.quote(job_id))

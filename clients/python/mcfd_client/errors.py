@@ -58,6 +58,11 @@ class Canceled(MCFDError):
     """ECANCELED: the job was canceled."""
 
 
+class NotReady(MCFDError):
+    """ENOTREADY: the job has not finished yet; ENORESULT: it finished
+    without a result (failed, canceled, or no fields were asked for)."""
+
+
 class ServerError(MCFDError):
     """The daemon failed (EIO, ESPOOL, ...), or a code this client does not know."""
 
@@ -75,6 +80,7 @@ _BY_CODE = {
     "EAUTH": Unauthorized,
     "ENOTFOUND": NotFound,
     "ECANCELED": Canceled,
+    "ENOTREADY": NotReady, "ENORESULT": NotReady,
 }
 
 
