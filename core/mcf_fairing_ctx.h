@@ -67,6 +67,9 @@ typedef struct {
     int nprobe;                /* NPROBE, or NPROBE_FEW on a large mesh */
     int ncol;                  /* 3, or 3 + nprobe with the probes */
     int is_explicit;
+    int exact;                 /* the default request: the positions are
+                                  exact (mcf_fairing.c, FLAT_SHARE): no
+                                  noise to read */
     int quiet;                 /* the hook sees no steps (cancel only) */
     double w0, w1;             /* its share of the run's work (mcf_fairing.c, work()) */
     double work_done;          /* the last share reported: never less */

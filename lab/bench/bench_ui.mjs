@@ -20,9 +20,9 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { launch, startDaemon } from '../tests/browser.mjs';
+import { launch, startDaemon } from '../../tests/browser.mjs';
 
-const ROOT = path.dirname(path.dirname(fileURLToPath(import.meta.url)));
+const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..', '..'); // the top level
 const BUILD = path.resolve(ROOT, process.env.MCF_BUILD || 'build');
 const MESH = path.resolve(process.env.MESHES || path.join(ROOT, '..', 'shared', 'meshes'),
                           process.env.UI_MESH || 'dragon_vrip.drc');
