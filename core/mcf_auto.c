@@ -306,16 +306,18 @@ static void tangential_high_pass(const mcf__graph *g, const double *N, const dou
 mcf_status mcf__noise_level(const double *X, const int32_t *F, int nf, int nv,
                             const unsigned char *fixed, double *sigma, mcf_error *err)
 {
-    return mcf__noise_levels(X, F, nf, nv, fixed, sigma, NULL, NULL, err);
+    return mcf__noise_levels(NULL, X, F, nf, nv, fixed, sigma, NULL, NULL, err);
 }
 
-mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
+mcf_status mcf__noise_levels(const mcf__graph *given, const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
                              mcf__noise_shape *shape, mcf_error *err)
 {
     mcf__graph g;
-    mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
-    if (rc != MCF_OK)
+    mcf_status rc = MCF_OK;
+    if (given)
+        g = *given; /* borrowed: not freed below */
+    else if ((rc = mcf__graph_build(F, nf, nv, &g, err)) != MCF_OK)
         return rc;
     double *N = mcf__malloc(3 * (size_t)nv, sizeof(double));
     double *P = mcf__malloc(3 * (size_t)nv, sizeof(double));
@@ -420,7 +422,8 @@ done:
     free(tmp);
     free(e);
     free(d);
-    mcf__graph_free(&g);
+    if (!given)
+        mcf__graph_free(&g);
     return rc;
 }
 

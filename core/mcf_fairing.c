@@ -476,7 +476,7 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         double s_est = 0.0, s_t = 0.0, s;
         mcf__noise_shape shape = {0};
         int robust = p->fairing_robust && !(p->noise_sigma > 0.0);
-        if ((rc = mcf__noise_levels(c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, robust ? &shape : NULL,
+        if ((rc = mcf__noise_levels(&c->g, c->X0, c->F, c->nf, c->nv, c->fx, &s_est, &s_t, robust ? &shape : NULL,
                                     err)) != MCF_OK)
             return rc;
         s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;

@@ -199,7 +199,8 @@ typedef struct {
     double direction[3];
     double corr, corr_noise;
 } mcf__noise_shape;
-mcf_status mcf__noise_levels(const double *X, const int32_t *F, int nf, int nv,
+/* g: the graph of F when the caller has it (NULL: built here) */
+mcf_status mcf__noise_levels(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
                              mcf__noise_shape *shape, mcf_error *err);
 
