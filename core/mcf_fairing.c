@@ -97,6 +97,25 @@
  * fertility, bunny_npm_closed and armadillo 0.11, 0.23 and 0.28 of the
  * error of 0.1 h noise */
 #define WHITE_GAP 0.1
+/* ... nor when at least FLAT_SHARE of the free vertices have their 1-ring
+ * exactly in the plane through them (every neighbour within FLAT_TOL mean
+ * edges of it along the vertex normal): noise leaves no vertex there, an
+ * exact model (a CAD part's flat faces) or a grid (quantized positions)
+ * leaves many. Measured (2026-11-28, make quality's noise, seed 1, share
+ * at 1e-6 h): the clean couplingdown_sub2.obj 0.505, whose high-pass gap
+ * (0.057) passed WHITE_GAP and which the default moved by 0.269 of the
+ * error of 0.1 h noise (the feature stage reading 0.049 h); blade.obj
+ * 0.149, car.drc 0.010 (the default leaves both within 0.02); Gaussian
+ * noise of 0.1 h along the normals 0 on every CAD part; the organic
+ * meshes clean or quantized 0-0.6% (knot1 at quant 0.5: 3.3%). Quantized
+ * CAD parts pass it too (couplingdown_sub2 at 0.1/0.25/0.5 h: 0.36, 0.51,
+ * 0.68; car 0.23-0.70, blade 0.86-0.97): they come back as they came,
+ * where the default had returned 0.93-1.00 of their error (car and
+ * blade 1.00) and, on couplingdown_sub2, faces turned against the clean
+ * mesh. The spike stage leaves such a mesh alone too (it had repaired 6
+ * "spikes" of couplingdown_sub2 quantized to 0.25 h, turning a face). */
+#define FLAT_SHARE 0.25
+#define FLAT_TOL 1e-6
 
 static void fair_free(fair_ctx *c)
 {
@@ -469,8 +488,9 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         int view = robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est;
         if (view)
             s = shape.sigma_view;
-        else if (robust && shape.corr > shape.corr_noise + WHITE_GAP)
-            s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP) */
+        else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact))
+            s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP),
+                        or the positions are exact (FLAT_SHARE) */
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
@@ -554,6 +574,13 @@ static int sure_stop(int kstar)
     return k;
 }
 
+static void swap_ptr(double **a, double **b)
+{
+    double *t = *a;
+    *a = *b;
+    *b = t;
+}
+
 /* The steps, SURE after each (the normal and the tangential part), until
  * sure_stop(K*) or the cap: c->Ybest, c->Yt at c->kbest, c->kbest_t. */
 static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
@@ -580,34 +607,46 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
             return rc;
         }
         positions(c, Y);
+        const double *cur = Y; /* this step's positions */
         if (!c->sure) {
             c->kbest = k;
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
-            mcf__fair_probe_traces(c, est);
+            mcf__fair_step_moments(c, Y, est, mo);
             double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
-            mcf__fair_weighted_r2(c, Y, mo);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
             double risk_t = mcf__fair_sure_of(c, 2, s_t, mo + 3, tr, vtr, &zt);
             st->sure[st->nsure++] = risk / sumw / (hbar * hbar);
             /* a step counts only when SURE's gain over the input stands
              * out of its own uncertainty (SURE_MIN_GAIN) */
-            if (risk < best && zn >= SURE_MIN_GAIN) {
+            int nb = risk < best && zn >= SURE_MIN_GAIN, nt = risk_t < best_t && zt >= SURE_MIN_GAIN;
+            if (nb) {
                 best = risk;
                 c->kbest = k;
                 memcpy(c->trbest, est, sizeof est);
-                memcpy(c->Ybest, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
-            if (risk_t < best_t && zt >= SURE_MIN_GAIN) {
+            if (nt) {
                 best_t = risk_t;
                 c->kbest_t = k;
-                memcpy(c->Yt, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
+            /* the best positions taken by swapping buffers, not copying
+             * them (positions() rewrites Y whole at the next step): a
+             * copy at most, when both parts gain at once */
+            if (nb) {
+                swap_ptr(&c->Y, &c->Ybest);
+                cur = c->Ybest;
+                if (nt)
+                    memcpy(c->Yt, c->Ybest, 3 * sizeof(double) * (size_t)c->nv);
+            } else if (nt) {
+                swap_ptr(&c->Y, &c->Yt);
+                cur = c->Yt;
+            }
+            Y = c->Y;
             if ((k & (k - 1)) == 0)
-                mcf__fair_keep_iterate(c, k, Y, est);
+                mcf__fair_keep_iterate(c, k, cur, est);
         }
-        if (hook && hook(hook_ctx, k, c->quiet ? NULL : Y))
+        if (hook && hook(hook_ctx, k, c->quiet ? NULL : cur))
             return mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
         int kend = c->sure ? sure_stop(c->kbest > c->kbest_t ? c->kbest : c->kbest_t) : c->cap;
         work(c, c->is_explicit ? "passes" : "steps",
@@ -673,17 +712,24 @@ static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won)
     st->filter_explicit = 1;
 }
 
-/* The spikes of X repaired in a copy (*Xs; NULL when there are none),
- * their count into st->spikes_repaired. ENOMEM only. */
+/* Whether X's positions are exact (FLAT_SHARE) into *exact; if not, the
+ * spikes of X repaired in a copy (*Xs; NULL when there are none), their
+ * count into st->spikes_repaired. ENOMEM only. */
 static mcf_status repair_spikes(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
-                                double hbar, mcf_flow_stats *st, double **Xs, mcf_error *err)
+                                double hbar, mcf_flow_stats *st, double **Xs, int *exact, mcf_error *err)
 {
     mcf__graph g;
     mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
     if (rc != MCF_OK)
         return rc;
     double *Y = mcf__malloc(3 * (size_t)nv, sizeof(double));
-    int n = Y ? (memcpy(Y, X, 3 * sizeof(double) * (size_t)nv), mcf__spikes(&g, F, nf, fixed, hbar, Y)) : -1;
+    int n = -1;
+    if (Y) {
+        mcf__vertex_normals(X, F, nf, nv, Y);
+        *exact = mcf__flat_share(&g, X, Y, fixed, FLAT_TOL * hbar) >= FLAT_SHARE;
+        memcpy(Y, X, 3 * sizeof(double) * (size_t)nv);
+        n = *exact ? 0 : mcf__spikes(&g, F, nf, fixed, hbar, Y);
+    }
     mcf__graph_free(&g);
     if (n < 0) {
         free(Y);
@@ -718,8 +764,9 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
      * filter then takes the repaired mesh as its input */
     double *Xs = NULL;
     st->robust = p->fairing_robust && p->iterations <= 0;
-    if (st->robust && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, err)) != MCF_OK)
+    if (st->robust && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, &ci.exact, err)) != MCF_OK)
         return rc;
+    ce.exact = ci.exact;
     const double *Xf = Xs ? Xs : X;
     /* the request's input's face normals: the fold guard judges the
      * output against them too (the repair turns the faces at a spike; the

@@ -324,6 +324,12 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
  * (fixed: nv), moved back along the surface's normal onto the plane of
  * their ring's centroid. Returns their count, -1 when out of memory (X
  * then unchanged). */
+/* The share of the vertices not fixed and with an edge whose 1-ring lies
+ * within tol of the plane through them along their normal N (3*nv): every
+ * neighbour j with |N_i . (x_j - x_i)| <= tol. 0 when there is none.
+ * (mcf_spikes.c; the default request's test for exact positions) */
+double mcf__flat_share(const mcf__graph *g, const double *X, const double *N, const unsigned char *fixed,
+                       double tol);
 int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned char *fixed, double hbar,
                 double *X);
 

@@ -216,6 +216,26 @@ static void centroid_repairs(const int32_t *F, int nf, int nv, const unsigned ch
             memcpy(X + 3 * (size_t)i, C + 3 * (size_t)i, 3 * sizeof(double));
 }
 
+double mcf__flat_share(const mcf__graph *g, const double *X, const double *N, const unsigned char *fixed,
+                       double tol)
+{
+    int flat = 0, n = 0;
+    for (int i = 0; i < g->n; i++) {
+        if (fixed[i] || g->ptr[i + 1] == g->ptr[i])
+            continue;
+        int ok = 1;
+        const double *x = X + 3 * (size_t)i, *nn = N + 3 * (size_t)i;
+        for (int t = g->ptr[i]; ok && t < g->ptr[i + 1]; t++) {
+            double d[3];
+            mcf__sub3(X + 3 * (size_t)g->adj[t], x, d);
+            ok = fabs(mcf__dot3(nn, d)) <= tol;
+        }
+        flat += ok;
+        n++;
+    }
+    return n > 0 ? (double)flat / n : 0.0;
+}
+
 int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned char *fixed, double hbar,
                 double *X)
 {
