@@ -17,7 +17,8 @@ cycles (strongly connected components of more than one node), with
 --edges the edges inside each, with --list every edge and its levels.
 
     .ci/depgraph.py [--build build] [--edges] [--list] DIR...   e.g. server api
-    --fail-on-cycle   exit 1 when there is a cycle (make check-deps can use it)
+    --fail-on-cycle   exit 1 when there is a cycle (make check-graph uses it)
+    --no-recurse      the folders given, without their subfolders
 """
 import argparse
 import os
@@ -30,10 +31,12 @@ SRC_EXT = (".c", ".cc")
 INC_RE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.M)
 
 
-def files_under(dirs):
+def files_under(dirs, recurse=True):
     out = []
     for d in dirs:
-        for root, _, names in os.walk(d):
+        for root, subdirs, names in os.walk(d):
+            if not recurse:
+                subdirs[:] = []
             for n in sorted(names):
                 if n.endswith(SRC_EXT + (".h",)):
                     out.append(os.path.normpath(os.path.join(root, n)))
@@ -60,8 +63,8 @@ def nm_symbols(obj):
     return defined, undefined
 
 
-def build_graph(dirs, build):
-    files = files_under(dirs)
+def build_graph(dirs, build, recurse=True):
+    files = files_under(dirs, recurse)
     units = sorted({unit_of(f) for f in files})
     by_header = defaultdict(list)          # a header's name -> its units
     for f in files:
@@ -141,8 +144,11 @@ def main():
     ap.add_argument("--edges", action="store_true",
                     help="print the edges inside each cycle")
     ap.add_argument("--fail-on-cycle", action="store_true")
+    ap.add_argument("--no-recurse", action="store_true",
+                    help="the folders' own files, not their subfolders'")
     args = ap.parse_args()
-    units, edges, missing = build_graph(args.dirs, args.build)
+    units, edges, missing = build_graph(args.dirs, args.build,
+                                        not args.no_recurse)
     if missing:
         print("depgraph: no object for %s (build first: make)" % " ".join(missing),
               file=sys.stderr)

@@ -293,7 +293,9 @@ static mcf_status measure(job *jb, int after)
         return MCF_OK;
     rc = (after ? api_metrics_after : api_metrics_before)(
         &jb->mt, jb->m, jb->target, &jb->res->err);
-    jb->run.metrics_s += elapsed(t0);
+    /* NaN (not measured) until the first measure */
+    jb->run.metrics_s = (after && !isnan(jb->run.metrics_s) ? jb->run.metrics_s : 0.0)
+                        + elapsed(t0);
     return rc == MCF_OK ? MCF_OK : failed(jb, API_JOB_RUN, "metrics", rc);
 }
 

@@ -574,6 +574,13 @@ static int sure_stop(int kstar)
     return k;
 }
 
+static void swap_ptr(double **a, double **b)
+{
+    double *t = *a;
+    *a = *b;
+    *b = t;
+}
+
 /* The steps, SURE after each (the normal and the tangential part), until
  * sure_stop(K*) or the cap: c->Ybest, c->Yt at c->kbest, c->kbest_t. */
 static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
@@ -600,34 +607,46 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
             return rc;
         }
         positions(c, Y);
+        const double *cur = Y; /* this step's positions */
         if (!c->sure) {
             c->kbest = k;
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
-            mcf__fair_probe_traces(c, est);
+            mcf__fair_step_moments(c, Y, est, mo);
             double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
-            mcf__fair_weighted_r2(c, Y, mo);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
             double risk_t = mcf__fair_sure_of(c, 2, s_t, mo + 3, tr, vtr, &zt);
             st->sure[st->nsure++] = risk / sumw / (hbar * hbar);
             /* a step counts only when SURE's gain over the input stands
              * out of its own uncertainty (SURE_MIN_GAIN) */
-            if (risk < best && zn >= SURE_MIN_GAIN) {
+            int nb = risk < best && zn >= SURE_MIN_GAIN, nt = risk_t < best_t && zt >= SURE_MIN_GAIN;
+            if (nb) {
                 best = risk;
                 c->kbest = k;
                 memcpy(c->trbest, est, sizeof est);
-                memcpy(c->Ybest, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
-            if (risk_t < best_t && zt >= SURE_MIN_GAIN) {
+            if (nt) {
                 best_t = risk_t;
                 c->kbest_t = k;
-                memcpy(c->Yt, Y, 3 * sizeof(double) * (size_t)c->nv);
             }
+            /* the best positions taken by swapping buffers, not copying
+             * them (positions() rewrites Y whole at the next step): a
+             * copy at most, when both parts gain at once */
+            if (nb) {
+                swap_ptr(&c->Y, &c->Ybest);
+                cur = c->Ybest;
+                if (nt)
+                    memcpy(c->Yt, c->Ybest, 3 * sizeof(double) * (size_t)c->nv);
+            } else if (nt) {
+                swap_ptr(&c->Y, &c->Yt);
+                cur = c->Yt;
+            }
+            Y = c->Y;
             if ((k & (k - 1)) == 0)
-                mcf__fair_keep_iterate(c, k, Y, est);
+                mcf__fair_keep_iterate(c, k, cur, est);
         }
-        if (hook && hook(hook_ctx, k, c->quiet ? NULL : Y))
+        if (hook && hook(hook_ctx, k, c->quiet ? NULL : cur))
             return mcf__fail(err, MCF_ECANCELED, "canceled after step %d", k);
         int kend = c->sure ? sure_stop(c->kbest > c->kbest_t ? c->kbest : c->kbest_t) : c->cap;
         work(c, c->is_explicit ? "passes" : "steps",

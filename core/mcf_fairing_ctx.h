@@ -106,13 +106,12 @@ typedef struct {
 } fair_ctx;
 
 /* mcf_fairing_sure.c */
-/* The probes' estimates of sum_i w_i (T^K)_ii into est. */
-void mcf__fair_probe_traces(const fair_ctx *c, double est[NPROBE]);
+/* A step's probe estimates of sum_i w_i (T^K)_ii (est) and SURE's
+ * moments of the displacement Y - X0 (m), in one sweep. */
+void mcf__fair_step_moments(const fair_ctx *c, const double *Y, double est[NPROBE], double m[6]);
 /* The mean of the nprobe probes' estimates est, and the variance of that
  * mean (*var). */
 double mcf__fair_mean_trace(const double *est, int nprobe, double *var);
-/* SURE's moments of the displacement Y - X0 (weighted_r2 in the file). */
-void mcf__fair_weighted_r2(const fair_ctx *c, const double *Y, double m[6]);
 /* SURE(K) and its gain over the input in standard errors (*z). */
 double mcf__fair_sure_of(const fair_ctx *c, int dim, double sig, const double *mo, double tr, double vtr,
                          double *z);

@@ -41,23 +41,6 @@
  * Taubin oracle. */
 #define PICK_MIN_GAIN 1.0
 
-/* The probes' estimates of sum_i w_i (T^K)_ii into est. */
-void mcf__fair_probe_traces(const fair_ctx *c, double est[NPROBE])
-{
-    /* one sweep over the rows (each est[q] sums in the same order) */
-    for (int q = 0; q < NPROBE; q++)
-        est[q] = 0.0;
-    for (int k = 0; k < c->nfree; k++) {
-        int i = c->vert[k];
-        for (int q = 0; q < c->nprobe; q++) {
-            double z = c->probe[(size_t)q * c->nfree + k];
-            double y = c->is_explicit ? c->Z[(size_t)c->ncol * i + 3 + q]
-                                      : c->Yc[(size_t)(3 + q) * c->nfree + k];
-            est[q] += c->w[i] * z * y;
-        }
-    }
-}
-
 /* The mean of the nprobe probes' estimates est, and the variance of that
  * mean (*var). */
 double mcf__fair_mean_trace(const double *est, int nprobe, double *var)
@@ -71,18 +54,29 @@ double mcf__fair_mean_trace(const double *est, int nprobe, double *var)
     return tr;
 }
 
-/* The displacement's moments for SURE, r along n0 and t its part in the
- * tangent planes of n0: m[0] = sum_F w r^2, m[1] = sum w^2 r^2, m[2] =
- * sum w^2 r^4, and m[3..5] the same of |t|. */
-void mcf__fair_weighted_r2(const fair_ctx *c, const double *Y, double m[6])
+/* A step's figures for SURE in one sweep over the free vertices (each
+ * sum in the vertices' order, as separate sweeps would add them):
+ * est[q], probe q's estimate of sum_i w_i (T^K)_ii; and the moments of
+ * the displacement Y - X0, r along n0 and t its part in the tangent
+ * planes of n0: m[0] = sum_F w r^2, m[1] = sum w^2 r^2, m[2] = sum w^2
+ * r^4, and m[3..5] the same of |t|. */
+void mcf__fair_step_moments(const fair_ctx *c, const double *Y, double est[NPROBE], double m[6])
 {
+    for (int q = 0; q < NPROBE; q++)
+        est[q] = 0.0;
     memset(m, 0, 6 * sizeof(double));
     for (int k = 0; k < c->nfree; k++) {
         size_t i = (size_t)c->vert[k];
+        double w = c->w[i];
+        for (int q = 0; q < c->nprobe; q++) {
+            double z = c->probe[(size_t)q * c->nfree + k];
+            double y = c->is_explicit ? c->Z[(size_t)c->ncol * i + 3 + q]
+                                      : c->Yc[(size_t)(3 + q) * c->nfree + k];
+            est[q] += w * z * y;
+        }
         double d[3];
         mcf__sub3(Y + 3 * i, c->X0 + 3 * i, d);
         double r = mcf__dot3(c->n0 + 3 * i, d), r2 = r * r, t2 = fmax(0.0, mcf__dot3(d, d) - r2);
-        double w = c->w[i];
         m[0] += w * r2;
         m[1] += w * w * r2;
         m[2] += w * w * r2 * r2;

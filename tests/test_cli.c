@@ -474,6 +474,8 @@ static void test_metrics_document_layout(void **state)
     assert_true(cJSON_IsArray(member(j, "warnings")));
     assert_true(cJSON_IsNull(member(j, "job")));                  /* the daemon's */
     assert_true(cJSON_IsNull(member(member(j, "timings"), "queue_s")));
+    /* the measures before and after the flow are timed (was NaN: null) */
+    assert_true(number(member(j, "timings"), "metrics_s") >= 0);
     assert_string_equal(cJSON_GetStringValue(member(j, "command")), "smooth");
     assert_string_equal(cJSON_GetStringValue(member(member(j, "output"), "format")), "draco");
     /* Draco output: the quantization error is measured (a number >= 0). */

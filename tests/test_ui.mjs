@@ -299,7 +299,7 @@ async function test_unreadable_file() {
                              { timeout: 60000 });
   const st = await statusText();
   await shot('state-6-error.png');
-  assert(/^broken\.ply cannot be read: .*ply/.test(st), `the status says why: "${st}"`);
+  assert(/^broken\.ply: no input view: mesh: ply: /.test(st), `the status says why: "${st}"`);
   assert(unlikeBackground(await canvasPixels('before')) < 0.001, 'no view of the last mesh is left');
   assert(await page.$eval('#unit-before', e => e.textContent) === '', 'nor its legend');
 }

@@ -91,7 +91,7 @@ def send_upload(port, headers, pieces, chunked, total=None, expect=False):
         for p in pieces:
             data = b"%x\r\n%s\r\n" % (len(p), p) if chunked else p
             view = memoryview(data)
-            while view:
+            while view and not answered():   # never a byte past the answer
                 r, w, _ = select.select([s], [s], [], 30)
                 if r:
                     d = s.recv(65536)

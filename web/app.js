@@ -148,7 +148,10 @@ function chooseFile(f) {
     console.warn(e);
     if (e instanceof api.ApiError && e.status >= 500) // busy, draining: not the file's fault
       return status(`${f.name}: no input view (${e.message}); it shows with the result. Press Smooth.`);
-    status(`${f.name} cannot be read: ${e.message || e}`, true);
+    // the daemon's detail names the part that failed ("mesh: ply: ..."); a
+    // step that failed would say so too (a preview's failure is not always
+    // the file's)
+    status(`${f.name}: no input view: ${e.message || e}`, true);
   });
 }
 

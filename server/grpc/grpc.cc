@@ -1,9 +1,10 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * grpc.cc - the gRPC door of mcfd behind grpc_door.h: its state, start
- * (gRPC's server without a listening port, fed by the gate, h2gate.c),
- * drain, stop, the expiry of late uploads and stalled answers, health and
- * gauges. The calls and what they share: grpc_internal.h.
+ * grpc.cc - the gRPC door of mcfd behind grpc_door.h: start (gRPC's
+ * server without a listening port, fed by the gate, h2gate.c), drain,
+ * stop, the expiry of late uploads and stalled answers, health and
+ * gauges. The calls and what they share: grpc_internal.h; the door's
+ * state, g: grpc_state.cc.
  */
 #include <chrono>
 #include <cstdio>
@@ -21,12 +22,6 @@
 #include "grpc_internal.h"
 #include "grpc_door.h"
 #include "h2gate.h"
-
-namespace mcfd_grpc {
-
-Door g;
-
-} // namespace mcfd_grpc
 
 using namespace mcfd_grpc;
 

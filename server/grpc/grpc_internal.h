@@ -143,9 +143,9 @@ struct Stall {
 class Follow;
 
 /* The door's state: a process singleton by design (one daemon has one gRPC
- * door, started and stopped once by main.c through grpc_door.h; grpc.cc's
- * g). Its fields are set before the server starts and read by the calls;
- * the mutable ones name their lock. */
+ * door, started and stopped once by main.c through grpc_door.h;
+ * grpc_state.cc's g). Its fields are set before the server starts and
+ * read by the calls; the mutable ones name their lock. */
 struct Door {
     std::unique_ptr<grpc::Server> server;
     const srv_config *cfg = nullptr;
