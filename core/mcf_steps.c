@@ -201,18 +201,24 @@ static mcf_status step_bdf2(flow_ctx *c, double h, const history *hist, double *
     if ((rc = mcf__flow_factorize(c, err)) != MCF_OK || (rc = mcf__flow_solve(c, c->B, X, err)) != MCF_OK)
         return rc;
     if (est && hist->nhist >= 2) {
-        /* Milne device: X+ minus the quadratic through the last
-         * three points is DD3 * h (h+h1) (h+h1+h2); the BDF2 local
-         * error is |DD3| h^2 (h+h1)^2 / (2h+h1) (docs/MATH.md).
-         * Unfiltered: a mode's local error survives to T damped by
-         * about exp(-lambda (T - t)), not by the step's resolvent
-         * 1 / (1 + h lambda / c0), so filtering (as the start and
-         * the first-order companions do) hid the modes near
-         * h lambda ~ 1 that the last steps leave in the result:
-         * filtered, tol 1e-5 ended 1.9-2.0x tol from a converged
-         * run on spot and snowden at noise 0.25 (25-34 steps),
-         * unfiltered 1.0-1.2x (37-65 steps), and the error now
-         * falls with tol (tol 1e-6: 0.7-1.1x). */
+        /* Two parts (docs/MATH.md, "Adaptive steps"), in the M-norm:
+         * Milne's device: X+ minus the quadratic through the last three
+         * points is DD3 * h (h+h1) (h+h1+h2); the BDF2 local error is
+         * |DD3| h^2 (h+h1)^2 / (2h+h1) (docs/MATH.md). Unfiltered: a
+         * mode's local error survives to T damped by about
+         * exp(-lambda (T - t)), not by the step's resolvent, so
+         * filtering hid the modes near h lambda ~ 1 that the last steps
+         * leave in the result (tol 1e-5 on noisy spot and snowden: 1.9-2.0x
+         * tol filtered, 1.0-1.2x unfiltered).
+         * The defect: the operator is taken at the extrapolation, not at
+         * X+, an error of order h^3 X'' dL/dX that is smooth in time, so
+         * the third difference cannot see it. The residual of the fully
+         * implicit equation at X+, r = Me+ (a1 X^k - a2 X^(k-1)) -
+         * (c0 Me+ + h Le+) X+, through the step's factor is X+'s
+         * distance to the fully implicit BDF2 result. On spot
+         * (strength 0.5) it is as large as Milne's part, and without it
+         * the largest vertex error at T was 57-223x tol. One more
+         * assembly and back-solve, no factorization. */
         double h1 = hist->h1, h2 = hist->h2;
         double tk = 0, tm1 = -h1, tm2 = -h1 - h2, tp = h;
         /* Lagrange weights of the quadratic through (tm2,tm1,tk) at tp */
@@ -222,7 +228,17 @@ static mcf_status step_bdf2(flow_ctx *c, double h, const history *hist, double *
         for (size_t i = 0; i < n3; i++)
             c->V[i] = X[i] - (l0 * c->Xprev2[i] + l1 * c->Xprev[i] + l2 * c->Xold[i]);
         double fac = h * (h + h1) / ((2.0 * h + h1) * (h + h1 + h2));
-        *est = fac * mcf__flow_mnorm(c, c->V, c->mass);
+        double milne = fac * mcf__flow_mnorm(c, c->V, c->mass);
+        mcf__flow_ops_at(c, X, c->w2, c->area2, c->mass2);
+        mcf__apply_L(c->F, c->nf, c->nv, c->w2, X, c->B);
+        for (int i = 0; i < c->nv; i++)
+            for (int d = 0; d < 3; d++) {
+                size_t j = 3 * (size_t)i + (size_t)d;
+                c->B[j] = c->fixed[i] ? 0.0 : c->mass2[i] * (c->T2[j] - c0 * X[j]) - h * c->B[j];
+            }
+        if ((rc = mcf__flow_solve(c, c->B, c->V2, err)) != MCF_OK)
+            return rc;
+        *est = milne + mcf__flow_mnorm(c, c->V2, c->mass);
     }
     return MCF_OK;
 }
