@@ -225,9 +225,17 @@ static void conn_close(conn *c, const char *why)
     c->dead = 1;
     h2gate_parser_end(c->p, srv_mono());
     wl_remove(c);
+    /* Out of the epoll set before the close: close() removes a descriptor
+     * from it only when no other descriptor shares its open file (a child
+     * forked meanwhile holds copies), and epoll would then go on reporting
+     * events carrying c, freed by bury() (ASan: heap-use-after-free in
+     * on_event, found by test_client's job handle under ASan). */
+    epoll_ctl(G.ep, EPOLL_CTL_DEL, c->fd, NULL);
     close(c->fd);
-    if (c->pfd >= 0)
+    if (c->pfd >= 0) {
+        epoll_ctl(G.ep, EPOLL_CTL_DEL, c->pfd, NULL);
         close(c->pfd);
+    }
     pthread_mutex_lock(&G.mu);
     if (c->prev)
         c->prev->next = c->next;
