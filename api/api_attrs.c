@@ -375,10 +375,21 @@ mcf_status api__attrs_polys(api_attrs *a, const int32_t *sizes, int npoly,
     return MCF_OK;
 }
 
+/* n bytes of s as a new NUL-terminated string; NULL on allocation failure. */
+static char *copy_text(const char *s, size_t n)
+{
+    char *t = malloc(n + 1);
+    if (t) {
+        memcpy(t, s, n);
+        t[n] = '\0';
+    }
+    return t;
+}
+
 mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
                            mcf_error *err)
 {
-    char *t = malloc(n + 1);
+    char *t = copy_text(s, n);
     api__stmt *st = realloc(a->stmt, sizeof *st * ((size_t)a->nstmt + 1));
     if (st)
         a->stmt = st;
@@ -386,8 +397,6 @@ mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
         free(t);
         return api__fail(err, MCF_ENOMEM, "attributes: out of memory for statements");
     }
-    memcpy(t, s, n);
-    t[n] = '\0';
     a->stmt[a->nstmt].at = at;
     a->stmt[a->nstmt++].text = t;
     return MCF_OK;
@@ -398,7 +407,7 @@ mcf_status api__attrs_stmt(api_attrs *a, int32_t at, const char *s, size_t n,
 mcf_status api__attrs_scalar(api_attrs *a, const char *name, size_t n, int type,
                              double *values, mcf_error *err)
 {
-    char *t = malloc(n + 1);
+    char *t = copy_text(name, n);
     api__scalar *sc = realloc(a->scal, sizeof *sc * ((size_t)a->nscal + 1));
     if (sc)
         a->scal = sc;
@@ -407,8 +416,6 @@ mcf_status api__attrs_scalar(api_attrs *a, const char *name, size_t n, int type,
         free(values);
         return api__fail(err, MCF_ENOMEM, "attributes: out of memory for a property");
     }
-    memcpy(t, name, n);
-    t[n] = '\0';
     a->scal[a->nscal].name = t;
     a->scal[a->nscal].type = type;
     a->scal[a->nscal++].values = values;
@@ -421,8 +428,10 @@ mcf_status api__attrs_drop(api_attrs *a, const char *what, size_t n, mcf_error *
     char *t = realloc(a->not_kept, old + n + 3);
     if (!t)
         return api__fail(err, MCF_ENOMEM, "attributes: out of memory");
-    if (old)
-        memcpy(t + old, ", ", 2), old += 2;
+    if (old) {
+        memcpy(t + old, ", ", 2);
+        old += 2;
+    }
     memcpy(t + old, what, n);
     t[old + n] = '\0';
     a->not_kept = t;
