@@ -488,8 +488,8 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
  * errors in stiff modes that follow the slow ones (an O(h) lag the
  * third difference does not see), and the error at T came out 1.8-2.9
  * tol with the whole tol (spot, strength 0.5, tol 1e-5 and 1e-6). With
- * 0.3, measured on the repository's meshes and spot (lab/README.md,
- * "Adaptive stepping"). */
+ * 0.3, measured on the repository's meshes and spot (docs/numerics.md,
+ * "What tol means"). */
 #define ADAPT_SAFETY 0.3
 /* The share of that budget stiff events may take beyond it (adapt). */
 #define ADAPT_EVENTS 0.1
