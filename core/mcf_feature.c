@@ -296,6 +296,10 @@ static const int NIT[] = {5, 12, 30};
 static const int VIT[] = {5, 12, 30};
 enum { NSIG = sizeof SIGMA_R / sizeof SIGMA_R[0], NNIT = sizeof NIT / sizeof NIT[0],
        NVIT = sizeof VIT / sizeof VIT[0], NCAND = NSIG * NNIT * NVIT, NPROBE_F = 2 };
+/* the pilot, the candidate whose result gives the reference normals m:
+ * the widest kernel, these iterations (normal iterations within NIT's
+ * range) */
+enum { PILOT_NIT = 15, PILOT_VIT = 20 };
 /* the noise level read from the residuals (below): within [1/S_RANGE,
  * S_RANGE] of the frame's reading */
 #define S_RANGE 2.0
@@ -522,8 +526,23 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     if (!(s > 0.0) || nfree == 0 || fr->nprobe < NPROBE_F)
         goto done;
     /* the reference normals m: those of a strongly smoothing candidate's
-     * result (the widest range kernel) */
-    mcf__bnf_run(b, X, fixed, SIGMA_R[NSIG - 1], 15, 20, Yp);
+     * result (the widest range kernel, PILOT_NIT + PILOT_VIT iterations),
+     * its normals read on the way to the widest kernel's candidates' on X
+     * (into their slots of Nk; the pilot's in a slot the probes fill
+     * later) */
+    double *pilot_n = Nk + ((size_t)(NNIT - 1) * nin + 1) * nf3;
+    mcf__bnf_start(b, X);
+    for (int ni = 0, done = 0; ni < NNIT; ni++) {
+        if (done < PILOT_NIT && PILOT_NIT <= NIT[ni]) {
+            memcpy(pilot_n, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], PILOT_NIT - done), nf3 * sizeof(double));
+            done = PILOT_NIT;
+        }
+        memcpy(Nk + (size_t)ni * nin * nf3, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], NIT[ni] - done),
+               nf3 * sizeof(double));
+        done = NIT[ni];
+    }
+    memcpy(Yp, X, n3 * sizeof(double));
+    mcf__bnf_vertices(b, pilot_n, fixed, PILOT_VIT, Yp);
     mcf__vertex_normals(Yp, F, nf, nv, m);
     pilot_weights(fr, Yp, F, nf, nv, wp, ap);
     /* the inputs: X, and X + eps z_q m for the probes z_q */
@@ -538,9 +557,11 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
                     x[3 * i + e] += eps * z * m[3 * i + e];
             }
     }
-    /* every candidate's sums, the results read on the way */
-    for (int si = 0; si < NSIG; si++) {
-        for (int q = 0; q < nin; q++) {
+    /* every candidate's sums, the results read on the way; the widest
+     * kernel first (its normals on X are in Nk), the narrowest last (its
+     * normals on X stay in Nk for the result) */
+    for (int si = NSIG - 1; si >= 0; si--) {
+        for (int q = si == NSIG - 1; q < nin; q++) {
             mcf__bnf_start(b, Xp + (size_t)q * n3);
             for (int ni = 0; ni < NNIT; ni++)
                 memcpy(Nk + ((size_t)ni * nin + q) * nf3,
@@ -579,7 +600,12 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     pick->div = cs[k].div_f;
     pick->vdiv = cs[k].vdiv_f;
     pick->risk = cs[k].sr2_f - s2 * sumw + 2.0 * s2 * cs[k].div_f;
-    mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
+    if (k / (NNIT * NVIT) == 0) { /* the narrowest kernel: its normals on X are in Nk */
+        memcpy(Yout, X, n3 * sizeof(double));
+        mcf__bnf_vertices(b, Nk + (size_t)((k / NVIT) % NNIT) * nin * nf3, fixed, pick->vertex_iters, Yout);
+    } else {
+        mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
+    }
     residuals(fr, fr->w, Yout, X, m, rbest);
     /* against the linear fairing's result (or the input): its SURE along
      * the same normals m, its trace from the same probes, at the same
