@@ -254,7 +254,8 @@ static int fairing_hook(void *ctx, int k, const double *X)
     const mcf_flow_params *p = c->p;
     if (!X)
         return p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire);
-    if (p->log_steps && c->st->log && k <= c->st->t_target) {
+    int logged = p->log_steps && c->st->log && k <= c->st->t_target;
+    if (logged) {
         double maxd = 0.0;
         for (size_t i = 0; i < (size_t)c->nv; i++) {
             double d[3];
@@ -264,8 +265,13 @@ static int fairing_hook(void *ctx, int k, const double *X)
         memcpy(h->prev, X, 3 * sizeof(double) * (size_t)c->nv);
         log_step(c, X, k - 1, k, 1.0, 0, h->scale, h->cen, sqrt(maxd));
     }
-    return p->progress &&
-           p->progress(p->progress_ctx, k, k, 1.0, mcf__area_volume(X, c->F, c->nf, NULL, NULL) / (h->scale * h->scale));
+    if (!p->progress)
+        return 0;
+    /* the energy, the area in input units: the log's when it has this
+     * step (the same sum, in input units as it adds it), else one sweep */
+    double area = logged ? c->st->log[k - 1].area
+                         : mcf__area_volume(X, c->F, c->nf, NULL, NULL) / (h->scale * h->scale);
+    return p->progress(p->progress_ctx, k, k, 1.0, area);
 }
 
 /* mcf_flow_run for the fairing filters, from the normalized positions on:
