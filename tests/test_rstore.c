@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * test_rstore.c - the job store in Redis (server/store/redis/rstore.c) against a real
+ * test_rstore.c - the job store in Redis (server/store/redis/rstore*.c) against a real
  * redis-server (tests/redisd.c: AOF on, its own directory, a free loopback
  * port), each test with two or three "replicas" (stores with their own
  * consumer names) on one server, as mcfd replicas share it. Checks the
