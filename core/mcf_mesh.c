@@ -166,9 +166,9 @@ static void uf_union(int32_t *p, int32_t a, int32_t b)
     }
 }
 
-/* The two sorts of mcf_mesh_inspect, by radix (mcf__radix_sort_u64) on
- * the key with the position as payload, then a gather: qsort took most of
- * an inspection. Both arrays are made in face order, so the stable sort by
+/* The two sorts of mcf_mesh_inspect when bucket_sort (below) has no
+ * scratch: by radix (mcf__radix_sort_u64) on the key with the position as
+ * payload, then a gather: qsort took most of an inspection. Both arrays are made in face order, so the stable sort by
  * key gives the order of the comparators above (key, then face), and
  * those serve as the fallback when the scratch cannot be had (or a face
  * key does not fit in 64 bits: more than 2^21 vertices).

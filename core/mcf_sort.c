@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * mcf_sort.c - the radix sort behind mesh inspection and the curvature
- * summary: 64-bit keys (edge keys u << 32 | v, packed face keys, doubles
+ * summary where their bucket sorts by vertex cannot serve (no scratch;
+ * non-finite curvatures): 64-bit keys (edge keys u << 32 | v, packed face keys, doubles
  * mapped to order-preserving integers), with an optional 32-bit payload.
  *
  * Inspection and the curvature summary sort every edge, every face and
