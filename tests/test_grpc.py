@@ -503,7 +503,11 @@ def test_cancel_job_and_cancelled():
 
 
 def test_deadline_cancels_the_job():
-    call = MAIN.stub.Smooth(upload(mesh("bunny.drc"), LONG), timeout=2.0)
+    # the deadline must leave room for the upload, the Draco sandbox and
+    # the first step, which took over 2 s under ASan+UBSan on a loaded
+    # two-core machine; LONG runs for minutes, so 20 s still ends in the
+    # deadline whatever the machine
+    call = MAIN.stub.Smooth(upload(mesh("bunny.drc"), LONG), timeout=20.0)
     it = wait_first_progress(call)
     jid = job_id_of(call)
     expect_rpc_error(lambda: list(it), grpc.StatusCode.DEADLINE_EXCEEDED)
@@ -521,7 +525,9 @@ def test_cancelled_call_frees_its_worker():
         t0 = time.time()
         g = smooth(d, mesh("sphere_cgal.obj"), dict(iterations=3))
         took = time.time() - t0
-        assert len(g.progress) == 3 and took < 5, took
+        # a worker still held by the cancelled run would hold the next job
+        # for minutes (LONG): 60 s tells the two apart on a loaded machine
+        assert len(g.progress) == 3 and took < 60, took
         assert d.rest_json("/v1/jobs/" + jid)["status"] == "canceled"
         print("    cancelled Smooth: the next job finished %.2f s later on the one worker" % took)
         d.stop()
@@ -853,7 +859,7 @@ def test_corrupt_message_is_not_the_end_of_the_upload():
             e = expect_rpc_error(lambda: call(msgs), grpc.StatusCode.INVALID_ARGUMENT,
                                  "message %d of the upload is not a SmoothRequest" % n)
             assert trailing(e, "mcf-code") == "EINVAL", e.trailing_metadata()
-            assert time.time() - t0 < 5
+            assert time.time() - t0 < 9      # refused, not left to the 10 s deadline
         print("    junk %s: INVALID_ARGUMENT %r" % (name, e.details()[:60]))
     # an unknown field (number 127, varint) in every message is skipped
     unk = b"\xf8\x07\x01"
@@ -1321,10 +1327,15 @@ def test_rapid_reset_is_paced():
               "%.1f %.1f s after; ListSchemes meanwhile median %.0f ms, worst %.0f ms"
               % (pairs[0], base / 1024, peak[0] / 1024, after / 1024, time.time() - t1,
                  ls[len(ls) // 2] * 1000, ls[-1] * 1000))
+        # every legitimate call is served meanwhile; the memory and latency
+        # bounds hold for the product's build: under ASan+UBSan the RSS says
+        # nothing (its quarantine) and the gate's pacing runs 2-3x slower
+        # (a worst ListSchemes of 2.3 s measured on a loaded machine)
+        assert all(x[0] == "OK" for x in lat), lat
         if not sanitized(d.p.pid):
             assert peak[0] - base < 32 * 1024, (base, peak)
             assert after - base < 8 * 1024, (base, after)
-        assert all(x[0] == "OK" for x in lat) and ls[-1] < 1, lat
+            assert ls[-1] < 1, lat
         d.stop()
     finally:
         stop.set()
