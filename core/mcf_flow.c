@@ -507,11 +507,20 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
  * errors in stiff modes that follow the slow ones (an O(h) lag the
  * third difference does not see), and the error at T came out 1.8-2.9
  * tol with the whole tol (spot, strength 0.5, tol 1e-5 and 1e-6). With
- * 0.3, measured on the repository's meshes and spot (lab/README.md,
- * "Adaptive stepping"). */
+ * 0.3, measured on the repository's meshes and spot (docs/numerics.md,
+ * "What tol means"). */
 #define ADAPT_SAFETY 0.3
 /* The share of that budget stiff events may take beyond it (adapt). */
 #define ADAPT_EVENTS 0.1
+/* The share of it desbrun2's first step may take, however short. The
+ * start is a first-order desbrun step whose filtered estimate falls only
+ * like h^1.3 on a scan (spot, tol 1e-4: est/allowed per unit step 4.0,
+ * 3.0, 2.3, 1.8, 1.5, 1.2, 1.0, 0.94 as h fell from T to T/190, 7
+ * rejections at 3 factorizations each), while the BDF2 steps that follow
+ * meet the budget per unit step at twice that size. Below ADAPT_START
+ * T the start is controlled per step against that share of the budget,
+ * so it no longer shrinks below what the second-order steps need. */
+#define ADAPT_START 0.1
 
 /* The adaptive verdict on the step just taken (rc, its estimate est, the
  * faces it folded): 1 accepted, with *h_next; 0 rejected, c->X restored
@@ -545,13 +554,27 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
      * test_adaptive, tol 1e-5: 12x tol in 338 steps where 128 fixed
      * steps are as accurate); desbrun per unit step needs ~1/tol
      * steps. */
-    int per_unit = p->scheme == MCF_DESBRUN2;
+    int start = p->scheme == MCF_DESBRUN2 && r->hist.nhist == 0;
+    int per_unit = p->scheme == MCF_DESBRUN2 && !start;
     int milne = per_unit && r->hist.nhist >= 2;
     int q = milne ? 2 : 1;
     int need_est = !(p->scheme == MCF_DESBRUN2 && r->hist.nhist == 1);
-    double allowed = per_unit ? ADAPT_SAFETY * p->tol * h / T : p->tol;
+    double allowed = per_unit ? ADAPT_SAFETY * p->tol * h / T
+                              : start ? ADAPT_SAFETY * p->tol * fmax(h / T, ADAPT_START) : p->tol;
     double ratio = need_est && est > 0.0 ? allowed / est : 1e3;
-    double fac = 0.9 * pow(ratio, per_unit ? 1.0 / q : 1.0 / (q + 1));
+    /* est/allowed ~ h^a with a = q per unit step, q + 1 per step */
+    double a = per_unit ? q : q + 1;
+    /* After a rejection at this t the fall measured between the two
+     * tries replaces the assumed one when it is slower (a step of the
+     * scheme's own estimate, between 1/4 and the assumed order): the
+     * first step's estimate falls like h^1.3 on spot, where h^2 took
+     * 4-7 rejections */
+    if (r->rejected_here > 0 && r->last_ratio > 0.0 && h < r->last_h && est > 0.0) {
+        double seen = log(r->last_ratio * allowed / est) / log(r->last_h / h);
+        if (isfinite(seen))
+            a = fmin(a, fmax(0.25, seen));
+    }
+    double fac = 0.9 * pow(ratio, 1.0 / a);
     double fold_rate = r->t > 0.0 ? r->folds_total / r->t : 0.0;
     int folds = inv > r->fold_budget && inv > 4.0 * fold_rate * h;
     int over = need_est && est > allowed;
@@ -674,7 +697,12 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
             if (++attempts > p->max_steps)
                 return mcf__fail(err, MCF_ELIMIT, "adaptive: max_steps (%d attempts, %d accepted) reached at t = %g of %g; raise max_steps or tol",
                                  p->max_steps, r->k, r->t, r->T);
-            if (r->t + r->h > r->T || r->T - (r->t + r->h) < 1e-9 * r->h)
+            /* a step that would leave less than a tenth of itself
+             * takes the rest: 10% more than the controller asked adds at
+             * most 1.1^2 x 0.9^2 = 0.98 of the allowed error, where a
+             * last sliver of a step costs a factorization (spot, tol
+             * 1e-4: a last step of 0.0017 T after one of 0.156 T) */
+            if (r->t + r->h > r->T || r->T - (r->t + r->h) < 0.1 * r->h)
                 r->h = r->T - r->t;
         }
         c->step_solve_s = 0.0;
