@@ -171,7 +171,7 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     c->Xin = alloc_d(c, 3 * (size_t)nv);
     if (c->Xin)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
-    int ncrease = crease && c->Xin ? mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease) : -1;
+    int ncrease = !crease || !c->Xin ? -1 : c->no_creases ? 0 : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease);
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;
@@ -209,12 +209,20 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     return MCF_OK;
 }
 
+/* Rademacher probes; a second run (c->like) takes the first run's on the
+ * vertices both move, so that the difference of their traces is read
+ * with little spread, and draws the rest past the first run's indices. */
 static void init_probes(fair_ctx *c)
 {
+    const fair_share *l = c->like;
     for (int q = 0; q < c->nprobe; q++)
-        for (int k = 0; k < c->nfree; k++)
+        for (int k = 0; k < c->nfree; k++) {
+            int j = l ? l->fid[c->vert[k]] : -1;
+            uint64_t idx = l ? (uint64_t)l->nfree + (uint64_t)k : (uint64_t)k;
             c->probe[(size_t)q * c->nfree + k] =
-                (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)k + 1) >> 63) ? 1.0 : -1.0;
+                j >= 0 ? l->probe[(size_t)q * l->nfree + (size_t)j]
+                       : (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + idx + 1) >> 63) ? 1.0 : -1.0;
+        }
 }
 
 /* ----------------------------------------------------- implicit engine */
@@ -472,7 +480,13 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->cap = 0; /* no linear steps: the noise level, weights and probes
                        for the feature stage (mcf__fair_feature) */
     c->s = c->s_t = 0.0;
-    if (c->sure) {
+    if (c->sure && c->like) { /* the same levels as the run compared with */
+        c->s = c->like->s;
+        c->s_t = c->like->s_t;
+        c->s2_rel = c->like->s2_rel;
+        if (!(c->s > 0.0) || c->nfree == 0)
+            c->cap = 0;
+    } else if (c->sure) {
         double s_est = 0.0, s_t = 0.0, s;
         mcf__noise_shape shape = {0};
         int robust = p->fairing_robust && !(p->noise_sigma > 0.0);
@@ -524,6 +538,9 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->s2_rel = p->noise_sigma > 0.0 || c->nfree == 0 ? 0.0
                     : S2_REL_SQRT_N / sqrt((double)c->nfree);
     }
+    c->share.s = c->s;
+    c->share.s_t = c->s_t;
+    c->share.s2_rel = c->s2_rel;
     st->t_target = c->cap;
     return MCF_OK;
 }
@@ -693,9 +710,9 @@ static mcf_status filter_run(fair_ctx *c, const double *X, const int32_t *F, int
     return rc;
 }
 
-/* The explicit run's figures into st when it won (its SURE curve, amount,
- * combination); its curve freed when it lost. */
-static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won)
+/* A second run's figures (se) into st when it won (its SURE curve,
+ * amount, combination); its curve freed when it lost. */
+static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won, int is_explicit)
 {
     st->time_solve += se->time_solve;
     if (!won) {
@@ -709,7 +726,7 @@ static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won)
     st->ncomb = se->ncomb;
     memcpy(st->comb_steps, se->comb_steps, sizeof st->comb_steps);
     memcpy(st->comb_weight, se->comb_weight, sizeof st->comb_weight);
-    st->filter_explicit = 1;
+    st->filter_explicit = is_explicit;
 }
 
 /* Whether X's positions are exact (FLAT_SHARE) into *exact; if not, the
@@ -746,12 +763,13 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err)
 {
-    fair_ctx ci, ce, *c = &ci;
+    fair_ctx ci, ce, cn, *c = &ci;
     mcf_flow_stats se;
     mcf_status rc;
     memset(&ci, 0, sizeof ci);
     memset(&ce, 0, sizeof ce);
-    ci.threads_cpu_s = ce.threads_cpu_s = &st->threads_cpu_s;
+    memset(&cn, 0, sizeof cn);
+    ci.threads_cpu_s = ce.threads_cpu_s = cn.threads_cpu_s = &st->threads_cpu_s;
     ci.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
     st->filter_explicit = ci.is_explicit;
     /* the shares of work (work()): the default's pick runs the explicit
@@ -791,7 +809,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ce.is_explicit = ce.quiet = 1;
         rc = filter_run(&ce, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
-        take_stats(st, &se, won);
+        take_stats(st, &se, won, 1);
         c = won ? &ce : &ci;
         /* the tangential step stays the implicit run's: the passes' own
          * (one pass of tangential SURE gain) read the coarse torus's
@@ -805,16 +823,50 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (ci.bytes + ce.bytes > peak)
             peak = ci.bytes + ce.bytes;
     }
+    /* the default request on a mesh with creases: the same filter again
+     * with none held, taken when SURE says so (mcf__fair_pick_uncreased):
+     * an organic scan's sharpest ridges pass the crease test, and holding
+     * them, noise and all, cost it up to 9% of error (docs/fairing.md,
+     * "Creases") */
+    int found = st->crease_vertices;
+    double moving = (double)c->nfree + found;
+    if (rc == MCF_OK && p->fairing_robust && p->scheme != MCF_FAIRING_FEATURE && c->sure && c->cap > 0 &&
+        found > 0) {
+        mcf__chol_free(c->chol);
+        c->chol = NULL;
+        memset(&se, 0, sizeof se);
+        cn.is_explicit = c->is_explicit;
+        cn.quiet = cn.no_creases = 1;
+        c->share.probe = c->probe;
+        c->share.fid = c->fid;
+        c->share.nfree = c->nfree;
+        cn.like = &c->share;
+        cn.w0 = cn.w1 = 1.0 - WORK_OUTPUT;
+        rc = filter_run(&cn, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
+        size_t both = ci.bytes + ce.bytes + cn.bytes + mcf__chol_bytes(cn.chol);
+        if (both > peak)
+            peak = both;
+        mcf__chol_free(cn.chol);
+        cn.chol = NULL;
+        int won = rc == MCF_OK && mcf__fair_pick_uncreased(c, &cn);
+        take_stats(st, &se, won, cn.is_explicit);
+        if (won) {
+            if (cn.is_explicit) { /* the implicit run's tangential step, as above */
+                memcpy(cn.Yt, ci.Yt, 3 * sizeof(double) * (size_t)nv);
+                cn.kbest_t = ci.kbest_t;
+            }
+            st->crease_vertices = 0;
+            c = &cn;
+        }
+    }
     /* the feature-aware stage: the named `fairing_feature` alone, the
      * default request's against the linear result on meshes with creases
-     * (FEATURE_CREASE_SHARE) */
+     * (FEATURE_CREASE_SHARE of those found) */
     int feat = 0;
-    c->st = st; /* the explicit run's own figures were taken above: the
+    c->st = st; /* the second runs' own figures were taken above: the
                    feature stage's and the output's go to the caller's */
     st->steps = c->kbest;
-    double moving = (double)c->nfree + st->crease_vertices;
-    int creased = st->crease_vertices > 0 && st->crease_vertices >= FEATURE_CREASE_SHARE * moving &&
-                  st->crease_vertices <= FEATURE_CREASE_MAX * moving;
+    int creased = found > 0 && found >= FEATURE_CREASE_SHARE * moving && found <= FEATURE_CREASE_MAX * moving;
     if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && creased))) {
         mcf__chol_free(c->chol); /* the factor is done with */
         c->chol = NULL;
@@ -843,5 +895,6 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     free(fn_orig);
     fair_free(&ci);
     fair_free(&ce);
+    fair_free(&cn);
     return rc;
 }

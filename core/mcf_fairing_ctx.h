@@ -44,6 +44,17 @@ enum { NPROBE_FEW = 3 };
  * powers of two stay within +-11 (consecutive k: up to +-35). */
 #define COMB_J MCF_FAIRING_COMB
 
+/* What a run hands to a second run on the same input so that both SUREs
+ * estimate the same risk with correlated probes (mcf__fair_pick_uncreased):
+ * its noise levels, and its probes by vertex (fid: vertex -> free index
+ * into probe, nprobe x nfree). */
+typedef struct {
+    double s, s_t, s2_rel;
+    const double *probe;
+    const int *fid;
+    int nfree;
+} fair_share;
+
 typedef struct {
     const mcf_flow_params *p;
     int nv, nf, nfree;
@@ -67,6 +78,10 @@ typedef struct {
     int nprobe;                /* NPROBE, or NPROBE_FEW on a large mesh */
     int ncol;                  /* 3, or 3 + nprobe with the probes */
     int is_explicit;
+    int no_creases;            /* the default request's second look: no
+                                  creases held (mcf__fair_pick_uncreased) */
+    const fair_share *like;    /* a first run's noise levels and probes,
+                                  taken, not read or drawn again */
     int exact;                 /* the default request: the positions are
                                   exact (mcf_fairing.c, FLAT_SHARE): no
                                   noise to read */
@@ -101,6 +116,7 @@ typedef struct {
                                   first */
     int kk[COMB_J], nk;        /* their k, how many */
     double trq[COMB_J][NPROBE]; /* their probes' weighted traces */
+    fair_share share;          /* what a second run takes from this one */
     double sumw2;              /* sum_F w^2 (sum_F w = nfree) */
     double s2_rel;             /* relative standard error of s^2 */
 } fair_ctx;
@@ -122,6 +138,13 @@ void mcf__fair_keep_iterate(fair_ctx *c, int k, const double *Y, const double es
 void mcf__fair_combine(fair_ctx *c);
 /* Whether the explicit run e replaces the implicit run i. */
 int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
+/* Whether the run n, the same filter on the same input with no creases
+ * held, replaces the run c, which held its crease vertices: SURE over
+ * n's free vertices (c's and its creases), c's crease vertices counted
+ * with their displacement (the smoothing along their chains) and a
+ * divergence of 1, as kept inputs; the gain must pass PICK_MIN_GAIN of
+ * its standard error. */
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n);
 /* The default request runs the feature-aware stage when the creases the
  * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
  * the vertices it moves and at most FEATURE_CREASE_MAX. Measured with

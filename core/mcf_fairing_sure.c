@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <stdio.h>
 
 #include "mcf_fairing_ctx.h"
 
@@ -311,6 +312,43 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
         est[q] = i->trbest[q] - e->trbest[q];
     double dtr = mcf__fair_mean_trace(est, i->nprobe, &vtr), gain = i->risk - e->risk;
     double var = gain_var(i, s2, n, dd[0], dd[1], dtr, vtr);
+    return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
+}
+
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n)
+{
+    if (n->kbest == 0 || n->nprobe != c->nprobe || !(c->s > 0.0) || c->nfree == 0)
+        return 0;
+    /* c's weights are the areas over their mean on its own free vertices,
+     * n's over n's: one factor apart (ratio), on every vertex c moves */
+    double s2 = c->s * c->s, ratio = 0.0, dd[2] = {0.0, 0.0}, kept = 0.0, sumk = 0.0;
+    for (int q = 0; q < c->nfree; q++)
+        ratio += n->w[c->vert[q]];
+    ratio /= c->nfree;
+    for (int q = 0; q < n->nfree; q++) {
+        size_t v = (size_t)n->vert[q];
+        double a[3], b[3], w = n->w[v];
+        /* both displacements from the same input, along its normals */
+        mcf__sub3(c->Ybest + 3 * v, n->X0 + 3 * v, a);
+        mcf__sub3(n->Ybest + 3 * v, n->X0 + 3 * v, b);
+        double ra = mcf__dot3(n->n0 + 3 * v, a), rb = mcf__dot3(n->n0 + 3 * v, b);
+        double t = w * (ra * ra - rb * rb);
+        if (c->fid[v] < 0) { /* a crease vertex of c: r^2 - s^2 + 2 s^2 */
+            t += w * s2;
+            kept += w * (ra * ra + s2);
+            sumk += w;
+        }
+        dd[0] += t;
+        dd[1] += t * t;
+    }
+    /* the traces' difference per probe (the probes agree on the vertices
+     * both runs move; a kept vertex's trace is its weight) */
+    double est[NPROBE], vtr;
+    for (int q = 0; q < c->nprobe; q++)
+        est[q] = c->trbest[q] * ratio + sumk - n->trbest[q];
+    double dtr = mcf__fair_mean_trace(est, c->nprobe, &vtr), risk_c = c->risk * ratio + kept, gain = risk_c - n->risk;
+    double var = gain_var(n, s2, n->nfree, dd[0], dd[1], dtr, vtr);
+    if (getenv("S31O_DBG")) fprintf(stderr, "uncreased: risk_c %g (c %g x %g + kept %g) risk_n %g gain %g se %g (spread %g) K %d/%d\n", risk_c, c->risk, ratio, kept, n->risk, gain, sqrt(var), vtr, c->kbest, n->kbest);
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
 
