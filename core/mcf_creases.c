@@ -148,8 +148,25 @@ static void smooth_chains(const mcf__graph *g, int nv, const unsigned char *fixe
     memcpy(X, P, 3 * sizeof(double) * (size_t)nv);
 }
 
+int mcf__creases_smooth(const mcf__graph *g, int nv, const unsigned char *fixed, const unsigned char *chains,
+                        double *X)
+{
+    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double)), *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    int *cdeg = mcf__calloc((size_t)nv + 1, sizeof(int)), rc = P && tmp && cdeg ? 0 : -1;
+    if (rc == 0) {
+        for (int a = 0; a < nv; a++)
+            for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
+                cdeg[a] += chains[t];
+        smooth_chains(g, nv, fixed, chains, cdeg, X, P, tmp);
+    }
+    free(P);
+    free(tmp);
+    free(cdeg);
+    return rc;
+}
+
 int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
-                 const unsigned char *fixed, double *X, unsigned char *crease)
+                 const unsigned char *fixed, double *X, unsigned char *crease, unsigned char *chains)
 {
     int ne = g->ptr[nv], ncrease = 0;
     double *P = mcf__malloc(3 * (size_t)nv, sizeof(double)), *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
@@ -180,6 +197,8 @@ int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
     }
     if (ncrease > 0)
         smooth_chains(g, nv, fixed, ce, cdeg, X, P, tmp);
+    if (chains)
+        memcpy(chains, ce, (size_t)ne);
 done:
     free(P);
     free(tmp);

@@ -61,6 +61,10 @@
  * input's error; 1: 0.852, 0.831, 0.900); the box of test_creases_kept
  * and the shared scans change by less than 1% */
 #define CREASE_MAX_MOVE 1.0
+/* the step of crease_divergence's finite difference, in noise levels:
+ * the chains' smoothing is linear but for the move bound and the
+ * tangent's direction, so a small step reads its slope */
+#define CREASE_FD_STEP 0.01
 /* the relative standard error of the noise level's square, times
  * sqrt(n): the estimate is a ratio of two medians of |high-pass| over
  * about n = nfree vertices, each with a relative standard error of
@@ -126,6 +130,7 @@ static void fair_free(fair_ctx *c)
     free(c->Yt);
     free(c->Xin);
     free(c->crease);
+    free(c->chains);
     free(c->fx);
     free(c->vert);
     free(c->fid);
@@ -171,7 +176,11 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     c->Xin = alloc_d(c, 3 * (size_t)nv);
     if (c->Xin)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
-    int ncrease = !crease || !c->Xin ? -1 : c->no_creases ? 0 : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease);
+    c->chains = mcf__calloc((size_t)c->g.ptr[nv] + 1, 1);
+    c->bytes += (size_t)c->g.ptr[nv];
+    int ncrease = !crease || !c->Xin || !c->chains ? -1
+                  : c->no_creases                ? 0
+                                                 : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease, c->chains);
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;
@@ -710,6 +719,46 @@ static mcf_status filter_run(fair_ctx *c, const double *X, const int32_t *F, int
     return rc;
 }
 
+/* Each probe's estimate of the divergence SURE needs at the crease
+ * vertices of run c (held; n: the same filter with none): their output,
+ * the input smoothed along its chains (mcf__creases) with moves bounded
+ * by CREASE_MAX_MOVE noise levels, differentiated along the input's
+ * normals by a finite difference of CREASE_FD_STEP noise levels with n's
+ * probe on those vertices, weighted by n's weights, into kdiv. A fixed
+ * value would not do: three Taubin passes along an endless chain have a
+ * diagonal of 0.48, a chain's ends 1, and the bound cuts a long move; on
+ * the box of test_creases_kept at noise 0.5 (seed 2) a divergence of 1
+ * dropped its creases for 0.97x Taubin's oracle (0.93x held), one of 0.5
+ * kept the false creases of bunny_npm_closed at 0.25 (error 1.06x the
+ * dropped ones'). The chains are those found on the input (the step
+ * would move a few edges across the detection's 40 degrees). 0 when out
+ * of memory (the run keeps its creases). */
+static int crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsigned char *fixed, double kdiv[NPROBE])
+{
+    size_t nv3 = 3 * (size_t)c->nv;
+    double *Xp = mcf__malloc(2 * nv3, sizeof(double)), *ref = Xp + nv3, h = CREASE_FD_STEP * c->s;
+    int ok = Xp != NULL;
+    for (int q = 0; ok && q < c->nprobe; q++) {
+        memcpy(Xp, c->Xin, nv3 * sizeof(double));
+        for (int i = 0; i < c->nv; i++)
+            if (c->crease[i])
+                for (int e = 0; e < 3; e++)
+                    Xp[3 * (size_t)i + e] += h * n->probe[(size_t)q * n->nfree + n->fid[i]] * n->n0[3 * (size_t)i + e];
+        memcpy(ref, Xp, nv3 * sizeof(double));
+        ok = mcf__creases_smooth(&c->g, c->nv, fixed, c->chains, Xp) == 0;
+        mcf__fair_clamp_from(c, ref, Xp, CREASE_MAX_MOVE * c->s, c->crease);
+        kdiv[q] = 0.0;
+        for (int i = 0; ok && i < c->nv; i++)
+            if (c->crease[i]) {
+                double d[3], z = n->probe[(size_t)q * n->nfree + n->fid[i]];
+                mcf__sub3(Xp + 3 * (size_t)i, c->X0 + 3 * (size_t)i, d);
+                kdiv[q] += n->w[i] * z * mcf__dot3(d, n->n0 + 3 * (size_t)i) / h;
+            }
+    }
+    free(Xp);
+    return ok;
+}
+
 /* A second run's figures (se) into st when it won (its SURE curve,
  * amount, combination); its curve freed when it lost. */
 static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won, int is_explicit)
@@ -848,7 +897,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
             peak = both;
         mcf__chol_free(cn.chol);
         cn.chol = NULL;
-        int won = rc == MCF_OK && mcf__fair_pick_uncreased(c, &cn);
+        double kdiv[NPROBE];
+        int won = rc == MCF_OK && crease_divergence(c, &cn, fixed, kdiv) && mcf__fair_pick_uncreased(c, &cn, kdiv);
         take_stats(st, &se, won, cn.is_explicit);
         if (won) {
             if (cn.is_explicit) { /* the implicit run's tangential step, as above */

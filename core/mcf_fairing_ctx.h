@@ -67,6 +67,7 @@ typedef struct {
                                   when the spike stage repaired it (the
                                   guard's second reference), else NULL */
     unsigned char *crease;     /* nv: on a kept crease */
+    unsigned char *chains;     /* g.ptr[nv]: the creases' edges (mcf__creases) */
     unsigned char *fx;         /* nv: fixed, or no edge */
     mcf__graph g;
     int *vert;                 /* nfree: free index -> vertex */
@@ -141,10 +142,11 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
 /* Whether the run n, the same filter on the same input with no creases
  * held, replaces the run c, which held its crease vertices: SURE over
  * n's free vertices (c's and its creases), c's crease vertices counted
- * with their displacement (the smoothing along their chains) and a
- * divergence of 1, as kept inputs; the gain must pass PICK_MIN_GAIN of
- * its standard error. */
-int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n);
+ * with their displacement (the smoothing along their chains) and kdiv,
+ * each probe's estimate of their divergence weighted by n's weights
+ * (mcf_fairing.c, crease_divergence); the gain
+ * must pass PICK_MIN_GAIN of its standard error. */
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE]);
 /* The default request runs the feature-aware stage when the creases the
  * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
  * the vertices it moves and at most FEATURE_CREASE_MAX. Measured with
@@ -179,6 +181,8 @@ mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *
 /* Moves from the input (c->Xin) longer than rmax taken back, on the
  * vertices marked in only (NULL: all). */
 void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigned char *only);
+/* The same from the positions ref instead of the input. */
+void mcf__fair_clamp_from(const fair_ctx *c, const double *ref, double *X, double rmax, const unsigned char *only);
 /* The output into X: along the normals of the filtered surface, relaxed
  * in its tangent planes, clamped, guarded. */
 mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err);

@@ -315,13 +315,13 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
 
-int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n)
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE])
 {
     if (n->kbest == 0 || n->nprobe != c->nprobe || !(c->s > 0.0) || c->nfree == 0)
         return 0;
     /* c's weights are the areas over their mean on its own free vertices,
      * n's over n's: one factor apart (ratio), on every vertex c moves */
-    double s2 = c->s * c->s, ratio = 0.0, dd[2] = {0.0, 0.0}, kept = 0.0, sumk = 0.0;
+    double s2 = c->s * c->s, ratio = 0.0, dd[2] = {0.0, 0.0}, vk, kept = 2.0 * s2 * mcf__fair_mean_trace(kdiv, c->nprobe, &vk);
     for (int q = 0; q < c->nfree; q++)
         ratio += n->w[c->vert[q]];
     ratio /= c->nfree;
@@ -333,22 +333,21 @@ int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n)
         mcf__sub3(n->Ybest + 3 * v, n->X0 + 3 * v, b);
         double ra = mcf__dot3(n->n0 + 3 * v, a), rb = mcf__dot3(n->n0 + 3 * v, b);
         double t = w * (ra * ra - rb * rb);
-        if (c->fid[v] < 0) { /* a crease vertex of c: r^2 - s^2 + 2 s^2 */
-            t += w * s2;
-            kept += w * (ra * ra + s2);
-            sumk += w;
+        if (c->fid[v] < 0) { /* a crease vertex of c: r^2 - s^2 (+ 2 s^2 div, below) */
+            t -= w * s2;
+            kept += w * (ra * ra - s2);
         }
         dd[0] += t;
         dd[1] += t * t;
     }
     /* the traces' difference per probe (the probes agree on the vertices
-     * both runs move; a kept vertex's trace is its weight) */
+     * both runs move, and n's on c's crease vertices are kdiv's) */
     double est[NPROBE], vtr;
     for (int q = 0; q < c->nprobe; q++)
-        est[q] = c->trbest[q] * ratio + sumk - n->trbest[q];
+        est[q] = c->trbest[q] * ratio + kdiv[q] - n->trbest[q];
     double dtr = mcf__fair_mean_trace(est, c->nprobe, &vtr), risk_c = c->risk * ratio + kept, gain = risk_c - n->risk;
     double var = gain_var(n, s2, n->nfree, dd[0], dd[1], dtr, vtr);
-    if (getenv("S31O_DBG")) fprintf(stderr, "uncreased: risk_c %g (c %g x %g + kept %g) risk_n %g gain %g se %g (spread %g) K %d/%d\n", risk_c, c->risk, ratio, kept, n->risk, gain, sqrt(var), vtr, c->kbest, n->kbest);
+    if (getenv("S31O_DBG")) fprintf(stderr, "uncreased: risk_c %g (c %g x %g + kept %g) risk_n %g gain %g se %g (kdiv %g) K %d/%d\n", risk_c, c->risk, ratio, kept, n->risk, gain, sqrt(var), kept / (2 * s2), c->kbest, n->kbest);
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
 
