@@ -178,9 +178,9 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
     c->chains = mcf__calloc((size_t)c->g.ptr[nv] + 1, 1);
     c->bytes += (size_t)c->g.ptr[nv];
-    int ncrease = !crease || !c->Xin || !c->chains ? -1
-                  : c->no_creases                ? 0
-                                                 : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease, c->chains);
+    int ncrease = -1;
+    if (crease && c->Xin && c->chains)
+        ncrease = c->no_creases ? 0 : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease, c->chains);
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;

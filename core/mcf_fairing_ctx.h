@@ -144,8 +144,8 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
  * n's free vertices (c's and its creases), c's crease vertices counted
  * with their displacement (the smoothing along their chains) and kdiv,
  * each probe's estimate of their divergence weighted by n's weights
- * (mcf_fairing.c, crease_divergence); the gain
- * must pass PICK_MIN_GAIN of its standard error. */
+ * (mcf_fairing.c, crease_divergence); the gain must pass
+ * UNCREASE_MIN_GAIN of its standard error. */
 int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE]);
 /* The default request runs the feature-aware stage when the creases the
  * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
