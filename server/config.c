@@ -275,7 +275,7 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
             snprintf(msg, msgsize, "%s: expected 1 or 0, got \"%s\"", src, v);
             return -1;
         }
-        cfg->redis_allow_eviction = v[0] == '1';
+        cfg->svc.redis_allow_eviction = v[0] == '1';
         break;
     case O_BIND:
         if (!*v || strlen(v) >= sizeof cfg->bind) {
@@ -296,62 +296,62 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
             return -1;
         }
         break;
-    case O_WORKERS: cfg->workers = (int)i; break;
-    case O_QUEUE: cfg->queue = (int)i; break;
+    case O_WORKERS: cfg->svc.workers = (int)i; break;
+    case O_QUEUE: cfg->svc.queue = (int)i; break;
     case O_HTTP_THREADS: cfg->http_threads = (int)i; break;
     case O_MAX_CONN: cfg->max_connections = (int)i; break;
     case O_MAX_CONN_IP: cfg->max_connections_per_ip = (int)i; break;
     case O_SPOOL:
-        if (!*v || strlen(v) >= sizeof cfg->spool - 64) {
+        if (!*v || strlen(v) >= sizeof cfg->svc.spool - 64) {
             snprintf(msg, msgsize, "%s: bad directory \"%s\"", src, v);
             return -1;
         }
-        snprintf(cfg->spool, sizeof cfg->spool, "%s", v);
+        snprintf(cfg->svc.spool, sizeof cfg->svc.spool, "%s", v);
         break;
     case O_STORE:
-        if (strncmp(v, "redis://", 8) != 0 || strlen(v) >= sizeof cfg->store) {
+        if (strncmp(v, "redis://", 8) != 0 || strlen(v) >= sizeof cfg->svc.store) {
             snprintf(msg, msgsize, "%s: expected redis://HOST[:PORT][/DB], "
                      "got \"%s\"", src, v);
             return -1;
         }
-        snprintf(cfg->store, sizeof cfg->store, "%s", v);
+        snprintf(cfg->svc.store, sizeof cfg->svc.store, "%s", v);
         break;
     case O_BLOB_DIR:
-        if (!*v || strlen(v) >= sizeof cfg->blob_dir - 128) {
+        if (!*v || strlen(v) >= sizeof cfg->svc.blob_dir - 128) {
             snprintf(msg, msgsize, "%s: bad directory \"%s\"", src, v);
             return -1;
         }
-        snprintf(cfg->blob_dir, sizeof cfg->blob_dir, "%s", v);
+        snprintf(cfg->svc.blob_dir, sizeof cfg->svc.blob_dir, "%s", v);
         break;
     case O_STORE_PW:
-        snprintf(cfg->store_password_file, sizeof cfg->store_password_file,
+        snprintf(cfg->svc.store_password_file, sizeof cfg->svc.store_password_file,
                  "%s", v);
         break;
-    case O_SPOOL_JOBS: cfg->spool_max_jobs = (int)i; break;
-    case O_SPOOL_BYTES: cfg->spool_max_bytes = z; break;
-    case O_MAX_UPLOAD: cfg->lim.max_input_bytes = z; break;
-    case O_MAX_VERTICES: cfg->lim.max_vertices = (int)i; break;
-    case O_MAX_FACES: cfg->lim.max_faces = (int)i; break;
-    case O_MAX_ITER: cfg->lim.max_iterations = (int)i; break;
-    case O_MAX_WORK: cfg->lim.max_work = d; break;
-    case O_MAX_JSON: cfg->lim.max_json_bytes = z; break;
-    case O_TTL: cfg->result_ttl = d; break;
-    case O_JOB_TIMEOUT: cfg->job_timeout = d; break;
-    case O_JOB_CPU: cfg->job_cpu = d; break;
+    case O_SPOOL_JOBS: cfg->svc.spool_max_jobs = (int)i; break;
+    case O_SPOOL_BYTES: cfg->svc.spool_max_bytes = z; break;
+    case O_MAX_UPLOAD: cfg->svc.lim.max_input_bytes = z; break;
+    case O_MAX_VERTICES: cfg->svc.lim.max_vertices = (int)i; break;
+    case O_MAX_FACES: cfg->svc.lim.max_faces = (int)i; break;
+    case O_MAX_ITER: cfg->svc.lim.max_iterations = (int)i; break;
+    case O_MAX_WORK: cfg->svc.lim.max_work = d; break;
+    case O_MAX_JSON: cfg->svc.lim.max_json_bytes = z; break;
+    case O_TTL: cfg->svc.result_ttl = d; break;
+    case O_JOB_TIMEOUT: cfg->svc.job_timeout = d; break;
+    case O_JOB_CPU: cfg->svc.job_cpu = d; break;
     case O_DRAIN: cfg->drain_timeout = d; break;
     case O_HEADER_TIMEOUT: cfg->header_timeout = d; break;
     case O_BODY_TIMEOUT: cfg->body_timeout = d; break;
     case O_SEND_TIMEOUT: cfg->send_timeout = d; break;
-    case O_MAX_MEMORY: cfg->max_memory = z; break;
-    case O_MAX_JOB_MEMORY: cfg->max_job_memory = z; break;
+    case O_MAX_MEMORY: cfg->svc.max_memory = z; break;
+    case O_MAX_JOB_MEMORY: cfg->svc.max_job_memory = z; break;
     case O_DECODE_CPU:
         if (!(d > 0)) {
             snprintf(msg, msgsize, "%s: must be > 0", src);
             return -1;
         }
-        cfg->decode_cpu = d;
+        cfg->svc.decode_cpu = d;
         break;
-    case O_DECODE_MEMORY: cfg->decode_memory = z; break;
+    case O_DECODE_MEMORY: cfg->svc.decode_memory = z; break;
     case O_TOKEN:
         snprintf(cfg->token_file, sizeof cfg->token_file, "%s", v);
         break;
@@ -426,25 +426,34 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     snprintf(cfg->bind, sizeof cfg->bind, "127.0.0.1");
     cfg->port = 8080;
     cfg->grpc_port = 50051;
-    cfg->workers = ncpu > 0 ? (int)(ncpu < 1024 ? ncpu : 1024) : 1;
-    cfg->queue = 64;
+    cfg->svc.workers = ncpu > 0 ? (int)(ncpu < 1024 ? ncpu : 1024) : 1;
+    cfg->svc.queue = 64;
     cfg->http_threads = 2;
     cfg->max_connections = 512;
     cfg->max_connections_per_ip = 64;
-    cfg->spool_max_jobs = 10000;
-    cfg->spool_max_bytes = (size_t)4 << 30;
-    snprintf(cfg->spool, sizeof cfg->spool, "./var/mcfd");
-    api_limits_default(&cfg->lim);
-    cfg->result_ttl = 3600;
-    cfg->job_timeout = 600;
-    cfg->job_cpu = 30;
+    cfg->svc.spool_max_jobs = 10000;
+    cfg->svc.spool_max_bytes = (size_t)4 << 30;
+    snprintf(cfg->svc.spool, sizeof cfg->svc.spool, "./var/mcfd");
+    api_limits_default(&cfg->svc.lim);
+    cfg->svc.result_ttl = 3600;
+    cfg->svc.job_timeout = 600;
+    cfg->svc.job_cpu = 30;
     cfg->drain_timeout = 25;
     cfg->header_timeout = 30;
     cfg->body_timeout = -1;    /* derived from --max-upload below */
     cfg->send_timeout = 60;
-    cfg->decode_cpu = API_DECODE_CPU_S;
-    cfg->decode_memory = API_DECODE_MEMORY;
-    cfg->max_memory = memory_available() / 2;
+    cfg->svc.decode_cpu = API_DECODE_CPU_S;
+    cfg->svc.decode_memory = API_DECODE_MEMORY;
+    /* CPU seconds per MiB of a job's memory estimate in its budget: the
+     * estimate grows with the vertices (640-2,900 B each) and a step's
+     * CPU with them; the dragon (435k vertices, estimate 673 MiB, default
+     * parameters) takes 27 s, its budget 366 s. A knob for tests and
+     * tuning, like MCFD_REDIS_CLAIM_IDLE. */
+    cfg->svc.job_cpu_per_mib = getenv("MCFD_JOB_CPU_PER_MIB") &&
+                                       atof(getenv("MCFD_JOB_CPU_PER_MIB")) >= 0
+                                   ? atof(getenv("MCFD_JOB_CPU_PER_MIB"))
+                                   : 0.5;
+    cfg->svc.max_memory = memory_available() / 2;
     cfg->log_level = SRV_LOG_INFO;
 
     for (o = 0; o < O_COUNT; o++) {
@@ -477,7 +486,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
                 return 1;
             }
             if (o == O_ALLOW_EVICTION)
-                cfg->redis_allow_eviction = 1;
+                cfg->svc.redis_allow_eviction = 1;
             else
                 cfg->probe = 1;
             continue;
@@ -494,7 +503,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
             return -1;
     }
     /* A multipart body carries the mesh, an optional target and params. */
-    if (cfg->lim.max_input_bytes > SIZE_MAX / 2 - 2 * cfg->lim.max_json_bytes -
+    if (cfg->svc.lim.max_input_bytes > SIZE_MAX / 2 - 2 * cfg->svc.lim.max_json_bytes -
                                        (1u << 20)) {
         snprintf(msg, msgsize, "--max-upload is too large");
         return -1;
@@ -502,21 +511,21 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     /* a multipart body: the mesh and a target together within
      * --max-upload, the params part and the plain fields within the JSON
      * limit each, and 1 MiB for the parts' headers and boundaries */
-    cfg->max_body = cfg->lim.max_input_bytes + 2 * cfg->lim.max_json_bytes +
+    cfg->max_body = cfg->svc.lim.max_input_bytes + 2 * cfg->svc.lim.max_json_bytes +
                     (1u << 20);
     /* A minute for the head's round trips plus the largest upload at
      * 1 MiB/s (8 Mbit/s): a client trickling at the 4 KiB/s the average
      * rule allows cannot keep a slot for the 18 h a 256 MiB upload would
      * take it. */
     if (cfg->body_timeout < 0)
-        cfg->body_timeout = 60.0 + (double)cfg->lim.max_input_bytes / 1048576.0;
-    if (cfg->max_job_memory == 0 || cfg->max_job_memory > cfg->max_memory)
-        cfg->max_job_memory = cfg->max_memory;
+        cfg->body_timeout = 60.0 + (double)cfg->svc.lim.max_input_bytes / 1048576.0;
+    if (cfg->svc.max_job_memory == 0 || cfg->svc.max_job_memory > cfg->svc.max_memory)
+        cfg->svc.max_job_memory = cfg->svc.max_memory;
     /* the cores shared between the workers (--workers' help) */
-    cfg->job_threads = ncpu > cfg->workers ? (int)(ncpu / cfg->workers) : 1;
+    cfg->svc.job_threads = ncpu > cfg->svc.workers ? (int)(ncpu / cfg->svc.workers) : 1;
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
-    if (cfg->blob_dir[0] && !cfg->store[0]) {
+    if (cfg->svc.blob_dir[0] && !cfg->svc.store[0]) {
         snprintf(msg, msgsize, "--blob-dir needs --store redis://...: the "
                  "local spool keeps its blobs in its own directory");
         return -1;

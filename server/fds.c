@@ -67,7 +67,7 @@ void srv_fds_fit(srv_config *cfg)
     /* the spool's files and a job's state writes, the sandbox's three
      * pipes per decode, gRPC's wake-up descriptors (one per thread it
      * polls with), libmicrohttpd's, the probes: 64, and 8 per worker */
-    g_reserve = 64 + 8 * cfg->workers;
+    g_reserve = 64 + 8 * cfg->svc.workers;
     cfg->fd_reserve = g_reserve;
     budget = (long)g_limit - open_fds() - g_reserve;
     rest = want_rest;

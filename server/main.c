@@ -118,40 +118,6 @@ static void doors_stop(void)
     }
 }
 
-/* The job service's part of the daemon's configuration. */
-static void service_config(const srv_config *cfg, svc_config *out)
-{
-    memset(out, 0, sizeof *out);
-    out->workers = cfg->workers;
-    out->job_threads = cfg->job_threads;
-    out->queue = cfg->queue;
-    snprintf(out->spool, sizeof out->spool, "%s", cfg->spool);
-    snprintf(out->store, sizeof out->store, "%s", cfg->store);
-    snprintf(out->store_password_file, sizeof out->store_password_file, "%s",
-             cfg->store_password_file);
-    snprintf(out->blob_dir, sizeof out->blob_dir, "%s", cfg->blob_dir);
-    out->redis_allow_eviction = cfg->redis_allow_eviction;
-    out->spool_max_jobs = cfg->spool_max_jobs;
-    out->spool_max_bytes = cfg->spool_max_bytes;
-    out->lim = cfg->lim;
-    out->result_ttl = cfg->result_ttl;
-    out->job_timeout = cfg->job_timeout;
-    out->job_cpu = cfg->job_cpu;
-    /* CPU seconds per MiB of a job's memory estimate in its budget: the
-     * estimate grows with the vertices (640-2,900 B each) and a step's
-     * CPU with them; the dragon (435k vertices, estimate 673 MiB, default
-     * parameters) takes 27 s, its budget 366 s. A knob for tests and
-     * tuning, like MCFD_REDIS_CLAIM_IDLE. */
-    out->job_cpu_per_mib = getenv("MCFD_JOB_CPU_PER_MIB") &&
-                                   atof(getenv("MCFD_JOB_CPU_PER_MIB")) >= 0
-                               ? atof(getenv("MCFD_JOB_CPU_PER_MIB"))
-                               : 0.5;
-    out->max_memory = cfg->max_memory;
-    out->max_job_memory = cfg->max_job_memory;
-    out->decode_cpu = cfg->decode_cpu;
-    out->decode_memory = cfg->decode_memory;
-}
-
 /* The address to connect to for a daemon bound to `bind`. */
 static const char *probe_host(const char *bind)
 {
@@ -227,14 +193,14 @@ static void log_start(const srv_config *cfg, const char *url)
         return;
     cJSON_AddStringToObject(o, "msg", "mcfd started");
     cJSON_AddStringToObject(o, "url", url);
-    cJSON_AddNumberToObject(o, "workers", cfg->workers);
-    cJSON_AddNumberToObject(o, "queue", cfg->queue);
+    cJSON_AddNumberToObject(o, "workers", cfg->svc.workers);
+    cJSON_AddNumberToObject(o, "queue", cfg->svc.queue);
     cJSON_AddNumberToObject(o, "http_threads", cfg->http_threads);
-    cJSON_AddStringToObject(o, "spool", cfg->spool);
-    cJSON_AddStringToObject(o, "store", cfg->store[0] ? cfg->store : "spool");
-    cJSON_AddNumberToObject(o, "max_upload", (double)cfg->lim.max_input_bytes);
-    cJSON_AddNumberToObject(o, "max_memory", (double)cfg->max_memory);
-    cJSON_AddNumberToObject(o, "result_ttl_s", cfg->result_ttl);
+    cJSON_AddStringToObject(o, "spool", cfg->svc.spool);
+    cJSON_AddStringToObject(o, "store", cfg->svc.store[0] ? cfg->svc.store : "spool");
+    cJSON_AddNumberToObject(o, "max_upload", (double)cfg->svc.lim.max_input_bytes);
+    cJSON_AddNumberToObject(o, "max_memory", (double)cfg->svc.max_memory);
+    cJSON_AddNumberToObject(o, "result_ttl_s", cfg->svc.result_ttl);
     cJSON_AddBoolToObject(o, "auth", cfg->token_len > 0);
     cJSON_AddNumberToObject(o, "pid", getpid());
     srv_log_json(SRV_LOG_INFO, o);
@@ -326,7 +292,6 @@ static void drain(const srv_config *cfg, svc_t *svc)
 int main(int argc, char **argv)
 {
     srv_config cfg;
-    svc_config scfg;
     svc_t *svc = NULL;
     char msg[512], url[300];
     sigset_t sigs;
@@ -364,8 +329,7 @@ int main(int argc, char **argv)
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
 
     srv_metrics_init();
-    service_config(&cfg, &scfg);
-    if (svc_start(&scfg, &svc, msg, sizeof msg) != 0 ||
+    if (svc_start(&cfg.svc, &svc, msg, sizeof msg) != 0 ||
         doors_start(&cfg, svc, url, sizeof url, msg, sizeof msg) != 0) {
         fprintf(stderr, "mcfd: %s\n", msg);
         svc_stop(svc);

@@ -41,6 +41,7 @@
 #include <stdint.h>
 
 #include "api.h"
+#include "service.h"  /* svc_config */
 
 /* ------------------------------------------------------------ configuration */
 
@@ -52,14 +53,15 @@ typedef enum {
 } srv_log_level;
 
 typedef struct {
+    svc_config svc;            /* the job service's part, handed to
+                                  svc_start as it is: its workers, queue,
+                                  store, limits on untrusted input (lim),
+                                  TTL, timeouts, memory and CPU budgets
+                                  (defaults and flags: config.c) */
     char bind[256];            /* address to listen on (default 127.0.0.1) */
     int port;                  /* 0: any free port (default 8080) */
     int grpc_port;             /* gRPC door: 0 any free port, -1 off
                                   (default 50051) */
-    int workers;               /* mesh worker threads (default: online CPUs) */
-    int job_threads;           /* a job's threads: online CPUs / workers,
-                                  at least 1 (derived) */
-    int queue;                 /* queued jobs beyond the running ones */
     int http_threads;          /* MHD thread pool size (default 2) */
     int max_connections;       /* MHD connection limit (fitted to the
                                   descriptors: srv_fds_fit) */
@@ -68,29 +70,13 @@ typedef struct {
     int grpc_max_connections;  /* the gRPC door's: --max-connections
                                   fitted to the descriptors */
     int fd_reserve;            /* descriptors no connection may take */
-    char spool[1024];          /* job spool directory (default ./var/mcfd) */
-    char store[1024];          /* redis://... (jobs in Redis), "": the spool */
-    char store_password_file[1024]; /* the Redis password's file, "": none */
-    char blob_dir[512];      /* with a Redis store: large blobs in files here */
-    int redis_allow_eviction;  /* a Redis that may evict keys is not
-                                  refused at start */
-    int spool_max_jobs;        /* jobs kept before 503, 0: none */
-    size_t spool_max_bytes;    /* bytes of jobs kept before 503 */
-    api_limits lim;            /* limits on untrusted input */
-    size_t max_body;           /* whole request body, derived from lim */
-    double result_ttl;         /* seconds a finished job is kept */
-    double job_timeout;        /* seconds of flow per job, 0: unlimited */
+    size_t max_body;           /* whole request body, derived from svc.lim */
     double drain_timeout;      /* seconds SIGTERM waits for running jobs */
     double header_timeout;     /* seconds for a request's head, 0: none */
     double body_timeout;       /* seconds for its whole body, 0: none */
     double send_timeout;       /* seconds an answer may go unread: MHD's
                                   connection timeout, gRPC's stalled write;
                                   0: none */
-    size_t max_memory;         /* estimated peak of the running jobs */
-    size_t max_job_memory;     /* estimated peak of one job */
-    double decode_cpu;         /* CPU seconds of a sandboxed decode (floor) */
-    double job_cpu;            /* a job's CPU budget's floor, 0: none */
-    size_t decode_memory;      /* its memory limit (floor) */
     char token_file[1024];     /* empty: no authentication */
     char token[512];           /* the bearer token read from token_file */
     size_t token_len;

@@ -503,7 +503,11 @@ def test_cancel_job_and_cancelled():
 
 
 def test_deadline_cancels_the_job():
-    call = MAIN.stub.Smooth(upload(mesh("bunny.drc"), LONG), timeout=2.0)
+    # the deadline must leave room for the upload, the Draco sandbox and
+    # the first step, which took over 2 s under ASan+UBSan on a loaded
+    # two-core machine; LONG runs for minutes, so 20 s still ends in the
+    # deadline whatever the machine
+    call = MAIN.stub.Smooth(upload(mesh("bunny.drc"), LONG), timeout=20.0)
     it = wait_first_progress(call)
     jid = job_id_of(call)
     expect_rpc_error(lambda: list(it), grpc.StatusCode.DEADLINE_EXCEEDED)
@@ -1321,10 +1325,15 @@ def test_rapid_reset_is_paced():
               "%.1f %.1f s after; ListSchemes meanwhile median %.0f ms, worst %.0f ms"
               % (pairs[0], base / 1024, peak[0] / 1024, after / 1024, time.time() - t1,
                  ls[len(ls) // 2] * 1000, ls[-1] * 1000))
+        # every legitimate call is served meanwhile; the memory and latency
+        # bounds hold for the product's build: under ASan+UBSan the RSS says
+        # nothing (its quarantine) and the gate's pacing runs 2-3x slower
+        # (a worst ListSchemes of 2.3 s measured on a loaded machine)
+        assert all(x[0] == "OK" for x in lat), lat
         if not sanitized(d.p.pid):
             assert peak[0] - base < 32 * 1024, (base, peak)
             assert after - base < 8 * 1024, (base, after)
-        assert all(x[0] == "OK" for x in lat) and ls[-1] < 1, lat
+            assert ls[-1] < 1, lat
         d.stop()
     finally:
         stop.set()

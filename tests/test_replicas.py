@@ -55,6 +55,11 @@ def replicas(n, tag, workers=1, *flags):
         for i in range(n):
             ds.append(Daemon("%s%d" % (tag, i), "--store", rs.store_url(),
                              "--workers", str(workers), *flags))
+        end = time.time() + 30          # connected to Redis: ready for jobs
+        for d in ds:
+            while http("GET", d.url + "/readyz")[0] != 200:
+                assert time.time() < end, "%s: /readyz not 200 in 30 s" % d.url
+                time.sleep(0.1)
     except BaseException:
         stop(ds)
         raise
@@ -230,7 +235,10 @@ def load(ds, n=32):
         try:
             k = len(ds)
             ids[i] = submit(ds[i % k], "scheme=desbrun2&iterations=2")
-            wait_status(ds[(i + 1) % k], ids[i], "succeeded", 120)
+            # a guard against a hang, not a speed bound: 32 jobs on one
+            # replica's two workers under ASan on a loaded machine took
+            # over 120 s
+            wait_status(ds[(i + 1) % k], ids[i], "succeeded", 600)
             results[i] = result_of(ds[(i + 2) % k], ids[i])
         except BaseException as e:  # noqa: BLE001 (reported below)
             errors.append("client %d: %r" % (i, e))
@@ -238,7 +246,7 @@ def load(ds, n=32):
     for t in ts:
         t.start()
     for t in ts:
-        t.join(300)
+        t.join(660)
     assert not errors, errors[:3]
     assert len(set(ids)) == n and len(set(results)) == 1
     return ids
@@ -285,22 +293,26 @@ def test_redis_down_every_replica_503():
                 st, hdr, body = http("POST", d.url + "/v1/jobs?scheme=desbrun2", f.read(),
                                      {"Content-Type": "application/octet-stream"})
             assert st == 503 and hdr.get("Retry-After"), (st, hdr, body[:300])
-        # a job B never held (and an ID nobody used): the store cannot say
-        # it does not exist, so 503, not 404
-        for jid in (old, "0" * 32):
-            st, hdr, body = http("GET", "%s/v1/jobs/%s" % (ds[1].url, jid))
-            assert st == 503 and hdr.get("Retry-After"), (st, hdr, body[:300])
-            assert json.loads(body)["code"] == "ESPOOL", body[:300]
-            with grpc.insecure_channel("127.0.0.1:%d" % ds[1].gport) as ch:
-                try:
-                    pbg.SmootherStub(ch).GetJob(pb.GetJobRequest(id=jid), timeout=10)
-                    raise AssertionError("GetJob answered with Redis down")
-                except grpc.RpcError as e:
-                    assert e.code() == grpc.StatusCode.UNAVAILABLE, (e.code(), e.details())
-                    md = dict(e.trailing_metadata() or ())
-                    assert md.get("retry-after-ms"), md
-        # A ran it: it answers from what it holds
-        assert http("GET", "%s/v1/jobs/%s" % (ds[0].url, old))[0] == 200
+        # an ID nobody used: the store cannot say it does not exist, so 503,
+        # not 404, on both doors
+        jid = "0" * 32
+        st, hdr, body = http("GET", "%s/v1/jobs/%s" % (ds[1].url, jid))
+        assert st == 503 and hdr.get("Retry-After"), (st, hdr, body[:300])
+        assert json.loads(body)["code"] == "ESPOOL", body[:300]
+        with grpc.insecure_channel("127.0.0.1:%d" % ds[1].gport) as ch:
+            try:
+                pbg.SmootherStub(ch).GetJob(pb.GetJobRequest(id=jid), timeout=10)
+                raise AssertionError("GetJob answered with Redis down")
+            except grpc.RpcError as e:
+                assert e.code() == grpc.StatusCode.UNAVAILABLE, (e.code(), e.details())
+                md = dict(e.trailing_metadata() or ())
+                assert md.get("retry-after-ms"), md
+        # the job that ran: a replica answers from what it holds (the one
+        # that ran it, or one that loaded its record meanwhile, which the
+        # shared queue's timing decides: under ASan either replica may claim
+        # it), 503 otherwise, never 404
+        held = [http("GET", "%s/v1/jobs/%s" % (d.url, old))[0] for d in ds]
+        assert 200 in held and set(held) <= {200, 503}, held
         redis_start()
         end = time.time() + 15             # rds's backoff is at most 2 s
         for d in ds:

@@ -106,7 +106,7 @@ int grpc_start(const srv_config *cfg, svc_t *svc, const srv_daemon *dm, void **d
         /* one chunk or one header (its params at most --max-json), and a
          * little for the framing: anything larger is refused by gRPC with
          * RESOURCE_EXHAUSTED before it is buffered */
-        b.SetMaxReceiveMessageSize((int)(kChunk + cfg->lim.max_json_bytes + 4096));
+        b.SetMaxReceiveMessageSize((int)(kChunk + cfg->svc.lim.max_json_bytes + 4096));
         b.SetMaxSendMessageSize((int)(kChunk + 4096 + 16 * 1024 * 1024));
         g.cfg = cfg;
         g.svc = svc;

@@ -184,7 +184,7 @@ void Upload::disarm()
 
 bool Upload::header(const pb::SmoothHeader &h, svc_error *e)
 {
-    const api_limits *lim = &g.cfg->lim;
+    const api_limits *lim = &g.cfg->svc.lim;
     std::string of;
     cJSON *po;
     if (h.has_format()) {
@@ -257,7 +257,7 @@ std::string Upload::basename_of(const std::string &n)
 bool Upload::append(char **buf, size_t *len, long long declared, const std::string &b,
                     const char *what, svc_error *e)
 {
-    size_t max = g.cfg->lim.max_input_bytes;
+    size_t max = g.cfg->svc.lim.max_input_bytes;
     if (b.size() > max - *len)
         return limit(e, "the %s is over the upload limit of %zu bytes (--max-upload)", what, max);
     if (b.size() > max - (mesh_len_ + target_len_))

@@ -616,9 +616,9 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
     }
     r->t0 = mcf_now();
     r->rt = RT_OTHER;
-    api_buf_init(&r->mesh, cfg->lim.max_input_bytes);
-    api_buf_init(&r->target, cfg->lim.max_input_bytes);
-    api_buf_init(&r->params, cfg->lim.max_json_bytes);
+    api_buf_init(&r->mesh, cfg->svc.lim.max_input_bytes);
+    api_buf_init(&r->target, cfg->svc.lim.max_input_bytes);
+    api_buf_init(&r->params, cfg->svc.lim.max_json_bytes);
     pthread_mutex_lock(&d->active_mu);
     d->active++;
     pthread_mutex_unlock(&d->active_mu);

@@ -85,7 +85,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
     const srv_config *cfg = r->door->cfg;
     api_buf *dst = NULL;
     const char *limit_name = "--max-upload";
-    size_t limit = cfg->lim.max_input_bytes;
+    size_t limit = cfg->svc.lim.max_input_bytes;
 
     (void)kind;
     (void)content_type;
@@ -114,7 +114,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
     } else if (strcmp(key, "params") == 0) {
         dst = &r->params;
         r->has_params = 1;
-        limit = cfg->lim.max_json_bytes;
+        limit = cfg->svc.lim.max_json_bytes;
         limit_name = "the JSON size limit";
     } else if (filename) {
         svc_error_set(&r->perr, SVC_P_INPUT_INVALID, "unknown multipart file field "
@@ -126,9 +126,9 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
         /* A parameter as a plain field: scheme=desbrun2. */
         cJSON *last = cJSON_GetArrayItem(r->fields, cJSON_GetArraySize(r->fields) - 1);
         r->fields_bytes += size + strlen(key);
-        if (r->fields_bytes > cfg->lim.max_json_bytes) {
+        if (r->fields_bytes > cfg->svc.lim.max_json_bytes) {
             svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "multipart parameter fields "
-                            "exceed %zu bytes", cfg->lim.max_json_bytes);
+                            "exceed %zu bytes", cfg->svc.lim.max_json_bytes);
             r->has_perr = 1;
             return MHD_NO;
         }
@@ -212,13 +212,13 @@ void srv_upload_consume(srv_request *r, const char *data, size_t size)
                         "%zu bytes, the most it may hold with --max-upload %zu "
                         "(the mesh and a target together, and the "
                         "parameters)", cfg->max_body,
-                        cfg->lim.max_input_bytes);
+                        cfg->svc.lim.max_input_bytes);
         r->has_perr = 1;
         return;
     }
-    if (!r->multipart && r->bytes_in > cfg->lim.max_input_bytes) {
+    if (!r->multipart && r->bytes_in > cfg->svc.lim.max_input_bytes) {
         svc_error_set(&r->perr, SVC_P_INPUT_LIMIT, "the request body exceeds "
-                        "%zu bytes (--max-upload)", cfg->lim.max_input_bytes);
+                        "%zu bytes (--max-upload)", cfg->svc.lim.max_input_bytes);
         r->has_perr = 1;
         return;
     }
@@ -279,7 +279,7 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
                                     MHD_HTTP_HEADER_CONTENT_LENGTH);
     if (h) {
         char *end;
-        size_t lim = r->multipart ? cfg->max_body : cfg->lim.max_input_bytes;
+        size_t lim = r->multipart ? cfg->max_body : cfg->svc.lim.max_input_bytes;
         errno = 0;
         n = strtoull(h, &end, 10);
         if (errno == 0 && end != h && n > lim) {
@@ -288,7 +288,7 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
                                 "exceeds %zu bytes, the most a multipart body "
                                 "may hold with --max-upload %zu (the mesh and "
                                 "a target together, and the parameters)", n,
-                                lim, cfg->lim.max_input_bytes);
+                                lim, cfg->svc.lim.max_input_bytes);
             else
                 svc_error_set(&p, SVC_P_INPUT_LIMIT, "Content-Length %llu exceeds "
                                 "the limit of %zu bytes (--max-upload)", n, lim);

@@ -13,7 +13,8 @@
  * arbitrary bytes (a slice of the input). Time advances between pieces and
  * the gate resets the streams that send no first message in time.
  *
- * Besides the sanitizers, it checks what h2gate.h promises:
+ * Besides the sanitizers, it checks what h2gate_parser.h and
+ * h2gate_limits.h promise:
  *  - the server gets the client preface, then whole frames, and never the
  *    beginning of a header block before its end; each block it gets, and
  *    what the gate holds, is within max_header_block bytes and
@@ -32,7 +33,7 @@
 #include <sys/socket.h>
 
 #include "fuzz_common.h"
-#include "h2gate.h"
+#include "h2gate_parser.h"
 
 #define CHECK(c)                                                                 \
     do {                                                                         \

@@ -38,6 +38,8 @@
 #include <unistd.h>
 
 #include "h2gate.h"
+#include "h2gate_listen.h"
+#include "h2gate_parser.h"
 #include "srv.h"
 
 #define QUEUE_HIGH (64 * 1024)  /* stop reading a source past this */

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * h2gate_limits.c - the gate's accounting (h2gate.h, "The limits"): the
+ * h2gate_limits.c - the gate's accounting (h2gate_limits.h): the
  * client addresses with their connections and streams, which new
  * connection is refused and why, and whether one more stream fits in the
  * server, per connection (the advertised MAX_CONCURRENT_STREAMS, which
@@ -23,7 +23,7 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 
-#include "h2gate.h"
+#include "h2gate_limits.h"
 
 
 struct h2gate_addr {

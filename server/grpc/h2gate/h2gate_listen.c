@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * h2gate_listen.c - the gate's listening socket (h2gate.h, "The listening
- * socket"): the bind address resolved (numeric or a host name), a
+ * h2gate_listen.c - the gate's listening socket (h2gate_listen.h): the
+ * bind address resolved (numeric or a host name), a
  * non-blocking TCP socket bound and listening on it, and the port it got
  * (port 0 asks the kernel for one). No state; the gate (h2gate.c) owns the
  * descriptor.
@@ -15,7 +15,7 @@
 #include <netinet/in.h>
 #include <unistd.h>
 
-#include "h2gate.h"
+#include "h2gate_listen.h"
 
 int h2gate_listen(const char *bind_addr, int port, int *bound_port, char *msg, size_t msgsize)
 {

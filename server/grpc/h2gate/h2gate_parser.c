@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * h2gate_parser.c - the gate's HTTP/2 frame parser, one per connection
- * (h2gate.h, "The parser"). It checks the client preface, then moves the
+ * (h2gate_parser.h). It checks the client preface, then moves the
  * client's bytes to the server frame by frame: a header block is held
  * until it is whole and within max_header_block bytes and
  * max_header_frames frames, then released at once (gRPC 1.51's HPACK
@@ -22,7 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "h2gate.h"
+#include "h2gate_parser.h"
 
 /* RFC 9113 frame types, flags and error codes */
 enum { F_DATA = 0, F_HEADERS = 1, F_RST_STREAM = 3, F_SETTINGS = 4,

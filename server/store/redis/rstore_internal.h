@@ -1,8 +1,11 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * rstore_internal.h - what rstore.c and rstore_queue.c share: the store's
+ * rstore_internal.h - what the Redis store's files share: the store's
  * state, the keys of a job, the Lua helpers of the scripts, and the calls
- * on a pooled connection. Only rstore*.c include it.
+ * on a pooled connection. Only rstore*.c include it. Calls go one way:
+ * rstore_queue.c (the queue) over rstore_jobs.c (open, records, blobs)
+ * over rstore_files.c (blobs in files) and rstore_server.c (the server's
+ * settings); all over rstore_cmd.c (keys, commands).
  */
 #ifndef RSTORE_INTERNAL_H
 #define RSTORE_INTERNAL_H
@@ -97,6 +100,7 @@ typedef struct {
     "end\n"
 
 
+/* rstore_cmd.c: keys and commands. */
 /* errno for the failure c reports. */
 int rstore__errno(rds *c);
 /* Ids and blob names become parts of keys: letters, digits, . _ - */
@@ -109,6 +113,13 @@ redisReply *rstore__eval(rstore *s, rds_script *sc, int nkeys, int argc,
 /* A script whose reply is an integer: 0 and *v, or -1 and errno. */
 int rstore__eval_int(rstore *s, rds_script *sc, int nkeys, int argc,
                      const char **argv, const size_t *lens, long long *v);
+/* A command of C strings on a pooled connection. */
+redisReply *rstore__cmd(rstore *s, double block, int argc,
+                        const char **argv);
+/* The consumer group on stream, made when missing: 0 or -1. */
+int rstore__make_group(rds *c, const char *stream);
+
+/* rstore_jobs.c: a call's blobs. */
 /* The lengths of argv[0..*argc) (C strings), then the name and bytes of
  * each of the n blobs appended (*argc advanced; room for 2n more): 0, or
  * -1 and errno (EINVAL: a name that cannot be a key, EFBIG: over
@@ -135,10 +146,5 @@ void rstore__file_unlink(rstore *s, const char *ref);
 int rstore__file_open(rstore *s, const char *ref, size_t size);
 int rstore__file_read(int fd, size_t off, char *buf, size_t len);
 void rstore__files_remove(rstore *s, const char *id);
-/* A command of C strings on a pooled connection. */
-redisReply *rstore__cmd(rstore *s, double block, int argc,
-                        const char **argv);
-/* The consumer group on stream, made when missing: 0 or -1. */
-int rstore__make_group(rds *c, const char *stream);
 
 #endif /* RSTORE_INTERNAL_H */

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * store_redis.c - the job service's store (store.h) in Redis: the
- * operations of rstore.c behind the store's table, plus what the service
+ * operations of rstore.h behind the store's table, plus what the service
  * does not do itself for a shared queue: the fence on the writes of the
  * jobs this replica runs (a replica whose run was taken over writes
  * nothing more).
