@@ -418,16 +418,18 @@ SRV_OBJ += $(OPENAPI_OBJ)
 $(B)/mcfd: $(OPENAPI_OBJ)
 endif
 
-$(B)/server/openapi_yaml.c: api/openapi.yaml
+# rest_internal.h declares the names it defines: a build made before a
+# rename regenerates it.
+$(B)/server/openapi_yaml.c: api/openapi.yaml server/rest/rest_internal.h
 	@mkdir -p $(@D)
 	{ echo '/* generated from api/openapi.yaml by make: do not edit */'; \
 	  echo '#include <stddef.h>'; \
-	  echo 'extern const unsigned char srv_openapi_yaml[];'; \
-	  echo 'extern const size_t srv_openapi_yaml_len;'; \
-	  echo 'const unsigned char srv_openapi_yaml[] = {'; \
+	  echo 'extern const unsigned char rest_openapi_yaml[];'; \
+	  echo 'extern const size_t rest_openapi_yaml_len;'; \
+	  echo 'const unsigned char rest_openapi_yaml[] = {'; \
 	  od -An -v -tx1 $< | sed 's/\([0-9a-f][0-9a-f]\)/0x\1,/g'; \
 	  echo '0x00};'; \
-	  echo "const size_t srv_openapi_yaml_len = $$(wc -c < $<);"; } > $@.tmp && mv $@.tmp $@
+	  echo "const size_t rest_openapi_yaml_len = $$(wc -c < $<);"; } > $@.tmp && mv $@.tmp $@
 
 $(B)/server/openapi_yaml.o: $(B)/server/openapi_yaml.c
 	$(CC) $(WARN) $(CFLAGS) -c $< -o $@

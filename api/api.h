@@ -343,6 +343,16 @@ mcf_status api_params_set_json(api_params *p, const cJSON *obj,
 mcf_status api_params_parse_query(api_params *p, const char *qs,
                                   const char *const *ignore,
                                   const api_limits *lim, mcf_error *err);
+/* A request's parameters from the sources a daemon's request (REST's
+ * body and URL, and the record a job keeps of them) carries, later ones
+ * overriding earlier: a JSON object (params_json, a C string), then form
+ * fields [[key, value], ...] in order (api_params_set each), then a URL
+ * query string (api_params_parse_query, `ignore` skipped). Each may be
+ * NULL. */
+mcf_status api_params_parse_request(api_params *p, const char *params_json,
+                                    const cJSON *fields, const char *query,
+                                    const char *const *ignore,
+                                    const api_limits *lim, mcf_error *err);
 /* The steps a run takes as far as its parameters decide (mcf.h, "The
  * amount of smoothing"): its iterations (MCF_DEFAULT_STEPS when 0; a
  * filter's passes), or ceil(time / dt) (not capped: over max_iterations

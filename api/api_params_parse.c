@@ -541,3 +541,26 @@ mcf_status api_params_parse_query(api_params *p, const char *qs,
     free(val);
     return rc;
 }
+
+mcf_status api_params_parse_request(api_params *p, const char *params_json,
+                                    const cJSON *fields, const char *query,
+                                    const char *const *ignore,
+                                    const api_limits *lim, mcf_error *err)
+{
+    mcf_status rc = MCF_OK;
+    const cJSON *f;
+
+    if (params_json &&
+        (rc = api_params_parse_json(p, params_json, strlen(params_json), lim,
+                                    err)) != MCF_OK)
+        return rc;
+    cJSON_ArrayForEach(f, fields) {
+        const char *k = cJSON_GetStringValue(cJSON_GetArrayItem(f, 0));
+        const char *v = cJSON_GetStringValue(cJSON_GetArrayItem(f, 1));
+        if (k && v && (rc = api_params_set(p, k, v, lim, err)) != MCF_OK)
+            return rc;
+    }
+    if (query && query[0])
+        rc = api_params_parse_query(p, query, ignore, lim, err);
+    return rc;
+}

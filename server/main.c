@@ -55,7 +55,7 @@
  * threads read the others' (doors_health, doors_gauges) while the main
  * thread publishes or withdraws them: doors_mu guards the array, and a
  * door is withdrawn before it is stopped. */
-static const srv_door_ops *const door_ops[] = {&srv_rest_door, &srv_grpc_door};
+static const srv_door_ops *const door_ops[] = {&rest_door, &mcfd_grpc_door};
 #define NDOORS (sizeof door_ops / sizeof door_ops[0])
 static void *doors[NDOORS];
 static pthread_mutex_t doors_mu = PTHREAD_MUTEX_INITIALIZER;
@@ -230,7 +230,7 @@ static int doors_start(const srv_config *cfg, svc_t *svc, char *url,
     void *d;
 
     for (i = 0; i < NDOORS; i++) {
-        if (door_ops[i] == &srv_grpc_door && cfg->grpc_port < 0)
+        if (door_ops[i] == &mcfd_grpc_door && cfg->grpc_port < 0)
             continue;
         if (door_ops[i]->start(cfg, svc, &dm, &d, where, sizeof where, msg,
                                msgsize) != 0) {
@@ -301,8 +301,8 @@ int main(int argc, char **argv)
 
     /* The hidden decode mode of the Draco sandbox (sandbox.c): a child
      * this daemon started, before anything else. */
-    if (argc > 1 && strcmp(argv[1], SRV_SANDBOX_ARG) == 0)
-        return srv_sandbox_child(argc, argv);
+    if (argc > 1 && strcmp(argv[1], SANDBOX_ARG) == 0)
+        return sandbox_child(argc, argv);
     prog_bound_blas_threads(argv);
     rc = srv_config_load(&cfg, argc, argv, msg, sizeof msg);
     if (rc > 0)

@@ -230,15 +230,10 @@ typedef struct {
                                   the submitter (svc_job_result, TAKE) */
 } svc_request;
 
-/* The parameters of a request in the form the REST door receives them
- * (and older request.json files hold them): a params JSON object, then
- * form fields [[key, value], ...] in order, then a query string, later
- * sources overriding earlier ones; the daemon's own query keys (stream,
- * fields) are skipped. Each may be NULL. p is initialized by the caller;
- * messages name the parameter. */
-mcf_status svc_params_parse(api_params *p, const char *params_json,
-                            const cJSON *fields, const char *query,
-                            const api_limits *lim, mcf_error *err);
+/* The daemon's own keys of a request's query string (REST's `stream`,
+ * `fields`), NULL-terminated: the parameter parser skips them
+ * (api_params_parse_request's `ignore`). */
+extern const char *const svc_query_keys[];
 /* The query's `fields` (a daemon key: the last one wins): whether the
  * per-vertex fields document is kept. 0 and *on, or -1 and *err. */
 int svc_query_fields(const char *query, int *on, svc_error *err);

@@ -423,6 +423,44 @@ static void test_json_document(void **state)
     api_params_free(&p);
 }
 
+/* A daemon request's sources, later ones overriding earlier: the JSON
+ * object, then the form fields in order, then the query, whose ignored
+ * keys are skipped; a failure in any source stops there and names it. */
+static void test_request_sources(void **state)
+{
+    api_params p;
+    mcf_error err;
+    const char *const ignore[] = {"stream", "fields", NULL};
+    cJSON *fields = cJSON_Parse("[[\"dt\", \"2e-3\"], [\"iterations\", \"9\"], [\"dt\", \"3e-3\"]]");
+    (void)state;
+    assert_non_null(fields);
+    api_params_init(&p);
+    assert_int_equal(api_params_parse_request(&p, "{\"scheme\": \"euler\", \"dt\": 1e-3, \"tol\": 0.25}",
+                                              fields, "iterations=7&stream=ndjson&fields=true",
+                                              ignore, &L, &err), MCF_OK);
+    assert_int_equal(p.flow.scheme, MCF_EULER);  /* the JSON alone */
+    assert_true(p.flow.tol == 0.25);
+    assert_true(p.flow.dt == 3e-3);              /* the last form field */
+    assert_int_equal(p.flow.iterations, 7);      /* the query, last */
+    /* Every source may be missing. */
+    api_params_init(&p);
+    assert_int_equal(api_params_parse_request(&p, NULL, NULL, NULL, NULL, &L, &err), MCF_OK);
+    assert_int_equal(p.flow.iterations, 0);
+    /* Without the ignore list, the daemon's keys are unknown parameters. */
+    assert_int_equal(api_params_parse_request(&p, NULL, NULL, "stream=ndjson", NULL, &L, &err),
+                     MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "stream"));
+    /* A bad form field stops before the query. */
+    cJSON_Delete(fields);
+    fields = cJSON_Parse("[[\"dt\", \"-1\"]]");
+    api_params_init(&p);
+    assert_int_equal(api_params_parse_request(&p, "{\"iterations\": 3}", fields, "iterations=5",
+                                              ignore, &L, &err), MCF_EINVAL);
+    assert_non_null(strstr(err.msg, "dt"));
+    assert_int_equal(p.flow.iterations, 3);
+    cJSON_Delete(fields);
+}
+
 static void test_query(void **state)
 {
     api_params p;
@@ -594,6 +632,7 @@ int main(void)
         cmocka_unit_test(test_fixed_list),
         cmocka_unit_test(test_json_types),
         cmocka_unit_test(test_json_document),
+        cmocka_unit_test(test_request_sources),
         cmocka_unit_test(test_query),
         cmocka_unit_test(test_finish),
         cmocka_unit_test(test_to_json_roundtrip),

@@ -594,7 +594,7 @@ static double read_to_close(int fd, api_buf *out)
  * address itself: past the cap, a request is answered 503 EBUSY with
  * Retry-After and the connection closed, and one that sends no head
  * is closed after 2 s. libmicrohttpd's own limit stays as a backstop, a
- * quarter above the cap (srv_http_ip_backstop): past that, a connection
+ * quarter above the cap (rest_http_ip_backstop): past that, a connection
  * is still closed at accept without a word (pinned here), since a 503
  * needs a request and a request needs a slot. */
 static void test_per_ip_busy(void **state)

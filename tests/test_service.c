@@ -141,7 +141,7 @@ static int submit(svc_t *s, int n, const char *params, svc_job **out,
     mcf_status rc;
 
     svc_request_init(&rq);
-    rc = svc_params_parse(&rq.params, params, NULL, NULL, svc_limits(s), &me);
+    rc = api_params_parse_request(&rq.params, params, NULL, NULL, NULL, svc_limits(s), &me);
     if (rc != MCF_OK)
         fail_msg("parameters %s: %s", params, me.msg);
     rq.input = grid_obj(n, &rq.input_len);
@@ -587,8 +587,8 @@ int main(int argc, char **argv)
     };
 
     /* a Draco input's decode runs in a child of this program (sandbox.c) */
-    if (argc > 1 && strcmp(argv[1], SRV_SANDBOX_ARG) == 0)
-        return srv_sandbox_child(argc, argv);
+    if (argc > 1 && strcmp(argv[1], SANDBOX_ARG) == 0)
+        return sandbox_child(argc, argv);
     srv_metrics_init();
     srv_log_set_level(SRV_LOG_ERROR);
     if (getenv("MCF_TEST_FILTER") && *getenv("MCF_TEST_FILTER"))

@@ -19,7 +19,7 @@ shift
         echo '0x00};'
         i=$((i + 1))
     done
-    echo 'const struct srv_asset srv_ui_assets[] = {'
+    echo 'const struct rest_asset rest_ui_assets[] = {'
     i=0
     for a in "$@"; do
         p=${a%%=*} f=${a#*=}
@@ -35,6 +35,6 @@ shift
         i=$((i + 1))
     done
     echo '};'
-    echo "const size_t srv_ui_nassets = $i;"
+    echo "const size_t rest_ui_nassets = $i;"
 } > "$out.tmp"
 mv "$out.tmp" "$out"

@@ -268,7 +268,7 @@ void grpc_gauges(void *door, srv_gauges *out)
 
 } // namespace
 
-extern "C" const srv_door_ops srv_grpc_door = {
+extern "C" const srv_door_ops mcfd_grpc_door = {
     "gRPC", grpc_start, grpc_drain, grpc_stop, grpc_expire, grpc_active,
     grpc_health, grpc_gauges,
 };

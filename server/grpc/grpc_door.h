@@ -34,7 +34,7 @@
 extern "C" {
 #endif
 
-extern const srv_door_ops srv_grpc_door;
+extern const srv_door_ops mcfd_grpc_door;
 
 #ifdef __cplusplus
 }

@@ -13,7 +13,7 @@
  *
  * Files
  *   grpc.cc         the door: its state, start, drain, stop, expire,
- *                   health and gauges (grpc_door.h's srv_grpc_door)
+ *                   health and gauges (grpc_door.h's mcfd_grpc_door)
  *   grpc_status.cc  statuses from the service's errors, the token check,
  *                   proto <-> service conversions (params, Job)
  *   grpc_upload.cc  Slot (a streaming call's place) and Upload (the

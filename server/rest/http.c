@@ -7,7 +7,7 @@
  * description, the schemes). Uploads are upload.c's, job routes
  * jobroutes.c's, waiting waiter.c's, streams stream.c's, answers reply.c's.
  *
- * A request object (srv_request) is made by the URI log callback, which
+ * A request object (rest_request) is made by the URI log callback, which
  * sees the raw target with its query string, hangs on con_cls, and is
  * freed only in the completion callback, which also writes the request's
  * log line.
@@ -58,7 +58,7 @@ static struct MHD_Response *from_copy(const void *data, size_t len)
 
 /* ------------------------------------------------------------ routes */
 
-static int parse_route(srv_request *r, const char *url)
+static int parse_route(rest_request *r, const char *url)
 {
     const char *rest;
 
@@ -101,7 +101,7 @@ static int parse_route(srv_request *r, const char *url)
             r->rt = RT_JOB_FIELDS;
         else
             return -1;
-    } else if (srv_ui_find(url, &r->asset)) {
+    } else if (rest_ui_find(url, &r->asset)) {
         r->rt = RT_UI;
     } else {
         r->rt = RT_OTHER;
@@ -128,7 +128,7 @@ static long path_control_byte(const char *uri)
 
 /* The bearer token, checked as the gRPC door checks it (srv_bearer_ok:
  * constant time in the token's length). */
-static int authorized(const srv_rest *d, struct MHD_Connection *c)
+static int authorized(const rest_t *d, struct MHD_Connection *c)
 {
     return srv_bearer_ok(d->cfg,
                          MHD_lookup_connection_value(c, MHD_HEADER_KIND,
@@ -142,7 +142,7 @@ static int is_get(const char *method)
 
 /* The daemon's gauges: the service's, the door's event streams, the
  * other door's. */
-static srv_gauges gauges(srv_rest *d)
+static srv_gauges gauges(rest_t *d)
 {
     svc_gauges s = svc_get_gauges(d->svc);
     srv_gauges g;
@@ -154,7 +154,7 @@ static srv_gauges gauges(srv_rest *d)
     g.workers_busy = s.workers_busy;
     g.jobs_in_memory = s.jobs_in_memory;
     g.draining = s.draining;
-    g.followers = srv_waiter_followers(d);
+    g.followers = rest_waiter_followers(d);
     g.spool_bytes = s.spool_bytes;
     if (d->dm.gauges)
         d->dm.gauges(d->dm.ctx, &g);
@@ -165,32 +165,32 @@ static srv_gauges gauges(srv_rest *d)
  * path, a route, a bounded query, the token (not for the probes, the
  * metrics and the page, whose API calls carry it), the method of a fixed
  * route. 0 when it goes on; else 1 and *ret, the answer sent. */
-static int refused(srv_request *r, struct MHD_Connection *c, const char *url,
+static int refused(rest_request *r, struct MHD_Connection *c, const char *url,
                    const char *method, enum MHD_Result *ret)
 {
-    const char *q = srv_query_of(r);
+    const char *q = rest_query_of(r);
     long at;
 
     if ((at = path_control_byte(r->uri)) >= 0) {
         snprintf(r->path, sizeof r->path, "%.*s", (int)strcspn(r->uri, "?"), r->uri);
-        *ret = srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "the path has a control "
-                                 "byte at byte %ld (%.3s): a path is printable", at,
-                                 r->uri[at] == '%' ? r->uri + at : "raw");
+        *ret = rest_send_problemf(r, c, SVC_P_PARAM_INVALID, "the path has a control "
+                                  "byte at byte %ld (%.3s): a path is printable", at,
+                                  r->uri[at] == '%' ? r->uri + at : "raw");
     } else if (parse_route(r, url) != 0)
-        *ret = srv_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
+        *ret = rest_send_problemf(r, c, SVC_P_NOT_FOUND, "no such resource: %s", url);
     else if (q && strlen(q) > SRV_MAX_QUERY)
-        *ret = srv_send_problemf(r, c, SVC_P_URI_LIMIT, "the query string has %zu bytes, "
-                                 "more than %d: send the parameters as a multipart "
-                                 "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
+        *ret = rest_send_problemf(r, c, SVC_P_URI_LIMIT, "the query string has %zu bytes, "
+                                  "more than %d: send the parameters as a multipart "
+                                  "'params' field (JSON)", strlen(q), SRV_MAX_QUERY);
     else if (r->rt != RT_HEALTHZ && r->rt != RT_READYZ && r->rt != RT_METRICS &&
              r->rt != RT_UI && !authorized(r->door, c))
-        *ret = srv_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
-                                 "<token>' header is required");
+        *ret = rest_send_problemf(r, c, SVC_P_AUTH, "a valid 'Authorization: Bearer "
+                                  "<token>' header is required");
     else if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && strcmp(method, "POST") != 0)
-        *ret = srv_send_problemf(r, c, SVC_P_METHOD, "%s is not allowed on %s; "
-                                 "POST a mesh", method, url);
+        *ret = rest_send_problemf(r, c, SVC_P_METHOD, "%s is not allowed on %s; "
+                                  "POST a mesh", method, url);
     else if ((r->rt <= RT_SCHEMES || r->rt == RT_UI) && !is_get(method))
-        *ret = srv_send_problemf(r, c, SVC_P_METHOD, "%s is not allowed on %s", method, url);
+        *ret = rest_send_problemf(r, c, SVC_P_METHOD, "%s is not allowed on %s", method, url);
     else
         return 0;
     return 1;
@@ -202,35 +202,35 @@ static int refused(srv_request *r, struct MHD_Connection *c, const char *url,
  * job goes through the spool). A full queue does not: it is answered per
  * request (503 + Retry-After), and an orchestrator flapping every replica
  * out of its Service under load would turn those into connection errors. */
-static enum MHD_Result send_probe(srv_request *r, struct MHD_Connection *c)
+static enum MHD_Result send_probe(rest_request *r, struct MHD_Connection *c)
 {
-    srv_rest *d = r->door;
+    rest_t *d = r->door;
     char sick[300], why[1500];
     srv_gauges g;
     cJSON *o;
 
     if (d->dm.health && d->dm.health(d->dm.ctx, sick, sizeof sick) != 0)
-        return srv_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", sick);
+        return rest_send_problemf(r, c, SVC_P_UNHEALTHY, "%s", sick);
     if (r->rt == RT_HEALTHZ) {
         o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "status", "ok");
-        return srv_send_json(r, c, 200, o);
+        return rest_send_json(r, c, 200, o);
     }
     g = gauges(d);
     if (g.draining || atomic_load(&d->draining))
-        return srv_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting down");
+        return rest_send_problemf(r, c, SVC_P_DRAINING, "the daemon is shutting down");
     if (svc_ready(d->svc, why, sizeof why) != 0)
-        return srv_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
+        return rest_send_problemf(r, c, SVC_P_SPOOL_UNREADY, "%s", why);
     o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "status", "ready");
     cJSON_AddNumberToObject(o, "queue_depth", g.queue_depth);
     cJSON_AddNumberToObject(o, "workers_busy", g.workers_busy);
-    return srv_send_json(r, c, 200, o);
+    return rest_send_json(r, c, 200, o);
 }
 
 /* /metrics, Prometheus's text format. This request is counted before
  * rendering, so a scrape sees itself. */
-static enum MHD_Result send_metrics(srv_request *r, struct MHD_Connection *c)
+static enum MHD_Result send_metrics(rest_request *r, struct MHD_Connection *c)
 {
     srv_gauges g = gauges(r->door);
     struct MHD_Response *resp;
@@ -238,7 +238,7 @@ static enum MHD_Result send_metrics(srv_request *r, struct MHD_Connection *c)
     size_t n = 0;
     char *s;
 
-    srv_metrics_request(srv_route_name(r->rt), 200);
+    srv_metrics_request(rest_route_name(r->rt), 200);
     s = srv_metrics_render(&g, &n);
     r->status = 200;
     if (!s)
@@ -256,7 +256,7 @@ static enum MHD_Result send_metrics(srv_request *r, struct MHD_Connection *c)
 
 /* A request's first call: its checks, then its route's answer (an
  * upload's first bytes come in the next calls). */
-static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
+static enum MHD_Result first_call(rest_request *r, struct MHD_Connection *c,
                                   const char *url, const char *method)
 {
     struct MHD_Response *resp;
@@ -273,18 +273,18 @@ static enum MHD_Result first_call(srv_request *r, struct MHD_Connection *c,
     case RT_METRICS:
         return send_metrics(r, c);
     case RT_OPENAPI:
-        if ((resp = from_copy(srv_openapi_yaml, srv_openapi_yaml_len)))
+        if ((resp = from_copy(rest_openapi_yaml, rest_openapi_yaml_len)))
             MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, "application/yaml");
-        return srv_respond(r, c, 200, resp);
+        return rest_respond(r, c, 200, resp);
     case RT_SCHEMES:
-        return srv_send_json(r, c, 200, api_json_schemes());
+        return rest_send_json(r, c, 200, api_json_schemes());
     case RT_UI:
-        return srv_ui_send(r, c, r->asset);
+        return rest_ui_send(r, c, r->asset);
     case RT_SMOOTH:
     case RT_JOBS:
-        return srv_upload_begin(r, c);
+        return rest_upload_begin(r, c);
     default:
-        return srv_route_job(r, c, method);
+        return rest_route_job(r, c, method);
     }
 }
 
@@ -384,7 +384,7 @@ static int framing_refused(struct MHD_Connection *c, const char *version,
  * the list, receiving and since, and the per-address counts). */
 typedef struct ip_count ip_count;
 struct conn_state {
-    srv_request *req;
+    rest_request *req;
     int fd;
     ip_count *ip;              /* its address's count, NULL: none kept */
     int over;                  /* opened past --max-connections-per-ip */
@@ -392,11 +392,11 @@ struct conn_state {
                                   head is in, the body is coming */
     size_t body;               /* body bytes so far (receiving 2) */
     double since;              /* srv_mono() when it began waiting */
-    srv_rest *door;
+    rest_t *door;
     struct conn_state *prev, *next;
 };
 
-static void request_free(srv_request *r, int toe);
+static void request_free(rest_request *r, int toe);
 
 /* --max-connections-per-ip: the connections of each client address,
  * counted here rather than by libmicrohttpd, which closes a connection
@@ -416,7 +416,7 @@ static int ip_cmp(const void *a, const void *b)
 
 /* conns_mu held: one more connection from sa; its node, or NULL (an
  * address of another family, or out of memory: not counted). */
-static ip_count *ip_take(srv_rest *d, const struct sockaddr *sa)
+static ip_count *ip_take(rest_t *d, const struct sockaddr *sa)
 {
     ip_count probe, *ip;
     void *found;
@@ -448,7 +448,7 @@ static ip_count *ip_take(srv_rest *d, const struct sockaddr *sa)
 }
 
 /* conns_mu held: a connection of ip closed. */
-static void ip_drop(srv_rest *d, ip_count *ip)
+static void ip_drop(rest_t *d, ip_count *ip)
 {
     if (ip && --ip->n == 0) {
         tdelete(ip, &d->ips, ip_cmp);
@@ -459,7 +459,7 @@ static void ip_drop(srv_rest *d, ip_count *ip)
 /* Whether r came on a connection opened past --max-connections-per-ip:
  * then 1 and its 503 in p (answered on the first call, so the
  * connection closes). */
-static int over_cap(const srv_request *r, svc_error *p)
+static int over_cap(const rest_request *r, svc_error *p)
 {
     int cap = r->door->cfg->max_connections_per_ip;
 
@@ -472,7 +472,7 @@ static int over_cap(const srv_request *r, svc_error *p)
     return 1;
 }
 
-unsigned srv_http_ip_backstop(const srv_config *cfg)
+unsigned rest_http_ip_backstop(const srv_config *cfg)
 {
     unsigned cap = (unsigned)cfg->max_connections_per_ip;
     return cap ? cap + (cap + 3) / 4 : 0;
@@ -494,11 +494,11 @@ static void conn_body(conn_state *cs, size_t bytes)
     pthread_mutex_unlock(&cs->door->conns_mu);
 }
 
-void srv_http_connection(void *cls, struct MHD_Connection *c,
-                         void **socket_context,
-                         enum MHD_ConnectionNotificationCode code)
+void rest_http_connection(void *cls, struct MHD_Connection *c,
+                          void **socket_context,
+                          enum MHD_ConnectionNotificationCode code)
 {
-    srv_rest *d = cls;
+    rest_t *d = cls;
     conn_state *cs = *socket_context;
 
     if (code == MHD_CONNECTION_NOTIFY_STARTED) {
@@ -529,7 +529,7 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     }
     if (cs) {
         /* Off the list before MHD closes the socket (it notifies first),
-         * so srv_http_expire_heads never touches a reused descriptor. */
+         * so rest_http_expire_heads never touches a reused descriptor. */
         pthread_mutex_lock(&d->conns_mu);
         if (cs->prev)
             cs->prev->next = cs->next;
@@ -547,8 +547,8 @@ void srv_http_connection(void *cls, struct MHD_Connection *c,
     *socket_context = NULL;
 }
 
-int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
-                          double body_timeout)
+int rest_http_expire_heads(rest_t *d, double timeout, int max_connections,
+                           double body_timeout)
 {
     double now = srv_mono();
     conn_state *cs;
@@ -583,10 +583,10 @@ int srv_http_expire_heads(srv_rest *d, double timeout, int max_connections,
     return n;
 }
 
-void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
+void *rest_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
 {
-    srv_rest *d = cls;
-    srv_request *r = calloc(1, sizeof *r);
+    rest_t *d = cls;
+    rest_request *r = calloc(1, sizeof *r);
     const srv_config *cfg = d->cfg;
     const union MHD_ConnectionInfo *ci =
         MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
@@ -629,18 +629,18 @@ void *srv_http_uri_log(void *cls, const char *uri, struct MHD_Connection *c)
  * SRV_DRAIN_MAX): refused from its head, all it declared (no more than
  * SRV_DRAIN_MAX: its head was checked); else SRV_DRAIN_MAX past the
  * error. */
-static size_t drain_bound(const srv_request *r)
+static size_t drain_bound(const rest_request *r)
 {
     return r->perr_head && r->declared > 0 ? r->declared
                                            : r->perr_at - 1 + SRV_DRAIN_MAX;
 }
 
-enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
-                                const char *url, const char *method,
-                                const char *version, const char *upload_data,
-                                size_t *upload_data_size, void **con_cls)
+enum MHD_Result rest_http_handle(void *cls, struct MHD_Connection *c,
+                                 const char *url, const char *method,
+                                 const char *version, const char *upload_data,
+                                 size_t *upload_data_size, void **con_cls)
 {
-    srv_request *r = *con_cls;
+    rest_request *r = *con_cls;
 
     (void)cls;
     if (!r || !r->uri)
@@ -651,7 +651,7 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
         if (framing_refused(c, version, &p) || over_cap(r, &p)) {
             snprintf(r->method, sizeof r->method, "%s", method);
             snprintf(r->path, sizeof r->path, "%s", url);
-            return srv_send_problem(r, c, &p, NULL);
+            return rest_send_problem(r, c, &p, NULL);
         }
         if (r->conn) /* the head is in; an upload's body comes next */
             conn_waiting(r->conn, strcmp(method, "POST") == 0 ? 2 : 0);
@@ -676,9 +676,9 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
         return first_call(r, c, url, method);
     }
     if (r->waiting)
-        return srv_wait_or_answer(r, c);
+        return rest_wait_or_answer(r, c);
     if (*upload_data_size > 0) {
-        srv_upload_consume(r, upload_data, *upload_data_size);
+        rest_upload_consume(r, upload_data, *upload_data_size);
         *upload_data_size = 0;
         if (r->conn)
             conn_body(r->conn, r->bytes_in);
@@ -692,7 +692,7 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
              * multipart): answered now, a client that reads while it
              * sends stops there */
             if (!r->perr_head) {
-                srv_send_problem_raw(r, c, &r->perr);
+                rest_send_problem_raw(r, c, &r->perr);
                 r->answered = 1;
             }
         }
@@ -702,7 +702,7 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
          * is closed. */
         if (r->perr_at && r->bytes_in > drain_bound(r)) {
             if (!r->answered)
-                srv_send_problem_raw(r, c, &r->perr);
+                rest_send_problem_raw(r, c, &r->perr);
             return MHD_NO;
         }
         return MHD_YES;
@@ -712,14 +712,14 @@ enum MHD_Result srv_http_handle(void *cls, struct MHD_Connection *c,
     if (r->conn) /* the body is complete */
         conn_waiting(r->conn, 0);
     if ((r->rt == RT_SMOOTH || r->rt == RT_JOBS) && !r->job)
-        return srv_upload_submit(r, c);
+        return rest_upload_submit(r, c);
     return MHD_YES;
 }
 
-void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
-                        enum MHD_RequestTerminationCode toe)
+void rest_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
+                         enum MHD_RequestTerminationCode toe)
 {
-    srv_request *r = *con_cls;
+    rest_request *r = *con_cls;
 
     (void)cls;
     (void)c;
@@ -731,9 +731,9 @@ void srv_http_completed(void *cls, struct MHD_Connection *c, void **con_cls,
 
 /* Releases everything a request holds and writes its log line. toe: MHD's
  * termination code, -1 for a request MHD abandoned without completing. */
-static void request_free(srv_request *r, int toe)
+static void request_free(rest_request *r, int toe)
 {
-    srv_rest *d = r->door;
+    rest_t *d = r->door;
     cJSON *o;
     int had_job;
 
@@ -743,7 +743,7 @@ static void request_free(srv_request *r, int toe)
         conn_waiting(cs, 1); /* keep-alive: the next request's head */
     }
     had_job = r->job != NULL;
-    srv_request_release_job(r);
+    rest_request_release_job(r);
     if (r->pp)
         MHD_destroy_post_processor(r->pp);
     o = cJSON_CreateObject();
@@ -751,7 +751,7 @@ static void request_free(srv_request *r, int toe)
         cJSON_AddStringToObject(o, "type", "request");
         cJSON_AddStringToObject(o, "method", r->method);
         cJSON_AddStringToObject(o, "path", r->path);
-        cJSON_AddStringToObject(o, "route", srv_route_name(r->rt));
+        cJSON_AddStringToObject(o, "route", rest_route_name(r->rt));
         cJSON_AddNumberToObject(o, "status", r->status);
         cJSON_AddNumberToObject(o, "ms", (mcf_now() - r->t0) * 1e3);
         cJSON_AddNumberToObject(o, "bytes_in", (double)r->bytes_in);

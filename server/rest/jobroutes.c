@@ -78,7 +78,7 @@ static const void *find_bytes(const char *hay, size_t n, const char *needle)
 }
 
 /* multipart/mixed: the metrics JSON part, then the mesh part. */
-static enum MHD_Result send_mixed(srv_request *r, struct MHD_Connection *c,
+static enum MHD_Result send_mixed(rest_request *r, struct MHD_Connection *c,
                                   const svc_snap *s, char *mesh, size_t len)
 {
     char boundary[96], hdr[160], *metrics = NULL;
@@ -120,11 +120,11 @@ static enum MHD_Result send_mixed(srv_request *r, struct MHD_Connection *c,
     snprintf(hdr, sizeof hdr, "multipart/mixed; boundary=%s", boundary);
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, hdr);
     add_job_headers(resp, r->job);
-    return srv_respond(r, c, 200, resp);
+    return rest_respond(r, c, 200, resp);
 }
 
 /* Answers a waiting /smooth request whose job has finished. */
-static enum MHD_Result send_outcome(srv_request *r, struct MHD_Connection *c,
+static enum MHD_Result send_outcome(rest_request *r, struct MHD_Connection *c,
                                     const svc_snap *s)
 {
     svc_error e;
@@ -133,11 +133,11 @@ static enum MHD_Result send_outcome(srv_request *r, struct MHD_Connection *c,
     struct MHD_Response *resp;
 
     if (s->status != SVC_JOB_SUCCEEDED)
-        return srv_send_problem(r, c, &s->error, s->id);
+        return rest_send_problem(r, c, &s->error, s->id);
     /* The copy the worker kept for this request, else the spool. */
     if (svc_job_result(r->job, r->sync_owner ? SVC_RESULT_TAKE : 0, &data,
                        &len, &e) != 0)
-        return srv_send_problem(r, c, &e, s->id);
+        return rest_send_problem(r, c, &e, s->id);
     if (r->md == MODE_MIXED)
         return send_mixed(r, c, s, data, len);
     resp = MHD_create_response_from_buffer(len, data, MHD_RESPMEM_MUST_FREE);
@@ -146,50 +146,50 @@ static enum MHD_Result send_outcome(srv_request *r, struct MHD_Connection *c,
         return MHD_NO;
     }
     add_result_headers(resp, r->job, s);
-    return srv_respond(r, c, 200, resp);
+    return rest_respond(r, c, 200, resp);
 }
 
-enum MHD_Result srv_wait_or_answer(srv_request *r, struct MHD_Connection *c)
+enum MHD_Result rest_wait_or_answer(rest_request *r, struct MHD_Connection *c)
 {
     svc_snap s;
     svc_error p;
 
     for (;;) {
-        srv_waiter_arm(&r->w);
+        rest_waiter_arm(&r->w);
         svc_job_snapshot(r->job, &s);
         if (r->md == MODE_NDJSON && (s.status == SVC_JOB_SUCCEEDED ||
                                      (s.status == SVC_JOB_RUNNING && s.ready))) {
             /* The stream takes over: it follows the job itself. */
-            srv_waiter_stop(&r->w);
+            rest_waiter_stop(&r->w);
             r->waiting = 0;
-            return srv_respond(r, c, 200,
-                               srv_stream_response(r->door, r->job, SRV_STREAM_NDJSON,
-                                                   c, -1));
+            return rest_respond(r, c, 200,
+                                rest_stream_response(r->door, r->job, SRV_STREAM_NDJSON,
+                                                     c, -1));
         }
         if (svc_job_status_terminal(s.status)) {
-            srv_waiter_stop(&r->w);
+            rest_waiter_stop(&r->w);
             r->waiting = 0;
             return send_outcome(r, c, &s);
         }
         if ((s.status == SVC_JOB_QUEUED && s.draining) || s.closing) {
-            srv_waiter_stop(&r->w);
+            rest_waiter_stop(&r->w);
             r->waiting = 0;
             svc_error_set(&p, SVC_P_DRAINING, "the daemon is shutting "
                             "down; job %s stays %s on disk and runs after the "
                             "restart (GET /v1/jobs/%s)", s.id,
                             svc_job_status_name(s.status), s.id);
-            return srv_send_problem(r, c, &p, s.id);
+            return rest_send_problem(r, c, &p, s.id);
         }
-        if (srv_waiter_sleep(&r->w))
+        if (rest_waiter_sleep(&r->w))
             return MHD_YES;
     }
 }
 
-void srv_request_release_job(srv_request *r)
+void rest_request_release_job(rest_request *r)
 {
     if (!r->job)
         return;
-    srv_waiter_stop(&r->w);
+    rest_waiter_stop(&r->w);
     if (r->sync_owner) /* nobody else will take the kept copy */
         svc_job_release_result(r->job);
     svc_job_unref(r->job);
@@ -198,13 +198,13 @@ void srv_request_release_job(srv_request *r)
 
 /* ------------------------------------------------------------ /v1/jobs/ID */
 
-static enum MHD_Result job_json_reply(srv_request *r, struct MHD_Connection *c,
+static enum MHD_Result job_json_reply(rest_request *r, struct MHD_Connection *c,
                                       const svc_job *j, unsigned status)
 {
-    return srv_send_json(r, c, status, srv_job_json(j, NULL));
+    return rest_send_json(r, c, status, rest_job_json(j, NULL));
 }
 
-static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
+static enum MHD_Result get_job_part(rest_request *r, struct MHD_Connection *c,
                                     svc_job *j)
 {
     svc_snap s;
@@ -217,7 +217,7 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
                         "poll /v1/jobs/%s until it has succeeded", s.id,
                         svc_job_status_name(s.status), s.step, s.steps_planned,
                         s.id);
-        return srv_send_problem(r, c, &p, s.id);
+        return rest_send_problem(r, c, &p, s.id);
     }
     if (s.status != SVC_JOB_SUCCEEDED) {
         svc_error_set(&p, SVC_P_NO_RESULT, "job %s %s and has no %s; see "
@@ -226,14 +226,14 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
                         r->rt == RT_JOB_METRICS   ? "metrics"
                         : r->rt == RT_JOB_FIELDS ? "fields"
                                                  : "result", s.id);
-        return srv_send_problem(r, c, &p, s.id);
+        return rest_send_problem(r, c, &p, s.id);
     }
     if (r->rt == RT_JOB_METRICS) {
         char *metrics;
         size_t len;
         if (svc_job_metrics(j, &metrics, &len, &e) != 0)
-            return srv_send_problem(r, c, &e, s.id);
-        return srv_send_text(r, c, 200, "application/json", metrics, len);
+            return rest_send_problem(r, c, &e, s.id);
+        return rest_send_text(r, c, 200, "application/json", metrics, len);
     } else {
         struct MHD_Response *resp;
         char *data;
@@ -242,7 +242,7 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
 
         if ((r->rt == RT_JOB_FIELDS ? svc_job_fields_open(j, &fd, &data, &size, &e)
                                     : svc_job_result_open(j, &fd, &data, &size, &e)) != 0)
-            return srv_send_problem(r, c, &e, s.id);
+            return rest_send_problem(r, c, &e, s.id);
         /* zero-copy from the store's descriptor, else its bytes */
         resp = fd >= 0 ? MHD_create_response_from_fd(size, fd)
                        : MHD_create_response_from_buffer(size, data,
@@ -260,11 +260,11 @@ static enum MHD_Result get_job_part(srv_request *r, struct MHD_Connection *c,
         } else {
             add_result_headers(resp, j, &s);
         }
-        return srv_respond(r, c, 200, resp);
+        return rest_respond(r, c, 200, resp);
     }
 }
 
-static enum MHD_Result delete_job(srv_request *r, struct MHD_Connection *c)
+static enum MHD_Result delete_job(rest_request *r, struct MHD_Connection *c)
 {
     svc_delete_result res;
     svc_job_status before;
@@ -273,19 +273,19 @@ static enum MHD_Result delete_job(srv_request *r, struct MHD_Connection *c)
     enum MHD_Result ret;
 
     if (svc_delete(r->door->svc, r->id, &res, &before, &e) != 0)
-        return srv_send_problem(r, c, &e, NULL);
+        return rest_send_problem(r, c, &e, NULL);
     if (res == SVC_DELETE_FORGOTTEN)
-        return srv_respond(r, c, 204, srv_empty_response());
+        return rest_respond(r, c, 204, rest_empty_response());
     j = svc_job_get(r->door->svc, r->id);
     if (!j) /* forgotten in between: it is gone, as asked */
-        return srv_respond(r, c, 204, srv_empty_response());
+        return rest_respond(r, c, 204, rest_empty_response());
     ret = job_json_reply(r, c, j, res == SVC_DELETE_STOPPING ? 202 : 200);
     svc_job_unref(j);
     return ret;
 }
 
-enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
-                              const char *method)
+enum MHD_Result rest_route_job(rest_request *r, struct MHD_Connection *c,
+                               const char *method)
 {
     svc_job *j;
     svc_error p;
@@ -296,17 +296,17 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
     if (strcmp(method, "GET") != 0 && strcmp(method, "HEAD") != 0) {
         svc_error_set(&p, SVC_P_METHOD, "%s is not allowed on %s", method,
                         r->path);
-        return srv_send_problem(r, c, &p, NULL);
+        return rest_send_problem(r, c, &p, NULL);
     }
     j = svc_job_find(r->door->svc, r->id, &p);
     if (!j)
-        return srv_send_problem(r, c, &p, NULL);
+        return rest_send_problem(r, c, &p, NULL);
     if (r->rt == RT_JOB) {
         ret = job_json_reply(r, c, j, 200);
     } else if (r->rt == RT_JOB_EVENTS && strcmp(method, "HEAD") == 0) {
         /* The stream's headers without the stream: MHD would still send
          * the chunked body's terminator after the headers of a HEAD. */
-        struct MHD_Response *resp = srv_empty_response();
+        struct MHD_Response *resp = rest_empty_response();
         if (resp) {
             MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE,
                                     "text/event-stream");
@@ -314,16 +314,16 @@ enum MHD_Result srv_route_job(srv_request *r, struct MHD_Connection *c,
                                     "no-cache");
             MHD_add_response_header(resp, "X-Job-Id", r->id);
         }
-        ret = srv_respond(r, c, 200, resp);
+        ret = rest_respond(r, c, 200, resp);
     } else if (r->rt == RT_JOB_EVENTS) {
         const char *h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                     "Last-Event-ID");
         long last = h ? strtol(h, NULL, 10) : -1;
-        if (!srv_stream_admit(r->door, j, &p))
-            ret = srv_send_problem(r, c, &p, r->id);
+        if (!rest_stream_admit(r->door, j, &p))
+            ret = rest_send_problem(r, c, &p, r->id);
         else
-            ret = srv_respond(r, c, 200,
-                              srv_stream_response(r->door, j, SRV_STREAM_SSE, c, last));
+            ret = rest_respond(r, c, 200,
+                               rest_stream_response(r->door, j, SRV_STREAM_SSE, c, last));
     } else {
         ret = get_job_part(r, c, j);
     }

@@ -14,7 +14,7 @@
 
 #include "rest_internal.h"
 
-const char *srv_http_reason(unsigned status)
+const char *rest_http_reason(unsigned status)
 {
     switch (status) {
     case 200: return "OK";
@@ -36,8 +36,8 @@ const char *srv_http_reason(unsigned status)
     }
 }
 
-cJSON *srv_problem_json(const svc_error *e, const char *instance,
-                        const char *job_id)
+cJSON *rest_problem_json(const svc_error *e, const char *instance,
+                         const char *job_id)
 {
     char type[64];
     size_t i, n;
@@ -53,7 +53,7 @@ cJSON *srv_problem_json(const svc_error *e, const char *instance,
     for (i = sizeof "urn:mcfd:problem:" - 1; i < n && i < sizeof type; i++)
         type[i] = (char)tolower((unsigned char)type[i]);
     if (!cJSON_AddStringToObject(o, "type", type) ||
-        !cJSON_AddStringToObject(o, "title", srv_http_reason(http)) ||
+        !cJSON_AddStringToObject(o, "title", rest_http_reason(http)) ||
         !cJSON_AddNumberToObject(o, "status", http) ||
         !cJSON_AddStringToObject(o, "detail", e->detail) ||
         !cJSON_AddStringToObject(o, "code", svc_problem_name(e->problem)) ||
@@ -67,7 +67,7 @@ cJSON *srv_problem_json(const svc_error *e, const char *instance,
 
 /* ---------------------------------------------------------------- responses */
 
-enum MHD_Result srv_respond(srv_request *r, struct MHD_Connection *c,
+enum MHD_Result rest_respond(rest_request *r, struct MHD_Connection *c,
                                unsigned status, struct MHD_Response *resp)
 {
     enum MHD_Result ret;
@@ -75,13 +75,13 @@ enum MHD_Result srv_respond(srv_request *r, struct MHD_Connection *c,
     if (!resp)
         return MHD_NO;
     r->status = status;
-    srv_metrics_request(srv_route_name(r->rt), status);
+    srv_metrics_request(rest_route_name(r->rt), status);
     ret = MHD_queue_response(c, status, resp);
     MHD_destroy_response(resp);
     return ret;
 }
 
-enum MHD_Result srv_send_text(srv_request *r, struct MHD_Connection *c,
+enum MHD_Result rest_send_text(rest_request *r, struct MHD_Connection *c,
                                  unsigned status, const char *ctype,
                                  char *text, size_t len)
 {
@@ -95,13 +95,13 @@ enum MHD_Result srv_send_text(srv_request *r, struct MHD_Connection *c,
         return MHD_NO;
     }
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, ctype);
-    return srv_respond(r, c, status, resp);
+    return rest_respond(r, c, status, resp);
 }
 
 /* A response holding o printed (takes o), with a trailing newline when
  * asked (friendlier in a terminal) and the given Content-Type; NULL when
  * out of memory. */
-struct MHD_Response *srv_json_response(cJSON *o, const char *ctype, int newline)
+struct MHD_Response *rest_json_response(cJSON *o, const char *ctype, int newline)
 {
     char *s = o ? cJSON_Print(o) : NULL;
     struct MHD_Response *resp;
@@ -130,20 +130,20 @@ struct MHD_Response *srv_json_response(cJSON *o, const char *ctype, int newline)
     return resp;
 }
 
-enum MHD_Result srv_send_json(srv_request *r, struct MHD_Connection *c,
+enum MHD_Result rest_send_json(rest_request *r, struct MHD_Connection *c,
                                  unsigned status, cJSON *j)
 {
-    struct MHD_Response *resp = srv_json_response(j, "application/json", 1);
+    struct MHD_Response *resp = rest_json_response(j, "application/json", 1);
 
-    return resp ? srv_respond(r, c, status, resp) : MHD_NO;
+    return resp ? rest_respond(r, c, status, resp) : MHD_NO;
 }
 
-enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
-                                 const svc_error *e, const char *job)
+enum MHD_Result rest_send_problem(rest_request *r, struct MHD_Connection *c,
+                                  const svc_error *e, const char *job)
 {
     unsigned http = svc_problem_http(e->problem);
     struct MHD_Response *resp =
-        srv_json_response(srv_problem_json(e, r->path, job), "application/problem+json", 0);
+        rest_json_response(rest_problem_json(e, r->path, job), "application/problem+json", 0);
     char retry[24];
 
     if (!resp)
@@ -165,22 +165,22 @@ enum MHD_Result srv_send_problem(srv_request *r, struct MHD_Connection *c,
                                                    : "GET, HEAD");
     if (job)
         MHD_add_response_header(resp, "X-Job-Id", job);
-    return srv_respond(r, c, http, resp);
+    return rest_respond(r, c, http, resp);
 }
 
-void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
-                          const svc_error *e)
+void rest_send_problem_raw(rest_request *r, struct MHD_Connection *c,
+                           const svc_error *e)
 {
     const union MHD_ConnectionInfo *ci =
         MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
-    cJSON *o = srv_problem_json(e, r->path, NULL);
+    cJSON *o = rest_problem_json(e, r->path, NULL);
     char *body = o ? cJSON_PrintUnformatted(o) : NULL, head[256], retry[40] = "";
     unsigned http = svc_problem_http(e->problem);
     int n;
 
     cJSON_Delete(o);
     r->status = http;
-    srv_metrics_request(srv_route_name(r->rt), http);
+    srv_metrics_request(rest_route_name(r->rt), http);
     if (!ci || !body) {
         free(body);
         return;
@@ -190,7 +190,7 @@ void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
                  e->retry_after > 0 ? ceil(e->retry_after) : 1.0);
     n = snprintf(head, sizeof head, "HTTP/1.1 %u %s\r\nContent-Type: "
                  "application/problem+json\r\nContent-Length: %zu\r\n"
-                 "%sConnection: close\r\n\r\n", http, srv_http_reason(http),
+                 "%sConnection: close\r\n\r\n", http, rest_http_reason(http),
                  strlen(body), retry);
     /* a few hundred bytes into an idle socket's send buffer: whole, or
      * (a client that reads nothing) lost with the connection */
@@ -204,8 +204,8 @@ void srv_send_problem_raw(srv_request *r, struct MHD_Connection *c,
     free(body);
 }
 
-enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
-                                  svc_problem p, const char *fmt, ...)
+enum MHD_Result rest_send_problemf(rest_request *r, struct MHD_Connection *c,
+                                   svc_problem p, const char *fmt, ...)
 {
     svc_error e;
     va_list ap;
@@ -214,11 +214,11 @@ enum MHD_Result srv_send_problemf(srv_request *r, struct MHD_Connection *c,
     va_start(ap, fmt);
     vsnprintf(e.detail, sizeof e.detail, fmt, ap);
     va_end(ap);
-    return srv_send_problem(r, c, &e, NULL);
+    return rest_send_problem(r, c, &e, NULL);
 }
 
 
-struct MHD_Response *srv_empty_response(void)
+struct MHD_Response *rest_empty_response(void)
 {
     return MHD_create_response_from_buffer(0, NULL, MHD_RESPMEM_PERSISTENT);
 }
@@ -278,7 +278,7 @@ static void add_links(cJSON *o, const char *id)
     }
 }
 
-cJSON *srv_job_json(const svc_job *j, svc_snap *snap)
+cJSON *rest_job_json(const svc_job *j, svc_snap *snap)
 {
     char link[96];
     svc_snap s;
@@ -304,7 +304,7 @@ cJSON *srv_job_json(const svc_job *j, svc_snap *snap)
         cJSON_AddItemToObject(o, "metrics", x);
     if (s.status == SVC_JOB_FAILED || s.status == SVC_JOB_CANCELED) {
         snprintf(link, sizeof link, "/v1/jobs/%s", s.id);
-        if ((x = srv_problem_json(&s.error, link, s.id)) != NULL)
+        if ((x = rest_problem_json(&s.error, link, s.id)) != NULL)
             cJSON_AddItemToObject(o, "error", x);
     }
     add_links(o, s.id);

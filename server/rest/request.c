@@ -2,7 +2,7 @@
 /*
  * request.c - what a REST request says, for every file of the door: its
  * route's label and its query string, raw or one value decoded. A leaf of
- * the door: it reads a srv_request and calls no other file of it, so the
+ * the door: it reads a rest_request and calls no other file of it, so the
  * router (http.c) and the files it calls (upload.c, reply.c, ...) all
  * reach it without calling back into the router.
  */
@@ -17,21 +17,21 @@ static const char *const route_names[] = {
     "job", "job_result", "job_metrics", "job_events", "job_fields", "ui",
     "other"};
 
-const char *srv_route_name(srv_route rt)
+const char *rest_route_name(rest_route rt)
 {
     return route_names[rt];
 }
 
-const char *srv_query_of(const srv_request *r)
+const char *rest_query_of(const rest_request *r)
 {
     const char *q = strchr(r->uri, '?');
     return q ? q + 1 : NULL;
 }
 
-const char *srv_query_value(const srv_request *r, const char *key,
-                            char *out, size_t size)
+const char *rest_query_value(const rest_request *r, const char *key,
+                             char *out, size_t size)
 {
-    const char *p = srv_query_of(r), *found = NULL;
+    const char *p = rest_query_of(r), *found = NULL;
     size_t klen = strlen(key);
 
     while (p && *p) {

@@ -50,7 +50,7 @@ static enum MHD_Result mhd_accept(void *cls, const struct sockaddr *addr,
                                   socklen_t addrlen)
 {
     static srv_log_limit lim;
-    const srv_rest *d = cls;
+    const rest_t *d = cls;
     (void)addr;
     (void)addrlen;
     if (srv_fds_headroom() > d->cfg->fd_reserve / 2)
@@ -85,7 +85,7 @@ static int resolve_bind(const srv_config *cfg, struct sockaddr_storage *ss,
     return 0;
 }
 
-static void door_free(srv_rest *d)
+static void door_free(rest_t *d)
 {
     pthread_mutex_destroy(&d->active_mu);
     pthread_mutex_destroy(&d->conns_mu);
@@ -99,7 +99,7 @@ static int rest_start(const srv_config *cfg, svc_t *svc, const srv_daemon *dm,
 {
     struct sockaddr_storage ss;
     const union MHD_DaemonInfo *info;
-    srv_rest *d;
+    rest_t *d;
     int ipv6 = 0;
 
     *door = NULL;
@@ -119,16 +119,16 @@ static int rest_start(const srv_config *cfg, svc_t *svc, const srv_daemon *dm,
     d->mhd = MHD_start_daemon(
         MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME |
             MHD_USE_ERROR_LOG | (ipv6 ? MHD_USE_IPv6 : 0),
-        (uint16_t)cfg->port, mhd_accept, d, srv_http_handle, d,
+        (uint16_t)cfg->port, mhd_accept, d, rest_http_handle, d,
         MHD_OPTION_EXTERNAL_LOGGER, mhd_log, NULL,
         MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
         MHD_OPTION_THREAD_POOL_SIZE, (unsigned int)cfg->http_threads,
         MHD_OPTION_CONNECTION_LIMIT, (unsigned int)cfg->max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv_http_ip_backstop(cfg),
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, rest_http_ip_backstop(cfg),
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)cfg->send_timeout,
-        MHD_OPTION_URI_LOG_CALLBACK, srv_http_uri_log, d,
-        MHD_OPTION_NOTIFY_COMPLETED, srv_http_completed, d,
-        MHD_OPTION_NOTIFY_CONNECTION, srv_http_connection, d,
+        MHD_OPTION_URI_LOG_CALLBACK, rest_http_uri_log, d,
+        MHD_OPTION_NOTIFY_COMPLETED, rest_http_completed, d,
+        MHD_OPTION_NOTIFY_CONNECTION, rest_http_connection, d,
         MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)SRV_CONN_MEMORY,
         MHD_OPTION_END);
     if (!d->mhd) {
@@ -146,14 +146,14 @@ static int rest_start(const srv_config *cfg, svc_t *svc, const srv_daemon *dm,
 
 static void rest_drain(void *door)
 {
-    srv_rest *d = door;
+    rest_t *d = door;
     if (d)
         atomic_store(&d->draining, 1);
 }
 
 static void rest_stop(void *door)
 {
-    srv_rest *d = door;
+    rest_t *d = door;
     if (!d)
         return;
     MHD_stop_daemon(d->mhd);
@@ -162,12 +162,12 @@ static void rest_stop(void *door)
 
 static int rest_expire(void *door, const srv_config *cfg)
 {
-    srv_rest *d = door;
+    rest_t *d = door;
     int n = 0;
 
-    srv_http_check_clients(d);
-    n = srv_http_expire_heads(d, cfg->header_timeout, cfg->max_connections,
-                              cfg->body_timeout);
+    rest_http_check_clients(d);
+    n = rest_http_expire_heads(d, cfg->header_timeout, cfg->max_connections,
+                               cfg->body_timeout);
     if (n > 0)
         srv_logf(SRV_LOG_WARN, "closed %d connection%s that sent no complete "
                  "request head within --header-timeout %g s (2 s past "
@@ -179,7 +179,7 @@ static int rest_expire(void *door, const srv_config *cfg)
 
 static int rest_active(void *door)
 {
-    srv_rest *d = door;
+    rest_t *d = door;
     int n;
 
     if (!d)
@@ -202,10 +202,10 @@ static int rest_health(void *door, char *why, size_t size)
 static void rest_gauges(void *door, srv_gauges *g)
 {
     if (door)
-        g->followers = srv_waiter_followers(door);
+        g->followers = rest_waiter_followers(door);
 }
 
-const srv_door_ops srv_rest_door = {
+const srv_door_ops rest_door = {
     "REST", rest_start, rest_drain, rest_stop, rest_expire, rest_active,
     rest_health, rest_gauges,
 };

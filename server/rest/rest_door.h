@@ -21,6 +21,6 @@
 
 #include "door.h"
 
-extern const srv_door_ops srv_rest_door;
+extern const srv_door_ops rest_door;
 
 #endif /* SRV_REST_DOOR_H */

@@ -28,8 +28,8 @@
 
 typedef struct {
     svc_job *job;
-    srv_stream_kind kind;
-    srv_waiter w;
+    rest_stream_kind kind;
+    rest_waiter w;
     int ev_index;             /* events passed (the SSE id of the last) */
     long last_id;             /* SSE Last-Event-ID: skip ids <= last_id */
     api_buf pend;             /* formatted, not yet handed to MHD */
@@ -37,10 +37,10 @@ typedef struct {
     int started, finished;
 } stream;
 
-int srv_stream_admit(srv_rest *d, const svc_job *j, svc_error *p)
+int rest_stream_admit(rest_t *d, const svc_job *j, svc_error *p)
 {
     const srv_config *cfg = d->cfg;
-    int here = svc_followers(j), total = srv_waiter_followers(d),
+    int here = svc_followers(j), total = rest_waiter_followers(d),
         max_total = cfg->max_connections / 2;
 
     if (here >= SVC_FOLLOWERS_PER_JOB) {
@@ -94,7 +94,7 @@ static cJSON *final_json(const svc_job *j)
                             "down; job %s stays %s and runs after the "
                             "restart", s.id, svc_job_status_name(s.status));
         snprintf(url, sizeof url, "/v1/jobs/%s", s.id);
-        e = srv_problem_json(&p, url, s.id);
+        e = rest_problem_json(&p, url, s.id);
         if (e)
             cJSON_AddItemToObject(o, "error", e);
     }
@@ -135,7 +135,7 @@ static int fill(stream *s)
         s->started = 1;
         if (s->kind == SRV_STREAM_SSE) {
             api_buf_append(&s->pend, "retry: 2000\n", 12);
-            sse_json(&s->pend, "status", srv_job_json(j, NULL));
+            sse_json(&s->pend, "status", rest_job_json(j, NULL));
             return 1;
         }
     }
@@ -151,7 +151,7 @@ static int fill(stream *s)
              * next check of the clients. */
             if (s->pend.len > 0)
                 break;
-            srv_waiter_retry(&s->w);
+            rest_waiter_retry(&s->w);
             return 0;
         }
         if (n == 0)
@@ -185,7 +185,7 @@ static int fill(stream *s)
             free(t);
             cJSON_Delete(o);
         } else {
-            sse_json(&s->pend, "done", srv_job_json(j, NULL));
+            sse_json(&s->pend, "done", rest_job_json(j, NULL));
         }
         s->finished = 1;
         return 1;
@@ -206,16 +206,16 @@ static ssize_t reader(void *cls, uint64_t pos, char *buf, size_t max)
         if (s->finished)
             return MHD_CONTENT_READER_END_OF_STREAM;
         for (;;) {
-            srv_waiter_arm(&s->w);
-            if (srv_waiter_gone(&s->w))
+            rest_waiter_arm(&s->w);
+            if (rest_waiter_gone(&s->w))
                 /* The client left while the stream slept (found by
-                 * srv_http_check_clients): end it, freeing the
+                 * rest_http_check_clients): end it, freeing the
                  * connection. */
                 return MHD_CONTENT_READER_END_WITH_ERROR;
             if (fill(s))
                 break;
             /* Nothing new: sleep until the worker has more. */
-            if (srv_waiter_sleep(&s->w))
+            if (rest_waiter_sleep(&s->w))
                 return 0;
         }
         if (s->pend.len == 0)
@@ -233,16 +233,16 @@ static void release(void *cls)
 {
     stream *s = cls;
 
-    srv_waiter_stop(&s->w);
+    rest_waiter_stop(&s->w);
     svc_job_unref(s->job);
     api_buf_free(&s->pend);
     free(s);
 }
 
-struct MHD_Response *srv_stream_response(srv_rest *d, svc_job *j,
-                                         srv_stream_kind kind,
-                                         struct MHD_Connection *conn,
-                                         long last_id)
+struct MHD_Response *rest_stream_response(rest_t *d, svc_job *j,
+                                          rest_stream_kind kind,
+                                          struct MHD_Connection *conn,
+                                          long last_id)
 {
     struct MHD_Response *r;
     stream *s = calloc(1, sizeof *s);
@@ -253,7 +253,7 @@ struct MHD_Response *srv_stream_response(srv_rest *d, svc_job *j,
     s->kind = kind;
     s->last_id = last_id;
     api_buf_init(&s->pend, 0);
-    if (srv_waiter_start(&s->w, d, j, conn, 1, 0) != 0) {
+    if (rest_waiter_start(&s->w, d, j, conn, 1, 0) != 0) {
         svc_job_unref(s->job);
         free(s);
         return NULL;

@@ -26,7 +26,7 @@
 
 #define UI_CONFIG "/ui/config.json"
 
-int srv_ui_find(const char *path, const srv_asset **asset)
+int rest_ui_find(const char *path, const rest_asset **asset)
 {
     size_t i;
 
@@ -36,9 +36,9 @@ int srv_ui_find(const char *path, const srv_asset **asset)
     }
     if (strcmp(path, "/index.html") == 0)
         path = "/";
-    for (i = 0; i < srv_ui_nassets; i++)
-        if (strcmp(srv_ui_assets[i].path, path) == 0) {
-            *asset = &srv_ui_assets[i];
+    for (i = 0; i < rest_ui_nassets; i++)
+        if (strcmp(rest_ui_assets[i].path, path) == 0) {
+            *asset = &rest_ui_assets[i];
             return 1;
         }
     return 0;
@@ -69,7 +69,7 @@ static void page_headers(struct MHD_Response *resp)
     MHD_add_response_header(resp, "Cross-Origin-Opener-Policy", "same-origin");
 }
 
-static enum MHD_Result send_config(srv_request *r, struct MHD_Connection *c)
+static enum MHD_Result send_config(rest_request *r, struct MHD_Connection *c)
 {
     cJSON *o = cJSON_CreateObject();
     struct MHD_Response *resp;
@@ -79,15 +79,15 @@ static enum MHD_Result send_config(srv_request *r, struct MHD_Connection *c)
         cJSON_Delete(o);
         return MHD_NO;
     }
-    if (!(resp = srv_json_response(o, "application/json", 1)))
+    if (!(resp = rest_json_response(o, "application/json", 1)))
         return MHD_NO;
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
     page_headers(resp);
-    return srv_respond(r, c, 200, resp);
+    return rest_respond(r, c, 200, resp);
 }
 
-enum MHD_Result srv_ui_send(srv_request *r, struct MHD_Connection *c,
-                            const srv_asset *a)
+enum MHD_Result rest_ui_send(rest_request *r, struct MHD_Connection *c,
+                             const rest_asset *a)
 {
     const char *inm;
     struct MHD_Response *resp;
@@ -98,15 +98,15 @@ enum MHD_Result srv_ui_send(srv_request *r, struct MHD_Connection *c,
     inm = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                       MHD_HTTP_HEADER_IF_NONE_MATCH);
     fresh = etag_matches(inm, a->etag);
-    resp = fresh ? srv_empty_response()
+    resp = fresh ? rest_empty_response()
                  : MHD_create_response_from_buffer(a->len, (void *)(uintptr_t)a->data,
                                                    MHD_RESPMEM_PERSISTENT);
     if (!resp)
-        return srv_respond(r, c, 500, NULL);
+        return rest_respond(r, c, 500, NULL);
     MHD_add_response_header(resp, MHD_HTTP_HEADER_ETAG, a->etag);
     MHD_add_response_header(resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-cache");
     if (!fresh)
         MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, a->mime);
     page_headers(resp);
-    return srv_respond(r, c, fresh ? 304 : 200, resp);
+    return rest_respond(r, c, fresh ? 304 : 200, resp);
 }

@@ -8,7 +8,7 @@
 
 #include <stddef.h>
 
-struct srv_asset {
+struct rest_asset {
     const char *path;          /* "/" or "/ui/NAME" */
     const char *mime;          /* Content-Type */
     const char *etag;          /* "\"<16 hex of the SHA-256>\"" */
@@ -16,7 +16,7 @@ struct srv_asset {
     size_t len;
 };
 
-extern const struct srv_asset srv_ui_assets[];
-extern const size_t srv_ui_nassets;
+extern const struct rest_asset rest_ui_assets[];
+extern const size_t rest_ui_nassets;
 
 #endif /* SRV_UI_ASSETS_H */

@@ -81,7 +81,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
                                const char *transfer_encoding, const char *data,
                                uint64_t off, size_t size)
 {
-    srv_request *r = cls;
+    rest_request *r = cls;
     const srv_config *cfg = r->door->cfg;
     api_buf *dst = NULL;
     const char *limit_name = "--max-upload";
@@ -195,7 +195,7 @@ static enum MHD_Result on_part(void *cls, enum MHD_ValueKind kind,
     return MHD_YES;
 }
 
-void srv_upload_consume(srv_request *r, const char *data, size_t size)
+void rest_upload_consume(rest_request *r, const char *data, size_t size)
 {
     const srv_config *cfg = r->door->cfg;
 
@@ -237,7 +237,7 @@ void srv_upload_consume(srv_request *r, const char *data, size_t size)
 
 /* The head of POST /smooth, /v1/smooth or /v1/jobs: decide everything
  * from the headers. */
-enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
+enum MHD_Result rest_upload_begin(rest_request *r, struct MHD_Connection *c)
 {
     const srv_config *cfg = r->door->cfg;
     svc_error p;
@@ -245,20 +245,20 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
     char stream[32];
     unsigned long long n = 0;
 
-    h = srv_query_value(r, "stream", stream, sizeof stream);
+    h = rest_query_value(r, "stream", stream, sizeof stream);
     if (r->rt == RT_SMOOTH) {
         const char *acc = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                       MHD_HTTP_HEADER_ACCEPT);
         if (h && strcmp(h, "ndjson") != 0)
-            return srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'stream' must be "
-                                     "\"ndjson\", got \"%s\"", h);
+            return rest_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'stream' must be "
+                                      "\"ndjson\", got \"%s\"", h);
         r->md = h ? MODE_NDJSON
                   : (acc && strstr(acc, "multipart/mixed")) ? MODE_MIXED
                                                             : MODE_SYNC;
     } else {
         if (h)
-            return srv_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'stream' is only "
-                                     "for /smooth; follow /v1/jobs/ID/events instead");
+            return rest_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'stream' is only "
+                                      "for /smooth; follow /v1/jobs/ID/events instead");
         r->md = MODE_ASYNC;
     }
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
@@ -268,12 +268,12 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
         r->fields = cJSON_CreateArray();
         r->pp = MHD_create_post_processor(c, 64 * 1024, on_part, r);
         if (!r->pp || !r->fields)
-            return srv_send_problemf(r, c, SVC_P_INPUT_DECODE, "cannot parse the "
-                                     "multipart/form-data header '%s' (boundary?)", h);
+            return rest_send_problemf(r, c, SVC_P_INPUT_DECODE, "cannot parse the "
+                                      "multipart/form-data header '%s' (boundary?)", h);
     } else if (h && !raw_mesh_type(h)) {
-        return srv_send_problemf(r, c, SVC_P_INPUT_FORMAT, "Content-Type '%s' is not a mesh: "
-                                 "send multipart/form-data with a 'mesh' field, or the "
-                                 "mesh bytes as application/octet-stream or model/*", h);
+        return rest_send_problemf(r, c, SVC_P_INPUT_FORMAT, "Content-Type '%s' is not a mesh: "
+                                  "send multipart/form-data with a 'mesh' field, or the "
+                                  "mesh bytes as application/octet-stream or model/*", h);
     }
     h = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                     MHD_HTTP_HEADER_CONTENT_LENGTH);
@@ -292,7 +292,7 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
             else
                 svc_error_set(&p, SVC_P_INPUT_LIMIT, "Content-Length %llu exceeds "
                                 "the limit of %zu bytes (--max-upload)", n, lim);
-            return srv_send_problem(r, c, &p, NULL);
+            return rest_send_problem(r, c, &p, NULL);
         }
         if (errno != 0 || end == h)
             n = 0;
@@ -316,7 +316,7 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
     else
         return MHD_YES;
     if ((h && strncasecmp(h, "100-continue", 12) == 0) || big_body(c))
-        return srv_send_problem(r, c, &p, NULL);
+        return rest_send_problem(r, c, &p, NULL);
     r->perr = p;
     r->has_perr = r->perr_head = 1;
     return MHD_YES;
@@ -324,17 +324,19 @@ enum MHD_Result srv_upload_begin(srv_request *r, struct MHD_Connection *c)
 
 
 /* The job's parameters, parsed once here: the params field (JSON), then
- * the plain form fields, then the query string (svc_params_parse), and
- * the daemon's `fields` key. 0, or -1 and *e. */
-static int request_params(srv_request *r, svc_request *rq, svc_error *e)
+ * the plain form fields, then the query string (api_params_parse_request,
+ * as the gRPC door reaches api_params_set_json: the door calls the
+ * parser, not the service), and the daemon's `fields` key. 0, or -1 and
+ * *e. */
+static int request_params(rest_request *r, svc_request *rq, svc_error *e)
 {
-    const char *q = srv_query_of(r);
+    const char *q = rest_query_of(r);
     mcf_error err = {MCF_OK, ""};
     mcf_status st;
 
-    st = svc_params_parse(&rq->params, r->has_params ? (r->params.data ? r->params.data : "")
-                                                     : NULL,
-                          r->fields, q, svc_limits(r->door->svc), &err);
+    st = api_params_parse_request(&rq->params,
+                                  r->has_params ? (r->params.data ? r->params.data : "") : NULL,
+                                  r->fields, q, svc_query_keys, svc_limits(r->door->svc), &err);
     if (st != MCF_OK) {
         svc_error_from_mcf(e, st, API_JOB_PARAMS, NULL, &err);
         return -1;
@@ -343,7 +345,7 @@ static int request_params(srv_request *r, svc_request *rq, svc_error *e)
 }
 
 /* The body is complete: hand the job over. */
-enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
+enum MHD_Result rest_upload_submit(rest_request *r, struct MHD_Connection *c)
 {
     svc_request rq;
     svc_error e;
@@ -360,19 +362,19 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
         r->pp = NULL;
     }
     if (r->has_perr)
-        return srv_send_problem(r, c, &r->perr, NULL);
+        return rest_send_problem(r, c, &r->perr, NULL);
     if (r->multipart && !r->has_mesh)
-        return srv_send_problemf(r, c, SVC_P_INPUT_INVALID, "multipart field 'mesh' "
-                                 "is missing: send the mesh as -F mesh=@file");
+        return rest_send_problemf(r, c, SVC_P_INPUT_INVALID, "multipart field 'mesh' "
+                                  "is missing: send the mesh as -F mesh=@file");
     if (r->mesh.len == 0)
-        return srv_send_problemf(r, c, SVC_P_INPUT_INVALID, "the mesh is empty: send "
-                                 "it as the body or as multipart field 'mesh'");
+        return rest_send_problemf(r, c, SVC_P_INPUT_INVALID, "the mesh is empty: send "
+                                  "it as the body or as multipart field 'mesh'");
     srv_metrics_upload(r->mesh.len);
 
     svc_request_init(&rq);
     if (request_params(r, &rq, &e) != 0) {
         svc_request_free(&rq);
-        return srv_send_problem(r, c, &e, NULL);
+        return rest_send_problem(r, c, &e, NULL);
     }
     snprintf(rq.filename, sizeof rq.filename, "%s",
              r->filename[0] ? r->filename : "mesh");
@@ -383,25 +385,25 @@ enum MHD_Result srv_upload_submit(srv_request *r, struct MHD_Connection *c)
     rc = svc_submit(r->door->svc, &rq, &j, &e);
     svc_upload_release(r->door->svc, &r->mem_held);  /* the bytes are in the store, or gone */
     if (rc != 0)
-        return srv_send_problem(r, c, &e, NULL);
+        return rest_send_problem(r, c, &e, NULL);
     r->job = j;
     snprintf(r->id, sizeof r->id, "%s", svc_job_id(j));
     if (r->md == MODE_ASYNC) {
         struct MHD_Response *resp;
-        if (!(resp = srv_json_response(srv_job_json(j, NULL),
-                                       "application/json", 0)))
+        if (!(resp = rest_json_response(rest_job_json(j, NULL),
+                                        "application/json", 0)))
             return MHD_NO;
         snprintf(loc, sizeof loc, "/v1/jobs/%s", r->id);
         MHD_add_response_header(resp, MHD_HTTP_HEADER_LOCATION, loc);
         MHD_add_response_header(resp, "X-Job-Id", r->id);
-        return srv_respond(r, c, 202, resp);
+        return rest_respond(r, c, 202, resp);
     }
     r->sync_owner = r->md != MODE_NDJSON;
     /* Nobody else knows this job's ID yet: when this client goes, so does
      * the reason to run it. */
-    if (srv_waiter_start(&r->w, r->door, j, c, 0, 1) != 0)
-        return srv_send_problemf(r, c, SVC_P_NOMEM, "out of memory waiting "
-                                 "for job %s", r->id);
+    if (rest_waiter_start(&r->w, r->door, j, c, 0, 1) != 0)
+        return rest_send_problemf(r, c, SVC_P_NOMEM, "out of memory waiting "
+                                  "for job %s", r->id);
     r->waiting = 1;
-    return srv_wait_or_answer(r, c);
+    return rest_wait_or_answer(r, c);
 }

@@ -12,8 +12,8 @@
  * is left alone by MHD until it is resumed, which needs wait_mu: under it
  * a suspended waiter's socket is valid, and may be peeked at.
  *
- * No notification is lost: srv_waiter_arm clears `pending` before the
- * caller reads its snapshot, the callback sets it, and srv_waiter_sleep
+ * No notification is lost: rest_waiter_arm clears `pending` before the
+ * caller reads its snapshot, the callback sets it, and rest_waiter_sleep
  * suspends only while it is still clear (else the caller looks again).
  */
 #include <errno.h>
@@ -27,7 +27,7 @@
 /* The service's callback: service lock held. */
 static void on_notify(void *ctx, unsigned what)
 {
-    srv_waiter *w = ctx;
+    rest_waiter *w = ctx;
 
     (void)what;
     pthread_mutex_lock(&w->door->wait_mu);
@@ -39,9 +39,9 @@ static void on_notify(void *ctx, unsigned what)
     pthread_mutex_unlock(&w->door->wait_mu);
 }
 
-int srv_waiter_start(srv_waiter *w, srv_rest *d, svc_job *j,
-                     struct MHD_Connection *c, int want_events,
-                     int cancel_on_hangup)
+int rest_waiter_start(rest_waiter *w, rest_t *d, svc_job *j,
+                      struct MHD_Connection *c, int want_events,
+                      int cancel_on_hangup)
 {
     memset(w, 0, sizeof *w);
     w->door = d;
@@ -59,15 +59,15 @@ int srv_waiter_start(srv_waiter *w, srv_rest *d, svc_job *j,
     pthread_mutex_unlock(&d->wait_mu);
     if (svc_subscribe(j, want_events ? SVC_NOTIFY_PROGRESS : SVC_NOTIFY_STATE,
                       on_notify, w, &w->sub) != 0) {
-        srv_waiter_stop(w);
+        rest_waiter_stop(w);
         return -1;
     }
     return 0;
 }
 
-void srv_waiter_stop(srv_waiter *w)
+void rest_waiter_stop(rest_waiter *w)
 {
-    srv_rest *d = w->door;
+    rest_t *d = w->door;
 
     /* First the subscription: on_notify is not running on return. */
     svc_unsubscribe(w->sub);
@@ -89,14 +89,14 @@ void srv_waiter_stop(srv_waiter *w)
     pthread_mutex_unlock(&d->wait_mu);
 }
 
-void srv_waiter_arm(srv_waiter *w)
+void rest_waiter_arm(rest_waiter *w)
 {
     pthread_mutex_lock(&w->door->wait_mu);
     w->pending = 0;
     pthread_mutex_unlock(&w->door->wait_mu);
 }
 
-int srv_waiter_sleep(srv_waiter *w)
+int rest_waiter_sleep(rest_waiter *w)
 {
     int slept = 0;
 
@@ -110,14 +110,14 @@ int srv_waiter_sleep(srv_waiter *w)
     return slept;
 }
 
-void srv_waiter_retry(srv_waiter *w)
+void rest_waiter_retry(rest_waiter *w)
 {
     pthread_mutex_lock(&w->door->wait_mu);
     w->retry = 1;
     pthread_mutex_unlock(&w->door->wait_mu);
 }
 
-int srv_waiter_gone(srv_waiter *w)
+int rest_waiter_gone(rest_waiter *w)
 {
     int gone;
     pthread_mutex_lock(&w->door->wait_mu);
@@ -126,7 +126,7 @@ int srv_waiter_gone(srv_waiter *w)
     return gone;
 }
 
-int srv_waiter_followers(srv_rest *d)
+int rest_waiter_followers(rest_t *d)
 {
     int n;
     pthread_mutex_lock(&d->wait_mu);
@@ -153,11 +153,11 @@ static int client_gone(struct MHD_Connection *c)
                       errno != EINTR);
 }
 
-int srv_http_check_clients(srv_rest *d)
+int rest_http_check_clients(rest_t *d)
 {
     char (*ids)[SVC_ID_LEN + 1] = NULL;
     int n = 0, cap = 0, i, canceled = 0;
-    srv_waiter *w;
+    rest_waiter *w;
 
     pthread_mutex_lock(&d->wait_mu);
     for (w = d->waiters; w; w = w->next) {
@@ -169,7 +169,7 @@ int srv_http_check_clients(srv_rest *d)
              * job moves. */
             if (!w->gone && client_gone(w->conn))
                 w->gone = 1;
-            /* or one to read the store again (srv_waiter_retry) */
+            /* or one to read the store again (rest_waiter_retry) */
             if (w->gone || w->retry) {
                 w->retry = 0;
                 w->suspended = 0;

@@ -13,7 +13,7 @@
  *
  * How: the worker posix_spawn()s the daemon's own executable
  * (/proc/self/exe) in its hidden decode mode (`mcfd --sandbox-decode CPU
- * MEM MAXBYTES MAXV MAXF`, srv_sandbox_child), writes the bytes to its
+ * MEM MAXBYTES MAXV MAXF`, sandbox_child), writes the bytes to its
  * stdin and reads back a status, the detected format, a message and, on
  * success, the mesh and its attributes as api_mesh_pack's exact record.
  * The child closes every inherited descriptor above 2, sets RLIMIT_CPU
@@ -26,7 +26,7 @@
  * wait4 (whose rusage tells which limit it met). Both pipes are O_CLOEXEC
  * in the parent, so no other child inherits them.
  *
- * Limits per decode (srv_sandbox_limits_for, the CLI's rule too:
+ * Limits per decode (sandbox_limits_for, the CLI's rule too:
  * api_decode_bounds): CPU = --decode-cpu (2 s) plus 1 us per declared
  * face: libdraco decodes the 871k-face dragon in 0.19 s (0.22 us/face), so
  * a legitimate 10M-face stream needs about 2.2 s, under half of its
@@ -73,7 +73,7 @@ typedef struct {
 
 /* ------------------------------------------------------------------ child */
 
-int srv_sandbox_child(int argc, char **argv)
+int sandbox_child(int argc, char **argv)
 {
     double cpu;
     size_t mem, max_in, len = 0, cap;
@@ -161,14 +161,14 @@ int srv_sandbox_child(int argc, char **argv)
 
 /* ----------------------------------------------------------------- parent */
 
-void srv_sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
-                            size_t mem_floor, srv_sandbox_limits *out)
+void sandbox_limits_for(const api_mem_estimate *est, double cpu_floor,
+                        size_t mem_floor, sandbox_limits *out)
 {
     api_decode_bounds(est, cpu_floor, mem_floor, &out->cpu_s, &out->mem_bytes);
     out->wall_s = 10.0 * out->cpu_s + 5.0;
 }
 
-int srv_sandbox_wanted(const api_mem_estimate *est)
+int sandbox_wanted(const api_mem_estimate *est)
 {
     return est->draco;
 }
@@ -225,11 +225,11 @@ static int spawn_child(char *const argv[], const int in[2], const int res[2],
 /* Feeds buf to the child (fd_in, closed at the end: its EOF) while its
  * answer comes into rep (fd_res, closed at its EOF), until it is all in,
  * the job is canceled or the wall-clock deadline passes. Returns why it
- * stopped early (SRV_SANDBOX_OK: it did not); the descriptors still open
+ * stopped early (SANDBOX_OK: it did not); the descriptors still open
  * are the caller's. */
-static srv_sandbox_why exchange(int *fd_in, int *fd_res, const void *buf,
-                                size_t len, const mcf_cancel_flag *cancel,
-                                double deadline, api_buf *rep)
+static sandbox_why exchange(int *fd_in, int *fd_res, const void *buf,
+                            size_t len, const mcf_cancel_flag *cancel,
+                            double deadline, api_buf *rep)
 {
     size_t sent = 0;
 
@@ -246,11 +246,11 @@ static srv_sandbox_why exchange(int *fd_in, int *fd_res, const void *buf,
         }
         r = poll(p, (nfds_t)n, 50);
         if (r < 0 && errno != EINTR)
-            return SRV_SANDBOX_PROTOCOL;
+            return SANDBOX_PROTOCOL;
         if (cancel && atomic_load_explicit(cancel, memory_order_acquire))
-            return SRV_SANDBOX_CANCELED;
+            return SANDBOX_CANCELED;
         if (mono() > deadline)
-            return SRV_SANDBOX_WALL;
+            return SANDBOX_WALL;
         if (r <= 0)
             continue;
         if (n == 2 && (p[1].revents & (POLLOUT | POLLERR | POLLHUP))) {
@@ -266,14 +266,14 @@ static srv_sandbox_why exchange(int *fd_in, int *fd_res, const void *buf,
             char chunk[1 << 16];
             ssize_t got = read(*fd_res, chunk, sizeof chunk);
             if (got > 0 && api_buf_append(rep, chunk, (size_t)got) != MCF_OK)
-                return SRV_SANDBOX_PROTOCOL; /* more than any mesh needs */
+                return SANDBOX_PROTOCOL; /* more than any mesh needs */
             if (got == 0 || (got < 0 && errno != EAGAIN && errno != EINTR)) {
                 close(*fd_res);
                 *fd_res = -1;
             }
         }
     }
-    return SRV_SANDBOX_OK;
+    return SANDBOX_OK;
 }
 
 /* What the child's end says, once it was reaped (status, ru; killed: by
@@ -281,9 +281,9 @@ static srv_sandbox_why exchange(int *fd_in, int *fd_res, const void *buf,
  * not. */
 static mcf_status verdict(int status, const struct rusage *ru, int killed,
                           const api_buf *rep, const api_limits *lim,
-                          const srv_sandbox_limits *sl, mcf_mesh **out,
+                          const sandbox_limits *sl, mcf_mesh **out,
                           api_attrs **attrs, api_format *fmt,
-                          srv_sandbox_why *why, mcf_error *err)
+                          sandbox_why *why, mcf_error *err)
 {
     double cpu = (double)ru->ru_utime.tv_sec + 1e-6 * ru->ru_utime.tv_usec +
                  (double)ru->ru_stime.tv_sec + 1e-6 * ru->ru_stime.tv_usec;
@@ -292,7 +292,7 @@ static mcf_status verdict(int status, const struct rusage *ru, int killed,
     child_head h;
 
     if (!killed && (sig == SIGXCPU || (sig == SIGKILL && cpu >= sl->cpu_s))) {
-        *why = SRV_SANDBOX_CPU;
+        *why = SANDBOX_CPU;
         return mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
                              "than %.3g s of CPU to decode: refused", sl->cpu_s);
     }
@@ -303,7 +303,7 @@ static mcf_status verdict(int status, const struct rusage *ru, int killed,
             if (fmt)
                 *fmt = (api_format)h.format;
             if (h.status == MCF_ENOMEM) {
-                *why = SRV_SANDBOX_MEMORY;
+                *why = SANDBOX_MEMORY;
                 return mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs "
                                      "more than %.0f MiB to decode: refused",
                                      sl->mem_bytes / MIB);
@@ -319,12 +319,12 @@ static mcf_status verdict(int status, const struct rusage *ru, int killed,
     /* Died another way: an abort or a fault inside libdraco (a failed
      * allocation in code that cannot throw ends like this too). */
     if (sig && !killed && !API_SANITIZED && rss > 0.75 * (double)sl->mem_bytes) {
-        *why = SRV_SANDBOX_MEMORY;
+        *why = SANDBOX_MEMORY;
         return mcf_error_set(err, MCF_ELIMIT, "the Draco stream needs more "
                              "than %.0f MiB to decode: refused",
                              sl->mem_bytes / MIB);
     }
-    *why = SRV_SANDBOX_PROTOCOL;
+    *why = SANDBOX_PROTOCOL;
     if (sig)
         return mcf_error_set(err, MCF_EDECODE, "draco: the decoder process "
                              "died of signal %d (%s): refused", sig,
@@ -341,22 +341,22 @@ static void close_fd(int *fd)
     *fd = -1;
 }
 
-mcf_status srv_sandbox_decode(const void *buf, size_t len,
-                              const api_limits *lim,
-                              const srv_sandbox_limits *sl,
-                              const mcf_cancel_flag *cancel, mcf_mesh **out,
-                              api_attrs **attrs, api_format *fmt,
-                              srv_sandbox_why *why, mcf_error *err)
+mcf_status sandbox_decode(const void *buf, size_t len,
+                          const api_limits *lim,
+                          const sandbox_limits *sl,
+                          const mcf_cancel_flag *cancel, mcf_mesh **out,
+                          api_attrs **attrs, api_format *fmt,
+                          sandbox_why *why, mcf_error *err)
 {
     int in[2] = {-1, -1}, res[2] = {-1, -1}, status = 0, killed = 0;
     char a_cpu[32], a_mem[32], a_in[32], a_v[16], a_f[16];
-    char *argv[] = {"mcfd", SRV_SANDBOX_ARG, a_cpu, a_mem, a_in, a_v, a_f, NULL};
+    char *argv[] = {"mcfd", SANDBOX_ARG, a_cpu, a_mem, a_in, a_v, a_f, NULL};
     pid_t pid = -1;
     api_buf rep;
     struct rusage ru;
     mcf_status rc;
 
-    *why = SRV_SANDBOX_OK;
+    *why = SANDBOX_OK;
     api_buf_init(&rep, reply_max(lim));
     snprintf(a_cpu, sizeof a_cpu, "%.3f", sl->cpu_s);
     snprintf(a_mem, sizeof a_mem, "%zu", sl->mem_bytes);
@@ -383,9 +383,9 @@ mcf_status srv_sandbox_decode(const void *buf, size_t len,
     while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR)
         ;
     pid = -1;
-    if (*why == SRV_SANDBOX_CANCELED)
+    if (*why == SANDBOX_CANCELED)
         rc = mcf_error_set(err, MCF_ECANCELED, "canceled while decoding");
-    else if (*why == SRV_SANDBOX_WALL)
+    else if (*why == SANDBOX_WALL)
         rc = mcf_error_set(err, MCF_ELIMIT, "the Draco stream took more than "
                            "%.3g s of wall-clock time to decode: refused",
                            sl->wall_s);
@@ -408,26 +408,26 @@ out:
 
 /* -------------------------------------------------------------- job runner */
 
-mcf_status svc_decode_upload(const void *buf, size_t len,
-                             const svc_config *cfg,
-                             const mcf_cancel_flag *cancel, mcf_mesh **out,
-                             api_attrs **attrs, api_format *fmt,
-                             api_job_stage *stage, mcf_error *err)
+mcf_status sandbox_decode_upload(const void *buf, size_t len,
+                                 const svc_config *cfg,
+                                 const mcf_cancel_flag *cancel, mcf_mesh **out,
+                                 api_attrs **attrs, api_format *fmt,
+                                 api_job_stage *stage, mcf_error *err)
 {
     api_mem_estimate est;
-    srv_sandbox_limits sl;
-    srv_sandbox_why why;
+    sandbox_limits sl;
+    sandbox_why why;
     mcf_status rc;
 
     api_estimate_memory(buf, len, NULL, &est);
-    if (!srv_sandbox_wanted(&est))
+    if (!sandbox_wanted(&est))
         return api_mesh_decode_attrs(buf, len, &cfg->lim, out, attrs, fmt, err);
-    srv_sandbox_limits_for(&est, cfg->decode_cpu, cfg->decode_memory, &sl);
-    rc = srv_sandbox_decode(buf, len, &cfg->lim, &sl, cancel, out, attrs, fmt,
-                            &why, err);
+    sandbox_limits_for(&est, cfg->decode_cpu, cfg->decode_memory, &sl);
+    rc = sandbox_decode(buf, len, &cfg->lim, &sl, cancel, out, attrs, fmt,
+                        &why, err);
     /* A limit met is the input's cost, not its size: 422, not 413. */
-    if (why == SRV_SANDBOX_CPU || why == SRV_SANDBOX_MEMORY ||
-        why == SRV_SANDBOX_WALL)
+    if (why == SANDBOX_CPU || why == SANDBOX_MEMORY ||
+        why == SANDBOX_WALL)
         *stage = API_JOB_RUN;
     return rc;
 }

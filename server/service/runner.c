@@ -72,8 +72,8 @@ static mcf_status hook_decode(void *ctx, const char *part, const void *buf,
     mcf_status rc;
 
     (void)lim;
-    while ((rc = svc_decode_upload(buf, len, &c->svc->cfg, &c->job->cancel,
-                                   out, attrs, fmt, stage, err)) == MCF_ENOMEM &&
+    while ((rc = sandbox_decode_upload(buf, len, &c->svc->cfg, &c->job->cancel,
+                                       out, attrs, fmt, stage, err)) == MCF_ENOMEM &&
            strcmp(part, "mesh") == 0 &&
            svc__retry(c->job, &c->tries, ENOMEM, "decoding", 0))
         ;

@@ -591,11 +591,11 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
     pthread_condattr_destroy(&ca);
     svc_admit_init(s);
     s->store = cfg->store[0]
-                   ? svc_redis_open(cfg->store, cfg->store_password_file,
-                                    cfg->blob_dir, cfg->workers,
-                                    cfg->result_ttl + cfg->job_timeout + 3600,
-                                    cfg->redis_allow_eviction, msg, msgsize)
-                   : svc_spool_open(cfg->spool, msg, msgsize);
+                   ? store_redis_open(cfg->store, cfg->store_password_file,
+                                      cfg->blob_dir, cfg->workers,
+                                      cfg->result_ttl + cfg->job_timeout + 3600,
+                                      cfg->redis_allow_eviction, msg, msgsize)
+                   : store_spool_open(cfg->spool, msg, msgsize);
     if (!s->store ||
         svc__recover(s, msg, msgsize) != 0 ||
         svc__workers_start(s, msg, msgsize) != 0 ||

@@ -21,7 +21,7 @@
  *   svc_shared.c a store shared by replicas: jobs loaded from it and
  *               refreshed, progress followed, cancels passed on
  *   svc_admit.c memory admission
- *   svc_error.c the table of problems
+ *   svc_error.c the columns of the table of problems (problem.h)
  *   spool.c     the local store (store.h)
  *
  * Locking (the lock order, outermost first):

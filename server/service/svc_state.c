@@ -61,28 +61,7 @@ static void add_num(cJSON *o, const char *key, double v)
 
 /* -------------------------------------------------- a request's parameters */
 
-mcf_status svc_params_parse(api_params *p, const char *params_json,
-                            const cJSON *fields, const char *query,
-                            const api_limits *lim, mcf_error *err)
-{
-    static const char *const ignore[] = {"stream", "fields", NULL};
-    mcf_status rc = MCF_OK;
-    const cJSON *f;
-
-    if (params_json &&
-        (rc = api_params_parse_json(p, params_json, strlen(params_json), lim,
-                                    err)) != MCF_OK)
-        return rc;
-    cJSON_ArrayForEach(f, fields) {
-        const char *k = cJSON_GetStringValue(cJSON_GetArrayItem(f, 0));
-        const char *v = cJSON_GetStringValue(cJSON_GetArrayItem(f, 1));
-        if (k && v && (rc = api_params_set(p, k, v, lim, err)) != MCF_OK)
-            return rc;
-    }
-    if (query && query[0])
-        rc = api_params_parse_query(p, query, ignore, lim, err);
-    return rc;
-}
+const char *const svc_query_keys[] = {"stream", "fields", NULL};
 
 int svc_query_fields(const char *query, int *on, svc_error *err)
 {
@@ -162,8 +141,8 @@ int svc__request_load(svc_job *j, const cJSON *o, const api_limits *lim)
     double mem = num_of(o, "memory_estimate");
 
     if (!cJSON_IsObject(o) ||
-        svc_params_parse(&j->params, params, cJSON_IsArray(fields) ? fields : NULL,
-                         query, lim, &err) != MCF_OK ||
+        api_params_parse_request(&j->params, params, cJSON_IsArray(fields) ? fields : NULL,
+                                 query, svc_query_keys, lim, &err) != MCF_OK ||
         svc_query_fields(query, &j->keep_fields, &e) != 0)
         return -1;
     snprintf(j->filename, sizeof j->filename, "%s", fn ? fn : "mesh");

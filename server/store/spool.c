@@ -681,7 +681,7 @@ static const svc_store_ops spool_ops = {
     0,                             /* one process */
 };
 
-svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize)
+svc_store *store_spool_open(const char *dir, char *msg, size_t msgsize)
 {
     spool *sp;
 

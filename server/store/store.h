@@ -187,7 +187,7 @@ struct svc_store {
 
 /* The local spool (spool.c): a directory per job under dir/jobs, made when
  * missing. NULL with a one-line reason in msg when dir cannot be used. */
-svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize);
+svc_store *store_spool_open(const char *dir, char *msg, size_t msgsize);
 
 /* The store in Redis (store_redis.c, rstore.h says its keys and
  * semantics): url redis://HOST[:PORT][/DB], the password read from
@@ -197,8 +197,8 @@ svc_store *svc_spool_open(const char *dir, char *msg, size_t msgsize);
  * (rstore.h). A server whose maxmemory-policy may evict keys is refused
  * unless allow_eviction; what its settings mean for the jobs (eviction,
  * what a restart loses) is logged. NULL with a one-line reason in msg. */
-svc_store *svc_redis_open(const char *url, const char *password_file,
-                          const char *blob_dir, int workers, double ttl,
-                          int allow_eviction, char *msg, size_t msgsize);
+svc_store *store_redis_open(const char *url, const char *password_file,
+                            const char *blob_dir, int workers, double ttl,
+                            int allow_eviction, char *msg, size_t msgsize);
 
 #endif /* SVC_STORE_H */

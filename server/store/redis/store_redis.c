@@ -296,9 +296,9 @@ static const svc_store_ops redis_ops = {
     1,                             /* shared by replicas */
 };
 
-svc_store *svc_redis_open(const char *url, const char *password_file,
-                          const char *blob_dir, int workers, double ttl,
-                          int allow_eviction, char *msg, size_t msgsize)
+svc_store *store_redis_open(const char *url, const char *password_file,
+                            const char *blob_dir, int workers, double ttl,
+                            int allow_eviction, char *msg, size_t msgsize)
 {
     rds_config rc;
     rstore_config cfg;
