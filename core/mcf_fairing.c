@@ -833,7 +833,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     st->robust = p->fairing_robust && p->iterations <= 0;
     if (st->robust && (rc = repair_spikes(X, F, nf, nv, fixed, hbar, st, &Xs, &ci.exact, err)) != MCF_OK)
         return rc;
-    ce.exact = ci.exact;
+    ce.exact = cn.exact = ci.exact;
     const double *Xf = Xs ? Xs : X;
     /* the request's input's face normals: the fold guard judges the
      * output against them too (the repair turns the faces at a spike; the
@@ -845,7 +845,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     }
     if (fn_orig)
         mcf__face_normals(X, F, nf, fn_orig);
-    ci.fn_orig = ce.fn_orig = fn_orig;
+    ci.fn_orig = ce.fn_orig = cn.fn_orig = fn_orig;
     rc = filter_run(&ci, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
     size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + (Xs ? 3 * sizeof(double) * ((size_t)nv + (size_t)nf) : 0);
     /* the default request's `fairing` (fairing_pick) with the automatic
