@@ -1016,7 +1016,7 @@ static void test_crease_smoothing(void **state)
     double *M = malloc(sizeof(double) * NP * NP), *T = malloc(sizeof(double) * NP * NP);
     assert_true(X && Xp && fixed && crease && chains && M && T);
     memcpy(X, X0, sizeof(double) * 3 * (size_t)nv);
-    assert_int_equal(mcf__creases(&g, F, nf, nv, fixed, X, crease, chains), 252);
+    assert_int_equal(mcf__creases(&g, F, nf, nv, fixed, X, crease, chains, NULL), 252);
     for (int i = 0; i < 3 * nv; i++)
         assert_true(fabs(X[i] - X0[i]) <= 1e-15);
     for (int x = 0; x <= 32; x++) /* the edge's vertices by x */
