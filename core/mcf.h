@@ -124,7 +124,8 @@ typedef struct {
     double bbox_min[3], bbox_max[3];
 } mcf_mesh_info;
 
-/* Fills info. Cost O(nf log nf). Fails only on allocation (ENOMEM). */
+/* Fills info. Cost linear in the mesh (bucket sorts by vertex). Fails only
+ * on allocation (ENOMEM). */
 mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
                             mcf_error *err);
 

@@ -474,5 +474,10 @@ double mcf__key_double(uint64_t u);
  * 0 for n = 0. Linear time on any data but an adversarial order, which
  * falls back to sorting (mcf_sort.c) */
 double mcf__median(double *v, size_t n);
+/* Percentile q in [0, 1] of v[0..n) (finite values; v is reordered),
+ * linear between the order statistics at q (n - 1) (the "type 7" rule of
+ * R and NumPy's default), exactly as from a sorted copy; 0 for n = 0.
+ * Linear time as mcf__median (mcf_sort.c) */
+double mcf__percentile(double *v, size_t n, double q);
 
 #endif /* MCF_INTERNAL_H */
