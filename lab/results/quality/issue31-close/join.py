@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """join.py OUT.csv NEW1.csv [NEW2.csv ...]: the new runs' default rows, and the stored
 anchors (issue31-before/quality.csv: every method but default) for the cases the new
 runs have; one CSV for bench_quality --tables-from."""
