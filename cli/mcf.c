@@ -99,8 +99,9 @@ static const char smooth_tail[] =
     "  --metrics FILE.json   write the metrics document (the daemon's /v1/jobs/ID/metrics)\n"
     "  --progress            progress on stderr when it is not a terminal: one line per\n"
     "                        10% of the work (the flow's steps; the filter's phases,\n"
-    "                        steps and passes) with the time elapsed and an estimate\n"
-    "                        of the time left (on a terminal the bar is always shown)\n"
+    "                        steps and passes) and one when a phase of the filter ends,\n"
+    "                        with the time elapsed and an estimate of the time left\n"
+    "                        (on a terminal the bar is always shown)\n"
     "  --quiet               no progress bar and no summary line (warnings still print)\n"
     "  --threads N           threads of the fairing filters' passes (default: the\n"
     "                        online cores); the result is one thread's bit for bit\n"
@@ -189,6 +190,7 @@ typedef struct {
     int drawn;
     int next_tenth;       /* plain lines: the next 10% to report */
     int step;             /* the last step the flow reported */
+    char phase[16];       /* plain lines: the last phase printed */
 } progress_state;
 
 static void on_work(progress_state *ps, const char *phase, double frac)
@@ -206,13 +208,18 @@ static void on_work(progress_state *ps, const char *phase, double frac)
     if (frac >= 0.02 && frac < 1)
         snprintf(left, sizeof left, ", about %.0f s left", ceil(el * (1 - frac) / frac));
     if (!ps->bar) {
-        /* One plain line per 10% reached (a log or a pipe, not a terminal). */
-        if (frac * 10 + 1e-9 >= ps->next_tenth && ps->next_tenth <= 10) {
-            int tenth = (int)(frac * 10 + 1e-9);
-            fprintf(stderr, "mcf: %3d%%  %s, step %d  %.1f s elapsed%s\n", tenth * 10,
-                    phase, ps->step, el, left);
+        /* Plain lines (a log or a pipe, not a terminal): one per 10%
+         * reached and one when a phase of the filter first ends, so that
+         * a run whose plan shrinks (nothing to remove: no steps) still
+         * shows what it did. The share is the core's, never decreasing. */
+        int tenth = (int)(frac * 10 + 1e-9);
+        if ((tenth >= ps->next_tenth && ps->next_tenth <= 10) || strcmp(phase, ps->phase)) {
+            fprintf(stderr, "mcf: %3d%%  %s, step %d  %.1f s elapsed%s\n",
+                    (int)(frac * 100 + 1e-9), phase, ps->step, el, left);
             fflush(stderr);
-            ps->next_tenth = tenth + 1;
+            if (tenth >= ps->next_tenth)
+                ps->next_tenth = tenth + 1;
+            snprintf(ps->phase, sizeof ps->phase, "%s", phase);
         }
         return;
     }

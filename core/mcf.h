@@ -124,7 +124,8 @@ typedef struct {
     double bbox_min[3], bbox_max[3];
 } mcf_mesh_info;
 
-/* Fills info. Cost O(nf log nf). Fails only on allocation (ENOMEM). */
+/* Fills info. Cost linear in the mesh (bucket sorts by vertex). Fails only
+ * on allocation (ENOMEM). */
 mcf_status mcf_mesh_inspect(const mcf_mesh *m, mcf_mesh_info *info,
                             mcf_error *err);
 
@@ -278,7 +279,9 @@ typedef int (*mcf_progress_fn)(void *ctx, int step, double t, double dt,
  * pick, the output). The share is the core's estimate from the phases'
  * measured costs (mcf_fairing.c), for a progress line and an estimate of
  * the time left; phase is a static string naming what just ended
- * ("setup", "noise", "factor", "probes", "steps", "passes", "output"). Cancel with
+ * ("spikes", "graph", "creases", "setup", "noise", "factor", "probes",
+ * "steps", "passes", "output"; the long ones, the creases and the noise
+ * reading, also after their own stages, under the same name). Cancel with
  * mcf_flow_params.cancel. */
 typedef void (*mcf_work_fn)(void *ctx, const char *phase, double done);
 

@@ -23,7 +23,12 @@ enum { NPROBE = 6, NCOL = 3 + NPROBE };
  * trace 1.77e5 of sum w 1.74e6): the mean's relative standard error (the
  * probes' spread) 0.14% with six probes, 0.17% with three; times 2 s^2,
  * 0.17% and 0.21% of SURE at K*. The output's error moved from 0.32399 to
- * 0.32398 of the input's, for 29% less CPU (31.6 -> 22.5 s user). */
+ * 0.32398 of the input's, for 29% less CPU (31.6 -> 22.5 s user). Two
+ * probes there (2026-11-28, the same mesh, `mcf smooth --threads 1`,
+ * interleaved): the same K* (40) and kept iterates, combination weights
+ * moved by up to 4%, error 0.32419 -> 0.32448 of the input's (+0.09%),
+ * task-clock 24.16 -> 23.49 s (-2.8%): not taken, the passes' cost is
+ * mostly their 3 position columns and the graph, not the probes'. */
 #define PROBES_FEW_ABOVE 1000000
 enum { NPROBE_FEW = 3 };
 /* the least gain of SURE over the input, in its standard errors

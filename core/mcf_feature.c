@@ -41,17 +41,24 @@
 
 #include "mcf_internal.h"
 
+static int imin3(int a, int b, int c)
+{
+    int m = a < b ? a : b;
+    return m < c ? m : c;
+}
+
 /* the probe step, in noise levels (above) */
 #define FD_STEP 0.3
 
 struct mcf__bnf {
     int nv, nf;
     const int32_t *F;
-    int *fptr, *fadj;       /* faces sharing a vertex with face f: fadj[fptr[f] .. fptr[f+1]) */
+    int *fptr, *fadj;       /* the faces g > f sharing a vertex with face f:
+                               fadj[fptr[f] .. fptr[f+1]); each pair once */
     int *vdeg;              /* faces at each vertex */
     double sigma_s;         /* mean distance of neighbouring centroids (input) */
     double *n, *m, *c, *a;  /* 3nf, 3nf, 3nf, nf */
-    double *ws;             /* fptr[nf]: the spatial weights */
+    double *ws;             /* fptr[nf]: the spatial kernel Ws(|c_f - c_g|) of each pair */
     double *d;              /* 3nv */
 };
 
@@ -136,7 +143,7 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
             for (int k = 0; k < 3; k++) {
                 int v = F[3 * (size_t)f + k];
                 for (int t = vp[v]; t < vp[v + 1]; t++)
-                    if (mark[vf[t]] != f) {
+                    if (vf[t] > f && mark[vf[t]] != f) {
                         mark[vf[t]] = f;
                         if (pass)
                             b->fadj[q] = vf[t];
@@ -192,13 +199,12 @@ void mcf__bnf_start(mcf__bnf *b, const double *X)
 {
     double is2 = b->sigma_s > 0.0 ? 1.0 / (2.0 * b->sigma_s * b->sigma_s) : 0.0;
     face_geometry(b, X, b->n, b->c, b->a);
-    /* the spatial weights A_j Ws(|c_i - c_j|), the same every iteration */
+    /* the spatial kernel of each pair, the same every iteration */
     for (int f = 0; f < b->nf; f++)
         for (int t = b->fptr[f]; t < b->fptr[f + 1]; t++) {
-            int g = b->fadj[t];
             double d[3];
-            mcf__sub3(b->c + 3 * (size_t)f, b->c + 3 * (size_t)g, d);
-            b->ws[t] = b->a[g] * exp(-mcf__dot3(d, d) * is2);
+            mcf__sub3(b->c + 3 * (size_t)f, b->c + 3 * (size_t)b->fadj[t], d);
+            b->ws[t] = exp(-mcf__dot3(d, d) * is2);
         }
 }
 
@@ -206,20 +212,30 @@ const double *mcf__bnf_normals(mcf__bnf *b, double sigma_r, int nit)
 {
     double ir2 = 1.0 / (2.0 * sigma_r * sigma_r);
     for (int it = 0; it < nit; it++) {
+        /* the sums into m: each pair's kernel Ws Wr (symmetric) once, on
+         * both of its faces, each weighted by the other's area */
+        for (int f = 0; f < b->nf; f++)
+            for (int e = 0; e < 3; e++)
+                b->m[3 * (size_t)f + e] = b->a[f] * b->n[3 * (size_t)f + e];
         for (int f = 0; f < b->nf; f++) {
             const double *nf_ = b->n + 3 * (size_t)f;
-            double s[3] = {b->a[f] * nf_[0], b->a[f] * nf_[1], b->a[f] * nf_[2]};
+            double *sf = b->m + 3 * (size_t)f, af = b->a[f];
             for (int t = b->fptr[f]; t < b->fptr[f + 1]; t++) {
-                const double *ng = b->n + 3 * (size_t)b->fadj[t];
-                double d[3];
+                size_t g = (size_t)b->fadj[t];
+                const double *ng = b->n + 3 * g;
+                double d[3], *sg = b->m + 3 * g;
                 mcf__sub3(nf_, ng, d);
-                double wt = b->ws[t] * exp(-mcf__dot3(d, d) * ir2);
-                for (int e = 0; e < 3; e++)
-                    s[e] += wt * ng[e];
+                double wt = b->ws[t] * exp(-mcf__dot3(d, d) * ir2), wf = wt * b->a[g], wg = wt * af;
+                for (int e = 0; e < 3; e++) {
+                    sf[e] += wf * ng[e];
+                    sg[e] += wg * nf_[e];
+                }
             }
-            double l = sqrt(mcf__dot3(s, s));
+        }
+        for (int f = 0; f < b->nf; f++) {
+            double *sf = b->m + 3 * (size_t)f, l = sqrt(mcf__dot3(sf, sf));
             for (int e = 0; e < 3; e++)
-                b->m[3 * (size_t)f + e] = l > 0.0 ? s[e] / l : nf_[e];
+                sf[e] = l > 0.0 ? sf[e] / l : b->n[3 * (size_t)f + e];
         }
         double *t = b->n;
         b->n = b->m;
@@ -280,6 +296,10 @@ static const int NIT[] = {5, 12, 30};
 static const int VIT[] = {5, 12, 30};
 enum { NSIG = sizeof SIGMA_R / sizeof SIGMA_R[0], NNIT = sizeof NIT / sizeof NIT[0],
        NVIT = sizeof VIT / sizeof VIT[0], NCAND = NSIG * NNIT * NVIT, NPROBE_F = 2 };
+/* the pilot, the candidate whose result gives the reference normals m:
+ * the widest kernel, these iterations (normal iterations within NIT's
+ * range) */
+enum { PILOT_NIT = 15, PILOT_VIT = 20 };
 /* the noise level read from the residuals (below): within [1/S_RANGE,
  * S_RANGE] of the frame's reading */
 #define S_RANGE 2.0
@@ -476,8 +496,8 @@ static int least_sure(const cand_sums *cs, double sumw, double s)
     return k;
 }
 
-mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
-                        const mcf__feature_frame *fr, double *Yout, mcf__feature_pick *pick, mcf_error *err)
+static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                              const mcf__feature_frame *fr, double *Yout, mcf__feature_pick *pick, mcf_error *err)
 {
     int nfree = fr->nfree, nin = 1 + NPROBE_F;
     double s = fr->s, eps = FD_STEP * s, sumw = 0.0;
@@ -506,8 +526,23 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
     if (!(s > 0.0) || nfree == 0 || fr->nprobe < NPROBE_F)
         goto done;
     /* the reference normals m: those of a strongly smoothing candidate's
-     * result (the widest range kernel) */
-    mcf__bnf_run(b, X, fixed, SIGMA_R[NSIG - 1], 15, 20, Yp);
+     * result (the widest range kernel, PILOT_NIT + PILOT_VIT iterations),
+     * its normals read on the way to the widest kernel's candidates' on X
+     * (into their slots of Nk; the pilot's in a slot the probes fill
+     * later) */
+    double *pilot_n = Nk + ((size_t)(NNIT - 1) * nin + 1) * nf3;
+    mcf__bnf_start(b, X);
+    for (int ni = 0, done = 0; ni < NNIT; ni++) {
+        if (done < PILOT_NIT && PILOT_NIT <= NIT[ni]) {
+            memcpy(pilot_n, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], PILOT_NIT - done), nf3 * sizeof(double));
+            done = PILOT_NIT;
+        }
+        memcpy(Nk + (size_t)ni * nin * nf3, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], NIT[ni] - done),
+               nf3 * sizeof(double));
+        done = NIT[ni];
+    }
+    memcpy(Yp, X, n3 * sizeof(double));
+    mcf__bnf_vertices(b, pilot_n, fixed, PILOT_VIT, Yp);
     mcf__vertex_normals(Yp, F, nf, nv, m);
     pilot_weights(fr, Yp, F, nf, nv, wp, ap);
     /* the inputs: X, and X + eps z_q m for the probes z_q */
@@ -522,9 +557,11 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
                     x[3 * i + e] += eps * z * m[3 * i + e];
             }
     }
-    /* every candidate's sums, the results read on the way */
-    for (int si = 0; si < NSIG; si++) {
-        for (int q = 0; q < nin; q++) {
+    /* every candidate's sums, the results read on the way; the widest
+     * kernel first (its normals on X are in Nk), the narrowest last (its
+     * normals on X stay in Nk for the result) */
+    for (int si = NSIG - 1; si >= 0; si--) {
+        for (int q = si == NSIG - 1; q < nin; q++) {
             mcf__bnf_start(b, Xp + (size_t)q * n3);
             for (int ni = 0; ni < NNIT; ni++)
                 memcpy(Nk + ((size_t)ni * nin + q) * nf3,
@@ -563,7 +600,12 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
     pick->div = cs[k].div_f;
     pick->vdiv = cs[k].vdiv_f;
     pick->risk = cs[k].sr2_f - s2 * sumw + 2.0 * s2 * cs[k].div_f;
-    mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
+    if (k / (NNIT * NVIT) == 0) { /* the narrowest kernel: its normals on X are in Nk */
+        memcpy(Yout, X, n3 * sizeof(double));
+        mcf__bnf_vertices(b, Nk + (size_t)((k / NVIT) % NNIT) * nin * nf3, fixed, pick->vertex_iters, Yout);
+    } else {
+        mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
+    }
     residuals(fr, fr->w, Yout, X, m, rbest);
     /* against the linear fairing's result (or the input): its SURE along
      * the same normals m, its trace from the same probes, at the same
@@ -595,6 +637,137 @@ done:
     free(wp);
     free(ap);
     free(cs);
+    return rc;
+}
+
+/* ------------------------------------------------------------ locality */
+
+/* A vertex order in which neighbours lie close (breadth-first over the
+ * faces, each component from its least vertex): new[i] the new index of
+ * vertex i; and the faces sorted by their first vertex in it: fo[k] the
+ * face at position k. The filter's sums gather and scatter over the
+ * faces sharing a vertex; in a mesh's own order those lie anywhere
+ * (couplingdown_sub2.obj, a subdivided mesh: vertices of one face a
+ * median 11,763 indices apart), and perf showed the stage waiting on
+ * those loads (the two instructions reading a neighbour's normal and
+ * adding into it took 54% of mcf__bnf_normals' samples). */
+static int locality_order(const int32_t *F, int nf, int nv, int *neu, int *fo)
+{
+    int *vp = mcf__calloc((size_t)nv + 2, sizeof(int)), *vf = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
+    int *queue = mcf__malloc((size_t)nv + 1, sizeof(int)), *key = mcf__calloc((size_t)nv + 2, sizeof(int));
+    if (!vp || !vf || !queue || !key) {
+        free(vp);
+        free(vf);
+        free(queue);
+        free(key);
+        return -1;
+    }
+    for (size_t q = 0; q < 3 * (size_t)nf; q++)
+        vp[F[q] + 2]++;
+    for (int i = 0; i < nv; i++)
+        vp[i + 2] += vp[i + 1];
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            vf[vp[F[3 * (size_t)f + k] + 1]++] = f;
+    /* vp[i] .. vp[i + 1]: the faces at vertex i */
+    for (int i = 0; i < nv; i++)
+        neu[i] = -1;
+    int n = 0;
+    for (int r = 0; r < nv; r++) {
+        if (neu[r] >= 0)
+            continue;
+        int head = n;
+        neu[r] = n;
+        queue[n++] = r;
+        while (head < n) {
+            int v = queue[head++];
+            for (int t = vp[v]; t < vp[v + 1]; t++)
+                for (int k = 0; k < 3; k++) {
+                    int u = F[3 * (size_t)vf[t] + k];
+                    if (neu[u] < 0) {
+                        neu[u] = n;
+                        queue[n++] = u;
+                    }
+                }
+        }
+    }
+    /* the faces by the least new index of their corners (counting sort) */
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        key[imin3(neu[t[0]], neu[t[1]], neu[t[2]]) + 1]++;
+    }
+    for (int i = 0; i < nv; i++)
+        key[i + 1] += key[i];
+    for (int f = 0; f < nf; f++) {
+        const int32_t *t = F + 3 * (size_t)f;
+        fo[key[imin3(neu[t[0]], neu[t[1]], neu[t[2]])]++] = f;
+    }
+    free(vp);
+    free(vf);
+    free(queue);
+    free(key);
+    return 0;
+}
+
+mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
+                        const mcf__feature_frame *fr, double *Yout, mcf__feature_pick *pick, mcf_error *err)
+{
+    /* the stage on the mesh renumbered for locality (locality_order):
+     * the same sums in other orders */
+    size_t n3 = 3 * (size_t)nv;
+    int *neu = mcf__malloc((size_t)nv + 1, sizeof(int)), *fo = mcf__malloc((size_t)nf + 1, sizeof(int));
+    int *vert = mcf__malloc((size_t)fr->nfree + 1, sizeof(int));
+    int32_t *Fp = mcf__malloc(3 * (size_t)nf + 1, sizeof(int32_t));
+    unsigned char *fx = fixed ? mcf__malloc((size_t)nv + 1, 1) : NULL;
+    double *Xp = mcf__malloc(n3 + 1, sizeof(double)), *Yp = mcf__malloc(n3 + 1, sizeof(double));
+    double *w = mcf__malloc((size_t)nv + 1, sizeof(double));
+    double *Yl = fr->Ylin ? mcf__malloc(2 * n3 + 1, sizeof(double)) : NULL;
+    mcf_status rc;
+    if (!neu || !fo || !vert || !Fp || (fixed && !fx) || !Xp || !Yp || !w || (fr->Ylin && !Yl) ||
+        locality_order(F, nf, nv, neu, fo) != 0) {
+        rc = mcf__fail(err, MCF_ENOMEM, "feature filter: out of memory (%d vertices)", nv);
+        memset(pick, 0, sizeof *pick);
+        goto done;
+    }
+    mcf__feature_frame fp = *fr;
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            Fp[3 * (size_t)f + k] = neu[F[3 * (size_t)fo[f] + k]];
+    for (int i = 0; i < nv; i++) {
+        size_t j = (size_t)neu[i];
+        memcpy(Xp + 3 * j, X + 3 * (size_t)i, 3 * sizeof(double));
+        memcpy(Yp + 3 * j, Yout + 3 * (size_t)i, 3 * sizeof(double)); /* untouched when nothing to filter */
+        w[j] = fr->w[i];
+        if (fx)
+            fx[j] = fixed[i];
+        if (Yl) {
+            memcpy(Yl + 3 * j, fr->Ylin + 3 * (size_t)i, 3 * sizeof(double));
+            memcpy(Yl + n3 + 3 * j, fr->X0 + 3 * (size_t)i, 3 * sizeof(double));
+        }
+    }
+    for (int k = 0; k < fr->nfree; k++)
+        vert[k] = neu[fr->vert[k]];
+    fp.vert = vert;
+    fp.w = w;
+    fp.Ylin = Yl;
+    fp.X0 = Yl ? Yl + n3 : NULL;
+    rc = feature_run(Xp, Fp, nf, nv, fx, &fp, Yp, pick, err);
+    if (rc == MCF_OK) {
+        for (int i = 0; i < nv; i++)
+            memcpy(Yout + 3 * (size_t)i, Yp + 3 * (size_t)neu[i], 3 * sizeof(double));
+        pick->bytes += sizeof(int) * (2 * (size_t)nv + (size_t)nf + (size_t)fr->nfree + 3 * (size_t)nf) + (size_t)nv +
+                       sizeof(double) * (3 * n3 + (size_t)nv);
+    }
+done:
+    free(neu);
+    free(fo);
+    free(vert);
+    free(Fp);
+    free(fx);
+    free(Xp);
+    free(Yp);
+    free(w);
+    free(Yl);
     return rc;
 }
 

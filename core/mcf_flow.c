@@ -153,9 +153,11 @@ mcf_status mcf_noise_estimate(const mcf_mesh *m, const mcf_flow_params *p, doubl
  * volume0/volume1's (mcf_mesh_volume's): about the input's origin, from
  * the positions mapped back as the run's end maps them. (The working
  * positions are centred on the input's area centroid, and on an open
- * mesh the signed volume depends on that choice.) */
+ * mesh the signed volume depends on that choice.) P: those positions,
+ * X / scale + cen, already mapped (the same values: one division per
+ * coordinate instead of one per face corner), or NULL. */
 static void log_step(flow_ctx *c, const double *X, int k, double t, double h, int rejected,
-                     double scale, const double cen[3], double maxdisp)
+                     double scale, const double cen[3], double maxdisp, const double *P)
 {
     mcf_flow_stats *st = c->st;
     if (!c->p->log_steps || !st->log)
@@ -167,8 +169,10 @@ static void log_step(flow_ctx *c, const double *X, int k, double t, double h, in
     for (int f = 0; f < c->nf; f++) {
         double p[3][3], e1[3], e2[3], n[3], bd[3];
         for (int q = 0; q < 3; q++)
-            for (int d = 0; d < 3; d++)
-                p[q][d] = X[3 * (size_t)c->F[3 * f + q] + d] / scale + cen[d];
+            for (int d = 0; d < 3; d++) {
+                size_t i = 3 * (size_t)c->F[3 * f + q] + (size_t)d;
+                p[q][d] = P ? P[i] : X[i] / scale + cen[d];
+            }
         mcf__sub3(p[1], p[0], e1);
         mcf__sub3(p[2], p[0], e2);
         mcf__cross3(e1, e2, n);
@@ -245,6 +249,7 @@ typedef struct {
     double scale;
     const double *cen;
     double *prev;   /* 3*nv: the positions after the last step */
+    double *units;  /* 3*nv: this step's in input units (the log's) */
 } fair_hook;
 
 static int fairing_hook(void *ctx, int k, const double *X)
@@ -254,18 +259,29 @@ static int fairing_hook(void *ctx, int k, const double *X)
     const mcf_flow_params *p = c->p;
     if (!X)
         return p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire);
-    if (p->log_steps && c->st->log && k <= c->st->t_target) {
+    int logged = p->log_steps && c->st->log && k <= c->st->t_target;
+    if (logged) {
+        /* one sweep: the largest move, the positions kept for the next
+         * step's, and mapped to input units for the log's sums */
         double maxd = 0.0;
         for (size_t i = 0; i < (size_t)c->nv; i++) {
             double d[3];
             mcf__sub3(X + 3 * i, h->prev + 3 * i, d);
             maxd = fmax(maxd, mcf__dot3(d, d));
+            for (int e = 0; e < 3; e++) {
+                h->prev[3 * i + e] = X[3 * i + e];
+                h->units[3 * i + e] = X[3 * i + e] / h->scale + h->cen[e];
+            }
         }
-        memcpy(h->prev, X, 3 * sizeof(double) * (size_t)c->nv);
-        log_step(c, X, k - 1, k, 1.0, 0, h->scale, h->cen, sqrt(maxd));
+        log_step(c, X, k - 1, k, 1.0, 0, h->scale, h->cen, sqrt(maxd), h->units);
     }
-    return p->progress &&
-           p->progress(p->progress_ctx, k, k, 1.0, mcf__area_volume(X, c->F, c->nf, NULL, NULL) / (h->scale * h->scale));
+    if (!p->progress)
+        return 0;
+    /* the energy, the area in input units: the log's when it has this
+     * step (the same sum, in input units as it adds it), else one sweep */
+    double area = logged ? c->st->log[k - 1].area
+                         : mcf__area_volume(X, c->F, c->nf, NULL, NULL) / (h->scale * h->scale);
+    return p->progress(p->progress_ctx, k, k, 1.0, area);
 }
 
 /* mcf_flow_run for the fairing filters, from the normalized positions on:
@@ -275,7 +291,7 @@ static mcf_status run_fairing(flow_ctx *c, const mcf_mesh *m, double scale, cons
 {
     const mcf_flow_params *p = c->p;
     mcf_flow_stats *st = c->st;
-    fair_hook h = {c, scale, cen, NULL};
+    fair_hook h = {c, scale, cen, NULL, NULL};
     mcf_status rc = fixed_set(m, p, c->fixed, err);
     if (rc != MCF_OK)
         return rc;
@@ -288,8 +304,10 @@ static mcf_status run_fairing(flow_ctx *c, const mcf_mesh *m, double scale, cons
             cap = p->max_steps;
         st->log = mcf__calloc((size_t)cap, sizeof *st->log);
         h.prev = mcf__malloc(3 * (size_t)c->nv, sizeof(double));
-        if (!st->log || !h.prev) {
+        h.units = mcf__malloc(3 * (size_t)c->nv, sizeof(double));
+        if (!st->log || !h.prev || !h.units) {
             free(h.prev);
+            free(h.units);
             return mcf__fail(err, MCF_ENOMEM, "flow: out of memory for the step log");
         }
         memcpy(h.prev, c->X, 3 * sizeof(double) * (size_t)c->nv);
@@ -297,6 +315,7 @@ static mcf_status run_fairing(flow_ctx *c, const mcf_mesh *m, double scale, cons
     rc = mcf__fairing(c->X, c->F, c->nf, c->nv, c->fixed, p, hbar, st, fairing_hook, &h, err);
     c->bytes += st->peak_bytes;
     free(h.prev);
+    free(h.units);
     return rc;
 }
 
@@ -488,11 +507,20 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
  * errors in stiff modes that follow the slow ones (an O(h) lag the
  * third difference does not see), and the error at T came out 1.8-2.9
  * tol with the whole tol (spot, strength 0.5, tol 1e-5 and 1e-6). With
- * 0.3, measured on the repository's meshes and spot (lab/README.md,
- * "Adaptive stepping"). */
+ * 0.3, measured on the repository's meshes and spot (docs/numerics.md,
+ * "What tol means"). */
 #define ADAPT_SAFETY 0.3
 /* The share of that budget stiff events may take beyond it (adapt). */
 #define ADAPT_EVENTS 0.1
+/* The share of it desbrun2's first step may take, however short. The
+ * start is a first-order desbrun step whose filtered estimate falls only
+ * like h^1.3 on a scan (spot, tol 1e-4: est/allowed per unit step 4.0,
+ * 3.0, 2.3, 1.8, 1.5, 1.2, 1.0, 0.94 as h fell from T to T/190, 7
+ * rejections at 3 factorizations each), while the BDF2 steps that follow
+ * meet the budget per unit step at twice that size. Below ADAPT_START
+ * T the start is controlled per step against that share of the budget,
+ * so it no longer shrinks below what the second-order steps need. */
+#define ADAPT_START 0.1
 
 /* The adaptive verdict on the step just taken (rc, its estimate est, the
  * faces it folded): 1 accepted, with *h_next; 0 rejected, c->X restored
@@ -526,13 +554,27 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
      * test_adaptive, tol 1e-5: 12x tol in 338 steps where 128 fixed
      * steps are as accurate); desbrun per unit step needs ~1/tol
      * steps. */
-    int per_unit = p->scheme == MCF_DESBRUN2;
+    int start = p->scheme == MCF_DESBRUN2 && r->hist.nhist == 0;
+    int per_unit = p->scheme == MCF_DESBRUN2 && !start;
     int milne = per_unit && r->hist.nhist >= 2;
     int q = milne ? 2 : 1;
     int need_est = !(p->scheme == MCF_DESBRUN2 && r->hist.nhist == 1);
-    double allowed = per_unit ? ADAPT_SAFETY * p->tol * h / T : p->tol;
+    double allowed = per_unit ? ADAPT_SAFETY * p->tol * h / T
+                              : start ? ADAPT_SAFETY * p->tol * fmax(h / T, ADAPT_START) : p->tol;
     double ratio = need_est && est > 0.0 ? allowed / est : 1e3;
-    double fac = 0.9 * pow(ratio, per_unit ? 1.0 / q : 1.0 / (q + 1));
+    /* est/allowed ~ h^a with a = q per unit step, q + 1 per step */
+    double a = per_unit ? q : q + 1;
+    /* After a rejection at this t the fall measured between the two
+     * tries replaces the assumed one when it is slower (a step of the
+     * scheme's own estimate, between 1/4 and the assumed order): the
+     * first step's estimate falls like h^1.3 on spot, where h^2 took
+     * 4-7 rejections */
+    if (r->rejected_here > 0 && r->last_ratio > 0.0 && h < r->last_h && est > 0.0) {
+        double seen = log(r->last_ratio * allowed / est) / log(r->last_h / h);
+        if (isfinite(seen))
+            a = fmin(a, fmax(0.25, seen));
+    }
+    double fac = 0.9 * pow(ratio, 1.0 / a);
     double fold_rate = r->t > 0.0 ? r->folds_total / r->t : 0.0;
     int folds = inv > r->fold_budget && inv > 4.0 * fold_rate * h;
     int over = need_est && est > allowed;
@@ -614,7 +656,7 @@ static void accept_step(flow_ctx *c, run_plan *r, double h_next)
             mcf__sub3(c->X + 3 * i, c->Xprev + 3 * i, d);
             maxd = fmax(maxd, mcf__dot3(d, d));
         }
-        log_step(c, c->X, r->k, r->t, r->hist.h1, r->rejected_here, r->scale, r->cen, sqrt(maxd));
+        log_step(c, c->X, r->k, r->t, r->hist.h1, r->rejected_here, r->scale, r->cen, sqrt(maxd), NULL);
     }
     r->rejected_here = 0;
     r->in_step = 0;
@@ -655,7 +697,12 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
             if (++attempts > p->max_steps)
                 return mcf__fail(err, MCF_ELIMIT, "adaptive: max_steps (%d attempts, %d accepted) reached at t = %g of %g; raise max_steps or tol",
                                  p->max_steps, r->k, r->t, r->T);
-            if (r->t + r->h > r->T || r->T - (r->t + r->h) < 1e-9 * r->h)
+            /* a step that would leave less than a tenth of itself
+             * takes the rest: 10% more than the controller asked adds at
+             * most 1.1^2 x 0.9^2 = 0.98 of the allowed error, where a
+             * last sliver of a step costs a factorization (spot, tol
+             * 1e-4: a last step of 0.0017 T after one of 0.156 T) */
+            if (r->t + r->h > r->T || r->T - (r->t + r->h) < 0.1 * r->h)
                 r->h = r->T - r->t;
         }
         c->step_solve_s = 0.0;

@@ -162,6 +162,22 @@ void mcf__graph_average(const mcf__graph *g, const double *v, int ncol, double *
 void mcf__graph_taubin(const mcf__graph *g, const unsigned char *fixed, double *X, int ncol,
                        int passes, double *tmp, int nthreads, double *cpu_s);
 
+/* ---- milestones inside a phase (the fairing's share of work, mcf_work_fn)
+ * A long phase (the creases, the noise reading) calls fn(ctx, phase, f)
+ * after each of its own stages, f in [0, 1] its share of that phase done
+ * and never decreasing; the caller maps it into the run's share. A NULL
+ * tick reports nothing. */
+typedef struct {
+    void (*fn)(void *ctx, const char *phase, double f);
+    void *ctx;
+} mcf__tick;
+
+static inline void mcf__ticked(const mcf__tick *t, const char *phase, double f)
+{
+    if (t && t->fn)
+        t->fn(t->ctx, phase, f);
+}
+
 /* ---- the noise level (mcf_auto.c)
  * The standard deviation sigma (X's units) of Gaussian noise along the
  * normals of X: the second-order high-pass of X along the normals of 10
@@ -199,10 +215,11 @@ typedef struct {
     double direction[3];
     double corr, corr_noise;
 } mcf__noise_shape;
-/* g: the graph of F when the caller has it (NULL: built here) */
+/* g: the graph of F when the caller has it (NULL: built here); tick (may
+ * be NULL) hears its stages end ("noise") */
 mcf_status mcf__noise_levels(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
                              const unsigned char *fixed, double *sigma, double *sigma_t,
-                             mcf__noise_shape *shape, mcf_error *err);
+                             mcf__noise_shape *shape, const mcf__tick *tick, mcf_error *err);
 
 /* ---- the automatic amount (mcf_auto.c)
  * The time t_best that minimizes SURE for K frozen implicit steps from X
@@ -343,9 +360,10 @@ int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned ch
  * in X by 3 Taubin passes on the chain alone, across it only; corners and
  * chain ends stay (the fairing's guard puts a crease vertex back where its
  * smoothing folded a face). Returns the number of crease vertices, -1 when out of
- * memory. */
+ * memory. tick (may be NULL) hears the stages end ("creases"). */
 int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
-                 const unsigned char *fixed, double *X, unsigned char *crease);
+                 const unsigned char *fixed, double *X, unsigned char *crease,
+                 const mcf__tick *tick);
 
 /* ---- folds (mcf_folds.c)
  * A face a run folded: its normal turned against the same face's normal
@@ -456,5 +474,10 @@ double mcf__key_double(uint64_t u);
  * 0 for n = 0. Linear time on any data but an adversarial order, which
  * falls back to sorting (mcf_sort.c) */
 double mcf__median(double *v, size_t n);
+/* Percentile q in [0, 1] of v[0..n) (finite values; v is reordered),
+ * linear between the order statistics at q (n - 1) (the "type 7" rule of
+ * R and NumPy's default), exactly as from a sorted copy; 0 for n = 0.
+ * Linear time as mcf__median (mcf_sort.c) */
+double mcf__percentile(double *v, size_t n, double q);
 
 #endif /* MCF_INTERNAL_H */

@@ -166,9 +166,9 @@ static void uf_union(int32_t *p, int32_t a, int32_t b)
     }
 }
 
-/* The two sorts of mcf_mesh_inspect, by radix (mcf__radix_sort_u64) on
- * the key with the position as payload, then a gather: qsort took most of
- * an inspection. Both arrays are made in face order, so the stable sort by
+/* The two sorts of mcf_mesh_inspect when bucket_sort (below) has no
+ * scratch: by radix (mcf__radix_sort_u64) on the key with the position as
+ * payload, then a gather: qsort took most of an inspection. Both arrays are made in face order, so the stable sort by
  * key gives the order of the comparators above (key, then face), and
  * those serve as the fallback when the scratch cannot be had (or a face
  * key does not fit in 64 bits: more than 2^21 vertices).
@@ -202,8 +202,67 @@ static void sort_by_key(void *base, size_t n, size_t sz, uint64_t *k,
     free(out);
 }
 
-static void sort_half_edges(half_edge *he, size_t n)
+/* Sorts the n records of sz (at most 16) bytes at base by cmp, whose
+ * first criterion is the vertex lead() gives (< nv): a counting sort by
+ * it (stable), then each vertex's bucket, a few records on a mesh, by
+ * insertion (qsort past 32 records: a vertex of high degree). Both
+ * comparators are total orders, so the result is theirs, as the radix
+ * sort's was, in two passes over the records instead of six or more (and
+ * instead of qsort on a face key over 2^21 vertices: the 7M scan). 0 when
+ * the scratch cannot be had (the caller sorts otherwise). */
+static int bucket_sort(void *base, size_t n, size_t sz, size_t nv,
+                       uint32_t (*lead)(const void *),
+                       int (*cmp)(const void *, const void *))
 {
+    size_t *start = mcf__calloc(nv + 1, sizeof *start);
+    unsigned char *out = start ? mcf__malloc(n ? n : 1, sz) : NULL, *b = base, t[16];
+    size_t i, j;
+
+    if (!out || sz > sizeof t) {
+        free(start);
+        free(out);
+        return 0;
+    }
+    for (i = 0; i < n; i++)
+        start[lead(b + i * sz) + 1]++;
+    for (i = 0; i < nv; i++)
+        start[i + 1] += start[i];
+    for (i = 0; i < n; i++)
+        memcpy(out + start[lead(b + i * sz)]++ * sz, b + i * sz, sz);
+    /* start[v] is now bucket v's end, bucket v - 1's the start */
+    for (size_t v = 0, lo = 0; v < nv; lo = start[v++]) {
+        size_t hi = start[v];
+        if (hi - lo > 32) {
+            qsort(out + lo * sz, hi - lo, sz, cmp);
+            continue;
+        }
+        for (i = lo + 1; i < hi; i++) {
+            memcpy(t, out + i * sz, sz);
+            for (j = i; j > lo && cmp(out + (j - 1) * sz, t) > 0; j--)
+                memcpy(out + j * sz, out + (j - 1) * sz, sz);
+            memcpy(out + j * sz, t, sz);
+        }
+    }
+    memcpy(b, out, n * sz);
+    free(start);
+    free(out);
+    return 1;
+}
+
+static uint32_t half_edge_lead(const void *p)
+{
+    return (uint32_t)(((const half_edge *)p)->key >> 32);
+}
+
+static uint32_t face_key_lead(const void *p)
+{
+    return (uint32_t)((const face_key *)p)->v[0];
+}
+
+static void sort_half_edges(half_edge *he, size_t n, size_t nv)
+{
+    if (bucket_sort(he, n, sizeof *he, nv, half_edge_lead, half_edge_cmp))
+        return;
     uint64_t *k = n <= UINT32_MAX ? mcf__malloc(2 * n, sizeof *k) : NULL;
 
     for (size_t i = 0; k && i < n; i++)
@@ -213,6 +272,8 @@ static void sort_half_edges(half_edge *he, size_t n)
 
 static void sort_face_keys(face_key *fk, size_t n, size_t nv)
 {
+    if (bucket_sort(fk, n, sizeof *fk, nv, face_key_lead, face_key_cmp))
+        return;
     uint64_t *k = nv <= (size_t)1 << 21 && n <= UINT32_MAX
                       ? mcf__malloc(2 * n, sizeof *k) : NULL;
 
@@ -376,7 +437,7 @@ static void inspect_edges(const mcf_mesh *m, inspect_scratch *s, mcf_mesh_info *
                     uf_union(s->cuf, (int32_t)(3 * f + k), (int32_t)(3 * f + j));
     for (i = 0; i < nv; i++)
         s->vuf[i] = (int32_t)i;
-    sort_half_edges(s->he, nh);
+    sort_half_edges(s->he, nh, (size_t)m->nv);
     r->min_edge = HUGE_VAL;
     r->max_edge = 0;
     for (i = 0; i < nh; i = j) {

@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * mcf_sort.c - the radix sort behind mesh inspection and the curvature
- * summary: 64-bit keys (edge keys u << 32 | v, packed face keys, doubles
+ * summary where their bucket sorts by vertex cannot serve (no scratch;
+ * non-finite curvatures): 64-bit keys (edge keys u << 32 | v, packed face keys, doubles
  * mapped to order-preserving integers), with an optional 32-bit payload.
  *
  * Inspection and the curvature summary sort every edge, every face and
@@ -14,8 +15,10 @@
  * (the two middle order statistics a sort would put there, in linear
  * time; the noise estimate and the spike repair take medians of every
  * vertex's value: with qsort 9% of the default request's CPU on a 1.74M
- * scan, issue 27).
+ * scan, issue 27); mcf__percentile the same for a percentile (the
+ * curvature summary's).
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -169,4 +172,23 @@ double mcf__median(double *v, size_t n)
         if (v[i] > a)
             a = v[i];
     return 0.5 * (a + v[h]);
+}
+
+double mcf__percentile(double *v, size_t n, double q)
+{
+    if (n == 0)
+        return 0.0;
+    double pos = q * (double)(n - 1), fl = floor(pos);
+    size_t lo = (size_t)fl;
+    if (lo + 1 >= n)
+        lo = n - 1;
+    select_kth(v, n, lo);
+    if (lo + 1 >= n)
+        return v[lo];
+    /* the next order statistic: the least of those after v[lo] */
+    double b = v[lo + 1];
+    for (size_t i = lo + 2; i < n; i++)
+        if (v[i] < b)
+            b = v[i];
+    return v[lo] + (pos - fl) * (b - v[lo]);
 }

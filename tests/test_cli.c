@@ -719,6 +719,54 @@ static void test_warnings_on_stderr(void **state)
     tl_run_free(&r);
 }
 
+/* The fairing default's plain progress lines (r: mcf smooth --progress
+ * off a terminal), "mcf: P%  PHASE, step K  E s elapsed[, about L s
+ * left]": each of the filter's phases reported (the spike repair, the
+ * graph, the creases, the set-up, the noise reading, the probes or the
+ * factorization; its steps when `steps`; the output at 100% last), the
+ * shares and the times never decreasing, at least 5 lines, the time left
+ * once a share is done. Before the core reported its phases' own
+ * milestones the clean sphere printed 4 (setup, noise, probes, output). */
+static void progress_phases(const tl_run_result *r, int steps)
+{
+    static const char *const phase[] = {"spikes", "graph", "creases", "setup", "noise", "output"};
+    int n = 0, last = -1, k;
+    double tlast = -1.0;
+    const char *s = r->err;
+    assert_int_equal(r->status, 0);
+    assert_null(strchr(r->err, '\r'));
+    while (s && *s) {
+        const char *nl = strchr(s, '\n');
+        int pct, step;
+        double el;
+        char name[16];
+        if (sscanf(s, "mcf: %d%%  %15[a-z], step %d  %lf s elapsed", &pct, name, &step, &el) == 4) {
+            if (pct < last || el < tlast || pct > 100)
+                fail_msg("--progress: share or time decreased at '%.*s':\n%s",
+                         (int)(nl ? nl - s : (long)strlen(s)), s, r->err);
+            last = pct;
+            tlast = el;
+            n++;
+        }
+        s = nl ? nl + 1 : NULL;
+    }
+    for (k = 0; k < 6; k++) {
+        char want[32];
+        snprintf(want, sizeof want, "%%  %s, step ", phase[k]);
+        if (!strstr(r->err, want))
+            fail_msg("--progress: no phase '%s':\n%s", phase[k], r->err);
+    }
+    if (!strstr(r->err, "%  probes, step ") && !strstr(r->err, "%  factor, step "))
+        fail_msg("--progress: no probes nor factorization:\n%s", r->err);
+    if (steps && !strstr(r->err, "%  steps, step ") && !strstr(r->err, "%  passes, step "))
+        fail_msg("--progress: no steps:\n%s", r->err);
+    assert_int_equal(lines_starting(r->err, "mcf: 100%  output, step "), 1);
+    assert_int_equal(last, 100);
+    if (n < 5)
+        fail_msg("--progress: %d lines:\n%s", n, r->err);
+    assert_non_null(strstr(r->err, " s left\n"));
+}
+
 /* Off a terminal (the harness captures stderr in a file): no progress
  * unless --progress, then one plain line per 10% (10 equal steps: 10
  * lines, 10% to 100%), then the summary; --quiet: nothing. */
@@ -753,19 +801,15 @@ static void test_progress_lines(void **state)
     assert_int_equal(r.errlen, 0);
     tl_run_free(&r);
 
-    /* the fairing default: its phases (the set-up, the noise reading, the
-     * output last), each line with the time elapsed; the time left once
-     * a share is done */
+    /* the fairing default on the clean sphere (nothing to remove: no
+     * steps, the run's plan shrinks after the noise reading) and on the
+     * noisy knot (steps): progress_phases */
     r = tl_run("smooth", tl_sphere(), "p.obj", "--progress", NULL);
-    assert_int_equal(r.status, 0);
-    for (k = 0; k < 3; k++) {
-        static const char *const phase[] = {"setup, step", "noise, step", "output, step"};
-        if (!strstr(r.err, phase[k]))
-            fail_msg("--progress: no phase '%s':\n%s", phase[k], r.err);
-    }
-    assert_int_equal(lines_starting(r.err, "mcf: 100%  output, step "), 1);
-    assert_true(lines_starting(r.err, "mcf: ") >= 5);
-    assert_non_null(strstr(r.err, " s left\n"));
+    progress_phases(&r, 0);
+    tl_run_free(&r);
+    r = tl_run("smooth", tl_write_noisy("knot1.obj", 0.3, 7, tl_in_scratch("knot_noisy.obj")), "p.obj",
+               "--progress", NULL);
+    progress_phases(&r, 1);
     tl_run_free(&r);
 }
 

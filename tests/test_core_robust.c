@@ -504,7 +504,7 @@ static void test_view_reading(void **state)
                 double s_med = 0.0, s_t = 0.0;
                 mcf__noise_shape shape = {0};
                 mcf_error err = {0};
-                assert_int_equal(mcf__noise_levels(NULL, X, F, nf, nv, NULL, &s_med, &s_t, &shape, &err), MCF_OK);
+                assert_int_equal(mcf__noise_levels(NULL, X, F, nf, nv, NULL, &s_med, &s_t, &shape, NULL, &err), MCF_OK);
                 double ref = share_reference(X, F, nf, nv);
                 print_message("%-20s %s %.2f: share %.4f (reference %.4f), rms / median reading %.3f; along u %.3f "
                               "of rho h, normal part %.3f, tangential %.3f of the truth\n",

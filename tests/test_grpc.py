@@ -525,7 +525,9 @@ def test_cancelled_call_frees_its_worker():
         t0 = time.time()
         g = smooth(d, mesh("sphere_cgal.obj"), dict(iterations=3))
         took = time.time() - t0
-        assert len(g.progress) == 3 and took < 5, took
+        # a worker still held by the cancelled run would hold the next job
+        # for minutes (LONG): 60 s tells the two apart on a loaded machine
+        assert len(g.progress) == 3 and took < 60, took
         assert d.rest_json("/v1/jobs/" + jid)["status"] == "canceled"
         print("    cancelled Smooth: the next job finished %.2f s later on the one worker" % took)
         d.stop()
@@ -857,7 +859,7 @@ def test_corrupt_message_is_not_the_end_of_the_upload():
             e = expect_rpc_error(lambda: call(msgs), grpc.StatusCode.INVALID_ARGUMENT,
                                  "message %d of the upload is not a SmoothRequest" % n)
             assert trailing(e, "mcf-code") == "EINVAL", e.trailing_metadata()
-            assert time.time() - t0 < 5
+            assert time.time() - t0 < 9      # refused, not left to the 10 s deadline
         print("    junk %s: INVALID_ARGUMENT %r" % (name, e.details()[:60]))
     # an unknown field (number 127, varint) in every message is skipped
     unk = b"\xf8\x07\x01"

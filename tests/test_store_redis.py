@@ -181,12 +181,19 @@ def test_redis_down_while_a_job_runs():
         jid = submit(d, "scheme=desbrun2&iterations=10")   # about 1.5 s
         wait_status(d, jid, "running", 30)
         redis_kill()
-        time.sleep(4)                        # it ends meanwhile: writes wait
+        # Redis stays down until the run has tried to write and is waiting
+        # (its log says "; try "): 4 s of sleep was not always enough under
+        # ASan on a loaded machine; 120 s is a guard against a hang
+        end = time.time() + 120
+        while True:
+            with open(d.logpath, "rb") as f:
+                if b"; try " in f.read():
+                    break
+            assert time.time() < end, "no write waited for Redis in 120 s"
+            time.sleep(0.2)
         redis_start()
         wait_status(d, jid, "succeeded", 90)
         result_of(d, jid)
-        with open(d.logpath, "rb") as f:     # its writes waited for Redis
-            assert b"; try " in f.read()
     finally:
         d.stop()
 
