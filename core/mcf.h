@@ -379,8 +379,11 @@ typedef struct {
                                  and take back the faces without area in
                                  the input that the output turned against
                                  the filtered normals
-                                 (mcf_flow_stats.flips_repaired); the
-                                 default request's */
+                                 (mcf_flow_stats.flips_repaired); where it
+                                 found creases, run the filter again with
+                                 none held and take that run when SURE says
+                                 so (crease_vertices then 0); the default
+                                 request's */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */

@@ -61,6 +61,10 @@
  * input's error; 1: 0.852, 0.831, 0.900); the box of test_creases_kept
  * and the shared scans change by less than 1% */
 #define CREASE_MAX_MOVE 1.0
+/* the step of crease_divergence's finite difference, in noise levels:
+ * the chains' smoothing is linear but for the move bound and the
+ * tangent's direction, so a small step reads its slope */
+#define CREASE_FD_STEP 0.01
 /* the relative standard error of the noise level's square, times
  * sqrt(n): the estimate is a ratio of two medians of |high-pass| over
  * about n = nfree vertices, each with a relative standard error of
@@ -126,6 +130,7 @@ static void fair_free(fair_ctx *c)
     free(c->Yt);
     free(c->Xin);
     free(c->crease);
+    free(c->chains);
     free(c->fx);
     free(c->vert);
     free(c->fid);
@@ -222,7 +227,12 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
     work_span span = {c, AT(c, AT_GRAPH), AT(c, AT_CREASES)};
     mcf__tick tick = {span_tick, &span};
-    int ncrease = crease && c->Xin ? mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease, &tick) : -1;
+    c->chains = mcf__calloc((size_t)c->g.ptr[nv] + 1, 1);
+    c->bytes += (size_t)c->g.ptr[nv];
+    int ncrease = -1;
+    if (crease && c->Xin && c->chains)
+        ncrease = c->no_creases ? 0
+                                : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease, c->chains, &tick);
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;
@@ -260,12 +270,20 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     return MCF_OK;
 }
 
+/* Rademacher probes; a second run (c->like) takes the first run's on the
+ * vertices both move, so that the difference of their traces is read
+ * with little spread, and draws the rest past the first run's indices. */
 static void init_probes(fair_ctx *c)
 {
+    const fair_share *l = c->like;
     for (int q = 0; q < c->nprobe; q++)
-        for (int k = 0; k < c->nfree; k++)
+        for (int k = 0; k < c->nfree; k++) {
+            int j = l ? l->fid[c->vert[k]] : -1;
+            uint64_t idx = l ? (uint64_t)l->nfree + (uint64_t)k : (uint64_t)k;
             c->probe[(size_t)q * c->nfree + k] =
-                (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + (uint64_t)k + 1) >> 63) ? 1.0 : -1.0;
+                j >= 0 ? l->probe[(size_t)q * l->nfree + (size_t)j]
+                       : (mcf__mix64((uint64_t)q * 0x9e3779b97f4a7c15ULL + idx + 1) >> 63) ? 1.0 : -1.0;
+        }
 }
 
 /* ----------------------------------------------------- implicit engine */
@@ -496,7 +514,13 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->cap = 0; /* no linear steps: the noise level, weights and probes
                        for the feature stage (mcf__fair_feature) */
     c->s = c->s_t = 0.0;
-    if (c->sure) {
+    if (c->sure && c->like) { /* the same levels as the run compared with */
+        c->s = c->like->s;
+        c->s_t = c->like->s_t;
+        c->s2_rel = c->like->s2_rel;
+        if (!(c->s > 0.0) || c->nfree == 0)
+            c->cap = 0;
+    } else if (c->sure) {
         double s_est = 0.0, s_t = 0.0, s;
         mcf__noise_shape shape = {0};
         int robust = p->fairing_robust && !(p->noise_sigma > 0.0);
@@ -550,6 +574,9 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->s2_rel = p->noise_sigma > 0.0 || c->nfree == 0 ? 0.0
                     : S2_REL_SQRT_N / sqrt((double)c->nfree);
     }
+    c->share.s = c->s;
+    c->share.s_t = c->s_t;
+    c->share.s2_rel = c->s2_rel;
     st->t_target = c->cap;
     return MCF_OK;
 }
@@ -738,9 +765,49 @@ static mcf_status filter_run(fair_ctx *c, const double *X, const int32_t *F, int
     return rc;
 }
 
-/* The explicit run's figures into st when it won (its SURE curve, amount,
- * combination); its curve freed when it lost. */
-static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won)
+/* Each probe's estimate of the divergence SURE needs at the crease
+ * vertices of run c (held; n: the same filter with none): their output,
+ * the input smoothed along its chains (mcf__creases) with moves bounded
+ * by CREASE_MAX_MOVE noise levels, differentiated along the input's
+ * normals by a finite difference of CREASE_FD_STEP noise levels with n's
+ * probe on those vertices, weighted by n's weights, into kdiv. A fixed
+ * value would not do: three Taubin passes along an endless chain have a
+ * diagonal of 0.48, a chain's ends 1, and the bound cuts a long move; on
+ * the box of test_creases_kept at noise 0.5 (seed 2) a divergence of 1
+ * dropped its creases for 0.97x Taubin's oracle (0.93x held), one of 0.5
+ * kept the false creases of bunny_npm_closed at 0.25 (error 1.06x the
+ * dropped ones'). The chains are those found on the input (the step
+ * would move a few edges across the detection's 40 degrees). 0 when out
+ * of memory (the run keeps its creases). */
+static int crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsigned char *fixed, double kdiv[NPROBE])
+{
+    size_t nv3 = 3 * (size_t)c->nv;
+    double *Xp = mcf__malloc(2 * nv3, sizeof(double)), *ref = Xp + nv3, h = CREASE_FD_STEP * c->s;
+    int ok = Xp != NULL;
+    for (int q = 0; ok && q < c->nprobe; q++) {
+        memcpy(Xp, c->Xin, nv3 * sizeof(double));
+        for (int i = 0; i < c->nv; i++)
+            if (c->crease[i])
+                for (int e = 0; e < 3; e++)
+                    Xp[3 * (size_t)i + e] += h * n->probe[(size_t)q * n->nfree + n->fid[i]] * n->n0[3 * (size_t)i + e];
+        memcpy(ref, Xp, nv3 * sizeof(double));
+        ok = mcf__creases_smooth(&c->g, c->nv, fixed, c->chains, Xp) == 0;
+        mcf__fair_clamp_from(c, ref, Xp, CREASE_MAX_MOVE * c->s, c->crease);
+        kdiv[q] = 0.0;
+        for (int i = 0; ok && i < c->nv; i++)
+            if (c->crease[i]) {
+                double d[3], z = n->probe[(size_t)q * n->nfree + n->fid[i]];
+                mcf__sub3(Xp + 3 * (size_t)i, c->X0 + 3 * (size_t)i, d);
+                kdiv[q] += n->w[i] * z * mcf__dot3(d, n->n0 + 3 * (size_t)i) / h;
+            }
+    }
+    free(Xp);
+    return ok;
+}
+
+/* A second run's figures (se) into st when it won (its SURE curve,
+ * amount, combination); its curve freed when it lost. */
+static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won, int is_explicit)
 {
     st->time_solve += se->time_solve;
     if (!won) {
@@ -754,7 +821,7 @@ static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won)
     st->ncomb = se->ncomb;
     memcpy(st->comb_steps, se->comb_steps, sizeof st->comb_steps);
     memcpy(st->comb_weight, se->comb_weight, sizeof st->comb_weight);
-    st->filter_explicit = 1;
+    st->filter_explicit = is_explicit;
 }
 
 /* Whether X's positions are exact (FLAT_SHARE) into *exact; if not, the
@@ -791,12 +858,13 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err)
 {
-    fair_ctx ci, ce, *c = &ci;
+    fair_ctx ci, ce, cn, *c = &ci;
     mcf_flow_stats se;
     mcf_status rc;
     memset(&ci, 0, sizeof ci);
     memset(&ce, 0, sizeof ce);
-    ci.threads_cpu_s = ce.threads_cpu_s = &st->threads_cpu_s;
+    memset(&cn, 0, sizeof cn);
+    ci.threads_cpu_s = ce.threads_cpu_s = cn.threads_cpu_s = &st->threads_cpu_s;
     ci.is_explicit = p->scheme == MCF_FAIRING_EXPLICIT;
     st->filter_explicit = ci.is_explicit;
     /* the shares of work (work()): the default's pick runs the explicit
@@ -816,7 +884,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (p->work)
             p->work(p->progress_ctx, "spikes", WORK_REPAIR);
     }
-    ce.exact = ci.exact;
+    ce.exact = cn.exact = ci.exact;
     const double *Xf = Xs ? Xs : X;
     /* the request's input's face normals: the fold guard judges the
      * output against them too (the repair turns the faces at a spike; the
@@ -828,7 +896,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     }
     if (fn_orig)
         mcf__face_normals(X, F, nf, fn_orig);
-    ci.fn_orig = ce.fn_orig = fn_orig;
+    ci.fn_orig = ce.fn_orig = cn.fn_orig = fn_orig;
     rc = filter_run(&ci, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
     size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + (Xs ? 3 * sizeof(double) * ((size_t)nv + (size_t)nf) : 0);
     /* the default request's `fairing` (fairing_pick) with the automatic
@@ -841,7 +909,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ce.is_explicit = ce.quiet = 1;
         rc = filter_run(&ce, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
-        take_stats(st, &se, won);
+        take_stats(st, &se, won, 1);
         c = won ? &ce : &ci;
         /* the tangential step stays the implicit run's: the passes' own
          * (one pass of tangential SURE gain) read the coarse torus's
@@ -855,16 +923,51 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (ci.bytes + ce.bytes > peak)
             peak = ci.bytes + ce.bytes;
     }
+    /* the default request on a mesh with creases: the same filter again
+     * with none held, taken when SURE says so (mcf__fair_pick_uncreased):
+     * an organic scan's sharpest ridges pass the crease test, and holding
+     * them, noise and all, cost it up to 9% of error (docs/fairing.md,
+     * "Creases") */
+    int found = st->crease_vertices;
+    double moving = (double)c->nfree + found;
+    if (rc == MCF_OK && p->fairing_robust && p->scheme != MCF_FAIRING_FEATURE && c->sure && c->cap > 0 &&
+        found > 0) {
+        mcf__chol_free(c->chol);
+        c->chol = NULL;
+        memset(&se, 0, sizeof se);
+        cn.is_explicit = c->is_explicit;
+        cn.quiet = cn.no_creases = 1;
+        c->share.probe = c->probe;
+        c->share.fid = c->fid;
+        c->share.nfree = c->nfree;
+        cn.like = &c->share;
+        cn.w0 = cn.w1 = 1.0 - WORK_OUTPUT;
+        rc = filter_run(&cn, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
+        size_t both = ci.bytes + ce.bytes + cn.bytes + mcf__chol_bytes(cn.chol);
+        if (both > peak)
+            peak = both;
+        mcf__chol_free(cn.chol);
+        cn.chol = NULL;
+        double kdiv[NPROBE];
+        int won = rc == MCF_OK && crease_divergence(c, &cn, fixed, kdiv) && mcf__fair_pick_uncreased(c, &cn, kdiv);
+        take_stats(st, &se, won, cn.is_explicit);
+        if (won) {
+            if (cn.is_explicit) { /* the implicit run's tangential step, as above */
+                memcpy(cn.Yt, ci.Yt, 3 * sizeof(double) * (size_t)nv);
+                cn.kbest_t = ci.kbest_t;
+            }
+            st->crease_vertices = 0;
+            c = &cn;
+        }
+    }
     /* the feature-aware stage: the named `fairing_feature` alone, the
      * default request's against the linear result on meshes with creases
-     * (FEATURE_CREASE_SHARE) */
+     * (FEATURE_CREASE_SHARE of those found) */
     int feat = 0;
-    c->st = st; /* the explicit run's own figures were taken above: the
+    c->st = st; /* the second runs' own figures were taken above: the
                    feature stage's and the output's go to the caller's */
     st->steps = c->kbest;
-    double moving = (double)c->nfree + st->crease_vertices;
-    int creased = st->crease_vertices > 0 && st->crease_vertices >= FEATURE_CREASE_SHARE * moving &&
-                  st->crease_vertices <= FEATURE_CREASE_MAX * moving;
+    int creased = found > 0 && found >= FEATURE_CREASE_SHARE * moving && found <= FEATURE_CREASE_MAX * moving;
     if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && creased))) {
         mcf__chol_free(c->chol); /* the factor is done with */
         c->chol = NULL;
@@ -896,5 +999,6 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     free(fn_orig);
     fair_free(&ci);
     fair_free(&ce);
+    fair_free(&cn);
     return rc;
 }

@@ -49,6 +49,17 @@ enum { NPROBE_FEW = 3 };
  * powers of two stay within +-11 (consecutive k: up to +-35). */
 #define COMB_J MCF_FAIRING_COMB
 
+/* What a run hands to a second run on the same input so that both SUREs
+ * estimate the same risk with correlated probes (mcf__fair_pick_uncreased):
+ * its noise levels, and its probes by vertex (fid: vertex -> free index
+ * into probe, nprobe x nfree). */
+typedef struct {
+    double s, s_t, s2_rel;
+    const double *probe;
+    const int *fid;
+    int nfree;
+} fair_share;
+
 typedef struct {
     const mcf_flow_params *p;
     int nv, nf, nfree;
@@ -61,6 +72,7 @@ typedef struct {
                                   when the spike stage repaired it (the
                                   guard's second reference), else NULL */
     unsigned char *crease;     /* nv: on a kept crease */
+    unsigned char *chains;     /* g.ptr[nv]: the creases' edges (mcf__creases) */
     unsigned char *fx;         /* nv: fixed, or no edge */
     mcf__graph g;
     int *vert;                 /* nfree: free index -> vertex */
@@ -72,6 +84,10 @@ typedef struct {
     int nprobe;                /* NPROBE, or NPROBE_FEW on a large mesh */
     int ncol;                  /* 3, or 3 + nprobe with the probes */
     int is_explicit;
+    int no_creases;            /* the default request's second look: no
+                                  creases held (mcf__fair_pick_uncreased) */
+    const fair_share *like;    /* a first run's noise levels and probes,
+                                  taken, not read or drawn again */
     int exact;                 /* the default request: the positions are
                                   exact (mcf_fairing.c, FLAT_SHARE): no
                                   noise to read */
@@ -106,6 +122,7 @@ typedef struct {
                                   first */
     int kk[COMB_J], nk;        /* their k, how many */
     double trq[COMB_J][NPROBE]; /* their probes' weighted traces */
+    fair_share share;          /* what a second run takes from this one */
     double sumw2;              /* sum_F w^2 (sum_F w = nfree) */
     double s2_rel;             /* relative standard error of s^2 */
 } fair_ctx;
@@ -127,6 +144,14 @@ void mcf__fair_keep_iterate(fair_ctx *c, int k, const double *Y, const double es
 void mcf__fair_combine(fair_ctx *c);
 /* Whether the explicit run e replaces the implicit run i. */
 int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
+/* Whether the run n, the same filter on the same input with no creases
+ * held, replaces the run c, which held its crease vertices: SURE over
+ * n's free vertices (c's and its creases), c's crease vertices counted
+ * with their displacement (the smoothing along their chains) and kdiv,
+ * each probe's estimate of their divergence weighted by n's weights
+ * (mcf_fairing.c, crease_divergence); the gain must pass
+ * UNCREASE_MIN_GAIN of its standard error. */
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE]);
 /* The default request runs the feature-aware stage when the creases the
  * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
  * the vertices it moves and at most FEATURE_CREASE_MAX. Measured with
@@ -161,6 +186,8 @@ mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *
 /* Moves from the input (c->Xin) longer than rmax taken back, on the
  * vertices marked in only (NULL: all). */
 void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigned char *only);
+/* The same from the positions ref instead of the input. */
+void mcf__fair_clamp_from(const fair_ctx *c, const double *ref, double *X, double rmax, const unsigned char *only);
 /* The output into X: along the normals of the filtered surface, relaxed
  * in its tangent planes, clamped, guarded. */
 mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err);

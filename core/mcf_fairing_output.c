@@ -170,11 +170,16 @@ static void normal_output(fair_ctx *c, const double *Y, double *X, double *N)
  * all). */
 void mcf__fair_clamp_moves(const fair_ctx *c, double *X, double rmax, const unsigned char *only)
 {
+    mcf__fair_clamp_from(c, c->Xin, X, rmax, only);
+}
+
+void mcf__fair_clamp_from(const fair_ctx *c, const double *ref, double *X, double rmax, const unsigned char *only)
+{
     for (int i = 0; i < c->nv; i++) {
         if (only && !only[i])
             continue;
         double d[3], *x = X + 3 * (size_t)i;
-        const double *x0 = c->Xin + 3 * (size_t)i;
+        const double *x0 = ref + 3 * (size_t)i;
         mcf__sub3(x, x0, d);
         double l = sqrt(mcf__dot3(d, d));
         if (l > rmax)

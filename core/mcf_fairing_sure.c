@@ -40,6 +40,16 @@
  * 1.37 standard errors: 2 kept the implicit steps, 1.24x the uniform
  * Taubin oracle. */
 #define PICK_MIN_GAIN 1.0
+/* The run with no creases held replaces the one that held them
+ * (mcf__fair_pick_uncreased) when SURE's gain is at least
+ * UNCREASE_MIN_GAIN of its standard error: as above a choice between two
+ * denoised results, and half an error still covers the minimum's
+ * selection bias (0.4 of an error at most). Measured (make quality's
+ * noise, seed 1): bunny_npm_closed.obj's false creases gain 0.76-0.98
+ * standard errors at 0.1-0.5 h, which one error kept (1.04-1.09x the
+ * error without them); the box of test_creases_kept loses 1.9-8
+ * standard errors at 0.1-0.5 (seed 2). */
+#define UNCREASE_MIN_GAIN 0.5
 
 /* The mean of the nprobe probes' estimates est, and the variance of that
  * mean (*var). */
@@ -312,6 +322,42 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
     double dtr = mcf__fair_mean_trace(est, i->nprobe, &vtr), gain = i->risk - e->risk;
     double var = gain_var(i, s2, n, dd[0], dd[1], dtr, vtr);
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
+}
+
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE])
+{
+    if (n->kbest == 0 || n->nprobe != c->nprobe || !(c->s > 0.0) || c->nfree == 0)
+        return 0;
+    /* c's weights are the areas over their mean on its own free vertices,
+     * n's over n's: one factor apart (ratio), on every vertex c moves */
+    double s2 = c->s * c->s, ratio = 0.0, dd[2] = {0.0, 0.0}, vk;
+    double kept = 2.0 * s2 * mcf__fair_mean_trace(kdiv, c->nprobe, &vk); /* the crease vertices' 2 s^2 div */
+    for (int q = 0; q < c->nfree; q++)
+        ratio += n->w[c->vert[q]];
+    ratio /= c->nfree;
+    for (int q = 0; q < n->nfree; q++) {
+        size_t v = (size_t)n->vert[q];
+        double a[3], b[3], w = n->w[v];
+        /* both displacements from the same input, along its normals */
+        mcf__sub3(c->Ybest + 3 * v, n->X0 + 3 * v, a);
+        mcf__sub3(n->Ybest + 3 * v, n->X0 + 3 * v, b);
+        double ra = mcf__dot3(n->n0 + 3 * v, a), rb = mcf__dot3(n->n0 + 3 * v, b);
+        double t = w * (ra * ra - rb * rb);
+        if (c->fid[v] < 0) { /* a crease vertex of c: r^2 - s^2 (+ 2 s^2 div, below) */
+            t -= w * s2;
+            kept += w * (ra * ra - s2);
+        }
+        dd[0] += t;
+        dd[1] += t * t;
+    }
+    /* the traces' difference per probe (the probes agree on the vertices
+     * both runs move, and n's on c's crease vertices are kdiv's) */
+    double est[NPROBE], vtr;
+    for (int q = 0; q < c->nprobe; q++)
+        est[q] = c->trbest[q] * ratio + kdiv[q] - n->trbest[q];
+    double dtr = mcf__fair_mean_trace(est, c->nprobe, &vtr), gain = c->risk * ratio + kept - n->risk;
+    double var = gain_var(n, s2, n->nfree, dd[0], dd[1], dtr, vtr);
+    return gain > 0.0 && gain * gain >= UNCREASE_MIN_GAIN * UNCREASE_MIN_GAIN * var;
 }
 
 mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *fixed, double *X, int *taken,

@@ -359,11 +359,18 @@ int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned ch
  * those inside a chain (two crease edges, not fixed) are smoothed along it
  * in X by 3 Taubin passes on the chain alone, across it only; corners and
  * chain ends stay (the fairing's guard puts a crease vertex back where its
- * smoothing folded a face). Returns the number of crease vertices, -1 when out of
- * memory. tick (may be NULL) hears the stages end ("creases"). */
+ * smoothing folded a face). chains (NULL, or g->ptr[nv] bytes) gets the
+ * chains' edges marked, in both directions. Returns the number of crease
+ * vertices, -1 when out of memory. tick (may be NULL) hears the stages end
+ * ("creases"). */
 int mcf__creases(const mcf__graph *g, const int32_t *F, int nf, int nv,
-                 const unsigned char *fixed, double *X, unsigned char *crease,
+                 const unsigned char *fixed, double *X, unsigned char *crease, unsigned char *chains,
                  const mcf__tick *tick);
+/* The smoothing alone along the chains a call of mcf__creases found
+ * (chains: its g->ptr[nv] edge marks), on X. 0, or -1 when out of
+ * memory. */
+int mcf__creases_smooth(const mcf__graph *g, int nv, const unsigned char *fixed, const unsigned char *chains,
+                        double *X);
 
 /* ---- folds (mcf_folds.c)
  * A face a run folded: its normal turned against the same face's normal

@@ -9,8 +9,8 @@
  * mcf_status it stands for (when it came from the core or the codecs),
  * the HTTP status and the gRPC status. Eight rows only a door raises
  * (AUTH, METHOD, URI_LIMIT, UPLOAD_TIMEOUT, FRAMING, NOT_IMPLEMENTED,
- * BUSY_ADDRESS, UNHEALTHY). Rows and codes are only ever appended: their numbers
- * and names are on the wire and in stored jobs.
+ * BUSY_ADDRESS, UNHEALTHY). Rows and codes are only ever appended: their
+ * numbers and names are on the wire and in stored jobs.
  *
  * The columns are read through svc_problem_* (service/svc_error.c), at
  * any time from any thread.

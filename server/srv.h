@@ -5,31 +5,21 @@
  * metrics. No transport type appears here.
  *
  * server/ is the only layer that knows about HTTP, configuration, signals,
- * files and logging. It is split by concern:
+ * files and logging. Its top holds the process, one file per concern:
  *   main.c      process set-up, signal loop, drain and exit, --probe
  *   config.c    flags and MCFD_* environment variables -> srv_config
+ *               (whose svc_config, cfg.svc, goes to svc_start as it is)
  *   log.c       one JSON line per event on stderr
  *   metrics.c   Prometheus counters and histograms
  *   fds.c       descriptors: the limit raised, the doors' caps fitted to it
  *   fsio.c      whole writes and directory syncs, for every durable file
- * the job service (service.h; its files share svc_internal.h, which says
- * which does what): service.c, svc_job.c, svc_read.c, svc_state.c,
- * svc_error.c, runner.c, workers.c, recovery.c, svc_admit.c, sandbox.c
- * (Draco decodes in a child process; main.c's hidden decode mode is its
- * child side), and its store (store.h; spool.c, the local one);
- * the doors (door.h: one face for both):
- *   the gRPC door (grpc_door.h): grpc*.cc, the only C++ here, behind
- *   h2gate.c    its socket: accepts, admits and relays connections to gRPC
- *   the REST door on libmicrohttpd (rest_door.h; rest_internal.h for its files):
- *   rest_door.c its face: MHD started, the tick's deadlines, the gauges
- *   http.c      MHD entry points, connections, routing, plain routes
- *   upload.c    request bodies: raw and multipart uploads, submit
- *   jobroutes.c waiting on a job and the /v1/jobs/ID routes
- *   waiter.c    suspended connections: subscriptions, hang-up polling
- *   stream.c    streamed bodies: ndjson progress and Server-Sent Events
- *   reply.c     RFC 9457 problem+json from the table of problems, the
- *               job document with its links
- *   request.c   what a request says: its route's label, its query (a leaf)
+ * with the contracts between the modules below: service.h (the job
+ * service), problem.h (the client-visible errors), door.h (a door, to
+ * main.c). One folder per module, each with its own export prefix:
+ * service/ (svc_), sandbox/ (sandbox_), store/ and store/redis/ (store_,
+ * rstore_, rds_), rest/ (rest_), grpc/ (mcfd_grpc) and grpc/h2gate/
+ * (h2gate_); docs/internals.md has the map, the lock order and one
+ * request of each door file by file.
  *
  * Threads: MHD's small pool runs the REST door and never touches a mesh;
  * the service's worker pool decodes, smooths and encodes.

@@ -29,7 +29,7 @@ namespace {
 
 const char kService[] = "mcfd.v1.Smoother";
 
-/* The gate's bounds on streams (h2gate.h; measured: README, reliability).
+/* The gate's bounds on streams (h2gate_limits.h; measured: README, reliability).
  * gRPC 1.51 holds about 12 KiB per stream it has accepted, so the door's
  * streams cost at most about kMaxStreams x 12 KiB. */
 const int kStreamsPerConn = 100;   /* MAX_CONCURRENT_STREAMS, advertised */
