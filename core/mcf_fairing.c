@@ -787,7 +787,7 @@ static int crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsigne
     for (int q = 0; ok && q < c->nprobe; q++) {
         memcpy(Xp, c->Xin, nv3 * sizeof(double));
         for (int i = 0; i < c->nv; i++)
-            if (c->crease[i])
+            if (c->crease[i] && n->fid[i] >= 0)   /* fixed in n too: no probe */
                 for (int e = 0; e < 3; e++)
                     Xp[3 * (size_t)i + e] += h * n->probe[(size_t)q * n->nfree + n->fid[i]] * n->n0[3 * (size_t)i + e];
         memcpy(ref, Xp, nv3 * sizeof(double));
@@ -795,7 +795,7 @@ static int crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsigne
         mcf__fair_clamp_from(c, ref, Xp, CREASE_MAX_MOVE * c->s, c->crease);
         kdiv[q] = 0.0;
         for (int i = 0; ok && i < c->nv; i++)
-            if (c->crease[i]) {
+            if (c->crease[i] && n->fid[i] >= 0) {
                 double d[3], z = n->probe[(size_t)q * n->nfree + n->fid[i]];
                 mcf__sub3(Xp + 3 * (size_t)i, c->X0 + 3 * (size_t)i, d);
                 kdiv[q] += n->w[i] * z * mcf__dot3(d, n->n0 + 3 * (size_t)i) / h;
