@@ -642,18 +642,28 @@ typedef struct {
     mcf_scheme scheme;
 } default_case;
 
+/* A copy of clean with noise rho along the normals (seed) and the default
+ * request's parameters for it (api_params_init, then api_params_finish
+ * with nothing set) into *ap. */
+static mcf_mesh *noisy_default(const mcf_mesh *clean, double rho, int seed, api_params *ap)
+{
+    mcf_mesh *m = mcf_mesh_dup(clean, NULL);
+    mcf_error err = {0};
+    assert_non_null(m);
+    api_params_init(ap);
+    assert_int_equal(mcf_flow_add_noise(m, &ap->flow, rho, (uint64_t)seed, &err), MCF_OK);
+    assert_int_equal(api_params_finish(ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
+    return m;
+}
+
 static void run_default_case(const mcf_mesh *clean, double rho, int seed, mcf_laplacian lap, mcf_flow_stats *st,
                              default_case *r)
 {
-    mcf_mesh *m = mcf_mesh_dup(clean, NULL);
     api_params ap;
+    mcf_mesh *m = noisy_default(clean, rho, seed, &ap);
     mcf_error err = {0};
-    assert_non_null(m);
-    api_params_init(&ap);
-    assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho, (uint64_t)seed, &err), MCF_OK);
     r->in = rms(m, clean);
     r->tb = taubin_oracle(m, clean, lap, &r->passes);
-    assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
     if (mcf_flow_run(m, &ap.flow, st, &err) != MCF_OK)
         fail_msg("the default request: %s", err.msg);
     r->e = rms(m, clean);
@@ -770,16 +780,13 @@ static void guard_keeps_orientation(const char *const *names, int nmesh, const d
     for (int q = 0; q < nmesh; q++) {
         mcf_mesh *clean = tl_load(names[q]);
         for (int k = 0; k < nrho; k++) {
-            mcf_mesh *m = mcf_mesh_dup(clean, NULL);
             api_params ap;
+            mcf_mesh *m = noisy_default(clean, rho[k], 1, &ap);
             mcf_flow_stats st;
             mcf_compare_result c0, c1;
             mcf_error err = {0};
-            api_params_init(&ap);
-            assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho[k], 1, &err), MCF_OK);
             mcf_mesh *in = mcf_mesh_dup(m, NULL);
             assert_int_equal(mcf_compare(m, clean, &c0, NULL), MCF_OK);
-            assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
             if (mcf_flow_run(m, &ap.flow, &st, &err) != MCF_OK)
                 fail_msg("%s: %s", names[q], err.msg);
             assert_int_equal(mcf_compare(m, clean, &c1, NULL), MCF_OK);
@@ -1078,13 +1085,9 @@ static void test_crease_smoothing(void **state)
  * gives nothing to do). Its error into *e, the stats into st. */
 static void run_creases(const mcf_mesh *clean, double rho, int seed, int held, mcf_flow_stats *st, double *e)
 {
-    mcf_mesh *m = mcf_mesh_dup(clean, NULL);
     api_params ap;
+    mcf_mesh *m = noisy_default(clean, rho, seed, &ap);
     mcf_error err = {0};
-    assert_non_null(m);
-    api_params_init(&ap);
-    assert_int_equal(mcf_flow_add_noise(m, &ap.flow, rho, (uint64_t)seed, &err), MCF_OK);
-    assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
     if (held)
         ap.flow.fairing_robust = 0;
     if (mcf_flow_run(m, &ap.flow, st, &err) != MCF_OK)
