@@ -9,11 +9,13 @@ iterations by SURE), the numpy Taubin stand-in at its oracle pass count (adaptiv
 and the implicit step's iterates k = 1, 2, 4, 8, 16, 32 along their normals. Noise as
 surelet_study.py (seed 1). Printed: each over the Taubin stand-in, the combinations' oracles,
 and the blind SURE-LET of the default and the feature scheme: the weights from the noisy mesh
-alone, each filter's divergence by Monte-Carlo probes through the product as a black box.
+alone, each filter's divergence by Monte-Carlo probes through the product as a black box
+(NPROBE probes, default 2; SURE_NORMALS=pilot: along the default output's normals, not the
+noisy mesh's); let1: the same with the two weights summing to 1 (one weight t).
 Usage: let_oracle.py MESH[,..] RHO[,..] MCF"""
 import json, os, subprocess, sys
 import numpy as np
-NPROBE = 2
+NPROBE = int(os.environ.get("NPROBE", "2"))  # probes for the blind weights' divergences
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import surelet_study as S
 import adaptive_study as AS
@@ -56,6 +58,8 @@ def case(name, rho, mcf):
     # Monte-Carlo (Ramani, Blu, Unser 2008): b.(r_j(X + eps b n0) - r_j(X)) / eps, b Rademacher,
     # eps = 0.01 s, NPROBE probes; weights from G c = -s^2 div (area weights of the noisy mesh).
     s, n0, w = rho * h, S.vnormals(X, F), S.areas(X, F)
+    if os.environ.get('SURE_NORMALS') == 'pilot':  # heights and probes along the default's normals
+        n0 = S.vnormals(cols['default'], F)
     w = w / w.mean()
     names, extra = ['default', 'feature'], {'default': [], 'feature': ['--scheme', 'fairing_feature']}
     r = np.array([np.sum((cols[k] - X) * n0, 1) for k in names])
@@ -72,6 +76,11 @@ def case(name, rho, mcf):
     Y = X + sum(ci * (cols[k] - X) for ci, k in zip(c, names))
     res['let_def+feat/tb'], res['wlet_def+feat'] = round(S.err(Y, C, Acl) / e_in / tb, 4), [round(x, 3) for x in c]
     res['div_def+feat'] = [round(x / w.sum(), 4) for x in div]
+    # the same, weights summing to 1 (Y = Y_def + t (Y_feat - Y_def)): one weight, no shrink
+    dr = r[1] - r[0]
+    t = -(np.sum(w * r[0] * dr) + s * s * (div[1] - div[0])) / np.sum(w * dr * dr)
+    Y = cols['default'] + t * (cols['feature'] - cols['default'])
+    res['let1_def+feat/tb'], res['t_let1'] = round(S.err(Y, C, Acl) / e_in / tb, 4), round(t, 3)
     print(json.dumps(res), flush=True)
 
 if __name__ == '__main__':
