@@ -255,6 +255,7 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
     ok = ok && boolean(o, "robust", st->robust);
     ok = ok && api__json_num(o, "spikes_repaired", st->spikes_repaired);
     ok = ok && api__json_num(o, "flips_repaired", st->flips_repaired);
+    ok = ok && api__json_num(o, "turned_repaired", st->turned_repaired);
     {
         const mcf_scheme_info *fi = mcf_scheme_get(st->filter);
         ok = ok && str(o, "filter", fi ? fi->name : NULL);

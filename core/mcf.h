@@ -599,6 +599,11 @@ typedef struct {
                                  input that the output gave an orientation
                                  against the filtered normals, taken back
                                  toward the input */
+    int turned_repaired;      /* fairing_robust: vertices of the output's
+                                 faces turned against its smoothed normal
+                                 field moved back to their displacement
+                                 along that field (their slide along the
+                                 surface taken back) */
     unsigned warnings;        /* MCF_WARN_* bits */
     int folded_faces;         /* faces the run folded: turned by more
                                  than 90 degrees against the input's same

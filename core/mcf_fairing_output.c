@@ -245,6 +245,12 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
     if (c->p->fairing_robust && (rc = mcf__flips_repair(X, c->Xin, c->Y, c->F, nf, nv, &st->flips_repaired,
                                                         &flip_moves, err)) != MCF_OK)
         return rc;
+    /* the faces turned against the output's smoothed normal field: the
+     * slides along the surface taken back where that turns fewer
+     * (mcf_turned.c) */
+    if (c->p->fairing_robust &&
+        (rc = mcf__turned_repair(X, c->Xin, c->F, nf, nv, &st->turned_repaired, err)) != MCF_OK)
+        return rc;
     if ((rc = mcf__unfold(X, c->Xin, c->fn_orig, c->Ybest, c->F, nf, nv, &st->guard_rounds, &st->guard_vertices,
                           &left, err)) != MCF_OK)
         return rc;
@@ -256,6 +262,7 @@ mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigne
                                     mcf_error *err)
 {
     return mcf__feature_output(c->Xin, c->fn_orig, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * sf,
-                               c->p->fairing_robust ? &c->st->flips_repaired : NULL, X, &c->st->guard_rounds,
+                               c->p->fairing_robust ? &c->st->flips_repaired : NULL,
+                               c->p->fairing_robust ? &c->st->turned_repaired : NULL, X, &c->st->guard_rounds,
                                &c->st->guard_vertices, err);
 }

@@ -772,8 +772,8 @@ done:
 }
 
 mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
-                               int nv, const unsigned char *fixed, double rmax, int *flips, double *X, int *rounds,
-                               int *moves, mcf_error *err)
+                               int nv, const unsigned char *fixed, double rmax, int *flips, int *turned, double *X,
+                               int *rounds, int *moves, mcf_error *err)
 {
     double *N = mcf__malloc(3 * (size_t)nv + 1, sizeof(double)), *G = mcf__malloc(3 * (size_t)nv + 1, sizeof(double));
     int left;
@@ -810,6 +810,10 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
      * field, taken back as the linear fairing's output does (mcf_flips.c) */
     int flip_moves;
     mcf_status rc = flips ? mcf__flips_repair(X, Xin, N, F, nf, nv, flips, &flip_moves, err) : MCF_OK;
+    /* the faces turned against the output's smoothed normal field
+     * (mcf_turned.c), as the linear fairing's output does */
+    if (rc == MCF_OK && turned)
+        rc = mcf__turned_repair(X, Xin, F, nf, nv, turned, err);
     if (rc == MCF_OK)
         rc = mcf__unfold(X, Xin, fn_orig, G, F, nf, nv, rounds, moves, &left, err);
     free(N);

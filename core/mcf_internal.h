@@ -328,12 +328,13 @@ double mcf__feature_div(const mcf__feature_frame *fr, const double *w, const dou
  * normals of Y), moves beyond rmax taken back, then, when flips is not
  * NULL (the default request), the repair of the faces the input had
  * without area (mcf__flips_repair against Y's normals; its count into
- * *flips), then the fold guard (mcf__unfold with fn_orig, Y's
- * positions first).
+ * *flips), when turned is not NULL the drift repair (mcf__turned_repair;
+ * its count into *turned), then the fold guard (mcf__unfold with
+ * fn_orig, Y's positions first).
  * ENOMEM. */
 mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
-                               int nv, const unsigned char *fixed, double rmax, int *flips, double *X, int *rounds,
-                               int *moves, mcf_error *err);
+                               int nv, const unsigned char *fixed, double rmax, int *flips, int *turned, double *X,
+                               int *rounds, int *moves, mcf_error *err);
 /* ---- spikes (mcf_spikes.c)
  * The vertices of X (graph g, mean edge hbar) far off the surface their
  * neighbours define (their height over their 1-ring many robust
@@ -412,6 +413,16 @@ mcf_status mcf__unfold(double *X, const double *X_in, const double *fn_orig, con
  * round; moves: vertex moves. ENOMEM only. */
 mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field, const int32_t *F, int nf,
                              int nv, int *repaired, int *moves, mcf_error *err);
+
+/* ---- turned faces (mcf_turned.c)
+ * The fairing filter's output X (its input X_in) against its own normal
+ * field averaged over 16 rings: a vertex of a face whose normal points
+ * against the field there moves to X_in + m <m, x - X_in> (m the field at
+ * it: its displacement along the field only) when that leaves fewer such
+ * faces around it; up to 4 rounds. moved: the moves. A vertex where X_in
+ * has it stays. ENOMEM only. */
+mcf_status mcf__turned_repair(double *X, const double *X_in, const int32_t *F, int nf, int nv, int *moved,
+                              mcf_error *err);
 
 /* n standard normal draws from a 64-bit seed, mcf_mesh_add_noise's
  * generator (the same draws in the same order). (mcf_mesh.c) */

@@ -12,6 +12,10 @@
  *    input rounds), to the bit; and the promise checked on the result: no
  *    judged face left facing away from the field;
  *  - a mesh without degenerate faces comes back untouched;
+ *  - mcf__turned_repair (core/mcf_turned.c): a vertex slid past its
+ *    neighbour on a flat grid comes back to its place with its height,
+ *    no face down (counted from the face normals here); an output with
+ *    no turned face comes back to the bit;
  *  - end to end: bunny.drc (the repository's 35k-vertex scan) quantized
  *    to a grid of 0.5 mean edges (issue 31's `quant` model): the default
  *    request returns no more faces facing against the clean mesh's than
@@ -25,7 +29,7 @@
 #include <string.h>
 
 #include "api.h"
-#include "mcf_internal.h" /* mcf__flips_repair */
+#include "mcf_internal.h" /* mcf__flips_repair, mcf__turned_repair */
 #include "testlib.h"
 
 /* An n x n grid of unit squares in z = 0, each split along one diagonal,
@@ -292,6 +296,86 @@ static void test_flips_none(void **state)
     assert_memory_equal(X, X0, sizeof X);
 }
 
+/* Faces of X (grid faces F) whose normal has no positive z: every face
+ * of the flat grid faces +z. */
+static int grid_faces_down(const double *X, const int32_t *F, int nf)
+{
+    int bad = 0;
+    for (int f = 0; f < nf; f++) {
+        double nn[3];
+        normal_at_b(X, F + 3 * f, nn);
+        bad += !(nn[2] > 0.0);
+    }
+    return bad;
+}
+
+/* mcf__turned_repair (core/mcf_turned.c) on the flat 15 x 15 grid: the
+ * output raised one vertex 0.2 and slid it 1.4, 0.4 along the grid,
+ * past the edge between its neighbours (8, 7) and (8, 8): faces around
+ * it face down (counted here
+ * from the face normals, independently of the repair's field). The repair
+ * takes the slide back: no face down, the vertex within 0.05 of its grid
+ * place and its height 0.2 kept to 0.01 (the field at it, averaged over
+ * 16 rings of a flat grid, tilts by the vertex's own faces only: the
+ * residual slide is about 0.2 times that tilt). The other vertices, where
+ * the input has them, stay to the bit. A second call on the result moves
+ * nothing: no face is turned against the field. */
+static void test_turned_slide(void **state)
+{
+    enum { n = 15, nv = n * n, nf = 2 * (n - 1) * (n - 1), AT = 7 * n + 7 };
+    double Xin[3 * nv], X[3 * nv];
+    int32_t F[3 * nf];
+    int moved;
+    (void)state;
+    grid(n, Xin, F);
+    memcpy(X, Xin, sizeof X);
+    X[3 * AT] += 1.4;
+    X[3 * AT + 1] += 0.4;
+    X[3 * AT + 2] = 0.2;
+    assert_true(grid_faces_down(X, F, nf) > 0);
+    assert_int_equal(mcf__turned_repair(X, Xin, F, nf, nv, &moved, NULL), MCF_OK);
+    print_message("slid vertex: moved %d, now (%.4f, %.4f, %.4f) from (7, 7, 0.2)\n", moved, X[3 * AT],
+                  X[3 * AT + 1], X[3 * AT + 2]);
+    assert_int_equal(moved, 1);
+    assert_int_equal(grid_faces_down(X, F, nf), 0);
+    assert_true(hypot(X[3 * AT] - 7.0, X[3 * AT + 1] - 7.0) < 0.05);
+    tl_assert_near(X[3 * AT + 2], 0.2, 0.01, "the slid vertex's height");
+    for (int i = 0; i < nv; i++)
+        if (i != AT)
+            assert_memory_equal(X + 3 * i, Xin + 3 * i, 3 * sizeof(double));
+    double X1[3 * nv];
+    memcpy(X1, X, sizeof X);
+    assert_int_equal(mcf__turned_repair(X, Xin, F, nf, nv, &moved, NULL), MCF_OK);
+    assert_int_equal(moved, 0);
+    assert_memory_equal(X, X1, sizeof X);
+}
+
+/* An output with no face turned against its smoothed field (the grid with
+ * every vertex raised by a smooth bump of height 0.3 and slid by 0.1
+ * along x: every face still faces up) comes back bit for bit, though its
+ * vertices are off their input's places along the surface: the repair
+ * judges faces, not slides. */
+static void test_turned_none(void **state)
+{
+    enum { n = 12, nv = n * n, nf = 2 * (n - 1) * (n - 1) };
+    double Xin[3 * nv], X[3 * nv], X0[3 * nv];
+    int32_t F[3 * nf];
+    int moved;
+    (void)state;
+    grid(n, Xin, F);
+    for (int i = 0; i < nv; i++) {
+        double x = Xin[3 * i], y = Xin[3 * i + 1];
+        X[3 * i] = x + 0.1;
+        X[3 * i + 1] = y;
+        X[3 * i + 2] = 0.3 * sin(x / 3.0) * cos(y / 4.0);
+    }
+    memcpy(X0, X, sizeof X);
+    assert_int_equal(grid_faces_down(X, F, nf), 0);
+    assert_int_equal(mcf__turned_repair(X, Xin, F, nf, nv, &moved, NULL), MCF_OK);
+    assert_int_equal(moved, 0);
+    assert_memory_equal(X, X0, sizeof X);
+}
+
 /* Faces of X whose normal points against the clean mesh's same face. */
 static int flips_against(const mcf_mesh *m, const mcf_mesh *clean)
 {
@@ -358,6 +442,8 @@ int main(void)
         cmocka_unit_test(test_flips_collapsed_edge),
         cmocka_unit_test(test_flips_reference),
         cmocka_unit_test(test_flips_none),
+        cmocka_unit_test(test_turned_slide),
+        cmocka_unit_test(test_turned_none),
         cmocka_unit_test(test_flips_quantized_scan),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
