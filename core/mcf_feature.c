@@ -24,7 +24,9 @@
  * SURE(f) = sum w r^2 - s^2 sum w + 2 s^2 div f, r_i = m_i . (f(y)_i - y_i)
  * along reference normals m, div f = sum w_i d(m_i . f_i)/d(y_i along
  * m_i), estimated by div ~ E_b[sum w_i b_i m_i . (f(y + e b m) - f(y))_i] / e
- * for Rademacher probes b. Two choices the measurements forced
+ * for a Rademacher probe b (one: each probe costs a third of the stage;
+ * the variance of its estimate from the bound mcf__feature_div_bound).
+ * Two choices the measurements forced
  * (docs/fairing.md): m are the normals of the most smoothing candidate's
  * result, not the noisy mesh's (the filter moves a vertex back along the
  * clean normal and keeps its tangential part, so along the noisy normals

@@ -314,7 +314,7 @@ typedef struct {
 } mcf__feature_pick;
 
 /* The candidates' SURE with Monte-Carlo divergence (the frame's first
- * probes, steps of 0.3 s along reference normals), the least into Yout
+ * probe, steps of 0.3 s along reference normals), the least into Yout
  * (3*nv) and pick; Yout untouched when there is nothing to filter (s 0,
  * no vertex). fixed: the vertices the filter holds. ENOMEM, ELIMIT. */
 mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
