@@ -339,9 +339,10 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
  * neighbours define (their height over their 1-ring many robust
  * deviations of the heights and at least a mean edge, far above their
  * neighbours', pulling their neighbours' rings towards them), not fixed
- * (fixed: nv), moved back along the surface's normal onto the plane of
- * their ring's centroid. Returns their count, -1 when out of memory (X
- * then unchanged). */
+ * (fixed: nv) and off the plane through their ring's centroid by more
+ * than the heights' threshold, moved back along the surface's normal onto
+ * that plane (or to the centroid, when that folds fewer faces). Returns
+ * their count, -1 when out of memory (X then unchanged). */
 /* The share of the vertices not fixed and with an edge whose 1-ring lies
  * within tol of the plane through them along their normal N (3*nv): every
  * neighbour j with |N_i . (x_j - x_i)| <= tol. 0 when there is none.
