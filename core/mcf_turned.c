@@ -24,9 +24,9 @@
  * vertex normals averaged over TURN_RINGS rings (each round: a face sums
  * its corners' unit normals, a vertex sums its faces' sums); a face is
  * turned when its normal points against the sum of m at its corners. On
- * the clean blade.obj and couplingdown_sub2.obj no face is; on the
- * outputs above 85-87% of the faces so found face against the clean mesh
- * too. A vertex of a turned face moves to X_in + m <m, x - X_in> (its
+ * the clean blade.obj and couplingdown_sub2.obj no face is; on blade's
+ * output at `out` 0.5 h, 85-87% of the faces so found (4 to 8 rings) face
+ * against the clean mesh too. A vertex of a turned face moves to X_in + m <m, x - X_in> (its
  * displacement along m only: its place along the surface as the input
  * had it) when that leaves fewer turned faces around it; vertices in
  * index order, each seeing the moves before it, up to TURN_ROUNDS rounds.
