@@ -11,7 +11,8 @@ surelet_study.py (seed 1). Printed: each over the Taubin stand-in, the combinati
 and the blind SURE-LET of the default and the feature scheme: the weights from the noisy mesh
 alone, each filter's divergence by Monte-Carlo probes through the product as a black box
 (NPROBE probes, default 2; SURE_NORMALS=pilot: along the default output's normals, not the
-noisy mesh's); let1: the same with the two weights summing to 1 (one weight t).
+noisy mesh's); let1: the same with the two weights summing to 1 (one weight t); flips: faces
+turned against the clean mesh's.
 Usage: let_oracle.py MESH[,..] RHO[,..] MCF"""
 import json, os, subprocess, sys
 import numpy as np
@@ -81,6 +82,12 @@ def case(name, rho, mcf):
     t = -(np.sum(w * r[0] * dr) + s * s * (div[1] - div[0])) / np.sum(w * dr * dr)
     Y = cols['default'] + t * (cols['feature'] - cols['default'])
     res['let1_def+feat/tb'], res['t_let1'] = round(S.err(Y, C, Acl) / e_in / tb, 4), round(t, 3)
+    # faces turned against the clean mesh's (face normals' dot product < 0)
+    fc = S.face_normals(C, F)
+    flips = lambda V: int(np.sum(np.sum(S.face_normals(V, F) * fc, 1) < 0))
+    Ylet = X + sum(ci * (cols[k] - X) for ci, k in zip(c, names))
+    res['flips'] = {'input': flips(X), 'default': flips(cols['default']), 'feature': flips(cols['feature']),
+                    'let': flips(Ylet), 'let1': flips(Y)}
     print(json.dumps(res), flush=True)
 
 if __name__ == '__main__':
