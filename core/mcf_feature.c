@@ -24,7 +24,9 @@
  * SURE(f) = sum w r^2 - s^2 sum w + 2 s^2 div f, r_i = m_i . (f(y)_i - y_i)
  * along reference normals m, div f = sum w_i d(m_i . f_i)/d(y_i along
  * m_i), estimated by div ~ E_b[sum w_i b_i m_i . (f(y + e b m) - f(y))_i] / e
- * for Rademacher probes b. Two choices the measurements forced
+ * for a Rademacher probe b (one: each probe costs a third of the stage;
+ * the variance of its estimate from the bound mcf__feature_div_bound).
+ * Two choices the measurements forced
  * (docs/fairing.md): m are the normals of the most smoothing candidate's
  * result, not the noisy mesh's (the filter moves a vertex back along the
  * clean normal and keeps its tangential part, so along the noisy normals
@@ -295,7 +297,7 @@ static const double SIGMA_R[] = {0.35, 1.0};
 static const int NIT[] = {5, 12, 30};
 static const int VIT[] = {5, 12, 30};
 enum { NSIG = sizeof SIGMA_R / sizeof SIGMA_R[0], NNIT = sizeof NIT / sizeof NIT[0],
-       NVIT = sizeof VIT / sizeof VIT[0], NCAND = NSIG * NNIT * NVIT, NPROBE_F = 2 };
+       NVIT = sizeof VIT / sizeof VIT[0], NCAND = NSIG * NNIT * NVIT, NPROBE_F = 1 };
 /* the pilot, the candidate whose result gives the reference normals m:
  * the widest kernel, these iterations (normal iterations within NIT's
  * range) */
@@ -369,6 +371,20 @@ static double jtj(const mcf__feature_frame *fr, const double *w, const double *m
         sum += w[i] * a * a;
     }
     return sum / (eps * eps);
+}
+
+double mcf__feature_div_bound(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y,
+                              const double *Yz, double eps)
+{
+    double sum = 0.0;
+    for (int k = 0; k < fr->nfree; k++) {
+        size_t i = (size_t)fr->vert[k];
+        double d[3];
+        mcf__sub3(Yz + 3 * i, Y + 3 * i, d);
+        double a = w[i] * mcf__dot3(m + 3 * i, d);
+        sum += a * a;
+    }
+    return 2.0 * sum / (eps * eps);
 }
 
 /* mean and variance of the mean of q estimates */
@@ -507,7 +523,9 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     mcf__bnf *b = mcf__bnf_new(X, F, nf, nv, err);
     double *m = mcf__malloc(n3 + 1, sizeof(double)), *Xp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double));
     double *Yp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double));
-    double *Nk = mcf__malloc((size_t)NNIT * nin * nf3 + 1, sizeof(double));
+    /* Nk: each normal count's normals of each input, then (Nw) the widest
+     * kernel's on X, kept for the result */
+    double *Nk = mcf__malloc((size_t)NNIT * (nin + 1) * nf3 + 1, sizeof(double)), *Nw = Nk + (size_t)NNIT * nin * nf3;
     double *rbest = mcf__malloc((size_t)nfree + 1, sizeof(double)), *rlin = mcf__malloc((size_t)nfree + 1, sizeof(double));
     double *wp = mcf__calloc((size_t)nv + 1, sizeof(double)), *ap = mcf__malloc((size_t)nv + 1, sizeof(double));
     cand_sums *cs = mcf__malloc(NCAND, sizeof *cs);
@@ -519,7 +537,7 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
         rc = mcf__fail(err, MCF_ENOMEM, "feature filter: out of memory (%d vertices)", nv);
         goto done;
     }
-    pick->bytes = mcf__bnf_bytes(b) + sizeof(double) * ((size_t)nin * (2 * n3 + NNIT * nf3) + n3 + 2 * (size_t)nv + 2 * (size_t)nfree) +
+    pick->bytes = mcf__bnf_bytes(b) + sizeof(double) * ((size_t)nin * 2 * n3 + (size_t)(nin + 1) * NNIT * nf3 + n3 + 2 * (size_t)nv + 2 * (size_t)nfree) +
                   NCAND * sizeof *cs;
     for (int k = 0; k < nfree; k++)
         sumw += fr->w[fr->vert[k]];
@@ -528,8 +546,8 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     /* the reference normals m: those of a strongly smoothing candidate's
      * result (the widest range kernel, PILOT_NIT + PILOT_VIT iterations),
      * its normals read on the way to the widest kernel's candidates' on X
-     * (into their slots of Nk; the pilot's in a slot the probes fill
-     * later) */
+     * (into Nw and their slots of Nk; the pilot's in a slot the probes
+     * fill later) */
     double *pilot_n = Nk + ((size_t)(NNIT - 1) * nin + 1) * nf3;
     mcf__bnf_start(b, X);
     for (int ni = 0, done = 0; ni < NNIT; ni++) {
@@ -537,8 +555,8 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
             memcpy(pilot_n, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], PILOT_NIT - done), nf3 * sizeof(double));
             done = PILOT_NIT;
         }
-        memcpy(Nk + (size_t)ni * nin * nf3, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], NIT[ni] - done),
-               nf3 * sizeof(double));
+        memcpy(Nw + (size_t)ni * nf3, mcf__bnf_normals(b, SIGMA_R[NSIG - 1], NIT[ni] - done), nf3 * sizeof(double));
+        memcpy(Nk + (size_t)ni * nin * nf3, Nw + (size_t)ni * nf3, nf3 * sizeof(double));
         done = NIT[ni];
     }
     memcpy(Yp, X, n3 * sizeof(double));
@@ -586,6 +604,8 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
                 c->div = mean_var(div, NPROBE_F, &v);
                 c->jj = mean_var(jj, NPROBE_F, &v);
                 c->div_f = mean_var(divf, NPROBE_F, &c->vdiv_f);
+                if (NPROBE_F == 1) /* no spread to read: the bound */
+                    c->vdiv_f = mcf__feature_div_bound(fr, fr->w, m, Yp, Yp + n3, eps);
                 c->rms = si == NSIG - 1 ? moving_residual(b, fixed, X, Yp, m, ap) : 0.0;
             }
         }
@@ -600,9 +620,12 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     pick->div = cs[k].div_f;
     pick->vdiv = cs[k].vdiv_f;
     pick->risk = cs[k].sr2_f - s2 * sumw + 2.0 * s2 * cs[k].div_f;
-    if (k / (NNIT * NVIT) == 0) { /* the narrowest kernel: its normals on X are in Nk */
+    /* the result: the narrowest kernel's normals on X are in Nk, the
+     * widest's in Nw */
+    int ks = k / (NNIT * NVIT), kn = (k / NVIT) % NNIT;
+    if (ks == 0 || ks == NSIG - 1) {
         memcpy(Yout, X, n3 * sizeof(double));
-        mcf__bnf_vertices(b, Nk + (size_t)((k / NVIT) % NNIT) * nin * nf3, fixed, pick->vertex_iters, Yout);
+        mcf__bnf_vertices(b, ks ? Nw + (size_t)kn * nf3 : Nk + (size_t)kn * nin * nf3, fixed, pick->vertex_iters, Yout);
     } else {
         mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
     }

@@ -314,7 +314,7 @@ typedef struct {
 } mcf__feature_pick;
 
 /* The candidates' SURE with Monte-Carlo divergence (the frame's first
- * probes, steps of 0.3 s along reference normals), the least into Yout
+ * probe, steps of 0.3 s along reference normals), the least into Yout
  * (3*nv) and pick; Yout untouched when there is nothing to filter (s 0,
  * no vertex). fixed: the vertices the filter holds. ENOMEM, ELIMIT. */
 mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const unsigned char *fixed,
@@ -324,6 +324,12 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
  * (Yz_i - Y_i) / eps, Y = f(y), Yz = f(y + eps z m) (Ramani et al. 2008). */
 double mcf__feature_div(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y,
                         const double *Yz, const double *z, double eps);
+/* A bound on that estimate's variance from the same probe: for Rademacher
+ * z, Var z'Az = sum_{i != j} A_ij (A_ij + A_ji) <= 2 |A|_F^2 (Cauchy-
+ * Schwarz on the transposed terms) = 2 E |Az|^2, A the weighted Jacobian
+ * above; its one-probe estimate 2 sum_k (w_i m_i . (Yz_i - Y_i))^2 / eps^2. */
+double mcf__feature_div_bound(const mcf__feature_frame *fr, const double *w, const double *m, const double *Y,
+                              const double *Yz, double eps);
 /* The output: X = Xin + n <n, Y - Xin> on the vertices not fixed (n the
  * normals of Y), moves beyond rmax taken back, then, when flips is not
  * NULL (the default request), the repair of the faces the input had
@@ -339,9 +345,10 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
  * neighbours define (their height over their 1-ring many robust
  * deviations of the heights and at least a mean edge, far above their
  * neighbours', pulling their neighbours' rings towards them), not fixed
- * (fixed: nv), moved back along the surface's normal onto the plane of
- * their ring's centroid. Returns their count, -1 when out of memory (X
- * then unchanged). */
+ * (fixed: nv) and off the plane through their ring's centroid by more
+ * than the heights' threshold, moved back along the surface's normal onto
+ * that plane (or to the centroid, when that folds fewer faces). Returns
+ * their count, -1 when out of memory (X then unchanged). */
 /* The share of the vertices not fixed and with an edge whose 1-ring lies
  * within tol of the plane through them along their normal N (3*nv): every
  * neighbour j with |N_i . (x_j - x_i)| <= tol. 0 when there is none.

@@ -231,7 +231,7 @@ typedef struct {
 } svc_request;
 
 /* The daemon's own keys of a request's query string (REST's `stream`,
- * `fields`), NULL-terminated: the parameter parser skips them
+ * `phases`, `fields`), NULL-terminated: the parameter parser skips them
  * (api_params_parse_request's `ignore`). */
 extern const char *const svc_query_keys[];
 /* The query's `fields` (a daemon key: the last one wins): whether the
@@ -301,7 +301,12 @@ typedef struct {
                                   thread and the threads its flow started
                                   (0 without a budget, --job-cpu 0) */
     double cpu_threads_s;      /* the latter's share */
-    double fraction;           /* of the run done, 0..1 (1: succeeded) */
+    double fraction;           /* of the run done, 0..1 (1: succeeded):
+                                  the core's share of its work when this
+                                  replica runs it, else steps or time */
+    char phase[16];            /* the core's phase while it runs ("noise",
+                                  "passes", "steps", ...; "" none yet or
+                                  not this replica's run) */
     double created, started, finished;  /* epoch seconds, 0: not yet */
     char scheme[24];
     char in_format[16], out_format[16];  /* api_format names, "" unknown */
@@ -337,6 +342,20 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
  * malloc'ed (NULL when *n is 0); *n is how many events it holds. A
  * finished job's events are on the spool, read from there (kept as long
  * as the job). 0 or -1 (errno: ENOMEM, or the spool's). */
+/* The core's phase changes in the job's run (the default request's spike
+ * repair, graph, creases, noise reading, set-up, passes, output, ...; an
+ * MCF scheme's set-up and steps): the first SVC_PHASES_MAX, kept with the
+ * job, so a follower gets each of them however late it reads. */
+enum { SVC_PHASES_MAX = 48 };
+typedef struct {
+    char phase[16];
+    int step;                  /* steps done when it began */
+    double fraction;           /* the job's share of work then, 0..1 */
+} svc_phase;
+/* Entries from index from on into out (at most n); returns how many the
+ * run has in all. */
+int svc_job_phases(const svc_job *j, int from, svc_phase *out, int n);
+
 int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,
                    size_t *len, int *n);
 

@@ -101,8 +101,9 @@ def test_path_in_path_out():
 
 
 def test_bytes_progress_metrics():
-    """Bytes give bytes; progress reaches the callback once per step and
-    the metrics document comes with the result, through both doors."""
+    """Bytes give bytes; progress reaches the callback once per step (and
+    at the core's milestones, done never decreasing) and the metrics
+    document comes with the result, through both doors."""
     with open(BUNNY, "rb") as f:
         data = f.read()
     for url in both():
@@ -110,8 +111,12 @@ def test_bytes_progress_metrics():
         out, metrics = mcfd_client.smooth(data, url=url, progress=steps.append,
                                           with_metrics=True, iterations=4)
         assert isinstance(out, bytes) and info(out)["vertices"] == 34834
+        work = [s["done"] for s in steps if s["done"] is not None]
+        steps = [s for s in steps if s["done"] is None]
         assert [s["step"] for s in steps] == [1, 2, 3, 4], steps
+        assert all(s["phase"] == "steps" for s in steps)
         assert all(s["t"] > 0 and s["dt"] > 0 and s["energy"] > 0 for s in steps)
+        assert work and work == sorted(work) and 0 <= work[0] and work[-1] <= 1, work
         assert metrics["flow"]["steps"] == 4 and metrics["warnings"] == []
         assert metrics["params"]["iterations"] == 4
 

@@ -84,7 +84,11 @@ static void test_bnf_matches_numpy(void **state)
  *    of size 1 divided by the step 0.01 room);
  *  - the mean over 16 probes against the exact trace sum B_ii within 4
  *    of its standard deviations, computed exactly from B: the variance of
- *    z' B z for Rademacher z is sum_{i != j} B_ij (B_ij + B_ji). */
+ *    z' B z for Rademacher z is sum_{i != j} B_ij (B_ij + B_ji);
+ *  - the one-probe bound on that variance (mcf__feature_div_bound, what
+ *    the stage's z-test takes with its one probe) against 2 |B z|^2 from
+ *    B (equal up to rounding, as the estimate), and the exact variance at
+ *    most 2 |B|_F^2, the bound's expectation. */
 static void test_divergence_linear_filter(void **state)
 {
     enum { NPR = 16 };
@@ -114,7 +118,7 @@ static void test_divergence_linear_filter(void **state)
     memcpy(n, mcf__bnf_normals(b, 0.5, 0), sizeof(double) * 3 * (size_t)nf);
     memcpy(Y, X, sizeof(double) * 3 * (size_t)nv);
     mcf__bnf_vertices(b, n, fixed, 5, Y);
-    double trace = 0.0, var = 0.0, babs = 0.0;
+    double trace = 0.0, var = 0.0, babs = 0.0, fro = 0.0;
     for (int kj = 0; kj < nfree; kj++) {
         int j = vert[kj];
         memcpy(Yj, X, sizeof(double) * 3 * (size_t)nv);
@@ -132,6 +136,7 @@ static void test_divergence_linear_filter(void **state)
         trace += B[i * 162 + i];
         for (int j = 0; j < nfree; j++) {
             babs += fabs(B[i * 162 + j]);
+            fro += B[i * 162 + j] * B[i * 162 + j];
             if (i != j)
                 var += B[i * 162 + j] * (B[i * 162 + j] + B[j * 162 + i]);
         }
@@ -152,15 +157,24 @@ static void test_divergence_linear_filter(void **state)
             for (int e = 0; e < 3; e++)
                 Yj[3 * vert[k] + e] += eps * z[k] * mnorm[3 * vert[k] + e];
         mcf__bnf_vertices(b, n, fixed, 5, Yj);
-        double est = mcf__feature_div(&fr, w, mnorm, Y, Yj, z, eps), zbz = 0.0;
-        for (int i = 0; i < nfree; i++)
+        double est = mcf__feature_div(&fr, w, mnorm, Y, Yj, z, eps), zbz = 0.0, bz2 = 0.0;
+        for (int i = 0; i < nfree; i++) {
+            double bz = 0.0;
             for (int j = 0; j < nfree; j++)
-                zbz += z[i] * B[i * 162 + j] * z[j];
+                bz += B[i * 162 + j] * z[j];
+            zbz += z[i] * bz;
+            bz2 += bz * bz;
+        }
         assert_true(fabs(est - zbz) <= 1e-9 * babs);
+        /* the same differences squared: 1e-9 relative, as above */
+        assert_true(fabs(mcf__feature_div_bound(&fr, w, mnorm, Y, Yj, eps) - 2.0 * bz2) <= 1e-9 * 2.0 * bz2);
         mean += est / NPR;
     }
-    print_message("trace %.4f, 16 probes' mean %.4f, its standard deviation %.4f\n", trace, mean, sqrt(var / NPR));
+    print_message("trace %.4f, 16 probes' mean %.4f, its standard deviation %.4f; one probe's variance %.4f, "
+                  "its bound's expectation 2 |B|_F^2 %.4f\n",
+                  trace, mean, sqrt(var / NPR), var, 2.0 * fro);
     assert_true(trace > 0.0);
+    assert_true(var > 0.0 && var <= 2.0 * fro);
     assert_true(fabs(mean - trace) <= 4.0 * sqrt(var / NPR));
     mcf__bnf_free(b);
     mcf_mesh_free(m);
@@ -260,6 +274,17 @@ static void test_feature_ignores_numbering(void **state)
                   pk.normal_iters, pk.vertex_iters, dmax, moved);
     assert_true(moved > 1e-3);
     assert_true(dmax <= 1e-10);
+    /* the result is the filter run afresh with the pick's parameters (the
+     * stage keeps each width's normals on X for it): the same 1e-10 */
+    double Yr[3 * NV], dr = 0.0;
+    mcf__bnf *b = mcf__bnf_new(X, F, NF, NV, NULL);
+    assert_non_null(b);
+    mcf__bnf_run(b, X, fixed, pk.sigma_r, pk.normal_iters, pk.vertex_iters, Yr);
+    for (int i = 0; i < 3 * NV; i++)
+        dr = fmax(dr, fabs(Y[i] - Yr[i]));
+    print_message("against the filter run afresh: largest difference %.3g\n", dr);
+    assert_true(dr <= 1e-10);
+    mcf__bnf_free(b);
     mcf_mesh_free(m);
 }
 

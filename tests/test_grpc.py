@@ -338,6 +338,21 @@ def test_default_is_fairing():
     assert f["sure"] and min(range(len(f["sure"])), key=f["sure"].__getitem__) == f["steps"] >= 1, f
     assert 0 <= f["guard_rounds"] <= 5
     assert len(g.progress) == len(f["sure"]) - 1, (len(g.progress), len(f["sure"]))
+    assert all(not p.phase for p in g.progress), "milestones without phases=true"
+    # asked for (SmoothHeader.phases): the core's milestones too, each
+    # phase of the default request as it starts, their share never falling
+    # and 1 at the output; the steps as before, the same result
+    g2 = smooth(MAIN, data, {}, phases=True)
+    assert g2.result == body
+    work = [p for p in g2.progress if p.phase]
+    steps = [p.step for p in g2.progress if not p.phase]
+    assert steps == [p.step for p in g.progress], steps
+    fr = [p.fraction for p in work]
+    phases = {p.phase for p in work}
+    assert fr == sorted(fr) and fr[-1] == 1.0 and 0 <= fr[0], fr
+    assert {"spikes", "noise", "output"} <= phases, phases
+    print("    the default request, phases=true: %d milestones (%s), %d steps"
+          % (len(work), " ".join(sorted(phases)), len(steps)))
 
 
 def gltf_file(name):

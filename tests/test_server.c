@@ -485,6 +485,24 @@ static void test_smooth_multipart_mixed(void **state)
     resp_free(&r);
 }
 
+/* A milestone line of a job's stream (openapi.yaml WorkEvent): its shape,
+ * its share never below the last one's (the core's promise); 1 when line
+ * j is one, 0 when it is a step or the final line. */
+static int work_event(const cJSON *j, double *last_fraction)
+{
+    const cJSON *ph = cJSON_GetObjectItemCaseSensitive(j, "phase");
+    double f;
+
+    if (!ph)
+        return 0;
+    assert_true(cJSON_IsString(ph) && ph->valuestring[0]);
+    assert_true(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(j, "step")));
+    f = jnum(j, "fraction");
+    assert_true(f >= *last_fraction && f <= 1.0);
+    *last_fraction = f;
+    return 1;
+}
+
 /* ?stream=ndjson: one line per step while it runs, then the summary. */
 static void test_smooth_ndjson(void **state)
 {
@@ -492,7 +510,7 @@ static void test_smooth_ndjson(void **state)
     resp_t r, res;
     char *line, *save = NULL, path[160];
     int steps = 0, done = 0;
-    double last_t = 0, last_energy = INFINITY, last_volume = 0;
+    double last_t = 0, last_energy = INFINITY, last_volume = 0, frac = 0;
     enum { N = 500 };
     mcf_mesh *out;
     api_format fmt;
@@ -512,6 +530,8 @@ static void test_smooth_ndjson(void **state)
         cJSON *j = cJSON_Parse(line);
         assert_non_null(j);
         assert_false(done); /* nothing after the final line */
+        /* no phases=true: the steps only */
+        assert_false(work_event(j, &frac));
         if (cJSON_GetObjectItemCaseSensitive(j, "done")) {
             const cJSON *m = cJSON_GetObjectItemCaseSensitive(j, "metrics");
             done = 1;
@@ -545,6 +565,60 @@ static void test_smooth_ndjson(void **state)
     assert_int_equal(mcf_mesh_nvertices(out), 812);
     mcf_mesh_free(out);
     resp_free(&res);
+    resp_free(&r);
+}
+
+/* The default request (the fairing filter) reports no step until its
+ * end, if any: its stream carries the core's milestones, each phase as it
+ * starts (the README's client example prints them). The bunny of
+ * tests/data: spike repair, the graph, creases, the noise reading, ...,
+ * the output at 1. */
+static void test_default_stream_milestones(void **state)
+{
+    upload_t up = {.mesh = "bunny.drc"};
+    resp_t r;
+    char *line, *save = NULL, phases[256] = "";
+    int n = 0, done = 0;
+    double frac = 0;
+
+    (void)state;
+    /* asked for (a client of before reads every line but the last as a
+     * step: without phases=true it gets the steps only) */
+    http(&g_main, "POST", "/smooth?stream=ndjson&phases=true", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "default, ndjson");
+    for (line = strtok_r(r.body.data, "\n", &save); line;
+         line = strtok_r(NULL, "\n", &save)) {
+        cJSON *j = cJSON_Parse(line);
+        assert_non_null(j);
+        assert_false(done);
+        if (work_event(j, &frac)) {
+            const char *ph = jstr(j, "phase");
+            n++;
+            if (!strstr(phases, ph) && strlen(phases) + strlen(ph) + 2 < sizeof phases) {
+                strcat(phases, ph);
+                strcat(phases, " ");
+            }
+        } else if (cJSON_GetObjectItemCaseSensitive(j, "done")) {
+            done = 1;
+            assert_string_equal(jstr(j, "status"), "succeeded");
+        }
+        cJSON_Delete(j);
+    }
+    assert_true(done);
+    print_message("    default request on bunny.drc: %d milestones, phases %s\n", n, phases);
+    /* at least the five phases every default run has */
+    assert_true(n >= 5);
+    assert_non_null(strstr(phases, "spikes"));
+    assert_non_null(strstr(phases, "noise"));
+    assert_non_null(strstr(phases, "output"));
+    tl_assert_near(frac, 1.0, 0.0, "the last milestone's share");
+    resp_free(&r);
+    http(&g_main, "POST", "/smooth?stream=ndjson", NULL, &up, &r);
+    expect_status(&g_main, &r, 200, "default, ndjson without phases");
+    assert_null(strstr(r.body.data, "\"phase\""));
+    resp_free(&r);
+    http(&g_main, "POST", "/smooth?stream=ndjson&phases=yes", NULL, &up, &r);
+    expect_problem(&g_main, &r, 400, "EINVAL", "'phases'", "phases=yes");
     resp_free(&r);
 }
 
@@ -1372,7 +1446,7 @@ static void test_metrics_stream_volume_open(void **state)
     upload_t raw;
     resp_t r;
     char *line, *save = NULL;
-    double vol[8];
+    double vol[8], frac = 0;
     int i, k, n = 8, steps = 0, done = 0;
 
     (void)state;
@@ -1398,6 +1472,10 @@ static void test_metrics_stream_volume_open(void **state)
          line = strtok_r(NULL, "\n", &save)) {
         cJSON *j = cJSON_Parse(line);
         assert_non_null(j);
+        if (work_event(j, &frac)) {
+            cJSON_Delete(j);
+            continue;
+        }
         if (cJSON_GetObjectItemCaseSensitive(j, "done")) {
             const cJSON *m = cJSON_GetObjectItemCaseSensitive(j, "metrics");
             const cJSON *log = cJSON_GetObjectItemCaseSensitive(
@@ -1484,6 +1562,7 @@ int main(void)
         cmocka_unit_test_teardown(test_smooth_default_fairing, kill_strays),
         cmocka_unit_test_teardown(test_smooth_multipart_mixed, kill_strays),
         cmocka_unit_test_teardown(test_smooth_ndjson, kill_strays),
+        cmocka_unit_test_teardown(test_default_stream_milestones, kill_strays),
         cmocka_unit_test_teardown(test_smooth_ndjson_live, kill_strays),
         cmocka_unit_test_teardown(test_async_job, kill_strays),
         cmocka_unit_test_teardown(test_cancel, kill_strays),

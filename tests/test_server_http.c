@@ -975,6 +975,44 @@ static void test_hangup_and_budgets(void **state)
     stop_daemon(&d);
 }
 
+/* --job-timeout holds for the default request too: its filter reports
+ * no step until its end, and the core's milestones (spike repair, noise
+ * reading, set-up, passes) are where the daemon checks the timeout and the
+ * CPU budget. Before, a default job ran to its end whatever the timeout
+ * (measured: 3.1 s of a 43k-vertex scan against --job-timeout 0.1 s) and
+ * was then failed. 10 ms passes before the noisy knot's first milestone
+ * (its decode alone takes longer); the flow loads the flag at its next
+ * step or pass (the noise read gives it steps: a clean mesh runs none and
+ * ends with its phases), so the job stops before its output, which the
+ * detail names. */
+static void test_default_job_timeout(void **state)
+{
+    daemon_t d;
+    char spool[600], noisy[600];
+    const char *flags[] = {"--workers", "1", "--job-timeout", "0.01", NULL};
+    upload_t up = {.mesh = noisy};
+    resp_t r;
+    cJSON *j;
+    const char *detail;
+
+    (void)state;
+    snprintf(noisy, sizeof noisy, "%s/knot-noisy.obj", g_tmp);
+    tl_write_noisy("knot1.obj", 0.3, 7, noisy);
+    snprintf(spool, sizeof spool, "%s/deftimeout", g_tmp);
+    assert_int_equal(start_daemon(&d, "deftimeout", spool, flags), 0);
+    http(&d, "POST", "/smooth", NULL, &up, &r);
+    expect_problem(&d, &r, 422, "ELIMIT", "--job-timeout", "default job timeout");
+    j = cJSON_Parse(r.body.data);
+    assert_non_null(j);
+    detail = jstr(j, "detail");
+    print_message("    default request past --job-timeout 0.01: %s\n", detail);
+    assert_non_null(strstr(detail, "phase with"));
+    assert_null(strstr(detail, "output phase"));
+    cJSON_Delete(j);
+    resp_free(&r);
+    stop_daemon(&d);
+}
+
 /* --token-file: 401 without or with a wrong token; probes stay open. */
 static void test_auth(void **state)
 {
@@ -1292,6 +1330,7 @@ int main(void)
         cmocka_unit_test_teardown(test_body_timeout, kill_strays),
         cmocka_unit_test_teardown(test_clock_jumps, kill_strays),
         cmocka_unit_test_teardown(test_auth, kill_strays),
+        cmocka_unit_test_teardown(test_default_job_timeout, kill_strays),
         cmocka_unit_test_teardown(test_concurrent_clients, kill_strays),
         cmocka_unit_test_teardown(test_path_control_bytes, kill_strays),
     };

@@ -64,7 +64,8 @@ export async function result(id) {
 }
 
 // Calls onEvent(type, data) for each event of the job's stream (status,
-// progress, done) until the daemon ends it.
+// progress, work: the core's phases between steps, done) until the daemon
+// ends it.
 export async function follow(id, onEvent) {
   const resp = await call(`/v1/jobs/${id}/events`, { headers: { Accept: 'text/event-stream' } });
   const reader = resp.body.pipeThrough(new TextDecoderStream()).getReader();

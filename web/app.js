@@ -207,7 +207,8 @@ drop.addEventListener('drop', e => {
 // Submits the mesh with p and follows the job until it ends; resolves to
 // the final Job document. With a target (a clean mesh of the same
 // connectivity), the metrics measure the error before and after against it.
-// onProgress(fraction or null when unknown, step, status).
+// onProgress(fraction or null when unknown, step, status, the core's phase
+// when known: the default request reports phases, not steps).
 async function runJob(file, target, p, onProgress, fields = false) {
   let job = await api.submit(file, p, target, fields);
   state.job = job;
@@ -221,6 +222,8 @@ async function runJob(file, target, p, onProgress, fields = false) {
     } else if (type === 'progress') {
       const n = planned(job);
       onProgress(n ? Math.min(1, data.step / n) : null, data.step, 'running');
+    } else if (type === 'work') {
+      onProgress(data.fraction, data.step, 'running', data.phase);
     }
   });
   if (!['succeeded', 'failed', 'canceled'].includes(job.status))
@@ -228,11 +231,12 @@ async function runJob(file, target, p, onProgress, fields = false) {
   return job;
 }
 
-function showProgress(fraction, step, st) {
+function showProgress(fraction, step, st, phase) {
   const bar = $('progress');
   if (fraction === null) bar.removeAttribute('value');
   else bar.value = fraction;
-  status(st === 'queued' ? 'Queued...' : `${st}: step ${step}`);
+  status(st === 'queued' ? 'Queued...'
+    : phase ? `${st}: ${phase} (${Math.round(100 * fraction)}%)` : `${st}: step ${step}`);
 }
 
 $('job-form').addEventListener('submit', async e => {

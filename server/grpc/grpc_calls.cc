@@ -107,7 +107,7 @@ class SmoothCall : public Follow,
         if (!j)
             return;
         ctx_->AddInitialMetadata("mcf-job-id", svc_job_id(j));
-        follow(j, true, 0, false, false);
+        follow(j, true, 0, false, false, up_.phases());
     }
 
     void OnWriteDone(bool ok) override
@@ -178,7 +178,8 @@ class WatchCall : public Follow, public grpc::ServerWriteReactor<pb::SmoothRespo
             svc_job_unref(j);
         } else {
             ctx->AddInitialMetadata("mcf-job-id", svc_job_id(j));
-            follow(j, false, req->from_step(), req->skip_result(), req->no_wait());
+            follow(j, false, req->from_step(), req->skip_result(), req->no_wait(),
+                   req->phases());
         }
     }
 

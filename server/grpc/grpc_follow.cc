@@ -100,7 +100,8 @@ Follow::Follow(CallbackServerContext *ctx, const char *method) : ctx_(ctx), meth
 }
 
 /* Starts following j (a reference the follower now owns). */
-void Follow::follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait)
+void Follow::follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait,
+                    bool phases)
 {
     bool gone;
     {
@@ -110,6 +111,7 @@ void Follow::follow(svc_job *j, bool keep, int from_step, bool skip_result, bool
         from_step_ = from_step;
         skip_result_ = skip_result;
         no_wait_ = no_wait;
+        phases_ = phases;
         gone = gone_;
     }
     if (gone) {     /* cancelled between the submission and now */
@@ -237,8 +239,12 @@ int Follow::next(Status *st)
                 set_end(e);
                 return -1;
             }
-            if (n == 0)
+            if (n == 0) {
+                queue_phases();
+                if (!pending_.empty())
+                    return next(st);
                 break;
+            }
             next_event_ += n;
             parse_events(data, len);
             free(data);
@@ -262,6 +268,8 @@ int Follow::next(Status *st)
                 set_end(e);
                 return -1;
             }
+            if (work_news(s))
+                return 1;
             return 0;
         }
         if (s.status != SVC_JOB_SUCCEEDED) {
@@ -321,6 +329,46 @@ int Follow::next(Status *st)
 void Follow::set_end(const svc_error &e)
 {
     end_err_.reset(new svc_error(e));
+}
+
+/* For a call that asked for them (phases_): the run's phase changes not
+ * sent yet into pending_ (kept with the job: none is missed). */
+void Follow::queue_phases()
+{
+    svc_phase ph[SVC_PHASES_MAX];
+    int n, k;
+
+    if (!phases_)
+        return;
+    n = svc_job_phases(job_, work_phases_, ph, SVC_PHASES_MAX);
+    for (k = 0; work_phases_ < n && k < SVC_PHASES_MAX; k++, work_phases_++) {
+        if (ph[k].step < from_step_)
+            continue;
+        pb::Progress pr;
+        pr.set_step(ph[k].step);
+        pr.set_phase(ph[k].phase);
+        pr.set_fraction(ph[k].fraction);
+        pending_.push_back(pr);
+        work_told_ = ph[k].fraction;
+        work_event_ = next_event_;
+    }
+}
+
+/* While the job runs, its share into out_ when it moved by a percent with
+ * no step or milestone sent since the last one (a phase without steps:
+ * the default request's passes, say). */
+bool Follow::work_news(const svc_snap &s)
+{
+    if (!phases_ || s.status != SVC_JOB_RUNNING || !s.phase[0] || s.step < from_step_ ||
+        !(s.fraction >= work_told_ + 0.01 && next_event_ == work_event_))
+        return false;
+    work_told_ = s.fraction;
+    out_.Clear();
+    pb::Progress *pr = out_.mutable_progress();
+    pr->set_step(s.step);
+    pr->set_phase(s.phase);
+    pr->set_fraction(s.fraction);
+    return true;
 }
 
 void Follow::parse_events(const char *data, size_t len)

@@ -237,6 +237,7 @@ class Upload {
     bool feed(grpc::ByteBuffer *b, svc_error *e);
     bool feed(const pb::SmoothRequest &m, svc_error *e);
     int submit(bool keep_result, svc_job **out, svc_error *e);
+    bool phases() const { return phases_; }  /* SmoothHeader.phases */
     void arm(Expirable *call);
     void disarm();
 
@@ -271,6 +272,7 @@ class Upload {
     svc_request rq_ = request_init();
     api_format in_format_ = API_FMT_UNKNOWN;
     long long total_size_ = -1, target_size_ = -1;
+    bool phases_ = false;
     char *mesh_ = nullptr, *target_ = nullptr;
     size_t mesh_len_ = 0, target_len_ = 0, mesh_alloc_ = 0, target_alloc_ = 0;
     size_t mem_held_ = 0;           /* svc_upload_reserve */
@@ -298,7 +300,8 @@ class Follow {
 
   protected:
     Follow(CallbackServerContext *ctx, const char *method);
-    void follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait);
+    void follow(svc_job *j, bool keep, int from_step, bool skip_result, bool no_wait,
+                bool phases);
     void write_done(bool ok);
     void cancelled();
     void done();
@@ -325,6 +328,8 @@ class Follow {
     int next(Status *st);
     void set_end(const svc_error &e);
     void parse_events(const char *data, size_t len);
+    void queue_phases();
+    bool work_news(const svc_snap &s);
     static double num(const cJSON *o, const char *k);
 
     enum { P_STEPS, P_METRICS, P_HEADER, P_CHUNKS, P_END };
@@ -334,6 +339,7 @@ class Follow {
     svc_job *job_ = nullptr;
     svc_sub *sub_ = nullptr;
     bool keep_ = false, taken_ = false, skip_result_ = false, no_wait_ = false;
+    bool phases_ = false;          /* the core's milestones too (work_news) */
     int from_step_ = 0;
     /* under mu_ */
     std::shared_ptr<Stall> stall_;  /* the write in flight, for the door's expire */
@@ -343,6 +349,11 @@ class Follow {
     int phase_ = P_STEPS;
     int next_event_ = 0;
     std::deque<pb::Progress> pending_;
+    /* the milestones sent (queue_phases, work_news): the run's phase
+     * changes, the last share, and the events sent by then */
+    int work_phases_ = 0;
+    double work_told_ = 0;
+    int work_event_ = 0;
     pb::SmoothResponse out_;
     char *result_ = nullptr;
     size_t result_len_ = 0, result_off_ = 0;

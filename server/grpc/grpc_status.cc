@@ -170,6 +170,7 @@ bool fill_job(svc_job *j, pb::Job *out)
         g2->set_volume(s.volume);
     }
     g2->set_fraction(s.fraction);
+    g2->set_phase(s.phase);
     const double times[3] = {s.created, s.started, s.finished};
     std::string *fields[3] = {out->mutable_created(), out->mutable_started(),
                               out->mutable_finished()};

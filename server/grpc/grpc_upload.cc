@@ -228,6 +228,7 @@ bool Upload::header(const pb::SmoothHeader &h, svc_error *e)
         of = h.output_format();
     if (!(po = params_object(h.params(), h.has_output_format() ? &of : nullptr)))
         return fail(e, SVC_P_NOMEM, "out of memory");
+    phases_ = h.phases();
     if (h.has_filename())
         snprintf(rq_.filename, sizeof rq_.filename, "%s", basename_of(h.filename()).c_str());
     /* The parameters now, before any byte of the mesh, parsed once into

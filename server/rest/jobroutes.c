@@ -164,7 +164,7 @@ enum MHD_Result rest_wait_or_answer(rest_request *r, struct MHD_Connection *c)
             r->waiting = 0;
             return rest_respond(r, c, 200,
                                 rest_stream_response(r->door, r->job, SRV_STREAM_NDJSON,
-                                                     c, -1));
+                                                     r->phases, c, -1));
         }
         if (svc_job_status_terminal(s.status)) {
             rest_waiter_stop(&r->w);
@@ -323,7 +323,7 @@ enum MHD_Result rest_route_job(rest_request *r, struct MHD_Connection *c,
             ret = rest_send_problem(r, c, &p, r->id);
         else
             ret = rest_respond(r, c, 200,
-                               rest_stream_response(r->door, j, SRV_STREAM_SSE, c, last));
+                               rest_stream_response(r->door, j, SRV_STREAM_SSE, 1, c, last));
     } else {
         ret = get_job_part(r, c, j);
     }

@@ -262,6 +262,10 @@ static void add_progress(cJSON *o, const svc_snap *s)
     add_num(p, "energy", s->step > 0 ? s->energy : NAN);
     add_num(p, "volume", s->step > 0 ? s->volume : NAN);
     cJSON_AddNumberToObject(p, "fraction", s->fraction);
+    if (s->phase[0])
+        cJSON_AddStringToObject(p, "phase", s->phase);
+    else
+        cJSON_AddNullToObject(p, "phase");
 }
 
 static void add_links(cJSON *o, const char *id)

@@ -123,9 +123,11 @@ int rest_http_check_clients(rest_t *d);
 typedef enum { SRV_STREAM_NDJSON = 0, SRV_STREAM_SSE } rest_stream_kind;
 
 /* A chunked response that follows the job's events until it finishes.
- * Holds its own job reference. last_id: SSE Last-Event-ID (-1: none). */
+ * Holds its own job reference. last_id: SSE Last-Event-ID (-1: none).
+ * phases: the core's milestones between the steps too (SSE's "work"
+ * events always: an EventSource hears only the types it listens to). */
 struct MHD_Response *rest_stream_response(rest_t *d, svc_job *j,
-                                          rest_stream_kind kind,
+                                          rest_stream_kind kind, int phases,
                                           struct MHD_Connection *conn,
                                           long last_id);
 /* Whether one more follower of j may start (at most SVC_FOLLOWERS_PER_JOB
@@ -193,6 +195,8 @@ typedef struct {
                                   (svc_upload_reserve) */
     /* waiting on a job */
     rest_mode md;
+    int phases;                /* stream=ndjson&phases=true: the core's
+                                  milestones too (stream.c) */
     svc_job *job;
     rest_waiter w;
     int waiting;

@@ -17,6 +17,12 @@
  * {"done":true,"job","status","result","metrics"} or {"done":...,"error"}.
  * SSE: "event: status" with the job JSON first, "id: N / event: progress"
  * per step (Last-Event-ID resumes after N), "event: done" with the job.
+ * Between them, the core's milestones: {"step","phase","fraction"}, SSE's
+ * "event: work" without an id, at each new phase of the run (kept with the
+ * job: a late follower gets them all) and at each percent of the work
+ * while no step comes (the default request's phases); in ndjson only when
+ * asked for (phases=true): a client of before reads every line that is
+ * not the last as a step.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,12 +35,16 @@
 typedef struct {
     svc_job *job;
     rest_stream_kind kind;
+    int phases;               /* the core's milestones too (work_line) */
     rest_waiter w;
     int ev_index;             /* events passed (the SSE id of the last) */
     long last_id;             /* SSE Last-Event-ID: skip ids <= last_id */
     api_buf pend;             /* formatted, not yet handed to MHD */
     size_t pend_off;
     int started, finished;
+    int nphases;              /* the job's phase changes sent (work_lines) */
+    double told;              /* the share of the last milestone sent */
+    int ev_at_work;           /* ev_index when it was sent */
 } stream;
 
 int rest_stream_admit(rest_t *d, const svc_job *j, svc_error *p)
@@ -122,6 +132,46 @@ static void sse_json(api_buf *b, const char *name, cJSON *o)
     cJSON_Delete(o);
 }
 
+/* One milestone line: {"step","phase","fraction"}. */
+static void work_line(stream *s, int step, const char *phase, double fraction)
+{
+    char line[96];
+    int n;
+
+    /* the phases are the core's identifiers ([a-z]): no escaping */
+    n = snprintf(line, sizeof line, "{\"step\":%d,\"phase\":\"%s\","
+                 "\"fraction\":%.4f}", step, phase, fraction);
+    if (n <= 0 || (size_t)n >= sizeof line)
+        return;
+    if (s->kind == SRV_STREAM_NDJSON) {
+        api_buf_append(&s->pend, line, (size_t)n);
+        api_buf_append(&s->pend, "\n", 1);
+    } else {
+        sse_event(&s->pend, "work", 0, line, (size_t)n);
+    }
+    s->told = fraction;
+    s->ev_at_work = s->ev_index;
+}
+
+/* The milestones not sent yet, for a stream that asked for them: every
+ * phase change of the run (kept with the job: none is missed, however
+ * late the stream reads), then, while the job runs and no step was sent
+ * since the last milestone, its share when it moved by a percent. */
+static void work_lines(stream *s, const svc_snap *sn)
+{
+    svc_phase ph[SVC_PHASES_MAX];
+    int k, n;
+
+    if (!s->phases)
+        return;
+    n = svc_job_phases(s->job, s->nphases, ph, SVC_PHASES_MAX);
+    for (k = 0; s->nphases < n && k < SVC_PHASES_MAX; k++, s->nphases++)
+        work_line(s, ph[k].step, ph[k].phase, ph[k].fraction);
+    if (k == 0 && sn->status == SVC_JOB_RUNNING && sn->phase[0] &&
+        sn->fraction >= s->told + 0.01 && s->ev_index == s->ev_at_work)
+        work_line(s, sn->step, sn->phase, sn->fraction);
+}
+
 /* Moves what is new into s->pend. Returns 1 when something was added (or
  * the stream ended), 0 when it must wait. The snapshot comes before the
  * events: the service adds every event before the job ends, so an ended
@@ -171,6 +221,8 @@ static int fill(stream *s)
         }
         free(ev);
     }
+    if (s->pend.len == 0)
+        work_lines(s, &sn);
     if (s->pend.len > 0)
         return 1;
     if (svc_job_status_terminal(sn.status) ||
@@ -240,7 +292,7 @@ static void release(void *cls)
 }
 
 struct MHD_Response *rest_stream_response(rest_t *d, svc_job *j,
-                                          rest_stream_kind kind,
+                                          rest_stream_kind kind, int phases,
                                           struct MHD_Connection *conn,
                                           long last_id)
 {
@@ -251,6 +303,7 @@ struct MHD_Response *rest_stream_response(rest_t *d, svc_job *j,
         return NULL;
     s->job = svc_job_ref(j);
     s->kind = kind;
+    s->phases = phases;
     s->last_id = last_id;
     api_buf_init(&s->pend, 0);
     if (rest_waiter_start(&s->w, d, j, conn, 1, 0) != 0) {

@@ -245,7 +245,16 @@ enum MHD_Result rest_upload_begin(rest_request *r, struct MHD_Connection *c)
     char stream[32];
     unsigned long long n = 0;
 
+    h = rest_query_value(r, "phases", stream, sizeof stream);
+    if (h && strcmp(h, "true") != 0 && strcmp(h, "false") != 0)
+        return rest_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'phases' must be "
+                                  "true or false, got \"%s\"", h);
+    r->phases = h && strcmp(h, "true") == 0;
     h = rest_query_value(r, "stream", stream, sizeof stream);
+    if (r->phases && !(h && r->rt == RT_SMOOTH))
+        return rest_send_problemf(r, c, SVC_P_PARAM_INVALID, "parameter 'phases' is only "
+                                  "for /smooth?stream=ndjson (GET /v1/jobs/ID/events always "
+                                  "sends them, as 'work' events)");
     if (r->rt == RT_SMOOTH) {
         const char *acc = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
                                                       MHD_HTTP_HEADER_ACCEPT);

@@ -31,6 +31,8 @@ typedef struct {
     svc_error prob;           /* a hook's own error (memory, the store) */
     int has_prob;
     int defer;                /* result, metrics, fields: svc__finish's */
+    const mcf_flow_stats *stats;  /* the run's (api_job_result.stats): the
+                                  CPU of the threads its flow started */
 } run_ctx;
 
 /* A blob read back, tried again on a transient error. */
@@ -116,6 +118,17 @@ static int hook_progress(void *ctx, const api_job_step *st)
     return svc__progress(((run_ctx *)ctx)->job, st);
 }
 
+/* The core's milestones: the job's phase and share of work for its
+ * followers, and its limits checked between the steps of a filter that
+ * reports no step until its end; the flow stops at its next step or pass
+ * (the flag it loads). */
+static void hook_work(void *ctx, const char *phase, double done)
+{
+    run_ctx *c = ctx;
+
+    svc__work(c->job, phase, done, c->stats ? c->stats->threads_cpu_s : 0);
+}
+
 /* The result in the store (durable, retried). */
 static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
                              mcf_error *err)
@@ -195,6 +208,7 @@ static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
     h->decoded = hook_decoded;
     h->ready = hook_ready;
     h->progress = hook_progress;
+    h->work = hook_work;
     h->store = hook_store;
     h->cancel = &j->cancel;
 }
@@ -223,6 +237,7 @@ static int run(run_ctx *c, api_job_result *res, svc_outcome *o)
     rq.input_len = c->input_len;
     rq.target_len = c->target_len;
     request_of(c, &rq, &h);
+    c->stats = &res->stats;
     /* a copy: a job that runs again starts from the parameters asked */
     if (api_params_copy(&prm, &j->params) != MCF_OK) {
         svc_error_set(&o->err, SVC_P_NOMEM, "out of memory for the parameters");

@@ -146,6 +146,14 @@ struct svc_job {
     /* progress, written by the runner's progress hook (svc__progress) */
     int step;
     double t, dt, energy, volume;
+    /* the core's milestones, written by the runner's work hook (svc__work):
+     * the phase it is in ("noise", "passes", "steps", ...; "" before the
+     * first) and its share of the work done, 0..1 */
+    char phase[16];
+    double work;
+    double work_told;          /* the share the followers last heard of */
+    svc_phase phases[SVC_PHASES_MAX];  /* the run's phase changes */
+    int nphases;
     int ready;                 /* decoded and checked: streams may start */
     mcf_cancel_flag cancel;    /* written under the lock, loaded without
                                   it by the flow and the decode sandbox */
@@ -285,10 +293,15 @@ int svc__canceled_error(svc_job *j, int steps, svc_error *e);
 int svc__canceled(const svc_job *j);
 svc_cancel_reason svc__cancel_reason(const svc_job *j);
 /* The runner's hooks: ready (the scheme that runs and the input format),
- * one progress event (returns nonzero to stop: canceled or past the job
- * timeout). */
+ * one progress event, one of the core's milestones (threads_cpu_s: the CPU
+ * seconds of the threads the flow started so far). Both return nonzero to
+ * stop: canceled, past the job timeout or over the CPU budget, which they
+ * check (the default request's filter reports milestones and no step
+ * until its end). */
 void svc__ready(svc_job *j, const char *scheme, const char *in_format);
 int svc__progress(svc_job *j, const api_job_step *st);
+int svc__work(svc_job *j, const char *phase, double done,
+              double threads_cpu_s);
 /* A job loaded from the store (recovery.c, before the workers start):
  * its recorded state r applied; a job that was running when the process
  * died runs again, one canceled while it ran stays canceled (recorded).

@@ -192,6 +192,9 @@ int svc__start(svc_job *j)
                             : 0;
         j->cpu0 = thread_cpu();
         j->cpu_used = j->cpu_threads = 0;
+        j->phase[0] = '\0';
+        j->work = j->work_told = 0;
+        j->nphases = 0;
         s->queued--;
         s->busy++;
         svc__notify(j, SVC_NOTIFY_STATE);
@@ -533,13 +536,20 @@ void svc__finish(svc_job *j, svc_outcome *o)
 int svc__canceled_error(svc_job *j, int steps, svc_error *e)
 {
     svc_t *s = j->svc;
-    char when[48];
+    char when[96];
     svc_cancel_reason reason;
+    char phase[sizeof j->phase];
+    double work;
 
     pthread_mutex_lock(&s->mu);
     reason = j->cancel_reason;
+    memcpy(phase, j->phase, sizeof phase);
+    work = j->work;
     pthread_mutex_unlock(&s->mu);
-    if (steps >= 0)
+    if (steps >= 0 && phase[0])
+        snprintf(when, sizeof when, "after step %d, in its %s phase with "
+                 "%.0f%% of its work done", steps, phase, 100.0 * work);
+    else if (steps >= 0)
         snprintf(when, sizeof when, "after step %d", steps);
     else
         snprintf(when, sizeof when, "while its input was decoded");
@@ -577,6 +587,28 @@ void svc__ready(svc_job *j, const char *scheme, const char *in_format)
     pthread_mutex_unlock(&s->mu);
 }
 
+/* Lock held: the job timeout and the CPU budget (threads_cpu_s: the CPU
+ * of the threads its flow started); sets the cancel flag past either,
+ * which the flow loads before its next step or pass. */
+static void limits_locked(svc_job *j, double threads_cpu_s)
+{
+    if (!j->cancel && j->deadline > 0 && srv_mono() > j->deadline) {
+        j->cancel = 1;
+        j->cancel_reason = SVC_CANCEL_TIMEOUT;
+    }
+    /* the worker's thread runs the flow and calls the hooks; the threads
+     * the flow starts (mcf_flow_params.threads) count too */
+    if (j->cpu_budget > 0) {
+        j->cpu_threads = threads_cpu_s;
+        j->cpu_used = thread_cpu() - j->cpu0 + j->cpu_threads;
+    }
+    if (!j->cancel && j->cpu_budget > 0 && j->cpu_used > j->cpu_budget) {
+        j->cancel = 1;
+        j->cancel_reason = SVC_CANCEL_CPU;
+        srv_metrics_cpu_budget();
+    }
+}
+
 int svc__progress(svc_job *j, const api_job_step *st)
 {
     svc_t *s = j->svc;
@@ -592,25 +624,43 @@ int svc__progress(svc_job *j, const api_job_step *st)
     if (n > 0)
         svc__event_add_locked(j, line, (size_t)n);
     svc__notify(j, SVC_NOTIFY_PROGRESS);
-    if (!j->cancel && j->deadline > 0 && srv_mono() > j->deadline) {
-        j->cancel = 1;
-        j->cancel_reason = SVC_CANCEL_TIMEOUT;
-    }
-    /* the worker's thread runs the flow and calls this hook; the threads
-     * the flow starts (mcf_flow_params.threads) count too */
-    if (j->cpu_budget > 0) {
-        j->cpu_threads = st->threads_cpu_s;
-        j->cpu_used = thread_cpu() - j->cpu0 + j->cpu_threads;
-    }
-    if (!j->cancel && j->cpu_budget > 0 && j->cpu_used > j->cpu_budget) {
-        j->cancel = 1;
-        j->cancel_reason = SVC_CANCEL_CPU;
-        srv_metrics_cpu_budget();
-    }
+    limits_locked(j, st->threads_cpu_s);
     stop = j->cancel;
     pthread_mutex_unlock(&s->mu);
     if (n > 0)
         s->store->ops->progress(s->store, j->id, line, (size_t)n);
+    return stop;
+}
+
+/* The followers hear of a milestone when its phase changes or its share
+ * moves by a percent: a pass of the default filter may take a
+ * millisecond, and a stream needs no more than a hundred updates. */
+#define WORK_NOTIFY_STEP 0.01
+
+int svc__work(svc_job *j, const char *phase, double done,
+              double threads_cpu_s)
+{
+    svc_t *s = j->svc;
+    int stop;
+
+    pthread_mutex_lock(&s->mu);
+    j->work = done;
+    if (strncmp(j->phase, phase, sizeof j->phase - 1) != 0 &&
+        j->nphases < SVC_PHASES_MAX) {
+        svc_phase *e = &j->phases[j->nphases++];
+        snprintf(e->phase, sizeof e->phase, "%s", phase);
+        e->step = j->step;
+        e->fraction = done;
+    }
+    if (strncmp(j->phase, phase, sizeof j->phase - 1) != 0 ||
+        done >= j->work_told + WORK_NOTIFY_STEP || done >= 1.0) {
+        snprintf(j->phase, sizeof j->phase, "%s", phase);
+        j->work_told = done;
+        svc__notify(j, SVC_NOTIFY_PROGRESS);
+    }
+    limits_locked(j, threads_cpu_s);
+    stop = j->cancel;
+    pthread_mutex_unlock(&s->mu);
     return stop;
 }
 

@@ -41,11 +41,15 @@ static void snapshot_locked(const svc_job *j, svc_snap *s)
     s->cpu_threads_s = j->cpu_threads;
     if (j->status == SVC_JOB_SUCCEEDED)
         frac = 1;
+    else if (j->work > 0)
+        frac = j->work;
     else if (j->steps_planned > 0)
         frac = (double)j->step / j->steps_planned;
     else if (j->time_planned > 0)
         frac = j->t / j->time_planned;
     s->fraction = frac < 0 ? 0 : frac > 1 ? 1 : frac;
+    if (j->status == SVC_JOB_RUNNING)
+        snprintf(s->phase, sizeof s->phase, "%s", j->phase);
     s->created = j->created;
     s->started = j->started;
     s->finished = j->finished;
@@ -171,6 +175,18 @@ static int events_from_store(svc_store *st, const char *id, int from,
     *len = b - a;
     *n = k;
     return 0;
+}
+
+int svc_job_phases(const svc_job *j, int from, svc_phase *out, int n)
+{
+    int count, k;
+
+    pthread_mutex_lock(&j->svc->mu);
+    count = j->nphases;
+    for (k = 0; from >= 0 && from + k < count && k < n; k++)
+        out[k] = j->phases[from + k];
+    pthread_mutex_unlock(&j->svc->mu);
+    return count;
 }
 
 int svc_job_events(const svc_job *j, int from, size_t max_bytes, char **data,

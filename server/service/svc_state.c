@@ -61,7 +61,7 @@ static void add_num(cJSON *o, const char *key, double v)
 
 /* -------------------------------------------------- a request's parameters */
 
-const char *const svc_query_keys[] = {"stream", "fields", NULL};
+const char *const svc_query_keys[] = {"stream", "phases", "fields", NULL};
 
 int svc_query_fields(const char *query, int *on, svc_error *err)
 {

@@ -51,8 +51,10 @@ def smooth(mesh, url="http://127.0.0.1:8080", *, target=None, out=None, progress
     TLS). params: the job parameters (scheme, strength, time, iterations,
     dt, format, ...; "auto" where the daemon accepts it). target: a clean
     mesh (path or bytes) with the same connectivity, for the metrics'
-    comparison. progress: called with a dict {step, t, dt, energy, volume}
-    after every step. with_metrics: return (result, metrics), metrics the
+    comparison. progress: called with a dict {step, t, dt, energy, volume,
+    phase, done} after every step and at the core's milestones between
+    them (the phases of the default request: phase names it, done is the
+    share of the work; a step has phase "steps"), as mcf.smooth calls it. with_metrics: return (result, metrics), metrics the
     daemon's document (a dict). timeout: seconds for the whole call.
     token: the daemon's bearer token (--token-file).
 

@@ -11,6 +11,7 @@ and, when it is worth retrying, the delay in `retry-after-ms`.
 import json
 
 from . import errors
+from ._events import step_event, work_event
 from ._jobs import grpc_job_doc
 from ._rest import Answer
 
@@ -49,8 +50,9 @@ def _params(pb, params):
     return p
 
 
-def _requests(pb, data, filename, params, output_format, target):
-    h = pb.SmoothHeader(params=params, total_size=len(data), filename=filename or "mesh")
+def _requests(pb, data, filename, params, output_format, target, phases=False):
+    h = pb.SmoothHeader(params=params, total_size=len(data), filename=filename or "mesh",
+                        phases=phases)
     if output_format:
         h.output_format = output_format
     if target is not None:
@@ -91,8 +93,8 @@ def _read_answer(responses, progress):
         part = r.WhichOneof("part")
         if part == "progress" and progress:
             g = r.progress
-            progress({"step": g.step, "t": g.t, "dt": g.dt, "energy": g.energy,
-                      "volume": g.volume})
+            progress(work_event(g.step, g.phase, g.fraction) if g.phase else
+                     step_event(g.step, g.t, g.dt, g.energy, g.volume))
         elif part == "metrics":
             metrics = json.loads(r.metrics)
         elif part == "result_header":
@@ -127,7 +129,8 @@ class Door:
         params = dict(params)
         output_format = params.pop("format", None)
         return self._call(lambda pb, stub: _read_answer(
-            stub.Smooth(_requests(pb, data, filename, _params(pb, params), output_format, target),
+            stub.Smooth(_requests(pb, data, filename, _params(pb, params), output_format, target,
+                                  phases=progress is not None),
                         timeout=self.timeout, metadata=self.metadata), progress))
 
     def submit(self, data, filename, params, target):

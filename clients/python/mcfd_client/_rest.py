@@ -4,8 +4,8 @@
 POST /v1/smooth with a multipart body: the mesh, the parameters as the JSON
 `params` field (types kept: booleans, numbers, the fixed_vertices array), the
 optional target. Without a progress callback the answer is the mesh; with
-one, `stream=ndjson` gives one line per step and a last line naming the
-result, fetched after. Warnings come from X-Warnings, metrics from the job's
+one, `stream=ndjson` gives one line per step or milestone and a last line
+naming the result, fetched after. Warnings come from X-Warnings, metrics from the job's
 metrics link. Errors are problem+json documents (openapi.yaml, Problem).
 """
 import json
@@ -15,6 +15,7 @@ import urllib.request
 import uuid
 
 from . import errors
+from ._events import step_event, work_event
 
 
 class Answer:
@@ -89,7 +90,7 @@ def _upload(data, filename, params, target):
 def smooth(base, data, filename, params, target, progress, want_metrics, timeout, headers):
     """One attempt; raises MCFDError (Busy carries retry_after)."""
     body, ctype = _upload(data, filename, params, target)
-    query = "?stream=ndjson" if progress else ""
+    query = "?stream=ndjson&phases=true" if progress else ""
     req = urllib.request.Request(base + "/v1/smooth" + query, data=body, method="POST",
                                  headers=dict(headers, **{"Content-Type": ctype}))
     with _open(req, timeout) as resp:
@@ -102,8 +103,11 @@ def smooth(base, data, filename, params, target, progress, want_metrics, timeout
                 if not line.strip():
                     continue
                 ev = json.loads(line)
-                if "step" in ev and "done" not in ev:
-                    progress(ev)
+                if "phase" in ev:          # openapi.yaml WorkEvent
+                    progress(work_event(ev["step"], ev["phase"], ev["fraction"]))
+                elif "step" in ev and "done" not in ev:   # StepEvent
+                    progress(step_event(ev["step"], ev["t"], ev["dt"], ev["energy"],
+                                        ev["volume"]))
                 else:
                     end = ev
             if not end:
