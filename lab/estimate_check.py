@@ -1,3 +1,5 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """estimate_check.py - per step, how well do the adaptive error estimates of
 ros2 and richardson track the true local error (issue 30)?
 
