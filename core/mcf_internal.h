@@ -310,6 +310,8 @@ typedef struct {
     double s;                 /* the noise level it read from its own
                                  residuals (working units; see mcf_feature.c) */
     double div, vdiv;         /* (internal) the divergence, its variance */
+    int outliers;             /* vertices left out of the comparison with
+                                 Ylin (residual beyond 4 s; mcf_feature.c) */
     size_t bytes;             /* held at the peak */
 } mcf__feature_pick;
 
