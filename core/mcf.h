@@ -397,13 +397,13 @@ typedef struct {
     mcf_mass mass;
     int adaptive;             /* needs a scheme with has_estimate */
     double tol;               /* adaptive, relative to the unit-area size
-                                 (M-weighted RMS): desbrun2: the error at
-                                 T, as 0.3 tol per unit time of its own
-                                 (Milne) local estimate (measured 0.07-0.94
-                                 tol on scans: docs/numerics.md); ros2,
-                                 richardson, desbrun: local error per step
-                                 of the first-order companion solution
-                                 (global <= steps*tol) */
+                                 (M-weighted RMS): desbrun2, ros2: the
+                                 error at T, as 0.3 tol per unit time of
+                                 their own (Milne) local estimate
+                                 (measured 0.02-0.27 tol on scans:
+                                 docs/numerics.md); richardson, desbrun:
+                                 local error per step of the first-order
+                                 companion (global <= steps*tol) */
     int max_steps;            /* hard cap on steps, rejected ones included
                                  (adaptive); ELIMIT naming max_steps when
                                  a run would need more */

@@ -149,6 +149,17 @@ static void fair_free(fair_ctx *c)
         free(c->dk[j]);
 }
 
+/* The explicit engine's Z and tmp once its run is done (nothing reads
+ * them after run_steps): the bytes freed. */
+static size_t drop_engine(fair_ctx *c)
+{
+    size_t n = c->Z ? 2 * sizeof(double) * (size_t)c->nv * (size_t)c->ncol : 0;
+    free(c->Z);
+    free(c->tmp);
+    c->Z = c->tmp = NULL;
+    return n;
+}
+
 static double *alloc_d(fair_ctx *c, size_t n)
 {
     c->bytes += n * sizeof(double);
@@ -934,6 +945,9 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         found > 0) {
         mcf__chol_free(c->chol);
         c->chol = NULL;
+        /* the first runs' passes are done: their Z and tmp (167 MB on the
+         * 1.74M scan) need not live through this one */
+        size_t dropped = drop_engine(&ci) + drop_engine(&ce);
         memset(&se, 0, sizeof se);
         cn.is_explicit = c->is_explicit;
         cn.quiet = cn.no_creases = 1;
@@ -943,7 +957,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         cn.like = &c->share;
         cn.w0 = cn.w1 = 1.0 - WORK_OUTPUT;
         rc = filter_run(&cn, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
-        size_t both = ci.bytes + ce.bytes + cn.bytes + mcf__chol_bytes(cn.chol);
+        size_t both = ci.bytes + ce.bytes - dropped + cn.bytes + mcf__chol_bytes(cn.chol);
         if (both > peak)
             peak = both;
         mcf__chol_free(cn.chol);

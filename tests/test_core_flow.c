@@ -382,8 +382,8 @@ static void test_adaptive(void **state)
         }
         print_message("adaptive %-10s tol %.0e: error %.2e in %d steps (+%d rejected); fixed needs %d steps (error %.2e)\n",
                       mcf_scheme_get(ss[i])->name, tol, ea, st.steps, st.rejected, nfix, ef);
-        /* "meets its tolerance": desbrun2 controls the error per unit
-         * step, so its global error at T is about tol; the others control
+        /* "meets its tolerance": desbrun2 and ros2 control the error per
+         * unit step, so their global error at T is about tol; the others control
          * the local error per step of their first-order companion, so the
          * local errors sum to at most steps * tol. The flow itself
          * amplifies a radius error by R0 / R(T): the unit-area sphere has
@@ -391,8 +391,14 @@ static void test_adaptive(void **state)
          * desbrun2 gets 2x on top: the Milne estimate's leading constant
          * assumes a smooth third derivative, which the noisy start lacks. */
         double amp = sqrt(1.0 / (4 * M_PI)) / sqrt(1.0 / (4 * M_PI) - 4 * T);
-        assert_true(ea <= amp * (ss[i] == MCF_DESBRUN2 ? 2 * tol : st.steps * tol));
-        assert_true(attempts < nfix);
+        int per_unit = ss[i] == MCF_DESBRUN2 || ss[i] == MCF_ROS2;
+        assert_true(ea <= amp * (per_unit ? 2 * tol : st.steps * tol));
+        /* ros2 per unit step (issue 30) follows tol (measured 0.2 tol) at
+         * a cost: its estimate grows faster than h^2 on the noisy start and
+         * one attempt in three is rejected, 3262 steps + 1487 rejected
+         * where 2048 fixed steps are less accurate and 4096 more: bound
+         * 1.5x the fixed run found (measured 1.16x) */
+        assert_true(attempts < (ss[i] == MCF_ROS2 ? 1.5 * nfix : nfix));
         mcf_flow_stats_free(&st);
         mcf_mesh_free(m);
     }
