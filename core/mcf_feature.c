@@ -110,7 +110,7 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
     b->nv = nv;
     b->nf = nf;
     b->F = F;
-    vp = mcf__calloc((size_t)nv + 1, sizeof(int));
+    vp = mcf__calloc((size_t)nv + 2, sizeof(int));
     vf = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
     mark = mcf__malloc((size_t)nf + 1, sizeof(int));
     b->fptr = mcf__malloc((size_t)nf + 1, sizeof(int));
@@ -123,18 +123,9 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
     if (!vp || !vf || !mark || !b->fptr || !b->vdeg || !b->n || !b->m || !b->c || !b->a || !b->d)
         goto oom;
     /* the faces at each vertex, then each face's neighbours, deduplicated */
-    for (size_t q = 0; q < 3 * (size_t)nf; q++)
-        vp[F[q] + 1]++;
-    for (int i = 0; i < nv; i++) {
-        b->vdeg[i] = vp[i + 1];
-        vp[i + 1] += vp[i];
-    }
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            vf[vp[F[3 * (size_t)f + k]]++] = f;
-    for (int i = nv; i > 0; i--)
-        vp[i] = vp[i - 1];
-    vp[0] = 0;
+    mcf__vertex_faces(F, nf, nv, vp, vf);
+    for (int i = 0; i < nv; i++)
+        b->vdeg[i] = vp[i + 1] - vp[i];
     for (int pass = 0; pass < 2; pass++) {
         size_t q = 0;
         for (int f = 0; f < nf; f++)
@@ -727,14 +718,7 @@ static int locality_order(const int32_t *F, int nf, int nv, int *neu, int *fo)
         free(key);
         return -1;
     }
-    for (size_t q = 0; q < 3 * (size_t)nf; q++)
-        vp[F[q] + 2]++;
-    for (int i = 0; i < nv; i++)
-        vp[i + 2] += vp[i + 1];
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            vf[vp[F[3 * (size_t)f + k] + 1]++] = f;
-    /* vp[i] .. vp[i + 1]: the faces at vertex i */
+    mcf__vertex_faces(F, nf, nv, vp, vf);
     for (int i = 0; i < nv; i++)
         neu[i] = -1;
     int n = 0;

@@ -2,7 +2,8 @@
 /*
  * mcf_graph.c - the uniform graph Laplacian of a mesh: the vertex
  * adjacency (weight 1 per edge, however many faces share it), umbrella
- * averages and Taubin's lambda|mu passes on it.
+ * averages and Taubin's lambda|mu passes on it; and the faces at each
+ * vertex (mcf__vertex_faces).
  *
  * The fairing filter (mcf_fairing.c) and the noise estimate (mcf_auto.c)
  * work on this graph rather than on cotan weights: the cotan weights of a
@@ -13,6 +14,19 @@
 #include <string.h>
 
 #include "mcf_internal.h"
+
+void mcf__vertex_faces(const int32_t *F, int nf, int nv, int *vp, int *vf)
+{
+    /* counts at i + 2, their prefix sums at i + 2, then each face placed
+     * by the cursor at i + 1, which ends as the start of i + 1 */
+    for (size_t q = 0; q < 3 * (size_t)nf; q++)
+        vp[F[q] + 2]++;
+    for (int i = 0; i < nv; i++)
+        vp[i + 2] += vp[i + 1];
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            vf[vp[F[3 * (size_t)f + k] + 1]++] = f;
+}
 
 mcf_status mcf__graph_build(const int32_t *F, int nf, int nv, mcf__graph *g, mcf_error *err)
 {

@@ -148,6 +148,10 @@ typedef struct {
 #define MCF_TAUBIN_LAMBDA 0.5
 #define MCF_TAUBIN_MU (-0.53)
 
+/* The faces at each vertex (CSR): vf[vp[i] .. vp[i + 1]) the faces with a
+ * corner at vertex i, in increasing order (a face twice at a vertex it
+ * names twice). vp: nv + 2 ints, zeroed by the caller; vf: 3 nf ints. */
+void mcf__vertex_faces(const int32_t *F, int nf, int nv, int *vp, int *vf);
 /* ENOMEM only; g is zeroed on failure. */
 mcf_status mcf__graph_build(const int32_t *F, int nf, int nv, mcf__graph *g, mcf_error *err);
 void mcf__graph_free(mcf__graph *g); /* accepts zeroed */

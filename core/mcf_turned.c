@@ -133,14 +133,7 @@ mcf_status mcf__turned_repair(double *X, const double *X_in, const int32_t *F, i
         for (int e = 0; e < 3; e++)
             fm[3 * (size_t)f + e] = m[3 * (size_t)F[3 * f] + e] + m[3 * (size_t)F[3 * f + 1] + e] +
                                     m[3 * (size_t)F[3 * f + 2] + e];
-    /* the faces around each vertex (CSR) */
-    for (size_t q = 0; q < 3 * (size_t)nf; q++)
-        vp[F[q] + 2]++;
-    for (int i = 0; i < nv; i++)
-        vp[i + 2] += vp[i + 1];
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            vf[vp[F[3 * f + k] + 1]++] = f;
+    mcf__vertex_faces(F, nf, nv, vp, vf);
     for (int round = 0; round < TURN_ROUNDS; round++) {
         int any = 0, acc = 0;
         memset(cand, 0, (size_t)nv);
