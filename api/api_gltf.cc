@@ -303,6 +303,22 @@ mcf_status read_draco_prim(const tinygltf::Model &m, const tinygltf::Primitive &
                              has_view ? "has uncompressed fallback data (not supported "
                                         "next to KHR_draco_mesh_compression)"
                                       : "is not in the Draco stream");
+        /* one Draco attribute per semantic: a stream attribute named twice
+         * (POSITION and NORMAL both 0, made by the fuzzer) decodes, but
+         * the rewrite's stream has one attribute per semantic and the
+         * document's map no longer matches it (its positions become the
+         * normals) */
+        for (const auto &kv2 : p.attributes) {
+            if (kv2.first == kv.first)
+                break;
+            const tinygltf::Value &id2 = map.Get(kv2.first);
+            if (id2.IsInt() && id2.Get<int>() == id.Get<int>())
+                return api__fail(err, MCF_EDECODE,
+                                 "gltf: mesh %d primitive %d: attributes %s and %s name the "
+                                 "same Draco attribute %d (KHR_draco_mesh_compression: one "
+                                 "each)", w.mesh, w.prim, kv2.first.c_str(), kv.first.c_str(),
+                                 id.Get<int>());
+        }
     }
     g->draco_view = vi;
     mcf_status rc = api__draco_prim_decode(b.data() + v.byteOffset, v.byteLength, lim,

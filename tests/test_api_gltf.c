@@ -523,6 +523,19 @@ static void test_hostile(void **state)
     expect(tri(deep, ACC_OK, VIEWS_OK, buffers), "nested deeper");
     expect("{\"asset\":{\"version\":\"2.0\"},\"meshes\":[]}", "no triangle primitive");
     expect("{\"asset\":{\"version\":\"2.0\"}, \"meshes\": [", "malformed JSON");
+    /* a Draco primitive mapping NORMAL and POSITION to one stream
+     * attribute (fuzz_gltf's find, 2026-11-29, its seed in
+     * tests/fuzz/corpus_gltf/draco_shared_attribute.glb): decoded, its
+     * rewrite's positions were the normals */
+    {
+        size_t len = 0;
+        char *buf = data_file("../fuzz/corpus_gltf/draco_shared_attribute.glb", &len);
+        mcf_mesh *m = NULL;
+        assert_int_not_equal(api_mesh_decode_attrs(buf, len, NULL, &m, NULL, NULL, &err), MCF_OK);
+        assert_non_null(strstr(err.msg, "name the same Draco attribute 0"));
+        mcf_mesh_free(m);
+        free(buf);
+    }
     /* an index past the vertices: the indices 0 1 2 become 0 1 7 */
     {
         char b2[512];
