@@ -347,6 +347,10 @@ int svc_job_metrics(const svc_job *j, char **json, size_t *len,
  * MCF scheme's set-up and steps): the first SVC_PHASES_MAX, kept with the
  * job, so a follower gets each of them however late it reads. */
 enum { SVC_PHASES_MAX = 48 };
+/* The share of work by which a running job's milestone is news between
+ * its phase changes: the service notifies its followers, and the doors
+ * send one, at each such move. */
+#define SVC_WORK_STEP 0.01
 typedef struct {
     char phase[16];
     int step;                  /* steps done when it began */

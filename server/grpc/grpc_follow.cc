@@ -360,7 +360,7 @@ void Follow::queue_phases()
 bool Follow::work_news(const svc_snap &s)
 {
     if (!phases_ || s.status != SVC_JOB_RUNNING || !s.phase[0] || s.step < from_step_ ||
-        !(s.fraction >= work_told_ + 0.01 && next_event_ == work_event_))
+        !(s.fraction >= work_told_ + SVC_WORK_STEP && next_event_ == work_event_))
         return false;
     work_told_ = s.fraction;
     out_.Clear();

@@ -168,7 +168,7 @@ static void work_lines(stream *s, const svc_snap *sn)
     for (k = 0; s->nphases < n && k < SVC_PHASES_MAX; k++, s->nphases++)
         work_line(s, ph[k].step, ph[k].phase, ph[k].fraction);
     if (k == 0 && sn->status == SVC_JOB_RUNNING && sn->phase[0] &&
-        sn->fraction >= s->told + 0.01 && s->ev_index == s->ev_at_work)
+        sn->fraction >= s->told + SVC_WORK_STEP && s->ev_index == s->ev_at_work)
         work_line(s, sn->step, sn->phase, sn->fraction);
 }
 

@@ -294,14 +294,15 @@ int svc__canceled(const svc_job *j);
 svc_cancel_reason svc__cancel_reason(const svc_job *j);
 /* The runner's hooks: ready (the scheme that runs and the input format),
  * one progress event, one of the core's milestones (threads_cpu_s: the CPU
- * seconds of the threads the flow started so far). Both return nonzero to
- * stop: canceled, past the job timeout or over the CPU budget, which they
- * check (the default request's filter reports milestones and no step
- * until its end). */
+ * seconds of the threads the flow started so far). Both check the job
+ * timeout and the CPU budget and set the cancel flag past either, which
+ * the flow loads before its next step or pass (the default request's
+ * filter reports milestones and no step until its end); svc__progress
+ * also returns nonzero to stop. */
 void svc__ready(svc_job *j, const char *scheme, const char *in_format);
 int svc__progress(svc_job *j, const api_job_step *st);
-int svc__work(svc_job *j, const char *phase, double done,
-              double threads_cpu_s);
+void svc__work(svc_job *j, const char *phase, double done,
+               double threads_cpu_s);
 /* A job loaded from the store (recovery.c, before the workers start):
  * its recorded state r applied; a job that was running when the process
  * died runs again, one canceled while it ran stays canceled (recorded).

@@ -633,35 +633,30 @@ int svc__progress(svc_job *j, const api_job_step *st)
 }
 
 /* The followers hear of a milestone when its phase changes or its share
- * moves by a percent: a pass of the default filter may take a
+ * moves by SVC_WORK_STEP: a pass of the default filter may take a
  * millisecond, and a stream needs no more than a hundred updates. */
-#define WORK_NOTIFY_STEP 0.01
-
-int svc__work(svc_job *j, const char *phase, double done,
-              double threads_cpu_s)
+void svc__work(svc_job *j, const char *phase, double done,
+               double threads_cpu_s)
 {
     svc_t *s = j->svc;
-    int stop;
+    int changed;
 
     pthread_mutex_lock(&s->mu);
     j->work = done;
-    if (strncmp(j->phase, phase, sizeof j->phase - 1) != 0 &&
-        j->nphases < SVC_PHASES_MAX) {
+    changed = strncmp(j->phase, phase, sizeof j->phase - 1) != 0;
+    if (changed && j->nphases < SVC_PHASES_MAX) {
         svc_phase *e = &j->phases[j->nphases++];
         snprintf(e->phase, sizeof e->phase, "%s", phase);
         e->step = j->step;
         e->fraction = done;
     }
-    if (strncmp(j->phase, phase, sizeof j->phase - 1) != 0 ||
-        done >= j->work_told + WORK_NOTIFY_STEP || done >= 1.0) {
+    if (changed || done >= j->work_told + SVC_WORK_STEP || done >= 1.0) {
         snprintf(j->phase, sizeof j->phase, "%s", phase);
         j->work_told = done;
         svc__notify(j, SVC_NOTIFY_PROGRESS);
     }
     limits_locked(j, threads_cpu_s);
-    stop = j->cancel;
     pthread_mutex_unlock(&s->mu);
-    return stop;
 }
 
 /* ------------------------------------------------------------------ cancel */
