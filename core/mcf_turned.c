@@ -118,15 +118,11 @@ mcf_status mcf__turned_repair(double *X, const double *X_in, const int32_t *F, i
     double *fm = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
     int *vp = mcf__calloc((size_t)nv + 2, sizeof(int)), *vf = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
     unsigned char *cand = mcf__malloc((size_t)nv + 1, 1);
+    mcf_status rc = MCF_OK;
     *moved = 0;
     if (!m || !W || !fm || !vp || !vf || !cand) {
-        free(m);
-        free(W);
-        free(fm);
-        free(vp);
-        free(vf);
-        free(cand);
-        return mcf__fail(err, MCF_ENOMEM, "turned faces: out of memory (%d faces)", nf);
+        rc = mcf__fail(err, MCF_ENOMEM, "turned faces: out of memory (%d faces)", nf);
+        goto out;
     }
     field(X, F, nf, nv, m, W);
     for (int f = 0; f < nf; f++)
@@ -165,11 +161,12 @@ mcf_status mcf__turned_repair(double *X, const double *X_in, const int32_t *F, i
         if (acc == 0)
             break;
     }
+out:
     free(m);
     free(W);
     free(fm);
     free(vp);
     free(vf);
     free(cand);
-    return MCF_OK;
+    return rc;
 }
