@@ -15,7 +15,8 @@
  * XAUTOCLAIM's three-part 7.0 reply, XPENDING's delivery counts), replies
  * bounded in bytes, deadlines, reconnection with backoff after the server
  * went away and came back, AUTH from a password file, SELECT, pipelines,
- * Lua scripts surviving SCRIPT FLUSH, a pool shared by threads, a
+ * Lua scripts surviving SCRIPT FLUSH, a pool shared by threads (whose
+ * connections stop backing off once one reaches the server again), a
  * subscriber's idle waits, and that a write acknowledged before a kill -9
  * is still there after the restart (AOF).
  */
@@ -486,6 +487,70 @@ static void test_pool(void **state)
     rds_free(c);
 }
 
+/* The server gone and back: once one pooled connection reaches it, the
+ * others stop backing off. Before, a connection deep in its backoff (up to
+ * 2.5 s) refused its caller although the server answered the other one:
+ * /readyz said 200 and the next submission got 503 (test_replicas). */
+static void test_pool_after_outage(void **state)
+{
+    redisd d = {0};
+    rds_config cfg;
+    rds_pool *p;
+    rds *a, *b;
+    redisReply *r = NULL;
+    const char *m;
+    double wait = 0;
+    int i;
+    (void)state;
+
+    d.port = free_port();
+    cfg = redisd_config(&d);
+    p = rds_pool_new(&cfg, 2);
+    assert_non_null(p);
+    a = rds_pool_get(p);
+    b = rds_pool_get(p);
+    /* b fails until its next attempt is at least a second away (backoff
+     * 0.05 s doubling, jitter 0.75-1.25: the sixth failure) */
+    for (i = 0; i < 40 && wait < 1.0; i++) {
+        assert_null(rds_cmdl(b, "PING", NULL));
+        assert_int_equal(rds_status_of(b), RDS_EDOWN);
+        m = strstr(rds_errmsg(b), "next attempt in ");
+        wait = m ? atof(m + 16) : 0;
+        if (m && wait < 1.0)
+            sleep_s(wait + 0.01);
+    }
+    assert_true(wait >= 1.0);
+    assert_null(rds_cmdl(a, "PING", NULL));   /* a backs off 0.05 s */
+    if (redisd_start(&d) != 0)
+        fail_msg("redis-server did not start: %s", d.why);
+    /* b must still be backing off for the check to mean anything; a
+     * start slower than its second (a loaded machine) proves nothing */
+    if ((r = rds_cmdl(b, "PING", NULL)) != NULL) {
+        rds_reply_free(r);
+        rds_pool_put(p, a);
+        rds_pool_put(p, b);
+        rds_pool_free(p);
+        redisd_cleanup(&d);
+        skip();
+    }
+    rds_pool_put(p, b);
+    for (i = 0; i < 100 && !(r = rds_cmdl(a, "PING", NULL)); i++)
+        sleep_s(0.02);                         /* a's short backoff */
+    assert_non_null(r);
+    rds_reply_free(r);
+    rds_pool_put(p, a);                        /* up: wakes b */
+    assert_ptr_equal(rds_pool_get(p), a);      /* the pool is a stack */
+    assert_ptr_equal(rds_pool_get(p), b);
+    r = rds_cmdl(b, "PING", NULL);
+    if (!r)
+        fail_msg("b refused with the server back: %s", rds_errmsg(b));
+    rds_reply_free(r);
+    rds_pool_put(p, a);
+    rds_pool_put(p, b);
+    rds_pool_free(p);
+    redisd_cleanup(&d);
+}
+
 static int resubscribe(rds *c, void *ctx)
 {
     redisReply *r = rds_cmdl(c, "SUBSCRIBE", (const char *)ctx, NULL);
@@ -568,6 +633,7 @@ int main(void)
         cmocka_unit_test(test_pipeline),
         cmocka_unit_test(test_script),
         cmocka_unit_test(test_pool),
+        cmocka_unit_test(test_pool_after_outage),
         cmocka_unit_test(test_subscriber),
         cmocka_unit_test(test_restart_keeps_acknowledged),
     };

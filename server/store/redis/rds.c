@@ -576,6 +576,14 @@ void rds_set_on_connect(rds *c, int (*fn)(rds *c, void *ctx), void *ctx)
     c->on_connect_ctx = ctx;
 }
 
+void rds_retry_now(rds *c)
+{
+    if (c->ctx)
+        return;
+    c->next_try = 0;
+    c->backoff = BACKOFF_MIN;
+}
+
 int rds_connected(const rds *c) { return c->ctx != NULL; }
 rds_status rds_status_of(const rds *c) { return c->status; }
 const char *rds_errmsg(const rds *c) { return c->err; }

@@ -96,6 +96,9 @@ void rds_set_on_connect(rds *c, int (*fn)(rds *c, void *ctx), void *ctx);
 int rds_connect(rds *c);
 /* Drops the connection (the next call reconnects without backoff). */
 void rds_disconnect(rds *c);
+/* Ends the backoff of a connection that is down: its next call tries the
+ * server at once (another connection just reached it). No-op when up. */
+void rds_retry_now(rds *c);
 /* 1 while a connection is up. */
 int rds_connected(const rds *c);
 /* The last failure's status and words ("" after a success). */
@@ -167,6 +170,10 @@ rds_pool *rds_pool_new(const rds_config *cfg, int n);
 void rds_pool_free(rds_pool *p);
 /* A connection for this thread's use, waiting while all are lent. */
 rds *rds_pool_get(rds_pool *p);
+/* Gives c back. When c is up, the idle connections still backing off from
+ * an outage try the server at once at their next call: the server is
+ * back, so a caller must not be refused by a connection whose backoff
+ * has not yet run out (up to 2.5 s after the server's return). */
 void rds_pool_put(rds_pool *p, rds *c);
 
 #endif /* RDS_H */

@@ -2,7 +2,8 @@
 /*
  * rds_pool.c - connections to one Redis server for many threads (rds.h):
  * n connections made up front (each connects at its first command), lent
- * one to a thread at a time.
+ * one to a thread at a time; one that reaches the server ends the others'
+ * backoff.
  */
 #include <pthread.h>
 #include <stdlib.h>
@@ -71,9 +72,14 @@ rds *rds_pool_get(rds_pool *p)
 
 void rds_pool_put(rds_pool *p, rds *c)
 {
+    int i;
+
     if (!c)
         return;
     pthread_mutex_lock(&p->mu);
+    if (rds_connected(c))
+        for (i = 0; i < p->nidle; i++)
+            rds_retry_now(p->idle[i]);
     p->idle[p->nidle++] = c;
     pthread_cond_signal(&p->freed);
     pthread_mutex_unlock(&p->mu);
