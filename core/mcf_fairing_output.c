@@ -31,63 +31,6 @@
  * noise level (guard_positions) */
 #define GUARD_TANGENTIAL 1.0
 
-/* The closest point to p on triangle (a, b, c) (Ericson, Real-Time
- * Collision Detection, 5.1.5) into q. */
-static void closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
-                                double *q)
-{
-    double ab[3], ac[3], ap[3], bp[3], cp[3];
-    mcf__sub3(b, a, ab);
-    mcf__sub3(c, a, ac);
-    mcf__sub3(p, a, ap);
-    double d1 = mcf__dot3(ab, ap), d2 = mcf__dot3(ac, ap);
-    if (d1 <= 0.0 && d2 <= 0.0) {
-        memcpy(q, a, 3 * sizeof(double));
-        return;
-    }
-    mcf__sub3(p, b, bp);
-    double d3 = mcf__dot3(ab, bp), d4 = mcf__dot3(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) {
-        memcpy(q, b, 3 * sizeof(double));
-        return;
-    }
-    double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
-        double v = d1 / (d1 - d3);
-        for (int e = 0; e < 3; e++)
-            q[e] = a[e] + v * ab[e];
-        return;
-    }
-    mcf__sub3(p, c, cp);
-    double d5 = mcf__dot3(ab, cp), d6 = mcf__dot3(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) {
-        memcpy(q, c, 3 * sizeof(double));
-        return;
-    }
-    double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
-        double w = d2 / (d2 - d6);
-        for (int e = 0; e < 3; e++)
-            q[e] = a[e] + w * ac[e];
-        return;
-    }
-    double va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        for (int e = 0; e < 3; e++)
-            q[e] = b[e] + w * (c[e] - b[e]);
-        return;
-    }
-    double den = va + vb + vc;
-    if (!(den > 0.0)) { /* degenerate triangle: its first corner */
-        memcpy(q, a, 3 * sizeof(double));
-        return;
-    }
-    double v = vb / den, w = vc / den;
-    for (int e = 0; e < 3; e++)
-        q[e] = a[e] + v * ab[e] + w * ac[e];
-}
-
 /* The tangential relaxation: every free vertex of X moves by the part of
  * Yt - X0 in its tangent plane (normals N), then back onto the surface X
  * had: to the closest point of the faces around it and its neighbours.
@@ -129,7 +72,7 @@ static mcf_status tangential_output(fair_ctx *c, const double *Yt, const double 
             int v = t < c->g.ptr[i] ? i : c->g.adj[t];
             for (int r = vp[v]; r < vp[v + 1]; r++) {
                 const int32_t *tri = c->F + 3 * (size_t)vf[r];
-                closest_on_triangle(p, S + 3 * (size_t)tri[0], S + 3 * (size_t)tri[1], S + 3 * (size_t)tri[2], q);
+                mcf__closest_on_triangle(p, S + 3 * (size_t)tri[0], S + 3 * (size_t)tri[1], S + 3 * (size_t)tri[2], q);
                 double e3[3];
                 mcf__sub3(q, p, e3);
                 double dd = mcf__dot3(e3, e3);

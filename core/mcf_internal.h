@@ -28,6 +28,9 @@ void *mcf__malloc(size_t n, size_t size);
 /* The mollification margin delta of a mesh: MCF_MOLLIFY * mean edge. */
 #define MCF_MOLLIFY 1e-4
 double mcf__mean_edge(const double *X, const int32_t *F, int nf);
+/* The closest point to p on the triangle (a, b, c) into q (Ericson, Real-Time
+ * Collision Detection, 5.1.5). */
+void mcf__closest_on_triangle(const double *p, const double *a, const double *b, const double *c, double *q);
 
 /* Per face f: w[3f+k] = 1/2 cot(angle at corner k), the weight of the edge
  * opposite corner k (vertices F[3f+(k+1)%3], F[3f+(k+2)%3]); area[f] the

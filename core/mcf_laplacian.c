@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * mcf_laplacian.c - cotan stiffness and lumped mass: per-triangle weights,
- * matrix-free products, the job's fixed sparse pattern, lambda_max.
+ * matrix-free products, the job's fixed sparse pattern, lambda_max; the
+ * closest point on a triangle.
  *
  * Workload: one call per flow step on meshes of up to a few million faces,
  * so the per-step path is a single pass over the faces with no allocation
@@ -748,4 +749,60 @@ mcf_status mcf_lambda_max(const mcf_mesh *m, mcf_laplacian lap, mcf_mass mk,
 done:
     free(w); free(area); free(mass); free(x); free(y); free(u);
     return rc;
+}
+
+/* The closest point to p on triangle (a, b, c) (Ericson, Real-Time
+ * Collision Detection, 5.1.5) into q. */
+void mcf__closest_on_triangle(const double *p, const double *a, const double *b, const double *c, double *q)
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3];
+    mcf__sub3(b, a, ab);
+    mcf__sub3(c, a, ac);
+    mcf__sub3(p, a, ap);
+    double d1 = mcf__dot3(ab, ap), d2 = mcf__dot3(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        memcpy(q, a, 3 * sizeof(double));
+        return;
+    }
+    mcf__sub3(p, b, bp);
+    double d3 = mcf__dot3(ab, bp), d4 = mcf__dot3(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        memcpy(q, b, 3 * sizeof(double));
+        return;
+    }
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        double v = d1 / (d1 - d3);
+        for (int e = 0; e < 3; e++)
+            q[e] = a[e] + v * ab[e];
+        return;
+    }
+    mcf__sub3(p, c, cp);
+    double d5 = mcf__dot3(ab, cp), d6 = mcf__dot3(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        memcpy(q, c, 3 * sizeof(double));
+        return;
+    }
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        double w = d2 / (d2 - d6);
+        for (int e = 0; e < 3; e++)
+            q[e] = a[e] + w * ac[e];
+        return;
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int e = 0; e < 3; e++)
+            q[e] = b[e] + w * (c[e] - b[e]);
+        return;
+    }
+    double den = va + vb + vc;
+    if (!(den > 0.0)) { /* degenerate triangle: its first corner */
+        memcpy(q, a, 3 * sizeof(double));
+        return;
+    }
+    double v = vb / den, w = vc / den;
+    for (int e = 0; e < 3; e++)
+        q[e] = a[e] + v * ab[e] + w * ac[e];
 }
