@@ -85,6 +85,10 @@
  * quantization 0.35-0.63: none of those switches */
 #define VIEW_SHARE 0.7
 #define VIEW_RATIO 1.15
+/* ... or the deviation read along that direction is VIEW_DIR times the
+ * median one along the normals: on a thin part, normals +-z, the RMS
+ * reading equals the median one (docs/fairing.md, "One viewpoint") */
+#define VIEW_DIR 2.0
 /* Is there noise at all? Noise is white: its high-pass correlates with its
  * own 1-ring average as the calibration noise's does (mcf__noise_shape:
  * corr_noise, -0.29 to -0.32 on the shared meshes), while a clean
@@ -543,10 +547,12 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         s = p->noise_sigma > 0.0 ? p->noise_sigma * hbar : s_est;
         /* the default request: noise along one direction (one viewpoint),
          * the high-pass vectors sharing one direction and the RMS reading
-         * above the median one (VIEW_SHARE, VIEW_RATIO), is read along
+         * above the median one or the direction's reading far above it
+         * (VIEW_SHARE, VIEW_RATIO, VIEW_DIR), is read along
          * that direction and split into its parts along the normals and
          * in the tangent planes (mcf__noise_shape) */
-        int view = robust && shape.direction_share >= VIEW_SHARE && shape.sigma_rms >= VIEW_RATIO * s_est;
+        int view = robust && shape.direction_share >= VIEW_SHARE &&
+                   (shape.sigma_rms >= VIEW_RATIO * s_est || shape.sigma_dir >= VIEW_DIR * s_est);
         if (view)
             s = shape.sigma_view;
         else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact))
@@ -976,12 +982,15 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     }
     /* the feature-aware stage: the named `fairing_feature` alone, the
      * default request's against the linear result on meshes with creases
-     * (FEATURE_CREASE_SHARE of those found) */
+     * (FEATURE_CREASE_SHARE of those found), unless the noise reads as one
+     * viewpoint's: the stage moves along the normals, and most of that
+     * noise lies in the tangent planes (docs/fairing.md, "One viewpoint") */
     int feat = 0;
     c->st = st; /* the second runs' own figures were taken above: the
                    feature stage's and the output's go to the caller's */
     st->steps = c->kbest;
-    int creased = found > 0 && found >= FEATURE_CREASE_SHARE * moving && found <= FEATURE_CREASE_MAX * moving;
+    int creased = found > 0 && found >= FEATURE_CREASE_SHARE * moving && found <= FEATURE_CREASE_MAX * moving &&
+                  st->noise_kind != MCF_NOISE_ONE_DIRECTION;
     if (rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && creased))) {
         mcf__chol_free(c->chol); /* the factor is done with */
         c->chol = NULL;
