@@ -15,7 +15,7 @@ Columns D_k = T_k X - X:
       e = 0.01 s, NMC Rademacher probes b).
 SURE-LET along n0 (w: noisy vertex areas, mean 1; true s). Printed (error over the input's,
 clean areas; outputs along the normals of X + D): default (mcf smooth), let_f, let_c2_lin,
-let_c2_mc, orc_c2, let_fc2_mc (both families' columns, 15 weights), orc_fc2, and pick: the
+let_c2_mc, orc_c2, let_fc2_mc (both families' columns, 14 weights), orc_fc2, and pick: the
 default unless let_fc2_mc's penalised SURE (+2 s^2 per weight) is below let_f's (the default's
 stand-in).
 Usage: c2_study.py MESH[,..] RHO[,..] MCF"""
@@ -23,6 +23,7 @@ import json, os, subprocess, sys
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
+os.makedirs('/tmp/s31o', exist_ok=True)  # the scripts' scratch files
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import surelet_study as S
 

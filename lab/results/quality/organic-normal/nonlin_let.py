@@ -27,11 +27,13 @@ moves along the normals of X + D as the product's does):
               (the guard's stand-in: the default is within a few % of lin_sure), else default;
   def+nl_orc  the default's displacement added to the non-linear columns, oracle (what a
               correction of the default could at best reach).
+SEED=N draws the noise with seed N (default 1).
 Usage: nonlin_let.py MESH[,..] RHO[,..] MCF [FAM]"""
 import json, os, subprocess, sys
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
+os.makedirs('/tmp/s31o', exist_ok=True)  # the scripts' scratch files
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import surelet_study as S
 
@@ -55,7 +57,7 @@ def case(name, rho, mcf, fam):
     n, E = len(C), S.edges(F)
     h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
     Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
+    X = C + rho * h * np.random.default_rng(int(os.environ.get('SEED', '1'))).standard_normal(n)[:, None] * Nc
     e_in, s = S.err(X, C, Acl), rho * h
     tag = '%s-%g-%s' % (name.split('.')[0], rho, fam)
     Ydef = mcf_default(mcf, X, F, tag)

@@ -24,6 +24,7 @@ import json, os, subprocess, sys
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
+os.makedirs('/tmp/s31o', exist_ok=True)  # the scripts' scratch files
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import surelet_study as S
 

@@ -14,6 +14,10 @@ normals n0 (16 Rademacher probes, true s), and its SURE at those weights plus 2 
   pick_def  the default unless c's penalised SURE is below f's (f's SURE-LET stands for the
             default, which is within a few % of it: the guard a product change would run);
   let_fc    SURE-LET over both families' columns together (16 weights), orc_fc its oracle.
+ORC_FROM=DIR2 (the same cases dumped with another noise seed, SEED=2): also orc_c_x / orc_fc_x,
+the oracle weights fitted on DIR2's draw and applied to this one (the best FIXED weights for the
+mesh and level, without the in-sample oracle's fit to this draw's noise: 9 or 16 weights fitted to
+n heights gain up to ~k s^2 of the squared error on a small mesh by fitting the noise itself).
 RAW=DIR RAW_CASE=mesh-rho (e.g. knot1-0.1): also writes that case's clean, noisy, default,
 SURE-LET c and f+c oracle meshes as render_quality.py's raw files.
 Usage: pick_study.py DIR"""
@@ -29,11 +33,13 @@ def let(z, cols, divs):
     sure = float(th @ G @ th + 2 * z['s'] ** 2 * th @ divs) + 2 * z['s'] ** 2 * len(cols)
     return np.tensordot(th, cols, 1), sure / (z['s'] ** 2 * z['w'].sum())
 
-def orc(z, cols):
+def orc_w(z, cols):
     sw = np.sqrt(z['Acl'])
     A = np.einsum('kni,ni->nk', cols, z['n0']) * sw[:, None]
-    th = np.linalg.lstsq(A, np.sum((z['C'] - z['X']) * z['n0'], 1) * sw, rcond=None)[0]
-    return np.tensordot(th, cols, 1)
+    return np.linalg.lstsq(A, np.sum((z['C'] - z['X']) * z['n0'], 1) * sw, rcond=None)[0]
+
+def orc(z, cols):
+    return np.tensordot(orc_w(z, cols), cols, 1)
 
 def err(z, D):
     X = z['X']
@@ -58,6 +64,13 @@ def main(d):
         res['pick'] = res['let_c'] if sc < sf else res['let_f']
         res['pick_def'] = res['let_c'] if sc < sf else res['default']
         res['let_fc'], res['sure_fc'], res['orc_fc'] = err(zf, Dfc), sfc, err(zf, orc(zf, both))
+        if os.environ.get('ORC_FROM'):
+            q = os.path.join(os.environ['ORC_FROM'], os.path.basename(pf))
+            if os.path.exists(q) and os.path.exists(q[:-6] + '-c.npz'):
+                yf, yc = dict(np.load(q)), dict(np.load(q[:-6] + '-c.npz'))
+                res['orc_c_x'] = err(zf, np.tensordot(orc_w(yf, yc['cols'][lc]), zc['cols'][lc], 1))
+                w2 = orc_w(yf, np.concatenate([yf['cols'][lf], yc['cols'][lc]]))
+                res['orc_fc_x'] = err(zf, np.tensordot(w2, both, 1))
         if os.environ.get('RAW_CASE') == '%s-%s' % (mesh, rho):
             from adaptive_study import write_raw
             X, F, tag = zf['X'], zf['F'], '%s/%s-%s' % (os.environ['RAW'], mesh, rho)
