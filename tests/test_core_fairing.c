@@ -1049,12 +1049,10 @@ static int feature_first_case(const char *name, const mcf_mesh *clean, double rh
  * on creases), noise 0.1 and 0.25: its flat sides are the linear
  * fairing's with the creases held, the stage is not taken (measured z
  * -7.75 and -4.98); couplingdown_sub2.obj (29,696 vertices, 22-31% on
- * creases) at noise 0.1 and 0.25, seed 1: taken (measured z 24.71 and
- * 5.72: the case's assertions hold taken or not, so a change elsewhere
- * that moves z by 0.72 does not fail it). Before the stage came first,
- * the run with none held replaced the held one at 0.25 (crease_vertices
- * 0, the stage compared with it: the assertion on crease_vertices fails
- * there). */
+ * creases) at noise 0.1, seed 1: taken (measured z 24.71; 4 s of CPU, 15 s
+ * under ASan+UBSan). At 0.25 h the stage is taken at z 5.72 where, before
+ * it came first, the run with none held replaced the held one
+ * (crease_vertices 0; lab/results/quality/issue31-cpu). */
 static void test_feature_before_uncreased(void **state)
 {
     mcf_mesh *box = box_mesh(12);
@@ -1065,7 +1063,6 @@ static void test_feature_before_uncreased(void **state)
     tl_need_mesh("couplingdown_sub2.obj");
     mcf_mesh *cd = tl_load("couplingdown_sub2.obj");
     assert_int_equal(feature_first_case("couplingdown_sub2", cd, 0.1, 1), 1);
-    feature_first_case("couplingdown_sub2", cd, 0.25, 1); /* taken at a z 0.72 over the gain */
     mcf_mesh_free(cd);
 }
 
