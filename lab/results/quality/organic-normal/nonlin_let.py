@@ -27,7 +27,8 @@ moves along the normals of X + D as the product's does):
               (the guard's stand-in: the default is within a few % of lin_sure), else default;
   def+nl_orc  the default's displacement added to the non-linear columns, oracle (what a
               correction of the default could at best reach).
-SEED=N draws the noise with seed N (default 1).
+SEED=N draws the noise with seed N (default 1). DUMP=DIR saves each case's columns, and dgv, each
+column's per-vertex divergence (divs = sum of w * dgv), for pilot_sure.py's other weights.
 Usage: nonlin_let.py MESH[,..] RHO[,..] MCF [FAM]"""
 import json, os, subprocess, sys
 import numpy as np
@@ -66,20 +67,22 @@ def case(name, rho, mcf, fam):
     w = w / w.mean()
     Z = np.where(np.random.default_rng(7).random((n, NPROBE)) < 0.5, -1.0, 1.0)
     its, ks = family(fam, X, F, Z, Ydef)
-    prevX, prevZ, cols, divs, kinds = X, Z, [], [], []
+    prevX, prevZ, cols, divs, kinds, dgv = X, Z, [], [], [], []
     for k in ks:  # bands, their heights, per-vertex diagonal estimates
         TX, TZ = its[k]
         BX, BZ = prevX - TX, prevZ - TZ
         beta = np.sum(n0 * BX, 1)
         dg = np.mean(Z * BZ, 1)                      # (B_j)_ii, Hutchinson
         sig = s * np.sqrt(np.mean(BZ ** 2))          # the band height's noise level
-        cols.append(BX); divs.append(np.sum(w * dg)); kinds.append('lin')
+        cols.append(BX); divs.append(np.sum(w * dg)); kinds.append('lin'); dgv.append(dg)
         for tau in TAUS:
             t2 = (tau * sig) ** 2
             phi = np.exp(-beta ** 2 / (2 * t2))
             cols.append(phi[:, None] * BX); divs.append(np.sum(w * phi * (1 - beta ** 2 / t2) * dg)); kinds.append('nl')
+            dgv.append(phi * (1 - beta ** 2 / t2) * dg)
         prevX, prevZ = TX, TZ
     cols.append(prevX - X); divs.append(np.sum(w * (np.mean(Z * prevZ, 1) - 1))); kinds.append('lin')
+    dgv.append(np.mean(Z * prevZ, 1) - 1)
     cols, divs = np.array(cols), np.array(divs)
     R = np.einsum('kni,ni->kn', cols, n0)
     Dd = Ydef - X
@@ -117,7 +120,7 @@ def case(name, rho, mcf, fam):
     res['took'] = bool(take)
     if os.environ.get('DUMP'):  # the columns, for cross-mesh weights (crossfit.py)
         np.savez_compressed('%s/%s.npz' % (os.environ['DUMP'], tag), cols=cols, kinds=np.array(kinds), X=X, C=C,
-                            F=F, n0=n0, Acl=Acl, Dd=Dd, e_in=e_in, divs=divs, w=w, s=s)
+                            F=F, n0=n0, Acl=Acl, Dd=Dd, e_in=e_in, divs=divs, w=w, s=s, dgv=np.array(dgv))
     print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in res.items()}), flush=True)
 
 if __name__ == '__main__':
