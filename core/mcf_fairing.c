@@ -968,7 +968,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     /* Both: the stage first, against the result with the creases held
      * (FEATURE_HELD_GAIN); taken, the run with none held is not made (on
      * couplingdown_sub2 a factorization of the whole mesh, where the held
-     * creases cut it into patches: 0.6-0.7 s of CPU of 2.5-2.9);
+     * creases cut it into patches: up to 0.8 s of CPU of 2-3 s);
      * not taken, that run is made and the stage not again: the opponent
      * only got better (docs/fairing.md, "Creases") */
     if (staged && uncrease) {

@@ -55,9 +55,9 @@
  * (mcf_fairing.c): against the result with its creases held, the stage
  * must gain FEATURE_HELD_GAIN standard errors, PICK_MIN_GAIN plus the
  * most its z fell from that opponent to the run with none held, where
- * both were measured (make quality's noise, seed 1, 2026-11-29: the
- * three CAD parts, the stage's gate open: 4.0 on blade.obj normal 0.25,
- * 1.31 -> -2.67; 2.1-3.4 on eight others; it rose on two). Taken at
+ * both were measured (make quality's noise, seed 1, 2026-11-29, the
+ * CAD parts the stage's gate opens on: 4.0 on blade.obj normal 0.25,
+ * 1.31 -> -2.67; 0.5-3.4 on seven others; it rose on two). Taken at
  * 1.31 and 1.87 (blade.obj normal 0.25, 0.5 h), the stage returned 0.225
  * and 0.296 of the input's error where the run with none held gives
  * 0.150 and 0.213; of the cases the stage took after that run, the
