@@ -734,7 +734,7 @@ fuzz: $(FUZZ_BIN)
 #   make exp-sweep-spot ...          one of them (lab/Makefile lists them)
 #   make bench                       benchmarks, ratios against a peer measured in the same run
 #                                    (bench-core, bench-server, bench-grpc, bench-store, bench-peers,
-#                                    bench-scale [SCALE_ARGS=--big for 7M]: one part)
+#                                    bench-scale: one part; SCALE=1 adds the 7M row)
 #   make bench-ui [UI_MESH=dragon_vrip.drc] [UI_REPS=3]   the page on a large scan, headless chromium
 #   make quality [QUALITY_ARGS="--models out --rho 0.25 --list spot.obj"] [QUALITY_OUT=DIR]
 #                                    the scan-quality study -> build/lab/quality/ (lab/README.md)

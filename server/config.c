@@ -106,7 +106,9 @@ static const option opts[O_COUNT] = {
     [O_TTL] = {"--result-ttl", "MCFD_RESULT_TTL", T_DUR, 0, 0,
                "how long finished jobs are kept, e.g. 1h (default 1h)"},
     [O_JOB_TIMEOUT] = {"--job-timeout", "MCFD_JOB_TIMEOUT", T_DUR, 0, 0,
-                       "longest flow of one job, 0: none (default 10m)"},
+                       "longest run of one job, 0: none (default 10m plus "
+                       "0.5 s per MiB of its memory estimate; given, this "
+                       "alone)"},
     [O_DRAIN] = {"--drain-timeout", "MCFD_DRAIN_TIMEOUT", T_DUR, 0, 0,
                  "SIGTERM: wait for running jobs, then checkpoint "
                  "(default 25s)"},
@@ -336,7 +338,10 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
     case O_MAX_WORK: cfg->svc.lim.max_work = d; break;
     case O_MAX_JSON: cfg->svc.lim.max_json_bytes = z; break;
     case O_TTL: cfg->svc.result_ttl = d; break;
-    case O_JOB_TIMEOUT: cfg->svc.job_timeout = d; break;
+    case O_JOB_TIMEOUT:
+        cfg->svc.job_timeout = d;
+        cfg->svc.job_timeout_per_mib = 0;
+        break;
     case O_JOB_CPU: cfg->svc.job_cpu = d; break;
     case O_DRAIN: cfg->drain_timeout = d; break;
     case O_HEADER_TIMEOUT: cfg->header_timeout = d; break;
@@ -453,6 +458,14 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
                                        atof(getenv("MCFD_JOB_CPU_PER_MIB")) >= 0
                                    ? atof(getenv("MCFD_JOB_CPU_PER_MIB"))
                                    : 0.5;
+    /* The default job timeout grows like the CPU budget: 10 minutes were
+     * 584 s of a 7M-vertex scan's flow on one of 2 cores at load 15
+     * (2026-11-29, lab/bench/README.md); its estimate, 4,303 MiB, gives
+     * it 10 + 36 minutes. */
+    cfg->svc.job_timeout_per_mib = getenv("MCFD_JOB_TIMEOUT_PER_MIB") &&
+                                           atof(getenv("MCFD_JOB_TIMEOUT_PER_MIB")) >= 0
+                                       ? atof(getenv("MCFD_JOB_TIMEOUT_PER_MIB"))
+                                       : 0.5;
     cfg->svc.max_memory = memory_available() / 2;
     cfg->log_level = SRV_LOG_INFO;
 

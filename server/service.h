@@ -121,7 +121,13 @@ typedef struct {
     size_t spool_max_bytes;    /* bytes of jobs kept before EQUOTA */
     api_limits lim;            /* limits on untrusted input */
     double result_ttl;         /* seconds a finished job is kept */
-    double job_timeout;        /* seconds of flow per job, 0: unlimited */
+    double job_timeout;        /* seconds a job may run from its start,
+                                  plus job_timeout_per_mib per MiB of its
+                                  memory estimate; 0: unlimited */
+    double job_timeout_per_mib; /* 0.5 s by default (the CPU budget's
+                                  slope: a big scan on one core is not cut
+                                  before its budget), 0 once --job-timeout
+                                  is given (MCFD_JOB_TIMEOUT_PER_MIB) */
     size_t max_memory;         /* estimated peak of the running jobs */
     size_t max_job_memory;     /* estimated peak of one job (svc_admit.c) */
     double decode_cpu;         /* CPU seconds of a sandboxed decode, floor */

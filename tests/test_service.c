@@ -10,7 +10,8 @@
  * steps finishes in milliseconds) and the same grid run for 100,000
  * steps (a job that runs until it is stopped; the test never waits for
  * it to end by itself). The CPU budget counts a job's threads
- * (test_cpu_budget_counts_job_threads).
+ * (test_cpu_budget_counts_job_threads); the job timeout grows with the
+ * job's memory estimate (test_job_timeout_grows_with_estimate).
  */
 #include <errno.h>
 #include <math.h>
@@ -574,6 +575,57 @@ static void test_cpu_budget_counts_job_threads(void **state)
     fixture_stop(&f);
 }
 
+/* The default job timeout grows with the job (issue 27: 10 minutes were
+ * 584 s of a 7M-vertex scan's flow on a loaded machine): its deadline is
+ * job_timeout + job_timeout_per_mib x the memory estimate in MiB. With no
+ * slope, 0.05 s stops a job that runs until it is stopped, and the
+ * detail gives the sum; with 1,000 s per MiB, a job of 50 implicit steps
+ * on 3,600 vertices (0.5-2 s on a loaded machine, more under sanitizers) ends by
+ * itself under the same 0.05 s. Only the first part depends on time, and
+ * only on the job never ending by itself; the second asserts success and
+ * states how long the job ran (when it ran under 0.05 s the case proves
+ * nothing, and says so). */
+static void no_slope(svc_config *c)
+{
+    c->job_timeout = 0.05;
+    c->job_timeout_per_mib = 0;
+}
+
+static void big_slope(svc_config *c)
+{
+    c->job_timeout = 0.05;
+    c->job_timeout_per_mib = 1000;
+}
+
+static void test_job_timeout_grows_with_estimate(void **state)
+{
+    svc_fixture f;
+    svc_job *j;
+    svc_snap s;
+
+    (void)state;
+    fixture_start(&f, no_slope);
+    j = submit_ok(f.svc, 8, LONG_JOB);
+    s = wait_for(j, is_terminal, "finished");
+    print_message("    --job-timeout 0.05 s, no slope: %s\n", s.error.detail);
+    assert_int_equal(s.status, SVC_JOB_FAILED);
+    assert_non_null(strstr(s.error.detail, "timeout, 0.05 s (--job-timeout "
+                                           "0.05 s + 0 s per MiB"));
+    svc_job_unref(j);
+    fixture_stop(&f);
+
+    fixture_start(&f, big_slope);
+    j = submit_ok(f.svc, 60, "{\"scheme\":\"desbrun2\",\"iterations\":50}");
+    s = wait_for(j, is_terminal, "finished");
+    print_message("    --job-timeout 0.05 s + 1000 s per MiB: %s after %.3f s%s\n",
+                  svc_job_status_name(s.status), s.finished - s.started,
+                  s.finished - s.started > 0.05 ? "" : " (under 0.05 s: proves nothing)");
+    if (s.status != SVC_JOB_SUCCEEDED)
+        fail_msg("job failed: %s", s.error.detail);
+    svc_job_unref(j);
+    fixture_stop(&f);
+}
+
 int main(int argc, char **argv)
 {
     const struct CMUnitTest tests[] = {
@@ -584,6 +636,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_quota),
         cmocka_unit_test(test_admission),
         cmocka_unit_test(test_cpu_budget_counts_job_threads),
+        cmocka_unit_test(test_job_timeout_grows_with_estimate),
     };
 
     /* a Draco input's decode runs in a child of this program (sandbox.c) */

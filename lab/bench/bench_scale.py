@@ -5,7 +5,7 @@
 its best pass count, from 43k to 7M vertices.
 
     bench_scale.py --mcf build/mcf --meshes ../shared/meshes [--reps 2] [--big]
-                   [--work DIR]
+                   [--work DIR] [--rows a,b] [--keep]
 
 Rows: armadillo.obj (43,243 vertices) and dragon_vrip.drc (435,545) with
 Gaussian noise of 0.25 mean edges along the normals, and the dragon split
@@ -16,18 +16,20 @@ read the same bytes.
 
 Per row and repetition, interleaved: mcf with --threads 1, mcf with
 --threads 2, Open3D (OMP_NUM_THREADS=1) with its best pass count, each a
-child process; CPU = user + sys of the child (wait4), wall, peak RSS
-(ru_maxrss). Open3D's CPU is its filter_smooth_taubin call alone
+child process, then the 1-thread dgemm rate; CPU = user + sys of the
+child (wait4), wall, peak RSS (ru_maxrss). Open3D's CPU is its filter_smooth_taubin call alone
 (time.process_time around it: the adjacency it builds included, the PLY
 read and the Python start excluded); its pass count is an oracle, the
 best of 1..40 against the clean mesh (found once before the timed runs).
 Error: the area-weighted RMS distance to the clean mesh (barycentric
 mass of the clean mesh, as mcf_compare's rms_m), over the input's. The
-medians of the repetitions are printed, with the machine's 1-thread dgemm
-rate beside them (absolute times mean nothing without it: the machine is
-shared). About 25 minutes with two repetitions on 2 shared cores (load 16,
-2026-11-28), 18 more with --big at one repetition (the 7M row: about 4 GB
-per process).
+medians of the repetitions are printed, each row with the median of the
+1-thread dgemm rates measured between its repetitions (absolute times mean
+nothing without it: the machine is shared). About 25 minutes with two
+repetitions on 2 shared cores (load 16, 2026-11-28), 18 more with --big at
+one repetition (the 7M row: about 4-6 GB per process). The 7M row's files
+(about 1.4 GB) are removed after its row unless --keep (regenerated in
+about 15 s).
 """
 import argparse
 import os
@@ -161,17 +163,20 @@ def main():
     ap.add_argument("--big", action="store_true", help="the 7M row too")
     ap.add_argument("--work", default="build/lab/bench/scale")
     ap.add_argument("--rows", default="", help="e.g. armadillo,dragon: those rows only")
+    ap.add_argument("--keep", action="store_true", help="keep the 7M row's generated files")
     args = ap.parse_args()
     o3d_env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     rate = dgemm_rate()
     print("scale table: %s, %d cores, %s UTC, load %.1f; 1-thread dgemm %.1f GFLOP/s"
           % (cpu_model(), os.cpu_count(),
-             time.strftime("%Y-%m-%d %H:%M", time.gmtime()), os.getloadavg()[0], rate))
+             time.strftime("%Y-%m-%d %H:%M", time.gmtime()), os.getloadavg()[0], rate),
+          flush=True)
     print("the default request (`mcf smooth IN OUT`) vs Open3D filter_smooth_taubin at its best "
           "pass count (OMP_NUM_THREADS=1); medians of %d interleaved repetitions" % args.reps)
-    hdr = ("%-11s %9s | %8s %8s %8s %7s %6s %6s | %6s %8s %8s %7s %6s | %7s %7s"
-           % ("mesh", "vertices", "CPU 1t", "wall 1t", "wall 2t", "RSS MB", "B/vtx", "err",
-              "passes", "o3d CPU", "o3d wall", "RSS MB", "err", "CPU x", "err x"))
+    hdr = ("%-11s %9s | %8s %8s %8s %8s %7s %6s %6s | %6s %8s %8s %7s %6s | %7s %7s | %6s %5s"
+           % ("mesh", "vertices", "CPU 1t", "wall 1t", "CPU 2t", "wall 2t", "RSS MB", "B/vtx",
+              "err", "passes", "o3d CPU", "o3d wall", "RSS MB", "err", "CPU x", "err x",
+              "dgemm", "load"))
     print(hdr)
     for name, noisy, clean in make_rows(args):
         C, F = read_ply(clean)
@@ -181,7 +186,7 @@ def main():
         passes = int(run([sys.executable, "-c", ORACLE_CHILD, noisy, clean], env=o3d_env)[0])
         out = noisy.replace("-noisy", "-out")
         o3d_out = noisy.replace("-noisy", "-o3d")
-        m1, m2, o3 = [], [], []
+        m1, m2, o3, dg = [], [], [], []
         for _ in range(args.reps):
             _, cpu, wall, rss = run([args.mcf, "smooth", noisy, out, "--threads", "1", "--quiet"])
             m1.append((cpu, wall, rss))
@@ -190,18 +195,24 @@ def main():
             s, _, wall, rss = run([sys.executable, "-c", O3D_CHILD, noisy, str(passes), o3d_out],
                                   env=o3d_env)
             o3.append((float(s), wall, rss))
+            dg.append(dgemm_rate())
         e_m = rms(read_ply(out)[0], C, w) / e_in
         e_o = rms(read_ply(o3d_out)[0], C, w) / e_in
         med = lambda v, k: statistics.median(x[k] for x in v)  # noqa: E731
         cpu1, rss1, cpuo = med(m1, 0), max(x[2] for x in m1 + m2), med(o3, 0)
-        print("%-11s %9d | %8.2f %8.2f %8.2f %7.0f %6.0f %6.3f | %6d %8.2f %8.2f %7.0f %6.3f | "
-              "%7.2f %7.2f"
-              % (name, len(X), cpu1, med(m1, 1), med(m2, 1), rss1 / 1e6, rss1 / len(X), e_m,
-                 passes, cpuo, med(o3, 1), max(x[2] for x in o3) / 1e6, e_o, cpu1 / cpuo,
-                 e_m / e_o), flush=True)
+        print("%-11s %9d | %8.2f %8.2f %8.2f %8.2f %7.0f %6.0f %6.3f | %6d %8.2f %8.2f %7.0f "
+              "%6.3f | %7.2f %7.2f | %6.1f %5.1f"
+              % (name, len(X), cpu1, med(m1, 1), med(m2, 0), med(m2, 1), rss1 / 1e6,
+                 rss1 / len(X), e_m, passes, cpuo, med(o3, 1), max(x[2] for x in o3) / 1e6,
+                 e_o, cpu1 / cpuo, e_m / e_o, statistics.median(dg), os.getloadavg()[0]),
+              flush=True)
+        if name == "dragon x16" and not args.keep:
+            for f in (noisy, clean, out, o3d_out):
+                os.remove(f)
     print("CPU x, err x: mcf's CPU (1 thread) and error over Open3D's; err: over the input's; "
-          "RSS: the peak of the process (B/vtx: mcf's over the vertices); dgemm %.1f GFLOP/s"
-          % rate)
+          "RSS: the peak of the process (B/vtx: mcf's over the vertices); dgemm: the 1-thread "
+          "GFLOP/s measured between the row's repetitions (median), %.1f before the first row; "
+          "load: the 1-minute load average at the row's end" % rate)
 
 
 if __name__ == "__main__":

@@ -593,7 +593,10 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
     s->store = cfg->store[0]
                    ? store_redis_open(cfg->store, cfg->store_password_file,
                                       cfg->blob_dir, cfg->workers,
-                                      cfg->result_ttl + cfg->job_timeout + 3600,
+                                      cfg->result_ttl + cfg->job_timeout +
+                                          cfg->job_timeout_per_mib *
+                                              (double)cfg->max_job_memory / 1048576.0 +
+                                          3600,
                                       cfg->redis_allow_eviction, msg, msgsize)
                    : store_spool_open(cfg->spool, msg, msgsize);
     if (!s->store ||

@@ -159,6 +159,7 @@ struct svc_job {
                                   it by the flow and the decode sandbox */
     svc_cancel_reason cancel_reason;
     svc_cancel_reason canceling;  /* a cancel being written (svc_cancel) */
+    double timeout;            /* its job timeout, seconds; 0: none */
     double deadline;           /* srv_mono() the job timeout passes, 0 */
     double cpu_budget;         /* CPU seconds its run may take, 0: none */
     double cpu0, cpu_used;     /* its worker thread's CPU clock at its start;

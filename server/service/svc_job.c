@@ -183,8 +183,11 @@ int svc__start(svc_job *j)
         j->status = SVC_JOB_RUNNING;
         j->run_here = 1;
         j->started = srv_wall();
-        j->deadline = s->cfg.job_timeout > 0 ? srv_mono() + s->cfg.job_timeout
-                                             : 0;
+        j->timeout = s->cfg.job_timeout > 0
+                         ? s->cfg.job_timeout + s->cfg.job_timeout_per_mib *
+                                                    j->mem_estimate / 1048576.0
+                         : 0;
+        j->deadline = j->timeout > 0 ? srv_mono() + j->timeout : 0;
         /* on the worker's thread, which runs it (workers.c) */
         j->cpu_budget = s->cfg.job_cpu > 0
                             ? s->cfg.job_cpu + s->cfg.job_cpu_per_mib *
@@ -557,9 +560,12 @@ int svc__canceled_error(svc_job *j, int steps, svc_error *e)
         svc_error_set(e, SVC_P_DRAINING, "the daemon shut down while job %s "
                       "ran; it runs again after the restart", j->id);
     else if (reason == SVC_CANCEL_TIMEOUT)
-        svc_error_set(e, SVC_P_TIMEOUT, "the job ran longer than "
-                      "--job-timeout %g s and was stopped %s",
-                      s->cfg.job_timeout, when);
+        svc_error_set(e, SVC_P_TIMEOUT, "the job ran longer than its "
+                      "timeout, %.2f s (--job-timeout %g s + %g s per MiB of "
+                      "its memory estimate, %.1f MiB), and was stopped %s",
+                      j->timeout, s->cfg.job_timeout,
+                      s->cfg.job_timeout_per_mib, j->mem_estimate / 1048576.0,
+                      when);
     else if (reason == SVC_CANCEL_CPU)
         svc_error_set(e, SVC_P_TIMEOUT, "the job used more than its CPU "
                       "budget, %.2f s (--job-cpu %g s + %g s per MiB of its "
