@@ -172,15 +172,18 @@ int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double 
  * error (the linear fairing's 0.93). */
 #define FEATURE_CREASE_SHARE 0.10
 #define FEATURE_CREASE_MAX 0.5
+/* What the feature-aware stage is compared with: the input (the named
+ * `fairing_feature`, or c found nothing: SURE_MIN_GAIN); c's result
+ * (the default request's choice, PICK_MIN_GAIN, as the choice between the
+ * implicit steps and the passes); or c's result with its creases held,
+ * before the run with none held, which it then replaces (the default
+ * request: FEATURE_HELD_GAIN, mcf_fairing_sure.c). */
+enum { FEAT_VS_INPUT, FEAT_VS_LINEAR, FEAT_VS_HELD };
 /* The feature-aware stage (mcf_feature.c) on the input, X its output when
- * SURE takes it (*taken): against c's result along the normals
- * (against_lin: the default request's choice, PICK_MIN_GAIN, as the
- * choice between the implicit steps and the passes) or against the input
- * (the named `fairing_feature`, or c found nothing: SURE_MIN_GAIN); the
- * same weights, noise level and probes as c's SURE; fixed: the vertices
- * the run holds (not the creases). ENOMEM, ELIMIT. */
-mcf_status mcf__fair_feature(fair_ctx *c, int against_lin, const unsigned char *fixed, double *X, int *taken,
-                             mcf_error *err);
+ * SURE takes it (*taken), compared as vs (FEAT_VS_*) says; the same
+ * weights, noise level and probes as c's SURE; fixed: the vertices the
+ * run holds (not the creases). ENOMEM, ELIMIT. */
+mcf_status mcf__fair_feature(fair_ctx *c, int vs, const unsigned char *fixed, double *X, int *taken, mcf_error *err);
 
 /* mcf_fairing_output.c */
 /* Moves from the input (c->Xin) longer than rmax taken back, on the
