@@ -610,6 +610,9 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
     c->probe = c->sure ? alloc_d(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
     if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    /* the three hold X0 on the fixed rows, which the explicit engine's
+     * moments sweep never writes (mcf__fair_step_moments) */
+    memcpy(c->Y, c->X0, 3 * sizeof(double) * (size_t)nv);
     memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
     memcpy(c->Yt, c->X0, 3 * sizeof(double) * (size_t)nv);
     for (int j = 0; c->sure && j < COMB_J; j++) {
@@ -680,7 +683,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else if ((rc = implicit_step(c, err)) != MCF_OK) {
             return rc;
         }
-        positions(c, Y);
+        if (!c->sure || !c->is_explicit)
+            positions(c, Y); /* else in the moments' sweep, below */
         const double *cur = Y; /* this step's positions */
         if (!c->sure) {
             c->kbest = k;
@@ -705,7 +709,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
                 c->kbest_t = k;
             }
             /* the best positions taken by swapping buffers, not copying
-             * them (positions() rewrites Y whole at the next step): a
+             * them (the next step rewrites Y's free rows, and the fixed
+             * rows of all three are X0's): a
              * copy at most, when both parts gain at once */
             if (nb) {
                 swap_ptr(&c->Y, &c->Ybest);

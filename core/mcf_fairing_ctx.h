@@ -129,8 +129,10 @@ typedef struct {
 
 /* mcf_fairing_sure.c */
 /* A step's probe estimates of sum_i w_i (T^K)_ii (est) and SURE's
- * moments of the displacement Y - X0 (m), in one sweep. */
-void mcf__fair_step_moments(const fair_ctx *c, const double *Y, double est[NPROBE], double m[6]);
+ * moments of the displacement Y - X0 (m), in one sweep; the explicit
+ * engine's positions are written into Y's free rows on the way (its other
+ * rows must hold X0), the implicit engine's read from Y. */
+void mcf__fair_step_moments(const fair_ctx *c, double *Y, double est[NPROBE], double m[6]);
 /* The mean of the nprobe probes' estimates est, and the variance of that
  * mean (*var). */
 double mcf__fair_mean_trace(const double *est, int nprobe, double *var);
