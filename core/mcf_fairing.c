@@ -164,7 +164,7 @@ static size_t drop_engine(fair_ctx *c)
     return n;
 }
 
-static double *alloc_d(fair_ctx *c, size_t n)
+double *mcf__fair_alloc(fair_ctx *c, size_t n)
 {
     c->bytes += n * sizeof(double);
     return mcf__malloc(n ? n : 1, sizeof(double));
@@ -230,14 +230,14 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     c->fx = mcf__malloc((size_t)nv, 1);
     c->fid = mcf__malloc((size_t)nv, sizeof(int));
     c->vert = mcf__malloc((size_t)nv, sizeof(int));
-    c->w = alloc_d(c, (size_t)nv);
-    c->n0 = alloc_d(c, 3 * (size_t)nv);
-    c->sq = alloc_d(c, (size_t)nv);
+    c->w = mcf__fair_alloc(c, (size_t)nv);
+    c->n0 = mcf__fair_alloc(c, 3 * (size_t)nv);
+    c->sq = mcf__fair_alloc(c, (size_t)nv);
     if (!c->fx || !c->fid || !c->vert || !c->w || !c->n0 || !c->sq)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     /* the creases: held for the surface's filter, smoothed along */
     unsigned char *crease = c->crease = mcf__calloc((size_t)nv, 1);
-    c->Xin = alloc_d(c, 3 * (size_t)nv);
+    c->Xin = mcf__fair_alloc(c, 3 * (size_t)nv);
     if (c->Xin)
         memcpy(c->Xin, c->X0, 3 * sizeof(double) * (size_t)nv);
     work_span span = {c, AT(c, AT_GRAPH), AT(c, AT_CREASES)};
@@ -301,188 +301,13 @@ static void init_probes(fair_ctx *c)
         }
 }
 
-/* ----------------------------------------------------- implicit engine */
-
-/* The entries of column k of N = D^-1/2 L_FF D^-1/2 (symmetric): the
- * free neighbours of vert[k] and k itself, ascending, into row/val;
- * returns their count. */
-static int n_column(const fair_ctx *c, int k, int *row, double *val)
-{
-    int i = c->vert[k], q = 0, placed = 0;
-    for (int t = c->g.ptr[i]; t <= c->g.ptr[i + 1]; t++) {
-        int j = t < c->g.ptr[i + 1] ? c->g.adj[t] : -1;
-        if (!placed && (j < 0 || j > i)) {
-            row[q] = k;
-            val[q++] = 1.0;
-            placed = 1;
-        }
-        if (j >= 0 && c->fid[j] >= 0) {
-            row[q] = c->fid[j];
-            val[q++] = -1.0 / (c->sq[k] * c->sq[c->fid[j]]);
-        }
-    }
-    return q;
-}
-
-/* A = I + N N' = I + N^2, its upper triangle by columns (rows ascending,
- * the diagonal last) into c->apat and c->ax: column j gathers N_ik N_kj
- * over the entries k of N's column j and i <= j of N's column k (the free
- * 2-ring of j). N by columns first (np, nr, nx), then two passes: the
- * counts, then the entries. */
-static mcf_status assemble(fair_ctx *c, mcf_error *err)
-{
-    int n = c->nfree;
-    size_t nnz_n = (size_t)n;
-    for (int k = 0; k < n; k++)
-        nnz_n += (size_t)(c->g.ptr[c->vert[k] + 1] - c->g.ptr[c->vert[k]]);
-    int *mark = mcf__malloc((size_t)n, sizeof(int)), *list = mcf__malloc((size_t)n, sizeof(int));
-    int *np = mcf__malloc((size_t)n + 1, sizeof(int)), *nr = mcf__malloc(nnz_n, sizeof(int));
-    double *acc = mcf__malloc((size_t)n, sizeof(double)), *nx = mcf__malloc(nnz_n, sizeof(double));
-    int *cp = c->apat.colptr = mcf__malloc((size_t)n + 1, sizeof(int));
-    mcf_status rc = MCF_OK;
-    if (!mark || !list || !np || !nr || !acc || !nx || !cp) {
-        rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
-        goto done;
-    }
-    np[0] = 0;
-    for (int k = 0; k < n; k++)
-        np[k + 1] = np[k] + n_column(c, k, nr + np[k], nx + np[k]);
-    c->apat.n = n;
-    for (int pass = 0; pass < 2; pass++) {
-        for (int i = 0; i < n; i++)
-            mark[i] = -1;
-        size_t q = 0;
-        for (int j = 0; j < n; j++) {
-            int m = 0;
-            cp[j] = (int)q;
-            for (int a = np[j]; a < np[j + 1]; a++) {
-                int k = nr[a];
-                for (int b = np[k]; b < np[k + 1] && nr[b] <= j; b++) {
-                    int i = nr[b];
-                    if (mark[i] != j) {
-                        mark[i] = j;
-                        acc[i] = 0.0;
-                        list[m++] = i;
-                    }
-                    acc[i] += nx[b] * nx[a];
-                }
-            }
-            if (pass == 1) {
-                for (int a = 1; a < m; a++) /* insertion sort: a 2-ring */
-                    for (int b = a; b > 0 && list[b - 1] > list[b]; b--) {
-                        int t = list[b];
-                        list[b] = list[b - 1];
-                        list[b - 1] = t;
-                    }
-                for (int a = 0; a < m; a++) {
-                    c->apat.rowind[q + (size_t)a] = list[a];
-                    c->ax[q + (size_t)a] = acc[list[a]] + (list[a] == j ? 1.0 : 0.0);
-                }
-            }
-            q += (size_t)m;
-        }
-        cp[n] = (int)q;
-        if (pass == 0) {
-            if (q > (size_t)INT32_MAX) {
-                rc = mcf__fail(err, MCF_ELIMIT, "fairing: the system of %d free vertices is too large", n);
-                goto done;
-            }
-            c->apat.nnz = (int)q;
-            c->apat.rowind = mcf__malloc(q ? q : 1, sizeof(int));
-            c->ax = alloc_d(c, q);
-            c->bytes += sizeof(int) * (q + (size_t)n + 1);
-            if (!c->apat.rowind || !c->ax) {
-                rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
-                goto done;
-            }
-        }
-    }
-done:
-    free(mark);
-    free(list);
-    free(np);
-    free(nr);
-    free(acc);
-    free(nx);
-    return rc;
-}
-
-static mcf_status implicit_init(fair_ctx *c, mcf_error *err)
-{
-    int n = c->nfree;
-    mcf_status rc;
-    c->Yc = alloc_d(c, (size_t)c->ncol * (size_t)n);
-    c->b = alloc_d(c, 3 * (size_t)n);
-    if (!c->Yc || !c->b)
-        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
-    if ((rc = assemble(c, err)) != MCF_OK || !(c->chol = mcf__chol_new(&c->apat, c->ncol, err)))
-        return rc != MCF_OK ? rc : MCF_ENOMEM;
-    double t0 = mcf_now();
-    rc = mcf__chol_analyze(c->chol, err);
-    c->st->time_analyze += mcf_now() - t0;
-    if (rc != MCF_OK)
-        return rc;
-    t0 = mcf_now();
-    rc = mcf__chol_factorize(c->chol, c->ax, err);
-    c->st->time_factorize += mcf_now() - t0;
-    c->st->factorizations++;
-    if (rc != MCF_OK)
-        return rc;
-    /* b = N u, u_k = -D_k^-1/2 sum of the fixed neighbours' positions */
-    double *u = c->b, *y = c->Yc;
-    for (int k = 0; k < n; k++) {
-        int i = c->vert[k];
-        double s[3] = {0, 0, 0};
-        for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++)
-            if (c->fid[c->g.adj[t]] < 0)
-                for (int d = 0; d < 3; d++)
-                    s[d] += c->X0[3 * (size_t)c->g.adj[t] + d];
-        for (int d = 0; d < 3; d++)
-            y[(size_t)d * n + k] = -s[d] / c->sq[k]; /* u, in Yc for now */
-    }
-    for (int k = 0; k < n; k++) {
-        int i = c->vert[k];
-        for (int d = 0; d < 3; d++) {
-            double s = y[(size_t)d * n + k];
-            for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++) {
-                int l = c->fid[c->g.adj[t]];
-                if (l >= 0)
-                    s -= y[(size_t)d * n + l] / (c->sq[k] * c->sq[l]);
-            }
-            u[(size_t)d * n + k] = s;
-        }
-    }
-    /* y0 = D^1/2 x0, then the probes */
-    for (int k = 0; k < n; k++)
-        for (int d = 0; d < 3; d++)
-            y[(size_t)d * n + k] = c->sq[k] * c->X0[3 * (size_t)c->vert[k] + d];
-    if (c->ncol > 3)
-        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * (size_t)c->nprobe * (size_t)n);
-    return MCF_OK;
-}
-
-static mcf_status implicit_step(fair_ctx *c, mcf_error *err)
-{
-    int n = c->nfree;
-    double t0 = mcf_now();
-    double *y = c->Yc;
-    for (size_t q = 0; q < 3 * (size_t)n; q++)
-        y[q] -= c->b[q];
-    mcf_status rc = mcf__chol_solve(c->chol, c->ncol, y, 1, (size_t)n, y, err);
-    if (rc != MCF_OK)
-        return rc;
-    c->st->time_solve += mcf_now() - t0;
-    c->st->solves += c->ncol / 3;
-    return MCF_OK;
-}
-
 /* ----------------------------------------------------- explicit engine */
 
 static mcf_status explicit_init(fair_ctx *c, mcf_error *err)
 {
     size_t nv = (size_t)c->nv, nc = (size_t)c->ncol;
-    c->Z = alloc_d(c, nv * nc);
-    c->tmp = alloc_d(c, nv * nc);
+    c->Z = mcf__fair_alloc(c, nv * nc);
+    c->tmp = mcf__fair_alloc(c, nv * nc);
     if (!c->Z || !c->tmp)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
     for (size_t i = 0; i < nv; i++) {
@@ -604,10 +429,10 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
     int nv = c->nv;
     c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
     c->ncol = c->sure ? 3 + c->nprobe : 3;
-    c->Y = alloc_d(c, 3 * (size_t)nv);
-    c->Ybest = alloc_d(c, 3 * (size_t)nv);
-    c->Yt = alloc_d(c, 3 * (size_t)nv);
-    c->probe = c->sure ? alloc_d(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
+    c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
+    c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
+    c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
+    c->probe = c->sure ? mcf__fair_alloc(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
     if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     /* the three hold X0 on the fixed rows, which the explicit engine's
@@ -628,7 +453,7 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
     }
     if (c->cap > 0)
-        return c->is_explicit ? explicit_init(c, err) : implicit_init(c, err);
+        return c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
     return MCF_OK;
 }
 
@@ -680,7 +505,7 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
             mcf__graph_taubin(&c->g, c->fx, c->Z, c->ncol, 1, c->tmp, c->p->threads,
                               c->threads_cpu_s);
             st->time_solve += mcf_now() - t0;
-        } else if ((rc = implicit_step(c, err)) != MCF_OK) {
+        } else if ((rc = mcf__fair_implicit_step(c, err)) != MCF_OK) {
             return rc;
         }
         if (!c->sure || !c->is_explicit)

@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /*
  * mcf_fairing_ctx.h - private to the files of one fairing run
- * (mcf_fairing.c, the engines and the driver; mcf_fairing_sure.c, Stein's
+ * (mcf_fairing.c, the explicit engine and the driver;
+ * mcf_fairing_implicit.c, the implicit engine; mcf_fairing_sure.c, Stein's
  * estimate, the combination of iterates and the pick between the
  * filters; mcf_fairing_output.c, the result along the normals, its
  * tangential relaxation, the bounds on a move and the fold guard's
@@ -126,6 +127,18 @@ typedef struct {
     double sumw2;              /* sum_F w^2 (sum_F w = nfree) */
     double s2_rel;             /* relative standard error of s^2 */
 } fair_ctx;
+
+/* mcf_fairing.c */
+/* n doubles (at least one) counted in c->bytes; NULL when out of memory. */
+double *mcf__fair_alloc(fair_ctx *c, size_t n);
+
+/* mcf_fairing_implicit.c */
+/* The implicit engine's system assembled and factored, its right-hand
+ * side and first columns (y0 = D^1/2 x0, then the probes) set: ENOMEM,
+ * ELIMIT, or the factorization's failure. */
+mcf_status mcf__fair_implicit_init(fair_ctx *c, mcf_error *err);
+/* One implicit step: every column of c->Yc solved through A. */
+mcf_status mcf__fair_implicit_step(fair_ctx *c, mcf_error *err);
 
 /* mcf_fairing_sure.c */
 /* A step's probe estimates of sum_i w_i (T^K)_ii (est) and SURE's
