@@ -65,6 +65,26 @@ static mcf_mesh *flat_grid(int n)
     return m;
 }
 
+/* On a flat grid X0 (z = 0) with spikes at at[0..n): each spike of X is
+ * back at z = 0 with its x and y kept, and no other vertex moved (bit for
+ * bit). 1e-12: a centroid of six unit-grid points and one projection, a
+ * few roundings of numbers of size 10. */
+static void assert_flattened(const double *X, const double *X0, int nv, const int *at, int n)
+{
+    for (int i = 0; i < nv; i++) {
+        int spike = 0;
+        for (int s = 0; s < n; s++)
+            spike |= at[s] == i;
+        if (!spike) {
+            assert_memory_equal(X + 3 * i, X0 + 3 * i, 3 * sizeof(double));
+            continue;
+        }
+        tl_assert_near(X[3 * i], X0[3 * i], 1e-12, "a spike's x");
+        tl_assert_near(X[3 * i + 1], X0[3 * i + 1], 1e-12, "a spike's y");
+        tl_assert_near(X[3 * i + 2], 0.0, 1e-12, "a spike's height");
+    }
+}
+
 /* A flat 15 x 15 grid (mean edge (2 + sqrt 2) / 3 = 1.14) with five
  * spikes of 3-5 units up and down, two of them neighbours: exactly those
  * five are found; each comes back to z = 0 exactly (its ring's centroid
@@ -83,20 +103,7 @@ static void test_spikes_flat_grid(void **state)
         X0[3 * at[s] + 2] = up[s];
     memcpy(X, X0, sizeof X);
     assert_int_equal(run_spikes(m, X, (2.0 + sqrt(2.0)) / 3.0, NULL), 5);
-    for (int i = 0; i < N * N; i++) {
-        int spike = 0;
-        for (int s = 0; s < 5; s++)
-            spike |= at[s] == i;
-        if (!spike) {
-            assert_memory_equal(X + 3 * i, X0 + 3 * i, 3 * sizeof(double));
-            continue;
-        }
-        /* 1e-12: a centroid of six unit-grid points and one projection,
-         * a few roundings of numbers of size 10 */
-        tl_assert_near(X[3 * i], X0[3 * i], 1e-12, "a spike's x");
-        tl_assert_near(X[3 * i + 1], X0[3 * i + 1], 1e-12, "a spike's y");
-        tl_assert_near(X[3 * i + 2], 0.0, 1e-12, "a spike's height");
-    }
+    assert_flattened(X, X0, N * N, at, 5);
     mcf_mesh_free(m);
 }
 
@@ -192,16 +199,7 @@ static void test_spikes_pair(void **state)
     X0[3 * A + 2] = X0[3 * B + 2] = 4.0;
     memcpy(X, X0, sizeof X);
     assert_int_equal(run_spikes(m, X, (2.0 + sqrt(2.0)) / 3.0, NULL), 2);
-    for (int i = 0; i < N * N; i++) {
-        if (i != A && i != B) {
-            assert_memory_equal(X + 3 * i, X0 + 3 * i, 3 * sizeof(double));
-            continue;
-        }
-        /* 1e-12: as test_spikes_flat_grid */
-        tl_assert_near(X[3 * i], X0[3 * i], 1e-12, "a spike's x");
-        tl_assert_near(X[3 * i + 1], X0[3 * i + 1], 1e-12, "a spike's y");
-        tl_assert_near(X[3 * i + 2], 0.0, 1e-12, "a spike's height");
-    }
+    assert_flattened(X, X0, N * N, (const int[]){A, B}, 2);
     mcf_mesh_free(m);
 }
 
