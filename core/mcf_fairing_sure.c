@@ -131,14 +131,13 @@ static inline __attribute__((always_inline)) void step_moments(const fair_ctx *c
     m[5] = m5;
 }
 
+/* c->nprobe is NPROBE_FEW or NPROBE (mcf_fairing.c, run_init) */
 void mcf__fair_step_moments(const fair_ctx *c, double *Y, double est[NPROBE], double m[6])
 {
     if (c->nprobe == NPROBE_FEW)
         step_moments(c, Y, est, m, NPROBE_FEW);
-    else if (c->nprobe == NPROBE)
-        step_moments(c, Y, est, m, NPROBE);
     else
-        step_moments(c, Y, est, m, c->nprobe);
+        step_moments(c, Y, est, m, NPROBE);
 }
 
 /* The variance of a SURE gain (over the input, or of one result over
