@@ -55,12 +55,7 @@ def write_raw(p, V, F):
         f.write(np.ascontiguousarray(F, dtype=np.int32).tobytes())
 
 def case(name, rho, mcf, sizes, raw=None, check=False):
-    C, F = S.read_obj(S.MESHES + name)
-    n, E = len(C), S.edges(F)
-    h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
-    Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in, s = S.err(X, C, Acl), rho * h
+    C, F, n, Nc, Acl, X, e_in, s = S.noisy_case(name, rho)
     res = {'mesh': name, 'rho': rho, 'n': n}
     S.write_obj('/tmp/adaptive_in.obj', X, F)
     subprocess.run([mcf, 'smooth', '--quiet', '/tmp/adaptive_in.obj', '/tmp/adaptive_out.obj'], check=True)

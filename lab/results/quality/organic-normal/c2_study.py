@@ -52,12 +52,7 @@ def c2_cols(X, F, imp, Z=None):
     return np.array([its[k][0] - X for k in KC]), its
 
 def case(name, rho, mcf):
-    C, F = S.read_obj(S.MESHES + name)
-    n, E = len(C), S.edges(F)
-    h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
-    Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in, s = S.err(X, C, Acl), rho * h
+    C, F, n, Nc, Acl, X, e_in, s = S.noisy_case(name, rho)
     S.write_obj('/tmp/s31o/c2_in.obj', X, F)
     subprocess.run([mcf, 'smooth', '--quiet', '/tmp/s31o/c2_in.obj', '/tmp/s31o/c2_out.obj'], check=True)
     Ydef = S.read_obj('/tmp/s31o/c2_out.obj')[0]

@@ -12,12 +12,7 @@ S = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(S)
 
 def run(name, rho, nprobe):
-    C, F = S.read_obj(S.MESHES + name)
-    n, E = len(C), S.edges(F)
-    h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
-    Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in, s = S.err(X, C, Acl), rho * h
+    C, F, n, Nc, Acl, X, e_in, s = S.noisy_case(name, rho)
     n0, w = S.vnormals(X, F), S.areas(X, F)
     w = w / w.mean()
     A = S.adjacency(F, n)

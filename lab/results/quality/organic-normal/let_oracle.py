@@ -27,12 +27,7 @@ def run(mcf, X, F, extra):
     return S.read_obj('/tmp/letorc_out.obj')[0]
 
 def case(name, rho, mcf):
-    C, F = S.read_obj(S.MESHES + name)
-    n, E = len(C), S.edges(F)
-    h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
-    Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in = S.err(X, C, Acl)
+    C, F, n, Nc, Acl, X, e_in, s = S.noisy_case(name, rho)
     tb, _, Ytb = AS.taubin_oracle(X, F, C, Acl, e_in)
     cols = {'default': run(mcf, X, F, []), 'feature': run(mcf, X, F, ['--scheme', 'fairing_feature']), 'taubin': Ytb}
     Z = np.zeros((n, 1))
@@ -58,7 +53,7 @@ def case(name, rho, mcf):
     # Heights r_j = n0.(Y_j - X) along the noisy normals; each filter's divergence by
     # Monte-Carlo (Ramani, Blu, Unser 2008): b.(r_j(X + eps b n0) - r_j(X)) / eps, b Rademacher,
     # eps = 0.01 s, NPROBE probes; weights from G c = -s^2 div (area weights of the noisy mesh).
-    s, n0, w = rho * h, S.vnormals(X, F), S.areas(X, F)
+    n0, w = S.vnormals(X, F), S.areas(X, F)
     if os.environ.get('SURE_NORMALS') == 'pilot':  # heights and probes along the default's normals
         n0 = S.vnormals(cols['default'], F)
     w = w / w.mean()

@@ -31,12 +31,7 @@ import surelet_study as S
 KS = [8, 32, 128]
 
 def case(name, rho, mcf):
-    C, F = S.read_obj(S.MESHES + name)
-    n, E = len(C), S.edges(F)
-    h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
-    Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in, s = S.err(X, C, Acl), rho * h
+    C, F, n, Nc, Acl, X, e_in, s = S.noisy_case(name, rho)
     tag = '/tmp/s31o/nloc-%s-%g' % (name.split('.')[0], rho)
     S.write_obj(tag + '_in.obj', X, F)
     subprocess.run([mcf, 'smooth', '--quiet', tag + '_in.obj', tag + '_out.obj'], check=True)

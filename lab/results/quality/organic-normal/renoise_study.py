@@ -23,12 +23,7 @@ from r2r_study import mcf_smooth, columns
 DRAWS = int(os.environ.get('DRAWS', '2'))
 
 def case(name, rho, mcf):
-    C, F = S.read_obj(S.MESHES + name)
-    n, E = len(C), S.edges(F)
-    h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
-    Nc, Acl = S.vnormals(C, F), S.areas(C, F)
-    X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in, s = S.err(X, C, Acl), rho * h
+    C, F, n, Nc, Acl, X, e_in, s = S.noisy_case(name, rho)
     imp = Implicit(F, n)
     P = mcf_smooth(mcf, X, F)
     npv, w = S.vnormals(P, F), np.sqrt(S.areas(X, F))[:, None]

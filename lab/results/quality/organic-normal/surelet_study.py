@@ -110,13 +110,20 @@ def pass_iterates(X, W, ks, Z, lam=0.5, mu=-0.53):
             out[k] = (y[:, :3], y[:, 3:])
     return out
 
-def case(name, rho, mcf):
+def noisy_case(name, rho):
+    """The clean mesh C, F (MESHES + name) and its copy X with Gaussian noise of
+    deviation s = rho h along the clean vertex normals Nc (seed 1; h the mean edge):
+    C, F, n, Nc, the clean areas Acl, X, the input's error e_in and s. Every study
+    of this folder draws its noisy case here."""
     C, F = read_obj(MESHES + name)
     n, E = len(C), edges(F)
     h = np.linalg.norm(C[E[:, 0]] - C[E[:, 1]], axis=1).mean()
     Nc, Acl = vnormals(C, F), areas(C, F)
     X = C + rho * h * np.random.default_rng(1).standard_normal(n)[:, None] * Nc
-    e_in, s = err(X, C, Acl), rho * h
+    return C, F, n, Nc, Acl, X, err(X, C, Acl), rho * h
+
+def case(name, rho, mcf):
+    C, F, n, Nc, Acl, X, e_in, s = noisy_case(name, rho)
     res = {}
     if mcf:
         write_obj('/tmp/surelet_in.obj', X, F)
