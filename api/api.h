@@ -632,6 +632,10 @@ typedef struct {
      * (stage API_JOB_RUN, part "mesh"). */
     mcf_status (*decoded)(void *ctx, int nv, int nf, const api_params *p,
                           mcf_error *err);
+    /* The flow's threads, asked as it starts (nv: the mesh's vertices):
+     * the door's share of the cores for this mesh (the daemon's budget).
+     * NULL, or a value below 1: rq->threads. */
+    int (*threads)(void *ctx, int nv);
     /* Checked and measured: the flow starts (p finished: its scheme is
      * the one that runs). */
     void (*ready)(void *ctx, const api_params *p, api_format in_fmt);
@@ -677,7 +681,8 @@ typedef struct {
     int process_rss;           /* peak_rss_bytes: the process's peak
                                   resident size (a process of one job) */
     int threads;               /* mcf_flow_params.threads: the job's share
-                                  of the cores (0: one) */
+                                  of the cores (0: one), unless the
+                                  threads hook says otherwise */
 } api_job_request;
 
 /* api_job_request_init: no input, no target, no document, NaN times. */

@@ -199,6 +199,11 @@ static mcf_status flow(job *jb, api_params *p)
     /* the step log: the document's flow.log, each step's volume */
     p->flow.log_steps = jb->rq->metrics;
     p->flow.threads = jb->rq->threads;
+    if (h && h->threads) {
+        int n = h->threads(h->ctx, res->nv);
+        if (n >= 1)
+            p->flow.threads = n;
+    }
     t0 = mcf_now();
     rc = mcf_flow_run(jb->m, &p->flow, &res->stats, &res->err);
     res->flow_s = jb->run.flow_s = elapsed(t0);

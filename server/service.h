@@ -106,7 +106,10 @@ typedef struct svc svc_t;
 
 typedef struct {
     int workers;               /* worker threads */
-    int job_threads;           /* each job's threads (mcf_flow_params.threads) */
+    int cores;                 /* the cores the running jobs share: one
+                                  each, and a big job's flow every core
+                                  free as it starts (workers.c); 0: one
+                                  per worker */
     int queue;                 /* queued jobs beyond the running ones */
     char spool[1024];          /* the local store's directory (made when
                                   missing) */
@@ -307,6 +310,8 @@ typedef struct {
                                   thread and the threads its flow started
                                   (0 without a budget, --job-cpu 0) */
     double cpu_threads_s;      /* the latter's share */
+    int cores;                 /* the cores it holds while it runs (its
+                                  flow's threads once decoded), else 0 */
     double fraction;           /* of the run done, 0..1 (1: succeeded):
                                   the core's share of its work when this
                                   replica runs it, else steps or time */

@@ -579,6 +579,8 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
         return -1;
     }
     s->cfg = *cfg;
+    if (s->cfg.cores < 1)      /* unset: a core per worker */
+        s->cfg.cores = s->cfg.workers > 0 ? s->cfg.workers : 1;
     s->urandom = open("/dev/urandom", O_RDONLY | O_CLOEXEC);
     pthread_mutex_init(&s->mu, NULL);
     pthread_mutex_init(&s->state_mu, NULL);
