@@ -199,6 +199,7 @@ static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
 
     rq->lim = &c->svc->cfg.lim;
     rq->metrics = 1;
+    rq->light = !j->measures;  /* nobody asked for the measures */
     rq->threads = 1;           /* hook_threads: the job's cores */
     rq->fields = j->keep_fields;
     rq->max_output = SVC_RESULT_MAX;

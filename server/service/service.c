@@ -176,6 +176,9 @@ static svc_job *job_from_request(svc_t *s, svc_request *rq, double mem)
              rq->filename[0] ? rq->filename : "mesh");
     j->has_target = rq->target != NULL;
     j->keep_fields = rq->fields;
+    /* a target is there to be compared with, and the fields' viewer
+     * shows the measures */
+    j->measures = rq->measures || rq->target || rq->fields;
     j->keep_result = rq->keep_result;
     j->mem_estimate = mem;
     j->disk_bytes = rq->input_len + rq->target_len;

@@ -121,6 +121,8 @@ struct svc_job {
     char filename[128];
     int has_target;
     int keep_fields;           /* fields: the fields document is kept */
+    int measures;              /* the metrics document's measures and step
+                                  log are taken (svc_request.measures) */
     char *params_json;         /* api_params_to_json, printed (shown) */
     char *params_given;        /* api_params_given_json, printed (its
                                   request.json: parses back to the job) */
