@@ -14,6 +14,8 @@ other fold's columns). Input: nonlin_let.py's f and c dumps and fewlet_study.py'
 default's displacement (CACHE=DIR, run fewlet_study.py first). Printed (error over the input's):
 default, cv_rand, cv_block (and the L picked), ridge_<L> for the grid.
 COLS=f or COLS=c: one family's columns only (default fc, both).
+ANCHOR=flin: shrink toward the f columns' own SURE-LET (linear) instead of the default's output
+(L = inf is then that anchor, printed as 'anchor').
 CRIT=p: SURE of the heights along the default output's normals p (its areas) instead of n0
 (the divergences unchanged: every column is a scalar operator per coordinate, pilot_sure.py).
 RAW=DIR RAW_CASE=mesh-rho (e.g. knot1-0.1): also writes that case's clean, noisy, default and
@@ -59,6 +61,7 @@ def main(d, cache):
         X, F, s, n0, w = zf['X'], zf['F'], float(zf['s']), zf['n0'], zf['w']
         lf = [i for i, k in enumerate(zf['kinds']) if k == 'lin']
         lc = [i for i, k in enumerate(zc['kinds']) if k == 'lin']
+        res = {'mesh': mesh, 'rho': float(rho), 'default': S.err(X + Dd, zf['C'], zf['Acl']) / zf['e_in']}
         fams = os.environ.get('COLS', 'fc')  # which families' columns: f, c or both
         cols = np.concatenate([z['cols'][l] for f, z, l in (('f', zf, lf), ('c', zc, lc)) if f in fams])
         dgv = np.concatenate([z['dgv'][l] for f, z, l in (('f', zf, lf), ('c', zc, lc)) if f in fams])
@@ -67,15 +70,23 @@ def main(d, cache):
             w = S.areas(X + Dd, F)
             w = w / w.mean()
         R = np.einsum('kni,ni->kn', cols, n0)
+        if os.environ.get('ANCHOR') == 'flin':
+            # the anchor made linear: the f columns' own SURE-LET (the product's combination of
+            # its iterates stands for the default), so every displacement SURE compares is linear
+            Rf = np.einsum('kni,ni->kn', zf['cols'][lf], n0)
+            Gf = (Rf * w) @ Rf.T
+            tf = np.linalg.solve(Gf + 1e-12 * np.trace(Gf) * np.eye(len(Gf)), -s * s * (zf['dgv'][lf] @ w))
+            Dd = np.tensordot(tf, zf['cols'][lf], 1)
+            ny = S.vnormals(X + Dd, F)
+            res['anchor'] = S.err(X + ny * np.sum(ny * Dd, 1)[:, None], zf['C'], zf['Acl']) / zf['e_in']
         hd = np.sum(n0 * Dd, 1)
         E = S.edges(F)
         h = np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1).mean()
-        res = {'mesh': mesh, 'rho': float(rho), 'default': S.err(X + Dd, zf['C'], zf['Acl']) / zf['e_in']}
         allm = np.ones(len(X), bool)
         out = {}
         for L in LAMS:
             th = fit(R, w, hd, dgv, s, L, allm)
-            out[L] = err(zf, Dd + np.tensordot(th, cols, 1)) if not np.isinf(L) else res['default']
+            out[L] = err(zf, Dd + np.tensordot(th, cols, 1)) if not np.isinf(L) else res.get('anchor', res['default'])
             res['ridge_%g' % L] = out[L]
         for kind in ('rand', 'block'):
             rng = np.random.default_rng(5)
