@@ -117,11 +117,12 @@
  * noise of 0.1 h along the normals 0 on every CAD part; the organic
  * meshes clean or quantized 0-0.6% (knot1 at quant 0.5: 3.3%). Quantized
  * CAD parts pass it too (couplingdown_sub2 at 0.1/0.25/0.5 h: 0.36, 0.51,
- * 0.68; car 0.23-0.70, blade 0.86-0.97): they come back as they came,
+ * 0.68; car 0.23-0.70, blade 0.86-0.97): they came back as they came,
  * where the default had returned 0.93-1.00 of their error (car and
  * blade 1.00) and, on couplingdown_sub2, faces turned against the clean
- * mesh. The spike stage leaves such a mesh alone too (it had repaired 6
- * "spikes" of couplingdown_sub2 quantized to 0.25 h, turning a face). */
+ * mesh; their grid is now read first (LATTICE_EXPLAINS). The spike
+ * stage leaves such a mesh alone too (it had repaired 6 "spikes" of
+ * couplingdown_sub2 quantized to 0.25 h, turning a face). */
 #define FLAT_SHARE 0.25
 #define FLAT_TOL 1e-6
 /* Quantized positions: when the free vertices' coordinates sit on a grid
