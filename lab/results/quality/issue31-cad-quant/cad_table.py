@@ -1,3 +1,5 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """cad_table.py - the CAD parts' default / BNF oracle table (run from the repository's root)."""
 import csv,sys,statistics
 bnf={}
