@@ -378,7 +378,7 @@ int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned ch
  * greatest common divisor q of the gaps between distinct values (two
  * values within 1e-6 hbar are one), when at least 99% of the values lie
  * within 1e-6 hbar of the levels v0 + k q (v0 the least) and
- * 1e-3 hbar <= q <= hbar. Returns
+ * 1e-3 hbar <= q <= 0.6 hbar. Returns
  * 1 with the three steps in step, 0 (steps 0) when some axis has none or
  * fewer than 16 vertices are free, -1 when out of memory. */
 int mcf__lattice(const double *X, int nv, const unsigned char *fixed, double hbar, double step[3]);

@@ -61,8 +61,8 @@ static void test_lattice_steps(void **state)
     assert_true(step[0] == 0.0 && step[1] == 0.0 && step[2] == 0.0);
     for (int i = 0; i < 5; i++)
         X[3 * (40 * i + 1) + 1] = saved[i];
-    /* a step coarser than the mean edge is a design, not a grid */
-    assert_int_equal(mcf__lattice(X, N, fixed, 0.2, step), 0);
+    /* a step coarser than 0.6 mean edges is a design, not a grid */
+    assert_int_equal(mcf__lattice(X, N, fixed, 0.4, step), 0);
     /* one axis flat (a single level): no grid read on it */
     for (int i = 0; i < N; i++)
         X[3 * i + 2] = a[2];
