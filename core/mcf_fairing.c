@@ -149,6 +149,7 @@ static void fair_free(fair_ctx *c)
     mcf__pattern_free(&c->apat);
     free(c->ax);
     free(c->Yc);
+    mcf__fair_lz_free(c->lz);
     for (int j = 0; j < COMB_J; j++)
         free(c->dk[j]);
 }
@@ -428,7 +429,10 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
     c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
-    c->ncol = c->sure ? 3 + c->nprobe : 3;
+    /* the explicit passes carry the probes as columns; the implicit steps
+     * solve the coordinates only, the probes' traces by Lanczos quadrature
+     * (mcf_fairing_trace.c) */
+    c->ncol = c->sure && c->is_explicit ? 3 + c->nprobe : 3;
     c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
@@ -451,6 +455,11 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
         c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
         if (!c->st->sure)
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
+    }
+    if (c->cap > 0 && c->sure && !c->is_explicit) {
+        mcf_status rc = mcf__fair_lz_new(c, err);
+        if (rc != MCF_OK)
+            return rc;
     }
     if (c->cap > 0)
         return c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
@@ -516,6 +525,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
             mcf__fair_step_moments(c, Y, est, mo);
+            if (!c->is_explicit && (rc = mcf__fair_lz_trace(c, k, est, err)) != MCF_OK)
+                return rc;
             double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
