@@ -26,9 +26,10 @@
  * (T^K)_ii estimates sum w (error)^2 without the clean mesh; w are the
  * barycentric vertex areas over their mean. The weighted trace comes from
  * six Rademacher probes (three on a mesh of over a million free vertices:
- * PROBES_FEW_ABOVE) carried through the same steps as extra columns
- * (Hutchinson); for the implicit step T = D^-1/2 R D^1/2, R = (I + NN')^-1,
- * so the probes run through R in y. The run stops at the first power of
+ * PROBES_FEW_ABOVE) (Hutchinson), carried through the explicit passes as
+ * extra columns; for the implicit step T = D^-1/2 R D^1/2, R = (I +
+ * NN')^-1, so a probe's estimate is z' W R^K z, read by Lanczos quadrature
+ * on N (mcf_fairing_trace.c) while the steps solve the coordinates only. The run stops at the first power of
  * two past K* + 5 (K* the best so far: sure_stop) or at the cap. It keeps the displacements Y_k - X0
  * after the last COMB_J powers of two k of steps; the combination X0 +
  * sum_j c_j (Y_kj - X0) whose SURE is least (a 4 x 4 linear system:
