@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # Does Lanczos quadrature give the fairing's per-probe Hutchinson traces
 # z' W R^K z (R = (I + N^2)^-1, N = D^-1/2 L_FF D^-1/2) for K = 1..200 without
 # carrying the probes through the 200 solves? numpy/scipy check on a shared mesh.
