@@ -41,12 +41,14 @@
 
 struct mcf__fair_lz {
     int n, nprobe, cap;
+    int *rp, *ci;                  /* N's off-diagonal on the free vertices (CSR) */
     double *isq;                   /* n: 1 / sqrt(D) */
-    double *q, *qprev, *p;         /* nprobe x n; n: work */
+    double *q, *qprev, *p, *v;     /* n x nprobe, the probes interleaved */
     double *alpha, *beta, *cz;     /* nprobe x mmax */
     int m[NPROBE], done[NPROBE];   /* steps made; invariant space reached */
     double bprev[NPROBE], znorm[NPROBE];
-    double *est, *old;             /* nprobe x (cap + 1): at m, at the m before */
+    double *est, *old;             /* nprobe x (cap + 1): at m, at mprev */
+    int steps, mprev;              /* the steps made (every probe not done), at the last comparison */
     int kgood;                     /* est settled for K <= kgood */
     int mmax;                      /* allocated steps */
     double *band, *x;              /* 3 x mmax (the banded factor), mmax */
@@ -56,10 +58,13 @@ void mcf__fair_lz_free(mcf__fair_lz *lz)
 {
     if (!lz)
         return;
+    free(lz->rp);
+    free(lz->ci);
     free(lz->isq);
     free(lz->q);
     free(lz->qprev);
     free(lz->p);
+    free(lz->v);
     free(lz->alpha);
     free(lz->beta);
     free(lz->cz);
@@ -70,72 +75,71 @@ void mcf__fair_lz_free(mcf__fair_lz *lz)
     free(lz);
 }
 
-/* v = N u on the free vertices: u_k - (1/sq_k) sum over free neighbours j
- * of u_j / sq_j */
-static void n_times(const fair_ctx *c, const mcf__fair_lz *lz, const double *u, double *v)
+/* Every probe's Lanczos run carried to m steps (at most n), the probes
+ * side by side: one sweep over N per step. v = N q on the free vertices:
+ * q_k - (1/sq_k) sum over free neighbours j of q_j / sq_j. */
+static void extend(const fair_ctx *c, mcf__fair_lz *lz, int m)
 {
-    int n = lz->n;
-    double *p = lz->p;
-    for (int k = 0; k < n; k++)
-        p[k] = u[k] * lz->isq[k];
-    for (int k = 0; k < n; k++) {
-        int i = c->vert[k];
-        double s = 0.0;
-        for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++) {
-            int j = c->fid[c->g.adj[t]];
-            if (j >= 0)
-                s += p[j];
-        }
-        v[k] = u[k] - lz->isq[k] * s;
-    }
-}
-
-/* Probe q's Lanczos run carried to m steps (at most n). */
-static void extend(const fair_ctx *c, mcf__fair_lz *lz, int q, int m)
-{
-    int n = lz->n;
-    double *qc = lz->q + (size_t)q * n, *qp = lz->qprev + (size_t)q * n;
-    const double *z = c->probe + (size_t)q * n;
-    double *al = lz->alpha + (size_t)q * lz->mmax, *be = lz->beta + (size_t)q * lz->mmax,
-           *cz = lz->cz + (size_t)q * lz->mmax;
+    int n = lz->n, np = lz->nprobe;
+    double *Q = lz->q, *Qp = lz->qprev, *P = lz->p, *V = lz->v;
     if (m > n)
         m = n;
-    for (int j = lz->m[q]; j < m && !lz->done[q]; j++) {
-        double a = 0.0, b = 0.0;
-        for (int k = 0; k < n; k++) /* c_j = (W z) . q_j */
-            a += c->w[c->vert[k]] * z[k] * qc[k];
-        cz[j] = a;
-        /* qp <- N q_j - beta_{j-1} q_{j-1} - alpha_j q_j, the next vector */
-        n_times(c, lz, qc, lz->p + n);
-        const double *v = lz->p + n;
-        a = 0.0;
-        for (int k = 0; k < n; k++)
-            a += qc[k] * v[k];
+    for (int j = lz->steps; j < m; j++) {
+        double a[NPROBE] = {0}, al[NPROBE] = {0}, b[NPROBE] = {0};
+        for (int k = 0; k < n; k++) { /* c_j = (W z) . q_j */
+            double wk = c->w[c->vert[k]];
+            for (int q = 0; q < np; q++)
+                a[q] += wk * c->probe[(size_t)q * n + k] * Q[(size_t)k * np + q];
+        }
+        for (size_t t = 0; t < (size_t)n * np; t++)
+            P[t] = Q[t] * lz->isq[t / (size_t)np];
         for (int k = 0; k < n; k++) {
-            qp[k] = v[k] - lz->bprev[q] * qp[k] - a * qc[k];
-            b += qp[k] * qp[k];
+            double s[NPROBE] = {0};
+            for (int t = lz->rp[k]; t < lz->rp[k + 1]; t++)
+                for (int q = 0; q < np; q++)
+                    s[q] += P[(size_t)lz->ci[t] * np + q];
+            for (int q = 0; q < np; q++)
+                V[(size_t)k * np + q] = Q[(size_t)k * np + q] - lz->isq[k] * s[q];
         }
-        b = sqrt(b);
-        al[j] = a;
-        be[j] = b;
-        lz->m[q] = j + 1;
-        if (!(b > LZ_BREAK)) { /* unit start: relative to 1 */
-            lz->done[q] = 1;
-            break;
+        for (int k = 0; k < n; k++)
+            for (int q = 0; q < np; q++)
+                al[q] += Q[(size_t)k * np + q] * V[(size_t)k * np + q];
+        /* Qp <- N q_j - beta_{j-1} q_{j-1} - alpha_j q_j, the next vector */
+        for (int k = 0; k < n; k++)
+            for (int q = 0; q < np; q++) {
+                size_t t = (size_t)k * np + q;
+                Qp[t] = V[t] - lz->bprev[q] * Qp[t] - al[q] * Q[t];
+                b[q] += Qp[t] * Qp[t];
+            }
+        for (int q = 0; q < np; q++) {
+            if (lz->done[q])
+                continue;
+            b[q] = sqrt(b[q]);
+            size_t o = (size_t)q * lz->mmax + (size_t)j;
+            lz->cz[o] = a[q];
+            lz->alpha[o] = al[q];
+            lz->beta[o] = b[q];
+            lz->m[q] = j + 1;
+            lz->done[q] = !(b[q] > LZ_BREAK); /* unit start: relative to 1 */
+            lz->bprev[q] = b[q];
         }
-        for (int k = 0; k < n; k++) { /* (q_{j-1}, q_j) <- (q_j, q_{j+1}) */
-            double t = qc[k];
-            qc[k] = qp[k] / b;
-            qp[k] = t;
-        }
-        lz->bprev[q] = b;
+        for (int k = 0; k < n; k++) /* (q_{j-1}, q_j) <- (q_j, q_{j+1}) */
+            for (int q = 0; q < np; q++) {
+                size_t t = (size_t)k * np + q;
+                double u = Q[t];
+                Q[t] = lz->done[q] ? u : Qp[t] / lz->bprev[q];
+                Qp[t] = lz->done[q] ? Qp[t] : u;
+            }
+        lz->steps = j + 1;
     }
 }
 
-/* est[K] = |z| c' (I + T^2)^-K e1 for K = 0..cap, T = T_m of probe q. */
-static void quadrature(mcf__fair_lz *lz, int q, double *est)
+/* est[K] = |z| c' (I + T^2)^-K e1 for K = 0..kmax, T = T_m of probe q
+ * (m at most the steps it made). */
+static void quadrature(mcf__fair_lz *lz, int q, int m, int kmax, double *est)
 {
-    int m = lz->m[q];
+    if (m > lz->m[q])
+        m = lz->m[q];
     const double *al = lz->alpha + (size_t)q * lz->mmax, *be = lz->beta + (size_t)q * lz->mmax,
                  *cz = lz->cz + (size_t)q * lz->mmax;
     double *d0 = lz->band, *d1 = d0 + lz->mmax, *d2 = d1 + lz->mmax, *x = lz->x;
@@ -154,9 +158,11 @@ static void quadrature(mcf__fair_lz *lz, int q, double *est)
         d1[i] = l1;
         d2[i] = l2;
     }
-    memset(x, 0, sizeof(double) * (size_t)m);
-    x[0] = 1.0;
-    for (int K = 0; K <= lz->cap; K++) {
+    if (m > 0) {
+        memset(x, 0, sizeof(double) * (size_t)m);
+        x[0] = 1.0;
+    }
+    for (int K = 0; K <= kmax; K++) {
         if (K > 0) {
             for (int i = 0; i < m; i++) /* L y = x */
                 x[i] = (x[i] - (i > 0 ? d1[i] * x[i - 1] : 0.0) - (i > 1 ? d2[i] * x[i - 2] : 0.0)) / d0[i];
@@ -174,17 +180,23 @@ static void quadrature(mcf__fair_lz *lz, int q, double *est)
 mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err)
 {
     int n = c->nfree, np = c->nprobe, mmax = n < 64 ? n : 64;
+    size_t nnz = 0;
     mcf__fair_lz *lz = c->lz = mcf__calloc(1, sizeof *lz);
     if (!lz)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
+    for (int k = 0; k < n; k++)
+        nnz += (size_t)(c->g.ptr[c->vert[k] + 1] - c->g.ptr[c->vert[k]]);
     lz->n = n;
     lz->nprobe = np;
     lz->cap = c->cap;
     lz->mmax = mmax;
+    lz->rp = mcf__malloc((size_t)n + 1, sizeof(int));
+    lz->ci = mcf__malloc(nnz + 1, sizeof(int));
     lz->isq = mcf__malloc((size_t)n + 1, sizeof(double));
     lz->q = mcf__calloc((size_t)np * n + 1, sizeof(double));
     lz->qprev = mcf__calloc((size_t)np * n + 1, sizeof(double));
-    lz->p = mcf__malloc(2 * (size_t)n + 1, sizeof(double));
+    lz->p = mcf__malloc((size_t)np * n + 1, sizeof(double));
+    lz->v = mcf__malloc((size_t)np * n + 1, sizeof(double));
     lz->alpha = mcf__malloc((size_t)np * mmax + 1, sizeof(double));
     lz->beta = mcf__malloc((size_t)np * mmax + 1, sizeof(double));
     lz->cz = mcf__malloc((size_t)np * mmax + 1, sizeof(double));
@@ -192,12 +204,22 @@ mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err)
     lz->old = mcf__malloc((size_t)np * (c->cap + 1), sizeof(double));
     lz->band = mcf__malloc(3 * (size_t)mmax + 1, sizeof(double));
     lz->x = mcf__malloc((size_t)mmax + 1, sizeof(double));
-    if (!lz->isq || !lz->q || !lz->qprev || !lz->p || !lz->alpha || !lz->beta || !lz->cz || !lz->est || !lz->old ||
-        !lz->band || !lz->x)
+    if (!lz->rp || !lz->ci || !lz->isq || !lz->q || !lz->qprev || !lz->p || !lz->v || !lz->alpha || !lz->beta ||
+        !lz->cz || !lz->est || !lz->old || !lz->band || !lz->x)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
-    c->bytes += sizeof(double) * ((3 + 2 * (size_t)np) * n + 2 * (size_t)np * (c->cap + 1) + (3 * np + 4) * (size_t)mmax);
-    for (int k = 0; k < n; k++)
+    c->bytes += sizeof(int) * ((size_t)n + 1 + nnz) +
+                sizeof(double) * ((1 + 4 * (size_t)np) * n + 2 * (size_t)np * (c->cap + 1) + (3 * np + 4) * (size_t)mmax);
+    /* the free neighbours of each free vertex, in the graph's order */
+    size_t t = 0;
+    for (int k = 0; k < n; k++) {
+        int i = c->vert[k];
+        lz->rp[k] = (int)t;
+        for (int e = c->g.ptr[i]; e < c->g.ptr[i + 1]; e++)
+            if (c->fid[c->g.adj[e]] >= 0)
+                lz->ci[t++] = c->fid[c->g.adj[e]];
         lz->isq[k] = 1.0 / c->sq[k];
+    }
+    lz->rp[n] = (int)t;
     for (int q = 0; q < np; q++) { /* q_1 = z / |z| */
         const double *z = c->probe + (size_t)q * n;
         double s = 0.0;
@@ -205,7 +227,7 @@ mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err)
             s += z[k] * z[k];
         lz->znorm[q] = sqrt(s);
         for (int k = 0; s > 0.0 && k < n; k++)
-            lz->q[(size_t)q * n + k] = z[k] / lz->znorm[q];
+            lz->q[(size_t)k * np + q] = z[k] / lz->znorm[q];
         lz->done[q] = !(s > 0.0);
     }
     lz->kgood = -1;
@@ -252,35 +274,49 @@ mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error 
     mcf__fair_lz *lz = c->lz;
     int np = lz->nprobe, ncap = lz->cap + 1;
     while (lz->kgood < k) {
-        int all_done = 1, m = 0;
-        for (int q = 0; q < np; q++) {
-            all_done &= lz->done[q] || lz->m[q] >= lz->n;
-            m = lz->m[q] > m ? lz->m[q] : m;
+        /* the estimates up to twice the step asked for (at least LZ_FIRST) */
+        int kmax = 2 * k > LZ_FIRST ? 2 * k : LZ_FIRST, exact = 1;
+        if (kmax > lz->cap)
+            kmax = lz->cap;
+        for (int q = 0; q < np; q++)
+            exact &= lz->done[q];
+        exact = exact || lz->steps >= lz->n;
+        if (lz->steps == 0 && !exact) {
+            if (!grow(lz, LZ_FIRST < lz->n ? LZ_FIRST : lz->n))
+                return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", lz->n);
+            extend(c, lz, LZ_FIRST);
+            continue;
         }
-        m = m == 0 ? LZ_FIRST : m + (m / 2 > LZ_GROW ? m / 2 : LZ_GROW);
-        if (!all_done && !grow(lz, m < lz->n ? m : lz->n))
-            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", lz->n);
-        memcpy(lz->old, lz->est, sizeof(double) * (size_t)np * ncap);
-        for (int q = 0; q < np; q++) {
-            extend(c, lz, q, m);
-            quadrature(lz, q, lz->est + (size_t)q * ncap);
-        }
-        if (all_done) { /* exact: nothing to compare with */
-            lz->kgood = lz->cap;
+        for (int q = 0; q < np; q++)
+            quadrature(lz, q, lz->steps, kmax, lz->est + (size_t)q * ncap);
+        if (exact) { /* the Krylov space is invariant: nothing to compare */
+            lz->kgood = kmax;
             break;
         }
-        /* settled up to the first K where some probe moved more than LZ_TOL n
-         * (none before the second round) */
+        /* settled up to the first K where some probe moved more than
+         * LZ_TOL n from the last comparison's m */
         int K = 0;
-        if (m > LZ_FIRST)
-            for (; K < ncap; K++) {
+        if (lz->mprev > 0) {
+            for (int q = 0; q < np; q++)
+                quadrature(lz, q, lz->mprev, kmax, lz->old + (size_t)q * ncap);
+            for (; K <= kmax; K++) {
                 int ok = 1;
                 for (int q = 0; q < np && ok; q++)
                     ok = fabs(lz->est[(size_t)q * ncap + K] - lz->old[(size_t)q * ncap + K]) <= LZ_TOL * lz->n;
                 if (!ok)
                     break;
             }
+        }
         lz->kgood = K - 1;
+        if (lz->kgood >= k)
+            break;
+        int m = lz->steps + (lz->steps / 2 > LZ_GROW ? lz->steps / 2 : LZ_GROW);
+        if (m > lz->n)
+            m = lz->n;
+        if (!grow(lz, m))
+            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", lz->n);
+        lz->mprev = lz->steps;
+        extend(c, lz, m);
     }
     for (int q = 0; q < np; q++)
         est[q] = lz->est[(size_t)q * ncap + k];
