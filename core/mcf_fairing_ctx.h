@@ -96,6 +96,11 @@ typedef struct {
     int exact;                 /* the default request: the positions are
                                   exact (mcf_fairing.c, FLAT_SHARE): no
                                   noise to read */
+    double grid[3];            /* the default request: the steps of the
+                                  grid the positions are quantized to
+                                  (mcf__lattice), when it explains the
+                                  noise read (mcf_fairing.c, read_grid);
+                                  0: none */
     int quiet;                 /* the hook sees no steps (cancel only) */
     double w0, w1;             /* its share of the run's work (mcf_fairing.c, work()) */
     double work_done;          /* the last share reported: never less */

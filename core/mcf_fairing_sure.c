@@ -425,6 +425,7 @@ mcf_status mcf__fair_feature(fair_ctx *c, int vs, const unsigned char *fixed, do
     fr.nprobe = c->nprobe;
     fr.s = c->s;
     fr.s2_rel = c->s2_rel;
+    fr.s_known = c->grid[0] > 0.0;
     fr.min_z = SURE_MIN_GAIN;
     if (vs != FEAT_VS_INPUT && c->kbest > 0) {
         fr.Ylin = c->Ybest;
