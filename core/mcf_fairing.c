@@ -56,6 +56,17 @@
 #include "mcf_fairing_ctx.h"
 
 #define TANGENTIAL_FLOOR 0.12
+/* isotropic noise reads at least the normal level in the tangent planes
+ * (reading^2 = b^2 + s^2, b the triangulation's own irregularity); a
+ * reading under TANGENTIAL_GATE_LO times the normal level is b alone
+ * (noise along the normals: the 435k dragon's marching-cubes triangles
+ * read b = 0.204 under noise 0.232), none counts, and the whole of it
+ * counts from TANGENTIAL_GATE_HI on, linearly between. Measured
+ * 2026-11-29 (docs/fairing.md): reading / level 0.97-1.78 under
+ * isotropic noise 0.1-0.5 on the shared scans, 0.12-0.62 under noise
+ * 0.25-0.5 along the normals, 0.88 on the 435k dragon at 0.25 */
+#define TANGENTIAL_GATE_LO 0.9
+#define TANGENTIAL_GATE_HI 0.95
 /* the creases' smoothing along them moves a vertex by at most one noise
  * level: on car.drc's coarse chains (hubs of 11-12 edges) it took shape
  * away at 2 (normal noise 0.25, seeds 1-3: 0.959, 0.853, 0.973 of the
@@ -415,12 +426,17 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
          * it cannot be told from the mesh), and at most the normal
-         * noise (scanners' noise is isotropic at most); one viewpoint's
+         * noise (scanners' noise is isotropic at most), and none when
+         * the reading stays under the normal level (TANGENTIAL_GATE_LO:
+         * the triangles' own irregularity, not noise); one viewpoint's
          * noise: its part in the tangent planes, which is most of it
          * (two thirds of its variance for a direction at random) */
+        double gate = s_est > 0.0 ? (s_t / s_est - TANGENTIAL_GATE_LO) / (TANGENTIAL_GATE_HI - TANGENTIAL_GATE_LO)
+                                  : 0.0;
         s_t = grid   ? s
               : view ? shape.sigma_view_t
-                     : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
+                     : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s) *
+                           fmax(0.0, fmin(1.0, gate));
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
         st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
         st->noise_share = shape.direction_share;
