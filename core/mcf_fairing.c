@@ -26,9 +26,10 @@
  * (T^K)_ii estimates sum w (error)^2 without the clean mesh; w are the
  * barycentric vertex areas over their mean. The weighted trace comes from
  * six Rademacher probes (three on a mesh of over a million free vertices:
- * PROBES_FEW_ABOVE) carried through the same steps as extra columns
- * (Hutchinson); for the implicit step T = D^-1/2 R D^1/2, R = (I + NN')^-1,
- * so the probes run through R in y. The run stops at the first power of
+ * PROBES_FEW_ABOVE) (Hutchinson), carried through the explicit passes as
+ * extra columns; for the implicit step T = D^-1/2 R D^1/2, R = (I +
+ * NN')^-1, so a probe's estimate is z' W R^K z, read by Lanczos quadrature
+ * on N (mcf_fairing_trace.c) while the steps solve the coordinates only. The run stops at the first power of
  * two past K* + 5 (K* the best so far: sure_stop) or at the cap. It keeps the displacements Y_k - X0
  * after the last COMB_J powers of two k of steps; the combination X0 +
  * sum_j c_j (Y_kj - X0) whose SURE is least (a 4 x 4 linear system:
@@ -186,6 +187,7 @@ static void fair_free(fair_ctx *c)
     mcf__pattern_free(&c->apat);
     free(c->ax);
     free(c->Yc);
+    mcf__fair_lz_free(c->lz);
     for (int j = 0; j < COMB_J; j++)
         free(c->dk[j]);
 }
@@ -471,7 +473,10 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
     c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
-    c->ncol = c->sure ? 3 + c->nprobe : 3;
+    /* the explicit passes carry the probes as columns; the implicit steps
+     * solve the coordinates only, the probes' traces by Lanczos quadrature
+     * (mcf_fairing_trace.c) */
+    c->ncol = c->sure && c->is_explicit ? 3 + c->nprobe : 3;
     c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
@@ -494,6 +499,11 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
         c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
         if (!c->st->sure)
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
+    }
+    if (c->cap > 0 && c->sure && !c->is_explicit) {
+        mcf_status rc = mcf__fair_lz_new(c, err);
+        if (rc != MCF_OK)
+            return rc;
     }
     if (c->cap > 0)
         return c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
@@ -559,6 +569,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
             mcf__fair_step_moments(c, Y, est, mo);
+            if (!c->is_explicit && (rc = mcf__fair_lz_trace(c, k, est, err)) != MCF_OK)
+                return rc;
             double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
