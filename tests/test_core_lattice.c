@@ -111,25 +111,6 @@ static double rms(const mcf_mesh *m, const mcf_mesh *clean)
     return r.rms_m;
 }
 
-/* Faces of x whose normal points against the same face of clean (make
- * quality's flips, lab/bench/quality_geom.c) */
-static int flips_against(const mcf_mesh *x, const mcf_mesh *clean)
-{
-    int n = 0;
-    for (int f = 0; f < mcf_mesh_nfaces(x); f++) {
-        const int32_t *t = mcf_mesh_faces(x) + 3 * f;
-        double a[3], b[3], e1[3], e2[3];
-        for (int k = 0; k < 2; k++) {
-            const double *X = k ? mcf_mesh_positions(clean) : mcf_mesh_positions(x);
-            mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
-            mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
-            mcf__cross3(e1, e2, k ? b : a);
-        }
-        n += mcf__dot3(a, b) < 0.0;
-    }
-    return n;
-}
-
 /* NAME rounded to a grid of rho mean edges (offset rho/3 per axis, every
  * vertex) through the default request: the noise read is the grid's,
  * q / sqrt(12), along the normals and in the tangent planes alike (within
@@ -161,7 +142,7 @@ static void quantized_case(const char *name, double rho, double max_ratio, int m
         fail_msg("%s", err.msg);
     api_params_free(&ap);
     double e0 = rms(q0, clean), e1 = rms(q, clean);
-    int f0 = flips_against(q0, clean), f1 = flips_against(q, clean);
+    int f0 = tl_flips_against(q0, clean), f1 = tl_flips_against(q, clean);
     print_message("%s quantized %.2f h: noise read %.4f (grid %.4f), K=%d, error %.4f of the input's, "
                   "faces against the clean mesh %d -> %d\n",
                   name, rho, st.noise, step / sqrt(12.0) / qi.mean_edge, st.steps, e1 / e0, f0, f1);

@@ -707,25 +707,6 @@ static mcf_mesh *with_outliers(const mcf_mesh *clean, int seed, int *nout)
     return with_outliers_rho(clean, 0.1, seed, nout);
 }
 
-/* Faces of x whose normal points against the same face of clean (dot <
- * 0): make quality's flips (lab/bench/quality_geom.c, qg_flips). */
-static int flips_against(const mcf_mesh *x, const mcf_mesh *clean)
-{
-    int n = 0;
-    for (int f = 0; f < mcf_mesh_nfaces(x); f++) {
-        const int32_t *t = mcf_mesh_faces(x) + 3 * f;
-        double a[3], b[3], e1[3], e2[3];
-        for (int k = 0; k < 2; k++) {
-            const double *X = k ? mcf_mesh_positions(clean) : mcf_mesh_positions(x);
-            mcf__sub3(X + 3 * (size_t)t[1], X + 3 * (size_t)t[0], e1);
-            mcf__sub3(X + 3 * (size_t)t[2], X + 3 * (size_t)t[0], e2);
-            mcf__cross3(e1, e2, k ? b : a);
-        }
-        n += mcf__dot3(a, b) < 0.0;
-    }
-    return n;
-}
-
 /* The `folds` warning with outliers tells the truth: before, the spike
  * stage's repair (along the ring's normal) folded faces that the fold
  * guard, comparing with the repaired mesh, did not see, while
@@ -754,10 +735,10 @@ static void test_outliers_folds(void **state)
             int nout;
             mcf_mesh *m = with_outliers_rho(clean, 0.25, seed, &nout);
             mcf_flow_stats st;
-            int f0 = flips_against(m, clean);
+            int f0 = tl_flips_against(m, clean);
             double in = rms(m, clean);
             run_default(m, &st);
-            int f1 = flips_against(m, clean);
+            int f1 = tl_flips_against(m, clean);
             print_message("%-20s seed %d: out 0.25: folded_faces %d (warning %d), faces against the clean mesh %d -> "
                           "%d, error/input %.3f\n",
                           names[q], seed, st.folded_faces, !!(st.warnings & MCF_WARN_FOLDS), f0, f1, rms(m, clean) / in);
