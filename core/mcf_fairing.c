@@ -924,7 +924,10 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         int won = rc == MCF_OK && crease_divergence(c, &cn, fixed, kdiv) && mcf__fair_pick_uncreased(c, &cn, kdiv);
         take_stats(st, &se, won, cn.is_explicit);
         if (won) {
-            if (cn.is_explicit) { /* the implicit run's tangential step, as above */
+            /* the first run's tangential step, as above: the implicit
+             * run's below 150,000 vertices; above, where the default is
+             * fairing_explicit, the creased passes' own */
+            if (cn.is_explicit) {
                 memcpy(cn.Yt, ci.Yt, 3 * sizeof(double) * (size_t)nv);
                 cn.kbest_t = ci.kbest_t;
             }
