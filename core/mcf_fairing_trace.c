@@ -242,24 +242,25 @@ static int grow(mcf__fair_lz *lz, int m)
     int mm = m > 2 * lz->mmax ? m : 2 * lz->mmax;
     if (mm > lz->n)
         mm = lz->n;
-    double *a[3] = {lz->alpha, lz->beta, lz->cz};
-    for (int t = 0; t < 3; t++) {
-        double *r = mcf__malloc((size_t)lz->nprobe * mm, sizeof(double));
-        if (!r)
-            return 0;
-        for (int q = 0; q < lz->nprobe; q++)
-            memcpy(r + (size_t)q * mm, a[t] + (size_t)q * lz->mmax, sizeof(double) * (size_t)lz->m[q]);
-        free(a[t]);
-        a[t] = r;
-    }
-    lz->alpha = a[0];
-    lz->beta = a[1];
-    lz->cz = a[2];
-    double *band = mcf__malloc(3 * (size_t)mm, sizeof(double)), *x = mcf__malloc((size_t)mm, sizeof(double));
-    if (!band || !x) {
+    /* everything allocated before anything is replaced: a failure leaves
+     * lz as it was, for mcf__fair_lz_free */
+    double *r[3], *band = mcf__malloc(3 * (size_t)mm, sizeof(double)), *x = mcf__malloc((size_t)mm, sizeof(double));
+    int ok = band && x;
+    for (int t = 0; t < 3; t++)
+        ok &= (r[t] = mcf__malloc((size_t)lz->nprobe * mm, sizeof(double))) != NULL;
+    if (!ok) {
+        for (int t = 0; t < 3; t++)
+            free(r[t]);
         free(band);
         free(x);
         return 0;
+    }
+    double **a[3] = {&lz->alpha, &lz->beta, &lz->cz};
+    for (int t = 0; t < 3; t++) {
+        for (int q = 0; q < lz->nprobe; q++)
+            memcpy(r[t] + (size_t)q * mm, *a[t] + (size_t)q * lz->mmax, sizeof(double) * (size_t)lz->m[q]);
+        free(*a[t]);
+        *a[t] = r[t];
     }
     free(lz->band);
     free(lz->x);
