@@ -72,37 +72,40 @@ static double axis_step(const double *v, int n, double tol, double max_step)
     return on >= LATTICE_SHARE * n ? q : 0.0;
 }
 
+/* Coordinate d of every every-th vertex not fixed into v, sorted; their
+ * count. */
+static int axis_values(const double *X, int nv, const unsigned char *fixed, int d, int every, double *v)
+{
+    int n = 0, k = 0;
+    for (int i = 0; i < nv; i++)
+        if (!(fixed && fixed[i]) && k++ % every == 0)
+            v[n++] = X[3 * (size_t)i + d];
+    qsort(v, (size_t)n, sizeof(double), cmp_double);
+    return n;
+}
+
 int mcf__lattice(const double *X, int nv, const unsigned char *fixed, double hbar, double step[3])
 {
     step[0] = step[1] = step[2] = 0.0;
-    if (!(hbar > 0.0))
+    int nfree = 0;
+    for (int i = 0; i < nv; i++)
+        nfree += !(fixed && fixed[i]);
+    if (!(hbar > 0.0) || nfree < LATTICE_MIN_VERTICES)
         return 0;
     double *v = mcf__malloc((size_t)nv + 1, sizeof(double));
     if (!v)
         return -1;
-    int found = 1, nfree = 0;
-    for (int i = 0; i < nv; i++)
-        nfree += !(fixed && fixed[i]);
-    int every = nfree > LATTICE_SAMPLE ? nfree / LATTICE_SAMPLE : 1;
+    int found = 1, every = nfree > LATTICE_SAMPLE ? nfree / LATTICE_SAMPLE : 1;
+    double tol = LATTICE_TOL * hbar;
     for (int d = 0; d < 3 && found; d++) {
-        int n = 0, k = 0;
-        /* the sample: its values lie on the grid when all do (their gaps'
-         * divisor is a multiple of the grid's; its own may be coarser) */
-        for (int i = 0; i < nv; i++)
-            if (!(fixed && fixed[i]) && k++ % every == 0)
-                v[n++] = X[3 * (size_t)i + d];
-        qsort(v, (size_t)n, sizeof(double), cmp_double);
-        if (nfree < LATTICE_MIN_VERTICES || !(axis_step(v, n, LATTICE_TOL * hbar, INFINITY) > 0.0)) {
+        /* the sample first: its values lie on the grid when all do (their
+         * gaps' divisor is a multiple of the grid's; its own may be
+         * coarser) */
+        int n = axis_values(X, nv, fixed, d, every, v);
+        if (!(axis_step(v, n, tol, INFINITY) > 0.0))
             found = 0;
-            break;
-        }
-        n = 0;
-        for (int i = 0; i < nv; i++)
-            if (!(fixed && fixed[i]))
-                v[n++] = X[3 * (size_t)i + d];
-        qsort(v, (size_t)n, sizeof(double), cmp_double);
-        step[d] = axis_step(v, n, LATTICE_TOL * hbar, LATTICE_MAX_STEP * hbar);
-        found = step[d] > 0.0;
+        else
+            found = (step[d] = axis_step(v, axis_values(X, nv, fixed, d, 1, v), tol, LATTICE_MAX_STEP * hbar)) > 0.0;
     }
     free(v);
     if (!found)
