@@ -29,7 +29,10 @@
  * PROBES_FEW_ABOVE) (Hutchinson), carried through the explicit passes as
  * extra columns; for the implicit step T = D^-1/2 R D^1/2, R = (I +
  * NN')^-1, so a probe's estimate is z' W R^K z, read by Lanczos quadrature
- * on N (mcf_fairing_trace.c) while the steps solve the coordinates only. The run stops at the first power of
+ * on N (mcf_fairing_trace.c) while the steps solve the coordinates only;
+ * the default request's explicit passes after its implicit steps read
+ * z' W P(N)^K z on the same Lanczos runs (P the pass's gain) and move the
+ * coordinates only. The run stops at the first power of
  * two past K* + 5 (K* the best so far: sure_stop) or at the cap. It keeps the displacements Y_k - X0
  * after the last COMB_J powers of two k of steps; the combination X0 +
  * sum_j c_j (Y_kj - X0) whose SURE is least (a 4 x 4 linear system:
@@ -473,10 +476,6 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
     c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
-    /* the explicit passes carry the probes as columns; the implicit steps
-     * solve the coordinates only, the probes' traces by Lanczos quadrature
-     * (mcf_fairing_trace.c) */
-    c->ncol = c->sure && c->is_explicit ? 3 + c->nprobe : 3;
     c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
@@ -500,11 +499,23 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
         if (!c->st->sure)
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
     }
-    if (c->cap > 0 && c->sure && !c->is_explicit) {
+    /* the implicit steps solve the coordinates only, the probes' traces by
+     * Lanczos quadrature (mcf_fairing_trace.c); the default request's
+     * explicit run continues its implicit run's Lanczos runs (the same N
+     * and probes) and moves the coordinates only; the explicit passes
+     * alone carry the probes as columns: a Lanczos run of its own cost
+     * them more than the columns (the 435k dragon at noise 0.25, 64
+     * passes: 48 Lanczos steps a run, 5.5-6.5 s of CPU with the columns,
+     * 7.6-7.9 s without; lab/results/quality/issue27-pick) */
+    if (c->cap > 0 && c->sure && c->lz_from && mcf__fair_lz_fits(c, c->lz_from)) {
+        c->lz = c->lz_from->lz;
+        c->lz_from->lz = NULL;
+    } else if (c->cap > 0 && c->sure && !c->is_explicit) {
         mcf_status rc = mcf__fair_lz_new(c, err);
         if (rc != MCF_OK)
             return rc;
     }
+    c->ncol = c->sure && c->is_explicit && !c->lz ? 3 + c->nprobe : 3;
     if (c->cap > 0)
         return c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
     return MCF_OK;
@@ -569,7 +580,7 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
             mcf__fair_step_moments(c, Y, est, mo);
-            if (!c->is_explicit && (rc = mcf__fair_lz_trace(c, k, est, err)) != MCF_OK)
+            if (c->lz && (rc = mcf__fair_lz_trace(c, k, est, err)) != MCF_OK)
                 return rc;
             double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
@@ -858,6 +869,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ci.chol = NULL;
         memset(&se, 0, sizeof se);
         ce.is_explicit = ce.quiet = 1;
+        ce.lz_from = &ci;
         rc = filter_run(&ce, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
         take_stats(st, &se, won, 1);

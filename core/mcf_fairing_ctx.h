@@ -14,7 +14,7 @@
 
 #include "mcf_internal.h"
 
-enum { NPROBE = 6, NCOL = 3 + NPROBE };
+enum { NPROBE = 6 };
 /* Above PROBES_FEW_ABOVE free vertices the run carries NPROBE_FEW probes
  * (c->nprobe; NPROBE, the most, otherwise): the passes then move 6 columns
  * instead of 9. A probe's estimate of the trace varies as 2 |W T^K|_F^2
@@ -50,7 +50,7 @@ enum { NPROBE_FEW = 3 };
  * powers of two stay within +-11 (consecutive k: up to +-35). */
 #define COMB_J MCF_FAIRING_COMB
 
-/* The implicit engine's probe traces by Lanczos quadrature
+/* The probe traces of both engines by Lanczos quadrature
  * (mcf_fairing_trace.c). */
 typedef struct mcf__fair_lz mcf__fair_lz;
 
@@ -65,7 +65,7 @@ typedef struct {
     int nfree;
 } fair_share;
 
-typedef struct {
+typedef struct fair_ctx {
     const mcf_flow_params *p;
     int nv, nf, nfree;
     const int32_t *F;
@@ -87,7 +87,8 @@ typedef struct {
     double *n0;                /* 3*nv: normals of X0 */
     double *probe;             /* nprobe * nfree: the Rademacher probes */
     int nprobe;                /* NPROBE, or NPROBE_FEW on a large mesh */
-    int ncol;                  /* 3, or 3 + nprobe with the probes */
+    int ncol;                  /* 3, or 3 + nprobe: the explicit passes
+                                  carry the probes unless lz reads them */
     int is_explicit;
     int no_creases;            /* the default request's second look: no
                                   creases held (mcf__fair_pick_uncreased) */
@@ -110,9 +111,13 @@ typedef struct {
     mcf__pattern apat;         /* I + N N' (upper triangle) */
     double *ax;                /* its values */
     mcf__chol *chol;
-    double *Yc;                /* nfree x ncol, column-major: y (the
-                                  implicit engine's probes are in lz) */
-    mcf__fair_lz *lz;          /* implicit with SURE: the probes' traces */
+    double *Yc;                /* nfree x ncol, column-major: y */
+    mcf__fair_lz *lz;          /* with SURE, implicit, or explicit after
+                                  the implicit run (lz_from): the probes'
+                                  traces */
+    struct fair_ctx *lz_from;  /* a run on the same free vertices and
+                                  probes whose lz this run takes
+                                  (mcf__fair_lz_fits), else NULL */
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
@@ -152,19 +157,26 @@ mcf_status mcf__fair_implicit_init(fair_ctx *c, mcf_error *err);
 mcf_status mcf__fair_implicit_step(fair_ctx *c, mcf_error *err);
 
 /* mcf_fairing_trace.c */
-/* The Lanczos runs' state for c's probes (c->lz; c->probe, c->cap, c->sq,
- * c->w set): ENOMEM. */
+/* The Lanczos runs' state for c's probes (c->lz; c->probe, c->sq, c->w,
+ * c->vert, c->fid set): ENOMEM. */
 mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err);
 void mcf__fair_lz_free(mcf__fair_lz *lz);
-/* Each probe's z' W R^k z, R the implicit step's (I + N N')^-1, into est,
- * settled to 1e-12 nfree (more Lanczos steps made when needed): ENOMEM. */
+/* Whether from's Lanczos runs serve c: the same graph, free vertices,
+ * degrees, weights and probes (the default request's explicit run after
+ * its implicit one). */
+int mcf__fair_lz_fits(const fair_ctx *c, const fair_ctx *from);
+/* Each probe's z' W f_k(N) z into est, f_k(l) = (1 + l^2)^-k (the
+ * implicit step's R^k, R = (I + N N')^-1) or, c->is_explicit, P(l)^k (k
+ * lambda|mu passes), settled to 1e-12 nfree (more Lanczos steps made when
+ * needed): ENOMEM. */
 mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error *err);
 
 /* mcf_fairing_sure.c */
-/* A step's probe estimates of sum_i w_i (T^K)_ii (est) and SURE's
- * moments of the displacement Y - X0 (m), in one sweep; the explicit
- * engine's positions are written into Y's free rows on the way (its other
- * rows must hold X0), the implicit engine's read from Y. */
+/* A step's probe estimates of sum_i w_i (T^K)_ii when the explicit
+ * passes carry the probes (est; c->ncol > 3) and SURE's moments of the
+ * displacement Y - X0 (m), in one sweep; the explicit engine's positions
+ * are written into Y's free rows on the way (its other rows must hold
+ * X0), the implicit engine's read from Y. */
 void mcf__fair_step_moments(const fair_ctx *c, double *Y, double est[NPROBE], double m[6]);
 /* The mean of the nprobe probes' estimates est, and the variance of that
  * mean (*var). */

@@ -132,10 +132,11 @@ static inline __attribute__((always_inline)) void step_moments(const fair_ctx *c
 }
 
 /* c->nprobe is NPROBE_FEW or NPROBE (mcf_fairing.c, run_init); the
- * implicit engine's probes are not columns (mcf__fair_lz_trace) */
+ * implicit engine's probes, and the explicit one's after the implicit run,
+ * are not columns (mcf__fair_lz_trace) */
 void mcf__fair_step_moments(const fair_ctx *c, double *Y, double est[NPROBE], double m[6])
 {
-    if (!c->is_explicit)
+    if (c->ncol == 3)
         step_moments(c, Y, est, m, 0);
     else if (c->nprobe == NPROBE_FEW)
         step_moments(c, Y, est, m, NPROBE_FEW);

@@ -1,23 +1,41 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * mcf_fairing_trace.c - the implicit engine's probe traces (mcf_fairing_ctx.h)
- * by Lanczos quadrature, so that its steps solve the three coordinates
- * only. SURE after K steps needs, per Rademacher probe z, the estimate
- * z' W R^K z of tr(W T^K) (mcf_fairing.c): R = (I + N^2)^-1, N = D_F^-1/2
- * L_FF D_F^-1/2 symmetric, W the area weights. With a = W z this is the
- * bilinear form a' f_K(N) z, f_K(l) = (1 + l^2)^-K; m steps of Lanczos on
- * N from z give T_m (tridiagonal), the basis Q_m and c = Q_m' a, and
- *     a' f_K(N) z ~ |z| c' f_K(T_m) e1 = |z| c' (I + T_m^2)^-K e1,
- * K banded solves of size m (I + T_m^2 is pentadiagonal). The error is that
- * of the best polynomial of degree m - 1 to f_K on N's spectrum, within
- * [0, 2] whatever the mesh: m grows with K, not with the mesh. Measured
- * (numpy, blade.obj's 7,991 free vertices, six probes, the exact values from
+ * mcf_fairing_trace.c - the probe traces of the fairing's implicit engine,
+ * and of the default request's explicit passes after it (mcf_fairing_ctx.h),
+ * by Lanczos quadrature, so that the steps solve and those passes move the
+ * three coordinates only. SURE
+ * after K steps needs, per Rademacher probe z, an unbiased estimate of
+ * tr(W T^K) (mcf_fairing.c), T one step on the free vertices, W the area
+ * weights. Both steps are functions of one symmetric matrix, N = D_F^-1/2
+ * L_FF D_F^-1/2 (the fixed vertices, creases included, enter only the
+ * coordinates' affine part, not T): the implicit step T = D^-1/2 R D^1/2,
+ * R = (I + N^2)^-1; the explicit pass (Taubin's lambda|mu pair of graph
+ * averages, avg - x = -D^-1/2 N D^1/2 x) T = D^-1/2 P(N) D^1/2, P(l) =
+ * (1 - mu l)(1 - lambda l). So tr(W T^K) = tr(W f_K(N)), f_K(l) = (1 +
+ * l^2)^-K or P(l)^K, estimated by z' W f_K(N) z, the bilinear form a'
+ * f_K(N) z with a = W z; m steps of Lanczos on N from z give T_m
+ * (tridiagonal), the basis Q_m and c = Q_m' a, and
+ *     a' f_K(N) z ~ |z| c' f_K(T_m) e1,
+ * K banded solves of size m (I + T_m^2 is pentadiagonal) or 2K products
+ * with T_m. The error is that of the best polynomial of degree m - 1 to
+ * f_K on N's spectrum, within [0, 2] whatever the mesh: m grows with K, not
+ * with the mesh (P^K is itself a polynomial of degree 2K: exact from m =
+ * 2K + 1, and close long before: its shape is about exp(-0.265 K l^2)).
+ * The explicit passes alone carry their probes as columns, whose estimate
+ * z' W T^K z has the same mean (the trace) and a spread 1-3% lower (numpy,
+ * 60 probes on armadillo.obj: lab/results/quality/issue27-pick); the
+ * default request's explicit run takes its implicit run's Lanczos runs
+ * (mcf_fairing.c, run_init), the same N and probes, and only extends them:
+ * its probes then cost next to nothing. A Lanczos run of their own cost
+ * the passes more than their columns (a step sweeps the probes three
+ * times, and settling P^64 took 48 steps on the 435k dragon). Measured (numpy,
+ * blade.obj's 7,991 free vertices, six probes, the implicit estimates from
  * 200 solves; lab/results/quality/issue31-cpu2): m = 20 reads K <= 8 to
  * 2e-10 n, m = 40 K <= 64 to 6e-12 n and K = 200 to 5e-9 n, m = 80 every K
- * <= 200 to 4e-15 n, where carrying the probes cost two thirds of each
- * step's solve (9 columns for 3). The steps are made as the run needs them
- * (mcf__fair_lz_trace): from LZ_FIRST on, LZ_GROW more at a time, until the
- * estimates up to the step asked agree with the previous m's to LZ_TOL n.
+ * <= 200 to 4e-15 n; the explicit ones: lab/results/quality/issue27-pick.
+ * The steps are made as the run needs them (mcf__fair_lz_trace): from
+ * LZ_FIRST on, LZ_GROW more at a time, until the estimates up to the step
+ * asked agree with the previous m's to LZ_TOL n.
  *
  * Pure C11; no globals.
  */
@@ -40,18 +58,21 @@
 #define LZ_BREAK 1e-13
 
 struct mcf__fair_lz {
-    int n, nprobe, cap;
+    int n, nprobe;
     int *rp, *ci;                  /* N's off-diagonal on the free vertices (CSR) */
     double *isq;                   /* n: 1 / sqrt(D) */
-    double *q, *qprev, *p, *v;     /* n x nprobe, the probes interleaved */
+    double *q, *qprev, *p;         /* n x nprobe, the probes interleaved */
     double *alpha, *beta, *cz;     /* nprobe x mmax */
     int m[NPROBE], done[NPROBE];   /* steps made; invariant space reached */
     double bprev[NPROBE], znorm[NPROBE];
     double *est, *old;             /* nprobe x (cap + 1): at m, at mprev */
+    int cap;                       /* the K est and old have room for */
+    int expl;                      /* est, old and kgood are of P^K (explicit), else of R^K */
     int steps, mprev;              /* the steps made (every probe not done), at the last comparison */
+    int turn;                      /* q, qprev hold q_{j-1}, beta_j q_{j+1}: extend's first sweep moves them */
     int kgood;                     /* est settled for K <= kgood */
     int mmax;                      /* allocated steps */
-    double *band, *x;              /* 3 x mmax (the banded factor), mmax */
+    double *band, *x, *y;          /* 3 x mmax (the banded factor), mmax, mmax */
 };
 
 void mcf__fair_lz_free(mcf__fair_lz *lz)
@@ -64,7 +85,6 @@ void mcf__fair_lz_free(mcf__fair_lz *lz)
     free(lz->q);
     free(lz->qprev);
     free(lz->p);
-    free(lz->v);
     free(lz->alpha);
     free(lz->beta);
     free(lz->cz);
@@ -72,43 +92,62 @@ void mcf__fair_lz_free(mcf__fair_lz *lz)
     free(lz->old);
     free(lz->band);
     free(lz->x);
+    free(lz->y);
     free(lz);
 }
 
 /* Every probe's Lanczos run carried to m steps (at most n), the probes
- * side by side: one sweep over N per step. v = N q on the free vertices:
- * q_k - (1/sq_k) sum over free neighbours j of q_j / sq_j. */
-static void extend(const fair_ctx *c, mcf__fair_lz *lz, int m)
+ * side by side: three sweeps a step. The first moves the last step's
+ * next vector into place (lz->turn: q_j = r / beta, and q_{j-1} kept) and
+ * reads c_j = (W z) . q_j and q_j / sq; the second v = N q_j on the free
+ * vertices, q_k - (1/sq_k) sum over free neighbours j of q_j / sq_j, and
+ * alpha_j, writing v - beta_{j-1} q_{j-1} over q_{j-1} (each entry read
+ * once, at its own place); the third r = that - alpha_j q_j and its norm.
+ * The same operations in the same order as five separate sweeps. NP, the
+ * probes, a constant of the compiler (extend): with the count a variable
+ * the gather's loop over the probes took most of the 435k dragon's
+ * Lanczos time in its own counter and branch (perf). */
+static inline __attribute__((always_inline)) void extend_np(const fair_ctx *c, mcf__fair_lz *lz, int m,
+                                                            const int NP)
 {
-    int n = lz->n, np = lz->nprobe;
-    double *Q = lz->q, *Qp = lz->qprev, *P = lz->p, *V = lz->v;
+    int n = lz->n, np = NP;
+    double *Q = lz->q, *Qp = lz->qprev, *P = lz->p;
     if (m > n)
         m = n;
     for (int j = lz->steps; j < m; j++) {
         double a[NPROBE] = {0}, al[NPROBE] = {0}, b[NPROBE] = {0};
-        for (int k = 0; k < n; k++) { /* c_j = (W z) . q_j */
+        for (int k = 0; k < n; k++) {
             double wk = c->w[c->vert[k]];
-            for (int q = 0; q < np; q++)
-                a[q] += wk * c->probe[(size_t)q * n + k] * Q[(size_t)k * np + q];
+            for (int q = 0; q < np; q++) {
+                size_t t = (size_t)k * np + q;
+                if (lz->turn && !lz->done[q]) { /* (q_{j-1}, q_j) <- (q_j, q_{j+1}) */
+                    double u = Q[t];
+                    Q[t] = Qp[t] / lz->bprev[q];
+                    Qp[t] = u;
+                }
+                a[q] += wk * c->probe[(size_t)q * n + k] * Q[t];
+                P[t] = Q[t] * lz->isq[k];
+            }
         }
-        for (size_t t = 0; t < (size_t)n * np; t++)
-            P[t] = Q[t] * lz->isq[t / (size_t)np];
+        lz->turn = 0;
         for (int k = 0; k < n; k++) {
             double s[NPROBE] = {0};
             for (int t = lz->rp[k]; t < lz->rp[k + 1]; t++)
                 for (int q = 0; q < np; q++)
                     s[q] += P[(size_t)lz->ci[t] * np + q];
-            for (int q = 0; q < np; q++)
-                V[(size_t)k * np + q] = Q[(size_t)k * np + q] - lz->isq[k] * s[q];
+            for (int q = 0; q < np; q++) {
+                size_t t = (size_t)k * np + q;
+                double v = Q[t] - lz->isq[k] * s[q];
+                al[q] += Q[t] * v;
+                Qp[t] = v - lz->bprev[q] * Qp[t];
+            }
         }
-        for (int k = 0; k < n; k++)
-            for (int q = 0; q < np; q++)
-                al[q] += Q[(size_t)k * np + q] * V[(size_t)k * np + q];
-        /* Qp <- N q_j - beta_{j-1} q_{j-1} - alpha_j q_j, the next vector */
+        /* Qp <- N q_j - beta_{j-1} q_{j-1} - alpha_j q_j, the next vector
+         * times beta_j */
         for (int k = 0; k < n; k++)
             for (int q = 0; q < np; q++) {
                 size_t t = (size_t)k * np + q;
-                Qp[t] = V[t] - lz->bprev[q] * Qp[t] - al[q] * Q[t];
+                Qp[t] = Qp[t] - al[q] * Q[t];
                 b[q] += Qp[t] * Qp[t];
             }
         for (int q = 0; q < np; q++) {
@@ -123,19 +162,33 @@ static void extend(const fair_ctx *c, mcf__fair_lz *lz, int m)
             lz->done[q] = !(b[q] > LZ_BREAK); /* unit start: relative to 1 */
             lz->bprev[q] = b[q];
         }
-        for (int k = 0; k < n; k++) /* (q_{j-1}, q_j) <- (q_j, q_{j+1}) */
-            for (int q = 0; q < np; q++) {
-                size_t t = (size_t)k * np + q;
-                double u = Q[t];
-                Q[t] = lz->done[q] ? u : Qp[t] / lz->bprev[q];
-                Qp[t] = lz->done[q] ? Qp[t] : u;
-            }
+        lz->turn = 1;
         lz->steps = j + 1;
     }
 }
 
-/* est[K] = |z| c' (I + T^2)^-K e1 for K = 0..kmax, T = T_m of probe q
- * (m at most the steps it made). */
+static void extend(const fair_ctx *c, mcf__fair_lz *lz, int m)
+{
+    if (lz->nprobe == NPROBE)
+        extend_np(c, lz, m, NPROBE);
+    else if (lz->nprobe == NPROBE_FEW)
+        extend_np(c, lz, m, NPROBE_FEW);
+    else
+        extend_np(c, lz, m, lz->nprobe);
+}
+
+/* y = x - t T x for the tridiagonal T (al, be) of size m */
+static void tri_step(const double *al, const double *be, int m, double t, const double *x, double *y)
+{
+    for (int i = 0; i < m; i++) {
+        double tx = al[i] * x[i] + (i > 0 ? be[i - 1] * x[i - 1] : 0.0) + (i + 1 < m ? be[i] * x[i + 1] : 0.0);
+        y[i] = x[i] - t * tx;
+    }
+}
+
+/* est[K] = |z| c' f_K(T) e1 for K = 0..kmax, T = T_m of probe q (m at most
+ * the steps it made): f_K = P^K (lz->expl, two products with T a pass),
+ * else (I + T^2)^-K (a banded solve a step). */
 static void quadrature(mcf__fair_lz *lz, int q, int m, int kmax, double *est)
 {
     if (m > lz->m[q])
@@ -145,13 +198,13 @@ static void quadrature(mcf__fair_lz *lz, int q, int m, int kmax, double *est)
     double *d0 = lz->band, *d1 = d0 + lz->mmax, *d2 = d1 + lz->mmax, *x = lz->x;
     /* M = I + T^2 (rows i: diagonal, first and second subdiagonal), then
      * its banded Cholesky factor in place: M = L L', L's rows (d2, d1, d0) */
-    for (int i = 0; i < m; i++) {
+    for (int i = 0; !lz->expl && i < m; i++) {
         double bl = i > 0 ? be[i - 1] : 0.0, br = i + 1 < m ? be[i] : 0.0;
         d0[i] = 1.0 + al[i] * al[i] + bl * bl + br * br;
         d1[i] = i > 0 ? bl * (al[i - 1] + al[i]) : 0.0;
         d2[i] = i > 1 ? be[i - 2] * be[i - 1] : 0.0;
     }
-    for (int i = 0; i < m; i++) {
+    for (int i = 0; !lz->expl && i < m; i++) {
         double l2 = i > 1 ? d2[i] / d0[i - 2] : 0.0;
         double l1 = i > 0 ? (d1[i] - (i > 1 ? l2 * d1[i - 1] : 0.0)) / d0[i - 1] : 0.0;
         d0[i] = sqrt(d0[i] - l1 * l1 - l2 * l2);
@@ -163,7 +216,10 @@ static void quadrature(mcf__fair_lz *lz, int q, int m, int kmax, double *est)
         x[0] = 1.0;
     }
     for (int K = 0; K <= kmax; K++) {
-        if (K > 0) {
+        if (K > 0 && lz->expl) { /* x <- (I - mu T)(I - lambda T) x */
+            tri_step(al, be, m, MCF_TAUBIN_LAMBDA, x, lz->y);
+            tri_step(al, be, m, MCF_TAUBIN_MU, lz->y, x);
+        } else if (K > 0) {
             for (int i = 0; i < m; i++) /* L y = x */
                 x[i] = (x[i] - (i > 0 ? d1[i] * x[i - 1] : 0.0) - (i > 1 ? d2[i] * x[i - 2] : 0.0)) / d0[i];
             for (int i = m - 1; i >= 0; i--) /* L' x = y */
@@ -188,27 +244,25 @@ mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err)
         nnz += (size_t)(c->g.ptr[c->vert[k] + 1] - c->g.ptr[c->vert[k]]);
     lz->n = n;
     lz->nprobe = np;
-    lz->cap = c->cap;
     lz->mmax = mmax;
+    lz->expl = c->is_explicit;
     lz->rp = mcf__malloc((size_t)n + 1, sizeof(int));
     lz->ci = mcf__malloc(nnz + 1, sizeof(int));
     lz->isq = mcf__malloc((size_t)n + 1, sizeof(double));
     lz->q = mcf__calloc((size_t)np * n + 1, sizeof(double));
     lz->qprev = mcf__calloc((size_t)np * n + 1, sizeof(double));
     lz->p = mcf__malloc((size_t)np * n + 1, sizeof(double));
-    lz->v = mcf__malloc((size_t)np * n + 1, sizeof(double));
     lz->alpha = mcf__malloc((size_t)np * mmax + 1, sizeof(double));
     lz->beta = mcf__malloc((size_t)np * mmax + 1, sizeof(double));
     lz->cz = mcf__malloc((size_t)np * mmax + 1, sizeof(double));
-    lz->est = mcf__malloc((size_t)np * (c->cap + 1), sizeof(double));
-    lz->old = mcf__malloc((size_t)np * (c->cap + 1), sizeof(double));
     lz->band = mcf__malloc(3 * (size_t)mmax + 1, sizeof(double));
     lz->x = mcf__malloc((size_t)mmax + 1, sizeof(double));
-    if (!lz->rp || !lz->ci || !lz->isq || !lz->q || !lz->qprev || !lz->p || !lz->v || !lz->alpha || !lz->beta ||
-        !lz->cz || !lz->est || !lz->old || !lz->band || !lz->x)
+    lz->y = mcf__malloc((size_t)mmax + 1, sizeof(double));
+    if (!lz->rp || !lz->ci || !lz->isq || !lz->q || !lz->qprev || !lz->p || !lz->alpha || !lz->beta || !lz->cz ||
+        !lz->band || !lz->x || !lz->y)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", n);
     c->bytes += sizeof(int) * ((size_t)n + 1 + nnz) +
-                sizeof(double) * ((1 + 4 * (size_t)np) * n + 2 * (size_t)np * (c->cap + 1) + (3 * np + 4) * (size_t)mmax);
+                sizeof(double) * ((1 + 3 * (size_t)np) * n + (3 * np + 5) * (size_t)mmax);
     /* the free neighbours of each free vertex, in the graph's order */
     size_t t = 0;
     for (int k = 0; k < n; k++) {
@@ -234,6 +288,15 @@ mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err)
     return MCF_OK;
 }
 
+int mcf__fair_lz_fits(const fair_ctx *c, const fair_ctx *from)
+{
+    size_t n = (size_t)c->nfree, nv = (size_t)c->nv;
+    return from->lz && c->nfree == from->nfree && c->nv == from->nv && c->nprobe == from->nprobe &&
+           c->g.ptr == from->g.ptr && !memcmp(c->vert, from->vert, n * sizeof(int)) &&
+           !memcmp(c->sq, from->sq, n * sizeof(double)) && !memcmp(c->w, from->w, nv * sizeof(double)) &&
+           !memcmp(c->probe, from->probe, (size_t)c->nprobe * n * sizeof(double));
+}
+
 /* Room for m steps per probe (the arrays kept by probe). */
 static int grow(mcf__fair_lz *lz, int m)
 {
@@ -245,7 +308,8 @@ static int grow(mcf__fair_lz *lz, int m)
     /* everything allocated before anything is replaced: a failure leaves
      * lz as it was, for mcf__fair_lz_free */
     double *r[3], *band = mcf__malloc(3 * (size_t)mm, sizeof(double)), *x = mcf__malloc((size_t)mm, sizeof(double));
-    int ok = band && x;
+    double *y = mcf__malloc((size_t)mm, sizeof(double));
+    int ok = band && x && y;
     for (int t = 0; t < 3; t++)
         ok &= (r[t] = mcf__malloc((size_t)lz->nprobe * mm, sizeof(double))) != NULL;
     if (!ok) {
@@ -253,6 +317,7 @@ static int grow(mcf__fair_lz *lz, int m)
             free(r[t]);
         free(band);
         free(x);
+        free(y);
         return 0;
     }
     double **a[3] = {&lz->alpha, &lz->beta, &lz->cz};
@@ -264,16 +329,48 @@ static int grow(mcf__fair_lz *lz, int m)
     }
     free(lz->band);
     free(lz->x);
+    free(lz->y);
     lz->band = band;
     lz->x = x;
+    lz->y = y;
     lz->mmax = mm;
+    return 1;
+}
+
+/* Room in est and old for K <= cap, counted in c->bytes. */
+static int reserve(fair_ctx *c, mcf__fair_lz *lz, int cap)
+{
+    if (cap <= lz->cap && lz->est)
+        return 1;
+    double *e = mcf__malloc((size_t)lz->nprobe * ((size_t)cap + 1), sizeof(double));
+    double *o = mcf__malloc((size_t)lz->nprobe * ((size_t)cap + 1), sizeof(double));
+    if (!e || !o) {
+        free(e);
+        free(o);
+        return 0;
+    }
+    free(lz->est);
+    free(lz->old);
+    lz->est = e;
+    lz->old = o;
+    lz->cap = cap;
+    lz->kgood = -1; /* est's layout changed */
+    c->bytes += 2 * sizeof(double) * (size_t)lz->nprobe * ((size_t)cap + 1);
     return 1;
 }
 
 mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error *err)
 {
     mcf__fair_lz *lz = c->lz;
-    int np = lz->nprobe, ncap = lz->cap + 1;
+    int np = lz->nprobe;
+    if (lz->expl != c->is_explicit) { /* the other filter's: its Lanczos
+                                          steps kept, the quadrature anew */
+        lz->expl = c->is_explicit;
+        lz->kgood = -1;
+    }
+    if (!reserve(c, lz, c->cap > k ? c->cap : k))
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d free vertices)", lz->n);
+    int ncap = lz->cap + 1;
     while (lz->kgood < k) {
         /* the estimates up to twice the step asked for (at least LZ_FIRST) */
         int kmax = 2 * k > LZ_FIRST ? 2 * k : LZ_FIRST, exact = 1;
@@ -309,6 +406,11 @@ mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error 
             }
         }
         lz->kgood = K - 1;
+        /* P^K has degree 2K: m Lanczos steps give it exactly for 2K < m
+         * (from the three-term recurrence alone, which rounding keeps
+         * whether or not the basis stays orthogonal) */
+        if (lz->expl && (lz->steps - 1) / 2 > lz->kgood)
+            lz->kgood = (lz->steps - 1) / 2 < kmax ? (lz->steps - 1) / 2 : kmax;
         if (lz->kgood >= k)
             break;
         int m = lz->steps + (lz->steps / 2 > LZ_GROW ? lz->steps / 2 : LZ_GROW);
