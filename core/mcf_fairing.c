@@ -397,6 +397,8 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->s = c->like->s;
         c->s_t = c->like->s_t;
         c->s2_rel = c->like->s2_rel;
+        /* as below (the run with no creases held has none to bound) */
+        mcf__fair_clamp_moves(c, c->X0, CREASE_MAX_MOVE * c->s, c->crease);
         if (!(c->s > 0.0) || c->nfree == 0)
             c->cap = 0;
     } else if (c->sure) {
@@ -869,6 +871,13 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ci.chol = NULL;
         memset(&se, 0, sizeof se);
         ce.is_explicit = ce.quiet = 1;
+        /* the implicit run's noise levels (the same reading of the same
+         * input: about 5% of the request's CPU, read twice before) and
+         * probes, and its Lanczos runs (run_init) */
+        ci.share.probe = ci.probe;
+        ci.share.fid = ci.fid;
+        ci.share.nfree = ci.nfree;
+        ce.like = &ci.share;
         ce.lz_from = &ci;
         rc = filter_run(&ce, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
