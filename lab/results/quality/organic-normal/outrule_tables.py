@@ -9,11 +9,13 @@ import csv, json, os, sys
 import numpy as np
 
 here = os.path.dirname(os.path.abspath(__file__))
-anchor = {}
+anchor, in_before = {}, set()  # in_before: the cases issue31-before has (the bar's 17 organic ones)
 for p in (here + '/baseline-small.csv', here + '/baseline-large.csv', here + '/../issue31-before/quality.csv'):
     for r in csv.DictReader(open(p)):
         if r['method'] == 'taubin_best' and r['model'] == 'normal' and r['seed'] == '1':
             anchor[(r['mesh'], round(float(r['rho']), 2))] = float(r['ratio'])
+            if 'issue31-before' in p:
+                in_before.add((r['mesh'], round(float(r['rho']), 2)))
 
 def main():
     recs = [json.loads(l) for f in sys.argv[1].split(',') for l in open(f)]
