@@ -179,20 +179,20 @@ static void test_flips_collapsed_edge(void **state)
     memcpy(X, Xin, sizeof X);
     X[3 * 12 + 2] = 0.25;
     X[3 * 13 + 2] = -0.25;
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 2);
     assert_int_equal(moves, 14);
     assert_memory_equal(X, Xin, sizeof X);
     /* in the plane, 12 a quarter of the way back to (2, 2): kept */
     memcpy(X, Xin, sizeof X);
     X[3 * 12] = 2.75;
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 0);
     assert_int_equal(moves, 0);
     assert_true(X[3 * 12] == 2.75);
     /* past 13 in the plane: the two faces face -z, taken back */
     X[3 * 12] = 3.25;
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 2);
     assert_true(X[3 * 12] == 3.0);
 }
@@ -238,7 +238,7 @@ static void test_flips_reference(void **state)
         memcpy(R, X, sizeof X);
         int rmoves, repaired, moves;
         int rrep = reference(F, nf, nv, Xin, field, R, &rmoves);
-        assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+        assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
         assert_int_equal(repaired, rrep);
         assert_int_equal(moves, rmoves);
         assert_memory_equal(X, R, sizeof X);
@@ -292,7 +292,7 @@ static void test_flips_none(void **state)
         field[k] = k % 3 == 2 ? -1.0 : 0.0; /* a field that disagrees with every face */
     }
     memcpy(X0, X, sizeof X);
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 0);
     assert_int_equal(moves, 0);
     assert_memory_equal(X, X0, sizeof X);
