@@ -29,7 +29,7 @@
  *
  * Faces the input had with an orientation are not judged here (the fold
  * guard, mcf_folds.c, judges those against the input), but on a quantized
- * input (sided): there a face of the input that faced along the field and
+ * input (grid, mcf__lattice): there the least cosine is TURN_GRID, and a face of the input that faced along the field and
  * that the output turns against it (cos <= 0) is taken back the same way.
  * The output moves a vertex by at most its rounding cell, so a face the
  * grid stood on edge (a sliver whose normal the rounding turned by up to
@@ -59,6 +59,18 @@
 #define FLIPS_TURN 0.5
 #endif
 #define TURN FLIPS_TURN
+/* ... on a quantized input (grid): 41 degrees. The rim of a thin part,
+ * where the surface turns over within a fraction of an edge, collapses
+ * onto neighbouring grid levels, and its faces' clean normals lie 44
+ * degrees off the filtered field there: blade.obj rounded to 0.5 mean
+ * edges (every vertex, offset a third of the step; test_core_lattice)
+ * came back with 111 faces facing against the clean mesh (input 0), all
+ * of them degenerate in the input and given orientations 46-48 degrees
+ * off the field, on the other side of it (measured below in
+ * mcf__flips_repair) */
+#ifndef FLIPS_TURN_GRID
+#define FLIPS_TURN_GRID 0.75
+#endif
 enum { HALVINGS = 6, MAX_ROUNDS = 64 };
 
 /* 1 when triangle t of X has no orientation: its normal n below
@@ -77,7 +89,7 @@ static int no_area(const double *X, const int32_t *t, double *n)
  * does not face along the field (unit vertex normals) by TURN, or does
  * not face along the input's own faces around it (Nin: the input's
  * summed face normals per vertex; none: nothing to follow). */
-static int invented(const double *X, const double *field, const double *Nin, const int32_t *t)
+static int invented(const double *X, const double *field, const double *Nin, const int32_t *t, double turn)
 {
     double n[3], f[3] = {0, 0, 0}, g[3] = {0, 0, 0};
     no_area(X, t, n);
@@ -90,7 +102,7 @@ static int invented(const double *X, const double *field, const double *Nin, con
             g[d] += Nin[3 * (size_t)t[k] + d];
         }
     double ff = mcf__dot3(f, f);
-    return !(mcf__dot3(n, f) >= TURN * sqrt(nn * ff)) || !(mcf__dot3(n, g) > 0.0);
+    return !(mcf__dot3(n, f) >= turn * sqrt(nn * ff)) || !(mcf__dot3(n, g) > 0.0);
 }
 
 /* 1 when face t faced along the field (unit vertex normals) in X_in and
@@ -117,7 +129,7 @@ static int at_input(const double *X, const double *X_in, const int32_t *t)
 }
 
 mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field, const int32_t *F, int nf,
-                             int nv, int sided, int *repaired, int *moves, mcf_error *err)
+                             int nv, int grid, int *repaired, int *moves, mcf_error *err)
 {
     *repaired = *moves = 0;
     unsigned char *mark = mcf__calloc((size_t)nv + 1, 1);
@@ -130,7 +142,7 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
         return mcf__fail(err, MCF_ENOMEM, "flips: out of memory (%d faces)", nf);
     }
     /* the faces to judge: degenerate in the input (list[0, nw)), then,
-     * sided, those with an orientation there (list[nw, nl)) */
+     * on a grid, those with an orientation there (list[nw, nl)) */
     int nw = 0, nl;
     for (int f = 0; f < nf; f++) {
         double n[3];
@@ -138,7 +150,7 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
             list[nw++] = f;
     }
     nl = nw;
-    for (int f = 0; f < nf && sided; f++) {
+    for (int f = 0; f < nf && grid; f++) {
         double n[3];
         if (!no_area(X_in, F + 3 * (size_t)f, n))
             list[nl++] = f;
@@ -154,7 +166,7 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
         int bad = 0, moved = 0;
         for (int q = 0; q < nl; q++) {
             const int32_t *t = F + 3 * (size_t)list[q];
-            if (!at_input(X, X_in, t) && (q < nw ? invented(X, field, Nin, t) : turned_over(X, X_in, field, t))) {
+            if (!at_input(X, X_in, t) && (q < nw ? invented(X, field, Nin, t, grid ? FLIPS_TURN_GRID : TURN) : turned_over(X, X_in, field, t))) {
                 bad++;
                 for (int k = 0; k < 3; k++)
                     mark[t[k]] = 1;
