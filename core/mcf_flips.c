@@ -27,11 +27,12 @@
  * end when no face is taken back, at most MAX_ROUNDS (each round after
  * the halvings puts at least one more vertex back where it was).
  *
- * Faces the input had with an orientation are not judged here (the fold
- * guard, mcf_folds.c, judges those against the input), but on a quantized
- * input (grid, mcf__lattice): there the least cosine is TURN_GRID, and a face of the input that faced along the field and
- * that the output turns against it (cos <= 0) is taken back the same way.
- * The output moves a vertex by at most its rounding cell, so a face the
+ * On a quantized input (grid, mcf__lattice) the least cosine is
+ * FLIPS_TURN_GRID. Faces the input had with an orientation are not judged
+ * (the fold guard, mcf_folds.c, judges those against the input) but on a
+ * quantized input: there a face of the input that faced along the field
+ * and that the output turns against it (cos < 0) is taken back the same
+ * way. The output moves a vertex by at most its rounding cell, so a face the
  * grid stood on edge (a sliver whose normal the rounding turned by up to
  * 90 degrees) turns over when one corner moves a fifth of its cell: the
  * fold guard does not see it (turned by less than 90 degrees against the
@@ -59,15 +60,18 @@
 #define FLIPS_TURN 0.5
 #endif
 #define TURN FLIPS_TURN
-/* ... on a quantized input (grid): 41 degrees. The rim of a thin part,
- * where the surface turns over within a fraction of an edge, collapses
- * onto neighbouring grid levels, and its faces' clean normals lie 44
- * degrees off the filtered field there: blade.obj rounded to 0.5 mean
- * edges (every vertex, offset a third of the step; test_core_lattice)
+/* ... on a quantized input (grid): 41 degrees (cosine 0.75). The rim of
+ * a thin part, where the surface turns over within a fraction of an edge,
+ * collapses onto neighbouring grid levels, and its faces' clean normals
+ * lie 44 degrees off the filtered field there: blade.obj rounded to 0.5
+ * mean edges (every vertex, offset a third of the step; test_core_lattice)
  * came back with 111 faces facing against the clean mesh (input 0), all
  * of them degenerate in the input and given orientations 46-48 degrees
- * off the field, on the other side of it (measured below in
- * mcf__flips_repair) */
+ * off the field, on the other side of it; now 2 (error 0.714 -> 0.718 of
+ * the input's). At 0.7 (45.6 degrees) 2 as well, but make quality's
+ * blade.obj at 0.5 h keeps 6 (4 at 0.75); at 0.8 none, but spot.obj at
+ * 0.5 h pays 1.3% of error for it (0.6% at 0.75; numpy on the repair's
+ * inputs, 2026-11-29) */
 #ifndef FLIPS_TURN_GRID
 #define FLIPS_TURN_GRID 0.75
 #endif
@@ -162,11 +166,13 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
             for (int d = 0; d < 3; d++)
                 Nin[3 * (size_t)F[3 * f + k] + d] += n[d];
     }
+    double turn = grid ? FLIPS_TURN_GRID : TURN;
     for (int round = 0; round < MAX_ROUNDS; round++) {
         int bad = 0, moved = 0;
         for (int q = 0; q < nl; q++) {
             const int32_t *t = F + 3 * (size_t)list[q];
-            if (!at_input(X, X_in, t) && (q < nw ? invented(X, field, Nin, t, grid ? FLIPS_TURN_GRID : TURN) : turned_over(X, X_in, field, t))) {
+            if (!at_input(X, X_in, t) &&
+                (q < nw ? invented(X, field, Nin, t, turn) : turned_over(X, X_in, field, t))) {
                 bad++;
                 for (int k = 0; k < 3; k++)
                     mark[t[k]] = 1;
