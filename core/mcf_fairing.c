@@ -477,23 +477,9 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
      * solve the coordinates only, the probes' traces by Lanczos quadrature
      * (mcf_fairing_trace.c) */
     c->ncol = c->sure && c->is_explicit ? 3 + c->nprobe : 3;
-    c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
-    c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
-    c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->probe = c->sure ? mcf__fair_alloc(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
-    if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
+    if (c->sure && !c->probe)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-    /* the three hold X0 on the fixed rows, which the explicit engine's
-     * moments sweep never writes (mcf__fair_step_moments) */
-    memcpy(c->Y, c->X0, 3 * sizeof(double) * (size_t)nv);
-    memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
-    memcpy(c->Yt, c->X0, 3 * sizeof(double) * (size_t)nv);
-    for (int j = 0; c->sure && j < COMB_J; j++) {
-        c->dk[j] = mcf__malloc(3 * (size_t)(c->nfree ? c->nfree : 1), sizeof(float));
-        c->bytes += 3 * sizeof(float) * (size_t)c->nfree;
-        if (!c->dk[j])
-            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-    }
     if (c->sure) {
         init_probes(c);
         c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
@@ -657,11 +643,28 @@ static mcf_status filter_begin(fair_ctx *c, const mcf__graph *g, const double *X
     return run_init(c, err);
 }
 
-/* The rest of a run filter_begin began: the engine, the steps, the
- * combination (c->Ybest, c->risk). */
+/* The rest of a run filter_begin began: the positions' arrays, the
+ * engine, the steps, the combination (c->Ybest, c->risk). */
 static mcf_status filter_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
 {
     mcf_status rc = MCF_OK;
+    size_t nv = (size_t)c->nv;
+    c->Y = mcf__fair_alloc(c, 3 * nv);
+    c->Ybest = mcf__fair_alloc(c, 3 * nv);
+    c->Yt = mcf__fair_alloc(c, 3 * nv);
+    if (!c->Y || !c->Ybest || !c->Yt)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    /* the three hold X0 on the fixed rows, which the explicit engine's
+     * moments sweep never writes (mcf__fair_step_moments) */
+    memcpy(c->Y, c->X0, 3 * sizeof(double) * nv);
+    memcpy(c->Ybest, c->X0, 3 * sizeof(double) * nv);
+    memcpy(c->Yt, c->X0, 3 * sizeof(double) * nv);
+    for (int j = 0; c->sure && j < COMB_J; j++) {
+        c->dk[j] = mcf__malloc(3 * (size_t)(c->nfree ? c->nfree : 1), sizeof(float));
+        c->bytes += 3 * sizeof(float) * (size_t)c->nfree;
+        if (!c->dk[j])
+            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    }
     if (c->cap > 0 && c->sure && !c->is_explicit)
         rc = mcf__fair_lz_new(c, err);
     if (rc == MCF_OK && c->cap > 0)
@@ -933,8 +936,10 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         if (won) {
             /* the first run's tangential step, as above: the implicit
              * run's below 150,000 vertices; above, where the default is
-             * fairing_explicit, the creased passes' own */
-            if (cn.is_explicit) {
+             * fairing_explicit, the creased passes' own (none when they
+             * were not made: judged near the creases, with no tangential
+             * noise) */
+            if (cn.is_explicit && ci.Yt) {
                 memcpy(cn.Yt, ci.Yt, 3 * sizeof(double) * (size_t)nv);
                 cn.kbest_t = ci.kbest_t;
             }
