@@ -67,6 +67,15 @@
  * 0.25-0.5 along the normals, 0.88 on the 435k dragon at 0.25 */
 #define TANGENTIAL_GATE_LO 0.9
 #define TANGENTIAL_GATE_HI 0.95
+/* A level read below NOISE_FLOOR mean edges is the coordinates' rounding,
+ * not noise: a clean box (the tests' box_mesh(8), every coordinate a
+ * multiple of 1/8) read 6e-17 h along one direction and ran 447 steps
+ * that moved no coordinate (0.016 s, 8x the same box turned off its
+ * axes, which reads 0). A double's rounding (2^-53 of the coordinate)
+ * stays under it while the mesh lies within 9e6 mean edges of the origin,
+ * and no noise a user could see is near it (the no-harm bar is 0.01 h).
+ * Not applied to a level the request gives. */
+#define NOISE_FLOOR 1e-9
 /* the relative standard error of the noise level's square, times
  * sqrt(n): the estimate is a ratio of two medians of |high-pass| over
  * about n = nfree vertices, each with a relative standard error of
@@ -420,6 +429,10 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact))
             s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP),
                         or the positions are exact (FLAT_SHARE) */
+        if (!(p->noise_sigma > 0.0) && s < NOISE_FLOOR * hbar) {
+            s = 0.0; /* rounding, not noise (NOISE_FLOOR) */
+            view = 0;
+        }
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below

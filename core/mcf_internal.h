@@ -266,6 +266,13 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err);
 
+/* ---- exp over an array (mcf_exp.c)
+ * x[i] <- exp(x[i]) for n values, within 2 ulp of libm's on [-708, 709]
+ * (below -708, and a NaN, give exp(-708); above 709, exp(709)); the same
+ * bits with or without AVX2. mcf__exp_scalar: one value, the same bits. */
+void mcf__exp_array(double *x, size_t n);
+double mcf__exp_scalar(double x);
+
 /* ---- the feature-aware stage (mcf_feature.c)
  * Bilateral normal filtering of the face normals (Gaussian spatial and
  * range kernels over the faces sharing a vertex, Zheng et al. 2011), then

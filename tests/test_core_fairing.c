@@ -893,8 +893,9 @@ static mcf_mesh *box_mesh(int n)
 /* A clean box on its own grid (box_mesh(8): every coordinate a multiple
  * of 1/8, the step 0.88 of the mean edge) is a design, not a quantized
  * scan (mcf_lattice.c, LATTICE_MAX_STEP): the default request reads no
- * noise (6e-17 h, rounding: its high-pass is zero but at the corners) and
- * returns it bit for bit. Read as a grid it had read 0.25 h of noise and
+ * noise (its high-pass is zero but at the corners: 6e-17 h, the
+ * coordinates' rounding, under NOISE_FLOOR), runs no step and returns it
+ * bit for bit. Read as a grid it had read 0.25 h of noise and
  * run 81 steps (a 4 x 2 x 2 box of unit squares, 2026-11-29). */
 static void test_clean_box_on_grid(void **state)
 {
@@ -908,7 +909,10 @@ static void test_clean_box_on_grid(void **state)
     assert_int_equal(api_params_finish(&ap, mcf_mesh_nvertices(m), NULL, &err), MCF_OK);
     assert_int_equal(mcf_flow_run(m, &ap.flow, &st, &err), MCF_OK);
     print_message("clean box on its grid: noise read %.3g, K=%d\n", st.noise, st.steps);
-    assert_true(st.noise < 1e-12);
+    /* the rounding's 6e-17 h is under NOISE_FLOOR: no noise, no step
+     * (it ran 447 steps that moved nothing) */
+    assert_true(st.noise == 0.0);
+    assert_int_equal(st.steps, 0);
     assert_memory_equal(mcf_mesh_positions(m), mcf_mesh_positions(m0),
                         3 * sizeof(double) * (size_t)mcf_mesh_nvertices(m));
     mcf_flow_stats_free(&st);
