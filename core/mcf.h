@@ -613,7 +613,9 @@ typedef struct {
     int flips_repaired;       /* fairing_robust: faces without area in the
                                  input that the output gave an orientation
                                  against the filtered normals, taken back
-                                 toward the input */
+                                 toward the input (on a quantized input
+                                 also faces with area it turned against
+                                 them) */
     int turned_repaired;      /* fairing_robust: vertices of the output's
                                  faces turned against its smoothed normal
                                  field moved back to their displacement

@@ -927,7 +927,7 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
     /* the faces the input had without area, turned against Y's normal
      * field, taken back as the linear fairing's output does (mcf_flips.c) */
     int flip_moves;
-    mcf_status rc = flips ? mcf__flips_repair(X, Xin, N, F, nf, nv, flips, &flip_moves, err) : MCF_OK;
+    mcf_status rc = flips ? mcf__flips_repair(X, Xin, N, F, nf, nv, grid != NULL, flips, &flip_moves, err) : MCF_OK;
     /* the faces turned against the output's smoothed normal field
      * (mcf_turned.c), as the linear fairing's output does */
     if (rc == MCF_OK && turned)
