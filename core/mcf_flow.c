@@ -510,6 +510,9 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
  * 0.3, measured on the repository's meshes and spot (docs/numerics.md,
  * "What tol means"). */
 #define ADAPT_SAFETY 0.3
+/* The max over the vertices may carry ADAPT_MAX times the RMS's share
+ * (issue 30's bar: the max within 20 tol at T). */
+#define ADAPT_MAX 20.0
 /* The share of that budget stiff events may take beyond it (adapt). */
 #define ADAPT_EVENTS 0.1
 /* The share of it desbrun2's first step may take, however short. The
@@ -525,7 +528,7 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
 /* The adaptive verdict on the step just taken (rc, its estimate est, the
  * faces it folded): 1 accepted, with *h_next; 0 rejected, c->X restored
  * and r->h shrunk (try again); -1 the run fails (*rc says why). */
-static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finite, int inv,
+static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, step_est est, int finite, int inv,
                  double *h_next, mcf_error *err)
 {
     const mcf_flow_params *p = c->p;
@@ -565,7 +568,10 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
     int need_est = !(p->scheme == MCF_DESBRUN2 && r->hist.nhist == 1);
     double allowed = per_unit ? ADAPT_SAFETY * p->tol * h / T
                               : start ? ADAPT_SAFETY * p->tol * fmax(h / T, ADAPT_START) : p->tol;
-    double ratio = need_est && est > 0.0 ? allowed / est : 1e3;
+    /* e: the estimate against what the step may carry, the larger of
+     * the RMS's and the max's (ADAPT_MAX times the RMS's allowance) */
+    double e = need_est ? fmax(est.rms / allowed, est.max / (ADAPT_MAX * allowed)) : 0.0;
+    double ratio = e > 0.0 ? 1.0 / e : 1e3;
     /* est/allowed ~ h^a with a = q per unit step, q + 1 per step */
     double a = per_unit ? q : q + 1;
     /* After a rejection at this t the fall measured between the two
@@ -573,15 +579,15 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
      * scheme's own estimate, between 1/4 and the assumed order): the
      * first step's estimate falls like h^1.3 on spot, where h^2 took
      * 4-7 rejections */
-    if (r->rejected_here > 0 && r->last_ratio > 0.0 && h < r->last_h && est > 0.0) {
-        double seen = log(r->last_ratio * allowed / est) / log(r->last_h / h);
+    if (r->rejected_here > 0 && r->last_ratio > 0.0 && h < r->last_h && e > 0.0) {
+        double seen = log(r->last_ratio / e) / log(r->last_h / h);
         if (isfinite(seen))
             a = fmin(a, fmax(0.25, seen));
     }
     double fac = 0.9 * pow(ratio, 1.0 / a);
     double fold_rate = r->t > 0.0 ? r->folds_total / r->t : 0.0;
     int folds = inv > r->fold_budget && inv > 4.0 * fold_rate * h;
-    int over = need_est && est > allowed;
+    int over = need_est && e > 1.0;
     /* A stiff event (a small feature collapsing fast: spot at t = 0.19 T)
      * gives an estimate that does not fall with the step until h lambda
      * < 1 (spot, tol 1e-4: est/allowed 5.4, 3.9, 3.0, ... 1.5, 1.0 over
@@ -591,7 +597,7 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
      * accepted, while the events' excess, (est/allowed - 1) h/T, adds
      * up to at most ADAPT_EVENTS of the budget. */
     if (over && milne && r->rejected_here > 0 && r->last_ratio > 0.0 && h < r->last_h) {
-        double rnow = est / allowed, excess = (rnow - 1.0) * h / T;
+        double rnow = e, excess = (rnow - 1.0) * h / T;
         if (rnow > r->last_ratio * pow(h / r->last_h, 0.5 * q) && r->overspent + excess <= ADAPT_EVENTS) {
             r->overspent += excess;
             over = 0;
@@ -599,7 +605,7 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
     }
     if (!finite || folds || over) {
         if (over) {
-            r->last_ratio = est / allowed;
+            r->last_ratio = e;
             r->last_h = h;
         }
         memcpy(c->X, c->Xold, 3 * (size_t)c->nv * sizeof(double));
@@ -618,7 +624,7 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, double est, int finit
     r->last_ratio = 0.0;
     r->folds_total += inv;
     /* desbrun2's second step reuses h: BDF2 starts at ratio 1 */
-    c->st->error_estimate += need_est ? est : 0.0;
+    c->st->error_estimate += need_est ? est.rms : 0.0;
     /* no growth right after a rejection (Hairer and Wanner's facmax = 1):
      * where the estimate grows faster than h^q, as on a stiff transient,
      * growing again at once rejected every other step (ros2 on spot,
@@ -710,7 +716,8 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
                 r->h = r->T - r->t;
         }
         c->step_solve_s = 0.0;
-        double est = 0.0, h_next = r->h;
+        step_est est = {0.0, 0.0};
+        double h_next = r->h;
         if (p->scheme == MCF_LINEAR && !c->factor_valid)
             linear_couplings(c, r->h);
         r->in_step = 1;
