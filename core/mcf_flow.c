@@ -513,6 +513,15 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
 /* The max over the vertices may carry ADAPT_MAX times the RMS's share
  * (issue 30's bar: the max within 20 tol at T). */
 #define ADAPT_MAX 20.0
+/* ros2's growth per accepted Milne step. Its stiff modes sit at an
+ * offset that depends on h (its order reduction, MATH.md): a step that
+ * grows 2x moves them, and Milne's difference reads that as a third
+ * derivative. On spot (tol 1e-5) an estimate at 0.005 of its allowance
+ * jumped to 3.3 at a 2x growth: a cycle of two accepted steps and a
+ * rejection, 900 times (2,725 attempts); growing by 1.5 took 1,649, by
+ * 1.2 353 (5,312 at 1e-6 against 32,046); desbrun2's counts barely
+ * change with it (135-140 at 1e-5), so it keeps 2. */
+#define ADAPT_GROW_ROS2 1.2
 /* The share of that budget stiff events may take beyond it (adapt). */
 #define ADAPT_EVENTS 0.1
 /* The share of it desbrun2's first step may take, however short. The
@@ -524,6 +533,23 @@ static mcf_status plan_steps(flow_ctx *c, run_plan *r, mcf_error *err)
  * T the start is controlled per step against that share of the budget,
  * so it no longer shrinks below what the second-order steps need. */
 #define ADAPT_START 0.1
+
+/* Why an adaptive run that gives up (step size underflow, max_steps)
+ * may have had to: the shortest edge of the state reached (c->X) against
+ * the input's, into why (empty when over 1/SINGULAR_EDGE). A small part
+ * collapsing to a point (car.drc at strength 0.5: four pieces of 24-49
+ * vertices, 0.1% of the area each, whose curvature grows without bound
+ * before T) is a singularity of the flow itself, where no step size meets
+ * a tol; smoothing less, or without those parts, is the way out. */
+#define SINGULAR_EDGE 10.0
+static void singular_note(const flow_ctx *c, const run_plan *r, char *why, size_t n)
+{
+    double e0 = mcf__flow_min_edge(r->X_in, c->F, c->nf) * r->scale, e1 = mcf__flow_min_edge(c->X, c->F, c->nf);
+    why[0] = '\0';
+    if (e0 > 0.0 && e1 * SINGULAR_EDGE < e0)
+        snprintf(why, n, "; the shortest edge is %.2g of the input's: the flow nears a singularity (a part "
+                 "collapsing), where no step meets a tol: smooth less", e1 / e0);
+}
 
 /* The adaptive verdict on the step just taken (rc, its estimate est, the
  * faces it folded): 1 accepted, with *h_next; 0 rejected, c->X restored
@@ -614,8 +640,10 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, step_est est, int fin
         r->rejected_here++;
         r->h *= (!finite || folds) ? 0.25 : fmax(0.2, fac);
         if (r->h < 1e-14 * T) {
-            *rc = mcf__fail(err, MCF_ENUMERIC, "adaptive: step size underflow at t = %g (%s)", r->t,
-                            !finite ? "non-finite positions" : folds ? "folded faces" : "error estimate");
+            char why[160];
+            singular_note(c, r, why, sizeof why);
+            *rc = mcf__fail(err, MCF_ENUMERIC, "adaptive: step size underflow at t = %g of %g (%s)%s", r->t, T,
+                            !finite ? "non-finite positions" : folds ? "folded faces" : "error estimate", why);
             return -1;
         }
         return 0;
@@ -629,7 +657,7 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, step_est est, int fin
      * where the estimate grows faster than h^q, as on a stiff transient,
      * growing again at once rejected every other step (ros2 on spot,
      * tol 1e-5: 232 rejections in 251 steps) */
-    double grow = r->rejected_here ? 1.0 : 2.0;
+    double grow = r->rejected_here ? 1.0 : p->scheme == MCF_ROS2 && milne ? ADAPT_GROW_ROS2 : 2.0;
     *h_next = p->scheme == MCF_DESBRUN2 && r->hist.nhist == 0 ? h : h * fmin(grow, fmax(0.2, fac));
     return 1;
 }
@@ -704,9 +732,12 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
         if (p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire))
             return mcf__fail(err, MCF_ECANCELED, "canceled at step %d (t = %g)", r->k, r->t);
         if (p->adaptive) {
-            if (++attempts > p->max_steps)
-                return mcf__fail(err, MCF_ELIMIT, "adaptive: max_steps (%d attempts, %d accepted) reached at t = %g of %g; raise max_steps or tol",
-                                 p->max_steps, r->k, r->t, r->T);
+            if (++attempts > p->max_steps) {
+                char why[160];
+                singular_note(c, r, why, sizeof why);
+                return mcf__fail(err, MCF_ELIMIT, "adaptive: max_steps (%d attempts, %d accepted) reached at t = %g of %g; raise max_steps or tol%s",
+                                 p->max_steps, r->k, r->t, r->T, why);
+            }
             /* a step that would leave less than a tenth of itself
              * takes the rest: 10% more than the controller asked adds at
              * most 1.1^2 x 0.9^2 = 0.98 of the allowed error, where a
