@@ -497,7 +497,12 @@ char *api_json_print(const cJSON *j, int pretty);
  * flow statistics, with the step log when one was kept), compare (only
  * with a target: the after members, target, before, after), timings and
  * timing (the same: queue_s, read_s, decode_s, flow_s,
- * encode_s, write_s, metrics_s, total_s), peak_rss_bytes.
+ * encode_s, write_s, metrics_s, total_s), peak_rss_bytes, measured
+ * (whether the meshes were measured: without the measures, the light
+ * document of a request that did not ask for them, input.info,
+ * input.mesh, output.info and curvature's before and after are null,
+ * output's counts, area and volume come from the flow, metrics_s is null
+ * and flow has no step log).
  * api/openapi.yaml (Metrics) describes each member. Every volume in it is
  * mcf_mesh_volume's: signed, about the input's coordinate origin, in
  * input units. */
@@ -540,16 +545,19 @@ typedef struct {
            total_s;                /* seconds per phase */
     double metrics_s;              /* in api_metrics_before and _after */
     double peak_rss_bytes;         /* the process's peak resident size */
+    int nv, nf;                    /* the mesh's counts (output.vertices
+                                      and faces when nothing was measured) */
 } api_metrics_run;
 
 /* Unknown formats, zero bytes, NULL names, NaN numbers. */
 void api_metrics_run_init(api_metrics_run *r);
 
 /* The document (a new cJSON object, cJSON_Delete it) from the measures
- * (both api_metrics_before and api_metrics_after done), the parameters as
- * run (after api_params_finish), the flow statistics and the door's
- * facts. NULL when an argument is missing, a measure was not taken, or
- * an allocation failed (never a half-built document). */
+ * (both api_metrics_before and api_metrics_after done, or neither: the
+ * light document, measured false), the parameters as run (after
+ * api_params_finish), the flow statistics and the door's facts. NULL when
+ * an argument is missing, one measure of the two was taken, or an
+ * allocation failed (never a half-built document). */
 cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
                         const mcf_flow_stats *st, const api_metrics_run *r);
 
@@ -632,6 +640,10 @@ typedef struct {
      * (stage API_JOB_RUN, part "mesh"). */
     mcf_status (*decoded)(void *ctx, int nv, int nf, const api_params *p,
                           mcf_error *err);
+    /* The flow's threads, asked as it starts (nv: the mesh's vertices):
+     * the door's share of the cores for this mesh (the daemon's budget).
+     * NULL, or a value below 1: rq->threads. */
+    int (*threads)(void *ctx, int nv);
     /* Checked and measured: the flow starts (p finished: its scheme is
      * the one that runs). */
     void (*ready)(void *ctx, const api_params *p, api_format in_fmt);
@@ -663,6 +675,12 @@ typedef struct {
     const api_limits *lim;     /* NULL: the defaults */
     int metrics;               /* build the metrics document (and keep the
                                   flow's step log) */
+    int light;                 /* with metrics: the light document, no
+                                  measures and no step log (their cost
+                                  is the meshes' size times a few passes;
+                                  a fifth of the flow's wall on a 7M
+                                  scan): what the daemon builds for a
+                                  request that did not ask for them */
     int fields;                /* build the fields document
                                   (api_fields_encode) */
     size_t max_output;         /* the encoded output's cap (ELIMIT), 0:
@@ -677,7 +695,8 @@ typedef struct {
     int process_rss;           /* peak_rss_bytes: the process's peak
                                   resident size (a process of one job) */
     int threads;               /* mcf_flow_params.threads: the job's share
-                                  of the cores (0: one) */
+                                  of the cores (0: one), unless the
+                                  threads hook says otherwise */
 } api_job_request;
 
 /* api_job_request_init: no input, no target, no document, NaN times. */

@@ -197,8 +197,13 @@ static mcf_status flow(job *jb, api_params *p)
     if (h)
         p->flow.cancel = h->cancel;
     /* the step log: the document's flow.log, each step's volume */
-    p->flow.log_steps = jb->rq->metrics;
+    p->flow.log_steps = jb->rq->metrics && !jb->rq->light;
     p->flow.threads = jb->rq->threads;
+    if (h && h->threads) {
+        int n = h->threads(h->ctx, res->nv);
+        if (n >= 1)
+            p->flow.threads = n;
+    }
     t0 = mcf_now();
     rc = mcf_flow_run(jb->m, &p->flow, &res->stats, &res->err);
     res->flow_s = jb->run.flow_s = elapsed(t0);
@@ -276,6 +281,8 @@ static mcf_status document(job *jb, const api_params *p, double t_start)
     run->total_s = (isfinite(rq->read_s) ? rq->read_s : 0) + elapsed(t_start);
     if (rq->process_rss)
         run->peak_rss_bytes = peak_rss_bytes();
+    run->nv = res->nv;
+    run->nf = res->nf;
     res->metrics = api_metrics_json(&jb->mt, p, &res->stats, run);
     if (res->metrics)
         return MCF_OK;
@@ -289,7 +296,7 @@ static mcf_status measure(job *jb, int after)
     double t0 = mcf_now();
     mcf_status rc;
 
-    if (!jb->rq->metrics)
+    if (!jb->rq->metrics || jb->rq->light)
         return MCF_OK;
     rc = (after ? api_metrics_after : api_metrics_before)(
         &jb->mt, jb->m, jb->target, &jb->res->err);

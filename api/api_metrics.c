@@ -13,6 +13,10 @@
  * Each is one mcf_mesh_inspect, one mcf_curvature_summarize and, with a
  * target, one mcf_compare: linear in the mesh (radix sorts), a small
  * fraction of a flow step (about 0.06 s per call on the 35k-vertex bunny).
+ * A door may skip both (api_job_request.light): the light document keeps
+ * every key, the measured ones null (measured false), for a request that
+ * did not ask for them; on a 7M-vertex scan the two cost 92.5 s of a
+ * job's 876 s wall (lab/bench/README.md).
  * What only a door knows (names, byte counts, phase timings) comes in an
  * api_metrics_run; a number a door does not have is NaN and prints as null,
  * so a key never disappears because of the door that answered.
@@ -124,6 +128,14 @@ static cJSON *warnings_json(const mcf_flow_stats *st)
     return a;
 }
 
+/* A mesh's info (k 0: before the flow, 1: after), null when not
+ * measured (the light document). */
+static cJSON *info_json(const api_metrics *mt, int k)
+{
+    return (mt->measured >> k) & 1 ? api_json_mesh_info(&mt->info[k], NULL)
+                                   : cJSON_CreateNull();
+}
+
 /* The timings object: the door's phases, null where the door has none. */
 static int timings(cJSON *t, const api_metrics_run *r)
 {
@@ -165,7 +177,9 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
     cJSON *o, *x = NULL, *c = NULL;
     int ok;
 
-    if (!mt || !p || !st || !r || (mt->measured & 3) != 3)
+    int measured = mt ? (mt->measured & 3) == 3 : 0;
+
+    if (!mt || !p || !st || !r || (!measured && (mt->measured & 3)))
         return NULL;
     si = mcf_scheme_get(p->flow.scheme);
     o = cJSON_CreateObject();
@@ -180,25 +194,27 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
     ok = ok && str(x, "path", r->input_name);
     ok = ok && str(x, "format", format_name(r->input_format));
     ok = ok && api__json_num(x, "bytes", (double)r->input_bytes);
-    ok = ok && api__json_put(x, "info", api_json_mesh_info(&mt->info[0], NULL));
+    ok = ok && api__json_put(x, "info", info_json(mt, 0));
     /* "mesh": the daemon's first name for "info", kept for its clients */
-    ok = ok && api__json_put(x, "mesh", api_json_mesh_info(&mt->info[0], NULL));
+    ok = ok && api__json_put(x, "mesh", info_json(mt, 0));
 
     ok = ok && (x = obj(o, "output")) != NULL;
     ok = ok && str(x, "path", r->output_name);
     ok = ok && str(x, "format", format_name(r->output_format));
     ok = ok && api__json_num(x, "bytes", (double)r->output_bytes);
-    ok = ok && api__json_num(x, "vertices", mt->info[1].nv);
-    ok = ok && api__json_num(x, "faces", mt->info[1].nf);
-    ok = ok && api__json_num(x, "area", mt->info[1].area);
-    ok = ok && api__json_num(x, "volume", mt->info[1].volume);
+    ok = ok && api__json_num(x, "vertices", measured ? mt->info[1].nv : r->nv);
+    ok = ok && api__json_num(x, "faces", measured ? mt->info[1].nf : r->nf);
+    ok = ok && api__json_num(x, "area", measured ? mt->info[1].area : st->area1);
+    ok = ok && api__json_num(x, "volume", measured ? mt->info[1].volume : st->volume1);
     ok = ok && api__json_num(x, "quantization_max_error", r->quantization_max_error);
     ok = ok && str(x, "not_kept", r->not_kept);
-    ok = ok && api__json_put(x, "info", api_json_mesh_info(&mt->info[1], NULL));
+    ok = ok && api__json_put(x, "info", info_json(mt, 1));
 
     ok = ok && (c = obj(o, "curvature")) != NULL;
-    ok = ok && api__json_put(c, "before", api_json_curvature(&mt->curv[0]));
-    ok = ok && api__json_put(c, "after", api_json_curvature(&mt->curv[1]));
+    ok = ok && api__json_put(c, "before", measured ? api_json_curvature(&mt->curv[0])
+                                                   : cJSON_CreateNull());
+    ok = ok && api__json_put(c, "after", measured ? api_json_curvature(&mt->curv[1])
+                                                  : cJSON_CreateNull());
 
     ok = ok && api__json_put(o, "flow", api_json_flow_stats(st));
     if (ok && (mt->target & 2))
@@ -209,6 +225,7 @@ cJSON *api_metrics_json(const api_metrics *mt, const api_params *p,
      * clients */
     ok = ok && (x = obj(o, "timing")) != NULL && timings(x, r);
     ok = ok && api__json_num(o, "peak_rss_bytes", r->peak_rss_bytes);
+    ok = ok && api__json_put(o, "measured", cJSON_CreateBool(measured));
     if (!ok) {
         cJSON_Delete(o);
         return NULL;

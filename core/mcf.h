@@ -418,8 +418,13 @@ typedef struct {
                                  (0 or 1: the caller's only); the result
                                  is one thread's bit for bit. The caller
                                  owns the policy: mcf gives its cores,
-                                 mcfd its cores over its workers */
+                                 mcfd the cores no other job holds */
 } mcf_flow_params;
+
+/* Below this many vertices a run's loops stay on the caller's thread
+ * whatever mcf_flow_params.threads says (starting threads would cost more
+ * than they give): a caller sharing cores gives such a run one. */
+#define MCF_THREADS_MIN 20000
 
 /* Fills p with the defaults: desbrun2, the amount from the mesh
  * (strength MCF_DEFAULT_STRENGTH in MCF_DEFAULT_STEPS steps: dt, time

@@ -75,7 +75,7 @@ typedef struct {
     unsigned char *crease;     /* nv: on a kept crease */
     unsigned char *chains;     /* g.ptr[nv]: the creases' edges (mcf__creases) */
     unsigned char *fx;         /* nv: fixed, or no edge */
-    mcf__graph g;
+    mcf__graph g;              /* mcf__fairing's, lent to every run */
     int *vert;                 /* nfree: free index -> vertex */
     int *fid;                  /* nv: vertex -> free index, -1 fixed */
     double *sq;                /* nfree: sqrt(D) */

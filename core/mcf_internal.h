@@ -134,7 +134,7 @@ void mcf__chol_size(const mcf__chol *ch, double *nnz, double *flops);
  * thread that cannot start leaves its range to the caller). cpu_s (may
  * be NULL): += the CPU seconds of the threads it started (not the
  * caller's), added on the caller's thread after the join. */
-#define MCF_PAR_MIN 20000
+#define MCF_PAR_MIN MCF_THREADS_MIN
 typedef void (*mcf__par_fn)(void *ctx, size_t lo, size_t hi);
 void mcf__par_for(int nthreads, double *cpu_s, size_t n, mcf__par_fn fn, void *ctx);
 

@@ -4,7 +4,7 @@
  * the graph averages' work on big scans (issue 27).
  *
  * The caller names the thread count (mcf_flow_params.threads: the CLI
- * gives its cores, the daemon its cores over its workers); there is no
+ * gives its cores, the daemon the cores no other job holds); there is no
  * pool and no global: each call starts nthreads - 1 POSIX threads on
  * contiguous ranges, runs the first range itself and joins them, which
  * costs tens of microseconds against the milliseconds a pass over a

@@ -34,7 +34,7 @@ typedef struct {
 } option;
 
 enum {
-    O_BIND, O_PORT, O_GRPC_PORT, O_WORKERS, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
+    O_BIND, O_PORT, O_GRPC_PORT, O_WORKERS, O_CORES, O_QUEUE, O_HTTP_THREADS, O_MAX_CONN,
     O_MAX_CONN_IP, O_SPOOL, O_SPOOL_JOBS, O_SPOOL_BYTES, O_STORE, O_STORE_PW,
     O_BLOB_DIR, O_ALLOW_EVICTION,
     O_MAX_UPLOAD, O_MAX_VERTICES, O_MAX_FACES, O_MAX_ITER, O_MAX_WORK,
@@ -54,10 +54,15 @@ static const option opts[O_COUNT] = {
                      "gRPC port on the same address, 0 picks a free one, "
                      "off (or -1) disables it (default 50051)"},
     [O_WORKERS] = {"--workers", "MCFD_WORKERS", T_INT, 1, 1024,
-                   "mesh worker threads (default: online CPUs); each job's "
-                   "filter passes run on online CPUs / workers threads (at "
-                   "least 1): the workers share the cores, never "
-                   "oversubscribe them (--workers 1: a job on every core)"},
+                   "mesh worker threads: jobs run at once, at most one per "
+                   "core (default: online CPUs)"},
+    [O_CORES] = {"--cores", "MCFD_CORES", T_INT, 1, 1024,
+                 "cores the jobs share, never oversubscribed (default: "
+                 "online CPUs): a job holds one while it runs, and a job "
+                 "of 20,000 vertices or more also takes, as its flow "
+                 "starts, every core no other running job holds, for its "
+                 "threads; a job finding no core free waits queued for "
+                 "one. A lone big scan runs on every core"},
     [O_QUEUE] = {"--queue", "MCFD_QUEUE", T_INT, 0, 1000000,
                  "jobs waiting for a worker before 503 (default 64)"},
     [O_HTTP_THREADS] = {"--http-threads", "MCFD_HTTP_THREADS", T_INT, 1, 64,
@@ -299,6 +304,7 @@ static int set(srv_config *cfg, int o, const char *v, const char *src,
         }
         break;
     case O_WORKERS: cfg->svc.workers = (int)i; break;
+    case O_CORES: cfg->svc.cores = (int)i; break;
     case O_QUEUE: cfg->svc.queue = (int)i; break;
     case O_HTTP_THREADS: cfg->http_threads = (int)i; break;
     case O_MAX_CONN: cfg->max_connections = (int)i; break;
@@ -432,6 +438,7 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
     cfg->port = 8080;
     cfg->grpc_port = 50051;
     cfg->svc.workers = ncpu > 0 ? (int)(ncpu < 1024 ? ncpu : 1024) : 1;
+    cfg->svc.cores = cfg->svc.workers;   /* online CPUs */
     cfg->svc.queue = 64;
     cfg->http_threads = 2;
     cfg->max_connections = 512;
@@ -534,8 +541,6 @@ int srv_config_load(srv_config *cfg, int argc, char **argv, char *msg,
         cfg->body_timeout = 60.0 + (double)cfg->svc.lim.max_input_bytes / 1048576.0;
     if (cfg->svc.max_job_memory == 0 || cfg->svc.max_job_memory > cfg->svc.max_memory)
         cfg->svc.max_job_memory = cfg->svc.max_memory;
-    /* the cores shared between the workers (--workers' help) */
-    cfg->svc.job_threads = ncpu > cfg->svc.workers ? (int)(ncpu / cfg->svc.workers) : 1;
     if (cfg->token_file[0] && !cfg->probe && read_token(cfg, msg, msgsize) != 0)
         return -1;
     if (cfg->svc.blob_dir[0] && !cfg->svc.store[0]) {

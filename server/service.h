@@ -106,7 +106,10 @@ typedef struct svc svc_t;
 
 typedef struct {
     int workers;               /* worker threads */
-    int job_threads;           /* each job's threads (mcf_flow_params.threads) */
+    int cores;                 /* the cores the running jobs share: one
+                                  each, and a big job's flow every core
+                                  free as it starts (workers.c); 0: one
+                                  per worker */
     int queue;                 /* queued jobs beyond the running ones */
     char spool[1024];          /* the local store's directory (made when
                                   missing) */
@@ -232,17 +235,23 @@ typedef struct {
     char filename[128];        /* sanitized base name of the upload */
     int fields;                /* keep the per-vertex fields document
                                   (svc_job_fields_open) */
+    int measures;              /* measure the meshes and keep the step log
+                                  for the metrics document (also implied
+                                  by a target and by fields); else its
+                                  light form (api_job_request.light) */
     int keep_result;           /* keep the encoded result in memory for
                                   the submitter (svc_job_result, TAKE) */
 } svc_request;
 
 /* The daemon's own keys of a request's query string (REST's `stream`,
- * `phases`, `fields`), NULL-terminated: the parameter parser skips them
+ * `phases`, `fields`, `measures`), NULL-terminated: the parameter parser skips them
  * (api_params_parse_request's `ignore`). */
 extern const char *const svc_query_keys[];
-/* The query's `fields` (a daemon key: the last one wins): whether the
- * per-vertex fields document is kept. 0 and *on, or -1 and *err. */
-int svc_query_fields(const char *query, int *on, svc_error *err);
+/* The query's boolean daemon key `key` ("fields": whether the per-vertex
+ * fields document is kept; "measures": whether the metrics document's
+ * measures are taken), the last one winning; absent: 0. 0 and *on, or -1
+ * and *err. */
+int svc_query_flag(const char *query, const char *key, int *on, svc_error *err);
 
 /* An empty request (default parameters, no bytes). */
 void svc_request_init(svc_request *rq);
@@ -307,6 +316,8 @@ typedef struct {
                                   thread and the threads its flow started
                                   (0 without a budget, --job-cpu 0) */
     double cpu_threads_s;      /* the latter's share */
+    int cores;                 /* the cores it holds while it runs (its
+                                  flow's threads once decoded), else 0 */
     double fraction;           /* of the run done, 0..1 (1: succeeded):
                                   the core's share of its work when this
                                   replica runs it, else steps or time */

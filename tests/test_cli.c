@@ -444,7 +444,8 @@ static void test_metrics_document_layout(void **state)
 {
     static const char *const top[] = {"command", "job", "scheme", "params", "warnings",
                                       "input", "output", "curvature", "flow", "compare",
-                                      "timings", "timing", "peak_rss_bytes", NULL};
+                                      "timings", "timing", "peak_rss_bytes", "measured",
+                                      NULL};
     static const char *const input[] = {"path", "format", "bytes", "info", "mesh", NULL};
     static const char *const output[] = {"path", "format", "bytes", "vertices", "faces",
                                          "area", "volume", "quantization_max_error",
@@ -466,6 +467,7 @@ static void test_metrics_document_layout(void **state)
     tl_run_free(&r);
     j = load_json(tl_in_scratch("lay.json"));
     exact_members(j, top, "metrics");
+    assert_true(cJSON_IsTrue(member(j, "measured"))); /* --metrics asks for them */
     exact_members(member(j, "input"), input, "input");
     exact_members(member(j, "output"), output, "output");
     exact_members(member(j, "timings"), timings, "timings");

@@ -1403,7 +1403,9 @@ static void both_doors(const char *mesh, const char *target, const char *out,
  * either door: on three repository meshes, with a target and a flow's
  * step log (sphere_cgal), the default request (knot1, the fairing filter,
  * PLY out), and a Draco input and output (car, decoded in the daemon's
- * sandbox and under the CLI's in-process bound). */
+ * sandbox and under the CLI's in-process bound). The daemon measures
+ * when asked (measures=true; a target asks too), as `--metrics` asks the
+ * CLI. */
 static void test_metrics_same_as_cli(void **state)
 {
     static const char *const sphere[] = {"--scheme", "desbrun2", "--iterations", "3", NULL};
@@ -1413,8 +1415,8 @@ static void test_metrics_same_as_cli(void **state)
         const char *mesh, *target, *out, *const *args, *query;
     } runs[] = {
         {"sphere_cgal.obj", "sphere_cgal.obj", "out.obj", sphere, "scheme=desbrun2&iterations=3"},
-        {"knot1.obj", NULL, "out.ply", knot, "format=ply"},
-        {"car.drc", NULL, "out.drc", car, "scheme=taubin&iterations=4"},
+        {"knot1.obj", NULL, "out.ply", knot, "format=ply&measures=true"},
+        {"car.drc", NULL, "out.drc", car, "scheme=taubin&iterations=4&measures=true"},
     };
     cJSON *cli, *srv;
     size_t k;
@@ -1432,6 +1434,84 @@ static void test_metrics_same_as_cli(void **state)
         cJSON_Delete(srv);
     }
     assert_int_equal(tl_mcf_teardown(), 0);
+}
+
+/* Diagnostics cost nothing unless asked for (issue 27): a job whose
+ * request did not ask for the measures (measures=true, a target, fields,
+ * the metrics with the result) gets the light document: every key, the
+ * measured ones null (input.info, input.mesh, output.info, curvature's
+ * before and after, timings.metrics_s), measured false, no step log; its
+ * output counts, area and volume are the flow's, equal to what the
+ * measured document of the same request says (relative 1e-12: the flow's
+ * sums and mcf_mesh_inspect's run over the faces in different orders). */
+static void test_metrics_light_unless_asked(void **state)
+{
+    static const char *const h[] = {"Content-Type: model/obj", NULL};
+    const double pi = 3.14159265358979323846;
+    const char *const query[2] = {"/smooth?scheme=desbrun2&iterations=3",
+                                  "/smooth?scheme=desbrun2&iterations=3&measures=true"};
+    cJSON *m[2];
+    api_buf obj;
+    upload_t raw;
+    resp_t r;
+    char id[64];
+    int i, k, n = 8;
+
+    (void)state;
+    api_buf_init(&obj, 0);
+    for (k = 0; k < n; k++)
+        for (i = 0; i < n; i++) {
+            double x = (double)i / (n - 1), y = (double)k / (n - 1);
+            assert_int_equal(api_buf_printf(&obj, "v %.17g %.17g %.17g\n", x, y,
+                                            0.2 * sin(pi * x) * sin(pi * y)), MCF_OK);
+        }
+    for (k = 0; k + 1 < n; k++)
+        for (i = 0; i + 1 < n; i++) {
+            int a = k * n + i + 1, b = a + 1, c = a + n, d = c + 1;
+            assert_int_equal(api_buf_printf(&obj, "f %d %d %d\nf %d %d %d\n", a, b, d, a,
+                                            d, c), MCF_OK);
+        }
+    for (k = 0; k < 2; k++) {
+        raw = (upload_t){.raw = obj.data, .raw_len = obj.len};
+        http(&g_main, "POST", query[k], h, &raw, &r);
+        expect_status(&g_main, &r, 200, query[k]);
+        assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
+        m[k] = follow_metrics_link(&g_main, &r, id);
+        resp_free(&r);
+    }
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m[0], "measured")));
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(m[1], "measured")));
+    for (k = 0; k < 2; k++) {
+        const cJSON *in = cJSON_GetObjectItemCaseSensitive(m[k], "input"),
+                    *out = cJSON_GetObjectItemCaseSensitive(m[k], "output"),
+                    *cv = cJSON_GetObjectItemCaseSensitive(m[k], "curvature"),
+                    *fl = cJSON_GetObjectItemCaseSensitive(m[k], "flow"),
+                    *tm = cJSON_GetObjectItemCaseSensitive(m[k], "timings");
+        /* light (k 0): null, never missing; measured (k 1): objects */
+        assert_true(k ? cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(in, "info"))
+                      : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(in, "info")));
+        assert_true(k ? cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(in, "mesh"))
+                      : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(in, "mesh")));
+        assert_true(k ? cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(out, "info"))
+                      : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(out, "info")));
+        assert_true(k ? cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(cv, "before"))
+                      : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(cv, "before")));
+        assert_true(k ? cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(cv, "after"))
+                      : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(cv, "after")));
+        assert_true(k ? cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(tm, "metrics_s"))
+                      : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(tm, "metrics_s")));
+        assert_int_equal(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(fl, "log")),
+                         k ? 3 : 0);
+        assert_int_equal((int)jnum(m[k], "output.vertices"), n * n);
+        assert_int_equal((int)jnum(m[k], "output.faces"), 2 * (n - 1) * (n - 1));
+    }
+    tl_assert_near(jnum(m[0], "output.area"), jnum(m[1], "output.area"),
+                   1e-12 * jnum(m[1], "output.area"), "output.area, light = measured");
+    tl_assert_near(jnum(m[0], "output.volume"), jnum(m[1], "output.volume"),
+                   1e-12 * fabs(jnum(m[1], "output.volume")), "output.volume, light = measured");
+    cJSON_Delete(m[0]);
+    cJSON_Delete(m[1]);
+    api_buf_free(&obj);
 }
 
 /* One volume in the stream, the step log and the summary: mcf_mesh_volume's
@@ -1570,6 +1650,7 @@ int main(void)
         cmocka_unit_test_teardown(test_fields, kill_strays),
         cmocka_unit_test_teardown(test_errors, kill_strays),
         cmocka_unit_test_teardown(test_metrics_same_as_cli, kill_strays),
+        cmocka_unit_test_teardown(test_metrics_light_unless_asked, kill_strays),
         cmocka_unit_test_teardown(test_metrics_stream_volume_open, kill_strays),
         cmocka_unit_test_teardown(test_metrics_warnings, kill_strays),
     };

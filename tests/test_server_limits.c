@@ -59,7 +59,7 @@ static void test_step_log_memory(void **state)
     expect_problem(&d, &r, 422, "ELIMIT", "--max-job-memory", "100,000 steps");
     resp_free(&r);
 
-    http(&d, "POST", "/v1/jobs?iterations=20000&scheme=euler&dt=1e-6", NULL,
+    http(&d, "POST", "/v1/jobs?iterations=20000&scheme=euler&dt=1e-6&measures=true", NULL,
          &octa, &r);
     expect_status(&d, &r, 202, "20,000 steps of an octahedron");
     j = body_json(&r, "POST");

@@ -11,7 +11,9 @@
  * steps (a job that runs until it is stopped; the test never waits for
  * it to end by itself). The CPU budget counts a job's threads
  * (test_cpu_budget_counts_job_threads); the job timeout grows with the
- * job's memory estimate (test_job_timeout_grows_with_estimate).
+ * job's memory estimate (test_job_timeout_grows_with_estimate); the
+ * workers share the cores without oversubscribing them
+ * (test_cores_shared).
  */
 #include <errno.h>
 #include <math.h>
@@ -547,7 +549,7 @@ static void test_admission(void **state)
  * clocks at one step. */
 static void cpu_budget_config(svc_config *c)
 {
-    c->job_threads = 8;
+    c->cores = 8;
     c->job_cpu = 1.5;
     c->job_cpu_per_mib = 0;
 }
@@ -572,6 +574,57 @@ static void test_cpu_budget_counts_job_threads(void **state)
     assert_true(s.cpu_threads_s > 0);
     assert_true(s.cpu_s - s.cpu_threads_s < 1.5); /* the worker's share */
     svc_job_unref(j);
+    fixture_stop(&f);
+}
+
+/* The cores (svc_config.cores, workers.c): two workers sharing two
+ * cores. A lone job of 22,500 vertices (over MCF_THREADS_MIN) holds both
+ * once its flow starts; a job submitted meanwhile waits queued (no core is
+ * free, though a worker is), then runs when the first ends, on one core
+ * when small (100 vertices); a big job starting beside it gets the one
+ * core left, never a third. The cores held are read from snapshots taken
+ * while the jobs step; the only wait on time is the queued job's 0.3 s,
+ * which can only fail to catch a wrong start, never fail a right one. */
+static void two_cores(svc_config *c)
+{
+    c->workers = 2;
+    c->cores = 2;
+}
+
+static void test_cores_shared(void **state)
+{
+    svc_fixture f;
+    svc_job *big, *small, *beside;
+    svc_snap s;
+    int i;
+
+    (void)state;
+    fixture_start(&f, two_cores);
+    big = submit_ok(f.svc, 150, LONG_JOB);
+    s = wait_for(big, is_stepping, "stepping");
+    assert_int_equal(s.cores, 2);
+    small = submit_ok(f.svc, 10, LONG_JOB);
+    for (i = 0; i < 30; i++) {
+        svc_job_snapshot(small, &s);
+        assert_int_equal(s.status, SVC_JOB_QUEUED);
+        nap();
+    }
+    assert_int_equal(svc_cancel(big, SVC_CANCEL_USER), 1);
+    wait_for(big, is_terminal, "canceled");
+    s = wait_for(small, is_stepping, "stepping");
+    assert_int_equal(s.cores, 1);
+    beside = submit_ok(f.svc, 150, LONG_JOB);
+    s = wait_for(beside, is_stepping, "stepping");
+    assert_int_equal(s.cores, 1);
+    svc_job_snapshot(small, &s);
+    assert_int_equal(s.cores, 1);
+    assert_int_equal(svc_cancel(small, SVC_CANCEL_USER), 1);
+    assert_int_equal(svc_cancel(beside, SVC_CANCEL_USER), 1);
+    wait_for(small, is_terminal, "canceled");
+    wait_for(beside, is_terminal, "canceled");
+    svc_job_unref(big);
+    svc_job_unref(small);
+    svc_job_unref(beside);
     fixture_stop(&f);
 }
 
@@ -637,6 +690,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_admission),
         cmocka_unit_test(test_cpu_budget_counts_job_threads),
         cmocka_unit_test(test_job_timeout_grows_with_estimate),
+        cmocka_unit_test(test_cores_shared),
     };
 
     /* a Draco input's decode runs in a child of this program (sandbox.c) */

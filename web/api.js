@@ -41,14 +41,15 @@ export async function getJSON(path) {
 
 // POST /v1/jobs: the mesh, a params object and optionally a target (a
 // clean mesh of the same connectivity: the metrics then compare with it);
-// fields: the daemon keeps the per-vertex fields (GET .../fields).
-// Resolves to the Job.
+// fields: the daemon keeps the per-vertex fields (GET .../fields). The
+// page shows the metrics' measures (mesh info, curvature): it asks for them
+// (measures=true). Resolves to the Job.
 export async function submit(file, params, target = null, fields = false) {
   const body = new FormData();
   body.append('params', JSON.stringify(params));
   body.append('mesh', file, file.name);
   if (target) body.append('target', target, target.name);
-  return (await call(fields ? '/v1/jobs?fields=true' : '/v1/jobs',
+  return (await call(fields ? '/v1/jobs?measures=true&fields=true' : '/v1/jobs?measures=true',
                      { method: 'POST', body })).json();
 }
 

@@ -148,6 +148,7 @@ int Upload::submit(bool keep_result, svc_job **out, svc_error *e)
     rq_.target = target_;
     rq_.target_len = target_ ? target_len_ : 0;
     rq_.keep_result = keep_result;
+    rq_.measures = keep_result; /* Smooth's reply carries the metrics */
     mesh_ = target_ = nullptr;
     int rc = svc_submit(g.svc, &rq_, out, e);
     svc_upload_release(g.svc, &mem_held_);   /* the bytes are in the store, or gone */

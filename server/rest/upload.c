@@ -335,7 +335,8 @@ enum MHD_Result rest_upload_begin(rest_request *r, struct MHD_Connection *c)
 /* The job's parameters, parsed once here: the params field (JSON), then
  * the plain form fields, then the query string (api_params_parse_request,
  * as the gRPC door reaches api_params_set_json: the door calls the
- * parser, not the service), and the daemon's `fields` key. 0, or -1 and
+ * parser, not the service), and the daemon's `fields` and `measures`
+ * keys. 0, or -1 and
  * *e. */
 static int request_params(rest_request *r, svc_request *rq, svc_error *e)
 {
@@ -350,7 +351,13 @@ static int request_params(rest_request *r, svc_request *rq, svc_error *e)
         svc_error_from_mcf(e, st, API_JOB_PARAMS, NULL, &err);
         return -1;
     }
-    return svc_query_fields(q, &rq->fields, e);
+    if (svc_query_flag(q, "fields", &rq->fields, e) != 0 ||
+        svc_query_flag(q, "measures", &rq->measures, e) != 0)
+        return -1;
+    /* the metrics sent with the result (multipart/mixed, the stream's
+     * last line and its steps' volumes) are asked for */
+    rq->measures |= r->md == MODE_MIXED || r->md == MODE_NDJSON;
+    return 0;
 }
 
 /* The body is complete: hand the job over. */

@@ -106,6 +106,12 @@ static mcf_status hook_decoded(void *ctx, int nv, int nf, const api_params *p,
     return MCF_OK;
 }
 
+/* The flow's threads: the job's cores (workers.c's rule). */
+static int hook_threads(void *ctx, int nv)
+{
+    return svc__cores_for(((run_ctx *)ctx)->job, nv);
+}
+
 static void hook_ready(void *ctx, const api_params *p, api_format in_fmt)
 {
     run_ctx *c = ctx;
@@ -193,7 +199,8 @@ static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
 
     rq->lim = &c->svc->cfg.lim;
     rq->metrics = 1;
-    rq->threads = c->svc->cfg.job_threads;
+    rq->light = !j->measures;  /* nobody asked for the measures */
+    rq->threads = 1;           /* hook_threads: the job's cores */
     rq->fields = j->keep_fields;
     rq->max_output = SVC_RESULT_MAX;
     rq->job = j->id;
@@ -206,6 +213,7 @@ static void request_of(run_ctx *c, api_job_request *rq, api_job_hooks *h)
     h->ctx = c;
     h->decode = hook_decode;
     h->decoded = hook_decoded;
+    h->threads = hook_threads;
     h->ready = hook_ready;
     h->progress = hook_progress;
     h->work = hook_work;

@@ -176,6 +176,9 @@ static svc_job *job_from_request(svc_t *s, svc_request *rq, double mem)
              rq->filename[0] ? rq->filename : "mesh");
     j->has_target = rq->target != NULL;
     j->keep_fields = rq->fields;
+    /* a target is there to be compared with, and the fields' viewer
+     * shows the measures */
+    j->measures = rq->measures || rq->target || rq->fields;
     j->keep_result = rq->keep_result;
     j->mem_estimate = mem;
     j->disk_bytes = rq->input_len + rq->target_len;
@@ -579,6 +582,8 @@ int svc_start(const svc_config *cfg, svc_t **out, char *msg, size_t msgsize)
         return -1;
     }
     s->cfg = *cfg;
+    if (s->cfg.cores < 1)      /* unset: a core per worker */
+        s->cfg.cores = s->cfg.workers > 0 ? s->cfg.workers : 1;
     s->urandom = open("/dev/urandom", O_RDONLY | O_CLOEXEC);
     pthread_mutex_init(&s->mu, NULL);
     pthread_mutex_init(&s->state_mu, NULL);

@@ -88,6 +88,8 @@ struct svc {
     int queued;                /* jobs in the store's queue (not parked) */
     int reserved;              /* submissions admitted, not yet queued */
     int busy;                  /* workers running a job */
+    int cores_held;            /* cores the running jobs hold, at most
+                                  cfg.cores (workers.c) */
     size_t disk_bytes;         /* sum of disk_bytes of the jobs in the table */
     int draining, stopping;
     int closing;               /* doors must answer now, never wait */
@@ -119,6 +121,8 @@ struct svc_job {
     char filename[128];
     int has_target;
     int keep_fields;           /* fields: the fields document is kept */
+    int measures;              /* the metrics document's measures and step
+                                  log are taken (svc_request.measures) */
     char *params_json;         /* api_params_to_json, printed (shown) */
     char *params_given;        /* api_params_given_json, printed (its
                                   request.json: parses back to the job) */
@@ -136,6 +140,8 @@ struct svc_job {
     int parks;                 /* times it was */
     double retry_at;           /* srv_mono() seconds */
     double mem_held;           /* reserved while it runs */
+    int cores;                 /* cores it holds while it runs: 1, then
+                                  its flow's threads (svc__cores_for) */
     int run_here;              /* a worker of this replica runs it (a
                                   shared store: any other job's state is
                                   the store's, refreshed) */
@@ -268,6 +274,10 @@ int svc__write_state(svc_job *j, int durable);
  * must wait (its cancel is being written, or the service drains: put it
  * back at the head of the queue). */
 int svc__start(svc_job *j);
+/* The cores of a running job of nv vertices for its flow's threads:
+ * from MCF_THREADS_MIN vertices on, every core no other running job
+ * holds, added to its own (workers.c says the rule). */
+int svc__cores_for(svc_job *j, int nv);
 /* running -> its outcome, recorded first (with retries), then published;
  * a job whose outcome the store refuses is parked (queued again later). */
 void svc__finish(svc_job *j, svc_outcome *o);

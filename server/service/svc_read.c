@@ -39,6 +39,7 @@ static void snapshot_locked(const svc_job *j, svc_snap *s)
     s->time_planned = j->time_planned;
     s->cpu_s = j->cpu_used;
     s->cpu_threads_s = j->cpu_threads;
+    s->cores = j->cores;
     if (j->status == SVC_JOB_SUCCEEDED)
         frac = 1;
     else if (j->work > 0)

@@ -61,29 +61,31 @@ static void add_num(cJSON *o, const char *key, double v)
 
 /* -------------------------------------------------- a request's parameters */
 
-const char *const svc_query_keys[] = {"stream", "phases", "fields", NULL};
+const char *const svc_query_keys[] = {"stream", "phases", "fields", "measures", NULL};
 
-int svc_query_fields(const char *query, int *on, svc_error *err)
+int svc_query_flag(const char *query, const char *key, int *on, svc_error *err)
 {
     static const char *const yes[] = {"true", "1", "yes"}, *const no[] = {"false", "0", "no"};
     const char *p = query;
+    size_t kl = strlen(key);
 
     *on = 0;
     while (p && *p) {
         size_t n = strcspn(p, "&");
-        if (n >= 7 && strncmp(p, "fields=", 7) == 0) {
-            size_t k, v = n - 7;
+        if (n > kl && strncmp(p, key, kl) == 0 && p[kl] == '=') {
+            size_t k, v = n - kl - 1;
+            const char *val = p + kl + 1;
             int found = 0;
             for (k = 0; k < 3 && !found; k++) {
-                if (strlen(yes[k]) == v && strncmp(p + 7, yes[k], v) == 0)
+                if (strlen(yes[k]) == v && strncmp(val, yes[k], v) == 0)
                     found = 1, *on = 1;
-                else if (strlen(no[k]) == v && strncmp(p + 7, no[k], v) == 0)
+                else if (strlen(no[k]) == v && strncmp(val, no[k], v) == 0)
                     found = 1, *on = 0;
             }
             if (!found) {
-                svc_error_set(err, SVC_P_PARAM_INVALID, "parameter 'fields' "
+                svc_error_set(err, SVC_P_PARAM_INVALID, "parameter '%s' "
                               "must be true or false (or 1/0, yes/no), got "
-                              "\"%.*s\"", (int)(v > 40 ? 40 : v), p + 7);
+                              "\"%.*s\"", key, (int)(v > 40 ? 40 : v), val);
                 return -1;
             }
         }
@@ -103,7 +105,11 @@ char *svc__request_json(const svc_job *j)
     int ok = o != NULL;
 
     ok = ok && cJSON_AddStringToObject(o, "id", j->id);
-    ok = ok && (!j->keep_fields || cJSON_AddStringToObject(o, "query", "fields=true"));
+    ok = ok && (!(j->keep_fields || j->measures) ||
+                cJSON_AddStringToObject(o, "query", j->keep_fields && j->measures
+                                                        ? "fields=true&measures=true"
+                                                        : j->keep_fields ? "fields=true"
+                                                                         : "measures=true"));
     ok = ok && cJSON_AddStringToObject(o, "params", j->params_given ? j->params_given : "{}");
     ok = ok && cJSON_AddArrayToObject(o, "fields");
     ok = ok && cJSON_AddStringToObject(o, "filename", j->filename);
@@ -143,7 +149,8 @@ int svc__request_load(svc_job *j, const cJSON *o, const api_limits *lim)
     if (!cJSON_IsObject(o) ||
         api_params_parse_request(&j->params, params, cJSON_IsArray(fields) ? fields : NULL,
                                  query, svc_query_keys, lim, &err) != MCF_OK ||
-        svc_query_fields(query, &j->keep_fields, &e) != 0)
+        svc_query_flag(query, "fields", &j->keep_fields, &e) != 0 ||
+        svc_query_flag(query, "measures", &j->measures, &e) != 0)
         return -1;
     snprintf(j->filename, sizeof j->filename, "%s", fn ? fn : "mesh");
     j->has_target = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "target"));

@@ -4,6 +4,16 @@
  * jobs from the store's queue in order, start them, run them (runner.c)
  * and record their outcome (svc_job.c); and the drain's wait. Only workers
  * decode, smooth and encode; no other thread touches a mesh.
+ *
+ * The cores (svc_config.cores: online CPUs unless --cores) are shared
+ * without oversubscribing them: a worker claims a job only while a core
+ * is free and holds it for the job's run; once decoded, a job of at least
+ * MCF_THREADS_MIN vertices also takes every core no other running job
+ * holds, for its flow's threads (svc__cores_for), and gives them all back
+ * at its end. So a lone big scan runs on every core, and a job that
+ * arrives meanwhile waits queued for a core (its position kept) rather
+ * than slowing both; small jobs take one core each, as many at once as
+ * there are cores and workers.
  */
 #include <errno.h>
 #include <stdio.h>
@@ -21,23 +31,63 @@
 typedef struct {
     svc_t *s;
     double held;
+    int core;                  /* the core it holds (1) once it fits */
 } claim_ctx;
 
+/* A core free and the memory: both reserved (1), else neither (0). */
 static int fits(void *arg, const char *id)
 {
     claim_ctx *c = arg;
+    svc_t *s = c->s;
     svc_job *j;
     double est = 0;
 
-    pthread_mutex_lock(&c->s->mu);
-    j = svc__find_locked(c->s, id);
+    pthread_mutex_lock(&s->mu);
+    if (s->cores_held >= s->cfg.cores) {
+        pthread_mutex_unlock(&s->mu);
+        return 0;
+    }
+    s->cores_held++;
+    j = svc__find_locked(s, id);
     if (j)
         est = j->mem_estimate;
-    pthread_mutex_unlock(&c->s->mu);
-    if (!svc_admit_try(c->s, est))
+    pthread_mutex_unlock(&s->mu);
+    if (!svc_admit_try(s, est)) {
+        pthread_mutex_lock(&s->mu);
+        s->cores_held--;
+        pthread_mutex_unlock(&s->mu);
         return 0;
+    }
     c->held = est;
+    c->core = 1;
     return 1;
+}
+
+/* A claim's reservations given back (a job not run). */
+static void unclaim(claim_ctx *c)
+{
+    svc_admit_release(c->s, c->held);
+    pthread_mutex_lock(&c->s->mu);
+    c->s->cores_held -= c->core;
+    svc__wake_locked(c->s);
+    pthread_mutex_unlock(&c->s->mu);
+    c->held = 0;
+    c->core = 0;
+}
+
+int svc__cores_for(svc_job *j, int nv)
+{
+    svc_t *s = j->svc;
+    int n;
+
+    pthread_mutex_lock(&s->mu);
+    if (nv >= MCF_THREADS_MIN && s->cores_held < s->cfg.cores) {
+        j->cores += s->cfg.cores - s->cores_held;
+        s->cores_held = s->cfg.cores;
+    }
+    n = j->cores;
+    pthread_mutex_unlock(&s->mu);
+    return n;
 }
 
 /* A job claimed from a shared queue that cannot be loaded: damaged
@@ -99,7 +149,7 @@ static void wait_work_locked(svc_t *s)
 static svc_job *next_job(svc_t *s, double *held)
 {
     char id[SVC_ID_LEN + 1];
-    claim_ctx c = {s, 0};
+    claim_ctx c = {s, 0, 0};
     unsigned seen;
     svc_job *j;
     int stop, rc, got, done;
@@ -114,9 +164,10 @@ static svc_job *next_job(svc_t *s, double *held)
         if (stop)
             return NULL;
         c.held = 0;
+        c.core = 0;
         got = s->store->ops->claim(s->store, fits, &c, id);
         if (got == 3) {        /* dead-lettered: failed, not run */
-            svc_admit_release(s, c.held);
+            unclaim(&c);
             if ((j = svc_job_get(s, id)))
                 svc__dead(j);
             svc_job_unref(j);
@@ -135,6 +186,9 @@ static svc_job *next_job(svc_t *s, double *held)
             }
             rc = j ? svc__start(j) : -1;
             if (rc == 0) {
+                pthread_mutex_lock(&s->mu);
+                j->cores = c.core;
+                pthread_mutex_unlock(&s->mu);
                 svc_job_unref(j); /* svc__start took the worker's */
                 *held = c.held;
                 return j;
@@ -142,7 +196,7 @@ static svc_job *next_job(svc_t *s, double *held)
             /* no longer queued (canceled, removed): done with; its cancel
              * being written, or a drain: back at the head, to run should
              * the cancel fail, or after the restart */
-            svc_admit_release(s, c.held);
+            unclaim(&c);
             if (rc < 0 && done)
                 s->store->ops->ack(s->store, id);
             else if (rc >= 0)
@@ -181,6 +235,8 @@ static void *worker_main(void *arg)
         svc_admit_release(s, j->mem_held); /* its memory is free */
         pthread_mutex_lock(&s->mu);
         s->busy--;
+        s->cores_held -= j->cores;   /* its cores are free */
+        j->cores = 0;
         svc__wake_locked(s);
         pthread_cond_broadcast(&s->idle);
         svc__unref_locked(j);
