@@ -403,7 +403,10 @@ typedef struct {
                                  (measured 0.02-0.27 tol on scans:
                                  docs/numerics.md); richardson, desbrun:
                                  local error per step of the first-order
-                                 companion (global <= steps*tol) */
+                                 companion (global <= steps*tol); the
+                                 max over the vertices too, with 20x the
+                                 RMS's share (desbrun2, richardson,
+                                 desbrun; not ros2) */
     int max_steps;            /* hard cap on steps, rejected ones included
                                  (adaptive); ELIMIT naming max_steps when
                                  a run would need more */
