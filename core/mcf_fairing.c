@@ -26,9 +26,10 @@
  * (T^K)_ii estimates sum w (error)^2 without the clean mesh; w are the
  * barycentric vertex areas over their mean. The weighted trace comes from
  * six Rademacher probes (three on a mesh of over a million free vertices:
- * PROBES_FEW_ABOVE) carried through the same steps as extra columns
- * (Hutchinson); for the implicit step T = D^-1/2 R D^1/2, R = (I + NN')^-1,
- * so the probes run through R in y. The run stops at the first power of
+ * PROBES_FEW_ABOVE) (Hutchinson), carried through the explicit passes as
+ * extra columns; for the implicit step T = D^-1/2 R D^1/2, R = (I +
+ * NN')^-1, so a probe's estimate is z' W R^K z, read by Lanczos quadrature
+ * on N (mcf_fairing_trace.c) while the steps solve the coordinates only. The run stops at the first power of
  * two past K* + 5 (K* the best so far: sure_stop) or at the cap. It keeps the displacements Y_k - X0
  * after the last COMB_J powers of two k of steps; the combination X0 +
  * sum_j c_j (Y_kj - X0) whose SURE is least (a 4 x 4 linear system:
@@ -55,6 +56,17 @@
 #include "mcf_fairing_ctx.h"
 
 #define TANGENTIAL_FLOOR 0.12
+/* isotropic noise reads at least the normal level in the tangent planes
+ * (reading^2 = b^2 + s^2, b the triangulation's own irregularity); a
+ * reading under TANGENTIAL_GATE_LO times the normal level is b alone
+ * (noise along the normals: the 435k dragon's marching-cubes triangles
+ * read b = 0.204 under noise 0.232), none counts, and the whole of it
+ * counts from TANGENTIAL_GATE_HI on, linearly between. Measured
+ * 2026-11-29 (docs/fairing.md): reading / level 0.97-1.78 under
+ * isotropic noise 0.1-0.5 on the shared scans, 0.12-0.62 under noise
+ * 0.25-0.5 along the normals, 0.88 on the 435k dragon at 0.25 */
+#define TANGENTIAL_GATE_LO 0.9
+#define TANGENTIAL_GATE_HI 0.95
 /* the creases' smoothing along them moves a vertex by at most one noise
  * level: on car.drc's coarse chains (hubs of 11-12 edges) it took shape
  * away at 2 (normal noise 0.25, seeds 1-3: 0.959, 0.853, 0.973 of the
@@ -117,13 +129,39 @@
  * noise of 0.1 h along the normals 0 on every CAD part; the organic
  * meshes clean or quantized 0-0.6% (knot1 at quant 0.5: 3.3%). Quantized
  * CAD parts pass it too (couplingdown_sub2 at 0.1/0.25/0.5 h: 0.36, 0.51,
- * 0.68; car 0.23-0.70, blade 0.86-0.97): they come back as they came,
+ * 0.68; car 0.23-0.70, blade 0.86-0.97): they came back as they came,
  * where the default had returned 0.93-1.00 of their error (car and
  * blade 1.00) and, on couplingdown_sub2, faces turned against the clean
- * mesh. The spike stage leaves such a mesh alone too (it had repaired 6
- * "spikes" of couplingdown_sub2 quantized to 0.25 h, turning a face). */
+ * mesh; their grid is now read first (LATTICE_EXPLAINS). The spike
+ * stage leaves such a mesh alone too (it had repaired 6 "spikes" of
+ * couplingdown_sub2 quantized to 0.25 h, turning a face). */
 #define FLAT_SHARE 0.25
 #define FLAT_TOL 1e-6
+/* Quantized positions: when the free vertices' coordinates sit on a grid
+ * of steps q (mcf__lattice, read off the positions alone) and the
+ * high-pass reads at most LATTICE_EXPLAINS times the grid's own noise,
+ * that noise is the noise: rounding to a grid of step q leaves an error
+ * uniform on [-q/2, q/2] per coordinate, deviation q / sqrt(12) along
+ * any direction (the normal, each tangent) and known, where FLAT_SHARE
+ * and WHITE_GAP had read none (couplingdown_sub2.obj, blade.obj, car.drc
+ * quantized: the input came back). The output is then clipped into each
+ * vertex's cell (mcf__lattice_clip). A grid under noise of another
+ * kind reads far above its own (a scan stored with 4 decimals: q
+ * 1e-4 units), and is left alone. Measured (2026-11-29, make quality's
+ * quant, seed 1, clean mean edges, median reading over q / sqrt(12)):
+ * 0.5-1.2 on spot, couplingdown_sub2, car.drc at 0.25 and 0.5 h, 2.2 on
+ * car.drc at 0.1 h (its own high-pass 0.055 h), blade.obj 0.003 (its
+ * plates on the grid's planes); clean blade.obj (coordinates written to
+ * 0.01: q 0.0077 h) 1.3 */
+#define LATTICE_EXPLAINS 3.0
+
+/* The noise of rounding to the grid of steps q along any direction:
+ * q_d / sqrt(12) per axis, their RMS over the axes (one level for the
+ * normals and the tangents, whichever way they point) */
+static double grid_level(const double q[3])
+{
+    return sqrt((q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) / 36.0);
+}
 
 /* c's arrays (its graph is mcf__fairing's, lent to every run) */
 static void fair_free(fair_ctx *c)
@@ -149,6 +187,7 @@ static void fair_free(fair_ctx *c)
     mcf__pattern_free(&c->apat);
     free(c->ax);
     free(c->Yc);
+    mcf__fair_lz_free(c->lz);
     for (int j = 0; j < COMB_J; j++)
         free(c->dk[j]);
 }
@@ -373,9 +412,12 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
          * (VIEW_SHARE, VIEW_RATIO, VIEW_DIR), is read along
          * that direction and split into its parts along the normals and
          * in the tangent planes (mcf__noise_shape) */
-        int view = robust && shape.direction_share >= VIEW_SHARE &&
+        int grid = robust && c->grid[0] > 0.0;
+        int view = robust && !grid && shape.direction_share >= VIEW_SHARE &&
                    (shape.sigma_rms >= VIEW_RATIO * s_est || shape.sigma_dir >= VIEW_DIR * s_est);
-        if (view)
+        if (grid)
+            s = grid_level(c->grid);
+        else if (view)
             s = shape.sigma_view;
         else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact))
             s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP),
@@ -384,11 +426,17 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
          * it cannot be told from the mesh), and at most the normal
-         * noise (scanners' noise is isotropic at most); one viewpoint's
+         * noise (scanners' noise is isotropic at most), and none when
+         * the reading stays under the normal level (TANGENTIAL_GATE_LO:
+         * the triangles' own irregularity, not noise); one viewpoint's
          * noise: its part in the tangent planes, which is most of it
          * (two thirds of its variance for a direction at random) */
-        s_t = view ? shape.sigma_view_t
-                   : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s);
+        double gate = s_est > 0.0 ? (s_t / s_est - TANGENTIAL_GATE_LO) / (TANGENTIAL_GATE_HI - TANGENTIAL_GATE_LO)
+                                  : 0.0;
+        s_t = grid   ? s
+              : view ? shape.sigma_view_t
+                     : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s) *
+                           fmax(0.0, fmin(1.0, gate));
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
         st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
         st->noise_share = shape.direction_share;
@@ -410,7 +458,7 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->s_t = s_t;
         /* the estimate's uncertainty (S2_REL_SQRT_N); none when the
          * level is given */
-        c->s2_rel = p->noise_sigma > 0.0 || c->nfree == 0 ? 0.0
+        c->s2_rel = p->noise_sigma > 0.0 || grid || c->nfree == 0 ? 0.0
                     : S2_REL_SQRT_N / sqrt((double)c->nfree);
     }
     c->share.s = c->s;
@@ -425,7 +473,10 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
     c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
-    c->ncol = c->sure ? 3 + c->nprobe : 3;
+    /* the explicit passes carry the probes as columns; the implicit steps
+     * solve the coordinates only, the probes' traces by Lanczos quadrature
+     * (mcf_fairing_trace.c) */
+    c->ncol = c->sure && c->is_explicit ? 3 + c->nprobe : 3;
     c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
@@ -448,6 +499,11 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
         c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
         if (!c->st->sure)
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
+    }
+    if (c->cap > 0 && c->sure && !c->is_explicit) {
+        mcf_status rc = mcf__fair_lz_new(c, err);
+        if (rc != MCF_OK)
+            return rc;
     }
     if (c->cap > 0)
         return c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
@@ -513,6 +569,8 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
         } else {
             double mo[6], vtr, zn, zt, est[NPROBE];
             mcf__fair_step_moments(c, Y, est, mo);
+            if (!c->is_explicit && (rc = mcf__fair_lz_trace(c, k, est, err)) != MCF_OK)
+                return rc;
             double tr = mcf__fair_mean_trace(est, c->nprobe, &vtr);
             double risk = mcf__fair_sure_of(c, 1, s, mo, tr, vtr, &zn);
             /* the tangential part: two directions, the same smoother */
@@ -670,12 +728,31 @@ static void take_stats(mcf_flow_stats *st, mcf_flow_stats *se, int won, int is_e
     st->filter_explicit = is_explicit;
 }
 
-/* Whether X's positions are exact (FLAT_SHARE) into *exact; if not, the
- * spikes of X repaired in a copy (*Xs; NULL when there are none), their
- * count into st->spikes_repaired. ENOMEM only. */
+/* The steps of the grid X's free vertices sit on (mcf__lattice) into
+ * grid, when the high-pass reads at most LATTICE_EXPLAINS times its noise
+ * (grid_level); else zeros. ENOMEM only. */
+static mcf_status read_grid(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                            const unsigned char *fixed, double hbar, double grid[3], mcf_error *err)
+{
+    double s_est = 0.0;
+    mcf_status rc;
+    int found = mcf__lattice(X, nv, fixed, hbar, grid);
+    if (found < 0)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+    if (found && (rc = mcf__noise_levels(g, X, F, nf, nv, fixed, &s_est, NULL, NULL, NULL, err)) != MCF_OK)
+        return rc;
+    if (found && !(s_est <= LATTICE_EXPLAINS * grid_level(grid)))
+        grid[0] = grid[1] = grid[2] = 0.0;
+    return MCF_OK;
+}
+
+/* Whether X's positions are exact (FLAT_SHARE) into *exact; if not, and
+ * they are not on a grid (grid), the spikes of X repaired in a copy (*Xs;
+ * NULL when there are none), their count into st->spikes_repaired.
+ * ENOMEM only. */
 static mcf_status repair_spikes(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
-                                const unsigned char *fixed, double hbar, mcf_flow_stats *st, double **Xs, int *exact,
-                                mcf_error *err)
+                                const unsigned char *fixed, double hbar, int grid, mcf_flow_stats *st, double **Xs,
+                                int *exact, mcf_error *err)
 {
     double *Y = mcf__malloc(3 * (size_t)nv, sizeof(double));
     int n = -1;
@@ -683,7 +760,7 @@ static mcf_status repair_spikes(const mcf__graph *g, const double *X, const int3
         mcf__vertex_normals(X, F, nf, nv, Y);
         *exact = mcf__flat_share(g, X, Y, fixed, FLAT_TOL * hbar) >= FLAT_SHARE;
         memcpy(Y, X, 3 * sizeof(double) * (size_t)nv);
-        n = *exact ? 0 : mcf__spikes(g, F, nf, fixed, hbar, Y);
+        n = *exact || grid ? 0 : mcf__spikes(g, F, nf, fixed, hbar, Y);
     }
     if (n < 0) {
         free(Y);
@@ -744,7 +821,9 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
      * filter then takes the repaired mesh as its input */
     double *Xs = NULL;
     st->robust = p->fairing_robust && p->iterations <= 0;
-    if (st->robust && (rc = repair_spikes(&g, X, F, nf, nv, fixed, hbar, st, &Xs, &ci.exact, err)) != MCF_OK) {
+    if (st->robust && ((rc = read_grid(&g, X, F, nf, nv, fixed, hbar, ci.grid, err)) != MCF_OK ||
+                       (rc = repair_spikes(&g, X, F, nf, nv, fixed, hbar, ci.grid[0] > 0.0, st, &Xs, &ci.exact,
+                                           err)) != MCF_OK)) {
         mcf__graph_free(&g);
         return rc;
     }
@@ -754,6 +833,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
             p->work(p->progress_ctx, "spikes", WORK_REPAIR);
     }
     ce.exact = cn.exact = ci.exact;
+    memcpy(ce.grid, ci.grid, sizeof ci.grid);
+    memcpy(cn.grid, ci.grid, sizeof ci.grid);
     const double *Xf = Xs ? Xs : X;
     /* the request's input's face normals: the fold guard judges the
      * output against them too (the repair turns the faces at a spike; the
@@ -843,7 +924,10 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         int won = rc == MCF_OK && crease_divergence(c, &cn, fixed, kdiv) && mcf__fair_pick_uncreased(c, &cn, kdiv);
         take_stats(st, &se, won, cn.is_explicit);
         if (won) {
-            if (cn.is_explicit) { /* the implicit run's tangential step, as above */
+            /* the first run's tangential step, as above: the implicit
+             * run's below 150,000 vertices; above, where the default is
+             * fairing_explicit, the creased passes' own */
+            if (cn.is_explicit) {
                 memcpy(cn.Yt, ci.Yt, 3 * sizeof(double) * (size_t)nv);
                 cn.kbest_t = ci.kbest_t;
             }

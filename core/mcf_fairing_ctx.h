@@ -50,6 +50,10 @@ enum { NPROBE_FEW = 3 };
  * powers of two stay within +-11 (consecutive k: up to +-35). */
 #define COMB_J MCF_FAIRING_COMB
 
+/* The implicit engine's probe traces by Lanczos quadrature
+ * (mcf_fairing_trace.c). */
+typedef struct mcf__fair_lz mcf__fair_lz;
+
 /* What a run hands to a second run on the same input so that both SUREs
  * estimate the same risk with correlated probes (mcf__fair_pick_uncreased):
  * its noise levels, and its probes by vertex (fid: vertex -> free index
@@ -92,6 +96,11 @@ typedef struct {
     int exact;                 /* the default request: the positions are
                                   exact (mcf_fairing.c, FLAT_SHARE): no
                                   noise to read */
+    double grid[3];            /* the default request: the steps of the
+                                  grid the positions are quantized to
+                                  (mcf__lattice), when it explains the
+                                  noise read (mcf_fairing.c, read_grid);
+                                  0: none */
     int quiet;                 /* the hook sees no steps (cancel only) */
     double w0, w1;             /* its share of the run's work (mcf_fairing.c, work()) */
     double work_done;          /* the last share reported: never less */
@@ -101,7 +110,9 @@ typedef struct {
     mcf__pattern apat;         /* I + N N' (upper triangle) */
     double *ax;                /* its values */
     mcf__chol *chol;
-    double *Yc;                /* nfree x ncol, column-major: y, the probes */
+    double *Yc;                /* nfree x ncol, column-major: y (the
+                                  implicit engine's probes are in lz) */
+    mcf__fair_lz *lz;          /* implicit with SURE: the probes' traces */
     double *b;                 /* 3 * nfree: N u, column-major */
     size_t bytes;
     mcf_flow_stats *st;
@@ -139,6 +150,15 @@ double *mcf__fair_alloc(fair_ctx *c, size_t n);
 mcf_status mcf__fair_implicit_init(fair_ctx *c, mcf_error *err);
 /* One implicit step: every column of c->Yc solved through A. */
 mcf_status mcf__fair_implicit_step(fair_ctx *c, mcf_error *err);
+
+/* mcf_fairing_trace.c */
+/* The Lanczos runs' state for c's probes (c->lz; c->probe, c->cap, c->sq,
+ * c->w set): ENOMEM. */
+mcf_status mcf__fair_lz_new(fair_ctx *c, mcf_error *err);
+void mcf__fair_lz_free(mcf__fair_lz *lz);
+/* Each probe's z' W R^k z, R the implicit step's (I + N N')^-1, into est,
+ * settled to 1e-12 nfree (more Lanczos steps made when needed): ENOMEM. */
+mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error *err);
 
 /* mcf_fairing_sure.c */
 /* A step's probe estimates of sum_i w_i (T^K)_ii (est) and SURE's

@@ -2,8 +2,8 @@
 /*
  * mcf_fairing_implicit.c - the fairing's implicit engine (mcf_fairing_ctx.h):
  * A = I + N N', N = D_F^-1/2 L_FF D_F^-1/2, assembled on the free 2-rings
- * and factored once per run (mcf_cholesky.c); each step one solve of all
- * the columns (the three coordinates and the probes) in y = D_F^1/2 x.
+ * and factored once per run (mcf_cholesky.c); each step one solve of the
+ * three coordinates in y = D_F^1/2 x (SURE's probes: mcf_fairing_trace.c).
  * mcf_fairing.c has the notation and drives the run.
  */
 #include <stdint.h>
@@ -161,12 +161,10 @@ mcf_status mcf__fair_implicit_init(fair_ctx *c, mcf_error *err)
             u[(size_t)d * n + k] = s;
         }
     }
-    /* y0 = D^1/2 x0, then the probes */
+    /* y0 = D^1/2 x0 */
     for (int k = 0; k < n; k++)
         for (int d = 0; d < 3; d++)
             y[(size_t)d * n + k] = c->sq[k] * c->X0[3 * (size_t)c->vert[k] + d];
-    if (c->ncol > 3)
-        memcpy(y + 3 * (size_t)n, c->probe, sizeof(double) * (size_t)c->nprobe * (size_t)n);
     return MCF_OK;
 }
 

@@ -182,6 +182,13 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
         mcf__fair_clamp_moves(c, X, rmax, NULL);
         mcf__fair_clamp_moves(c, c->Ybest, rmax, NULL);
     }
+    /* quantized positions: each vertex within the cell of its grid point
+     * (mcf__lattice_clip: the truth is there, and no vertex ends further
+     * from it) */
+    if (c->grid[0] > 0.0) {
+        mcf__lattice_clip(X, c->Xin, nv, NULL, c->grid);
+        mcf__lattice_clip(c->Ybest, c->Xin, nv, NULL, c->grid);
+    }
     /* the faces the input had without area, turned by the output against
      * the filtered normals (c->Y: Y's normals), taken back (mcf_flips.c) */
     int flip_moves;
@@ -205,6 +212,7 @@ mcf_status mcf__fair_feature_output(fair_ctx *c, const double *Yf, const unsigne
                                     mcf_error *err)
 {
     return mcf__feature_output(c->Xin, c->fn_orig, Yf, c->F, c->nf, c->nv, fixed, MAX_MOVE * sf,
+                               c->grid[0] > 0.0 ? c->grid : NULL,
                                c->p->fairing_robust ? &c->st->flips_repaired : NULL,
                                c->p->fairing_robust ? &c->st->turned_repaired : NULL, X, &c->st->guard_rounds,
                                &c->st->guard_vertices, err);

@@ -131,10 +131,13 @@ static inline __attribute__((always_inline)) void step_moments(const fair_ctx *c
     m[5] = m5;
 }
 
-/* c->nprobe is NPROBE_FEW or NPROBE (mcf_fairing.c, run_init) */
+/* c->nprobe is NPROBE_FEW or NPROBE (mcf_fairing.c, run_init); the
+ * implicit engine's probes are not columns (mcf__fair_lz_trace) */
 void mcf__fair_step_moments(const fair_ctx *c, double *Y, double est[NPROBE], double m[6])
 {
-    if (c->nprobe == NPROBE_FEW)
+    if (!c->is_explicit)
+        step_moments(c, Y, est, m, 0);
+    else if (c->nprobe == NPROBE_FEW)
         step_moments(c, Y, est, m, NPROBE_FEW);
     else
         step_moments(c, Y, est, m, NPROBE);
@@ -422,6 +425,7 @@ mcf_status mcf__fair_feature(fair_ctx *c, int vs, const unsigned char *fixed, do
     fr.nprobe = c->nprobe;
     fr.s = c->s;
     fr.s2_rel = c->s2_rel;
+    fr.s_known = c->grid[0] > 0.0;
     fr.min_z = SURE_MIN_GAIN;
     if (vs != FEAT_VS_INPUT && c->kbest > 0) {
         fr.Ylin = c->Ybest;

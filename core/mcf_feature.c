@@ -643,7 +643,7 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
         }
     }
     /* the noise level and the candidate of least SURE at it */
-    double sf = noise_from_residuals(cs, sumw, s), s2 = sf * sf;
+    double sf = fr->s_known ? s : noise_from_residuals(cs, sumw, s), s2 = sf * sf;
     int k = least_sure(cs, sumw, sf);
     pick->s = sf;
     pick->sigma_r = SIGMA_R[k / (NNIT * NVIT)];
@@ -821,7 +821,8 @@ done:
 }
 
 mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
-                               int nv, const unsigned char *fixed, double rmax, int *flips, int *turned, double *X,
+                               int nv, const unsigned char *fixed, double rmax, const double *grid, int *flips,
+                               int *turned, double *X,
                                int *rounds, int *moves, mcf_error *err)
 {
     double *N = mcf__malloc(3 * (size_t)nv + 1, sizeof(double)), *G = mcf__malloc(3 * (size_t)nv + 1, sizeof(double));
@@ -854,6 +855,10 @@ mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const d
                 for (int e = 0; e < 3; e++)
                     p[e] = x0[e] + d[e] * (fmax(0.0, rmax - (l - rmax) / 2.0) / l);
         }
+    }
+    if (grid) {
+        mcf__lattice_clip(X, Xin, nv, fixed, grid);
+        mcf__lattice_clip(G, Xin, nv, fixed, grid);
     }
     /* the faces the input had without area, turned against Y's normal
      * field, taken back as the linear fairing's output does (mcf_flips.c) */

@@ -297,6 +297,8 @@ typedef struct {
     int nprobe;
     double s, s2_rel;         /* the noise level and its square's relative
                                  standard error */
+    int s_known;              /* s is known (quantized positions), not
+                                 read again from the residuals */
     const double *Ylin;       /* the linear fairing's result (3*nv), or
                                  NULL: the input */
     const double *X0;         /* what Ylin's displacement is measured from */
@@ -345,10 +347,13 @@ double mcf__feature_div_bound(const mcf__feature_frame *fr, const double *w, con
  * without area (mcf__flips_repair against Y's normals; its count into
  * *flips), when turned is not NULL the drift repair (mcf__turned_repair;
  * its count into *turned), then the fold guard (mcf__unfold with
- * fn_orig, Y's positions first).
+ * fn_orig, Y's positions first). grid (may be NULL): quantized positions'
+ * steps (mcf__lattice), the moves then clipped into the input's cells
+ * (mcf__lattice_clip) after the bound.
  * ENOMEM. */
 mcf_status mcf__feature_output(const double *Xin, const double *fn_orig, const double *Y, const int32_t *F, int nf,
-                               int nv, const unsigned char *fixed, double rmax, int *flips, int *turned, double *X,
+                               int nv, const unsigned char *fixed, double rmax, const double *grid, int *flips,
+                               int *turned, double *X,
                                int *rounds, int *moves, mcf_error *err);
 /* ---- spikes (mcf_spikes.c)
  * The vertices of X (graph g, mean edge hbar) far off the surface their
@@ -367,6 +372,21 @@ double mcf__flat_share(const mcf__graph *g, const double *X, const double *N, co
                        double tol);
 int mcf__spikes(const mcf__graph *g, const int32_t *F, int nf, const unsigned char *fixed, double hbar,
                 double *X);
+
+/* ---- quantized positions (mcf_lattice.c)
+ * The grid the coordinates of the vertices not fixed sit on: per axis the
+ * greatest common divisor q of the gaps between distinct values (two
+ * values within 1e-6 hbar are one), when at least 99% of the values lie
+ * within 1e-6 hbar of the levels v0 + k q (v0 the least) and
+ * 1e-3 hbar <= q <= 0.6 hbar. Returns
+ * 1 with the three steps in step, 0 (steps 0) when some axis has none or
+ * fewer than 16 vertices are free, -1 when out of memory. */
+int mcf__lattice(const double *X, int nv, const unsigned char *fixed, double hbar, double step[3]);
+/* Every vertex not fixed of X into the cell of its grid point in Xin: each
+ * coordinate within step/2 of Xin's (the set of positions that round to
+ * Xin's; a projection onto a convex set holding the truth: no vertex ends
+ * further from it). */
+void mcf__lattice_clip(double *X, const double *Xin, int nv, const unsigned char *fixed, const double step[3]);
 
 /* ---- creases (mcf_creases.c)
  * The creases of the mesh (X, F; graph g): the edges between two faces of

@@ -531,6 +531,20 @@ static void tl_face_normal(const double *X, const int32_t *t, double *n)
     n[2] = u[0] * v[1] - u[1] * v[0];
 }
 
+int tl_flips_against(const mcf_mesh *x, const mcf_mesh *clean)
+{
+    const double *X = mcf_mesh_positions(x), *C = mcf_mesh_positions(clean);
+    const int32_t *F = mcf_mesh_faces(x);
+    int n = 0;
+    for (int f = 0; f < mcf_mesh_nfaces(x); f++) {
+        double a[3], b[3];
+        tl_face_normal(X, F + 3 * (size_t)f, a);
+        tl_face_normal(C, F + 3 * (size_t)f, b);
+        n += a[0] * b[0] + a[1] * b[1] + a[2] * b[2] < 0.0;
+    }
+    return n;
+}
+
 int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf, int nv,
                      unsigned char *mask)
 {

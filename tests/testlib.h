@@ -200,6 +200,12 @@ void tl_smooth_a_little(mcf_mesh *m);
 int tl_folds_against(const double *X, const double *X0, const int32_t *F, int nf, int nv,
                      unsigned char *mask);
 
+/* ---- Flips against the clean mesh (make quality's, lab/bench/
+ * quality_geom.c's qg_flips): the faces of x whose normal ((b - a) x
+ * (c - a)) points against the same face's of clean (dot < 0; a face
+ * without area in either is not counted). x and clean share their faces. */
+int tl_flips_against(const mcf_mesh *x, const mcf_mesh *clean);
+
 /* ---- A third-party reader: Debian's assimp (assimp-utils, installed by
  * make deps) runs `assimp info` on the bytes, written to $TMPDIR/name (the
  * extension tells assimp the format). Fails the current test unless it

@@ -109,7 +109,7 @@ static mcf_status hook_decoded(void *ctx, int nv, int nf, const api_params *p,
 /* The flow's threads: the job's cores (workers.c's rule). */
 static int hook_threads(void *ctx, int nv)
 {
-    return svc__cores_for(((run_ctx *)ctx)->job, nv);
+    return svc_admit_cores(((run_ctx *)ctx)->job, nv);
 }
 
 static void hook_ready(void *ctx, const api_params *p, api_format in_fmt)

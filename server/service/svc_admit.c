@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /*
- * svc_admit.c - memory admission of the job service's jobs: each job carries an estimate of its
+ * svc_admit.c - admission of the job service's jobs to memory and cores.
+ * Memory: each job carries an estimate of its
  * peak memory (api_estimate_memory, made from what its input declares);
  * one larger than --max-job-memory is refused at submission, and a worker
  * starts the job at the head of the queue only while the estimates of the
@@ -20,6 +21,11 @@
  * figure: README, reliability). One budget per service, under a mutex of
  * its own, taken last (svc_internal.h's lock order). The estimates:
  * api/api_estimate.c.
+ *
+ * Cores: a worker claims a job only while one of --cores is free
+ * (workers.c); once decoded, a job of MCF_THREADS_MIN vertices or more
+ * takes every core no other running job holds for its flow's threads
+ * (svc_admit_cores, under the service's mutex: s->cores_held).
  */
 #include <math.h>
 #include <pthread.h>
@@ -164,4 +170,19 @@ void svc_admit_release(svc_t *s, double held)
     }
     pthread_cond_broadcast(&a->freed);
     pthread_mutex_unlock(&a->mu);
+}
+
+int svc_admit_cores(svc_job *j, int nv)
+{
+    svc_t *s = j->svc;
+    int n;
+
+    pthread_mutex_lock(&s->mu);
+    if (nv >= MCF_THREADS_MIN && s->cores_held < s->cfg.cores) {
+        j->cores += s->cfg.cores - s->cores_held;
+        s->cores_held = s->cfg.cores;
+    }
+    n = j->cores;
+    pthread_mutex_unlock(&s->mu);
+    return n;
 }

@@ -40,5 +40,11 @@ int svc_admit_grow(svc_t *s, double *held, double estimate,
 int svc_admit_more(svc_t *s, double *held, double more);
 /* Gives a reservation back and wakes the waiting grows. */
 void svc_admit_release(svc_t *s, double held);
+/* The cores of running job j, of nv vertices, for its flow's threads:
+ * from MCF_THREADS_MIN vertices on, every core no other running job
+ * holds, added to the one its worker claimed (workers.c says the rule;
+ * under the service's mutex, s->cores_held). Called by the runner once
+ * the job is decoded; workers.c gives them back at its end. */
+int svc_admit_cores(svc_job *j, int nv);
 
 #endif /* SVC_ADMIT_H */

@@ -141,7 +141,7 @@ struct svc_job {
     double retry_at;           /* srv_mono() seconds */
     double mem_held;           /* reserved while it runs */
     int cores;                 /* cores it holds while it runs: 1, then
-                                  its flow's threads (svc__cores_for) */
+                                  its flow's threads (svc_admit_cores) */
     int run_here;              /* a worker of this replica runs it (a
                                   shared store: any other job's state is
                                   the store's, refreshed) */
@@ -274,10 +274,6 @@ int svc__write_state(svc_job *j, int durable);
  * must wait (its cancel is being written, or the service drains: put it
  * back at the head of the queue). */
 int svc__start(svc_job *j);
-/* The cores of a running job of nv vertices for its flow's threads:
- * from MCF_THREADS_MIN vertices on, every core no other running job
- * holds, added to its own (workers.c says the rule). */
-int svc__cores_for(svc_job *j, int nv);
 /* running -> its outcome, recorded first (with retries), then published;
  * a job whose outcome the store refuses is parked (queued again later). */
 void svc__finish(svc_job *j, svc_outcome *o);

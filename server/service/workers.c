@@ -9,8 +9,8 @@
  * without oversubscribing them: a worker claims a job only while a core
  * is free and holds it for the job's run; once decoded, a job of at least
  * MCF_THREADS_MIN vertices also takes every core no other running job
- * holds, for its flow's threads (svc__cores_for), and gives them all back
- * at its end. So a lone big scan runs on every core, and a job that
+ * holds, for its flow's threads (svc_admit_cores, svc_admit.c), and
+ * gives them all back at its end. So a lone big scan runs on every core, and a job that
  * arrives meanwhile waits queued for a core (its position kept) rather
  * than slowing both; small jobs take one core each, as many at once as
  * there are cores and workers.
@@ -73,21 +73,6 @@ static void unclaim(claim_ctx *c)
     pthread_mutex_unlock(&c->s->mu);
     c->held = 0;
     c->core = 0;
-}
-
-int svc__cores_for(svc_job *j, int nv)
-{
-    svc_t *s = j->svc;
-    int n;
-
-    pthread_mutex_lock(&s->mu);
-    if (nv >= MCF_THREADS_MIN && s->cores_held < s->cfg.cores) {
-        j->cores += s->cfg.cores - s->cores_held;
-        s->cores_held = s->cfg.cores;
-    }
-    n = j->cores;
-    pthread_mutex_unlock(&s->mu);
-    return n;
 }
 
 /* A job claimed from a shared queue that cannot be loaded: damaged
