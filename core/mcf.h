@@ -406,7 +406,10 @@ typedef struct {
                                  companion (global <= steps*tol); the
                                  max over the vertices too, with 20x the
                                  RMS's share (desbrun2, richardson,
-                                 desbrun; not ros2) */
+                                 desbrun; not ros2), but through a local
+                                 singularity (a max estimate that does
+                                 not fall with the step), where the RMS
+                                 alone decides */
     int max_steps;            /* hard cap on steps, rejected ones included
                                  (adaptive); ELIMIT naming max_steps when
                                  a run would need more */
