@@ -383,7 +383,14 @@ typedef struct {
                                  found creases, run the filter again with
                                  none held and take that run when SURE says
                                  so (crease_vertices then 0); the default
-                                 request's */
+                                 request's. With the explicit passes that
+                                 choice is judged on the submesh near the
+                                 creases when they are few, and only the
+                                 winner's passes run over the whole mesh
+                                 (docs/fairing.md; crease_look_near) */
+    int fairing_look_whole;   /* tests and the lab: that choice judged on
+                                 the whole mesh, both runs in full, as
+                                 before the submesh (its reference) */
     int strength_auto;        /* 1: the amount from the mesh's own noise
                                  (mcf_auto.c: a noise estimate and Stein's
                                  unbiased risk estimate); replaces strength */
@@ -584,6 +591,9 @@ typedef struct {
     int crease_vertices;      /* fairing: vertices on the creases it kept
                                  (smoothed along them, held for the
                                  surface's filter) */
+    int crease_look_near;     /* fairing_robust: 1 when holding the
+                                 creases or not was judged on the submesh
+                                 near them (fairing_look_whole) */
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */
@@ -609,7 +619,9 @@ typedef struct {
     int flips_repaired;       /* fairing_robust: faces without area in the
                                  input that the output gave an orientation
                                  against the filtered normals, taken back
-                                 toward the input */
+                                 toward the input (on a quantized input
+                                 also faces with area it turned against
+                                 them) */
     int turned_repaired;      /* fairing_robust: vertices of the output's
                                  faces turned against its smoothed normal
                                  field moved back to their displacement

@@ -67,16 +67,15 @@
  * 0.25-0.5 along the normals, 0.88 on the 435k dragon at 0.25 */
 #define TANGENTIAL_GATE_LO 0.9
 #define TANGENTIAL_GATE_HI 0.95
-/* the creases' smoothing along them moves a vertex by at most one noise
- * level: on car.drc's coarse chains (hubs of 11-12 edges) it took shape
- * away at 2 (normal noise 0.25, seeds 1-3: 0.959, 0.853, 0.973 of the
- * input's error; 1: 0.852, 0.831, 0.900); the box of test_creases_kept
- * and the shared scans change by less than 1% */
-#define CREASE_MAX_MOVE 1.0
-/* the step of crease_divergence's finite difference, in noise levels:
- * the chains' smoothing is linear but for the move bound and the
- * tangent's direction, so a small step reads its slope */
-#define CREASE_FD_STEP 0.01
+/* A level read below NOISE_FLOOR mean edges is the coordinates' rounding,
+ * not noise: a clean box (the tests' box_mesh(8), every coordinate a
+ * multiple of 1/8) read 6e-17 h along one direction and ran 447 steps
+ * that moved no coordinate (0.016 s, 8x the same box turned off its
+ * axes, which reads 0). A double's rounding (2^-53 of the coordinate)
+ * stays under it while the mesh lies within 9e6 mean edges of the origin,
+ * and no noise a user could see is near it (the no-harm bar is 0.01 h).
+ * Not applied to a level the request gives. */
+#define NOISE_FLOOR 1e-9
 /* the relative standard error of the noise level's square, times
  * sqrt(n): the estimate is a ratio of two medians of |high-pass| over
  * about n = nfree vertices, each with a relative standard error of
@@ -164,7 +163,7 @@ static double grid_level(const double q[3])
 }
 
 /* c's arrays (its graph is mcf__fairing's, lent to every run) */
-static void fair_free(fair_ctx *c)
+void mcf__fair_free(fair_ctx *c)
 {
     free(c->X0);
     free(c->Y);
@@ -281,9 +280,17 @@ static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
     c->chains = mcf__calloc((size_t)c->g.ptr[nv] + 1, 1);
     c->bytes += (size_t)c->g.ptr[nv];
     int ncrease = -1;
-    if (crease && c->Xin && c->chains)
+    if (crease && c->Xin && c->chains && c->given_crease) {
+        memcpy(crease, c->given_crease, (size_t)nv);
+        memcpy(c->chains, c->given_chains, (size_t)c->g.ptr[nv]);
+        memcpy(c->X0, c->given_X0, 3 * sizeof(double) * (size_t)nv);
+        ncrease = 0;
+        for (int i = 0; i < nv; i++)
+            ncrease += crease[i];
+    } else if (crease && c->Xin && c->chains) {
         ncrease = c->no_creases ? 0
                                 : mcf__creases(&c->g, c->F, c->nf, nv, fixed, c->X0, crease, c->chains, &tick);
+    }
     if (ncrease < 0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     c->st->crease_vertices = ncrease;
@@ -422,6 +429,10 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact))
             s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP),
                         or the positions are exact (FLAT_SHARE) */
+        if (!(p->noise_sigma > 0.0) && s < NOISE_FLOOR * hbar) {
+            s = 0.0; /* rounding, not noise (NOISE_FLOOR) */
+            view = 0;
+        }
         /* the tangential noise: what the tangential reading shows beyond
          * TANGENTIAL_FLOOR mean edges, which clean scans' own irregular
          * triangles read as (0.02-0.12 on the shared scans: noise below
@@ -473,40 +484,21 @@ static mcf_status run_init(fair_ctx *c, mcf_error *err)
 {
     int nv = c->nv;
     c->nprobe = c->nfree > PROBES_FEW_ABOVE ? NPROBE_FEW : NPROBE;
+    if (c->like && c->like->nprobe < c->nprobe)
+        c->nprobe = c->like->nprobe;
     /* the explicit passes carry the probes as columns; the implicit steps
      * solve the coordinates only, the probes' traces by Lanczos quadrature
      * (mcf_fairing_trace.c) */
     c->ncol = c->sure && c->is_explicit ? 3 + c->nprobe : 3;
-    c->Y = mcf__fair_alloc(c, 3 * (size_t)nv);
-    c->Ybest = mcf__fair_alloc(c, 3 * (size_t)nv);
-    c->Yt = mcf__fair_alloc(c, 3 * (size_t)nv);
     c->probe = c->sure ? mcf__fair_alloc(c, (size_t)c->nprobe * (c->nfree ? (size_t)c->nfree : 1)) : NULL;
-    if (!c->Y || !c->Ybest || !c->Yt || (c->sure && !c->probe))
+    if (c->sure && !c->probe)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-    /* the three hold X0 on the fixed rows, which the explicit engine's
-     * moments sweep never writes (mcf__fair_step_moments) */
-    memcpy(c->Y, c->X0, 3 * sizeof(double) * (size_t)nv);
-    memcpy(c->Ybest, c->X0, 3 * sizeof(double) * (size_t)nv);
-    memcpy(c->Yt, c->X0, 3 * sizeof(double) * (size_t)nv);
-    for (int j = 0; c->sure && j < COMB_J; j++) {
-        c->dk[j] = mcf__malloc(3 * (size_t)(c->nfree ? c->nfree : 1), sizeof(float));
-        c->bytes += 3 * sizeof(float) * (size_t)c->nfree;
-        if (!c->dk[j])
-            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
-    }
     if (c->sure) {
         init_probes(c);
         c->st->sure = mcf__malloc((size_t)c->cap + 1, sizeof(double));
         if (!c->st->sure)
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory for the SURE curve");
     }
-    if (c->cap > 0 && c->sure && !c->is_explicit) {
-        mcf_status rc = mcf__fair_lz_new(c, err);
-        if (rc != MCF_OK)
-            return rc;
-    }
-    if (c->cap > 0)
-        return c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
     return MCF_OK;
 }
 
@@ -634,13 +626,13 @@ static mcf_status run_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mc
     return MCF_OK;
 }
 
-/* One filter's run on X (3*nv) up to its result along the normals
- * (c->Ybest, c->risk) and its tangential iterate; c->is_explicit, c->quiet
- * set by the caller; g the graph of F (borrowed: every run of a request
- * shares one). */
-static mcf_status filter_run(fair_ctx *c, const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
-                             const unsigned char *fixed, const mcf_flow_params *p, double hbar,
-                             mcf_flow_stats *st, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+/* A filter's run up to its passes or steps (its noise levels, probes and
+ * SURE curve set: the share a second run takes); c->is_explicit,
+ * c->quiet set by the caller; g the graph of F (borrowed: every run of a
+ * request shares one). */
+static mcf_status filter_begin(fair_ctx *c, const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                               const unsigned char *fixed, const mcf_flow_params *p, double hbar,
+                               mcf_flow_stats *st, mcf_error *err)
 {
     mcf_status rc;
     c->p = p;
@@ -661,7 +653,36 @@ static mcf_status filter_run(fair_ctx *c, const mcf__graph *g, const double *X, 
     if ((rc = plan_amount(c, err)) != MCF_OK)
         return rc;
     work(c, "noise", AT(c, AT_NOISE));
-    if ((rc = run_init(c, err)) != MCF_OK)
+    return run_init(c, err);
+}
+
+/* The rest of a run filter_begin began: the positions' arrays, the
+ * engine, the steps, the combination (c->Ybest, c->risk). */
+static mcf_status filter_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
+{
+    mcf_status rc = MCF_OK;
+    size_t nv = (size_t)c->nv;
+    c->Y = mcf__fair_alloc(c, 3 * nv);
+    c->Ybest = mcf__fair_alloc(c, 3 * nv);
+    c->Yt = mcf__fair_alloc(c, 3 * nv);
+    if (!c->Y || !c->Ybest || !c->Yt)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    /* the three hold X0 on the fixed rows, which the explicit engine's
+     * moments sweep never writes (mcf__fair_step_moments) */
+    memcpy(c->Y, c->X0, 3 * sizeof(double) * nv);
+    memcpy(c->Ybest, c->X0, 3 * sizeof(double) * nv);
+    memcpy(c->Yt, c->X0, 3 * sizeof(double) * nv);
+    for (int j = 0; c->sure && j < COMB_J; j++) {
+        c->dk[j] = mcf__malloc(3 * (size_t)(c->nfree ? c->nfree : 1), sizeof(float));
+        c->bytes += 3 * sizeof(float) * (size_t)c->nfree;
+        if (!c->dk[j])
+            return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    }
+    if (c->cap > 0 && c->sure && !c->is_explicit)
+        rc = mcf__fair_lz_new(c, err);
+    if (rc == MCF_OK && c->cap > 0)
+        rc = c->is_explicit ? explicit_init(c, err) : mcf__fair_implicit_init(c, err);
+    if (rc != MCF_OK)
         return rc;
     work(c, c->is_explicit ? "probes" : "factor", AT(c, AT_INIT));
     if ((rc = run_steps(c, hook, hook_ctx, err)) == MCF_OK && c->sure)
@@ -669,44 +690,12 @@ static mcf_status filter_run(fair_ctx *c, const mcf__graph *g, const double *X, 
     return rc;
 }
 
-/* Each probe's estimate of the divergence SURE needs at the crease
- * vertices of run c (held; n: the same filter with none): their output,
- * the input smoothed along its chains (mcf__creases) with moves bounded
- * by CREASE_MAX_MOVE noise levels, differentiated along the input's
- * normals by a finite difference of CREASE_FD_STEP noise levels with n's
- * probe on those vertices, weighted by n's weights, into kdiv. A fixed
- * value would not do: three Taubin passes along an endless chain have a
- * diagonal of 0.48, a chain's ends 1, and the bound cuts a long move; on
- * the box of test_creases_kept at noise 0.5 (seed 2) a divergence of 1
- * dropped its creases for 0.97x Taubin's oracle (0.93x held), one of 0.5
- * kept the false creases of bunny_npm_closed at 0.25 (error 1.06x the
- * dropped ones'). The chains are those found on the input (the step
- * would move a few edges across the detection's 40 degrees). 0 when out
- * of memory (the run keeps its creases). */
-static int crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsigned char *fixed, double kdiv[NPROBE])
+mcf_status mcf__fair_filter_run(fair_ctx *c, const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                                const unsigned char *fixed, const mcf_flow_params *p, double hbar,
+                                mcf_flow_stats *st, mcf__step_hook hook, void *hook_ctx, mcf_error *err)
 {
-    size_t nv3 = 3 * (size_t)c->nv;
-    double *Xp = mcf__malloc(2 * nv3, sizeof(double)), *ref = Xp + nv3, h = CREASE_FD_STEP * c->s;
-    int ok = Xp != NULL;
-    for (int q = 0; ok && q < c->nprobe; q++) {
-        memcpy(Xp, c->Xin, nv3 * sizeof(double));
-        for (int i = 0; i < c->nv; i++)
-            if (c->crease[i] && n->fid[i] >= 0)   /* fixed in n too: no probe */
-                for (int e = 0; e < 3; e++)
-                    Xp[3 * (size_t)i + e] += h * n->probe[(size_t)q * n->nfree + n->fid[i]] * n->n0[3 * (size_t)i + e];
-        memcpy(ref, Xp, nv3 * sizeof(double));
-        ok = mcf__creases_smooth(&c->g, c->nv, fixed, c->chains, Xp) == 0;
-        mcf__fair_clamp_from(c, ref, Xp, CREASE_MAX_MOVE * c->s, c->crease);
-        kdiv[q] = 0.0;
-        for (int i = 0; ok && i < c->nv; i++)
-            if (c->crease[i] && n->fid[i] >= 0) {
-                double d[3], z = n->probe[(size_t)q * n->nfree + n->fid[i]];
-                mcf__sub3(Xp + 3 * (size_t)i, c->X0 + 3 * (size_t)i, d);
-                kdiv[q] += n->w[i] * z * mcf__dot3(d, n->n0 + 3 * (size_t)i) / h;
-            }
-    }
-    free(Xp);
-    return ok;
+    mcf_status rc = filter_begin(c, g, X, F, nf, nv, fixed, p, hbar, st, err);
+    return rc == MCF_OK ? filter_steps(c, hook, hook_ctx, err) : rc;
 }
 
 /* A second run's figures (se) into st when it won (its SURE curve,
@@ -848,8 +837,15 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     if (fn_orig)
         mcf__face_normals(X, F, nf, fn_orig);
     ci.fn_orig = ce.fn_orig = cn.fn_orig = fn_orig;
-    rc = filter_run(&ci, &g, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
-    size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + (Xs ? 3 * sizeof(double) * ((size_t)nv + (size_t)nf) : 0);
+    /* the default request's passes (fairing_explicit: above 150,000
+     * vertices) with the automatic amount: the run holding the creases is
+     * begun, and its passes made once the second look (below) is judged
+     * near the creases and keeps them, or is judged on the whole mesh */
+    int defer = ci.is_explicit && p->fairing_robust && p->iterations <= 0 && p->scheme != MCF_FAIRING_FEATURE;
+    rc = defer ? filter_begin(&ci, &g, Xf, F, nf, nv, fixed, p, hbar, st, err)
+               : mcf__fair_filter_run(&ci, &g, Xf, F, nf, nv, fixed, p, hbar, st, hook, hook_ctx, err);
+    size_t extra = Xs ? 3 * sizeof(double) * ((size_t)nv + (size_t)nf) : 0;
+    size_t peak = ci.bytes + mcf__chol_bytes(ci.chol) + extra;
     /* the default request's `fairing` (fairing_pick) with the automatic
      * amount: the explicit passes too, the lower SURE taken
      * (pick_explicit); the factor freed first */
@@ -858,7 +854,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ci.chol = NULL;
         memset(&se, 0, sizeof se);
         ce.is_explicit = ce.quiet = 1;
-        rc = filter_run(&ce, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
+        rc = mcf__fair_filter_run(&ce, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
         take_stats(st, &se, won, 1);
         c = won ? &ce : &ci;
@@ -890,6 +886,24 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     int uncrease = rc == MCF_OK && p->fairing_robust && p->scheme != MCF_FAIRING_FEATURE && c->sure && c->cap > 0 &&
                    found > 0;
     int staged = rc == MCF_OK && c->sure && (p->scheme == MCF_FAIRING_FEATURE || (p->fairing_pick && creased));
+    /* The passes' second look judged near the creases
+     * (mcf_fairing_sub.c): judged 1, the passes with none held are the
+     * request's only ones; 0, the held run's; -1 (the creases' submesh is
+     * most of the mesh, the feature stage goes first, or tangential noise,
+     * whose step is the held run's: mcf__fair_output), both runs in full
+     * and SURE's pick on the whole mesh, as below 150,000 vertices. When
+     * both judgements agree the output is the same to the bit */
+    int judged = -1;
+    if (defer) {
+        size_t jb = 0;
+        if (rc == MCF_OK && uncrease && !staged && !(ci.s_t > 0.0) && !p->fairing_look_whole)
+            rc = mcf__fair_judge_near_creases(&ci, Xf, fixed, hook, hook_ctx, &judged, &jb, err);
+        st->crease_look_near = judged >= 0;
+        if (rc == MCF_OK && judged != 1)
+            rc = filter_steps(&ci, hook, hook_ctx, err);
+        if (ci.bytes + extra + jb > peak)
+            peak = ci.bytes + extra + jb;
+    }
     /* Both: the stage first, against the result with the creases held
      * (FEATURE_HELD_GAIN); taken, the run with none held is not made (on
      * couplingdown_sub2 a factorization of the whole mesh, where the held
@@ -900,7 +914,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         rc = feature_stage(c, &ci, &ce, p, FEAT_VS_HELD, st, fixed, X, &feat, &peak, err);
         staged = 0;
     }
-    if (rc == MCF_OK && uncrease && !feat) {
+    if (rc == MCF_OK && uncrease && !feat && judged != 0) {
         mcf__chol_free(c->chol);
         c->chol = NULL;
         /* the first runs' passes are done: their Z and tmp (167 MB on the
@@ -908,26 +922,37 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         size_t dropped = drop_engine(&ci) + drop_engine(&ce);
         memset(&se, 0, sizeof se);
         cn.is_explicit = c->is_explicit;
-        cn.quiet = cn.no_creases = 1;
+        cn.no_creases = 1;
+        cn.quiet = judged != 1; /* else its passes are the request's */
         c->share.probe = c->probe;
         c->share.fid = c->fid;
         c->share.nfree = c->nfree;
+        c->share.nprobe = c->nprobe;
         cn.like = &c->share;
-        cn.w0 = cn.w1 = 1.0 - WORK_OUTPUT;
-        rc = filter_run(&cn, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
+        cn.w0 = judged == 1 ? c->work_done : 1.0 - WORK_OUTPUT;
+        cn.w1 = judged == 1 ? c->w1 : 1.0 - WORK_OUTPUT;
+        rc = mcf__fair_filter_run(&cn, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         size_t both = ci.bytes + ce.bytes - dropped + cn.bytes + mcf__chol_bytes(cn.chol);
         if (both > peak)
             peak = both;
         mcf__chol_free(cn.chol);
         cn.chol = NULL;
         double kdiv[NPROBE];
-        int won = rc == MCF_OK && crease_divergence(c, &cn, fixed, kdiv) && mcf__fair_pick_uncreased(c, &cn, kdiv);
+        int won = judged == 1 ? rc == MCF_OK && cn.kbest > 0
+                              : rc == MCF_OK && mcf__fair_crease_divergence(c, &cn, fixed, kdiv) &&
+                                    mcf__fair_pick_uncreased(c, &cn, kdiv);
+        if (rc == MCF_OK && !won && judged == 1) { /* none held found nothing: the held run's passes after all */
+            c->quiet = 1;
+            rc = filter_steps(c, hook, hook_ctx, err);
+        }
         take_stats(st, &se, won, cn.is_explicit);
         if (won) {
             /* the first run's tangential step, as above: the implicit
              * run's below 150,000 vertices; above, where the default is
-             * fairing_explicit, the creased passes' own */
-            if (cn.is_explicit) {
+             * fairing_explicit, the creased passes' own (none when they
+             * were not made: judged near the creases, with no tangential
+             * noise) */
+            if (cn.is_explicit && ci.Yt) {
                 memcpy(cn.Yt, ci.Yt, 3 * sizeof(double) * (size_t)nv);
                 cn.kbest_t = ci.kbest_t;
             }
@@ -960,9 +985,9 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     st->peak_bytes = peak;
     free(Xs);
     free(fn_orig);
-    fair_free(&ci);
-    fair_free(&ce);
-    fair_free(&cn);
+    mcf__fair_free(&ci);
+    mcf__fair_free(&ce);
+    mcf__fair_free(&cn);
     mcf__graph_free(&g);
     return rc;
 }

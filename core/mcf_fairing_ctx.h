@@ -62,7 +62,8 @@ typedef struct {
     double s, s_t, s2_rel;
     const double *probe;
     const int *fid;
-    int nfree;
+    int nfree, nprobe;         /* nprobe probes of nfree each: a run that
+                                  takes them carries at most as many */
 } fair_share;
 
 typedef struct {
@@ -93,6 +94,12 @@ typedef struct {
                                   creases held (mcf__fair_pick_uncreased) */
     const fair_share *like;    /* a first run's noise levels and probes,
                                   taken, not read or drawn again */
+    /* a run on the submesh near a first run's creases
+     * (mcf_fairing_sub.c): that run's crease vertices, their chains'
+     * edges (in this run's graph) and its input smoothed along them,
+     * taken instead of found; NULL otherwise */
+    const unsigned char *given_crease, *given_chains;
+    const double *given_X0;
     int exact;                 /* the default request: the positions are
                                   exact (mcf_fairing.c, FLAT_SHARE): no
                                   noise to read */
@@ -139,9 +146,43 @@ typedef struct {
     double s2_rel;             /* relative standard error of s^2 */
 } fair_ctx;
 
+/* the creases' smoothing along them moves a vertex by at most one noise
+ * level: on car.drc's coarse chains (hubs of 11-12 edges) it took shape
+ * away at 2 (normal noise 0.25, seeds 1-3: 0.959, 0.853, 0.973 of the
+ * input's error; 1: 0.852, 0.831, 0.900); the box of test_creases_kept
+ * and the shared scans change by less than 1% */
+#define CREASE_MAX_MOVE 1.0
+
 /* mcf_fairing.c */
 /* n doubles (at least one) counted in c->bytes; NULL when out of memory. */
 double *mcf__fair_alloc(fair_ctx *c, size_t n);
+/* One filter's whole run on X (3*nv) up to its result along the normals
+ * (c->Ybest, c->risk) and its tangential iterate; c->is_explicit,
+ * c->quiet, c->like, c->no_creases, c->given_* set by the caller; g the
+ * graph of F (borrowed). */
+mcf_status mcf__fair_filter_run(fair_ctx *c, const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                                const unsigned char *fixed, const mcf_flow_params *p, double hbar,
+                                mcf_flow_stats *st, mcf__step_hook hook, void *hook_ctx, mcf_error *err);
+/* c's arrays freed (not its graph, which is lent). */
+void mcf__fair_free(fair_ctx *c);
+
+/* mcf_fairing_sub.c */
+/* Each probe's estimate of the divergence SURE needs at the crease
+ * vertices of run c (held; n: the same filter with none held), into kdiv;
+ * 0 when out of memory (the run keeps its creases). */
+int mcf__fair_crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsigned char *fixed,
+                                double kdiv[NPROBE]);
+/* The default request's second look judged near the creases: c, a run
+ * prepared up to its probes (its passes not made) that holds its crease
+ * vertices, is made again, held and with none held, on the submesh of
+ * the vertices within SUB_RINGS rings of them (the rest fixed), and
+ * mcf__fair_pick_uncreased judges there. *judged: 1 none held, 0 held,
+ * -1 the submesh is too much of the mesh (SUB_MAX_SHARE: judge on the
+ * whole, both runs in full); *bytes the judgement's bytes at most. X the
+ * run's input (3*nv). ENOMEM, ECANCELED. */
+mcf_status mcf__fair_judge_near_creases(const fair_ctx *c, const double *X, const unsigned char *fixed,
+                                        mcf__step_hook hook, void *hook_ctx, int *judged, size_t *bytes,
+                                        mcf_error *err);
 
 /* mcf_fairing_implicit.c */
 /* The implicit engine's system assembled and factored, its right-hand
@@ -184,7 +225,7 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
  * n's free vertices (c's and its creases), c's crease vertices counted
  * with their displacement (the smoothing along their chains) and kdiv,
  * each probe's estimate of their divergence weighted by n's weights
- * (mcf_fairing.c, crease_divergence); the gain must pass
+ * (mcf__fair_crease_divergence); the gain must pass
  * UNCREASE_MIN_GAIN of its standard error. */
 int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE]);
 /* The default request runs the feature-aware stage when the creases the

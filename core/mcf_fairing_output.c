@@ -192,7 +192,7 @@ mcf_status mcf__fair_output(fair_ctx *c, double *X, mcf_error *err)
     /* the faces the input had without area, turned by the output against
      * the filtered normals (c->Y: Y's normals), taken back (mcf_flips.c) */
     int flip_moves;
-    if (c->p->fairing_robust && (rc = mcf__flips_repair(X, c->Xin, c->Y, c->F, nf, nv, &st->flips_repaired,
+    if (c->p->fairing_robust && (rc = mcf__flips_repair(X, c->Xin, c->Y, c->F, nf, nv, c->grid[0] > 0.0, &st->flips_repaired,
                                                         &flip_moves, err)) != MCF_OK)
         return rc;
     /* the faces turned against the output's smoothed normal field: the

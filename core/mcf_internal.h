@@ -266,6 +266,13 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
                         const mcf_flow_params *p, double hbar, mcf_flow_stats *st,
                         mcf__step_hook hook, void *hook_ctx, mcf_error *err);
 
+/* ---- exp over an array (mcf_exp.c)
+ * x[i] <- exp(x[i]) for n values, within 2 ulp of libm's on [-708, 709]
+ * (below -708, and a NaN, give exp(-708); above 709, exp(709)); the same
+ * bits with or without AVX2. mcf__exp_scalar: one value, the same bits. */
+void mcf__exp_array(double *x, size_t n);
+double mcf__exp_scalar(double x);
+
 /* ---- the feature-aware stage (mcf_feature.c)
  * Bilateral normal filtering of the face normals (Gaussian spatial and
  * range kernels over the faces sharing a vertex, Zheng et al. 2011), then
@@ -444,10 +451,12 @@ mcf_status mcf__unfold(double *X, const double *X_in, const double *fn_orig, con
  * that X gives an orientation not facing along the filtered normal field
  * (field: unit vertex normals, 3*nv) by 60 degrees, taken back: their
  * vertices that X moved halve their displacement from X_in (6 rounds),
- * then take X_in's positions. repaired: such faces before the first
- * round; moves: vertex moves. ENOMEM only. */
+ * then take X_in's positions. grid (a quantized input, mcf__lattice):
+ * by 41 degrees, and also the faces X_in had with an orientation facing
+ * along the field that X turns against it, taken back the same way. repaired: such faces
+ * before the first round; moves: vertex moves. ENOMEM only. */
 mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field, const int32_t *F, int nf,
-                             int nv, int *repaired, int *moves, mcf_error *err);
+                             int nv, int grid, int *repaired, int *moves, mcf_error *err);
 
 /* ---- turned faces (mcf_turned.c)
  * The fairing filter's output X (its input X_in) against its own normal

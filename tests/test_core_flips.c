@@ -87,13 +87,19 @@ static int degenerate(const double *X, const int32_t *t)
 /* The definition (docs/fairing.md), one round at a time: a face judged is
  * degenerate in Xin and not all at Xin's positions; it is taken back
  * unless X gives it no normal (exactly 0) or a normal within 60 degrees
- * of the sum of the three field vectors and pointing along the sum of the
- * input's face normals at its three vertices. Taken back: rounds 0-5
- * halve the displacement from Xin of its vertices, later rounds put them
- * at Xin; at most 64 rounds, none once no vertex moves. Returns the faces
- * judged bad in round 0; *moves the vertex moves. */
-static int reference(const int32_t *F, int nf, int nv, const double *Xin, const double *field, double *X, int *moves)
+ * (grid: 41, cosine 0.75) of the sum of the three field vectors and
+ * pointing along the sum of the input's face normals at its three
+ * vertices. On a grid, a face with a normal in Xin, not all at Xin's
+ * positions, whose Xin normal points along that sum of field vectors
+ * (dot > 0) and whose X normal against it (dot < 0) is taken back too.
+ * Taken back: rounds 0-5 halve the displacement from Xin of its vertices,
+ * later rounds put them at Xin; at most 64 rounds, none once no vertex
+ * moves. Returns the faces judged bad in round 0; *moves the vertex
+ * moves. */
+static int reference(const int32_t *F, int nf, int nv, const double *Xin, const double *field, int grid, double *X,
+                     int *moves)
 {
+    const double turn = grid ? 0.75 : 0.5;
     double *Nin = calloc(3 * (size_t)nv, sizeof(double));
     unsigned char *mark = calloc((size_t)nv, 1);
     int first = 0;
@@ -114,18 +120,20 @@ static int reference(const int32_t *F, int nf, int nv, const double *Xin, const 
             int at_in = 1;
             for (int k = 0; k < 3; k++)
                 at_in &= memcmp(X + 3 * t[k], Xin + 3 * t[k], 3 * sizeof(double)) == 0;
-            if (!degenerate(Xin, t) || at_in)
+            int deg = degenerate(Xin, t);
+            if ((!deg && !grid) || at_in)
                 continue;
-            double n[3], s[3] = {0, 0, 0}, g[3] = {0, 0, 0};
+            double n[3], n0[3], s[3] = {0, 0, 0}, g[3] = {0, 0, 0};
             normal_at_b(X, t, n);
-            if (dot(n, n) == 0.0)
-                continue;
+            normal_at_b(Xin, t, n0);
             for (int k = 0; k < 3; k++)
                 for (int d = 0; d < 3; d++) {
                     s[d] += field[3 * t[k] + d];
                     g[d] += Nin[3 * t[k] + d];
                 }
-            if (dot(n, s) >= 0.5 * sqrt(dot(n, n) * dot(s, s)) && dot(n, g) > 0.0)
+            if (!deg && !(dot(n0, s) > 0.0 && dot(n, s) < 0.0))
+                continue;
+            if (deg && (dot(n, n) == 0.0 || (dot(n, s) >= turn * sqrt(dot(n, n) * dot(s, s)) && dot(n, g) > 0.0)))
                 continue;
             bad++;
             mark[t[0]] = mark[t[1]] = mark[t[2]] = 1;
@@ -179,22 +187,96 @@ static void test_flips_collapsed_edge(void **state)
     memcpy(X, Xin, sizeof X);
     X[3 * 12 + 2] = 0.25;
     X[3 * 13 + 2] = -0.25;
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 2);
     assert_int_equal(moves, 14);
     assert_memory_equal(X, Xin, sizeof X);
     /* in the plane, 12 a quarter of the way back to (2, 2): kept */
     memcpy(X, Xin, sizeof X);
     X[3 * 12] = 2.75;
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 0);
     assert_int_equal(moves, 0);
     assert_true(X[3 * 12] == 2.75);
     /* past 13 in the plane: the two faces face -z, taken back */
     X[3 * 12] = 3.25;
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 2);
     assert_true(X[3 * 12] == 3.0);
+}
+
+/* On a quantized input (grid): the collapsed edge of the test above, 12
+ * lifted by 0.25 and moved a quarter of the way back to (2, 2): face
+ * 12-13-18's normal (0.25, 0, 0.25) is 45 degrees off the field +z, face
+ * 7-13-12's (0.25, -0.25, 0.25) 54.7 degrees (computed by hand: (13 -
+ * 12) x (18 - 12) and (13 - 7) x (12 - 7)). Without a grid both are
+ * within 60 degrees: kept. On a grid neither is within 41: taken back;
+ * each halving toward 13 (the input point) keeps both angles, so 6
+ * halvings and the input: 7 rounds, one vertex, 7 moves. */
+static void test_flips_grid_angle(void **state)
+{
+    enum { n = 5, nv = n * n, nf = 2 * (n - 1) * (n - 1) };
+    double Xc[3 * nv], Xin[3 * nv], X[3 * nv], field[3 * nv];
+    int32_t F[3 * nf];
+    int repaired, moves;
+    (void)state;
+    grid(n, Xc, F);
+    memcpy(Xin, Xc, sizeof Xc);
+    memcpy(Xin + 3 * 12, Xc + 3 * 13, 3 * sizeof(double));
+    for (int i = 0; i < nv; i++) {
+        field[3 * i] = field[3 * i + 1] = 0.0;
+        field[3 * i + 2] = 1.0;
+    }
+    memcpy(X, Xin, sizeof X);
+    X[3 * 12] = 2.75;
+    X[3 * 12 + 2] = 0.25;
+    double X0[3 * nv];
+    memcpy(X0, X, sizeof X);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(repaired, 0);
+    assert_memory_equal(X, X0, sizeof X);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 1, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(repaired, 2);
+    assert_int_equal(moves, 7);
+    assert_memory_equal(X, Xin, sizeof X);
+}
+
+/* On a quantized input (grid), a face the input had with an orientation:
+ * the input put 12 at (2.875, 2, 0.25), so 12-13-18 stands nearly on
+ * edge, normal (0.25, 0, 0.125) (by hand: (13 - 12) x (18 - 12)), and
+ * 7-13-12 faces (0.25, -0.25, 0.125): both along the field +z. The output
+ * moves 12 to (3.125, 2, 0.25), past 13's x: (0.25, 0, -0.125) and (0.25,
+ * -0.25, -0.125), both against the field, though turned by only 37 and
+ * 27 degrees against the input (the fold guard's 90 do not see them).
+ * Without a grid they are not judged; on a grid both are taken back: one
+ * halving puts 12 at x = 3, both normals' z exactly 0 (not against), one
+ * round, one move. */
+static void test_flips_grid_sliver(void **state)
+{
+    enum { n = 5, nv = n * n, nf = 2 * (n - 1) * (n - 1) };
+    double Xin[3 * nv], X[3 * nv], X0[3 * nv], field[3 * nv];
+    int32_t F[3 * nf];
+    int repaired, moves;
+    (void)state;
+    grid(n, Xin, F);
+    Xin[3 * 12] = 2.875;
+    Xin[3 * 12 + 2] = 0.25;
+    for (int i = 0; i < nv; i++) {
+        field[3 * i] = field[3 * i + 1] = 0.0;
+        field[3 * i + 2] = 1.0;
+    }
+    memcpy(X, Xin, sizeof X);
+    X[3 * 12] = 3.125;
+    memcpy(X0, X, sizeof X);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(repaired, 0);
+    assert_memory_equal(X, X0, sizeof X);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 1, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(repaired, 2);
+    assert_int_equal(moves, 1);
+    assert_true(X[3 * 12] == 3.0 && X[3 * 12 + 1] == 2.0 && X[3 * 12 + 2] == 0.25);
+    X0[3 * 12] = 3.0;
+    assert_memory_equal(X, X0, sizeof X);
 }
 
 /* Random 12 x 12 grids (seeds 1-20): a random set of vertices each put
@@ -235,10 +317,11 @@ static void test_flips_reference(void **state)
             field[3 * i + 1] = b / l;
             field[3 * i + 2] = 1.0 / l;
         }
+        int gridded = seed % 2; /* odd seeds: a quantized input's rules */
         memcpy(R, X, sizeof X);
         int rmoves, repaired, moves;
-        int rrep = reference(F, nf, nv, Xin, field, R, &rmoves);
-        assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+        int rrep = reference(F, nf, nv, Xin, field, gridded, R, &rmoves);
+        assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, gridded, &repaired, &moves, NULL), MCF_OK);
         assert_int_equal(repaired, rrep);
         assert_int_equal(moves, rmoves);
         assert_memory_equal(X, R, sizeof X);
@@ -256,10 +339,9 @@ static void test_flips_reference(void **state)
         }
         for (int f = 0; f < nf; f++) {
             const int32_t *t = F + 3 * f;
-            if (!degenerate(Xin, t))
-                continue;
-            double nn[3], s[3] = {0, 0, 0}, g[3] = {0, 0, 0};
+            double nn[3], n0[3], s[3] = {0, 0, 0}, g[3] = {0, 0, 0};
             normal_at_b(X, t, nn);
+            normal_at_b(Xin, t, n0);
             for (int k = 0; k < 3; k++)
                 for (int d = 0; d < 3; d++) {
                     s[d] += field[3 * t[k] + d];
@@ -268,8 +350,13 @@ static void test_flips_reference(void **state)
             int at_in = 1;
             for (int k = 0; k < 3; k++)
                 at_in &= memcmp(X + 3 * t[k], Xin + 3 * t[k], 3 * sizeof(double)) == 0;
+            if (!degenerate(Xin, t)) { /* on a grid: not turned against the field */
+                assert_true(!gridded || at_in || !(dot(n0, s) > 0.0) || dot(nn, s) >= 0.0);
+                continue;
+            }
+            double turn = gridded ? 0.75 : 0.5;
             assert_true(at_in || dot(nn, nn) == 0.0 ||
-                        (dot(nn, s) >= 0.5 * sqrt(dot(nn, nn) * dot(s, s)) && dot(nn, g) > 0.0));
+                        (dot(nn, s) >= turn * sqrt(dot(nn, nn) * dot(s, s)) && dot(nn, g) > 0.0));
         }
         free(Nin);
     }
@@ -292,7 +379,7 @@ static void test_flips_none(void **state)
         field[k] = k % 3 == 2 ? -1.0 : 0.0; /* a field that disagrees with every face */
     }
     memcpy(X0, X, sizeof X);
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
     assert_int_equal(repaired, 0);
     assert_int_equal(moves, 0);
     assert_memory_equal(X, X0, sizeof X);
@@ -505,6 +592,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_flips_collapsed_edge),
+        cmocka_unit_test(test_flips_grid_angle),
+        cmocka_unit_test(test_flips_grid_sliver),
         cmocka_unit_test(test_flips_reference),
         cmocka_unit_test(test_flips_none),
         cmocka_unit_test(test_turned_slide),
