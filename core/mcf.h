@@ -410,7 +410,13 @@ typedef struct {
                                  (measured 0.02-0.27 tol on scans:
                                  docs/numerics.md); richardson, desbrun:
                                  local error per step of the first-order
-                                 companion (global <= steps*tol) */
+                                 companion (global <= steps*tol); the
+                                 max over the vertices too, with 20x the
+                                 RMS's share (desbrun2, richardson,
+                                 desbrun; not ros2), but through a local
+                                 singularity (a max estimate that does
+                                 not fall with the step), where the RMS
+                                 alone decides */
     int max_steps;            /* hard cap on steps, rejected ones included
                                  (adaptive); ELIMIT naming max_steps when
                                  a run would need more */

@@ -51,6 +51,16 @@ typedef struct {
     double h1, h2;        /* the two previous step sizes */
 } history;
 
+/* An attempted step's local error estimate (adaptive runs), in working
+ * units (relative to the unit-area size, as tol): rms, the M-weighted
+ * RMS the control's tol bounds; max, the largest vertex's, seen through
+ * the step's resolvent (mcf__flow_filtered_mnorm): the ear tips and
+ * fingers whose error the M-weighting makes small (docs/numerics.md,
+ * "What tol means"). */
+typedef struct {
+    double rms, max;
+} step_est;
+
 /* mcf_schemes.c */
 int mcf__is_fairing(mcf_scheme s);
 
@@ -64,7 +74,8 @@ mcf_status mcf__flow_be_step(flow_ctx *c, const double *X, double h, const doubl
                           const double *mass, double *Y, mcf_error *err);
 mcf_status mcf__flow_factorize(flow_ctx *c, mcf_error *err);
 mcf_status mcf__flow_filtered_mnorm(flow_ctx *c, double cmass, const double *mass, double *D,
-                                 double *out, mcf_error *err);
+                                 step_est *out, mcf_error *err);
+double mcf__flow_maxnorm(const flow_ctx *c, const double *D);
 int mcf__flow_folded_faces(const double *X, const int32_t *F, int nf, int nv,
                            const double *fn_before, double *fn_after, double *N);
 double mcf__flow_min_edge(const double *X, const int32_t *F, int nf);
@@ -83,8 +94,9 @@ void mcf__flow_velocity(flow_ctx *c, const double *w, const double *mass, const 
 
 /* mcf_steps.c: one step of size h of the run's scheme from c->X (kept in
  * c->Xold): c->X holds the new positions and *est (when the scheme has an
- * estimate and est != NULL) its local error in the M-norm. */
-mcf_status mcf__flow_step(flow_ctx *c, double h, const history *hist, double *est,
+ * estimate and est != NULL) its local error, in the M-norm and the
+ * vertices' max. */
+mcf_status mcf__flow_step(flow_ctx *c, double h, const history *hist, step_est *est,
                           mcf_error *err);
 
 #endif /* MCF_FLOW_CTX_H */

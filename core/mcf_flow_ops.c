@@ -239,7 +239,16 @@ double mcf__flow_mnorm(const flow_ctx *c, const double *D, const double *mass)
     return ms > 0.0 ? sqrt(s / ms) : 0.0;
 }
 
-/* The M-norm of W^-1 (cmass M) D, for D (3*nv, zero on fixed vertices)
+/* The largest vertex's length in D (3*nv). */
+double mcf__flow_maxnorm(const flow_ctx *c, const double *D)
+{
+    double mx = 0.0;
+    for (size_t i = 0; i < (size_t)c->nv; i++)
+        mx = fmax(mx, mcf__dot3(D + 3 * i, D + 3 * i));
+    return sqrt(mx);
+}
+
+/* The M-norm (and the vertices' max) of W^-1 (cmass M) D, for D (3*nv, zero on fixed vertices)
  * and the current factor W = cmass M + s L (mass: the M inside W): an
  * error estimate seen through the step's own resolvent (Shampine's
  * filter, as ros2 does). A mode of L with eigenvalue lambda is scaled by
@@ -254,7 +263,7 @@ double mcf__flow_mnorm(const flow_ctx *c, const double *D, const double *mass)
  * back-solve (3 columns) with the factor already at hand; D is
  * overwritten. */
 mcf_status mcf__flow_filtered_mnorm(flow_ctx *c, double cmass, const double *mass, double *D,
-                                 double *out, mcf_error *err)
+                                 step_est *out, mcf_error *err)
 {
     mcf_status rc;
     for (int i = 0; i < c->nv; i++)
@@ -262,7 +271,8 @@ mcf_status mcf__flow_filtered_mnorm(flow_ctx *c, double cmass, const double *mas
             c->B[3 * i + d] = c->fixed[i] ? 0.0 : cmass * mass[i] * D[3 * i + d];
     if ((rc = mcf__flow_solve(c, c->B, D, err)) != MCF_OK)
         return rc;
-    *out = mcf__flow_mnorm(c, D, mass);
+    out->rms = mcf__flow_mnorm(c, D, mass);
+    out->max = mcf__flow_maxnorm(c, D);
     return MCF_OK;
 }
 
