@@ -102,12 +102,12 @@ typedef struct fair_ctx {
     const unsigned char *given_crease, *given_chains;
     const double *given_X0;
     int exact;                 /* the default request: the positions are
-                                  exact (mcf_fairing.c, FLAT_SHARE): no
+                                  exact (mcf_fairing_input.c, FLAT_SHARE): no
                                   noise to read */
     double grid[3];            /* the default request: the steps of the
                                   grid the positions are quantized to
                                   (mcf__lattice), when it explains the
-                                  noise read (mcf_fairing.c, read_grid);
+                                  noise read (mcf_fairing_input.c);
                                   0: none */
     int quiet;                 /* the hook sees no steps (cancel only) */
     double w0, w1;             /* its share of the run's work (mcf_fairing.c, work()) */
@@ -211,6 +211,18 @@ int mcf__fair_lz_fits(const fair_ctx *c, const fair_ctx *from);
  * lambda|mu passes), settled to 1e-12 nfree (more Lanczos steps made when
  * needed): ENOMEM. */
 mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error *err);
+
+/* mcf_fairing_input.c: the default request's reading of its input X
+ * before the filter: the grid's steps into grid when its rounding
+ * explains the noise read (else zeros), whether the positions are exact
+ * into *exact, and, on neither, X's spikes repaired in a copy *Xs (the
+ * caller's to free; NULL when none), their count into
+ * st->spikes_repaired. ENOMEM only. */
+mcf_status mcf__fair_read_input(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                                const unsigned char *fixed, double hbar, double grid[3], int *exact,
+                                mcf_flow_stats *st, double **Xs, mcf_error *err);
+/* the noise of rounding to a grid of steps q, along any direction */
+double mcf__fair_grid_level(const double q[3]);
 
 /* mcf_fairing_sure.c */
 /* A step's probe estimates of sum_i w_i (T^K)_ii when the explicit
