@@ -160,6 +160,15 @@ static int reference(const int32_t *F, int nf, int nv, const double *Xin, const 
     return first;
 }
 
+/* the normal field +z at the nv vertices (the grid's clean normals) */
+static void field_up(double *field, int nv)
+{
+    for (int i = 0; i < nv; i++) {
+        field[3 * i] = field[3 * i + 1] = 0.0;
+        field[3 * i + 2] = 1.0;
+    }
+}
+
 /* A 5 x 5 grid whose vertex 12 (2, 2) the input put on vertex 13 (3, 2):
  * faces 12-13-18 and 7-13-12 have no area (the other four around 12 keep
  * facing +z). Lifting 12 and lowering 13
@@ -180,10 +189,7 @@ static void test_flips_collapsed_edge(void **state)
     for (int f = 0; f < nf; f++)
         weak += degenerate(Xin, F + 3 * f);
     assert_int_equal(weak, 2); /* the two faces on edge 12-13 */
-    for (int i = 0; i < nv; i++) {
-        field[3 * i] = field[3 * i + 1] = 0.0;
-        field[3 * i + 2] = 1.0;
-    }
+    field_up(field, nv);
     memcpy(X, Xin, sizeof X);
     X[3 * 12 + 2] = 0.25;
     X[3 * 13 + 2] = -0.25;
@@ -223,10 +229,7 @@ static void test_flips_grid_angle(void **state)
     grid(n, Xc, F);
     memcpy(Xin, Xc, sizeof Xc);
     memcpy(Xin + 3 * 12, Xc + 3 * 13, 3 * sizeof(double));
-    for (int i = 0; i < nv; i++) {
-        field[3 * i] = field[3 * i + 1] = 0.0;
-        field[3 * i + 2] = 1.0;
-    }
+    field_up(field, nv);
     memcpy(X, Xin, sizeof X);
     X[3 * 12] = 2.75;
     X[3 * 12 + 2] = 0.25;
@@ -261,10 +264,7 @@ static void test_flips_grid_sliver(void **state)
     grid(n, Xin, F);
     Xin[3 * 12] = 2.875;
     Xin[3 * 12 + 2] = 0.25;
-    for (int i = 0; i < nv; i++) {
-        field[3 * i] = field[3 * i + 1] = 0.0;
-        field[3 * i + 2] = 1.0;
-    }
+    field_up(field, nv);
     memcpy(X, Xin, sizeof X);
     X[3 * 12] = 3.125;
     memcpy(X0, X, sizeof X);
