@@ -47,6 +47,17 @@ namespace api_draco {
  * 24 bits 58 MB, 26 bits 200 MB; 30 bits about 3 GB). */
 #define API_DRACO_MAX_BITS 24
 
+/* Draco quantizes in float32 on a range r (the largest extent over the
+ * components): a step r / 2^bits below FLT_MIN underflows, and the
+ * inverse scale overflows, so the dequantized values are garbage
+ * (fuzz_gltf, 2026-11-29: a Draco glTF whose 3 points span 7e-40 in z
+ * came back as one point at -7.7e-34, every triangle collapsed). Such an
+ * attribute is stored raw (float32, exact) instead. */
+static bool step_underflows(double range, int bits)
+{
+    return range > 0.0 && range / std::ldexp(1.0, bits) < FLT_MIN;
+}
+
 /* The encoder's choice for one attribute: bits 0 = raw float32, else
  * quantized with that many bits (on the input's grid when grid). */
 struct attr_plan {
@@ -331,17 +342,31 @@ static mcf_status plan_positions(const double *X, int nv, const api_attrs *at, i
                                  position_plan *pl, mcf_error *err)
 {
     bool exact_float = true, in_range = true;
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
     for (int i = 0; i < 3 * nv; i++) {
         const double x = X[i];
+        lo[i % 3] = std::min(lo[i % 3], x);
+        hi[i % 3] = std::max(hi[i % 3], x);
         if (std::fabs(x) > FLT_MAX)
             in_range = exact_float = false;
         else if (static_cast<double>(static_cast<float>(x)) != x)
             exact_float = false;
     }
+    /* the range Draco quantizes on (step_underflows) */
+    const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 0.0});
     pl->q = qopt;
     if (pl->q == -1 && !in_range)
         pl->q = 0;
     pl->pp = plan_for(at, API_ATTR_POSITION, pl->q);
+    const bool too_fine = pl->pp.bits > 0 && step_underflows(extent, pl->pp.bits);
+    if (too_fine && qopt == -1) {
+        pl->q = 0; /* auto: lossless */
+        pl->pp = plan_for(at, API_ATTR_POSITION, 0);
+    } else if (too_fine)
+        return api__fail(err, MCF_EINVAL,
+                         "draco: the positions' extent %g is too small to quantize at "
+                         "%d bits (float32 steps underflow; quantization_bits 0 is lossless)",
+                         extent, pl->pp.bits);
     if (!in_range && pl->pp.bits > 0)
         return api__fail(err, MCF_EINVAL,
                          "draco: a coordinate exceeds the float range (quantized "
@@ -490,6 +515,19 @@ mcf_status prim_encode(const api__draco_prim *p, int level, api_buf *out,
                 std::memcpy(&v, a.data + static_cast<size_t>(q) * a.vsize + 4 * c, 4);
                 on_grid = on_grid && v >= a.qorigin[c] && v <= a.qorigin[c] + a.qrange;
             }
+        float vlo[4] = {FLT_MAX, FLT_MAX, FLT_MAX, FLT_MAX}, vhi[4] = {-FLT_MAX, -FLT_MAX, -FLT_MAX, -FLT_MAX};
+        for (int q = 0; q < p->npoints; q++)
+            for (int c = 0; c < a.ncomp && c < 4; c++) {
+                float v;
+                std::memcpy(&v, a.data + static_cast<size_t>(q) * a.vsize + 4 * c, 4);
+                vlo[c] = std::min(vlo[c], v);
+                vhi[c] = std::max(vhi[c], v);
+            }
+        double extent = 0.0;
+        for (int c = 0; c < a.ncomp && c < 4; c++)
+            extent = std::max(extent, static_cast<double>(vhi[c]) - vlo[c]);
+        if (step_underflows(on_grid ? a.qrange : extent, bits))
+            continue; /* raw float32 */
         if (on_grid)
             enc.SetAttributeExplicitQuantization(i, bits, a.ncomp, a.qorigin, a.qrange);
         else
