@@ -211,6 +211,25 @@ static void test_flips_collapsed_edge(void **state)
     assert_true(X[3 * 12] == 3.0);
 }
 
+/* The grid rules' cases: X is left as it is without a grid, then on a
+ * grid `repaired` faces are taken back in `moves` moves (X repaired in
+ * place). */
+static void repaired_on_grid_only(double *X, const double *Xin, const double *field, const int32_t *F, int nf,
+                                  int nv, int want_repaired, int want_moves)
+{
+    int repaired, moves;
+    double *X0 = malloc(3 * sizeof(double) * (size_t)nv);
+    assert_non_null(X0);
+    memcpy(X0, X, 3 * sizeof(double) * (size_t)nv);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(repaired, 0);
+    assert_memory_equal(X, X0, 3 * sizeof(double) * (size_t)nv);
+    free(X0);
+    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 1, &repaired, &moves, NULL), MCF_OK);
+    assert_int_equal(repaired, want_repaired);
+    assert_int_equal(moves, want_moves);
+}
+
 /* On a quantized input (grid): the collapsed edge of the test above, 12
  * lifted by 0.25 and moved a quarter of the way back to (2, 2): face
  * 12-13-18's normal (0.25, 0, 0.25) is 45 degrees off the field +z, face
@@ -224,7 +243,6 @@ static void test_flips_grid_angle(void **state)
     enum { n = 5, nv = n * n, nf = 2 * (n - 1) * (n - 1) };
     double Xc[3 * nv], Xin[3 * nv], X[3 * nv], field[3 * nv];
     int32_t F[3 * nf];
-    int repaired, moves;
     (void)state;
     grid(n, Xc, F);
     memcpy(Xin, Xc, sizeof Xc);
@@ -233,14 +251,7 @@ static void test_flips_grid_angle(void **state)
     memcpy(X, Xin, sizeof X);
     X[3 * 12] = 2.75;
     X[3 * 12 + 2] = 0.25;
-    double X0[3 * nv];
-    memcpy(X0, X, sizeof X);
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
-    assert_int_equal(repaired, 0);
-    assert_memory_equal(X, X0, sizeof X);
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 1, &repaired, &moves, NULL), MCF_OK);
-    assert_int_equal(repaired, 2);
-    assert_int_equal(moves, 7);
+    repaired_on_grid_only(X, Xin, field, F, nf, nv, 2, 7);
     assert_memory_equal(X, Xin, sizeof X);
 }
 
@@ -259,7 +270,6 @@ static void test_flips_grid_sliver(void **state)
     enum { n = 5, nv = n * n, nf = 2 * (n - 1) * (n - 1) };
     double Xin[3 * nv], X[3 * nv], X0[3 * nv], field[3 * nv];
     int32_t F[3 * nf];
-    int repaired, moves;
     (void)state;
     grid(n, Xin, F);
     Xin[3 * 12] = 2.875;
@@ -268,12 +278,7 @@ static void test_flips_grid_sliver(void **state)
     memcpy(X, Xin, sizeof X);
     X[3 * 12] = 3.125;
     memcpy(X0, X, sizeof X);
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 0, &repaired, &moves, NULL), MCF_OK);
-    assert_int_equal(repaired, 0);
-    assert_memory_equal(X, X0, sizeof X);
-    assert_int_equal(mcf__flips_repair(X, Xin, field, F, nf, nv, 1, &repaired, &moves, NULL), MCF_OK);
-    assert_int_equal(repaired, 2);
-    assert_int_equal(moves, 1);
+    repaired_on_grid_only(X, Xin, field, F, nf, nv, 2, 1);
     assert_true(X[3 * 12] == 3.0 && X[3 * 12 + 1] == 2.0 && X[3 * 12 + 2] == 0.25);
     X0[3 * 12] = 3.0;
     assert_memory_equal(X, X0, sizeof X);
