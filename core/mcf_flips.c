@@ -43,7 +43,7 @@
  * mesh go 54 -> 53 (the input's 53). A mesh without degenerate faces,
  * and not on a grid, comes back unchanged.
  *
- * On a grid an invented orientation must also face within WIDE of the
+ * On a grid an invented orientation must also face within FLIPS_WIDE_GRID of the
  * input's own broad normal there: the input's face normals (area-
  * weighted) summed over the vertices within RINGS rings of the face's
  * corners, each once (none to follow when that sum is 0). Where the grid
@@ -55,7 +55,7 @@
  * face (the field 75-80 degrees from it); the input's 3-ring normal is
  * 29 degrees from the clean face and 65-66 degrees from theirs.
  *
- * Pure C11; allocation in mcf__flips_repair only.
+ * Pure C11; allocation in mcf__flips_repair and rings_init only.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -124,7 +124,7 @@ static int no_area(const double *X, const int32_t *t, double *n)
  * does not face along the field (unit vertex normals) by TURN, or does
  * not face along the input's own faces around it (Nin: the input's
  * summed face normals per vertex; none: nothing to follow), or (wide,
- * on a grid: the input's normal over RINGS rings) not within WIDE_GRID
+ * on a grid: the input's normal over RINGS rings) not within FLIPS_WIDE_GRID
  * of wide (0: nothing to follow). */
 static int invented(const double *X, const double *field, const double *Nin, const double *wide, const int32_t *t,
                     double turn)
