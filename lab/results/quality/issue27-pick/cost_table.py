@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # cost_table.py FILE: per case and build, default / better alone (the mode of lower error, imp or
 # exp) per round (each the least CPU of REPS runs in one process), the median over the rounds
 # (range); the median over the cases of those medians, and per round

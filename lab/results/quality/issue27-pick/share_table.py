@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # share_table.py FILE: per case and build, the default's CPU over the default without its explicit
 # run (total / (total - ce)), median over the runs (range), and the median over the cases
 import sys, statistics as S
