@@ -146,29 +146,21 @@ static int invented(const double *X, const double *field, const double *Nin, con
     return ww > 0.0 && !(mcf__dot3(n, wide) >= FLIPS_WIDE_GRID * sqrt(nn * ww));
 }
 
-/* The faces around each vertex (CSR: off[nv + 1], fa[3 nf]) for
- * wide_normal's walk. */
+/* The faces around each vertex (mcf__vertex_faces' CSR: off[nv + 2],
+ * fa[3 nf]) for wide_normal's walk. */
 typedef struct {
     int *off, *fa, *stamp, *queue;
 } rings;
 
 static int rings_init(rings *r, const int32_t *F, int nf, int nv)
 {
-    r->off = mcf__calloc((size_t)nv + 1, sizeof(int));
+    r->off = mcf__calloc((size_t)nv + 2, sizeof(int));
     r->fa = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
     r->stamp = mcf__calloc((size_t)nv + 1, sizeof(int));
     r->queue = mcf__malloc((size_t)nv + 1, sizeof(int));
     if (!r->off || !r->fa || !r->stamp || !r->queue)
         return 0;
-    for (size_t k = 0; k < 3 * (size_t)nf; k++)
-        r->off[F[k] + 1]++;
-    for (int i = 0; i < nv; i++)
-        r->off[i + 1] += r->off[i];
-    int *at = r->queue; /* the fill position per vertex, before the walks use it */
-    memcpy(at, r->off, sizeof(int) * (size_t)nv);
-    for (int f = 0; f < nf; f++)
-        for (int k = 0; k < 3; k++)
-            r->fa[at[F[3 * f + k]]++] = f;
+    mcf__vertex_faces(F, nf, nv, r->off, r->fa);
     return 1;
 }
 
