@@ -35,6 +35,10 @@
  * the filter switch between nearby outputs; a small step reads only the
  * local slope and SURE comes out low: 0.011 for a true 0.026).
  *
+ * Its large buffers (the normals, the pairs, the copies: about 30 MB on a
+ * 60k-face mesh) come from mcf__malloc_big (mcf_bigmem.c), on huge pages
+ * where the system gives them; the results are the same bits either way.
+ *
  * Pure C11; no globals.
  */
 #include <math.h>
@@ -65,6 +69,8 @@ struct mcf__bnf {
     double *wx;             /* nwx: the range kernels of one block's pairs (BNF_BLOCK) */
     int nwx;
     double *d;              /* 3nv */
+    size_t slack;           /* the bytes its huge-page buffers take beyond
+                               their sizes (mcf__malloc_big) */
 };
 
 /* The faces of one block of the normal iteration: their pairs' range
@@ -125,13 +131,14 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
     b->fptr = mcf__malloc((size_t)nf + 1, sizeof(int));
     b->vdeg = mcf__calloc((size_t)nv + 1, sizeof(int));
     b->ideg = mcf__malloc((size_t)nv + 1, sizeof(double));
-    b->n = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
-    b->m = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
-    b->c = mcf__malloc(3 * (size_t)nf + 1, sizeof(double));
+    b->n = mcf__malloc_big(3 * (size_t)nf + 1, sizeof(double));
+    b->m = mcf__malloc_big(3 * (size_t)nf + 1, sizeof(double));
+    b->c = mcf__malloc_big(3 * (size_t)nf + 1, sizeof(double));
     b->a = mcf__malloc((size_t)nf + 1, sizeof(double));
-    b->d = mcf__malloc(3 * (size_t)nv + 1, sizeof(double));
+    b->d = mcf__malloc_big(3 * (size_t)nv + 1, sizeof(double));
     if (!vp || !vf || !mark || !b->fptr || !b->vdeg || !b->ideg || !b->n || !b->m || !b->c || !b->a || !b->d)
         goto oom;
+    b->slack = 3 * mcf__big_slack(3 * (size_t)nf + 1, sizeof(double)) + mcf__big_slack(3 * (size_t)nv + 1, sizeof(double));
     /* the faces at each vertex, then each face's neighbours, deduplicated */
     mcf__vertex_faces(F, nf, nv, vp, vf);
     for (int i = 0; i < nv; i++) {
@@ -165,8 +172,10 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
             return NULL;
         }
         b->fptr[nf] = (int)q;
-        if (!pass && (!(b->fadj = mcf__malloc(q + 1, sizeof(int))) || !(b->ws = mcf__malloc(q + 1, sizeof(double)))))
+        if (!pass && (!(b->fadj = mcf__malloc_big(q + 1, sizeof(int))) || !(b->ws = mcf__malloc_big(q + 1, sizeof(double)))))
             goto oom;
+        if (!pass)
+            b->slack += mcf__big_slack(q + 1, sizeof(int)) + mcf__big_slack(q + 1, sizeof(double));
     }
     int most = 0;
     for (int f0 = 0; f0 < nf; f0 += BNF_BLOCK) {
@@ -205,7 +214,7 @@ size_t mcf__bnf_bytes(const mcf__bnf *b)
 {
     size_t np = b ? (size_t)b->fptr[b->nf] : 0;
     return b ? np * (sizeof(int) + sizeof(double)) + (size_t)b->nf * (10 * sizeof(double) + sizeof(int)) +
-                   (size_t)b->nv * (4 * sizeof(double) + sizeof(int)) + (size_t)b->nwx * sizeof(double)
+                   (size_t)b->nv * (4 * sizeof(double) + sizeof(int)) + (size_t)b->nwx * sizeof(double) + b->slack
              : 0;
 }
 
@@ -617,11 +626,11 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     mcf_status rc = MCF_OK;
     memset(pick, 0, sizeof *pick);
     mcf__bnf *b = mcf__bnf_new(X, F, nf, nv, err);
-    double *m = mcf__malloc(n3 + 1, sizeof(double)), *Xp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double));
-    double *Yp = mcf__malloc((size_t)nin * n3 + 1, sizeof(double));
+    double *m = mcf__malloc_big(n3 + 1, sizeof(double)), *Xp = mcf__malloc_big((size_t)nin * n3 + 1, sizeof(double));
+    double *Yp = mcf__malloc_big((size_t)nin * n3 + 1, sizeof(double));
     /* Nk: each normal count's normals of each input, then (Nw) the widest
      * kernel's on X, kept for the result */
-    double *Nk = mcf__malloc((size_t)NNIT * (nin + 1) * nf3 + 1, sizeof(double)), *Nw = Nk + (size_t)NNIT * nin * nf3;
+    double *Nk = mcf__malloc_big((size_t)NNIT * (nin + 1) * nf3 + 1, sizeof(double)), *Nw = Nk + (size_t)NNIT * nin * nf3;
     double *rbest = mcf__malloc((size_t)nfree + 1, sizeof(double)), *rlin = mcf__malloc((size_t)nfree + 1, sizeof(double));
     double *wp = mcf__calloc((size_t)nv + 1, sizeof(double)), *ap = mcf__malloc((size_t)nv + 1, sizeof(double));
     cand_sums *cs = mcf__malloc(NCAND, sizeof *cs);
@@ -634,7 +643,9 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
         goto done;
     }
     pick->bytes = mcf__bnf_bytes(b) + sizeof(double) * ((size_t)nin * 2 * n3 + (size_t)(nin + 1) * NNIT * nf3 + n3 + 2 * (size_t)nv + 2 * (size_t)nfree) +
-                  NCAND * sizeof *cs;
+                  NCAND * sizeof *cs + mcf__big_slack(n3 + 1, sizeof(double)) +
+                  2 * mcf__big_slack((size_t)nin * n3 + 1, sizeof(double)) +
+                  mcf__big_slack((size_t)NNIT * (nin + 1) * nf3 + 1, sizeof(double));
     for (int k = 0; k < nfree; k++)
         sumw += fr->w[fr->vert[k]];
     if (!(s > 0.0) || nfree == 0 || fr->nprobe < NPROBE_F)
@@ -832,9 +843,9 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
     int *vert = mcf__malloc((size_t)fr->nfree + 1, sizeof(int));
     int32_t *Fp = mcf__malloc(3 * (size_t)nf + 1, sizeof(int32_t));
     unsigned char *fx = fixed ? mcf__malloc((size_t)nv + 1, 1) : NULL;
-    double *Xp = mcf__malloc(n3 + 1, sizeof(double)), *Yp = mcf__malloc(n3 + 1, sizeof(double));
+    double *Xp = mcf__malloc_big(n3 + 1, sizeof(double)), *Yp = mcf__malloc_big(n3 + 1, sizeof(double));
     double *w = mcf__malloc((size_t)nv + 1, sizeof(double));
-    double *Yl = fr->Ylin ? mcf__malloc(2 * n3 + 1, sizeof(double)) : NULL;
+    double *Yl = fr->Ylin ? mcf__malloc_big(2 * n3 + 1, sizeof(double)) : NULL;
     mcf_status rc;
     if (!neu || !fo || !vert || !Fp || (fixed && !fx) || !Xp || !Yp || !w || (fr->Ylin && !Yl) ||
         locality_order(F, nf, nv, neu, fo) != 0) {
@@ -869,7 +880,8 @@ mcf_status mcf__feature(const double *X, const int32_t *F, int nf, int nv, const
         for (int i = 0; i < nv; i++)
             memcpy(Yout + 3 * (size_t)i, Yp + 3 * (size_t)neu[i], 3 * sizeof(double));
         pick->bytes += sizeof(int) * (2 * (size_t)nv + (size_t)nf + (size_t)fr->nfree + 3 * (size_t)nf) + (size_t)nv +
-                       sizeof(double) * (3 * n3 + (size_t)nv);
+                       sizeof(double) * (3 * n3 + (size_t)nv) + 2 * mcf__big_slack(n3 + 1, sizeof(double)) +
+                       (Yl ? mcf__big_slack(2 * n3 + 1, sizeof(double)) : 0);
     }
 done:
     free(neu);

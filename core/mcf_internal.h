@@ -32,6 +32,13 @@ static inline int mcf__cancel_set(const mcf_cancel_flag *cancel)
 /* Overflow-checked allocation helpers: NULL on overflow or failure. */
 void *mcf__calloc(size_t n, size_t size);
 void *mcf__malloc(size_t n, size_t size);
+/* mcf__malloc for large scratch buffers (mcf_bigmem.c): from MCF_BIG_MIN
+ * bytes on (Linux), 2 MiB-aligned, the size rounded up to whole 2 MiB and
+ * advised for transparent huge pages; freed with free(). mcf__big_slack:
+ * the bytes it takes beyond n * size (0 where it is mcf__malloc). */
+#define MCF_BIG_MIN ((size_t)1 << 20)
+void *mcf__malloc_big(size_t n, size_t size);
+size_t mcf__big_slack(size_t n, size_t size);
 
 /* ---- geometry per triangle (mcf_laplacian.c) */
 

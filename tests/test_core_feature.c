@@ -11,7 +11,9 @@
  *    for locality);
  *  - its comparison with the linear fairing not won by keeping spikes;
  *  - the named scheme `fairing_feature` end to end on a noisy box, against
- *    the linear fairing.
+ *    the linear fairing;
+ *  - its large buffers (core/mcf_bigmem.c): the size taken, computed here
+ *    from the 2 MiB rounding, the alignment, every byte usable.
  */
 #include <math.h>
 #include <stdio.h>
@@ -365,6 +367,43 @@ static void test_feature_spikes_not_rewarded(void **state)
     mcf_mesh_free(c);
 }
 
+/* mcf__malloc_big: below MCF_BIG_MIN (or off Linux) mcf__malloc's, no
+ * slack; from it on (Linux) 2 MiB-aligned with the size rounded up to
+ * whole 2 MiB, the slack that rounding (computed here independently), and
+ * every byte of the rounded size writable (under ASan a short block
+ * would be reported); an overflowing count NULL. */
+static void test_big_buffers(void **state)
+{
+    (void)state;
+    const size_t huge = (size_t)2 << 20;
+    const size_t sizes[][2] = {{1, 8}, {1000, 8}, {(MCF_BIG_MIN / 8) - 1, 8}, {MCF_BIG_MIN / 8, 8},
+                               {(MCF_BIG_MIN / 8) + 1, 8}, {3 * 59424 + 1, 8}, {huge / 4, 4}, {(huge / 4) + 1, 4},
+                               {5 * huge + 3, 1}};
+    for (size_t t = 0; t < sizeof sizes / sizeof sizes[0]; t++) {
+        size_t n = sizes[t][0], sz = sizes[t][1], b = n * sz, slack = mcf__big_slack(n, sz);
+        size_t want = b < MCF_BIG_MIN ? 0 : (b + huge - 1) / huge * huge - b;
+#if defined(__linux__)
+        assert_true(slack == want);
+#else
+        assert_true(slack == 0);
+#endif
+        unsigned char *p = mcf__malloc_big(n, sz);
+        assert_non_null(p);
+#if defined(__linux__)
+        if (b >= MCF_BIG_MIN)
+            assert_true((uintptr_t)p % huge == 0);
+#endif
+        memset(p, 0xa5, b + slack);
+        assert_true(p[0] == 0xa5 && p[b + slack - 1] == 0xa5);
+        free(p);
+    }
+    assert_true(mcf__malloc_big(SIZE_MAX / 4, 8) == NULL);
+    assert_true(mcf__big_slack(SIZE_MAX / 4, 8) == 0);
+    assert_true(mcf__big_slack(0, 8) == 0);
+    print_message("2 MiB rounding: 59,424 faces' normals (%zu bytes) take %zu more\n", (3 * (size_t)59424 + 1) * 8,
+                  mcf__big_slack(3 * (size_t)59424 + 1, 8));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -372,6 +411,7 @@ int main(void)
         cmocka_unit_test(test_divergence_linear_filter),
         cmocka_unit_test(test_feature_ignores_numbering),
         cmocka_unit_test(test_feature_spikes_not_rewarded),
+        cmocka_unit_test(test_big_buffers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
