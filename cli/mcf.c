@@ -694,44 +694,20 @@ static int command_help(const char *cmd)
     return 0;
 }
 
-#ifdef __GLIBC__
-/* Transparent huge pages for the heap: GLIBC_TUNABLES gains
- * glibc.malloc.hugetlb=1 (unless it names that tunable already), so glibc
- * asks madvise(MADV_HUGEPAGE) for every piece of heap it takes, and a big
- * scan's arrays fault in 2 MiB at a time instead of 4 KiB: the 1.74M scan's
- * default request faulted 300,211 pages, 1,874 with it, for 2 MB more peak
- * RSS (1,206,224 -> 1,208,152 kB), and its gathers miss the TLB less
- * (lab/bench/README.md, 2026-11-29). glibc reads its tunables when the
- * process starts: returns 1 when it set them and the process must be
- * executed again for them to apply. */
-static int heap_huge_pages(void)
-{
-    const char *t = getenv("GLIBC_TUNABLES");
-    char buf[1024];
-    if (t && strstr(t, "glibc.malloc.hugetlb"))
-        return 0;
-    if (snprintf(buf, sizeof buf, "%s%sglibc.malloc.hugetlb=1", t ? t : "", t && *t ? ":" : "") >= (int)sizeof buf)
-        return 0;
-    return setenv("GLIBC_TUNABLES", buf, 1) == 0;
-}
-#endif
-
 int main(int argc, char **argv)
 {
     const char *cmd = argc > 1 ? argv[1] : NULL;
     static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert", NULL};
     int i, known = 0;
 
-#ifdef __GLIBC__
-    int huge = heap_huge_pages();
-#endif
+    int huge = prog_heap_huge_pages();
     prog_bound_blas_threads(argv);
-#ifdef __GLIBC__
     /* prog_bound_blas_threads executes the program again when it sets the
      * BLAS variables (the tunables with them); when it did not, this does
      * (no /proc: carry on with 4 KiB pages) */
     if (huge)
-        execv("/proc/self/exe", argv);
+        prog_reexec(argv);
+#ifdef __GLIBC__
     /* a run's big arrays from the heap, and what it frees kept for the
      * next: glibc maps every block over its mmap threshold (32 MiB at
      * most) anew, and the kernel clears each page of it again at its first
