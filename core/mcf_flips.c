@@ -43,7 +43,19 @@
  * mesh go 54 -> 53 (the input's 53). A mesh without degenerate faces,
  * and not on a grid, comes back unchanged.
  *
- * Pure C11; allocation in mcf__flips_repair only.
+ * On a grid an invented orientation must also face within FLIPS_WIDE_GRID of the
+ * input's own broad normal there: the input's face normals (area-
+ * weighted) summed over the vertices within RINGS rings of the face's
+ * corners, each once (none to follow when that sum is 0). Where the grid
+ * turns a plate into a staircase that the held creases keep, the
+ * filtered field follows the riser, not the plate: blade.obj at
+ * quantization 0.5 mean edges (make quality's quant, seed 1) kept two
+ * faces of a column the grid collapsed beside the fixed boundary, facing
+ * within 25 degrees of the field there and 95 degrees from the clean
+ * face (the field 75-80 degrees from it); the input's 3-ring normal is
+ * 29 degrees from the clean face and 65-66 degrees from theirs.
+ *
+ * Pure C11; allocation in mcf__flips_repair and rings_init only.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -75,7 +87,26 @@
 #ifndef FLIPS_TURN_GRID
 #define FLIPS_TURN_GRID 0.75
 #endif
-enum { HALVINGS = 6, MAX_ROUNDS = 64 };
+/* ... and on a grid, the least cosine between it and the input's normal
+ * summed over RINGS rings: 63 degrees (cosine 0.45). blade.obj's two
+ * faces lie at 0.398 and 0.419 in the output before the repair; at 0.4
+ * the repair catches the first and the halvings of its corner fix both,
+ * at 0.45 both. Measured on the repair's inputs (numpy, make quality's
+ * quant at 0.1/0.25/0.5 h on 8 meshes and 0.5 h on 5 more, 2026-11-29):
+ * at 0.45 blade.obj 0.5 h 4 -> 2 faces facing against the clean mesh;
+ * 0.5 and 0.55 cost blade 3-4 times as much error as 0.45; 2 rings pass
+ * them (the riser's own faces), 4 cost bunny_npm_closed 0.5 h as much as
+ * spot. A thin part's two sides fall within 3 rings (blade's rim: the sum
+ * cancels to 1-17% of its terms' lengths) and a curved one turns within
+ * them (spot's: 60-80 degrees off the clean faces): both pay there.
+ * bench_quality against main d37d689 (docs/fairing.md, "Quantized
+ * positions"): blade 0.5 h 4 -> 2 faces, error 0.7259 -> 0.7264 of the
+ * input's; spot 0.5 h 0.6209 -> 0.6213; snowden 0.5 h 0.8139 -> 0.8148
+ * (863 -> 847 faces); 19 of the 29 quant cases unchanged */
+#ifndef FLIPS_WIDE_GRID
+#define FLIPS_WIDE_GRID 0.45
+#endif
+enum { HALVINGS = 6, MAX_ROUNDS = 64, RINGS = 3 };
 
 /* 1 when triangle t of X has no orientation: its normal n below
  * DEGENERATE times its squared edges. */
@@ -92,8 +123,11 @@ static int no_area(const double *X, const int32_t *t, double *n)
 /* 1 when face t, degenerate in the input, has an orientation in X that
  * does not face along the field (unit vertex normals) by TURN, or does
  * not face along the input's own faces around it (Nin: the input's
- * summed face normals per vertex; none: nothing to follow). */
-static int invented(const double *X, const double *field, const double *Nin, const int32_t *t, double turn)
+ * summed face normals per vertex; none: nothing to follow), or (wide,
+ * on a grid: the input's normal over RINGS rings) not within FLIPS_WIDE_GRID
+ * of wide (0: nothing to follow). */
+static int invented(const double *X, const double *field, const double *Nin, const double *wide, const int32_t *t,
+                    double turn)
 {
     double n[3], f[3] = {0, 0, 0}, g[3] = {0, 0, 0};
     no_area(X, t, n);
@@ -106,7 +140,75 @@ static int invented(const double *X, const double *field, const double *Nin, con
             g[d] += Nin[3 * (size_t)t[k] + d];
         }
     double ff = mcf__dot3(f, f);
-    return !(mcf__dot3(n, f) >= turn * sqrt(nn * ff)) || !(mcf__dot3(n, g) > 0.0);
+    if (!(mcf__dot3(n, f) >= turn * sqrt(nn * ff)) || !(mcf__dot3(n, g) > 0.0))
+        return 1;
+    double ww = wide ? mcf__dot3(wide, wide) : 0.0;
+    return ww > 0.0 && !(mcf__dot3(n, wide) >= FLIPS_WIDE_GRID * sqrt(nn * ww));
+}
+
+/* The faces around each vertex (CSR: off[nv + 1], fa[3 nf]) for
+ * wide_normal's walk. */
+typedef struct {
+    int *off, *fa, *stamp, *queue;
+} rings;
+
+static int rings_init(rings *r, const int32_t *F, int nf, int nv)
+{
+    r->off = mcf__calloc((size_t)nv + 1, sizeof(int));
+    r->fa = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
+    r->stamp = mcf__calloc((size_t)nv + 1, sizeof(int));
+    r->queue = mcf__malloc((size_t)nv + 1, sizeof(int));
+    if (!r->off || !r->fa || !r->stamp || !r->queue)
+        return 0;
+    for (size_t k = 0; k < 3 * (size_t)nf; k++)
+        r->off[F[k] + 1]++;
+    for (int i = 0; i < nv; i++)
+        r->off[i + 1] += r->off[i];
+    int *at = r->queue; /* the fill position per vertex, before the walks use it */
+    memcpy(at, r->off, sizeof(int) * (size_t)nv);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            r->fa[at[F[3 * f + k]]++] = f;
+    return 1;
+}
+
+static void rings_free(rings *r)
+{
+    free(r->off);
+    free(r->fa);
+    free(r->stamp);
+    free(r->queue);
+}
+
+/* w = the sum of Nin over the vertices within RINGS rings of face t's
+ * corners (a vertex sharing a face with one within k - 1 rings is within
+ * k), each vertex once; mark is this walk's stamp (unique per call, > 0). */
+static void wide_normal(rings *r, const int32_t *F, const double *Nin, const int32_t *t, int mark, double *w)
+{
+    int head = 0, tail = 0;
+    w[0] = w[1] = w[2] = 0.0;
+    for (int k = 0; k < 3; k++)
+        if (r->stamp[t[k]] != mark) {
+            r->stamp[t[k]] = mark;
+            r->queue[tail++] = t[k];
+        }
+    for (int ring = 0; ring < RINGS; ring++) {
+        int end = tail;
+        for (; head < end; head++) {
+            int v = r->queue[head];
+            for (int q = r->off[v]; q < r->off[v + 1]; q++)
+                for (int k = 0; k < 3; k++) {
+                    int u = F[3 * (size_t)r->fa[q] + k];
+                    if (r->stamp[u] != mark) {
+                        r->stamp[u] = mark;
+                        r->queue[tail++] = u;
+                    }
+                }
+        }
+    }
+    for (int q = 0; q < tail; q++)
+        for (int d = 0; d < 3; d++)
+            w[d] += Nin[3 * (size_t)r->queue[q] + d];
 }
 
 /* 1 when face t faced along the field (unit vertex normals) in X_in and
@@ -154,6 +256,24 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
             list[nw++] = f;
     }
     nl = nw;
+    /* on a grid, each degenerate face's wide normal (wide_normal), made
+     * when the face is first judged with an orientation along the rest */
+    rings rg = {0};
+    double *wide = NULL;
+    unsigned char *has_wide = NULL;
+    if (grid && nw > 0) {
+        wide = mcf__malloc(3 * (size_t)nw, sizeof(double));
+        has_wide = mcf__calloc((size_t)nw, 1);
+        if (!wide || !has_wide || !rings_init(&rg, F, nf, nv)) {
+            rings_free(&rg);
+            free(wide);
+            free(has_wide);
+            free(Nin);
+            free(mark);
+            free(list);
+            return mcf__fail(err, MCF_ENOMEM, "flips: out of memory (%d faces)", nf);
+        }
+    }
     for (int f = 0; f < nf && grid; f++) {
         double n[3];
         if (!no_area(X_in, F + 3 * (size_t)f, n))
@@ -171,8 +291,14 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
         int bad = 0, moved = 0;
         for (int q = 0; q < nl; q++) {
             const int32_t *t = F + 3 * (size_t)list[q];
-            if (!at_input(X, X_in, t) &&
-                (q < nw ? invented(X, field, Nin, t, turn) : turned_over(X, X_in, field, t))) {
+            if (at_input(X, X_in, t))
+                continue;
+            if (q < nw && wide && !has_wide[q] && !invented(X, field, Nin, NULL, t, turn)) {
+                wide_normal(&rg, F, Nin, t, q + 1, wide + 3 * (size_t)q);
+                has_wide[q] = 1;
+            }
+            const double *w = q < nw && wide && has_wide[q] ? wide + 3 * (size_t)q : NULL;
+            if (q < nw ? invented(X, field, Nin, w, t, turn) : turned_over(X, X_in, field, t)) {
                 bad++;
                 for (int k = 0; k < 3; k++)
                     mark[t[k]] = 1;
@@ -200,6 +326,9 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
         if (moved == 0)
             break;
     }
+    rings_free(&rg);
+    free(wide);
+    free(has_wide);
     free(Nin);
     free(mark);
     free(list);

@@ -469,7 +469,8 @@ mcf_status mcf__unfold(double *X, const double *X_in, const double *fn_orig, con
  * (field: unit vertex normals, 3*nv) by 60 degrees, taken back: their
  * vertices that X moved halve their displacement from X_in (6 rounds),
  * then take X_in's positions. grid (a quantized input, mcf__lattice):
- * by 41 degrees, and also the faces X_in had with an orientation facing
+ * by 41 degrees and within 63 degrees of X_in's face normals summed over
+ * the vertices within 3 rings of the face, and also the faces X_in had with an orientation facing
  * along the field that X turns against it, taken back the same way. repaired: such faces
  * before the first round; moves: vertex moves. ENOMEM only. */
 mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field, const int32_t *F, int nf,

@@ -172,14 +172,16 @@ static void quantized_case(const char *name, double rho, double max_ratio, int m
  * degenerate in the input, came back facing against the clean mesh by
  * the hundred (0 -> 111) with the flips repair's 60 degrees; on a grid it
  * keeps an invented orientation within 41 (core/mcf_flips.c): 0 -> 2,
- * error 0.718 of the input's (0.714 before); the bounds 0.75 and 2 faces. */
+ * error 0.718 of the input's (0.714 before); within 63 of the input's
+ * normal over 3 rings as well: 0 -> 0, error 0.7179 (2026-11-29); the
+ * bounds 0.75 and no face more than the input (issue 31's bar). */
 static void test_quantized_end_to_end(void **state)
 {
     (void)state;
     tl_need_mesh("car.drc");
     tl_need_mesh("blade.obj");
     quantized_case("blade.obj", 0.25, 0.7, 0);
-    quantized_case("blade.obj", 0.5, 0.75, 2);
+    quantized_case("blade.obj", 0.5, 0.75, 0);
     quantized_case("car.drc", 0.25, 1.03, 1);
 }
 

@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: MIT
+# ab.py ab_run3.txt tmain tnew2: per case the two builds' CPU medians and the per-pair ratio.
 import re,sys,collections,statistics as st
 d=collections.OrderedDict()
 for l in open(sys.argv[1]):

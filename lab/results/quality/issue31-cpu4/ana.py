@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: MIT
+# ana.py: sure18.txt as tables, SURE / s^2 of every candidate and where the noise reading's least and most lie.
 import re,sys,math
 cases=[];cur=None
 for l in open('sure18.txt'):

@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: MIT
+# cmpg.py FILE BUILD...: per case each build's error / input, flips, CPU and the stage's pick.
 import sys,re,collections
 f=sys.argv[1]; builds=sys.argv[2:]
 rows=collections.OrderedDict()

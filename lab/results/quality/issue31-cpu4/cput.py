@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: MIT
+# cput.py FILE BASE MAIN NEW: the CPU table, medians and ranges of fresh-process runs.
 import re,sys,collections,statistics as st
 d=collections.OrderedDict()
 for l in open(sys.argv[1]):

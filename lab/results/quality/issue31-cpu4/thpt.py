@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: MIT
+# thpt.py thp.txt: CPU medians without and with glibc.malloc.hugetlb=1, base and main.
 import re,sys,collections,statistics as st
 d=collections.defaultdict(list)
 for l in open(sys.argv[1]):
