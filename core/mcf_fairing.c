@@ -222,12 +222,49 @@ static void span_tick(void *ctx, const char *phase, double f)
     work(s->c, phase, s->a + f * (s->b - s->a));
 }
 
+/* The set-up of run f (setup()'s arrays and figures) into c: the same
+ * input, fixed set and graph give the same set-up, found once
+ * (mcf__creases was 2% of the default request's CPU on armadillo.obj
+ * normal 0.25 h for each run that found it: perf, 2026-11-29). */
+static mcf_status setup_copy(fair_ctx *c, const fair_ctx *f, mcf_error *err)
+{
+    size_t nv = (size_t)c->nv, ne = (size_t)c->g.ptr[nv];
+    c->fx = mcf__malloc(nv, 1);
+    c->fid = mcf__malloc(nv, sizeof(int));
+    c->vert = mcf__malloc(nv, sizeof(int));
+    c->w = mcf__fair_alloc(c, nv);
+    c->n0 = mcf__fair_alloc(c, 3 * nv);
+    c->sq = mcf__fair_alloc(c, nv);
+    c->crease = mcf__malloc(nv, 1);
+    c->Xin = mcf__fair_alloc(c, 3 * nv);
+    c->chains = mcf__malloc(ne + 1, 1);
+    c->bytes += ne;
+    if (!c->fx || !c->fid || !c->vert || !c->w || !c->n0 || !c->sq || !c->crease || !c->Xin || !c->chains)
+        return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
+    memcpy(c->fx, f->fx, nv);
+    memcpy(c->fid, f->fid, nv * sizeof(int));
+    memcpy(c->vert, f->vert, (size_t)f->nfree * sizeof(int));
+    memcpy(c->w, f->w, nv * sizeof(double));
+    memcpy(c->n0, f->n0, 3 * nv * sizeof(double));
+    memcpy(c->sq, f->sq, (size_t)f->nfree * sizeof(double));
+    memcpy(c->crease, f->crease, nv);
+    memcpy(c->Xin, f->Xin, 3 * nv * sizeof(double));
+    memcpy(c->chains, f->chains, ne);
+    memcpy(c->X0, f->X0, 3 * nv * sizeof(double));
+    c->nfree = f->nfree;
+    c->sumw2 = f->sumw2;
+    c->st->crease_vertices = f->st->crease_vertices;
+    return MCF_OK;
+}
+
 /* The free set, degrees, weights, the input's normals and the probes, on
  * the graph c->g (mcf__fairing's). */
 static mcf_status setup(fair_ctx *c, const unsigned char *fixed, mcf_error *err)
 {
     int nv = c->nv;
     work(c, "graph", AT(c, AT_GRAPH));
+    if (c->setup_from)
+        return setup_copy(c, c->setup_from, err);
     c->fx = mcf__malloc((size_t)nv, 1);
     c->fid = mcf__malloc((size_t)nv, sizeof(int));
     c->vert = mcf__malloc((size_t)nv, sizeof(int));
@@ -367,8 +404,10 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
         c->s = c->like->s;
         c->s_t = c->like->s_t;
         c->s2_rel = c->like->s2_rel;
-        /* as below (the run with no creases held has none to bound) */
-        mcf__fair_clamp_moves(c, c->X0, CREASE_MAX_MOVE * c->s, c->crease);
+        /* as below (the run with no creases held has none to bound; a
+         * set-up taken from a run clamped its X0 at this level) */
+        if (!c->setup_from)
+            mcf__fair_clamp_moves(c, c->X0, CREASE_MAX_MOVE * c->s, c->crease);
         if (!(c->s > 0.0) || c->nfree == 0)
             c->cap = 0;
     } else if (c->sure) {
@@ -804,6 +843,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         ci.share.nprobe = ci.nprobe;
         ce.like = &ci.share;
         ce.lz_from = &ci;
+        ce.setup_from = &ci;
         rc = mcf__fair_filter_run(&ce, &g, Xf, F, nf, nv, fixed, p, hbar, &se, hook, hook_ctx, err);
         int won = rc == MCF_OK && mcf__fair_pick_explicit(&ci, &ce);
         take_stats(st, &se, won, 1);

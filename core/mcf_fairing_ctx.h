@@ -101,6 +101,12 @@ typedef struct fair_ctx {
      * taken instead of found; NULL otherwise */
     const unsigned char *given_crease, *given_chains;
     const double *given_X0;
+    /* the default request's explicit run after its implicit run (the
+     * same input, fixed set and graph, and like = &setup_from->share):
+     * that run's set-up (creases, free set, degrees, weights, normals,
+     * X0 already clamped at the same noise level) copied, not found
+     * again; NULL otherwise */
+    const struct fair_ctx *setup_from;
     int exact;                 /* the default request: the positions are
                                   exact (mcf_fairing_input.c, FLAT_SHARE): no
                                   noise to read */

@@ -219,9 +219,18 @@ static void test_adaptive_scan(void **state)
             p.tol = 1e-4;
             if (mcf_flow_run(m, &p, &st, &err) != MCF_OK)
                 fail_msg("%s adaptive to T %g: %s", mcf_scheme_get(s[k])->name, T, err.msg);
-            double e = rms(m, ref) / size;
-            print_message("%-10s T %-6g: %3d steps, %2d rejected, error %.2e (tol %g)\n",
-                          mcf_scheme_get(s[k])->name, T, st.steps, st.rejected, e, p.tol);
+            mcf_compare_result cr;
+            assert_int_equal(mcf_compare(m, ref, &cr, NULL), MCF_OK);
+            double e = cr.rms_m / size, mx = cr.max_err / size;
+            print_message("%-10s T %-6g: %3d steps, %2d rejected, error %.2e, max %.2e (tol %g)\n",
+                          mcf_scheme_get(s[k])->name, T, st.steps, st.rejected, e, mx, p.tol);
+            /* desbrun2's max within 20 tol (issue 30's bar) through the
+             * ears' and noise folds' pinching at T 1e-4: measured 10.3
+             * tol in 141 steps + 71 rejected (22.5 tol when the max's
+             * event rule waived a max that fell, but slowly; 39 with the
+             * RMS alone) */
+            if (s[k] == MCF_DESBRUN2 && !(mx < 20.0 * p.tol))
+                fail_msg("desbrun2 T %g: max error %.2e over 20 tol", T, mx);
             assert_true(st.steps + st.rejected <= 300);
             /* within 4x tol (measured 0.05-2.7x): desbrun2 controls its
              * error per unit step (about tol at T), the others per step

@@ -9,7 +9,10 @@
  * solve of (I + N^2) y = x by conjugate gradients to a relative residual of
  * 1e-15). The default request's explicit run continues its implicit run's
  * Lanczos runs (mcf_fairing.c, run_init): the same state is read for both,
- * the implicit K first, as the request does.
+ * the implicit K first, as the request does. That explicit run also takes
+ * the implicit run's set-up (creases, free set, weights, normals, its
+ * input clamped along the creases: mcf_fairing.c, setup_copy): its run
+ * is checked here to the bit against the same run finding its own.
  */
 #include <math.h>
 #include <stdio.h>
@@ -79,6 +82,33 @@ static void solve_imp(const fair_ctx *c, const double *x, double *y, double *r, 
 /* The free set: every vertex with an edge but the boundary's and every
  * hold-th one (as the fairing holds its creases), the degrees, the
  * barycentric weights over their mean and six Rademacher probes. */
+/* The vertices of m on an edge of one face (graph g), calloc'd. */
+static unsigned char *boundary(const mcf_mesh *m, const mcf__graph *g)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    unsigned char *bnd = calloc((size_t)nv, 1);
+    int *cnt = calloc((size_t)g->ptr[nv] + 1, sizeof(int));
+    assert_non_null(bnd);
+    assert_non_null(cnt);
+    for (int f = 0; f < nf; f++)
+        for (int e = 0; e < 3; e++) {
+            int a = F[3 * f + e], b = F[3 * f + (e + 1) % 3];
+            for (int t = g->ptr[a]; t < g->ptr[a + 1]; t++)
+                if (g->adj[t] == b)
+                    cnt[t]++;
+            for (int t = g->ptr[b]; t < g->ptr[b + 1]; t++)
+                if (g->adj[t] == a)
+                    cnt[t]++;
+        }
+    for (int i = 0; i < nv; i++)
+        for (int t = g->ptr[i]; t < g->ptr[i + 1]; t++)
+            if (cnt[t] == 1)
+                bnd[i] = 1;
+    free(cnt);
+    return bnd;
+}
+
 static void make_ctx(const mcf_mesh *m, int hold, fair_ctx *c)
 {
     mcf_error err = {0};
@@ -88,24 +118,7 @@ static void make_ctx(const mcf_mesh *m, int hold, fair_ctx *c)
     memset(c, 0, sizeof *c);
     c->nv = nv;
     assert_int_equal(mcf__graph_build(F, nf, nv, &c->g, &err), MCF_OK);
-    unsigned char *bnd = calloc((size_t)nv, 1);
-    int *cnt = calloc((size_t)c->g.ptr[nv] + 1, sizeof(int));
-    assert_non_null(bnd);
-    assert_non_null(cnt);
-    for (int f = 0; f < nf; f++) /* an edge of one face: the boundary */
-        for (int e = 0; e < 3; e++) {
-            int a = F[3 * f + e], b = F[3 * f + (e + 1) % 3];
-            for (int t = c->g.ptr[a]; t < c->g.ptr[a + 1]; t++)
-                if (c->g.adj[t] == b)
-                    cnt[t]++;
-            for (int t = c->g.ptr[b]; t < c->g.ptr[b + 1]; t++)
-                if (c->g.adj[t] == a)
-                    cnt[t]++;
-        }
-    for (int i = 0; i < nv; i++)
-        for (int t = c->g.ptr[i]; t < c->g.ptr[i + 1]; t++)
-            if (cnt[t] == 1)
-                bnd[i] = 1;
+    unsigned char *bnd = boundary(m, &c->g);
     c->fid = malloc(sizeof(int) * (size_t)nv);
     c->vert = malloc(sizeof(int) * (size_t)nv);
     c->sq = malloc(sizeof(double) * (size_t)nv);
@@ -139,7 +152,6 @@ static void make_ctx(const mcf_mesh *m, int hold, fair_ctx *c)
         for (int k = 0; k < c->nfree; k++)
             c->probe[(size_t)q * c->nfree + k] = (mcf__mix64((uint64_t)q * 977 + (uint64_t)k + 1) >> 63) ? 1.0 : -1.0;
     free(bnd);
-    free(cnt);
 }
 
 static void free_ctx(fair_ctx *c)
@@ -272,11 +284,92 @@ static void test_traces_car(void **state)
     check_mesh("car.drc", 1 << 30);
 }
 
+/* The default request's explicit run after its implicit run on car.drc
+ * with noise 0.25 mean edges along the normals (seed 1: creases found,
+ * and their smoothing along them clamped at one noise level), made twice
+ * from the same implicit run: taking its set-up (setup_from) and finding
+ * its own; both carry their probes as columns (no lz_from), so the runs
+ * must agree to the bit: the same free set, weights, normals, input,
+ * steps, SURE and result. */
+static void test_pick_setup_shared(void **state)
+{
+    (void)state;
+    mcf_mesh *m = tl_load("car.drc");
+    mcf_error err = {0};
+    mcf_flow_params p;
+    mcf_flow_params_init(&p);
+    p.scheme = MCF_FAIRING;
+    p.fairing_pick = 1;
+    p.fairing_robust = 1;
+    assert_int_equal(mcf_flow_add_noise(m, &p, 0.25, 1, &err), MCF_OK);
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    const double *X = mcf_mesh_positions(m);
+    double hbar = mcf__mean_edge(X, F, nf), cpu = 0.0;
+    mcf__graph g;
+    assert_int_equal(mcf__graph_build(F, nf, nv, &g, &err), MCF_OK);
+    unsigned char *fixed = boundary(m, &g); /* held, as the request holds it */
+    fair_ctx ci, ce[2];
+    mcf_flow_stats si, se[2];
+    memset(&ci, 0, sizeof ci);
+    memset(ce, 0, sizeof ce);
+    memset(&si, 0, sizeof si);
+    memset(se, 0, sizeof se);
+    ci.threads_cpu_s = &cpu;
+    if (mcf__fair_filter_run(&ci, &g, X, F, nf, nv, fixed, &p, hbar, &si, NULL, NULL, &err) != MCF_OK)
+        fail_msg("the implicit run: %s", err.msg);
+    assert_true(ci.cap > 0 && ci.kbest > 0);
+    int moved = 0; /* crease vertices the smoothing along them moved */
+    for (int i = 0; i < 3 * nv; i++)
+        moved += ci.crease[i / 3] && ci.X0[i] != X[i];
+    ci.share.probe = ci.probe;
+    ci.share.fid = ci.fid;
+    ci.share.nfree = ci.nfree;
+    ci.share.nprobe = ci.nprobe;
+    for (int r = 0; r < 2; r++) {
+        ce[r].is_explicit = ce[r].quiet = 1;
+        ce[r].threads_cpu_s = &cpu;
+        ce[r].like = &ci.share;
+        ce[r].setup_from = r == 0 ? &ci : NULL;
+        assert_int_equal(mcf__fair_filter_run(&ce[r], &g, X, F, nf, nv, fixed, &p, hbar, &se[r], NULL, NULL, &err),
+                         MCF_OK);
+    }
+    const fair_ctx *a = &ce[0], *b = &ce[1];
+    size_t n3 = 3 * sizeof(double) * (size_t)nv;
+    print_message("car.drc noise 0.25: %d crease vertices (%d coordinates moved along them), %d free; passes: "
+                  "K %d, taken set-up and own: SURE %.17g, %.17g\n",
+                  si.crease_vertices, moved, a->nfree, a->kbest, a->risk, b->risk);
+    assert_true(si.crease_vertices > 0 && moved > 0);
+    assert_int_equal(se[0].crease_vertices, se[1].crease_vertices);
+    assert_int_equal(a->nfree, b->nfree);
+    assert_memory_equal(a->fid, b->fid, sizeof(int) * (size_t)nv);
+    assert_memory_equal(a->crease, b->crease, (size_t)nv);
+    assert_memory_equal(a->w, b->w, sizeof(double) * (size_t)nv);
+    assert_memory_equal(a->n0, b->n0, n3);
+    assert_memory_equal(a->X0, b->X0, n3);
+    assert_memory_equal(a->Xin, b->Xin, n3);
+    assert_memory_equal(a->probe, b->probe, sizeof(double) * (size_t)a->nprobe * (size_t)a->nfree);
+    assert_true(a->kbest > 0);
+    assert_int_equal(a->kbest, b->kbest);
+    assert_memory_equal(&a->risk, &b->risk, sizeof a->risk);
+    assert_memory_equal(a->Ybest, b->Ybest, n3);
+    for (int r = 0; r < 2; r++) {
+        free(se[r].sure);
+        mcf__fair_free(&ce[r]);
+    }
+    free(si.sure);
+    mcf__fair_free(&ci);
+    mcf__graph_free(&g);
+    free(fixed);
+    mcf_mesh_free(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_traces_bunny),
         cmocka_unit_test(test_traces_car),
+        cmocka_unit_test(test_pick_setup_shared),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
