@@ -660,7 +660,10 @@ typedef struct {
      * hook set it (part "output"). Timed as write_s. */
     mcf_status (*store)(void *ctx, const api_buf *out, const char *name,
                         mcf_error *err);
-    /* Loaded before every step, as mcf_flow_params.cancel (may be NULL). */
+    /* As mcf_flow_params.cancel (may be NULL): loaded before every step
+     * and between the phases of the fairing filters' set-up, and by the
+     * job once its input is decoded (ECANCELED, part "mesh", stage
+     * API_JOB_RUN) and before the output is stored (part "output"). */
     const mcf_cancel_flag *cancel;
 } api_job_hooks;
 

@@ -58,6 +58,19 @@ static mcf_status failed(job *jb, api_job_stage stage, const char *part,
     return s;
 }
 
+/* The hooks' cancel flag set (a signal, the daemon's stop): the job stops
+ * between its stages too, not only in the flow's. */
+static int canceled(const job *jb)
+{
+    return jb->h && jb->h->cancel && atomic_load_explicit(jb->h->cancel, memory_order_acquire);
+}
+
+static mcf_status stop(job *jb, const char *part, const char *before)
+{
+    mcf_error_set(&jb->res->err, MCF_ECANCELED, "canceled before %s", before);
+    return failed(jb, API_JOB_RUN, part, MCF_ECANCELED);
+}
+
 static double elapsed(double t0)
 {
     return mcf_now() - t0;
@@ -244,6 +257,8 @@ static mcf_status output(job *jb, const api_params *p)
     res->not_kept_n = api_attrs_not_kept(jb->attrs, f, res->not_kept, sizeof res->not_kept);
     jb->run.not_kept = res->not_kept_n ? res->not_kept : NULL;
     if (h && h->store) {
+        if (canceled(jb))
+            return stop(jb, "output", "the output was stored");
         t0 = mcf_now();
         if ((rc = h->store(h->ctx, &res->output, res->output_name,
                            &res->err)) != MCF_OK)
@@ -313,7 +328,11 @@ static mcf_status run_steps(job *jb, api_params *p, const api_limits *lim,
     api_job_result *res = jb->res;
     mcf_status rc;
 
-    if ((rc = prepare(jb, p, lim)) != MCF_OK || (rc = measure(jb, 0)) != MCF_OK)
+    if ((rc = prepare(jb, p, lim)) != MCF_OK)
+        return rc;
+    if (canceled(jb))
+        return stop(jb, "mesh", "the flow");
+    if ((rc = measure(jb, 0)) != MCF_OK)
         return rc;
     /* fields: the mesh as the flow receives it */
     if (jb->rq->fields && !(jb->before = mcf_mesh_dup(jb->m, &res->err)))

@@ -15,6 +15,10 @@
 
 #define EXIT_USAGE 2
 #define EXIT_STRICT 3 /* --strict and the result has warnings */
+/* `mcf smooth` stopped by a signal before OUT was in place: 128 + the
+ * signal, the shells' status of a process the signal killed (130 SIGINT,
+ * 143 SIGTERM) */
+#define EXIT_SIGNAL 128
 
 /* What `mcf smooth`/`convert` were given besides job parameters. */
 typedef struct {
@@ -35,10 +39,12 @@ int fail(int code, const char *fmt, ...)
 double now(void);
 
 /* cli_files.c: path "-" is stdin or stdout; attrs, fmt, bytes and the
- * timings may be NULL. */
-int read_all(const char *path, size_t max, char **buf, size_t *len);
+ * timings may be NULL; cancel may be NULL (read_all: EXIT_SIGNAL and no
+ * line once it is set; write_file: ECANCELED, OUT untouched). */
+int read_all(const char *path, size_t max, const mcf_cancel_flag *cancel, char **buf,
+             size_t *len);
 int write_file(const char *path, const void *buf, size_t len,
-               mcf_error *err);
+               const mcf_cancel_flag *cancel, mcf_error *err);
 int write_all(const char *path, const void *buf, size_t len);
 mcf_status decode_bounded(const char *buf, size_t len,
                           const api_limits *lim, mcf_mesh **m,

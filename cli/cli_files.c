@@ -19,8 +19,11 @@
 /* ------------------------------------------------------------------ files */
 
 /* Reads path ("-": stdin) into a malloc'ed buffer of at most max bytes.
- * Returns 0, or an exit status after printing the error line. */
-int read_all(const char *path, size_t max, char **buf, size_t *len)
+ * Returns 0, or an exit status after printing the error line; cancel (may
+ * be NULL) set meanwhile (a signal, which also ends a read waiting on a
+ * pipe): EXIT_SIGNAL, no line printed (the caller's to say). */
+int read_all(const char *path, size_t max, const mcf_cancel_flag *cancel, char **buf,
+             size_t *len)
 {
     FILE *f = strcmp(path, "-") == 0 ? stdin : fopen(path, "rb");
     char *data = NULL;
@@ -43,11 +46,19 @@ int read_all(const char *path, size_t max, char **buf, size_t *len)
         }
         got = fread(data + n, 1, cap - n, f);
         n += got;
+        if (cancel && atomic_load(cancel)) {
+            rc = EXIT_SIGNAL;
+            goto done;
+        }
         if (n > max) {
             fail(1, "'%s': larger than max_input_bytes (%zu)", path, max);
             goto done;
         }
         if (got == 0) {
+            if (ferror(f) && errno == EINTR && cancel) {
+                clearerr(f); /* a signal other than the cancel's */
+                continue;
+            }
             if (ferror(f)) {
                 fail(1, "cannot read '%s': %s", path, strerror(errno));
                 goto done;
@@ -68,10 +79,11 @@ done:
 }
 
 /* Writes len bytes to path ("-": stdout) through a temporary file renamed
- * over path, so readers never see a partial file. 0, or -1 with the
- * error line's text in err. */
+ * over path, so readers never see a partial file; cancel (may be NULL)
+ * set by then: the temporary file removed, path untouched, ECANCELED.
+ * 0, or -1 with the error line's text in err. */
 int write_file(const char *path, const void *buf, size_t len,
-               mcf_error *err)
+               const mcf_cancel_flag *cancel, mcf_error *err)
 {
     char *tmp;
     FILE *f;
@@ -95,6 +107,12 @@ int write_file(const char *path, const void *buf, size_t len,
     if (f) {
         ok = fwrite(buf, 1, len, f) == len;
         ok = (fclose(f) == 0) && ok;
+        if (ok && cancel && atomic_load(cancel)) {
+            remove(tmp);
+            free(tmp);
+            mcf_error_set(err, MCF_ECANCELED, "canceled before '%s' was in place", path);
+            return -1;
+        }
         ok = ok && rename(tmp, path) == 0;
     }
     if (!ok) {
@@ -111,7 +129,7 @@ int write_file(const char *path, const void *buf, size_t len,
 int write_all(const char *path, const void *buf, size_t len)
 {
     mcf_error err;
-    return write_file(path, buf, len, &err) == 0 ? 0 : fail(1, "%s", err.msg);
+    return write_file(path, buf, len, NULL, &err) == 0 ? 0 : fail(1, "%s", err.msg);
 }
 
 /* Draco decodes under the daemon's bound (api_decode_bounds with the
@@ -192,7 +210,7 @@ int load_mesh_attrs(const char *path, const api_limits *lim,
     double t0 = now(), t1;
     int rc;
 
-    if ((rc = read_all(path, lim->max_input_bytes, &buf, &len)) != 0)
+    if ((rc = read_all(path, lim->max_input_bytes, NULL, &buf, &len)) != 0)
         return rc;
     t1 = now();
     st = decode_bounded(buf, len, lim, m, attrs, fmt, &err);

@@ -19,7 +19,8 @@
  *
  * Errors: exactly one line "mcf: <message>" on stderr; exit status 2 for
  * usage errors (unknown flag, missing argument, invalid parameter value),
- * 1 for everything else, 3 for `smooth --strict` with warnings. Output
+ * 1 for everything else, 3 for `smooth --strict` with warnings, 128 + the
+ * signal for `smooth` stopped by SIGINT/SIGTERM (EXIT_SIGNAL). Output
  * files are written to a temporary name and renamed, so a failed run never
  * leaves a half-written OUT behind. `mcf smooth` also says what happened
  * on stderr: the core's warnings about the result (always), a summary line
@@ -66,7 +67,8 @@ static const char usage_text[] =
     "the bytes on input and taken from OUT's extension (or --format) on output; IN or\n"
     "OUT may be '-' (stdin/stdout; OUT '-' needs --format).\n"
     "Exit status: 0 done; 1 failed (one line 'mcf: ...' on stderr); 2 usage error;\n"
-    "3 `mcf smooth --strict` and the result has warnings.\n";
+    "3 `mcf smooth --strict` and the result has warnings; 130 or 143 `mcf smooth`\n"
+    "stopped by SIGINT or SIGTERM (within a phase of its work; OUT not written).\n";
 
 /* The limits on the input (api_limits), options of smooth and convert:
  * none below memory by default (a 10M-vertex scan needs no option). */
@@ -114,7 +116,10 @@ static const char smooth_tail[] =
     LIMITS_HELP
     "\n"
     "On stderr, unless --quiet: a summary line (vertices, steps, time, strength, seconds).\n"
-    "Always: one line per warning about the result, 'mcf: warning: NAME: ...'.\n";
+    "Always: one line per warning about the result, 'mcf: warning: NAME: ...'.\n"
+    "SIGINT or SIGTERM stops the run at its next phase or step (seconds, also while it\n"
+    "reads the mesh and sets up): exit status 128 + the signal (130, 143), OUT not\n"
+    "written (an existing OUT left as it was).\n";
 
 static const char convert_head[] =
     "usage: mcf convert IN OUT [options]\n"
@@ -148,14 +153,27 @@ static const char params_usage[] =
     "parameters, JSON keys and gRPC Params fields) with its type, range, default, unit\n"
     "and meaning, from the one table that validates them.\n";
 
-/* Set by SIGINT/SIGTERM; the flow loads it before every step. A lock-free
- * C11 atomic (mcf_cancel_flag), which a signal handler may store to. */
+/* Set by SIGINT/SIGTERM from the start of `mcf smooth`: the job loads it
+ * before every step of the flow, between the phases of its set-up and its
+ * stages, and before OUT is renamed into place (api_job_hooks.cancel). A
+ * lock-free C11 atomic (mcf_cancel_flag), which a signal handler may
+ * store to; stop_signal says which signal (the exit status). */
 static mcf_cancel_flag cancel_flag;
+static volatile sig_atomic_t stop_signal;
 
 static void on_signal(int sig)
 {
-    (void)sig;
+    stop_signal = sig;
     cancel_flag = 1;
+}
+
+/* A run stopped by SIGINT/SIGTERM before OUT was in place: the one line
+ * and 128 + the signal (EXIT_SIGNAL). */
+static int stopped(const cli_opts *o, const char *when)
+{
+    int sig = stop_signal ? (int)stop_signal : SIGTERM;
+    return fail(EXIT_SIGNAL + sig, "smooth: stopped by %s %s: '%s' not written",
+                sig == SIGINT ? "SIGINT" : "SIGTERM", when, o->pos[1]);
 }
 
 /* The one error line, then the exit status (cli.h). */
@@ -349,7 +367,7 @@ static mcf_status hook_store(void *ctx, const api_buf *out, const char *name,
                              mcf_error *err)
 {
     (void)ctx;
-    return write_file(name, out->data ? out->data : "", out->len, err) == 0
+    return write_file(name, out->data ? out->data : "", out->len, &cancel_flag, err) == 0
                ? MCF_OK : err->status;
 }
 
@@ -384,7 +402,7 @@ static int fix_vertices(api_params *p, const char *path, const api_limits *lim)
     size_t n = 0, k;
     int rc;
 
-    if ((rc = read_all(path, lim->max_input_bytes, &txt, &n)) != 0)
+    if ((rc = read_all(path, lim->max_input_bytes, NULL, &txt, &n)) != 0)
         return rc;
     for (k = 0; k < n && strchr(" \t\r\n,", txt[k]); k++)
         ;
@@ -439,9 +457,20 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
 
     api_job_request_init(&rq);
     api_job_result_init(&res);
-    if ((rc = read_all(o->pos[0], lim->max_input_bytes, &in, &in_len)) != 0 ||
-        (o->target && (rc = read_all(o->target, lim->max_input_bytes, &tg, &tg_len)) != 0))
+    /* SIGINT/SIGTERM from here on: the job stops at its next phase or
+     * step, OUT not written (stopped) */
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    if ((rc = read_all(o->pos[0], lim->max_input_bytes, &cancel_flag, &in, &in_len)) != 0 ||
+        (o->target &&
+         (rc = read_all(o->target, lim->max_input_bytes, &cancel_flag, &tg, &tg_len)) != 0)) {
+        if (rc == EXIT_SIGNAL)
+            rc = stopped(o, "while its input was read");
         goto done;
+    }
     rq.read_s = now() - t0;
     rq.input = in;
     rq.input_len = in_len;
@@ -458,18 +487,13 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     rq.threads = o->threads;
 
     /* progress: a bar on a terminal, plain lines with --progress
-     * elsewhere; cancel on SIGINT/SIGTERM */
+     * elsewhere */
     memset(&sc, 0, sizeof sc);
     sc.o = o;
     sc.ps.bar = isatty(STDERR_FILENO);
     sc.show = !o->quiet && (sc.ps.bar || o->progress);
     sc.ps.start = now();
     sc.ps.next_tenth = 1;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
     memset(&h, 0, sizeof h);
     h.ctx = &sc;
     h.decode = hook_decode;
@@ -485,7 +509,13 @@ static int run_smooth(const cli_opts *o, api_params *p, const api_limits *lim)
     if (api_job_run(&rq, p, &h, &res) != MCF_OK) {
         if (sc.show)
             progress_clear(&sc.ps);
-        rc = job_failed(&res, o);
+        if (cancel_flag) { /* whatever the signal made fail */
+            char when[sizeof res.err.msg + 8];
+            snprintf(when, sizeof when, "(%s)", res.err.msg);
+            rc = stopped(o, when);
+        } else {
+            rc = job_failed(&res, o);
+        }
         goto done;
     }
     if (o->metrics) {
@@ -664,44 +694,20 @@ static int command_help(const char *cmd)
     return 0;
 }
 
-#ifdef __GLIBC__
-/* Transparent huge pages for the heap: GLIBC_TUNABLES gains
- * glibc.malloc.hugetlb=1 (unless it names that tunable already), so glibc
- * asks madvise(MADV_HUGEPAGE) for every piece of heap it takes, and a big
- * scan's arrays fault in 2 MiB at a time instead of 4 KiB: the 1.74M scan's
- * default request faulted 300,211 pages, 1,874 with it, for 2 MB more peak
- * RSS (1,206,224 -> 1,208,152 kB), and its gathers miss the TLB less
- * (lab/bench/README.md, 2026-11-29). glibc reads its tunables when the
- * process starts: returns 1 when it set them and the process must be
- * executed again for them to apply. */
-static int heap_huge_pages(void)
-{
-    const char *t = getenv("GLIBC_TUNABLES");
-    char buf[1024];
-    if (t && strstr(t, "glibc.malloc.hugetlb"))
-        return 0;
-    if (snprintf(buf, sizeof buf, "%s%sglibc.malloc.hugetlb=1", t ? t : "", t && *t ? ":" : "") >= (int)sizeof buf)
-        return 0;
-    return setenv("GLIBC_TUNABLES", buf, 1) == 0;
-}
-#endif
-
 int main(int argc, char **argv)
 {
     const char *cmd = argc > 1 ? argv[1] : NULL;
     static const char *const commands[] = {"smooth", "info", "schemes", "params", "convert", NULL};
     int i, known = 0;
 
-#ifdef __GLIBC__
-    int huge = heap_huge_pages();
-#endif
+    int huge = prog_heap_huge_pages();
     prog_bound_blas_threads(argv);
-#ifdef __GLIBC__
     /* prog_bound_blas_threads executes the program again when it sets the
      * BLAS variables (the tunables with them); when it did not, this does
      * (no /proc: carry on with 4 KiB pages) */
     if (huge)
-        execv("/proc/self/exe", argv);
+        prog_reexec(argv);
+#ifdef __GLIBC__
     /* a run's big arrays from the heap, and what it frees kept for the
      * next: glibc maps every block over its mmap threshold (32 MiB at
      * most) anew, and the kernel clears each page of it again at its first

@@ -200,6 +200,15 @@ static void work(fair_ctx *c, const char *phase, double f)
         c->p->work(c->p->progress_ctx, phase, done);
 }
 
+/* The run's cancel flag between the phases (mcf__cancel_set): the set-up
+ * of a big scan (the graph, the spike repair, the creases, the noise
+ * reading, the probes) reports no step for minutes; a run stopped in it
+ * stops at the next phase, named in the message. */
+static mcf_status phase_cancel(const mcf_flow_params *p, const char *next, mcf_error *err)
+{
+    return mcf__cancel_set(p->cancel) ? mcf__fail(err, MCF_ECANCELED, "canceled before %s", next) : MCF_OK;
+}
+
 /* A long phase's own milestones (mcf__tick) mapped into [a, b] of the
  * filter's window. */
 typedef struct {
@@ -654,12 +663,14 @@ static mcf_status filter_begin(fair_ctx *c, const mcf__graph *g, const double *X
     if (!c->X0)
         return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
     memcpy(c->X0, X, 3 * sizeof(double) * (size_t)nv);
-    if ((rc = setup(c, fixed, err)) != MCF_OK)
+    if ((rc = phase_cancel(p, "the creases", err)) != MCF_OK || (rc = setup(c, fixed, err)) != MCF_OK)
         return rc;
     work(c, "setup", AT(c, AT_SETUP));
-    if ((rc = plan_amount(c, err)) != MCF_OK)
+    if ((rc = phase_cancel(p, "the noise reading", err)) != MCF_OK || (rc = plan_amount(c, err)) != MCF_OK)
         return rc;
     work(c, "noise", AT(c, AT_NOISE));
+    if ((rc = phase_cancel(p, "the probes", err)) != MCF_OK)
+        return rc;
     return run_init(c, err);
 }
 
@@ -685,6 +696,8 @@ static mcf_status filter_steps(fair_ctx *c, mcf__step_hook hook, void *hook_ctx,
         if (!c->dk[j])
             return mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", c->nv);
     }
+    if ((rc = phase_cancel(c->p, c->is_explicit ? "the passes" : "the factorization", err)) != MCF_OK)
+        return rc;
     if (c->cap > 0 && c->sure && !c->is_explicit)
         rc = mcf__fair_lz_new(c, err);
     if (rc == MCF_OK && c->cap > 0)
@@ -755,6 +768,10 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     mcf_status rc = mcf__graph_build(F, nf, nv, &g, err);
     if (rc != MCF_OK)
         return rc;
+    if ((rc = phase_cancel(p, "the spike repair", err)) != MCF_OK) {
+        mcf__graph_free(&g);
+        return rc;
+    }
     memset(&ci, 0, sizeof ci);
     memset(&ce, 0, sizeof ce);
     memset(&cn, 0, sizeof cn);
@@ -772,8 +789,10 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
      * filter then takes the repaired mesh as its input */
     double *Xs = NULL;
     st->robust = p->fairing_robust && p->iterations <= 0;
-    if (st->robust && (rc = mcf__fair_read_input(&g, X, F, nf, nv, fixed, hbar, ci.grid, &ci.exact, st, &Xs,
-                                                 err)) != MCF_OK) {
+    if ((st->robust && (rc = mcf__fair_read_input(&g, X, F, nf, nv, fixed, hbar, ci.grid, &ci.exact, st, &Xs,
+                                                  err)) != MCF_OK) ||
+        (rc = phase_cancel(p, "the filter", err)) != MCF_OK) {
+        free(Xs);
         mcf__graph_free(&g);
         return rc;
     }
@@ -936,6 +955,8 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     st->steps = c->kbest;
     if (rc == MCF_OK && staged)
         rc = feature_stage(c, &ci, &ce, p, FEAT_VS_LINEAR, st, fixed, X, &feat, &peak, err);
+    if (rc == MCF_OK)
+        rc = phase_cancel(p, "the output", err);
     if (rc == MCF_OK && !feat) {
         st->tangential_steps = c->kbest_t;
         size_t before = c->bytes;

@@ -258,7 +258,7 @@ static int fairing_hook(void *ctx, int k, const double *X)
     flow_ctx *c = h->c;
     const mcf_flow_params *p = c->p;
     if (!X)
-        return p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire);
+        return mcf__cancel_set(p->cancel);
     int logged = p->log_steps && c->st->log && k <= c->st->t_target;
     if (logged) {
         /* one sweep: the largest move, the positions kept for the next
@@ -753,7 +753,7 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
     for (;;) {
         if (p->adaptive ? !(r->t < r->T * (1.0 - 1e-12)) : r->k >= r->nsteps)
             return MCF_OK;
-        if (p->cancel && atomic_load_explicit(p->cancel, memory_order_acquire))
+        if (mcf__cancel_set(p->cancel))
             return mcf__fail(err, MCF_ECANCELED, "canceled at step %d (t = %g)", r->k, r->t);
         if (p->adaptive) {
             if (++attempts > p->max_steps) {

@@ -19,6 +19,16 @@ struct mcf_mesh {
 /* return mcf__fail(err, MCF_EINVAL, "dt %g", dt): mcf_error_set. */
 #define mcf__fail mcf_error_set
 
+/* The run's cancel flag (mcf_flow_params.cancel, may be NULL) set: loaded
+ * before every step and, in the fairing filters, between the phases of
+ * the set-up too (mcf_fairing.c), so that a run stopped before its first
+ * step stops within a phase, not minutes later (the 7M scan's set-up: 70 s
+ * of wall at load 10 before its first pass). */
+static inline int mcf__cancel_set(const mcf_cancel_flag *cancel)
+{
+    return cancel && atomic_load_explicit(cancel, memory_order_acquire);
+}
+
 /* Overflow-checked allocation helpers: NULL on overflow or failure. */
 void *mcf__calloc(size_t n, size_t size);
 void *mcf__malloc(size_t n, size_t size);

@@ -303,7 +303,14 @@ int main(int argc, char **argv)
      * this daemon started, before anything else. */
     if (argc > 1 && strcmp(argv[1], SANDBOX_ARG) == 0)
         return sandbox_child(argc, argv);
-    prog_bound_blas_threads(argv);
+    {
+        /* the heap on huge pages (prog_heap.c): a big job's arrays, mapped
+         * anew in its worker's arena, fault 2 MiB at a time */
+        int huge = prog_heap_huge_pages();
+        prog_bound_blas_threads(argv);
+        if (huge)
+            prog_reexec(argv);
+    }
     rc = srv_config_load(&cfg, argc, argv, msg, sizeof msg);
     if (rc > 0)
         return 0;

@@ -7,12 +7,18 @@
  * Everything runs on sphere_cgal.obj (812 vertices) with a handful of
  * steps, so the whole binary takes well under a second.
  */
+#include <dirent.h>
+#include <fcntl.h>
 #include <math.h>
+#include <poll.h>
+#include <signal.h>
 #include <stdio.h>
 #include <sys/resource.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "testlib.h"
@@ -894,6 +900,212 @@ static void test_limits(void **state)
     tl_run_free(&r);
 }
 
+/* ---- a run stopped by a signal (issue 27) */
+
+/* A noisy n x n grid (a gentle wave, Gaussian noise of 0.25 of its
+ * spacing along z) as a binary PLY with float32 positions: a scan-sized
+ * mesh whose default request, the explicit passes above 150,000 vertices,
+ * sets up for seconds (the graph, the spike repair, the creases, the
+ * noise reading, the probes) before its first pass. */
+static void write_big_grid(const char *path, int n)
+{
+    FILE *f = fopen(path, "wb");
+    uint64_t rng = 27;
+    float *row = malloc(3 * sizeof(float) * (size_t)n);
+    unsigned char face[13];
+    assert_non_null(f);
+    assert_non_null(row);
+    fprintf(f, "ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\n"
+            "property float y\nproperty float z\nelement face %d\n"
+            "property list uchar int vertex_indices\nend_header\n", n * n, 2 * (n - 1) * (n - 1));
+    for (int i = 0; i < n; i++) {
+        for (int j = 0; j < n; j++) {
+            row[3 * j] = (float)i;
+            row[3 * j + 1] = (float)j;
+            row[3 * j + 2] = (float)(3.0 * sin(0.05 * i) * cos(0.04 * j) + 0.25 * tl_gauss01(&rng));
+        }
+        assert_int_equal(fwrite(row, sizeof(float), 3 * (size_t)n, f), 3 * (size_t)n);
+    }
+    face[0] = 3;
+    for (int i = 0; i + 1 < n; i++)
+        for (int j = 0; j + 1 < n; j++) {
+            int32_t a = i * n + j, t[2][3] = {{a, a + n, a + 1}, {a + 1, a + n, a + n + 1}};
+            for (int k = 0; k < 2; k++) {
+                memcpy(face + 1, t[k], sizeof t[k]); /* little-endian, as the header says */
+                assert_int_equal(fwrite(face, 1, sizeof face, f), sizeof face);
+            }
+        }
+    free(row);
+    assert_int_equal(fclose(f), 0);
+}
+
+static double mono_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* mcf with args (NULL-terminated) in the scratch directory, stdout to
+ * /dev/null, stderr to *err_fd and, when in_fd is not NULL, stdin from
+ * *in_fd (the write ends: the test's). */
+static pid_t spawn_mcf(const char *const *args, int *in_fd, int *err_fd)
+{
+    const char *argv[16];
+    int ep[2], ip[2] = {-1, -1}, n = 0;
+    pid_t pid;
+    argv[n++] = tl_prog();
+    for (; *args && n < 15; args++)
+        argv[n++] = *args;
+    argv[n] = NULL;
+    assert_int_equal(pipe(ep), 0);
+    if (in_fd)
+        assert_int_equal(pipe(ip), 0);
+    pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int dn = open("/dev/null", O_WRONLY);
+        if (dn < 0 || chdir(tl_scratch()) != 0)
+            _exit(127);
+        dup2(dn, 1);
+        dup2(ep[1], 2);
+        close(ep[0]);
+        if (in_fd) {
+            dup2(ip[0], 0);
+            close(ip[1]); /* else stdin never ends */
+        }
+        execv(argv[0], (char *const *)(void *)argv);
+        _exit(127);
+    }
+    close(ep[1]);
+    *err_fd = ep[0];
+    if (in_fd) {
+        close(ip[0]);
+        *in_fd = ip[1];
+    }
+    return pid;
+}
+
+/* Appends the child's stderr to buf (cap bytes, kept NUL-terminated)
+ * until want (NULL: EOF) is in it, EOF, or the monotonic deadline; 1 when
+ * what was waited for came. */
+static int read_until(int fd, char *buf, size_t cap, size_t *len, const char *want, double deadline)
+{
+    for (;;) {
+        struct pollfd pf = {fd, POLLIN, 0};
+        double left = deadline - mono_s();
+        ssize_t r;
+        if (want && strstr(buf, want))
+            return 1;
+        if (left <= 0 || poll(&pf, 1, (int)(left * 1000) + 1) <= 0)
+            return 0;
+        r = read(fd, buf + *len, cap - 1 - *len);
+        if (r <= 0)
+            return want == NULL;
+        *len += (size_t)r;
+        buf[*len] = '\0';
+    }
+}
+
+/* The exit status of pid (-1: killed by a signal), waiting at most until
+ * the deadline: past it, the child is killed and the test fails (a hang
+ * detector, not a timing claim). */
+static int wait_exit(pid_t pid, double deadline, const char *what)
+{
+    int st;
+    for (;;) {
+        pid_t w = waitpid(pid, &st, WNOHANG);
+        assert_true(w >= 0);
+        if (w == pid)
+            return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+        if (mono_s() > deadline) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &st, 0);
+            fail_msg("%s: mcf did not exit within its bound", what);
+        }
+        nanosleep(&(struct timespec){0, 20000000}, NULL);
+    }
+}
+
+/* No file of the scratch directory starts with prefix (OUT's temporary
+ * file, OUT itself). */
+static void assert_no_file(const char *prefix)
+{
+    DIR *d = opendir(tl_scratch());
+    struct dirent *e;
+    assert_non_null(d);
+    while ((e = readdir(d)))
+        if (strncmp(e->d_name, prefix, strlen(prefix)) == 0)
+            fail_msg("'%s' left in the scratch directory", e->d_name);
+    closedir(d);
+}
+
+/* SIGTERM during the set-up of a 640,000-vertex scan's default request
+ * (sent once its first milestone line, a set-up phase's, is out): mcf
+ * stops at the next phase, not at its first pass minutes later (the 7M
+ * scan's set-up: 70 s of wall at load 10), exits 143 with one line
+ * naming the signal and the phase, and leaves OUT as it was (here: an
+ * older file) with no temporary file beside it. SIGINT while the mesh is
+ * still arriving on stdin: 130, nothing written. The 60 s bounds detect a
+ * hang; they are not the promise (a phase: seconds). */
+static void test_signal_stops(void **state)
+{
+    static char err[65536];
+    const char *const setup_args[] = {"smooth", "big.ply", "out.ply", "--progress", NULL};
+    const char *const stdin_args[] = {"smooth", "-", "piped.ply", NULL};
+    char *bytes, *old;
+    size_t len, n = 0, oldlen;
+    int efd, ifd;
+    pid_t pid;
+    FILE *f;
+    (void)state;
+    signal(SIGPIPE, SIG_IGN);
+    write_big_grid(tl_in_scratch("big.ply"), 800);
+    f = fopen(tl_in_scratch("out.ply"), "w");
+    assert_non_null(f);
+    fputs("an older out.ply\n", f);
+    assert_int_equal(fclose(f), 0);
+
+    err[0] = '\0';
+    pid = spawn_mcf(setup_args, NULL, &efd);
+    if (!read_until(efd, err, sizeof err, &n, "\n", mono_s() + 60)) {
+        kill(pid, SIGKILL);
+        waitpid(pid, NULL, 0);
+        fail_msg("no progress line within 60 s: %s", err);
+    }
+    assert_non_null(strstr(err, "mcf: "));
+    assert_null(strstr(err, "passes")); /* still setting up */
+    assert_int_equal(kill(pid, SIGTERM), 0);
+    read_until(efd, err, sizeof err, &n, NULL, mono_s() + 60);
+    close(efd);
+    if (wait_exit(pid, mono_s() + 60, "SIGTERM in the set-up") != 143)
+        fail_msg("want exit status 143; stderr:\n%s", err);
+    if (!strstr(err, "mcf: smooth: stopped by SIGTERM (canceled before the ") ||
+        !strstr(err, "): 'out.ply' not written\n"))
+        fail_msg("want the line of a stop in the set-up; stderr:\n%s", err);
+    assert_int_equal(tl_read_file(tl_in_scratch("out.ply"), &old, &oldlen), 0);
+    assert_string_equal(old, "an older out.ply\n");
+    free(old);
+    assert_no_file("out.ply.");
+
+    assert_int_equal(tl_read_file(tl_in_scratch("big.ply"), &bytes, &len), 0);
+    n = 0;
+    err[0] = '\0';
+    pid = spawn_mcf(stdin_args, &ifd, &efd);
+    /* the writes block until mcf reads: it is in its read when they end */
+    assert_int_equal(write(ifd, bytes, len / 2), (ssize_t)(len / 2));
+    assert_int_equal(kill(pid, SIGINT), 0);
+    close(ifd);
+    free(bytes);
+    read_until(efd, err, sizeof err, &n, NULL, mono_s() + 60);
+    close(efd);
+    if (wait_exit(pid, mono_s() + 60, "SIGINT in the read") != 130)
+        fail_msg("want exit status 130; stderr:\n%s", err);
+    assert_string_equal(err, "mcf: smooth: stopped by SIGINT while its input was read: 'piped.ply' "
+                        "not written\n");
+    assert_no_file("piped.ply");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -914,6 +1126,7 @@ int main(void)
         cmocka_unit_test(test_progress_lines),
         cmocka_unit_test(test_contradictory_amounts),
         cmocka_unit_test(test_limits),
+        cmocka_unit_test(test_signal_stops),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

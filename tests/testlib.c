@@ -257,6 +257,11 @@ int tl_mcf_teardown(void)
     return system(cmd) == 0 ? 0 : -1;
 }
 
+const char *tl_prog(void)
+{
+    return mcf_path;
+}
+
 const char *tl_scratch(void)
 {
     return scratch;

@@ -125,6 +125,10 @@ int tl_mcf_teardown(void);
 const char *tl_scratch(void);
 const char *tl_sphere(void);
 
+/* The absolute path of the program tl_run runs (valid after
+ * tl_mcf_setup or tl_prog_setup): for a test that runs it its own way. */
+const char *tl_prog(void);
+
 /* scratch/name in one of four rotating static buffers: up to four results
  * may be in use at once. */
 const char *tl_in_scratch(const char *name);

@@ -171,7 +171,7 @@ static int job_error(run_ctx *c, const api_job_result *res, svc_error *e)
     int prefixed = strcmp(part, "params") != 0 && strcmp(part, "fields") != 0;
 
     if (res->err.status == MCF_ECANCELED && svc__canceled(c->job))
-        return svc__canceled_error(c->job, strcmp(part, "flow") == 0
+        return svc__canceled_error(c->job, strcmp(part, "mesh") != 0
                                                ? res->stats.steps : -1, e);
     if (c->has_prob) {
         *e = c->prob;
