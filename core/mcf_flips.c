@@ -229,16 +229,18 @@ static int at_input(const double *X, const double *X_in, const int32_t *t)
 mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field, const int32_t *F, int nf,
                              int nv, int grid, int *repaired, int *moves, mcf_error *err)
 {
+    mcf_status rc = MCF_OK;
     *repaired = *moves = 0;
     unsigned char *mark = mcf__calloc((size_t)nv + 1, 1);
     int *list = mcf__malloc((size_t)nf + 1, sizeof(int));
     double *Nin = mcf__calloc(3 * (size_t)nv + 1, sizeof(double));
-    if (!mark || !list || !Nin) {
-        free(Nin);
-        free(mark);
-        free(list);
-        return mcf__fail(err, MCF_ENOMEM, "flips: out of memory (%d faces)", nf);
-    }
+    /* on a grid, each degenerate face's wide normal (wide_normal), made
+     * when the face is first judged with an orientation along the rest */
+    rings rg = {0};
+    double *wide = NULL;
+    unsigned char *has_wide = NULL;
+    if (!mark || !list || !Nin)
+        goto nomem;
     /* the faces to judge: degenerate in the input (list[0, nw)), then,
      * on a grid, those with an orientation there (list[nw, nl)) */
     int nw = 0, nl;
@@ -248,23 +250,11 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
             list[nw++] = f;
     }
     nl = nw;
-    /* on a grid, each degenerate face's wide normal (wide_normal), made
-     * when the face is first judged with an orientation along the rest */
-    rings rg = {0};
-    double *wide = NULL;
-    unsigned char *has_wide = NULL;
     if (grid && nw > 0) {
         wide = mcf__malloc(3 * (size_t)nw, sizeof(double));
         has_wide = mcf__calloc((size_t)nw, 1);
-        if (!wide || !has_wide || !rings_init(&rg, F, nf, nv)) {
-            rings_free(&rg);
-            free(wide);
-            free(has_wide);
-            free(Nin);
-            free(mark);
-            free(list);
-            return mcf__fail(err, MCF_ENOMEM, "flips: out of memory (%d faces)", nf);
-        }
+        if (!wide || !has_wide || !rings_init(&rg, F, nf, nv))
+            goto nomem;
     }
     for (int f = 0; f < nf && grid; f++) {
         double n[3];
@@ -318,11 +308,15 @@ mcf_status mcf__flips_repair(double *X, const double *X_in, const double *field,
         if (moved == 0)
             break;
     }
+    goto done;
+nomem:
+    rc = mcf__fail(err, MCF_ENOMEM, "flips: out of memory (%d faces)", nf);
+done:
     rings_free(&rg);
     free(wide);
     free(has_wide);
     free(Nin);
     free(mark);
     free(list);
-    return MCF_OK;
+    return rc;
 }
