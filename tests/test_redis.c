@@ -551,6 +551,39 @@ static void test_pool_after_outage(void **state)
     redisd_cleanup(&d);
 }
 
+/* The server restarted while the connection sat idle: its socket is at
+ * end-of-file, and the next command connects again instead of failing on
+ * it. Before, that command failed (RDS_EDOWN): a pooled connection that
+ * had not been used during an outage refused the first submission after
+ * /readyz said 200 (test_replicas, CI of 2026-11-29 under ASan). */
+static void test_idle_across_restart(void **state)
+{
+    redisd d = {0};
+    rds_config cfg;
+    rds *c;
+    redisReply *r;
+    (void)state;
+
+    d.port = free_port();
+    if (redisd_start(&d) != 0)
+        fail_msg("redis-server did not start: %s", d.why);
+    cfg = redisd_config(&d);
+    c = rds_new(&cfg);
+    assert_non_null(c);
+    rds_reply_free(must(c, rds_cmdl(c, "SET", "idle", "1", NULL)));
+    redisd_stop(&d, SIGTERM);
+    if (redisd_start(&d) != 0)
+        fail_msg("redis-server did not come back: %s", d.why);
+    assert_true(rds_connected(c));          /* the old socket, at EOF */
+    r = rds_cmdl(c, "GET", "idle", NULL);
+    if (!r)
+        fail_msg("the first command after the restart failed: %s", rds_errmsg(c));
+    assert_string_equal(r->str, "1");       /* the AOF kept it */
+    rds_reply_free(r);
+    rds_free(c);
+    redisd_cleanup(&d);
+}
+
 static int resubscribe(rds *c, void *ctx)
 {
     redisReply *r = rds_cmdl(c, "SUBSCRIBE", (const char *)ctx, NULL);
@@ -634,6 +667,7 @@ int main(void)
         cmocka_unit_test(test_script),
         cmocka_unit_test(test_pool),
         cmocka_unit_test(test_pool_after_outage),
+        cmocka_unit_test(test_idle_across_restart),
         cmocka_unit_test(test_subscriber),
         cmocka_unit_test(test_restart_keeps_acknowledged),
     };

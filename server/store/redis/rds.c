@@ -27,6 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -481,6 +482,21 @@ static int handshake(rds *c)
     return 0;
 }
 
+/* 1 when the server has closed c's idle connection (a restart, its
+ * timeout): the socket reads end-of-file or an error, with nothing
+ * pending. A peek, non-blocking: data waiting (a subscriber's messages,
+ * a blocked command's reply) or nothing yet means the connection stands. */
+static int closed_by_server(const rds *c)
+{
+    char b;
+    ssize_t n;
+
+    if (c->pending > 0 || c->ctx->reader->len > c->ctx->reader->pos)
+        return 0;           /* replies owed, or read and not yet parsed */
+    n = recv(c->ctx->fd, &b, 1, MSG_PEEK | MSG_DONTWAIT);
+    return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
+}
+
 int rds_connect(rds *c)
 {
     struct timeval tv;
@@ -595,6 +611,19 @@ int rds_error_is(const rds *c, const char *code)
                ? strcmp(c->code, code) == 0 : 0;
 }
 
+/* rds_connect for a command: a connection the server closed while it
+ * sat idle (its restart) is dropped and connected again at once, so the
+ * command does not fail on a dead socket (a replica's /readyz said 200
+ * with Redis back and its next submission got 503 on another pooled
+ * connection: test_replicas). rds_wait does not: a subscriber learns of
+ * the drop (RDS_EDOWN) and of what it may have missed. */
+static int connect_for_command(rds *c)
+{
+    if (c->ctx && closed_by_server(c))
+        drop(c);
+    return rds_connect(c);
+}
+
 redisReply *rds_cmd_block(rds *c, double block, int argc,
                           const char **argv, const size_t *lens)
 {
@@ -602,7 +631,7 @@ redisReply *rds_cmd_block(rds *c, double block, int argc,
         fail(c, RDS_ECONFIG, "no command");
         return NULL;
     }
-    if (rds_connect(c) != 0)
+    if (connect_for_command(c) != 0)
         return NULL;
     return exchange(c, block, argc, argv, lens);
 }
@@ -636,7 +665,7 @@ redisReply *rds_cmdl(rds *c, const char *arg0, ...)
 int rds_pipe_add(rds *c, int argc, const char **argv,
                  const size_t *lens)
 {
-    if (rds_connect(c) != 0)
+    if (connect_for_command(c) != 0)
         return -1;
     if (redisAppendCommandArgv(c->ctx, argc, argv, lens) !=
         REDIS_OK) {

@@ -112,7 +112,10 @@ const char *rds_where(const rds *c);
 
 /* One command: argc arguments of lens bytes each (lens NULL: C strings).
  * Returns the reply, or NULL on failure (rds_status_of says which; an
- * error reply is RDS_EREPLY, its text in rds_errmsg). */
+ * error reply is RDS_EREPLY, its text in rds_errmsg). A connection the
+ * server closed while it sat idle (a restart) is connected again first,
+ * at once, as is the first command of a pipeline; rds_wait reports the
+ * drop instead (RDS_EDOWN). */
 redisReply *rds_cmd(rds *c, int argc, const char **argv,
                     const size_t *lens);
 /* The same for a command that makes the server wait up to block seconds
