@@ -58,6 +58,24 @@ static bool step_underflows(double range, int bits)
     return range > 0.0 && range / std::ldexp(1.0, bits) < FLT_MIN;
 }
 
+/* 1 when a grid of origin o (n components) and range r at bits has a step
+ * below float32's resolution at its own values (|o| and |o + r|): no
+ * float32 value lies between two of its points, so it is no grid of the
+ * values, and libdraco re-quantizing on it explicitly returned every
+ * point at one place (fuzz_gltf, 2026-11-29: origin (-1, -1, 3.5e-37),
+ * range 8e-15, 11 bits; its own grid at the same bits kept them). */
+static bool step_below_resolution(const float *o, int n, float r, int bits)
+{
+    const double step = static_cast<double>(r) / (std::ldexp(1.0, bits) - 1.0);
+    for (int c = 0; c < n; c++) {
+        const double m = std::max(std::fabs(static_cast<double>(o[c])),
+                                  std::fabs(static_cast<double>(o[c]) + r));
+        if (step < m * FLT_EPSILON)
+            return true;
+    }
+    return false;
+}
+
 /* The encoder's choice for one attribute: bits 0 = raw float32, else
  * quantized with that many bits (on the input's grid when grid). */
 struct attr_plan {
@@ -508,7 +526,8 @@ mcf_status prim_encode(const api__draco_prim *p, int level, api_buf *out,
          * nobody changed comes back exactly; see encode() on a hostile
          * stream's values far off its grid), else a new one. */
         bool on_grid = a.qrange > 0.0f && a.bits == bits && a.ncomp <= 4 &&
-                       a.type != draco::GeometryAttribute::NORMAL;
+                       a.type != draco::GeometryAttribute::NORMAL &&
+                       !step_below_resolution(a.qorigin, a.ncomp, a.qrange, bits);
         for (int q = 0; on_grid && q < p->npoints; q++)
             for (int c = 0; c < a.ncomp; c++) {
                 float v;
