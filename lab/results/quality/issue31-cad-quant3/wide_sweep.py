@@ -6,13 +6,10 @@ error over the input and faces against the clean mesh per variant. Inputs: per c
 repair's inputs dumped by flips_dump.diff (H5_DUMP=DIR/dump) and bench_quality's clean/noisy/default
 raw meshes copied by a --render-script (copy_render.py). Usage: wide_sweep.py CASEDIR...
 """
-import numpy as np, glob
-def read_raw(path):
-    with open(path, "rb") as f:
-        nv, nf = np.frombuffer(f.read(8), dtype=np.int32)
-        X = np.frombuffer(f.read(24 * int(nv)), dtype=np.float64).reshape(-1, 3)
-        F = np.frombuffer(f.read(12 * int(nf)), dtype=np.int32).reshape(-1, 3)
-    return X.copy(), F.copy()
+import numpy as np, glob, os, sys
+# bench_quality's raw meshes, read as lab/bench/render_quality.py reads them
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "bench"))
+from render_quality import read_raw  # noqa: E402
 def read_dump(path):
     b = open(path,'rb').read()
     nv, nf, grid = np.frombuffer(b[:12], dtype=np.int32)
