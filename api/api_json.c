@@ -203,10 +203,12 @@ cJSON *api_json_flow_stats(const mcf_flow_stats *st)
                                                  : cJSON_CreateNull());
     ok = ok && api__json_num(o, "noise_tangential", st->noise_tangential);
     /* what the amount assumed of the noise: null (nothing read), given,
-     * normal, isotropic (the tangent planes too) or one_direction (one
-     * viewpoint's: noise_direction the unit vector read); noise_share the
+     * normal, isotropic (the tangent planes too), one_direction (one
+     * viewpoint's: noise_direction the unit vector read) or correlated
+     * (over a few edges, on a plated part); noise_share the
      * default request's direction statistic (null unless it read it) */
-    static const char *const kinds[] = {NULL, "given", "normal", "isotropic", "one_direction"};
+    static const char *const kinds[] = {NULL, "given", "normal", "isotropic", "one_direction",
+                                               "correlated"};
     ok = ok && str(o, "noise_kind",
                    st->noise_kind > 0 && st->noise_kind < (int)(sizeof kinds / sizeof *kinds) ? kinds[st->noise_kind]
                                                                                             : NULL);

@@ -508,9 +508,12 @@ typedef enum {
     MCF_NOISE_NORMAL,        /* read: along the normals only */
     MCF_NOISE_ISOTROPIC,     /* read: along the normals and in the tangent
                                 planes (there at most as much) */
-    MCF_NOISE_ONE_DIRECTION  /* read: along one direction (one viewpoint's
+    MCF_NOISE_ONE_DIRECTION, /* read: along one direction (one viewpoint's
                                 depth noise), split into its parts along
                                 the normals and in the tangent planes */
+    MCF_NOISE_CORRELATED     /* read: along the normals, correlated over a
+                                few edges (no white high-pass), at a coarse
+                                scale on a plated part */
 } mcf_noise_kind;
 
 typedef struct {

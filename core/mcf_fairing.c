@@ -426,16 +426,26 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
          * (VIEW_SHARE, VIEW_RATIO, VIEW_DIR), is read along
          * that direction and split into its parts along the normals and
          * in the tangent planes (mcf__noise_shape) */
-        int grid = robust && c->grid[0] > 0.0;
+        int grid = robust && c->grid[0] > 0.0, correlated = 0;
         int view = robust && !grid && shape.direction_share >= VIEW_SHARE &&
                    (shape.sigma_rms >= VIEW_RATIO * s_est || shape.sigma_dir >= VIEW_DIR * s_est);
         if (grid)
             s = mcf__fair_grid_level(c->grid);
         else if (view)
             s = shape.sigma_view;
-        else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact))
+        else if (robust && (shape.corr > shape.corr_noise + WHITE_GAP || c->exact)) {
             s = 0.0; /* no noise: the high-pass is the surface's (WHITE_GAP),
                         or the positions are exact (FLAT_SHARE) */
+            /* ... or noise correlated over a few edges, which the
+             * second-order high-pass does not see, read at a coarse scale
+             * on a plated part (mcf__fair_coarse_level; 0 elsewhere), the
+             * white part the median reading found taken out */
+            double plated;
+            if (!c->exact && (rc = mcf__fair_coarse_level(&c->g, c->X0, c->F, c->nf, c->nv, c->fx, s_est, &plated,
+                                                          &s, err)) != MCF_OK)
+                return rc;
+            correlated = s > 0.0;
+        }
         if (!(p->noise_sigma > 0.0) && s < NOISE_FLOOR * hbar) {
             s = 0.0; /* rounding, not noise (NOISE_FLOOR) */
             view = 0;
@@ -448,18 +458,22 @@ static mcf_status plan_amount(fair_ctx *c, mcf_error *err)
          * the reading stays under the normal level (TANGENTIAL_GATE_LO:
          * the triangles' own irregularity, not noise); one viewpoint's
          * noise: its part in the tangent planes, which is most of it
-         * (two thirds of its variance for a direction at random) */
+         * (two thirds of its variance for a direction at random);
+         * correlated noise (a plated part's): along the normals only, its
+         * level read off the normal offsets */
         double gate = s_est > 0.0 ? (s_t / s_est - TANGENTIAL_GATE_LO) / (TANGENTIAL_GATE_HI - TANGENTIAL_GATE_LO)
                                   : 0.0;
-        s_t = grid   ? s
-              : view ? shape.sigma_view_t
-                     : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s) *
-                           fmax(0.0, fmin(1.0, gate));
+        s_t = grid         ? s
+              : view       ? shape.sigma_view_t
+              : correlated ? 0.0
+                           : fmin(sqrt(fmax(0.0, s_t * s_t - TANGENTIAL_FLOOR * TANGENTIAL_FLOOR * hbar * hbar)), s) *
+                                 fmax(0.0, fmin(1.0, gate));
         st->noise = hbar > 0.0 ? s / hbar : 0.0;
         st->noise_tangential = hbar > 0.0 ? s_t / hbar : 0.0;
         st->noise_share = shape.direction_share;
         st->noise_kind = p->noise_sigma > 0.0 ? MCF_NOISE_GIVEN
                          : view               ? MCF_NOISE_ONE_DIRECTION
+                         : correlated         ? MCF_NOISE_CORRELATED
                          : s_t > 0.0          ? MCF_NOISE_ISOTROPIC
                                               : MCF_NOISE_NORMAL;
         if (view)

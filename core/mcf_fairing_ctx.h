@@ -227,6 +227,22 @@ mcf_status mcf__fair_lz_trace(fair_ctx *c, int k, double est[NPROBE], mcf_error 
 mcf_status mcf__fair_read_input(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
                                 const unsigned char *fixed, double hbar, double grid[3], int *exact,
                                 mcf_flow_stats *st, double **Xs, mcf_error *err);
+/* The share of the free vertices (not fixed) in plates: regions grown
+ * over g from seeds in index order, of vertices whose unit normals N
+ * (3*nv) face within 8 degrees of the seed's, each region at least 2% of
+ * the free vertices; 0 when none is free. lab, stack: nv ints scratch.
+ * (mcf_fairing_input.c) */
+double mcf__fair_plated_share(const mcf__graph *g, const double *N, const unsigned char *fixed, int *lab,
+                              int *stack);
+/* The level of noise correlated over about 3 edges along the normals of
+ * X (its units) on a plated part (*plated, the share above on the normals
+ * of 9 graph averages of X, at least 1/2), the white part s_white the
+ * fine reading found taken out; 0 elsewhere. ENOMEM only.
+ * (mcf_fairing_input.c; docs/fairing.md, "Correlated noise on plated
+ * parts") */
+mcf_status mcf__fair_coarse_level(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                                  const unsigned char *fixed, double s_white, double *plated, double *level,
+                                  mcf_error *err);
 /* the noise of rounding to a grid of steps q, along any direction */
 double mcf__fair_grid_level(const double q[3]);
 

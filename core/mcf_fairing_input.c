@@ -5,7 +5,11 @@
  * exact (a CAD part's flat faces: FLAT_SHARE), whether they sit on a
  * grid whose rounding explains the noise (mcf__lattice:
  * LATTICE_EXPLAINS), and, on neither, its spikes repaired in a copy
- * (mcf_spikes.c). docs/fairing.md, "Outliers" and "Quantized positions".
+ * (mcf_spikes.c); and, asked when the fine reading finds its input's
+ * high-pass not white, whether it is a plated part and the level of the
+ * noise correlated along its plates (mcf__fair_coarse_level).
+ * docs/fairing.md, "Outliers", "Quantized positions" and "Correlated
+ * noise on plated parts".
  *
  * Pure C11; no globals.
  */
@@ -115,4 +119,166 @@ mcf_status mcf__fair_read_input(const mcf__graph *g, const double *X, const int3
     if (rc != MCF_OK)
         return rc;
     return repair_spikes(g, X, F, nf, nv, fixed, hbar, grid[0] > 0.0, st, Xs, exact, err);
+}
+
+/* Correlated noise on plated parts (docs/fairing.md). Noise smoothed
+ * over a few rings (a scanner's own filtering) has no second-order
+ * high-pass to speak of and fails WHITE_GAP (mcf_fairing.c): the fine
+ * reading finds none. A first-order reading at a coarse scale sees it
+ * where the surface is flat at that scale, a plated part's plates:
+ * d_i = n_i . (x_i - (Avg^COARSE_PASSES x)_i), n the normals of
+ * Avg^COARSE_PASSES x, its robust deviation (1.4826 MAD) over the free
+ * vertices of degree >= 3. On a curved (organic) part the shape's own
+ * curvature at that scale reads 4-9x the noise and hides it, so it is
+ * read only on a plated part: at least PLATED_SHARE of the free vertices
+ * lie in regions, grown over the graph from a seed (in index order), of
+ * vertices whose normals (of Avg^COARSE_PASSES x) face within
+ * PLATED_COS of the seed's, each region at least PLATED_REGION of the
+ * free vertices. The reading is calibrated on the mesh by its response
+ * to unit noise of both kinds along the same normals: white (k_w) and
+ * smoothed by COARSE_PASSES closed 1-ring averages, rescaled to unit RMS
+ * (k_c: a correlation length of about 3 edges); the white part the fine
+ * reading found (s_white) is taken out in quadrature:
+ *     level = sqrt(max(0, r^2 - (k_w s_white)^2)) / k_c.
+ * Measured (numpy, 2026-11-29, seed 1; lab/results/quality/issue31-corr):
+ * see docs/fairing.md for the shares and readings of every shared mesh. */
+#define COARSE_PASSES 9
+#define PLATED_COS 0.990268068741570 /* cos 8 degrees */
+#define PLATED_REGION 0.02
+#define PLATED_SHARE 0.5
+
+/* Avg^COARSE_PASSES of P (3*nv) into Z; tmp 3*nv scratch */
+static void coarse_average(const mcf__graph *g, const double *P, double *Z, double *tmp)
+{
+    memcpy(Z, P, 3 * sizeof(double) * (size_t)g->n);
+    for (int k = 0; k < COARSE_PASSES; k++) {
+        mcf__graph_average(g, Z, 3, tmp);
+        memcpy(Z, tmp, 3 * sizeof(double) * (size_t)g->n);
+    }
+}
+
+/* The robust deviation (1.4826 MAD) of N_i . (P_i - (Avg^COARSE_PASSES
+ * P)_i) over the free vertices of degree >= 3; Z, tmp 3*nv and d nv
+ * scratch */
+static double coarse_reading(const mcf__graph *g, const unsigned char *fixed, const double *N, const double *P,
+                             double *Z, double *tmp, double *d)
+{
+    size_t k = 0;
+    coarse_average(g, P, Z, tmp);
+    for (int i = 0; i < g->n; i++)
+        if (g->ptr[i + 1] - g->ptr[i] >= 3 && !(fixed && fixed[i])) {
+            double r[3];
+            mcf__sub3(P + 3 * (size_t)i, Z + 3 * (size_t)i, r);
+            d[k++] = mcf__dot3(N + 3 * (size_t)i, r);
+        }
+    double med = mcf__median(d, k);
+    for (size_t q = 0; q < k; q++)
+        d[q] = fabs(d[q] - med);
+    return 1.4826 * mcf__median(d, k);
+}
+
+/* z (nv) smoothed by COARSE_PASSES closed 1-ring averages, z_i <- (z_i +
+ * sum_j z_j) / (1 + d_i), then rescaled to unit RMS over the free
+ * vertices; tmp 2*nv scratch */
+static void correlate(const mcf__graph *g, const unsigned char *fixed, double *z, double *tmp)
+{
+    int nv = g->n, m = 0;
+    double ss = 0.0;
+    for (int p = 0; p < COARSE_PASSES; p++) {
+        mcf__graph_average(g, z, 1, tmp);
+        for (int i = 0; i < nv; i++) {
+            int di = g->ptr[i + 1] - g->ptr[i];
+            tmp[nv + i] = (z[i] + di * tmp[i]) / (1.0 + di);
+        }
+        memcpy(z, tmp + nv, sizeof(double) * (size_t)nv);
+    }
+    for (int i = 0; i < nv; i++)
+        if (!(fixed && fixed[i])) {
+            ss += z[i] * z[i];
+            m++;
+        }
+    double sc = ss > 0.0 ? sqrt(m / ss) : 0.0;
+    for (int i = 0; i < nv; i++)
+        z[i] *= sc;
+}
+
+double mcf__fair_plated_share(const mcf__graph *g, const double *N, const unsigned char *fixed, int *lab,
+                              int *stack)
+{
+    int nv = g->n, nfree = 0, inside = 0;
+    for (int i = 0; i < nv; i++) {
+        lab[i] = 0;
+        nfree += !(fixed && fixed[i]);
+    }
+    for (int s = 0; s < nv; s++) {
+        if (lab[s] || (fixed && fixed[s]))
+            continue;
+        const double *ns = N + 3 * (size_t)s;
+        int top = 0, size = 0;
+        lab[s] = 1;
+        stack[top++] = s;
+        while (top > 0) {
+            int v = stack[--top];
+            size++;
+            for (int t = g->ptr[v]; t < g->ptr[v + 1]; t++) {
+                int w = g->adj[t];
+                if (!lab[w] && !(fixed && fixed[w]) && mcf__dot3(N + 3 * (size_t)w, ns) >= PLATED_COS) {
+                    lab[w] = 1;
+                    stack[top++] = w;
+                }
+            }
+        }
+        if (size >= PLATED_REGION * nfree)
+            inside += size;
+    }
+    return nfree ? (double)inside / nfree : 0.0;
+}
+
+mcf_status mcf__fair_coarse_level(const mcf__graph *g, const double *X, const int32_t *F, int nf, int nv,
+                                  const unsigned char *fixed, double s_white, double *plated, double *level,
+                                  mcf_error *err)
+{
+    double *Z = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *N = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *tmp = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *P = mcf__malloc(3 * (size_t)nv, sizeof(double));
+    double *d = mcf__malloc((size_t)nv + 1, sizeof(double));
+    double *z = mcf__malloc((size_t)nv + 1, sizeof(double));
+    int *lab = mcf__malloc((size_t)nv + 1, sizeof(int));
+    int *stack = mcf__malloc((size_t)nv + 1, sizeof(int));
+    mcf_status rc = MCF_OK;
+    *plated = *level = 0.0;
+    if (!Z || !N || !tmp || !P || !d || !z || !lab || !stack) {
+        rc = mcf__fail(err, MCF_ENOMEM, "fairing: out of memory (%d vertices)", nv);
+        goto done;
+    }
+    coarse_average(g, X, Z, tmp);
+    mcf__vertex_normals(Z, F, nf, nv, N);
+    *plated = mcf__fair_plated_share(g, N, fixed, lab, stack);
+    if (!(*plated >= PLATED_SHARE))
+        goto done;
+    double r = coarse_reading(g, fixed, N, X, Z, tmp, d), k[2];
+    /* the calibrations: unit white noise along N, then the same draws
+     * smoothed by COARSE_PASSES closed 1-ring averages at unit RMS */
+    mcf__gauss_fill(0xc0a25eedULL, z, (size_t)nv);
+    for (int c = 0; c < 2; c++) {
+        if (c == 1)
+            correlate(g, fixed, z, tmp);
+        for (int i = 0; i < nv; i++)
+            for (int a = 0; a < 3; a++)
+                P[3 * (size_t)i + a] = fixed && fixed[i] ? 0.0 : z[i] * N[3 * (size_t)i + a];
+        k[c] = coarse_reading(g, fixed, N, P, Z, tmp, d);
+    }
+    double rest = r * r - k[0] * k[0] * s_white * s_white;
+    *level = rest > 0.0 && k[1] > 0.0 ? sqrt(rest) / k[1] : 0.0;
+done:
+    free(Z);
+    free(N);
+    free(tmp);
+    free(P);
+    free(d);
+    free(z);
+    free(lab);
+    free(stack);
+    return rc;
 }

@@ -165,8 +165,8 @@ static void test_flow_stats(void **state)
     cJSON_Delete(j);
     {
         /* the default request's reading of one viewpoint's noise */
-        static const char *const kind[] = {"given", "normal", "isotropic", "one_direction"};
-        for (int k = MCF_NOISE_GIVEN; k <= MCF_NOISE_ONE_DIRECTION; k++) {
+        static const char *const kind[] = {"given", "normal", "isotropic", "one_direction", "correlated"};
+        for (int k = MCF_NOISE_GIVEN; k <= MCF_NOISE_CORRELATED; k++) {
             st.robust = 1;
             st.noise_kind = k;
             st.noise_share = 0.875;

@@ -13,7 +13,10 @@
  *    its best pass count, chosen knowing the clean mesh).
  *  - one viewpoint's noise: mcf__noise_levels' reading against the
  *    injected noise and an independent eigensolver, and the default
- *    request against Taubin's oracles; clean meshes come back unchanged.
+ *    request against Taubin's oracles; clean meshes come back unchanged;
+ *  - noise correlated over a few edges on a plated part (issue 31's
+ *    `corr`): the plated share by hand and against numpy, the coarse
+ *    reading against the injected level, blade.obj end to end.
  * Runs in about 9 s (with $MCF_MESHES; snowden.obj 1.5 s of it).
  */
 #include <math.h>
@@ -21,7 +24,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mcf_internal.h" /* mcf__spikes, mcf__graph_build */
+#include "mcf_fairing_ctx.h" /* mcf__fair_plated_share, mcf__fair_coarse_level */
+#include "mcf_internal.h"    /* mcf__spikes, mcf__graph_build */
 #include "testlib.h"
 
 /* mcf__spikes on X (the mesh m's faces, nothing fixed but the vertices of
@@ -962,6 +966,230 @@ static void test_view_thin_plate(void **state)
     mcf_mesh_free(clean);
 }
 
+/* ------------------------------- correlated noise on plated parts */
+
+/* The plated share (mcf__fair_plated_share) by hand on the 60 x 60 flat
+ * grid (index j * 60 + i, column i) with normals set here: columns 0-29
+ * face +z, column i >= 30 is turned about y by (i - 29) STEP degrees.
+ * STEP 10: the first seed (vertex 0) grows over columns 0-29 (1,800
+ * vertices) and stops at column 30 (10 degrees off); every later column
+ * is a region of its own, 60 vertices, under 2% of 3,600 (72): share
+ * 1,800 / 3,600. STEP 7: column 30 (7 degrees) joins the first region,
+ * then columns pair up (31 with 32: 14 and 21 degrees, 7 apart; 33, at
+ * 28, is 14 off 31), every pair 120 >= 72 vertices, and column 59 is
+ * left alone (60): share 3,540 / 3,600. With column
+ * 0 fixed (STEP 10): 1,740 of 3,540 free, a column's 60 under 2% (70.8). */
+static void test_plated_share(void **state)
+{
+    enum { N = 60 };
+    (void)state;
+    mcf_mesh *m = flat_grid(N);
+    mcf__graph g;
+    double *Nrm = malloc(3 * sizeof(double) * N * N);
+    int *lab = malloc(sizeof(int) * N * N), *stack = malloc(sizeof(int) * N * N);
+    unsigned char col0[N * N] = {0};
+    assert_non_null(Nrm);
+    assert_non_null(lab);
+    assert_non_null(stack);
+    assert_int_equal(mcf__graph_build(mcf_mesh_faces(m), mcf_mesh_nfaces(m), N * N, &g, NULL), MCF_OK);
+    for (int step = 7; step <= 10; step += 3) {
+        for (int i = 0; i < N * N; i++) {
+            double a = i % N >= 30 ? (i % N - 29) * step * MCF_PI / 180.0 : 0.0;
+            Nrm[3 * i] = sin(a);
+            Nrm[3 * i + 1] = 0.0;
+            Nrm[3 * i + 2] = cos(a);
+            col0[i] = i % N == 0;
+        }
+        assert_true(mcf__fair_plated_share(&g, Nrm, NULL, lab, stack) == (step == 10 ? 0.5 : 3540.0 / 3600.0));
+        if (step == 10)
+            assert_true(mcf__fair_plated_share(&g, Nrm, col0, lab, stack) == 1740.0 / 3540.0);
+    }
+    mcf__graph_free(&g);
+    free(Nrm);
+    free(lab);
+    free(stack);
+    mcf_mesh_free(m);
+}
+
+/* The vertices on a boundary edge (used by one face) or with no edge,
+ * found here from the faces' sorted edge keys: the fixed set of a default
+ * run (boundary fixed) and of plated.py. */
+static unsigned char *boundary_reference(const int32_t *F, int nf, int nv)
+{
+    long long *key = malloc(sizeof(long long) * 3 * (size_t)nf);
+    unsigned char *fixed = malloc((size_t)nv), *used = calloc((size_t)nv, 1);
+    assert_non_null(key);
+    assert_non_null(fixed);
+    assert_non_null(used);
+    for (int f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            long long a = F[3 * f + k], b = F[3 * f + (k + 1) % 3];
+            key[3 * f + k] = a < b ? a * nv + b : b * nv + a;
+            used[a] = 1;
+        }
+    qsort(key, 3 * (size_t)nf, sizeof *key, cmp_ll);
+    for (int i = 0; i < nv; i++)
+        fixed[i] = !used[i];
+    for (size_t q = 0; q < 3 * (size_t)nf;) {
+        size_t r = q;
+        while (r < 3 * (size_t)nf && key[r] == key[q])
+            r++;
+        if (r - q == 1)
+            fixed[key[q] / nv] = fixed[key[q] % nv] = 1;
+        q = r;
+    }
+    free(key);
+    free(used);
+    return fixed;
+}
+
+/* issue 31's `corr` along the clean normals N on the free vertices: unit
+ * draws (tl_gauss01, seed) smoothed by 9 closed 1-ring averages over the
+ * adjacency (ptr, adj), rescaled to unit RMS over the free vertices, times
+ * rho h; white (no smoothing) when passes is 0. Into X (clean in). */
+static void add_corr_noise(double *X, const double *N, const int *ptr, const int *adj, const unsigned char *fixed,
+                           int nv, double rho_h, int passes, uint64_t seed)
+{
+    double *z = malloc(sizeof(double) * (size_t)nv), *t = malloc(sizeof(double) * (size_t)nv), ss = 0.0;
+    int m = 0;
+    assert_non_null(z);
+    assert_non_null(t);
+    for (int i = 0; i < nv; i++)
+        z[i] = tl_gauss01(&seed);
+    for (int p = 0; p < passes; p++) {
+        for (int i = 0; i < nv; i++) {
+            double a = z[i];
+            for (int k = ptr[i]; k < ptr[i + 1]; k++)
+                a += z[adj[k]];
+            t[i] = a / (1 + ptr[i + 1] - ptr[i]);
+        }
+        memcpy(z, t, sizeof(double) * (size_t)nv);
+    }
+    for (int i = 0; i < nv; i++)
+        if (!fixed[i]) {
+            ss += z[i] * z[i];
+            m++;
+        }
+    for (int i = 0; i < nv; i++)
+        for (int d = 0; d < 3; d++)
+            X[3 * (size_t)i + d] += fixed[i] ? 0.0 : rho_h * z[i] / sqrt(ss / m) * N[3 * (size_t)i + d];
+    free(z);
+    free(t);
+}
+
+/* mcf__fair_coarse_level on blade.obj (a plated part) and spot.obj (an
+ * organic one), clean and with noise of 0.1 h drawn here: the plated share
+ * against numpy (lab/results/quality/issue31-corr/plated.py, an
+ * independent implementation: 7,316 of 7,991 free vertices on the clean
+ * blade, 0 of 2,930 on spot, exactly: the same regions whatever the
+ * order of a region's growth); on blade under `corr` noise the level
+ * within CORR_LEVEL_TOL of the injected 0.1 h (measured 2026-11-29: seeds
+ * 1-3 0.95-1.05 of it: the median's and the calibration's draws); under
+ * white noise of 0.1 h along the normals (which the fine reading sees and
+ * which is taken out) and on the clean blade at most CORR_LEVEL_WHITE h
+ * (measured 0.00-0.03); on spot none, the share 0 whatever the noise. */
+#define CORR_LEVEL_TOL 0.1
+#define CORR_LEVEL_WHITE 0.04
+static void test_coarse_level(void **state)
+{
+    static const char *const names[] = {"blade.obj", "spot.obj"};
+    (void)state;
+    for (int q = 0; q < 2; q++)
+        tl_need_mesh(names[q]);
+    for (int q = 0; q < 2; q++) {
+        mcf_mesh *clean = tl_load(names[q]);
+        mcf_mesh_info info;
+        mcf__graph g;
+        int nv = mcf_mesh_nvertices(clean), nf = mcf_mesh_nfaces(clean), *ptr, *adj;
+        const int32_t *F = mcf_mesh_faces(clean);
+        double *X = malloc(3 * sizeof(double) * (size_t)nv), *N = malloc(3 * sizeof(double) * (size_t)nv);
+        unsigned char *fixed = boundary_reference(F, nf, nv);
+        assert_non_null(X);
+        assert_non_null(N);
+        assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
+        assert_int_equal(mcf__graph_build(F, nf, nv, &g, NULL), MCF_OK);
+        adjacency(F, nf, nv, &ptr, &adj);
+        normals_reference(mcf_mesh_positions(clean), F, nf, nv, N);
+        double h = info.mean_edge;
+        for (int kind = 0; kind < 5; kind++) { /* clean, corr seeds 1-3, white */
+            double plated = -1.0, level = -1.0, s_white = 0.0;
+            mcf_error err = {0};
+            memcpy(X, mcf_mesh_positions(clean), 3 * sizeof(double) * (size_t)nv);
+            if (kind > 0)
+                add_corr_noise(X, N, ptr, adj, fixed, nv, 0.1 * h, kind < 4 ? 9 : 0, (uint64_t)(kind < 4 ? kind : 1));
+            assert_int_equal(mcf__noise_levels(&g, X, F, nf, nv, fixed, &s_white, NULL, NULL, NULL, &err), MCF_OK);
+            assert_int_equal(mcf__fair_coarse_level(&g, X, F, nf, nv, fixed, s_white, &plated, &level, &err), MCF_OK);
+            print_message("%-10s %s: plated %.6f, fine reading %.4f h, coarse level %.4f h\n", names[q],
+                          kind == 0 ? "clean" : kind < 4 ? "corr 0.1" : "white 0.1", plated, s_white / h, level / h);
+            if (q == 1) {
+                assert_true(plated == 0.0);
+                assert_true(level == 0.0);
+                continue;
+            }
+            if (kind == 0)
+                assert_true(plated == 7316.0 / 7991.0);
+            assert_true(plated >= 0.5);
+            if (kind > 0 && kind < 4)
+                tl_assert_near(level / h, 0.1, 0.1 * CORR_LEVEL_TOL, "the correlated noise's level");
+            else
+                assert_true(level <= CORR_LEVEL_WHITE * h);
+        }
+        free(ptr);
+        free(adj);
+        free(fixed);
+        free(X);
+        free(N);
+        mcf__graph_free(&g);
+        mcf_mesh_free(clean);
+    }
+}
+
+/* End to end: the default request on blade.obj with `corr` noise of 0.1 h
+ * (seed 1, drawn here) reads the level CORR_LEVEL_TOL near the truth (the
+ * metrics say `correlated`, nothing in the tangent planes) and comes back with at most CORR_BLADE_ERROR of the input's error (make
+ * quality's case, with its own draws: 0.882 measured, the BNF oracle 0.700,
+ * issue 31's worst 1.4 of it 0.98; before: 1.000, the input); told 0.1
+ * the default reaches 0.885 (lab/results/quality/issue31-cad-quant3). */
+#define CORR_BLADE_ERROR 0.95
+static void test_corr_blade(void **state)
+{
+    (void)state;
+    tl_need_mesh("blade.obj");
+    mcf_mesh *clean = tl_load("blade.obj");
+    mcf_mesh_info info;
+    mcf_flow_stats st;
+    int nv = mcf_mesh_nvertices(clean), nf = mcf_mesh_nfaces(clean), *ptr, *adj;
+    const int32_t *F = mcf_mesh_faces(clean);
+    double *X = malloc(3 * sizeof(double) * (size_t)nv), *N = malloc(3 * sizeof(double) * (size_t)nv);
+    unsigned char *fixed = boundary_reference(F, nf, nv);
+    assert_non_null(X);
+    assert_non_null(N);
+    assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
+    adjacency(F, nf, nv, &ptr, &adj);
+    normals_reference(mcf_mesh_positions(clean), F, nf, nv, N);
+    memcpy(X, mcf_mesh_positions(clean), 3 * sizeof(double) * (size_t)nv);
+    add_corr_noise(X, N, ptr, adj, fixed, nv, 0.1 * info.mean_edge, 9, 1);
+    mcf_mesh *m = mcf_mesh_new(nv, X, nf, F, NULL);
+    assert_non_null(m);
+    double in = rms(m, clean);
+    run_default(m, &st);
+    double e = rms(m, clean);
+    print_message("blade.obj corr 0.1: noise read %.4f, K=%d, filter %d, error/input %.4f\n", st.noise, st.steps,
+                  st.filter, e / in);
+    tl_assert_near(st.noise, 0.1, 0.1 * CORR_LEVEL_TOL, "the level read");
+    assert_int_equal(st.noise_kind, MCF_NOISE_CORRELATED);
+    assert_true(st.noise_tangential == 0.0);
+    assert_true(e <= CORR_BLADE_ERROR * in);
+    mcf_flow_stats_free(&st);
+    mcf_mesh_free(m);
+    free(ptr);
+    free(adj);
+    free(fixed);
+    free(X);
+    free(N);
+    mcf_mesh_free(clean);
+}
+
 /* No harm (issue 31: "a clean mesh moved <= 0.1x the error of 0.1 h
  * noise"): the default request on the repository's clean meshes moves
  * them by at most CLEAN_BOUND times the error Gaussian noise of 0.1 mean
@@ -1228,6 +1456,9 @@ int main(void)
         cmocka_unit_test(test_view_end_to_end),
         cmocka_unit_test(test_view_thin_plate),
         cmocka_unit_test(test_tangential_reading),
+        cmocka_unit_test(test_plated_share),
+        cmocka_unit_test(test_coarse_level),
+        cmocka_unit_test(test_corr_blade),
         cmocka_unit_test(test_exact_positions),
         cmocka_unit_test(test_clean_untouched),
         cmocka_unit_test(test_clean_needle),
