@@ -1,3 +1,7 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""cmp.py RUNFILE A B: the printed lines of two builds case by case (CPU and timings left out) and their
+outputs (o/BUILD/*.bin: byte-identical or the largest coordinate difference)."""
 import re,sys,os,struct
 f=sys.argv[1]; A=sys.argv[2]; B=sys.argv[3]
 rows={}

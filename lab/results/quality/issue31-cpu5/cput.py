@@ -1,3 +1,5 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """cput.py RUNFILE BASE MAIN NEW: CPU medians [ranges] per case, per-rep ratios (same rep, interleaved)."""
 import re,sys,statistics as S
 f,B,M,N=sys.argv[1:5]
