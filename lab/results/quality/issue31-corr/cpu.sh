@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 # interleaved A B A B A B: base (main c49c673) and new, CPU of the default request (bench_quality's cpu_s)
 A="--meshes /work/shared/meshes --no-figure --seeds 1 --methods default"
 for rep in 1 2 3; do

@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: MIT
 A="--meshes /work/shared/meshes --no-figure --seeds 1 --methods default"
 for m in blade.obj car.drc couplingdown_sub2.obj sphere_cgal.obj spot.obj fertility.obj bunny_npm_closed.obj knot1.obj stanford-bunny.obj bunny.drc armadillo.obj snowden.obj dragon_vrip_res2.obj; do
   for who in base new; do
