@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include "draco/compression/decode.h"
@@ -58,22 +59,49 @@ static bool step_underflows(double range, int bits)
     return range > 0.0 && range / std::ldexp(1.0, bits) < FLT_MIN;
 }
 
-/* 1 when a grid of origin o (n components) and range r at bits has a step
- * below float32's resolution at its own values (|o| and |o + r|): no
- * float32 value lies between two of its points, so it is no grid of the
- * values, and libdraco re-quantizing on it explicitly returned every
- * point at one place (fuzz_gltf, 2026-11-29: origin (-1, -1, 3.5e-37),
- * range 8e-15, 11 bits; its own grid at the same bits kept them). */
-static bool step_below_resolution(const float *o, int n, float r, int bits)
+/* The grid libdraco quantizes an attribute on when told one explicitly
+ * (SetAttributeExplicitQuantization), with its own float32 arithmetic
+ * (draco::Quantizer, Dequantizer, AttributeQuantizationTransform): a
+ * value v is stored as q = floor((v - origin) * (maxq / range) + 0.5) and
+ * read back as q * (range / maxq) + origin. The origin and range reach
+ * the quantizer through draco::Options as text, std::to_string's "%f"
+ * (six decimals), read back by strtof and atof: that is the grid used,
+ * not the one given (an origin of 3.5e-37 and a range of 8e-15 became 0
+ * and 0, and every point came back at one place; fuzz_gltf, 2026-11-29). */
+struct draco_grid {
+    float origin[4], inv, delta;
+    int32_t maxq;
+    bool ok;
+};
+
+static draco_grid grid_of(const float *origin, int n, float range, int bits)
 {
-    const double step = static_cast<double>(r) / (std::ldexp(1.0, bits) - 1.0);
-    for (int c = 0; c < n; c++) {
-        const double m = std::max(std::fabs(static_cast<double>(o[c])),
-                                  std::fabs(static_cast<double>(o[c]) + r));
-        if (step < m * FLT_EPSILON)
-            return true;
-    }
-    return false;
+    draco_grid g;
+    for (int c = 0; c < n && c < 4; c++)
+        g.origin[c] = std::strtof(std::to_string(origin[c]).c_str(), nullptr);
+    const float r = static_cast<float>(std::atof(std::to_string(range).c_str()));
+    g.maxq = static_cast<int32_t>((1u << bits) - 1u);
+    g.inv = static_cast<float>(g.maxq) / r;
+    g.delta = r / static_cast<float>(g.maxq);
+    g.ok = r > 0.0f && std::isfinite(g.inv) && g.delta > 0.0f;
+    return g;
+}
+
+/* 1 when the value v of component c comes back bit for bit through g.
+ * Checking every value is what "the input's grid keeps every value"
+ * means: a value merely inside the range may sit between two grid points,
+ * and where the step nears float32's resolution at the values, neighbours
+ * fall on one point. Values that come back exactly stay distinct, so no
+ * face collapses. */
+static bool on_draco_grid(float v, int c, const draco_grid &g)
+{
+    float d = v - g.origin[c];
+    d *= g.inv;
+    const double qd = std::floor(static_cast<double>(d + 0.5f));
+    if (!(qd >= 0.0 && qd <= static_cast<double>(g.maxq)))
+        return false;
+    const float back = static_cast<float>(static_cast<int32_t>(qd)) * g.delta + g.origin[c];
+    return back == v;
 }
 
 /* The encoder's choice for one attribute: bits 0 = raw float32, else
@@ -226,12 +254,15 @@ static void quantize_texcoords(draco::Encoder &enc, const api__attr &t, attr_pla
      * stream's texcoord prediction can decode values far outside its
      * declared range (1.8e6 on a grid of range 1), and quantizing those
      * on that grid made libdraco's entropy coder ask for 4 GB. */
-    bool on_grid = plan.grid && plan.bits == t.bits;
+    bool on_grid = plan.grid && plan.bits == t.bits && t.qrange > 0.0f;
+    draco_grid g{};
+    if (on_grid) {
+        g = grid_of(t.qorigin, 2, t.qrange, t.bits);
+        on_grid = g.ok;
+    }
     for (int i = 0; on_grid && i < t.nvalues; i++)
-        for (int c = 0; c < 2; c++) {
-            const float v = static_cast<float>(t.values[2 * i + c]);
-            on_grid = on_grid && v >= t.qorigin[c] && v <= t.qorigin[c] + t.qrange;
-        }
+        for (int c = 0; c < 2; c++)
+            on_grid = on_grid && on_draco_grid(static_cast<float>(t.values[2 * i + c]), c, g);
     if (on_grid) {
         /* The input's grid: every value comes back exactly. */
         enc.SetAttributeExplicitQuantization(draco::GeometryAttribute::TEX_COORD,
@@ -526,13 +557,17 @@ mcf_status prim_encode(const api__draco_prim *p, int level, api_buf *out,
          * nobody changed comes back exactly; see encode() on a hostile
          * stream's values far off its grid), else a new one. */
         bool on_grid = a.qrange > 0.0f && a.bits == bits && a.ncomp <= 4 &&
-                       a.type != draco::GeometryAttribute::NORMAL &&
-                       !step_below_resolution(a.qorigin, a.ncomp, a.qrange, bits);
+                       a.type != draco::GeometryAttribute::NORMAL;
+        draco_grid g{};
+        if (on_grid) {
+            g = grid_of(a.qorigin, a.ncomp, a.qrange, bits);
+            on_grid = g.ok;
+        }
         for (int q = 0; on_grid && q < p->npoints; q++)
             for (int c = 0; c < a.ncomp; c++) {
                 float v;
                 std::memcpy(&v, a.data + static_cast<size_t>(q) * a.vsize + 4 * c, 4);
-                on_grid = on_grid && v >= a.qorigin[c] && v <= a.qorigin[c] + a.qrange;
+                on_grid = on_grid && on_draco_grid(v, c, g);
             }
         float vlo[4] = {FLT_MAX, FLT_MAX, FLT_MAX, FLT_MAX}, vhi[4] = {-FLT_MAX, -FLT_MAX, -FLT_MAX, -FLT_MAX};
         for (int q = 0; q < p->npoints; q++)
