@@ -26,8 +26,10 @@
  * faces, drops unreferenced vertices and splits non-manifold ones.
  */
 #include <algorithm>
+#include <array>
 #include <cfloat>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -59,15 +61,41 @@ static bool step_underflows(double range, int bits)
     return range > 0.0 && range / std::ldexp(1.0, bits) < FLT_MIN;
 }
 
-/* The grid libdraco quantizes an attribute on when told one explicitly
- * (SetAttributeExplicitQuantization), with its own float32 arithmetic
- * (draco::Quantizer, Dequantizer, AttributeQuantizationTransform): a
- * value v is stored as q = floor((v - origin) * (maxq / range) + 0.5) and
- * read back as q * (range / maxq) + origin. The origin and range reach
- * the quantizer through draco::Options as text, std::to_string's "%f"
- * (six decimals), read back by strtof and atof: that is the grid used,
- * not the one given (an origin of 3.5e-37 and a range of 8e-15 became 0
- * and 0, and every point came back at one place; fuzz_gltf, 2026-11-29). */
+/* An explicit grid reaches libdraco's quantizer through draco::Options as
+ * text: SetAttributeExplicitQuantization writes std::to_string ("%f", six
+ * decimals), which strtof and atof read back, so an origin of 3.5e-37 and
+ * a range of 8e-15 became 0 and 0 and every point came back at one place
+ * (fuzz_gltf, 2026-11-29), and a real file's origin -0.0946834 became
+ * -0.094683, off its grid. set_explicit_grid writes the two options again
+ * as "%.17g" of each float, which both read back as that very float. */
+static std::string grid_text(const float *v, int n)
+{
+    std::string s;
+    char t[40];
+    for (int c = 0; c < n; c++) {
+        std::snprintf(t, sizeof t, c ? " %.17g" : "%.17g", static_cast<double>(v[c]));
+        s += t;
+    }
+    return s;
+}
+
+template <class Encoder, class Key>
+static void set_explicit_grid(Encoder &enc, Key key, int bits, int n, const float *origin,
+                              float range)
+{
+    enc.SetAttributeExplicitQuantization(key, bits, n, origin, range);
+    const draco::Options *cur = enc.options().FindAttributeOptions(key);
+    draco::Options o = cur ? *cur : draco::Options();
+    o.SetString("quantization_origin", grid_text(origin, n));
+    o.SetString("quantization_range", grid_text(&range, 1));
+    enc.options().SetAttributeOptions(key, o);
+}
+
+/* The grid set_explicit_grid gives libdraco, read from the same text the
+ * way libdraco reads it, with its float32 arithmetic (draco::Quantizer,
+ * Dequantizer, AttributeQuantizationTransform): a value v is stored as
+ * q = floor((v - origin) * (maxq / range) + 0.5) and read back as
+ * q * (range / maxq) + origin. */
 struct draco_grid {
     float origin[4], inv, delta;
     int32_t maxq;
@@ -77,9 +105,14 @@ struct draco_grid {
 static draco_grid grid_of(const float *origin, int n, float range, int bits)
 {
     draco_grid g;
-    for (int c = 0; c < n && c < 4; c++)
-        g.origin[c] = std::strtof(std::to_string(origin[c]).c_str(), nullptr);
-    const float r = static_cast<float>(std::atof(std::to_string(range).c_str()));
+    const std::string ot = grid_text(origin, n), rt = grid_text(&range, 1);
+    const char *p = ot.c_str();
+    for (int c = 0; c < n && c < 4; c++) {
+        char *e;
+        g.origin[c] = std::strtof(p, &e);
+        p = e;
+    }
+    const float r = static_cast<float>(std::atof(rt.c_str()));
     g.maxq = static_cast<int32_t>((1u << bits) - 1u);
     g.inv = static_cast<float>(g.maxq) / r;
     g.delta = r / static_cast<float>(g.maxq);
@@ -102,6 +135,54 @@ static bool on_draco_grid(float v, int c, const draco_grid &g)
         return false;
     const float back = static_cast<float>(static_cast<int32_t>(qd)) * g.delta + g.origin[c];
     return back == v;
+}
+
+/* The bits, from bits up to API_DRACO_MAX_BITS, at which libdraco's own
+ * grid of the n points' positions (AttributeQuantizationTransform::
+ * ComputeParameters: each component's minimum lo, the largest extent as
+ * range, 1 when every point is one) keeps distinct points apart; 0 (raw
+ * float32) when none does. Points on a finer or shifted grid than that
+ * one, or closer than its step, can fall on one grid point, and the glTF
+ * reader welds them and drops their triangles (fuzz_gltf, 2026-11-29: a
+ * stream whose 7-bit grid did not hold its own values, points 6e-17
+ * apart on a step of 1e-15: every triangle vanished). */
+static int bits_keeping_points(const unsigned char *data, int vsize, int n, int ncomp,
+                               const float *lo, const float *hi, int bits)
+{
+    struct point {
+        std::array<int32_t, 4> q;
+        std::array<float, 4> v;
+        bool operator<(const point &o) const { return q < o.q || (q == o.q && v < o.v); }
+    };
+    float range = 0.0f;
+    for (int c = 0; c < ncomp; c++)
+        range = std::max(range, hi[c] - lo[c]);
+    if (range == 0.0f)
+        range = 1.0f;
+    std::vector<point> pts(static_cast<size_t>(n));
+    for (; bits <= API_DRACO_MAX_BITS; bits++) {
+        const float inv = static_cast<float>((1u << bits) - 1u) / range;
+        for (int i = 0; i < n; i++) {
+            point &p = pts[static_cast<size_t>(i)];
+            p.q.fill(0);
+            p.v.fill(0.0f);
+            for (int c = 0; c < ncomp; c++) {
+                std::memcpy(&p.v[c], data + static_cast<size_t>(i) * vsize + 4 * c, 4);
+                float d = p.v[c] - lo[c];
+                d *= inv;
+                const double qd = std::floor(static_cast<double>(d + 0.5f));
+                /* a NaN or a value off [lo, hi] (none: lo and hi are theirs) */
+                p.q[c] = qd >= 0.0 && qd <= 16777216.0 ? static_cast<int32_t>(qd) : -1;
+            }
+        }
+        std::sort(pts.begin(), pts.end());
+        bool apart = true;
+        for (size_t i = 1; apart && i < pts.size(); i++)
+            apart = pts[i].q != pts[i - 1].q || pts[i].v == pts[i - 1].v;
+        if (apart)
+            return bits;
+    }
+    return 0;
 }
 
 /* The encoder's choice for one attribute: bits 0 = raw float32, else
@@ -265,8 +346,8 @@ static void quantize_texcoords(draco::Encoder &enc, const api__attr &t, attr_pla
             on_grid = on_grid && on_draco_grid(static_cast<float>(t.values[2 * i + c]), c, g);
     if (on_grid) {
         /* The input's grid: every value comes back exactly. */
-        enc.SetAttributeExplicitQuantization(draco::GeometryAttribute::TEX_COORD,
-                                             t.bits, 2, t.qorigin, t.qrange);
+        set_explicit_grid(enc, draco::GeometryAttribute::TEX_COORD, t.bits, 2, t.qorigin,
+                          t.qrange);
     } else {
         enc.SetAttributeQuantization(draco::GeometryAttribute::TEX_COORD, plan.bits);
     }
@@ -550,7 +631,7 @@ mcf_status prim_encode(const api__draco_prim *p, int level, api_buf *out,
     draco::ExpertEncoder enc(dm);
     for (int i = 0; i < p->nattr; i++) {
         const api__draco_attr &a = p->attr[i];
-        const int bits = std::min(a.bits, API_DRACO_MAX_BITS);
+        int bits = std::min(a.bits, API_DRACO_MAX_BITS);
         if (bits <= 0 || a.dtype != draco::DT_FLOAT32)
             continue;
         /* The input's grid when every value still lies on it (an attribute
@@ -582,8 +663,15 @@ mcf_status prim_encode(const api__draco_prim *p, int level, api_buf *out,
             extent = std::max(extent, static_cast<double>(vhi[c]) - vlo[c]);
         if (step_underflows(on_grid ? a.qrange : extent, bits))
             continue; /* raw float32 */
+        if (!on_grid && a.type == draco::GeometryAttribute::POSITION && a.ncomp <= 4) {
+            const int keep = bits_keeping_points(a.data, a.vsize, p->npoints, a.ncomp, vlo,
+                                                 vhi, bits);
+            if (keep == 0)
+                continue; /* raw float32 */
+            bits = keep;
+        }
         if (on_grid)
-            enc.SetAttributeExplicitQuantization(i, bits, a.ncomp, a.qorigin, a.qrange);
+            set_explicit_grid(enc, i, bits, a.ncomp, a.qorigin, a.qrange);
         else
             enc.SetAttributeQuantization(i, bits);
     }

@@ -62,13 +62,16 @@ struct mcf__bnf {
     int *fptr, *fadj;       /* the faces g > f sharing a vertex with face f:
                                fadj[fptr[f] .. fptr[f+1]); each pair once */
     int *vdeg;              /* faces at each vertex */
+    int *vp, *vf;           /* the faces at each vertex, in increasing order:
+                               vf[vp[i] .. vp[i+1]) (mcf__vertex_faces) */
     double *ideg;           /* 1 / vdeg (0 where vdeg is 0) */
     double sigma_s;         /* mean distance of neighbouring centroids (input) */
     double *n, *m, *c, *a;  /* 3nf, 3nf, 3nf, nf */
     double *ws;             /* fptr[nf]: the spatial kernel Ws(|c_f - c_g|) of each pair */
     double *wx;             /* nwx: the range kernels of one block's pairs (BNF_BLOCK) */
     int nwx;
-    double *d;              /* 3nv */
+    double *t;              /* 3nf: each face's n_f <n_f, c_f> of one vertex iteration */
+    double *S;              /* 6nv: the vertex tensors of mcf__bnf_vertices' normals */
     size_t slack;           /* the bytes its huge-page buffers take beyond
                                their sizes (mcf__malloc_big) */
 };
@@ -84,6 +87,8 @@ void mcf__bnf_free(mcf__bnf *b)
     free(b->fptr);
     free(b->fadj);
     free(b->vdeg);
+    free(b->vp);
+    free(b->vf);
     free(b->ideg);
     free(b->n);
     free(b->m);
@@ -91,7 +96,8 @@ void mcf__bnf_free(mcf__bnf *b)
     free(b->a);
     free(b->ws);
     free(b->wx);
-    free(b->d);
+    free(b->t);
+    free(b->S);
     free(b);
 }
 
@@ -125,8 +131,8 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
     b->nv = nv;
     b->nf = nf;
     b->F = F;
-    vp = mcf__calloc((size_t)nv + 2, sizeof(int));
-    vf = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
+    vp = b->vp = mcf__calloc((size_t)nv + 2, sizeof(int));
+    vf = b->vf = mcf__malloc(3 * (size_t)nf + 1, sizeof(int));
     mark = mcf__malloc((size_t)nf + 1, sizeof(int));
     b->fptr = mcf__malloc((size_t)nf + 1, sizeof(int));
     b->vdeg = mcf__calloc((size_t)nv + 1, sizeof(int));
@@ -135,10 +141,11 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
     b->m = mcf__malloc_big(3 * (size_t)nf + 1, sizeof(double));
     b->c = mcf__malloc_big(3 * (size_t)nf + 1, sizeof(double));
     b->a = mcf__malloc((size_t)nf + 1, sizeof(double));
-    b->d = mcf__malloc_big(3 * (size_t)nv + 1, sizeof(double));
-    if (!vp || !vf || !mark || !b->fptr || !b->vdeg || !b->ideg || !b->n || !b->m || !b->c || !b->a || !b->d)
+    b->t = mcf__malloc_big(3 * (size_t)nf + 1, sizeof(double));
+    b->S = mcf__malloc_big(6 * (size_t)nv + 1, sizeof(double));
+    if (!vp || !vf || !mark || !b->fptr || !b->vdeg || !b->ideg || !b->n || !b->m || !b->c || !b->a || !b->t || !b->S)
         goto oom;
-    b->slack = 3 * mcf__big_slack(3 * (size_t)nf + 1, sizeof(double)) + mcf__big_slack(3 * (size_t)nv + 1, sizeof(double));
+    b->slack = 4 * mcf__big_slack(3 * (size_t)nf + 1, sizeof(double)) + mcf__big_slack(6 * (size_t)nv + 1, sizeof(double));
     /* the faces at each vertex, then each face's neighbours, deduplicated */
     mcf__vertex_faces(F, nf, nv, vp, vf);
     for (int i = 0; i < nv; i++) {
@@ -164,8 +171,6 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
             }
         }
         if (q > (size_t)INT32_MAX) {
-            free(vp);
-            free(vf);
             free(mark);
             mcf__bnf_free(b);
             mcf__fail(err, MCF_ELIMIT, "feature filter: %d faces have too many neighbours", nf);
@@ -186,8 +191,6 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
     b->nwx = most;
     if (!(b->wx = mcf__malloc((size_t)most + 1, sizeof(double))))
         goto oom;
-    free(vp);
-    free(vf);
     free(mark);
     /* sigma_s: the mean distance between neighbouring centroids */
     face_geometry(b, X, b->n, b->c, b->a);
@@ -201,9 +204,7 @@ mcf__bnf *mcf__bnf_new(const double *X, const int32_t *F, int nf, int nv, mcf_er
         }
     b->sigma_s = np ? sum / (double)np : 0.0;
     return b;
-oom:
-    free(vp);
-    free(vf);
+oom: /* vp and vf are b's */
     free(mark);
     mcf__bnf_free(b);
     mcf__fail(err, MCF_ENOMEM, "feature filter: out of memory (%d faces)", nf);
@@ -213,8 +214,8 @@ oom:
 size_t mcf__bnf_bytes(const mcf__bnf *b)
 {
     size_t np = b ? (size_t)b->fptr[b->nf] : 0;
-    return b ? np * (sizeof(int) + sizeof(double)) + (size_t)b->nf * (10 * sizeof(double) + sizeof(int)) +
-                   (size_t)b->nv * (4 * sizeof(double) + sizeof(int)) + (size_t)b->nwx * sizeof(double) + b->slack
+    return b ? np * (sizeof(int) + sizeof(double)) + (size_t)b->nf * (13 * sizeof(double) + 4 * sizeof(int)) +
+                   (size_t)b->nv * (7 * sizeof(double) + 2 * sizeof(int)) + (size_t)b->nwx * sizeof(double) + b->slack
              : 0;
 }
 
@@ -299,41 +300,76 @@ const double *mcf__bnf_normals(mcf__bnf *b, double sigma_r, int nit)
     return b->n;
 }
 
-void mcf__bnf_vertices(mcf__bnf *b, const double *n, const unsigned char *fixed, int vit, double *Y)
+void mcf__bnf_tensors(const mcf__bnf *b, const double *n, double *S)
 {
+    for (int i = 0; i < b->nv; i++) {
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
+        for (int t = b->vp[i]; t < b->vp[i + 1]; t++) {
+            const double *nn = n + 3 * (size_t)b->vf[t];
+            s0 += nn[0] * nn[0];
+            s1 += nn[0] * nn[1];
+            s2 += nn[0] * nn[2];
+            s3 += nn[1] * nn[1];
+            s4 += nn[1] * nn[2];
+            s5 += nn[2] * nn[2];
+        }
+        double *si = S + 6 * (size_t)i;
+        si[0] = s0;
+        si[1] = s1;
+        si[2] = s2;
+        si[3] = s3;
+        si[4] = s4;
+        si[5] = s5;
+    }
+}
+
+void mcf__bnf_vertices_s(mcf__bnf *b, const double *n, const double *S, const unsigned char *fixed, int vit, double *Y)
+{
+    /* x_i + 1/|F_i| sum_f n_f <n_f, c_f - x_i>
+     *   = x_i + 1/|F_i| (sum_f n_f <n_f, c_f> - S_i x_i),
+     * S_i = sum_f n_f n_f' (fixed with the normals): each face's
+     * n_f <n_f, c_f> written, then every vertex gathers its faces'. The
+     * same update as the faces' scatter into the corners (the sums in
+     * another order: 1e-15 of the coordinates apart), in 5.2-5.4 ns a
+     * face and iteration against 7.3-7.6 (couplingdown_sub2.obj, 59,424
+     * faces, 30 iterations; 2026-11-29, lab/results/quality/issue31-cpu5) */
     const int32_t *F = b->F;
-    memset(b->d, 0, 3 * sizeof(double) * (size_t)b->nv);
     for (int it = 0; it < vit; it++) {
         for (int f = 0; f < b->nf; f++) {
-            /* scalars, the three corners' heights before their sums: the
-             * loops over coordinates kept them in memory (16.5 -> 12 ns a
-             * face and iteration on couplingdown_sub2.obj, with 1/3 and
-             * 1/vdeg multiplied, not divided) */
             const int32_t *tri = F + 3 * (size_t)f;
             const double *nn = n + 3 * (size_t)f, *y0 = Y + 3 * (size_t)tri[0], *y1 = Y + 3 * (size_t)tri[1],
                          *y2 = Y + 3 * (size_t)tri[2];
-            double n0 = nn[0], n1 = nn[1], n2 = nn[2];
-            double c0 = (y0[0] + y1[0] + y2[0]) * (1.0 / 3.0), c1 = (y0[1] + y1[1] + y2[1]) * (1.0 / 3.0),
-                   c2 = (y0[2] + y1[2] + y2[2]) * (1.0 / 3.0);
-            double h[3] = {n0 * (c0 - y0[0]) + n1 * (c1 - y0[1]) + n2 * (c2 - y0[2]),
-                           n0 * (c0 - y1[0]) + n1 * (c1 - y1[1]) + n2 * (c2 - y1[2]),
-                           n0 * (c0 - y2[0]) + n1 * (c1 - y2[1]) + n2 * (c2 - y2[2])};
-            for (int k = 0; k < 3; k++) {
-                double *dk = b->d + 3 * (size_t)tri[k];
-                dk[0] += h[k] * n0;
-                dk[1] += h[k] * n1;
-                dk[2] += h[k] * n2;
-            }
+            double h = (nn[0] * (y0[0] + y1[0] + y2[0]) + nn[1] * (y0[1] + y1[1] + y2[1]) +
+                        nn[2] * (y0[2] + y1[2] + y2[2])) *
+                       (1.0 / 3.0);
+            double *tf = b->t + 3 * (size_t)f;
+            tf[0] = h * nn[0];
+            tf[1] = h * nn[1];
+            tf[2] = h * nn[2];
         }
-        /* the sums read, zeroed for the next iteration */
         for (int i = 0; i < b->nv; i++) {
-            double *di = b->d + 3 * (size_t)i;
-            if (!(fixed && fixed[i]) && b->vdeg[i] > 0)
-                for (int e = 0; e < 3; e++)
-                    Y[3 * (size_t)i + e] += di[e] * b->ideg[i];
-            di[0] = di[1] = di[2] = 0.0;
+            if ((fixed && fixed[i]) || b->vdeg[i] == 0)
+                continue;
+            double a0 = 0.0, a1 = 0.0, a2 = 0.0;
+            for (int t = b->vp[i]; t < b->vp[i + 1]; t++) {
+                const double *tf = b->t + 3 * (size_t)b->vf[t];
+                a0 += tf[0];
+                a1 += tf[1];
+                a2 += tf[2];
+            }
+            double *y = Y + 3 * (size_t)i, x0 = y[0], x1 = y[1], x2 = y[2], id = b->ideg[i];
+            const double *si = S + 6 * (size_t)i;
+            y[0] = x0 + (a0 - (si[0] * x0 + si[1] * x1 + si[2] * x2)) * id;
+            y[1] = x1 + (a1 - (si[1] * x0 + si[3] * x1 + si[4] * x2)) * id;
+            y[2] = x2 + (a2 - (si[2] * x0 + si[4] * x1 + si[5] * x2)) * id;
         }
     }
+}
+
+void mcf__bnf_vertices(mcf__bnf *b, const double *n, const unsigned char *fixed, int vit, double *Y)
+{
+    mcf__bnf_tensors(b, n, b->S);
+    mcf__bnf_vertices_s(b, n, b->S, fixed, vit, Y);
 }
 
 void mcf__bnf_run(mcf__bnf *b, const double *X, const unsigned char *fixed, double sigma_r, int nit, int vit,
@@ -602,13 +638,20 @@ static int drop_outliers(const mcf__feature_frame *fr, double s, double *rb, dou
     return n;
 }
 
-/* The candidate of least SURE at noise level s. */
+/* A candidate's SURE (the choice's: the pilot's weights) at the noise
+ * level's square s2. */
+static double cand_risk(const cand_sums *c, double sumw, double s2)
+{
+    return c->sr2 - s2 * sumw + 2.0 * s2 * c->div;
+}
+
+/* The candidate of least SURE at noise level s (the first of equals). */
 static int least_sure(const cand_sums *cs, double sumw, double s)
 {
     double lo = INFINITY, s2 = s * s;
     int k = 0;
     for (int j = 0; j < NCAND; j++) {
-        double risk = cs[j].sr2 - s2 * sumw + 2.0 * s2 * cs[j].div;
+        double risk = cand_risk(&cs[j], sumw, s2);
         if (risk < lo) {
             lo = risk;
             k = j;
@@ -628,6 +671,10 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     mcf__bnf *b = mcf__bnf_new(X, F, nf, nv, err);
     double *m = mcf__malloc_big(n3 + 1, sizeof(double)), *Xp = mcf__malloc_big((size_t)nin * n3 + 1, sizeof(double));
     double *Yp = mcf__malloc_big((size_t)nin * n3 + 1, sizeof(double));
+    /* Sq: the probes' vertex tensors of one normal count's normals
+     * (mcf__bnf_tensors), made once for its three vertex counts; X's in
+     * b's own (sq below) */
+    double *Sq = mcf__malloc_big((size_t)(nin - 1) * 6 * nv + 1, sizeof(double));
     /* Nk: each normal count's normals of each input, then (Nw) the widest
      * kernel's on X, kept for the result */
     double *Nk = mcf__malloc_big((size_t)NNIT * (nin + 1) * nf3 + 1, sizeof(double)), *Nw = Nk + (size_t)NNIT * nin * nf3;
@@ -638,13 +685,16 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
         rc = err ? err->status : MCF_ENOMEM;
         goto done;
     }
-    if (!m || !Xp || !Yp || !Nk || !rbest || !rlin || !wp || !ap || !cs) {
+    if (!m || !Xp || !Yp || !Sq || !Nk || !rbest || !rlin || !wp || !ap || !cs) {
         rc = mcf__fail(err, MCF_ENOMEM, "feature filter: out of memory (%d vertices)", nv);
         goto done;
     }
-    pick->bytes = mcf__bnf_bytes(b) + sizeof(double) * ((size_t)nin * 2 * n3 + (size_t)(nin + 1) * NNIT * nf3 + n3 + 2 * (size_t)nv + 2 * (size_t)nfree) +
+    pick->bytes = mcf__bnf_bytes(b) +
+                  sizeof(double) * ((size_t)nin * 2 * n3 + (size_t)(nin - 1) * 6 * nv + (size_t)(nin + 1) * NNIT * nf3 + n3 +
+                                    2 * (size_t)nv + 2 * (size_t)nfree) +
                   NCAND * sizeof *cs + mcf__big_slack(n3 + 1, sizeof(double)) +
                   2 * mcf__big_slack((size_t)nin * n3 + 1, sizeof(double)) +
+                  mcf__big_slack((size_t)(nin - 1) * 6 * nv + 1, sizeof(double)) +
                   mcf__big_slack((size_t)NNIT * (nin + 1) * nf3 + 1, sizeof(double));
     for (int k = 0; k < nfree; k++)
         sumw += fr->w[fr->vert[k]];
@@ -684,7 +734,12 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     }
     /* every candidate's sums, the results read on the way; the widest
      * kernel first (its normals on X are in Nk), the narrowest last (its
-     * normals on X stay in Nk for the result) */
+     * normals on X stay in Nk for the result). The noise level is read
+     * from the widest kernel's (noise_from_residuals), so the other
+     * widths' SUREs are known as their candidates come: the least one's
+     * result on X is kept in Yout (kb), not run again below */
+    double sf = s, lo = INFINITY;
+    int kb = -1;
     for (int si = NSIG - 1; si >= 0; si--) {
         for (int q = si == NSIG - 1; q < nin; q++) {
             mcf__bnf_start(b, Xp + (size_t)q * n3);
@@ -694,12 +749,18 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
         }
         for (int ni = 0; ni < NNIT; ni++) {
             memcpy(Yp, Xp, (size_t)nin * n3 * sizeof(double));
+            double *sq[1 + NPROBE_F];
+            for (int q = 0; q < nin; q++) {
+                sq[q] = q ? Sq + (size_t)(q - 1) * 6 * nv : b->S;
+                mcf__bnf_tensors(b, Nk + ((size_t)ni * nin + q) * nf3, sq[q]);
+            }
             for (int vi = 0; vi < NVIT; vi++) {
-                cand_sums *c = &cs[(si * NNIT + ni) * NVIT + vi];
+                int j = (si * NNIT + ni) * NVIT + vi;
+                cand_sums *c = &cs[j];
                 double div[NPROBE_F], divf[NPROBE_F], jj[NPROBE_F], v;
                 for (int q = 0; q < nin; q++)
-                    mcf__bnf_vertices(b, Nk + ((size_t)ni * nin + q) * nf3, fixed, VIT[vi] - (vi ? VIT[vi - 1] : 0),
-                                      Yp + (size_t)q * n3);
+                    mcf__bnf_vertices_s(b, Nk + ((size_t)ni * nin + q) * nf3, sq[q], fixed,
+                                        VIT[vi] - (vi ? VIT[vi - 1] : 0), Yp + (size_t)q * n3);
                 c->sr2 = residuals(fr, wp, Yp, X, m, NULL);
                 c->sr2_f = residuals(fr, fr->w, Yp, X, m, NULL);
                 for (int q = 1; q < nin; q++) {
@@ -714,11 +775,19 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
                 if (NPROBE_F == 1) /* no spread to read: the bound */
                     c->vdiv_f = mcf__feature_div_bound(fr, fr->w, m, Yp, Yp + n3, eps);
                 c->rms = si == NSIG - 1 ? moving_residual(b, fixed, X, Yp, m, ap) : 0.0;
+                double risk = si < NSIG - 1 ? cand_risk(c, sumw, sf * sf) : INFINITY;
+                if (risk < lo || (risk == lo && j < kb)) {
+                    lo = risk;
+                    kb = j;
+                    memcpy(Yout, Yp, n3 * sizeof(double));
+                }
             }
         }
+        if (si == NSIG - 1 && !fr->s_known)
+            sf = noise_from_residuals(cs, sumw, s);
     }
     /* the noise level and the candidate of least SURE at it */
-    double sf = fr->s_known ? s : noise_from_residuals(cs, sumw, s), s2 = sf * sf;
+    double s2 = sf * sf;
     int k = least_sure(cs, sumw, sf);
     pick->s = sf;
     pick->sigma_r = SIGMA_R[k / (NNIT * NVIT)];
@@ -727,14 +796,16 @@ static mcf_status feature_run(const double *X, const int32_t *F, int nf, int nv,
     pick->div = cs[k].div_f;
     pick->vdiv = cs[k].vdiv_f;
     pick->risk = cs[k].sr2_f - s2 * sumw + 2.0 * s2 * cs[k].div_f;
-    /* the result: the narrowest kernel's normals on X are in Nk, the
-     * widest's in Nw */
+    /* the result: another width's is in Yout already (kb: the same
+     * iterations from X, the same bits); the widest kernel's normals on X
+     * are in Nw */
     int ks = k / (NNIT * NVIT), kn = (k / NVIT) % NNIT;
-    if (ks == 0 || ks == NSIG - 1) {
+    if (k != kb) {
         memcpy(Yout, X, n3 * sizeof(double));
-        mcf__bnf_vertices(b, ks ? Nw + (size_t)kn * nf3 : Nk + (size_t)kn * nin * nf3, fixed, pick->vertex_iters, Yout);
-    } else {
-        mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
+        if (ks == NSIG - 1)
+            mcf__bnf_vertices(b, Nw + (size_t)kn * nf3, fixed, pick->vertex_iters, Yout);
+        else
+            mcf__bnf_run(b, X, fixed, pick->sigma_r, pick->normal_iters, pick->vertex_iters, Yout);
     }
     residuals(fr, fr->w, Yout, X, m, rbest);
     /* against the linear fairing's result (or the input): its SURE along
@@ -762,6 +833,7 @@ done:
     free(m);
     free(Xp);
     free(Yp);
+    free(Sq);
     free(Nk);
     free(rbest);
     free(rlin);

@@ -308,6 +308,12 @@ const double *mcf__bnf_normals(mcf__bnf *b, double sigma_r, int nit);
 /* vit vertex updates of Y (3*nv, in place) toward the planes of the face
  * normals n (3*nf); vertices with fixed[i] (may be NULL) stay. */
 void mcf__bnf_vertices(mcf__bnf *b, const double *n, const unsigned char *fixed, int vit, double *Y);
+/* The same with the vertex tensors S (6*nv: sum over a vertex's faces of
+ * n_f n_f', upper triangle by rows) of n made once by mcf__bnf_tensors,
+ * for runs that go on with the same normals. */
+void mcf__bnf_tensors(const mcf__bnf *b, const double *n, double *S);
+void mcf__bnf_vertices_s(mcf__bnf *b, const double *n, const double *S, const unsigned char *fixed, int vit,
+                         double *Y);
 /* All three from X into Y. */
 void mcf__bnf_run(mcf__bnf *b, const double *X, const unsigned char *fixed, double sigma_r, int nit, int vit,
                   double *Y);

@@ -545,6 +545,48 @@ static void test_hostile(void **state)
     }
 }
 
+/* Draco primitives whose quantization grid the rewrite cannot keep (fuzz
+ * seeds, found by fuzz_gltf on 2026-11-29): a grid at the float32
+ * resolution of its values (origin (-1, -1, 3.5e-37), range 8e-15, 11
+ * bits), and a 7-bit grid its decoded values lie far outside, with points
+ * 6e-17 apart. Each rewrite as GLB must decode to the same vertices and
+ * faces: no two points may fall on one point of the new grid (the reader
+ * welds them and drops their triangles; both came back with every
+ * triangle degenerate). */
+static void test_draco_grids_rewrite(void **state)
+{
+    static const char *const seeds[] = {"draco_grid_below_resolution.gltf",
+                                        "draco_grid_off_values.gltf"};
+    (void)state;
+    for (size_t i = 0; i < sizeof seeds / sizeof *seeds; i++) {
+        char rel[128];
+        size_t len = 0;
+        mcf_mesh *m = NULL, *m2 = NULL;
+        api_attrs *a = NULL;
+        api_encode_opts o;
+        api_buf out;
+        mcf_error err;
+        char *buf;
+        snprintf(rel, sizeof rel, "../fuzz/corpus_gltf/%s", seeds[i]);
+        buf = data_file(rel, &len);
+        assert_int_equal(api_gltf_decode_attrs(buf, len, NULL, &m, &a, &err), MCF_OK);
+        api_encode_opts_init(&o);
+        o.format = API_FMT_GLB;
+        o.attrs = a;
+        api_buf_init(&out, (size_t)-1);
+        assert_int_equal(api_mesh_encode(m, &o, &out, &err), MCF_OK);
+        if (api_gltf_decode_attrs(out.data, out.len, NULL, &m2, NULL, &err) != MCF_OK)
+            fail_msg("%s: the rewrite does not decode: %s", seeds[i], err.msg);
+        assert_int_equal(mcf_mesh_nvertices(m2), mcf_mesh_nvertices(m));
+        assert_int_equal(mcf_mesh_nfaces(m2), mcf_mesh_nfaces(m));
+        mcf_mesh_free(m);
+        mcf_mesh_free(m2);
+        api_attrs_free(a);
+        api_buf_free(&out);
+        free(buf);
+    }
+}
+
 /* Every truncation and many corruptions of a real GLB: an error or a
  * mesh, never a crash (the sanitizer build watches). */
 static void test_truncated_and_corrupted(void **state)
@@ -640,6 +682,7 @@ int main(void)
         cmocka_unit_test(test_containers),
         cmocka_unit_test(test_draco),
         cmocka_unit_test(test_foreign_draco),
+        cmocka_unit_test(test_draco_grids_rewrite),
         cmocka_unit_test(test_new_document),
         cmocka_unit_test(test_hostile),
         cmocka_unit_test(test_truncated_and_corrupted),
