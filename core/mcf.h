@@ -593,7 +593,9 @@ typedef struct {
                                  surface's filter) */
     int crease_look_near;     /* fairing_robust: 1 when holding the
                                  creases or not was judged on the submesh
-                                 near them (fairing_look_whole) */
+                                 near them, 2 near a sample of their
+                                 chains (too many for the first), 0 on the
+                                 whole mesh (fairing_look_whole) */
     int guard_rounds;         /* fairing: fold-guard rounds that moved a
                                  vertex (0-64, 1-7 measured) */
     int guard_vertices;       /* fairing: vertex moves by the guard */

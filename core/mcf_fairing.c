@@ -886,9 +886,10 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
     int judged = -1;
     if (defer) {
         size_t jb = 0;
+        int sampled = 0;
         if (rc == MCF_OK && uncrease && !staged && !(ci.s_t > 0.0) && !p->fairing_look_whole)
-            rc = mcf__fair_judge_near_creases(&ci, Xf, fixed, hook, hook_ctx, &judged, &jb, err);
-        st->crease_look_near = judged >= 0;
+            rc = mcf__fair_judge_near_creases(&ci, Xf, fixed, hook, hook_ctx, &judged, &sampled, &jb, err);
+        st->crease_look_near = judged < 0 ? 0 : sampled ? 2 : 1;
         if (rc == MCF_OK && judged != 1)
             rc = filter_steps(&ci, hook, hook_ctx, err);
         if (ci.bytes + extra + jb > peak)
@@ -930,7 +931,7 @@ mcf_status mcf__fairing(double *X, const int32_t *F, int nf, int nv, const unsig
         double kdiv[NPROBE];
         int won = judged == 1 ? rc == MCF_OK && cn.kbest > 0
                               : rc == MCF_OK && mcf__fair_crease_divergence(c, &cn, fixed, kdiv) &&
-                                    mcf__fair_pick_uncreased(c, &cn, kdiv);
+                                    mcf__fair_pick_uncreased(c, &cn, kdiv, NULL);
         if (rc == MCF_OK && !won && judged == 1) { /* none held found nothing: the held run's passes after all */
             c->quiet = 1;
             rc = filter_steps(c, hook, hook_ctx, err);

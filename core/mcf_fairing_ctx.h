@@ -187,13 +187,16 @@ int mcf__fair_crease_divergence(const fair_ctx *c, const fair_ctx *n, const unsi
  * prepared up to its probes (its passes not made) that holds its crease
  * vertices, is made again, held and with none held, on the submesh of
  * the vertices within SUB_RINGS rings of them (the rest fixed), and
- * mcf__fair_pick_uncreased judges there. *judged: 1 none held, 0 held,
- * -1 the submesh is too much of the mesh (SUB_MAX_SHARE: judge on the
- * whole, both runs in full); *bytes the judgement's bytes at most. X the
- * run's input (3*nv). ENOMEM, ECANCELED. */
+ * mcf__fair_pick_uncreased judges there; where that submesh is more
+ * than SUB_MAX_SHARE of the mesh, on the submesh near a sample of its
+ * chains (SUB_SAMPLE_SHARE), which decides only when its z is beyond
+ * SUB_SAMPLE_Z either way. *judged: 1 none held, 0 held, -1 not judged
+ * (judge on the whole, both runs in full); *sampled 1 when a sample
+ * judged; *bytes the judgement's bytes at most. X the run's input
+ * (3*nv). ENOMEM, ECANCELED. */
 mcf_status mcf__fair_judge_near_creases(const fair_ctx *c, const double *X, const unsigned char *fixed,
-                                        mcf__step_hook hook, void *hook_ctx, int *judged, size_t *bytes,
-                                        mcf_error *err);
+                                        mcf__step_hook hook, void *hook_ctx, int *judged, int *sampled,
+                                        size_t *bytes, mcf_error *err);
 
 /* mcf_fairing_implicit.c */
 /* The implicit engine's system assembled and factored, its right-hand
@@ -256,8 +259,9 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e);
  * with their displacement (the smoothing along their chains) and kdiv,
  * each probe's estimate of their divergence weighted by n's weights
  * (mcf__fair_crease_divergence); the gain must pass
- * UNCREASE_MIN_GAIN of its standard error. */
-int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE]);
+ * UNCREASE_MIN_GAIN of its standard error. z (may be NULL): the gain in
+ * its standard errors, NaN when it was not judged (n took no step). */
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE], double *z);
 /* The default request runs the feature-aware stage when the creases the
  * linear fairing holds (mcf__creases) are at least FEATURE_CREASE_SHARE of
  * the vertices it moves and at most FEATURE_CREASE_MAX. Measured with

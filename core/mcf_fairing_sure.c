@@ -372,8 +372,10 @@ int mcf__fair_pick_explicit(const fair_ctx *i, const fair_ctx *e)
     return gain > 0.0 && gain * gain >= PICK_MIN_GAIN * PICK_MIN_GAIN * var;
 }
 
-int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE])
+int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double kdiv[NPROBE], double *z)
 {
+    if (z)
+        *z = NAN;
     if (n->kbest == 0 || n->nprobe != c->nprobe || !(c->s > 0.0) || c->nfree == 0)
         return 0;
     /* c's weights are the areas over their mean on its own free vertices,
@@ -405,6 +407,8 @@ int mcf__fair_pick_uncreased(const fair_ctx *c, const fair_ctx *n, const double 
         est[q] = c->trbest[q] * ratio + kdiv[q] - n->trbest[q];
     double dtr = mcf__fair_mean_trace(est, c->nprobe, &vtr), gain = c->risk * ratio + kept - n->risk;
     double var = gain_var(n, s2, n->nfree, dd[0], dd[1], dtr, vtr);
+    if (z && var > 0.0)
+        *z = gain / sqrt(var);
     return gain > 0.0 && gain * gain >= UNCREASE_MIN_GAIN * UNCREASE_MIN_GAIN * var;
 }
 

@@ -1286,8 +1286,10 @@ static mcf_mesh *folded_sheet(int n)
  * picks above 150,000 vertices) on clean + noise rho (seed 1), the second
  * look judged near the creases and, as a reference, on the whole mesh
  * (fairing_look_whole): the same choice, then the same output to the bit,
- * and the first judged on the submesh. 1 when the creases were held. */
-static int look_near_agrees(const mcf_mesh *clean, const char *name, double rho)
+ * and the first judged as look says (crease_look_near: 1 on the submesh,
+ * 2 near a sample of the chains, 0 on the whole mesh after all). 1 when
+ * the creases were held. */
+static int look_near_agrees_as(const mcf_mesh *clean, const char *name, double rho, int look)
 {
     mcf_flow_stats st[2];
     mcf_mesh *out[2];
@@ -1304,7 +1306,7 @@ static int look_near_agrees(const mcf_mesh *clean, const char *name, double rho)
     }
     print_message("%s rho %.2f: crease vertices held %d near, %d whole; error %.4f\n", name, rho,
                   st[0].crease_vertices, st[1].crease_vertices, rms(out[0], clean));
-    assert_int_equal(st[0].crease_look_near, 1);
+    assert_int_equal(st[0].crease_look_near, look);
     assert_int_equal(st[1].crease_look_near, 0);
     assert_int_equal(st[0].crease_vertices, st[1].crease_vertices);
     assert_memory_equal(mcf_mesh_positions(out[0]), mcf_mesh_positions(out[1]),
@@ -1315,6 +1317,104 @@ static int look_near_agrees(const mcf_mesh *clean, const char *name, double rho)
         mcf_mesh_free(out[w]);
     }
     return held;
+}
+
+static int look_near_agrees(const mcf_mesh *clean, const char *name, double rho)
+{
+    return look_near_agrees_as(clean, name, rho, 1);
+}
+
+/* m with every triangle split in four at its edges' midpoints
+ * (lab/bench/scale_mesh.py's split: the corners first, then one vertex
+ * per edge in the order the faces meet them). */
+static mcf_mesh *split4(const mcf_mesh *m)
+{
+    int nv = mcf_mesh_nvertices(m), nf = mcf_mesh_nfaces(m), cap = 1;
+    const double *X = mcf_mesh_positions(m);
+    const int32_t *F = mcf_mesh_faces(m);
+    while (cap < 8 * nf)
+        cap *= 2;
+    int64_t *key = malloc(sizeof(int64_t) * (size_t)cap);
+    int32_t *mid = malloc(sizeof(int32_t) * (size_t)cap), *F2 = malloc(sizeof(int32_t) * 12 * (size_t)nf);
+    double *X2 = malloc(sizeof(double) * 3 * ((size_t)nv + 3 * (size_t)nf));
+    assert_true(key && mid && F2 && X2);
+    for (int k = 0; k < cap; k++)
+        key[k] = -1;
+    memcpy(X2, X, sizeof(double) * 3 * (size_t)nv);
+    int n = nv;
+    for (int f = 0; f < nf; f++) {
+        int32_t v[3] = {F[3 * f], F[3 * f + 1], F[3 * f + 2]}, e[3];
+        for (int k = 0; k < 3; k++) {
+            int a = v[k], b = v[(k + 1) % 3];
+            int64_t kk = a < b ? (int64_t)a * nv + b : (int64_t)b * nv + a;
+            size_t h = (size_t)(mcf__mix64((uint64_t)kk) & (uint64_t)(cap - 1));
+            while (key[h] >= 0 && key[h] != kk)
+                h = (h + 1) & (size_t)(cap - 1);
+            if (key[h] < 0) {
+                key[h] = kk;
+                mid[h] = n;
+                for (int d = 0; d < 3; d++)
+                    X2[3 * (size_t)n + d] = 0.5 * (X[3 * a + d] + X[3 * b + d]);
+                n++;
+            }
+            e[k] = mid[h];
+        }
+        int32_t t[12] = {v[0], e[0], e[2], e[0], v[1], e[1], e[2], e[1], v[2], e[0], e[1], e[2]};
+        memcpy(F2 + 12 * (size_t)f, t, sizeof t);
+    }
+    mcf_mesh *out = mcf_mesh_new(n, X2, 4 * nf, F2, NULL);
+    assert_non_null(out);
+    free(key);
+    free(mid);
+    free(F2);
+    free(X2);
+    return out;
+}
+
+/* The 7M scan's construction (lab/bench/scale_mesh.py: a scan split
+ * twice, every triangle into 16 coplanar ones, so that the curvature sits
+ * on the original edges, which read as creases) on an icosphere of level
+ * `level` whose radii are jittered by +-1 of its mean edge (seed 5). */
+static mcf_mesh *jittered_split_sphere(int level)
+{
+    mcf_error err = {0};
+    mcf_mesh_info info;
+    mcf_mesh *ico = mcf_mesh_new_icosphere(level, 1.0, &err);
+    assert_non_null(ico);
+    assert_int_equal(mcf_mesh_inspect(ico, &info, NULL), MCF_OK);
+    int nv = mcf_mesh_nvertices(ico);
+    double *X = mcf_mesh_positions_mut(ico);
+    uint64_t r = 5;
+    for (int i = 0; i < nv; i++) {
+        double f = 1.0 + info.mean_edge * (2.0 * tl_uniform01(&r) - 1.0);
+        for (int d = 0; d < 3; d++)
+            X[3 * i + d] *= f;
+    }
+    mcf_mesh *s1 = split4(ico), *s2 = split4(s1);
+    mcf_mesh_free(ico);
+    mcf_mesh_free(s1);
+    return s2;
+}
+
+/* Where the crease vertices' submesh is most of the mesh, the choice is
+ * judged near a sample of their chains (crease_look_near 2) when the
+ * sample's z is past SUB_SAMPLE_Z (mcf_fairing_sub.c), with the whole
+ * mesh's choice and output to the bit: level 5 (163,842 vertices, 3,905
+ * crease vertices, their submesh 48% of the mesh) at 0.1 mean edges, held
+ * (measured: z -13.6 on the sample). Else the whole mesh judges
+ * (crease_look_near 0): level 4 (40,962 vertices) at 0.5, where the whole
+ * mesh takes none held and the sample reads z -2.5, the other side (a
+ * threshold under 2.5 would hold them). About 4 s of CPU. */
+static void test_look_near_sample(void **state)
+{
+    mcf_mesh *big = jittered_split_sphere(5), *small = jittered_split_sphere(4);
+    (void)state;
+    assert_int_equal(mcf_mesh_nvertices(big), 163842);
+    assert_int_equal(mcf_mesh_nvertices(small), 40962);
+    assert_true(look_near_agrees_as(big, "jittered icosphere 5 split twice", 0.1, 2));
+    assert_false(look_near_agrees_as(small, "jittered icosphere 4 split twice", 0.5, 0));
+    mcf_mesh_free(big);
+    mcf_mesh_free(small);
 }
 
 /* The passes judge holding the creases or not on the submesh near them
@@ -1611,6 +1711,7 @@ int main(void)
         cmocka_unit_test(test_creases_by_sure),
         cmocka_unit_test(test_look_near_creases),
         cmocka_unit_test(test_look_near_creases_scan),
+        cmocka_unit_test(test_look_near_sample),
         cmocka_unit_test(test_feature_box),
         cmocka_unit_test(test_clean_box_on_grid),
         cmocka_unit_test(test_feature_before_uncreased),
