@@ -614,9 +614,13 @@ typedef enum {
 /* One step of the flow, as the progress hook sees it. */
 typedef struct {
     int step;
-    double t, dt, energy;
-    double volume;             /* the step log's (mcf_mesh_volume, input
-                                  units); NaN without a log (no metrics) */
+    double t, dt;
+    double energy;             /* the step log's area (input units; the
+                                  core's mcf_progress_fn), and */
+    double volume;             /* its volume (mcf_mesh_volume, input
+                                  units): NaN both without a log (no
+                                  metrics, or the light document), so
+                                  a step costs no pass of its own */
     double t_target;           /* the run's total time once the core knows
                                   it (0: the run counts steps) */
     double threads_cpu_s;      /* CPU seconds of the threads the flow

@@ -243,7 +243,7 @@ static void flow_warnings(const flow_ctx *c, const double *X_in, mcf_flow_stats 
 
 /* The fairing filter's view of the run (mcf__step_hook): the cancel flag
  * before a step; the step log, the progress callback (t = the step
- * count, dt = 1, energy the area) after it. */
+ * count, dt = 1, energy the log's area, NaN without it) after it. */
 typedef struct {
     flow_ctx *c;
     double scale;
@@ -277,11 +277,9 @@ static int fairing_hook(void *ctx, int k, const double *X)
     }
     if (!p->progress)
         return 0;
-    /* the energy, the area in input units: the log's when it has this
-     * step (the same sum, in input units as it adds it), else one sweep */
-    double area = logged ? c->st->log[k - 1].area
-                         : mcf__area_volume(X, c->F, c->nf, NULL, NULL) / (h->scale * h->scale);
-    return p->progress(p->progress_ctx, k, k, 1.0, area);
+    /* the energy: the log's area (input units) when it has this step; no
+     * sweep of its own (mcf_progress_fn) */
+    return p->progress(p->progress_ctx, k, k, 1.0, logged ? c->st->log[k - 1].area : NAN);
 }
 
 /* mcf_flow_run for the fairing filters, from the normalized positions on:
@@ -814,9 +812,11 @@ static mcf_status run_steps(flow_ctx *c, run_plan *r, mcf_error *err)
                 return unstable(c, err, !finite ? r->k + 1 : r->k, r->h, !finite ? 0.0 : grown);
         }
         accept_step(c, r, h_next);
+        /* the energy: the log's area of this step when it has it (input
+         * units), else NaN (mcf_progress_fn) */
         if (p->progress &&
             p->progress(p->progress_ctx, r->k, r->t, r->hist.h1,
-                        mcf__area_volume(c->X, c->F, c->nf, NULL, NULL) / (r->scale * r->scale)))
+                        c->st->log && c->st->nlog >= r->k ? c->st->log[r->k - 1].area : NAN))
             return mcf__fail(err, MCF_ECANCELED, "canceled by the progress callback at step %d", r->k);
         if (p->work)
             p->work(p->progress_ctx, "steps", r->T > 0.0 ? fmin(1.0, r->t / r->T) : 0.0);

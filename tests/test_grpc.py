@@ -643,6 +643,16 @@ def test_jobs_visible_through_both_doors():
     g = MAIN.stub.GetJob(pb.GetJobRequest(id=job.id))
     assert g.status == pb.Job.SUCCEEDED and json.loads(g.metrics)["job"] == job.id
     assert g.progress.step == 5 and g.progress.fraction == 1 and g.finished
+    # a SubmitJob without a target keeps no step log: no energy or volume
+    # (REST null), where a measured job has the last step's
+    assert not g.progress.HasField("energy") and not g.progress.HasField("volume")
+    assert j["progress"]["energy"] is None and j["progress"]["volume"] is None
+    st, _, body = MAIN.rest("POST", "/v1/jobs?measures=true&" + query(params), data)
+    mid = json.loads(body)["id"]
+    MAIN.wait_job(mid, ("succeeded",))
+    gm = MAIN.stub.GetJob(pb.GetJobRequest(id=mid))
+    assert gm.progress.HasField("energy") and gm.progress.energy > 0
+    assert gm.progress.HasField("volume")
     # REST -> gRPC
     st, _, body = MAIN.rest("POST", "/v1/jobs?" + query(params), data)
     assert st == 202, (st, body[:300])

@@ -1436,6 +1436,72 @@ static void test_metrics_same_as_cli(void **state)
     assert_int_equal(tl_mcf_teardown(), 0);
 }
 
+/* The step events of finished job id, replayed by its SSE stream: with
+ * the measures (m its measured document) each carries its step's energy
+ * and volume from the step log, the last step's energy the output's area
+ * as the document's measures found it (mcf_mesh_inspect, not the log's
+ * sum: relative 1e-12 for sums over 98 faces in different orders); the
+ * job's progress the last of them. Without (m the light document) both
+ * are null in every event and in the progress (the core made no pass
+ * over the faces for them: test_core_flow's test_progress_energy). */
+static void check_step_events(const char *id, const cJSON *m, int measured, int steps)
+{
+    const cJSON *log = cJSON_GetObjectItemCaseSensitive(
+        cJSON_GetObjectItemCaseSensitive(m, "flow"), "log");
+    char path[160];
+    const char *p;
+    resp_t r;
+    cJSON *j, *pr;
+    int n = 0;
+    double last = NAN;
+
+    snprintf(path, sizeof path, "/v1/jobs/%s/events", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "events");
+    for (p = r.body.data; (p = strstr(p, "event: progress\ndata: ")) != NULL; n++) {
+        const cJSON *e, *v;
+        p += strlen("event: progress\ndata: ");
+        j = cJSON_ParseWithOpts(p, NULL, 0);
+        assert_non_null(j);
+        assert_int_equal((int)jnum(j, "step"), n + 1);
+        e = cJSON_GetObjectItemCaseSensitive(j, "energy");
+        v = cJSON_GetObjectItemCaseSensitive(j, "volume");
+        if (!measured) {
+            assert_true(cJSON_IsNull(e) && cJSON_IsNull(v));
+        } else {
+            const cJSON *L = cJSON_GetArrayItem(log, n);
+            assert_non_null(L);
+            assert_true(cJSON_IsNumber(e) && cJSON_IsNumber(v));
+            /* the log's numbers: the event prints 17 digits, cJSON the
+             * document's 15 when they read back within DBL_EPSILON */
+            tl_assert_near(e->valuedouble, jnum(L, "area"), 1e-15 * fabs(e->valuedouble),
+                           "streamed energy = logged area");
+            tl_assert_near(v->valuedouble, jnum(L, "volume"), 1e-15 * fabs(v->valuedouble),
+                           "streamed = logged volume");
+            last = e->valuedouble;
+        }
+        cJSON_Delete(j);
+    }
+    assert_int_equal(n, steps);
+    resp_free(&r);
+    if (measured)
+        tl_assert_near(last, jnum(m, "output.info.area"), 1e-12 * last,
+                       "last step's energy = output.info.area");
+    snprintf(path, sizeof path, "/v1/jobs/%s", id);
+    http(&g_main, "GET", path, NULL, NULL, &r);
+    expect_status(&g_main, &r, 200, "job");
+    j = body_json(&r, "job");
+    pr = cJSON_GetObjectItemCaseSensitive(j, "progress");
+    if (measured)
+        tl_assert_near(jnum(pr, "energy"), last, 1e-15 * last, "progress.energy = last step's");
+    else
+        assert_true(cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(pr, "energy")));
+    assert_true(measured ? cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(pr, "volume"))
+                         : cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(pr, "volume")));
+    cJSON_Delete(j);
+    resp_free(&r);
+}
+
 /* Diagnostics cost nothing unless asked for (issue 27): a job whose
  * request did not ask for the measures (measures=true, a target, fields,
  * the metrics with the result) gets the light document: every key, the
@@ -1443,7 +1509,8 @@ static void test_metrics_same_as_cli(void **state)
  * before and after, timings.metrics_s), measured false, no step log; its
  * output counts, area and volume are the flow's, equal to what the
  * measured document of the same request says (relative 1e-12: the flow's
- * sums and mcf_mesh_inspect's run over the faces in different orders). */
+ * sums and mcf_mesh_inspect's run over the faces in different orders);
+ * its step events carry energy and volume null (check_step_events). */
 static void test_metrics_light_unless_asked(void **state)
 {
     static const char *const h[] = {"Content-Type: model/obj", NULL};
@@ -1478,6 +1545,7 @@ static void test_metrics_light_unless_asked(void **state)
         assert_non_null(header(&r, "X-Job-Id", id, sizeof id));
         m[k] = follow_metrics_link(&g_main, &r, id);
         resp_free(&r);
+        check_step_events(id, m[k], k, 3);
     }
     assert_true(cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(m[0], "measured")));
     assert_true(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(m[1], "measured")));

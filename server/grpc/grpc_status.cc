@@ -6,6 +6,7 @@
  * conversions between the proto's messages and the service's (Params as
  * REST's params object, the Job from the service's snapshot).
  */
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <vector>
@@ -166,8 +167,11 @@ bool fill_job(svc_job *j, pb::Job *out)
     if (s.step > 0) {
         g2->set_t(s.t);
         g2->set_dt(s.dt);
-        g2->set_energy(s.energy);
-        g2->set_volume(s.volume);
+        /* unset without the job's step log (REST null) */
+        if (std::isfinite(s.energy))
+            g2->set_energy(s.energy);
+        if (std::isfinite(s.volume))
+            g2->set_volume(s.volume);
     }
     g2->set_fraction(s.fraction);
     g2->set_phase(s.phase);

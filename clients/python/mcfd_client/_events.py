@@ -4,7 +4,11 @@ doors and for the in-process `mcf.smooth`: {step, t, dt, energy, volume,
 phase, done}.
 
 A step of the flow fills step, t, dt, energy and volume (phase "steps",
-done None: the daemon's step events carry no share); one of the core's
+done None: the daemon's step events carry no share); energy (the area)
+and volume are the run's step log's, so a run that keeps none gives None
+(REST), 0 (gRPC WatchJob) or NaN (mcf.smooth without with_metrics): the
+daemon keeps it when the request asked for the measures, and for every
+streamed call (smooth with progress); one of the core's
 milestones between steps (the default request's spike repair, noise
 reading, set-up and passes) fills step (the steps so far), phase and done
 (the job's share of work, 0..1), the others None.
