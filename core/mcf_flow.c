@@ -333,6 +333,7 @@ typedef struct {
     double last_ratio, last_h; /* the estimate's rejection at this t: est/allowed, h */
     double overspent;       /* the share of the budget stiff events took */
     double last_rms, last_max; /* that rejection's RMS and max parts of est/allowed */
+    double waived_max;      /* the largest max part of est/allowed waived since the last step whose max met its allowance, else 0 */
     history hist;
 } run_plan;
 
@@ -645,6 +646,17 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, step_est est, int fin
         over_max = 0;
         waived = 1;
     }
+    /* That level is remembered: a max that was waived stays waived up to
+     * the largest level waived since the last step whose max met its
+     * allowance. Without it every step through such a stretch paid a
+     * rejection first (fertility, strength 0.5, tol 1e-5: from t =
+     * 0.71 T every step was rejected once and waived at the next try,
+     * 8 rejections in the last 9 steps); the RMS still sizes the step,
+     * and the max is never accepted above a level already waived. */
+    if (over_max && r->waived_max > 0.0 && e_max <= r->waived_max && r->rejected_here == 0) {
+        over_max = 0;
+        waived = 1;
+    }
     if (!finite || folds || over || over_max) {
         if (over || over_max) {
             r->last_ratio = e;
@@ -668,6 +680,7 @@ static int adapt(flow_ctx *c, run_plan *r, mcf_status *rc, step_est est, int fin
     }
     *rc = MCF_OK;
     r->last_ratio = 0.0;
+    r->waived_max = waived ? fmax(r->waived_max, e_max) : 0.0;
     r->folds_total += inv;
     /* desbrun2's second step reuses h: BDF2 starts at ratio 1 */
     c->st->error_estimate += need_est ? est.rms : 0.0;
