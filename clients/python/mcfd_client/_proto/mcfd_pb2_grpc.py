@@ -67,8 +67,9 @@ class SmootherServicer(object):
         """The same upload; answers as soon as the job is queued, with the Job
         (follow it with WatchJob, GetJob or REST /v1/jobs/{id}). Its metrics
         document is the light one (Metrics.measured false in openapi.yaml:
-        no mesh measures, no step log) unless a target came with it; Smooth's
-        is always measured, as its reply carries it.
+        no mesh measures, no step log, so WatchJob's steps carry no energy
+        or volume) unless a target came with it; Smooth's is always measured,
+        as its reply carries it.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
