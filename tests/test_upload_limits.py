@@ -267,7 +267,14 @@ def test_refused_at_decode_leaves_its_input_off_the_spool():
             with urllib.request.urlopen("%s/v1/jobs/%s" % (d.url, jid), timeout=30) as r:
                 job = json.loads(r.read())
         assert job["status"] == "failed" and job["error"]["code"] == "ELIMIT", job
+        # emptied just after the outcome is published (svc_job.c: the
+        # state is recorded first, so a crash in between cannot leave a
+        # queued job without its input): a moment later, not at the TTL;
+        # 10 s bounds that moment under any load
         inp = os.path.join(TMP, "refused", "jobs", jid, "input")
+        end = time.time() + 10
+        while os.path.getsize(inp) != 0 and time.time() < end:
+            time.sleep(0.05)
         assert os.path.getsize(inp) == 0, os.path.getsize(inp)
         assert os.path.getsize(os.path.join(TMP, "refused", "jobs", jid, "state.json")) > 0
         print("    a job refused at decode: its 96 kB input emptied at its end (before: "
