@@ -120,6 +120,18 @@ static draco_grid grid_of(const float *origin, int n, float range, int bits)
     return g;
 }
 
+/* The grid cell libdraco's quantizer gives v (draco::Quantizer::
+ * QuantizeFloat after AttributeQuantizationTransform's subtraction of the
+ * origin), in float32 as it computes it: floor((v - origin) * inv + 0.5),
+ * as a double so that a NaN or an overflow can be told apart before any
+ * conversion to int. */
+static double draco_cell(float v, float origin, float inv)
+{
+    float d = v - origin;
+    d *= inv;
+    return std::floor(static_cast<double>(d + 0.5f));
+}
+
 /* 1 when the value v of component c comes back bit for bit through g.
  * Checking every value is what "the input's grid keeps every value"
  * means: a value merely inside the range may sit between two grid points,
@@ -128,9 +140,7 @@ static draco_grid grid_of(const float *origin, int n, float range, int bits)
  * face collapses. */
 static bool on_draco_grid(float v, int c, const draco_grid &g)
 {
-    float d = v - g.origin[c];
-    d *= g.inv;
-    const double qd = std::floor(static_cast<double>(d + 0.5f));
+    const double qd = draco_cell(v, g.origin[c], g.inv);
     if (!(qd >= 0.0 && qd <= static_cast<double>(g.maxq)))
         return false;
     const float back = static_cast<float>(static_cast<int32_t>(qd)) * g.delta + g.origin[c];
@@ -168,9 +178,7 @@ static int bits_keeping_points(const unsigned char *data, int vsize, int n, int 
             p.v.fill(0.0f);
             for (int c = 0; c < ncomp; c++) {
                 std::memcpy(&p.v[c], data + static_cast<size_t>(i) * vsize + 4 * c, 4);
-                float d = p.v[c] - lo[c];
-                d *= inv;
-                const double qd = std::floor(static_cast<double>(d + 0.5f));
+                const double qd = draco_cell(p.v[c], lo[c], inv);
                 /* a NaN or a value off [lo, hi] (none: lo and hi are theirs) */
                 p.q[c] = qd >= 0.0 && qd <= 16777216.0 ? static_cast<int32_t>(qd) : -1;
             }
