@@ -1077,6 +1077,54 @@ static void add_corr_noise(double *X, const double *N, const int *ptr, const int
     free(t);
 }
 
+/* A clean shared mesh with what a `corr` draw on it needs: its free
+ * vertices (boundary_reference), neighbours, vertex normals, mean edge h,
+ * and X, a copy of its positions to draw into (corr_draw). */
+typedef struct {
+    mcf_mesh *clean;
+    int nv, nf, *ptr, *adj;
+    const int32_t *F;
+    double *X, *N, h;
+    unsigned char *fixed;
+} corr_fixture;
+
+static void corr_fixture_load(corr_fixture *f, const char *name)
+{
+    mcf_mesh_info info;
+    f->clean = tl_load(name);
+    f->nv = mcf_mesh_nvertices(f->clean);
+    f->nf = mcf_mesh_nfaces(f->clean);
+    f->F = mcf_mesh_faces(f->clean);
+    f->X = malloc(3 * sizeof(double) * (size_t)f->nv);
+    f->N = malloc(3 * sizeof(double) * (size_t)f->nv);
+    assert_non_null(f->X);
+    assert_non_null(f->N);
+    f->fixed = boundary_reference(f->F, f->nf, f->nv);
+    assert_int_equal(mcf_mesh_inspect(f->clean, &info, NULL), MCF_OK);
+    f->h = info.mean_edge;
+    adjacency(f->F, f->nf, f->nv, &f->ptr, &f->adj);
+    normals_reference(mcf_mesh_positions(f->clean), f->F, f->nf, f->nv, f->N);
+}
+
+/* X = the clean positions plus add_corr_noise's draw (sigma, passes, seed);
+ * sigma 0: the clean positions. */
+static void corr_draw(corr_fixture *f, double sigma, int passes, uint64_t seed)
+{
+    memcpy(f->X, mcf_mesh_positions(f->clean), 3 * sizeof(double) * (size_t)f->nv);
+    if (sigma > 0.0)
+        add_corr_noise(f->X, f->N, f->ptr, f->adj, f->fixed, f->nv, sigma, passes, seed);
+}
+
+static void corr_fixture_free(corr_fixture *f)
+{
+    free(f->ptr);
+    free(f->adj);
+    free(f->fixed);
+    free(f->X);
+    free(f->N);
+    mcf_mesh_free(f->clean);
+}
+
 /* mcf__fair_coarse_level on blade.obj (a plated part) and spot.obj (an
  * organic one), clean and with noise of 0.1 h drawn here: the plated share
  * against numpy (lab/results/quality/issue31-corr/plated.py, an
@@ -1097,26 +1145,18 @@ static void test_coarse_level(void **state)
     for (int q = 0; q < 2; q++)
         tl_need_mesh(names[q]);
     for (int q = 0; q < 2; q++) {
-        mcf_mesh *clean = tl_load(names[q]);
-        mcf_mesh_info info;
+        corr_fixture f;
         mcf__graph g;
-        int nv = mcf_mesh_nvertices(clean), nf = mcf_mesh_nfaces(clean), *ptr, *adj;
-        const int32_t *F = mcf_mesh_faces(clean);
-        double *X = malloc(3 * sizeof(double) * (size_t)nv), *N = malloc(3 * sizeof(double) * (size_t)nv);
-        unsigned char *fixed = boundary_reference(F, nf, nv);
-        assert_non_null(X);
-        assert_non_null(N);
-        assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
-        assert_int_equal(mcf__graph_build(F, nf, nv, &g, NULL), MCF_OK);
-        adjacency(F, nf, nv, &ptr, &adj);
-        normals_reference(mcf_mesh_positions(clean), F, nf, nv, N);
-        double h = info.mean_edge;
+        corr_fixture_load(&f, names[q]);
+        assert_int_equal(mcf__graph_build(f.F, f.nf, f.nv, &g, NULL), MCF_OK);
+        const int32_t *F = f.F;
+        int nv = f.nv, nf = f.nf;
+        double *X = f.X, h = f.h;
+        const unsigned char *fixed = f.fixed;
         for (int kind = 0; kind < 5; kind++) { /* clean, corr seeds 1-3, white */
             double plated = -1.0, level = -1.0, s_white = 0.0;
             mcf_error err = {0};
-            memcpy(X, mcf_mesh_positions(clean), 3 * sizeof(double) * (size_t)nv);
-            if (kind > 0)
-                add_corr_noise(X, N, ptr, adj, fixed, nv, 0.1 * h, kind < 4 ? 9 : 0, (uint64_t)(kind < 4 ? kind : 1));
+            corr_draw(&f, kind > 0 ? 0.1 * h : 0.0, kind < 4 ? 9 : 0, (uint64_t)(kind < 4 ? kind : 1));
             assert_int_equal(mcf__noise_levels(&g, X, F, nf, nv, fixed, &s_white, NULL, NULL, NULL, &err), MCF_OK);
             assert_int_equal(mcf__fair_coarse_level(&g, X, F, nf, nv, fixed, s_white, &plated, &level, &err), MCF_OK);
             print_message("%-10s %s: plated %.6f, fine reading %.4f h, coarse level %.4f h\n", names[q],
@@ -1134,13 +1174,8 @@ static void test_coarse_level(void **state)
             else
                 assert_true(level <= CORR_LEVEL_WHITE * h);
         }
-        free(ptr);
-        free(adj);
-        free(fixed);
-        free(X);
-        free(N);
         mcf__graph_free(&g);
-        mcf_mesh_free(clean);
+        corr_fixture_free(&f);
     }
 }
 
@@ -1155,25 +1190,15 @@ static void test_corr_blade(void **state)
 {
     (void)state;
     tl_need_mesh("blade.obj");
-    mcf_mesh *clean = tl_load("blade.obj");
-    mcf_mesh_info info;
+    corr_fixture f;
     mcf_flow_stats st;
-    int nv = mcf_mesh_nvertices(clean), nf = mcf_mesh_nfaces(clean), *ptr, *adj;
-    const int32_t *F = mcf_mesh_faces(clean);
-    double *X = malloc(3 * sizeof(double) * (size_t)nv), *N = malloc(3 * sizeof(double) * (size_t)nv);
-    unsigned char *fixed = boundary_reference(F, nf, nv);
-    assert_non_null(X);
-    assert_non_null(N);
-    assert_int_equal(mcf_mesh_inspect(clean, &info, NULL), MCF_OK);
-    adjacency(F, nf, nv, &ptr, &adj);
-    normals_reference(mcf_mesh_positions(clean), F, nf, nv, N);
-    memcpy(X, mcf_mesh_positions(clean), 3 * sizeof(double) * (size_t)nv);
-    add_corr_noise(X, N, ptr, adj, fixed, nv, 0.1 * info.mean_edge, 9, 1);
-    mcf_mesh *m = mcf_mesh_new(nv, X, nf, F, NULL);
+    corr_fixture_load(&f, "blade.obj");
+    corr_draw(&f, 0.1 * f.h, 9, 1);
+    mcf_mesh *m = mcf_mesh_new(f.nv, f.X, f.nf, f.F, NULL);
     assert_non_null(m);
-    double in = rms(m, clean);
+    double in = rms(m, f.clean);
     run_default(m, &st);
-    double e = rms(m, clean);
+    double e = rms(m, f.clean);
     print_message("blade.obj corr 0.1: noise read %.4f, K=%d, filter %d, error/input %.4f\n", st.noise, st.steps,
                   st.filter, e / in);
     tl_assert_near(st.noise, 0.1, 0.1 * CORR_LEVEL_TOL, "the level read");
@@ -1182,12 +1207,7 @@ static void test_corr_blade(void **state)
     assert_true(e <= CORR_BLADE_ERROR * in);
     mcf_flow_stats_free(&st);
     mcf_mesh_free(m);
-    free(ptr);
-    free(adj);
-    free(fixed);
-    free(X);
-    free(N);
-    mcf_mesh_free(clean);
+    corr_fixture_free(&f);
 }
 
 /* No harm (issue 31: "a clean mesh moved <= 0.1x the error of 0.1 h
